@@ -8,4 +8,6 @@
 //! This crate has no file formats and never prints: readers and writers live in
 //! `jointfit-io`, the command line in `jointfit-cli`.
 
+#[doc(hidden)]
+pub mod testing;
 pub mod trial;
