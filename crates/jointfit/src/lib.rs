@@ -8,6 +8,8 @@
 //! This crate has no file formats and never prints: readers and writers live in
 //! `jointfit-io`, the command line in `jointfit-cli`.
 
+pub mod kinematics;
+pub mod model;
 #[doc(hidden)]
 pub mod testing;
 pub mod trial;

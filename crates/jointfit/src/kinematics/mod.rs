@@ -1,0 +1,246 @@
+//! Forward kinematics and exact marker Jacobians with respect to coordinates and parameters.
+//!
+//! ## Math
+//! The pose of a segment is a product of elementary transforms `E_k(s_k)`, each a rotation
+//! about, or a translation along, a unit axis `a_k` of the frame it acts in, by a scalar
+//! `s_k = c_k · x_k` where `x_k` is a coordinate `q_i`, a parameter `p_j` or a constant
+//! (see [`crate::model`]). For a marker at world position `m`, downstream of step `k`,
+//!
+//! * rotation step: `∂m/∂s_k = ω_k × (m − o_k)`,
+//! * translation step: `∂m/∂s_k = ω_k`,
+//!
+//! where `ω_k = R_k a_k` is the step's axis and `o_k` the origin of the frame it acts in, both
+//! in world coordinates (`R_k`, `o_k`: the pose accumulated just before step `k`). By the
+//! chain rule `∂m/∂x = Σ_k c_k ∂m/∂s_k` over the steps that read `x`. These are the usual
+//! geometric (screw) Jacobian columns; the same rule serves `q` and `p`, which is why the
+//! model treats parameters as inputs like coordinates (ARCHITECTURE.md §4).
+//!
+//! [`fd`] holds the central finite-difference twins used as test oracles.
+
+pub mod fd;
+
+use nalgebra::{DMatrix, Matrix3, Vector3};
+
+use crate::model::{Model, Motion, Source};
+
+/// A rigid transform `x ↦ rot · x + trans` (`a_from_b` maps b-coordinates into a).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pose {
+    pub rot: Matrix3<f64>,
+    pub trans: Vector3<f64>,
+}
+
+impl Pose {
+    pub fn identity() -> Self {
+        Pose {
+            rot: Matrix3::identity(),
+            trans: Vector3::zeros(),
+        }
+    }
+    pub fn new(rot: Matrix3<f64>, trans: Vector3<f64>) -> Self {
+        Pose { rot, trans }
+    }
+    pub fn is_identity(&self) -> bool {
+        self.trans == Vector3::zeros() && self.rot == Matrix3::identity()
+    }
+    /// `self · other`.
+    pub fn compose(&self, other: &Pose) -> Pose {
+        Pose {
+            rot: self.rot * other.rot,
+            trans: self.trans + self.rot * other.trans,
+        }
+    }
+    pub fn inverse(&self) -> Pose {
+        let rt = self.rot.transpose();
+        Pose {
+            rot: rt,
+            trans: -(rt * self.trans),
+        }
+    }
+    pub fn transform_point(&self, x: &Vector3<f64>) -> Vector3<f64> {
+        self.rot * x + self.trans
+    }
+
+    /// Right-multiplies by one elementary transform: `self ← self · E(value)`.
+    #[inline]
+    pub(crate) fn apply(&mut self, motion: &Motion, value: f64) {
+        match motion {
+            Motion::RotX => {
+                let (s, c) = value.sin_cos();
+                let (c1, c2) = (
+                    self.rot.column(1).into_owned(),
+                    self.rot.column(2).into_owned(),
+                );
+                self.rot.set_column(1, &(c * c1 + s * c2));
+                self.rot.set_column(2, &(c * c2 - s * c1));
+            }
+            Motion::RotY => {
+                let (s, c) = value.sin_cos();
+                let (c0, c2) = (
+                    self.rot.column(0).into_owned(),
+                    self.rot.column(2).into_owned(),
+                );
+                self.rot.set_column(0, &(c * c0 - s * c2));
+                self.rot.set_column(2, &(s * c0 + c * c2));
+            }
+            Motion::RotZ => {
+                let (s, c) = value.sin_cos();
+                let (c0, c1) = (
+                    self.rot.column(0).into_owned(),
+                    self.rot.column(1).into_owned(),
+                );
+                self.rot.set_column(0, &(c * c0 + s * c1));
+                self.rot.set_column(1, &(c * c1 - s * c0));
+            }
+            Motion::Rot(axis) => {
+                let r = nalgebra::Rotation3::from_axis_angle(axis, value);
+                self.rot *= r.matrix();
+            }
+            Motion::TransX => self.trans += value * self.rot.column(0),
+            Motion::TransY => self.trans += value * self.rot.column(1),
+            Motion::TransZ => self.trans += value * self.rot.column(2),
+            Motion::Trans(axis) => self.trans += value * (self.rot * axis.into_inner()),
+            Motion::Fixed(p) => {
+                self.trans += self.rot * p.trans;
+                self.rot *= p.rot;
+            }
+        }
+    }
+
+    /// The world direction of a step's axis when the accumulated pose is `self`.
+    #[inline]
+    fn axis_of(&self, motion: &Motion) -> Vector3<f64> {
+        match motion {
+            Motion::RotX | Motion::TransX => self.rot.column(0).into_owned(),
+            Motion::RotY | Motion::TransY => self.rot.column(1).into_owned(),
+            Motion::RotZ | Motion::TransZ => self.rot.column(2).into_owned(),
+            Motion::Rot(a) | Motion::Trans(a) => self.rot * a.into_inner(),
+            Motion::Fixed(_) => Vector3::zeros(),
+        }
+    }
+}
+
+/// Per-evaluation workspace: one per thread or particle. The model stays immutable.
+#[derive(Debug, Clone)]
+pub struct KinData {
+    /// `world_from_segment` for every segment.
+    pub segment_poses: Vec<Pose>,
+    /// Marker positions in world coordinates (m), model marker order.
+    pub markers: Vec<Vector3<f64>>,
+    /// `∂(marker coordinates)/∂q`: `3·n_markers × n_q`, row `3j + k` is axis k of marker j.
+    pub jq: DMatrix<f64>,
+    /// `∂(marker coordinates)/∂p`: `3·n_markers × n_p`, same row layout.
+    pub jp: DMatrix<f64>,
+    /// Per step: world axis `ω_k` (zero for constant steps).
+    step_axis: Vec<Vector3<f64>>,
+    /// Per step: world origin `o_k` of the frame the step acts in.
+    step_origin: Vec<Vector3<f64>>,
+}
+
+impl KinData {
+    pub fn new(model: &Model) -> Self {
+        let nm = model.n_markers();
+        KinData {
+            segment_poses: vec![Pose::identity(); model.segments.len()],
+            markers: vec![Vector3::zeros(); nm],
+            jq: DMatrix::zeros(3 * nm, model.n_q()),
+            jp: DMatrix::zeros(3 * nm, model.n_p()),
+            step_axis: vec![Vector3::zeros(); model.steps.len()],
+            step_origin: vec![Vector3::zeros(); model.steps.len()],
+        }
+    }
+}
+
+/// Which Jacobians [`forward_kinematics`] computes besides the poses and marker positions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Want {
+    pub dq: bool,
+    pub dp: bool,
+}
+
+impl Want {
+    pub const POSITIONS: Want = Want {
+        dq: false,
+        dp: false,
+    };
+    pub const DQ: Want = Want {
+        dq: true,
+        dp: false,
+    };
+    pub const BOTH: Want = Want { dq: true, dp: true };
+}
+
+#[inline]
+fn source_value(source: &Source, p: &[f64], q: &[f64]) -> f64 {
+    match *source {
+        Source::Const(v) => v,
+        Source::Coord { index, scale } => scale * q[index],
+        Source::Param { index, scale } => scale * p[index],
+    }
+}
+
+/// Computes segment poses and marker positions for parameters `p` (len `n_p`) and
+/// coordinates `q` (len `n_q`), and the Jacobians that `want` asks for, into `data`.
+///
+/// # Panics
+/// When `p`, `q` or `data` do not match the model's sizes (a programming error).
+pub fn forward_kinematics(model: &Model, p: &[f64], q: &[f64], want: Want, data: &mut KinData) {
+    assert_eq!(p.len(), model.n_p(), "parameter vector length");
+    assert_eq!(q.len(), model.n_q(), "coordinate vector length");
+    assert_eq!(
+        data.markers.len(),
+        model.n_markers(),
+        "workspace built for another model"
+    );
+    let derivatives = want.dq || want.dp;
+    for (s, seg) in model.segments.iter().enumerate() {
+        let mut pose = match seg.parent {
+            Some(parent) => data.segment_poses[parent.0],
+            None => Pose::identity(),
+        };
+        for k in model.step_ranges[s].clone() {
+            let step = &model.steps[k];
+            if derivatives && !matches!(step.source, Source::Const(_)) {
+                data.step_axis[k] = pose.axis_of(&step.motion);
+                data.step_origin[k] = pose.trans;
+            }
+            pose.apply(&step.motion, source_value(&step.source, p, q));
+        }
+        data.segment_poses[s] = pose;
+    }
+    for (m, marker) in model.markers.iter().enumerate() {
+        data.markers[m] = data.segment_poses[marker.segment.0].transform_point(&marker.local);
+    }
+    if !derivatives {
+        return;
+    }
+    if want.dq {
+        data.jq.fill(0.0);
+    }
+    if want.dp {
+        data.jp.fill(0.0);
+    }
+    let nrows = 3 * model.n_markers();
+    for (m, marker) in model.markers.iter().enumerate() {
+        let x = data.markers[m];
+        for &k in &model.chain_vars[marker.segment.0] {
+            let step = &model.steps[k];
+            let (col, scale, target) = match step.source {
+                Source::Coord { index, scale } if want.dq => (index, scale, &mut data.jq),
+                Source::Param { index, scale } if want.dp => (index, scale, &mut data.jp),
+                _ => continue,
+            };
+            let axis = data.step_axis[k];
+            let d = if step.motion.is_rotation() {
+                axis.cross(&(x - data.step_origin[k]))
+            } else {
+                axis
+            };
+            let base = col * nrows + 3 * m;
+            let slice = target.as_mut_slice();
+            slice[base] += scale * d.x;
+            slice[base + 1] += scale * d.y;
+            slice[base + 2] += scale * d.z;
+        }
+    }
+}

@@ -1,0 +1,41 @@
+//! Kinematic models: the description people write ([`spec`]), the compiled model
+//! ([`Model`]), and the built-in sample models ([`lower_limb`]).
+
+mod compiled;
+pub mod lower_limb;
+pub mod spec;
+
+pub use compiled::{
+    offset_rotation, CoordId, CoordKind, Coordinate, Joint, JointId, JointKind, Marker, Model,
+    ParamId, ParamUse, Parameter, Segment, SegmentId,
+};
+pub(crate) use compiled::{Motion, Source};
+pub use spec::{ModelSpec, Unit};
+
+use thiserror::Error;
+
+/// Why a model description was rejected. Every message names the offending item.
+#[derive(Debug, Error, PartialEq)]
+pub enum ModelError {
+    #[error("{kind} {name:?} is defined twice")]
+    Duplicate { kind: &'static str, name: String },
+    #[error("{used_by} refers to segment {segment:?}, which is not defined")]
+    UnknownSegment { segment: String, used_by: String },
+    #[error("{used_by} refers to parameter {name:?}, which is not defined")]
+    UnknownParameter { name: String, used_by: String },
+    #[error("parameter {name:?} is declared in {declared:?} but {used_by} needs {needed:?}")]
+    UnitMismatch {
+        name: String,
+        used_by: String,
+        declared: Unit,
+        needed: Unit,
+    },
+    #[error("parameter {name:?}: {detail}")]
+    BadBounds { name: String, detail: String },
+    #[error("{item}: axis {axis:?} is not x, y, z, -x, -y, -z or a non-zero vector")]
+    BadAxis { item: String, axis: String },
+    #[error("{0}")]
+    Invalid(String),
+    #[error("unknown built-in model {name:?}; built-in models: {available}")]
+    UnknownBuiltin { name: String, available: String },
+}

@@ -1,0 +1,5 @@
+//! Integration tests of the core library (one test binary for the crate).
+
+mod kinematics;
+mod models;
+mod sample_models;
