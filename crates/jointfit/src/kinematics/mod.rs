@@ -21,7 +21,8 @@ pub mod fd;
 
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
-use crate::model::{Model, Motion, Source};
+use crate::model::plan::JCol;
+use crate::model::{Item, Model, Motion, Source};
 
 /// A rigid transform `x ↦ rot · x + trans` (`a_from_b` maps b-coordinates into a).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -128,26 +129,72 @@ pub struct KinData {
     /// Marker positions in world coordinates (m), model marker order.
     pub markers: Vec<Vector3<f64>>,
     /// `∂(marker coordinates)/∂q`: `3·n_markers × n_q`, row `3j + k` is axis k of marker j.
-    pub jq: DMatrix<f64>,
+    jq: DMatrix<f64>,
     /// `∂(marker coordinates)/∂p`: `3·n_markers × n_p`, same row layout.
-    pub jp: DMatrix<f64>,
-    /// Per step: world axis `ω_k` (zero for constant steps).
+    jp: DMatrix<f64>,
+    /// Per step: world axis `ω_k` of the last evaluation (variable steps only).
     step_axis: Vec<Vector3<f64>>,
     /// Per step: world origin `o_k` of the frame the step acts in.
     step_origin: Vec<Vector3<f64>>,
+    /// The parameter vector the block cache below was computed for (NaN: none yet).
+    cached_p: Vec<f64>,
+    /// Per block: its composed transform for `cached_p`.
+    block_pose: Vec<Pose>,
+    /// Per parameter step: axis and origin in the frame at the start of its block.
+    step_local: Vec<(Vector3<f64>, Vector3<f64>)>,
 }
 
 impl KinData {
     pub fn new(model: &Model) -> Self {
         let nm = model.n_markers();
+        let ns = model.steps.len();
         KinData {
             segment_poses: vec![Pose::identity(); model.segments.len()],
             markers: vec![Vector3::zeros(); nm],
             jq: DMatrix::zeros(3 * nm, model.n_q()),
             jp: DMatrix::zeros(3 * nm, model.n_p()),
-            step_axis: vec![Vector3::zeros(); model.steps.len()],
-            step_origin: vec![Vector3::zeros(); model.steps.len()],
+            step_axis: vec![Vector3::zeros(); ns],
+            step_origin: vec![Vector3::zeros(); ns],
+            cached_p: vec![f64::NAN; model.n_p()],
+            block_pose: vec![Pose::identity(); model.plan.n_blocks],
+            step_local: vec![(Vector3::zeros(), Vector3::zeros()); ns],
         }
+    }
+
+    /// `∂(marker coordinates)/∂q` of the last evaluation that asked for it:
+    /// `3·n_markers × n_q`, row `3j + k` is axis k (x, y, z) of marker j, metres per unit of q.
+    pub fn jq(&self) -> &DMatrix<f64> {
+        &self.jq
+    }
+
+    /// `∂(marker coordinates)/∂p` of the last evaluation that asked for it:
+    /// `3·n_markers × n_p`, same row layout.
+    pub fn jp(&self) -> &DMatrix<f64> {
+        &self.jp
+    }
+
+    /// Recomputes the parameter-only blocks when `p` differs from the cached one.
+    fn update_blocks(&mut self, model: &Model, p: &[f64]) {
+        if self.cached_p.as_slice() == p {
+            return;
+        }
+        for items in &model.plan.items {
+            for item in items {
+                let Item::Block { id, steps } = item else {
+                    continue;
+                };
+                let mut pose = Pose::identity();
+                for k in steps.clone() {
+                    let step = &model.steps[k];
+                    if matches!(step.source, Source::Param { .. }) {
+                        self.step_local[k] = (pose.axis_of(&step.motion), pose.trans);
+                    }
+                    pose.apply(&step.motion, source_value(&step.source, p, &[]));
+                }
+                self.block_pose[*id] = pose;
+            }
+        }
+        self.cached_p.copy_from_slice(p);
     }
 }
 
@@ -180,7 +227,8 @@ fn source_value(source: &Source, p: &[f64], q: &[f64]) -> f64 {
 }
 
 /// Computes segment poses and marker positions for parameters `p` (len `n_p`) and
-/// coordinates `q` (len `n_q`), and the Jacobians that `want` asks for, into `data`.
+/// coordinates `q` (len `n_q`), and the Jacobians that `want` asks for, into `data`
+/// (read them with [`KinData::jq`] and [`KinData::jp`]).
 ///
 /// # Panics
 /// When `p`, `q` or `data` do not match the model's sizes (a programming error).
@@ -192,55 +240,76 @@ pub fn forward_kinematics(model: &Model, p: &[f64], q: &[f64], want: Want, data:
         model.n_markers(),
         "workspace built for another model"
     );
-    let derivatives = want.dq || want.dp;
+    data.update_blocks(model, p);
     for (s, seg) in model.segments.iter().enumerate() {
         let mut pose = match seg.parent {
             Some(parent) => data.segment_poses[parent.0],
             None => Pose::identity(),
         };
-        for k in model.step_ranges[s].clone() {
-            let step = &model.steps[k];
-            if derivatives && !matches!(step.source, Source::Const(_)) {
-                data.step_axis[k] = pose.axis_of(&step.motion);
-                data.step_origin[k] = pose.trans;
+        for item in &model.plan.items[s] {
+            match item {
+                Item::Block { id, steps } => {
+                    if want.dp {
+                        for k in steps.clone() {
+                            if matches!(model.steps[k].source, Source::Param { .. }) {
+                                let (axis, origin) = data.step_local[k];
+                                data.step_axis[k] = pose.rot * axis;
+                                data.step_origin[k] = pose.transform_point(&origin);
+                            }
+                        }
+                    }
+                    pose = pose.compose(&data.block_pose[*id]);
+                }
+                &Item::Coord(k) => {
+                    let step = &model.steps[k];
+                    if want.dq || want.dp {
+                        data.step_axis[k] = pose.axis_of(&step.motion);
+                        data.step_origin[k] = pose.trans;
+                    }
+                    pose.apply(&step.motion, source_value(&step.source, p, q));
+                }
             }
-            pose.apply(&step.motion, source_value(&step.source, p, q));
         }
         data.segment_poses[s] = pose;
     }
     for (m, marker) in model.markers.iter().enumerate() {
         data.markers[m] = data.segment_poses[marker.segment.0].transform_point(&marker.local);
     }
-    if !derivatives {
-        return;
-    }
     if want.dq {
-        data.jq.fill(0.0);
+        fill_jacobian(model, &model.plan.cols_q, data, true);
     }
     if want.dp {
-        data.jp.fill(0.0);
+        fill_jacobian(model, &model.plan.cols_p, data, false);
     }
+}
+
+/// Writes the geometric Jacobian columns (module docs) of every marker.
+fn fill_jacobian(model: &Model, cols: &[Vec<JCol>], data: &mut KinData, of_q: bool) {
     let nrows = 3 * model.n_markers();
-    for (m, marker) in model.markers.iter().enumerate() {
-        let x = data.markers[m];
-        for &k in &model.chain_vars[marker.segment.0] {
-            let step = &model.steps[k];
-            let (col, scale, target) = match step.source {
-                Source::Coord { index, scale } if want.dq => (index, scale, &mut data.jq),
-                Source::Param { index, scale } if want.dp => (index, scale, &mut data.jp),
-                _ => continue,
-            };
-            let axis = data.step_axis[k];
-            let d = if step.motion.is_rotation() {
-                axis.cross(&(x - data.step_origin[k]))
-            } else {
-                axis
-            };
-            let base = col * nrows + 3 * m;
-            let slice = target.as_mut_slice();
-            slice[base] += scale * d.x;
-            slice[base + 1] += scale * d.y;
-            slice[base + 2] += scale * d.z;
+    let target = if of_q {
+        data.jq.as_mut_slice()
+    } else {
+        data.jp.as_mut_slice()
+    };
+    for (s, markers) in model.plan.markers_by_segment.iter().enumerate() {
+        for &m in markers {
+            let x = data.markers[m];
+            for c in &cols[s] {
+                let axis = data.step_axis[c.step];
+                let d = if c.rotation {
+                    axis.cross(&(x - data.step_origin[c.step]))
+                } else {
+                    axis
+                } * c.scale;
+                let out = &mut target[c.col * nrows + 3 * m..c.col * nrows + 3 * m + 3];
+                if c.first {
+                    out.copy_from_slice(d.as_slice());
+                } else {
+                    out[0] += d.x;
+                    out[1] += d.y;
+                    out[2] += d.z;
+                }
+            }
         }
     }
 }

@@ -201,11 +201,10 @@ pub struct Model {
     pub coordinates: Vec<Coordinate>,
     pub parameters: Vec<Parameter>,
     pub markers: Vec<Marker>,
-    /// Elementary steps of all segments; segment `s` uses `steps[step_ranges[s]]`.
+    /// Elementary steps of all segments, segment by segment.
     pub(crate) steps: Vec<Step>,
-    pub(crate) step_ranges: Vec<std::ops::Range<usize>>,
-    /// Per segment: indices (into `steps`) of the variable steps from ground to the segment.
-    pub(crate) chain_vars: Vec<Vec<usize>>,
+    /// How forward kinematics walks the steps (blocks, Jacobian columns).
+    pub(crate) plan: super::plan::Plan,
     /// The description this model was compiled from.
     spec: ModelSpec,
 }
@@ -731,19 +730,15 @@ impl<'a> Compiler<'a> {
             });
         }
 
-        let mut chain_vars: Vec<Vec<usize>> = Vec::with_capacity(segments.len());
-        for (s, seg) in segments.iter().enumerate() {
-            let mut v = seg
-                .parent
-                .map(|p| chain_vars[p.0].clone())
-                .unwrap_or_default();
-            v.extend(
-                step_ranges[s]
-                    .clone()
-                    .filter(|&k| !matches!(steps[k].source, Source::Const(_))),
-            );
-            chain_vars.push(v);
-        }
+        let plan = super::plan::Plan::new(
+            &steps,
+            &step_ranges,
+            &segments
+                .iter()
+                .map(|s| s.parent.map(|p| p.0))
+                .collect::<Vec<_>>(),
+            &markers.iter().map(|m| m.segment.0).collect::<Vec<_>>(),
+        );
 
         Ok(Model {
             name: spec.name.clone(),
@@ -754,8 +749,7 @@ impl<'a> Compiler<'a> {
             parameters,
             markers,
             steps,
-            step_ranges,
-            chain_vars,
+            plan,
             spec: spec.clone(),
         })
     }

@@ -3,6 +3,7 @@
 
 mod compiled;
 pub mod lower_limb;
+pub(crate) mod plan;
 pub mod spec;
 
 pub use compiled::{
@@ -10,6 +11,7 @@ pub use compiled::{
     ParamId, ParamUse, Parameter, Segment, SegmentId,
 };
 pub(crate) use compiled::{Motion, Source};
+pub(crate) use plan::Item;
 pub use spec::{ModelSpec, Unit};
 
 use thiserror::Error;
