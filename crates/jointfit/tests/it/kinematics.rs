@@ -42,8 +42,8 @@ fn check_jacobians(spec: &ModelSpec, u: &[f64]) -> Result<(), TestCaseError> {
     let mut data = KinData::new(&model);
     forward_kinematics(&model, &p, &q, Want::BOTH, &mut data);
     let h = 1e-6;
-    let eq = rel_err(&data.jq(), &fd::jacobian_q(&model, &p, &q, h));
-    let ep = rel_err(&data.jp(), &fd::jacobian_p(&model, &p, &q, h));
+    let eq = rel_err(data.jq(), &fd::jacobian_q(&model, &p, &q, h));
+    let ep = rel_err(data.jp(), &fd::jacobian_p(&model, &p, &q, h));
     prop_assert!(eq <= 1e-6, "{}: dq relative error {eq:e}", model.name);
     prop_assert!(ep <= 1e-6, "{}: dp relative error {ep:e}", model.name);
     // Asking for one Jacobian gives the same numbers as asking for both.
