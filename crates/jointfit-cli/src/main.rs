@@ -1,5 +1,42 @@
-//! The `jointfit` command-line tool.
+//! The `jointfit` command-line tool: thin clap front end, one module per subcommand.
 
-fn main() {
-    println!("jointfit {}", env!("CARGO_PKG_VERSION"));
+mod model_cmd;
+mod table;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// Patient-specific joint parameters of leg models from motion capture
+/// (two-level optimization, Reinbolt et al. 2005).
+#[derive(Parser)]
+#[command(name = "jointfit", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Inspect kinematic models.
+    Model {
+        #[command(subcommand)]
+        command: model_cmd::ModelCommand,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Model { command } => model_cmd::run(command),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            // One line: the chain of causes joined, as in "file: line 3: ...".
+            let msg: Vec<String> = e.chain().map(|c| c.to_string()).collect();
+            eprintln!("jointfit: error: {}", msg.join(": "));
+            ExitCode::FAILURE
+        }
+    }
 }

@@ -1,0 +1,71 @@
+//! The `jointfit` binary end to end: exit codes, one-line errors, JSON that parses.
+
+use std::process::Command;
+
+fn jointfit(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_jointfit"))
+        .args(args)
+        .output()
+        .expect("jointfit runs");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn model_show_builtin() {
+    let (ok, out, _) = jointfit(&["model", "show", "lower-limb-right"]);
+    assert!(ok);
+    assert!(
+        out.contains("parameters (27): hip 6, knee 9, ankle 12"),
+        "{out}"
+    );
+    assert!(out.contains("coordinates (12)"), "{out}");
+    assert!(out.contains("knee_thigh_superior"), "{out}");
+}
+
+#[test]
+fn model_show_json() {
+    let (ok, out, _) = jointfit(&["model", "show", "lower-limb-left", "--json"]);
+    assert!(ok);
+    let v: serde_json::Value = serde_json::from_str(&out).expect("valid JSON");
+    assert_eq!(v["parameters"].as_array().unwrap().len(), 27);
+    assert_eq!(v["coordinates"].as_array().unwrap().len(), 12);
+    let lateral = v["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == "hip_pelvis_lateral")
+        .unwrap();
+    assert_eq!(lateral["unit"], "mm");
+    assert_eq!(lateral["nominal"], 86.28);
+    assert_eq!(lateral["segment"], "pelvis");
+}
+
+#[test]
+fn model_show_file_round_trip() {
+    let dir = std::env::temp_dir().join(format!("jointfit-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("leg.toml");
+    let spec = jointfit::model::lower_limb::builtin("lower-limb-right").unwrap();
+    std::fs::write(&path, spec.to_toml()).unwrap();
+    let (ok, from_file, _) = jointfit(&["model", "show", path.to_str().unwrap(), "--json"]);
+    assert!(ok);
+    let (_, builtin, _) = jointfit(&["model", "show", "lower-limb-right", "--json"]);
+    assert_eq!(from_file, builtin);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_model_is_a_one_line_error() {
+    let (ok, out, err) = jointfit(&["model", "show", "lower-limb-middle"]);
+    assert!(!ok);
+    assert!(out.is_empty());
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with("jointfit: error: \"lower-limb-middle\" is neither"),
+        "{err}"
+    );
+}

@@ -1,0 +1,91 @@
+//! Model files: a TOML model description on disk, or a built-in model by name.
+
+use std::path::{Path, PathBuf};
+
+use jointfit::model::lower_limb::{builtin, BUILTIN_NAMES};
+use jointfit::model::spec::ModelSpec;
+use jointfit::model::{Model, ModelError};
+use thiserror::Error;
+
+#[derive(Debug, Error)]
+pub enum ModelFileError {
+    #[error("{path}: cannot read: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: {source}")]
+    Parse {
+        path: PathBuf,
+        source: Box<toml::de::Error>,
+    },
+    #[error("{path}: invalid model: {source}")]
+    Invalid { path: PathBuf, source: ModelError },
+    #[error("{name:?} is neither a model file nor a built-in model ({})", BUILTIN_NAMES.join(", "))]
+    NotFound { name: String },
+}
+
+/// Reads a model description: a built-in name (`lower-limb-right`, `lower-limb-left`) or a
+/// TOML file path.
+pub fn load_spec(name_or_path: &str) -> Result<ModelSpec, ModelFileError> {
+    let path = Path::new(name_or_path);
+    if BUILTIN_NAMES.contains(&name_or_path) && !path.exists() {
+        return Ok(builtin(name_or_path).expect("listed built-in"));
+    }
+    if !path.exists() {
+        return Err(ModelFileError::NotFound {
+            name: name_or_path.to_string(),
+        });
+    }
+    let text = std::fs::read_to_string(path).map_err(|source| ModelFileError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    ModelSpec::from_toml(&text).map_err(|source| ModelFileError::Parse {
+        path: path.to_path_buf(),
+        source: Box::new(source),
+    })
+}
+
+/// Reads and compiles a model (see [`load_spec`]).
+pub fn load_model(name_or_path: &str) -> Result<Model, ModelFileError> {
+    let spec = load_spec(name_or_path)?;
+    Model::compile(&spec).map_err(|source| ModelFileError::Invalid {
+        path: PathBuf::from(name_or_path),
+        source,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn builtin_and_errors() {
+        assert_eq!(load_model("lower-limb-left").unwrap().n_p(), 27);
+        let e = load_model("no-such-model").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "\"no-such-model\" is neither a model file nor a built-in model (lower-limb-right, lower-limb-left)"
+        );
+        let dir = std::env::temp_dir().join(format!("jointfit-mf-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let bad = dir.join("bad.toml");
+        std::fs::write(&bad, "name = \"x\"\nsegments = 3\n").unwrap();
+        let e = load_model(bad.to_str().unwrap()).unwrap_err().to_string();
+        assert!(e.starts_with(&format!("{}: ", bad.display())), "{e}");
+        assert!(e.contains("line 2"), "{e}");
+        let invalid = dir.join("invalid.toml");
+        let mut spec = builtin("lower-limb-right").unwrap();
+        spec.markers[0].segment = "arm".into();
+        std::fs::write(&invalid, spec.to_toml()).unwrap();
+        let e = load_model(invalid.to_str().unwrap())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("invalid model: marker \"RASI\" refers to segment \"arm\""),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
