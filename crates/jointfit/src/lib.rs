@@ -8,7 +8,9 @@
 //! This crate has no file formats and never prints: readers and writers live in
 //! `jointfit-io`, the command line in `jointfit-cli`.
 
+pub mod ik;
 pub mod kinematics;
+pub mod linalg;
 pub mod model;
 #[doc(hidden)]
 pub mod testing;
