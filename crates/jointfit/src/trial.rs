@@ -53,7 +53,7 @@ impl Trial {
             return Err(TrialError::BadRate(rate));
         }
         let n = labels.len();
-        if (n == 0 && !positions.is_empty()) || (n > 0 && positions.len() % n != 0) {
+        if (n == 0 && !positions.is_empty()) || (n > 0 && !positions.len().is_multiple_of(n)) {
             return Err(TrialError::ShapeMismatch {
                 labels: n,
                 columns: positions.len(),
@@ -296,7 +296,10 @@ mod tests {
         assert_eq!(up, Vector3::new(0.0, 1.0, 0.0));
         assert!((r.determinant() - 1.0).abs() < 1e-15);
         let r = up_axis_rotation(UpAxis::NegZ);
-        assert_eq!(r * Vector3::new(0.0, 0.0, -1.0), Vector3::new(0.0, 1.0, 0.0));
+        assert_eq!(
+            r * Vector3::new(0.0, 0.0, -1.0),
+            Vector3::new(0.0, 1.0, 0.0)
+        );
         assert!((r.determinant() - 1.0).abs() < 1e-15);
     }
 }
