@@ -127,6 +127,8 @@ mod trial_filter;
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_scipy;
 
 pub use butterworth::{butter_lowpass, Section, Sos, MAX_DESIGN_ORDER};
 pub use filtfilt::{odd_extend, sosfilt_in_place, sosfilt_zi, sosfiltfilt, sosfiltfilt_padlen};
