@@ -73,14 +73,15 @@
 //!   `scipy.signal.sosfiltfilt(butter(4, …))` or MATLAB's `filtfilt(butter(4, …))`: effective
 //!   order 8, 48 dB/octave, still −6 dB at the cutoff.
 //!
-//! We default to the effective-order reading because it is the habit of the biomechanics
-//! literature the paper belongs to: Winter's textbook (Biomechanics and Motor Control of Human
-//! Movement) builds the zero-lag filter from a second-order Butterworth passed forward and then
-//! backward and calls the result a fourth-order zero-lag filter, and gait-analysis software and
-//! papers after it describe "fourth-order zero-lag Butterworth, 6 Hz" that way. It is also the
-//! milder of the two readings (less ringing near sharp features). It remains an interpretation:
-//! to get the other reading, set `convention: OrderConvention::Design` (with `order: 4`), which
-//! reproduces `sosfiltfilt(butter(4, 6/(f_s/2), output='sos'), x)` exactly.
+//! We default to the effective-order reading because that is the usual sense of the phrase in
+//! the biomechanics literature the paper belongs to: Winter's textbook (Biomechanics and Motor
+//! Control of Human Movement) builds the zero-lag filter from a second-order Butterworth passed
+//! forward and then backward and treats the result as a fourth-order zero-lag filter, and
+//! "fourth-order zero-lag Butterworth" is commonly used in that sense in gait analysis. It is
+//! also the milder of the two readings (less overshoot near sharp features). It remains an
+//! interpretation: for the other reading set `convention: OrderConvention::Design` (with
+//! `order: 4`), which reproduces `sosfiltfilt(butter(4, 6/(f_s/2), output='sos'), x)` to
+//! rounding error.
 //!
 //! ## Winter's cutoff correction (optional, off by default)
 //!
