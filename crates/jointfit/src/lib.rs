@@ -12,6 +12,7 @@ pub mod ik;
 pub mod kinematics;
 pub mod linalg;
 pub mod model;
+pub mod signal;
 #[doc(hidden)]
 pub mod testing;
 pub mod trial;
