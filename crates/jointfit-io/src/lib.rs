@@ -5,6 +5,7 @@
 //! through [`atomic::write_atomic`], so a crash never leaves a half-written file behind.
 
 pub mod atomic;
+pub mod sto;
 pub mod trc;
 
 mod text;
