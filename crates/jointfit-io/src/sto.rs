@@ -178,6 +178,7 @@ fn cells(line: &str) -> Vec<&str> {
 }
 
 fn parse(text: &str) -> Result<Table, StoErrorKind> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     if text.trim().is_empty() {
         return Err(StoErrorKind::Empty);
     }

@@ -355,6 +355,7 @@ const HEADER_KEYS: [&str; 8] = [
 ];
 
 fn parse(text: &str) -> Result<TrcFile, TrcErrorKind> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     if text.trim().is_empty() {
         return Err(TrcErrorKind::Empty);
     }
@@ -738,11 +739,12 @@ impl<'a> Rows<'a> {
     /// more than half a frame plus the printed precision.
     fn check_times(&self, rate: f64) -> Option<TrcNote> {
         let t0 = *self.times.first()?;
+        let res0 = self.time_cells.first()?.2;
         for (i, (&t, &(line, frame, res))) in self.times.iter().zip(&self.time_cells).enumerate() {
             let expected = t0 + i as f64 / rate;
-            // The first time is rounded too; it is taken to have this row's precision (a
-            // shortest-form writer prints the first time as a bare `0`).
-            let tol = 0.5 / rate + 2.0 * res + 1e-9 * expected.abs();
+            // Both times are rounded to their printed precision; the first is taken to be
+            // printed like this row (a shortest-form writer prints it as a bare `0`).
+            let tol = 0.5 / rate + res.min(res0) / 2.0 + res / 2.0 + 1e-9 * expected.abs();
             if (t - expected).abs() > tol {
                 return Some(TrcNote::TimeDisagreesWithRate {
                     line,
