@@ -54,8 +54,8 @@
 //! reads back exactly, `Frame#` counting from [`Trial::first_frame`], `Time` = frame index /
 //! rate, coordinates in the chosen unit with a fixed number of decimals, and missing samples as
 //! empty cells. Reading the file back gives the trial rounded to the written precision, and a
-//! second write gives the same bytes. A present sample that rounds to `0 0 0` would read back
-//! as missing.
+//! second write gives the same bytes. A sample that rounds to `0 0 0` at the chosen precision is
+//! written as a gap, because that is how it would read back.
 
 use std::path::Path;
 
@@ -878,9 +878,14 @@ pub fn format_trc(
         let time = f as f64 / rate;
         out.push_str(&format!("{frame}\t{time:.time_decimals$}"));
         for p in trial.frame(f) {
-            if p.iter().all(|v| v.is_finite()) {
-                for v in p.iter() {
-                    out.push_str(&format!("\t{:.d$}", v * per_metre));
+            let cells = p.map(|v| format!("{:.d$}", v * per_metre));
+            let present = p.iter().all(|v| v.is_finite());
+            // A sample printed as 0 0 0 would read back as a gap: write it as one.
+            let zero = cells.iter().all(|c| c.parse::<f64>() == Ok(0.0));
+            if present && !zero {
+                for c in cells.iter() {
+                    out.push('\t');
+                    out.push_str(c);
                 }
             } else {
                 out.push_str("\t\t\t");

@@ -262,6 +262,17 @@ fn writer_layout_and_errors() {
         .unwrap()
         .contains("\t0.002\t0.003\t0.004\t"));
 
+    // A present sample that prints as 0 0 0 is written as the gap it would read back as.
+    let tiny = Trial::new(
+        vec!["T".into()],
+        50.0,
+        1,
+        vec![Vector3::new(1e-9, -2e-9, 0.0)],
+    )
+    .unwrap();
+    let text = format_trc(&tiny, "x", &TrcWriteOptions::default()).unwrap();
+    assert!(text.ends_with("\n1\t0.000000\t\t\t\n"), "{text}");
+
     let bad = |label: &str| {
         Trial::new(
             vec![label.to_string()],
