@@ -399,6 +399,7 @@ fn parse(text: &str) -> Result<TrcFile, TrcErrorKind> {
         .filter(|c| !c.trim().is_empty())
         .count();
     if coords != 3 * n {
+        // n equals the number of labels on line 4 here, so 3 * n cannot overflow.
         return Err(TrcErrorKind::CoordinateRowMismatch {
             line: 5,
             expected: 3 * n,
@@ -545,7 +546,7 @@ fn parse_labels(
         .map(|(i, c)| (i, *c))
         .collect();
     let aligned = named.iter().all(|&(i, _)| (i - 2) % 3 == 0);
-    let mut labels: Vec<String> = Vec::with_capacity(n);
+    let mut labels: Vec<String> = Vec::new();
     if aligned {
         let slots = named.last().map_or(0, |&(i, _)| (i - 2) / 3 + 1);
         for k in 0..slots.min(n) {
@@ -653,7 +654,7 @@ impl<'a> Rows<'a> {
             value: frame_text.to_string(),
         })?;
         if let Some(prev) = self.last_frame {
-            if frame != prev + 1 {
+            if prev.checked_add(1) != Some(frame) {
                 return Err(TrcErrorKind::FrameNumberJump {
                     line: line_no,
                     previous: prev,
@@ -679,7 +680,7 @@ impl<'a> Rows<'a> {
             let k = (cells.len().max(2) - 2) / 3;
             return Err(TrcErrorKind::TooFewValues {
                 line: line_no,
-                marker: self.labels[k].clone(),
+                marker: self.labels.get(k).cloned().unwrap_or_default(),
                 expected,
                 found: cells.len(),
             });
@@ -775,7 +776,7 @@ fn resolution(s: &str) -> f64 {
         None => (s, 0),
     };
     let decimals = mantissa.find('.').map_or(0, |i| mantissa.len() - i - 1) as i32;
-    10f64.powi(exp - decimals)
+    10f64.powi(exp.saturating_sub(decimals))
 }
 
 /// How [`format_trc`] writes coordinates.
@@ -874,7 +875,7 @@ pub fn format_trc(
     }
     out.push_str("\n\n");
     for f in 0..nf {
-        let frame = first + f as i64;
+        let frame = first.saturating_add(f as i64);
         let time = f as f64 / rate;
         out.push_str(&format!("{frame}\t{time:.time_decimals$}"));
         for p in trial.frame(f) {

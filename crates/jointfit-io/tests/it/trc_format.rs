@@ -140,6 +140,17 @@ fn malformed_inputs_map_to_one_error_each() {
             "MissingFrames",
             "4 frames",
         ),
+        // Absurd values must give errors, not overflow or huge allocations.
+        (
+            b.replace("\t3\t2\tmm", "\t3\t18446744073709551615\tmm"),
+            "MarkerCountMismatch",
+            "18446744073709551615",
+        ),
+        (
+            b.replace("\n1\t0.00", "\n9223372036854775807\t0.00"),
+            "FrameNumberJump",
+            "line 8",
+        ),
     ];
     for (text, kind, fragment) in cases {
         let (got, msg) = err_of(&text);
@@ -187,6 +198,7 @@ fn odd_but_valid_inputs() {
         b.replace("Z2\n\n", "Z2\n"),
         b.replace("Z2\n\n", "Z2\n\t\t\t\n"),
         b.replace("1\t2\t3\t4", "1.0E0\t 2 \t3e0\t+4"),
+        b.replace("\t0.00\t", "\t0e-2147483648\t"),
         format!("\u{feff}{b}\n\n"),
     ] {
         assert_same_trial(&reference, &parse_trc(&variant, "v").unwrap(), &variant);
