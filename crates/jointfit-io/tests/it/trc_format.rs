@@ -160,6 +160,15 @@ fn malformed_inputs_map_to_one_error_each() {
 }
 
 #[test]
+fn unreadable_path_is_an_io_error_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("absent.trc");
+    let e = jointfit_io::trc::read_trc(&p).unwrap_err();
+    assert_eq!(error_kind(&e.kind), "Io");
+    assert!(e.to_string().contains("absent.trc"), "{e}");
+}
+
+#[test]
 fn time_column_disagreeing_with_rate() {
     let text = base()
         .replace("\t0.01\t", "\t0.10\t")
