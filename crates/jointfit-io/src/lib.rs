@@ -8,5 +8,5 @@ pub mod atomic;
 pub mod sto;
 pub mod trc;
 
-mod text;
 pub mod model_file;
+mod text;
