@@ -41,7 +41,7 @@ fn synthetic(model: &Model, p_true: &[f64], frames: usize, amplitude: f64, seed:
             (
                 rng.gen_range(0.0..amplitude.max(1e-300)),
                 rng.gen_range(0.0..25.0),
-                rng.gen_range(0.0..6.283),
+                rng.gen_range(0.0..std::f64::consts::TAU),
             )
         })
         .collect();
