@@ -128,7 +128,9 @@ pub struct IkWorkspace {
     a: Vec<f64>,
     l: Vec<f64>,
     g: Vec<f64>,
+    delta: Vec<f64>,
     q_trial: Vec<f64>,
+    all: Vec<usize>,
 }
 
 impl IkWorkspace {
@@ -141,7 +143,9 @@ impl IkWorkspace {
             a: vec![0.0; n * n],
             l: vec![0.0; n * n],
             g: vec![0.0; n],
+            delta: vec![0.0; n],
             q_trial: vec![0.0; n],
+            all: (0..n).collect(),
         }
     }
     /// Kinematics at the last solution (markers, Jacobian of the last accepted point).
@@ -203,7 +207,7 @@ fn lm(
     let nrows = 3 * model.n_markers();
     forward_kinematics(model, p, q, Want::DQ, &mut ws.cur);
     let mut cost = cost_of(&ws.cur.markers, targets, &ws.weights);
-    let mut lambda = 1e-3;
+    let mut lambda = 1e-6;
     let mut iterations = 0;
     while iterations < opts.max_iterations {
         iterations += 1;
@@ -236,39 +240,45 @@ fn lm(
         }
         let max_diag = (0..n).fold(0.0f64, |m, i| m.max(ws.a[i * n + i]));
         // Try steps with growing damping until the cost drops.
-        let mut accepted = false;
-        let mut step_max = 0.0f64;
-        while lambda < 1e12 {
+        loop {
             ws.l[..n * n].copy_from_slice(&ws.a[..n * n]);
             for i in 0..n {
                 ws.l[i * n + i] += lambda * ws.a[i * n + i] + 1e-14 * max_diag + 1e-300;
             }
             if !cholesky_in_place(&mut ws.l[..n * n], n) {
                 lambda *= 10.0;
+                if lambda > 1e10 {
+                    return (cost, iterations, true);
+                }
                 continue;
             }
-            let mut delta = ws.g[..n].to_vec();
-            cholesky_solve(&ws.l[..n * n], n, &mut delta);
+            ws.delta[..n].copy_from_slice(&ws.g[..n]);
+            cholesky_solve(&ws.l[..n * n], n, &mut ws.delta[..n]);
+            let step_max = ws.delta[..n].iter().fold(0.0f64, |m, d| m.max(d.abs()));
             ws.q_trial.copy_from_slice(q);
             for (i, &c) in active.iter().enumerate() {
-                ws.q_trial[c] += delta[i];
+                ws.q_trial[c] += ws.delta[i];
             }
             forward_kinematics(model, p, &ws.q_trial, Want::DQ, &mut ws.trial);
             let trial_cost = cost_of(&ws.trial.markers, targets, &ws.weights);
             if trial_cost <= cost {
-                step_max = delta.iter().fold(0.0f64, |m, d| m.max(d.abs()));
                 q.copy_from_slice(&ws.q_trial);
                 std::mem::swap(&mut ws.cur, &mut ws.trial);
                 cost = trial_cost;
                 lambda = (lambda / 10.0).max(1e-12);
-                accepted = true;
+                if step_max < opts.step_tolerance {
+                    return (cost, iterations, true);
+                }
                 break;
             }
+            if step_max < opts.step_tolerance {
+                // Even a negligible step does not lower the cost: minimum to working precision.
+                return (cost, iterations, true);
+            }
             lambda *= 10.0;
-        }
-        if !accepted || step_max < opts.step_tolerance {
-            // No descent possible at machine precision, or the step vanished: converged.
-            return (cost, iterations, true);
+            if lambda > 1e10 {
+                return (cost, iterations, true);
+            }
         }
     }
     (cost, iterations, false)
@@ -291,8 +301,9 @@ pub fn solve_frame(
             status,
         };
     }
-    let active: Vec<usize> = (0..model.n_q()).collect();
+    let active = std::mem::take(&mut ws.all);
     let (cost, iterations, converged) = lm(model, p, targets, q, &active, opts, ws);
+    ws.all = active;
     FrameFit {
         cost,
         iterations,
@@ -355,7 +366,7 @@ pub fn seed_frame(
         let starts = grid.len().pow(rot.len() as u32);
         let mut best: Option<(f64, Vec<f64>)> = None;
         let seed_opts = IkOptions {
-            max_iterations: 50,
+            max_iterations: 15,
             ..*opts
         };
         for s in 0..starts {
@@ -366,7 +377,25 @@ pub fn seed_frame(
                 k /= grid.len();
             }
             let (cost, _, _) = lm(model, p, targets, &mut qs, &active, &seed_opts, ws);
-            if best.as_ref().is_none_or(|(b, _)| cost < *b) {
+            for &c in &rot {
+                qs[c] = wrap_angle(qs[c]);
+            }
+            // Equal fits (e.g. the two Euler-angle solutions of one orientation): prefer the
+            // one with the smaller angles, so results do not depend on the start order.
+            let size: f64 = rot.iter().map(|&c| qs[c].abs()).sum();
+            let better = match &best {
+                None => true,
+                Some((b, bq)) => {
+                    let bsize: f64 = rot.iter().map(|&c| bq[c].abs()).sum();
+                    let tie = (cost - b).abs() <= 1e-9 * b.max(1e-12);
+                    if tie {
+                        size < bsize - 1e-9
+                    } else {
+                        cost < *b
+                    }
+                }
+            };
+            if better {
                 best = Some((cost, qs));
             }
         }
@@ -378,6 +407,16 @@ pub fn seed_frame(
     }
     ws.weights.copy_from_slice(&full_weights);
     q
+}
+
+/// The angle in (−π, π].
+fn wrap_angle(a: f64) -> f64 {
+    let w = a.rem_euclid(std::f64::consts::TAU);
+    if w > std::f64::consts::PI {
+        w - std::f64::consts::TAU
+    } else {
+        w
+    }
 }
 
 /// Inverse kinematics of a whole trial.

@@ -159,20 +159,22 @@ fn joint_and_two_level_reach_the_same_noisy_optimum() {
             joint.cost,
             truth_cost
         );
-        // And it is stationary: the envelope-theorem gradient vanishes on free interior parameters.
+        // And it is stationary: the gradient vanishes on interior parameters, relative to
+        // its size at the start.
+        let g0 = gradient(&prob, &s0, &prob.initial_coords(&base));
+        let g0_max = g0.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         let g = gradient(&prob, &joint.s, &joint.coords);
         for (k, gk) in g.iter().enumerate() {
             if joint.s[k].abs() < 1.0 - 1e-9 {
                 assert!(
-                    gk.abs() < 1e-9 * joint.cost.max(1e-12) + 1e-12,
-                    "{groups:?}: gradient {k} = {gk:e}"
+                    gk.abs() <= 1e-6 * g0_max,
+                    "{groups:?}: gradient {k} = {gk:e} (start {g0_max:e})"
                 );
             }
         }
     }
 }
 
-/// The envelope-theorem gradient equals central differences of the re-solved e_inner.
 #[test]
 fn outer_gradient_matches_finite_differences() {
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
