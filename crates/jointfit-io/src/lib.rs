@@ -1,6 +1,12 @@
 //! File formats for jointfit: motion capture in (C3D, TRC), results out (OpenSim .mot/.sto).
 //!
 //! Every reader returns a [`jointfit::trial::Trial`] in SI units with gaps as NaN, and every
-//! error names the file and, where it applies, the line, frame or marker.
+//! error names the file and, where it applies, the line, frame or marker. Every writer goes
+//! through [`atomic::write_atomic`], so a crash never leaves a half-written file behind.
 
+pub mod atomic;
+pub mod sto;
+pub mod trc;
+
+mod text;
 pub mod model_file;

@@ -1,0 +1,121 @@
+//! Atomic file output: a reader never sees a half-written file.
+//!
+//! [`write_atomic`] writes the bytes to a fresh temporary file in the destination's own
+//! directory (so that the final rename never crosses a file system), flushes it to disk, and
+//! renames it over the destination. If anything fails before the rename, the temporary file
+//! is removed and the destination is left as it was.
+
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Distinguishes temporary files of concurrent writers within one process.
+static COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// Writes `bytes` to `path` atomically: temporary file beside it, fsync, rename.
+///
+/// On success the destination holds exactly `bytes` (replacing any previous file). On
+/// failure the destination is untouched and no temporary file is left behind.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    let file_name = path.file_name().ok_or_else(|| {
+        io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("{} does not name a file", path.display()),
+        )
+    })?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let (tmp_path, mut file) = create_temp(&dir, &file_name.to_string_lossy())?;
+    let result = (|| {
+        file.write_all(bytes)?;
+        file.sync_all()?;
+        drop(file);
+        fs::rename(&tmp_path, path)
+    })();
+    if let Err(e) = result {
+        // The temporary file may or may not exist at this point; either way it must go.
+        let _ = fs::remove_file(&tmp_path);
+        return Err(e);
+    }
+    sync_dir(&dir);
+    Ok(())
+}
+
+/// Creates a new, previously non-existent temporary file in `dir`.
+fn create_temp(dir: &Path, base: &str) -> io::Result<(PathBuf, File)> {
+    let pid = std::process::id();
+    let mut last_err = None;
+    for _ in 0..100 {
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let candidate = dir.join(format!(".{base}.{pid}.{n}.tmp"));
+        match OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&candidate)
+        {
+            Ok(f) => return Ok((candidate, f)),
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last_err = Some(e),
+            Err(e) => return Err(e),
+        }
+    }
+    Err(last_err.unwrap_or_else(|| io::Error::other("could not create a temporary file")))
+}
+
+/// Makes the rename durable where the platform allows it (best effort: a failure here does
+/// not undo a write that has already replaced the destination).
+fn sync_dir(dir: &Path) {
+    #[cfg(unix)]
+    if let Ok(d) = File::open(dir) {
+        let _ = d.sync_all();
+    }
+    #[cfg(not(unix))]
+    let _ = dir;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entries(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn writes_and_replaces_without_leftovers() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("out.txt");
+        write_atomic(&p, b"first").unwrap();
+        assert_eq!(fs::read(&p).unwrap(), b"first");
+        write_atomic(&p, b"second, longer").unwrap();
+        assert_eq!(fs::read(&p).unwrap(), b"second, longer");
+        assert_eq!(entries(dir.path()), vec!["out.txt".to_string()]);
+    }
+
+    #[test]
+    fn failure_leaves_destination_and_no_temp() {
+        let dir = tempfile::tempdir().unwrap();
+        // The destination is a non-empty directory: the rename must fail.
+        let p = dir.path().join("target");
+        fs::create_dir(&p).unwrap();
+        fs::write(p.join("keep"), b"x").unwrap();
+        assert!(write_atomic(&p, b"data").is_err());
+        assert!(p.is_dir());
+        assert_eq!(entries(dir.path()), vec!["target".to_string()]);
+    }
+
+    #[test]
+    fn missing_directory_is_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("no/such/dir/out.txt");
+        assert!(write_atomic(&p, b"x").is_err());
+        assert!(write_atomic(Path::new("/"), b"x").is_err());
+    }
+}

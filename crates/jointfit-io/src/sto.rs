@@ -1,0 +1,449 @@
+//! OpenSim storage tables: `.mot` (joint angles, forces) and `.sto` (any time series).
+//!
+//! # The format
+//!
+//! A header of `key=value` lines and free text, closed by a line reading `endheader`; then a
+//! row of tab-separated column labels whose first is `time`; then one row of numbers per time
+//! step, tab-separated (older files pad numbers with blanks or separate them by blanks only).
+//!
+//! Header lines this module understands:
+//!
+//! * a first line without `=`: the table's name (OpenSim's `Storage` class writes it, e.g.
+//!   `Coordinates`; OpenSim 4's `STOFileAdapter` leaves it out);
+//! * `version=` (1 for `Storage`, 3 for `STOFileAdapter`; read and not otherwise used);
+//! * `nRows=` and `nColumns=`: rows and columns below, `nColumns` counting `time`; the very
+//!   old SIMM spellings `datarows N` and `datacolumns N` mean the same;
+//! * `inDegrees=yes|no`: whether rotational columns are in degrees. Absent means `no`.
+//!
+//! Every other header line (`DataType=double`, `OpenSimVersion=…`, comments, blank lines) is
+//! kept verbatim, less trailing blanks, in [`Table::extra_header`].
+//!
+//! Numbers are plain or in exponent notation. A missing value is written `NaN`; OpenSim's
+//! `TimeSeriesTable` reads it, but its older `Storage` class does not (it silently stops reading
+//! at the first row holding one), so tables meant for tools built on `Storage` should have no
+//! gaps.
+//!
+//! # Writing
+//!
+//! [`format_sto`]/[`write_sto`] write the `Storage` layout, which both OpenSim readers accept:
+//!
+//! ```text
+//! <name>
+//! version=1
+//! nRows=<rows>
+//! nColumns=<columns including time>
+//! inDegrees=<yes|no>
+//! <extra header lines>
+//! endheader
+//! time<TAB>label…
+//! <numbers>
+//! ```
+//!
+//! Each number is written in the shortest form that reads back as exactly the same `f64`
+//! (plain notation, or exponent notation below 1e-5 and from 1e16 in magnitude), so a table
+//! survives a write and a read bit for bit.
+
+use std::path::Path;
+
+use thiserror::Error;
+
+use crate::atomic::write_atomic;
+use crate::text::{decode, format_shortest, numbered_lines, parse_number};
+
+/// A table of numbers against time, as OpenSim stores it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Table {
+    /// The name line (may be empty: then no name line is written).
+    pub name: String,
+    /// Column labels; the first is `time`.
+    pub columns: Vec<String>,
+    /// One row per time step, `columns.len()` values each; the first value is the time in
+    /// seconds. NaN marks a missing value.
+    pub rows: Vec<Vec<f64>>,
+    /// Whether rotational columns are in degrees (`inDegrees=yes`).
+    pub in_degrees: bool,
+    /// Header lines other than the name, `version`, `nRows`, `nColumns`, `inDegrees` and
+    /// `endheader`, in order, without line ends.
+    pub extra_header: Vec<String>,
+}
+
+impl Table {
+    /// An empty table with a `time` column followed by `labels`.
+    pub fn new(name: &str, labels: &[&str], in_degrees: bool) -> Self {
+        let mut columns = vec!["time".to_string()];
+        columns.extend(labels.iter().map(|s| s.to_string()));
+        Table {
+            name: name.to_string(),
+            columns,
+            rows: Vec::new(),
+            in_degrees,
+            extra_header: Vec::new(),
+        }
+    }
+
+    /// Index of a column by label.
+    pub fn column_index(&self, label: &str) -> Option<usize> {
+        self.columns.iter().position(|c| c == label)
+    }
+
+    /// One column's values, one per row.
+    pub fn column(&self, label: &str) -> Option<Vec<f64>> {
+        let i = self.column_index(label)?;
+        Some(self.rows.iter().map(|r| r[i]).collect())
+    }
+}
+
+/// Why a storage file could not be read; always names the file (see [`StoErrorKind`]).
+#[derive(Debug, Error)]
+#[error("{file}: {kind}")]
+pub struct StoError {
+    pub file: String,
+    pub kind: StoErrorKind,
+}
+
+/// What is wrong with a storage file. Line numbers count from 1.
+#[derive(Debug, Error)]
+pub enum StoErrorKind {
+    #[error("cannot read the file: {0}")]
+    Io(std::io::Error),
+    #[error("the file is empty")]
+    Empty,
+    #[error("no endheader line: the header never ends (not a .mot/.sto file, or cut short)")]
+    NoEndHeader,
+    #[error("line {line}: {key} should be {expected}, got {value:?}")]
+    BadHeaderValue {
+        line: usize,
+        key: String,
+        expected: &'static str,
+        value: String,
+    },
+    #[error("the file ends after the header, without column labels")]
+    NoColumnLabels,
+    #[error("line {line}: the first column must be time, found {found:?}")]
+    NoTimeColumn { line: usize, found: String },
+    #[error("line {line}: column {column} has an empty label")]
+    EmptyLabel { line: usize, column: usize },
+    #[error("the header says nColumns={header} but line {line} has {labels} column labels")]
+    ColumnCountMismatch {
+        line: usize,
+        header: usize,
+        labels: usize,
+    },
+    #[error("line {line}: {found} values for {expected} columns")]
+    CellCount {
+        line: usize,
+        expected: usize,
+        found: usize,
+    },
+    #[error("line {line}, column {column:?}: not a number: {value:?}")]
+    BadNumber {
+        line: usize,
+        column: String,
+        value: String,
+    },
+    #[error("the header says nRows={header} but {rows} rows are present")]
+    RowCountMismatch { header: usize, rows: usize },
+}
+
+/// Reads a `.mot`/`.sto` file (OpenSim 4 `STOFileAdapter` or older `Storage` layout).
+pub fn read_sto(path: &Path) -> Result<Table, StoError> {
+    let name = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| StoError {
+        file: name.clone(),
+        kind: StoErrorKind::Io(e),
+    })?;
+    parse_sto(&decode(&bytes), &name)
+}
+
+/// Parses storage text (see [`read_sto`]); `name` is used in error messages.
+pub fn parse_sto(text: &str, name: &str) -> Result<Table, StoError> {
+    parse(text).map_err(|kind| StoError {
+        file: name.to_string(),
+        kind,
+    })
+}
+
+/// Splits a row into cells: on tabs when there are any (cells may be padded), otherwise on
+/// runs of blanks. Trailing empty cells (trailing tabs) are dropped.
+fn cells(line: &str) -> Vec<&str> {
+    let mut v: Vec<&str> = if line.contains('\t') {
+        line.split('\t').map(str::trim).collect()
+    } else {
+        line.split_whitespace().collect()
+    };
+    while v.last().is_some_and(|c| c.is_empty()) {
+        v.pop();
+    }
+    v
+}
+
+fn parse(text: &str) -> Result<Table, StoErrorKind> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    if text.trim().is_empty() {
+        return Err(StoErrorKind::Empty);
+    }
+    let lines = numbered_lines(text);
+    let end = lines
+        .iter()
+        .position(|(_, l)| l.trim().eq_ignore_ascii_case("endheader"))
+        .ok_or(StoErrorKind::NoEndHeader)?;
+
+    let mut table = Table {
+        name: String::new(),
+        columns: Vec::new(),
+        rows: Vec::new(),
+        in_degrees: false,
+        extra_header: Vec::new(),
+    };
+    let (mut n_rows, mut n_cols) = (None, None);
+    for (i, &(line_no, raw)) in lines[..end].iter().enumerate() {
+        let line = raw.trim_end();
+        let count = |key: &str, v: &str| {
+            v.trim()
+                .parse::<usize>()
+                .map_err(|_| StoErrorKind::BadHeaderValue {
+                    line: line_no,
+                    key: key.to_string(),
+                    expected: "a whole number",
+                    value: v.trim().to_string(),
+                })
+        };
+        if let Some((key, value)) = line.split_once('=') {
+            match key.trim() {
+                "version" => {}
+                "nRows" => n_rows = Some(count("nRows", value)?),
+                "nColumns" => n_cols = Some(count("nColumns", value)?),
+                "inDegrees" => {
+                    table.in_degrees = match value.trim().to_ascii_lowercase().as_str() {
+                        "yes" => true,
+                        "no" => false,
+                        _ => {
+                            return Err(StoErrorKind::BadHeaderValue {
+                                line: line_no,
+                                key: "inDegrees".into(),
+                                expected: "yes or no",
+                                value: value.trim().to_string(),
+                            })
+                        }
+                    }
+                }
+                _ => table.extra_header.push(line.to_string()),
+            }
+            continue;
+        }
+        let mut words = line.split_whitespace();
+        match (words.next(), words.next(), words.next()) {
+            (Some("datarows"), Some(v), None) => n_rows = Some(count("datarows", v)?),
+            (Some("datacolumns"), Some(v), None) => n_cols = Some(count("datacolumns", v)?),
+            _ if i == 0 => table.name = line.trim().to_string(),
+            _ => table.extra_header.push(line.to_string()),
+        }
+    }
+
+    let mut body = lines[end + 1..]
+        .iter()
+        .filter(|(_, l)| !l.trim().is_empty());
+    let &(label_line, labels) = body.next().ok_or(StoErrorKind::NoColumnLabels)?;
+    table.columns = cells(labels).iter().map(|s| s.to_string()).collect();
+    if !table.columns[0].eq_ignore_ascii_case("time") {
+        return Err(StoErrorKind::NoTimeColumn {
+            line: label_line,
+            found: table.columns[0].clone(),
+        });
+    }
+    if let Some(i) = table.columns.iter().position(|c| c.is_empty()) {
+        return Err(StoErrorKind::EmptyLabel {
+            line: label_line,
+            column: i + 1,
+        });
+    }
+    if let Some(h) = n_cols.filter(|&h| h != table.columns.len()) {
+        return Err(StoErrorKind::ColumnCountMismatch {
+            line: label_line,
+            header: h,
+            labels: table.columns.len(),
+        });
+    }
+    for &(line_no, line) in body {
+        let c = cells(line);
+        if c.len() != table.columns.len() {
+            return Err(StoErrorKind::CellCount {
+                line: line_no,
+                expected: table.columns.len(),
+                found: c.len(),
+            });
+        }
+        let row = c
+            .iter()
+            .zip(&table.columns)
+            .map(|(v, label)| {
+                parse_number(v).ok_or_else(|| StoErrorKind::BadNumber {
+                    line: line_no,
+                    column: label.clone(),
+                    value: v.to_string(),
+                })
+            })
+            .collect::<Result<Vec<f64>, _>>()?;
+        table.rows.push(row);
+    }
+    if let Some(h) = n_rows.filter(|&h| h != table.rows.len()) {
+        return Err(StoErrorKind::RowCountMismatch {
+            header: h,
+            rows: table.rows.len(),
+        });
+    }
+    Ok(table)
+}
+
+/// Why a table could not be written.
+#[derive(Debug, Error)]
+pub enum StoWriteError {
+    #[error("the first column must be labelled \"time\", found {found:?}")]
+    NoTimeColumn { found: Option<String> },
+    #[error("column {column} has label {label:?}, which a storage file cannot hold ({reason})")]
+    BadLabel {
+        column: usize,
+        label: String,
+        reason: &'static str,
+    },
+    #[error("the table name {0:?} must be one line without '='")]
+    BadName(String),
+    #[error("extra header line {0:?} would be misread (a line break, endheader or a key this writer sets)")]
+    BadHeaderLine(String),
+    #[error("row {row} has {found} values for {expected} columns")]
+    RowLength {
+        row: usize,
+        expected: usize,
+        found: usize,
+    },
+    #[error("row {row}: time {time} is not finite or not after the previous row's")]
+    BadTime { row: usize, time: f64 },
+    #[error(
+        "row {row}, column {column:?}: {value} cannot be stored (OpenSim reads infinities as NaN)"
+    )]
+    Infinite {
+        row: usize,
+        column: String,
+        value: f64,
+    },
+    #[error("{path}: cannot write: {source}")]
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
+}
+
+fn check(table: &Table) -> Result<(), StoWriteError> {
+    if table.name.contains(['\n', '\r', '=']) || table.name.trim() != table.name {
+        return Err(StoWriteError::BadName(table.name.clone()));
+    }
+    match table.columns.first() {
+        Some(t) if t == "time" => {}
+        other => {
+            return Err(StoWriteError::NoTimeColumn {
+                found: other.cloned(),
+            })
+        }
+    }
+    for (i, label) in table.columns.iter().enumerate() {
+        let reason = if label.is_empty() {
+            Some("empty")
+        } else if label.contains(['\t', '\n', '\r']) {
+            Some("contains a tab or line break")
+        } else if label.trim() != label {
+            Some("leading or trailing blanks would be lost")
+        } else if table.columns[..i].contains(label) {
+            Some("duplicate")
+        } else {
+            None
+        };
+        if let Some(reason) = reason {
+            return Err(StoWriteError::BadLabel {
+                column: i + 1,
+                label: label.clone(),
+                reason,
+            });
+        }
+    }
+    for line in &table.extra_header {
+        let key = line.split('=').next().unwrap_or("").trim();
+        let reserved =
+            line.contains('=') && ["version", "nRows", "nColumns", "inDegrees"].contains(&key);
+        if line.contains(['\n', '\r'])
+            || line.trim().eq_ignore_ascii_case("endheader")
+            || reserved
+            || line.trim_end() != line
+        {
+            return Err(StoWriteError::BadHeaderLine(line.clone()));
+        }
+    }
+    let mut previous = f64::NEG_INFINITY;
+    for (r, row) in table.rows.iter().enumerate() {
+        if row.len() != table.columns.len() {
+            return Err(StoWriteError::RowLength {
+                row: r,
+                expected: table.columns.len(),
+                found: row.len(),
+            });
+        }
+        let t = row[0];
+        if !t.is_finite() || t <= previous {
+            return Err(StoWriteError::BadTime { row: r, time: t });
+        }
+        previous = t;
+        if let Some((c, &v)) = row.iter().enumerate().find(|(_, v)| v.is_infinite()) {
+            return Err(StoWriteError::Infinite {
+                row: r,
+                column: table.columns[c].clone(),
+                value: v,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Formats a table in the layout of the module docs.
+pub fn format_sto(table: &Table) -> Result<String, StoWriteError> {
+    check(table)?;
+    let mut out = String::new();
+    if !table.name.is_empty() {
+        out.push_str(&table.name);
+        out.push('\n');
+    }
+    out.push_str(&format!(
+        "version=1\nnRows={}\nnColumns={}\ninDegrees={}\n",
+        table.rows.len(),
+        table.columns.len(),
+        if table.in_degrees { "yes" } else { "no" }
+    ));
+    for line in &table.extra_header {
+        out.push_str(line);
+        out.push('\n');
+    }
+    out.push_str("endheader\n");
+    out.push_str(&table.columns.join("\t"));
+    out.push('\n');
+    for row in &table.rows {
+        for (i, &v) in row.iter().enumerate() {
+            if i > 0 {
+                out.push('\t');
+            }
+            if v.is_nan() {
+                out.push_str("NaN");
+            } else {
+                out.push_str(&format_shortest(v));
+            }
+        }
+        out.push('\n');
+    }
+    Ok(out)
+}
+
+/// Writes a table as a `.mot`/`.sto` file, atomically (see [`write_atomic`]).
+pub fn write_sto(path: &Path, table: &Table) -> Result<(), StoWriteError> {
+    let text = format_sto(table)?;
+    write_atomic(path, text.as_bytes()).map_err(|source| StoWriteError::Io {
+        path: path.display().to_string(),
+        source,
+    })
+}

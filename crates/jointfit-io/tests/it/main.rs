@@ -1,0 +1,8 @@
+//! Integration tests of jointfit-io against the real files in `$JOINTFIT_DATA` and against
+//! OpenSim (through `$JOINTFIT_PYTHON`). Without them the tests print `skipped:` and pass,
+//! except in CI, where they fail.
+
+mod oracle;
+mod sto;
+mod trc_files;
+mod trc_format;
