@@ -8,8 +8,11 @@
 //! This crate has no file formats and never prints: readers and writers live in
 //! `jointfit-io`, the command line in `jointfit-cli`.
 
+pub mod ik;
 pub mod kinematics;
+pub mod linalg;
 pub mod model;
+pub mod signal;
 #[doc(hidden)]
 pub mod testing;
 pub mod trial;

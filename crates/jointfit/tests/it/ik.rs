@@ -1,0 +1,196 @@
+//! Inverse kinematics against known synthetic truth.
+
+use jointfit::ik::{solve_frame, solve_trial, FrameStatus, IkOptions, IkWorkspace, MarkerMap};
+use jointfit::kinematics::{forward_kinematics, KinData, Want};
+use jointfit::model::lower_limb::{lower_limb, Side};
+use jointfit::model::Model;
+use jointfit::trial::Trial;
+use nalgebra::Vector3;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// A smooth gait-like motion: q(t) for frame `f` (rad, m).
+fn motion(model: &Model, f: usize, heading: f64) -> Vec<f64> {
+    let t = f as f64 / 100.0;
+    let w = 2.0 * std::f64::consts::PI;
+    let mut q = model.default_coords();
+    let set = |q: &mut Vec<f64>, name: &str, v: f64| q[model.coord_id(name).unwrap().0] = v;
+    set(&mut q, "pelvis_tx", 1.2 * t * heading.cos());
+    set(&mut q, "pelvis_tz", -1.2 * t * heading.sin());
+    set(&mut q, "pelvis_ty", 0.93 + 0.02 * (2.0 * w * t).sin());
+    set(&mut q, "pelvis_rotation", heading + 0.1 * (w * t).sin());
+    set(&mut q, "pelvis_tilt", 0.05 * (2.0 * w * t).cos());
+    set(&mut q, "pelvis_list", 0.04 * (w * t).sin());
+    set(&mut q, "hip_flexion", 0.3 + 0.45 * (w * t).sin());
+    set(&mut q, "hip_adduction", 0.08 * (w * t + 0.5).sin());
+    set(&mut q, "hip_rotation", 0.1 * (w * t).cos());
+    set(&mut q, "knee_flexion", 0.6 + 0.55 * (w * t - 1.0).sin());
+    set(&mut q, "ankle_dorsiflexion", 0.15 * (w * t + 0.3).sin());
+    set(&mut q, "subtalar_inversion", 0.1 * (w * t).sin());
+    q
+}
+
+fn synthetic_trial(
+    model: &Model,
+    p: &[f64],
+    frames: usize,
+    heading: f64,
+) -> (Trial, Vec<Vec<f64>>) {
+    let mut data = KinData::new(model);
+    let mut positions = Vec::new();
+    let mut truth = Vec::new();
+    for f in 0..frames {
+        let q = motion(model, f, heading);
+        forward_kinematics(model, p, &q, Want::POSITIONS, &mut data);
+        positions.extend_from_slice(&data.markers);
+        truth.push(q);
+    }
+    let labels = model.markers.iter().map(|m| m.name.clone()).collect();
+    (Trial::new(labels, 100.0, 1, positions).unwrap(), truth)
+}
+
+fn random_params(model: &Model, seed: u64) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    model
+        .parameters
+        .iter()
+        .map(|p| p.nominal + rng.gen_range(-0.3..0.3) * (p.upper - p.lower) / 2.0)
+        .collect()
+}
+
+#[test]
+fn recovers_known_coordinates_exactly() {
+    for side in [Side::Right, Side::Left] {
+        let model = Model::compile(&lower_limb(side)).unwrap();
+        let p = random_params(&model, 7);
+        // Heading 180°: the subject walks towards −x; the seed must still find the pelvis.
+        for heading in [0.0, std::f64::consts::PI, 2.0] {
+            let (trial, truth) = synthetic_trial(&model, &p, 60, heading);
+            let map = MarkerMap::by_name(&model, trial.labels()).unwrap();
+            let fit = solve_trial(&model, &p, &trial, &map, &IkOptions::default()).unwrap();
+            for (f, q) in truth.iter().enumerate() {
+                assert_eq!(fit.frames[f].status, FrameStatus::Converged, "frame {f}");
+                for (i, (a, b)) in fit.coords[f].iter().zip(q).enumerate() {
+                    // Angles compared modulo 2π.
+                    let d = (a - b + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI)
+                        - std::f64::consts::PI;
+                    assert!(
+                        d.abs() <= 1e-9,
+                        "{side:?} heading {heading} frame {f} coordinate {} off by {d:e}",
+                        model.coordinates[i].name
+                    );
+                }
+            }
+            assert!(fit.overall_rms() < 1e-10, "rms {}", fit.overall_rms());
+        }
+    }
+}
+
+#[test]
+fn missing_markers_drop_out_and_sparse_frames_are_reported() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p = model.nominal_params();
+    let (mut trial, truth) = synthetic_trial(&model, &p, 20, 0.0);
+    let nan = Vector3::repeat(f64::NAN);
+    let n = trial.n_markers();
+    let col = |name: &str| trial.index_of(name).unwrap();
+    let (thi, kne, tib, tia) = (col("RTHI"), col("RKNE"), col("RTIB"), col("RTIA"));
+    let pos = trial.positions_mut();
+    // Frame 5: one thigh marker missing (3 of 4 left): still solved exactly.
+    pos[5 * n + thi] = nan;
+    // Frame 9: two shank markers missing (2 of 4 left): reported, not guessed.
+    pos[9 * n + tib] = nan;
+    pos[9 * n + tia] = nan;
+    // Frame 10 carries on from frame 8's solution.
+    pos[10 * n + kne] = nan;
+    let map = MarkerMap::by_name(&model, trial.labels()).unwrap();
+    let fit = solve_trial(&model, &p, &trial, &map, &IkOptions::default()).unwrap();
+    assert_eq!(fit.frames[5].status, FrameStatus::Converged);
+    assert!(fit.errors[5][model.marker_index("RTHI").unwrap()].is_nan());
+    assert!(fit.coords[5]
+        .iter()
+        .zip(&truth[5])
+        .all(|(a, b)| (a - b).abs() < 1e-9));
+    assert_eq!(
+        fit.frames[9].status,
+        FrameStatus::TooFewMarkers {
+            segment: "shank".into(),
+            present: 2
+        }
+    );
+    assert!(fit.coords[9].iter().all(|v| v.is_nan()));
+    assert!(fit.frame_rms(9).is_nan());
+    assert!(fit.coords[10]
+        .iter()
+        .zip(&truth[10])
+        .all(|(a, b)| (a - b).abs() < 1e-9));
+    // Overall statistics skip the unsolved frame and the missing samples.
+    assert!(fit.overall_rms() < 1e-10);
+}
+
+#[test]
+fn missing_model_markers_are_named() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let labels: Vec<String> = ["RASI", "LASI", "RPSI"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    let e = MarkerMap::by_name(&model, &labels).unwrap_err().to_string();
+    assert!(
+        e.starts_with("the trial lacks model markers [\"LPSI\", \"RTHI\""),
+        "{e}"
+    );
+    assert!(e.ends_with("it has: RASI, LASI, RPSI"), "{e}");
+}
+
+/// With noise, the solution is a stationary point of the weighted cost: the gradient JᵀWr
+/// vanishes and no random nearby point has a lower cost.
+#[test]
+fn noisy_frame_is_a_least_squares_minimum() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p = model.nominal_params();
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let q_true = motion(&model, 13, 0.0);
+    let mut kin = KinData::new(&model);
+    forward_kinematics(&model, &p, &q_true, Want::POSITIONS, &mut kin);
+    let targets: Vec<Vector3<f64>> = kin
+        .markers
+        .iter()
+        .map(|m| {
+            m + Vector3::new(
+                rng.gen_range(-0.01..0.01),
+                rng.gen_range(-0.01..0.01),
+                rng.gen_range(-0.01..0.01),
+            )
+        })
+        .collect();
+    let mut q = q_true.clone();
+    let mut ws = IkWorkspace::new(&model);
+    let fit = solve_frame(&model, &p, &targets, &mut q, &IkOptions::default(), &mut ws);
+    assert_eq!(fit.status, FrameStatus::Converged);
+    forward_kinematics(&model, &p, &q, Want::DQ, &mut kin);
+    let r: Vec<f64> = targets
+        .iter()
+        .zip(&kin.markers)
+        .flat_map(|(t, x)| {
+            let d = t - x;
+            [d.x, d.y, d.z]
+        })
+        .collect();
+    let grad = kin.jq().transpose() * nalgebra::DVector::from(r);
+    assert!(grad.amax() < 1e-12, "gradient {}", grad.amax());
+    let cost = |q: &[f64], kin: &mut KinData| {
+        forward_kinematics(&model, &p, q, Want::POSITIONS, kin);
+        targets
+            .iter()
+            .zip(&kin.markers)
+            .map(|(t, x)| (t - x).norm_squared())
+            .sum::<f64>()
+    };
+    let c0 = cost(&q, &mut kin);
+    assert!((c0 - fit.cost).abs() < 1e-15);
+    for _ in 0..50 {
+        let qn: Vec<f64> = q.iter().map(|v| v + rng.gen_range(-1e-3..1e-3)).collect();
+        assert!(cost(&qn, &mut kin) >= c0);
+    }
+}
