@@ -19,9 +19,9 @@
 //! kept verbatim, less trailing blanks, in [`Table::extra_header`].
 //!
 //! Numbers are plain or in exponent notation. A missing value is written `NaN`; OpenSim's
-//! `TimeSeriesTable` reads it, but its older `Storage` class does not (it silently stops reading
-//! at the first row holding one), so tables meant for tools built on `Storage` should have no
-//! gaps.
+//! `TimeSeriesTable` reads it, but its older `Storage` class does not: without any error it
+//! misreads the first row holding one and drops every row after it (checked with OpenSim 4.6),
+//! so tables meant for tools built on `Storage` should have no gaps.
 //!
 //! # Writing
 //!

@@ -140,12 +140,32 @@ fn malformed_inputs_map_to_one_error_each() {
             "MissingFrames",
             "4 frames",
         ),
+        // Absurd values must give errors, not overflow or huge allocations.
+        (
+            b.replace("\t3\t2\tmm", "\t3\t18446744073709551615\tmm"),
+            "MarkerCountMismatch",
+            "18446744073709551615",
+        ),
+        (
+            b.replace("\n1\t0.00", "\n9223372036854775807\t0.00"),
+            "FrameNumberJump",
+            "line 8",
+        ),
     ];
     for (text, kind, fragment) in cases {
         let (got, msg) = err_of(&text);
         assert_eq!(got, kind, "{msg}");
         assert!(msg.contains(fragment), "{kind}: {msg:?} lacks {fragment:?}");
     }
+}
+
+#[test]
+fn unreadable_path_is_an_io_error_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("absent.trc");
+    let e = jointfit_io::trc::read_trc(&p).unwrap_err();
+    assert_eq!(error_kind(&e.kind), "Io");
+    assert!(e.to_string().contains("absent.trc"), "{e}");
 }
 
 #[test]
@@ -187,6 +207,7 @@ fn odd_but_valid_inputs() {
         b.replace("Z2\n\n", "Z2\n"),
         b.replace("Z2\n\n", "Z2\n\t\t\t\n"),
         b.replace("1\t2\t3\t4", "1.0E0\t 2 \t3e0\t+4"),
+        b.replace("\t0.00\t", "\t0e-2147483648\t"),
         format!("\u{feff}{b}\n\n"),
     ] {
         assert_same_trial(&reference, &parse_trc(&variant, "v").unwrap(), &variant);
@@ -261,6 +282,17 @@ fn writer_layout_and_errors() {
     assert!(format_trc(&t, "x", &m)
         .unwrap()
         .contains("\t0.002\t0.003\t0.004\t"));
+
+    // A present sample that prints as 0 0 0 is written as the gap it would read back as.
+    let tiny = Trial::new(
+        vec!["T".into()],
+        50.0,
+        1,
+        vec![Vector3::new(1e-9, -2e-9, 0.0)],
+    )
+    .unwrap();
+    let text = format_trc(&tiny, "x", &TrcWriteOptions::default()).unwrap();
+    assert!(text.ends_with("\n1\t0.000000\t\t\t\n"), "{text}");
 
     let bad = |label: &str| {
         Trial::new(

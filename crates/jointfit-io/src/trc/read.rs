@@ -1,0 +1,432 @@
+//! Reading TRC text (see the parent module for the format and the policy on odd files).
+
+use jointfit::trial::Trial;
+use nalgebra::Vector3;
+
+use super::{TrcErrorKind, TrcFile, TrcHeader, TrcNote, TrcUnits, HEADER_KEYS};
+use crate::text::{numbered_lines, parse_number};
+
+pub(super) fn parse(text: &str) -> Result<TrcFile, TrcErrorKind> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    if text.trim().is_empty() {
+        return Err(TrcErrorKind::Empty);
+    }
+    let lines = numbered_lines(text);
+    let line_at = |i: usize, expected: &'static str| {
+        lines
+            .get(i)
+            .map(|&(_, l)| l)
+            .ok_or(TrcErrorKind::Truncated {
+                line: lines.len(),
+                expected,
+            })
+    };
+
+    let first = line_at(0, "the header")?;
+    let Some(rest) = first.trim_start().strip_prefix("PathFileType") else {
+        return Err(TrcErrorKind::NotTrc {
+            found: first.chars().take(60).collect(),
+        });
+    };
+    let file_name = rest
+        .split('\t')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .nth(2)
+        .unwrap_or("")
+        .to_string();
+
+    let keys = line_at(1, "the header field names (line 2)")?;
+    let values = line_at(2, "the header values (line 3)")?;
+    let mut notes = Vec::new();
+    let mut header = parse_header(keys, values)?;
+    header.file_name = file_name;
+    let n = header.num_markers;
+
+    let labels_line = line_at(3, "the marker labels (line 4)")?;
+    let coords_line = line_at(4, "the coordinate names (line 5)")?;
+    let labels = parse_labels(labels_line, n, &mut notes)?;
+    let coords = coords_line
+        .split('\t')
+        .filter(|c| !c.trim().is_empty())
+        .count();
+    if coords != 3 * n {
+        // n equals the number of labels on line 4 here, so 3 * n cannot overflow.
+        return Err(TrcErrorKind::CoordinateRowMismatch {
+            line: 5,
+            expected: 3 * n,
+            found: coords,
+        });
+    }
+
+    let scale = header.units.to_metres();
+    let mut data = Rows::new(&labels, scale);
+    for &(line_no, line) in &lines[5..] {
+        if line.trim().is_empty() {
+            continue;
+        }
+        data.push(line_no, line)?;
+    }
+    let rows = data.times.len();
+    if rows < header.num_frames {
+        return Err(TrcErrorKind::MissingFrames {
+            header: header.num_frames,
+            rows,
+        });
+    }
+    if rows > header.num_frames {
+        notes.push(TrcNote::MoreRowsThanHeader {
+            header: header.num_frames,
+            rows,
+        });
+    }
+    if let Some(note) = data.check_times(header.data_rate) {
+        notes.push(note);
+    }
+    notes.extend(
+        std::mem::take(&mut data.zero).into_note(|count, first_line, marker| {
+            TrcNote::ZeroSamples {
+                count,
+                first_line,
+                marker,
+            }
+        }),
+    );
+    notes.extend(
+        std::mem::take(&mut data.partial).into_note(|count, first_line, marker| {
+            TrcNote::PartialSamples {
+                count,
+                first_line,
+                marker,
+            }
+        }),
+    );
+    let Rows {
+        positions,
+        times,
+        first_frame,
+        ..
+    } = data;
+    let first_frame = first_frame.or(header.orig_data_start_frame).unwrap_or(1);
+    let trial = Trial::new(labels, header.data_rate, first_frame, positions).map_err(|e| {
+        // Labels and rate were validated above; keep a precise message if that ever changes.
+        TrcErrorKind::BadRate {
+            line: 3,
+            value: e.to_string(),
+        }
+    })?;
+    Ok(TrcFile {
+        trial,
+        header,
+        times,
+        notes,
+    })
+}
+
+fn parse_header(keys: &str, values: &str) -> Result<TrcHeader, TrcErrorKind> {
+    let values: Vec<&str> = values.split('\t').map(str::trim).collect();
+    let mut found: [Option<&str>; 8] = [None; 8];
+    for (i, key) in keys.split('\t').map(str::trim).enumerate() {
+        if let Some(k) = HEADER_KEYS.iter().position(|h| h.eq_ignore_ascii_case(key)) {
+            found[k] = Some(values.get(i).copied().unwrap_or(""));
+        }
+    }
+    let required = |k: usize| {
+        found[k].ok_or(TrcErrorKind::MissingHeaderKey {
+            key: HEADER_KEYS[k],
+        })
+    };
+    let count = |k: usize| -> Result<usize, TrcErrorKind> {
+        let v = required(k)?;
+        v.parse::<usize>()
+            .map_err(|_| TrcErrorKind::BadHeaderValue {
+                line: 3,
+                key: HEADER_KEYS[k],
+                value: v.to_string(),
+            })
+    };
+    let rate_text = required(0)?;
+    let data_rate = match parse_number(rate_text) {
+        Some(r) if r.is_finite() && r > 0.0 => r,
+        _ => {
+            return Err(TrcErrorKind::BadRate {
+                line: 3,
+                value: rate_text.to_string(),
+            })
+        }
+    };
+    let num_frames = count(2)?;
+    let num_markers = count(3)?;
+    let units_text = required(4)?;
+    let units = TrcUnits::parse(units_text).ok_or_else(|| TrcErrorKind::UnknownUnits {
+        line: 3,
+        units: units_text.to_string(),
+    })?;
+    let optional_f64 = |k: usize| found[k].and_then(parse_number).filter(|v| v.is_finite());
+    Ok(TrcHeader {
+        file_name: String::new(),
+        data_rate,
+        camera_rate: optional_f64(1),
+        num_frames,
+        num_markers,
+        units,
+        orig_data_rate: optional_f64(5),
+        orig_data_start_frame: found[6].and_then(|v| v.parse().ok()),
+        orig_num_frames: found[7].and_then(|v| v.parse().ok()),
+    })
+}
+
+/// Reads the labels row (line 4) for `n` markers.
+fn parse_labels(
+    line: &str,
+    n: usize,
+    notes: &mut Vec<TrcNote>,
+) -> Result<Vec<String>, TrcErrorKind> {
+    let cells: Vec<&str> = line.split('\t').collect();
+    let first = cells[0].trim();
+    if !first.eq_ignore_ascii_case("Frame#") {
+        return Err(TrcErrorKind::BadLabelsRow {
+            line: 4,
+            found: line.chars().take(60).collect(),
+        });
+    }
+    let named: Vec<(usize, &str)> = cells
+        .iter()
+        .enumerate()
+        .skip(2)
+        .filter(|(_, c)| !c.trim().is_empty())
+        .map(|(i, c)| (i, *c))
+        .collect();
+    let aligned = named.iter().all(|&(i, _)| (i - 2) % 3 == 0);
+    let mut labels: Vec<String> = Vec::new();
+    if aligned {
+        let slots = named.last().map_or(0, |&(i, _)| (i - 2) / 3 + 1);
+        for k in 0..slots.min(n) {
+            match cells
+                .get(2 + 3 * k)
+                .map(|c| c.trim())
+                .filter(|c| !c.is_empty())
+            {
+                Some(l) => labels.push(l.to_string()),
+                None => {
+                    return Err(TrcErrorKind::EmptyLabel {
+                        line: 4,
+                        marker: k + 1,
+                        previous: labels.last().cloned(),
+                    })
+                }
+            }
+        }
+    } else {
+        notes.push(TrcNote::LabelsNotAligned { line: 4 });
+        labels.extend(named.iter().map(|(_, c)| c.trim().to_string()));
+    }
+    if named.len() != n {
+        return Err(TrcErrorKind::MarkerCountMismatch {
+            line: 4,
+            header: n,
+            labels: named.len(),
+        });
+    }
+    let trimmed = named.iter().filter(|(_, c)| c.trim() != *c).count();
+    if trimmed > 0 {
+        notes.push(TrcNote::TrimmedLabels {
+            line: 4,
+            count: trimmed,
+        });
+    }
+    for (j, l) in labels.iter().enumerate() {
+        if let Some(i) = labels[..j].iter().position(|x| x == l) {
+            return Err(TrcErrorKind::DuplicateLabel {
+                line: 4,
+                label: l.clone(),
+                first: i + 1,
+                second: j + 1,
+            });
+        }
+    }
+    Ok(labels)
+}
+
+/// Counts samples of one kind and remembers the first.
+#[derive(Default)]
+struct Tally {
+    count: usize,
+    first: Option<(usize, String)>,
+}
+
+impl Tally {
+    fn add(&mut self, line: usize, marker: &str) {
+        self.count += 1;
+        if self.first.is_none() {
+            self.first = Some((line, marker.to_string()));
+        }
+    }
+    fn into_note(self, make: impl FnOnce(usize, usize, String) -> TrcNote) -> Option<TrcNote> {
+        self.first
+            .map(|(line, marker)| make(self.count, line, marker))
+    }
+}
+
+/// Accumulates data rows.
+struct Rows<'a> {
+    labels: &'a [String],
+    scale: f64,
+    positions: Vec<Vector3<f64>>,
+    times: Vec<f64>,
+    /// (line, frame number, printed precision of the time) of each row, for the time check.
+    time_cells: Vec<(usize, i64, f64)>,
+    first_frame: Option<i64>,
+    last_frame: Option<i64>,
+    zero: Tally,
+    partial: Tally,
+}
+
+impl<'a> Rows<'a> {
+    fn new(labels: &'a [String], scale: f64) -> Self {
+        Rows {
+            labels,
+            scale,
+            positions: Vec::new(),
+            times: Vec::new(),
+            time_cells: Vec::new(),
+            first_frame: None,
+            last_frame: None,
+            zero: Tally::default(),
+            partial: Tally::default(),
+        }
+    }
+
+    fn push(&mut self, line_no: usize, line: &str) -> Result<(), TrcErrorKind> {
+        let n = self.labels.len();
+        let cells: Vec<&str> = line.split('\t').collect();
+        let frame_text = cells[0].trim();
+        let frame = parse_frame_number(frame_text).ok_or_else(|| TrcErrorKind::BadFrameNumber {
+            line: line_no,
+            value: frame_text.to_string(),
+        })?;
+        if let Some(prev) = self.last_frame {
+            if prev.checked_add(1) != Some(frame) {
+                return Err(TrcErrorKind::FrameNumberJump {
+                    line: line_no,
+                    previous: prev,
+                    found: frame,
+                });
+            }
+        }
+        self.first_frame.get_or_insert(frame);
+        self.last_frame = Some(frame);
+        let time_text = cells.get(1).map_or("", |c| c.trim());
+        let time = parse_number(time_text)
+            .filter(|t| t.is_finite())
+            .ok_or_else(|| TrcErrorKind::BadTime {
+                line: line_no,
+                value: time_text.to_string(),
+            })?;
+        self.times.push(time);
+        self.time_cells
+            .push((line_no, frame, resolution(time_text)));
+
+        let expected = 2 + 3 * n;
+        if cells.len() < expected {
+            let k = (cells.len().max(2) - 2) / 3;
+            return Err(TrcErrorKind::TooFewValues {
+                line: line_no,
+                marker: self.labels.get(k).cloned().unwrap_or_default(),
+                expected,
+                found: cells.len(),
+            });
+        }
+        if let Some((i, c)) = cells
+            .iter()
+            .enumerate()
+            .skip(expected)
+            .find(|(_, c)| !c.trim().is_empty())
+        {
+            return Err(TrcErrorKind::ExtraValues {
+                line: line_no,
+                column: i + 1,
+                value: c.trim().to_string(),
+                last_marker: self.labels.last().cloned().unwrap_or_default(),
+            });
+        }
+        for (k, label) in self.labels.iter().enumerate() {
+            let mut xyz = [f64::NAN; 3];
+            let mut missing = 0;
+            for (j, v) in xyz.iter_mut().enumerate() {
+                let col = 2 + 3 * k + j;
+                let text = cells[col].trim();
+                if text.is_empty() {
+                    missing += 1;
+                    continue;
+                }
+                let x = parse_number(text).ok_or_else(|| TrcErrorKind::BadNumber {
+                    line: line_no,
+                    column: col + 1,
+                    marker: label.clone(),
+                    value: text.to_string(),
+                })?;
+                if x.is_finite() {
+                    *v = x * self.scale;
+                } else {
+                    missing += 1;
+                }
+            }
+            let p = if missing > 0 {
+                if missing < 3 {
+                    self.partial.add(line_no, label);
+                }
+                Vector3::repeat(f64::NAN)
+            } else if xyz == [0.0; 3] {
+                self.zero.add(line_no, label);
+                Vector3::repeat(f64::NAN)
+            } else {
+                Vector3::from(xyz)
+            };
+            self.positions.push(p);
+        }
+        Ok(())
+    }
+
+    /// Compares the Time column with `first time + i / rate`; a note for the first row off by
+    /// more than half a frame plus the printed precision.
+    fn check_times(&self, rate: f64) -> Option<TrcNote> {
+        let t0 = *self.times.first()?;
+        let res0 = self.time_cells.first()?.2;
+        for (i, (&t, &(line, frame, res))) in self.times.iter().zip(&self.time_cells).enumerate() {
+            let expected = t0 + i as f64 / rate;
+            // Both times are rounded to their printed precision; the first is taken to be
+            // printed like this row (a shortest-form writer prints it as a bare `0`).
+            let tol = 0.5 / rate + res.min(res0) / 2.0 + res / 2.0 + 1e-9 * expected.abs();
+            if (t - expected).abs() > tol {
+                return Some(TrcNote::TimeDisagreesWithRate {
+                    line,
+                    frame,
+                    expected,
+                    found: t,
+                });
+            }
+        }
+        None
+    }
+}
+
+/// Frame numbers are integers; some writers print them as `12.0`.
+fn parse_frame_number(s: &str) -> Option<i64> {
+    if let Ok(v) = s.parse::<i64>() {
+        return Some(v);
+    }
+    let v: f64 = s.parse().ok()?;
+    (v.is_finite() && v.fract() == 0.0 && v.abs() < 9e15).then_some(v as i64)
+}
+
+/// The value of one unit in the last printed digit of a number (`4.983` → 0.001).
+fn resolution(s: &str) -> f64 {
+    let s = s.trim();
+    let (mantissa, exp) = match s.find(['e', 'E']) {
+        Some(i) => (&s[..i], s[i + 1..].parse::<i32>().unwrap_or(0)),
+        None => (s, 0),
+    };
+    let decimals = mantissa.find('.').map_or(0, |i| mantissa.len() - i - 1) as i32;
+    10f64.powi(exp.saturating_sub(decimals))
+}
