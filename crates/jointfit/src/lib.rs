@@ -10,6 +10,7 @@
 
 pub mod ik;
 pub mod kinematics;
+pub mod landmarks;
 pub mod linalg;
 pub mod model;
 pub mod signal;
