@@ -1,6 +1,7 @@
 //! The `jointfit` command-line tool: thin clap front end, one module per subcommand.
 
 mod model_cmd;
+mod personalize_cmd;
 mod table;
 
 use std::process::ExitCode;
@@ -23,12 +24,15 @@ enum Command {
         #[command(subcommand)]
         command: model_cmd::ModelCommand,
     },
+    /// Build a subject's leg model from a static trial (anatomical-landmark method).
+    Personalize(personalize_cmd::PersonalizeArgs),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Model { command } => model_cmd::run(command),
+        Command::Personalize(args) => personalize_cmd::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
