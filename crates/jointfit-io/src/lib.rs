@@ -2,3 +2,5 @@
 //!
 //! Every reader returns a [`jointfit::trial::Trial`] in SI units with gaps as NaN, and every
 //! error names the file and, where it applies, the line, frame or marker.
+
+pub mod c3d;
