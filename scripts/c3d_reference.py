@@ -24,6 +24,7 @@ Conventions of the readers, recorded here and normalised by the Rust test, not h
 """
 
 import json
+import multiprocessing
 import os
 import sys
 import warnings
@@ -34,7 +35,8 @@ UNIT_TO_MM = {"mm": 1.0, "m": 1000.0, "cm": 10.0}
 
 
 def unit_factor(units):
-    u = (units or "").strip().lower()
+    words = (units or "").split()
+    u = words[0].lower() if words else ""
     return UNIT_TO_MM.get(u, 1.0)
 
 
@@ -131,6 +133,37 @@ def read_c3d(path, out_prefix):
         }
 
 
+# ezc3d spends tens of seconds (allocating) before rejecting some malformed files; each
+# reader runs in a child process and is given up on after this many seconds.
+TIME_LIMIT_S = 10
+
+
+def _child(fn, path, prefix, conn):
+    try:
+        conn.send(fn(path, prefix))
+    except BaseException as e:  # noqa: BLE001 - every failure is data for the test
+        conn.send({"error": f"{type(e).__name__}: {e}"[:300]})
+
+
+def run_limited(fn, path, prefix):
+    parent, child = multiprocessing.Pipe(duplex=False)
+    proc = multiprocessing.Process(target=_child, args=(fn, path, prefix, child))
+    proc.start()
+    child.close()
+    if parent.poll(TIME_LIMIT_S):
+        try:
+            result = parent.recv()
+        except EOFError:
+            result = {"error": f"reader process died (exit code {proc.exitcode})"}
+    else:
+        proc.kill()
+        result = {"error": f"Timeout: no answer within {TIME_LIMIT_S} s"}
+    proc.join()
+    if proc.exitcode not in (0, None) and "error" not in result:
+        result = {"error": f"reader process died (exit code {proc.exitcode})"}
+    return result
+
+
 def main():
     if len(sys.argv) < 2:
         sys.exit(__doc__)
@@ -140,12 +173,7 @@ def main():
     for i, path in enumerate(sys.argv[2:]):
         entry = {"path": path}
         for name, fn in (("ezc3d", read_ezc3d), ("c3d", read_c3d)):
-            try:
-                entry[name] = fn(path, os.path.join(out, f"{i}_{name}"))
-            except BaseException as e:  # noqa: BLE001 - every failure is data for the test
-                if isinstance(e, KeyboardInterrupt):
-                    raise
-                entry[name] = {"error": f"{type(e).__name__}: {e}"[:300]}
+            entry[name] = run_limited(fn, path, os.path.join(out, f"{i}_{name}"))
         index.append(entry)
     with open(os.path.join(out, "index.json"), "w") as f:
         json.dump(index, f, indent=1)

@@ -11,7 +11,8 @@
 //!
 //! # Which field wins when the file contradicts itself
 //!
-//! - Point count: POINT:USED, else header word 2. Storage (integer or float) and the residual
+//! - Point count: POINT:USED, else header word 2; but when they differ and only the header's
+//!   count fits the declared frames into the data section, the header's. Storage (integer or float) and the residual
 //!   scale: POINT:SCALE, else header words 7–8. When the two scales differ in an integer file
 //!   the reader refuses it ([`C3dError::ScaleMismatch`]): the scale multiplies every
 //!   coordinate. (In float files it only scales residuals: POINT:SCALE is used, with a warning.)
@@ -288,19 +289,7 @@ pub fn parse_c3d(bytes: &[u8]) -> Result<C3d, C3dError> {
     let mut warnings = section.warnings;
     let get = |g: &str, p: &str| params.get(g, p);
 
-    // Points: count, storage, scale, units.
-    let n_points = match get("POINT", "USED").and_then(Parameter::u16) {
-        Some(n) => {
-            if n != header.point_count {
-                warnings.push(format!(
-                    "POINT:USED is {n} but the header says {} points; used POINT:USED",
-                    header.point_count
-                ));
-            }
-            usize::from(n)
-        }
-        None => usize::from(header.point_count),
-    };
+    // Points: storage, scale, units.
     let scale = match get("POINT", "SCALE").and_then(Parameter::f64) {
         Some(s) => {
             let s = s as f32;
@@ -323,16 +312,11 @@ pub fn parse_c3d(bytes: &[u8]) -> Result<C3d, C3dError> {
         None => header.scale,
     };
     let float = scale < 0.0;
-    if !float && n_points > 0 && !(scale.is_finite() && scale > 0.0) {
-        return Err(C3dError::BadScale(scale));
-    }
     let units = get("POINT", "UNITS")
         .and_then(Parameter::string)
         .unwrap_or_default();
     let metres = if units.is_empty() {
-        if n_points > 0 {
-            warnings.push("POINT:UNITS is missing or blank; read as mm".into());
-        }
+        warnings.push("POINT:UNITS is missing or blank; read as mm".into());
         1e-3
     } else {
         metres_per_unit(&units).ok_or_else(|| C3dError::UnknownUnits(units.clone()))?
@@ -384,6 +368,37 @@ pub fn parse_c3d(bytes: &[u8]) -> Result<C3d, C3dError> {
     };
     if data_offset < section_end && data_offset > section_start {
         warnings.push("the data section starts inside the declared parameter blocks".into());
+    }
+
+    // Point count: POINT:USED, unless only the header's count fits the declared frames into
+    // the data section (sample kyowadengyo: POINT:USED 12, header 11, and 11 is right).
+    let word_bytes = if float { 4 } else { 2 };
+    let data_bytes = len.saturating_sub(data_offset);
+    let fits_declared = |n: usize| {
+        (4 * n + analog_values) * word_bytes * header.frame_count() <= data_bytes
+    };
+    let header_points = usize::from(header.point_count);
+    let n_points = match get("POINT", "USED").and_then(Parameter::u16).map(usize::from) {
+        Some(n) if n != header_points => {
+            if !fits_declared(n) && fits_declared(header_points) {
+                warnings.push(format!(
+                    "POINT:USED is {n} but the header says {header_points} points, and only \
+                     {header_points} fit the declared frames into the data section; used \
+                     {header_points}"
+                ));
+                header_points
+            } else {
+                warnings.push(format!(
+                    "POINT:USED is {n} but the header says {header_points} points; used POINT:USED"
+                ));
+                n
+            }
+        }
+        Some(n) => n,
+        None => header_points,
+    };
+    if !float && n_points > 0 && !(scale.is_finite() && scale > 0.0) {
+        return Err(C3dError::BadScale(scale));
     }
 
     let mut layout = Layout {
