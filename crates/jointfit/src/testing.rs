@@ -56,6 +56,8 @@ pub fn python() -> Option<PathBuf> {
     if in_ci() {
         panic!("JOINTFIT_PYTHON is not set; .ci/run must create the oracle venv");
     }
-    eprintln!("skipped: no Python oracle (set JOINTFIT_PYTHON to a venv with scipy, ezc3d, c3d, opensim)");
+    eprintln!(
+        "skipped: no Python oracle (set JOINTFIT_PYTHON to a venv with scipy, ezc3d, c3d, opensim)"
+    );
     None
 }

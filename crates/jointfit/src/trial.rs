@@ -296,7 +296,10 @@ mod tests {
         assert_eq!(up, Vector3::new(0.0, 1.0, 0.0));
         assert!((r.determinant() - 1.0).abs() < 1e-15);
         let r = up_axis_rotation(UpAxis::NegZ);
-        assert_eq!(r * Vector3::new(0.0, 0.0, -1.0), Vector3::new(0.0, 1.0, 0.0));
+        assert_eq!(
+            r * Vector3::new(0.0, 0.0, -1.0),
+            Vector3::new(0.0, 1.0, 0.0)
+        );
         assert!((r.determinant() - 1.0).abs() < 1e-15);
     }
 }

@@ -11,6 +11,8 @@
 //!   "residual/camera word": negative ⇒ the sample is invalid; otherwise its low byte times
 //!   |POINT:SCALE| is the residual (0 means interpolated or filtered) and bits 8–14 are the mask
 //!   of cameras that saw the point.
+//!   A float residual word above 32767 cannot be a 16-bit word: the sample stays valid, its
+//!   residual is NaN and its camera mask 0.
 //! - In addition, this reader treats an exact (0, 0, 0) and any non-finite coordinate as
 //!   missing: several writers mark gaps that way with a non-negative residual word.
 //! - Analog value = (word − ANALOG:OFFSET[c]) × ANALOG:SCALE[c] × ANALOG:GEN_SCALE; integer
@@ -51,6 +53,9 @@ impl Layout {
     }
 }
 
+/// Marks a valid sample whose residual word cannot be decoded.
+const WORD_UNKNOWN: i64 = -1;
+
 /// Decoded 3D samples, frame-major (`[frame · n_points + point]`).
 pub(crate) struct PointSamples {
     pub positions: Vec<Vector3<f64>>,
@@ -75,21 +80,34 @@ pub(crate) fn decode_points(bytes: &[u8], l: &Layout) -> PointSamples {
                 let v = |i: usize| l.processor.f32([p[i], p[i + 1], p[i + 2], p[i + 3]]);
                 let r = v(12);
                 // The residual word is an integer stored as a float; NaN counts as invalid.
-                let word = if r >= 0.0 { Some(r as i64) } else { None };
+                // A value beyond 16 bits (a writer that stored two raw 16-bit words there,
+                // e.g. sample admarche2: bytes 00 7F 00 7F ≈ 1.7e38) is valid but carries no
+                // decodable residual: marked by WORD_UNKNOWN.
+                let word = if r > 32767.0 {
+                    Some(WORD_UNKNOWN)
+                } else if r >= 0.0 {
+                    Some(r as i64)
+                } else {
+                    None
+                };
                 let xyz = Vector3::new(f64::from(v(0)), f64::from(v(4)), f64::from(v(8)));
                 (xyz, word)
             } else {
                 let v = |i: usize| l.processor.i16([p[i], p[i + 1]]);
                 let r = v(6);
                 let word = if r >= 0 { Some(i64::from(r)) } else { None };
-                let xyz = Vector3::new(f64::from(v(0)), f64::from(v(2)), f64::from(v(4)))
-                    * l.scale;
+                let xyz = Vector3::new(f64::from(v(0)), f64::from(v(2)), f64::from(v(4))) * l.scale;
                 (xyz, word)
             };
             let valid = word.is_some()
                 && xyz.iter().all(|c| c.is_finite())
                 && !(xyz.x == 0.0 && xyz.y == 0.0 && xyz.z == 0.0);
             match word {
+                Some(WORD_UNKNOWN) if valid => {
+                    positions.push(xyz * l.metres_per_unit);
+                    residuals.push(f64::NAN);
+                    camera_masks.push(0);
+                }
                 Some(w) if valid => {
                     positions.push(xyz * l.metres_per_unit);
                     residuals.push((w & 0xff) as f64 * l.scale * l.metres_per_unit);
@@ -208,14 +226,18 @@ mod tests {
     #[test]
     fn float_points_residual_word_is_an_integer_value() {
         let mut b = Vec::new();
-        for v in [1000.0f32, 2000.0, 3000.0, 8450.0, 1.0, 2.0, 3.0, -1.0] {
+        for v in [
+            1000.0f32, 2000.0, 3000.0, 8450.0, 1.0, 2.0, 3.0, -1.0, 4.0, 5.0, 6.0, 1.7e38,
+        ] {
             b.extend_from_slice(&v.to_le_bytes());
         }
         for v in [7.0f32, 8.0] {
             b.extend_from_slice(&v.to_le_bytes());
         }
-        let l = layout(true, 2, 1);
+        let l = layout(true, 3, 1);
         let s = decode_points(&b, &l);
+        assert_eq!(s.positions[2], Vector3::new(4e-3, 5e-3, 6e-3));
+        assert!(s.residuals[2].is_nan());
         assert_eq!(s.positions[0], Vector3::new(1.0, 2.0, 3.0));
         // 8450 = 0x2102: residual byte 2, cameras 0x21.
         assert_eq!(s.residuals[0], 2.0 * 0.5e-3);

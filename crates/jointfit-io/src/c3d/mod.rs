@@ -39,6 +39,7 @@
 mod data;
 pub mod floats;
 pub mod header;
+mod layout;
 pub mod parameters;
 
 use std::path::{Path, PathBuf};
@@ -51,7 +52,7 @@ pub use floats::Processor;
 pub use header::Header;
 pub use parameters::{Group, ParamData, Parameter, Parameters};
 
-use data::{AnalogScaling, Layout};
+use data::AnalogScaling;
 use header::BLOCK;
 
 /// Why a C3D file could not be read.
@@ -163,7 +164,10 @@ impl Analog {
     }
     /// Number of samples per channel.
     pub fn n_samples(&self) -> usize {
-        self.samples.len().checked_div(self.labels.len()).unwrap_or(0)
+        self.samples
+            .len()
+            .checked_div(self.labels.len())
+            .unwrap_or(0)
     }
 }
 
@@ -321,180 +325,24 @@ pub fn parse_c3d(bytes: &[u8]) -> Result<C3d, C3dError> {
     } else {
         metres_per_unit(&units).ok_or_else(|| C3dError::UnknownUnits(units.clone()))?
     };
-
-    // Analog layout.
-    let analog_values = usize::from(header.analog_values_per_frame);
-    let mut n_channels = get("ANALOG", "USED")
-        .and_then(Parameter::u16)
-        .map_or(0, usize::from);
-    if analog_values == 0 {
-        n_channels = 0;
-    } else if n_channels == 0 || analog_values % n_channels != 0 {
-        let spf = usize::from(header.analog_samples_per_frame).max(1);
-        let derived = analog_values / spf;
-        warnings.push(format!(
-            "ANALOG:USED ({n_channels}) does not divide the header's {analog_values} analog \
-             values per frame; read {derived} channels"
-        ));
-        n_channels = derived;
-    }
-
-    // Data start.
-    let section_end = section_start + BLOCK * usize::from(section.declared_blocks.max(1));
-    let header_start = usize::from(header.data_block).saturating_sub(1) * BLOCK;
-    let param_start = get("POINT", "DATA_START")
-        .and_then(Parameter::u16)
-        .map(|b| usize::from(b).saturating_sub(1) * BLOCK);
-    let usable = |s: usize| s >= BLOCK && s < len.max(BLOCK + 1) && s != section_start;
-    let data_offset = if usable(header_start) {
-        if let Some(p) = param_start.filter(|&p| p != header_start) {
-            warnings.push(format!(
-                "POINT:DATA_START (byte {p}) differs from the header (byte {header_start}); \
-                 used the header"
-            ));
-        }
-        header_start
-    } else if let Some(p) = param_start.filter(|&p| usable(p)) {
-        warnings.push(format!(
-            "header data block {} is unusable; used POINT:DATA_START",
-            header.data_block
-        ));
-        p
-    } else {
-        return Err(C3dError::DataStart {
-            block: usize::from(header.data_block),
+    let resolved = layout::resolve(
+        &layout::Known {
             len,
-        });
-    };
-    if data_offset < section_end && data_offset > section_start {
-        warnings.push("the data section starts inside the declared parameter blocks".into());
-    }
-
-    // Point count: POINT:USED, unless only the header's count fits the declared frames into
-    // the data section (sample kyowadengyo: POINT:USED 12, header 11, and 11 is right).
-    let word_bytes = if float { 4 } else { 2 };
-    let data_bytes = len.saturating_sub(data_offset);
-    let fits_declared = |n: usize| {
-        (4 * n + analog_values) * word_bytes * header.frame_count() <= data_bytes
-    };
-    let header_points = usize::from(header.point_count);
-    let n_points = match get("POINT", "USED").and_then(Parameter::u16).map(usize::from) {
-        Some(n) if n != header_points => {
-            if !fits_declared(n) && fits_declared(header_points) {
-                warnings.push(format!(
-                    "POINT:USED is {n} but the header says {header_points} points, and only \
-                     {header_points} fit the declared frames into the data section; used \
-                     {header_points}"
-                ));
-                header_points
-            } else {
-                warnings.push(format!(
-                    "POINT:USED is {n} but the header says {header_points} points; used POINT:USED"
-                ));
-                n
-            }
-        }
-        Some(n) => n,
-        None => header_points,
-    };
-    if !float && n_points > 0 && !(scale.is_finite() && scale > 0.0) {
-        return Err(C3dError::BadScale(scale));
-    }
-
-    let mut layout = Layout {
-        processor,
-        float,
-        scale: f64::from(scale.abs()),
-        metres_per_unit: metres,
-        n_points,
-        analog_values,
-        n_channels,
-        data_offset,
-        n_frames: 0,
-    };
-    let frame_bytes = layout.frame_bytes();
-    let available = (len.saturating_sub(data_offset))
-        .checked_div(frame_bytes)
-        .unwrap_or(usize::MAX);
-
-    // Frames.
-    let first_frame = match get("TRIAL", "ACTUAL_START_FIELD").and_then(Parameter::u16s) {
-        Some(w) if w.len() >= 2 => i64::from(w[0]) + (i64::from(w[1]) << 16),
-        _ => i64::from(header.first_frame),
-    };
-    let declared_header = header.frame_count();
-    let mut candidates: Vec<(String, usize)> = Vec::new();
-    if let Some(w) = get("TRIAL", "ACTUAL_END_FIELD").and_then(Parameter::u16s) {
-        if w.len() >= 2 {
-            let end = i64::from(w[0]) + (i64::from(w[1]) << 16);
-            let n = end - first_frame + 1;
-            if n > 0 {
-                candidates.push(("TRIAL:ACTUAL_END_FIELD".into(), n as usize));
-            }
-        }
-    }
-    for name in ["LONG_FRAMES", "FRAMES"] {
-        if let Some(v) = get("POINT", name) {
-            let n = match &v.data {
-                ParamData::Int(w) => w.first().map(|&x| f64::from(x as u16)),
-                _ => v.f64(),
-            };
-            if let Some(n) = n.filter(|n| n.is_finite() && *n > 0.0 && n.fract() == 0.0) {
-                candidates.push((format!("POINT:{name}"), n as usize));
-            }
-        }
-    }
-    let fits = |n: usize| n <= available;
-    let n_frames = if fits(declared_header) {
-        // Header fits; a parameter may declare more (16-bit header overflow).
-        match candidates
-            .iter()
-            .filter(|(_, n)| *n > declared_header && fits(*n))
-            .max_by_key(|(_, n)| *n)
-        {
-            Some((name, n)) => {
-                warnings.push(format!(
-                    "the header declares {declared_header} frames, {name} {n}; read {n}"
-                ));
-                *n
-            }
-            None => declared_header,
-        }
-    } else {
-        // The header declares more frames than the data section holds: believe a parameter
-        // that fits; else, if the data end cleanly (at a frame boundary or a whole number of
-        // blocks), read the frames that are there, else the file is truncated.
-        let clean_end = len % BLOCK == 0
-            || len.saturating_sub(data_offset).checked_rem(frame_bytes) == Some(0);
-        match candidates
-            .iter()
-            .filter(|(_, n)| fits(*n))
-            .max_by_key(|(_, n)| *n)
-        {
-            Some((name, n)) => {
-                warnings.push(format!(
-                    "the header declares {declared_header} frames but the data section holds \
-                     {available}; read {n} from {name}"
-                ));
-                *n
-            }
-            None if clean_end => {
-                warnings.push(format!(
-                    "the file declares {declared_header} frames but its data section ends \
-                     cleanly after {available}; read {available}"
-                ));
-                available
-            }
-            None => {
-                return Err(C3dError::Truncated {
-                    declared: declared_header,
-                    available,
-                    frame_bytes,
-                })
-            }
-        }
-    };
-    layout.n_frames = n_frames;
+            header: &header,
+            params: &params,
+            processor,
+            section_start,
+            declared_blocks: section.declared_blocks,
+            float,
+            scale,
+            metres_per_unit: metres,
+        },
+        &mut warnings,
+    )?;
+    let layout = resolved.layout;
+    let (first_frame, n_frames, n_points) =
+        (resolved.first_frame, layout.n_frames, layout.n_points);
+    let (n_channels, analog_values) = (layout.n_channels, layout.analog_values);
 
     // Samples.
     let samples = data::decode_points(bytes, &layout);

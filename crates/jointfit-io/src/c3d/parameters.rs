@@ -100,9 +100,7 @@ impl Parameter {
             ParamData::Int(v) => Some(v.iter().map(|&x| x as u16).collect()),
             ParamData::Float(v) => v
                 .iter()
-                .map(|&x| {
-                    (x.fract() == 0.0 && (0.0..=65535.0).contains(&x)).then_some(x as u16)
-                })
+                .map(|&x| (x.fract() == 0.0 && (0.0..=65535.0).contains(&x)).then_some(x as u16))
                 .collect(),
         }
     }
@@ -181,7 +179,10 @@ impl Parameters {
             out.extend(s);
         }
         for k in 2.. {
-            match self.get(group, &format!("{param}{k}")).and_then(Parameter::strings) {
+            match self
+                .get(group, &format!("{param}{k}"))
+                .and_then(Parameter::strings)
+            {
                 Some(s) => out.extend(s),
                 None => break,
             }
@@ -255,8 +256,14 @@ pub(crate) fn parse_section(bytes: &[u8], start: usize) -> Result<Section, Secti
                 records.push(record);
                 (offset_pos, offset, Some(end))
             }
-            Err(RecordError { offset_pos, offset, reason }) => {
-                warnings.push(format!("parameter section: record at byte {pos} skipped: {reason}"));
+            Err(RecordError {
+                offset_pos,
+                offset,
+                reason,
+            }) => {
+                warnings.push(format!(
+                    "parameter section: record at byte {pos} skipped: {reason}"
+                ));
                 match offset_pos {
                     Some(p) => (p, offset, None),
                     None => break,
@@ -323,11 +330,7 @@ fn classify(bytes: &[u8], pos: usize) -> Kind {
     }
     let n = usize::from(n.unsigned_abs());
     match bytes.get(pos + 2..pos + 2 + n + 2) {
-        Some(rest)
-            if rest[..n].iter().all(|&c| c.is_ascii_graphic() || c == b' ') =>
-        {
-            Kind::Record
-        }
+        Some(rest) if rest[..n].iter().all(|&c| c.is_ascii_graphic() || c == b' ') => Kind::Record,
         _ => Kind::Garbage,
     }
 }
@@ -542,7 +545,11 @@ mod tests {
         let labels = b"A   BB  ";
         let recs = vec![
             // Parameter before its group.
-            record(1, "LABELS", &param_body(-1, &[4, 2], labels, "marker names")),
+            record(
+                1,
+                "LABELS",
+                &param_body(-1, &[4, 2], labels, "marker names"),
+            ),
             record(-1, "POINT", &[3, b'3', b'D', b'!']),
             record(1, "USED", &param_body(2, &[], &(-2i16).to_le_bytes(), "")),
             record(1, "RATE", &param_body(4, &[], &50f32.to_le_bytes(), "")),
@@ -552,11 +559,20 @@ mod tests {
         assert!(s.warnings.is_empty(), "{:?}", s.warnings);
         let p = &s.parameters;
         assert_eq!(p.group("point").unwrap().description, "3D!");
-        assert_eq!(p.get("POINT", "labels").unwrap().strings().unwrap(), ["A", "BB"]);
+        assert_eq!(
+            p.get("POINT", "labels").unwrap().strings().unwrap(),
+            ["A", "BB"]
+        );
         assert_eq!(p.get("POINT", "USED").unwrap().u16(), Some(65534));
         assert_eq!(p.get("POINT", "RATE").unwrap().f64(), Some(50.0));
-        assert_eq!(p.get("POINT", "FLAGS").unwrap().f64s().unwrap(), [1.0, 2.0, 255.0]);
-        assert_eq!(p.get("POINT", "LABELS").unwrap().description, "marker names");
+        assert_eq!(
+            p.get("POINT", "FLAGS").unwrap().f64s().unwrap(),
+            [1.0, 2.0, 255.0]
+        );
+        assert_eq!(
+            p.get("POINT", "LABELS").unwrap().description,
+            "marker names"
+        );
     }
 
     #[test]
@@ -578,7 +594,10 @@ mod tests {
     fn bad_offset_falls_back_to_record_end() {
         let mut a = record(-1, "POINT", &[0]);
         a[7] = 0x70; // offset low byte: way off
-        let recs = vec![a, record(1, "USED", &param_body(2, &[], &3i16.to_le_bytes(), ""))];
+        let recs = vec![
+            a,
+            record(1, "USED", &param_body(2, &[], &3i16.to_le_bytes(), "")),
+        ];
         let s = parse_section(&section(&recs), 0).unwrap();
         assert_eq!(s.parameters.get("POINT", "USED").unwrap().u16(), Some(3));
         assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
