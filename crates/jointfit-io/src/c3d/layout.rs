@@ -209,6 +209,17 @@ pub(crate) fn resolve(k: &Known<'_>, warnings: &mut Vec<String>) -> Result<Resol
             }
         }
     }
+    if frame_bytes == 0 {
+        // No points and no analog words: nothing to read, and no byte count to check a
+        // parameter's frame count against; keep the header's (at most 65536).
+        return Ok(Resolved {
+            layout: Layout {
+                n_frames: declared_header,
+                ..layout
+            },
+            first_frame,
+        });
+    }
     let fits = |n: usize| n <= available;
     let n_frames = if fits(declared_header) {
         // Header fits; a parameter may declare more (16-bit header overflow).
