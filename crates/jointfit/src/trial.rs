@@ -53,7 +53,7 @@ impl Trial {
             return Err(TrialError::BadRate(rate));
         }
         let n = labels.len();
-        if (n == 0 && !positions.is_empty()) || (n > 0 && positions.len() % n != 0) {
+        if (n == 0 && !positions.is_empty()) || (n > 0 && !positions.len().is_multiple_of(n)) {
             return Err(TrialError::ShapeMismatch {
                 labels: n,
                 columns: positions.len(),
