@@ -87,7 +87,10 @@ fn load(data: &Path) -> Vec<(String, Vec<u8>)> {
         .iter()
         .map(|rel| {
             let p = data.join(rel);
-            (rel.to_string(), std::fs::read(&p).unwrap_or_else(|e| panic!("{rel}: {e}")))
+            (
+                rel.to_string(),
+                std::fs::read(&p).unwrap_or_else(|e| panic!("{rel}: {e}")),
+            )
         })
         .collect()
 }

@@ -474,12 +474,14 @@ fn assemble(records: Vec<Record>, warnings: &mut Vec<String>) -> Parameters {
             ..Group::default()
         });
         let key = p.name.to_ascii_uppercase();
-        if g.params.contains_key(&key) {
-            warnings.push(format!(
-                "parameter section: parameter {key} appears twice in group id {id}; kept the first"
-            ));
-        } else {
-            g.params.insert(key, p);
+        match g.params.entry(key) {
+            std::collections::btree_map::Entry::Occupied(e) => warnings.push(format!(
+                "parameter section: parameter {} appears twice in group id {id}; kept the first",
+                e.key()
+            )),
+            std::collections::btree_map::Entry::Vacant(e) => {
+                e.insert(p);
+            }
         }
     }
     let mut groups: BTreeMap<String, Group> = BTreeMap::new();
