@@ -41,6 +41,8 @@ pub mod floats;
 pub mod header;
 mod layout;
 pub mod parameters;
+#[cfg(test)]
+mod tests;
 
 use std::path::{Path, PathBuf};
 
