@@ -50,6 +50,9 @@ fn survives(bytes: &[u8]) -> Result<(), String> {
 /// One random mutant of `orig` (a description and the bytes).
 fn mutate(orig: &[u8], rng: &mut ChaCha8Rng) -> (String, Vec<u8>) {
     let mut b = orig.to_vec();
+    if b.len() < 2 {
+        return ("unchanged (too short to mutate)".into(), b);
+    }
     // The header and parameter section are where single bytes matter most.
     let hot = (usize::from(orig[0]).max(2) * 512 + 4096).min(orig.len());
     match rng.gen_range(0..4) {
@@ -74,7 +77,7 @@ fn mutate(orig: &[u8], rng: &mut ChaCha8Rng) -> (String, Vec<u8>) {
             (format!("bytes {}", what.join(" ")), b)
         }
         _ => {
-            let i = rng.gen_range(0..hot.saturating_sub(1).max(1));
+            let i = rng.gen_range(0..hot - 1);
             let v: u16 = [0, 1, 0x7fff, 0x8000, 0xffff][rng.gen_range(0..5)];
             b[i..i + 2].copy_from_slice(&v.to_le_bytes());
             (format!("word at {i} = {v:#x}"), b)
