@@ -11,30 +11,38 @@
 //!
 //! # Which field wins when the file contradicts itself
 //!
+//! - Storage (integer or float) and the residual scale: POINT:SCALE, else header words 7–8.
+//!   When the two scales differ in an integer file the reader refuses it
+//!   ([`C3dError::ScaleMismatch`]): the scale multiplies every coordinate and the file does not
+//!   say which is right. (In float files it only scales residuals: POINT:SCALE is used, with a
+//!   warning.)
 //! - Point count: POINT:USED, else header word 2; but when they differ and only the header's
-//!   count fits the declared frames into the data section, the header's. Storage (integer or float) and the residual
-//!   scale: POINT:SCALE, else header words 7–8. When the two scales differ in an integer file
-//!   the reader refuses it ([`C3dError::ScaleMismatch`]): the scale multiplies every
-//!   coordinate. (In float files it only scales residuals: POINT:SCALE is used, with a warning.)
+//!   count fits the declared frames into the data section, the header's (sample kyowadengyo).
+//! - Analog words per frame: header word 3, unless ANALOG:USED × samples per frame differs and
+//!   fills the data section more exactly (sample MotionMonitorC3D). Channels: ANALOG:USED.
 //! - Frame count: the header's `last − first + 1`, unless a parameter declares more frames and
-//!   the data section holds them, or the header declares more frames than the data section
-//!   holds and a parameter declares a count that fits (the largest such is used). Parameters: TRIAL:ACTUAL_END_FIELD (two 16-bit words, low first, giving a
-//!   32-bit last frame), POINT:LONG_FRAMES, POINT:FRAMES. That is how trials of more than 65535
-//!   frames are stored, since header word 5 saturates. First frame: TRIAL:ACTUAL_START_FIELD,
-//!   else header word 4.
-//! - Data start: header word 9, unless it points outside the file or into the parameter
+//!   the data section holds them (header word 5 saturates at 65535), or the header declares
+//!   more frames than the data section holds and a parameter declares a count that fits (the
+//!   largest such is used). Parameters: TRIAL:ACTUAL_END_FIELD (two 16-bit words, low first,
+//!   giving a 32-bit last frame), POINT:LONG_FRAMES, POINT:FRAMES. First frame:
+//!   TRIAL:ACTUAL_START_FIELD, else header word 4.
+//! - Data start: header word 9, unless it points outside the file or at the parameter
 //!   section, then POINT:DATA_START.
 //! - Units: POINT:UNITS `mm`, `cm` or `m` (case-insensitive; long names accepted); a missing or
 //!   blank value is read as millimetres (the usual default) with a warning; any other value is
-//!   an error, since guessing would scale the data wrongly.
-//! - Analog: channels from ANALOG:USED, the words per frame from header word 3.
+//!   an error ([`C3dError::UnknownUnits`]), since guessing would scale the data wrongly.
 //!
 //! Every such choice that departs from the plain reading is listed in [`C3d::warnings`].
-//! A data section shorter than the frames declared is read up to its last complete frame, with a
-//! warning, only when it ends cleanly (at a frame boundary or on a 512-byte block boundary):
-//! some writers declare more frames than they store (samples Optotrak and kyowadengyo, which
-//! ezc3d and `c3d` read the same way). A data section that stops in the middle of a frame
-//! and a block is an error ([`C3dError::Truncated`]).
+//! A data section shorter than the frames declared is read up to its last complete frame, with
+//! a warning, only when it ends cleanly (at a frame boundary or on a 512-byte block boundary):
+//! some writers declare more frames than they store (sample Optotrak: 1149 declared, 29 stored,
+//! which ezc3d and `c3d` read the same way). A data section that stops in the middle of a
+//! frame and of a block is an error ([`C3dError::Truncated`]).
+//!
+//! # Missing samples
+//!
+//! A sample is missing (NaN) when its residual word is negative, when a coordinate is not
+//! finite, or when it is exactly (0, 0, 0). See the `data` module for the residual word.
 
 mod data;
 pub mod floats;
