@@ -2,5 +2,6 @@
 
 mod ik;
 mod kinematics;
+mod landmarks;
 mod models;
 mod sample_models;
