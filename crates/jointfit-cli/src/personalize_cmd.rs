@@ -15,7 +15,7 @@ use serde::Serialize;
 
 #[derive(Args)]
 pub struct PersonalizeArgs {
-    /// Static standing trial (.trc).
+    /// Static standing trial (.trc or .c3d).
     #[arg(long = "static", value_name = "FILE")]
     static_trial: PathBuf,
     /// Marker set: a TOML file or a preset (gait2392, opencap, jam, plugin-gait).
@@ -76,15 +76,44 @@ fn read_static(path: &Path) -> Result<Trial> {
         .map(str::to_ascii_lowercase);
     match ext.as_deref() {
         Some("trc") => Ok(jointfit_io::trc::read_trc(path)?),
-        Some("c3d") => bail!(
-            "{}: C3D input is not available in this build yet; export the static trial as TRC",
-            path.display()
-        ),
+        Some("c3d") => {
+            let c3d = jointfit_io::c3d::read_c3d(path)?;
+            for w in &c3d.warnings {
+                eprintln!("jointfit: note: {}: {w}", path.display());
+            }
+            let trial = c3d
+                .to_trial()
+                .with_context(|| format!("{}", path.display()))?;
+            strip_subject_prefix(trial)
+        }
         _ => bail!(
             "{}: unknown static-trial format (expected .trc or .c3d)",
             path.display()
         ),
     }
+}
+
+/// Vicon Nexus writes `Subject:RASI` when a subject is named; when every label carries the
+/// same `prefix:`, it is dropped so that marker sets can use the plain labels.
+fn strip_subject_prefix(trial: Trial) -> Result<Trial> {
+    let prefix = match trial.labels().first().and_then(|l| l.split_once(':')) {
+        Some((p, _)) => format!("{p}:"),
+        None => return Ok(trial),
+    };
+    if !trial.labels().iter().all(|l| l.starts_with(&prefix)) {
+        return Ok(trial);
+    }
+    let labels = trial
+        .labels()
+        .iter()
+        .map(|l| l[prefix.len()..].to_string())
+        .collect();
+    Ok(Trial::new(
+        labels,
+        trial.rate(),
+        trial.first_frame(),
+        trial.positions().to_vec(),
+    )?)
 }
 
 fn load_marker_set(arg: &str) -> Result<MarkerSet> {
