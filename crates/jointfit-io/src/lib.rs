@@ -12,5 +12,5 @@ pub mod c3d;
 pub mod sto;
 pub mod trc;
 
-mod text;
 pub mod model_file;
+mod text;
