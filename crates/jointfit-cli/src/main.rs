@@ -1,5 +1,9 @@
 //! The `jointfit` command-line tool: thin clap front end, one module per subcommand.
 
+mod calibrate_cmd;
+mod common;
+mod demo_cmd;
+mod ik_cmd;
 mod model_cmd;
 mod personalize_cmd;
 mod table;
@@ -24,6 +28,12 @@ enum Command {
         #[command(subcommand)]
         command: model_cmd::ModelCommand,
     },
+    /// Inverse kinematics of a trial with a subject model (the inner level).
+    Ik(ik_cmd::IkArgs),
+    /// Fit joint parameters to one or more trials (two-level optimization).
+    Calibrate(calibrate_cmd::CalibrateArgs),
+    /// Synthesize a noisy trial from the built-in leg, calibrate it, show what was recovered.
+    Demo(demo_cmd::DemoArgs),
     /// Build a subject's leg model from a static trial (anatomical-landmark method).
     Personalize(personalize_cmd::PersonalizeArgs),
 }
@@ -32,6 +42,9 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Model { command } => model_cmd::run(command),
+        Command::Ik(args) => ik_cmd::run(args),
+        Command::Calibrate(args) => calibrate_cmd::run(args),
+        Command::Demo(args) => demo_cmd::run(args),
         Command::Personalize(args) => personalize_cmd::run(args),
     };
     match result {

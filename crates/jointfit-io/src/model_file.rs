@@ -47,6 +47,11 @@ pub fn load_spec(name_or_path: &str) -> Result<ModelSpec, ModelFileError> {
     })
 }
 
+/// Writes a model description as TOML, atomically (temp file + rename).
+pub fn save_spec(path: &Path, spec: &ModelSpec) -> std::io::Result<()> {
+    crate::atomic::write_atomic(path, spec.to_toml().as_bytes())
+}
+
 /// Reads and compiles a model (see [`load_spec`]).
 pub fn load_model(name_or_path: &str) -> Result<Model, ModelFileError> {
     let spec = load_spec(name_or_path)?;

@@ -8,6 +8,7 @@
 //! This crate has no file formats and never prints: readers and writers live in
 //! `jointfit-io`, the command line in `jointfit-cli`.
 
+pub mod calibrate;
 pub mod ik;
 pub mod kinematics;
 pub mod landmarks;

@@ -1,5 +1,6 @@
 //! Integration tests of the core library (one test binary for the crate).
 
+mod calibrate;
 mod ik;
 mod kinematics;
 mod landmarks;

@@ -1,0 +1,278 @@
+//! `jointfit calibrate <SUBJECT.toml> <TRIAL>... --joints <LIST> --method <M> -o <FITTED.toml>`.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, ValueEnum};
+use jointfit::calibrate::joint::{solve_joint, JointOptions};
+use jointfit::calibrate::pso::{solve_pso, PsoOptions};
+use jointfit::calibrate::varpro::{solve_varpro, VarProOptions};
+use jointfit::calibrate::{params_for_groups, Fit, Problem};
+use jointfit::kinematics::{forward_kinematics, KinData, Want};
+use jointfit::model::{Model, Unit};
+use jointfit::trial::Trial;
+use serde::Serialize;
+
+use crate::common::{load_trial, Up, MM};
+
+/// The outer optimizer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Joint sparse Levenberg–Marquardt over all frames and parameters (fast default).
+    Joint,
+    /// Two-level Gauss-Newton on the reduced (variable-projection) Jacobian.
+    Gradient,
+    /// Particle swarm (global), then polished by the joint solver.
+    Pso,
+}
+
+#[derive(Args)]
+pub struct CalibrateArgs {
+    /// Subject model (TOML file or built-in name).
+    pub model: String,
+    /// Motion files (.trc or .c3d); parameters are shared across them.
+    #[arg(required = true)]
+    pub trials: Vec<PathBuf>,
+    /// Parameter groups to fit: comma-separated hip, knee, ankle, or all.
+    #[arg(long, default_value = "all", value_delimiter = ',')]
+    pub joints: Vec<String>,
+    #[arg(long, value_enum, default_value = "joint")]
+    pub method: Method,
+    /// Fitted model (TOML).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Start from the parameters of an earlier fit (same model structure).
+    #[arg(long)]
+    pub seed_from: Option<String>,
+    /// Low-pass filter cutoff in Hz.
+    #[arg(long)]
+    pub filter: Option<f64>,
+    /// Random seed of the particle swarm.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    #[arg(long, value_enum, default_value = "y")]
+    pub up: Up,
+    /// Print a JSON report on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Serialize)]
+pub struct ParamReport {
+    pub name: String,
+    pub group: String,
+    pub unit: &'static str,
+    pub start: f64,
+    pub fitted: f64,
+    pub change: f64,
+}
+
+#[derive(Serialize)]
+pub struct Report {
+    pub method: Method,
+    pub frames: usize,
+    pub skipped_frames: usize,
+    pub free_parameters: usize,
+    pub parameters: Vec<ParamReport>,
+    pub rms_before_mm: f64,
+    pub rms_after_mm: f64,
+    pub marker_rms_before_mm: Vec<(String, f64)>,
+    pub marker_rms_after_mm: Vec<(String, f64)>,
+    pub cost_before: f64,
+    pub cost_after: f64,
+    pub iterations: usize,
+    pub evaluations: usize,
+    pub converged: bool,
+    pub seconds: f64,
+}
+
+/// Per-model-marker RMS distance (m) for parameters `p` and per-frame coordinates.
+fn per_marker_rms(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
+    let model = prob.model;
+    let mut kin = KinData::new(model);
+    let mut sums = vec![(0.0, 0usize); model.n_markers()];
+    for (targets, q) in prob.frames.iter().zip(qs) {
+        forward_kinematics(model, p, q, Want::POSITIONS, &mut kin);
+        for j in 0..model.n_markers() {
+            if !targets[j].x.is_nan() {
+                sums[j].0 += (targets[j] - kin.markers[j]).norm_squared();
+                sums[j].1 += 1;
+            }
+        }
+    }
+    sums.iter()
+        .map(|(s, n)| {
+            if *n == 0 {
+                f64::NAN
+            } else {
+                (s / *n as f64).sqrt()
+            }
+        })
+        .collect()
+}
+
+/// Runs one calibration on trials already in memory.
+pub fn calibrate(
+    model: &Model,
+    start: Vec<f64>,
+    trials: &[&Trial],
+    groups: &[&str],
+    method: Method,
+    seed: u64,
+) -> Result<(Fit, Report)> {
+    let free = params_for_groups(model, groups)?;
+    let prob = Problem::new(model, start.clone(), &free, trials)?;
+    let clock = Instant::now();
+    let q0 = prob.initial_coords(&start);
+    let s0 = prob.to_scaled(&start);
+    let mut ws = jointfit::ik::IkWorkspace::new(model);
+    let mut q_before = q0.clone();
+    let cost_before = prob.inner(&start, &mut q_before, &mut ws);
+    let fit = match method {
+        Method::Joint => solve_joint(&prob, &s0, q0, &JointOptions::default()),
+        Method::Gradient => solve_varpro(&prob, &s0, q0, &VarProOptions::default()),
+        Method::Pso => {
+            let opts = PsoOptions {
+                seed,
+                ..PsoOptions::default()
+            };
+            let swarm = solve_pso(&prob, &q0, &opts, |_, _| {});
+            let mut polished = solve_joint(
+                &prob,
+                &swarm.s,
+                swarm.coords.clone(),
+                &JointOptions::default(),
+            );
+            polished.iterations += swarm.iterations;
+            polished.evaluations += swarm.evaluations;
+            polished
+        }
+    };
+    let seconds = clock.elapsed().as_secs_f64();
+    let names = |v: Vec<f64>| -> Vec<(String, f64)> {
+        model
+            .markers
+            .iter()
+            .zip(v)
+            .map(|(m, r)| (m.name.clone(), r * MM))
+            .collect()
+    };
+    let parameters = prob
+        .free
+        .iter()
+        .map(|&i| {
+            let par = &model.parameters[i];
+            let (unit, k) = match par.unit {
+                Unit::Metre => ("mm", MM),
+                Unit::Radian => ("deg", 180.0 / std::f64::consts::PI),
+            };
+            ParamReport {
+                name: par.name.clone(),
+                group: par.group.clone(),
+                unit,
+                start: start[i] * k,
+                fitted: fit.p[i] * k,
+                change: (fit.p[i] - start[i]) * k,
+            }
+        })
+        .collect();
+    let report = Report {
+        method,
+        frames: prob.frames.len(),
+        skipped_frames: prob.skipped.len(),
+        free_parameters: prob.n_free(),
+        parameters,
+        rms_before_mm: prob.marker_rms(&start, &q_before) * MM,
+        rms_after_mm: prob.marker_rms(&fit.p, &fit.coords) * MM,
+        marker_rms_before_mm: names(per_marker_rms(&prob, &start, &q_before)),
+        marker_rms_after_mm: names(per_marker_rms(&prob, &fit.p, &fit.coords)),
+        cost_before,
+        cost_after: fit.cost,
+        iterations: fit.iterations,
+        evaluations: fit.evaluations,
+        converged: fit.converged,
+        seconds,
+    };
+    Ok((fit, report))
+}
+
+pub fn print_report(report: &Report) {
+    println!(
+        "{:?}: {} free parameters, {} frames ({} skipped), {} iterations, {} evaluations, {:.3} s{}",
+        report.method,
+        report.free_parameters,
+        report.frames,
+        report.skipped_frames,
+        report.iterations,
+        report.evaluations,
+        report.seconds,
+        if report.converged { "" } else { " (not converged)" }
+    );
+    let mut t =
+        crate::table::Table::new(&["group", "parameter", "unit", "start", "fitted", "change"]);
+    for p in &report.parameters {
+        t.row(vec![
+            p.group.clone(),
+            p.name.clone(),
+            p.unit.to_string(),
+            format!("{:.2}", p.start),
+            format!("{:.2}", p.fitted),
+            format!("{:.2}", p.change),
+        ]);
+    }
+    print!("{}", t.render());
+    println!(
+        "RMS marker distance: {:.2} mm before, {:.2} mm after ({:.0}% lower)",
+        report.rms_before_mm,
+        report.rms_after_mm,
+        100.0 * (1.0 - report.rms_after_mm / report.rms_before_mm)
+    );
+    let mut t = crate::table::Table::new(&["marker", "before mm", "after mm"]);
+    for ((name, b), (_, a)) in report
+        .marker_rms_before_mm
+        .iter()
+        .zip(&report.marker_rms_after_mm)
+    {
+        t.row(vec![name.clone(), format!("{b:.2}"), format!("{a:.2}")]);
+    }
+    print!("{}", t.render());
+}
+
+pub fn run(args: CalibrateArgs) -> Result<()> {
+    let spec = jointfit_io::model_file::load_spec(&args.model)?;
+    let model = jointfit_io::model_file::load_model(&args.model)?;
+    let mut start = model.nominal_params();
+    if let Some(seed) = &args.seed_from {
+        let earlier = jointfit_io::model_file::load_model(seed)?;
+        for (i, par) in model.parameters.iter().enumerate() {
+            match earlier.param_id(&par.name) {
+                Some(id) => start[i] = earlier.parameters[id.0].nominal.clamp(par.lower, par.upper),
+                None => bail!(
+                    "{seed}: has no parameter {:?} of the subject model",
+                    par.name
+                ),
+            }
+        }
+    }
+    let trials: Vec<Trial> = args
+        .trials
+        .iter()
+        .map(|t| load_trial(t, args.up, args.filter))
+        .collect::<Result<_>>()?;
+    let refs: Vec<&Trial> = trials.iter().collect();
+    let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
+    let (fit, report) = calibrate(&model, start, &refs, &groups, args.method, args.seed)?;
+    let mut fitted = model.spec_with_nominal(&fit.p);
+    fitted.name = format!("{} (fitted)", spec.name);
+    jointfit_io::model_file::save_spec(&args.output, &fitted)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_report(&report);
+        println!("wrote {}", args.output.display());
+    }
+    Ok(())
+}

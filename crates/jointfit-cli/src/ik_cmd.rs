@@ -1,0 +1,175 @@
+//! `jointfit ik <SUBJECT.toml> <TRIAL> -o <OUT.mot> [--errors <ERR.csv>] [--filter HZ] [--json]`.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use jointfit::ik::{solve_trial, FrameStatus, IkOptions, MarkerMap, TrialFit};
+use jointfit::model::{CoordKind, Model};
+use jointfit::trial::Trial;
+use jointfit_io::sto::{write_sto, Table};
+use serde::Serialize;
+
+use crate::common::{load_trial, Up, MM};
+
+#[derive(Args)]
+pub struct IkArgs {
+    /// Subject model (TOML file or built-in name).
+    pub model: String,
+    /// Motion file (.trc or .c3d).
+    pub trial: PathBuf,
+    /// Joint angles as an OpenSim .mot (degrees, metres).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Per-frame and per-marker distance errors (mm) as CSV.
+    #[arg(long)]
+    pub errors: Option<PathBuf>,
+    /// Low-pass filter cutoff in Hz (zero-phase Butterworth, effective order 4).
+    #[arg(long)]
+    pub filter: Option<f64>,
+    /// Which axis of the file points up.
+    #[arg(long, value_enum, default_value = "y")]
+    pub up: Up,
+    /// Print a JSON summary on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Serialize)]
+struct Summary {
+    frames: usize,
+    solved_frames: usize,
+    unsolved: Vec<String>,
+    mean_frame_rms_mm: f64,
+    max_frame_rms_mm: f64,
+    marker_rms_mm: Vec<(String, f64)>,
+    solve_seconds: f64,
+    frames_per_second: f64,
+}
+
+pub fn run(args: IkArgs) -> Result<()> {
+    let model = jointfit_io::model_file::load_model(&args.model)?;
+    let trial = load_trial(&args.trial, args.up, args.filter)?;
+    let map = MarkerMap::by_name(&model, trial.labels())
+        .with_context(|| args.trial.display().to_string())?;
+    let start = Instant::now();
+    let fit = solve_trial(
+        &model,
+        &model.nominal_params(),
+        &trial,
+        &map,
+        &IkOptions::default(),
+    )?;
+    let seconds = start.elapsed().as_secs_f64();
+    write_sto(&args.output, &angles_table(&model, &trial, &fit))
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    if let Some(path) = &args.errors {
+        jointfit_io::atomic::write_atomic(path, errors_csv(&model, &trial, &fit).as_bytes())
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    let summary = summarize(&model, &trial, &fit, seconds);
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        println!(
+            "{} frames ({} solved) in {:.3} s ({:.0} frames/s)",
+            summary.frames, summary.solved_frames, seconds, summary.frames_per_second
+        );
+        println!(
+            "RMS marker error per frame: mean {:.2} mm, max {:.2} mm",
+            summary.mean_frame_rms_mm, summary.max_frame_rms_mm
+        );
+        for u in &summary.unsolved {
+            println!("not solved: {u}");
+        }
+        let mut t = crate::table::Table::new(&["marker", "RMS mm"]);
+        for (name, v) in &summary.marker_rms_mm {
+            t.row(vec![name.clone(), format!("{v:.2}")]);
+        }
+        print!("{}", t.render());
+        println!("wrote {}", args.output.display());
+    }
+    Ok(())
+}
+
+fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f64) -> Summary {
+    let rms: Vec<f64> = (0..fit.frames.len())
+        .map(|f| fit.frame_rms(f))
+        .filter(|v| !v.is_nan())
+        .collect();
+    let unsolved = fit
+        .frames
+        .iter()
+        .enumerate()
+        .filter_map(|(f, fr)| match &fr.status {
+            FrameStatus::TooFewMarkers { segment, present } => Some(format!(
+                "frame {} (file frame {}): segment {segment} has {present} markers",
+                f,
+                trial.first_frame() + f as i64
+            )),
+            _ => None,
+        })
+        .collect();
+    Summary {
+        frames: fit.frames.len(),
+        solved_frames: rms.len(),
+        unsolved,
+        mean_frame_rms_mm: rms.iter().sum::<f64>() / rms.len().max(1) as f64 * MM,
+        max_frame_rms_mm: rms.iter().cloned().fold(0.0, f64::max) * MM,
+        marker_rms_mm: model
+            .markers
+            .iter()
+            .enumerate()
+            .map(|(j, m)| (m.name.clone(), fit.marker_rms(j) * MM))
+            .collect(),
+        solve_seconds: seconds,
+        frames_per_second: fit.frames.len() as f64 / seconds.max(1e-12),
+    }
+}
+
+/// Joint angles in degrees (rotations) and metres (translations), OpenSim's layout.
+pub fn angles_table(model: &Model, trial: &Trial, fit: &TrialFit) -> Table {
+    let names: Vec<&str> = model.coordinates.iter().map(|c| c.name.as_str()).collect();
+    let mut table = Table::new("Coordinates", &names, true);
+    for (f, q) in fit.coords.iter().enumerate() {
+        let mut row = vec![trial.time(f)];
+        row.extend(model.coordinates.iter().zip(q).map(|(c, v)| match c.kind {
+            CoordKind::Rotational => v.to_degrees(),
+            CoordKind::Translational => *v,
+        }));
+        table.rows.push(row);
+    }
+    table
+}
+
+fn errors_csv(model: &Model, trial: &Trial, fit: &TrialFit) -> String {
+    let mut out = String::from("frame,time,rms_mm");
+    for m in &model.markers {
+        out.push(',');
+        out.push_str(&m.name);
+        out.push_str("_mm");
+    }
+    out.push('\n');
+    let cell = |v: f64| {
+        if v.is_nan() {
+            String::new()
+        } else {
+            format!("{:.4}", v * MM)
+        }
+    };
+    for f in 0..fit.frames.len() {
+        out.push_str(&format!(
+            "{},{:.6},{}",
+            trial.first_frame() + f as i64,
+            trial.time(f),
+            cell(fit.frame_rms(f))
+        ));
+        for e in &fit.errors[f] {
+            out.push(',');
+            out.push_str(&cell(*e));
+        }
+        out.push('\n');
+    }
+    out
+}

@@ -1,0 +1,257 @@
+//! The outer level: joint parameters that make model markers match measured markers.
+//!
+//! Reinbolt et al. 2005, Eqs. (1)–(2):
+//!
+//! `e_inner(p) = Σ_i min_{q_i} Σ_j w_ij ‖m_ij − x_j(p, q_i)‖²`,  `p* = argmin_p e_inner(p)`,
+//!
+//! over a chosen subset of the parameters (the rest stay fixed), on the frames of one or more
+//! trials (parameters shared, coordinates per frame). The free parameters are scaled to
+//! `s ∈ [−1, 1]` inside their bounds, `p = lo + (s + 1)(hi − lo)/2`, as the paper did to help
+//! its optimizers.
+//!
+//! Three outer solvers, all on the same objective:
+//!
+//! * [`joint`]: one Levenberg–Marquardt over every frame's `q_i` and `s` together. Its normal
+//!   matrix has block-arrow structure (per-frame `n_q × n_q` blocks `U_i`, coupling blocks
+//!   `W_i`, a parameter block `V`); the Schur complement `S = V − Σ W_iᵀ U_i⁻¹ W_i` reduces each
+//!   step to one small solve in `s`. At a stationary point of the joint problem every `q_i` is
+//!   an inner optimum, so it shares the two-level formulation's optima. The fast default.
+//! * [`varpro`]: the two-level method with an exact gradient. After solving every frame's inner
+//!   problem, the envelope theorem gives `∇_p e = −2 Σ_i J_p,iᵀ W r_i`, and the reduced
+//!   (variable-projection) Jacobian `(I − J_q (J_qᵀWJ_q)⁻¹ J_qᵀW) J_p` gives a Gauss-Newton
+//!   matrix equal to the undamped Schur complement above.
+//! * [`pso`]: the particle swarm of Schutte et al. 2005 (global, derivative-free), each cost
+//!   evaluation a full set of inner solves.
+
+pub mod joint;
+pub mod pso;
+mod schur;
+pub mod varpro;
+
+use nalgebra::Vector3;
+use thiserror::Error;
+
+use crate::ik::{solve_frame, FrameStatus, IkOptions, IkWorkspace, MarkerMap};
+use crate::model::{Model, ParamId};
+use crate::trial::Trial;
+
+#[derive(Debug, Error, PartialEq)]
+pub enum CalibError {
+    #[error(transparent)]
+    Ik(#[from] crate::ik::IkError),
+    #[error("no parameter is free: choose at least one group or parameter")]
+    NothingFree,
+    #[error("unknown parameter group {group:?}; the model has: {available}")]
+    UnknownGroup { group: String, available: String },
+    #[error("no frame has enough markers to fit (every frame lacked markers on some segment)")]
+    NoFrames,
+    #[error("parameter vector has {got} values, the model has {expected}")]
+    ParamLength { got: usize, expected: usize },
+}
+
+/// Parameters selected by group names (`hip`, `knee`, `ankle`, or `all`).
+pub fn params_for_groups(model: &Model, groups: &[&str]) -> Result<Vec<ParamId>, CalibError> {
+    let mut out: Vec<ParamId> = Vec::new();
+    for g in groups {
+        let ids = if *g == "all" {
+            (0..model.n_p()).map(ParamId).collect()
+        } else {
+            let ids = model.params_in_group(g);
+            if ids.is_empty() {
+                return Err(CalibError::UnknownGroup {
+                    group: g.to_string(),
+                    available: model.groups().join(", "),
+                });
+            }
+            ids
+        };
+        for id in ids {
+            if !out.contains(&id) {
+                out.push(id);
+            }
+        }
+    }
+    out.sort();
+    if out.is_empty() {
+        return Err(CalibError::NothingFree);
+    }
+    Ok(out)
+}
+
+/// One calibration problem: model, free parameters, the frames to fit.
+#[derive(Debug, Clone)]
+pub struct Problem<'m> {
+    pub model: &'m Model,
+    /// Indices of the free parameters.
+    pub free: Vec<usize>,
+    /// Full parameter vector; fixed parameters keep these values.
+    pub base: Vec<f64>,
+    /// Per fitted frame: target positions per model marker (NaN when missing).
+    pub frames: Vec<Vec<Vector3<f64>>>,
+    /// Per fitted frame: (trial index, frame index in that trial).
+    pub origin: Vec<(usize, usize)>,
+    /// Frames left out because some segment had too few markers: (trial, frame).
+    pub skipped: Vec<(usize, usize)>,
+    pub ik: IkOptions,
+}
+
+impl<'m> Problem<'m> {
+    /// Builds a problem from trials; frames with too few markers on a segment are skipped.
+    pub fn new(
+        model: &'m Model,
+        base: Vec<f64>,
+        free: &[ParamId],
+        trials: &[&Trial],
+    ) -> Result<Self, CalibError> {
+        if base.len() != model.n_p() {
+            return Err(CalibError::ParamLength {
+                got: base.len(),
+                expected: model.n_p(),
+            });
+        }
+        if free.is_empty() {
+            return Err(CalibError::NothingFree);
+        }
+        let ik = IkOptions::default();
+        let mut frames = Vec::new();
+        let mut origin = Vec::new();
+        let mut skipped = Vec::new();
+        let mut targets = Vec::new();
+        for (t, trial) in trials.iter().enumerate() {
+            let map = MarkerMap::by_name(model, trial.labels())?;
+            for f in 0..trial.n_frames() {
+                map.targets(trial, f, &mut targets);
+                if enough_markers(model, &targets, &ik) {
+                    frames.push(targets.clone());
+                    origin.push((t, f));
+                } else {
+                    skipped.push((t, f));
+                }
+            }
+        }
+        if frames.is_empty() {
+            return Err(CalibError::NoFrames);
+        }
+        Ok(Problem {
+            model,
+            free: free.iter().map(|id| id.0).collect(),
+            base,
+            frames,
+            origin,
+            skipped,
+            ik,
+        })
+    }
+
+    pub fn n_free(&self) -> usize {
+        self.free.len()
+    }
+
+    /// Half-width of free parameter `k`'s bounds: `∂p/∂s`.
+    pub fn half_range(&self, k: usize) -> f64 {
+        let par = &self.model.parameters[self.free[k]];
+        0.5 * (par.upper - par.lower)
+    }
+
+    /// Scaled coordinates `s ∈ [−1, 1]` of the free parameters of `p`.
+    pub fn to_scaled(&self, p: &[f64]) -> Vec<f64> {
+        self.free
+            .iter()
+            .map(|&i| {
+                let par = &self.model.parameters[i];
+                2.0 * (p[i] - par.lower) / (par.upper - par.lower) - 1.0
+            })
+            .collect()
+    }
+
+    /// The full parameter vector for scaled free parameters `s`.
+    pub fn to_params(&self, s: &[f64]) -> Vec<f64> {
+        let mut p = self.base.clone();
+        for (k, &i) in self.free.iter().enumerate() {
+            let par = &self.model.parameters[i];
+            p[i] = par.lower + (s[k] + 1.0) * 0.5 * (par.upper - par.lower);
+        }
+        p
+    }
+
+    /// Solves every frame's inner problem at `p`, warm-starting from `qs` (updated in place).
+    /// Returns `e_inner(p)`, the summed weighted squared marker error (m²).
+    pub fn inner(&self, p: &[f64], qs: &mut [Vec<f64>], ws: &mut IkWorkspace) -> f64 {
+        let mut total = 0.0;
+        for (f, targets) in self.frames.iter().enumerate() {
+            let fit = solve_frame(self.model, p, targets, &mut qs[f], &self.ik, ws);
+            debug_assert!(fit.status != FrameStatus::Converged || fit.cost.is_finite());
+            total += fit.cost;
+        }
+        total
+    }
+
+    /// Starting coordinates for every frame at `p`: seeded IK, warm-started within each trial.
+    pub fn initial_coords(&self, p: &[f64]) -> Vec<Vec<f64>> {
+        let mut ws = IkWorkspace::new(self.model);
+        let mut out: Vec<Vec<f64>> = Vec::with_capacity(self.frames.len());
+        for (f, targets) in self.frames.iter().enumerate() {
+            let same_trial = f > 0 && self.origin[f - 1].0 == self.origin[f].0;
+            let mut q = if same_trial {
+                out[f - 1].clone()
+            } else {
+                crate::ik::seed_frame(self.model, p, targets, &self.ik, &mut ws)
+            };
+            solve_frame(self.model, p, targets, &mut q, &self.ik, &mut ws);
+            out.push(q);
+        }
+        out
+    }
+
+    /// RMS marker distance over every present marker sample for `p` and coordinates `qs` (m).
+    pub fn marker_rms(&self, p: &[f64], qs: &[Vec<f64>]) -> f64 {
+        let mut kin = crate::kinematics::KinData::new(self.model);
+        let errors = self.frames.iter().zip(qs).flat_map(|(targets, q)| {
+            crate::kinematics::forward_kinematics(
+                self.model,
+                p,
+                q,
+                crate::kinematics::Want::POSITIONS,
+                &mut kin,
+            );
+            targets
+                .iter()
+                .zip(kin.markers.clone())
+                .map(|(t, x)| (t - x).norm())
+                .collect::<Vec<_>>()
+        });
+        crate::ik::rms(errors)
+    }
+}
+
+fn enough_markers(model: &Model, targets: &[Vector3<f64>], opts: &IkOptions) -> bool {
+    let mut present = vec![0usize; model.segments.len()];
+    let mut carries = vec![false; model.segments.len()];
+    for (j, m) in model.markers.iter().enumerate() {
+        if m.weight > 0.0 {
+            carries[m.segment.0] = true;
+            present[m.segment.0] += !targets[j].x.is_nan() as usize;
+        }
+    }
+    (0..present.len()).all(|s| !carries[s] || present[s] >= opts.min_markers_per_segment)
+}
+
+/// The result of an outer solve.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    /// Scaled free parameters.
+    pub s: Vec<f64>,
+    /// Full parameter vector.
+    pub p: Vec<f64>,
+    /// Coordinates per fitted frame.
+    pub coords: Vec<Vec<f64>>,
+    /// Final objective `e_inner` (m²).
+    pub cost: f64,
+    /// Outer iterations.
+    pub iterations: usize,
+    /// Objective evaluations (each a full pass over the frames).
+    pub evaluations: usize,
+    /// Best objective after each outer iteration.
+    pub history: Vec<f64>,
+    pub converged: bool,
+}

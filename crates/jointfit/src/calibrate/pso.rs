@@ -1,0 +1,176 @@
+//! Particle swarm optimisation of `e_inner(s)` (Kennedy & Eberhart 1995; the variant of
+//! Schutte, Reinbolt, Fregly, Haftka & George 2004/2005 used by the paper).
+//!
+//! Velocity update `v ← w v + c1 r1 (pbest − x) + c2 r2 (gbest − x)` with `c1 = c2 = 2`,
+//! inertia `w` starting at 1 and multiplied by 0.975 whenever the swarm's best value has not
+//! improved for `stall_to_shrink` iterations, velocities clamped to `v_max` (scaled units),
+//! positions kept inside `[−1, 1]`. Particles start uniformly inside the bounds. All random
+//! numbers come from one seeded generator, drawn in a fixed order on one thread, so a seed
+//! gives the same result on any number of threads. Particles are evaluated in parallel, each
+//! with its own inner-solver workspace and its own warm-start coordinates.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+use super::{Fit, Problem};
+use crate::ik::IkWorkspace;
+
+/// Settings of the particle swarm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PsoOptions {
+    pub particles: usize,
+    pub max_iterations: usize,
+    /// Stop when the best value improved by less than `stall_tolerance` (relative) over this
+    /// many iterations.
+    pub stall_iterations: usize,
+    pub stall_tolerance: f64,
+    pub c1: f64,
+    pub c2: f64,
+    pub inertia: f64,
+    pub inertia_decay: f64,
+    pub stall_to_shrink: usize,
+    pub v_max: f64,
+    pub seed: u64,
+}
+
+impl Default for PsoOptions {
+    fn default() -> Self {
+        PsoOptions {
+            particles: 20,
+            max_iterations: 300,
+            stall_iterations: 40,
+            stall_tolerance: 1e-9,
+            c1: 2.0,
+            c2: 2.0,
+            inertia: 1.0,
+            inertia_decay: 0.975,
+            stall_to_shrink: 3,
+            v_max: 0.5,
+            seed: 1,
+        }
+    }
+}
+
+struct Particle {
+    x: Vec<f64>,
+    v: Vec<f64>,
+    best_x: Vec<f64>,
+    best_cost: f64,
+    best_q: Vec<Vec<f64>>,
+    qs: Vec<Vec<f64>>,
+    ws: IkWorkspace,
+    cost: f64,
+}
+
+/// Runs the swarm; `q0` are starting coordinates for every particle's first evaluation.
+/// `observe(iteration, best_cost)` is called after every iteration (progress reporting).
+pub fn solve_pso(
+    prob: &Problem,
+    q0: &[Vec<f64>],
+    opts: &PsoOptions,
+    mut observe: impl FnMut(usize, f64),
+) -> Fit {
+    let nf = prob.n_free();
+    let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
+    let mut swarm: Vec<Particle> = (0..opts.particles.max(2))
+        .map(|_| {
+            let x: Vec<f64> = (0..nf).map(|_| rng.gen_range(-1.0..=1.0)).collect();
+            let v: Vec<f64> = (0..nf)
+                .map(|_| rng.gen_range(-opts.v_max..=opts.v_max))
+                .collect();
+            Particle {
+                best_x: x.clone(),
+                x,
+                v,
+                best_cost: f64::INFINITY,
+                best_q: q0.to_vec(),
+                qs: q0.to_vec(),
+                ws: IkWorkspace::new(prob.model),
+                cost: f64::INFINITY,
+            }
+        })
+        .collect();
+    let evaluate = |swarm: &mut Vec<Particle>| {
+        swarm.par_iter_mut().for_each(|pt| {
+            let p = prob.to_params(&pt.x);
+            pt.cost = prob.inner(&p, &mut pt.qs, &mut pt.ws);
+            if pt.cost < pt.best_cost {
+                pt.best_cost = pt.cost;
+                pt.best_x.clone_from(&pt.x);
+                pt.best_q.clone_from(&pt.qs);
+            }
+        });
+    };
+    evaluate(&mut swarm);
+    let mut evaluations = swarm.len();
+    let best_of = |swarm: &[Particle]| {
+        (0..swarm.len())
+            .min_by(|&a, &b| swarm[a].best_cost.total_cmp(&swarm[b].best_cost))
+            .expect("non-empty swarm")
+    };
+    let mut g = best_of(&swarm);
+    let mut g_x = swarm[g].best_x.clone();
+    let mut g_cost = swarm[g].best_cost;
+    let mut inertia = opts.inertia;
+    let mut since_improved = 0;
+    let mut history = vec![g_cost];
+    let mut window_start = g_cost;
+    let mut window_len = 0;
+    let mut iterations = 0;
+    let mut converged = false;
+    while iterations < opts.max_iterations {
+        iterations += 1;
+        for pt in swarm.iter_mut() {
+            #[allow(clippy::needless_range_loop)] // k indexes five arrays in step
+            for k in 0..nf {
+                let (r1, r2): (f64, f64) = (rng.gen(), rng.gen());
+                let v = inertia * pt.v[k]
+                    + opts.c1 * r1 * (pt.best_x[k] - pt.x[k])
+                    + opts.c2 * r2 * (g_x[k] - pt.x[k]);
+                pt.v[k] = v.clamp(-opts.v_max, opts.v_max);
+                let x = pt.x[k] + pt.v[k];
+                if !(-1.0..=1.0).contains(&x) {
+                    pt.v[k] = 0.0;
+                }
+                pt.x[k] = x.clamp(-1.0, 1.0);
+            }
+        }
+        evaluate(&mut swarm);
+        evaluations += swarm.len();
+        g = best_of(&swarm);
+        if swarm[g].best_cost < g_cost {
+            g_cost = swarm[g].best_cost;
+            g_x.clone_from(&swarm[g].best_x);
+            since_improved = 0;
+        } else {
+            since_improved += 1;
+            if since_improved >= opts.stall_to_shrink {
+                inertia *= opts.inertia_decay;
+                since_improved = 0;
+            }
+        }
+        history.push(g_cost);
+        observe(iterations, g_cost);
+        window_len += 1;
+        if window_len >= opts.stall_iterations {
+            if window_start - g_cost <= opts.stall_tolerance * window_start.abs() {
+                converged = true;
+                break;
+            }
+            window_start = g_cost;
+            window_len = 0;
+        }
+    }
+    let best = &swarm[best_of(&swarm)];
+    Fit {
+        p: prob.to_params(&best.best_x),
+        s: best.best_x.clone(),
+        coords: best.best_q.clone(),
+        cost: best.best_cost,
+        iterations,
+        evaluations,
+        history,
+        converged,
+    }
+}

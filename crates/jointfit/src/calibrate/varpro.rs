@@ -1,0 +1,115 @@
+//! The two-level method with an exact outer gradient (variable projection).
+//!
+//! Every outer iterate solves all inner problems first (`q_i(p)`, warm-started), then takes a
+//! Levenberg–Marquardt step on `s` with the reduced Gauss-Newton matrix `S` (the Schur
+//! complement of [`super::schur`], which equals `Σ J_red,iᵀ W J_red,i` with the reduced
+//! Jacobian `J_red = (I − J_q (J_qᵀWJ_q)⁻¹ J_qᵀW) J_p`) and the envelope-theorem gradient
+//! `Σ J_p,iᵀ W r_i`. A step is accepted when the re-solved `e_inner` drops.
+
+use super::schur::{active_bounds, assemble, solve, Blocks};
+use super::{Fit, Problem};
+use crate::ik::IkWorkspace;
+use crate::kinematics::KinData;
+
+/// Settings of the two-level gradient solver.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VarProOptions {
+    pub max_iterations: usize,
+    /// Converged when every parameter step is below this (scaled units).
+    pub tolerance: f64,
+}
+
+impl Default for VarProOptions {
+    fn default() -> Self {
+        VarProOptions {
+            max_iterations: 200,
+            tolerance: 1e-10,
+        }
+    }
+}
+
+/// The envelope-theorem gradient `∂e_inner/∂s` at `s` with inner solutions `qs`:
+/// `−2 Σ_i J_s,iᵀ W r_i` (valid where every `q_i` is an inner optimum).
+pub fn gradient(prob: &Problem, s: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
+    let mut kin = KinData::new(prob.model);
+    let mut blocks = Blocks::new(prob.frames.len(), prob.model.n_q(), prob.n_free());
+    assemble(prob, &prob.to_params(s), qs, &mut kin, &mut blocks);
+    blocks.gs.iter().map(|g| -2.0 * g).collect()
+}
+
+/// Minimises `e_inner` from scaled parameters `s0` with inner solutions warm-started at `q0`.
+pub fn solve_varpro(prob: &Problem, s0: &[f64], q0: Vec<Vec<f64>>, opts: &VarProOptions) -> Fit {
+    let nq = prob.model.n_q();
+    let nf = prob.n_free();
+    let frames = prob.frames.len();
+    let mut kin = KinData::new(prob.model);
+    let mut ws = IkWorkspace::new(prob.model);
+    let mut blocks = Blocks::new(frames, nq, nf);
+    let mut s: Vec<f64> = s0.iter().map(|v| v.clamp(-1.0, 1.0)).collect();
+    let mut p = prob.to_params(&s);
+    let mut qs = q0;
+    let mut cost = prob.inner(&p, &mut qs, &mut ws);
+    let mut evaluations = 1;
+    let mut ds = vec![0.0; nf];
+    let mut dq = vec![vec![0.0; nq]; frames];
+    let mut lambda = 1e-4;
+    let mut history = Vec::new();
+    let mut iterations = 0;
+    let mut converged = false;
+    while iterations < opts.max_iterations {
+        iterations += 1;
+        assemble(prob, &p, &qs, &mut kin, &mut blocks);
+        let fixed = active_bounds(&s, &blocks.gs);
+        let mut accepted = false;
+        let mut step = 0.0f64;
+        while lambda < 1e16 {
+            if !solve(&mut blocks, lambda, &fixed, &mut ds, &mut dq) {
+                lambda *= 10.0;
+                continue;
+            }
+            let s_try: Vec<f64> = s
+                .iter()
+                .zip(&ds)
+                .map(|(a, d)| (a + d).clamp(-1.0, 1.0))
+                .collect();
+            let p_try = prob.to_params(&s_try);
+            // Warm start from the linearised prediction of the new inner solutions.
+            let mut q_try: Vec<Vec<f64>> = qs
+                .iter()
+                .zip(&dq)
+                .map(|(q, d)| q.iter().zip(d).map(|(a, b)| a + b).collect())
+                .collect();
+            let c = prob.inner(&p_try, &mut q_try, &mut ws);
+            evaluations += 1;
+            if c <= cost {
+                step = s_try
+                    .iter()
+                    .zip(&s)
+                    .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+                s = s_try;
+                p = p_try;
+                qs = q_try;
+                cost = c;
+                lambda = (lambda / 10.0).max(1e-12);
+                accepted = true;
+                break;
+            }
+            lambda *= 10.0;
+        }
+        history.push(cost);
+        if !accepted || step < opts.tolerance {
+            converged = true;
+            break;
+        }
+    }
+    Fit {
+        s,
+        p,
+        coords: qs,
+        cost,
+        iterations,
+        evaluations,
+        history,
+        converged,
+    }
+}

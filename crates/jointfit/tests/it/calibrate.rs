@@ -1,0 +1,235 @@
+//! Outer level: parameter recovery from synthetic truth, and the solvers against each other.
+
+use jointfit::calibrate::joint::{solve_joint, JointOptions};
+use jointfit::calibrate::pso::{solve_pso, PsoOptions};
+use jointfit::calibrate::varpro::{gradient, solve_varpro, VarProOptions};
+use jointfit::calibrate::{params_for_groups, Problem};
+use jointfit::ik::IkWorkspace;
+use jointfit::kinematics::{forward_kinematics, KinData, Want};
+use jointfit::model::lower_limb::{lower_limb, Side};
+use jointfit::model::{Model, Unit};
+use jointfit::trial::Trial;
+use nalgebra::Vector3;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// A motion exercising every joint axis: hip circumduction, knee and ankle cycles.
+fn rich_motion(model: &Model, f: usize, frames: usize) -> Vec<f64> {
+    let t = f as f64 / frames as f64;
+    let w = 2.0 * std::f64::consts::PI;
+    let mut q = model.default_coords();
+    let set = |q: &mut Vec<f64>, name: &str, v: f64| q[model.coord_id(name).unwrap().0] = v;
+    set(&mut q, "pelvis_tx", 0.1 * t);
+    set(&mut q, "pelvis_ty", 0.95);
+    set(&mut q, "pelvis_rotation", 0.2 * (w * t).sin());
+    set(&mut q, "pelvis_tilt", 0.1 * (w * t).cos());
+    set(&mut q, "hip_flexion", 0.35 + 0.5 * (3.5 * w * t).sin());
+    set(&mut q, "hip_adduction", 0.3 * (3.5 * w * t).cos());
+    set(&mut q, "hip_rotation", 0.25 * (2.0 * w * t).sin());
+    set(&mut q, "knee_flexion", 0.8 + 0.7 * (4.0 * w * t).sin());
+    set(&mut q, "ankle_dorsiflexion", 0.3 * (2.75 * w * t).sin());
+    set(&mut q, "subtalar_inversion", 0.25 * (2.75 * w * t).cos());
+    q
+}
+
+/// Markers from `p_true` along the rich motion, plus skin-artifact-like sinusoids of at most
+/// `amplitude` metres per marker axis.
+fn synthetic(model: &Model, p_true: &[f64], frames: usize, amplitude: f64, seed: u64) -> Trial {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let noise: Vec<(f64, f64, f64)> = (0..3 * model.n_markers())
+        .map(|_| {
+            (
+                rng.gen_range(0.0..amplitude.max(1e-300)),
+                rng.gen_range(0.0..25.0),
+                rng.gen_range(0.0..std::f64::consts::TAU),
+            )
+        })
+        .collect();
+    let mut kin = KinData::new(model);
+    let mut positions = Vec::new();
+    for f in 0..frames {
+        forward_kinematics(
+            model,
+            p_true,
+            &rich_motion(model, f, frames),
+            Want::POSITIONS,
+            &mut kin,
+        );
+        let t = f as f64 / 50.0;
+        for (j, x) in kin.markers.iter().enumerate() {
+            let n = |k: usize| {
+                let (a, w, phi) = noise[3 * j + k];
+                if amplitude > 0.0 {
+                    a * (w * t + phi).sin()
+                } else {
+                    0.0
+                }
+            };
+            positions.push(x + Vector3::new(n(0), n(1), n(2)));
+        }
+    }
+    let labels = model.markers.iter().map(|m| m.name.clone()).collect();
+    Trial::new(labels, 50.0, 1, positions).unwrap()
+}
+
+/// True parameters: nominal moved by up to 40 % of the half-range of each bound.
+fn perturbed(model: &Model, seed: u64) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    model
+        .parameters
+        .iter()
+        .map(|p| p.nominal + rng.gen_range(-0.4..0.4) * 0.5 * (p.upper - p.lower))
+        .collect()
+}
+
+/// Largest parameter error in display units: (mm, deg).
+fn errors(model: &Model, free: &[usize], a: &[f64], b: &[f64]) -> (f64, f64) {
+    let (mut mm, mut deg) = (0.0f64, 0.0f64);
+    for &i in free {
+        let d = (a[i] - b[i]).abs();
+        match model.parameters[i].unit {
+            Unit::Metre => mm = mm.max(d * 1e3),
+            Unit::Radian => deg = deg.max(d.to_degrees()),
+        }
+    }
+    (mm, deg)
+}
+
+#[test]
+fn noiseless_recovery_joint_and_varpro() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p_true = perturbed(&model, 11);
+    let trial = synthetic(&model, &p_true, 50, 0.0, 0);
+    for groups in [&["hip"][..], &["knee"], &["ankle"], &["all"]] {
+        let free = params_for_groups(&model, groups).unwrap();
+        // Fixed parameters at their true values, free ones start at nominal.
+        let mut base = p_true.clone();
+        for id in &free {
+            base[id.0] = model.parameters[id.0].nominal;
+        }
+        let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
+        let s0 = prob.to_scaled(&base);
+        let q0 = prob.initial_coords(&base);
+        let joint = solve_joint(&prob, &s0, q0.clone(), &JointOptions::default());
+        let varpro = solve_varpro(&prob, &s0, q0, &VarProOptions::default());
+        for (name, fit) in [("joint", &joint), ("varpro", &varpro)] {
+            let (mm, deg) = errors(&model, &prob.free, &fit.p, &p_true);
+            assert!(
+                mm <= 1e-6 && deg <= 1e-6,
+                "{groups:?} {name}: max error {mm:e} mm {deg:e} deg after {} iterations (cost {:e})",
+                fit.iterations,
+                fit.cost
+            );
+            assert!(fit.converged, "{groups:?} {name}");
+        }
+    }
+}
+
+#[test]
+fn joint_and_two_level_reach_the_same_noisy_optimum() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p_true = perturbed(&model, 5);
+    let trial = synthetic(&model, &p_true, 50, 0.01, 9);
+    for groups in [&["knee"][..], &["all"]] {
+        let free = params_for_groups(&model, groups).unwrap();
+        let mut base = p_true.clone();
+        for id in &free {
+            base[id.0] = model.parameters[id.0].nominal;
+        }
+        let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
+        let s0 = prob.to_scaled(&base);
+        let q0 = prob.initial_coords(&base);
+        let joint = solve_joint(&prob, &s0, q0.clone(), &JointOptions::default());
+        let varpro = solve_varpro(&prob, &s0, q0, &VarProOptions::default());
+        let ds = joint
+            .s
+            .iter()
+            .zip(&varpro.s)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        let dc = (joint.cost - varpro.cost).abs() / varpro.cost;
+        assert!(ds <= 1e-6, "{groups:?}: scaled parameters differ by {ds:e}");
+        assert!(dc <= 1e-9, "{groups:?}: costs differ by {dc:e} relative");
+        // The optimum fits the noisy data better than the truth does (the paper's observation).
+        let mut ws = IkWorkspace::new(&model);
+        let mut q_truth = prob.initial_coords(&p_true);
+        let truth_cost = prob.inner(&p_true, &mut q_truth, &mut ws);
+        assert!(
+            joint.cost < truth_cost,
+            "{groups:?}: {} vs truth {}",
+            joint.cost,
+            truth_cost
+        );
+        // And it is stationary: the envelope-theorem gradient vanishes on free interior parameters.
+        let g = gradient(&prob, &joint.s, &joint.coords);
+        for (k, gk) in g.iter().enumerate() {
+            if joint.s[k].abs() < 1.0 - 1e-9 {
+                assert!(
+                    gk.abs() < 1e-9 * joint.cost.max(1e-12) + 1e-12,
+                    "{groups:?}: gradient {k} = {gk:e}"
+                );
+            }
+        }
+    }
+}
+
+/// The envelope-theorem gradient equals central differences of the re-solved e_inner.
+#[test]
+fn outer_gradient_matches_finite_differences() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p_true = perturbed(&model, 21);
+    let trial = synthetic(&model, &p_true, 30, 0.008, 4);
+    let free = params_for_groups(&model, &["ankle"]).unwrap();
+    let prob = Problem::new(&model, model.nominal_params(), &free, &[&trial]).unwrap();
+    let s = prob.to_scaled(&model.nominal_params());
+    let mut ws = IkWorkspace::new(&model);
+    let mut qs = prob.initial_coords(&model.nominal_params());
+    prob.inner(&prob.to_params(&s), &mut qs, &mut ws);
+    let g = gradient(&prob, &s, &qs);
+    let h = 1e-6;
+    for k in 0..s.len() {
+        let mut e = |d: f64| {
+            let mut sk = s.clone();
+            sk[k] += d;
+            let mut q = qs.clone();
+            prob.inner(&prob.to_params(&sk), &mut q, &mut ws)
+        };
+        let fd = (e(h) - e(-h)) / (2.0 * h);
+        assert!(
+            (fd - g[k]).abs() <= 1e-5 * g[k].abs().max(1e-4),
+            "parameter {k}: {fd:e} vs {:e}",
+            g[k]
+        );
+    }
+}
+
+#[test]
+fn pso_then_local_polish_recovers_the_hip() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p_true = perturbed(&model, 3);
+    let trial = synthetic(&model, &p_true, 40, 0.0, 0);
+    let free = params_for_groups(&model, &["hip"]).unwrap();
+    let mut base = p_true.clone();
+    for id in &free {
+        base[id.0] = model.parameters[id.0].nominal;
+    }
+    let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
+    let q0 = prob.initial_coords(&base);
+    let opts = PsoOptions {
+        max_iterations: 150,
+        seed: 42,
+        ..PsoOptions::default()
+    };
+    let swarm = solve_pso(&prob, &q0, &opts, |_, _| {});
+    let again = solve_pso(&prob, &q0, &opts, |_, _| {});
+    assert_eq!(swarm.s, again.s, "seeded swarm is reproducible");
+    let (mm, _) = errors(&model, &prob.free, &swarm.p, &p_true);
+    assert!(mm < 5.0, "swarm within 5 mm before polishing: {mm}");
+    let polished = solve_joint(
+        &prob,
+        &swarm.s,
+        swarm.coords.clone(),
+        &JointOptions::default(),
+    );
+    let (mm, _) = errors(&model, &prob.free, &polished.p, &p_true);
+    assert!(mm <= 1e-6, "polished error {mm:e} mm");
+}
