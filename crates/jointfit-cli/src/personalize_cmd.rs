@@ -10,8 +10,9 @@ use jointfit::landmarks::{
 };
 use jointfit::model::lower_limb::Side;
 use jointfit::model::Unit;
-use jointfit::trial::{up_axis_rotation, Trial, UpAxis};
 use serde::Serialize;
+
+use crate::common::{load_trial, Up};
 
 #[derive(Args)]
 pub struct PersonalizeArgs {
@@ -26,7 +27,7 @@ pub struct PersonalizeArgs {
     side: SideArg,
     /// The laboratory's vertical axis; the trial is rotated to the model's Y-up frame.
     #[arg(long, value_enum, default_value = "y")]
-    up: UpArg,
+    up: Up,
     /// Hip-centre regression.
     #[arg(long, value_enum, default_value = "bell")]
     hip: HipArg,
@@ -55,65 +56,9 @@ enum SideArg {
 }
 
 #[derive(Clone, Copy, ValueEnum)]
-enum UpArg {
-    Y,
-    Z,
-    #[value(name = "-z")]
-    NegZ,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
 enum HipArg {
     Bell,
     Harrington,
-}
-
-/// Reads a static trial by extension.
-fn read_static(path: &Path) -> Result<Trial> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    match ext.as_deref() {
-        Some("trc") => Ok(jointfit_io::trc::read_trc(path)?),
-        Some("c3d") => {
-            let c3d = jointfit_io::c3d::read_c3d(path)?;
-            for w in &c3d.warnings {
-                eprintln!("jointfit: note: {}: {w}", path.display());
-            }
-            let trial = c3d
-                .to_trial()
-                .with_context(|| format!("{}", path.display()))?;
-            strip_subject_prefix(trial)
-        }
-        _ => bail!(
-            "{}: unknown static-trial format (expected .trc or .c3d)",
-            path.display()
-        ),
-    }
-}
-
-/// Vicon Nexus writes `Subject:RASI` when a subject is named; when every label carries the
-/// same `prefix:`, it is dropped so that marker sets can use the plain labels.
-fn strip_subject_prefix(trial: Trial) -> Result<Trial> {
-    let prefix = match trial.labels().first().and_then(|l| l.split_once(':')) {
-        Some((p, _)) => format!("{p}:"),
-        None => return Ok(trial),
-    };
-    if !trial.labels().iter().all(|l| l.starts_with(&prefix)) {
-        return Ok(trial);
-    }
-    let labels = trial
-        .labels()
-        .iter()
-        .map(|l| l[prefix.len()..].to_string())
-        .collect();
-    Ok(Trial::new(
-        labels,
-        trial.rate(),
-        trial.first_frame(),
-        trial.positions().to_vec(),
-    )?)
 }
 
 fn load_marker_set(arg: &str) -> Result<MarkerSet> {
@@ -134,12 +79,7 @@ fn load_marker_set(arg: &str) -> Result<MarkerSet> {
 
 pub fn run(args: PersonalizeArgs) -> Result<()> {
     let set = load_marker_set(&args.markers)?;
-    let mut trial = read_static(&args.static_trial)?;
-    trial.rotate(&up_axis_rotation(match args.up {
-        UpArg::Y => UpAxis::Y,
-        UpArg::Z => UpAxis::Z,
-        UpArg::NegZ => UpAxis::NegZ,
-    }));
+    let trial = load_trial(&args.static_trial, args.up, None)?;
     let side = match args.side {
         SideArg::Right => Side::Right,
         SideArg::Left => Side::Left,
