@@ -99,8 +99,13 @@ pub fn run(args: PersonalizeArgs) -> Result<()> {
         ..PersonalizeOptions::default()
     };
     let static_name = args.static_trial.display().to_string();
-    let mut result = personalize(&trial, &set, side, &opts)
-        .with_context(|| format!("{static_name}: cannot personalize"))?;
+    let mut result = personalize(&trial, &set, side, &opts).with_context(|| {
+        let up = args
+            .up
+            .to_possible_value()
+            .map_or("?".into(), |v| v.get_name().to_string());
+        format!("{static_name} (read with --up={up}): cannot personalize")
+    })?;
     result.spec.description = format!("{}; from {static_name}", result.spec.description);
 
     let mut compare = Vec::new();

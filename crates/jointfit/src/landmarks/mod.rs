@@ -34,6 +34,24 @@
 //!    report's `static_fk_error`, ~1e-15 m). The report also gives, per segment, the residual
 //!    of a rigid fit of its markers to each frame of the window (how rigid the cluster stayed).
 //!
+//! ## Choices where the sources leave room
+//! - *Talus y direction.* Along the common perpendicular, pointing away from the subtalar
+//!   axis (superior-posterior), so that `subtalar_talus_superior` is −12.4 mm and
+//!   `subtalar_talus_transverse` comes out at 25–42° on real data, as in Reinbolt's Table 2
+//!   (−12.40 mm, 26.89°). Pointing it toward the subtalar axis would flip both.
+//! - *Where the subtalar axis passes.* The template's talus origin is the talocrural joint
+//!   centre, so the common perpendicular starts at the mid-malleolus point; 12.4 mm along it
+//!   (inferior and anterior, at the subtalar elevation from vertical) is ~8.5 mm below and
+//!   ~8.3 mm in front of the ankle centre.
+//! - *Zero of the ankle.* The fixed talocrural `rz` follows the template: with every coordinate
+//!   0 the foot's long axis is horizontal in the pelvis frame. Standing therefore reads the
+//!   shank's forward lean relative to the pelvis as dorsiflexion (0–20° on the real trials).
+//! - *Zero of the subtalar joint* is not free: the talus frame is fixed by the two axes and
+//!   the foot-side offset holds Inman's angles, so standing reads 6–24° of "inversion" on the
+//!   real trials. It is an offset of the coordinate, not a posture.
+//! - *Hip regressions* use the skin-marker positions as the bony landmarks (no marker-radius
+//!   or soft-tissue correction).
+//!
 //! [`lower_limb`]: crate::model::lower_limb::lower_limb
 
 mod frames;
