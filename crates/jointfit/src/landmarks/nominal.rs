@@ -184,7 +184,8 @@ pub(crate) fn fill_offsets(spec: &mut ModelSpec, offsets: &Offsets) {
             for (scalar, &v) in offset.scalars_mut().into_iter().zip(vals) {
                 match scalar.as_param() {
                     Some((name, scale)) => {
-                        values.insert(name.to_string(), v / scale);
+                        // `+ 0.0` turns −0.0 (a mirrored zero) into 0.0.
+                        values.insert(name.to_string(), v / scale + 0.0);
                     }
                     None => *scalar = ScalarSpec::Fixed(v),
                 }
