@@ -5,6 +5,7 @@ mod common;
 mod demo_cmd;
 mod ik_cmd;
 mod model_cmd;
+mod personalize_cmd;
 mod table;
 
 use std::process::ExitCode;
@@ -33,6 +34,8 @@ enum Command {
     Calibrate(calibrate_cmd::CalibrateArgs),
     /// Synthesize a noisy trial from the built-in leg, calibrate it, show what was recovered.
     Demo(demo_cmd::DemoArgs),
+    /// Build a subject's leg model from a static trial (anatomical-landmark method).
+    Personalize(personalize_cmd::PersonalizeArgs),
 }
 
 fn main() -> ExitCode {
@@ -42,6 +45,7 @@ fn main() -> ExitCode {
         Command::Ik(args) => ik_cmd::run(args),
         Command::Calibrate(args) => calibrate_cmd::run(args),
         Command::Demo(args) => demo_cmd::run(args),
+        Command::Personalize(args) => personalize_cmd::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -2,6 +2,9 @@
 
 use std::process::Command;
 
+#[path = "cli/personalize.rs"]
+mod personalize;
+
 fn jointfit(args: &[&str]) -> (bool, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_jointfit"))
         .args(args)

@@ -3,8 +3,12 @@
 //! Every reader returns a [`jointfit::trial::Trial`] in SI units with gaps as NaN, and every
 //! error names the file and, where it applies, the line, frame or marker. Every writer goes
 //! through [`atomic::write_atomic`], so a crash never leaves a half-written file behind.
+//!
+//! - [`c3d`]: C3D files (all three processor formats), checked against ezc3d and the `c3d`
+//!   Python package on every sample file (`tests/c3d_vs_python.rs`).
 
 pub mod atomic;
+pub mod c3d;
 pub mod sto;
 pub mod trc;
 

@@ -9,6 +9,8 @@ use thiserror::Error;
 pub enum TrialFileError {
     #[error(transparent)]
     Trc(#[from] crate::trc::TrcError),
+    #[error(transparent)]
+    C3d(#[from] crate::c3d::C3dError),
     #[error("{0}: unknown motion file type (expected .trc or .c3d)")]
     UnknownType(String),
     #[error("{path}: {message}")]
@@ -29,8 +31,37 @@ pub fn read_trial(path: &Path) -> Result<Trial, TrialFileError> {
 }
 
 fn read_c3d(path: &Path) -> Result<Trial, TrialFileError> {
-    Err(TrialFileError::Other {
+    let trial = crate::c3d::read_c3d(path)?
+        .to_trial()
+        .map_err(|e| TrialFileError::Other {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        })?;
+    strip_subject_prefix(trial).map_err(|e| TrialFileError::Other {
         path: path.display().to_string(),
-        message: "C3D reading is not available in this build".into(),
+        message: e.to_string(),
     })
+}
+
+/// Vicon Nexus writes `Subject:RASI` when a subject is named; when every label carries the
+/// same `prefix:`, it is dropped so that models and marker sets can use the plain labels.
+fn strip_subject_prefix(trial: Trial) -> Result<Trial, jointfit::trial::TrialError> {
+    let prefix = match trial.labels().first().and_then(|l| l.split_once(':')) {
+        Some((p, _)) => format!("{p}:"),
+        None => return Ok(trial),
+    };
+    if !trial.labels().iter().all(|l| l.starts_with(&prefix)) {
+        return Ok(trial);
+    }
+    let labels = trial
+        .labels()
+        .iter()
+        .map(|l| l[prefix.len()..].to_string())
+        .collect();
+    Trial::new(
+        labels,
+        trial.rate(),
+        trial.first_frame(),
+        trial.positions().to_vec(),
+    )
 }

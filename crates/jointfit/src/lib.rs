@@ -11,6 +11,7 @@
 pub mod calibrate;
 pub mod ik;
 pub mod kinematics;
+pub mod landmarks;
 pub mod linalg;
 pub mod model;
 pub mod signal;

@@ -3,5 +3,6 @@
 mod calibrate;
 mod ik;
 mod kinematics;
+mod landmarks;
 mod models;
 mod sample_models;

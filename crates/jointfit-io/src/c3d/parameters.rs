@@ -1,0 +1,629 @@
+//! The C3D parameter section: groups of typed, named, multi-dimensional parameters.
+//!
+//! The section starts at block `header byte 1` (1-based, 512 bytes per block) with four bytes:
+//! two reserved, the number of 512-byte parameter blocks, and the processor type
+//! (84/85/86, see [`super::floats`]). Then come group and parameter records, each:
+//!
+//! | bytes | content |
+//! |---|---|
+//! | 1 | name length n (signed; negative ⇒ "locked"); 0 ends the section |
+//! | 1 | group id (signed): negative ⇒ this record *is* group −id; positive ⇒ a parameter of group id |
+//! | n | name (ASCII) |
+//! | 2 | signed offset from this word to the next record; 0 ⇒ last record |
+//! | … | group: description length (1 byte) + description |
+//! | … | parameter: type (1 byte: −1 char, 1 byte, 2 int16, 4 float), number of dimensions d, d dimension bytes, the values (column-major, first dimension fastest), description length + description |
+//!
+//! A parameter with no dimensions is a scalar. A char parameter of dimensions `[len, n, …]`
+//! is an array of fixed-width strings of `len` characters.
+//!
+//! Leniency (each recorded in `warnings`, never silently): records are followed by their
+//! next-record offset, and when an offset points backwards, outside the file or at something
+//! that is not a record, the reader falls back to the end of the record as parsed (files named
+//! badParameterOffset and mocap36 in the sample set need this); records that run past the
+//! number of parameter blocks the section declares are still read when the file holds them
+//! (parameterOverflow); a record whose values run past the end of the file, or whose type byte
+//! is unknown, is skipped. Group and parameter names are matched case-insensitively.
+
+use std::collections::BTreeMap;
+
+use super::floats::Processor;
+
+/// Typed values of one parameter, flattened column-major (first dimension fastest).
+#[derive(Debug, Clone, PartialEq)]
+pub enum ParamData {
+    /// Type −1: characters (bytes as stored).
+    Char(Vec<u8>),
+    /// Type 1: bytes (unsigned by convention).
+    Byte(Vec<u8>),
+    /// Type 2: 16-bit integers (signed as stored; see [`Parameter::u16s`] for counts).
+    Int(Vec<i16>),
+    /// Type 4: 32-bit floats (already converted from the file's float format).
+    Float(Vec<f32>),
+}
+
+/// One parameter of a group.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Parameter {
+    /// Name as stored (upper case by convention).
+    pub name: String,
+    /// Free-text description.
+    pub description: String,
+    /// Whether the name length was stored negative ("locked").
+    pub locked: bool,
+    /// Dimensions (empty for a scalar).
+    pub dims: Vec<usize>,
+    /// The values.
+    pub data: ParamData,
+}
+
+impl Parameter {
+    /// Number of values (product of the dimensions, 1 for a scalar).
+    pub fn len(&self) -> usize {
+        match &self.data {
+            ParamData::Char(v) | ParamData::Byte(v) => v.len(),
+            ParamData::Int(v) => v.len(),
+            ParamData::Float(v) => v.len(),
+        }
+    }
+
+    /// Whether the parameter holds no value.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Numeric values as f64 (int16 as signed, bytes as unsigned); `None` for char data.
+    pub fn f64s(&self) -> Option<Vec<f64>> {
+        match &self.data {
+            ParamData::Char(_) => None,
+            ParamData::Byte(v) => Some(v.iter().map(|&x| f64::from(x)).collect()),
+            ParamData::Int(v) => Some(v.iter().map(|&x| f64::from(x)).collect()),
+            ParamData::Float(v) => Some(v.iter().map(|&x| f64::from(x)).collect()),
+        }
+    }
+
+    /// The first numeric value as f64.
+    pub fn f64(&self) -> Option<f64> {
+        match &self.data {
+            ParamData::Char(_) => None,
+            ParamData::Byte(v) => v.first().map(|&x| f64::from(x)),
+            ParamData::Int(v) => v.first().map(|&x| f64::from(x)),
+            ParamData::Float(v) => v.first().map(|&x| f64::from(x)),
+        }
+    }
+
+    /// Integer values read as unsigned 16-bit words (counts such as POINT:USED go up to
+    /// 65535); bytes widen, floats convert when they are whole numbers in range.
+    pub fn u16s(&self) -> Option<Vec<u16>> {
+        match &self.data {
+            ParamData::Char(_) => None,
+            ParamData::Byte(v) => Some(v.iter().map(|&x| u16::from(x)).collect()),
+            ParamData::Int(v) => Some(v.iter().map(|&x| x as u16).collect()),
+            ParamData::Float(v) => v
+                .iter()
+                .map(|&x| (x.fract() == 0.0 && (0.0..=65535.0).contains(&x)).then_some(x as u16))
+                .collect(),
+        }
+    }
+
+    /// The first value as an unsigned 16-bit count (see [`Parameter::u16s`]).
+    pub fn u16(&self) -> Option<u16> {
+        self.u16s()?.first().copied()
+    }
+
+    /// Char data as strings, trimmed of spaces and NULs at both ends: one string per column for
+    /// dimensions `[len, n, …]`, a single string for `[]` or `[len]`. `None` for numeric data.
+    pub fn strings(&self) -> Option<Vec<String>> {
+        let ParamData::Char(bytes) = &self.data else {
+            return None;
+        };
+        let width = match self.dims.len() {
+            0 | 1 => bytes.len(),
+            _ => self.dims[0],
+        };
+        if width == 0 {
+            let n: usize = self.dims.iter().skip(1).product();
+            return Some(vec![String::new(); if self.dims.len() > 1 { n } else { 1 }]);
+        }
+        Some(bytes.chunks(width).map(decode_text).collect())
+    }
+
+    /// The first string of char data (see [`Parameter::strings`]).
+    pub fn string(&self) -> Option<String> {
+        self.strings()?.into_iter().next()
+    }
+}
+
+/// Decodes stored text: Latin-1 bytes to chars, trimmed of blanks and NULs at both ends.
+pub(crate) fn decode_text(bytes: &[u8]) -> String {
+    let s: String = bytes.iter().map(|&b| char::from(b)).collect();
+    s.trim_matches(|c: char| c == '\0' || c.is_whitespace())
+        .to_string()
+}
+
+/// A group of parameters.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Group {
+    /// Name as stored (or `GROUP<id>` when parameters refer to a group that has no record).
+    pub name: String,
+    /// Free-text description.
+    pub description: String,
+    /// The group id (1..=127) parameters use to refer to it.
+    pub id: u8,
+    /// Parameters by upper-case name.
+    pub params: BTreeMap<String, Parameter>,
+}
+
+/// All groups of a file, by upper-case name, with case-insensitive look-up.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Parameters {
+    /// Groups by upper-case name.
+    pub groups: BTreeMap<String, Group>,
+}
+
+impl Parameters {
+    /// A group by name (case-insensitive).
+    pub fn group(&self, group: &str) -> Option<&Group> {
+        self.groups.get(&group.to_ascii_uppercase())
+    }
+
+    /// A parameter by group and name (case-insensitive), e.g. `get("POINT", "RATE")`.
+    pub fn get(&self, group: &str, param: &str) -> Option<&Parameter> {
+        self.group(group)?.params.get(&param.to_ascii_uppercase())
+    }
+
+    /// Strings of a char parameter continued over `NAME`, `NAME2`, `NAME3`, … (how files
+    /// store more than 255 labels), concatenated in that order.
+    pub fn strings_continued(&self, group: &str, param: &str) -> Vec<String> {
+        let mut out = Vec::new();
+        if let Some(s) = self.get(group, param).and_then(Parameter::strings) {
+            out.extend(s);
+        }
+        for k in 2.. {
+            match self
+                .get(group, &format!("{param}{k}"))
+                .and_then(Parameter::strings)
+            {
+                Some(s) => out.extend(s),
+                None => break,
+            }
+        }
+        out
+    }
+}
+
+/// Why the parameter section could not be read at all.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum SectionError {
+    /// The section's first four bytes lie outside the file.
+    Outside { offset: usize },
+    /// Byte 4 is not 84, 85 or 86.
+    Processor(u8),
+}
+
+/// Result of parsing the section.
+pub(crate) struct Section {
+    pub processor: Processor,
+    pub declared_blocks: u8,
+    pub parameters: Parameters,
+    pub warnings: Vec<String>,
+}
+
+enum Record {
+    Group {
+        id: u8,
+        name: String,
+        description: String,
+    },
+    Param {
+        group: u8,
+        param: Parameter,
+    },
+}
+
+/// Parses the parameter section starting at byte `start` of `bytes`.
+pub(crate) fn parse_section(bytes: &[u8], start: usize) -> Result<Section, SectionError> {
+    let head = bytes
+        .get(start..start.saturating_add(4))
+        .filter(|h| h.len() == 4)
+        .ok_or(SectionError::Outside { offset: start })?;
+    let declared_blocks = head[2];
+    let processor = Processor::from_code(head[3]).ok_or(SectionError::Processor(head[3]))?;
+    let declared_end = start + usize::from(declared_blocks) * super::header::BLOCK;
+    let mut warnings = Vec::new();
+    let mut records = Vec::new();
+    let mut pos = start + 4;
+    let mut overflow_warned = false;
+    loop {
+        let Some(&[len_byte, id_byte]) = bytes.get(pos..pos + 2) else {
+            warnings.push(format!(
+                "parameter section: no end record before the end of the file (byte {pos})"
+            ));
+            break;
+        };
+        let (name_len, id) = (len_byte as i8, id_byte as i8);
+        if name_len == 0 || id == 0 {
+            break;
+        }
+        if pos >= declared_end && !overflow_warned && declared_blocks > 0 {
+            warnings.push(format!(
+                "parameter section: records continue past the {declared_blocks} declared blocks"
+            ));
+            overflow_warned = true;
+        }
+        let parsed = parse_record(bytes, pos, processor);
+        let (offset_pos, offset, end) = match parsed {
+            Ok((record, offset_pos, offset, end)) => {
+                records.push(record);
+                (offset_pos, offset, Some(end))
+            }
+            Err(RecordError {
+                offset_pos,
+                offset,
+                reason,
+            }) => {
+                warnings.push(format!(
+                    "parameter section: record at byte {pos} skipped: {reason}"
+                ));
+                match offset_pos {
+                    Some(p) => (p, offset, None),
+                    None => break,
+                }
+            }
+        };
+        if offset == 0 {
+            break;
+        }
+        let target = offset_pos as i64 + i64::from(offset);
+        let target = (target > pos as i64)
+            .then(|| usize::try_from(target).ok())
+            .flatten();
+        let target_kind = target.map_or(Kind::Garbage, |t| classify(bytes, t));
+        let end_kind = end
+            .filter(|&e| e > pos && Some(e) != target)
+            .map_or(Kind::Garbage, |e| classify(bytes, e));
+        match (target_kind, end_kind) {
+            (Kind::Record, _) => pos = target.unwrap_or(pos),
+            (_, Kind::Record) => {
+                let e = end.unwrap_or(pos);
+                warnings.push(format!(
+                    "parameter section: record at byte {pos} has a bad next-record offset \
+                     ({offset}); continuing right after it at byte {e}"
+                ));
+                pos = e;
+            }
+            (Kind::End, _) => break,
+            (Kind::Garbage, _) => {
+                warnings.push(format!(
+                    "parameter section: record at byte {pos} has a bad next-record offset \
+                     ({offset}); stopped reading parameters there"
+                ));
+                break;
+            }
+        }
+    }
+    Ok(Section {
+        processor,
+        declared_blocks,
+        parameters: assemble(records, &mut warnings),
+        warnings,
+    })
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    /// A plausible record: non-zero name length and group id, printable ASCII name, in the file.
+    Record,
+    /// An end marker (name length or group id 0).
+    End,
+    /// Anything else, including positions outside the file.
+    Garbage,
+}
+
+/// What `pos` seems to start.
+fn classify(bytes: &[u8], pos: usize) -> Kind {
+    let Some(&[len_byte, id_byte]) = bytes.get(pos..pos.saturating_add(2)) else {
+        return Kind::Garbage;
+    };
+    let (n, id) = (len_byte as i8, id_byte as i8);
+    if n == 0 || id == 0 {
+        return Kind::End;
+    }
+    let n = usize::from(n.unsigned_abs());
+    match bytes.get(pos + 2..pos + 2 + n + 2) {
+        Some(rest) if rest[..n].iter().all(|&c| c.is_ascii_graphic() || c == b' ') => Kind::Record,
+        _ => Kind::Garbage,
+    }
+}
+
+struct RecordError {
+    offset_pos: Option<usize>,
+    offset: i16,
+    reason: String,
+}
+
+/// Parses one record at `pos`: `(record, position of the offset word, offset, end of record)`.
+fn parse_record(
+    bytes: &[u8],
+    pos: usize,
+    processor: Processor,
+) -> Result<(Record, usize, i16, usize), RecordError> {
+    let name_len = usize::from((bytes[pos] as i8).unsigned_abs());
+    let locked = (bytes[pos] as i8) < 0;
+    let id = bytes[pos + 1] as i8;
+    let offset_pos = pos + 2 + name_len;
+    let err = |offset_pos: Option<usize>, offset: i16, reason: String| RecordError {
+        offset_pos,
+        offset,
+        reason,
+    };
+    let Some(&[o0, o1]) = bytes.get(offset_pos..offset_pos + 2) else {
+        return Err(err(None, 0, "name runs past the end of the file".into()));
+    };
+    let name = decode_text(&bytes[pos + 2..offset_pos]);
+    let offset = processor.i16([o0, o1]);
+    let mut at = offset_pos + 2;
+    let fail = |reason: &str| Err(err(Some(offset_pos), offset, format!("{name}: {reason}")));
+    if id < 0 {
+        let (description, end) = read_description(bytes, at);
+        let record = Record::Group {
+            id: id.unsigned_abs(),
+            name,
+            description,
+        };
+        return Ok((record, offset_pos, offset, end));
+    }
+    let Some(&type_byte) = bytes.get(at) else {
+        return fail("type byte past the end of the file");
+    };
+    let Some(&n_dims) = bytes.get(at + 1) else {
+        return fail("dimension count past the end of the file");
+    };
+    at += 2;
+    let Some(dim_bytes) = bytes.get(at..at + usize::from(n_dims)) else {
+        return fail("dimensions past the end of the file");
+    };
+    let dims: Vec<usize> = dim_bytes.iter().map(|&d| usize::from(d)).collect();
+    at += dims.len();
+    // At most 255 dimensions of at most 255: the product can overflow, so check it.
+    let count = dims.iter().try_fold(1usize, |acc, &d| acc.checked_mul(d));
+    let elem = match type_byte as i8 {
+        -1 | 1 => 1,
+        2 => 2,
+        4 => 4,
+        t => return fail(&format!("unknown data type {t}")),
+    };
+    let Some(n_bytes) = count.and_then(|c| c.checked_mul(elem)) else {
+        return fail("dimensions overflow");
+    };
+    let Some(raw) = bytes.get(at..at.saturating_add(n_bytes)) else {
+        return fail(&format!(
+            "{n_bytes} bytes of values run past the end of the file"
+        ));
+    };
+    at += n_bytes;
+    let data = match type_byte as i8 {
+        -1 => ParamData::Char(raw.to_vec()),
+        1 => ParamData::Byte(raw.to_vec()),
+        2 => ParamData::Int(
+            raw.chunks_exact(2)
+                .map(|c| processor.i16([c[0], c[1]]))
+                .collect(),
+        ),
+        _ => ParamData::Float(
+            raw.chunks_exact(4)
+                .map(|c| processor.f32([c[0], c[1], c[2], c[3]]))
+                .collect(),
+        ),
+    };
+    let (description, end) = read_description(bytes, at);
+    let param = Parameter {
+        name,
+        description,
+        locked,
+        dims,
+        data,
+    };
+    Ok((
+        Record::Param {
+            group: id as u8,
+            param,
+        },
+        offset_pos,
+        offset,
+        end,
+    ))
+}
+
+/// Reads a length-prefixed description, truncated at the end of the file.
+fn read_description(bytes: &[u8], at: usize) -> (String, usize) {
+    let Some(&n) = bytes.get(at) else {
+        return (String::new(), at);
+    };
+    let end = (at + 1 + usize::from(n)).min(bytes.len());
+    (decode_text(&bytes[at + 1..end]), end)
+}
+
+/// Puts parameters into their groups (groups may be declared after their parameters).
+fn assemble(records: Vec<Record>, warnings: &mut Vec<String>) -> Parameters {
+    let mut by_id: BTreeMap<u8, Group> = BTreeMap::new();
+    let mut params = Vec::new();
+    for r in records {
+        match r {
+            Record::Group {
+                id,
+                name,
+                description,
+            } => {
+                let g = by_id.entry(id).or_default();
+                if !g.name.is_empty() {
+                    warnings.push(format!(
+                        "parameter section: group id {id} declared twice ({} and {name})",
+                        g.name
+                    ));
+                }
+                g.id = id;
+                g.name = name;
+                g.description = description;
+            }
+            Record::Param { group, param } => params.push((group, param)),
+        }
+    }
+    for (id, p) in params {
+        let g = by_id.entry(id).or_insert_with(|| Group {
+            id,
+            ..Group::default()
+        });
+        let key = p.name.to_ascii_uppercase();
+        match g.params.entry(key) {
+            std::collections::btree_map::Entry::Occupied(e) => warnings.push(format!(
+                "parameter section: parameter {} appears twice in group id {id}; kept the first",
+                e.key()
+            )),
+            std::collections::btree_map::Entry::Vacant(e) => {
+                e.insert(p);
+            }
+        }
+    }
+    let mut groups: BTreeMap<String, Group> = BTreeMap::new();
+    for (id, mut g) in by_id {
+        if g.name.is_empty() {
+            g.name = format!("GROUP{id}");
+            warnings.push(format!(
+                "parameter section: parameters refer to group id {id}, which has no record"
+            ));
+        }
+        let key = g.name.to_ascii_uppercase();
+        match groups.get_mut(&key) {
+            Some(existing) => {
+                warnings.push(format!(
+                    "parameter section: two groups named {key}; merged their parameters"
+                ));
+                for (k, p) in g.params {
+                    existing.params.entry(k).or_insert(p);
+                }
+            }
+            None => {
+                groups.insert(key, g);
+            }
+        }
+    }
+    Parameters { groups }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Builds a little-endian record with a correct next offset.
+    fn record(id: i8, name: &str, body: &[u8]) -> Vec<u8> {
+        let mut r = vec![name.len() as u8, id as u8];
+        r.extend_from_slice(name.as_bytes());
+        r.extend_from_slice(&((2 + body.len()) as i16).to_le_bytes());
+        r.extend_from_slice(body);
+        r
+    }
+
+    fn section(records: &[Vec<u8>]) -> Vec<u8> {
+        let mut s = vec![1, 0x50, 1, 84];
+        for r in records {
+            s.extend_from_slice(r);
+        }
+        s.extend_from_slice(&[0, 0]);
+        s.resize(512, 0);
+        s
+    }
+
+    fn param_body(ty: i8, dims: &[u8], data: &[u8], desc: &str) -> Vec<u8> {
+        let mut b = vec![ty as u8, dims.len() as u8];
+        b.extend_from_slice(dims);
+        b.extend_from_slice(data);
+        b.push(desc.len() as u8);
+        b.extend_from_slice(desc.as_bytes());
+        b
+    }
+
+    #[test]
+    fn parses_all_types_and_orders() {
+        let labels = b"A   BB  ";
+        let recs = vec![
+            // Parameter before its group.
+            record(
+                1,
+                "LABELS",
+                &param_body(-1, &[4, 2], labels, "marker names"),
+            ),
+            record(-1, "POINT", &[3, b'3', b'D', b'!']),
+            record(1, "USED", &param_body(2, &[], &(-2i16).to_le_bytes(), "")),
+            record(1, "RATE", &param_body(4, &[], &50f32.to_le_bytes(), "")),
+            record(1, "FLAGS", &param_body(1, &[3], &[1, 2, 255], "")),
+        ];
+        let s = parse_section(&section(&recs), 0).unwrap();
+        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+        let p = &s.parameters;
+        assert_eq!(p.group("point").unwrap().description, "3D!");
+        assert_eq!(
+            p.get("POINT", "labels").unwrap().strings().unwrap(),
+            ["A", "BB"]
+        );
+        assert_eq!(p.get("POINT", "USED").unwrap().u16(), Some(65534));
+        assert_eq!(p.get("POINT", "RATE").unwrap().f64(), Some(50.0));
+        assert_eq!(
+            p.get("POINT", "FLAGS").unwrap().f64s().unwrap(),
+            [1.0, 2.0, 255.0]
+        );
+        assert_eq!(
+            p.get("POINT", "LABELS").unwrap().description,
+            "marker names"
+        );
+    }
+
+    #[test]
+    fn labels_continue_over_numbered_parameters() {
+        let recs = vec![
+            record(-1, "POINT", &[0]),
+            record(1, "LABELS", &param_body(-1, &[2, 1], b"A1", "")),
+            record(1, "LABELS2", &param_body(-1, &[2, 2], b"B1B2", "")),
+            record(1, "LABELS4", &param_body(-1, &[2, 1], b"D1", "")),
+        ];
+        let s = parse_section(&section(&recs), 0).unwrap();
+        assert_eq!(
+            s.parameters.strings_continued("POINT", "LABELS"),
+            ["A1", "B1", "B2"]
+        );
+    }
+
+    #[test]
+    fn bad_offset_falls_back_to_record_end() {
+        let mut a = record(-1, "POINT", &[0]);
+        a[7] = 0x70; // offset low byte: way off
+        let recs = vec![
+            a,
+            record(1, "USED", &param_body(2, &[], &3i16.to_le_bytes(), "")),
+        ];
+        let s = parse_section(&section(&recs), 0).unwrap();
+        assert_eq!(s.parameters.get("POINT", "USED").unwrap().u16(), Some(3));
+        assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+    }
+
+    #[test]
+    fn oversized_values_are_skipped_not_allocated() {
+        // 255^7 floats declared in a 512-byte section.
+        let body = param_body(4, &[255; 7], &[], "");
+        let recs = vec![record(-1, "G", &[0]), record(1, "HUGE", &body)];
+        let s = parse_section(&section(&recs), 0).unwrap();
+        assert!(s.parameters.get("G", "HUGE").is_none());
+        assert!(s.warnings[0].contains("HUGE"), "{:?}", s.warnings);
+    }
+
+    #[test]
+    fn errors() {
+        assert!(matches!(
+            parse_section(&[1, 2, 3], 0),
+            Err(SectionError::Outside { .. })
+        ));
+        assert!(matches!(
+            parse_section(&[1, 0x50, 1, 99, 0, 0], 0),
+            Err(SectionError::Processor(99))
+        ));
+    }
+}

@@ -1,0 +1,327 @@
+//! Segment frames from averaged static landmarks (ARCHITECTURE.md §2), the regression hip
+//! centre, the joint axes, and the checks that catch swapped labels and degenerate markers.
+//!
+//! Every frame is built from the markers alone, so the laboratory heading does not matter:
+//! only the vertical (+y) is used, to check that the pelvis is upright. "Right" below means
+//! the model's +z: for a left leg the epicondyle and malleolus vectors run lateral → medial.
+
+use nalgebra::{Matrix3, Vector3};
+
+use super::{HipCentreMethod, LandmarkError, PersonalizeOptions};
+use crate::kinematics::Pose;
+use crate::model::lower_limb::Side;
+
+/// `world_from_segment` of every segment at the averaged static pose (trial frame, m).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SegmentFrames {
+    pub pelvis: Pose,
+    pub thigh: Pose,
+    pub shank: Pose,
+    /// Virtual segment: origin at the ankle centre, z along the talocrural axis, y along the
+    /// common perpendicular of the talocrural and subtalar axes, pointing away from the
+    /// subtalar axis (so the subtalar offset along y is negative, as in Reinbolt's Table 2).
+    pub talus: Pose,
+    pub foot: Pose,
+}
+
+/// Averaged landmark positions (trial frame, m).
+#[derive(Debug, Clone)]
+pub(crate) struct Landmarks {
+    pub r_asis: Vector3<f64>,
+    pub l_asis: Vector3<f64>,
+    /// Mid-PSIS, or the sacrum marker.
+    pub back: Vector3<f64>,
+    pub lat_epicondyle: Vector3<f64>,
+    pub med_epicondyle: Vector3<f64>,
+    pub lat_malleolus: Vector3<f64>,
+    pub med_malleolus: Vector3<f64>,
+    pub heel: Vector3<f64>,
+    /// Mean of the forefoot markers.
+    pub forefoot: Vector3<f64>,
+}
+
+/// Everything the landmark method derives from one static pose.
+#[derive(Debug, Clone)]
+pub(crate) struct Anatomy {
+    pub frames: SegmentFrames,
+    /// Hip centre in the pelvis frame (m).
+    pub hip_in_pelvis: Vector3<f64>,
+    pub hip_centre: Vector3<f64>,
+    pub knee_centre: Vector3<f64>,
+    pub ankle_centre: Vector3<f64>,
+    /// Unit epicondyle direction toward +z of the model (world).
+    pub knee_axis: Vector3<f64>,
+    /// Unit malleolus direction toward +z of the model (world).
+    pub ankle_axis: Vector3<f64>,
+    /// Unit subtalar axis direction, pointing anterior (world).
+    pub subtalar_axis: Vector3<f64>,
+    /// The point of the subtalar axis on the common perpendicular (world).
+    pub subtalar_point: Vector3<f64>,
+    pub pelvis_width: f64,
+    pub pelvis_depth: f64,
+    pub knee_width: f64,
+    pub ankle_width: f64,
+}
+
+/// The frame with origin `origin` and unit axes `x`, `y`, `z` (right-handed by construction).
+fn frame(origin: Vector3<f64>, x: Vector3<f64>, y: Vector3<f64>, z: Vector3<f64>) -> Pose {
+    Pose::new(Matrix3::from_columns(&[x, y, z]), origin)
+}
+
+/// `v` with its component along the unit vector `along` removed, normalised; `None` when the
+/// rest is shorter than `min` (nearly parallel).
+fn orthonormal(v: Vector3<f64>, along: &Vector3<f64>, min: f64) -> Option<Vector3<f64>> {
+    let r = v - along * along.dot(&v);
+    let n = r.norm();
+    (n > min).then(|| r / n)
+}
+
+fn unit(v: Vector3<f64>, what: &str, segment: &str) -> Result<Vector3<f64>, LandmarkError> {
+    let n = v.norm();
+    if n < 1e-3 || !n.is_finite() {
+        return Err(LandmarkError::Degenerate {
+            segment: segment.into(),
+            detail: format!("{what} is {:.1} mm long", n * 1e3),
+        });
+    }
+    Ok(v / n)
+}
+
+fn perpendicular(
+    v: Vector3<f64>,
+    along: &Vector3<f64>,
+    what: &str,
+    segment: &str,
+) -> Result<Vector3<f64>, LandmarkError> {
+    // 0.1 of the vector's length: the landmark line must be at least ~6° off the long axis.
+    orthonormal(v, along, 0.1 * v.norm()).ok_or_else(|| LandmarkError::Degenerate {
+        segment: segment.into(),
+        detail: format!("{what} is nearly parallel to the segment's long axis"),
+    })
+}
+
+/// Builds the frames, hip centre and axes (ARCHITECTURE.md §2) and checks them.
+pub(crate) fn anatomy(
+    lm: &Landmarks,
+    side: Side,
+    opts: &PersonalizeOptions,
+) -> Result<Anatomy, LandmarkError> {
+    let s = side.sign();
+    // Pelvis: origin mid-ASIS, z left → right ASIS, x anterior in the ASIS/back plane.
+    let mid_asis = 0.5 * (lm.r_asis + lm.l_asis);
+    let pelvis_width = (lm.r_asis - lm.l_asis).norm();
+    let pz = unit(lm.r_asis - lm.l_asis, "the inter-ASIS line", "pelvis")?;
+    let px = perpendicular(
+        mid_asis - lm.back,
+        &pz,
+        "the PSIS/sacrum-to-ASIS line",
+        "pelvis",
+    )?;
+    let py = pz.cross(&px);
+    let up = py.y.clamp(-1.0, 1.0).acos().to_degrees();
+    if up > 45.0 {
+        return Err(LandmarkError::Implausible(format!(
+            "the pelvis superior axis (from the ASIS and PSIS/sacrum markers) is {up:.0}° from \
+             the trial's +Y: the trial is not Y-up (choose the lab's up axis) or the right and \
+             left ASIS labels are swapped"
+        )));
+    }
+    let pelvis = frame(mid_asis, px, py, pz);
+    let pelvis_depth = (mid_asis - lm.back).norm();
+
+    let hip_in_pelvis = match opts.hip_centre {
+        HipCentreMethod::Bell => Vector3::new(
+            -0.19 * pelvis_width,
+            -0.30 * pelvis_width,
+            s * 0.36 * pelvis_width,
+        ),
+        HipCentreMethod::Harrington => Vector3::new(
+            -0.24 * pelvis_depth - 0.0099,
+            -0.30 * pelvis_width - 0.0109,
+            s * (0.33 * pelvis_width + 0.0073),
+        ),
+    };
+    let hip_centre = pelvis.transform_point(&hip_in_pelvis);
+
+    // Rightward (+z) landmark vectors of this leg.
+    let knee_vec = s * (lm.lat_epicondyle - lm.med_epicondyle);
+    let ankle_vec = s * (lm.lat_malleolus - lm.med_malleolus);
+    let knee_centre = 0.5 * (lm.lat_epicondyle + lm.med_epicondyle);
+    let ankle_centre = 0.5 * (lm.lat_malleolus + lm.med_malleolus);
+    let knee_axis = unit(knee_vec, "the epicondyle line", "thigh")?;
+    let ankle_axis = unit(ankle_vec, "the malleolus line", "shank")?;
+
+    // Thigh: origin hip centre, y knee centre → hip centre, z epicondyles made orthogonal.
+    let ty = unit(hip_centre - knee_centre, "the hip-to-knee line", "thigh")?;
+    let tz = perpendicular(knee_vec, &ty, "the epicondyle line", "thigh")?;
+    let thigh = frame(hip_centre, ty.cross(&tz), ty, tz);
+    // Shank: origin knee centre, y ankle centre → knee centre, z malleoli made orthogonal.
+    let sy = unit(
+        knee_centre - ankle_centre,
+        "the knee-to-ankle line",
+        "shank",
+    )?;
+    let sz = perpendicular(ankle_vec, &sy, "the malleolus line", "shank")?;
+    let shank = frame(knee_centre, sy.cross(&sz), sy, sz);
+    // Foot: origin heel, x heel → forefoot, z the shank's z made orthogonal.
+    let fx = unit(lm.forefoot - lm.heel, "the heel-to-forefoot line", "foot")?;
+    let fz = perpendicular(sz, &fx, "the shank's lateral axis", "foot")?;
+    let foot = frame(lm.heel, fx, fz.cross(&fx), fz);
+
+    let sn = super::markerset::side_name(side);
+    for (what, v) in [("epicondyle", tz), ("malleolus", sz)] {
+        if v.dot(&pz) < 0.0 {
+            return Err(LandmarkError::Implausible(format!(
+                "the {sn} lateral {what} lies medial of the medial one (seen from the pelvis): \
+                 are the lateral and medial labels swapped, or is this the other leg?"
+            )));
+        }
+    }
+    if fx.dot(&px) < 0.0 {
+        return Err(LandmarkError::Implausible(format!(
+            "the {sn} forefoot markers lie behind the heel marker (seen from the pelvis): are \
+             the heel and forefoot labels swapped?"
+        )));
+    }
+    if s * (knee_centre - mid_asis).dot(&pz) < 0.0 {
+        return Err(LandmarkError::Implausible(format!(
+            "the {sn} knee lies on the other side of the pelvis midline: wrong leg, or right \
+             and left ASIS labels swapped?"
+        )));
+    }
+
+    // Subtalar axis (Inman): elevation and medial deviation in the foot frame, anterior.
+    let (elev, dev) = (opts.subtalar_elevation, s * opts.subtalar_deviation);
+    let u_foot = Vector3::new(dev.cos() * elev.cos(), elev.sin(), -dev.sin() * elev.cos());
+    let subtalar_axis = foot.rot * u_foot;
+    // Common perpendicular of the talocrural axis a and the subtalar axis u: n = u × a points
+    // inferior and anterior; the subtalar axis passes at `subtalar_offset` along it.
+    let n = unit(
+        subtalar_axis.cross(&ankle_axis),
+        "the common perpendicular of the talocrural and subtalar axes",
+        "talus",
+    )?;
+    let subtalar_point = ankle_centre + opts.subtalar_offset * n;
+    let talus_y = -n;
+    let talus = frame(
+        ankle_centre,
+        talus_y.cross(&ankle_axis),
+        talus_y,
+        ankle_axis,
+    );
+
+    Ok(Anatomy {
+        frames: SegmentFrames {
+            pelvis,
+            thigh,
+            shank,
+            talus,
+            foot,
+        },
+        hip_in_pelvis,
+        hip_centre,
+        knee_centre,
+        ankle_centre,
+        knee_axis,
+        ankle_axis,
+        subtalar_axis,
+        subtalar_point,
+        pelvis_width,
+        pelvis_depth,
+        knee_width: knee_vec.norm(),
+        ankle_width: ankle_vec.norm(),
+    })
+}
+
+/// Refuses a segment whose tracking markers (averaged) lie within `min_spread` of one line:
+/// their rigid fit could not determine the rotation about that line.
+pub(crate) fn check_spread(
+    segment: &str,
+    names: &[String],
+    points: &[Vector3<f64>],
+    min_spread: f64,
+) -> Result<(), LandmarkError> {
+    let c: Vector3<f64> = points.iter().sum::<Vector3<f64>>() / points.len() as f64;
+    let mut cov = Matrix3::zeros();
+    for p in points {
+        cov += (p - c) * (p - c).transpose();
+    }
+    let eig = cov.symmetric_eigen();
+    let k = eig.eigenvalues.imax();
+    let dir = eig.eigenvectors.column(k).into_owned();
+    let spread = points
+        .iter()
+        .map(|p| orthonormal_distance(p - c, &dir))
+        .fold(0.0, f64::max);
+    if spread < min_spread {
+        return Err(LandmarkError::Collinear {
+            segment: segment.into(),
+            markers: names.to_vec(),
+            spread_mm: spread * 1e3,
+            min_mm: min_spread * 1e3,
+        });
+    }
+    Ok(())
+}
+
+fn orthonormal_distance(v: Vector3<f64>, dir: &Vector3<f64>) -> f64 {
+    (v - dir * dir.dot(&v)).norm()
+}
+
+/// Least-squares rigid fit (Kabsch) of `local` points onto `world` points: `world ≈ R·local + t`.
+pub(crate) fn rigid_fit(local: &[Vector3<f64>], world: &[Vector3<f64>]) -> Pose {
+    let n = local.len() as f64;
+    let cl: Vector3<f64> = local.iter().sum::<Vector3<f64>>() / n;
+    let cw: Vector3<f64> = world.iter().sum::<Vector3<f64>>() / n;
+    let mut h = Matrix3::zeros();
+    for (l, w) in local.iter().zip(world) {
+        h += (l - cl) * (w - cw).transpose();
+    }
+    let svd = h.svd(true, true);
+    let (u, vt) = (svd.u.expect("u"), svd.v_t.expect("v_t"));
+    let d = (vt.transpose() * u.transpose()).determinant().signum();
+    let rot = vt.transpose() * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose();
+    Pose::new(rot, cw - rot * cl)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rigid_fit_recovers_a_transform() {
+        let rot = nalgebra::Rotation3::from_euler_angles(0.3, -1.1, 2.0).into_inner();
+        let t = Vector3::new(0.1, -0.4, 2.0);
+        let local = [
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(0.1, 0.0, 0.02),
+            Vector3::new(0.0, 0.12, 0.0),
+            Vector3::new(0.03, 0.05, -0.08),
+        ];
+        let world: Vec<_> = local.iter().map(|p| rot * p + t).collect();
+        let fit = rigid_fit(&local, &world);
+        assert!((fit.rot - rot).abs().max() < 1e-12);
+        assert!((fit.trans - t).abs().max() < 1e-12);
+    }
+
+    #[test]
+    fn collinear_markers_are_refused() {
+        let names: Vec<String> = ["a", "b", "c"].iter().map(|s| s.to_string()).collect();
+        let line = [
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(0.0, 0.1, 0.001),
+            Vector3::new(0.0, 0.2, 0.0),
+        ];
+        let e = check_spread("thigh", &names, &line, 0.005)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(
+                "thigh tracking markers [\"a\", \"b\", \"c\"] lie within 0.7 mm of one line"
+            ),
+            "{e}"
+        );
+        let ok = [line[0], line[1], Vector3::new(0.03, 0.2, 0.0)];
+        check_spread("thigh", &names, &ok, 0.005).unwrap();
+    }
+}

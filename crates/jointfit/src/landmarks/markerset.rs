@@ -1,0 +1,372 @@
+//! Marker sets: which of a laboratory's marker labels play which anatomical role.
+//!
+//! A marker set is a small TOML description (the built-in presets are written the same way):
+//!
+//! ```toml
+//! name = "my-lab"
+//!
+//! [pelvis]
+//! right_asis = "RASI"
+//! left_asis = "LASI"
+//! right_psis = "RPSI"        # both PSIS, or a single `sacrum` marker, or both
+//! left_psis = "LPSI"
+//! tracking = ["RASI", "LASI", "RPSI", "LPSI"]
+//!
+//! [right]                    # and/or [left]
+//! lateral_epicondyle = "RKNE"
+//! medial_epicondyle = "RKNEM"
+//! lateral_malleolus = "RANK"
+//! medial_malleolus = "RANKM"
+//! heel = "RHEE"
+//! forefoot = ["RTOE"]        # toe marker or metatarsal heads: their mean sets the foot's x
+//! thigh = ["RTHI", "RTHIB", "RTHID", "RKNE"]   # tracking markers, at least 3 per segment
+//! shank = ["RTIB", "RTIBF", "RTIBD", "RANK"]
+//! foot = ["RHEE", "RTOE", "RNAV", "RTOE5"]
+//! ```
+//!
+//! Landmarks (ASIS, PSIS, sacrum, epicondyles, malleoli, heel, forefoot) are used only to
+//! build the segment frames from the static trial; tracking markers become model markers and
+//! must also be present in the movement trials. A landmark may also track (a lateral knee
+//! marker often does). A label can track only one segment.
+
+use serde::{Deserialize, Serialize};
+
+use super::LandmarkError;
+use crate::model::lower_limb::Side;
+
+/// Names of the built-in marker sets.
+pub const PRESET_NAMES: [&str; 4] = ["gait2392", "opencap", "jam", "plugin-gait"];
+
+const PRESETS: [(&str, &str); 4] = [
+    ("gait2392", include_str!("presets/gait2392.toml")),
+    ("opencap", include_str!("presets/opencap.toml")),
+    ("jam", include_str!("presets/jam.toml")),
+    ("plugin-gait", include_str!("presets/plugin-gait.toml")),
+];
+
+/// A laboratory's marker labels mapped to anatomical roles (see the module docs).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MarkerSet {
+    pub name: String,
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub description: String,
+    pub pelvis: PelvisMarkers,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub right: Option<LegMarkers>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub left: Option<LegMarkers>,
+}
+
+/// Pelvis landmarks and tracking markers.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PelvisMarkers {
+    pub right_asis: String,
+    pub left_asis: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub right_psis: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub left_psis: Option<String>,
+    /// A single sacral marker; used for the pelvis frame only when there are no PSIS markers.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sacrum: Option<String>,
+    pub tracking: Vec<String>,
+}
+
+/// One leg's landmarks and tracking markers.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LegMarkers {
+    pub lateral_epicondyle: String,
+    pub medial_epicondyle: String,
+    pub lateral_malleolus: String,
+    pub medial_malleolus: String,
+    pub heel: String,
+    /// Toe marker or metatarsal-head markers; the foot's x axis points from the heel to their
+    /// mean.
+    pub forefoot: Vec<String>,
+    pub thigh: Vec<String>,
+    pub shank: Vec<String>,
+    pub foot: Vec<String>,
+}
+
+/// The segments that carry tracking markers, in model order.
+pub const TRACKED_SEGMENTS: [&str; 4] = ["pelvis", "thigh", "shank", "foot"];
+
+impl MarkerSet {
+    /// Parses and validates a marker-set TOML text; `name` (a file name) is used in errors.
+    pub fn from_toml(text: &str, name: &str) -> Result<MarkerSet, LandmarkError> {
+        let set: MarkerSet = toml::from_str(text).map_err(|e| LandmarkError::MarkerSetSyntax {
+            source_name: name.to_string(),
+            detail: e.to_string(),
+        })?;
+        set.validate()?;
+        Ok(set)
+    }
+
+    /// A built-in marker set by name (see [`PRESET_NAMES`]).
+    pub fn preset(name: &str) -> Result<MarkerSet, LandmarkError> {
+        let (_, text) = PRESETS.iter().find(|(n, _)| *n == name).ok_or_else(|| {
+            LandmarkError::UnknownPreset {
+                name: name.to_string(),
+                available: PRESET_NAMES.join(", "),
+            }
+        })?;
+        MarkerSet::from_toml(text, &format!("preset {name}"))
+    }
+
+    /// Writes the set as TOML.
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).expect("a marker set always serializes to TOML")
+    }
+
+    /// The markers of one leg.
+    pub fn leg(&self, side: Side) -> Result<&LegMarkers, LandmarkError> {
+        match side {
+            Side::Right => self.right.as_ref(),
+            Side::Left => self.left.as_ref(),
+        }
+        .ok_or_else(|| LandmarkError::NoSuchLeg {
+            set: self.name.clone(),
+            side: side_name(side),
+        })
+    }
+
+    /// Tracking markers of `segment` (one of [`TRACKED_SEGMENTS`]) for `side`.
+    pub fn tracking(&self, side: Side, segment: &str) -> Result<&[String], LandmarkError> {
+        let leg = || self.leg(side);
+        Ok(match segment {
+            "pelvis" => &self.pelvis.tracking,
+            "thigh" => &leg()?.thigh,
+            "shank" => &leg()?.shank,
+            "foot" => &leg()?.foot,
+            _ => unreachable!("segment names come from TRACKED_SEGMENTS"),
+        })
+    }
+
+    /// Every (role, label) the static trial must contain for `side`, landmarks first.
+    pub fn roles(&self, side: Side) -> Result<Vec<(String, String)>, LandmarkError> {
+        let leg = self.leg(side)?;
+        let p = &self.pelvis;
+        let mut out: Vec<(String, String)> = vec![
+            ("right ASIS".into(), p.right_asis.clone()),
+            ("left ASIS".into(), p.left_asis.clone()),
+        ];
+        let mut opt = |role: &str, label: &Option<String>| {
+            if let Some(l) = label {
+                out.push((role.to_string(), l.clone()));
+            }
+        };
+        opt("right PSIS", &p.right_psis);
+        opt("left PSIS", &p.left_psis);
+        opt("sacrum", &p.sacrum);
+        for (role, label) in [
+            ("lateral epicondyle", &leg.lateral_epicondyle),
+            ("medial epicondyle", &leg.medial_epicondyle),
+            ("lateral malleolus", &leg.lateral_malleolus),
+            ("medial malleolus", &leg.medial_malleolus),
+            ("heel", &leg.heel),
+        ] {
+            out.push((role.to_string(), label.clone()));
+        }
+        for l in &leg.forefoot {
+            out.push(("forefoot".into(), l.clone()));
+        }
+        for seg in TRACKED_SEGMENTS {
+            for l in self.tracking(side, seg)? {
+                out.push((format!("{seg} tracking"), l.clone()));
+            }
+        }
+        Ok(out)
+    }
+
+    /// Checks the set's structure (not the labels of any trial).
+    pub fn validate(&self) -> Result<(), LandmarkError> {
+        let bad = |detail: String| LandmarkError::InvalidMarkerSet {
+            set: self.name.clone(),
+            detail,
+        };
+        let p = &self.pelvis;
+        match (&p.right_psis, &p.left_psis, &p.sacrum) {
+            (Some(_), None, _) | (None, Some(_), _) => {
+                return Err(bad(
+                    "give both right_psis and left_psis, or neither (a sacrum marker alone \
+                     is enough)"
+                        .into(),
+                ))
+            }
+            (None, None, None) => {
+                return Err(bad(
+                    "the pelvis needs right_psis and left_psis, or a sacrum marker".into(),
+                ))
+            }
+            _ => {}
+        }
+        if p.right_asis == p.left_asis {
+            return Err(bad(format!(
+                "right_asis and left_asis are the same label {:?}",
+                p.right_asis
+            )));
+        }
+        if self.right.is_none() && self.left.is_none() {
+            return Err(bad("it has neither a [right] nor a [left] leg".into()));
+        }
+        for side in [Side::Right, Side::Left] {
+            let Ok(leg) = self.leg(side) else { continue };
+            let sn = side_name(side);
+            if leg.forefoot.is_empty() {
+                return Err(bad(format!("{sn} forefoot lists no marker")));
+            }
+            if leg.lateral_epicondyle == leg.medial_epicondyle
+                || leg.lateral_malleolus == leg.medial_malleolus
+            {
+                return Err(bad(format!(
+                    "{sn} leg: the lateral and medial landmarks must be different markers"
+                )));
+            }
+            let mut owner: Vec<(&str, &str)> = Vec::new();
+            for seg in TRACKED_SEGMENTS {
+                let list = self.tracking(side, seg)?;
+                let mut distinct: Vec<&str> = list.iter().map(String::as_str).collect();
+                distinct.sort_unstable();
+                distinct.dedup();
+                if distinct.len() != list.len() {
+                    return Err(bad(format!("{sn} {seg} tracking lists a marker twice")));
+                }
+                if list.len() < 3 {
+                    return Err(bad(format!(
+                        "{sn} {seg} has {} tracking marker(s) {:?}; a rigid segment needs at \
+                         least 3",
+                        list.len(),
+                        list
+                    )));
+                }
+                for l in list {
+                    if let Some((other, _)) = owner.iter().find(|(_, m)| *m == l.as_str()) {
+                        return Err(bad(format!(
+                            "marker {l:?} tracks both the {other} and the {seg} ({sn} leg); a \
+                             marker can track one segment only"
+                        )));
+                    }
+                    owner.push((seg, l));
+                }
+            }
+        }
+        let all_labels = self
+            .roles(if self.right.is_some() {
+                Side::Right
+            } else {
+                Side::Left
+            })?
+            .into_iter()
+            .chain(if self.left.is_some() {
+                self.roles(Side::Left)?
+            } else {
+                vec![]
+            });
+        for (role, label) in all_labels {
+            if label.trim().is_empty() || label.trim() != label {
+                return Err(bad(format!(
+                    "{role}: label {label:?} is empty or has surrounding spaces"
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+pub(crate) fn side_name(side: Side) -> &'static str {
+    match side {
+        Side::Right => "right",
+        Side::Left => "left",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_parse_and_round_trip() {
+        for name in PRESET_NAMES {
+            let set = MarkerSet::preset(name).unwrap();
+            assert_eq!(set.name, name);
+            for side in [Side::Right, Side::Left] {
+                let roles = set.roles(side).unwrap();
+                assert!(roles.len() >= 20, "{name}: {}", roles.len());
+            }
+            let again = MarkerSet::from_toml(&set.to_toml(), "round trip").unwrap();
+            assert_eq!(again, set);
+        }
+    }
+
+    #[test]
+    fn unknown_preset_lists_the_presets() {
+        let e = MarkerSet::preset("vicon").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "unknown marker-set preset \"vicon\"; presets: gait2392, opencap, jam, plugin-gait"
+        );
+    }
+
+    fn edit(f: impl FnOnce(&mut MarkerSet)) -> String {
+        let mut set = MarkerSet::preset("plugin-gait").unwrap();
+        f(&mut set);
+        MarkerSet::from_toml(&set.to_toml(), "edited.toml")
+            .unwrap_err()
+            .to_string()
+    }
+
+    #[test]
+    fn structural_errors_name_the_problem() {
+        let e = edit(|s| s.right.as_mut().unwrap().thigh.truncate(2));
+        assert!(e.contains("right thigh has 2 tracking marker(s)"), "{e}");
+        let e = edit(|s| s.pelvis.left_psis = None);
+        assert!(e.contains("both right_psis and left_psis"), "{e}");
+        let e = edit(|s| {
+            s.pelvis.left_psis = None;
+            s.pelvis.right_psis = None;
+        });
+        assert!(e.contains("or a sacrum marker"), "{e}");
+        let e = edit(|s| s.left.as_mut().unwrap().foot.push("LANK".into()));
+        assert!(
+            e.contains("marker \"LANK\" tracks both the shank and the foot (left leg)"),
+            "{e}"
+        );
+        let e = edit(|s| s.right.as_mut().unwrap().forefoot.clear());
+        assert!(e.contains("right forefoot lists no marker"), "{e}");
+        let e = edit(|s| s.right.as_mut().unwrap().heel = " RHEE".into());
+        assert!(e.contains("heel: label \" RHEE\""), "{e}");
+        let e = edit(|s| {
+            s.right = None;
+            s.left = None;
+        });
+        assert!(e.contains("neither a [right] nor a [left]"), "{e}");
+    }
+
+    #[test]
+    fn syntax_errors_name_the_file_and_key() {
+        let e = MarkerSet::from_toml("name = \"x\"\n[pelvis]\nright_asis = 3\n", "lab.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("marker set lab.toml: "), "{e}");
+        assert!(e.contains("right_asis"), "{e}");
+        let e = MarkerSet::from_toml(
+            "name = \"x\"\n[pelvis]\nright_asis = \"a\"\nleft_asis = \"b\"\nsacrum = \"s\"\n\
+             tracking = [\"a\", \"b\", \"s\"]\nknee = \"k\"\n",
+            "lab.toml",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("unknown field `knee`"), "{e}");
+    }
+
+    #[test]
+    fn missing_leg_is_reported() {
+        let mut set = MarkerSet::preset("jam").unwrap();
+        set.left = None;
+        let e = set.leg(Side::Left).unwrap_err().to_string();
+        assert_eq!(e, "marker set \"jam\" has no [left] leg");
+    }
+}

@@ -1,0 +1,442 @@
+//! The anatomical-landmark method: a static trial and a marker set → a subject's leg model.
+//!
+//! This gives the *nominal* joint parameters that Reinbolt et al. 2005 (J Biomech 38:621–626,
+//! doi:10.1016/j.jbiomech.2004.03.031) start the two-level optimization from, the bounds of
+//! their search, and the tracking markers' coordinates in their segments.
+//!
+//! ## Steps
+//! 1. **Window.** Consecutive frames in which every needed marker is present; among those of
+//!    the requested length (default 1 s; shortened to the longest complete run), the one with
+//!    the least marker motion ([`window`]). Markers are averaged over it.
+//! 2. **Frames** (ARCHITECTURE.md §2), from the averaged markers only, so the laboratory
+//!    heading is irrelevant (the trial must be Y-up): pelvis (mid-ASIS; z left → right ASIS;
+//!    x anterior in the plane of the ASIS and mid-PSIS or sacrum), thigh (hip centre; y knee
+//!    centre → hip centre; z epicondyles made orthogonal), shank (knee centre; y ankle centre
+//!    → knee centre; z malleoli made orthogonal), foot (heel; x heel → forefoot; z the shank's
+//!    z made orthogonal). z points to the model's right on both legs.
+//! 3. **Joints.** Hip centre by regression on the inter-ASIS width PW, in the pelvis frame from
+//!    mid-ASIS: Bell, Pedersen & Brand 1990 (J Biomech 23:617–621): (−0.19, −0.30, ±0.36)·PW; or Harrington et al. 2007 (J Biomech 40:595–602,
+//!    doi:10.1016/j.jbiomech.2006.02.003), with pelvic depth PD (mid-ASIS to mid-PSIS):
+//!    (−0.24·PD − 9.9 mm, −0.30·PW − 10.9 mm, ±(0.33·PW + 7.3 mm)). Knee axis: the epicondyle
+//!    line through the mid-epicondyle point (Churchill et al. 1998). Talocrural axis: the
+//!    malleolus line through the mid-malleolus point. Subtalar axis: Inman 1976's means,
+//!    42° elevation and 23° medial deviation in the foot frame, on the common perpendicular of
+//!    the two axes at 12.4 mm from the ankle centre (Reinbolt's Table 2). The talus frame has
+//!    its origin at the ankle centre, z along the talocrural axis and y along the common
+//!    perpendicular, pointing away from the subtalar axis.
+//! 4. **Model.** The offsets of every joint are read off these frames ([`nominal`]) and written
+//!    into the template [`lower_limb`] (names, structure, left-leg mirroring); the fixed
+//!    talocrural `rz` levels the foot at zero coordinates. Bounds follow Reinbolt's thesis:
+//!    hip centre in a cube of side 0.75·PW, knee positions in a cube of side knee width,
+//!    ankle positions in a cube of side inter-malleolar distance, every axis ±30°.
+//! 5. **Check.** The static-pose coordinates are the joint motions between the frames; forward
+//!    kinematics at that pose reproduces every tracking marker of the averaged frame (the
+//!    report's `static_fk_error`, ~1e-15 m). The report also gives, per segment, the residual
+//!    of a rigid fit of its markers to each frame of the window (how rigid the cluster stayed).
+//!
+//! ## Choices where the sources leave room
+//! - *Talus y direction.* Along the common perpendicular, pointing away from the subtalar
+//!   axis (superior-posterior), so that `subtalar_talus_superior` is −12.4 mm and
+//!   `subtalar_talus_transverse` comes out at 25–42° on real data, as in Reinbolt's Table 2
+//!   (−12.40 mm, 26.89°). Pointing it toward the subtalar axis would flip both.
+//! - *Where the subtalar axis passes.* The template's talus origin is the talocrural joint
+//!   centre, so the common perpendicular starts at the mid-malleolus point; 12.4 mm along it
+//!   (inferior and anterior, at the subtalar elevation from vertical) is ~8.5 mm below and
+//!   ~8.3 mm in front of the ankle centre.
+//! - *Zero of the ankle.* The fixed talocrural `rz` follows the template: with every coordinate
+//!   0 the foot's long axis is horizontal in the pelvis frame. Standing therefore reads the
+//!   shank's forward lean relative to the pelvis as dorsiflexion (0–20° on the real trials).
+//! - *Zero of the subtalar joint* is not free: the talus frame is fixed by the two axes and
+//!   the foot-side offset holds Inman's angles, so standing reads 6–24° of "inversion" on the
+//!   real trials. It is an offset of the coordinate, not a posture.
+//! - *Hip regressions* use the skin-marker positions as the bony landmarks (no marker-radius
+//!   or soft-tissue correction).
+//!
+//! [`lower_limb`]: crate::model::lower_limb::lower_limb
+
+mod frames;
+pub mod markerset;
+pub(crate) mod nominal;
+pub mod window;
+
+use nalgebra::Vector3;
+use thiserror::Error;
+
+pub use frames::SegmentFrames;
+pub use markerset::{LegMarkers, MarkerSet, PelvisMarkers, PRESET_NAMES, TRACKED_SEGMENTS};
+pub use window::StaticWindow;
+
+use crate::kinematics::{forward_kinematics, KinData, Pose, Want};
+use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::spec::{MarkerSpec, ModelSpec};
+use crate::model::{Model, ModelError};
+use crate::trial::Trial;
+
+/// Why a static trial or a marker set was refused. Messages name the markers involved.
+#[derive(Debug, Error, PartialEq)]
+pub enum LandmarkError {
+    #[error("marker set {source_name}: {detail}")]
+    MarkerSetSyntax { source_name: String, detail: String },
+    #[error("unknown marker-set preset {name:?}; presets: {available}")]
+    UnknownPreset { name: String, available: String },
+    #[error("marker set {set:?}: {detail}")]
+    InvalidMarkerSet { set: String, detail: String },
+    #[error("marker set {set:?} has no [{side}] leg")]
+    NoSuchLeg { set: String, side: &'static str },
+    #[error(
+        "the static trial lacks {} marker(s) that marker set {set:?} expects for the {side} \
+         leg: {}; the trial has: {available}",
+        missing.len(),
+        missing.join(", ")
+    )]
+    MissingMarkers {
+        set: String,
+        side: &'static str,
+        /// `role "label"` for each missing label.
+        missing: Vec<String>,
+        available: String,
+    },
+    #[error(
+        "no frame of the static trial ({frames} frames) has every needed marker; never \
+         present: {never_present:?}; with gaps: {partly_present:?}"
+    )]
+    NoCompleteFrame {
+        frames: usize,
+        never_present: Vec<String>,
+        partly_present: Vec<String>,
+    },
+    #[error(
+        "{segment} tracking markers {markers:?} lie within {spread_mm:.1} mm of one line \
+         (at least {min_mm:.1} mm needed): their rigid fit cannot find the rotation about \
+         that line; add a marker off the line or list another one"
+    )]
+    Collinear {
+        segment: String,
+        markers: Vec<String>,
+        spread_mm: f64,
+        min_mm: f64,
+    },
+    #[error("{segment} frame: {detail}")]
+    Degenerate { segment: String, detail: String },
+    #[error("{0}")]
+    Implausible(String),
+    #[error("invalid option: {0}")]
+    InvalidOption(String),
+    #[error("the personalized model does not compile: {0}")]
+    Model(ModelError),
+    #[error("internal error (a bug): {0}")]
+    Internal(String),
+}
+
+/// Which regression places the hip centre in the pelvis frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum HipCentreMethod {
+    /// Bell et al. 1990: (−0.19, −0.30, ±0.36)·PW.
+    #[default]
+    Bell,
+    /// Harrington et al. 2007: pelvic depth and width, with constant terms.
+    Harrington,
+}
+
+impl HipCentreMethod {
+    pub fn citation(self) -> &'static str {
+        match self {
+            HipCentreMethod::Bell => "Bell et al. 1990",
+            HipCentreMethod::Harrington => "Harrington et al. 2007",
+        }
+    }
+}
+
+/// Settings of [`personalize`] (SI units).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PersonalizeOptions {
+    pub hip_centre: HipCentreMethod,
+    /// Length of the averaged window (s); shortened to the longest run of complete frames.
+    pub window_seconds: f64,
+    /// Distance of the subtalar axis from the ankle centre along the common perpendicular (m).
+    pub subtalar_offset: f64,
+    /// Subtalar axis elevation above the foot's long axis (rad; Inman: 42°).
+    pub subtalar_elevation: f64,
+    /// Subtalar axis medial deviation from the foot's long axis (rad; Inman: 23°).
+    pub subtalar_deviation: f64,
+    /// Tracking markers of a segment all within this distance of one line are refused (m).
+    pub min_marker_spread: f64,
+    /// Name of the model written into the description.
+    pub name: String,
+}
+
+impl Default for PersonalizeOptions {
+    fn default() -> Self {
+        PersonalizeOptions {
+            hip_centre: HipCentreMethod::Bell,
+            window_seconds: 1.0,
+            subtalar_offset: 0.0124,
+            subtalar_elevation: 42f64.to_radians(),
+            subtalar_deviation: 23f64.to_radians(),
+            min_marker_spread: 0.005,
+            name: "subject".into(),
+        }
+    }
+}
+
+/// Residual of the rigid fit of one segment's tracking markers over the window.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SegmentResidual {
+    pub segment: String,
+    pub markers: Vec<String>,
+    /// RMS over markers and window frames of the distance to the rigidly fitted markers (m).
+    pub rms: f64,
+    /// Largest such distance (m).
+    pub max: f64,
+}
+
+/// What [`personalize`] measured and used. Lengths in m; points in the trial frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PersonalizeReport {
+    pub window: StaticWindow,
+    pub hip_method: HipCentreMethod,
+    /// Inter-ASIS distance PW.
+    pub pelvis_width: f64,
+    /// Mid-ASIS to mid-PSIS (or sacrum) distance PD.
+    pub pelvis_depth: f64,
+    /// Distance between the epicondyle markers.
+    pub knee_width: f64,
+    /// Distance between the malleolus markers.
+    pub ankle_width: f64,
+    /// Hip centre to knee centre.
+    pub thigh_length: f64,
+    /// Knee centre to ankle centre.
+    pub shank_length: f64,
+    pub hip_centre: Vector3<f64>,
+    pub knee_centre: Vector3<f64>,
+    pub ankle_centre: Vector3<f64>,
+    /// Pelvis, thigh, shank, foot.
+    pub segments: Vec<SegmentResidual>,
+    /// Largest distance between a tracking marker of the averaged frame and the model's
+    /// marker at the static pose (m): ~1e-15 unless something is wrong.
+    pub static_fk_error: f64,
+}
+
+/// The result of [`personalize`].
+#[derive(Debug, Clone)]
+pub struct Personalized {
+    /// The subject's model: the template's structure with this subject's nominal parameters,
+    /// bounds, fixed talus levelling and tracking markers.
+    pub spec: ModelSpec,
+    /// Coordinates of the averaged static pose (model order, rad and m).
+    pub static_q: Vec<f64>,
+    /// Segment frames at the averaged static pose.
+    pub frames: SegmentFrames,
+    pub report: PersonalizeReport,
+}
+
+fn check_options(o: &PersonalizeOptions) -> Result<(), LandmarkError> {
+    let bad = |what: &str, v: f64| Err(LandmarkError::InvalidOption(format!("{what} = {v}")));
+    if !(o.window_seconds.is_finite() && o.window_seconds > 0.0) {
+        return bad("window_seconds", o.window_seconds);
+    }
+    if !(o.subtalar_offset.is_finite() && o.subtalar_offset >= 0.0) {
+        return bad("subtalar_offset", o.subtalar_offset);
+    }
+    for (w, v) in [
+        ("subtalar_elevation", o.subtalar_elevation),
+        ("subtalar_deviation", o.subtalar_deviation),
+    ] {
+        if !(v.is_finite() && v.abs() < std::f64::consts::FRAC_PI_2) {
+            return bad(w, v);
+        }
+    }
+    if !(o.min_marker_spread.is_finite() && o.min_marker_spread >= 0.0) {
+        return bad("min_marker_spread", o.min_marker_spread);
+    }
+    Ok(())
+}
+
+/// Builds a subject's leg model from a static trial (see the module docs). The trial must be
+/// in metres and Y-up ([`crate::trial::up_axis_rotation`]); its heading does not matter.
+pub fn personalize(
+    trial: &Trial,
+    set: &MarkerSet,
+    side: Side,
+    opts: &PersonalizeOptions,
+) -> Result<Personalized, LandmarkError> {
+    check_options(opts)?;
+    set.validate()?;
+    let side_name = markerset::side_name(side);
+    let leg = set.leg(side)?;
+
+    // Labels in first-use order, each with its roles.
+    let mut labels: Vec<(String, Vec<String>)> = Vec::new();
+    for (role, label) in set.roles(side)? {
+        match labels.iter_mut().find(|(l, _)| *l == label) {
+            Some((_, roles)) => roles.push(role),
+            None => labels.push((label, vec![role])),
+        }
+    }
+    let mut columns = Vec::with_capacity(labels.len());
+    let mut missing = Vec::new();
+    for (label, roles) in &labels {
+        match trial.labels().iter().position(|l| l == label) {
+            Some(c) => columns.push(c),
+            None => missing.push(format!("{} {label:?}", roles.join(" and "))),
+        }
+    }
+    if !missing.is_empty() {
+        return Err(LandmarkError::MissingMarkers {
+            set: set.name.clone(),
+            side: side_name,
+            missing,
+            available: trial.labels().join(", "),
+        });
+    }
+    let names: Vec<String> = labels.iter().map(|(l, _)| l.clone()).collect();
+    let wanted = (opts.window_seconds * trial.rate()).round().max(1.0) as usize;
+    let win = window::select_window(trial, &columns, &names, wanted)?;
+    let means = window::window_means(trial, &columns, &win);
+    let idx = |label: &str| {
+        names
+            .iter()
+            .position(|n| n == label)
+            .expect("resolved label")
+    };
+    let at = |label: &str| means[idx(label)];
+
+    let p = &set.pelvis;
+    let back = match (&p.right_psis, &p.left_psis, &p.sacrum) {
+        (Some(r), Some(l), _) => 0.5 * (at(r) + at(l)),
+        (_, _, Some(s)) => at(s),
+        _ => unreachable!("validated marker set"),
+    };
+    let forefoot: Vector3<f64> =
+        leg.forefoot.iter().map(|l| at(l)).sum::<Vector3<f64>>() / leg.forefoot.len() as f64;
+    let lm = frames::Landmarks {
+        r_asis: at(&p.right_asis),
+        l_asis: at(&p.left_asis),
+        back,
+        lat_epicondyle: at(&leg.lateral_epicondyle),
+        med_epicondyle: at(&leg.medial_epicondyle),
+        lat_malleolus: at(&leg.lateral_malleolus),
+        med_malleolus: at(&leg.medial_malleolus),
+        heel: at(&leg.heel),
+        forefoot,
+    };
+    for seg in TRACKED_SEGMENTS {
+        let list = set.tracking(side, seg)?;
+        let pts: Vec<_> = list.iter().map(|l| at(l)).collect();
+        frames::check_spread(seg, list, &pts, opts.min_marker_spread)?;
+    }
+    let an = frames::anatomy(&lm, side, opts)?;
+    let offsets = nominal::offsets(&an, side)?;
+
+    let mut spec = lower_limb(side);
+    nominal::fill_offsets(&mut spec, &offsets);
+    nominal::set_bounds(&mut spec, &an);
+    let f = &an.frames;
+    let poses: [(&str, Pose); 5] = [
+        ("pelvis", f.pelvis),
+        ("thigh", f.thigh),
+        ("shank", f.shank),
+        ("talus", f.talus),
+        ("foot", f.foot),
+    ];
+    let pose_of = |seg: &str| poses.iter().find(|(n, _)| *n == seg).expect("segment").1;
+    spec.markers.clear();
+    for seg in TRACKED_SEGMENTS {
+        let inv = pose_of(seg).inverse();
+        for l in set.tracking(side, seg)? {
+            let x = inv.transform_point(&at(l));
+            spec.markers.push(MarkerSpec {
+                name: l.clone(),
+                segment: seg.into(),
+                position: [x.x, x.y, x.z],
+                weight: 1.0,
+            });
+        }
+    }
+    let first_time = trial.time(win.first);
+    spec.name = opts.name.clone();
+    spec.description = format!(
+        "{} leg personalized by the anatomical-landmark method (marker set {:?}; static frames \
+         {}–{} of {}, t = {:.3}–{:.3} s; hip centre {}; PW {:.1} mm)",
+        side_name,
+        set.name,
+        win.first,
+        win.end() - 1,
+        win.total_frames,
+        first_time,
+        trial.time(win.end() - 1),
+        opts.hip_centre.citation(),
+        an.pelvis_width * 1e3
+    );
+
+    let model = Model::compile(&spec).map_err(LandmarkError::Model)?;
+    let static_q = nominal::static_coordinates(&model, &offsets, &poses)?;
+    let mut kin = KinData::new(&model);
+    forward_kinematics(
+        &model,
+        &model.nominal_params(),
+        &static_q,
+        Want::POSITIONS,
+        &mut kin,
+    );
+    let static_fk_error = model
+        .markers
+        .iter()
+        .zip(&kin.markers)
+        .map(|(m, x)| (x - at(&m.name)).norm())
+        .fold(0.0, f64::max);
+
+    let mut segments = Vec::new();
+    for seg in TRACKED_SEGMENTS {
+        let list = set.tracking(side, seg)?;
+        let local: Vec<Vector3<f64>> = spec
+            .markers
+            .iter()
+            .filter(|m| m.segment == seg)
+            .map(|m| Vector3::from(m.position))
+            .collect();
+        let cols: Vec<usize> = list.iter().map(|l| columns[idx(l)]).collect();
+        let (mut sum2, mut max, mut n) = (0.0, 0.0f64, 0usize);
+        for fr in win.first..win.end() {
+            let world: Vec<_> = cols
+                .iter()
+                .map(|&c| trial.get(fr, c).expect("complete frame"))
+                .collect();
+            let fit = frames::rigid_fit(&local, &world);
+            for (l, w) in local.iter().zip(&world) {
+                let d = (fit.transform_point(l) - w).norm();
+                sum2 += d * d;
+                max = max.max(d);
+                n += 1;
+            }
+        }
+        segments.push(SegmentResidual {
+            segment: seg.into(),
+            markers: list.to_vec(),
+            rms: (sum2 / n as f64).sqrt(),
+            max,
+        });
+    }
+
+    let report = PersonalizeReport {
+        window: win,
+        hip_method: opts.hip_centre,
+        pelvis_width: an.pelvis_width,
+        pelvis_depth: an.pelvis_depth,
+        knee_width: an.knee_width,
+        ankle_width: an.ankle_width,
+        thigh_length: (an.hip_centre - an.knee_centre).norm(),
+        shank_length: (an.knee_centre - an.ankle_centre).norm(),
+        hip_centre: an.hip_centre,
+        knee_centre: an.knee_centre,
+        ankle_centre: an.ankle_centre,
+        segments,
+        static_fk_error,
+    };
+    Ok(Personalized {
+        spec,
+        static_q,
+        frames: an.frames,
+        report,
+    })
+}
