@@ -5,9 +5,9 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
-use jointfit::calibrate::joint::{solve_joint, JointOptions};
+use jointfit::calibrate::joint::{solve_joint_observed, JointOptions};
 use jointfit::calibrate::pso::{solve_pso, PsoOptions};
-use jointfit::calibrate::varpro::{solve_varpro, VarProOptions};
+use jointfit::calibrate::varpro::{solve_varpro_observed, VarProOptions};
 use jointfit::calibrate::{params_for_groups, Fit, Problem};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::{Model, Unit};
@@ -57,6 +57,20 @@ pub struct CalibrateArgs {
     /// Print a JSON report on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Also write an HTML report (figures, parameter table, settings) to DIR/index.html.
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
+}
+
+/// One outer iteration of a calibration stage, for progress bars and the report.
+#[derive(Debug, Clone, Copy)]
+pub struct Step<'a> {
+    pub stage: &'a str,
+    /// 0 for the starting point of the stage.
+    pub iteration: usize,
+    pub max_iterations: usize,
+    /// Objective `e_inner` (m²).
+    pub cost: f64,
 }
 
 #[derive(Serialize)]
@@ -113,7 +127,7 @@ fn per_marker_rms(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
         .collect()
 }
 
-/// Runs one calibration on trials already in memory.
+/// Runs one calibration on trials already in memory, with a progress bar on stderr.
 pub fn calibrate(
     model: &Model,
     start: Vec<f64>,
@@ -121,6 +135,32 @@ pub fn calibrate(
     groups: &[&str],
     method: Method,
     seed: u64,
+) -> Result<(Fit, Report)> {
+    let mut bars = crate::progress::StageProgress::new();
+    calibrate_observed(model, start, trials, groups, method, seed, &mut |s| {
+        progress_step(&mut bars, s)
+    })
+}
+
+/// Shows a calibration step on a [`crate::progress::StageProgress`].
+pub fn progress_step(bars: &mut crate::progress::StageProgress, s: &Step) {
+    bars.step(
+        s.stage,
+        s.iteration as u64,
+        Some(s.max_iterations as u64),
+        &format!("objective {:.1} mm²", s.cost * MM * MM),
+    );
+}
+
+/// [`calibrate`] that reports every outer iteration to `observe` instead of a progress bar.
+pub fn calibrate_observed(
+    model: &Model,
+    start: Vec<f64>,
+    trials: &[&Trial],
+    groups: &[&str],
+    method: Method,
+    seed: u64,
+    observe: &mut dyn FnMut(&Step),
 ) -> Result<(Fit, Report)> {
     let free = params_for_groups(model, groups)?;
     let prob = Problem::new(model, start.clone(), &free, trials)?;
@@ -130,21 +170,47 @@ pub fn calibrate(
     let mut ws = jointfit::ik::IkWorkspace::new(model);
     let mut q_before = q0.clone();
     let cost_before = prob.inner(&start, &mut q_before, &mut ws);
+    let mut step = |stage, iteration, max_iterations, cost| {
+        observe(&Step {
+            stage,
+            iteration,
+            max_iterations,
+            cost,
+        })
+    };
     let fit = match method {
-        Method::Joint => solve_joint(&prob, &s0, q0, &JointOptions::default()),
-        Method::Gradient => solve_varpro(&prob, &s0, q0, &VarProOptions::default()),
+        Method::Joint => {
+            let opts = JointOptions::default();
+            let stage = "joint Levenberg-Marquardt";
+            step(stage, 0, opts.max_iterations, cost_before);
+            solve_joint_observed(&prob, &s0, q0, &opts, |i, c| {
+                step(stage, i, opts.max_iterations, c)
+            })
+        }
+        Method::Gradient => {
+            let opts = VarProOptions::default();
+            let stage = "two-level Gauss-Newton";
+            step(stage, 0, opts.max_iterations, cost_before);
+            solve_varpro_observed(&prob, &s0, q0, &opts, |i, c| {
+                step(stage, i, opts.max_iterations, c)
+            })
+        }
         Method::Pso => {
             let opts = PsoOptions {
                 seed,
                 ..PsoOptions::default()
             };
-            let swarm = solve_pso(&prob, &q0, &opts, |_, _| {});
-            let mut polished = solve_joint(
-                &prob,
-                &swarm.s,
-                swarm.coords.clone(),
-                &JointOptions::default(),
-            );
+            let stage = "particle swarm";
+            let swarm = solve_pso(&prob, &q0, &opts, |i, c| {
+                step(stage, i, opts.max_iterations, c)
+            });
+            let polish = JointOptions::default();
+            let stage = "joint Levenberg-Marquardt polish";
+            step(stage, 0, polish.max_iterations, swarm.cost);
+            let mut polished =
+                solve_joint_observed(&prob, &swarm.s, swarm.coords.clone(), &polish, |i, c| {
+                    step(stage, i, polish.max_iterations, c)
+                });
             polished.iterations += swarm.iterations;
             polished.evaluations += swarm.evaluations;
             polished
@@ -263,16 +329,39 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         .collect::<Result<_>>()?;
     let refs: Vec<&Trial> = trials.iter().collect();
     let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
-    let (fit, report) = calibrate(&model, start, &refs, &groups, args.method, args.seed)?;
+    let mut bars = crate::progress::StageProgress::new();
+    let mut stages = crate::report_cmd::Stages::default();
+    let (fit, report) = calibrate_observed(
+        &model,
+        start.clone(),
+        &refs,
+        &groups,
+        args.method,
+        args.seed,
+        &mut |s| {
+            progress_step(&mut bars, s);
+            stages.record(s);
+        },
+    )?;
+    bars.finish();
     let mut fitted = model.spec_with_nominal(&fit.p);
     fitted.name = format!("{} (fitted)", spec.name);
     jointfit_io::model_file::save_spec(&args.output, &fitted)
         .with_context(|| format!("writing {}", args.output.display()))?;
+    let html = match &args.report {
+        Some(dir) => Some(crate::report_cmd::write_calibration_report(
+            dir, &args, &spec.name, &model, &start, &refs, &fit, &report, stages,
+        )?),
+        None => None,
+    };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         print_report(&report);
         println!("wrote {}", args.output.display());
+        if let Some(path) = html {
+            println!("wrote {}", path.display());
+        }
     }
     Ok(())
 }

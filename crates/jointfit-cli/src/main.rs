@@ -6,6 +6,8 @@ mod demo_cmd;
 mod ik_cmd;
 mod model_cmd;
 mod personalize_cmd;
+mod progress;
+mod report_cmd;
 mod table;
 
 use std::process::ExitCode;
@@ -36,6 +38,8 @@ enum Command {
     Demo(demo_cmd::DemoArgs),
     /// Build a subject's leg model from a static trial (anatomical-landmark method).
     Personalize(personalize_cmd::PersonalizeArgs),
+    /// Write an HTML report (figures, parameter table) of a fitted model on trials.
+    Report(report_cmd::ReportArgs),
 }
 
 fn main() -> ExitCode {
@@ -46,6 +50,7 @@ fn main() -> ExitCode {
         Command::Calibrate(args) => calibrate_cmd::run(args),
         Command::Demo(args) => demo_cmd::run(args),
         Command::Personalize(args) => personalize_cmd::run(args),
+        Command::Report(args) => report_cmd::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

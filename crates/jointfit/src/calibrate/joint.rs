@@ -29,6 +29,19 @@ impl Default for JointOptions {
 
 /// Minimises the objective from scaled parameters `s0` and coordinates `q0` (one per frame).
 pub fn solve_joint(prob: &Problem, s0: &[f64], q0: Vec<Vec<f64>>, opts: &JointOptions) -> Fit {
+    solve_joint_observed(prob, s0, q0, opts, |_, _| {})
+}
+
+/// [`solve_joint`] that calls `observe(iteration, cost)` after every outer iteration (the
+/// same values as [`Fit::history`]; for progress reporting). The observer cannot change the
+/// result.
+pub fn solve_joint_observed(
+    prob: &Problem,
+    s0: &[f64],
+    q0: Vec<Vec<f64>>,
+    opts: &JointOptions,
+    mut observe: impl FnMut(usize, f64),
+) -> Fit {
     let nq = prob.model.n_q();
     let nf = prob.n_free();
     let frames = prob.frames.len();
@@ -88,6 +101,7 @@ pub fn solve_joint(prob: &Problem, s0: &[f64], q0: Vec<Vec<f64>>, opts: &JointOp
             lambda *= 10.0;
         }
         history.push(cost);
+        observe(iterations, cost);
         if !accepted || step < opts.tolerance {
             converged = true;
             break;

@@ -39,6 +39,19 @@ pub fn gradient(prob: &Problem, s: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
 
 /// Minimises `e_inner` from scaled parameters `s0` with inner solutions warm-started at `q0`.
 pub fn solve_varpro(prob: &Problem, s0: &[f64], q0: Vec<Vec<f64>>, opts: &VarProOptions) -> Fit {
+    solve_varpro_observed(prob, s0, q0, opts, |_, _| {})
+}
+
+/// [`solve_varpro`] that calls `observe(iteration, cost)` after every outer iteration (the
+/// same values as [`Fit::history`]; for progress reporting). The observer cannot change the
+/// result.
+pub fn solve_varpro_observed(
+    prob: &Problem,
+    s0: &[f64],
+    q0: Vec<Vec<f64>>,
+    opts: &VarProOptions,
+    mut observe: impl FnMut(usize, f64),
+) -> Fit {
     let nq = prob.model.n_q();
     let nf = prob.n_free();
     let frames = prob.frames.len();
@@ -97,6 +110,7 @@ pub fn solve_varpro(prob: &Problem, s0: &[f64], q0: Vec<Vec<f64>>, opts: &VarPro
             lambda *= 10.0;
         }
         history.push(cost);
+        observe(iterations, cost);
         if !accepted || step < opts.tolerance {
             converged = true;
             break;

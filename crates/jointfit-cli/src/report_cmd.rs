@@ -1,0 +1,275 @@
+//! `jointfit report <FITTED.toml> <TRIAL>... [--landmark <SUBJECT.toml>] -o <DIR>` and the
+//! report of `jointfit calibrate ... --report <DIR>`: a self-contained `DIR/index.html`
+//! (see the `jointfit-report` crate).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use jointfit::calibrate::Fit;
+use jointfit::ik::IkOptions;
+use jointfit::model::Model;
+use jointfit::trial::Trial;
+use jointfit_report::analyze::{analyze, parameter_rows};
+use jointfit_report::{Convergence, ReportInput};
+
+use crate::calibrate_cmd::{CalibrateArgs, Report, Step};
+use crate::common::{load_trial, Up, MM};
+
+#[derive(Args)]
+pub struct ReportArgs {
+    /// Fitted model (TOML written by `jointfit calibrate`, or any model file).
+    pub model: String,
+    /// Motion files (.trc or .c3d) to show the model on.
+    #[arg(required = true)]
+    pub trials: Vec<PathBuf>,
+    /// The model before calibration (e.g. from `jointfit personalize`), for comparison.
+    #[arg(long, value_name = "SUBJECT.toml")]
+    pub landmark: Option<String>,
+    /// Which axis of the motion files points up.
+    #[arg(long, value_enum, default_value = "y")]
+    pub up: Up,
+    /// Low-pass filter cutoff in Hz (use the one the calibration used).
+    #[arg(long)]
+    pub filter: Option<f64>,
+    /// Output directory; the report is DIR/index.html.
+    #[arg(short, long, value_name = "DIR")]
+    pub output: PathBuf,
+}
+
+pub fn run(args: ReportArgs) -> Result<()> {
+    let spec = jointfit_io::model_file::load_spec(&args.model)?;
+    let model = jointfit_io::model_file::load_model(&args.model)?;
+    let fitted = model.nominal_params();
+    let baseline = match &args.landmark {
+        Some(path) => Some(params_by_name(&model, &args.model, path)?),
+        None => None,
+    };
+    let trials = load_trials(&args.trials, args.up, args.filter)?;
+    let mut input = ReportInput {
+        title: spec.name.clone(),
+        baseline_label: "landmark model".into(),
+        fitted_label: "fitted model".into(),
+        ..ReportInput::default()
+    };
+    let named: Vec<(String, &Trial)> = trials.iter().map(|(n, t)| (n.clone(), t)).collect();
+    analyze(
+        &mut input,
+        &model,
+        &fitted,
+        baseline.as_deref(),
+        &named,
+        &IkOptions::default(),
+    )?;
+    input.parameters = parameter_rows(&model, &fitted, baseline.as_deref(), None);
+    let mut settings = vec![
+        ("fitted model".to_string(), args.model.clone()),
+        (
+            "landmark model".to_string(),
+            args.landmark.clone().unwrap_or_else(|| "not given".into()),
+        ),
+    ];
+    settings.extend(trial_settings(&args.trials, args.up, args.filter));
+    input.settings = with_provenance(settings);
+    let path = jointfit_report::write_report(&args.output, &input)
+        .with_context(|| format!("writing the report to {}", args.output.display()))?;
+    println!(
+        "RMS marker distance: {}{:.2} mm with the fitted model",
+        input
+            .overall_rms_mm
+            .0
+            .map(|b| format!("{b:.2} mm with the landmark model, "))
+            .unwrap_or_default(),
+        input.overall_rms_mm.1
+    );
+    println!("wrote {}", path.display());
+    Ok(())
+}
+
+/// The parameters of the model in `path`, in the order of `model`'s parameter vector.
+fn params_by_name(model: &Model, model_path: &str, path: &str) -> Result<Vec<f64>> {
+    let other = jointfit_io::model_file::load_model(path)?;
+    model
+        .parameters
+        .iter()
+        .map(|par| match other.param_id(&par.name) {
+            Some(id) => Ok(other.parameters[id.0].nominal),
+            None => bail!("{path}: has no parameter {:?} of {model_path}", par.name),
+        })
+        .collect()
+}
+
+fn load_trials(paths: &[PathBuf], up: Up, filter: Option<f64>) -> Result<Vec<(String, Trial)>> {
+    paths
+        .iter()
+        .map(|p| Ok((display_name(p), load_trial(p, up, filter)?)))
+        .collect()
+}
+
+fn display_name(p: &Path) -> String {
+    p.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| p.display().to_string())
+}
+
+fn trial_settings(trials: &[PathBuf], up: Up, filter: Option<f64>) -> Vec<(String, String)> {
+    vec![
+        (
+            "trials".to_string(),
+            trials
+                .iter()
+                .map(|t| t.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", "),
+        ),
+        ("up axis".to_string(), format!("{up:?}").to_lowercase()),
+        (
+            "filter".to_string(),
+            match filter {
+                Some(hz) => format!(
+                    "{hz} Hz low-pass, zero-phase Butterworth (effective order 4: a 2nd-order \
+                     design run forward and backward)"
+                ),
+                None => "none".to_string(),
+            },
+        ),
+    ]
+}
+
+/// `settings` followed by the command line, jointfit version and date.
+fn with_provenance(mut settings: Vec<(String, String)>) -> Vec<(String, String)> {
+    settings.insert(0, ("command line".to_string(), command_line()));
+    settings.push((
+        "jointfit version".to_string(),
+        env!("CARGO_PKG_VERSION").to_string(),
+    ));
+    settings.push(("date".to_string(), jointfit_report::utc_now()));
+    settings
+}
+
+/// This process's command line, quoted for a POSIX shell where needed.
+pub fn command_line() -> String {
+    std::env::args()
+        .map(|a| {
+            let plain = !a.is_empty()
+                && a.chars()
+                    .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c));
+            if plain {
+                a
+            } else {
+                format!("'{}'", a.replace('\'', r"'\''"))
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Objective per outer iteration, per stage, as reported by `calibrate_observed`.
+#[derive(Debug, Default)]
+pub struct Stages(pub Vec<(String, Vec<f64>)>);
+
+impl Stages {
+    pub fn record(&mut self, s: &Step) {
+        if self.0.last().is_none_or(|(name, _)| name != s.stage) {
+            self.0.push((s.stage.to_string(), Vec::new()));
+        }
+        if let Some((_, costs)) = self.0.last_mut() {
+            costs.push(s.cost * MM * MM);
+        }
+    }
+}
+
+/// Writes the report of a finished calibration; returns the path of `index.html`.
+#[allow(clippy::too_many_arguments)]
+pub fn write_calibration_report(
+    dir: &Path,
+    args: &CalibrateArgs,
+    model_name: &str,
+    model: &Model,
+    start: &[f64],
+    trials: &[&Trial],
+    fit: &Fit,
+    report: &Report,
+    stages: Stages,
+) -> Result<PathBuf> {
+    let baseline_label = if args.seed_from.is_some() {
+        "start (earlier fit)"
+    } else if Path::new(&args.model).is_file() {
+        "landmark model"
+    } else {
+        "nominal model"
+    };
+    let mut input = ReportInput {
+        title: format!("{model_name} (fitted)"),
+        baseline_label: baseline_label.into(),
+        fitted_label: "fitted model".into(),
+        ..ReportInput::default()
+    };
+    let named: Vec<(String, &Trial)> = args
+        .trials
+        .iter()
+        .map(|p| display_name(p))
+        .zip(trials.iter().copied())
+        .collect();
+    analyze(
+        &mut input,
+        model,
+        &fit.p,
+        Some(start),
+        &named,
+        &IkOptions::default(),
+    )?;
+    let free: Vec<usize> = report
+        .parameters
+        .iter()
+        .filter_map(|p| model.param_id(&p.name).map(|id| id.0))
+        .collect();
+    input.parameters = parameter_rows(model, &fit.p, Some(start), Some(&free));
+    let method = format!("{:?}", report.method).to_lowercase();
+    input.convergence = Some(Convergence {
+        method: method.clone(),
+        stages: stages.0,
+        iterations: report.iterations,
+        evaluations: report.evaluations,
+        converged: report.converged,
+        seconds: report.seconds,
+    });
+    if report.skipped_frames > 0 {
+        input.notes.push(format!(
+            "{} frames were left out of the calibration because a segment had too few markers.",
+            report.skipped_frames
+        ));
+    }
+    let mut settings = vec![
+        ("subject model".to_string(), args.model.clone()),
+        (
+            "start parameters".to_string(),
+            args.seed_from
+                .clone()
+                .map(|s| format!("from {s}"))
+                .unwrap_or_else(|| "the subject model's values".into()),
+        ),
+        (
+            "fitted model".to_string(),
+            args.output.display().to_string(),
+        ),
+        ("parameter groups".to_string(), args.joints.join(", ")),
+        ("method".to_string(), method.clone()),
+        (
+            "random seed".to_string(),
+            if report.method == crate::calibrate_cmd::Method::Pso {
+                args.seed.to_string()
+            } else {
+                format!("{} (not used by the {method} method)", args.seed)
+            },
+        ),
+        (
+            "frames fitted".to_string(),
+            format!("{} ({} skipped)", report.frames, report.skipped_frames),
+        ),
+    ];
+    settings.extend(trial_settings(&args.trials, args.up, args.filter));
+    input.settings = with_provenance(settings);
+    jointfit_report::write_report(dir, &input)
+        .with_context(|| format!("writing the report to {}", dir.display()))
+}

@@ -1,0 +1,143 @@
+//! Fills a [`ReportInput`] from a model, its fitted and baseline parameters and the trials:
+//! inverse kinematics of every trial with each parameter vector ([`jointfit::ik::solve_trial`],
+//! warm-started frame to frame), per-frame and per-marker RMS marker distances, the fitted
+//! model's coordinates over time, and the parameter table.
+
+use jointfit::ik::{rms, solve_trial, IkOptions, MarkerMap, TrialFit};
+use jointfit::model::{CoordKind, Model, Unit};
+use jointfit::trial::Trial;
+
+use crate::data::{CoordSeries, MarkerRms, ParamRow, ReportInput, TrialSeries};
+use crate::ReportError;
+
+const MM: f64 = 1e3;
+
+/// Inverse kinematics of every trial with the fitted (and baseline) parameters; sets
+/// `trials`, `markers`, `overall_rms_mm` and `notes` of `input`.
+///
+/// `trials` pairs a display name (the file name) with the trial, already in the model's
+/// frame (Y up) and filtered as the fit was.
+pub fn analyze(
+    input: &mut ReportInput,
+    model: &Model,
+    fitted: &[f64],
+    baseline: Option<&[f64]>,
+    trials: &[(String, &Trial)],
+    ik: &IkOptions,
+) -> Result<(), ReportError> {
+    let mut fitted_err: Vec<Vec<f64>> = vec![Vec::new(); model.n_markers()];
+    let mut base_err: Vec<Vec<f64>> = vec![Vec::new(); model.n_markers()];
+    for (name, trial) in trials {
+        let map = MarkerMap::by_name(model, trial.labels()).map_err(|e| ReportError::Trial {
+            trial: name.clone(),
+            message: e.to_string(),
+        })?;
+        let solve = |p: &[f64]| {
+            solve_trial(model, p, trial, &map, ik).map_err(|e| ReportError::Trial {
+                trial: name.clone(),
+                message: e.to_string(),
+            })
+        };
+        let fit = solve(fitted)?;
+        let base = baseline.map(solve).transpose()?;
+        let per_frame = |f: &TrialFit| -> Vec<f64> {
+            (0..f.frames.len()).map(|i| f.frame_rms(i) * MM).collect()
+        };
+        let coords = model
+            .coordinates
+            .iter()
+            .enumerate()
+            .map(|(c, coord)| {
+                let (unit, k) = match coord.kind {
+                    CoordKind::Rotational => ("deg", 180.0 / std::f64::consts::PI),
+                    CoordKind::Translational => ("mm", MM),
+                };
+                let series = |f: &TrialFit| f.coords.iter().map(|q| q[c] * k).collect();
+                let joint = &model.joints[coord.joint.0];
+                CoordSeries {
+                    name: coord.name.clone(),
+                    joint: joint.name.clone(),
+                    root: joint.parent.is_none(),
+                    unit: unit.to_string(),
+                    fitted: series(&fit),
+                    baseline: base.as_ref().map(series),
+                }
+            })
+            .collect();
+        let unsolved = fit.frames.iter().filter(|f| !f.solved()).count();
+        if unsolved > 0 {
+            input.notes.push(format!(
+                "{name}: {unsolved} of {} frames could not be solved with the fitted model \
+                 (too few markers on a segment); they are gaps in the figures.",
+                fit.frames.len()
+            ));
+        }
+        for errs in &fit.errors {
+            for (j, e) in errs.iter().enumerate() {
+                fitted_err[j].push(*e);
+            }
+        }
+        if let Some(b) = &base {
+            for errs in &b.errors {
+                for (j, e) in errs.iter().enumerate() {
+                    base_err[j].push(*e);
+                }
+            }
+        }
+        input.trials.push(TrialSeries {
+            name: name.clone(),
+            time: (0..trial.n_frames()).map(|f| trial.time(f)).collect(),
+            baseline_rms_mm: base.as_ref().map(per_frame),
+            fitted_rms_mm: per_frame(&fit),
+            coords,
+            unsolved_frames: unsolved,
+        });
+    }
+    input.markers = model
+        .markers
+        .iter()
+        .enumerate()
+        .map(|(j, m)| MarkerRms {
+            name: m.name.clone(),
+            baseline_mm: baseline.map(|_| rms(base_err[j].iter().copied()) * MM),
+            fitted_mm: rms(fitted_err[j].iter().copied()) * MM,
+        })
+        .collect();
+    input.overall_rms_mm = (
+        baseline.map(|_| rms(base_err.iter().flatten().copied()) * MM),
+        rms(fitted_err.iter().flatten().copied()) * MM,
+    );
+    Ok(())
+}
+
+/// The parameter table in display units (mm, degrees). `free` lists the indices the
+/// calibration was allowed to change (`None` when not known).
+pub fn parameter_rows(
+    model: &Model,
+    fitted: &[f64],
+    baseline: Option<&[f64]>,
+    free: Option<&[usize]>,
+) -> Vec<ParamRow> {
+    model
+        .parameters
+        .iter()
+        .enumerate()
+        .map(|(i, par)| {
+            let (unit, k) = match par.unit {
+                Unit::Metre => ("mm", MM),
+                Unit::Radian => ("deg", 180.0 / std::f64::consts::PI),
+            };
+            ParamRow {
+                name: par.name.clone(),
+                group: par.group.clone(),
+                unit: unit.to_string(),
+                baseline: baseline.map(|b| b[i] * k),
+                fitted: fitted[i] * k,
+                lower: par.lower * k,
+                upper: par.upper * k,
+                free: free.map(|f| f.contains(&i)),
+                interval: None,
+            }
+        })
+        .collect()
+}
