@@ -150,7 +150,12 @@ fn with_provenance(mut settings: Vec<(String, String)>) -> Vec<(String, String)>
 /// This process's command line, quoted for a POSIX shell where needed.
 pub fn command_line() -> String {
     std::env::args()
-        .map(|a| {
+        .enumerate()
+        .map(|(i, a)| {
+            if i == 0 {
+                // The program as "jointfit", not the path it was started from.
+                return "jointfit".to_string();
+            }
             let plain = !a.is_empty()
                 && a.chars()
                     .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c));

@@ -39,6 +39,7 @@ p.lead { color:var(--muted); margin:2px 0 14px; max-width:78ch; }
 .card .k { font-size:12px; color:var(--muted); text-transform:uppercase; letter-spacing:.06em; }
 .card .v { font-size:24px; font-weight:650; font-variant-numeric:tabular-nums; }
 .card .v small { font-size:14px; color:var(--muted); font-weight:500; }
+.card .d { font-size:13px; color:var(--muted); }
 .notes { background:#fff7e6; border-left:4px solid #e0a030; padding:10px 16px; margin:20px 0 0; border-radius:4px; }
 .notes p { margin:4px 0; }
 figure { margin:10px 0 0; }
@@ -52,6 +53,7 @@ svg .title { fill:#1d232b; font-weight:600; }
 svg .value { fill:#5b6673; font-size:9.5px; }
 svg .band { fill:#f7f9fb; }
 svg text { font-family:inherit; }
+.pair { display:grid; grid-template-columns:1fr 1fr; gap:20px; }
 .panels { display:grid; grid-template-columns:repeat(auto-fill,minmax(320px,1fr)); gap:6px 18px; }
 .key { display:flex; gap:22px; flex-wrap:wrap; font-size:13px; color:var(--muted); margin:4px 0 8px; }
 .key span::before { content:""; display:inline-block; width:22px; height:0; border-top:3px solid var(--c); vertical-align:middle; margin-right:7px; }
@@ -62,7 +64,7 @@ td { border-bottom:1px solid #eef1f4; padding:5px 8px; vertical-align:middle; }
 td.n, th.n { text-align:right; white-space:nowrap; }
 tr.group td { background:var(--soft); font-weight:650; color:var(--ink); text-transform:capitalize; border-bottom:1px solid var(--rule); }
 tr.fixed td { color:#97a0aa; }
-td.name { font-family:ui-monospace,"SFMono-Regular",Menlo,Consolas,"Liberation Mono",monospace; font-size:12.5px; }
+td.name { white-space:nowrap; font-family:ui-monospace,"SFMono-Regular",Menlo,Consolas,"Liberation Mono",monospace; font-size:12.5px; }
 .badge { display:inline-block; font-size:11px; padding:0 6px; border-radius:9px; background:#fdecea; color:#b03a2e; margin-left:6px; }
 dl.settings { display:grid; grid-template-columns:max-content 1fr; gap:6px 22px; margin:8px 0 0; }
 dl.settings dt { color:var(--muted); }
@@ -174,7 +176,7 @@ fn header(h: &mut String, input: &ReportInput, title: &str) {
             let _ = write!(
                 h,
                 "<div class=\"card\"><div class=\"k\">RMS marker error</div><div class=\"v\">{} \
-                 <small>→</small> {} <small>mm</small></div><div class=\"k\">{} → {} ({}% lower)</div></div>",
+                 <small>→</small> {} <small>mm</small></div><div class=\"d\">{} → {} ({}% lower)</div></div>",
                 fmt(b, 2),
                 fmt(fit, 2),
                 escape(&input.baseline_label),
@@ -186,7 +188,7 @@ fn header(h: &mut String, input: &ReportInput, title: &str) {
             let _ = write!(
                 h,
                 "<div class=\"card\"><div class=\"k\">RMS marker error</div><div class=\"v\">{} <small>mm</small></div>\
-                 <div class=\"k\">{}</div></div>",
+                 <div class=\"d\">{}</div></div>",
                 fmt(fit, 2),
                 escape(&input.fitted_label)
             );
@@ -199,7 +201,7 @@ fn header(h: &mut String, input: &ReportInput, title: &str) {
         .count();
     let _ = write!(
         h,
-        "<div class=\"card\"><div class=\"k\">parameters</div><div class=\"v\">{}</div><div class=\"k\">{}</div></div>",
+        "<div class=\"card\"><div class=\"k\">parameters</div><div class=\"v\">{}</div><div class=\"d\">{}</div></div>",
         if input.parameters.iter().any(|p| p.free.is_some()) {
             format!("{free} <small>of {}</small>", input.parameters.len())
         } else {
@@ -215,7 +217,7 @@ fn header(h: &mut String, input: &ReportInput, title: &str) {
         let _ = write!(
             h,
             "<div class=\"card\"><div class=\"k\">outer optimizer</div><div class=\"v\">{} <small>iterations</small></div>\
-             <div class=\"k\">{} · {} s{}</div></div>",
+             <div class=\"d\">{} · {} s{}</div></div>",
             c.iterations,
             escape(&c.method),
             fmt(c.seconds, 2),
@@ -253,8 +255,9 @@ fn frame_error(h: &mut String, input: &ReportInput) {
          frame, after inverse kinematics with each model. Lower is better; OpenSim's best-practice \
          target for movement trials is below 20 mm.</p><figure id=\"fig-frame-error\">"
     );
-    for t in &input.trials {
+    for (i, t) in input.trials.iter().enumerate() {
         let mut c = LineChart::new(1000.0, 290.0, "time (s)", "RMS marker error (mm)");
+        c.id = format!("frame-error-{i}");
         c.y_from_zero = true;
         if input.trials.len() > 1 {
             c.title = Some(t.name.clone());
@@ -396,6 +399,7 @@ fn joint_angles(h: &mut String, input: &ReportInput) {
             let coord = &first.coords[c];
             let mut chart = LineChart::new(330.0, 200.0, "time (s)", &coord.unit);
             chart.font = 10.5;
+            chart.id = format!("coord-{c}");
             chart.legend = false;
             chart.title = Some(coord.name.clone());
             for (i, t) in input.trials.iter().enumerate() {
@@ -602,22 +606,41 @@ fn convergence(h: &mut String, input: &ReportInput) {
             ", stopped before converging"
         }
     );
-    let mut chart = LineChart::new(1000.0, 300.0, "outer iteration", "objective (mm²)");
-    chart.y_scale = Scale::Log10;
-    chart.x_integer = true;
-    let mut offset = 0usize;
-    for (i, (name, costs)) in c.stages.iter().enumerate() {
-        let pts: Vec<(f64, f64)> = costs
-            .iter()
-            .enumerate()
-            .map(|(k, v)| ((offset + k) as f64, *v))
-            .collect();
-        offset += costs.len().saturating_sub(1);
-        let mut s = Series::line(name, STAGE_COLORS[i % STAGE_COLORS.len()], pts);
-        s.dots = costs.len() <= 60;
-        chart.series.push(s);
+    // Left: the objective. Right: its excess over the best value reached, which shows the
+    // rate of convergence once the objective itself looks flat.
+    let best = c
+        .stages
+        .iter()
+        .flat_map(|s| s.1.iter().copied())
+        .filter(|v| v.is_finite())
+        .fold(f64::INFINITY, f64::min);
+    let mut charts = [
+        LineChart::new(490.0, 300.0, "outer iteration", "objective (mm²)"),
+        LineChart::new(490.0, 300.0, "outer iteration", "objective − best (mm²)"),
+    ];
+    for (k, chart) in charts.iter_mut().enumerate() {
+        chart.y_scale = Scale::Log10;
+        chart.x_integer = true;
+        chart.legend = k == 0;
+        chart.id = format!("convergence-{k}");
+        let mut offset = 0usize;
+        for (i, (name, costs)) in c.stages.iter().enumerate() {
+            let pts: Vec<(f64, f64)> = costs
+                .iter()
+                .enumerate()
+                .map(|(j, v)| ((offset + j) as f64, if k == 0 { *v } else { v - best }))
+                .collect();
+            offset += costs.len().saturating_sub(1);
+            let mut s = Series::line(name, STAGE_COLORS[i % STAGE_COLORS.len()], pts);
+            s.dots = costs.len() <= 60;
+            chart.series.push(s);
+        }
     }
-    h.push_str(&chart.to_svg());
+    h.push_str("<div class=\"pair\">");
+    for chart in &charts {
+        h.push_str(&chart.to_svg());
+    }
+    h.push_str("</div>");
     if let Some(last) = c.stages.last().and_then(|s| s.1.last()) {
         let first = c.stages.first().and_then(|s| s.1.first()).copied();
         let _ = write!(

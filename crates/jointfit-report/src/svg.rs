@@ -114,6 +114,43 @@ pub fn power_of_ten(e: i32) -> String {
     s
 }
 
+/// Tick positions (log10 of the value) and labels for the decades `a..=b`: every decade (or
+/// every few when there are many), plus 2 and 5 in between when the range spans at most two
+/// decades. Labels are plain numbers between 0.001 and 100 000, powers of ten otherwise.
+pub fn log_axis_ticks(a: i32, b: i32) -> (Vec<f64>, Vec<String>) {
+    let plain = a >= -3 && b <= 5;
+    let label = |m: f64, e: i32| {
+        if plain {
+            let v = m * 10f64.powi(e);
+            format_tick(v, 10f64.powi(e.min(0)))
+        } else if m == 1.0 {
+            power_of_ten(e)
+        } else {
+            format!("{m}·{}", power_of_ten(e))
+        }
+    };
+    let mut pos = Vec::new();
+    let mut labels = Vec::new();
+    if b - a <= 2 {
+        for e in a..=b {
+            for m in [1.0, 2.0, 5.0] {
+                let p = (m * 10f64.powi(e)).log10();
+                if p <= b as f64 + 1e-9 {
+                    pos.push(p);
+                    labels.push(label(m, e));
+                }
+            }
+        }
+    } else {
+        let every = ((b - a) as f64 / 6.0).ceil().max(1.0) as i32;
+        for e in (a..=b).filter(|e| (e - a) % every == 0) {
+            pos.push(e as f64);
+            labels.push(label(1.0, e));
+        }
+    }
+    (pos, labels)
+}
+
 /// How a series is drawn.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Series {
@@ -166,6 +203,9 @@ pub struct LineChart {
     pub legend: bool,
     /// Font size of tick labels (px); axis labels are one pixel larger.
     pub font: f64,
+    /// Unique among the charts of a page (names the clip path); derived from the content
+    /// when empty.
+    pub id: String,
 }
 
 impl LineChart {
@@ -182,6 +222,7 @@ impl LineChart {
             series: Vec::new(),
             legend: true,
             font: 12.0,
+            id: String::new(),
         }
     }
 
@@ -251,15 +292,8 @@ impl LineChart {
                 }
                 Scale::Log10 => {
                     let (a, b, _) = log_ticks(ylo, yhi);
-                    let every = ((b - a) as f64 / 6.0).ceil().max(1.0) as i32;
-                    let exps: Vec<i32> = (a..=b).filter(|e| (e - a) % every == 0).collect();
-                    let labels = exps.iter().map(|e| power_of_ten(*e)).collect();
-                    (
-                        a as f64,
-                        b as f64,
-                        exps.iter().map(|e| *e as f64).collect(),
-                        labels,
-                    )
+                    let (pos, labels) = log_axis_ticks(a, b);
+                    (a as f64, b as f64, pos, labels)
                 }
             };
         let ylabel_width =
@@ -357,7 +391,11 @@ impl LineChart {
             escape(&self.y_label)
         );
         // Data, clipped to the plot area.
-        let clip = format!("c{:x}", fingerprint(&s, &self.series));
+        let clip = if self.id.is_empty() {
+            format!("clip-{:x}", fingerprint(&s, &self.series))
+        } else {
+            format!("clip-{}", self.id)
+        };
         let _ = write!(
             s,
             r#"<clipPath id="{clip}"><rect x="{:.1}" y="{:.1}" width="{:.1}" height="{:.1}"/></clipPath><g clip-path="url(#{clip})">"#,
@@ -609,10 +647,6 @@ fn fingerprint(prefix: &str, series: &[Series]) -> u64 {
             y.to_bits().hash(&mut h);
         }
     }
-    static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-    COUNTER
-        .fetch_add(1, std::sync::atomic::Ordering::Relaxed)
-        .hash(&mut h);
     h.finish()
 }
 
@@ -686,8 +720,16 @@ mod tests {
             vec![(0.0, 1.0), (1.0, 0.0), (2.0, 1e-3)],
         ));
         let svg = c.to_svg();
-        assert!(svg.contains("10⁻³"), "{svg}");
-        assert!(svg.contains("10⁰"), "{svg}");
+        // Three decades, plain labels.
+        assert!(svg.contains(">0.001<"), "{svg}");
+        assert!(svg.contains(">1<"), "{svg}");
+        let (pos, labels) = log_axis_ticks(4, 5);
+        assert_eq!(labels, ["10000", "20000", "50000", "100000"]);
+        assert!((pos[1] - 20000f64.log10()).abs() < 1e-12);
+        let (_, labels) = log_axis_ticks(-9, 1);
+        assert_eq!(labels, ["10⁻⁹", "10⁻⁷", "10⁻⁵", "10⁻³", "10⁻¹", "10¹"]);
+        let (_, labels) = log_axis_ticks(-8, -7);
+        assert_eq!(labels[1], "2·10⁻⁸");
     }
 
     #[test]
