@@ -68,7 +68,9 @@ pub struct Step<'a> {
     pub stage: &'a str,
     /// 0 for the starting point of the stage.
     pub iteration: usize,
-    pub max_iterations: usize,
+    /// Iterations the stage is expected to run (a particle swarm usually runs to its
+    /// budget); `None` for Levenberg–Marquardt stages, which stop when converged.
+    pub expected_iterations: Option<usize>,
     /// Objective `e_inner` (m²).
     pub cost: f64,
 }
@@ -136,7 +138,7 @@ pub fn calibrate(
     method: Method,
     seed: u64,
 ) -> Result<(Fit, Report)> {
-    let mut bars = crate::progress::StageProgress::new();
+    let mut bars = crate::progress::StageProgress::new("iterations");
     calibrate_observed(model, start, trials, groups, method, seed, &mut |s| {
         progress_step(&mut bars, s)
     })
@@ -147,7 +149,7 @@ pub fn progress_step(bars: &mut crate::progress::StageProgress, s: &Step) {
     bars.step(
         s.stage,
         s.iteration as u64,
-        Some(s.max_iterations as u64),
+        s.expected_iterations.map(|n| n as u64),
         &format!("objective {:.1} mm²", s.cost * MM * MM),
     );
 }
@@ -170,11 +172,11 @@ pub fn calibrate_observed(
     let mut ws = jointfit::ik::IkWorkspace::new(model);
     let mut q_before = q0.clone();
     let cost_before = prob.inner(&start, &mut q_before, &mut ws);
-    let mut step = |stage, iteration, max_iterations, cost| {
+    let mut step = |stage, iteration, expected_iterations, cost| {
         observe(&Step {
             stage,
             iteration,
-            max_iterations,
+            expected_iterations,
             cost,
         })
     };
@@ -182,18 +184,14 @@ pub fn calibrate_observed(
         Method::Joint => {
             let opts = JointOptions::default();
             let stage = "joint Levenberg-Marquardt";
-            step(stage, 0, opts.max_iterations, cost_before);
-            solve_joint_observed(&prob, &s0, q0, &opts, |i, c| {
-                step(stage, i, opts.max_iterations, c)
-            })
+            step(stage, 0, None, cost_before);
+            solve_joint_observed(&prob, &s0, q0, &opts, |i, c| step(stage, i, None, c))
         }
         Method::Gradient => {
             let opts = VarProOptions::default();
             let stage = "two-level Gauss-Newton";
-            step(stage, 0, opts.max_iterations, cost_before);
-            solve_varpro_observed(&prob, &s0, q0, &opts, |i, c| {
-                step(stage, i, opts.max_iterations, c)
-            })
+            step(stage, 0, None, cost_before);
+            solve_varpro_observed(&prob, &s0, q0, &opts, |i, c| step(stage, i, None, c))
         }
         Method::Pso => {
             let opts = PsoOptions {
@@ -202,14 +200,14 @@ pub fn calibrate_observed(
             };
             let stage = "particle swarm";
             let swarm = solve_pso(&prob, &q0, &opts, |i, c| {
-                step(stage, i, opts.max_iterations, c)
+                step(stage, i, Some(opts.max_iterations), c)
             });
             let polish = JointOptions::default();
             let stage = "joint Levenberg-Marquardt polish";
-            step(stage, 0, polish.max_iterations, swarm.cost);
+            step(stage, 0, None, swarm.cost);
             let mut polished =
                 solve_joint_observed(&prob, &swarm.s, swarm.coords.clone(), &polish, |i, c| {
-                    step(stage, i, polish.max_iterations, c)
+                    step(stage, i, None, c)
                 });
             polished.iterations += swarm.iterations;
             polished.evaluations += swarm.evaluations;
@@ -329,7 +327,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         .collect::<Result<_>>()?;
     let refs: Vec<&Trial> = trials.iter().collect();
     let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
-    let mut bars = crate::progress::StageProgress::new();
+    let mut bars = crate::progress::StageProgress::new("iterations");
     let mut stages = crate::report_cmd::Stages::default();
     let (fit, report) = calibrate_observed(
         &model,

@@ -44,6 +44,8 @@ impl Mode {
 pub struct Progress {
     label: String,
     total: Option<u64>,
+    /// What is counted ("iterations", "frames"), shown after the count.
+    unit: String,
     pos: u64,
     message: String,
     mode: Mode,
@@ -54,7 +56,7 @@ pub struct Progress {
     done: bool,
 }
 
-const BAR_WIDTH: usize = 24;
+const BAR_WIDTH: usize = 20;
 const SPINNER: [char; 4] = ['|', '/', '-', '\\'];
 
 impl Progress {
@@ -74,6 +76,7 @@ impl Progress {
         Progress {
             label: label.to_string(),
             total,
+            unit: String::new(),
             pos: 0,
             message: String::new(),
             mode,
@@ -83,6 +86,12 @@ impl Progress {
             printed: false,
             done: false,
         }
+    }
+
+    /// Names what is counted, e.g. `"iterations"` (builder style).
+    pub fn unit(mut self, unit: &str) -> Progress {
+        self.unit = unit.to_string();
+        self
     }
 
     #[allow(dead_code)] // API for commands whose total becomes known late
@@ -148,9 +157,14 @@ impl Progress {
     }
 
     fn count(&self) -> String {
-        match self.total {
+        let n = match self.total {
             Some(t) => format!("{}/{}", self.pos, t),
             None => format!("{}", self.pos),
+        };
+        if self.unit.is_empty() {
+            n
+        } else {
+            format!("{n} {}", self.unit)
         }
     }
 
@@ -191,7 +205,7 @@ impl Progress {
         let width = std::env::var("COLUMNS")
             .ok()
             .and_then(|c| c.parse::<usize>().ok())
-            .unwrap_or(100)
+            .unwrap_or(80)
             .max(20);
         if line.chars().count() >= width {
             line = line.chars().take(width - 1).collect();
@@ -270,22 +284,28 @@ pub fn human(d: Duration) -> String {
 
 /// Progress of a task in named stages (e.g. a particle swarm, then a polish): one
 /// [`Progress`] per stage, the previous one finished when the stage changes.
-#[derive(Default)]
 pub struct StageProgress {
     current: Option<(String, Progress)>,
     last_message: String,
+    unit: String,
 }
 
 impl StageProgress {
-    pub fn new() -> StageProgress {
-        StageProgress::default()
+    /// Stages counting `unit` (e.g. "iterations").
+    pub fn new(unit: &str) -> StageProgress {
+        StageProgress {
+            current: None,
+            last_message: String::new(),
+            unit: unit.to_string(),
+        }
     }
 
     /// Step `pos` of `stage` (out of `total` when known), with a message.
     pub fn step(&mut self, stage: &str, pos: u64, total: Option<u64>, message: &str) {
         if self.current.as_ref().is_none_or(|(s, _)| s != stage) {
             self.finish();
-            self.current = Some((stage.to_string(), Progress::new(stage, total)));
+            let p = Progress::new(stage, total).unit(&self.unit);
+            self.current = Some((stage.to_string(), p));
         }
         if let Some((_, p)) = &mut self.current {
             p.set(pos, message);
@@ -325,7 +345,7 @@ mod tests {
         p.set(50, "cost 12.5 mm²");
         let line = p.bar_line();
         assert!(
-            line.starts_with("pso [######------------------] 50/200  25%"),
+            line.starts_with("pso [#####---------------] 50/200  25%"),
             "{line}"
         );
         assert!(line.contains("ETA"), "{line}");
@@ -342,6 +362,14 @@ mod tests {
         assert_eq!(p.eta(), None);
         assert!(p.bar_line().contains(" 7  "), "{}", p.bar_line());
         assert!(!p.log_line().contains('%'));
+        let mut p =
+            Progress::with_mode("joint", None, Mode::Quiet, Duration::ZERO).unit("iterations");
+        p.set(3, "");
+        assert!(
+            p.log_line().starts_with("jointfit: joint: 3 iterations, "),
+            "{}",
+            p.log_line()
+        );
     }
 
     #[test]

@@ -235,3 +235,35 @@ fn pso_then_local_polish_recovers_the_hip() {
     let (mm, _) = errors(&model, &prob.free, &polished.p, &p_true);
     assert!(mm <= 1e-6, "polished error {mm:e} mm");
 }
+
+#[test]
+fn observers_see_the_history_and_do_not_change_the_result() {
+    use jointfit::calibrate::joint::solve_joint_observed;
+    use jointfit::calibrate::varpro::solve_varpro_observed;
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p_true = perturbed(&model, 3);
+    let trial = synthetic(&model, &p_true, 30, 0.005, 4);
+    let free = params_for_groups(&model, &["knee"]).unwrap();
+    let base = model.nominal_params();
+    let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
+    let s0 = prob.to_scaled(&base);
+    let q0 = prob.initial_coords(&base);
+    let mut seen = Vec::new();
+    let joint = solve_joint_observed(&prob, &s0, q0.clone(), &JointOptions::default(), |i, c| {
+        seen.push((i, c))
+    });
+    let plain = solve_joint(&prob, &s0, q0.clone(), &JointOptions::default());
+    assert_eq!(joint.p, plain.p);
+    assert_eq!(seen.len(), joint.iterations);
+    assert!(seen.iter().enumerate().all(|(k, (i, _))| *i == k + 1));
+    assert_eq!(seen.iter().map(|s| s.1).collect::<Vec<_>>(), joint.history);
+    let mut seen = Vec::new();
+    let varpro =
+        solve_varpro_observed(&prob, &s0, q0.clone(), &VarProOptions::default(), |i, c| {
+            seen.push((i, c))
+        });
+    let plain = solve_varpro(&prob, &s0, q0, &VarProOptions::default());
+    assert_eq!(varpro.p, plain.p);
+    assert_eq!(seen.iter().map(|s| s.1).collect::<Vec<_>>(), varpro.history);
+    assert!(varpro.history.windows(2).all(|w| w[1] <= w[0]));
+}

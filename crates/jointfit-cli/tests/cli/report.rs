@@ -1,0 +1,251 @@
+//! HTML reports and progress output through the binary: `calibrate --report`, `report`, and
+//! progress lines on stderr that never touch stdout.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use jointfit::testing::data_file;
+use jointfit_report::check::{external_references, parse, Element};
+
+/// Runs the binary with extra environment variables: (success, stdout, stderr).
+fn run(args: &[&str], env: &[(&str, &str)]) -> (bool, String, String) {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_jointfit"));
+    cmd.args(args).env_remove("JOINTFIT_PROGRESS");
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    let out = cmd.output().expect("jointfit runs");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("jointfit-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Parses a written report and checks what every report must satisfy.
+fn checked_page(path: &Path) -> Element {
+    let raw = std::fs::read_to_string(path).unwrap();
+    let root = parse(&raw).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let refs = external_references(&root, &raw);
+    assert!(refs.is_empty(), "{}: {refs:?}", path.display());
+    for id in [
+        "summary",
+        "fig-frame-error",
+        "fig-marker-rms",
+        "fig-joint-angles",
+        "tbl-parameters",
+        "fig-convergence",
+        "tbl-settings",
+    ] {
+        assert!(root.by_id(id).is_some(), "{}: no #{id}", path.display());
+    }
+    root
+}
+
+/// The two numbers of the summary's "RMS marker error" card: baseline and fitted (mm).
+fn summary_rms(root: &Element) -> (f64, f64) {
+    let card = root
+        .by_id("summary")
+        .unwrap()
+        .descendants()
+        .into_iter()
+        .find(|e| e.attr("class") == Some("v"))
+        .unwrap()
+        .all_text();
+    let nums: Vec<f64> = card
+        .split(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .filter_map(|t| t.parse().ok())
+        .collect();
+    assert_eq!(nums.len(), 2, "{card}");
+    (nums[0], nums[1])
+}
+
+#[test]
+fn calibrate_report_and_report_command_on_a_real_walking_trial() {
+    let Some(stat) = data_file("opencap_expert1/static1.trc") else {
+        return;
+    };
+    let walk = data_file("opencap_expert1/walking1.trc").unwrap();
+    let dir = scratch("report");
+    let subj = dir.join("subj.toml");
+    let fitted = dir.join("fitted.toml");
+    let (ok, _, err) = run(
+        &[
+            "personalize",
+            "--static",
+            s(&stat),
+            "--markers",
+            "opencap",
+            "--side",
+            "right",
+            "-o",
+            s(&subj),
+        ],
+        &[],
+    );
+    assert!(ok, "{err}");
+    let rep = dir.join("calibrated");
+    let (ok, out, err) = run(
+        &[
+            "calibrate",
+            s(&subj),
+            s(&walk),
+            "--filter",
+            "6",
+            "-o",
+            s(&fitted),
+            "--report",
+            s(&rep),
+            "--json",
+        ],
+        &[],
+    );
+    assert!(ok, "{err}");
+    // Stdout is still exactly the JSON report; a short run off a terminal prints no progress.
+    let json: serde_json::Value = serde_json::from_str(&out).expect("stdout is JSON");
+    assert!(err.is_empty(), "{err}");
+    let root = checked_page(&rep.join("index.html"));
+    let (before, after) = summary_rms(&root);
+    // The report's own inverse kinematics agrees with the calibration's numbers.
+    let rms_before = json["rms_before_mm"].as_f64().unwrap();
+    let rms_after = json["rms_after_mm"].as_f64().unwrap();
+    assert!(
+        (before - rms_before).abs() < 0.02,
+        "{before} vs {rms_before}"
+    );
+    assert!((after - rms_after).abs() < 0.02, "{after} vs {rms_after}");
+    assert!(after < before);
+    // Every model marker has its two bars; every parameter a row; the convergence chart
+    // has the joint solver's iterations (plus the starting point).
+    let markers = root.by_id("fig-marker-rms").unwrap().all_text();
+    for name in ["r.ASIS", "r_thigh1", "r_knee", "r_calc", "r_toe"] {
+        assert!(markers.contains(name), "{name} missing");
+    }
+    let conv = root.by_id("fig-convergence").unwrap();
+    let views = conv.find_all("svg");
+    assert_eq!(views.len(), 2);
+    let iterations = json["iterations"].as_u64().unwrap() as usize;
+    assert_eq!(views[0].find_all("circle").len(), iterations + 1);
+    // The excess over the best value leaves out the iterations that reached it.
+    let excess = views[1].find_all("circle").len();
+    assert!(excess >= 1 && excess <= iterations, "{excess}");
+    let settings = root.by_id("tbl-settings").unwrap().all_text();
+    for needle in ["walking1.trc", "joint", "6 Hz", "jointfit calibrate", "UTC"] {
+        assert!(
+            settings.contains(needle),
+            "{needle} not in settings: {settings}"
+        );
+    }
+
+    // The report command on the same fit: same numbers, no convergence history.
+    let rep2 = dir.join("report");
+    let (ok, out, err) = run(
+        &[
+            "report",
+            s(&fitted),
+            s(&walk),
+            "--landmark",
+            s(&subj),
+            "--filter",
+            "6",
+            "-o",
+            s(&rep2),
+        ],
+        &[],
+    );
+    assert!(ok, "{err}");
+    assert!(out.contains("wrote "), "{out}");
+    let root2 = checked_page(&rep2.join("index.html"));
+    assert_eq!(summary_rms(&root2), (before, after));
+    assert!(root2
+        .by_id("fig-convergence")
+        .unwrap()
+        .all_text()
+        .contains("Not available"));
+
+    // Errors name the file and write nothing.
+    let bad = dir.join("bad");
+    let (ok, _, err) = run(&["report", s(&fitted), "no-such.trc", "-o", s(&bad)], &[]);
+    assert!(!ok);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("no-such.trc"), "{err}");
+    assert!(!bad.exists());
+    let renamed = dir.join("renamed.toml");
+    let text = std::fs::read_to_string(&subj).unwrap();
+    std::fs::write(
+        &renamed,
+        text.replace("hip_pelvis_anterior", "hip_pelvis_front"),
+    )
+    .unwrap();
+    let (ok, _, err) = run(
+        &[
+            "report",
+            s(&fitted),
+            s(&walk),
+            "--landmark",
+            s(&renamed),
+            "-o",
+            s(&bad),
+        ],
+        &[],
+    );
+    assert!(!ok);
+    assert!(
+        err.contains("renamed.toml") && err.contains("hip_pelvis_anterior"),
+        "{err}"
+    );
+    assert!(!bad.exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn progress_lines_go_to_stderr_when_asked() {
+    let args = ["demo", "--frames", "20", "--noise-mm", "2"];
+    let (ok, quiet_out, err) = run(&args, &[]);
+    assert!(ok, "{err}");
+    assert!(
+        err.is_empty(),
+        "no progress off a terminal for a short run: {err}"
+    );
+    let (ok, out, err) = run(
+        &args,
+        &[
+            ("JOINTFIT_PROGRESS", "log"),
+            ("JOINTFIT_PROGRESS_SECONDS", "0"),
+        ],
+    );
+    assert!(ok, "{err}");
+    let lines: Vec<&str> = err.lines().collect();
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.starts_with("jointfit: joint Levenberg-Marquardt: 1 iterations")),
+        "{err}"
+    );
+    assert!(
+        lines.last().unwrap().contains(": done, ") && lines.last().unwrap().contains("mm²"),
+        "{err}"
+    );
+    // No escape codes in log mode, and stdout does not change (apart from timings).
+    assert!(!err.contains('\x1b'));
+    let strip = |s: &str| {
+        s.lines()
+            .filter(|l| !l.contains(" s") && !l.contains("ms"))
+            .map(str::to_string)
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(strip(&out), strip(&quiet_out));
+    let (ok, _, err) = run(&args, &[("JOINTFIT_PROGRESS", "quiet")]);
+    assert!(ok && err.is_empty(), "{err}");
+}
