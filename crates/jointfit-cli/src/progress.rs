@@ -94,7 +94,6 @@ impl Progress {
         self
     }
 
-    #[allow(dead_code)] // API for commands whose total becomes known late
     pub fn set_total(&mut self, total: Option<u64>) {
         self.total = total;
     }

@@ -10,11 +10,12 @@ use jointfit::calibrate::Fit;
 use jointfit::ik::IkOptions;
 use jointfit::model::Model;
 use jointfit::trial::Trial;
-use jointfit_report::analyze::{analyze, parameter_rows};
+use jointfit_report::analyze::{analyze_with_progress, parameter_rows};
 use jointfit_report::{Convergence, ReportInput};
 
 use crate::calibrate_cmd::{CalibrateArgs, Report, Step};
 use crate::common::{load_trial, Up, MM};
+use crate::progress::Progress;
 
 #[derive(Args)]
 pub struct ReportArgs {
@@ -53,14 +54,20 @@ pub fn run(args: ReportArgs) -> Result<()> {
         ..ReportInput::default()
     };
     let named: Vec<(String, &Trial)> = trials.iter().map(|(n, t)| (n.clone(), t)).collect();
-    analyze(
+    let mut bar = Progress::new("inverse kinematics", None).unit("passes");
+    analyze_with_progress(
         &mut input,
         &model,
         &fitted,
         baseline.as_deref(),
         &named,
         &IkOptions::default(),
+        &mut |done, total| {
+            bar.set_total(Some(total as u64));
+            bar.set(done as u64, "");
+        },
     )?;
+    bar.finish("");
     input.parameters = parameter_rows(&model, &fitted, baseline.as_deref(), None);
     let mut settings = vec![
         ("fitted model".to_string(), args.model.clone()),
@@ -216,14 +223,20 @@ pub fn write_calibration_report(
         .map(|p| display_name(p))
         .zip(trials.iter().copied())
         .collect();
-    analyze(
+    let mut bar = Progress::new("report: inverse kinematics", None).unit("passes");
+    analyze_with_progress(
         &mut input,
         model,
         &fit.p,
         Some(start),
         &named,
         &IkOptions::default(),
+        &mut |done, total| {
+            bar.set_total(Some(total as u64));
+            bar.set(done as u64, "");
+        },
     )?;
+    bar.finish("");
     let free: Vec<usize> = report
         .parameters
         .iter()

@@ -25,6 +25,22 @@ pub fn analyze(
     trials: &[(String, &Trial)],
     ik: &IkOptions,
 ) -> Result<(), ReportError> {
+    analyze_with_progress(input, model, fitted, baseline, trials, ik, &mut |_, _| {})
+}
+
+/// [`analyze`] that calls `progress(done, total)` after each inverse-kinematics pass (one
+/// per trial and parameter vector).
+pub fn analyze_with_progress(
+    input: &mut ReportInput,
+    model: &Model,
+    fitted: &[f64],
+    baseline: Option<&[f64]>,
+    trials: &[(String, &Trial)],
+    ik: &IkOptions,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<(), ReportError> {
+    let passes = trials.len() * (1 + baseline.is_some() as usize);
+    let mut done = 0;
     let mut fitted_err: Vec<Vec<f64>> = vec![Vec::new(); model.n_markers()];
     let mut base_err: Vec<Vec<f64>> = vec![Vec::new(); model.n_markers()];
     for (name, trial) in trials {
@@ -39,7 +55,13 @@ pub fn analyze(
             })
         };
         let fit = solve(fitted)?;
+        done += 1;
+        progress(done, passes);
         let base = baseline.map(solve).transpose()?;
+        if base.is_some() {
+            done += 1;
+            progress(done, passes);
+        }
         let per_frame = |f: &TrialFit| -> Vec<f64> {
             (0..f.frames.len()).map(|i| f.frame_rms(i) * MM).collect()
         };

@@ -70,6 +70,8 @@ dl.settings { display:grid; grid-template-columns:max-content 1fr; gap:6px 22px;
 dl.settings dt { color:var(--muted); }
 dl.settings dd { margin:0; }
 code { font-family:ui-monospace,"SFMono-Regular",Menlo,Consolas,"Liberation Mono",monospace; font-size:12.5px; background:var(--soft); padding:1px 5px; border-radius:4px; word-break:break-all; }
+@media (max-width:760px) { main { padding:24px 16px 40px; } .pair { grid-template-columns:1fr; } }
+@media print { main { max-width:none; padding:0; } figure, svg, tr { break-inside:avoid; } .card { border:1px solid var(--rule); } }
 footer { margin-top:48px; border-top:1px solid var(--rule); padding-top:12px; color:var(--muted); font-size:12.5px; }
 "#;
 
