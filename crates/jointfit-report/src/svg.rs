@@ -407,7 +407,7 @@ impl LineChart {
         for ser in &self.series {
             let mut d = String::new();
             let mut pen_down = false;
-            for &(x, y) in &ser.points {
+            for &(x, y) in &decimate(&ser.points, MAX_DRAWN_POINTS) {
                 let ok =
                     x.is_finite() && y.is_finite() && (self.y_scale == Scale::Linear || y > 0.0);
                 if !ok {
@@ -626,6 +626,46 @@ impl BarChart {
     }
 }
 
+/// Series longer than this are drawn through [`decimate`] (a few pixels per point at most).
+pub const MAX_DRAWN_POINTS: usize = 2000;
+
+/// At most about `max` points that keep the visual envelope of `points`: consecutive
+/// buckets each keep their first point, minimum and maximum (in x order), and a bucket with a
+/// gap (non-finite y) keeps the gap so that lines still break there.
+pub fn decimate(points: &[(f64, f64)], max: usize) -> Vec<(f64, f64)> {
+    if points.len() <= max || max < 6 {
+        return points.to_vec();
+    }
+    let buckets = max / 3;
+    let size = points.len().div_ceil(buckets);
+    let mut out = Vec::with_capacity(3 * buckets + 1);
+    for chunk in points.chunks(size) {
+        let mut keep: Vec<usize> = vec![0];
+        let finite = |i: &usize| chunk[*i].1.is_finite();
+        let idx: Vec<usize> = (0..chunk.len()).filter(finite).collect();
+        if let (Some(lo), Some(hi)) = (
+            idx.iter()
+                .min_by(|a, b| chunk[**a].1.total_cmp(&chunk[**b].1)),
+            idx.iter()
+                .max_by(|a, b| chunk[**a].1.total_cmp(&chunk[**b].1)),
+        ) {
+            keep.extend([*lo, *hi]);
+        }
+        if let Some(gap) = (0..chunk.len()).find(|i| !chunk[*i].1.is_finite()) {
+            keep.push(gap);
+        }
+        keep.sort_unstable();
+        keep.dedup();
+        out.extend(keep.into_iter().map(|i| chunk[i]));
+    }
+    if let Some(last) = points.last() {
+        if out.last() != Some(last) {
+            out.push(*last);
+        }
+    }
+    out
+}
+
 fn min_max(values: impl Iterator<Item = f64>) -> (f64, f64) {
     values
         .filter(|v| v.is_finite())
@@ -707,6 +747,30 @@ mod tests {
         let path = svg.split(r##"stroke="#123456""##).next().unwrap();
         let d = path.rsplit("d=\"").next().unwrap();
         assert_eq!(d.matches('M').count(), 2, "{d}");
+    }
+
+    #[test]
+    fn decimation_keeps_envelope_and_gaps() {
+        let pts: Vec<(f64, f64)> = (0..100_000)
+            .map(|i| {
+                let x = i as f64 * 1e-3;
+                let y = if (50_000..50_010).contains(&i) {
+                    f64::NAN
+                } else {
+                    (x * 3.0).sin() + if i == 77_777 { 5.0 } else { 0.0 }
+                };
+                (x, y)
+            })
+            .collect();
+        let d = decimate(&pts, 2000);
+        assert!(d.len() <= 2100, "{}", d.len());
+        assert!(d.iter().any(|p| p.1 == pts[77_777].1), "spike lost");
+        assert!(d.iter().any(|p| p.1.is_nan()), "gap lost");
+        assert!(d.windows(2).all(|w| w[0].0 < w[1].0), "x order");
+        assert_eq!(d.first(), pts.first());
+        assert_eq!(d.last(), pts.last());
+        let short = vec![(0.0, 1.0), (1.0, 2.0)];
+        assert_eq!(decimate(&short, 2000), short);
     }
 
     #[test]
