@@ -62,19 +62,6 @@ pub struct CalibrateArgs {
     pub report: Option<PathBuf>,
 }
 
-/// One outer iteration of a calibration stage, for progress bars and the report.
-#[derive(Debug, Clone, Copy)]
-pub struct Step<'a> {
-    pub stage: &'a str,
-    /// 0 for the starting point of the stage.
-    pub iteration: usize,
-    /// Iterations the stage is expected to run (a particle swarm usually runs to its
-    /// budget); `None` for Levenberg–Marquardt stages, which stop when converged.
-    pub expected_iterations: Option<usize>,
-    /// Objective `e_inner` (m²).
-    pub cost: f64,
-}
-
 #[derive(Serialize)]
 pub struct ParamReport {
     pub name: String,
@@ -102,6 +89,16 @@ pub struct Report {
     pub evaluations: usize,
     pub converged: bool,
     pub seconds: f64,
+    /// The objective after every outer iteration, per optimizer stage (for the HTML report).
+    pub convergence: Vec<ConvergenceStage>,
+}
+
+/// One optimizer stage (e.g. the particle swarm, then its polish).
+#[derive(Debug, Clone, Serialize)]
+pub struct ConvergenceStage {
+    pub stage: String,
+    /// `e_inner` (mm²) at the start of the stage, then after each of its iterations.
+    pub objective_mm2: Vec<f64>,
 }
 
 /// Per-model-marker RMS distance (m) for parameters `p` and per-frame coordinates.
@@ -129,7 +126,7 @@ fn per_marker_rms(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
         .collect()
 }
 
-/// Runs one calibration on trials already in memory, with a progress bar on stderr.
+/// Runs one calibration on trials already in memory.
 pub fn calibrate(
     model: &Model,
     start: Vec<f64>,
@@ -137,32 +134,6 @@ pub fn calibrate(
     groups: &[&str],
     method: Method,
     seed: u64,
-) -> Result<(Fit, Report)> {
-    let mut bars = crate::progress::StageProgress::new("iterations");
-    calibrate_observed(model, start, trials, groups, method, seed, &mut |s| {
-        progress_step(&mut bars, s)
-    })
-}
-
-/// Shows a calibration step on a [`crate::progress::StageProgress`].
-pub fn progress_step(bars: &mut crate::progress::StageProgress, s: &Step) {
-    bars.step(
-        s.stage,
-        s.iteration as u64,
-        s.expected_iterations.map(|n| n as u64),
-        &format!("objective {:.1} mm²", s.cost * MM * MM),
-    );
-}
-
-/// [`calibrate`] that reports every outer iteration to `observe` instead of a progress bar.
-pub fn calibrate_observed(
-    model: &Model,
-    start: Vec<f64>,
-    trials: &[&Trial],
-    groups: &[&str],
-    method: Method,
-    seed: u64,
-    observe: &mut dyn FnMut(&Step),
 ) -> Result<(Fit, Report)> {
     let free = params_for_groups(model, groups)?;
     let prob = Problem::new(model, start.clone(), &free, trials)?;
@@ -172,25 +143,32 @@ pub fn calibrate_observed(
     let mut ws = jointfit::ik::IkWorkspace::new(model);
     let mut q_before = q0.clone();
     let cost_before = prob.inner(&start, &mut q_before, &mut ws);
-    let mut step = |stage, iteration, expected_iterations, cost| {
-        observe(&Step {
-            stage,
-            iteration,
-            expected_iterations,
-            cost,
-        })
+    // Progress on stderr (see `progress`) and the objective per stage for the report.
+    let mut bars = crate::progress::StageProgress::new("iterations");
+    let mut convergence: Vec<ConvergenceStage> = Vec::new();
+    let mut step = |stage: &str, iteration: usize, expected: Option<usize>, cost: f64| {
+        let mm2 = cost * MM * MM;
+        let msg = format!("objective {mm2:.1} mm²");
+        bars.step(stage, iteration as u64, expected.map(|n| n as u64), &msg);
+        match convergence.last_mut() {
+            Some(c) if c.stage == stage => c.objective_mm2.push(mm2),
+            _ => convergence.push(ConvergenceStage {
+                stage: stage.to_string(),
+                objective_mm2: vec![mm2],
+            }),
+        }
     };
     let fit = match method {
         Method::Joint => {
-            let opts = JointOptions::default();
             let stage = "joint Levenberg-Marquardt";
             step(stage, 0, None, cost_before);
+            let opts = JointOptions::default();
             solve_joint_observed(&prob, &s0, q0, &opts, |i, c| step(stage, i, None, c))
         }
         Method::Gradient => {
-            let opts = VarProOptions::default();
             let stage = "two-level Gauss-Newton";
             step(stage, 0, None, cost_before);
+            let opts = VarProOptions::default();
             solve_varpro_observed(&prob, &s0, q0, &opts, |i, c| step(stage, i, None, c))
         }
         Method::Pso => {
@@ -198,22 +176,24 @@ pub fn calibrate_observed(
                 seed,
                 ..PsoOptions::default()
             };
-            let stage = "particle swarm";
-            let swarm = solve_pso(&prob, &q0, &opts, |i, c| {
-                step(stage, i, Some(opts.max_iterations), c)
-            });
-            let polish = JointOptions::default();
+            // The swarm usually runs to its budget: a bar with an ETA.
+            let max = Some(opts.max_iterations);
+            let swarm = solve_pso(&prob, &q0, &opts, |i, c| step("particle swarm", i, max, c));
             let stage = "joint Levenberg-Marquardt polish";
             step(stage, 0, None, swarm.cost);
-            let mut polished =
-                solve_joint_observed(&prob, &swarm.s, swarm.coords.clone(), &polish, |i, c| {
-                    step(stage, i, None, c)
-                });
+            let mut polished = solve_joint_observed(
+                &prob,
+                &swarm.s,
+                swarm.coords.clone(),
+                &JointOptions::default(),
+                |i, c| step(stage, i, None, c),
+            );
             polished.iterations += swarm.iterations;
             polished.evaluations += swarm.evaluations;
             polished
         }
     };
+    bars.finish();
     let seconds = clock.elapsed().as_secs_f64();
     let names = |v: Vec<f64>| -> Vec<(String, f64)> {
         model
@@ -258,6 +238,7 @@ pub fn calibrate_observed(
         evaluations: fit.evaluations,
         converged: fit.converged,
         seconds,
+        convergence,
     };
     Ok((fit, report))
 }
@@ -327,28 +308,21 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         .collect::<Result<_>>()?;
     let refs: Vec<&Trial> = trials.iter().collect();
     let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
-    let mut bars = crate::progress::StageProgress::new("iterations");
-    let mut stages = crate::report_cmd::Stages::default();
-    let (fit, report) = calibrate_observed(
+    let (fit, report) = calibrate(
         &model,
         start.clone(),
         &refs,
         &groups,
         args.method,
         args.seed,
-        &mut |s| {
-            progress_step(&mut bars, s);
-            stages.record(s);
-        },
     )?;
-    bars.finish();
     let mut fitted = model.spec_with_nominal(&fit.p);
     fitted.name = format!("{} (fitted)", spec.name);
     jointfit_io::model_file::save_spec(&args.output, &fitted)
         .with_context(|| format!("writing {}", args.output.display()))?;
     let html = match &args.report {
         Some(dir) => Some(crate::report_cmd::write_calibration_report(
-            dir, &args, &spec.name, &model, &start, &refs, &fit, &report, stages,
+            dir, &args, &spec.name, &model, &start, &refs, &fit, &report,
         )?),
         None => None,
     };

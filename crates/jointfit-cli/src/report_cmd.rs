@@ -13,8 +13,8 @@ use jointfit::trial::Trial;
 use jointfit_report::analyze::{analyze_with_progress, parameter_rows};
 use jointfit_report::{Convergence, ReportInput};
 
-use crate::calibrate_cmd::{CalibrateArgs, Report, Step};
-use crate::common::{load_trial, Up, MM};
+use crate::calibrate_cmd::{CalibrateArgs, Report};
+use crate::common::{load_trial, Up};
 use crate::progress::Progress;
 
 #[derive(Args)]
@@ -176,21 +176,6 @@ pub fn command_line() -> String {
         .join(" ")
 }
 
-/// Objective per outer iteration, per stage, as reported by `calibrate_observed`.
-#[derive(Debug, Default)]
-pub struct Stages(pub Vec<(String, Vec<f64>)>);
-
-impl Stages {
-    pub fn record(&mut self, s: &Step) {
-        if self.0.last().is_none_or(|(name, _)| name != s.stage) {
-            self.0.push((s.stage.to_string(), Vec::new()));
-        }
-        if let Some((_, costs)) = self.0.last_mut() {
-            costs.push(s.cost * MM * MM);
-        }
-    }
-}
-
 /// Writes the report of a finished calibration; returns the path of `index.html`.
 #[allow(clippy::too_many_arguments)]
 pub fn write_calibration_report(
@@ -202,7 +187,6 @@ pub fn write_calibration_report(
     trials: &[&Trial],
     fit: &Fit,
     report: &Report,
-    stages: Stages,
 ) -> Result<PathBuf> {
     let baseline_label = if args.seed_from.is_some() {
         "start (earlier fit)"
@@ -246,7 +230,11 @@ pub fn write_calibration_report(
     let method = format!("{:?}", report.method).to_lowercase();
     input.convergence = Some(Convergence {
         method: method.clone(),
-        stages: stages.0,
+        stages: report
+            .convergence
+            .iter()
+            .map(|c| (c.stage.clone(), c.objective_mm2.clone()))
+            .collect(),
         iterations: report.iterations,
         evaluations: report.evaluations,
         converged: report.converged,

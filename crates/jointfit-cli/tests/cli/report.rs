@@ -137,6 +137,22 @@ fn calibrate_report_and_report_command_on_a_real_walking_trial() {
     assert_eq!(views.len(), 2);
     let iterations = json["iterations"].as_u64().unwrap() as usize;
     assert_eq!(views[0].find_all("circle").len(), iterations + 1);
+    // The JSON report carries the same history: the starting objective, then one per
+    // iteration, ending at the final cost.
+    let stage = &json["convergence"][0];
+    let hist: Vec<f64> = stage["objective_mm2"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(hist.len(), iterations + 1);
+    let mm2 = 1e6;
+    let cost_before = json["cost_before"].as_f64().unwrap() * mm2;
+    let cost_after = json["cost_after"].as_f64().unwrap() * mm2;
+    assert!((hist[0] - cost_before).abs() <= 1e-9 * cost_before);
+    assert!((hist[iterations] - cost_after).abs() <= 1e-9 * cost_after);
+    assert!(hist.windows(2).all(|w| w[1] <= w[0]), "{hist:?}");
     // The excess over the best value leaves out the iterations that reached it.
     let excess = views[1].find_all("circle").len();
     assert!(excess >= 1 && excess <= iterations, "{excess}");
