@@ -58,6 +58,7 @@ svg text { font-family:inherit; }
 .key { display:flex; gap:22px; flex-wrap:wrap; font-size:13px; color:var(--muted); margin:4px 0 8px; }
 .key span::before { content:""; display:inline-block; width:22px; height:0; border-top:3px solid var(--c); vertical-align:middle; margin-right:7px; }
 .key span.dashed::before { border-top-style:dashed; }
+.scroll { overflow-x:auto; }
 table { border-collapse:collapse; width:100%; font-size:13.5px; font-variant-numeric:tabular-nums; }
 th { text-align:left; font-weight:600; color:var(--muted); font-size:12px; text-transform:uppercase; letter-spacing:.05em; border-bottom:2px solid var(--rule); padding:6px 8px; }
 td { border-bottom:1px solid #eef1f4; padding:5px 8px; vertical-align:middle; }
@@ -497,15 +498,19 @@ fn parameters(h: &mut String, input: &ReportInput) {
     );
     let _ = write!(
         h,
-        "<table id=\"tbl-parameters\"><thead><tr><th>parameter</th><th>unit</th>{}<th class=\"n\">{}</th>{}\
-         <th class=\"n\">interval</th><th class=\"n\">bounds</th><th>within bounds</th></tr></thead><tbody>",
+        "<div class=\"scroll\"><table id=\"tbl-parameters\"><thead><tr><th>parameter</th><th>unit</th>{}<th class=\"n\">{}</th>{}\
+         <th class=\"n\">{}</th><th class=\"n\">bounds</th><th>within bounds</th></tr></thead><tbody>",
         if has_base {
             format!("<th class=\"n\">{}</th>", escape(&input.baseline_label))
         } else {
             String::new()
         },
         escape(&input.fitted_label),
-        if has_base { "<th class=\"n\">change</th>" } else { "" }
+        if has_base { "<th class=\"n\">change</th>" } else { "" },
+        match input.parameters.iter().find_map(|p| p.interval) {
+            Some(iv) => format!("{}% interval", fmt(100.0 * iv.level, 0)),
+            None => "interval".to_string(),
+        }
     );
     let cols = if has_base { 8 } else { 6 };
     let mut group: Option<&str> = None;
@@ -568,11 +573,12 @@ fn parameters(h: &mut String, input: &ReportInput) {
             "<td class=\"n\">{}</td><td class=\"n\">{} … {}</td><td>{}</td></tr>",
             match &p.interval {
                 Some(iv) => format!(
-                    "{} … {} <small>(±{}, {}%)</small>",
+                    "<span title=\"{}% interval {} … {}; standard error {}\">±{}</span>",
+                    fmt(100.0 * iv.level, 0),
                     fmt(iv.lower, 2),
                     fmt(iv.upper, 2),
                     fmt(iv.se, 2),
-                    fmt(100.0 * iv.level, 0)
+                    fmt(0.5 * (iv.upper - iv.lower), 2)
                 ),
                 None => "–".to_string(),
             },
@@ -581,7 +587,7 @@ fn parameters(h: &mut String, input: &ReportInput) {
             gauge(p)
         );
     }
-    h.push_str("</tbody></table>");
+    h.push_str("</tbody></table></div>");
 }
 
 fn convergence(h: &mut String, input: &ReportInput) {

@@ -157,10 +157,11 @@ fn page_is_well_formed_offline_and_complete() {
         .collect();
     assert_eq!(rows.len(), input.parameters.len());
     assert!(
-        rows[0].all_text().contains("(±1.50, 95%)"),
+        rows[0].all_text().contains("±2.94"),
         "{}",
         rows[0].all_text()
     );
+    assert!(table.all_text().contains("95% interval"));
     assert!(!rows[1].all_text().contains('±'));
     assert_eq!(rows[1].attr("class"), Some("fixed"));
     // Convergence: a log-scale chart per view with both stages.
