@@ -25,7 +25,7 @@ const CSS: &str = r#"
 * { box-sizing:border-box; }
 html { background:#fff; }
 body { margin:0; color:var(--ink); font:15px/1.55 system-ui,-apple-system,"Segoe UI",Roboto,"Helvetica Neue","Noto Sans","Liberation Sans",Arial,sans-serif; font-feature-settings:"tnum" 1; }
-main { max-width:1080px; margin:0 auto; padding:40px 36px 64px; }
+main { max-width:1120px; margin:0 auto; padding:40px 36px 64px; }
 header { border-bottom:1px solid var(--rule); padding-bottom:22px; margin-bottom:8px; }
 .eyebrow { text-transform:uppercase; letter-spacing:.12em; font-size:12px; color:var(--muted); margin:0 0 6px; font-weight:600; }
 h1 { font-size:30px; line-height:1.2; margin:0 0 6px; font-weight:650; letter-spacing:-.01em; }
@@ -60,8 +60,8 @@ svg text { font-family:inherit; }
 .key span.dashed::before { border-top-style:dashed; }
 .scroll { overflow-x:auto; }
 table { border-collapse:collapse; width:100%; font-size:13.5px; font-variant-numeric:tabular-nums; }
-th { text-align:left; font-weight:600; color:var(--muted); font-size:12px; text-transform:uppercase; letter-spacing:.05em; border-bottom:2px solid var(--rule); padding:6px 8px; }
-td { border-bottom:1px solid #eef1f4; padding:5px 8px; vertical-align:middle; }
+th { text-align:left; font-weight:600; color:var(--muted); font-size:12px; text-transform:uppercase; letter-spacing:.04em; border-bottom:2px solid var(--rule); padding:6px 6px; }
+td { border-bottom:1px solid #eef1f4; padding:5px 6px; vertical-align:middle; }
 td.n, th.n { text-align:right; white-space:nowrap; }
 tr.group td { background:var(--soft); font-weight:650; color:var(--ink); text-transform:capitalize; border-bottom:1px solid var(--rule); }
 tr.fixed td { color:#97a0aa; }
@@ -442,7 +442,7 @@ fn joint_angles(h: &mut String, input: &ReportInput) {
 /// A small gauge: the bounds as a bar, the baseline as a tick, the fitted value as a dot, the
 /// interval as a thick segment.
 fn gauge(p: &ParamRow) -> String {
-    let (w, hgt) = (120.0, 14.0);
+    let (w, hgt) = (104.0, 14.0);
     let span = (p.upper - p.lower).max(1e-12);
     let x = |v: f64| 4.0 + (v.clamp(p.lower, p.upper) - p.lower) / span * (w - 8.0);
     let mut s = format!(
@@ -499,7 +499,7 @@ fn parameters(h: &mut String, input: &ReportInput) {
     let _ = write!(
         h,
         "<div class=\"scroll\"><table id=\"tbl-parameters\"><thead><tr><th>parameter</th><th>unit</th>{}<th class=\"n\">{}</th>{}\
-         <th class=\"n\">{}</th><th class=\"n\">bounds</th><th>within bounds</th></tr></thead><tbody>",
+         <th class=\"n\">{}</th><th class=\"n\">bounds</th><th>position in bounds</th></tr></thead><tbody>",
         if has_base {
             format!("<th class=\"n\">{}</th>", escape(&input.baseline_label))
         } else {
