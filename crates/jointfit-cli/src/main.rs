@@ -1,5 +1,6 @@
 //! The `jointfit` command-line tool: thin clap front end, one module per subcommand.
 
+mod bench_cmd;
 mod calibrate_cmd;
 mod common;
 mod demo_cmd;
@@ -36,6 +37,8 @@ enum Command {
     Demo(demo_cmd::DemoArgs),
     /// Build a subject's leg model from a static trial (anatomical-landmark method).
     Personalize(personalize_cmd::PersonalizeArgs),
+    /// Time the core (FK, IK on a real gait trial, calibration) on this machine.
+    Bench(bench_cmd::BenchArgs),
 }
 
 fn main() -> ExitCode {
@@ -46,6 +49,7 @@ fn main() -> ExitCode {
         Command::Calibrate(args) => calibrate_cmd::run(args),
         Command::Demo(args) => demo_cmd::run(args),
         Command::Personalize(args) => personalize_cmd::run(args),
+        Command::Bench(args) => bench_cmd::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

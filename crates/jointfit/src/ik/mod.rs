@@ -500,19 +500,33 @@ pub fn seed_frame(
             std::f64::consts::PI,
             -std::f64::consts::FRAC_PI_2,
         ];
+        // Every start gets a few iterations; the most promising few are then converged
+        // (the correct basin is clear long before convergence, and most starts are far).
         let starts = grid.len().pow(rot.len() as u32);
+        let mut candidates: Vec<(f64, Vec<f64>)> = (0..starts)
+            .map(|s| {
+                let mut qs = q.clone();
+                let mut k = s;
+                for &c in &rot {
+                    qs[c] = grid[k % grid.len()];
+                    k /= grid.len();
+                }
+                let scout = IkOptions {
+                    max_iterations: SEED_SCOUT_ITERATIONS,
+                    ..*opts
+                };
+                let (cost, _, _) = lm(model, p, targets, &mut qs, &active, &scout, ws);
+                (cost, qs)
+            })
+            .collect();
+        candidates.sort_by(|a, b| a.0.total_cmp(&b.0));
+        candidates.truncate(SEED_FINALISTS);
         let mut best: Option<(f64, Vec<f64>)> = None;
         let seed_opts = IkOptions {
             max_iterations: 15,
             ..*opts
         };
-        for s in 0..starts {
-            let mut qs = q.clone();
-            let mut k = s;
-            for &c in &rot {
-                qs[c] = grid[k % grid.len()];
-                k /= grid.len();
-            }
+        for (_, mut qs) in candidates {
             let (cost, _, _) = lm(model, p, targets, &mut qs, &active, &seed_opts, ws);
             for &c in &rot {
                 qs[c] = wrap_angle(qs[c]);
@@ -545,6 +559,11 @@ pub fn seed_frame(
     ws.weights.copy_from_slice(&full_weights);
     q
 }
+
+/// Iterations every seeding start gets before the finalists are chosen.
+const SEED_SCOUT_ITERATIONS: usize = 3;
+/// Starts converged fully when seeding.
+const SEED_FINALISTS: usize = 8;
 
 /// The angle in (−π, π].
 fn wrap_angle(a: f64) -> f64 {
