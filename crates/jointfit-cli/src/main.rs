@@ -3,6 +3,7 @@
 mod calibrate_cmd;
 mod common;
 mod demo_cmd;
+mod export_cmd;
 mod ik_cmd;
 mod model_cmd;
 mod personalize_cmd;
@@ -36,6 +37,11 @@ enum Command {
     Demo(demo_cmd::DemoArgs),
     /// Build a subject's leg model from a static trial (anatomical-landmark method).
     Personalize(personalize_cmd::PersonalizeArgs),
+    /// Export a model to other programs' formats (OpenSim .osim).
+    Export {
+        #[command(subcommand)]
+        command: export_cmd::ExportCommand,
+    },
 }
 
 fn main() -> ExitCode {
@@ -46,6 +52,7 @@ fn main() -> ExitCode {
         Command::Calibrate(args) => calibrate_cmd::run(args),
         Command::Demo(args) => demo_cmd::run(args),
         Command::Personalize(args) => personalize_cmd::run(args),
+        Command::Export { command } => export_cmd::run(command),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
