@@ -44,6 +44,16 @@
 //! - pin: `Rot(a, q)`, the other two rotation axes completing an orthonormal basis, held at 0;
 //! - slider: `T(a q)`, likewise with the translations.
 //!
+//! Why `CustomJoint` and not OpenSim's `PinJoint`, `SliderJoint`, `UniversalJoint`,
+//! `GimbalJoint` or `FreeJoint`: those fix their axes to the joint frames (a pin turns about
+//! z, a gimbal is a body-fixed X-Y-Z sequence, a free joint's rotations are X-Y-Z too), so
+//! jointfit's arbitrary axes and orders (the knee about −z, the hip z-x-y, the pelvis z-x-y)
+//! would need extra rotated offset frames and, for negative axes, negated coordinates. A
+//! `CustomJoint` takes the axes as they are: the offset frames stay exactly jointfit's and
+//! every coordinate has the same value, sign and unit in both programs, so a `.mot` from
+//! `jointfit ik` drives the OpenSim model directly. A weld has no motion, so OpenSim's own
+//! `WeldJoint` (`X_FM = identity`) is exact.
+//!
 //! OpenSim rejects a `CustomJoint` whose rotation (or translation) axes include two parallel
 //! ones, so a gimbal or free joint with a repeated axis (e.g. a z-x-z gimbal) or a universal
 //! joint with parallel axes cannot be exported: [`OsimError::ParallelAxes`].
