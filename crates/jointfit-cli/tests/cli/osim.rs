@@ -242,7 +242,7 @@ fn export_osim_bad_input_is_a_one_line_error() {
 
 #[test]
 fn opensim_ik_on_exported_model_matches_jointfit_ik() {
-    compare_ik("right", "walking1.trc");
+    compare_ik("right", "walking1.trc", 3);
 }
 
 /// The left leg of the same subject on the same trial. Its thigh cluster fits walking1
@@ -251,12 +251,19 @@ fn opensim_ik_on_exported_model_matches_jointfit_ik() {
 /// whether both solvers still land in the same minimum when the residual is large.
 #[test]
 fn opensim_ik_on_exported_left_leg_matches_jointfit_ik() {
-    compare_ik("left", "walking1.trc");
+    compare_ik("left", "walking1.trc", 3);
+}
+
+/// 1302 frames of squats (large hip and knee flexion), once: every frame must agree too.
+#[test]
+fn opensim_ik_on_squats_matches_jointfit_ik() {
+    compare_ik("right", "squats1.trc", 1);
 }
 
 /// Personalizes one leg of OpenCap Expert1 from static1.trc, exports it, runs `jointfit ik`
-/// and OpenSim's InverseKinematicsTool on `trial`, compares, and prints the speed of both.
-fn compare_ik(side: &str, trial: &str) {
+/// and OpenSim's InverseKinematicsTool on `trial`, compares, and prints the speed of both
+/// (best of `repeat` runs each).
+fn compare_ik(side: &str, trial: &str, repeat: usize) {
     let Some(stat) = jointfit::testing::data_file("opencap_expert1/static1.trc") else {
         return;
     };
@@ -264,7 +271,7 @@ fn compare_ik(side: &str, trial: &str) {
     let Some(python) = jointfit::testing::python() else {
         return;
     };
-    let dir = scratch(&format!("ik-{side}"));
+    let dir = scratch(&format!("ik-{side}-{trial}"));
     let subject = dir.join("subject.toml");
     let osim = dir.join("subject.osim");
     let mot = dir.join("trial.mot");
@@ -286,10 +293,10 @@ fn compare_ik(side: &str, trial: &str) {
         s(&subject),
     ]);
     run(&["export", "osim", s(&subject), "-o", s(&osim)]);
-    // jointfit ik, best of three for the timing (the machine is shared).
+    // jointfit ik, best of `repeat` for the timing (the machine may be shared).
     let mut ours: Option<Value> = None;
     let mut wall = f64::INFINITY;
-    for _ in 0..3 {
+    for _ in 0..repeat {
         let start = Instant::now();
         let out = run(&[
             "ik",
@@ -321,7 +328,7 @@ fn compare_ik(side: &str, trial: &str) {
         &python,
         "ik",
         &json!({"model": osim, "trc": walk, "out_dir": dir, "weights": weights,
-                "accuracy": 1e-8, "repeat": 3}),
+                "accuracy": 1e-8, "repeat": repeat}),
         &dir,
     );
     let read_back = check(
@@ -463,7 +470,7 @@ fn compare_ik(side: &str, trial: &str) {
         eprintln!("  DISAGREE {l}");
     }
     eprintln!(
-        "  speed (best of 3): OpenSim InverseKinematicsTool.run {os_seconds:.3} s ({:.0} \
+        "  speed (best of {repeat}): OpenSim InverseKinematicsTool.run {os_seconds:.3} s ({:.0} \
          frames/s), its solver alone {os_solver:.3} s ({:.0} frames/s); jointfit solve \
          {jf_seconds:.4} s ({:.0} frames/s), whole `jointfit ik` command {wall:.3} s; \
          solver-to-solver ratio {:.0}x, tool-to-command ratio {:.1}x",
