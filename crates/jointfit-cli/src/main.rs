@@ -4,6 +4,7 @@ mod bench_cmd;
 mod calibrate_cmd;
 mod common;
 mod demo_cmd;
+mod export_cmd;
 mod ik_cmd;
 mod model_cmd;
 mod personalize_cmd;
@@ -39,6 +40,11 @@ enum Command {
     Personalize(personalize_cmd::PersonalizeArgs),
     /// Time the core (FK, IK on a real gait trial, calibration) on this machine.
     Bench(bench_cmd::BenchArgs),
+    /// Export a model to other programs' formats (OpenSim .osim).
+    Export {
+        #[command(subcommand)]
+        command: export_cmd::ExportCommand,
+    },
 }
 
 fn main() -> ExitCode {
@@ -50,6 +56,7 @@ fn main() -> ExitCode {
         Command::Demo(args) => demo_cmd::run(args),
         Command::Personalize(args) => personalize_cmd::run(args),
         Command::Bench(args) => bench_cmd::run(args),
+        Command::Export { command } => export_cmd::run(command),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

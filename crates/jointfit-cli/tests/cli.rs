@@ -2,6 +2,8 @@
 
 use std::process::Command;
 
+#[path = "cli/osim.rs"]
+mod osim;
 #[path = "cli/personalize.rs"]
 mod personalize;
 
