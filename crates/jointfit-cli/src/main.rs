@@ -3,6 +3,7 @@
 mod bench_cmd;
 mod calibrate_cmd;
 mod common;
+mod data_cmd;
 mod demo_cmd;
 mod export_cmd;
 mod ik_cmd;
@@ -30,6 +31,10 @@ enum Command {
         #[command(subcommand)]
         command: model_cmd::ModelCommand,
     },
+    /// Summarize a motion file: format, rate, frames, units, markers with gaps.
+    Inspect(data_cmd::InspectArgs),
+    /// Convert a motion file (C3D or TRC) to a Y-up TRC, optionally low-pass filtered.
+    Convert(data_cmd::ConvertArgs),
     /// Inverse kinematics of a trial with a subject model (the inner level).
     Ik(ik_cmd::IkArgs),
     /// Fit joint parameters to one or more trials (two-level optimization).
@@ -58,6 +63,8 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Model { command } => model_cmd::run(command),
+        Command::Inspect(args) => data_cmd::inspect(args),
+        Command::Convert(args) => data_cmd::convert(args),
         Command::Ik(args) => ik_cmd::run(args),
         Command::Calibrate(args) => calibrate_cmd::run(args),
         Command::Demo(args) => demo_cmd::run(args),

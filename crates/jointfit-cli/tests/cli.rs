@@ -2,6 +2,8 @@
 
 use std::process::Command;
 
+#[path = "cli/data.rs"]
+mod data;
 #[path = "cli/osim.rs"]
 mod osim;
 #[path = "cli/personalize.rs"]
