@@ -186,7 +186,8 @@ impl Progress {
                 line.push('[');
                 line.push_str(&"#".repeat(fill));
                 line.push_str(&"-".repeat(BAR_WIDTH - fill));
-                line.push_str(&format!("] {} {:>3.0}%", self.count(), 100.0 * frac));
+                // The bar says what is counted; the unit would only crowd the line.
+                line.push_str(&format!("] {}/{} {:>3.0}%", self.pos, t, 100.0 * frac));
             }
             _ => {
                 let k = (elapsed.as_millis() / 120) as usize % SPINNER.len();
@@ -201,11 +202,7 @@ impl Progress {
             line.push_str("  ");
             line.push_str(&self.message);
         }
-        let width = std::env::var("COLUMNS")
-            .ok()
-            .and_then(|c| c.parse::<usize>().ok())
-            .unwrap_or(80)
-            .max(20);
+        let width = terminal_width().max(20);
         if line.chars().count() >= width {
             line = line.chars().take(width - 1).collect();
         }
@@ -261,6 +258,31 @@ impl Drop for Progress {
             eprint!("\r\x1b[2K");
         }
     }
+}
+
+/// Columns of the terminal on stderr: `$COLUMNS` if set, else the kernel's window size, else 80.
+fn terminal_width() -> usize {
+    if let Some(c) = std::env::var("COLUMNS")
+        .ok()
+        .and_then(|c| c.parse::<usize>().ok())
+    {
+        return c;
+    }
+    #[cfg(unix)]
+    {
+        let mut ws = libc::winsize {
+            ws_row: 0,
+            ws_col: 0,
+            ws_xpixel: 0,
+            ws_ypixel: 0,
+        };
+        // SAFETY: TIOCGWINSZ only writes a `winsize` into the pointer it is given.
+        let ok = unsafe { libc::ioctl(libc::STDERR_FILENO, libc::TIOCGWINSZ, &mut ws) } == 0;
+        if ok && ws.ws_col > 0 {
+            return ws.ws_col as usize;
+        }
+    }
+    80
 }
 
 /// `850 ms`, `12.3 s`, `4 min 05 s`, `2 h 03 min`.
