@@ -252,10 +252,15 @@ fn key(h: &mut String, items: &[(&str, &str, bool)]) {
 }
 
 fn frame_error(h: &mut String, input: &ReportInput) {
+    let with = if input.trials.iter().any(|t| t.baseline_rms_mm.is_some()) {
+        "each model"
+    } else {
+        "the model"
+    };
     let _ = write!(
         h,
         "<p class=\"lead\">Root-mean-square distance between measured and model markers in every \
-         frame, after inverse kinematics with each model. Lower is better; OpenSim's best-practice \
+         frame, after inverse kinematics with {with}. Lower is better; OpenSim's best-practice \
          target for movement trials is below 20 mm.</p><figure id=\"fig-frame-error\">"
     );
     for (i, t) in input.trials.iter().enumerate() {
