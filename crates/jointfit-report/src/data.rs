@@ -27,6 +27,20 @@ pub struct ReportInput {
     pub notes: Vec<String>,
 }
 
+impl ReportInput {
+    /// Attaches an uncertainty interval to the parameter called `name`; false when the table
+    /// has no such parameter.
+    pub fn set_interval(&mut self, name: &str, interval: Interval) -> bool {
+        match self.parameters.iter_mut().find(|p| p.name == name) {
+            Some(p) => {
+                p.interval = Some(interval);
+                true
+            }
+            None => false,
+        }
+    }
+}
+
 /// One trial's per-frame results.
 #[derive(Debug, Clone, Default)]
 pub struct TrialSeries {

@@ -49,13 +49,15 @@ fn build() -> Built {
     let free: Vec<usize> = (0..model.n_p()).filter(|i| i % 2 == 0).collect();
     input.parameters = parameter_rows(&model, &truth, Some(&nominal), Some(&free));
     // An interval on one parameter, as the uncertainty module will provide.
-    let p0 = &mut input.parameters[0];
-    p0.interval = Some(Interval {
+    let (name, fitted) = (input.parameters[0].name.clone(), input.parameters[0].fitted);
+    let iv = Interval {
         se: 1.5,
-        lower: p0.fitted - 2.94,
-        upper: p0.fitted + 2.94,
+        lower: fitted - 2.94,
+        upper: fitted + 2.94,
         level: 0.95,
-    });
+    };
+    assert!(input.set_interval(&name, iv));
+    assert!(!input.set_interval("no_such_parameter", iv));
     input.convergence = Some(Convergence {
         method: "pso".into(),
         stages: vec![
