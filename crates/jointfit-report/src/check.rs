@@ -45,7 +45,8 @@ impl Element {
             .find(|e| e.attr("id") == Some(id))
     }
 
-    /// All text of the subtree, concatenated.
+    /// All text of the subtree: this element's own text, then its children's in order (text
+    /// mixed with child elements is not interleaved).
     pub fn all_text(&self) -> String {
         let mut s = self.text.clone();
         for c in &self.children {

@@ -478,8 +478,21 @@ fn gauge(p: &ParamRow) -> String {
     s
 }
 
+/// A fitted (not fixed) parameter within 0.1 % of its range from a bound.
+fn at_bound(p: &ParamRow) -> bool {
+    let tol = 1e-3 * (p.upper - p.lower).abs();
+    p.free != Some(false)
+        && ((p.fitted - p.lower).abs() <= tol || (p.upper - p.fitted).abs() <= tol)
+}
+
 fn parameters(h: &mut String, input: &ReportInput) {
     let has_base = input.parameters.iter().any(|p| p.baseline.is_some());
+    let bound: Vec<&str> = input
+        .parameters
+        .iter()
+        .filter(|p| at_bound(p))
+        .map(|p| p.name.as_str())
+        .collect();
     let has_interval = input.parameters.iter().any(|p| p.interval.is_some());
     let _ = write!(
         h,
@@ -501,6 +514,22 @@ fn parameters(h: &mut String, input: &ReportInput) {
             "Confidence intervals are shown when uncertainty estimates are available."
         }
     );
+    if !bound.is_empty() {
+        let _ =
+            write!(
+            h,
+            "<p class=\"lead\"><b>{} at a bound</b> ({}): the fit would have moved {} further; \
+             {} set by the bound, not by the data.</p>",
+            if bound.len() == 1 {
+                "One parameter ended".to_string()
+            } else {
+                format!("{} parameters ended", bound.len())
+            },
+            escape(&bound.join(", ")),
+            if bound.len() == 1 { "it" } else { "them" },
+            if bound.len() == 1 { "its value is" } else { "their values are" }
+        );
+    }
     let _ = write!(
         h,
         "<div class=\"scroll\"><table id=\"tbl-parameters\"><thead><tr><th>parameter</th><th>unit</th>{}<th class=\"n\">{}</th>{}\
@@ -529,9 +558,7 @@ fn parameters(h: &mut String, input: &ReportInput) {
             );
         }
         let fixed = p.free == Some(false);
-        let tol = 1e-3 * (p.upper - p.lower).abs();
-        let at_bound =
-            !fixed && ((p.fitted - p.lower).abs() <= tol || (p.upper - p.fitted).abs() <= tol);
+        let at_bound = at_bound(p);
         let _ = write!(
             h,
             "<tr{}><td class=\"name\">{}{}{}</td><td>{}</td>",

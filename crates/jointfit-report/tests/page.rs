@@ -341,3 +341,32 @@ fn renders_in_headless_chromium() {
     assert!((h / 2..h).any(row_has_ink));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn parameters_at_a_bound_are_called_out() {
+    let Built { mut input, page } = build();
+    assert!(!page.contains("at a bound"));
+    // Parameter 2 is free in `build`; put it on its upper bound, and a fixed one on a bound.
+    input.parameters[2].fitted = input.parameters[2].upper;
+    input.parameters[3].fitted = input.parameters[3].lower;
+    let root = parse(&html::render(&input)).unwrap();
+    let section = root.by_id("sec-parameters").unwrap().all_text();
+    let name = &input.parameters[2].name;
+    assert!(
+        section.contains("One parameter ended at a bound"),
+        "{section}"
+    );
+    assert!(
+        section.contains(&format!("({name}): the fit would have moved it further")),
+        "{section}"
+    );
+    let rows: Vec<&Element> = root
+        .by_id("tbl-parameters")
+        .unwrap()
+        .find_all("tr")
+        .into_iter()
+        .filter(|r| r.all_text().contains("at bound"))
+        .collect();
+    assert_eq!(rows.len(), 1);
+    assert!(rows[0].all_text().starts_with(name.as_str()));
+}
