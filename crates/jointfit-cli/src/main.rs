@@ -6,6 +6,8 @@ mod demo_cmd;
 mod ik_cmd;
 mod model_cmd;
 mod personalize_cmd;
+mod reproduce_cmd;
+mod synth_cmd;
 mod table;
 
 use std::process::ExitCode;
@@ -36,6 +38,10 @@ enum Command {
     Demo(demo_cmd::DemoArgs),
     /// Build a subject's leg model from a static trial (anatomical-landmark method).
     Personalize(personalize_cmd::PersonalizeArgs),
+    /// Synthetic markers from a subject model along a motion, with noise, and the true model.
+    Synth(synth_cmd::SynthArgs),
+    /// Reproduce the paper's Table 1 or Table 2 (Markdown, JSON and CSV into a directory).
+    Reproduce(reproduce_cmd::ReproduceArgs),
 }
 
 fn main() -> ExitCode {
@@ -46,6 +52,8 @@ fn main() -> ExitCode {
         Command::Calibrate(args) => calibrate_cmd::run(args),
         Command::Demo(args) => demo_cmd::run(args),
         Command::Personalize(args) => personalize_cmd::run(args),
+        Command::Synth(args) => synth_cmd::run(args),
+        Command::Reproduce(args) => reproduce_cmd::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -162,7 +162,7 @@ pub struct Report {
 fn num(v: f64) -> String {
     if v == 0.0 {
         "0".into()
-    } else if v.abs() < 0.01 || v.abs() >= 1e4 {
+    } else if v.abs() < 0.1 || v.abs() >= 1e4 {
         format!("{v:.2e}")
     } else {
         format!("{v:.2}")
