@@ -27,11 +27,11 @@ use jointfit::landmarks::{personalize, MarkerSet, PersonalizeOptions};
 use jointfit::model::lower_limb::Side;
 use jointfit::model::Model;
 use jointfit::trial::Trial;
-use jointfit_experiments::protocol::{
-    experimental, synthetic_case, FitSettings, OuterMethod, SyntheticSetup,
+use jointfit_experiments::protocol::{experimental, FitSettings, OuterMethod};
+use jointfit_experiments::report::{
+    run_synthetic_column, ColumnSpec, ExperimentalColumn, Report, SyntheticColumn, Table2,
 };
-use jointfit_experiments::report::{ExperimentalColumn, Report, SyntheticColumn, Table2};
-use jointfit_experiments::synth::{coordinates_scaled, gait_coordinates, Motion, Noise};
+use jointfit_experiments::synth::{coordinates_scaled, gait_coordinates, Motion};
 use jointfit_io::atomic::write_atomic;
 
 use crate::calibrate_cmd::Method;
@@ -88,6 +88,9 @@ pub struct ReproduceArgs {
     /// Start = truth moved by up to this many degrees per fitted orientation parameter.
     #[arg(long, default_value_t = 10.0)]
     pub perturb_deg: f64,
+    /// Use every K-th frame of the experimental trials (after filtering); 1 uses them all.
+    #[arg(long, default_value_t = 1, value_name = "K")]
+    pub stride: usize,
 }
 
 const BIOBUDDY: &str = "biobuddy_functional_vicon";
@@ -156,6 +159,24 @@ struct Subject {
     trials: Vec<(String, Trial)>,
 }
 
+/// Every `k`-th frame of `trial`, at `rate / k`.
+fn every_kth(trial: Trial, k: usize) -> Result<Trial> {
+    if k <= 1 {
+        return Ok(trial);
+    }
+    let positions = (0..trial.n_frames())
+        .step_by(k)
+        .flat_map(|f| trial.frame(f).to_vec())
+        .collect();
+    Ok(Trial::new(
+        trial.labels().to_vec(),
+        trial.rate() / k as f64,
+        trial.first_frame(),
+        positions,
+    )?)
+}
+
+#[allow(clippy::too_many_arguments)]
 fn subject(
     data: &Path,
     dataset: &str,
@@ -164,6 +185,7 @@ fn subject(
     up: Up,
     trials: &[&str],
     filter: Option<f64>,
+    stride: usize,
 ) -> Result<Subject> {
     let path = data.join(dataset).join(static_file);
     let trial = load_trial(&path, up, None)?;
@@ -179,7 +201,10 @@ fn subject(
         .iter()
         .map(|t| {
             let path = data.join(dataset).join(t);
-            Ok((t.to_string(), load_trial(&path, up, filter)?))
+            Ok((
+                t.to_string(),
+                every_kth(load_trial(&path, up, filter)?, stride)?,
+            ))
         })
         .collect::<Result<_>>()?;
     Ok(Subject {
@@ -189,7 +214,7 @@ fn subject(
     })
 }
 
-fn biobuddy(data: &Path) -> Result<Subject> {
+fn biobuddy(data: &Path, stride: usize) -> Result<Subject> {
     // 12 Hz recordings: a 6 Hz cutoff would sit at Nyquist, so they are used as recorded.
     subject(
         data,
@@ -203,10 +228,11 @@ fn biobuddy(data: &Path) -> Result<Subject> {
             "Test_func_rankle.c3d",
         ],
         None,
+        stride,
     )
 }
 
-fn opencap(data: &Path) -> Result<Subject> {
+fn opencap(data: &Path, stride: usize) -> Result<Subject> {
     subject(
         data,
         OPENCAP,
@@ -215,7 +241,34 @@ fn opencap(data: &Path) -> Result<Subject> {
         Up::Y,
         &["walking1.trc"],
         Some(6.0),
+        stride,
     )
+}
+
+/// A note naming the parameters of `p` that ended on a bound of their search box.
+fn bounds_note(model: &Model, method: &str, p: &[f64]) -> Option<String> {
+    let at: Vec<String> = model
+        .parameters
+        .iter()
+        .zip(p)
+        .filter(|(par, v)| {
+            let tol = 1e-9 * (par.upper - par.lower);
+            (**v - par.lower).abs() <= tol || (**v - par.upper).abs() <= tol
+        })
+        .map(|(par, _)| par.name.clone())
+        .collect();
+    (!at.is_empty()).then(|| {
+        format!(
+            "{method}: {} at a bound of the search box (Reinbolt's bounds: ±30° cones, \
+             position cubes): {}",
+            if at.len() == 1 {
+                "1 parameter"
+            } else {
+                "parameters"
+            },
+            at.join(", ")
+        )
+    })
 }
 
 fn outer(m: Method) -> OuterMethod {
@@ -244,80 +297,59 @@ fn synthetic_columns(
 ) -> Result<Vec<SyntheticColumn>> {
     let model = jointfit_io::model_file::load_model(&args.subject)?;
     let truth = model.nominal_params();
-    let mut specs: Vec<(String, usize, Vec<&str>, String, Vec<Vec<f64>>, f64)> = Vec::new();
-    for (label, col, groups, motion) in [
-        ("Hip only", 0, vec!["hip"], Motion::Hip),
-        ("Knee only", 1, vec!["knee"], Motion::Knee),
-        ("Ankle only", 2, vec!["ankle"], Motion::Ankle),
-        ("Full leg (all-joint motion)", 3, vec!["all"], Motion::All),
+    let mut specs = Vec::new();
+    for (label, col, group, motion) in [
+        ("Hip only", 0, "hip", Motion::Hip),
+        ("Knee only", 1, "knee", Motion::Knee),
+        ("Ankle only", 2, "ankle", Motion::Ankle),
+        ("Full leg (all-joint motion)", 3, "all", Motion::All),
     ] {
-        let coords = coordinates_scaled(&model, motion, args.frames, args.amplitude)?;
-        specs.push((
-            label.to_string(),
-            col,
-            groups,
-            format!("{motion:?}").to_lowercase(),
-            coords,
-            args.rate,
-        ));
+        specs.push(ColumnSpec {
+            label: label.to_string(),
+            paper_column: col,
+            groups: vec![group.to_string()],
+            motion: format!("{motion:?}").to_lowercase(),
+            coords: coordinates_scaled(&model, motion, args.frames, args.amplitude)?,
+            rate: args.rate,
+        });
     }
     if let Some((coords, rate, name)) = gait {
-        specs.push((
-            "Full leg (gait)".to_string(),
-            3,
-            vec!["all"],
-            format!("gait: IK of {name}"),
-            coords.to_vec(),
+        specs.push(ColumnSpec {
+            label: "Full leg (gait)".to_string(),
+            paper_column: 3,
+            groups: vec!["all".to_string()],
+            motion: format!("gait: IK of {name}"),
+            coords: coords.to_vec(),
             rate,
-        ));
+        });
     }
     let mut out = Vec::new();
-    for (label, col, groups, motion, coords, rate) in specs {
-        let setup = SyntheticSetup {
-            groups: &groups,
-            coords: &coords,
-            rate,
-            perturb_mm: args.perturb_mm,
-            perturb_deg: args.perturb_deg,
-        };
+    for spec in &specs {
         eprintln!(
-            "jointfit: synthetic {label}: noiseless and {} noisy seeds",
-            args.seeds
+            "jointfit: synthetic {}: noiseless and {} noisy seeds",
+            spec.label, args.seeds
         );
-        let noiseless = synthetic_case(
-            &model,
-            &truth,
-            &setup,
-            &Noise::none(),
-            settings,
-            args.first_seed,
-        )
-        .with_context(|| format!("synthetic {label}"))?;
-        let noisy = (0..args.seeds as u64)
-            .map(|k| {
-                let seed = args.first_seed + k;
-                synthetic_case(&model, &truth, &setup, &Noise::skin(seed), settings, seed)
-                    .with_context(|| format!("synthetic {label}, seed {seed}"))
-            })
-            .collect::<Result<Vec<_>>>()?;
-        out.push(SyntheticColumn {
-            label,
-            paper_column: col,
-            groups: groups.iter().map(|g| g.to_string()).collect(),
-            motion,
-            frames: coords.len(),
-            rate_hz: rate,
-            noiseless,
-            noisy,
-        });
+        out.push(
+            run_synthetic_column(
+                &model,
+                &truth,
+                spec,
+                args.perturb_mm,
+                args.perturb_deg,
+                settings,
+                args.first_seed,
+                args.seeds,
+            )
+            .with_context(|| format!("synthetic {}", spec.label))?,
+        );
     }
     Ok(out)
 }
 
 pub fn run(args: ReproduceArgs) -> Result<()> {
     let clock = Instant::now();
-    if args.seeds == 0 || args.starts == 0 || args.frames == 0 {
-        bail!("--seeds, --starts and --frames must be at least 1");
+    if args.seeds == 0 || args.starts == 0 || args.frames == 0 || args.stride == 0 {
+        bail!("--seeds, --starts, --frames and --stride must be at least 1");
     }
     if !(args.rate.is_finite() && args.rate > 0.0) {
         bail!("--rate must be finite and positive (got {})", args.rate);
@@ -350,12 +382,12 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
     let mut experimental_cols = Vec::new();
     let mut table2 = Vec::new();
     let biobuddy_subject = if needs_data {
-        Some(biobuddy(&data)?)
+        Some(biobuddy(&data, args.stride)?)
     } else {
         None
     };
     let opencap_subject = if needs_data {
-        Some(opencap(&data)?)
+        Some(opencap(&data, args.stride)?)
     } else {
         None
     };
@@ -470,6 +502,10 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
                     ("full leg (3 functional trials)", Some(&full.fitted)),
                 ],
             );
+            t.notes
+                .extend(bounds_note(&bb.model, "single joint", &single));
+            t.notes
+                .extend(bounds_note(&bb.model, "full leg", &full.fitted));
             t.notes.push(format!(
                 "single joint: hip on Test_func_rhip, knee on Test_func_rknee, ankle on \
                  Test_func_rankle, each from the landmark values; full leg: all 27 on the three \
@@ -487,6 +523,8 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
                     ("full leg (gait)", Some(&oc_fitted)),
                 ],
             );
+            t.notes
+                .extend(bounds_note(&oc.model, "full leg (gait)", &oc_fitted));
             t.notes.push(
                 "no single-joint functional trials exist for this subject; full leg: all 27 on \
                  walking1 (6 Hz low-pass) from the landmark values"
@@ -516,6 +554,7 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
         "amplitude": args.amplitude,
         "perturb_mm": args.perturb_mm,
         "perturb_deg": args.perturb_deg,
+        "stride": args.stride,
         "skin_noise": {"max_amplitude_mm": 10.0, "max_omega_rad_s": 25.0},
     });
     let mut report = Report {

@@ -4,6 +4,8 @@ use std::process::Command;
 
 #[path = "cli/personalize.rs"]
 mod personalize;
+#[path = "cli/synth.rs"]
+mod synth;
 
 fn jointfit(args: &[&str]) -> (bool, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_jointfit"))

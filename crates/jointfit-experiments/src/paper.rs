@@ -360,14 +360,11 @@ mod tests {
     /// The reductions quoted in the text follow from the table's rows.
     #[test]
     fn reductions_follow_from_table1() {
-        for c in 0..4 {
+        for (c, reduction) in TABLE1_REDUCTION_PERCENT.iter().enumerate() {
             let fit = TABLE1[6].values[c].unwrap();
             let lm = TABLE1[7].values[c].unwrap();
             let r = 100.0 * (1.0 - fit / lm);
-            assert!(
-                (r - TABLE1_REDUCTION_PERCENT[c]).abs() < 1.0,
-                "column {c}: {r}"
-            );
+            assert!((r - reduction).abs() < 1.0, "column {c}: {r}");
         }
     }
 }

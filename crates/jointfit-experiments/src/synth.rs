@@ -265,9 +265,12 @@ pub fn synthesize(
         None => Vec::new(),
     };
     // A separate stream, so adding white noise leaves the skin terms of a seed unchanged.
-    let mut white = noise
-        .white
-        .map(|w| (w.sigma, ChaCha8Rng::seed_from_u64(w.seed ^ 0x5eed_0f_face)));
+    let mut white = noise.white.map(|w| {
+        (
+            w.sigma,
+            ChaCha8Rng::seed_from_u64(w.seed ^ 0x005e_ed0f_face),
+        )
+    });
     let mut kin = KinData::new(model);
     let mut positions = Vec::with_capacity(coords.len() * model.n_markers());
     let mut sums = [0.0; 3];

@@ -122,19 +122,19 @@ fn noise_statistics_match_the_samples() {
         let mut sums = [0.0; 3];
         let n = clean.positions().len() as f64;
         for (a, b) in noisy.positions().iter().zip(clean.positions()) {
-            for k in 0..3 {
-                sums[k] += (a[k] - b[k]).powi(2);
+            for (k, sum) in sums.iter_mut().enumerate() {
+                *sum += (a[k] - b[k]).powi(2);
             }
         }
-        for k in 0..3 {
-            assert!(((sums[k] / n).sqrt() - stats.rms_axis[k]).abs() < 1e-12);
+        for (sum, rms) in sums.iter().zip(stats.rms_axis) {
+            assert!(((sum / n).sqrt() - rms).abs() < 1e-12);
         }
         let r3 = (stats.rms_axis.iter().map(|v| v * v).sum::<f64>()).sqrt();
         assert!((r3 - stats.rms_3d).abs() < 1e-15);
         if noise.skin.is_none() {
             // White noise: per-axis RMS ≈ σ (3000 samples per axis).
-            for k in 0..3 {
-                assert!((stats.rms_axis[k] - 0.001).abs() < 0.0001, "{stats:?}");
+            for rms in stats.rms_axis {
+                assert!((rms - 0.001).abs() < 0.0001, "{stats:?}");
             }
         }
     }
