@@ -61,9 +61,9 @@ pub struct ReproduceArgs {
     /// (full leg); the joint solver reaches the same optima in a fraction of the time.
     #[arg(long, value_enum, default_value = "joint")]
     pub method: Method,
-    /// Starts per fit: the perturbed start plus this many minus one further perturbed starts;
-    /// the lowest cost wins.
-    #[arg(long, default_value_t = 1)]
+    /// Starts per fit: the given start plus this many minus one starts moved from it by up to
+    /// 20 mm / 10° (seeded); the lowest cost wins. Ignored by --method pso.
+    #[arg(long, default_value_t = 5)]
     pub starts: usize,
     /// Noisy synthetic runs per column (seeds first-seed, first-seed+1, ...).
     #[arg(long, default_value_t = 10)]

@@ -206,7 +206,10 @@ fn reproduce_table1_synthetic_only() {
         out.contains("| synthetic without noise | marker distances (mm) |"),
         "{out}"
     );
-    assert!(out.contains("Outer optimizer: joint"), "{out}");
+    assert!(
+        out.contains("Outer optimizer: joint (2 starts per fit)"),
+        "{out}"
+    );
     for ext in ["md", "json", "csv"] {
         assert!(dir.join(format!("table1.{ext}")).is_file());
     }
