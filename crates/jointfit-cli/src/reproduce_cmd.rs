@@ -279,8 +279,10 @@ fn outer(m: Method) -> OuterMethod {
     }
 }
 
+/// `git describe` of the source tree this binary was built from, when it is still there.
 fn git_describe() -> Option<String> {
     let out = std::process::Command::new("git")
+        .args(["-C", env!("CARGO_MANIFEST_DIR")])
         .args(["describe", "--always", "--dirty", "--tags"])
         .output()
         .ok()?;
