@@ -91,6 +91,10 @@ pub struct ReproduceArgs {
     /// Use every K-th frame of the experimental trials (after filtering); 1 uses them all.
     #[arg(long, default_value_t = 1, value_name = "K")]
     pub stride: usize,
+    /// Trials of opencap_expert1 the full leg is fitted on (comma-separated; the first is
+    /// also the synthetic gait motion), e.g. walking1.trc,squats1.trc.
+    #[arg(long, default_value = "walking1.trc", value_delimiter = ',')]
+    pub gait_trials: Vec<String>,
 }
 
 const BIOBUDDY: &str = "biobuddy_functional_vicon";
@@ -134,7 +138,7 @@ fn require(data: &Path, files: &[&str], what: &str) -> Result<()> {
     Ok(())
 }
 
-fn needed_files() -> Vec<String> {
+fn needed_files(gait_trials: &[String]) -> Vec<String> {
     let mut v: Vec<String> = [
         "Test_func_anat.c3d",
         "Test_func_rhip.c3d",
@@ -144,11 +148,8 @@ fn needed_files() -> Vec<String> {
     .iter()
     .map(|f| format!("{BIOBUDDY}/{f}"))
     .collect();
-    v.extend(
-        ["static1.trc", "walking1.trc"]
-            .iter()
-            .map(|f| format!("{OPENCAP}/{f}")),
-    );
+    v.push(format!("{OPENCAP}/static1.trc"));
+    v.extend(gait_trials.iter().map(|f| format!("{OPENCAP}/{f}")));
     v
 }
 
@@ -232,14 +233,15 @@ fn biobuddy(data: &Path, stride: usize) -> Result<Subject> {
     )
 }
 
-fn opencap(data: &Path, stride: usize) -> Result<Subject> {
+fn opencap(data: &Path, stride: usize, trials: &[String]) -> Result<Subject> {
+    let trials: Vec<&str> = trials.iter().map(|t| t.as_str()).collect();
     subject(
         data,
         OPENCAP,
         "static1.trc",
         "opencap",
         Up::Y,
-        &["walking1.trc"],
+        &trials,
         Some(6.0),
         stride,
     )
@@ -364,7 +366,10 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
     };
     let needs_data = args.table == Which::Table2 || !args.synthetic_only;
     if needs_data {
-        let files = needed_files();
+        if args.gait_trials.is_empty() {
+            bail!("--gait-trials needs at least one trial");
+        }
+        let files = needed_files(&args.gait_trials);
         let refs: Vec<&str> = files.iter().map(|s| s.as_str()).collect();
         let what = match args.table {
             Which::Table1 => "table 1 (experimental part)",
@@ -389,7 +394,7 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
         None
     };
     let opencap_subject = if needs_data {
-        Some(opencap(&data, args.stride)?)
+        Some(opencap(&data, args.stride, &args.gait_trials)?)
     } else {
         None
     };
@@ -399,7 +404,9 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
             Some(s) => {
                 let (coords, dropped) =
                     gait_coordinates(&s.model, &s.model.nominal_params(), &s.trials[0].1)
-                        .context("opencap walking1: inverse kinematics")?;
+                        .with_context(|| {
+                            format!("{OPENCAP}/{}: inverse kinematics", s.trials[0].0)
+                        })?;
                 if !dropped.is_empty() {
                     notes.push(format!("gait IK dropped {} frames", dropped.len()));
                 }
@@ -407,9 +414,13 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
             }
             None => None,
         };
+        let gait_name = opencap_subject
+            .as_ref()
+            .map(|s| format!("{OPENCAP}/{} (6 Hz low-pass)", s.trials[0].0))
+            .unwrap_or_default();
         let gait_ref = gait
             .as_ref()
-            .map(|(c, r)| (c.as_slice(), *r, "opencap_expert1 walking1 (6 Hz low-pass)"));
+            .map(|(c, r)| (c.as_slice(), *r, gait_name.as_str()));
         synthetic = synthetic_columns(&args, &settings, gait_ref)?;
         notes.push(format!(
             "Synthetic: truth = nominal parameters of {}; {} frames per joint motion at {} Hz \
@@ -461,23 +472,27 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
                 result: r,
             });
         }
-        eprintln!("jointfit: experimental full leg on {OPENCAP}/walking1.trc");
-        let (name, trial) = &oc.trials[0];
+        let names: Vec<String> = oc.trials.iter().map(|(n, _)| n.clone()).collect();
+        eprintln!(
+            "jointfit: experimental full leg on {OPENCAP}/{}",
+            names.join(" + ")
+        );
+        let gait_trials: Vec<&Trial> = oc.trials.iter().map(|(_, t)| t).collect();
         let gait_fit = experimental(
             &oc.model,
             &oc.model.nominal_params(),
             &["all"],
-            &[trial],
+            &gait_trials,
             &settings,
             args.first_seed,
         )
-        .with_context(|| format!("{OPENCAP}/{name}: fitting all"))?;
+        .with_context(|| format!("{OPENCAP}/{}: fitting all", names.join(" + ")))?;
         let oc_fitted = gait_fit.fitted.clone();
         experimental_cols.push(ExperimentalColumn {
             label: "Full leg (gait)".to_string(),
             paper_column: 3,
             dataset: format!("{OPENCAP} (OpenCap markers, 100 Hz, 6 Hz low-pass)"),
-            trials: vec![name.clone()],
+            trials: names.clone(),
             result: gait_fit,
         });
         if args.table == Which::Table2 {
@@ -527,11 +542,11 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
             );
             t.notes
                 .extend(bounds_note(&oc.model, "full leg (gait)", &oc_fitted));
-            t.notes.push(
+            t.notes.push(format!(
                 "no single-joint functional trials exist for this subject; full leg: all 27 on \
-                 walking1 (6 Hz low-pass) from the landmark values"
-                    .to_string(),
-            );
+                 {} (6 Hz low-pass) from the landmark values",
+                names.join(" + ")
+            ));
             table2.push(t);
         }
         if args.table == Which::Table2 {
