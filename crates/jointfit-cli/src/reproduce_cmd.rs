@@ -380,7 +380,8 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
     let mut notes = vec![format!(
         "Outer optimizer: {} ({} start{} per fit). The paper used a particle swarm for single \
          joints and a gradient method for the full leg (~41 h per noisy single joint on a cluster); \
-         the joint sparse Levenberg–Marquardt shares the two-level optimum and takes under a second.",
+         the joint sparse Levenberg–Marquardt shares the two-level optima and each fit here takes \
+         seconds (see each result's `seconds` in the JSON).",
         settings.method.name(),
         settings.starts,
         if settings.starts == 1 { "" } else { "s" }
