@@ -9,6 +9,8 @@ mod export_cmd;
 mod ik_cmd;
 mod model_cmd;
 mod personalize_cmd;
+mod reproduce_cmd;
+mod synth_cmd;
 mod table;
 
 use std::process::ExitCode;
@@ -50,6 +52,10 @@ enum Command {
         #[command(subcommand)]
         command: export_cmd::ExportCommand,
     },
+    /// Synthetic markers from a subject model along a motion, with noise, and the true model.
+    Synth(synth_cmd::SynthArgs),
+    /// Reproduce the paper's Table 1 or Table 2 (Markdown, JSON and CSV into a directory).
+    Reproduce(reproduce_cmd::ReproduceArgs),
 }
 
 fn main() -> ExitCode {
@@ -71,6 +77,8 @@ fn main() -> ExitCode {
         Command::Personalize(args) => personalize_cmd::run(args),
         Command::Bench(args) => bench_cmd::run(args),
         Command::Export { command } => export_cmd::run(command),
+        Command::Synth(args) => synth_cmd::run(args),
+        Command::Reproduce(args) => reproduce_cmd::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -8,6 +8,8 @@ mod data;
 mod osim;
 #[path = "cli/personalize.rs"]
 mod personalize;
+#[path = "cli/synth.rs"]
+mod synth;
 
 fn jointfit(args: &[&str]) -> (bool, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_jointfit"))
