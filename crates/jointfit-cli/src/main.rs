@@ -11,6 +11,8 @@ mod model_cmd;
 mod personalize_cmd;
 mod progress;
 mod report_cmd;
+mod reproduce_cmd;
+mod synth_cmd;
 mod table;
 
 use std::process::ExitCode;
@@ -54,6 +56,10 @@ enum Command {
         #[command(subcommand)]
         command: export_cmd::ExportCommand,
     },
+    /// Synthetic markers from a subject model along a motion, with noise, and the true model.
+    Synth(synth_cmd::SynthArgs),
+    /// Reproduce the paper's Table 1 or Table 2 (Markdown, JSON and CSV into a directory).
+    Reproduce(reproduce_cmd::ReproduceArgs),
 }
 
 fn main() -> ExitCode {
@@ -76,6 +82,8 @@ fn main() -> ExitCode {
         Command::Report(args) => report_cmd::run(args),
         Command::Bench(args) => bench_cmd::run(args),
         Command::Export { command } => export_cmd::run(command),
+        Command::Synth(args) => synth_cmd::run(args),
+        Command::Reproduce(args) => reproduce_cmd::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -10,6 +10,8 @@ mod osim;
 mod personalize;
 #[path = "cli/report.rs"]
 mod report;
+#[path = "cli/synth.rs"]
+mod synth;
 
 fn jointfit(args: &[&str]) -> (bool, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_jointfit"))
