@@ -28,6 +28,8 @@ pub(crate) struct Blocks {
     /// `n_f × n_f`.
     pub v: Vec<f64>,
     pub gs: Vec<f64>,
+    /// Per frame `J_s,iᵀ W r_i` (n_f each): frame i's share of `gs`.
+    pub gs_frame: Vec<f64>,
     /// Objective at the assembly point (m²).
     pub cost: f64,
     // Back-substitution storage: per frame `U*⁻¹ W` and `U*⁻¹ g`.
@@ -45,6 +47,7 @@ impl Blocks {
             g: vec![0.0; n_frames * nq],
             v: vec![0.0; nf * nf],
             gs: vec![0.0; nf],
+            gs_frame: vec![0.0; n_frames * nf],
             cost: 0.0,
             y_mat: vec![0.0; n_frames * nq * nf],
             y_vec: vec![0.0; n_frames * nq],
@@ -128,6 +131,7 @@ pub(crate) fn assemble(
         b.g[f * nq..(f + 1) * nq].copy_from_slice(&rhs[..nq]);
         for k in 0..nf {
             b.gs[k] += rhs[nq + k];
+            b.gs_frame[f * nf + k] = rhs[nq + k];
             for l in 0..nf {
                 b.v[l * nf + k] += sym(nq + k, nq + l);
             }
