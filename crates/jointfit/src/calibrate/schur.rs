@@ -30,6 +30,8 @@ pub(crate) struct Blocks {
     pub gs: Vec<f64>,
     /// Per frame `J_s,iᵀ W r_i` (n_f each): frame i's share of `gs`.
     pub gs_frame: Vec<f64>,
+    /// Per frame `J_s,iᵀ W J_s,i` (n_f × n_f each, column-major): frame i's share of `v`.
+    pub v_frame: Vec<f64>,
     /// Objective at the assembly point (m²).
     pub cost: f64,
     // Back-substitution storage: per frame `U*⁻¹ W` and `U*⁻¹ g`.
@@ -48,6 +50,7 @@ impl Blocks {
             v: vec![0.0; nf * nf],
             gs: vec![0.0; nf],
             gs_frame: vec![0.0; n_frames * nf],
+            v_frame: vec![0.0; n_frames * nf * nf],
             cost: 0.0,
             y_mat: vec![0.0; n_frames * nq * nf],
             y_vec: vec![0.0; n_frames * nq],
@@ -133,6 +136,7 @@ pub(crate) fn assemble(
             b.gs[k] += rhs[nq + k];
             b.gs_frame[f * nf + k] = rhs[nq + k];
             for l in 0..nf {
+                b.v_frame[f * nf * nf + l * nf + k] = sym(nq + k, nq + l);
                 b.v[l * nf + k] += sym(nq + k, nq + l);
             }
         }

@@ -74,6 +74,8 @@ pub struct Reduced {
     pub normal: DMatrix<f64>,
     /// Per fitted frame, the profile score `ψ_i` (n_f, m² per scaled unit).
     pub scores: Vec<DVector<f64>>,
+    /// Per fitted frame, its share `A_i = J_red,iᵀ W J_red,i` of `S` (n_f × n_f).
+    pub frame_normals: Vec<DMatrix<f64>>,
     /// Weighted squared residual sum `e` (m²).
     pub cost: f64,
     /// Scalar residuals `m`: 3 per present, weighted marker sample.
@@ -108,6 +110,7 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
     assemble(prob, p, qs, &mut kin, &mut b);
     let mut normal = DMatrix::from_column_slice(nf, nf, &b.v);
     let mut scores = Vec::with_capacity(frames);
+    let mut frame_normals = Vec::with_capacity(frames);
     let mut l = vec![0.0; nq * nq];
     let mut y = vec![0.0; nq * nf];
     let mut yg = vec![0.0; nq];
@@ -135,14 +138,18 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
         yg.copy_from_slice(&b.g[f * nq..(f + 1) * nq]);
         cholesky_solve(&l, nq, &mut yg);
         let mut psi = DVector::zeros(nf);
+        let mut a = DMatrix::from_column_slice(nf, nf, &b.v_frame[f * nf * nf..(f + 1) * nf * nf]);
         for k in 0..nf {
             let wk = &w[k * nq..(k + 1) * nq];
             psi[k] = b.gs_frame[f * nf + k] - dot(wk, &yg);
             for c in 0..nf {
-                normal[(k, c)] -= dot(wk, &y[c * nq..(c + 1) * nq]);
+                let d = dot(wk, &y[c * nq..(c + 1) * nq]);
+                normal[(k, c)] -= d;
+                a[(k, c)] -= d;
             }
         }
         scores.push(psi);
+        frame_normals.push(a);
     }
     normal = (&normal + normal.transpose()) * 0.5;
     let observations = prob
@@ -159,6 +166,7 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
     Reduced {
         normal,
         scores,
+        frame_normals,
         cost: b.cost,
         observations,
         n_q: nq,
@@ -179,6 +187,8 @@ pub enum SeMethod {
     Hac,
     /// Moving-block bootstrap over frames with refits.
     Bootstrap,
+    /// Delete-block jackknife over contiguous blocks of frames (linearised).
+    Jackknife,
     /// The parameter lies on a null direction of `S`: no finite error.
     Undetermined,
 }
@@ -204,12 +214,14 @@ pub struct UncertaintyOptions {
     pub hac: bool,
     /// Bartlett bandwidth in frames (lags `< b` get weight); `None`: Andrews' AR(1) rule.
     pub hac_bandwidth: Option<f64>,
-    /// Bootstrap replicates (0: no bootstrap).
+    /// Bootstrap replicates (0, the default: no bootstrap; each replicate is a refit).
     pub bootstrap_replicates: usize,
     /// Block length in frames; `None`: the HAC bandwidth rounded up, at least 2.
     pub block_length: Option<usize>,
     /// Seed of the bootstrap.
     pub seed: u64,
+    /// Contiguous blocks of the delete-block jackknife (0: no jackknife).
+    pub jackknife_blocks: usize,
     /// Apply the small-sample factor `N/(N − n_f)` to the robust estimators.
     pub small_sample: bool,
     /// Half-width above which a length parameter is flagged (m).
@@ -224,9 +236,10 @@ impl Default for UncertaintyOptions {
             level: 0.95,
             hac: true,
             hac_bandwidth: None,
-            bootstrap_replicates: 200,
+            bootstrap_replicates: 0,
             block_length: None,
             seed: 1,
+            jackknife_blocks: 10,
             small_sample: true,
             threshold_m: 0.005,
             threshold_rad: 5f64.to_radians(),
@@ -244,15 +257,19 @@ pub struct ParamUncertainty {
     pub unit: String,
     /// Fitted (or evaluated) value.
     pub value: f64,
-    /// Reported standard error (the largest estimate); `None` when not determined.
+    /// Standard error of the estimator whose interval is widest; `None` when not determined.
     pub se: Option<f64>,
-    /// Interval `value ± z·se` at the report's level; `None` when not determined.
+    /// Interval half-width: `se` times that estimator's critical value (`z`, or Student's t
+    /// for the jackknife); `None` when not determined.
+    pub half_width: Option<f64>,
+    /// Interval `value ± half_width` at the report's level; `None` when not determined.
     pub ci: Option<[f64; 2]>,
-    /// Which estimator `se` comes from.
+    /// Which estimator `se` and the interval come from (the most conservative one).
     pub method: SeMethod,
     pub se_white: Option<f64>,
     pub se_hac: Option<f64>,
     pub se_bootstrap: Option<f64>,
+    pub se_jackknife: Option<f64>,
     /// The value sits at a bound of the search box (the linear interval is then doubtful).
     pub at_bound: bool,
     pub status: Identifiability,
@@ -311,8 +328,12 @@ pub struct BootstrapInfo {
 pub struct Uncertainty {
     /// Interval coverage, e.g. 0.95.
     pub level: f64,
-    /// Normal quantile used for the intervals.
+    /// Normal quantile: the critical value of the white, HAC and bootstrap intervals.
     pub z: f64,
+    /// Student-t quantile with `K − 1` degrees of freedom: the jackknife's critical value.
+    pub t_jackknife: Option<f64>,
+    /// Blocks `K` of the delete-block jackknife, when computed.
+    pub jackknife_blocks: Option<usize>,
     pub frames: usize,
     /// Scalar residuals `m`.
     pub observations: usize,
@@ -433,7 +454,7 @@ fn andrews_bandwidth(series: &[DVector<f64>]) -> f64 {
     if den == 0.0 {
         return 1.0;
     }
-    (1.1447 * (num / den * n as f64).cbrt()).clamp(1.0, n as f64)
+    (1.1447 * (num / den * n as f64).cbrt()).clamp(1.0, (n as f64 / 5.0).max(1.0))
 }
 
 /// Whether frame i+1 of the problem continues frame i's trial without a gap.
@@ -471,9 +492,10 @@ fn block_bootstrap(
             windows.push((s, len));
         }
     }
+    // Standard errors need the refit to a small fraction of the spread, not to 1e-10.
     let opts = JointOptions {
-        max_iterations: 100,
-        tolerance: 1e-9,
+        max_iterations: 50,
+        tolerance: 1e-6,
     };
     let results: Vec<(Vec<f64>, bool)> = (0..replicates)
         .into_par_iter()
@@ -505,6 +527,35 @@ fn block_bootstrap(
     }
     cov /= (replicates.max(2) - 1) as f64;
     (cov, results.iter().filter(|r| !r.1).count())
+}
+
+/// Linearised delete-block jackknife over `blocks` contiguous blocks of frames: dropping
+/// block k moves the optimum by `δ_k = (S − A_k)⁻¹ B_k` (one Gauss–Newton step, `A_k`, `B_k`
+/// the block's share of `S` and of the scores), and `C = (K−1)/K Σ_k (δ_k − δ̄)(δ_k − δ̄)ᵀ`.
+/// Correlation within a block is kept whole; the removal of the block's own influence makes
+/// it conservative where the fit absorbs part of the noise (few frames per parameter).
+fn block_jackknife(red: &Reduced, scores: &[DVector<f64>], blocks: usize) -> DMatrix<f64> {
+    let n = scores.len();
+    let nf = red.normal.nrows();
+    let mut deltas = Vec::with_capacity(blocks);
+    for k in 0..blocks {
+        let (a, b) = (k * n / blocks, (k + 1) * n / blocks);
+        let mut s = red.normal.clone();
+        let mut g = DVector::zeros(nf);
+        for i in a..b {
+            s -= &red.frame_normals[i];
+            g += &scores[i];
+        }
+        let (inv, _, _) = pseudo_inverse(&((&s + s.transpose()) * 0.5));
+        deltas.push(inv * g);
+    }
+    let mean = deltas.iter().fold(DVector::zeros(nf), |a, d| a + d) / blocks as f64;
+    let mut c = DMatrix::zeros(nf, nf);
+    for d in &deltas {
+        let e = d - &mean;
+        c += &e * e.transpose();
+    }
+    c * ((blocks - 1) as f64 / blocks as f64)
 }
 
 /// Ranges of motion of every coordinate over the frames `qs` (display units).
@@ -669,6 +720,17 @@ pub fn normal_quantile(p: f64) -> f64 {
     }
 }
 
+/// Quantile of Student's t with `nu` degrees of freedom from the normal one (Cornish–Fisher
+/// expansion, Abramowitz & Stegun 26.7.5; relative error < 1e-4 for `nu ≥ 5` at 0.975).
+pub fn t_quantile(p: f64, nu: f64) -> f64 {
+    let z = normal_quantile(p);
+    let (z3, z5, z7, z9) = (z.powi(3), z.powi(5), z.powi(7), z.powi(9));
+    z + (z3 + z) / (4.0 * nu)
+        + (5.0 * z5 + 16.0 * z3 + 3.0 * z) / (96.0 * nu * nu)
+        + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * nu.powi(3))
+        + (79.0 * z9 + 776.0 * z7 + 1482.0 * z5 - 1920.0 * z3 - 945.0 * z) / (92160.0 * nu.powi(4))
+}
+
 /// The covariance estimates (scaled units) of one analysis, before conversion.
 struct Covariances {
     white: DMatrix<f64>,
@@ -676,18 +738,21 @@ struct Covariances {
     hac: Option<DMatrix<f64>>,
     bandwidth: Option<f64>,
     boot: Option<(DMatrix<f64>, BootstrapInfo)>,
+    jack: Option<DMatrix<f64>>,
     factor: f64,
     eig: SymmetricEigen<f64, nalgebra::Dyn>,
 }
 
+/// `boot`: the problem and fit to refit for the bootstrap (none: no bootstrap). `same[i]`:
+/// frame i+1 continues frame i's trial.
 fn covariances(
-    prob: &Problem,
     red: &Reduced,
-    fit: Option<&Fit>,
+    same: &[bool],
+    boot: Option<(&Problem, &Fit)>,
     opts: &UncertaintyOptions,
     center_scores: bool,
 ) -> Covariances {
-    let nf = prob.n_free();
+    let nf = red.normal.nrows();
     let n = red.scores.len();
     let (inv, null, eig) = pseudo_inverse(&red.normal);
     let sigma2 = red.sigma2();
@@ -726,13 +791,13 @@ fn covariances(
                 .collect();
             andrews_bandwidth(&infl)
         });
-        let omega = long_run(&scores, &continuity(prob), b);
+        let omega = long_run(&scores, same, b);
         (Some(&inv * omega * &inv * factor), Some(b))
     } else {
         (None, None)
     };
-    let boot = match fit {
-        Some(fit) if opts.bootstrap_replicates > 1 => {
+    let boot = match boot {
+        Some((prob, fit)) if opts.bootstrap_replicates > 1 => {
             let block = opts
                 .block_length
                 .unwrap_or_else(|| bandwidth.map_or(2, |b| (b.ceil() as usize).max(2)))
@@ -750,12 +815,15 @@ fn covariances(
         }
         _ => None,
     };
+    let jack = (opts.jackknife_blocks > 1 && n >= opts.jackknife_blocks)
+        .then(|| block_jackknife(red, &scores, opts.jackknife_blocks));
     Covariances {
         white,
         null,
         hac,
         bandwidth,
         boot,
+        jack,
         factor,
         eig,
     }
@@ -764,7 +832,7 @@ fn covariances(
 /// Uncertainty of the fitted free parameters of `fit` (a solution of `prob`).
 pub fn analyze(prob: &Problem, fit: &Fit, opts: &UncertaintyOptions) -> Uncertainty {
     let red = reduced_system(prob, &fit.p, &fit.coords);
-    let cov = covariances(prob, &red, Some(fit), opts, false);
+    let cov = covariances(&red, &continuity(prob), Some((prob, fit)), opts, false);
     build(prob, &fit.p, &fit.s, &fit.coords, &red, &cov, opts)
 }
 
@@ -779,12 +847,42 @@ pub fn predict(
     opts: &UncertaintyOptions,
 ) -> Uncertainty {
     let red = reduced_system(prob, p, qs);
-    let cov = covariances(prob, &red, None, opts, true);
+    let cov = covariances(&red, &continuity(prob), None, opts, true);
     build(prob, p, &prob.to_scaled(p), qs, &red, &cov, opts)
 }
 
-fn se_of(c: &DMatrix<f64>, k: usize) -> f64 {
-    c[(k, k)].max(0.0).sqrt()
+/// Critical values: `z` for white, HAC and bootstrap; Student's t with `K − 1` degrees of
+/// freedom for the `K`-block jackknife.
+fn critical(level: f64, opts: &UncertaintyOptions) -> (f64, f64) {
+    let p = 0.5 + 0.5 * level;
+    let k = opts.jackknife_blocks.max(2) as f64;
+    (normal_quantile(p), t_quantile(p, k - 1.0))
+}
+
+/// Per estimator `(se, half-width, method)` of the quadratic form `f(C)` (a variance in
+/// scaled units), and the most conservative one (largest half-width).
+fn conservative(
+    cov: &Covariances,
+    crit: (f64, f64),
+    f: impl Fn(&DMatrix<f64>) -> f64,
+) -> (Vec<(f64, f64, SeMethod)>, Option<(f64, f64, SeMethod)>) {
+    let mut all = vec![(f(&cov.white).max(0.0).sqrt(), crit.0, SeMethod::White)];
+    if let Some(h) = &cov.hac {
+        all.push((f(h).max(0.0).sqrt(), crit.0, SeMethod::Hac));
+    }
+    if let Some((b, _)) = &cov.boot {
+        all.push((f(b).max(0.0).sqrt(), crit.0, SeMethod::Bootstrap));
+    }
+    if let Some(j) = &cov.jack {
+        all.push((f(j).max(0.0).sqrt(), crit.1, SeMethod::Jackknife));
+    }
+    let out: Vec<(f64, f64, SeMethod)> = all.iter().map(|(s, c, m)| (*s, s * c, *m)).collect();
+    let best = out
+        .iter()
+        .copied()
+        .filter(|v| v.1.is_finite())
+        .max_by(|a, b| a.1.total_cmp(&b.1));
+    (out, best)
 }
 
 fn build(
@@ -798,7 +896,8 @@ fn build(
 ) -> Uncertainty {
     let model = prob.model;
     let nf = prob.n_free();
-    let z = normal_quantile(0.5 + 0.5 * opts.level);
+    let crit = critical(opts.level, opts);
+    let z = crit.0;
     let ranges = coordinate_ranges(model, qs);
     let scale: Vec<f64> = (0..nf)
         .map(|k| prob.half_range(k) * display(model.parameters[prob.free[k]].unit).0)
@@ -828,32 +927,19 @@ fn build(
             let (f, unit) = display(par.unit);
             let value = p[i] * f;
             let at_bound = s[k].abs() >= 1.0 - 1e-9;
-            let phys = |c: &DMatrix<f64>| se_of(c, k) * scale[k];
-            let (se_white, se_hac, se_boot) = if cov.null[k] {
-                (None, None, None)
-            } else {
-                (
-                    Some(phys(&cov.white)),
-                    cov.hac.as_ref().map(phys),
-                    cov.boot.as_ref().map(|(c, _)| phys(c)),
-                )
+            let (all, best) = conservative(cov, crit, |c| c[(k, k)]);
+            let of = |m: SeMethod| {
+                all.iter()
+                    .find(|v| v.2 == m && !cov.null[k])
+                    .map(|v| v.0 * scale[k])
             };
-            let candidates = [
-                (se_white, SeMethod::White),
-                (se_hac, SeMethod::Hac),
-                (se_boot, SeMethod::Bootstrap),
-            ];
-            let best = candidates
-                .iter()
-                .filter_map(|(v, m)| v.map(|v| (v, *m)))
-                .max_by(|a, b| a.0.total_cmp(&b.0));
-            let (se, method) = match best {
-                Some((v, m)) if v.is_finite() => (Some(v), m),
-                _ => (None, SeMethod::Undetermined),
+            let (se, half_width, method) = match best {
+                Some((v, h, m)) if !cov.null[k] => (Some(v * scale[k]), Some(h * scale[k]), m),
+                _ => (None, None, SeMethod::Undetermined),
             };
-            let status = match se {
+            let status = match half_width {
                 None => Identifiability::Undetermined,
-                Some(v) if z * v > threshold(k) || at_bound => Identifiability::Poor,
+                Some(h) if h > threshold(k) || at_bound => Identifiability::Poor,
                 Some(_) => Identifiability::Determined,
             };
             let reason = (status != Identifiability::Determined).then(|| {
@@ -877,22 +963,26 @@ fn build(
                 unit: unit.to_string(),
                 value,
                 se,
-                ci: se.map(|v| [value - z * v, value + z * v]),
+                half_width,
+                ci: half_width.map(|h| [value - h, value + h]),
                 method,
-                se_white,
-                se_hac,
-                se_bootstrap: se_boot,
+                se_white: of(SeMethod::White),
+                se_hac: of(SeMethod::Hac),
+                se_bootstrap: of(SeMethod::Bootstrap),
+                se_jackknife: of(SeMethod::Jackknife),
                 at_bound,
                 status,
                 reason,
             }
         })
         .collect();
-    let weak_directions = weak_directions(prob, cov, &scale, z, opts);
+    let weak_directions = weak_directions(prob, cov, &scale, crit, opts);
     let sigma2 = red.sigma2();
     Uncertainty {
         level: opts.level,
         z,
+        t_jackknife: cov.jack.as_ref().map(|_| crit.1),
+        jackknife_blocks: cov.jack.as_ref().map(|_| opts.jackknife_blocks),
         frames: red.scores.len(),
         observations: red.observations,
         dof: red.dof(),
@@ -914,7 +1004,7 @@ fn weak_directions(
     prob: &Problem,
     cov: &Covariances,
     scale: &[f64],
-    z: f64,
+    crit: (f64, f64),
     opts: &UncertaintyOptions,
 ) -> Vec<WeakDirection> {
     let model = prob.model;
@@ -931,21 +1021,14 @@ fn weak_directions(
         let lam = cov.eig.eigenvalues[j];
         let v = cov.eig.eigenvectors.column(j).into_owned();
         let null = !(lam > NULL_RATIO * max && lam > 0.0);
-        // Variance along the direction: the largest of the estimators.
-        let var = if null {
+        // Half-width along the direction: the most conservative estimator.
+        let hw = if null {
             f64::INFINITY
         } else {
-            let q = |c: &DMatrix<f64>| (v.transpose() * c * &v)[(0, 0)];
-            let mut m = q(&cov.white);
-            if let Some(h) = &cov.hac {
-                m = m.max(q(h));
-            }
-            if let Some((b, _)) = &cov.boot {
-                m = m.max(q(b));
-            }
-            m
+            conservative(cov, crit, |c| (v.transpose() * c * &v)[(0, 0)])
+                .1
+                .map_or(f64::INFINITY, |b| b.1)
         };
-        let hw = z * var.sqrt();
         let mut comps: Vec<usize> = (0..nf).filter(|&k| v[k] * v[k] >= 0.1).collect();
         comps.sort_by(|&a, &b| v[b].abs().total_cmp(&v[a].abs()));
         let over = (0..nf).any(|k| {
@@ -1031,69 +1114,43 @@ fn weak_directions(
 /// the rest and re-analyses.
 pub fn unidentifiable_subset(prob: &Problem, fit: &Fit, opts: &UncertaintyOptions) -> Vec<usize> {
     let red = reduced_system(prob, &fit.p, &fit.coords);
-    let nf = prob.n_free();
-    let n = red.scores.len();
-    let sigma2 = red.sigma2();
-    let z = normal_quantile(0.5 + 0.5 * opts.level);
-    let full = prob.n_free();
-    let _ = full;
-    let mut keep: Vec<usize> = (0..nf).collect();
-    let mut removed = Vec::new();
     let same = continuity(prob);
+    let crit = critical(opts.level, opts);
     let threshold = |k: usize| match prob.model.parameters[prob.free[k]].unit {
         Unit::Metre => opts.threshold_m,
         Unit::Radian => opts.threshold_rad,
     };
+    let mut keep: Vec<usize> = (0..prob.n_free()).collect();
+    let mut removed = Vec::new();
     while !keep.is_empty() {
         let m = keep.len();
-        let sub = DMatrix::from_fn(m, m, |a, b| red.normal[(keep[a], keep[b])]);
-        let (inv, null, eig) = pseudo_inverse(&sub);
-        let mut var: Vec<f64> = (0..m).map(|a| inv[(a, a)] * sigma2).collect();
-        if opts.hac && n > m {
-            let scores: Vec<DVector<f64>> = red
-                .scores
+        let pick = |v: &DVector<f64>| DVector::from_iterator(m, keep.iter().map(|&k| v[k]));
+        let sub = Reduced {
+            normal: DMatrix::from_fn(m, m, |a, b| red.normal[(keep[a], keep[b])]),
+            scores: red.scores.iter().map(pick).collect(),
+            frame_normals: red
+                .frame_normals
                 .iter()
-                .map(|s| DVector::from_iterator(m, keep.iter().map(|&k| s[k])))
-                .collect();
-            let factor = if opts.small_sample {
-                n as f64 / (n - m) as f64
-            } else {
-                1.0
-            };
-            let b = opts.hac_bandwidth.unwrap_or_else(|| {
-                let sd: Vec<f64> = var.iter().map(|v| v.sqrt()).collect();
-                let infl: Vec<DVector<f64>> = scores
-                    .iter()
-                    .map(|s| {
-                        let h = &inv * s;
-                        DVector::from_iterator(
-                            m,
-                            h.iter()
-                                .zip(&sd)
-                                .map(|(v, d)| if *d > 0.0 { v / d } else { 0.0 }),
-                        )
-                    })
-                    .collect();
-                andrews_bandwidth(&infl)
-            });
-            let hac = &inv * long_run(&scores, &same, b) * &inv * factor;
-            for (a, v) in var.iter_mut().enumerate() {
-                *v = v.max(hac[(a, a)]);
-            }
-        }
+                .map(|a| DMatrix::from_fn(m, m, |x, y| a[(keep[x], keep[y])]))
+                .collect(),
+            cost: red.cost,
+            observations: red.observations,
+            n_q: red.n_q,
+        };
+        let cov = covariances(&sub, &same, None, opts, false);
         let flagged: Vec<usize> = (0..m)
             .filter(|&a| {
-                let k = keep[a];
-                null[a] || z * var[a].sqrt() * prob.half_range(k) > threshold(k)
+                let hw = conservative(&cov, crit, |c| c[(a, a)]).1.map(|b| b.1);
+                cov.null[a] || hw.is_none_or(|h| h * prob.half_range(keep[a]) > threshold(keep[a]))
             })
             .collect();
         if flagged.is_empty() {
             break;
         }
         let weakest = (0..m)
-            .min_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]))
+            .min_by(|&a, &b| cov.eig.eigenvalues[a].total_cmp(&cov.eig.eigenvalues[b]))
             .unwrap_or(0);
-        let v = eig.eigenvectors.column(weakest);
+        let v = cov.eig.eigenvectors.column(weakest);
         let worst = *flagged
             .iter()
             .max_by(|&&a, &&b| v[a].abs().total_cmp(&v[b].abs()))
@@ -1107,6 +1164,14 @@ pub fn unidentifiable_subset(prob: &Problem, fit: &Fit, opts: &UncertaintyOption
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn t_quantile_matches_tables() {
+        // Student t 0.975 quantiles: 9 dof 2.262157, 19 dof 2.093024, 4 dof 2.776445.
+        assert!((t_quantile(0.975, 9.0) - 2.262157).abs() < 2e-4);
+        assert!((t_quantile(0.975, 19.0) - 2.093024).abs() < 1e-5);
+        assert!((t_quantile(0.975, 4.0) - 2.776445).abs() < 5e-3);
+    }
 
     #[test]
     fn normal_quantile_matches_known_values() {

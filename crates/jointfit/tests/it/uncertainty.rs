@@ -265,13 +265,11 @@ fn uncertainty_white_covariance_matches_the_scatter_of_fits_over_seeds() {
 #[test]
 fn uncertainty_skin_noise_intervals_cover_the_truth() {
     // 20 seeds (new truth, new noise each), the full-leg motion, all 27 parameters, the
-    // default conservative rule with a small bootstrap. Coverage over 540 intervals; with
-    // dependence within a seed the band is loose: [0.85, 1.0].
+    // default conservative rule (white, HAC, 10-block jackknife). Coverage over 540
+    // intervals; a binomial 95 % band is ±2 %, but intervals within one seed are dependent
+    // and the study with 50 seeds gives 91–94 % per group, so the band is loose: [0.85, 0.99].
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
-    let opts = UncertaintyOptions {
-        bootstrap_replicates: 40,
-        ..UncertaintyOptions::default()
-    };
+    let opts = UncertaintyOptions::default();
     let (mut hit, mut total, mut hit_white) = (0usize, 0usize, 0usize);
     for seed in 0..20u64 {
         let p_true = perturbed(&model, 1000 + seed);
@@ -300,7 +298,7 @@ fn uncertainty_skin_noise_intervals_cover_the_truth() {
     let cov = hit as f64 / total as f64;
     let cov_white = hit_white as f64 / total as f64;
     eprintln!("coverage: reported {cov:.3}, white-noise formula {cov_white:.3}");
-    assert!((0.85..=1.0).contains(&cov), "coverage {cov}");
+    assert!((0.85..=0.99).contains(&cov), "coverage {cov}");
     assert!(cov_white < cov, "the robust intervals must be wider");
 }
 
@@ -315,10 +313,7 @@ fn uncertainty_knee_only_trial_flags_the_hip_and_says_why() {
     };
     let trial = synthetic(&model, &p_true, knee_only, 60, Noise::Skin, 0.005, 7);
     let (prob, fit) = fit_from_nominal(&model, &trial, &["hip", "knee"]);
-    let opts = UncertaintyOptions {
-        bootstrap_replicates: 30,
-        ..UncertaintyOptions::default()
-    };
+    let opts = UncertaintyOptions::default();
     let u = analyze(&prob, &fit, &opts);
     for p in &u.params {
         if p.group == "hip" {
@@ -363,5 +358,38 @@ fn uncertainty_knee_only_trial_flags_the_hip_and_says_why() {
         if b.group == "hip" {
             assert_ne!(a.status, Identifiability::Determined, "{}", a.name);
         }
+    }
+}
+
+#[test]
+fn uncertainty_block_bootstrap_is_seeded_and_agrees_with_the_sandwich() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p_true = perturbed(&model, 77);
+    let trial = synthetic(&model, &p_true, ALL, 60, Noise::Skin, 0.01, 78);
+    let (prob, fit) = fit_from_nominal(&model, &trial, &["knee"]);
+    let opts = UncertaintyOptions {
+        bootstrap_replicates: 60,
+        seed: 5,
+        ..UncertaintyOptions::default()
+    };
+    let a = analyze(&prob, &fit, &opts);
+    let b = analyze(&prob, &fit, &opts);
+    assert_eq!(a, b, "same seed, same numbers");
+    let info = a.bootstrap.as_ref().unwrap();
+    assert_eq!(info.replicates, 60);
+    // Two estimators of the same time-correlated scatter: within a factor of 3 of each other.
+    for p in &a.params {
+        let (boot, hac) = (p.se_bootstrap.unwrap(), p.se_hac.unwrap());
+        assert!(
+            boot / hac > 1.0 / 3.0 && boot / hac < 3.0,
+            "{}: bootstrap {boot} vs HAC {hac}",
+            p.name
+        );
+        let largest = [p.se_white, p.se_hac, p.se_bootstrap]
+            .iter()
+            .map(|v| v.unwrap() * a.z)
+            .chain(p.se_jackknife.map(|j| j * a.t_jackknife.unwrap()))
+            .fold(0.0f64, f64::max);
+        assert!((p.half_width.unwrap() - largest).abs() <= 1e-12 * largest);
     }
 }
