@@ -1,6 +1,7 @@
 //! The `jointfit` command-line tool: thin clap front end, one module per subcommand.
 
 mod calibrate_cmd;
+mod check_cmd;
 mod common;
 mod demo_cmd;
 mod ik_cmd;
@@ -32,6 +33,8 @@ enum Command {
     Ik(ik_cmd::IkArgs),
     /// Fit joint parameters to one or more trials (two-level optimization).
     Calibrate(calibrate_cmd::CalibrateArgs),
+    /// Before a fit: each joint's range of motion and which parameters the trial can determine.
+    Check(check_cmd::CheckArgs),
     /// Synthesize a noisy trial from the built-in leg, calibrate it, show what was recovered.
     Demo(demo_cmd::DemoArgs),
     /// Build a subject's leg model from a static trial (anatomical-landmark method).
@@ -44,6 +47,7 @@ fn main() -> ExitCode {
         Command::Model { command } => model_cmd::run(command),
         Command::Ik(args) => ik_cmd::run(args),
         Command::Calibrate(args) => calibrate_cmd::run(args),
+        Command::Check(args) => check_cmd::run(args),
         Command::Demo(args) => demo_cmd::run(args),
         Command::Personalize(args) => personalize_cmd::run(args),
     };

@@ -2,6 +2,8 @@
 
 use std::process::Command;
 
+#[path = "cli/ident.rs"]
+mod ident;
 #[path = "cli/personalize.rs"]
 mod personalize;
 

@@ -224,6 +224,10 @@ pub struct UncertaintyOptions {
     pub jackknife_blocks: usize,
     /// Apply the small-sample factor `N/(N − n_f)` to the robust estimators.
     pub small_sample: bool,
+    /// Assumed residual standard deviation per axis (m) instead of the one estimated from
+    /// the residuals; the robust estimators are rescaled by the same variance ratio. For
+    /// predictions at a nominal model, whose residuals include its misfit.
+    pub assumed_sigma_m: Option<f64>,
     /// Half-width above which a length parameter is flagged (m).
     pub threshold_m: f64,
     /// Half-width above which an angle parameter is flagged (rad).
@@ -241,6 +245,7 @@ impl Default for UncertaintyOptions {
             seed: 1,
             jackknife_blocks: 10,
             small_sample: true,
+            assumed_sigma_m: None,
             threshold_m: 0.005,
             threshold_rad: 5f64.to_radians(),
         }
@@ -339,8 +344,10 @@ pub struct Uncertainty {
     pub observations: usize,
     /// Residual degrees of freedom `m − N·n_q − n_f`.
     pub dof: usize,
-    /// Residual standard deviation per coordinate axis (mm).
+    /// Residual standard deviation per coordinate axis (mm): estimated, or as assumed.
     pub sigma_mm: f64,
+    /// Whether `sigma_mm` was assumed (given) rather than estimated from the residuals.
+    pub sigma_assumed: bool,
     /// Small-sample factor applied to the robust estimators.
     pub small_sample_factor: f64,
     /// Bartlett bandwidth of the HAC estimator (frames), when computed.
@@ -542,9 +549,9 @@ fn block_jackknife(red: &Reduced, scores: &[DVector<f64>], blocks: usize) -> DMa
         let (a, b) = (k * n / blocks, (k + 1) * n / blocks);
         let mut s = red.normal.clone();
         let mut g = DVector::zeros(nf);
-        for i in a..b {
-            s -= &red.frame_normals[i];
-            g += &scores[i];
+        for (ai, si) in red.frame_normals[a..b].iter().zip(&scores[a..b]) {
+            s -= ai;
+            g += si;
         }
         let (inv, _, _) = pseudo_inverse(&((&s + s.transpose()) * 0.5));
         deltas.push(inv * g);
@@ -630,11 +637,23 @@ fn reason(
             .filter(|(_, c)| c.joint.0 == j && c.kind == CoordKind::Rotational)
             .map(|(r, _)| r)
             .collect();
-        if let Some(small) = coords
+        // The barely moved axis to name: the smallest range, but an axial rotation only when
+        // no other axis is also barely moved (circumduction excites a joint centre best).
+        let small: Vec<&&CoordRange> = coords
             .iter()
             .filter(|r| r.range < SMALL_RANGE_DEG)
-            .min_by(|a, b| a.range.total_cmp(&b.range))
-        {
+            .collect();
+        let not_axial: Vec<&&CoordRange> = small
+            .iter()
+            .copied()
+            .filter(|r| !r.name.contains("rotation"))
+            .collect();
+        let pool = if not_axial.is_empty() {
+            small
+        } else {
+            not_axial
+        };
+        if let Some(small) = pool.iter().min_by(|a, b| a.range.total_cmp(&b.range)) {
             let moved: Vec<String> = coords
                 .iter()
                 .map(|r| format!("{} {:.0}°", r.name, r.range))
@@ -755,7 +774,14 @@ fn covariances(
     let nf = red.normal.nrows();
     let n = red.scores.len();
     let (inv, null, eig) = pseudo_inverse(&red.normal);
-    let sigma2 = red.sigma2();
+    let estimated = red.sigma2();
+    let sigma2 = opts.assumed_sigma_m.map_or(estimated, |s| s * s);
+    // Robust estimators scale with the residuals; rescale them to the assumed noise.
+    let rescale = if estimated > 0.0 && estimated.is_finite() {
+        sigma2 / estimated
+    } else {
+        1.0
+    };
     let white = &inv * sigma2;
     let factor = if opts.small_sample {
         if n > nf {
@@ -792,7 +818,7 @@ fn covariances(
             andrews_bandwidth(&infl)
         });
         let omega = long_run(&scores, same, b);
-        (Some(&inv * omega * &inv * factor), Some(b))
+        (Some(&inv * omega * &inv * (factor * rescale)), Some(b))
     } else {
         (None, None)
     };
@@ -804,7 +830,7 @@ fn covariances(
                 .clamp(1, n.max(1));
             let (c, nc) = block_bootstrap(prob, fit, opts.bootstrap_replicates, block, opts.seed);
             Some((
-                c * factor,
+                c * (factor * rescale),
                 BootstrapInfo {
                     replicates: opts.bootstrap_replicates,
                     not_converged: nc,
@@ -816,7 +842,7 @@ fn covariances(
         _ => None,
     };
     let jack = (opts.jackknife_blocks > 1 && n >= opts.jackknife_blocks)
-        .then(|| block_jackknife(red, &scores, opts.jackknife_blocks));
+        .then(|| block_jackknife(red, &scores, opts.jackknife_blocks) * rescale);
     Covariances {
         white,
         null,
@@ -859,13 +885,16 @@ fn critical(level: f64, opts: &UncertaintyOptions) -> (f64, f64) {
     (normal_quantile(p), t_quantile(p, k - 1.0))
 }
 
+/// One estimator's `(se, half-width, method)`.
+type Estimate = (f64, f64, SeMethod);
+
 /// Per estimator `(se, half-width, method)` of the quadratic form `f(C)` (a variance in
 /// scaled units), and the most conservative one (largest half-width).
 fn conservative(
     cov: &Covariances,
     crit: (f64, f64),
     f: impl Fn(&DMatrix<f64>) -> f64,
-) -> (Vec<(f64, f64, SeMethod)>, Option<(f64, f64, SeMethod)>) {
+) -> (Vec<Estimate>, Option<Estimate>) {
     let mut all = vec![(f(&cov.white).max(0.0).sqrt(), crit.0, SeMethod::White)];
     if let Some(h) = &cov.hac {
         all.push((f(h).max(0.0).sqrt(), crit.0, SeMethod::Hac));
@@ -876,7 +905,7 @@ fn conservative(
     if let Some(j) = &cov.jack {
         all.push((f(j).max(0.0).sqrt(), crit.1, SeMethod::Jackknife));
     }
-    let out: Vec<(f64, f64, SeMethod)> = all.iter().map(|(s, c, m)| (*s, s * c, *m)).collect();
+    let out: Vec<Estimate> = all.iter().map(|(s, c, m)| (*s, s * c, *m)).collect();
     let best = out
         .iter()
         .copied()
@@ -977,7 +1006,7 @@ fn build(
         })
         .collect();
     let weak_directions = weak_directions(prob, cov, &scale, crit, opts);
-    let sigma2 = red.sigma2();
+    let sigma2 = opts.assumed_sigma_m.map_or(red.sigma2(), |s| s * s);
     Uncertainty {
         level: opts.level,
         z,
@@ -987,6 +1016,7 @@ fn build(
         observations: red.observations,
         dof: red.dof(),
         sigma_mm: sigma2.sqrt() * 1e3,
+        sigma_assumed: opts.assumed_sigma_m.is_some(),
         small_sample_factor: cov.factor,
         hac_bandwidth: cov.bandwidth,
         bootstrap: cov.boot.as_ref().map(|(_, b)| b.clone()),
