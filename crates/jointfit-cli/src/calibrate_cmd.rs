@@ -141,7 +141,8 @@ fn per_marker_rms(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
         .collect()
 }
 
-/// Runs one calibration on trials already in memory.
+/// Runs one calibration on trials already in memory (no uncertainty analysis).
+#[allow(dead_code)] // library-style entry point for subcommands that need no intervals
 pub fn calibrate(
     model: &Model,
     start: Vec<f64>,
@@ -426,8 +427,13 @@ pub fn print_uncertainty_notes(u: &Uncertainty, fixed: &[String]) {
             .half_width
             .map_or("unbounded".to_string(), |h| format!("±{h:.1} {}", p.unit));
         eprintln!(
-            "jointfit: warning: {} not determined by this trial ({hw} > {} {}): {}",
+            "jointfit: warning: {} {} by this trial ({hw} > {} {}): {}",
             p.name,
+            if p.status == Identifiability::Undetermined {
+                "not determined"
+            } else {
+                "poorly determined"
+            },
             if p.unit == "mm" {
                 u.threshold_mm
             } else {

@@ -71,6 +71,8 @@ struct Tally {
     jack: usize,
     reported: usize,
     undetermined: usize,
+    interior: usize,
+    interior_hit: usize,
     half_width: f64,
     sq_err: f64,
 }
@@ -140,6 +142,10 @@ fn main() {
             t.jack += within(p.se_jackknife, u.t_jackknife.unwrap_or(f64::NAN));
             let covers = p.half_width.is_some_and(|h| err.abs() <= h) as usize;
             t.reported += covers;
+            if !p.at_bound {
+                t.interior += 1;
+                t.interior_hit += covers;
+            }
             t.undetermined += p.se.is_none() as usize;
             t.half_width += p.half_width.unwrap_or(0.0);
             per_param[k].0 += 1;
@@ -169,14 +175,24 @@ fn main() {
         clock.elapsed().as_secs_f64()
     );
     println!(
-        "{:<6} {:>6} {:>7} {:>7} {:>7} {:>7} {:>9} {:>8} {:>12} {:>10}",
-        "group", "n", "white", "HAC", "boot", "jack", "reported", "undet.", "mean ±95%", "RMS err"
+        "{:<6} {:>6} {:>7} {:>7} {:>7} {:>7} {:>9} {:>15} {:>8} {:>12} {:>10}",
+        "group",
+        "n",
+        "white",
+        "HAC",
+        "boot",
+        "jack",
+        "reported",
+        "interior (n)",
+        "undet.",
+        "mean ±95%",
+        "RMS err"
     );
     for (g, t) in groups.iter().zip(&by_group) {
         let pct = |h: usize| 100.0 * h as f64 / t.n.max(1) as f64;
         let det = (t.n - t.undetermined).max(1) as f64;
         println!(
-            "{:<6} {:>6} {:>6.1}% {:>6.1}% {:>6.1}% {:>6.1}% {:>8.1}% {:>8} {:>12.2} {:>10.2}",
+            "{:<6} {:>6} {:>6.1}% {:>6.1}% {:>6.1}% {:>6.1}% {:>8.1}% {:>15} {:>8} {:>12.2} {:>10.2}",
             g,
             t.n,
             pct(t.white),
@@ -184,12 +200,18 @@ fn main() {
             pct(t.boot),
             pct(t.jack),
             pct(t.reported),
+            format!(
+                "{:.1}% ({})",
+                100.0 * t.interior_hit as f64 / t.interior.max(1) as f64,
+                t.interior
+            ),
             t.undetermined,
             t.half_width / det,
             (t.sq_err / t.n.max(1) as f64).sqrt()
         );
     }
-    println!("(mean ±95% and RMS err mix mm and deg within a group, as the parameters do)");
+    println!("(white/HAC/boot: z·se; jack: t(K−1)·se; reported: the widest; interior: reported, estimates not at a bound;");
+    println!(" mean ±95% and RMS err mix mm and deg within a group, as the parameters do)");
     println!(
         "flagged parameters: {flagged_n}, mean |error|/threshold {:.2}; determined: {ok_n}, mean |error|/threshold {:.2}",
         flagged_err / flagged_n.max(1) as f64,

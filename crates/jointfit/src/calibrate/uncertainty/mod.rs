@@ -11,7 +11,7 @@
 //! free parameters `s`) and `r_i = m_i − x_i`, projecting the per-frame coordinates out gives
 //! the reduced (variable-projection) Jacobian `J_red,i = (I − J_q (J_qᵀWJ_q)⁻¹ J_qᵀW) J_s` and
 //! the reduced normal matrix, the Schur complement of the block-arrow system of
-//! [`super::schur`]:
+//! the private `schur` module:
 //!
 //! `S = Σ_i J_red,iᵀ W J_red,i = V − Σ_i W_iᵀ U_i⁻¹ W_i`.
 //!

@@ -36,7 +36,7 @@ pub fn coordinate_ranges(model: &Model, qs: &[Vec<f64>]) -> Vec<CoordRange> {
 }
 
 /// Rotations below this range (deg) are "barely moved" in reasons.
-pub(super) const SMALL_RANGE_DEG: f64 = 20.0;
+pub(super) const SMALL_RANGE_DEG: f64 = 15.0;
 
 /// The trial that exercises a coordinate, for the reason text.
 pub(super) fn suggestion(coord: &str) -> String {
