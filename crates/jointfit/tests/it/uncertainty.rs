@@ -393,3 +393,26 @@ fn uncertainty_block_bootstrap_is_seeded_and_agrees_with_the_sandwich() {
         assert!((p.half_width.unwrap() - largest).abs() <= 1e-12 * largest);
     }
 }
+
+#[test]
+fn uncertainty_with_fewer_frames_than_parameters_stays_conservative() {
+    // 15 frames for 27 parameters: the score-based sandwich cannot be formed (its
+    // small-sample factor N/(N − n_f) is undefined), so it is left out, never a panic; the
+    // white estimate and the 10-block jackknife (blocks of 1–2 frames) remain, no interval
+    // is narrower than the white one, and the JSON form still serializes.
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p_true = perturbed(&model, 12);
+    let trial = synthetic(&model, &p_true, ALL, 15, Noise::Skin, 0.01, 13);
+    let (prob, fit) = fit_from_nominal(&model, &trial, &["all"]);
+    let u = analyze(&prob, &fit, &UncertaintyOptions::default());
+    assert!(u.hac_bandwidth.is_none());
+    for p in &u.params {
+        assert!(p.se_hac.is_none(), "{}", p.name);
+        if let Some(h) = p.half_width {
+            let white = u.z * p.se_white.unwrap();
+            assert!(h >= white * (1.0 - 1e-12), "{}", p.name);
+        }
+    }
+    let json = serde_json::to_string(&u).unwrap();
+    assert!(json.contains("\"params\""));
+}

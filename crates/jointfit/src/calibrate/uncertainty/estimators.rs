@@ -307,7 +307,8 @@ pub(super) fn covariances(
             *s -= &mean;
         }
     }
-    let (hac, bandwidth) = if opts.hac && n > 1 {
+    // With no more frames than parameters the factor is infinite: no HAC or bootstrap.
+    let (hac, bandwidth) = if opts.hac && n > 1 && factor.is_finite() {
         let b = opts.hac_bandwidth.unwrap_or_else(|| {
             let sd: Vec<f64> = (0..nf).map(|k| white[(k, k)].sqrt()).collect();
             let infl: Vec<DVector<f64>> = scores
@@ -330,7 +331,7 @@ pub(super) fn covariances(
         (None, None)
     };
     let boot = match boot {
-        Some((prob, fit)) if opts.bootstrap_replicates > 1 => {
+        Some((prob, fit)) if opts.bootstrap_replicates > 1 && factor.is_finite() => {
             let block = opts
                 .block_length
                 .unwrap_or_else(|| bandwidth.map_or(2, |b| (b.ceil() as usize).max(2)))
@@ -391,11 +392,13 @@ pub(super) fn conservative(
         all.push((f(j).max(0.0).sqrt(), crit.1, SeMethod::Jackknife));
     }
     let out: Vec<Estimate> = all.iter().map(|(s, c, m)| (*s, s * c, *m)).collect();
-    let best = out
-        .iter()
-        .copied()
-        .filter(|v| v.1.is_finite())
-        .max_by(|a, b| a.1.total_cmp(&b.1));
+    // An estimator that cannot be evaluated (e.g. fewer frames than parameters makes the
+    // small-sample factor infinite) leaves the parameter undetermined rather than letting a
+    // less conservative one speak for it.
+    if out.iter().any(|v| !v.1.is_finite()) {
+        return (out, None);
+    }
+    let best = out.iter().copied().max_by(|a, b| a.1.total_cmp(&b.1));
     (out, best)
 }
 
