@@ -301,10 +301,12 @@ pub fn analyze(prob: &Problem, fit: &Fit, opts: &UncertaintyOptions) -> Uncertai
     build(prob, &fit.p, &fit.s, &fit.coords, &red, &cov, opts)
 }
 
-/// Predicted uncertainty at parameters `p` (scaled `s`) with inner solutions `qs`, before
-/// any fit: white and HAC estimates only (no bootstrap), scores centred on their mean so
-/// that the systematic misfit of a nominal model does not count as noise. `σ²` comes from
-/// the residuals at `p`, which include that misfit: the prediction is conservative.
+/// Predicted uncertainty at parameters `p` with inner solutions `qs` (one per frame of
+/// `prob`), before any fit: white, HAC and jackknife estimates (no bootstrap, which needs a
+/// fit), the scores centred on their mean so that the systematic misfit of a nominal model
+/// does not count as noise. `σ²` comes from the residuals at `p`, which include that misfit,
+/// so the prediction is conservative; set [`UncertaintyOptions::assumed_sigma_m`] when the
+/// noise level is known.
 pub fn predict(
     prob: &Problem,
     p: &[f64],
