@@ -382,7 +382,15 @@ fn build(
                     .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
                     .filter(|(_, r)| r.abs() >= 0.9)
                     .map(|(b, r)| (model.parameters[prob.free[b]].name.as_str(), r));
-                let text = reason(model, i, at_bound, &ranges, partner);
+                let mut text = reason(model, i, at_bound, &ranges, partner);
+                // `scale[k]` is the bounds' half-width in display units.
+                if half_width.is_some_and(|h| h > scale[k]) {
+                    text.push_str(&format!(
+                        "; the interval is wider than the search bounds (±{:.0} {unit}), so \
+                         the trial adds little to them",
+                        scale[k]
+                    ));
+                }
                 if status == Identifiability::Undetermined {
                     format!("not determined by this trial at all: {text}")
                 } else {

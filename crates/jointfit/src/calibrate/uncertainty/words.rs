@@ -113,7 +113,7 @@ pub(super) fn reason(
                 .map(|r| format!("{} {:.0}°", r.name, r.range))
                 .collect();
             parts.push(format!(
-                "{jname} moved enough ({}), but noise is large for this many frames; a longer trial or more markers would help",
+                "{jname} moved enough ({}), but the marker noise is large for what this trial shows of it; a longer trial or more trials of this joint would help",
                 moved.join(", ")
             ));
         }
