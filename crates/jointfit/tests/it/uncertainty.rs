@@ -416,3 +416,56 @@ fn uncertainty_with_fewer_frames_than_parameters_stays_conservative() {
     let json = serde_json::to_string(&u).unwrap();
     assert!(json.contains("\"params\""));
 }
+
+#[test]
+fn uncertainty_robust_errors_match_the_scatter_of_fits_under_skin_noise() {
+    // Fixed truth, skin noise with a new seed each time: the empirical variance of the
+    // fitted parameters over 20 seeds is the oracle for the robust standard errors (which
+    // must not understate it much) and exposes the white formula (which does).
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p_true = perturbed(&model, 31);
+    let seeds = 20u64;
+    let mut fits: Vec<Vec<f64>> = Vec::new();
+    let mut se_rep: Vec<Vec<f64>> = Vec::new();
+    let mut se_white: Vec<Vec<f64>> = Vec::new();
+    let mut free = Vec::new();
+    let opts = UncertaintyOptions::default();
+    for seed in 0..seeds {
+        let trial = synthetic(&model, &p_true, ALL, 100, Noise::Skin, 0.01, 500 + seed);
+        let (prob, fit) = fit_from_nominal(&model, &trial, &["all"]);
+        let u = analyze(&prob, &fit, &opts);
+        free = prob.free.clone();
+        fits.push(
+            free.iter()
+                .map(|&i| fit.p[i] * display(&model, i))
+                .collect(),
+        );
+        // Reported interval half-width back to a normal-equivalent standard error.
+        se_rep.push(
+            u.params
+                .iter()
+                .map(|p| p.half_width.unwrap() / u.z)
+                .collect(),
+        );
+        se_white.push(u.params.iter().map(|p| p.se_white.unwrap()).collect());
+    }
+    let (mut log_rep, mut log_white) = (Vec::new(), Vec::new());
+    for k in 0..free.len() {
+        let mean = fits.iter().map(|f| f[k]).sum::<f64>() / seeds as f64;
+        let var = fits.iter().map(|f| (f[k] - mean).powi(2)).sum::<f64>() / (seeds - 1) as f64;
+        let ms = |v: &[Vec<f64>]| v.iter().map(|s| s[k] * s[k]).sum::<f64>() / seeds as f64;
+        log_rep.push((ms(&se_rep) / var).ln());
+        log_white.push((ms(&se_white) / var).ln());
+    }
+    let gm = |v: &[f64]| (v.iter().sum::<f64>() / v.len() as f64).exp();
+    let (rep, white) = (gm(&log_rep), gm(&log_white));
+    eprintln!("predicted/empirical variance, geometric mean over 27 parameters: reported {rep:.2}, white {white:.2}");
+    assert!(
+        white < 0.6,
+        "white formula should understate skin noise: {white}"
+    );
+    assert!(
+        (0.8..=4.0).contains(&rep),
+        "reported errors vs empirical scatter: {rep}"
+    );
+}
