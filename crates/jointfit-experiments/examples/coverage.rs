@@ -197,12 +197,16 @@ fn main() {
         let pct = |h: usize| 100.0 * h as f64 / t.n.max(1) as f64;
         let det = (t.n - t.undetermined).max(1) as f64;
         println!(
-            "{:<6} {:>6} {:>6.1}% {:>6.1}% {:>6.1}% {:>6.1}% {:>8.1}% {:>15} {:>8} {:>12.2} {:>10.2}",
+            "{:<6} {:>6} {:>6.1}% {:>6.1}% {:>7} {:>6.1}% {:>8.1}% {:>15} {:>8} {:>12.2} {:>10.2}",
             g,
             t.n,
             pct(t.white),
             pct(t.hac),
-            pct(t.boot),
+            if args.replicates > 1 {
+                format!("{:.1}%", pct(t.boot))
+            } else {
+                "-".to_string()
+            },
             pct(t.jack),
             pct(t.reported),
             format!(
