@@ -211,13 +211,15 @@ pub(super) fn weak_directions(
         } else {
             "poorly determined"
         };
+        let ids: Vec<usize> = comps.iter().map(|&k| prob.free[k]).collect();
+        let head = headline(model, &ids);
         let description = if words.is_empty() {
             format!("{lead}: a combination spread over many parameters")
         } else if words.len() == 1 {
-            format!("{lead}: {}", words[0])
+            format!("{head} {lead}: {}", words[0])
         } else {
             format!(
-                "{lead} combination (moving together as signed): {}",
+                "{head} {lead} (components moving together as signed): {}",
                 words.join(", ")
             )
         };
@@ -231,4 +233,111 @@ pub(super) fn weak_directions(
         }
     }
     out
+}
+
+/// A short name for a combination of parameters (model indices `ids`), e.g. "hip centre,
+/// superior-inferior," or "knee axis position along the axis," (directions in the joint's
+/// nominal offset frames; a pin axis tilted by the fitted angles is treated as untilted).
+pub(super) fn headline(model: &Model, ids: &[usize]) -> String {
+    use crate::model::JointKind;
+    let mut joints: Vec<usize> = ids
+        .iter()
+        .filter_map(|&i| model.parameters[i].uses.first().map(|u| u.joint.0))
+        .collect();
+    joints.sort();
+    joints.dedup();
+    if joints.len() != 1 {
+        let names: Vec<&str> = joints
+            .iter()
+            .map(|&j| model.joints[j].name.as_str())
+            .collect();
+        return format!("{} parameters together,", names.join(" and "));
+    }
+    let joint = &model.joints[joints[0]];
+    let point = match joint.kind {
+        JointKind::Pin { .. } | JointKind::Slider { .. } => "axis position",
+        _ => "centre",
+    };
+    let mut scalars: Vec<&str> = ids
+        .iter()
+        .filter_map(|&i| model.parameters[i].uses.first().map(|u| u.scalar))
+        .collect();
+    scalars.sort();
+    scalars.dedup();
+    let all_lengths = ids.iter().all(|&i| model.parameters[i].unit == Unit::Metre);
+    let all_angles = ids
+        .iter()
+        .all(|&i| model.parameters[i].unit == Unit::Radian);
+    let name = &joint.name;
+    if all_lengths && scalars.len() == 1 {
+        let axis = match scalars[0] {
+            "tx" => nalgebra::Vector3::x(),
+            "ty" => nalgebra::Vector3::y(),
+            _ => nalgebra::Vector3::z(),
+        };
+        if let JointKind::Pin { axis: pin } = &joint.kind {
+            if pin.cross(&axis).norm() < 1e-9 {
+                return format!("{name} axis position along the axis,");
+            }
+        }
+        let dir = match scalars[0] {
+            "tx" => "anterior-posterior",
+            "ty" => "superior-inferior",
+            _ => "medio-lateral",
+        };
+        format!("{name} {point}, {dir},")
+    } else if all_lengths {
+        format!("{name} {point},")
+    } else if all_angles && scalars.len() == 1 {
+        let plane = match scalars[0] {
+            "rx" => "frontal",
+            "ry" => "transverse",
+            _ => "sagittal",
+        };
+        format!("{name} axis orientation in the {plane} plane,")
+    } else if all_angles {
+        format!("{name} axis orientation,")
+    } else {
+        format!("{name} axis position and orientation,")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::lower_limb::{lower_limb, Side};
+
+    #[test]
+    fn headlines_name_joint_quantity_and_direction() {
+        let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+        let id = |n: &str| model.param_id(n).unwrap().0;
+        assert_eq!(
+            headline(
+                &model,
+                &[id("hip_pelvis_superior"), id("hip_thigh_superior")]
+            ),
+            "hip centre, superior-inferior,"
+        );
+        assert_eq!(
+            headline(&model, &[id("knee_shank_lateral")]),
+            "knee axis position along the axis,"
+        );
+        assert_eq!(
+            headline(
+                &model,
+                &[
+                    id("subtalar_talus_transverse"),
+                    id("subtalar_foot_transverse")
+                ]
+            ),
+            "subtalar axis orientation in the transverse plane,"
+        );
+        assert_eq!(
+            headline(
+                &model,
+                &[id("talocrural_shank_lateral"), id("subtalar_foot_lateral")]
+            ),
+            "talocrural and subtalar parameters together,"
+        );
+    }
 }
