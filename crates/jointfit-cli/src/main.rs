@@ -1,12 +1,17 @@
 //! The `jointfit` command-line tool: thin clap front end, one module per subcommand.
 
+mod bench_cmd;
 mod calibrate_cmd;
 mod check_cmd;
 mod common;
+mod data_cmd;
 mod demo_cmd;
+mod export_cmd;
 mod ik_cmd;
 mod model_cmd;
 mod personalize_cmd;
+mod reproduce_cmd;
+mod synth_cmd;
 mod table;
 
 use std::process::ExitCode;
@@ -29,6 +34,10 @@ enum Command {
         #[command(subcommand)]
         command: model_cmd::ModelCommand,
     },
+    /// Summarize a motion file: format, rate, frames, units, markers with gaps.
+    Inspect(data_cmd::InspectArgs),
+    /// Convert a motion file (C3D or TRC) to a Y-up TRC, optionally low-pass filtered.
+    Convert(data_cmd::ConvertArgs),
     /// Inverse kinematics of a trial with a subject model (the inner level).
     Ik(ik_cmd::IkArgs),
     /// Fit joint parameters to one or more trials (two-level optimization).
@@ -39,17 +48,41 @@ enum Command {
     Demo(demo_cmd::DemoArgs),
     /// Build a subject's leg model from a static trial (anatomical-landmark method).
     Personalize(personalize_cmd::PersonalizeArgs),
+    /// Time the core (FK, IK on a real gait trial, calibration) on this machine.
+    Bench(bench_cmd::BenchArgs),
+    /// Export a model to other programs' formats (OpenSim .osim).
+    Export {
+        #[command(subcommand)]
+        command: export_cmd::ExportCommand,
+    },
+    /// Synthetic markers from a subject model along a motion, with noise, and the true model.
+    Synth(synth_cmd::SynthArgs),
+    /// Reproduce the paper's Table 1 or Table 2 (Markdown, JSON and CSV into a directory).
+    Reproduce(reproduce_cmd::ReproduceArgs),
 }
 
 fn main() -> ExitCode {
+    // A closed pipe (`jointfit … | head`) ends the program quietly, as for any Unix filter,
+    // instead of a panic in println!.
+    #[cfg(unix)]
+    // SAFETY: restoring the default disposition of SIGPIPE before any thread is started.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Model { command } => model_cmd::run(command),
+        Command::Inspect(args) => data_cmd::inspect(args),
+        Command::Convert(args) => data_cmd::convert(args),
         Command::Ik(args) => ik_cmd::run(args),
         Command::Calibrate(args) => calibrate_cmd::run(args),
         Command::Check(args) => check_cmd::run(args),
         Command::Demo(args) => demo_cmd::run(args),
         Command::Personalize(args) => personalize_cmd::run(args),
+        Command::Bench(args) => bench_cmd::run(args),
+        Command::Export { command } => export_cmd::run(command),
+        Command::Synth(args) => synth_cmd::run(args),
+        Command::Reproduce(args) => reproduce_cmd::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

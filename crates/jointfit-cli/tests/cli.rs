@@ -2,10 +2,16 @@
 
 use std::process::Command;
 
+#[path = "cli/data.rs"]
+mod data;
 #[path = "cli/ident.rs"]
 mod ident;
+#[path = "cli/osim.rs"]
+mod osim;
 #[path = "cli/personalize.rs"]
 mod personalize;
+#[path = "cli/synth.rs"]
+mod synth;
 
 fn jointfit(args: &[&str]) -> (bool, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_jointfit"))
@@ -73,4 +79,30 @@ fn bad_model_is_a_one_line_error() {
         err.starts_with("jointfit: error: \"lower-limb-middle\" is neither"),
         "{err}"
     );
+}
+
+/// Without the shared data `bench` times a synthetic gait and says so; every figure is a
+/// finite positive number and the IK it times converges in a handful of iterations.
+#[test]
+fn bench_runs_without_data() {
+    let (ok, out, err) = jointfit(&["bench", "--data", "/nonexistent-jointfit-data", "--json"]);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).expect("valid JSON");
+    assert!(
+        v["source"].as_str().unwrap().starts_with("synthetic"),
+        "{out}"
+    );
+    for key in [
+        "fk_us",
+        "fk_dq_us",
+        "ik_trial_us_per_frame",
+        "ik_warm_us_per_frame",
+        "joint_27_ms",
+        "gradient_27_ms",
+    ] {
+        let x = v[key].as_f64().unwrap();
+        assert!(x.is_finite() && x > 0.0, "{key} = {x}");
+    }
+    let iterations = v["ik_iterations_per_frame"].as_f64().unwrap();
+    assert!((1.0..=12.0).contains(&iterations), "{iterations}");
 }

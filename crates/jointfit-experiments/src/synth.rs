@@ -1,11 +1,37 @@
-//! Synthetic motions and skin-movement-artifact noise.
+//! Synthetic motions and measurement noise (Reinbolt et al. 2005, J Biomech 38:621–626,
+//! doi:10.1016/j.jbiomech.2004.03.031, §2 "synthetic movement data").
 //!
-//! Motions follow the paper's synthetic trials (ARCHITECTURE.md §2): hip circumduction
-//! (~3.5 cycles of flexion-extension with ab-adduction), knee flexion-extension (~4 cycles),
-//! ankle toe-tip circumduction (~2.75 cycles of plantar/dorsiflexion with inversion/eversion),
-//! and `all`, which runs the three together. Noise is the continuous model of Chèze et al. 1995
-//! as used by Lu & O'Connor 1999: for every marker and axis `n(t) = A sin(ωt + φ)` with `A`,
-//! `ω`, `φ` drawn once, uniformly from `[0, A_max]`, `[0, ω_max]`, `[0, 2π)`.
+//! ## Motions
+//! Motions follow the paper's synthetic trials (ARCHITECTURE.md §2; Reinbolt's thesis: 50
+//! frames each). With `t = f / frames` the phase of frame `f` and `a` the amplitude factor
+//! (default 1):
+//!
+//! * **hip**: circumduction, ~3.5 cycles: flexion `20° + a·28.6° sin(3.5·2πt)`, adduction
+//!   `a·14.3° cos(3.5·2πt)` (together a cone), internal rotation `a·8.6° sin(1.75·2πt)`;
+//!   knee and ankle at 0.
+//! * **knee**: flexion-extension, 4 cycles: `48.7° + a·43° sin(4·2πt − 1.5)` (5.7°–91.7°),
+//!   hip flexed 34°.
+//! * **ankle**: toe-tip circumduction, ~2.75 cycles: dorsiflexion `−5.7° + a·17.2°
+//!   sin(2.75·2πt)`, inversion `a·14.3° cos(2.75·2πt)`, knee flexed 29°.
+//! * **all**: the three together.
+//! * **gait**: the coordinates of a real trial found by inverse kinematics
+//!   ([`gait_coordinates`]), replayed through any subject model.
+//!
+//! The pelvis sways slightly (tilt ±1.7°, rotation ±2.9°, once over the trial) at 0.95 m.
+//!
+//! ## Noise ([`Noise`], applied by [`synthesize`])
+//! * **none**.
+//! * **skin**: the continuous skin-movement-artifact model of Chèze et al. 1995 as used by Lu &
+//!   O'Connor 1999 and by the paper: for every marker `j` and axis `k`,
+//!   `n_jk(t) = A_jk sin(ω_jk t + φ_jk)` with `A ~ U[0, A_max]` (A_max = 1 cm), `ω ~ U[0,
+//!   ω_max]` (ω_max = 25 rad/s), `φ ~ U[0, 2π)`, drawn once per marker-axis from a seeded
+//!   ChaCha8 stream; `t = f / rate` is the frame's time. The sampled noise of one marker-axis
+//!   has RMS ≈ A/√2, so the expected per-axis RMS over markers is A_max/√6 ≈ 4.1 mm and the
+//!   3-D RMS ≈ 7.1 mm (reported exactly by [`NoiseStats`]).
+//! * **white**: independent Gaussian `N(0, σ²)` on every sample and axis (Box–Muller on the
+//!   same seeded stream), e.g. camera noise of σ = 1 mm.
+//!
+//! Both can be combined ([`Noise::skin_and_white`]).
 
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::Model;
@@ -45,18 +71,20 @@ impl std::str::FromStr for Motion {
     }
 }
 
-/// Coordinates of the motion at phase `t ∈ [0, 1)` over the trial (rad, m), by name.
-fn pose(motion: Motion, t: f64) -> Vec<(&'static str, f64)> {
+/// Coordinates of the motion at phase `t ∈ [0, 1)` over the trial (rad, m), by name. The
+/// joint excursions (not the mean postures) are multiplied by `amplitude`.
+fn pose(motion: Motion, t: f64, amplitude: f64) -> Vec<(&'static str, f64)> {
     let w = std::f64::consts::TAU;
+    let a = amplitude;
     let hip = [
-        ("hip_flexion", 0.35 + 0.5 * (3.5 * w * t).sin()),
-        ("hip_adduction", 0.25 * (3.5 * w * t).cos()),
-        ("hip_rotation", 0.15 * (1.75 * w * t).sin()),
+        ("hip_flexion", 0.35 + a * 0.5 * (3.5 * w * t).sin()),
+        ("hip_adduction", a * 0.25 * (3.5 * w * t).cos()),
+        ("hip_rotation", a * 0.15 * (1.75 * w * t).sin()),
     ];
-    let knee = [("knee_flexion", 0.85 + 0.75 * (4.0 * w * t - 1.5).sin())];
+    let knee = [("knee_flexion", 0.85 + a * 0.75 * (4.0 * w * t - 1.5).sin())];
     let ankle = [
-        ("ankle_dorsiflexion", -0.1 + 0.3 * (2.75 * w * t).sin()),
-        ("subtalar_inversion", 0.25 * (2.75 * w * t).cos()),
+        ("ankle_dorsiflexion", -0.1 + a * 0.3 * (2.75 * w * t).sin()),
+        ("subtalar_inversion", a * 0.25 * (2.75 * w * t).cos()),
     ];
     let mut out = vec![
         ("pelvis_ty", 0.95),
@@ -88,10 +116,21 @@ pub fn coordinates(
     motion: Motion,
     frames: usize,
 ) -> Result<Vec<Vec<f64>>, SynthError> {
+    coordinates_scaled(model, motion, frames, 1.0)
+}
+
+/// [`coordinates`] with the joint excursions multiplied by `amplitude` (1: the ranges listed
+/// in the module docs).
+pub fn coordinates_scaled(
+    model: &Model,
+    motion: Motion,
+    frames: usize,
+    amplitude: f64,
+) -> Result<Vec<Vec<f64>>, SynthError> {
     let mut out = Vec::with_capacity(frames);
     for f in 0..frames {
         let mut q = model.default_coords();
-        for (name, v) in pose(motion, f as f64 / frames as f64) {
+        for (name, v) in pose(motion, f as f64 / frames as f64, amplitude) {
             let id = model
                 .coord_id(name)
                 .ok_or_else(|| SynthError::MissingCoordinate(name.to_string(), "synthetic"))?;
@@ -130,7 +169,87 @@ pub fn markers(
     rate: f64,
     noise: Option<&SkinNoise>,
 ) -> (Trial, f64) {
-    let terms: Vec<(f64, f64, f64)> = match noise {
+    let noise = Noise {
+        skin: noise.copied(),
+        white: None,
+    };
+    let (trial, stats) = synthesize(model, p, coords, rate, &noise);
+    (trial, stats.rms_3d)
+}
+
+/// White (Gaussian, independent) noise: standard deviation per axis (m) and seed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WhiteNoise {
+    pub sigma: f64,
+    pub seed: u64,
+}
+
+/// The noise added to synthetic markers: skin artifact, white noise, both or none.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Noise {
+    pub skin: Option<SkinNoise>,
+    pub white: Option<WhiteNoise>,
+}
+
+impl Noise {
+    pub fn none() -> Noise {
+        Noise::default()
+    }
+    /// The paper's skin-artifact model with its magnitudes (1 cm, 25 rad/s), seeded.
+    pub fn skin(seed: u64) -> Noise {
+        Noise {
+            skin: Some(SkinNoise {
+                seed,
+                ..SkinNoise::default()
+            }),
+            white: None,
+        }
+    }
+    pub fn white(sigma: f64, seed: u64) -> Noise {
+        Noise {
+            skin: None,
+            white: Some(WhiteNoise { sigma, seed }),
+        }
+    }
+    pub fn skin_and_white(skin: SkinNoise, white: WhiteNoise) -> Noise {
+        Noise {
+            skin: Some(skin),
+            white: Some(white),
+        }
+    }
+    pub fn is_none(&self) -> bool {
+        self.skin.is_none() && self.white.is_none()
+    }
+}
+
+/// What was actually injected, over every marker sample of the trial (m).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct NoiseStats {
+    /// RMS of the noise per lab axis (x, y, z).
+    pub rms_axis: [f64; 3],
+    /// RMS of the noise vector's length: `sqrt(Σ_k rms_axis[k]²)`.
+    pub rms_3d: f64,
+    /// Largest absolute noise on one axis.
+    pub max_axis: f64,
+}
+
+/// One standard normal deviate by Box–Muller.
+fn normal(rng: &mut ChaCha8Rng) -> f64 {
+    let u1: f64 = 1.0 - rng.gen::<f64>(); // (0, 1]
+    let u2: f64 = rng.gen();
+    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+}
+
+/// Marker trajectories of `model` with parameters `p` along `coords` (one row per frame) at
+/// `rate` Hz, plus `noise` (see the module docs). Returns the trial and what was injected.
+pub fn synthesize(
+    model: &Model,
+    p: &[f64],
+    coords: &[Vec<f64>],
+    rate: f64,
+    noise: &Noise,
+) -> (Trial, NoiseStats) {
+    let terms: Vec<(f64, f64, f64)> = match &noise.skin {
         Some(n) => {
             let mut rng = ChaCha8Rng::seed_from_u64(n.seed);
             (0..3 * model.n_markers())
@@ -145,28 +264,101 @@ pub fn markers(
         }
         None => Vec::new(),
     };
+    // A separate stream, so adding white noise leaves the skin terms of a seed unchanged.
+    let mut white = noise.white.map(|w| {
+        (
+            w.sigma,
+            ChaCha8Rng::seed_from_u64(w.seed ^ 0x005e_ed0f_face),
+        )
+    });
     let mut kin = KinData::new(model);
     let mut positions = Vec::with_capacity(coords.len() * model.n_markers());
-    let (mut sum, mut count) = (0.0, 0usize);
+    let mut sums = [0.0; 3];
+    let mut max_axis = 0.0f64;
+    let mut count = 0usize;
     for (f, q) in coords.iter().enumerate() {
         forward_kinematics(model, p, q, Want::POSITIONS, &mut kin);
         let t = f as f64 / rate;
         for (j, x) in kin.markers.iter().enumerate() {
-            let mut n = Vector3::zeros();
-            if !terms.is_empty() {
-                for k in 0..3 {
+            let mut n = Vector3::<f64>::zeros();
+            for k in 0..3 {
+                if !terms.is_empty() {
                     let (a, w, phi) = terms[3 * j + k];
-                    n[k] = a * (w * t + phi).sin();
+                    n[k] += a * (w * t + phi).sin();
                 }
+                if let Some((sigma, rng)) = white.as_mut() {
+                    n[k] += *sigma * normal(rng);
+                }
+                sums[k] += n[k] * n[k];
+                max_axis = max_axis.max(n[k].abs());
             }
-            sum += n.norm_squared();
             count += 1;
             positions.push(x + n);
         }
     }
     let labels = model.markers.iter().map(|m| m.name.clone()).collect();
     let trial = Trial::new(labels, rate, 1, positions).expect("synthetic trial is well formed");
-    (trial, (sum / count.max(1) as f64).sqrt())
+    let c = count.max(1) as f64;
+    let rms_axis = sums.map(|s| (s / c).sqrt());
+    let stats = NoiseStats {
+        rms_axis,
+        rms_3d: (sums.iter().sum::<f64>() / c).sqrt(),
+        max_axis,
+    };
+    (trial, stats)
+}
+
+/// The coordinates of a real trial by inverse kinematics with `model` at parameters `p`
+/// (frames that could not be solved are dropped; their indices are returned). This is the
+/// paper's "gait" motion: replaying it through another model or other parameters gives a
+/// synthetic gait trial.
+pub fn gait_coordinates(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+) -> Result<(Vec<Vec<f64>>, Vec<usize>), jointfit::ik::IkError> {
+    let map = jointfit::ik::MarkerMap::by_name(model, trial.labels())?;
+    let fit =
+        jointfit::ik::solve_trial(model, p, trial, &map, &jointfit::ik::IkOptions::default())?;
+    let mut coords = Vec::with_capacity(fit.coords.len());
+    let mut dropped = Vec::new();
+    for (f, (q, frame)) in fit.coords.into_iter().zip(&fit.frames).enumerate() {
+        if frame.solved() {
+            coords.push(q);
+        } else {
+            dropped.push(f);
+        }
+    }
+    Ok((coords, dropped))
+}
+
+/// Parameters `base` with the `free` ones (indices) moved by independent uniform amounts,
+/// up to `mm` millimetres for positions and `deg` degrees for orientations, clamped into the
+/// bounds; seeded. The paper's "perturbed start".
+pub fn perturb(
+    model: &Model,
+    base: &[f64],
+    free: &[usize],
+    mm: f64,
+    deg: f64,
+    seed: u64,
+) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut p = base.to_vec();
+    for &i in free {
+        let par = &model.parameters[i];
+        let span = match par.unit {
+            jointfit::model::Unit::Metre => mm * 1e-3,
+            jointfit::model::Unit::Radian => deg.to_radians(),
+        };
+        let d = if span > 0.0 {
+            rng.gen_range(-span..=span)
+        } else {
+            0.0
+        };
+        p[i] = (p[i] + d).clamp(par.lower, par.upper);
+    }
+    p
 }
 
 /// Parameters moved from nominal by up to `fraction` of each half-range, seeded.

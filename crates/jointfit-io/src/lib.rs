@@ -6,9 +6,11 @@
 //!
 //! - [`c3d`]: C3D files (all three processor formats), checked against ezc3d and the `c3d`
 //!   Python package on every sample file (`tests/c3d_vs_python.rs`).
+//! - [`osim`]: OpenSim 4 model export, checked against OpenSim 4.6 (`tests/it/osim.rs`).
 
 pub mod atomic;
 pub mod c3d;
+pub mod osim;
 pub mod sto;
 pub mod trc;
 

@@ -3,6 +3,7 @@
 //! except in CI, where they fail.
 
 mod oracle;
+mod osim;
 mod sto;
 mod trc_files;
 mod trc_format;

@@ -5,7 +5,9 @@
 //! recomputed for the clamped parameter step, and parameters at a bound whose descent
 //! direction points outward are held for the step.
 
-use super::schur::{active_bounds, assemble, back_substitute, cost_at, solve, Blocks};
+use super::schur::{
+    active_bounds, assemble, back_substitute, cost_at, predicted_decrease, solve, Blocks,
+};
 use super::{Fit, Problem};
 use crate::kinematics::KinData;
 
@@ -27,6 +29,9 @@ impl Default for JointOptions {
     }
 }
 
+/// Relative decrease of the objective below which an accepted step ends the solve.
+const COST_TOLERANCE: f64 = 1e-14;
+
 /// Minimises the objective from scaled parameters `s0` and coordinates `q0` (one per frame).
 pub fn solve_joint(prob: &Problem, s0: &[f64], q0: Vec<Vec<f64>>, opts: &JointOptions) -> Fit {
     let nq = prob.model.n_q();
@@ -39,6 +44,8 @@ pub fn solve_joint(prob: &Problem, s0: &[f64], q0: Vec<Vec<f64>>, opts: &JointOp
     let mut ds = vec![0.0; nf];
     let mut dq = vec![vec![0.0; nq]; frames];
     let mut lambda = 1e-4;
+    // Nielsen's damping update: the growth factor for a rejected step doubles each time.
+    let mut nu = 2.0;
     let mut history = Vec::new();
     let mut evaluations = 0;
     let mut iterations = 0;
@@ -52,6 +59,7 @@ pub fn solve_joint(prob: &Problem, s0: &[f64], q0: Vec<Vec<f64>>, opts: &JointOp
         let fixed = active_bounds(&s, &blocks.gs);
         let mut accepted = false;
         let mut step = 0.0f64;
+        let mut decrease = 0.0;
         while lambda < 1e16 {
             if !solve(&mut blocks, lambda, &fixed, &mut ds, &mut dq) {
                 lambda *= 10.0;
@@ -77,18 +85,31 @@ pub fn solve_joint(prob: &Problem, s0: &[f64], q0: Vec<Vec<f64>>, opts: &JointOp
                     .iter()
                     .chain(dq.iter().flatten())
                     .fold(0.0f64, |m, v| m.max(v.abs()));
+                // Gain ratio ρ = actual / predicted decrease: near 1 the quadratic model is
+                // good and the damping shrinks by up to 3; a poor model keeps it.
+                let predicted = predicted_decrease(&blocks, &ds_eff, &dq);
+                let rho = if predicted > 0.0 {
+                    (cost - c) / predicted
+                } else {
+                    0.0
+                };
+                lambda = (lambda * (1.0 - (2.0 * rho - 1.0).powi(3)).max(1.0 / 3.0)).max(1e-12);
+                nu = 2.0;
+                decrease = cost - c;
                 s = s_try;
                 qs = q_try;
                 p = p_try;
                 cost = c;
-                lambda = (lambda / 10.0).max(1e-12);
                 accepted = true;
                 break;
             }
-            lambda *= 10.0;
+            lambda *= nu;
+            nu *= 2.0;
         }
         history.push(cost);
-        if !accepted || step < opts.tolerance {
+        // Converged on a negligible step, or when the objective no longer moves at working
+        // precision (the last digits of a linearly converging tail change nothing).
+        if !accepted || step < opts.tolerance || decrease <= COST_TOLERANCE * cost {
             converged = true;
             break;
         }

@@ -113,7 +113,12 @@ impl<'m> Problem<'m> {
         if free.is_empty() {
             return Err(CalibError::NothingFree);
         }
-        let ik = IkOptions::default();
+        // The outer level differentiates through the inner solutions (envelope theorem), so
+        // they are solved tighter than plain IK needs.
+        let ik = IkOptions {
+            step_tolerance: 1e-11,
+            ..IkOptions::default()
+        };
         let mut frames = Vec::new();
         let mut origin = Vec::new();
         let mut skipped = Vec::new();

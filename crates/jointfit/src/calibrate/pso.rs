@@ -71,6 +71,18 @@ pub fn solve_pso(
     opts: &PsoOptions,
     mut observe: impl FnMut(usize, f64),
 ) -> Fit {
+    // A particle's cost only has to rank it against the others: coordinates to 1e-8 rad/m
+    // leave the objective exact to ~1e-16 relative (the error in e_inner is quadratic in
+    // the coordinate error at the inner minimum), at about half the inner iterations of the
+    // tight tolerance that gradient-based outer levels need.
+    let fast = Problem {
+        ik: crate::ik::IkOptions {
+            step_tolerance: prob.ik.step_tolerance.max(1e-8),
+            ..prob.ik
+        },
+        ..prob.clone()
+    };
+    let prob = &fast;
     let nf = prob.n_free();
     let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
     let mut swarm: Vec<Particle> = (0..opts.particles.max(2))

@@ -59,6 +59,11 @@ impl Blocks {
 }
 
 /// Assembles the normal equations at `(p, qs)`.
+///
+/// Per frame the weighted Jacobian `√W [J_q | J_s]` is gathered column by column over the
+/// present markers' rows; each column is nonzero only on the rows of the markers its
+/// coordinate or parameter moves, so every Gram entry is a dot product over the overlap of
+/// two columns' nonzero row ranges.
 pub(crate) fn assemble(
     prob: &Problem,
     p: &[f64],
@@ -74,15 +79,15 @@ pub(crate) fn assemble(
     b.v.fill(0.0);
     b.gs.fill(0.0);
     b.cost = 0.0;
+    // Rows: (model row 3j + axis, √w_j) of the present markers.
+    let mut rows: Vec<(usize, f64)> = Vec::with_capacity(nrows);
+    let mut jw = vec![0.0; n * nrows];
+    let mut rw = vec![0.0; nrows];
+    let mut range = vec![(0usize, 0usize); n];
     let mut gram = vec![0.0; n * n];
-    let mut rhs = vec![0.0; n];
-    let mut row = vec![0.0; n];
     for (f, targets) in prob.frames.iter().enumerate() {
         forward_kinematics(model, p, &qs[f], Want::BOTH, kin);
-        gram.fill(0.0);
-        rhs.fill(0.0);
-        let jq = kin.jq().as_slice();
-        let jp = kin.jp().as_slice();
+        rows.clear();
         for (j, m) in model.markers.iter().enumerate() {
             let t: Vector3<f64> = targets[j];
             if t.x.is_nan() || m.weight <= 0.0 {
@@ -90,57 +95,95 @@ pub(crate) fn assemble(
             }
             let r = t - kin.markers[j];
             b.cost += m.weight * r.norm_squared();
+            let sw = m.weight.sqrt();
             for axis in 0..3 {
-                let ri = 3 * j + axis;
-                for c in 0..nq {
-                    row[c] = jq[c * nrows + ri];
-                }
-                for (k, &pi) in prob.free.iter().enumerate() {
-                    row[nq + k] = jp[pi * nrows + ri] * half[k];
-                }
-                let w = m.weight;
-                for a in 0..n {
-                    let wa = w * row[a];
-                    if wa == 0.0 {
-                        continue;
-                    }
-                    rhs[a] += wa * r[axis];
-                    for c in a..n {
-                        gram[a * n + c] += wa * row[c];
-                    }
-                }
+                rw[rows.len()] = sw * r[axis];
+                rows.push((3 * j + axis, sw));
             }
         }
-        // Split the symmetric Gram matrix (upper triangle stored at [a*n + c], a ≤ c).
-        let sym = |a: usize, c: usize| {
-            if a <= c {
-                gram[a * n + c]
+        let nr = rows.len();
+        let jq = kin.jq().as_slice();
+        let jp = kin.jp().as_slice();
+        for a in 0..n {
+            let (src, scale) = if a < nq {
+                (&jq[a * nrows..(a + 1) * nrows], 1.0)
             } else {
-                gram[c * n + a]
+                let k = a - nq;
+                let pi = prob.free[k];
+                (&jp[pi * nrows..(pi + 1) * nrows], half[k])
+            };
+            let col = &mut jw[a * nr..(a + 1) * nr];
+            for (x, &(row, sw)) in col.iter_mut().zip(&rows) {
+                *x = sw * scale * src[row];
             }
-        };
+            let lo = col.iter().position(|&x| x != 0.0).unwrap_or(nr);
+            let hi = col.iter().rposition(|&x| x != 0.0).map_or(lo, |i| i + 1);
+            range[a] = (lo, hi.max(lo));
+        }
+        let rw = &rw[..nr];
+        for a in 0..n {
+            let (lo_a, hi_a) = range[a];
+            let col_a = &jw[a * nr..(a + 1) * nr];
+            let g = dot(&col_a[lo_a..hi_a], &rw[lo_a..hi_a]);
+            if a < nq {
+                b.g[f * nq + a] = g;
+            } else {
+                b.gs[a - nq] += g;
+                b.gs_frame[f * nf + a - nq] = g;
+            }
+            for c in 0..=a {
+                let lo = lo_a.max(range[c].0);
+                let hi = hi_a.min(range[c].1);
+                let value = if lo < hi {
+                    dot(&col_a[lo..hi], &jw[c * nr + lo..c * nr + hi])
+                } else {
+                    0.0
+                };
+                gram[c * n + a] = value;
+                gram[a * n + c] = value;
+            }
+        }
+        // Split the symmetric Gram matrix into U_i, W_i and V.
         let u = &mut b.u[f * nq * nq..(f + 1) * nq * nq];
-        for a in 0..nq {
-            for c in 0..nq {
-                u[c * nq + a] = sym(a, c);
-            }
+        for c in 0..nq {
+            u[c * nq..(c + 1) * nq].copy_from_slice(&gram[c * n..c * n + nq]);
         }
         let w = &mut b.w[f * nq * nf..(f + 1) * nq * nf];
         for k in 0..nf {
-            for a in 0..nq {
-                w[k * nq + a] = sym(a, nq + k);
-            }
+            w[k * nq..(k + 1) * nq].copy_from_slice(&gram[(nq + k) * n..(nq + k) * n + nq]);
         }
-        b.g[f * nq..(f + 1) * nq].copy_from_slice(&rhs[..nq]);
-        for k in 0..nf {
-            b.gs[k] += rhs[nq + k];
-            b.gs_frame[f * nf + k] = rhs[nq + k];
-            for l in 0..nf {
-                b.v_frame[f * nf * nf + l * nf + k] = sym(nq + k, nq + l);
-                b.v[l * nf + k] += sym(nq + k, nq + l);
+        for l in 0..nf {
+            let src = &gram[(nq + l) * n + nq..(nq + l + 1) * n];
+            b.v_frame[(f * nf + l) * nf..(f * nf + l + 1) * nf].copy_from_slice(src);
+            for (v, x) in b.v[l * nf..(l + 1) * nf].iter_mut().zip(src) {
+                *v += x;
             }
         }
     }
+}
+
+/// The decrease of the objective that the linearized model predicts for the step
+/// `(δq, δs)`: `2 gᵀδ − δᵀ H δ` with `H = JᵀWJ` in block form (the objective is
+/// `Σ w‖r‖²` and `g = JᵀW r`). The ratio of actual to predicted decrease drives the damping.
+pub(crate) fn predicted_decrease(b: &Blocks, ds: &[f64], dq: &[Vec<f64>]) -> f64 {
+    let (nq, nf) = (b.nq, b.nf);
+    let mut lin = dot(&b.gs, ds);
+    let mut quad = 0.0;
+    for k in 0..nf {
+        quad += ds[k] * dot(&b.v[k * nf..(k + 1) * nf], ds);
+    }
+    for (f, d) in dq.iter().enumerate() {
+        lin += dot(&b.g[f * nq..(f + 1) * nq], d);
+        let u = &b.u[f * nq * nq..(f + 1) * nq * nq];
+        let w = &b.w[f * nq * nf..(f + 1) * nq * nf];
+        for a in 0..nq {
+            quad += d[a] * dot(&u[a * nq..(a + 1) * nq], d);
+        }
+        for k in 0..nf {
+            quad += 2.0 * ds[k] * dot(&w[k * nq..(k + 1) * nq], d);
+        }
+    }
+    2.0 * lin - quad
 }
 
 /// Damped step: fills `ds` (n_f) and `dq` (per frame n_q). `fixed[k]` pins parameter k
@@ -179,11 +222,16 @@ pub(crate) fn solve(
         let yv = &mut b.y_vec[f * nq..(f + 1) * nq];
         yv.copy_from_slice(&b.g[f * nq..(f + 1) * nq]);
         cholesky_solve(&l, nq, yv);
+        // Σ W_iᵀ U_i*⁻¹ W_i is symmetric: compute one triangle, mirror it.
         for k in 0..nf {
             let wk = &w[k * nq..(k + 1) * nq];
             rhs[k] -= dot(wk, yv);
-            for c in 0..nf {
-                s[c * nf + k] -= dot(wk, &ym[c * nq..(c + 1) * nq]);
+            for c in 0..=k {
+                let value = dot(wk, &ym[c * nq..(c + 1) * nq]);
+                s[c * nf + k] -= value;
+                if c != k {
+                    s[k * nf + c] -= value;
+                }
             }
         }
     }
@@ -225,8 +273,24 @@ pub(crate) fn back_substitute(b: &Blocks, ds: &[f64], dq: &mut [Vec<f64>]) {
     }
 }
 
+/// `Σ a_i b_i` with four independent accumulators (vectorizes).
 fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut acc = [0.0; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in ca.zip(cb) {
+        for i in 0..4 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 /// Parameters at a bound whose descent direction points outward are held for the step.

@@ -145,6 +145,12 @@ pub struct KinData {
 }
 
 impl KinData {
+    /// World axis `ω_k` and origin `o_k` of step `k` at the last evaluation (module docs);
+    /// valid for coordinate steps when the evaluation wanted axes.
+    pub(crate) fn step_frame(&self, k: usize) -> (Vector3<f64>, Vector3<f64>) {
+        (self.step_axis[k], self.step_origin[k])
+    }
+
     pub fn new(model: &Model) -> Self {
         let nm = model.n_markers();
         let ns = model.steps.len();
@@ -203,18 +209,33 @@ impl KinData {
 pub struct Want {
     pub dq: bool,
     pub dp: bool,
+    /// World axes and origins of the coordinate steps (implied by `dq`), without the
+    /// Jacobian matrix: what inverse kinematics needs to form its normal equations from
+    /// segment moments.
+    pub axes: bool,
 }
 
 impl Want {
     pub const POSITIONS: Want = Want {
         dq: false,
         dp: false,
+        axes: false,
     };
     pub const DQ: Want = Want {
         dq: true,
         dp: false,
+        axes: true,
     };
-    pub const BOTH: Want = Want { dq: true, dp: true };
+    pub const BOTH: Want = Want {
+        dq: true,
+        dp: true,
+        axes: true,
+    };
+    pub const AXES: Want = Want {
+        dq: false,
+        dp: false,
+        axes: true,
+    };
 }
 
 #[inline]
@@ -262,7 +283,7 @@ pub fn forward_kinematics(model: &Model, p: &[f64], q: &[f64], want: Want, data:
                 }
                 &Item::Coord(k) => {
                     let step = &model.steps[k];
-                    if want.dq || want.dp {
+                    if want.dq || want.dp || want.axes {
                         data.step_axis[k] = pose.axis_of(&step.motion);
                         data.step_origin[k] = pose.trans;
                     }

@@ -1,0 +1,261 @@
+//! `jointfit bench`: the speed figures of the core, printed (wall-clock, this machine).
+//!
+//! Forward kinematics with its Jacobians, inverse kinematics on a real gait trial (whole
+//! trial from scratch, and warm-started frames), IK throughput on several cores, and the
+//! 27-parameter calibration solvers. The real trial is OpenCap's `opencap_expert1/walking1`
+//! with the subject's landmark model (`personalize` on `static1`, preset `opencap`, right
+//! leg); without the shared data a synthetic gait of the built-in leg stands in, and the
+//! output says so. Timings are the median of repeated runs.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use jointfit::calibrate::joint::{solve_joint, JointOptions};
+use jointfit::calibrate::pso::{solve_pso, PsoOptions};
+use jointfit::calibrate::varpro::{solve_varpro, VarProOptions};
+use jointfit::calibrate::{params_for_groups, Problem};
+use jointfit::ik::{solve_frame, solve_trial, IkOptions, IkWorkspace, MarkerMap};
+use jointfit::kinematics::{forward_kinematics, KinData, Want};
+use jointfit::landmarks::{personalize, MarkerSet, PersonalizeOptions};
+use jointfit::model::lower_limb::{lower_limb, Side};
+use jointfit::model::Model;
+use jointfit::trial::Trial;
+use jointfit_experiments::synth;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::common::{load_trial, Up};
+
+#[derive(Args)]
+pub struct BenchArgs {
+    /// Shared data directory (default: $JOINTFIT_DATA, else ../shared/data).
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Also time the particle swarm (hip, 50 frames; several seconds).
+    #[arg(long)]
+    pso: bool,
+    /// Print the figures as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Serialize, Default)]
+struct Figures {
+    source: String,
+    markers: usize,
+    frames: usize,
+    fk_us: f64,
+    fk_dq_us: f64,
+    fk_dq_dp_us: f64,
+    ik_trial_us_per_frame: f64,
+    ik_warm_us_per_frame: f64,
+    ik_iterations_per_frame: f64,
+    ik_warm_frames_per_second: f64,
+    threads: usize,
+    ik_parallel_frames_per_second: f64,
+    ik_parallel_speedup: f64,
+    joint_27_ms: f64,
+    gradient_27_ms: f64,
+    pso_hip_50_ms: Option<f64>,
+}
+
+/// Median wall time (s) of `runs` calls of `f`.
+fn median_time(runs: usize, mut f: impl FnMut()) -> f64 {
+    let mut times: Vec<f64> = (0..runs)
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64()
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times[times.len() / 2]
+}
+
+/// The subject model and gait trial to time, and where they came from.
+fn workload(data: Option<PathBuf>) -> Result<(Model, Trial, String)> {
+    let dir = data
+        .or_else(|| std::env::var_os("JOINTFIT_DATA").map(PathBuf::from))
+        .unwrap_or_else(|| PathBuf::from("../shared/data"))
+        .join("opencap_expert1");
+    if dir.join("walking1.trc").exists() && dir.join("static1.trc").exists() {
+        let stat = load_trial(&dir.join("static1.trc"), Up::Y, None)?;
+        let set = MarkerSet::preset("opencap")?;
+        let subject = personalize(&stat, &set, Side::Right, &PersonalizeOptions::default())
+            .context("personalizing opencap_expert1/static1.trc")?;
+        let model = Model::compile(&subject.spec)?;
+        let trial = load_trial(&dir.join("walking1.trc"), Up::Y, None)?;
+        return Ok((
+            model,
+            trial,
+            format!(
+                "{} with its landmark model",
+                dir.join("walking1.trc").display()
+            ),
+        ));
+    }
+    let model = Model::compile(&lower_limb(Side::Right))?;
+    let p = model.nominal_params();
+    let coords = synth::coordinates(&model, synth::Motion::All, 150)?;
+    let (trial, _) = synth::markers(
+        &model,
+        &p,
+        &coords,
+        100.0,
+        Some(&synth::SkinNoise::default()),
+    );
+    Ok((
+        model,
+        trial,
+        format!(
+            "synthetic 150-frame motion of lower-limb-right with skin noise \
+             (no shared data at {})",
+            dir.display()
+        ),
+    ))
+}
+
+pub fn run(args: BenchArgs) -> Result<()> {
+    let (model, trial, source) = workload(args.data)?;
+    let p = model.nominal_params();
+    let map = MarkerMap::by_name(&model, trial.labels())?;
+    let opts = IkOptions::default();
+    let mut fig = Figures {
+        source,
+        markers: model.n_markers(),
+        frames: trial.n_frames(),
+        ..Figures::default()
+    };
+
+    // Forward kinematics at the solved poses.
+    let reference = solve_trial(&model, &p, &trial, &map, &opts)?;
+    let poses: Vec<&Vec<f64>> = reference
+        .coords
+        .iter()
+        .filter(|q| q[0].is_finite())
+        .collect();
+    let mut kin = KinData::new(&model);
+    let mut fk = |want: Want| {
+        let reps = 20_000;
+        median_time(7, || {
+            for i in 0..reps {
+                forward_kinematics(&model, &p, poses[i % poses.len()], want, &mut kin);
+            }
+        }) / reps as f64
+            * 1e6
+    };
+    fig.fk_us = fk(Want::POSITIONS);
+    fig.fk_dq_us = fk(Want::DQ);
+    fig.fk_dq_dp_us = fk(Want::BOTH);
+
+    // IK: the whole trial from scratch, and warm-started frames alone.
+    let n = trial.n_frames() as f64;
+    fig.ik_trial_us_per_frame = median_time(21, || {
+        solve_trial(&model, &p, &trial, &map, &opts).expect("validated above");
+    }) / n
+        * 1e6;
+    let first = reference
+        .coords
+        .iter()
+        .position(|q| q[0].is_finite())
+        .context("no frame of the trial could be solved")?;
+    let mut ws = IkWorkspace::new(&model);
+    let mut targets = Vec::new();
+    let warm_frames = (first + 1..trial.n_frames()).count().max(1) as f64;
+    let mut iterations = 0usize;
+    let warm = median_time(21, || {
+        iterations = 0;
+        // As solve_trial does: start from the linear extrapolation of the last two.
+        let mut before = reference.coords[first].clone();
+        let mut q = before.clone();
+        for f in first + 1..trial.n_frames() {
+            map.targets(&trial, f, &mut targets);
+            let mut next: Vec<f64> = if f > first + 1 {
+                q.iter().zip(&before).map(|(a, b)| 2.0 * a - b).collect()
+            } else {
+                q.clone()
+            };
+            iterations += solve_frame(&model, &p, &targets, &mut next, &opts, &mut ws).iterations;
+            before = std::mem::replace(&mut q, next);
+        }
+    });
+    fig.ik_warm_us_per_frame = warm / warm_frames * 1e6;
+    fig.ik_warm_frames_per_second = warm_frames / warm;
+    fig.ik_iterations_per_frame = iterations as f64 / warm_frames;
+
+    // Throughput on every core: independent copies of the trial (a batch of trials).
+    fig.threads = rayon::current_num_threads();
+    let copies = 8 * fig.threads;
+    let batch = |threads: usize| -> f64 {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("thread pool");
+        let t = median_time(5, || {
+            pool.install(|| {
+                (0..copies).into_par_iter().for_each(|_| {
+                    solve_trial(&model, &p, &trial, &map, &opts).expect("validated above");
+                })
+            })
+        });
+        copies as f64 * n / t
+    };
+    let one = batch(1);
+    fig.ik_parallel_frames_per_second = batch(fig.threads);
+    fig.ik_parallel_speedup = fig.ik_parallel_frames_per_second / one;
+
+    // Calibration of all 27 parameters from the nominal model.
+    let all = params_for_groups(&model, &["all"])?;
+    let prob = Problem::new(&model, p.clone(), &all, &[&trial])?;
+    let s0 = prob.to_scaled(&p);
+    let q0 = prob.initial_coords(&p);
+    fig.joint_27_ms = median_time(5, || {
+        solve_joint(&prob, &s0, q0.clone(), &JointOptions::default());
+    }) * 1e3;
+    fig.gradient_27_ms = median_time(3, || {
+        solve_varpro(&prob, &s0, q0.clone(), &VarProOptions::default());
+    }) * 1e3;
+    if args.pso {
+        let hip = params_for_groups(&model, &["hip"])?;
+        let short = trial.slice_frames(0, 50.min(trial.n_frames()));
+        let hip_prob = Problem::new(&model, p.clone(), &hip, &[&short])?;
+        let hq0 = hip_prob.initial_coords(&p);
+        fig.pso_hip_50_ms = Some(
+            median_time(1, || {
+                solve_pso(&hip_prob, &hq0, &PsoOptions::default(), |_, _| {});
+            }) * 1e3,
+        );
+    }
+
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&fig)?);
+        return Ok(());
+    }
+    println!(
+        "workload: {} ({} markers, {} frames)",
+        fig.source, fig.markers, fig.frames
+    );
+    println!("forward kinematics          {:8.3} µs", fig.fk_us);
+    println!("  + ∂x/∂q                   {:8.3} µs", fig.fk_dq_us);
+    println!("  + ∂x/∂q + ∂x/∂p           {:8.3} µs", fig.fk_dq_dp_us);
+    println!(
+        "IK, whole trial (seeded)    {:8.2} µs/frame",
+        fig.ik_trial_us_per_frame
+    );
+    println!(
+        "IK, warm-started frame      {:8.2} µs/frame  ({:.0} frames/s, {:.2} iterations/frame)",
+        fig.ik_warm_us_per_frame, fig.ik_warm_frames_per_second, fig.ik_iterations_per_frame
+    );
+    println!(
+        "IK, batch on {} threads      {:8.0} frames/s  (×{:.2} of one thread)",
+        fig.threads, fig.ik_parallel_frames_per_second, fig.ik_parallel_speedup
+    );
+    println!("calibrate 27, joint         {:8.1} ms", fig.joint_27_ms);
+    println!("calibrate 27, gradient      {:8.1} ms", fig.gradient_27_ms);
+    if let Some(ms) = fig.pso_hip_50_ms {
+        println!("calibrate hip, PSO, 50 fr.  {:8.1} ms", ms);
+    }
+    Ok(())
+}

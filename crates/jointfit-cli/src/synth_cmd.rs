@@ -1,0 +1,261 @@
+//! `jointfit synth <SUBJECT.toml|builtin> --motion M --noise N --seed S -o OUT.trc --truth T.toml`:
+//! synthetic markers from a subject model along a motion, with the true model beside them.
+//!
+//! The true parameters are the subject's nominal values, or those moved by up to
+//! `--perturb-mm` / `--perturb-deg` per parameter (seeded) when asked; the truth file is the
+//! subject model with the true parameters as its nominal values, so `jointfit calibrate
+//! SUBJECT OUT.trc` should recover the truth file's nominal values. Motions and noise are
+//! documented in `jointfit_experiments::synth`.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, ValueEnum};
+use jointfit_experiments::synth::{
+    coordinates_scaled, gait_coordinates, perturb, synthesize, Motion, Noise, SkinNoise, WhiteNoise,
+};
+use jointfit_io::trc::{write_trc, TrcUnits, TrcWriteOptions};
+
+use crate::common::{load_trial, Up};
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum NoiseKind {
+    None,
+    /// Skin-movement artifact A·sin(ωt+φ) per marker-axis (Chèze et al. 1995).
+    Skin,
+    /// Independent Gaussian noise per sample and axis.
+    White,
+    /// Skin artifact plus white noise.
+    SkinWhite,
+}
+
+#[derive(Args)]
+pub struct SynthArgs {
+    /// Subject model (TOML file or built-in name).
+    pub model: String,
+    /// hip, knee, ankle, all, or gait:<TRIAL> (the coordinates of a real trial by IK with
+    /// the subject model at its nominal parameters).
+    #[arg(long, default_value = "all")]
+    pub motion: String,
+    #[arg(long, value_enum, default_value = "none")]
+    pub noise: NoiseKind,
+    /// Seed of the noise and of the perturbation.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Frames of a synthetic motion (not gait).
+    #[arg(long, default_value_t = 50)]
+    pub frames: usize,
+    /// Sampling rate of a synthetic motion (Hz); gait keeps its trial's rate.
+    #[arg(long, default_value_t = 10.0)]
+    pub rate: f64,
+    /// Multiplies the joint excursions of a synthetic motion.
+    #[arg(long, default_value_t = 1.0)]
+    pub amplitude: f64,
+    /// Largest skin-artifact amplitude per marker-axis (mm).
+    #[arg(long, default_value_t = 10.0)]
+    pub skin_mm: f64,
+    /// Largest skin-artifact angular frequency (rad/s).
+    #[arg(long, default_value_t = 25.0)]
+    pub skin_omega: f64,
+    /// Standard deviation of white noise per axis (mm).
+    #[arg(long, default_value_t = 1.0)]
+    pub white_mm: f64,
+    /// True positions = nominal moved by up to this many mm (uniform, seeded).
+    #[arg(long, default_value_t = 0.0)]
+    pub perturb_mm: f64,
+    /// True orientations = nominal moved by up to this many degrees (uniform, seeded).
+    #[arg(long, default_value_t = 0.0)]
+    pub perturb_deg: f64,
+    /// Vertical axis of the gait trial's file.
+    #[arg(long, value_enum, default_value = "y")]
+    pub up: Up,
+    /// Low-pass cutoff (Hz) applied to the gait trial before IK.
+    #[arg(long)]
+    pub filter: Option<f64>,
+    /// Output markers (TRC, mm, written atomically).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Output true model (TOML, written atomically).
+    #[arg(long)]
+    pub truth: PathBuf,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(serde::Serialize)]
+struct Summary {
+    model: String,
+    motion: String,
+    frames: usize,
+    rate_hz: f64,
+    markers: usize,
+    noise: String,
+    seed: u64,
+    noise_rms_axis_mm: [f64; 3],
+    noise_rms_3d_mm: f64,
+    noise_max_axis_mm: f64,
+    perturb_mm: f64,
+    perturb_deg: f64,
+    dropped_gait_frames: Vec<usize>,
+    output: String,
+    truth: String,
+}
+
+pub fn run(args: SynthArgs) -> Result<()> {
+    let spec = jointfit_io::model_file::load_spec(&args.model)?;
+    let model = jointfit_io::model_file::load_model(&args.model)?;
+    let check = |ok: bool, what: &str, v: f64| -> Result<()> {
+        if ok {
+            Ok(())
+        } else {
+            bail!("{what} must be finite and positive (got {v})")
+        }
+    };
+    check(
+        args.rate.is_finite() && args.rate > 0.0,
+        "--rate",
+        args.rate,
+    )?;
+    check(
+        args.amplitude.is_finite() && args.amplitude >= 0.0,
+        "--amplitude",
+        args.amplitude,
+    )?;
+    for (w, v) in [
+        ("--skin-mm", args.skin_mm),
+        ("--skin-omega", args.skin_omega),
+        ("--white-mm", args.white_mm),
+        ("--perturb-mm", args.perturb_mm),
+        ("--perturb-deg", args.perturb_deg),
+    ] {
+        check(v.is_finite() && v >= 0.0, w, v)?;
+    }
+    if args.frames == 0 {
+        bail!("--frames must be at least 1");
+    }
+    let all: Vec<usize> = (0..model.n_p()).collect();
+    let truth = if args.perturb_mm > 0.0 || args.perturb_deg > 0.0 {
+        perturb(
+            &model,
+            &model.nominal_params(),
+            &all,
+            args.perturb_mm,
+            args.perturb_deg,
+            args.seed,
+        )
+    } else {
+        model.nominal_params()
+    };
+    let (coords, rate, dropped) = match args.motion.strip_prefix("gait:") {
+        Some(path) => {
+            let path = PathBuf::from(path);
+            let trial = load_trial(&path, args.up, args.filter)?;
+            let (coords, dropped) = gait_coordinates(&model, &model.nominal_params(), &trial)
+                .with_context(|| format!("{}: inverse kinematics", path.display()))?;
+            if coords.is_empty() {
+                bail!(
+                    "{}: no frame could be solved by inverse kinematics",
+                    path.display()
+                );
+            }
+            (coords, trial.rate(), dropped)
+        }
+        None => {
+            let motion: Motion = args
+                .motion
+                .parse()
+                .map_err(|e| anyhow::anyhow!("--motion: {e}, or gait:<TRIAL>"))?;
+            let coords = coordinates_scaled(&model, motion, args.frames, args.amplitude)
+                .with_context(|| format!("{}: motion {}", args.model, args.motion))?;
+            (coords, args.rate, Vec::new())
+        }
+    };
+    let skin = SkinNoise {
+        max_amplitude: args.skin_mm * 1e-3,
+        max_omega: args.skin_omega,
+        seed: args.seed,
+    };
+    let white = WhiteNoise {
+        sigma: args.white_mm * 1e-3,
+        seed: args.seed,
+    };
+    let noise = match args.noise {
+        NoiseKind::None => Noise::none(),
+        NoiseKind::Skin => Noise {
+            skin: Some(skin),
+            white: None,
+        },
+        NoiseKind::White => Noise {
+            skin: None,
+            white: Some(white),
+        },
+        NoiseKind::SkinWhite => Noise::skin_and_white(skin, white),
+    };
+    let (trial, stats) = synthesize(&model, &truth, &coords, rate, &noise);
+    let opts = TrcWriteOptions {
+        units: TrcUnits::Millimetres,
+        // 1e-9 mm: noiseless data stay exact enough to recover parameters to ~1e-9.
+        decimals: 9,
+    };
+    write_trc(&args.output, &trial, &opts)?;
+    let mut true_spec = model.spec_with_nominal(&truth);
+    true_spec.name = format!("{} (synthetic truth)", spec.name);
+    true_spec.description = format!(
+        "true parameters of {} (seed {}, perturbed by up to {} mm / {} deg)",
+        args.output.display(),
+        args.seed,
+        args.perturb_mm,
+        args.perturb_deg
+    );
+    jointfit_io::model_file::save_spec(&args.truth, &true_spec)
+        .with_context(|| format!("{}: cannot write", args.truth.display()))?;
+    let summary = Summary {
+        model: args.model.clone(),
+        motion: args.motion.clone(),
+        frames: coords.len(),
+        rate_hz: rate,
+        markers: model.n_markers(),
+        noise: format!("{:?}", args.noise).to_lowercase(),
+        seed: args.seed,
+        noise_rms_axis_mm: stats.rms_axis.map(|v| v * 1e3),
+        noise_rms_3d_mm: stats.rms_3d * 1e3,
+        noise_max_axis_mm: stats.max_axis * 1e3,
+        perturb_mm: args.perturb_mm,
+        perturb_deg: args.perturb_deg,
+        dropped_gait_frames: dropped,
+        output: args.output.display().to_string(),
+        truth: args.truth.display().to_string(),
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        println!(
+            "synthetic {} motion: {} frames at {} Hz, {} markers of {}",
+            summary.motion, summary.frames, summary.rate_hz, summary.markers, summary.model
+        );
+        if !summary.dropped_gait_frames.is_empty() {
+            println!(
+                "dropped {} gait frames that IK could not solve",
+                summary.dropped_gait_frames.len()
+            );
+        }
+        let a = summary.noise_rms_axis_mm;
+        println!(
+            "noise {} (seed {}): RMS x {:.3}, y {:.3}, z {:.3} mm; 3-D RMS {:.3} mm; max {:.3} mm",
+            summary.noise,
+            args.seed,
+            a[0],
+            a[1],
+            a[2],
+            summary.noise_rms_3d_mm,
+            summary.noise_max_axis_mm
+        );
+        println!(
+            "true parameters: nominal moved by up to {} mm / {} deg",
+            args.perturb_mm, args.perturb_deg
+        );
+        println!("wrote {} and {}", summary.output, summary.truth);
+    }
+    Ok(())
+}

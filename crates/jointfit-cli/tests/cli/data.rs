@@ -1,0 +1,97 @@
+//! `jointfit inspect` and `jointfit convert` on real files.
+
+use jointfit::testing::data_file;
+use jointfit::trial::{up_axis_rotation, UpAxis};
+use jointfit_io::trial_file::read_trial;
+
+use super::jointfit;
+
+fn temp(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("jointfit-data-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+/// `inspect --json` reports what the readers see, and counts gaps like an independent scan.
+#[test]
+fn inspect_reports_rate_frames_and_gaps() {
+    let Some(path) = data_file("opencap_expert1/walking1.trc") else {
+        return;
+    };
+    let (ok, out, err) = jointfit(&["inspect", path.to_str().unwrap(), "--json"]);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let trial = read_trial(&path).unwrap();
+    assert_eq!(v["format"], "TRC");
+    assert_eq!(v["frames"].as_u64().unwrap() as usize, trial.n_frames());
+    assert_eq!(v["rate_hz"].as_f64().unwrap(), trial.rate());
+    let markers = v["markers"].as_array().unwrap();
+    assert_eq!(markers.len(), trial.n_markers());
+    for (m, entry) in markers.iter().enumerate() {
+        assert_eq!(entry["label"], trial.labels()[m].as_str());
+        let missing = (0..trial.n_frames())
+            .filter(|&f| trial.frame(f)[m].x.is_nan())
+            .count();
+        let pct = entry["missing_percent"].as_f64().unwrap();
+        assert!((pct - 100.0 * missing as f64 / trial.n_frames() as f64).abs() < 1e-9);
+    }
+}
+
+/// C3D (Z-up) → TRC (Y-up): every sample is the rotated input, to the written precision,
+/// and gaps stay gaps.
+#[test]
+fn convert_c3d_to_y_up_trc() {
+    let Some(path) = data_file("biobuddy_functional_vicon/Test_func_rknee.c3d") else {
+        return;
+    };
+    let out = temp("rknee.trc");
+    let (ok, _, err) = jointfit(&[
+        "convert",
+        path.to_str().unwrap(),
+        out.to_str().unwrap(),
+        "--up",
+        "z",
+        "--decimals",
+        "6",
+    ]);
+    assert!(ok, "{err}");
+    let input = read_trial(&path).unwrap();
+    let output = read_trial(&out).unwrap();
+    assert_eq!(input.labels(), output.labels());
+    assert_eq!(input.n_frames(), output.n_frames());
+    let r = up_axis_rotation(UpAxis::Z);
+    for f in 0..input.n_frames() {
+        for m in 0..input.n_markers() {
+            match (input.get(f, m), output.get(f, m)) {
+                (Some(a), Some(b)) => assert!((r * a - b).amax() <= 0.6e-9, "frame {f} marker {m}"),
+                (None, None) => {}
+                other => panic!("frame {f} marker {m}: gap mismatch {other:?}"),
+            }
+        }
+    }
+}
+
+/// Bad input: a non-zero exit and a one-line error naming the file or the marker.
+#[test]
+fn convert_errors_name_the_problem() {
+    let (ok, _, err) = jointfit(&["convert", "/nonexistent/walk.trc", "/tmp/x.trc"]);
+    assert!(!ok);
+    assert!(err.contains("/nonexistent/walk.trc"), "{err}");
+    let (ok, _, err) = jointfit(&["inspect", "notes.txt"]);
+    assert!(!ok);
+    assert!(err.contains("unknown motion file type"), "{err}");
+    let Some(path) = data_file("opencap_expert1/walking1.trc") else {
+        return;
+    };
+    let out = temp("never.trc");
+    let (ok, _, err) = jointfit(&[
+        "convert",
+        path.to_str().unwrap(),
+        out.to_str().unwrap(),
+        "--markers",
+        "r.ASIS,NoSuchMarker",
+    ]);
+    assert!(!ok);
+    assert!(err.contains("NoSuchMarker"), "{err}");
+    assert!(!out.exists());
+}

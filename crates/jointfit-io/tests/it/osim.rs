@@ -1,0 +1,641 @@
+//! The `.osim` export ([`jointfit_io::osim`]): the XML structure (no Python needed), the
+//! errors, and OpenSim 4.6 itself as the oracle of the kinematics (`scripts/osim_check.py`):
+//! marker positions in ground for random coordinates and parameters must equal jointfit's
+//! forward kinematics to 1e-6 m, for the built-in legs, a subject personalized from the real
+//! OpenCap static trial, and a model with every joint kind.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+use jointfit::kinematics::{forward_kinematics, KinData, Want};
+use jointfit::landmarks::{personalize, MarkerSet, PersonalizeOptions};
+use jointfit::model::lower_limb::{builtin, Side};
+use jointfit::model::spec::ModelSpec;
+use jointfit::model::{CoordKind, JointKind, Model};
+use jointfit_io::osim::{to_osim, write_osim, OsimError};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde_json::{json, Value};
+
+/// Largest marker-position difference accepted between OpenSim and jointfit (m).
+const FK_TOL: f64 = 1e-6;
+
+fn script() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/osim_check.py")
+}
+
+/// Runs `osim_check.py MODE` with `request` on stdin; `None` (skipped) without Python.
+fn check(mode: &str, request: &Value) -> Option<Value> {
+    let python = jointfit::testing::python()?;
+    let mut child = Command::new(&python)
+        .arg(script())
+        .arg(mode)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| panic!("cannot run {}: {e}", python.display()));
+    {
+        use std::io::Write;
+        let mut stdin = child.stdin.take().unwrap();
+        stdin.write_all(request.to_string().as_bytes()).unwrap();
+    }
+    let out = child.wait_with_output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "osim_check.py {mode} failed: {}\n{stdout}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let line = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("@@"))
+        .unwrap_or_else(|| panic!("osim_check.py {mode} printed no result: {stdout}"));
+    Some(serde_json::from_str(line).expect("osim_check.py prints JSON"))
+}
+
+/// A model with every joint kind the spec allows, non-principal and negative axes, rotated
+/// and translated offsets, and parameters read with scales (including −1).
+fn all_kinds_spec() -> ModelSpec {
+    let text = r#"
+name = "all-kinds"
+segments = [{ name = "base" }, { name = "arm" }, { name = "hand" }, { name = "finger" },
+            { name = "tip" }, { name = "cap" }]
+
+[[joints]]
+name = "root"
+parent = "ground"
+child = "base"
+kind = { type = "free", rotation_axes = ["y", "-x", [0.2, 0.1, 1.0]] }
+coordinates = ["b_tx", "b_ty", { name = "b_tz", range = [-2.0, 2.0], default = 0.3 }, "b_r1", "b_r2", "b_r3"]
+parent_offset = { tx = 0.1, ry = 0.4 }
+
+[[joints]]
+name = "shoulder"
+parent = "base"
+child = "arm"
+kind = { type = "gimbal", axes = ["x", [0.3, 1.0, -0.2], "-z"] }
+coordinates = ["s1", "s2", "s3"]
+parent_offset = { tx = "sh_x", ty = { param = "sh_y", scale = -1.0 }, rz = 0.3, rx = "sh_rx" }
+child_offset = { tz = 0.05, ry = { param = "sh_rx", scale = 0.5 } }
+
+[[joints]]
+name = "elbow"
+parent = "arm"
+child = "hand"
+kind = { type = "universal", axes = ["z", [1.0, 0.4, 0.0]] }
+coordinates = ["e1", { name = "e2", range = [-1.0, 1.5] }]
+parent_offset = { ty = -0.3, rx = 0.2 }
+
+[[joints]]
+name = "wrist"
+parent = "hand"
+child = "finger"
+kind = { type = "pin", axis = [0.6, -0.3, 0.74] }
+coordinates = ["w"]
+parent_offset = { tx = 0.02, ty = -0.25, rz = -0.7 }
+child_offset = { tx = -0.01, rx = 0.3, ry = -0.2, rz = 0.1 }
+
+[[joints]]
+name = "slide"
+parent = "finger"
+child = "tip"
+kind = { type = "slider", axis = [0.0, -1.0, 0.3] }
+coordinates = [{ name = "sl", range = [-0.1, 0.2] }]
+parent_offset = { ty = -0.05 }
+
+[[joints]]
+name = "glue"
+parent = "base"
+child = "cap"
+kind = { type = "weld" }
+parent_offset = { tx = 0.05, ty = 0.2, rx = 0.1, ry = -0.3, rz = 0.5 }
+child_offset = { tz = "sh_x" }
+
+[[parameters]]
+name = "sh_x"
+group = "shoulder"
+unit = "m"
+nominal = 0.02
+lower = -0.05
+upper = 0.05
+
+[[parameters]]
+name = "sh_y"
+group = "shoulder"
+unit = "m"
+nominal = 0.2
+lower = 0.1
+upper = 0.3
+
+[[parameters]]
+name = "sh_rx"
+group = "shoulder"
+unit = "rad"
+nominal = 0.1
+lower = -0.3
+upper = 0.3
+
+[[markers]]
+name = "b1"
+segment = "base"
+position = [0.1, 0.0, 0.0]
+
+[[markers]]
+name = "b2"
+segment = "base"
+position = [0.0, 0.1, 0.05]
+
+[[markers]]
+name = "a1"
+segment = "arm"
+position = [0.01, -0.2, 0.03]
+
+[[markers]]
+name = "h1"
+segment = "hand"
+position = [0.03, -0.1, -0.02]
+
+[[markers]]
+name = "f1"
+segment = "finger"
+position = [0.0, -0.04, 0.01]
+
+[[markers]]
+name = "t1"
+segment = "tip"
+position = [0.01, 0.0, 0.0]
+weight = 2.5
+
+[[markers]]
+name = "c1"
+segment = "cap"
+position = [0.0, 0.03, -0.04]
+"#;
+    ModelSpec::from_toml(text).unwrap()
+}
+
+fn personalized_subject() -> Option<Model> {
+    let path = jointfit::testing::data_file("opencap_expert1/static1.trc")?;
+    let trial = jointfit_io::trc::read_trc(&path).unwrap();
+    let set = MarkerSet::preset("opencap").unwrap();
+    let opts = PersonalizeOptions {
+        name: "expert1-right".into(),
+        ..PersonalizeOptions::default()
+    };
+    let out = personalize(&trial, &set, Side::Right, &opts).unwrap();
+    Some(Model::compile(&out.spec).unwrap())
+}
+
+fn tempdir() -> tempfile::TempDir {
+    tempfile::tempdir().unwrap()
+}
+
+/// Random parameters inside their bounds (the nominal vector first).
+fn param_sets(model: &Model, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
+    let mut sets = vec![model.nominal_params()];
+    if model.n_p() > 0 {
+        sets.push(
+            model
+                .parameters
+                .iter()
+                .map(|p| rng.gen_range(p.lower..p.upper))
+                .collect(),
+        );
+    }
+    sets
+}
+
+/// Random coordinates: angles in ±π (beyond the ranges too: the export does not clamp),
+/// translations in ±0.5 m.
+fn random_q(model: &Model, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    model
+        .coordinates
+        .iter()
+        .map(|c| match c.kind {
+            CoordKind::Rotational => rng.gen_range(-3.1..3.1),
+            CoordKind::Translational => rng.gen_range(-0.5..0.5),
+        })
+        .collect()
+}
+
+/// Exports `model` with each parameter set, asks OpenSim for the marker positions at random
+/// coordinates and compares with jointfit's forward kinematics; returns the largest
+/// difference (m), or `None` when skipped.
+fn compare_fk(model: &Model, seed: u64) -> Option<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let dir = tempdir();
+    let names: Vec<&str> = model.coordinates.iter().map(|c| c.name.as_str()).collect();
+    let mut worst = 0.0f64;
+    for (k, p) in param_sets(model, &mut rng).into_iter().enumerate() {
+        let path = dir.path().join(format!("m{k}.osim"));
+        write_osim(&path, model, &p).unwrap();
+        let mut poses = vec![model.default_coords(), vec![0.0; model.n_q()]];
+        poses.extend((0..20).map(|_| random_q(model, &mut rng)));
+        let answer = check(
+            "fk",
+            &json!({"model": path, "coordinates": names, "poses": poses}),
+        )?;
+        check_summary(model, &answer);
+        let mut data = KinData::new(model);
+        let osim_markers: Vec<&str> = answer["markers"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|m| m["name"].as_str().unwrap())
+            .collect();
+        for (pose, got) in poses.iter().zip(answer["positions"].as_array().unwrap()) {
+            forward_kinematics(model, &p, pose, Want::POSITIONS, &mut data);
+            for (j, m) in model.markers.iter().enumerate() {
+                let o = osim_markers.iter().position(|n| *n == m.name).unwrap();
+                let xyz = &got[o];
+                for a in 0..3 {
+                    let d = (xyz[a].as_f64().unwrap() - data.markers[j][a]).abs();
+                    worst = worst.max(d);
+                    assert!(
+                        d <= FK_TOL,
+                        "{}: marker {} axis {a} differs by {d} m at q = {pose:?}, p = {p:?}",
+                        model.name,
+                        m.name
+                    );
+                }
+            }
+        }
+    }
+    eprintln!(
+        "osim fk {}: max |OpenSim − jointfit| marker difference {worst:.3e} m",
+        model.name
+    );
+    Some(worst)
+}
+
+/// What OpenSim loaded: same bodies, joints (parents, children, coordinates), coordinate
+/// kinds, ranges and defaults (not clamped), marker parents and locations.
+fn check_summary(model: &Model, a: &Value) {
+    let bodies: Vec<&str> = a["bodies"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| b.as_str().unwrap())
+        .collect();
+    let segs: Vec<&str> = model.segments.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(bodies, segs);
+    let joints: HashMap<&str, &Value> = a["joints"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|j| (j["name"].as_str().unwrap(), j))
+        .collect();
+    assert_eq!(joints.len(), model.joints.len());
+    for j in &model.joints {
+        let o = joints[j.name.as_str()];
+        let parent = j
+            .parent
+            .map_or("ground", |s| model.segments[s.0].name.as_str());
+        assert_eq!(o["parent"], parent, "joint {}", j.name);
+        assert_eq!(
+            o["child"], model.segments[j.child.0].name,
+            "joint {}",
+            j.name
+        );
+        let expected_type = match j.kind {
+            JointKind::Weld => "WeldJoint",
+            _ => "CustomJoint",
+        };
+        assert_eq!(o["type"], expected_type, "joint {}", j.name);
+        let mut theirs: Vec<&str> = o["coordinates"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c.as_str().unwrap())
+            .collect();
+        let mut ours: Vec<&str> = model.coordinates[j.first_coord..j.first_coord + j.kind.dof()]
+            .iter()
+            .map(|c| c.name.as_str())
+            .collect();
+        theirs.sort_unstable();
+        ours.sort_unstable();
+        assert_eq!(theirs, ours, "coordinates of joint {}", j.name);
+    }
+    let coords = a["coordinates"].as_array().unwrap();
+    assert_eq!(coords.len(), model.n_q());
+    for c in coords {
+        let ours = &model.coordinates[model.coord_id(c["name"].as_str().unwrap()).unwrap().0];
+        let kind = match ours.kind {
+            CoordKind::Rotational => "rotational",
+            CoordKind::Translational => "translational",
+        };
+        assert_eq!(c["motion_type"], kind, "coordinate {}", ours.name);
+        assert_eq!(c["joint"], model.joints[ours.joint.0].name);
+        assert_eq!(c["range"][0].as_f64().unwrap(), ours.range[0]);
+        assert_eq!(c["range"][1].as_f64().unwrap(), ours.range[1]);
+        assert_eq!(c["default"].as_f64().unwrap(), ours.default);
+        assert_eq!(c["clamped"], false);
+        assert_eq!(c["locked"], false);
+    }
+    let markers = a["markers"].as_array().unwrap();
+    assert_eq!(markers.len(), model.n_markers());
+    for (m, o) in model.markers.iter().zip(markers) {
+        assert_eq!(o["name"], m.name);
+        assert_eq!(o["parent"], model.segments[m.segment.0].name);
+        // OpenSim's number parser may land one ulp away from the shortest decimal form.
+        for k in 0..3 {
+            let d = (o["location"][k].as_f64().unwrap() - m.local[k]).abs();
+            assert!(d <= 1e-15 * (1.0 + m.local[k].abs()), "{} axis {k}", m.name);
+        }
+    }
+}
+
+#[test]
+fn osim_fk_builtin_legs_match_opensim() {
+    for name in ["lower-limb-right", "lower-limb-left"] {
+        let model = Model::compile(&builtin(name).unwrap()).unwrap();
+        let Some(worst) = compare_fk(&model, 11) else {
+            return;
+        };
+        assert!(worst <= FK_TOL);
+    }
+}
+
+#[test]
+fn osim_fk_personalized_subject_matches_opensim() {
+    let Some(model) = personalized_subject() else {
+        return;
+    };
+    compare_fk(&model, 12);
+}
+
+#[test]
+fn osim_fk_every_joint_kind_matches_opensim() {
+    let model = Model::compile(&all_kinds_spec()).unwrap();
+    compare_fk(&model, 13);
+}
+
+/// Text of the child element `tag` of `node`.
+fn child_text<'a>(node: roxmltree::Node<'a, 'a>, tag: &str) -> &'a str {
+    node.children()
+        .find(|n| n.has_tag_name(tag))
+        .unwrap_or_else(|| panic!("<{}> lacks <{tag}>", node.tag_name().name()))
+        .text()
+        .unwrap_or("")
+}
+
+fn numbers(s: &str) -> Vec<f64> {
+    s.split_whitespace().map(|v| v.parse().unwrap()).collect()
+}
+
+/// Well-formed XML with OpenSim's layout, checked by an independent XML parser; the offsets
+/// hold the parameter values (with their scales), every coordinate and marker is there.
+#[test]
+fn osim_xml_structure() {
+    let spec = all_kinds_spec();
+    let model = Model::compile(&spec).unwrap();
+    let p = vec![-0.03, 0.25, 0.2];
+    let text = to_osim(&model, &p).unwrap();
+    let doc = roxmltree::Document::parse(&text).expect("well-formed XML");
+    let root = doc.root_element();
+    assert!(root.has_tag_name("OpenSimDocument"));
+    assert_eq!(root.attribute("Version"), Some("40000"));
+    let comment = doc
+        .descendants()
+        .find(|n| n.is_comment())
+        .unwrap()
+        .text()
+        .unwrap();
+    assert!(comment.contains("PLACEHOLDERS"), "{comment}");
+    assert!(comment.contains("sh_y = 0.25"), "{comment}");
+    assert!(comment.contains("t1 2.5"), "marker weight noted: {comment}");
+    let m = root.children().find(|n| n.has_tag_name("Model")).unwrap();
+    assert_eq!(m.attribute("name"), Some("all-kinds"));
+
+    let set = |tag: &str| -> Vec<roxmltree::Node> {
+        m.children()
+            .find(|n| n.has_tag_name(tag))
+            .unwrap()
+            .children()
+            .find(|n| n.has_tag_name("objects"))
+            .unwrap()
+            .children()
+            .filter(|n| n.is_element())
+            .collect()
+    };
+    let bodies = set("BodySet");
+    let body_names: Vec<&str> = bodies
+        .iter()
+        .map(|b| b.attribute("name").unwrap())
+        .collect();
+    let segs: Vec<&str> = model.segments.iter().map(|s| s.name.as_str()).collect();
+    assert_eq!(body_names, segs, "the model's topological order");
+    assert_eq!(segs, ["base", "arm", "cap", "hand", "finger", "tip"]);
+    for b in &bodies {
+        assert_eq!(numbers(child_text(*b, "mass")), [1.0]);
+        assert_eq!(numbers(child_text(*b, "inertia")).len(), 6);
+    }
+
+    let joints = set("JointSet");
+    let kinds: Vec<(&str, &str)> = joints
+        .iter()
+        .map(|j| (j.tag_name().name(), j.attribute("name").unwrap()))
+        .collect();
+    assert_eq!(
+        kinds,
+        [
+            ("CustomJoint", "root"),
+            ("CustomJoint", "shoulder"),
+            ("WeldJoint", "glue"),
+            ("CustomJoint", "elbow"),
+            ("CustomJoint", "wrist"),
+            ("CustomJoint", "slide"),
+        ]
+    );
+    let mut coords = Vec::new();
+    for j in &joints {
+        for c in j.descendants().filter(|n| n.has_tag_name("Coordinate")) {
+            coords.push(c.attribute("name").unwrap());
+            assert_eq!(child_text(c, "clamped"), "false");
+            assert_eq!(numbers(child_text(c, "range")).len(), 2);
+        }
+        let frames: Vec<_> = j
+            .descendants()
+            .filter(|n| n.has_tag_name("PhysicalOffsetFrame"))
+            .collect();
+        assert_eq!(frames.len(), 2);
+        // The sockets name the joint's own offset frames.
+        for (socket, frame) in ["socket_parent_frame", "socket_child_frame"]
+            .iter()
+            .zip(&frames)
+        {
+            assert_eq!(child_text(*j, socket), frame.attribute("name").unwrap());
+        }
+        if let Some(st) = j.children().find(|n| n.has_tag_name("SpatialTransform")) {
+            let axes: Vec<&str> = st
+                .children()
+                .filter(|n| n.has_tag_name("TransformAxis"))
+                .map(|n| n.attribute("name").unwrap())
+                .collect();
+            assert_eq!(
+                axes,
+                [
+                    "rotation1",
+                    "rotation2",
+                    "rotation3",
+                    "translation1",
+                    "translation2",
+                    "translation3"
+                ]
+            );
+            for ax in st.children().filter(|n| n.has_tag_name("TransformAxis")) {
+                let a = numbers(child_text(ax, "axis"));
+                let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+                assert!((n - 1.0).abs() < 1e-12, "unit axes");
+            }
+        }
+    }
+    let expected: Vec<&str> = model.coordinates.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(coords, expected);
+
+    // The shoulder's parent offset: tx = sh_x, ty = −sh_y, rx = sh_rx, rz = 0.3; its child
+    // offset: tz = 0.05, ry = 0.5·sh_rx.
+    let shoulder = joints[1];
+    let frame = |name: &str| {
+        shoulder
+            .descendants()
+            .find(|n| n.has_tag_name("PhysicalOffsetFrame") && n.attribute("name") == Some(name))
+            .unwrap()
+    };
+    let base = frame("base_offset");
+    assert_eq!(child_text(base, "socket_parent"), "/bodyset/base");
+    assert_eq!(
+        numbers(child_text(base, "translation")),
+        [-0.03, -0.25, 0.0]
+    );
+    assert_eq!(numbers(child_text(base, "orientation")), [0.2, 0.0, 0.3]);
+    let arm = frame("arm_offset");
+    assert_eq!(numbers(child_text(arm, "translation")), [0.0, 0.0, 0.05]);
+    assert_eq!(numbers(child_text(arm, "orientation")), [0.0, 0.1, 0.0]);
+    let root_frame = joints[0]
+        .descendants()
+        .find(|n| n.attribute("name") == Some("ground_offset"))
+        .unwrap();
+    assert_eq!(child_text(root_frame, "socket_parent"), "/ground");
+
+    let markers = set("MarkerSet");
+    assert_eq!(markers.len(), model.n_markers());
+    for (x, m) in markers.iter().zip(&model.markers) {
+        assert_eq!(x.attribute("name"), Some(m.name.as_str()));
+        assert_eq!(
+            child_text(*x, "socket_parent_frame"),
+            format!("/bodyset/{}", model.segments[m.segment.0].name)
+        );
+        assert_eq!(numbers(child_text(*x, "location")), m.local.as_slice());
+    }
+}
+
+#[test]
+fn osim_names_are_escaped_and_checked() {
+    let mut spec = builtin("lower-limb-right").unwrap();
+    spec.markers[0].name = "R&D<1>".into();
+    spec.name = "my leg/2".into();
+    spec.description = "a -- b".into();
+    let model = Model::compile(&spec).unwrap();
+    let text = to_osim(&model, &model.nominal_params()).unwrap();
+    let doc = roxmltree::Document::parse(&text).expect("well-formed XML");
+    assert!(doc
+        .descendants()
+        .any(|n| n.has_tag_name("Marker") && n.attribute("name") == Some("R&D<1>")));
+    assert!(doc
+        .descendants()
+        .any(|n| n.has_tag_name("Model") && n.attribute("name") == Some("my_leg_2")));
+
+    spec.markers[0].name = "R ASI".into();
+    let model = Model::compile(&spec).unwrap();
+    let e = to_osim(&model, &model.nominal_params()).unwrap_err();
+    assert!(
+        matches!(e, OsimError::BadName { kind: "marker", .. }),
+        "{e}"
+    );
+    assert!(e.to_string().contains("\"R ASI\""), "{e}");
+    spec.markers[0].name = "RASI".into();
+    spec.segments[1].name = "thigh/r".into();
+    for j in &mut spec.joints {
+        for s in [&mut j.parent, &mut j.child] {
+            if s == "thigh" {
+                *s = "thigh/r".into();
+            }
+        }
+    }
+    for m in &mut spec.markers {
+        if m.segment == "thigh" {
+            m.segment = "thigh/r".into();
+        }
+    }
+    let model = Model::compile(&spec).unwrap();
+    let e = to_osim(&model, &model.nominal_params()).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            OsimError::BadName {
+                kind: "segment",
+                ..
+            }
+        ),
+        "{e}"
+    );
+}
+
+#[test]
+fn osim_errors() {
+    let model = Model::compile(&builtin("lower-limb-right").unwrap()).unwrap();
+    let e = to_osim(&model, &[0.0; 3]).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "parameter vector has 3 values, the model has 27 parameters"
+    );
+    let mut p = model.nominal_params();
+    p[4] = f64::NAN;
+    let e = to_osim(&model, &p).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "parameter \"hip_thigh_superior\" = NaN is not finite"
+    );
+
+    // A z-x-z gimbal (proper Euler angles) repeats an axis: no CustomJoint can hold it.
+    let mut spec = all_kinds_spec();
+    spec.joints[1].kind = ModelSpec::from_toml(
+        "name = \"x\"\nsegments = []\n[[joints]]\nname = \"j\"\nparent = \"ground\"\n\
+         child = \"s\"\nkind = { type = \"gimbal\", axes = [\"z\", \"x\", \"-z\"] }\n",
+    )
+    .unwrap()
+    .joints[0]
+        .kind
+        .clone();
+    let model = Model::compile(&spec).unwrap();
+    let e = to_osim(&model, &model.nominal_params()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "joint \"shoulder\": rotation axes 1 and 3 are parallel; an OpenSim CustomJoint needs \
+         independent axes, so this joint cannot be exported"
+    );
+    // A universal joint with parallel axes.
+    let mut spec = all_kinds_spec();
+    if let jointfit::model::spec::JointKindSpec::Universal { axes } = &mut spec.joints[2].kind {
+        axes[1] = jointfit::model::spec::AxisSpec::Vector([0.0, 0.0, -2.0]);
+    }
+    let model = Model::compile(&spec).unwrap();
+    let e = to_osim(&model, &model.nominal_params()).unwrap_err();
+    assert!(
+        matches!(&e, OsimError::ParallelAxes { joint, .. } if joint == "elbow"),
+        "{e}"
+    );
+    // An unwritable destination names the file; nothing is left behind.
+    let dir = tempdir();
+    let model = Model::compile(&builtin("lower-limb-left").unwrap()).unwrap();
+    let path = dir.path().join("no/such/dir/leg.osim");
+    let e = write_osim(&path, &model, &model.nominal_params()).unwrap_err();
+    assert!(
+        e.to_string()
+            .starts_with(&format!("{}: cannot write", path.display())),
+        "{e}"
+    );
+}
