@@ -7,9 +7,13 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use jointfit::calibrate::joint::{solve_joint_observed, JointOptions};
 use jointfit::calibrate::pso::{solve_pso, PsoOptions};
+use jointfit::calibrate::uncertainty::{
+    analyze, unidentifiable_subset, Identifiability, Uncertainty, UncertaintyOptions,
+};
 use jointfit::calibrate::varpro::{solve_varpro_observed, VarProOptions};
 use jointfit::calibrate::{params_for_groups, Fit, Problem};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
+use jointfit::model::ParamId;
 use jointfit::model::{Model, Unit};
 use jointfit::trial::Trial;
 use serde::Serialize;
@@ -60,6 +64,19 @@ pub struct CalibrateArgs {
     /// Also write an HTML report (figures, parameter table, settings) to DIR/index.html.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
+    /// Flag length parameters whose 95 % interval half-width exceeds this (mm).
+    #[arg(long, default_value_t = 5.0)]
+    pub threshold_mm: f64,
+    /// Flag angle parameters whose 95 % interval half-width exceeds this (deg).
+    #[arg(long, default_value_t = 5.0)]
+    pub threshold_deg: f64,
+    /// Moving-block bootstrap replicates for the intervals (0: white, HAC and jackknife only).
+    #[arg(long, default_value_t = 0)]
+    pub bootstrap: usize,
+    /// Refit with the parameters this trial cannot determine held at their starting
+    /// (landmark/nominal) values (subset selection on the reduced normal matrix).
+    #[arg(long)]
+    pub fix_unidentifiable: bool,
 }
 
 #[derive(Serialize)]
@@ -70,6 +87,13 @@ pub struct ParamReport {
     pub start: f64,
     pub fitted: f64,
     pub change: f64,
+    /// Standard error (same unit), from `uncertainty_method`; `None`: not determined.
+    pub se: Option<f64>,
+    /// 95 % interval (same unit).
+    pub ci95: Option<[f64; 2]>,
+    /// `determined`, `poor` or `undetermined`.
+    pub identifiability: Option<Identifiability>,
+    pub uncertainty_method: Option<jointfit::calibrate::uncertainty::SeMethod>,
 }
 
 #[derive(Serialize)]
@@ -91,6 +115,10 @@ pub struct Report {
     pub seconds: f64,
     /// The objective after every outer iteration, per optimizer stage (for the HTML report).
     pub convergence: Vec<ConvergenceStage>,
+    /// Uncertainty and identifiability of the free parameters (see `jointfit::calibrate::uncertainty`).
+    pub uncertainty: Option<Uncertainty>,
+    /// Parameters held at their starting values by `--fix-unidentifiable`.
+    pub fixed_unidentifiable: Vec<String>,
 }
 
 /// One optimizer stage (e.g. the particle swarm, then its polish).
@@ -126,7 +154,8 @@ fn per_marker_rms(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
         .collect()
 }
 
-/// Runs one calibration on trials already in memory.
+/// Runs one calibration on trials already in memory (no uncertainty analysis).
+#[allow(dead_code)] // library-style entry point for subcommands that need no intervals
 pub fn calibrate(
     model: &Model,
     start: Vec<f64>,
@@ -136,7 +165,19 @@ pub fn calibrate(
     seed: u64,
 ) -> Result<(Fit, Report)> {
     let free = params_for_groups(model, groups)?;
-    let prob = Problem::new(model, start.clone(), &free, trials)?;
+    calibrate_params(model, start, trials, &free, method, seed)
+}
+
+/// [`calibrate`] with the free parameters given by id.
+pub fn calibrate_params(
+    model: &Model,
+    start: Vec<f64>,
+    trials: &[&Trial],
+    free: &[ParamId],
+    method: Method,
+    seed: u64,
+) -> Result<(Fit, Report)> {
+    let prob = Problem::new(model, start.clone(), free, trials)?;
     let clock = Instant::now();
     let q0 = prob.initial_coords(&start);
     let s0 = prob.to_scaled(&start);
@@ -219,6 +260,10 @@ pub fn calibrate(
                 start: start[i] * k,
                 fitted: fit.p[i] * k,
                 change: (fit.p[i] - start[i]) * k,
+                se: None,
+                ci95: None,
+                identifiability: None,
+                uncertainty_method: None,
             }
         })
         .collect();
@@ -239,7 +284,96 @@ pub fn calibrate(
         converged: fit.converged,
         seconds,
         convergence,
+        uncertainty: None,
+        fixed_unidentifiable: Vec::new(),
     };
+    Ok((fit, report))
+}
+
+/// Uncertainty settings from the command line.
+pub fn uncertainty_options(
+    threshold_mm: f64,
+    threshold_deg: f64,
+    bootstrap: usize,
+    seed: u64,
+) -> UncertaintyOptions {
+    UncertaintyOptions {
+        threshold_m: threshold_mm / MM,
+        threshold_rad: threshold_deg.to_radians(),
+        bootstrap_replicates: bootstrap,
+        seed,
+        ..UncertaintyOptions::default()
+    }
+}
+
+/// Adds the uncertainty of `fit` (free parameters `free`, same trials and start) to `report`.
+pub fn attach_uncertainty(
+    model: &Model,
+    start: &[f64],
+    trials: &[&Trial],
+    free: &[ParamId],
+    fit: &Fit,
+    opts: &UncertaintyOptions,
+    report: &mut Report,
+) -> Result<()> {
+    let prob = Problem::new(model, start.to_vec(), free, trials)?;
+    let u = analyze(&prob, fit, opts);
+    for (row, pu) in report.parameters.iter_mut().zip(&u.params) {
+        row.se = pu.se;
+        row.ci95 = pu.ci;
+        row.identifiability = Some(pu.status);
+        row.uncertainty_method = Some(pu.method);
+    }
+    report.uncertainty = Some(u);
+    Ok(())
+}
+
+/// Calibrates, analyses the uncertainty and, with `fix_unidentifiable`, refits with the
+/// parameters the trials cannot determine held at their starting values.
+#[allow(clippy::too_many_arguments)]
+pub fn calibrate_with_uncertainty(
+    model: &Model,
+    start: Vec<f64>,
+    trials: &[&Trial],
+    groups: &[&str],
+    method: Method,
+    seed: u64,
+    opts: &UncertaintyOptions,
+    fix_unidentifiable: bool,
+) -> Result<(Fit, Report)> {
+    let mut free = params_for_groups(model, groups)?;
+    let (mut fit, mut report) =
+        calibrate_params(model, start.clone(), trials, &free, method, seed)?;
+    let mut fixed = Vec::new();
+    // Subset selection plans on the reduced normal matrix of the current fit; a refit moves
+    // the optimum a little, so the selection is repeated (at most three rounds).
+    for _ in 0..if fix_unidentifiable { 3 } else { 0 } {
+        let prob = Problem::new(model, start.clone(), &free, trials)?;
+        let drop = unidentifiable_subset(&prob, &fit, opts);
+        if drop.is_empty() {
+            break;
+        }
+        if drop.len() == free.len() {
+            bail!(
+                "no parameter of {} can be determined from these trials within the thresholds; \
+                 nothing left to fit",
+                groups.join(",")
+            );
+        }
+        fixed.extend(
+            drop.iter()
+                .map(|&k| model.parameters[free[k].0].name.clone()),
+        );
+        free = free
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| !drop.contains(k))
+            .map(|(_, id)| *id)
+            .collect();
+        (fit, report) = calibrate_params(model, start.clone(), trials, &free, method, seed)?;
+    }
+    attach_uncertainty(model, &start, trials, &free, &fit, opts, &mut report)?;
+    report.fixed_unidentifiable = fixed;
     Ok((fit, report))
 }
 
@@ -255,9 +389,19 @@ pub fn print_report(report: &Report) {
         report.seconds,
         if report.converged { "" } else { " (not converged)" }
     );
-    let mut t =
-        crate::table::Table::new(&["group", "parameter", "unit", "start", "fitted", "change"]);
+    let mut t = crate::table::Table::new(&[
+        "group",
+        "parameter",
+        "unit",
+        "start",
+        "fitted",
+        "change",
+        "±95%",
+        "95% CI",
+        "determined",
+    ]);
     for p in &report.parameters {
+        let hw = p.ci95.map(|c| 0.5 * (c[1] - c[0]));
         t.row(vec![
             p.group.clone(),
             p.name.clone(),
@@ -265,9 +409,25 @@ pub fn print_report(report: &Report) {
             format!("{:.2}", p.start),
             format!("{:.2}", p.fitted),
             format!("{:.2}", p.change),
+            match (hw, &p.identifiability) {
+                (Some(h), _) => format!("{h:.2}"),
+                (None, Some(_)) => "∞".to_string(),
+                (None, None) => "-".to_string(),
+            },
+            p.ci95
+                .map_or("-".to_string(), |c| format!("[{:.2}, {:.2}]", c[0], c[1])),
+            match p.identifiability {
+                Some(Identifiability::Determined) => "yes".to_string(),
+                Some(Identifiability::Poor) => "POOR".to_string(),
+                Some(Identifiability::Undetermined) => "NO".to_string(),
+                None => "-".to_string(),
+            },
         ]);
     }
     print!("{}", t.render());
+    if let Some(u) = &report.uncertainty {
+        print_uncertainty_notes(u, &report.fixed_unidentifiable);
+    }
     println!(
         "RMS marker distance: {:.2} mm before, {:.2} mm after ({:.0}% lower)",
         report.rms_before_mm,
@@ -283,6 +443,62 @@ pub fn print_report(report: &Report) {
         t.row(vec![name.clone(), format!("{b:.2}"), format!("{a:.2}")]);
     }
     print!("{}", t.render());
+}
+
+/// How the intervals were made, the warnings for flagged parameters, the weak combinations.
+pub fn print_uncertainty_notes(u: &Uncertainty, fixed: &[String]) {
+    let mut methods: Vec<String> = Vec::new();
+    for p in &u.params {
+        let m = format!("{:?}", p.method).to_lowercase();
+        if !methods.contains(&m) {
+            methods.push(m);
+        }
+    }
+    println!(
+        "95% intervals: the widest of white-noise (σ = {:.2} mm, {} dof), Newey-West HAC (bandwidth {}){}{}; widest came from: {}",
+        u.sigma_mm,
+        u.dof,
+        u.hac_bandwidth.map_or("-".into(), |b| format!("{b:.1} frames")),
+        u.jackknife_blocks
+            .map_or(String::new(), |k| format!(", {k}-block jackknife (t, {} dof)", k - 1)),
+        u.bootstrap.as_ref().map_or(String::new(), |b| format!(
+            ", block bootstrap ({} replicates of {}-frame blocks, seed {})",
+            b.replicates, b.block_length, b.seed
+        )),
+        methods.join(", ")
+    );
+    for p in u.flagged() {
+        let hw = p
+            .half_width
+            .map_or("unbounded".to_string(), |h| format!("±{h:.1} {}", p.unit));
+        eprintln!(
+            "jointfit: warning: {} {} by this trial ({hw} > {} {}): {}",
+            p.name,
+            if p.status == Identifiability::Undetermined {
+                "not determined"
+            } else {
+                "poorly determined"
+            },
+            if p.unit == "mm" {
+                u.threshold_mm
+            } else {
+                u.threshold_deg
+            },
+            p.unit,
+            p.reason.as_deref().unwrap_or("")
+        );
+    }
+    for w in &u.weak_directions {
+        println!("weak combination: {}", w.description);
+    }
+    if !fixed.is_empty() {
+        println!(
+            "held at their starting values (--fix-unidentifiable): {}",
+            fixed.join(", ")
+        );
+    } else if u.flagged().next().is_some() {
+        println!("(rerun with --fix-unidentifiable to hold the flagged parameters at their starting values)");
+    }
 }
 
 pub fn run(args: CalibrateArgs) -> Result<()> {
@@ -308,13 +524,21 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         .collect::<Result<_>>()?;
     let refs: Vec<&Trial> = trials.iter().collect();
     let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
-    let (fit, report) = calibrate(
+    let opts = uncertainty_options(
+        args.threshold_mm,
+        args.threshold_deg,
+        args.bootstrap,
+        args.seed,
+    );
+    let (fit, report) = calibrate_with_uncertainty(
         &model,
         start.clone(),
         &refs,
         &groups,
         args.method,
         args.seed,
+        &opts,
+        args.fix_unidentifiable,
     )?;
     let mut fitted = model.spec_with_nominal(&fit.p);
     fitted.name = format!("{} (fitted)", spec.name);

@@ -10,7 +10,7 @@ use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::{Model, Unit};
 use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion, SkinNoise};
 
-use crate::calibrate_cmd::{calibrate, print_report, Method};
+use crate::calibrate_cmd::{calibrate_with_uncertainty, print_report, Method};
 
 #[derive(Args)]
 pub struct DemoArgs {
@@ -51,17 +51,27 @@ pub fn run(args: DemoArgs) -> Result<()> {
         noise_rms * 1e3,
         args.seed
     );
-    let (fit, report) = calibrate(
+    let (fit, report) = calibrate_with_uncertainty(
         &model,
         model.nominal_params(),
         &[&trial],
         &["all"],
         args.method,
         args.seed,
+        &jointfit::calibrate::uncertainty::UncertaintyOptions::default(),
+        false,
     )?;
     print_report(&report);
-    let mut t =
-        crate::table::Table::new(&["parameter", "unit", "true", "nominal", "recovered", "error"]);
+    let mut t = crate::table::Table::new(&[
+        "parameter",
+        "unit",
+        "true",
+        "nominal",
+        "recovered",
+        "error",
+        "true in 95% CI",
+    ]);
+    let mut inside = 0usize;
     let (mut pos, mut ori) = (Vec::new(), Vec::new());
     for (i, par) in model.parameters.iter().enumerate() {
         let k = match par.unit {
@@ -80,11 +90,23 @@ pub fn run(args: DemoArgs) -> Result<()> {
             format!("{:.2}", par.nominal * k),
             format!("{:.2}", fit.p[i] * k),
             format!("{err:.2}"),
+            match report.parameters[i].ci95 {
+                Some([lo, hi]) if lo <= truth[i] * k && truth[i] * k <= hi => {
+                    inside += 1;
+                    "yes".to_string()
+                }
+                Some(_) => "no".to_string(),
+                None => "-".to_string(),
+            },
         ]);
     }
     println!("\nrecovered vs true parameters");
     print!("{}", t.render());
     let rms = |v: &[f64]| (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt();
+    println!(
+        "true value inside the reported 95% interval for {inside} of {} parameters",
+        model.parameters.len()
+    );
     println!(
         "RMS parameter error: positions {:.3} mm, orientations {:.3} deg (paper, noisy full leg: 8.16 mm, 10.37 deg)",
         rms(&pos),

@@ -2,6 +2,7 @@
 
 mod bench_cmd;
 mod calibrate_cmd;
+mod check_cmd;
 mod common;
 mod data_cmd;
 mod demo_cmd;
@@ -43,6 +44,8 @@ enum Command {
     Ik(ik_cmd::IkArgs),
     /// Fit joint parameters to one or more trials (two-level optimization).
     Calibrate(calibrate_cmd::CalibrateArgs),
+    /// Before a fit: each joint's range of motion and which parameters the trial can determine.
+    Check(check_cmd::CheckArgs),
     /// Synthesize a noisy trial from the built-in leg, calibrate it, show what was recovered.
     Demo(demo_cmd::DemoArgs),
     /// Build a subject's leg model from a static trial (anatomical-landmark method).
@@ -77,6 +80,7 @@ fn main() -> ExitCode {
         Command::Convert(args) => data_cmd::convert(args),
         Command::Ik(args) => ik_cmd::run(args),
         Command::Calibrate(args) => calibrate_cmd::run(args),
+        Command::Check(args) => check_cmd::run(args),
         Command::Demo(args) => demo_cmd::run(args),
         Command::Personalize(args) => personalize_cmd::run(args),
         Command::Report(args) => report_cmd::run(args),

@@ -227,6 +227,20 @@ pub fn write_calibration_report(
         .filter_map(|p| model.param_id(&p.name).map(|id| id.0))
         .collect();
     input.parameters = parameter_rows(model, &fit.p, Some(start), Some(&free));
+    // The 95 % intervals of the uncertainty analysis (mm/deg, as the report's table).
+    for p in &report.parameters {
+        if let (Some(se), Some([lower, upper])) = (p.se, p.ci95) {
+            input.set_interval(
+                &p.name,
+                jointfit_report::Interval {
+                    se,
+                    lower,
+                    upper,
+                    level: 0.95,
+                },
+            );
+        }
+    }
     let method = format!("{:?}", report.method).to_lowercase();
     input.convergence = Some(Convergence {
         method: method.clone(),

@@ -26,6 +26,7 @@
 pub mod joint;
 pub mod pso;
 mod schur;
+pub mod uncertainty;
 pub mod varpro;
 
 use nalgebra::Vector3;

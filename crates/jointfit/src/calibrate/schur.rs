@@ -28,6 +28,10 @@ pub(crate) struct Blocks {
     /// `n_f × n_f`.
     pub v: Vec<f64>,
     pub gs: Vec<f64>,
+    /// Per frame `J_s,iᵀ W r_i` (n_f each): frame i's share of `gs`.
+    pub gs_frame: Vec<f64>,
+    /// Per frame `J_s,iᵀ W J_s,i` (n_f × n_f each, column-major): frame i's share of `v`.
+    pub v_frame: Vec<f64>,
     /// Objective at the assembly point (m²).
     pub cost: f64,
     // Back-substitution storage: per frame `U*⁻¹ W` and `U*⁻¹ g`.
@@ -45,6 +49,8 @@ impl Blocks {
             g: vec![0.0; n_frames * nq],
             v: vec![0.0; nf * nf],
             gs: vec![0.0; nf],
+            gs_frame: vec![0.0; n_frames * nf],
+            v_frame: vec![0.0; n_frames * nf * nf],
             cost: 0.0,
             y_mat: vec![0.0; n_frames * nq * nf],
             y_vec: vec![0.0; n_frames * nq],
@@ -123,6 +129,7 @@ pub(crate) fn assemble(
                 b.g[f * nq + a] = g;
             } else {
                 b.gs[a - nq] += g;
+                b.gs_frame[f * nf + a - nq] = g;
             }
             for c in 0..=a {
                 let lo = lo_a.max(range[c].0);
@@ -147,6 +154,7 @@ pub(crate) fn assemble(
         }
         for l in 0..nf {
             let src = &gram[(nq + l) * n + nq..(nq + l + 1) * n];
+            b.v_frame[(f * nf + l) * nf..(f * nf + l + 1) * nf].copy_from_slice(src);
             for (v, x) in b.v[l * nf..(l + 1) * nf].iter_mut().zip(src) {
                 *v += x;
             }

@@ -6,3 +6,4 @@ mod kinematics;
 mod landmarks;
 mod models;
 mod sample_models;
+mod uncertainty;

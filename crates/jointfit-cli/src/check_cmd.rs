@@ -1,0 +1,164 @@
+//! `jointfit check <SUBJECT.toml> <TRIAL> [--joints ..] [--up ..] [--json]`: before a fit,
+//! what can this trial determine?
+//!
+//! Inverse kinematics with the subject's nominal (landmark) parameters gives each joint's
+//! range of motion per axis; the reduced normal matrix at the nominal parameters (the Fisher
+//! information of the joint parameters with every frame's coordinates projected out, see
+//! `jointfit::calibrate::uncertainty`) predicts each parameter's 95 % interval. The residual
+//! variance at the nominal model includes its misfit, so the prediction is conservative.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+use jointfit::calibrate::uncertainty::{predict, CoordRange, Identifiability, Uncertainty};
+use jointfit::calibrate::{params_for_groups, Problem};
+use serde::Serialize;
+
+use crate::calibrate_cmd::uncertainty_options;
+use crate::common::{load_trial, Up, MM};
+
+#[derive(Args)]
+pub struct CheckArgs {
+    /// Subject model (TOML file or built-in name).
+    pub model: String,
+    /// Motion file (.trc or .c3d).
+    pub trial: PathBuf,
+    /// Parameter groups a calibration would fit: comma-separated hip, knee, ankle, or all.
+    #[arg(long, default_value = "all", value_delimiter = ',')]
+    pub joints: Vec<String>,
+    #[arg(long, value_enum, default_value = "y")]
+    pub up: Up,
+    /// Low-pass filter cutoff in Hz.
+    #[arg(long)]
+    pub filter: Option<f64>,
+    /// Flag length parameters whose predicted 95 % half-width exceeds this (mm).
+    #[arg(long, default_value_t = 5.0)]
+    pub threshold_mm: f64,
+    /// Flag angle parameters whose predicted 95 % half-width exceeds this (deg).
+    #[arg(long, default_value_t = 5.0)]
+    pub threshold_deg: f64,
+    /// Assumed skin-artifact noise, standard deviation per axis (mm). Default: estimated from
+    /// the residuals of IK with the nominal model, which include the model's misfit (so the
+    /// prediction errs on the side of flagging).
+    #[arg(long)]
+    pub noise_mm: Option<f64>,
+    /// Print a JSON report on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Serialize)]
+pub struct CheckReport {
+    pub trial: String,
+    pub frames: usize,
+    pub skipped_frames: usize,
+    /// RMS marker distance of IK with the nominal model (mm).
+    pub ik_rms_mm: f64,
+    /// Range of motion per coordinate (deg or mm) from IK with the nominal model.
+    pub ranges: Vec<CoordRange>,
+    /// Predicted uncertainty of the free parameters at their nominal values.
+    pub prediction: Uncertainty,
+    /// Names of the parameters the trial is predicted to determine within the thresholds.
+    pub determined: Vec<String>,
+    /// Names of the parameters it is predicted not to determine.
+    pub not_determined: Vec<String>,
+}
+
+pub fn run(args: CheckArgs) -> Result<()> {
+    let model = jointfit_io::model_file::load_model(&args.model)?;
+    let trial = load_trial(&args.trial, args.up, args.filter)?;
+    let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
+    let free = params_for_groups(&model, &groups)?;
+    let nominal = model.nominal_params();
+    let prob = Problem::new(&model, nominal.clone(), &free, &[&trial])?;
+    let qs = prob.initial_coords(&nominal);
+    let opts = jointfit::calibrate::uncertainty::UncertaintyOptions {
+        assumed_sigma_m: args.noise_mm.map(|v| v / MM),
+        ..uncertainty_options(args.threshold_mm, args.threshold_deg, 0, 1)
+    };
+    let prediction = predict(&prob, &nominal, &qs, &opts);
+    let (determined, not_determined): (Vec<_>, Vec<_>) = prediction
+        .params
+        .iter()
+        .partition(|p| p.status == Identifiability::Determined);
+    let report = CheckReport {
+        trial: args.trial.display().to_string(),
+        frames: prob.frames.len(),
+        skipped_frames: prob.skipped.len(),
+        ik_rms_mm: prob.marker_rms(&nominal, &qs) * MM,
+        ranges: prediction.ranges.clone(),
+        determined: determined.iter().map(|p| p.name.clone()).collect(),
+        not_determined: not_determined.iter().map(|p| p.name.clone()).collect(),
+        prediction,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_check(&report);
+    }
+    Ok(())
+}
+
+fn print_check(r: &CheckReport) {
+    println!(
+        "{}: {} frames ({} skipped), IK with the nominal model: RMS {:.2} mm",
+        r.trial, r.frames, r.skipped_frames, r.ik_rms_mm
+    );
+    println!("\nrange of motion (IK, nominal model)");
+    let mut t = crate::table::Table::new(&["joint", "coordinate", "unit", "min", "max", "range"]);
+    for c in &r.ranges {
+        t.row(vec![
+            c.joint.clone(),
+            c.name.clone(),
+            c.unit.clone(),
+            format!("{:.1}", c.min),
+            format!("{:.1}", c.max),
+            format!("{:.1}", c.range),
+        ]);
+    }
+    print!("{}", t.render());
+    let u = &r.prediction;
+    println!(
+        "\npredicted 95% intervals at the nominal parameters (σ = {:.2} mm {}; widest of white, HAC, jackknife)",
+        u.sigma_mm,
+        if u.sigma_assumed {
+            "as given"
+        } else {
+            "from the nominal model's residuals, which include its misfit: conservative"
+        }
+    );
+    let mut t = crate::table::Table::new(&["group", "parameter", "unit", "±95%", "determined"]);
+    for p in &u.params {
+        t.row(vec![
+            p.group.clone(),
+            p.name.clone(),
+            p.unit.clone(),
+            p.half_width.map_or("∞".to_string(), |h| format!("{h:.2}")),
+            match p.status {
+                Identifiability::Determined => "yes",
+                Identifiability::Poor => "POOR",
+                Identifiability::Undetermined => "NO",
+            }
+            .to_string(),
+        ]);
+    }
+    print!("{}", t.render());
+    for p in u.flagged() {
+        println!(
+            "{}: {}",
+            p.name,
+            p.reason.as_deref().unwrap_or("poorly determined")
+        );
+    }
+    for w in &u.weak_directions {
+        println!("weak combination: {}", w.description);
+    }
+    println!(
+        "\nthis trial is predicted to determine {} of {} parameters (thresholds {} mm, {} deg)",
+        r.determined.len(),
+        u.params.len(),
+        u.threshold_mm,
+        u.threshold_deg
+    );
+}

@@ -1,0 +1,439 @@
+//! Covariance estimators: white, Newey–West HAC, moving-block bootstrap, delete-block
+//! jackknife; quantiles; the conservative choice (see the parent module for the math).
+
+use nalgebra::{DMatrix, DVector, SymmetricEigen};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+use super::super::joint::{solve_joint, JointOptions};
+use super::super::{Fit, Problem};
+use super::{BootstrapInfo, Reduced, SeMethod, UncertaintyOptions, NULL_RATIO};
+
+/// Symmetric pseudo-inverse and, per index, whether it touches a null direction.
+pub(super) fn pseudo_inverse(
+    s: &DMatrix<f64>,
+) -> (DMatrix<f64>, Vec<bool>, SymmetricEigen<f64, nalgebra::Dyn>) {
+    let n = s.nrows();
+    let eig = SymmetricEigen::new(s.clone());
+    let max = eig.eigenvalues.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let mut inv = DMatrix::zeros(n, n);
+    let mut null_weight = vec![0.0; n];
+    for j in 0..n {
+        let lam = eig.eigenvalues[j];
+        let v = eig.eigenvectors.column(j);
+        if lam > NULL_RATIO * max && lam > 0.0 {
+            inv += (v * v.transpose()) / lam;
+        } else {
+            for k in 0..n {
+                null_weight[k] += v[k] * v[k];
+            }
+        }
+    }
+    (inv, null_weight.iter().map(|w| *w > 1e-6).collect(), eig)
+}
+
+/// Newey–West long-run covariance of the scores with Bartlett bandwidth `b`; lags only
+/// within one trial (`same[i]`: frame i+1 follows frame i in the same trial).
+pub(super) fn long_run(scores: &[DVector<f64>], same: &[bool], b: f64) -> DMatrix<f64> {
+    let n = scores[0].len();
+    let mut omega = DMatrix::zeros(n, n);
+    for s in scores {
+        omega += s * s.transpose();
+    }
+    let max_lag = (b.ceil() as usize).min(scores.len());
+    for l in 1..max_lag {
+        let w = 1.0 - l as f64 / b;
+        if w <= 0.0 {
+            break;
+        }
+        for i in 0..scores.len().saturating_sub(l) {
+            if (i..i + l).all(|k| same[k]) {
+                let g = &scores[i] * scores[i + l].transpose();
+                omega += (&g + g.transpose()) * w;
+            }
+        }
+    }
+    omega
+}
+
+/// Andrews (1991) AR(1) plug-in bandwidth for the Bartlett kernel, on standardised series.
+pub(super) fn andrews_bandwidth(series: &[DVector<f64>]) -> f64 {
+    let n = series.len();
+    if n < 3 {
+        return 1.0;
+    }
+    let dim = series[0].len();
+    let (mut num, mut den) = (0.0, 0.0);
+    for a in 0..dim {
+        let x: Vec<f64> = series.iter().map(|v| v[a]).collect();
+        let sd = (x.iter().map(|v| v * v).sum::<f64>() / n as f64).sqrt();
+        if sd == 0.0 || !sd.is_finite() {
+            continue;
+        }
+        let x: Vec<f64> = x.iter().map(|v| v / sd).collect();
+        let sxy: f64 = x.windows(2).map(|w| w[0] * w[1]).sum();
+        let sxx: f64 = x[..n - 1].iter().map(|v| v * v).sum();
+        let rho = (sxy / sxx).clamp(-0.97, 0.97);
+        let s2 = x
+            .windows(2)
+            .map(|w| (w[1] - rho * w[0]).powi(2))
+            .sum::<f64>()
+            / (n - 1) as f64;
+        num += 4.0 * rho * rho * s2 * s2 / ((1.0 - rho).powi(6) * (1.0 + rho).powi(2));
+        den += s2 * s2 / (1.0 - rho).powi(4);
+    }
+    if den == 0.0 {
+        return 1.0;
+    }
+    (1.1447 * (num / den * n as f64).cbrt()).clamp(1.0, (n as f64 / 5.0).max(1.0))
+}
+
+/// Whether frame i+1 of the problem continues frame i's trial without a gap.
+pub(super) fn continuity(prob: &Problem) -> Vec<bool> {
+    prob.origin
+        .windows(2)
+        .map(|w| w[0].0 == w[1].0 && w[1].1 == w[0].1 + 1)
+        .collect()
+}
+
+/// Moving-block bootstrap: covariance (scaled units) of refitted `s` and the count of
+/// replicates that did not converge.
+pub(super) fn block_bootstrap(
+    prob: &Problem,
+    fit: &Fit,
+    replicates: usize,
+    block: usize,
+    seed: u64,
+) -> (DMatrix<f64>, usize) {
+    let n = prob.frames.len();
+    let same = continuity(prob);
+    // Candidate blocks: every window of `block` consecutive frames inside one run.
+    let mut runs = Vec::new();
+    let mut start = 0;
+    for i in 0..n {
+        if same.get(i) != Some(&true) {
+            runs.push((start, i + 1));
+            start = i + 1;
+        }
+    }
+    let mut windows = Vec::new();
+    for &(a, b) in &runs {
+        let len = block.min(b - a);
+        for s in a..=b - len {
+            windows.push((s, len));
+        }
+    }
+    // Standard errors need the refit to a small fraction of the spread, not to 1e-10.
+    let opts = JointOptions {
+        max_iterations: 50,
+        tolerance: 1e-6,
+    };
+    let results: Vec<(Vec<f64>, bool)> = (0..replicates)
+        .into_par_iter()
+        .map(|r| {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            rng.set_stream(r as u64 + 1);
+            let mut idx = Vec::with_capacity(n + block);
+            while idx.len() < n {
+                let (s, len) = windows[rng.gen_range(0..windows.len())];
+                idx.extend(s..s + len);
+            }
+            idx.truncate(n);
+            let mut sub = prob.clone();
+            sub.frames = idx.iter().map(|&i| prob.frames[i].clone()).collect();
+            sub.origin = idx.iter().map(|&i| prob.origin[i]).collect();
+            let q0 = idx.iter().map(|&i| fit.coords[i].clone()).collect();
+            let f = solve_joint(&sub, &fit.s, q0, &opts);
+            (f.s, f.converged)
+        })
+        .collect();
+    let nf = fit.s.len();
+    let mean: Vec<f64> = (0..nf)
+        .map(|k| results.iter().map(|r| r.0[k]).sum::<f64>() / replicates as f64)
+        .collect();
+    let mut cov = DMatrix::zeros(nf, nf);
+    for (s, _) in &results {
+        let d = DVector::from_iterator(nf, s.iter().zip(&mean).map(|(a, m)| a - m));
+        cov += &d * d.transpose();
+    }
+    cov /= (replicates.max(2) - 1) as f64;
+    (cov, results.iter().filter(|r| !r.1).count())
+}
+
+/// Linearised delete-block jackknife over `blocks` contiguous blocks of frames: dropping
+/// block k moves the optimum by `δ_k = (S − A_k)⁻¹ B_k` (one Gauss–Newton step, `A_k`, `B_k`
+/// the block's share of `S` and of the scores), and `C = (K−1)/K Σ_k (δ_k − δ̄)(δ_k − δ̄)ᵀ`.
+/// Correlation within a block is kept whole; the removal of the block's own influence makes
+/// it conservative where the fit absorbs part of the noise (few frames per parameter).
+pub(super) fn block_jackknife(
+    red: &Reduced,
+    scores: &[DVector<f64>],
+    blocks: usize,
+) -> DMatrix<f64> {
+    let n = scores.len();
+    let nf = red.normal.nrows();
+    let mut deltas = Vec::with_capacity(blocks);
+    for k in 0..blocks {
+        let (a, b) = (k * n / blocks, (k + 1) * n / blocks);
+        let mut s = red.normal.clone();
+        let mut g = DVector::zeros(nf);
+        for (ai, si) in red.frame_normals[a..b].iter().zip(&scores[a..b]) {
+            s -= ai;
+            g += si;
+        }
+        let (inv, _, _) = pseudo_inverse(&((&s + s.transpose()) * 0.5));
+        deltas.push(inv * g);
+    }
+    let mean = deltas.iter().fold(DVector::zeros(nf), |a, d| a + d) / blocks as f64;
+    let mut c = DMatrix::zeros(nf, nf);
+    for d in &deltas {
+        let e = d - &mean;
+        c += &e * e.transpose();
+    }
+    c * ((blocks - 1) as f64 / blocks as f64)
+}
+
+/// Inverse of the standard normal CDF (Acklam's rational approximation, |error| < 1.2e-9).
+pub fn normal_quantile(p: f64) -> f64 {
+    const A: [f64; 6] = [
+        -3.969683028665376e1,
+        2.209460984245205e2,
+        -2.759285104469687e2,
+        1.38357751867269e2,
+        -3.066479806614716e1,
+        2.506628277459239,
+    ];
+    const B: [f64; 5] = [
+        -5.447609879822406e1,
+        1.615858368580409e2,
+        -1.556989798598866e2,
+        6.680131188771972e1,
+        -1.328068155288572e1,
+    ];
+    const C: [f64; 6] = [
+        -7.784894002430293e-3,
+        -3.223964580411365e-1,
+        -2.400758277161838,
+        -2.549732539343734,
+        4.374664141464968,
+        2.938163982698783,
+    ];
+    const D: [f64; 4] = [
+        7.784695709041462e-3,
+        3.224671290700398e-1,
+        2.445134137142996,
+        3.754408661907416,
+    ];
+    let tail = |q: f64| {
+        let t = (-2.0 * q.ln()).sqrt();
+        (((((C[0] * t + C[1]) * t + C[2]) * t + C[3]) * t + C[4]) * t + C[5])
+            / ((((D[0] * t + D[1]) * t + D[2]) * t + D[3]) * t + 1.0)
+    };
+    if p <= 0.0 {
+        f64::NEG_INFINITY
+    } else if p >= 1.0 {
+        f64::INFINITY
+    } else if p < 0.02425 {
+        tail(p)
+    } else if p > 1.0 - 0.02425 {
+        -tail(1.0 - p)
+    } else {
+        let q = p - 0.5;
+        let r = q * q;
+        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
+            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
+    }
+}
+
+/// Quantile of Student's t with `nu` degrees of freedom from the normal one (Cornish–Fisher
+/// expansion, Abramowitz & Stegun 26.7.5; relative error < 1e-4 for `nu ≥ 5` at 0.975).
+pub fn t_quantile(p: f64, nu: f64) -> f64 {
+    let z = normal_quantile(p);
+    let (z3, z5, z7, z9) = (z.powi(3), z.powi(5), z.powi(7), z.powi(9));
+    z + (z3 + z) / (4.0 * nu)
+        + (5.0 * z5 + 16.0 * z3 + 3.0 * z) / (96.0 * nu * nu)
+        + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * nu.powi(3))
+        + (79.0 * z9 + 776.0 * z7 + 1482.0 * z5 - 1920.0 * z3 - 945.0 * z) / (92160.0 * nu.powi(4))
+}
+
+/// The covariance estimates (scaled units) of one analysis, before conversion.
+pub(super) struct Covariances {
+    pub(super) white: DMatrix<f64>,
+    pub(super) null: Vec<bool>,
+    pub(super) hac: Option<DMatrix<f64>>,
+    pub(super) bandwidth: Option<f64>,
+    pub(super) boot: Option<(DMatrix<f64>, BootstrapInfo)>,
+    pub(super) jack: Option<DMatrix<f64>>,
+    pub(super) factor: f64,
+    pub(super) eig: SymmetricEigen<f64, nalgebra::Dyn>,
+}
+
+/// `boot`: the problem and fit to refit for the bootstrap (none: no bootstrap). `same[i]`:
+/// frame i+1 continues frame i's trial.
+pub(super) fn covariances(
+    red: &Reduced,
+    same: &[bool],
+    boot: Option<(&Problem, &Fit)>,
+    opts: &UncertaintyOptions,
+    center_scores: bool,
+) -> Covariances {
+    let nf = red.normal.nrows();
+    let n = red.scores.len();
+    let (inv, null, eig) = pseudo_inverse(&red.normal);
+    let estimated = red.sigma2();
+    let sigma2 = opts.assumed_sigma_m.map_or(estimated, |s| s * s);
+    // Robust estimators scale with the residuals; rescale them to the assumed noise.
+    let rescale = if estimated > 0.0 && estimated.is_finite() {
+        sigma2 / estimated
+    } else {
+        1.0
+    };
+    let white = &inv * sigma2;
+    let factor = if opts.small_sample {
+        if n > nf {
+            n as f64 / (n - nf) as f64
+        } else {
+            f64::INFINITY
+        }
+    } else {
+        1.0
+    };
+    let mut scores = red.scores.clone();
+    if center_scores && n > 0 {
+        // Away from the optimum the scores carry the systematic misfit; its mean is not noise.
+        let mean = scores.iter().fold(DVector::zeros(nf), |a, s| a + s) / n as f64;
+        for s in &mut scores {
+            *s -= &mean;
+        }
+    }
+    // With no more frames than parameters the factor is infinite: no HAC or bootstrap.
+    let (hac, bandwidth) = if opts.hac && n > 1 && factor.is_finite() {
+        let b = opts.hac_bandwidth.unwrap_or_else(|| {
+            let sd: Vec<f64> = (0..nf).map(|k| white[(k, k)].sqrt()).collect();
+            let infl: Vec<DVector<f64>> = scores
+                .iter()
+                .map(|s| {
+                    let h = &inv * s;
+                    DVector::from_iterator(
+                        nf,
+                        h.iter()
+                            .zip(&sd)
+                            .map(|(v, d)| if *d > 0.0 { v / d } else { 0.0 }),
+                    )
+                })
+                .collect();
+            andrews_bandwidth(&infl)
+        });
+        let omega = long_run(&scores, same, b);
+        (Some(&inv * omega * &inv * (factor * rescale)), Some(b))
+    } else {
+        (None, None)
+    };
+    let boot = match boot {
+        Some((prob, fit)) if opts.bootstrap_replicates > 1 && factor.is_finite() => {
+            let block = opts
+                .block_length
+                .unwrap_or_else(|| bandwidth.map_or(2, |b| (b.ceil() as usize).max(2)))
+                .clamp(1, n.max(1));
+            let (c, nc) = block_bootstrap(prob, fit, opts.bootstrap_replicates, block, opts.seed);
+            Some((
+                c * (factor * rescale),
+                BootstrapInfo {
+                    replicates: opts.bootstrap_replicates,
+                    not_converged: nc,
+                    block_length: block,
+                    seed: opts.seed,
+                },
+            ))
+        }
+        _ => None,
+    };
+    let jack = (opts.jackknife_blocks > 1 && n >= opts.jackknife_blocks)
+        .then(|| block_jackknife(red, &scores, opts.jackknife_blocks) * rescale);
+    Covariances {
+        white,
+        null,
+        hac,
+        bandwidth,
+        boot,
+        jack,
+        factor,
+        eig,
+    }
+}
+
+/// Critical values: `z` for white, HAC and bootstrap; Student's t with `K − 1` degrees of
+/// freedom for the `K`-block jackknife.
+pub(super) fn critical(level: f64, opts: &UncertaintyOptions) -> (f64, f64) {
+    let p = 0.5 + 0.5 * level;
+    let k = opts.jackknife_blocks.max(2) as f64;
+    (normal_quantile(p), t_quantile(p, k - 1.0))
+}
+
+/// One estimator's `(se, half-width, method)`.
+pub(super) type Estimate = (f64, f64, SeMethod);
+
+/// Per estimator `(se, half-width, method)` of the quadratic form `f(C)` (a variance in
+/// scaled units), and the most conservative one (largest half-width).
+pub(super) fn conservative(
+    cov: &Covariances,
+    crit: (f64, f64),
+    f: impl Fn(&DMatrix<f64>) -> f64,
+) -> (Vec<Estimate>, Option<Estimate>) {
+    let mut all = vec![(f(&cov.white).max(0.0).sqrt(), crit.0, SeMethod::White)];
+    if let Some(h) = &cov.hac {
+        all.push((f(h).max(0.0).sqrt(), crit.0, SeMethod::Hac));
+    }
+    if let Some((b, _)) = &cov.boot {
+        all.push((f(b).max(0.0).sqrt(), crit.0, SeMethod::Bootstrap));
+    }
+    if let Some(j) = &cov.jack {
+        all.push((f(j).max(0.0).sqrt(), crit.1, SeMethod::Jackknife));
+    }
+    let out: Vec<Estimate> = all.iter().map(|(s, c, m)| (*s, s * c, *m)).collect();
+    // An estimator that cannot be evaluated (e.g. fewer frames than parameters makes the
+    // small-sample factor infinite) leaves the parameter undetermined rather than letting a
+    // less conservative one speak for it.
+    if out.iter().any(|v| !v.1.is_finite()) {
+        return (out, None);
+    }
+    let best = out.iter().copied().max_by(|a, b| a.1.total_cmp(&b.1));
+    (out, best)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn t_quantile_matches_tables() {
+        // Student t 0.975 quantiles: 9 dof 2.262157, 19 dof 2.093024, 4 dof 2.776445.
+        assert!((t_quantile(0.975, 9.0) - 2.262157).abs() < 2e-4);
+        assert!((t_quantile(0.975, 19.0) - 2.093024).abs() < 1e-5);
+        assert!((t_quantile(0.975, 4.0) - 2.776445).abs() < 5e-3);
+    }
+
+    #[test]
+    fn normal_quantile_matches_known_values() {
+        assert!((normal_quantile(0.975) - 1.959963984540054).abs() < 1e-8);
+        assert!((normal_quantile(0.5)).abs() < 1e-12);
+        assert!((normal_quantile(0.005) + 2.5758293035489).abs() < 1e-8);
+    }
+
+    #[test]
+    fn bartlett_long_run_of_white_scores_is_their_sum_of_squares() {
+        let scores: Vec<DVector<f64>> = (0..5)
+            .map(|i| DVector::from_vec(vec![i as f64, 1.0]))
+            .collect();
+        let same = vec![true; 4];
+        let o = long_run(&scores, &same, 1.0);
+        assert_eq!(o[(0, 0)], 30.0);
+        // Bandwidth 2: lag-1 products get weight 1/2; not across a trial boundary.
+        let o2 = long_run(&scores, &same, 2.0);
+        assert_eq!(o2[(0, 0)], 30.0 + (0.0 + 2.0 + 6.0 + 12.0));
+        let cut = vec![true, false, true, true];
+        let o3 = long_run(&scores, &cut, 2.0);
+        assert_eq!(o3[(0, 0)], 30.0 + (0.0 + 6.0 + 12.0));
+    }
+}

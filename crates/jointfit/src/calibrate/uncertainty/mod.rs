@@ -1,0 +1,442 @@
+//! Which joint parameters a trial determines: standard errors, intervals, identifiability.
+//!
+//! Reinbolt et al. 2005 (doi:10.1016/j.jbiomech.2004.03.031) close with an open problem: "a
+//! systematic methodology for determining which joint parameters can and cannot be found
+//! accurately from a particular noisy experimental data set". This module answers it for a
+//! fitted (or nominal) parameter set.
+//!
+//! # The reduced normal matrix
+//!
+//! With `J_i = [J_q,i | J_s,i]` the weighted Jacobian of frame i (coordinates `q_i`, scaled
+//! free parameters `s`) and `r_i = m_i − x_i`, projecting the per-frame coordinates out gives
+//! the reduced (variable-projection) Jacobian `J_red,i = (I − J_q (J_qᵀWJ_q)⁻¹ J_qᵀW) J_s` and
+//! the reduced normal matrix, the Schur complement of the block-arrow system of
+//! the private `schur` module:
+//!
+//! `S = Σ_i J_red,iᵀ W J_red,i = V − Σ_i W_iᵀ U_i⁻¹ W_i`.
+//!
+//! It is the Fisher information of `s` with the coordinates as nuisance parameters.
+//!
+//! # Covariance estimators
+//!
+//! * **white** (independent, equal-variance residuals): `C = σ² S⁻¹` with
+//!   `σ² = e / (m − N·n_q − n_f)`, `e` the weighted squared residual sum, `m` the number of
+//!   scalar residuals (3 per present marker sample), `N` frames, `n_q` coordinates per frame.
+//! * **HAC sandwich** (Newey & West 1987): the per-frame profile score
+//!   `ψ_i = J_red,iᵀ W r_i = J_s,iᵀWr_i − W_iᵀU_i⁻¹ J_q,iᵀWr_i` (at the optimum the second term
+//!   vanishes, every `q_i` being an inner optimum) gives `C = c · S⁻¹ Ω S⁻¹` with the Bartlett
+//!   long-run covariance `Ω = Σ_|l|<b (1 − |l|/b) Σ_i ψ_i ψ_{i+l}ᵀ`, pairs taken only within
+//!   one trial. The bandwidth `b` is Andrews' (1991) AR(1) plug-in rule on the standardised
+//!   influence series `S⁻¹ψ_i`, capped at `N/5` (with wider windows the Bartlett estimate
+//!   shrinks towards zero, because the scores sum to zero at the optimum), unless given.
+//! * **moving-block bootstrap** (Künsch 1989), opt-in: blocks of consecutive frames are drawn
+//!   with replacement until the trial length is reached, and the joint solver refits from
+//!   the optimum; `C = c · cov(ŝ*)` over replicates. Seeded; replicates run in parallel but
+//!   each has its own stream, so results do not depend on the thread count.
+//! * **delete-block jackknife** (cluster-robust "CR3" with contiguous blocks of frames as
+//!   clusters): `K` blocks (default 10); dropping block k moves the optimum by
+//!   `δ_k = (S − A_k)⁻¹ B_k`, with `A_k`, `B_k` the block's share of `S` and of the scores,
+//!   and `C = (K−1)/K Σ_k (δ_k − δ̄)(δ_k − δ̄)ᵀ`; intervals use Student's t on `K − 1`
+//!   degrees of freedom.
+//!
+//! Skin artifact is correlated in time, so the white formula understates the uncertainty;
+//! the robust estimators see that correlation. They estimate the scatter from fitted
+//! residuals, which the fit has pulled towards the model: with `n_f` parameters and `N`
+//! frames the scores lose about `n_f/N` of their variance (the frame-level leverages sum to
+//! `n_f`). The HAC and bootstrap estimates are therefore scaled by `c = N/(N − n_f)` (the
+//! usual cluster small-sample factor); the jackknife removes each block's own influence
+//! instead.
+//!
+//! Each parameter's reported interval is the **widest** of the available estimates (the
+//! white, HAC and bootstrap ones with the normal quantile, the jackknife with t), and the
+//! report names the method that produced it. Monte Carlo check:
+//! `jointfit-experiments/examples/coverage.rs` (figures in `docs/identifiability.md`).
+//! Drift slower than a block (skin sinusoids with less than a cycle per trial) looks like
+//! a parameter change to every estimator built from one trial, which is why coverage stays
+//! a few points under nominal.
+//!
+//! # Identifiability
+//!
+//! Parameters are converted to physical units with `∂p/∂s = (hi − lo)/2`. A parameter whose
+//! interval half-width (critical value × standard error) exceeds a threshold (default 5 mm / 5°) is *poorly determined*;
+//! one with weight on a numerically null direction of `S` (eigenvalue below `1e-10·λ_max`) is
+//! *not determined* at all. The eigenvectors of `S` with the smallest eigenvalues name the
+//! worst-determined combinations; their dominant components (squared weight ≥ 0.1) are put
+//! into words from the parameters' descriptions, and each flagged parameter gets a reason
+//! built from the range of motion of its joint's coordinates in the trial.
+//! [`unidentifiable_subset`] chooses the parameters to hold at their starting values so that
+//! the rest are determined (subset selection on `S`).
+
+mod estimators;
+mod reduced;
+mod subset;
+mod words;
+
+use serde::{Deserialize, Serialize};
+
+use super::{Fit, Problem};
+use crate::model::Unit;
+use estimators::{conservative, continuity, covariances, critical, Covariances};
+pub use estimators::{normal_quantile, t_quantile};
+pub use reduced::{reduced_system, Reduced};
+pub use subset::unidentifiable_subset;
+pub use words::coordinate_ranges;
+use words::{reason, weak_directions};
+
+/// Eigenvalues of `S` below this fraction of the largest count as zero (not determined).
+const NULL_RATIO: f64 = 1e-10;
+
+/// Which estimator produced a number.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SeMethod {
+    /// `σ² S⁻¹`, independent residuals.
+    White,
+    /// Newey–West sandwich over frames.
+    Hac,
+    /// Moving-block bootstrap over frames with refits.
+    Bootstrap,
+    /// Delete-block jackknife over contiguous blocks of frames (linearised).
+    Jackknife,
+    /// The parameter lies on a null direction of `S`: no finite error.
+    Undetermined,
+}
+
+/// How well the trial determines a parameter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Identifiability {
+    /// Interval half-width within the threshold.
+    Determined,
+    /// Half-width above the threshold, or the fit stopped at a bound.
+    Poor,
+    /// No information in the trial at all (null direction of `S`).
+    Undetermined,
+}
+
+/// Settings of [`analyze`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct UncertaintyOptions {
+    /// Coverage of the intervals (0.95).
+    pub level: f64,
+    /// Compute the Newey–West sandwich.
+    pub hac: bool,
+    /// Bartlett bandwidth in frames (lags `< b` get weight); `None`: Andrews' AR(1) rule.
+    pub hac_bandwidth: Option<f64>,
+    /// Bootstrap replicates (0, the default: no bootstrap; each replicate is a refit).
+    pub bootstrap_replicates: usize,
+    /// Block length in frames; `None`: the HAC bandwidth rounded up, at least 2.
+    pub block_length: Option<usize>,
+    /// Seed of the bootstrap.
+    pub seed: u64,
+    /// Contiguous blocks of the delete-block jackknife (0: no jackknife).
+    pub jackknife_blocks: usize,
+    /// Apply the small-sample factor `N/(N − n_f)` to the robust estimators.
+    pub small_sample: bool,
+    /// Assumed residual standard deviation per axis (m) instead of the one estimated from
+    /// the residuals; the robust estimators are rescaled by the same variance ratio. For
+    /// predictions at a nominal model, whose residuals include its misfit.
+    pub assumed_sigma_m: Option<f64>,
+    /// Half-width above which a length parameter is flagged (m).
+    pub threshold_m: f64,
+    /// Half-width above which an angle parameter is flagged (rad).
+    pub threshold_rad: f64,
+}
+
+impl Default for UncertaintyOptions {
+    fn default() -> Self {
+        UncertaintyOptions {
+            level: 0.95,
+            hac: true,
+            hac_bandwidth: None,
+            bootstrap_replicates: 0,
+            block_length: None,
+            seed: 1,
+            jackknife_blocks: 10,
+            small_sample: true,
+            assumed_sigma_m: None,
+            threshold_m: 0.005,
+            threshold_rad: 5f64.to_radians(),
+        }
+    }
+}
+
+/// One free parameter's uncertainty, in display units (mm or deg, see `unit`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ParamUncertainty {
+    pub name: String,
+    pub group: String,
+    pub description: String,
+    /// `"mm"` or `"deg"`.
+    pub unit: String,
+    /// Fitted (or evaluated) value.
+    pub value: f64,
+    /// Standard error of the estimator whose interval is widest; `None` when not determined.
+    pub se: Option<f64>,
+    /// Interval half-width: `se` times that estimator's critical value (`z`, or Student's t
+    /// for the jackknife); `None` when not determined.
+    pub half_width: Option<f64>,
+    /// Interval `value ± half_width` at the report's level; `None` when not determined.
+    pub ci: Option<[f64; 2]>,
+    /// Which estimator `se` and the interval come from (the most conservative one).
+    pub method: SeMethod,
+    pub se_white: Option<f64>,
+    pub se_hac: Option<f64>,
+    pub se_bootstrap: Option<f64>,
+    pub se_jackknife: Option<f64>,
+    /// The value sits at a bound of the search box (the linear interval is then doubtful).
+    pub at_bound: bool,
+    pub status: Identifiability,
+    /// Why a flagged parameter is poorly determined and which motion would determine it.
+    pub reason: Option<String>,
+}
+
+/// One parameter's part in a weak direction.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DirectionComponent {
+    pub name: String,
+    /// Component of the unit eigenvector (scaled units).
+    pub coefficient: f64,
+    /// Interval half-width of this parameter along the direction (mm or deg); `None` for a
+    /// null direction.
+    pub half_width: Option<f64>,
+    pub unit: String,
+}
+
+/// A poorly determined combination of parameters: an eigenvector of `S` with a small
+/// eigenvalue.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WeakDirection {
+    /// Eigenvalue of `S` (m² per scaled unit²).
+    pub eigenvalue: f64,
+    /// Dominant components, largest first.
+    pub components: Vec<DirectionComponent>,
+    /// The combination in words.
+    pub description: String,
+}
+
+/// Range of motion of one coordinate over the fitted frames, display units.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CoordRange {
+    pub name: String,
+    pub joint: String,
+    /// `"deg"` or `"mm"`.
+    pub unit: String,
+    pub min: f64,
+    pub max: f64,
+    pub range: f64,
+}
+
+/// Bootstrap settings as used.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BootstrapInfo {
+    pub replicates: usize,
+    /// Replicates whose refit did not converge (kept).
+    pub not_converged: usize,
+    pub block_length: usize,
+    pub seed: u64,
+}
+
+/// Uncertainty and identifiability of the free parameters of one fit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Uncertainty {
+    /// Interval coverage, e.g. 0.95.
+    pub level: f64,
+    /// Normal quantile: the critical value of the white, HAC and bootstrap intervals.
+    pub z: f64,
+    /// Student-t quantile with `K − 1` degrees of freedom: the jackknife's critical value.
+    pub t_jackknife: Option<f64>,
+    /// Blocks `K` of the delete-block jackknife, when computed.
+    pub jackknife_blocks: Option<usize>,
+    pub frames: usize,
+    /// Scalar residuals `m`.
+    pub observations: usize,
+    /// Residual degrees of freedom `m − N·n_q − n_f`.
+    pub dof: usize,
+    /// Residual standard deviation per coordinate axis (mm): estimated, or as assumed.
+    pub sigma_mm: f64,
+    /// Whether `sigma_mm` was assumed (given) rather than estimated from the residuals.
+    pub sigma_assumed: bool,
+    /// Small-sample factor applied to the robust estimators.
+    pub small_sample_factor: f64,
+    /// Bartlett bandwidth of the HAC estimator (frames), when computed.
+    pub hac_bandwidth: Option<f64>,
+    pub bootstrap: Option<BootstrapInfo>,
+    /// Flag thresholds (mm, deg).
+    pub threshold_mm: f64,
+    pub threshold_deg: f64,
+    /// Per free parameter, in the problem's order.
+    pub params: Vec<ParamUncertainty>,
+    /// Correlation matrix of the free parameters from the white (Fisher) covariance; `None`
+    /// entries involve an undetermined parameter.
+    pub corr: Vec<Vec<Option<f64>>>,
+    /// The weakest directions of `S` (smallest eigenvalue first) whose half-width exceeds
+    /// the threshold for some component, at most 5.
+    pub weak_directions: Vec<WeakDirection>,
+    /// Range of motion of every coordinate over the frames.
+    pub ranges: Vec<CoordRange>,
+}
+
+impl Uncertainty {
+    /// Parameters flagged poor or undetermined.
+    pub fn flagged(&self) -> impl Iterator<Item = &ParamUncertainty> {
+        self.params
+            .iter()
+            .filter(|p| p.status != Identifiability::Determined)
+    }
+}
+
+/// Display factor and unit of a parameter or coordinate.
+pub(super) fn display(unit: Unit) -> (f64, &'static str) {
+    match unit {
+        Unit::Metre => (1e3, "mm"),
+        Unit::Radian => (180.0 / std::f64::consts::PI, "deg"),
+    }
+}
+
+/// Uncertainty of the fitted free parameters of `fit` (a solution of `prob`).
+pub fn analyze(prob: &Problem, fit: &Fit, opts: &UncertaintyOptions) -> Uncertainty {
+    let red = reduced_system(prob, &fit.p, &fit.coords);
+    let cov = covariances(&red, &continuity(prob), Some((prob, fit)), opts, false);
+    build(prob, &fit.p, &fit.s, &fit.coords, &red, &cov, opts)
+}
+
+/// Predicted uncertainty at parameters `p` with inner solutions `qs` (one per frame of
+/// `prob`), before any fit: white, HAC and jackknife estimates (no bootstrap, which needs a
+/// fit), the scores centred on their mean so that the systematic misfit of a nominal model
+/// does not count as noise. `σ²` comes from the residuals at `p`, which include that misfit,
+/// so the prediction is conservative; set [`UncertaintyOptions::assumed_sigma_m`] when the
+/// noise level is known.
+pub fn predict(
+    prob: &Problem,
+    p: &[f64],
+    qs: &[Vec<f64>],
+    opts: &UncertaintyOptions,
+) -> Uncertainty {
+    let red = reduced_system(prob, p, qs);
+    let cov = covariances(&red, &continuity(prob), None, opts, true);
+    build(prob, p, &prob.to_scaled(p), qs, &red, &cov, opts)
+}
+
+fn build(
+    prob: &Problem,
+    p: &[f64],
+    s: &[f64],
+    qs: &[Vec<f64>],
+    red: &Reduced,
+    cov: &Covariances,
+    opts: &UncertaintyOptions,
+) -> Uncertainty {
+    let model = prob.model;
+    let nf = prob.n_free();
+    let crit = critical(opts.level, opts);
+    let z = crit.0;
+    let ranges = coordinate_ranges(model, qs);
+    let scale: Vec<f64> = (0..nf)
+        .map(|k| prob.half_range(k) * display(model.parameters[prob.free[k]].unit).0)
+        .collect();
+    let threshold = |k: usize| match model.parameters[prob.free[k]].unit {
+        Unit::Metre => opts.threshold_m * 1e3,
+        Unit::Radian => opts.threshold_rad.to_degrees(),
+    };
+    let corr: Vec<Vec<Option<f64>>> = (0..nf)
+        .map(|a| {
+            (0..nf)
+                .map(|b| {
+                    if cov.null[a] || cov.null[b] {
+                        None
+                    } else {
+                        let d = (cov.white[(a, a)] * cov.white[(b, b)]).sqrt();
+                        Some(if d > 0.0 { cov.white[(a, b)] / d } else { 0.0 })
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    let params = (0..nf)
+        .map(|k| {
+            let i = prob.free[k];
+            let par = &model.parameters[i];
+            let (f, unit) = display(par.unit);
+            let value = p[i] * f;
+            let at_bound = s[k].abs() >= 1.0 - 1e-9;
+            let (all, best) = conservative(cov, crit, |c| c[(k, k)]);
+            let of = |m: SeMethod| {
+                all.iter()
+                    .find(|v| v.2 == m && !cov.null[k])
+                    .map(|v| v.0 * scale[k])
+            };
+            let (se, half_width, method) = match best {
+                Some((v, h, m)) if !cov.null[k] => (Some(v * scale[k]), Some(h * scale[k]), m),
+                _ => (None, None, SeMethod::Undetermined),
+            };
+            let status = match half_width {
+                None => Identifiability::Undetermined,
+                Some(h) if h > threshold(k) || at_bound => Identifiability::Poor,
+                Some(_) => Identifiability::Determined,
+            };
+            let reason = (status != Identifiability::Determined).then(|| {
+                let partner = (0..nf)
+                    .filter(|&b| b != k)
+                    .filter_map(|b| corr[k][b].map(|r| (b, r)))
+                    .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+                    .filter(|(_, r)| r.abs() >= 0.9)
+                    .map(|(b, r)| (model.parameters[prob.free[b]].name.as_str(), r));
+                let mut text = reason(model, i, at_bound, &ranges, partner);
+                // `scale[k]` is the bounds' half-width in display units.
+                if half_width.is_some_and(|h| h > scale[k]) {
+                    text.push_str(&format!(
+                        "; the interval is wider than the search bounds (±{:.0} {unit}), so \
+                         the trial adds little to them",
+                        scale[k]
+                    ));
+                }
+                if status == Identifiability::Undetermined {
+                    format!("not determined by this trial at all: {text}")
+                } else {
+                    text
+                }
+            });
+            ParamUncertainty {
+                name: par.name.clone(),
+                group: par.group.clone(),
+                description: par.description.clone(),
+                unit: unit.to_string(),
+                value,
+                se,
+                half_width,
+                ci: half_width.map(|h| [value - h, value + h]),
+                method,
+                se_white: of(SeMethod::White),
+                se_hac: of(SeMethod::Hac),
+                se_bootstrap: of(SeMethod::Bootstrap),
+                se_jackknife: of(SeMethod::Jackknife),
+                at_bound,
+                status,
+                reason,
+            }
+        })
+        .collect();
+    let weak_directions = weak_directions(prob, cov, &scale, crit, opts);
+    let sigma2 = opts.assumed_sigma_m.map_or(red.sigma2(), |s| s * s);
+    Uncertainty {
+        level: opts.level,
+        z,
+        t_jackknife: cov.jack.as_ref().map(|_| crit.1),
+        jackknife_blocks: cov.jack.as_ref().map(|_| opts.jackknife_blocks),
+        frames: red.scores.len(),
+        observations: red.observations,
+        dof: red.dof(),
+        sigma_mm: sigma2.sqrt() * 1e3,
+        sigma_assumed: opts.assumed_sigma_m.is_some(),
+        small_sample_factor: cov.factor,
+        hac_bandwidth: cov.bandwidth,
+        bootstrap: cov.boot.as_ref().map(|(_, b)| b.clone()),
+        threshold_mm: opts.threshold_m * 1e3,
+        threshold_deg: opts.threshold_rad.to_degrees(),
+        params,
+        corr,
+        weak_directions,
+        ranges,
+    }
+}

@@ -1,0 +1,66 @@
+//! Subset selection: the parameters to hold fixed (see [`unidentifiable_subset`]).
+
+use nalgebra::{DMatrix, DVector};
+
+use super::super::{Fit, Problem};
+use super::estimators::{conservative, continuity, covariances, critical};
+use super::{reduced_system, Reduced, UncertaintyOptions};
+use crate::model::Unit;
+
+/// Subset selection: which free parameters (indices into `prob.free`) to hold fixed so that
+/// the others are determined within the thresholds.
+///
+/// Greedy, on the reduced normal matrix at the fit: the reduced matrix of a subset is the
+/// sub-block `S[keep, keep]` (the coordinates are projected out column by column) and the
+/// HAC meat is the same sub-block of `Ω`, so no refit is needed to plan. While a kept
+/// parameter is flagged, the flagged one with the largest weight in the weakest eigenvector
+/// of `S[keep, keep]` is removed (Golub, Klema & Stewart 1976 style). The caller refits with
+/// the rest and re-analyses.
+pub fn unidentifiable_subset(prob: &Problem, fit: &Fit, opts: &UncertaintyOptions) -> Vec<usize> {
+    let red = reduced_system(prob, &fit.p, &fit.coords);
+    let same = continuity(prob);
+    let crit = critical(opts.level, opts);
+    let threshold = |k: usize| match prob.model.parameters[prob.free[k]].unit {
+        Unit::Metre => opts.threshold_m,
+        Unit::Radian => opts.threshold_rad,
+    };
+    let mut keep: Vec<usize> = (0..prob.n_free()).collect();
+    let mut removed = Vec::new();
+    while !keep.is_empty() {
+        let m = keep.len();
+        let pick = |v: &DVector<f64>| DVector::from_iterator(m, keep.iter().map(|&k| v[k]));
+        let sub = Reduced {
+            normal: DMatrix::from_fn(m, m, |a, b| red.normal[(keep[a], keep[b])]),
+            scores: red.scores.iter().map(pick).collect(),
+            frame_normals: red
+                .frame_normals
+                .iter()
+                .map(|a| DMatrix::from_fn(m, m, |x, y| a[(keep[x], keep[y])]))
+                .collect(),
+            cost: red.cost,
+            observations: red.observations,
+            n_q: red.n_q,
+        };
+        let cov = covariances(&sub, &same, None, opts, false);
+        let flagged: Vec<usize> = (0..m)
+            .filter(|&a| {
+                let hw = conservative(&cov, crit, |c| c[(a, a)]).1.map(|b| b.1);
+                cov.null[a] || hw.is_none_or(|h| h * prob.half_range(keep[a]) > threshold(keep[a]))
+            })
+            .collect();
+        if flagged.is_empty() {
+            break;
+        }
+        let weakest = (0..m)
+            .min_by(|&a, &b| cov.eig.eigenvalues[a].total_cmp(&cov.eig.eigenvalues[b]))
+            .unwrap_or(0);
+        let v = cov.eig.eigenvectors.column(weakest);
+        let worst = *flagged
+            .iter()
+            .max_by(|&&a, &&b| v[a].abs().total_cmp(&v[b].abs()))
+            .unwrap_or(&flagged[0]);
+        removed.push(keep.remove(worst));
+    }
+    removed.sort();
+    removed
+}
