@@ -230,8 +230,9 @@ fn progress_lines_go_to_stderr_when_asked() {
     let args = ["demo", "--frames", "20", "--noise-mm", "2"];
     let (ok, quiet_out, err) = run(&args, &[]);
     assert!(ok, "{err}");
+    // Off a terminal a short run prints no progress; identifiability warnings may remain.
     assert!(
-        err.is_empty(),
+        err.lines().all(|l| l.starts_with("jointfit: warning:")),
         "no progress off a terminal for a short run: {err}"
     );
     let (ok, out, err) = run(
@@ -242,7 +243,10 @@ fn progress_lines_go_to_stderr_when_asked() {
         ],
     );
     assert!(ok, "{err}");
-    let lines: Vec<&str> = err.lines().collect();
+    let lines: Vec<&str> = err
+        .lines()
+        .filter(|l| !l.starts_with("jointfit: warning:"))
+        .collect();
     assert!(
         lines
             .iter()
@@ -263,5 +267,8 @@ fn progress_lines_go_to_stderr_when_asked() {
     };
     assert_eq!(strip(&out), strip(&quiet_out));
     let (ok, _, err) = run(&args, &[("JOINTFIT_PROGRESS", "quiet")]);
-    assert!(ok && err.is_empty(), "{err}");
+    assert!(
+        ok && err.lines().all(|l| l.starts_with("jointfit: warning:")),
+        "{err}"
+    );
 }
