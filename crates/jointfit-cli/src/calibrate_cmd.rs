@@ -53,9 +53,13 @@ pub struct CalibrateArgs {
     /// Low-pass filter cutoff in Hz.
     #[arg(long)]
     pub filter: Option<f64>,
-    /// Random seed of the particle swarm.
+    /// Random seed of the particle swarm and of the extra starts.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Fit from this many starts (the given one and seeded moves of up to ±20 mm / ±10°),
+    /// keep the best and report the spread of the optima (joint and gradient methods).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=1000))]
+    pub starts: u64,
     #[arg(long, value_enum, default_value = "y")]
     pub up: Up,
     /// Print a JSON report on stdout.
@@ -119,6 +123,8 @@ pub struct Report {
     pub uncertainty: Option<Uncertainty>,
     /// Parameters held at their starting values by `--fix-unidentifiable`.
     pub fixed_unidentifiable: Vec<String>,
+    /// Several starts (`--starts N`): the optima they reached.
+    pub multistart: Option<MultiStart>,
 }
 
 /// One optimizer stage (e.g. the particle swarm, then its polish).
@@ -165,7 +171,7 @@ pub fn calibrate(
     seed: u64,
 ) -> Result<(Fit, Report)> {
     let free = params_for_groups(model, groups)?;
-    calibrate_params(model, start, trials, &free, method, seed)
+    calibrate_params(model, start, trials, &free, method, seed, 1)
 }
 
 /// [`calibrate`] with the free parameters given by id.
@@ -176,6 +182,7 @@ pub fn calibrate_params(
     free: &[ParamId],
     method: Method,
     seed: u64,
+    starts: usize,
 ) -> Result<(Fit, Report)> {
     let prob = Problem::new(model, start.clone(), free, trials)?;
     let clock = Instant::now();
@@ -235,6 +242,12 @@ pub fn calibrate_params(
         }
     };
     bars.finish();
+    let (fit, multistart) = if starts > 1 && method != Method::Pso {
+        let (best, summary) = multi_start(&prob, &start, fit, starts, seed, method);
+        (best, Some(summary))
+    } else {
+        (fit, None)
+    };
     let seconds = clock.elapsed().as_secs_f64();
     let names = |v: Vec<f64>| -> Vec<(String, f64)> {
         model
@@ -286,8 +299,81 @@ pub fn calibrate_params(
         convergence,
         uncertainty: None,
         fixed_unidentifiable: Vec::new(),
+        multistart,
     };
     Ok((fit, report))
+}
+
+/// What several starts found (`--starts N`).
+#[derive(Debug, Clone, Serialize)]
+pub struct MultiStart {
+    pub starts: usize,
+    /// Final objective of every start (mm²); start 0 is the given start.
+    pub objective_mm2: Vec<f64>,
+    /// Starts whose objective is within 1e-9 (relative) of the best.
+    pub reached_best: usize,
+    /// Per free parameter: the range (max − min) of its fitted value over the starts
+    /// (mm or deg).
+    pub spread: Vec<(String, f64)>,
+}
+
+/// Refits from `starts − 1` further starting points, the start moved by up to ±20 mm and
+/// ±10° on every free parameter (uniform, seeded by `seed`), and keeps the lowest
+/// objective. The noisy problem can have local minima (Reinbolt et al. 2005 used a global
+/// swarm for that reason); the spread of the optima tells how much it matters here.
+fn multi_start(
+    prob: &Problem,
+    start: &[f64],
+    first: Fit,
+    starts: usize,
+    seed: u64,
+    method: Method,
+) -> (Fit, MultiStart) {
+    let mut fits = vec![first];
+    for k in 1..starts {
+        let k_seed = seed.wrapping_mul(1_000_003).wrapping_add(k as u64);
+        let p0 =
+            jointfit_experiments::synth::perturb(prob.model, start, &prob.free, 20.0, 10.0, k_seed);
+        let q0 = prob.initial_coords(&p0);
+        let s0 = prob.to_scaled(&p0);
+        fits.push(match method {
+            Method::Gradient => {
+                solve_varpro_observed(prob, &s0, q0, &VarProOptions::default(), |_, _| {})
+            }
+            _ => solve_joint_observed(prob, &s0, q0, &JointOptions::default(), |_, _| {}),
+        });
+    }
+    let best = (0..fits.len())
+        .min_by(|&a, &b| fits[a].cost.total_cmp(&fits[b].cost))
+        .expect("at least one start");
+    let best_cost = fits[best].cost;
+    let spread = prob
+        .free
+        .iter()
+        .map(|&i| {
+            let par = &prob.model.parameters[i];
+            let k = match par.unit {
+                Unit::Metre => MM,
+                Unit::Radian => 180.0 / std::f64::consts::PI,
+            };
+            let (lo, hi) = fits
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), f| {
+                    (lo.min(f.p[i]), hi.max(f.p[i]))
+                });
+            (par.name.clone(), (hi - lo) * k)
+        })
+        .collect();
+    let summary = MultiStart {
+        starts,
+        objective_mm2: fits.iter().map(|f| f.cost * MM * MM).collect(),
+        reached_best: fits
+            .iter()
+            .filter(|f| f.cost - best_cost <= 1e-9 * best_cost)
+            .count(),
+        spread,
+    };
+    (fits.swap_remove(best), summary)
 }
 
 /// Uncertainty settings from the command line.
@@ -340,10 +426,11 @@ pub fn calibrate_with_uncertainty(
     seed: u64,
     opts: &UncertaintyOptions,
     fix_unidentifiable: bool,
+    starts: usize,
 ) -> Result<(Fit, Report)> {
     let mut free = params_for_groups(model, groups)?;
     let (mut fit, mut report) =
-        calibrate_params(model, start.clone(), trials, &free, method, seed)?;
+        calibrate_params(model, start.clone(), trials, &free, method, seed, starts)?;
     let mut fixed = Vec::new();
     // Subset selection plans on the reduced normal matrix of the current fit; a refit moves
     // the optimum a little, so the selection is repeated (at most three rounds).
@@ -370,7 +457,8 @@ pub fn calibrate_with_uncertainty(
             .filter(|(k, _)| !drop.contains(k))
             .map(|(_, id)| *id)
             .collect();
-        (fit, report) = calibrate_params(model, start.clone(), trials, &free, method, seed)?;
+        (fit, report) =
+            calibrate_params(model, start.clone(), trials, &free, method, seed, starts)?;
     }
     attach_uncertainty(model, &start, trials, &free, &fit, opts, &mut report)?;
     report.fixed_unidentifiable = fixed;
@@ -389,6 +477,35 @@ pub fn print_report(report: &Report) {
         report.seconds,
         if report.converged { "" } else { " (not converged)" }
     );
+    if let Some(ms) = &report.multistart {
+        let lo = ms
+            .objective_mm2
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
+        let hi = ms
+            .objective_mm2
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
+        println!(
+            "{} starts: {} reached the best objective (to 1e-9); objectives {:.3} to {:.3} mm²",
+            ms.starts, ms.reached_best, lo, hi
+        );
+        let mut wide: Vec<&(String, f64)> = ms.spread.iter().filter(|(_, r)| *r > 0.1).collect();
+        wide.sort_by(|a, b| b.1.total_cmp(&a.1));
+        if !wide.is_empty() {
+            let list: Vec<String> = wide
+                .iter()
+                .take(6)
+                .map(|(n, r)| format!("{n} {r:.1}"))
+                .collect();
+            println!(
+                "  largest spread of the optima over the starts (mm or deg): {}",
+                list.join(", ")
+            );
+        }
+    }
     let mut t = crate::table::Table::new(&[
         "group",
         "parameter",
@@ -539,6 +656,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         args.seed,
         &opts,
         args.fix_unidentifiable,
+        args.starts as usize,
     )?;
     let mut fitted = model.spec_with_nominal(&fit.p);
     fitted.name = format!("{} (fitted)", spec.name);

@@ -60,6 +60,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         args.seed,
         &jointfit::calibrate::uncertainty::UncertaintyOptions::default(),
         false,
+        1,
     )?;
     print_report(&report);
     let mut t = crate::table::Table::new(&[
