@@ -108,3 +108,71 @@ fn bench_runs_without_data() {
     let iterations = v["ik_iterations_per_frame"].as_f64().unwrap();
     assert!((1.0..=12.0).contains(&iterations), "{iterations}");
 }
+
+/// `--starts 3`: three optima reported, and the fit kept is the best of them.
+#[test]
+fn calibrate_multi_start_keeps_the_best() {
+    let dir = std::env::temp_dir().join(format!("jointfit-starts-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let trc = dir.join("hip.trc");
+    let truth = dir.join("truth.toml");
+    let fitted = dir.join("fitted.toml");
+    let s = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    let (ok, _, err) = jointfit(&[
+        "synth",
+        "lower-limb-right",
+        "--motion",
+        "hip",
+        "--noise",
+        "skin",
+        "--seed",
+        "2",
+        "-o",
+        &s(&trc),
+        "--truth",
+        &s(&truth),
+    ]);
+    assert!(ok, "{err}");
+    let (ok, out, err) = jointfit(&[
+        "calibrate",
+        "lower-limb-right",
+        &s(&trc),
+        "--joints",
+        "hip",
+        "--starts",
+        "3",
+        "-o",
+        &s(&fitted),
+        "--json",
+    ]);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).expect("valid JSON");
+    let ms = &v["multistart"];
+    assert_eq!(ms["starts"], 3);
+    let objectives: Vec<f64> = ms["objective_mm2"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert_eq!(objectives.len(), 3);
+    let best = objectives.iter().copied().fold(f64::INFINITY, f64::min);
+    let kept = v["cost_after"].as_f64().unwrap() * 1e6;
+    assert!(
+        (kept - best).abs() <= 1e-9 * best,
+        "kept {kept}, best {best}"
+    );
+    assert!(ms["reached_best"].as_u64().unwrap() >= 1);
+    assert_eq!(ms["spread"].as_array().unwrap().len(), 6);
+    let (ok, _, err) = jointfit(&[
+        "calibrate",
+        "lower-limb-right",
+        &s(&trc),
+        "--starts",
+        "0",
+        "-o",
+        &s(&fitted),
+    ]);
+    assert!(!ok && err.contains("--starts"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
