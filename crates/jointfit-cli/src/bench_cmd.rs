@@ -187,7 +187,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
 
     // Throughput on every core: independent copies of the trial (a batch of trials).
     fig.threads = rayon::current_num_threads();
-    let copies = 8 * fig.threads;
+    let copies = 32 * fig.threads;
     let batch = |threads: usize| -> f64 {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -202,6 +202,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         });
         copies as f64 * n / t
     };
+    batch(fig.threads); // warm-up: thread start, page faults, clock ramp
     let one = batch(1);
     fig.ik_parallel_frames_per_second = batch(fig.threads);
     fig.ik_parallel_speedup = fig.ik_parallel_frames_per_second / one;
