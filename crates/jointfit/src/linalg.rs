@@ -29,6 +29,12 @@ pub fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
 
 /// Solves `L Lᵀ x = b` in place (`b` becomes `x`) with the factor from [`cholesky_in_place`].
 pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
+    forward_solve(l, n, b);
+    backward_solve(l, n, b);
+}
+
+/// Solves `L y = b` in place (forward substitution with the lower factor).
+pub fn forward_solve(l: &[f64], n: usize, b: &mut [f64]) {
     for i in 0..n {
         let mut s = b[i];
         for k in 0..i {
@@ -36,6 +42,10 @@ pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
         }
         b[i] = s / l[i * n + i];
     }
+}
+
+/// Solves `Lᵀ x = y` in place (backward substitution with the lower factor).
+pub fn backward_solve(l: &[f64], n: usize, b: &mut [f64]) {
     for i in (0..n).rev() {
         let mut s = b[i];
         for k in i + 1..n {

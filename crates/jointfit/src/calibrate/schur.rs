@@ -13,7 +13,7 @@ use nalgebra::Vector3;
 
 use super::Problem;
 use crate::kinematics::{forward_kinematics, KinData, Want};
-use crate::linalg::{cholesky_in_place, cholesky_solve};
+use crate::linalg::{backward_solve, cholesky_in_place, cholesky_solve, forward_solve};
 
 #[derive(Debug, Clone)]
 pub(crate) struct Blocks {
@@ -34,7 +34,8 @@ pub(crate) struct Blocks {
     pub v_frame: Vec<f64>,
     /// Objective at the assembly point (m²).
     pub cost: f64,
-    // Back-substitution storage: per frame `U*⁻¹ W` and `U*⁻¹ g`.
+    // Per frame: the Cholesky factor `L` of `U*`, `Z = L⁻¹ W` and `y = L⁻¹ g`.
+    l_fac: Vec<f64>,
     y_mat: Vec<f64>,
     y_vec: Vec<f64>,
 }
@@ -52,6 +53,7 @@ impl Blocks {
             gs_frame: vec![0.0; n_frames * nf],
             v_frame: vec![0.0; n_frames * nf * nf],
             cost: 0.0,
+            l_fac: vec![0.0; n_frames * nq * nq],
             y_mat: vec![0.0; n_frames * nq * nf],
             y_vec: vec![0.0; n_frames * nq],
         }
@@ -202,32 +204,34 @@ pub(crate) fn solve(
         s[k * nf + k] *= 1.0 + lambda;
     }
     let mut rhs = b.gs.clone();
-    let mut l = vec![0.0; nq * nq];
     for f in 0..frames {
         let u = &b.u[f * nq * nq..(f + 1) * nq * nq];
+        let l = &mut b.l_fac[f * nq * nq..(f + 1) * nq * nq];
         l.copy_from_slice(u);
         let max_diag = (0..nq).fold(0.0f64, |m, i| m.max(u[i * nq + i]));
         for i in 0..nq {
             l[i * nq + i] += lambda * u[i * nq + i] + 1e-14 * max_diag + 1e-300;
         }
-        if !cholesky_in_place(&mut l, nq) {
+        if !cholesky_in_place(l, nq) {
             return false;
         }
+        // With U* = L Lᵀ: Wᵀ U*⁻¹ W = ZᵀZ and Wᵀ U*⁻¹ g = Zᵀy for Z = L⁻¹W, y = L⁻¹g, so
+        // only forward substitutions are needed here (back-substitution finishes δq).
         let w = &b.w[f * nq * nf..(f + 1) * nq * nf];
-        let ym = &mut b.y_mat[f * nq * nf..(f + 1) * nq * nf];
-        ym.copy_from_slice(w);
+        let z = &mut b.y_mat[f * nq * nf..(f + 1) * nq * nf];
+        z.copy_from_slice(w);
         for k in 0..nf {
-            cholesky_solve(&l, nq, &mut ym[k * nq..(k + 1) * nq]);
+            forward_solve(l, nq, &mut z[k * nq..(k + 1) * nq]);
         }
-        let yv = &mut b.y_vec[f * nq..(f + 1) * nq];
-        yv.copy_from_slice(&b.g[f * nq..(f + 1) * nq]);
-        cholesky_solve(&l, nq, yv);
-        // Σ W_iᵀ U_i*⁻¹ W_i is symmetric: compute one triangle, mirror it.
+        let y = &mut b.y_vec[f * nq..(f + 1) * nq];
+        y.copy_from_slice(&b.g[f * nq..(f + 1) * nq]);
+        forward_solve(l, nq, y);
+        // ZᵀZ is symmetric: compute one triangle, mirror it.
         for k in 0..nf {
-            let wk = &w[k * nq..(k + 1) * nq];
-            rhs[k] -= dot(wk, yv);
+            let zk = &z[k * nq..(k + 1) * nq];
+            rhs[k] -= dot(zk, y);
             for c in 0..=k {
-                let value = dot(wk, &ym[c * nq..(c + 1) * nq]);
+                let value = dot(zk, &z[c * nq..(c + 1) * nq]);
                 s[c * nf + k] -= value;
                 if c != k {
                     s[k * nf + c] -= value;
@@ -258,18 +262,19 @@ pub(crate) fn solve(
     true
 }
 
-/// `δq_i = U_i*⁻¹ g_i − (U_i*⁻¹ W_i) δs` for a given (possibly clamped) `δs`.
+/// `δq_i = U_i*⁻¹ (g_i − W_i δs) = L_i⁻ᵀ (y_i − Z_i δs)` for a given (possibly clamped) `δs`.
 pub(crate) fn back_substitute(b: &Blocks, ds: &[f64], dq: &mut [Vec<f64>]) {
     let (nq, nf) = (b.nq, b.nf);
     for (f, d) in dq.iter_mut().enumerate() {
-        let ym = &b.y_mat[f * nq * nf..(f + 1) * nq * nf];
-        for a in 0..nq {
-            let mut v = b.y_vec[f * nq + a];
-            for k in 0..nf {
-                v -= ym[k * nq + a] * ds[k];
+        let z = &b.y_mat[f * nq * nf..(f + 1) * nq * nf];
+        d.copy_from_slice(&b.y_vec[f * nq..(f + 1) * nq]);
+        for k in 0..nf {
+            let dk = ds[k];
+            for (x, zk) in d.iter_mut().zip(&z[k * nq..(k + 1) * nq]) {
+                *x -= zk * dk;
             }
-            d[a] = v;
         }
+        backward_solve(&b.l_fac[f * nq * nq..(f + 1) * nq * nq], nq, d);
     }
 }
 
