@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use clap::Args;
 use jointfit::ik::{solve_trial, FrameStatus, IkOptions, MarkerMap, TrialFit};
 use jointfit::model::{CoordKind, Model};
@@ -51,8 +51,21 @@ struct Summary {
 pub fn run(args: IkArgs) -> Result<()> {
     let model = jointfit_io::model_file::load_model(&args.model)?;
     let trial = load_trial(&args.trial, args.up, args.filter)?;
-    let map = MarkerMap::by_name(&model, trial.labels())
-        .with_context(|| args.trial.display().to_string())?;
+    // Markers the file lacks altogether are missing in every frame; frames whose segments
+    // keep too few markers are reported as unsolved, as for gaps.
+    let (map, absent) = MarkerMap::allowing_absent(&model, trial.labels());
+    if absent.len() == model.n_markers() {
+        // Nothing in common: the strict matcher's error lists both sides.
+        MarkerMap::by_name(&model, trial.labels())
+            .with_context(|| args.trial.display().to_string())?;
+    }
+    if !absent.is_empty() {
+        eprintln!(
+            "jointfit: warning: {}: lacks model markers {}; they count as missing in every frame",
+            args.trial.display(),
+            absent.join(", ")
+        );
+    }
     let start = Instant::now();
     let fit = solve_trial(
         &model,
@@ -62,6 +75,19 @@ pub fn run(args: IkArgs) -> Result<()> {
         &IkOptions::default(),
     )?;
     let seconds = start.elapsed().as_secs_f64();
+    if !fit.frames.iter().any(|f| f.solved()) {
+        let why = match fit.frames.first().map(|f| &f.status) {
+            Some(FrameStatus::TooFewMarkers { segment, present }) => format!(
+                " (first frame: segment {segment} has {present} of the {} markers it needs)",
+                IkOptions::default().min_markers_per_segment
+            ),
+            _ => String::new(),
+        };
+        bail!(
+            "{}: no frame could be solved{why}; nothing written",
+            args.trial.display()
+        );
+    }
     write_sto(&args.output, &angles_table(&model, &trial, &fit))
         .with_context(|| format!("writing {}", args.output.display()))?;
     if let Some(path) = &args.errors {

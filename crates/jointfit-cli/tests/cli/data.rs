@@ -95,3 +95,74 @@ fn convert_errors_name_the_problem() {
     assert!(err.contains("NoSuchMarker"), "{err}");
     assert!(!out.exists());
 }
+
+/// A trial that lacks a model marker altogether: IK treats it as missing in every frame
+/// (with a warning) while each segment keeps three markers, and refuses with the segment
+/// named when one cannot.
+#[test]
+fn ik_on_a_trial_lacking_model_markers() {
+    let (Some(stat), Some(walk)) = (
+        data_file("opencap_expert1/static1.trc"),
+        data_file("opencap_expert1/walking1.trc"),
+    ) else {
+        return;
+    };
+    let subject = temp("absent-subject.toml");
+    let (ok, _, err) = jointfit(&[
+        "personalize",
+        "--static",
+        stat.to_str().unwrap(),
+        "--markers",
+        "opencap",
+        "--side",
+        "right",
+        "-o",
+        subject.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    let model = jointfit_io::model_file::load_model(subject.to_str().unwrap()).unwrap();
+    let keep = |drop: &[&str]| -> String {
+        model
+            .markers
+            .iter()
+            .map(|m| m.name.as_str())
+            .filter(|n| !drop.contains(n))
+            .collect::<Vec<_>>()
+            .join(",")
+    };
+    let ik = |drop: &[&str], name: &str| {
+        let trc = temp(&format!("{name}.trc"));
+        let mot = temp(&format!("{name}.mot"));
+        let (ok, _, err) = jointfit(&[
+            "convert",
+            walk.to_str().unwrap(),
+            trc.to_str().unwrap(),
+            "--markers",
+            &keep(drop),
+        ]);
+        assert!(ok, "{err}");
+        let out = jointfit(&[
+            "ik",
+            subject.to_str().unwrap(),
+            trc.to_str().unwrap(),
+            "-o",
+            mot.to_str().unwrap(),
+            "--json",
+        ]);
+        (out, mot)
+    };
+    let ((ok, out, err), mot) = ik(&["r_thigh5"], "no-thigh5");
+    assert!(ok, "{err}");
+    assert!(err.contains("lacks model markers r_thigh5"), "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["solved_frames"], v["frames"]);
+    assert!(v["mean_frame_rms_mm"].as_f64().unwrap() < 10.0, "{out}");
+    assert!(mot.exists());
+    let ((ok, _, err), mot) = ik(&["r_calc", "r_toe"], "no-foot");
+    assert!(!ok);
+    assert!(
+        err.contains("no frame could be solved") && err.contains("segment"),
+        "{err}"
+    );
+    assert!(!mot.exists());
+}

@@ -63,35 +63,51 @@ impl Default for IkOptions {
 /// Which trial column feeds each model marker.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MarkerMap {
-    /// `columns[j]`: trial column of model marker `j`.
-    pub columns: Vec<usize>,
+    /// `columns[j]`: trial column of model marker `j` (`None`: the trial lacks it, and it is
+    /// missing in every frame).
+    pub columns: Vec<Option<usize>>,
 }
 
 impl MarkerMap {
     /// Matches model markers to trial labels by name; every model marker must be present.
     pub fn by_name(model: &Model, labels: &[String]) -> Result<MarkerMap, IkError> {
-        let mut columns = Vec::with_capacity(model.n_markers());
-        let mut missing = Vec::new();
-        for m in &model.markers {
-            match labels.iter().position(|l| l == &m.name) {
-                Some(c) => columns.push(c),
-                None => missing.push(m.name.clone()),
-            }
-        }
-        if !missing.is_empty() {
+        let (map, absent) = Self::allowing_absent(model, labels);
+        if !absent.is_empty() {
             return Err(IkError::MissingMarkers {
-                missing,
+                missing: absent,
                 available: labels.join(", "),
             });
         }
-        Ok(MarkerMap { columns })
+        Ok(map)
+    }
+
+    /// Matches model markers to trial labels by name; model markers the trial lacks are
+    /// missing in every frame (a frame is still solved while each segment keeps enough
+    /// markers). Returns the map and the names of the absent markers.
+    pub fn allowing_absent(model: &Model, labels: &[String]) -> (MarkerMap, Vec<String>) {
+        let mut absent = Vec::new();
+        let columns = model
+            .markers
+            .iter()
+            .map(|m| {
+                let c = labels.iter().position(|l| l == &m.name);
+                if c.is_none() {
+                    absent.push(m.name.clone());
+                }
+                c
+            })
+            .collect();
+        (MarkerMap { columns }, absent)
     }
 
     /// The model-ordered targets of one trial frame (NaN where missing).
     pub fn targets(&self, trial: &Trial, frame: usize, out: &mut Vec<Vector3<f64>>) {
         let row = trial.frame(frame);
         out.clear();
-        out.extend(self.columns.iter().map(|&c| row[c]));
+        out.extend(self.columns.iter().map(|c| match c {
+            Some(c) => row[*c],
+            None => Vector3::from_element(f64::NAN),
+        }));
     }
 }
 
