@@ -29,7 +29,7 @@ use jointfit::model::Model;
 use jointfit::trial::Trial;
 use jointfit_experiments::protocol::{experimental, FitSettings, OuterMethod};
 use jointfit_experiments::report::{
-    run_synthetic_column, ColumnSpec, ExperimentalColumn, Report, SyntheticColumn, Table2,
+    run_synthetic_column_observed, ColumnSpec, ExperimentalColumn, Report, SyntheticColumn, Table2,
 };
 use jointfit_experiments::synth::{coordinates_scaled, gait_coordinates, Motion};
 use jointfit_io::atomic::write_atomic;
@@ -328,13 +328,14 @@ fn synthetic_columns(
         });
     }
     let mut out = Vec::new();
-    for spec in &specs {
-        eprintln!(
-            "jointfit: synthetic {}: noiseless and {} noisy seeds",
-            spec.label, args.seeds
-        );
+    // One step per fitted case: a bar with ETA on a terminal, log lines otherwise.
+    let total = specs.len() * (1 + args.seeds);
+    let mut bar = crate::progress::Progress::new("reproduce: synthetic fits", Some(total as u64))
+        .unit("fits");
+    for (c, spec) in specs.iter().enumerate() {
+        let done_before = c * (1 + args.seeds);
         out.push(
-            run_synthetic_column(
+            run_synthetic_column_observed(
                 &model,
                 &truth,
                 spec,
@@ -343,10 +344,12 @@ fn synthetic_columns(
                 settings,
                 args.first_seed,
                 args.seeds,
+                &mut |k| bar.set((done_before + k + 1) as u64, &spec.label),
             )
             .with_context(|| format!("synthetic {}", spec.label))?,
         );
     }
+    bar.finish(&format!("{} columns", specs.len()));
     Ok(out)
 }
 

@@ -519,6 +519,33 @@ pub fn run_synthetic_column(
     first_seed: u64,
     seeds: usize,
 ) -> Result<SyntheticColumn, jointfit::calibrate::CalibError> {
+    run_synthetic_column_observed(
+        model,
+        truth,
+        spec,
+        perturb_mm,
+        perturb_deg,
+        settings,
+        first_seed,
+        seeds,
+        &mut |_| {},
+    )
+}
+
+/// [`run_synthetic_column`], calling `case_done(k)` after each of its `1 + seeds` cases
+/// (progress reporting).
+#[allow(clippy::too_many_arguments)]
+pub fn run_synthetic_column_observed(
+    model: &Model,
+    truth: &[f64],
+    spec: &ColumnSpec,
+    perturb_mm: f64,
+    perturb_deg: f64,
+    settings: &crate::protocol::FitSettings,
+    first_seed: u64,
+    seeds: usize,
+    case_done: &mut dyn FnMut(usize),
+) -> Result<SyntheticColumn, jointfit::calibrate::CalibError> {
     use crate::protocol::{synthetic_case, SyntheticSetup};
     use crate::synth::Noise;
     let groups: Vec<&str> = spec.groups.iter().map(|g| g.as_str()).collect();
@@ -530,10 +557,13 @@ pub fn run_synthetic_column(
         perturb_deg,
     };
     let noiseless = synthetic_case(model, truth, &setup, &Noise::none(), settings, first_seed)?;
+    case_done(0);
     let noisy = (0..seeds as u64)
         .map(|k| {
             let seed = first_seed + k;
-            synthetic_case(model, truth, &setup, &Noise::skin(seed), settings, seed)
+            let case = synthetic_case(model, truth, &setup, &Noise::skin(seed), settings, seed);
+            case_done(1 + k as usize);
+            case
         })
         .collect::<Result<Vec<_>, _>>()?;
     Ok(SyntheticColumn {
