@@ -16,7 +16,7 @@ use jointfit::calibrate::joint::{solve_joint, JointOptions};
 use jointfit::calibrate::pso::{solve_pso, PsoOptions};
 use jointfit::calibrate::varpro::{solve_varpro, VarProOptions};
 use jointfit::calibrate::{params_for_groups, Problem};
-use jointfit::ik::{solve_frame, solve_trial, IkOptions, IkWorkspace, MarkerMap};
+use jointfit::ik::{extrapolate, solve_frame, solve_trial, IkOptions, IkWorkspace, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::landmarks::{personalize, MarkerSet, PersonalizeOptions};
 use jointfit::model::lower_limb::{lower_limb, Side};
@@ -173,7 +173,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         for f in first + 1..trial.n_frames() {
             map.targets(&trial, f, &mut targets);
             let mut next: Vec<f64> = if f > first + 1 {
-                q.iter().zip(&before).map(|(a, b)| 2.0 * a - b).collect()
+                extrapolate(&q, &before)
             } else {
                 q.clone()
             };

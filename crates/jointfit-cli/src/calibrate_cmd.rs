@@ -331,9 +331,16 @@ fn multi_start(
 ) -> (Fit, MultiStart) {
     let mut fits = vec![first];
     for k in 1..starts {
-        let k_seed = seed.wrapping_mul(1_000_003).wrapping_add(k as u64);
-        let p0 =
-            jointfit_experiments::synth::perturb(prob.model, start, &prob.free, 20.0, 10.0, k_seed);
+        let restart = jointfit_experiments::protocol::FitSettings::default();
+        let p0 = jointfit_experiments::synth::restart_point(
+            prob.model,
+            start,
+            &prob.free,
+            restart.restart_mm,
+            restart.restart_deg,
+            seed,
+            k,
+        );
         let q0 = prob.initial_coords(&p0);
         let s0 = prob.to_scaled(&p0);
         fits.push(match method {

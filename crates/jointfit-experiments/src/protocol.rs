@@ -25,7 +25,7 @@ use jointfit::model::{Model, Unit};
 use jointfit::trial::Trial;
 use serde::Serialize;
 
-use crate::synth::{perturb, synthesize, Noise, NoiseStats};
+use crate::synth::{perturb, restart_point, synthesize, Noise, NoiseStats};
 
 /// The outer optimizer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -109,13 +109,14 @@ pub fn fit(
         let p0 = if k == 0 {
             start.to_vec()
         } else {
-            perturb(
+            restart_point(
                 model,
                 start,
                 &prob.free,
                 settings.restart_mm,
                 settings.restart_deg,
-                seed.wrapping_mul(1_000_003).wrapping_add(k as u64),
+                seed,
+                k,
             )
         };
         let q0 = prob.initial_coords(&p0);

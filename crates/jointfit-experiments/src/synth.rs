@@ -332,6 +332,21 @@ pub fn gait_coordinates(
     Ok((coords, dropped))
 }
 
+/// Start `k` (≥ 1) of a multi-start fit: [`perturb`] of `start` with a seed derived from the
+/// run's `seed` and `k`, so every start of every run is reproducible and distinct.
+pub fn restart_point(
+    model: &Model,
+    start: &[f64],
+    free: &[usize],
+    mm: f64,
+    deg: f64,
+    seed: u64,
+    k: usize,
+) -> Vec<f64> {
+    let k_seed = seed.wrapping_mul(1_000_003).wrapping_add(k as u64);
+    perturb(model, start, free, mm, deg, k_seed)
+}
+
 /// Parameters `base` with the `free` ones (indices) moved by independent uniform amounts,
 /// up to `mm` millimetres for positions and `deg` degrees for orientations, clamped into the
 /// bounds; seeded. The paper's "perturbed start".

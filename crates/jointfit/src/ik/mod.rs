@@ -634,7 +634,7 @@ pub fn rms(values: impl Iterator<Item = f64>) -> f64 {
 /// `q_i⁰ = 2 q_{i−1} − q_{i−2}`. At mocap rates the coordinates are smooth, so this starts
 /// within `O(Δt²)` of the solution instead of `O(Δt)`, which saves about one Gauss-Newton
 /// iteration per frame.
-fn extrapolate(prev: &[f64], before: &[f64]) -> Vec<f64> {
+pub fn extrapolate(prev: &[f64], before: &[f64]) -> Vec<f64> {
     prev.iter().zip(before).map(|(a, b)| 2.0 * a - b).collect()
 }
 
