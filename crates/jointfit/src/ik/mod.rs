@@ -87,7 +87,7 @@ impl MarkerMap {
     pub fn allowing_absent(model: &Model, labels: &[String]) -> (MarkerMap, Vec<String>) {
         let mut absent = Vec::new();
         let columns = model
-            .markers
+            .markers()
             .iter()
             .map(|m| {
                 let c = labels.iter().position(|l| l == &m.name);
@@ -349,9 +349,9 @@ fn frame_weights(
     opts: &IkOptions,
     w: &mut [f64],
 ) -> Result<(), FrameStatus> {
-    let mut present = vec![0usize; model.segments.len()];
-    let mut carries = vec![false; model.segments.len()];
-    for (j, m) in model.markers.iter().enumerate() {
+    let mut present = vec![0usize; model.segments().len()];
+    let mut carries = vec![false; model.segments().len()];
+    for (j, m) in model.markers().iter().enumerate() {
         let ok = !targets[j].x.is_nan() && m.weight > 0.0;
         w[j] = if ok { m.weight } else { 0.0 };
         if m.weight > 0.0 {
@@ -359,10 +359,10 @@ fn frame_weights(
             present[m.segment.0] += ok as usize;
         }
     }
-    for s in 0..model.segments.len() {
+    for s in 0..model.segments().len() {
         if carries[s] && present[s] < opts.min_markers_per_segment {
             return Err(FrameStatus::TooFewMarkers {
-                segment: model.segments[s].name.clone(),
+                segment: model.segments()[s].name.clone(),
                 present: present[s],
             });
         }
@@ -479,22 +479,22 @@ pub fn seed_frame(
     ws: &mut IkWorkspace,
 ) -> Vec<f64> {
     let mut q = model.default_coords();
-    let roots: Vec<usize> = (0..model.segments.len())
-        .filter(|&s| model.segments[s].parent.is_none())
+    let roots: Vec<usize> = (0..model.segments().len())
+        .filter(|&s| model.segments()[s].parent.is_none())
         .collect();
     let full_weights = {
         let _ = frame_weights(model, targets, opts, &mut ws.weights);
         ws.weights.clone()
     };
     for &root in &roots {
-        let joint = &model.joints[model.segments[root].joint.0];
+        let joint = &model.joints()[model.segments()[root].joint.0];
         let active: Vec<usize> =
             (joint.first_coord..joint.first_coord + joint.kind.dof()).collect();
         if active.is_empty() {
             continue;
         }
         // Only this root's markers count.
-        for (j, m) in model.markers.iter().enumerate() {
+        for (j, m) in model.markers().iter().enumerate() {
             ws.weights[j] = if m.segment.0 == root {
                 full_weights[j]
             } else {
@@ -508,7 +508,7 @@ pub fn seed_frame(
         let rot: Vec<usize> = active
             .iter()
             .copied()
-            .filter(|&c| model.coordinates[c].kind == CoordKind::Rotational)
+            .filter(|&c| model.coordinates()[c].kind == CoordKind::Rotational)
             .collect();
         let grid = [
             0.0,
@@ -719,7 +719,7 @@ mod tests {
                 .map(|(j, x)| x + 0.01 * Vector3::new((j as f64).sin(), 0.3, (case as f64).cos()))
                 .collect();
             let weights: Vec<f64> = model
-                .markers
+                .markers()
                 .iter()
                 .enumerate()
                 .map(|(j, m)| if (j + case) % 5 == 0 { 0.0 } else { m.weight })
