@@ -82,7 +82,7 @@ pub struct CalibrateArgs {
     pub threshold_deg: f64,
     /// Moving-block bootstrap replicates for the intervals (0: white, HAC and jackknife only;
     /// at most 2000, each is a refit).
-    #[arg(long, default_value_t = 0, value_parser = crate::validate::bootstrap)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true, value_parser = crate::validate::bootstrap)]
     pub bootstrap: usize,
     /// Refit with the parameters this trial cannot determine held at their starting
     /// (landmark/nominal) values (subset selection on the reduced normal matrix).

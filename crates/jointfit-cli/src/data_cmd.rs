@@ -36,7 +36,7 @@ pub struct ConvertArgs {
     #[arg(long, value_enum, default_value = "mm")]
     units: UnitsArg,
     /// Digits after the decimal point
-    #[arg(long, default_value_t = 5, value_parser = crate::validate::decimals)]
+    #[arg(long, default_value_t = 5, allow_negative_numbers = true, value_parser = crate::validate::decimals)]
     decimals: usize,
     /// Keep only these markers (comma-separated labels, in this order)
     #[arg(long, value_delimiter = ',')]
@@ -122,6 +122,7 @@ pub fn inspect(args: InspectArgs) -> Result<()> {
         )
     };
     let trial = jointfit_io::trial_file::read_trial(path)?;
+    crate::validate::check_trial(path, &trial)?;
     let summary = Summary {
         file: path.display().to_string(),
         format,

@@ -401,6 +401,22 @@ pub fn clap_error(e: clap::Error) -> std::process::ExitCode {
     std::process::ExitCode::from(EXIT_USAGE)
 }
 
+/// Longest pause [`PAUSE_VARIABLE`] may ask for (s).
+const MAX_PAUSE_SECONDS: f64 = 30.0;
+/// Testing hook: seconds to wait between writing the temporary files and renaming them, so
+/// that a test can interrupt a run while its temporary files exist (at most 30 s).
+pub const PAUSE_VARIABLE: &str = "JOINTFIT_TEST_PAUSE_BEFORE_COMMIT";
+
+fn pause_for_tests() {
+    if let Some(s) = std::env::var(PAUSE_VARIABLE)
+        .ok()
+        .and_then(|s| s.parse::<f64>().ok())
+        .filter(|s| (0.0..=MAX_PAUSE_SECONDS).contains(s))
+    {
+        std::thread::sleep(std::time::Duration::from_secs_f64(s));
+    }
+}
+
 /// Ends a run: on success with standard output intact, commits the batch of written files;
 /// otherwise discards it and prints one error line. Returns the exit status.
 pub fn finish(
@@ -408,6 +424,7 @@ pub fn finish(
     batch: Option<jointfit_io::staging::Batch>,
 ) -> std::process::ExitCode {
     let result = result.and_then(|()| flush_stdout());
+    pause_for_tests();
     let result = result.and_then(|()| match batch {
         Some(b) => b.commit().map(|_| ()).map_err(anyhow::Error::from),
         None => Ok(()),
@@ -428,6 +445,25 @@ pub fn finish(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_unconverged_fit_is_status_3_and_discards_the_batch() {
+        use std::process::ExitCode;
+        let dir = std::env::temp_dir().join(format!("jointfit-unconv-{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let out = dir.join("fitted.toml");
+        let batch = jointfit_io::staging::Batch::begin().unwrap();
+        jointfit_io::atomic::write_atomic(&out, b"fit").unwrap();
+        let code = finish(
+            Err(Unconverged("the calibration".into()).into()),
+            Some(batch),
+        );
+        assert_eq!(code, ExitCode::from(EXIT_UNCONVERGED));
+        assert_eq!(fs::read_dir(&dir).unwrap().count(), 0, "nothing written");
+        let other = finish(Err(anyhow::anyhow!("x")), None);
+        assert_eq!(other, ExitCode::FAILURE);
+        fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn causes_are_said_once_on_one_line() {

@@ -43,7 +43,7 @@ pub struct SynthArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Frames of a synthetic motion (not gait).
-    #[arg(long, default_value_t = 50, value_parser = crate::validate::frames)]
+    #[arg(long, default_value_t = 50, allow_negative_numbers = true, value_parser = crate::validate::frames)]
     pub frames: usize,
     /// Sampling rate of a synthetic motion (Hz); gait keeps its trial's rate.
     #[arg(long, default_value_t = 10.0, allow_negative_numbers = true, value_parser = crate::validate::rate_hz)]

@@ -172,7 +172,17 @@ impl Batch {
         let state = batch().take();
         std::mem::forget(self);
         let mut done = Vec::new();
-        let mut pending = state.map(|s| s.pending).unwrap_or_default().into_iter();
+        let pending = state.map(|s| s.pending).unwrap_or_default();
+        // A destination that is a directory would fail its rename: refuse before any lands.
+        if let Some(p) = pending.iter().find(|p| p.dest.is_dir()) {
+            let e = io::Error::other(format!("{}: is a directory", p.dest.display()));
+            for p in &pending {
+                let _ = fs::remove_file(&p.tmp);
+                unregister(p.slot);
+            }
+            return Err(e);
+        }
+        let mut pending = pending.into_iter();
         for p in pending.by_ref() {
             let r = fs::rename(&p.tmp, &p.dest);
             unregister(p.slot);
