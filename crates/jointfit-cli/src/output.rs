@@ -165,6 +165,12 @@ fn identity(p: &Path) -> Identity {
         }
         _ => None,
     };
+    // `t.trc/` and similar spellings: the file the directory and name lead to.
+    #[cfg(unix)]
+    if let Some(md) = canonical.as_ref().and_then(|c| fs::metadata(c).ok()) {
+        use std::os::unix::fs::MetadataExt;
+        return Identity::Inode(md.dev(), md.ino());
+    }
     Identity::Path(canonical.unwrap_or_else(|| lexical_absolute(p)))
 }
 

@@ -80,13 +80,13 @@ pub struct ReproduceArgs {
     #[arg(long, default_value_t = 10.0, allow_negative_numbers = true, value_parser = crate::validate::rate_hz)]
     pub rate: f64,
     /// Multiplies the synthetic joint excursions.
-    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, value_parser = crate::validate::non_negative)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, value_parser = crate::validate::amplitude)]
     pub amplitude: f64,
     /// Start = truth moved by up to this many mm per fitted position parameter.
-    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true, value_parser = crate::validate::non_negative)]
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true, value_parser = crate::validate::perturb_mm)]
     pub perturb_mm: f64,
     /// Start = truth moved by up to this many degrees per fitted orientation parameter.
-    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true, value_parser = crate::validate::non_negative)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true, value_parser = crate::validate::perturb_deg)]
     pub perturb_deg: f64,
     /// Use every K-th frame of the experimental trials (after filtering); 1 uses them all.
     #[arg(long, default_value_t = 1, value_name = "K", allow_negative_numbers = true, value_parser = crate::validate::runs)]

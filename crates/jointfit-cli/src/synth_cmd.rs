@@ -49,22 +49,22 @@ pub struct SynthArgs {
     #[arg(long, default_value_t = 10.0, allow_negative_numbers = true, value_parser = crate::validate::rate_hz)]
     pub rate: f64,
     /// Multiplies the joint excursions of a synthetic motion.
-    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, value_parser = crate::validate::amplitude)]
     pub amplitude: f64,
     /// Largest skin-artifact amplitude per marker-axis (mm).
-    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true, value_parser = crate::validate::noise_mm_or_zero)]
     pub skin_mm: f64,
     /// Largest skin-artifact angular frequency (rad/s).
-    #[arg(long, default_value_t = 25.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 25.0, allow_negative_numbers = true, value_parser = crate::validate::omega)]
     pub skin_omega: f64,
     /// Standard deviation of white noise per axis (mm).
-    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, value_parser = crate::validate::noise_mm_or_zero)]
     pub white_mm: f64,
     /// True positions = nominal moved by up to this many mm (uniform, seeded).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = crate::validate::perturb_mm)]
     pub perturb_mm: f64,
     /// True orientations = nominal moved by up to this many degrees (uniform, seeded).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = crate::validate::perturb_deg)]
     pub perturb_deg: f64,
     /// Vertical axis of the gait trial's file.
     #[arg(long, value_enum, default_value = "y")]

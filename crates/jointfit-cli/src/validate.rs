@@ -12,6 +12,8 @@
 //! - frame counts of synthetic motions: at most [`MAX_FRAMES`].
 //! - starts, seeds and stride of `reproduce`: at most [`MAX_RUNS`]; rates of synthetic
 //!   motions at most [`MAX_RATE_HZ`].
+//! - synthetic motions: `--amplitude` at most [`MAX_AMPLITUDE`], noise and perturbations at
+//!   most [`MAX_NOISE_MM`] mm or 180°, `--skin-omega` at most [`MAX_OMEGA`] rad/s.
 //! - bootstrap replicates: at most [`MAX_BOOTSTRAP`] (each is a refit).
 //! - digits after the decimal point: at most [`MAX_DECIMALS`] (f64 has 17 significant digits).
 //! - marker coordinates: within ±[`MAX_POSITION_M`] m; rates at most [`MAX_RATE_HZ`].
@@ -35,7 +37,11 @@ pub const MAX_DECIMALS: usize = 12;
 pub const MAX_POSITION_M: f64 = 1_000.0;
 /// Largest plausible sampling rate (Hz).
 pub const MAX_RATE_HZ: f64 = 100_000.0;
-/// Largest noise or artifact amplitude (mm).
+/// Largest factor on synthetic joint excursions.
+pub const MAX_AMPLITUDE: f64 = 10.0;
+/// Largest skin-artifact angular frequency (rad/s).
+pub const MAX_OMEGA: f64 = 10_000.0;
+/// Largest noise, artifact or perturbation amplitude (mm).
 pub const MAX_NOISE_MM: f64 = 1_000.0;
 
 fn number(s: &str) -> Result<f64, String> {
@@ -104,6 +110,34 @@ fn count(s: &str, lo: usize, hi: usize) -> Result<usize, String> {
         return Err(format!("must be from {lo} to {hi} (got {v})"));
     }
     Ok(v)
+}
+
+fn within(s: &str, lo: f64, hi: f64, unit: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if v < lo || v > hi {
+        return Err(format!("must be from {lo} to {hi}{unit} (got {v})"));
+    }
+    Ok(v)
+}
+
+/// A factor on the joint excursions of a synthetic motion: 0 to [`MAX_AMPLITUDE`].
+pub fn amplitude(s: &str) -> Result<f64, String> {
+    within(s, 0.0, MAX_AMPLITUDE, "")
+}
+
+/// A perturbation of positions in mm: 0 to [`MAX_NOISE_MM`].
+pub fn perturb_mm(s: &str) -> Result<f64, String> {
+    within(s, 0.0, MAX_NOISE_MM, " mm")
+}
+
+/// A perturbation of orientations in degrees: 0 to 180.
+pub fn perturb_deg(s: &str) -> Result<f64, String> {
+    within(s, 0.0, 180.0, " deg")
+}
+
+/// An angular frequency in rad/s: 0 to [`MAX_OMEGA`].
+pub fn omega(s: &str) -> Result<f64, String> {
+    within(s, 0.0, MAX_OMEGA, " rad/s")
 }
 
 /// Frames of a synthetic motion: 1 to [`MAX_FRAMES`].
