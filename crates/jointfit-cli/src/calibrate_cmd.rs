@@ -258,7 +258,7 @@ pub fn calibrate_params(
     let seconds = clock.elapsed().as_secs_f64();
     let names = |v: Vec<f64>| -> Vec<(String, f64)> {
         model
-            .markers
+            .markers()
             .iter()
             .zip(v)
             .map(|(m, r)| (m.name.clone(), r * MM))
@@ -268,7 +268,7 @@ pub fn calibrate_params(
         .free
         .iter()
         .map(|&i| {
-            let par = &model.parameters[i];
+            let par = &model.parameters()[i];
             let (unit, k) = match par.unit {
                 Unit::Metre => ("mm", MM),
                 Unit::Radian => ("deg", 180.0 / std::f64::consts::PI),
@@ -365,7 +365,7 @@ fn multi_start(
         .free
         .iter()
         .map(|&i| {
-            let par = &prob.model.parameters[i];
+            let par = &prob.model.parameters()[i];
             let k = match par.unit {
                 Unit::Metre => MM,
                 Unit::Radian => 180.0 / std::f64::consts::PI,
@@ -463,7 +463,7 @@ pub fn calibrate_with_uncertainty(
         }
         fixed.extend(
             drop.iter()
-                .map(|&k| model.parameters[free[k].0].name.clone()),
+                .map(|&k| model.parameters()[free[k].0].name.clone()),
         );
         free = free
             .iter()
@@ -650,9 +650,13 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let mut start = model.nominal_params();
     if let Some(seed) = &args.seed_from {
         let earlier = jointfit_io::model_file::load_model(seed)?;
-        for (i, par) in model.parameters.iter().enumerate() {
+        for (i, par) in model.parameters().iter().enumerate() {
             match earlier.param_id(&par.name) {
-                Some(id) => start[i] = earlier.parameters[id.0].nominal.clamp(par.lower, par.upper),
+                Some(id) => {
+                    start[i] = earlier.parameters()[id.0]
+                        .nominal
+                        .clamp(par.lower, par.upper)
+                }
                 None => bail!(
                     "{seed}: has no parameter {:?} of the subject model",
                     par.name

@@ -74,7 +74,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
     ]);
     let mut inside = 0usize;
     let (mut pos, mut ori) = (Vec::new(), Vec::new());
-    for (i, par) in model.parameters.iter().enumerate() {
+    for (i, par) in model.parameters().iter().enumerate() {
         let k = match par.unit {
             Unit::Metre => 1e3,
             Unit::Radian => 180.0 / std::f64::consts::PI,
@@ -106,7 +106,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
     let rms = |v: &[f64]| (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt();
     println!(
         "true value inside the reported 95% interval for {inside} of {} parameters",
-        model.parameters.len()
+        model.parameters().len()
     );
     println!(
         "RMS parameter error: positions {:.3} mm, orientations {:.3} deg (paper, noisy full leg: 8.16 mm, 10.37 deg)",

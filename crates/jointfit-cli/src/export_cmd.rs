@@ -41,8 +41,8 @@ fn osim(args: OsimArgs) -> Result<()> {
         "wrote {} ({} bodies, {} joints, {} coordinates, {} markers; masses and inertias are \
          placeholders)",
         args.output.display(),
-        model.segments.len(),
-        model.joints.len(),
+        model.segments().len(),
+        model.joints().len(),
         model.n_q(),
         model.n_markers()
     );

@@ -158,7 +158,7 @@ fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f64) -> Summ
         mean_frame_rms_mm: rms.iter().sum::<f64>() / rms.len().max(1) as f64 * MM,
         max_frame_rms_mm: rms.iter().cloned().fold(0.0, f64::max) * MM,
         marker_rms_mm: model
-            .markers
+            .markers()
             .iter()
             .enumerate()
             .map(|(j, m)| (m.name.clone(), fit.marker_rms(j) * MM))
@@ -170,14 +170,24 @@ fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f64) -> Summ
 
 /// Joint angles in degrees (rotations) and metres (translations), OpenSim's layout.
 pub fn angles_table(model: &Model, trial: &Trial, fit: &TrialFit) -> Table {
-    let names: Vec<&str> = model.coordinates.iter().map(|c| c.name.as_str()).collect();
+    let names: Vec<&str> = model
+        .coordinates()
+        .iter()
+        .map(|c| c.name.as_str())
+        .collect();
     let mut table = Table::new("Coordinates", &names, true);
     for (f, q) in fit.coords.iter().enumerate() {
         let mut row = vec![trial.time(f)];
-        row.extend(model.coordinates.iter().zip(q).map(|(c, v)| match c.kind {
-            CoordKind::Rotational => v.to_degrees(),
-            CoordKind::Translational => *v,
-        }));
+        row.extend(
+            model
+                .coordinates()
+                .iter()
+                .zip(q)
+                .map(|(c, v)| match c.kind {
+                    CoordKind::Rotational => v.to_degrees(),
+                    CoordKind::Translational => *v,
+                }),
+        );
         table.rows.push(row);
     }
     table
@@ -185,7 +195,7 @@ pub fn angles_table(model: &Model, trial: &Trial, fit: &TrialFit) -> Table {
 
 fn errors_csv(model: &Model, trial: &Trial, fit: &TrialFit) -> String {
     let mut out = String::from("frame,time,rms_mm");
-    for m in &model.markers {
+    for m in model.markers() {
         out.push(',');
         out.push_str(&jointfit_io::csv::field(&format!("{}_mm", m.name)));
     }

@@ -107,10 +107,10 @@ pub fn run(args: ReportArgs) -> Result<()> {
 fn params_by_name(model: &Model, model_path: &str, path: &str) -> Result<Vec<f64>> {
     let other = jointfit_io::model_file::load_model(path)?;
     model
-        .parameters
+        .parameters()
         .iter()
         .map(|par| match other.param_id(&par.name) {
-            Some(id) => Ok(other.parameters[id.0].nominal),
+            Some(id) => Ok(other.parameters()[id.0].nominal),
             None => bail!("{path}: has no parameter {:?} of {model_path}", par.name),
         })
         .collect()

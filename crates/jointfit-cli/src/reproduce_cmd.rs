@@ -250,7 +250,7 @@ fn opencap(data: &Path, stride: usize, trials: &[String]) -> Result<Subject> {
 /// A note naming the parameters of `p` that ended on a bound of their search box.
 fn bounds_note(model: &Model, method: &str, p: &[f64]) -> Option<String> {
     let at: Vec<String> = model
-        .parameters
+        .parameters()
         .iter()
         .zip(p)
         .filter(|(par, v)| {

@@ -123,7 +123,7 @@ fn ik_on_a_trial_lacking_model_markers() {
     let model = jointfit_io::model_file::load_model(subject.to_str().unwrap()).unwrap();
     let keep = |drop: &[&str]| -> String {
         model
-            .markers
+            .markers()
             .iter()
             .map(|m| m.name.as_str())
             .filter(|n| !drop.contains(n))

@@ -84,7 +84,7 @@ fn read_errors_csv(path: &Path, model: &Model) -> Vec<Vec<f64>> {
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let cols: Vec<usize> = model
-        .markers
+        .markers()
         .iter()
         .map(|m| {
             let label = format!("{}_mm", m.name);
@@ -110,7 +110,7 @@ fn osim_errors_mm(answer: &Value, model: &Model) -> Vec<Vec<f64>> {
         .map(|m| m.as_str().unwrap())
         .collect();
     let order: Vec<usize> = model
-        .markers
+        .markers()
         .iter()
         .map(|m| names.iter().position(|n| *n == m.name).unwrap())
         .collect();
@@ -134,7 +134,7 @@ fn osim_coords(answer: &Value, key: &str, model: &Model) -> Vec<Vec<f64>> {
         .map(|m| m.as_str().unwrap())
         .collect();
     let order: Vec<usize> = model
-        .coordinates
+        .coordinates()
         .iter()
         .map(|c| names.iter().position(|n| *n == c.name).unwrap())
         .collect();
@@ -153,7 +153,7 @@ fn osim_coords(answer: &Value, key: &str, model: &Model) -> Vec<Vec<f64>> {
 /// for rotations, millimetres for translations; and the coordinate it occurs at.
 fn coord_diff(model: &Model, a: &[f64], b: &[f64]) -> (f64, String) {
     let mut worst = (0.0, String::new());
-    for (c, (x, y)) in model.coordinates.iter().zip(a.iter().zip(b)) {
+    for (c, (x, y)) in model.coordinates().iter().zip(a.iter().zip(b)) {
         let d = match c.kind {
             CoordKind::Rotational => {
                 let d = (x - y).to_degrees().rem_euclid(360.0);
@@ -320,7 +320,7 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
     let ours = ours.unwrap();
     let model = jointfit_io::model_file::load_model(s(&subject)).unwrap();
     let weights: serde_json::Map<String, Value> = model
-        .markers
+        .markers()
         .iter()
         .map(|m| (m.name.clone(), json!(m.weight)))
         .collect();
@@ -349,7 +349,7 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
     // both of its readers, and its own kinematics at those angles reproduces the marker
     // errors jointfit reported (so values and units survived the file).
     // TimeSeriesTable holds time as its independent column, not as a label.
-    let labels: Vec<String> = model.coordinates.iter().map(|c| c.name.clone()).collect();
+    let labels: Vec<String> = model.coordinates().iter().map(|c| c.name.clone()).collect();
     let got_labels: Vec<String> = read_back["labels"]
         .as_array()
         .unwrap()
@@ -363,7 +363,7 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
     let table = jointfit_io::sto::read_sto(&mot).unwrap();
     assert_eq!(jf_q.len(), n);
     for f in 0..n {
-        for (k, c) in model.coordinates.iter().enumerate() {
+        for (k, c) in model.coordinates().iter().enumerate() {
             let written = table.rows[f][k + 1];
             let si = match c.kind {
                 CoordKind::Rotational => written.to_radians(),
@@ -388,7 +388,7 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
             assert!(
                 d <= 1e-3,
                 "frame {f} marker {}: {d} mm",
-                model.markers[j].name
+                model.markers()[j].name
             );
         }
     }
@@ -407,7 +407,7 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
             .fold(0.0, f64::max);
         let cost = |e: &[f64]| {
             model
-                .markers
+                .markers()
                 .iter()
                 .zip(e)
                 .map(|(m, v)| m.weight * v * v)
@@ -423,7 +423,7 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
         }
         angle_worst = angle_worst.max(dq);
         marker_worst = marker_worst.max(de);
-        let tol = match model.coordinates[model.coord_id(&at).map_or(0, |c| c.0)].kind {
+        let tol = match model.coordinates()[model.coord_id(&at).map_or(0, |c| c.0)].kind {
             CoordKind::Rotational => ANGLE_TOL_DEG,
             CoordKind::Translational => TRANS_TOL_MM,
         };
@@ -443,7 +443,7 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
         .map(|c| c.as_str().unwrap())
         .collect();
     let solver_last: Vec<f64> = model
-        .coordinates
+        .coordinates()
         .iter()
         .map(|c| last_solver[names.iter().position(|n| *n == c.name).unwrap()])
         .collect();

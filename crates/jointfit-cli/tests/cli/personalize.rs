@@ -66,7 +66,7 @@ fn check(
     let mut kin = KinData::new(&model);
     forward_kinematics(&model, &p, &out.static_q, Want::POSITIONS, &mut kin);
     let worst = model
-        .markers
+        .markers()
         .iter()
         .zip(&kin.markers)
         .map(|(m, x)| (x - mean_over_window(&trial, &out, &m.name)).norm())
@@ -220,7 +220,7 @@ fn ik_recovers_the_static_pose() {
     let model = Model::compile(&out.spec).unwrap();
     let p = model.nominal_params();
     let targets: Vec<Vector3<f64>> = model
-        .markers
+        .markers()
         .iter()
         .map(|m| mean_over_window(&trial, &out, &m.name))
         .collect();

@@ -198,7 +198,7 @@ fn param_sets(model: &Model, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
     if model.n_p() > 0 {
         sets.push(
             model
-                .parameters
+                .parameters()
                 .iter()
                 .map(|p| rng.gen_range(p.lower..p.upper))
                 .collect(),
@@ -211,7 +211,7 @@ fn param_sets(model: &Model, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
 /// translations in ±0.5 m.
 fn random_q(model: &Model, rng: &mut ChaCha8Rng) -> Vec<f64> {
     model
-        .coordinates
+        .coordinates()
         .iter()
         .map(|c| match c.kind {
             CoordKind::Rotational => rng.gen_range(-3.1..3.1),
@@ -226,7 +226,11 @@ fn random_q(model: &Model, rng: &mut ChaCha8Rng) -> Vec<f64> {
 fn compare_fk(model: &Model, seed: u64) -> Option<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let dir = tempdir();
-    let names: Vec<&str> = model.coordinates.iter().map(|c| c.name.as_str()).collect();
+    let names: Vec<&str> = model
+        .coordinates()
+        .iter()
+        .map(|c| c.name.as_str())
+        .collect();
     let mut worst = 0.0f64;
     for (k, p) in param_sets(model, &mut rng).into_iter().enumerate() {
         let path = dir.path().join(format!("m{k}.osim"));
@@ -247,7 +251,7 @@ fn compare_fk(model: &Model, seed: u64) -> Option<f64> {
             .collect();
         for (pose, got) in poses.iter().zip(answer["positions"].as_array().unwrap()) {
             forward_kinematics(model, &p, pose, Want::POSITIONS, &mut data);
-            for (j, m) in model.markers.iter().enumerate() {
+            for (j, m) in model.markers().iter().enumerate() {
                 let o = osim_markers.iter().position(|n| *n == m.name).unwrap();
                 let xyz = &got[o];
                 for a in 0..3 {
@@ -256,7 +260,7 @@ fn compare_fk(model: &Model, seed: u64) -> Option<f64> {
                     assert!(
                         d <= FK_TOL,
                         "{}: marker {} axis {a} differs by {d} m at q = {pose:?}, p = {p:?}",
-                        model.name,
+                        model.name(),
                         m.name
                     );
                 }
@@ -265,7 +269,7 @@ fn compare_fk(model: &Model, seed: u64) -> Option<f64> {
     }
     eprintln!(
         "osim fk {}: max |OpenSim − jointfit| marker difference {worst:.3e} m",
-        model.name
+        model.name()
     );
     Some(worst)
 }
@@ -279,7 +283,7 @@ fn check_summary(model: &Model, a: &Value) {
         .iter()
         .map(|b| b.as_str().unwrap())
         .collect();
-    let segs: Vec<&str> = model.segments.iter().map(|s| s.name.as_str()).collect();
+    let segs: Vec<&str> = model.segments().iter().map(|s| s.name.as_str()).collect();
     assert_eq!(bodies, segs);
     let joints: HashMap<&str, &Value> = a["joints"]
         .as_array()
@@ -287,15 +291,16 @@ fn check_summary(model: &Model, a: &Value) {
         .iter()
         .map(|j| (j["name"].as_str().unwrap(), j))
         .collect();
-    assert_eq!(joints.len(), model.joints.len());
-    for j in &model.joints {
+    assert_eq!(joints.len(), model.joints().len());
+    for j in model.joints() {
         let o = joints[j.name.as_str()];
         let parent = j
             .parent
-            .map_or("ground", |s| model.segments[s.0].name.as_str());
+            .map_or("ground", |s| model.segments()[s.0].name.as_str());
         assert_eq!(o["parent"], parent, "joint {}", j.name);
         assert_eq!(
-            o["child"], model.segments[j.child.0].name,
+            o["child"],
+            model.segments()[j.child.0].name,
             "joint {}",
             j.name
         );
@@ -310,7 +315,7 @@ fn check_summary(model: &Model, a: &Value) {
             .iter()
             .map(|c| c.as_str().unwrap())
             .collect();
-        let mut ours: Vec<&str> = model.coordinates[j.first_coord..j.first_coord + j.kind.dof()]
+        let mut ours: Vec<&str> = model.coordinates()[j.first_coord..j.first_coord + j.kind.dof()]
             .iter()
             .map(|c| c.name.as_str())
             .collect();
@@ -321,13 +326,13 @@ fn check_summary(model: &Model, a: &Value) {
     let coords = a["coordinates"].as_array().unwrap();
     assert_eq!(coords.len(), model.n_q());
     for c in coords {
-        let ours = &model.coordinates[model.coord_id(c["name"].as_str().unwrap()).unwrap().0];
+        let ours = &model.coordinates()[model.coord_id(c["name"].as_str().unwrap()).unwrap().0];
         let kind = match ours.kind {
             CoordKind::Rotational => "rotational",
             CoordKind::Translational => "translational",
         };
         assert_eq!(c["motion_type"], kind, "coordinate {}", ours.name);
-        assert_eq!(c["joint"], model.joints[ours.joint.0].name);
+        assert_eq!(c["joint"], model.joints()[ours.joint.0].name);
         assert_eq!(c["range"][0].as_f64().unwrap(), ours.range[0]);
         assert_eq!(c["range"][1].as_f64().unwrap(), ours.range[1]);
         assert_eq!(c["default"].as_f64().unwrap(), ours.default);
@@ -336,9 +341,9 @@ fn check_summary(model: &Model, a: &Value) {
     }
     let markers = a["markers"].as_array().unwrap();
     assert_eq!(markers.len(), model.n_markers());
-    for (m, o) in model.markers.iter().zip(markers) {
+    for (m, o) in model.markers().iter().zip(markers) {
         assert_eq!(o["name"], m.name);
-        assert_eq!(o["parent"], model.segments[m.segment.0].name);
+        assert_eq!(o["parent"], model.segments()[m.segment.0].name);
         // OpenSim's number parser may land one ulp away from the shortest decimal form.
         for k in 0..3 {
             let d = (o["location"][k].as_f64().unwrap() - m.local[k]).abs();
@@ -425,7 +430,7 @@ fn osim_xml_structure() {
         .iter()
         .map(|b| b.attribute("name").unwrap())
         .collect();
-    let segs: Vec<&str> = model.segments.iter().map(|s| s.name.as_str()).collect();
+    let segs: Vec<&str> = model.segments().iter().map(|s| s.name.as_str()).collect();
     assert_eq!(body_names, segs, "the model's topological order");
     assert_eq!(segs, ["base", "arm", "cap", "hand", "finger", "tip"]);
     for b in &bodies {
@@ -492,7 +497,11 @@ fn osim_xml_structure() {
             }
         }
     }
-    let expected: Vec<&str> = model.coordinates.iter().map(|c| c.name.as_str()).collect();
+    let expected: Vec<&str> = model
+        .coordinates()
+        .iter()
+        .map(|c| c.name.as_str())
+        .collect();
     assert_eq!(coords, expected);
 
     // The shoulder's parent offset: tx = sh_x, ty = −sh_y, rx = sh_rx, rz = 0.3; its child
@@ -522,11 +531,11 @@ fn osim_xml_structure() {
 
     let markers = set("MarkerSet");
     assert_eq!(markers.len(), model.n_markers());
-    for (x, m) in markers.iter().zip(&model.markers) {
+    for (x, m) in markers.iter().zip(model.markers()) {
         assert_eq!(x.attribute("name"), Some(m.name.as_str()));
         assert_eq!(
             child_text(*x, "socket_parent_frame"),
-            format!("/bodyset/{}", model.segments[m.segment.0].name)
+            format!("/bodyset/{}", model.segments()[m.segment.0].name)
         );
         assert_eq!(numbers(child_text(*x, "location")), m.local.as_slice());
     }

@@ -68,7 +68,7 @@ fn synthetic(model: &Model, p_true: &[f64], frames: usize, amplitude: f64, seed:
             positions.push(x + Vector3::new(n(0), n(1), n(2)));
         }
     }
-    let labels = model.markers.iter().map(|m| m.name.clone()).collect();
+    let labels = model.markers().iter().map(|m| m.name.clone()).collect();
     Trial::new(labels, 50.0, 1, positions).unwrap()
 }
 
@@ -76,7 +76,7 @@ fn synthetic(model: &Model, p_true: &[f64], frames: usize, amplitude: f64, seed:
 fn perturbed(model: &Model, seed: u64) -> Vec<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     model
-        .parameters
+        .parameters()
         .iter()
         .map(|p| p.nominal + rng.gen_range(-0.4..0.4) * 0.5 * (p.upper - p.lower))
         .collect()
@@ -87,7 +87,7 @@ fn errors(model: &Model, free: &[usize], a: &[f64], b: &[f64]) -> (f64, f64) {
     let (mut mm, mut deg) = (0.0f64, 0.0f64);
     for &i in free {
         let d = (a[i] - b[i]).abs();
-        match model.parameters[i].unit {
+        match model.parameters()[i].unit {
             Unit::Metre => mm = mm.max(d * 1e3),
             Unit::Radian => deg = deg.max(d.to_degrees()),
         }
@@ -105,7 +105,7 @@ fn noiseless_recovery_joint_and_varpro() {
         // Fixed parameters at their true values, free ones start at nominal.
         let mut base = p_true.clone();
         for id in &free {
-            base[id.0] = model.parameters[id.0].nominal;
+            base[id.0] = model.parameters()[id.0].nominal;
         }
         let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
         let s0 = prob.to_scaled(&base);
@@ -134,7 +134,7 @@ fn joint_and_two_level_reach_the_same_noisy_optimum() {
         let free = params_for_groups(&model, groups).unwrap();
         let mut base = p_true.clone();
         for id in &free {
-            base[id.0] = model.parameters[id.0].nominal;
+            base[id.0] = model.parameters()[id.0].nominal;
         }
         let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
         let s0 = prob.to_scaled(&base);
@@ -212,7 +212,7 @@ fn pso_then_local_polish_recovers_the_hip() {
     let free = params_for_groups(&model, &["hip"]).unwrap();
     let mut base = p_true.clone();
     for id in &free {
-        base[id.0] = model.parameters[id.0].nominal;
+        base[id.0] = model.parameters()[id.0].nominal;
     }
     let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
     let q0 = prob.initial_coords(&base);
@@ -280,7 +280,7 @@ fn pso_then_local_polish_recovers_knee_ankle_and_full_leg() {
         let free = params_for_groups(&model, &[group]).unwrap();
         let mut base = p_true.clone();
         for id in &free {
-            base[id.0] = model.parameters[id.0].nominal;
+            base[id.0] = model.parameters()[id.0].nominal;
         }
         let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
         let q0 = prob.initial_coords(&base);

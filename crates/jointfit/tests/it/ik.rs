@@ -45,14 +45,14 @@ fn synthetic_trial(
         positions.extend_from_slice(&data.markers);
         truth.push(q);
     }
-    let labels = model.markers.iter().map(|m| m.name.clone()).collect();
+    let labels = model.markers().iter().map(|m| m.name.clone()).collect();
     (Trial::new(labels, 100.0, 1, positions).unwrap(), truth)
 }
 
 fn random_params(model: &Model, seed: u64) -> Vec<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     model
-        .parameters
+        .parameters()
         .iter()
         .map(|p| p.nominal + rng.gen_range(-0.3..0.3) * (p.upper - p.lower) / 2.0)
         .collect()
@@ -77,7 +77,7 @@ fn recovers_known_coordinates_exactly() {
                     assert!(
                         d.abs() <= 1e-9,
                         "{side:?} heading {heading} frame {f} coordinate {} off by {d:e}",
-                        model.coordinates[i].name
+                        model.coordinates()[i].name
                     );
                 }
             }

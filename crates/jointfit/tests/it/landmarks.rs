@@ -127,7 +127,7 @@ fn static_pose(model: &Model) -> Vec<f64> {
 fn trial_at(model: &Model, q: &[f64], frames: usize) -> Trial {
     let mut kin = KinData::new(model);
     forward_kinematics(model, &model.nominal_params(), q, Want::POSITIONS, &mut kin);
-    let labels = model.markers.iter().map(|m| m.name.clone()).collect();
+    let labels = model.markers().iter().map(|m| m.name.clone()).collect();
     let positions = (0..frames).flat_map(|_| kin.markers.clone()).collect();
     Trial::new(labels, 100.0, 1, positions).unwrap()
 }
@@ -157,7 +157,7 @@ fn markers_at(model: &Model, p: &[f64], q: &[f64]) -> Vec<(String, Vector3<f64>)
     let mut kin = KinData::new(model);
     forward_kinematics(model, p, q, Want::POSITIONS, &mut kin);
     model
-        .markers
+        .markers()
         .iter()
         .map(|m| m.name.clone())
         .zip(kin.markers)
@@ -218,7 +218,7 @@ fn static_pose_is_reproduced_and_joints_recovered() {
             "talocrural_shank_superior",
             "talocrural_shank_lateral",
         ] {
-            let t = truth.parameters[truth.param_id(name).unwrap().0].nominal;
+            let t = truth.parameters()[truth.param_id(name).unwrap().0].nominal;
             assert!(
                 (get(name) - t).abs() < 1e-12,
                 "{side:?} {name}: {} vs {t}",
@@ -229,7 +229,7 @@ fn static_pose_is_reproduced_and_joints_recovered() {
             .static_q
             .iter()
             .zip(&q_truth)
-            .zip(&model.coordinates)
+            .zip(model.coordinates())
             .take(10)
         {
             assert!((got - want).abs() < 1e-12, "{side:?} {}", c.name);

@@ -116,7 +116,7 @@ fn synthetic(
             positions.push(x + n);
         }
     }
-    let labels = model.markers.iter().map(|m| m.name.clone()).collect();
+    let labels = model.markers().iter().map(|m| m.name.clone()).collect();
     Trial::new(labels, 50.0, 1, positions).unwrap()
 }
 
@@ -124,7 +124,7 @@ fn synthetic(
 fn perturbed(model: &Model, seed: u64) -> Vec<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     model
-        .parameters
+        .parameters()
         .iter()
         .map(|p| p.nominal + rng.gen_range(-0.3..0.3) * 0.5 * (p.upper - p.lower))
         .collect()
@@ -140,7 +140,7 @@ fn fit_from_nominal<'m>(model: &'m Model, trial: &Trial, groups: &[&str]) -> (Pr
 }
 
 fn display(model: &Model, i: usize) -> f64 {
-    match model.parameters[i].unit {
+    match model.parameters()[i].unit {
         Unit::Metre => 1e3,
         Unit::Radian => 180.0 / std::f64::consts::PI,
     }
@@ -265,7 +265,7 @@ fn uncertainty_white_covariance_matches_the_scatter_of_fits_over_seeds() {
         assert!(
             (0.3..=2.2).contains(&ratio),
             "{}: empirical variance {var:e} vs predicted {pred:e}",
-            model.parameters[free[k]].name
+            model.parameters()[free[k]].name
         );
         log_ratios.push(ratio.ln());
     }
