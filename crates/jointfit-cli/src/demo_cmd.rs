@@ -15,10 +15,10 @@ use crate::calibrate_cmd::{calibrate_with_uncertainty, print_report, Method};
 #[derive(Args)]
 pub struct DemoArgs {
     /// Frames of the synthetic trial.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 100, allow_negative_numbers = true, value_parser = crate::validate::frames)]
     pub frames: usize,
     /// Maximum skin-artifact amplitude in mm (0: noiseless).
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true, value_parser = crate::validate::noise_mm_or_zero)]
     pub noise_mm: f64,
     /// Seed of the true parameters and the noise.
     #[arg(long, default_value_t = 1)]

@@ -4,12 +4,16 @@ use std::process::Command;
 
 #[path = "cli/data.rs"]
 mod data;
+#[path = "cli/fuzz.rs"]
+mod fuzz;
 #[path = "cli/ident.rs"]
 mod ident;
 #[path = "cli/osim.rs"]
 mod osim;
 #[path = "cli/personalize.rs"]
 mod personalize;
+#[path = "cli/reliability.rs"]
+mod reliability;
 #[path = "cli/report.rs"]
 mod report;
 #[path = "cli/synth.rs"]
