@@ -455,8 +455,7 @@ mod tests {
     #[test]
     fn an_unconverged_fit_is_status_3_and_discards_the_batch() {
         use std::process::ExitCode;
-        let dir = std::env::temp_dir().join(format!("jointfit-unconv-{}", std::process::id()));
-        fs::create_dir_all(&dir).unwrap();
+        let dir = jointfit_testkit::scratch("unconv");
         let out = dir.join("fitted.toml");
         let batch = jointfit_io::staging::Batch::begin().unwrap();
         jointfit_io::atomic::write_atomic(&out, b"fit").unwrap();
@@ -468,7 +467,6 @@ mod tests {
         assert_eq!(fs::read_dir(&dir).unwrap().count(), 0, "nothing written");
         let other = finish(Err(anyhow::anyhow!("x")), None);
         assert_eq!(other, ExitCode::FAILURE);
-        fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -498,7 +496,7 @@ mod tests {
 
     #[test]
     fn identity_sees_through_spellings_and_links() {
-        let dir = std::env::temp_dir().join(format!("jointfit-ident-{}", std::process::id()));
+        let dir = jointfit_testkit::scratch("ident");
         fs::create_dir_all(dir.join("sub")).unwrap();
         let a = dir.join("a.trc");
         fs::write(&a, b"x").unwrap();
@@ -536,6 +534,5 @@ mod tests {
             .output_in_place("output", &a, true)
             .check()
             .is_ok());
-        fs::remove_dir_all(&dir).unwrap();
     }
 }
