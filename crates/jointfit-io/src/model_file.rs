@@ -98,8 +98,7 @@ mod tests {
             e,
             "\"no-such-model\" is neither a model file nor a built-in model (lower-limb-right, lower-limb-left)"
         );
-        let dir = std::env::temp_dir().join(format!("jointfit-mf-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = jointfit_testkit::scratch("mf");
         let bad = dir.join("bad.toml");
         std::fs::write(&bad, "name = \"x\"\nsegments = 3\n").unwrap();
         let e = load_model(bad.to_str().unwrap()).unwrap_err().to_string();

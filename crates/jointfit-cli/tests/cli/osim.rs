@@ -8,11 +8,12 @@
 //! Run `cargo test --release -p jointfit-cli --test cli osim -- --nocapture` to see the
 //! comparison and the speed of both programs.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::path::Path;
 use std::time::Instant;
 
 use jointfit::model::{CoordKind, Model};
+use jointfit_testkit::script::osim_check;
+use jointfit_testkit::ScratchDir;
 use serde_json::{json, Value};
 
 use super::jointfit;
@@ -26,44 +27,13 @@ const MARKER_TOL_MM: f64 = 0.01;
 /// local minimum, reported separately.
 const OTHER_MINIMUM: f64 = 1.0;
 
-fn script() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/osim_check.py")
-}
-
-/// Runs `osim_check.py MODE` with `request` on stdin and parses its `@@` JSON line.
+/// Runs `osim_check.py MODE` with `request` on stdin in `cwd` and parses its `@@` JSON line.
 fn check(python: &Path, mode: &str, request: &Value, cwd: &Path) -> Value {
-    let mut child = Command::new(python)
-        .arg(script())
-        .arg(mode)
-        .current_dir(cwd)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap_or_else(|e| panic!("cannot run {}: {e}", python.display()));
-    {
-        use std::io::Write;
-        let mut stdin = child.stdin.take().unwrap();
-        stdin.write_all(request.to_string().as_bytes()).unwrap();
-    }
-    let out = child.wait_with_output().unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "osim_check.py {mode} failed: {}\n{stdout}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let line = stdout
-        .lines()
-        .find_map(|l| l.strip_prefix("@@"))
-        .unwrap_or_else(|| panic!("osim_check.py {mode} printed no result: {stdout}"));
-    serde_json::from_str(line).expect("osim_check.py prints JSON")
+    osim_check(python, mode, request, Some(cwd))
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("jointfit-osim-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(name: &str) -> ScratchDir {
+    jointfit_testkit::scratch(&format!("osim-{name}"))
 }
 
 fn s(p: &Path) -> &str {
@@ -267,11 +237,11 @@ fn opensim_ik_on_squats_matches_jointfit_ik() {
 /// and OpenSim's InverseKinematicsTool on `trial`, compares, and prints the speed of both
 /// (best of `repeat` runs each).
 fn compare_ik(side: &str, trial: &str, repeat: usize) {
-    let Some(stat) = jointfit::testing::data_file("opencap_expert1/static1.trc") else {
+    let Some(stat) = jointfit_testkit::data_file("opencap_expert1/static1.trc") else {
         return;
     };
-    let walk = jointfit::testing::data_file(&format!("opencap_expert1/{trial}")).unwrap();
-    let Some(python) = jointfit::testing::python() else {
+    let walk = jointfit_testkit::data_file(&format!("opencap_expert1/{trial}")).unwrap();
+    let Some(python) = jointfit_testkit::python() else {
         return;
     };
     let dir = scratch(&format!("ik-{side}-{trial}"));
@@ -330,7 +300,7 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
     let theirs = check(
         &python,
         "ik",
-        &json!({"model": osim, "trc": walk, "out_dir": dir, "weights": weights,
+        &json!({"model": osim, "trc": walk, "out_dir": dir.path(), "weights": weights,
                 "accuracy": 1e-8, "repeat": repeat}),
         &dir,
     );

@@ -1,16 +1,13 @@
 //! `jointfit synth` and `jointfit reproduce`: the known synthetic truth is the oracle.
 
-use std::path::PathBuf;
-
 use jointfit::model::{Model, Unit};
-use jointfit::testing::{data_dir, data_file};
+use jointfit_testkit::{data_dir, data_file};
 
 use super::jointfit;
+use jointfit_testkit::ScratchDir;
 
-fn tmp(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("jointfit-synth-{tag}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn tmp(tag: &str) -> ScratchDir {
+    jointfit_testkit::scratch(&format!("synth-{tag}"))
 }
 
 fn load(path: &std::path::Path) -> Model {

@@ -5,8 +5,6 @@
 //! OpenCap static trial, and a model with every joint kind.
 
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
 
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::landmarks::{personalize, MarkerSet, PersonalizeOptions};
@@ -14,6 +12,8 @@ use jointfit::model::lower_limb::{builtin, Side};
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::{CoordKind, JointKind, Model};
 use jointfit_io::osim::{to_osim, write_osim, OsimError};
+use jointfit_testkit::models::all_kinds;
+use jointfit_testkit::script::osim_check;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
@@ -21,163 +21,14 @@ use serde_json::{json, Value};
 /// Largest marker-position difference accepted between OpenSim and jointfit (m).
 const FK_TOL: f64 = 1e-6;
 
-fn script() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/osim_check.py")
-}
-
 /// Runs `osim_check.py MODE` with `request` on stdin; `None` (skipped) without Python.
 fn check(mode: &str, request: &Value) -> Option<Value> {
-    let python = jointfit::testing::python()?;
-    let mut child = Command::new(&python)
-        .arg(script())
-        .arg(mode)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap_or_else(|e| panic!("cannot run {}: {e}", python.display()));
-    {
-        use std::io::Write;
-        let mut stdin = child.stdin.take().unwrap();
-        stdin.write_all(request.to_string().as_bytes()).unwrap();
-    }
-    let out = child.wait_with_output().unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "osim_check.py {mode} failed: {}\n{stdout}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let line = stdout
-        .lines()
-        .find_map(|l| l.strip_prefix("@@"))
-        .unwrap_or_else(|| panic!("osim_check.py {mode} printed no result: {stdout}"));
-    Some(serde_json::from_str(line).expect("osim_check.py prints JSON"))
-}
-
-/// A model with every joint kind the spec allows, non-principal and negative axes, rotated
-/// and translated offsets, and parameters read with scales (including −1).
-fn all_kinds_spec() -> ModelSpec {
-    let text = r#"
-name = "all-kinds"
-segments = [{ name = "base" }, { name = "arm" }, { name = "hand" }, { name = "finger" },
-            { name = "tip" }, { name = "cap" }]
-
-[[joints]]
-name = "root"
-parent = "ground"
-child = "base"
-kind = { type = "free", rotation_axes = ["y", "-x", [0.2, 0.1, 1.0]] }
-coordinates = ["b_tx", "b_ty", { name = "b_tz", range = [-2.0, 2.0], default = 0.3 }, "b_r1", "b_r2", "b_r3"]
-parent_offset = { tx = 0.1, ry = 0.4 }
-
-[[joints]]
-name = "shoulder"
-parent = "base"
-child = "arm"
-kind = { type = "gimbal", axes = ["x", [0.3, 1.0, -0.2], "-z"] }
-coordinates = ["s1", "s2", "s3"]
-parent_offset = { tx = "sh_x", ty = { param = "sh_y", scale = -1.0 }, rz = 0.3, rx = "sh_rx" }
-child_offset = { tz = 0.05, ry = { param = "sh_rx", scale = 0.5 } }
-
-[[joints]]
-name = "elbow"
-parent = "arm"
-child = "hand"
-kind = { type = "universal", axes = ["z", [1.0, 0.4, 0.0]] }
-coordinates = ["e1", { name = "e2", range = [-1.0, 1.5] }]
-parent_offset = { ty = -0.3, rx = 0.2 }
-
-[[joints]]
-name = "wrist"
-parent = "hand"
-child = "finger"
-kind = { type = "pin", axis = [0.6, -0.3, 0.74] }
-coordinates = ["w"]
-parent_offset = { tx = 0.02, ty = -0.25, rz = -0.7 }
-child_offset = { tx = -0.01, rx = 0.3, ry = -0.2, rz = 0.1 }
-
-[[joints]]
-name = "slide"
-parent = "finger"
-child = "tip"
-kind = { type = "slider", axis = [0.0, -1.0, 0.3] }
-coordinates = [{ name = "sl", range = [-0.1, 0.2] }]
-parent_offset = { ty = -0.05 }
-
-[[joints]]
-name = "glue"
-parent = "base"
-child = "cap"
-kind = { type = "weld" }
-parent_offset = { tx = 0.05, ty = 0.2, rx = 0.1, ry = -0.3, rz = 0.5 }
-child_offset = { tz = "sh_x" }
-
-[[parameters]]
-name = "sh_x"
-group = "shoulder"
-unit = "m"
-nominal = 0.02
-lower = -0.05
-upper = 0.05
-
-[[parameters]]
-name = "sh_y"
-group = "shoulder"
-unit = "m"
-nominal = 0.2
-lower = 0.1
-upper = 0.3
-
-[[parameters]]
-name = "sh_rx"
-group = "shoulder"
-unit = "rad"
-nominal = 0.1
-lower = -0.3
-upper = 0.3
-
-[[markers]]
-name = "b1"
-segment = "base"
-position = [0.1, 0.0, 0.0]
-
-[[markers]]
-name = "b2"
-segment = "base"
-position = [0.0, 0.1, 0.05]
-
-[[markers]]
-name = "a1"
-segment = "arm"
-position = [0.01, -0.2, 0.03]
-
-[[markers]]
-name = "h1"
-segment = "hand"
-position = [0.03, -0.1, -0.02]
-
-[[markers]]
-name = "f1"
-segment = "finger"
-position = [0.0, -0.04, 0.01]
-
-[[markers]]
-name = "t1"
-segment = "tip"
-position = [0.01, 0.0, 0.0]
-weight = 2.5
-
-[[markers]]
-name = "c1"
-segment = "cap"
-position = [0.0, 0.03, -0.04]
-"#;
-    ModelSpec::from_toml(text).unwrap()
+    let python = jointfit_testkit::python()?;
+    Some(osim_check(&python, mode, request, None))
 }
 
 fn personalized_subject() -> Option<Model> {
-    let path = jointfit::testing::data_file("opencap_expert1/static1.trc")?;
+    let path = jointfit_testkit::data_file("opencap_expert1/static1.trc")?;
     let trial = jointfit_io::trc::read_trc(&path).unwrap();
     let set = MarkerSet::preset("opencap").unwrap();
     let opts = PersonalizeOptions {
@@ -373,7 +224,7 @@ fn osim_fk_personalized_subject_matches_opensim() {
 
 #[test]
 fn osim_fk_every_joint_kind_matches_opensim() {
-    let model = Model::compile(&all_kinds_spec()).unwrap();
+    let model = Model::compile(&all_kinds()).unwrap();
     compare_fk(&model, 13);
 }
 
@@ -394,7 +245,7 @@ fn numbers(s: &str) -> Vec<f64> {
 /// hold the parameter values (with their scales), every coordinate and marker is there.
 #[test]
 fn osim_xml_structure() {
-    let spec = all_kinds_spec();
+    let spec = all_kinds();
     let model = Model::compile(&spec).unwrap();
     let p = vec![-0.03, 0.25, 0.2];
     let text = to_osim(&model, &p).unwrap();
@@ -610,7 +461,7 @@ fn osim_errors() {
     );
 
     // A z-x-z gimbal (proper Euler angles) repeats an axis: no CustomJoint can hold it.
-    let mut spec = all_kinds_spec();
+    let mut spec = all_kinds();
     spec.joints[1].kind = ModelSpec::from_toml(
         "name = \"x\"\nsegments = []\n[[joints]]\nname = \"j\"\nparent = \"ground\"\n\
          child = \"s\"\nkind = { type = \"gimbal\", axes = [\"z\", \"x\", \"-z\"] }\n",
@@ -628,7 +479,7 @@ fn osim_errors() {
     );
     // A universal joint with parallel axes: refused when the model is loaded, before any
     // export (jointfit::model::checks).
-    let mut spec = all_kinds_spec();
+    let mut spec = all_kinds();
     if let jointfit::model::spec::JointKindSpec::Universal { axes } = &mut spec.joints[2].kind {
         axes[1] = jointfit::model::spec::AxisSpec::Vector([0.0, 0.0, -2.0]);
     }

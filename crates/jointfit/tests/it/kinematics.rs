@@ -7,7 +7,7 @@ use jointfit::model::{CoordKind, Model};
 use nalgebra::{DMatrix, Matrix3, Vector3};
 use proptest::prelude::*;
 
-use crate::sample_models::{kitchen_sink, two_link};
+use jointfit_testkit::models::{kitchen_sink, two_link};
 
 /// Coordinates and parameters from unit-interval samples: rotations in [−π, π],
 /// translations in [−1, 1] m, parameters inside their bounds.

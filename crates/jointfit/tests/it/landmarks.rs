@@ -11,6 +11,7 @@ use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::spec::{MarkerSpec, ModelSpec};
 use jointfit::model::Model;
 use jointfit::trial::{up_axis_rotation, Trial, UpAxis};
+use jointfit_testkit::synth::{synthetic_trial, Noise};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
 const PW: f64 = 0.24;
@@ -125,11 +126,8 @@ fn static_pose(model: &Model) -> Vec<f64> {
 
 /// Markers of `model` at `q`, repeated over `frames` frames at 100 Hz.
 fn trial_at(model: &Model, q: &[f64], frames: usize) -> Trial {
-    let mut kin = KinData::new(model);
-    forward_kinematics(model, &model.nominal_params(), q, Want::POSITIONS, &mut kin);
-    let labels = model.markers().iter().map(|m| m.name.clone()).collect();
-    let positions = (0..frames).flat_map(|_| kin.markers.clone()).collect();
-    Trial::new(labels, 100.0, 1, positions).unwrap()
+    let p = model.nominal_params();
+    synthetic_trial(model, &p, frames, 100.0, |_| q.to_vec(), Noise::None, 0).trial
 }
 
 fn synthetic(side: Side) -> (Model, Vec<f64>, Trial) {

@@ -4,7 +4,7 @@ use jointfit::model::lower_limb::{builtin, lower_limb, Side};
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::{Model, ModelError};
 
-use crate::sample_models::{kitchen_sink, two_link};
+use jointfit_testkit::models::{kitchen_sink, two_link};
 
 #[test]
 fn leg_model_has_the_papers_counts() {
