@@ -194,6 +194,8 @@ struct Entry {
     path: PathBuf,
     /// Outputs only: may replace an input when the command's `--force` is given.
     in_place_ok: bool,
+    /// Outputs only: the command creates the file's directory when it is missing.
+    creates_dir: bool,
 }
 
 /// The inputs and outputs of one command, checked before any work (see the module docs).
@@ -215,6 +217,7 @@ impl Files {
             what: what.to_string(),
             path: path.as_ref().to_path_buf(),
             in_place_ok: false,
+            creates_dir: false,
         });
         self
     }
@@ -228,12 +231,25 @@ impl Files {
         }
     }
 
-    /// An output file, which must not be an input or another output.
+    /// An output file, which must not be an input or another output; its directory must
+    /// exist.
     pub fn output(mut self, what: &str, path: impl AsRef<Path>) -> Files {
         self.outputs.push(Entry {
             what: what.to_string(),
             path: path.as_ref().to_path_buf(),
             in_place_ok: false,
+            creates_dir: false,
+        });
+        self
+    }
+
+    /// An output file `dir/name` whose directory the command creates when missing.
+    pub fn output_in_dir(mut self, what: &str, dir: &Path, name: &str) -> Files {
+        self.outputs.push(Entry {
+            what: what.to_string(),
+            path: dir.join(name),
+            in_place_ok: false,
+            creates_dir: true,
         });
         self
     }
@@ -244,13 +260,14 @@ impl Files {
             what: what.to_string(),
             path: path.as_ref().to_path_buf(),
             in_place_ok: true,
+            creates_dir: false,
         });
         self.force |= force;
         self
     }
 
-    /// Refuses outputs that are directories, lack a file name, or coincide with an input
-    /// (unless allowed) or with each other.
+    /// Refuses outputs that are directories, lack a file name, coincide with an input
+    /// (unless allowed) or with each other, or lie in a directory that does not exist.
     pub fn check(self) -> Result<()> {
         for o in &self.outputs {
             let shown = o.path.display();
@@ -301,6 +318,20 @@ impl Files {
                         b.what
                     );
                 }
+            }
+        }
+        for o in &self.outputs {
+            let dir = match o.path.parent() {
+                Some(d) if !d.as_os_str().is_empty() => d,
+                _ => Path::new("."),
+            };
+            if !o.creates_dir && !dir.is_dir() {
+                bail!(
+                    "{}: {} cannot be written: directory {} does not exist",
+                    o.path.display(),
+                    o.what,
+                    dir.display()
+                );
             }
         }
         Ok(())
