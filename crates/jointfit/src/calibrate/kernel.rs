@@ -6,24 +6,17 @@
 //! `h = J̃ᵀr̃`, whose blocks are `U_i`, `W_i`, `V_i`, `g_i`, `g_s,i` of [`super::schur`].
 //!
 //! Each column of `J̃` is nonzero only on the rows of the markers its coordinate or parameter
-//! moves, so every Gram entry is a dot product over the overlap of two columns' nonzero row
-//! ranges. The dot products run with four independent partial sums in a fixed order; on x86-64
-//! processors with AVX2 the same code is compiled for 256-bit registers and chosen at run time
-//! (the same operations in the same order, so the results are identical bit for bit).
+//! moves (a marker moves with its segment's ancestors' joints). With the columns reordered by
+//! their first nonzero row, the nonzero entries of every row lie in a prefix of the columns, so
+//! `[r̃ | J̃]ᵀ[r̃ | J̃]` is a sum over runs of rows (one run per segment when the markers are listed
+//! parent segment first) of small dense products, each done by `matrixmultiply`'s `dgemm`
+//! (its kernels chosen at run time for the processor's vector units). The same operations run
+//! in the same order whatever the thread count.
 
 use nalgebra::Vector3;
 
 use super::Problem;
 use crate::kinematics::{forward_kinematics, KinData, Want};
-
-/// Which blocks of the Gram matrix to form.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Part {
-    /// `U`, `W`, `V`, `g`, `g_s`: everything.
-    All,
-    /// `U`, `W`, `g` only (what the Schur elimination of a frame needs).
-    Coordinates,
-}
 
 /// Per-thread workspace of the kernel; holds the last frame's Gram matrix and gradient.
 pub(crate) struct FrameScratch {
@@ -31,10 +24,14 @@ pub(crate) struct FrameScratch {
     rows: Vec<(usize, f64)>,
     jw: Vec<f64>,
     rw: Vec<f64>,
-    range: Vec<(usize, usize)>,
-    /// `G` (n × n, column-major). With [`Part::Coordinates`] the `V` block is stale.
+    /// Per column, its first nonzero row.
+    range: Vec<usize>,
+    perm: Vec<usize>,
+    packed: Vec<f64>,
+    xrow: Vec<f64>,
+    /// `G` (n × n, column-major).
     pub gram: Vec<f64>,
-    /// `h = [g; g_s]` (n). With [`Part::Coordinates`] the `g_s` part is stale.
+    /// `h = [g; g_s]` (n).
     pub grad: Vec<f64>,
     /// Scratch for the callers' small dense algebra.
     pub buf: Vec<f64>,
@@ -52,7 +49,10 @@ impl FrameScratch {
             rows: Vec::with_capacity(nrows),
             jw: vec![0.0; n * nrows],
             rw: vec![0.0; nrows],
-            range: vec![(0, 0); n],
+            range: vec![0; n],
+            perm: Vec::with_capacity(n),
+            packed: Vec::with_capacity((n + 1) * (n + 1)),
+            xrow: Vec::with_capacity((n + 1) * nrows),
             gram: vec![0.0; n * n],
             grad: vec![0.0; n],
             buf: Vec::new(),
@@ -71,15 +71,15 @@ pub(crate) fn frame_gram(
     q: &[f64],
     targets: &[Vector3<f64>],
     half: &[f64],
-    part: Part,
     sc: &mut FrameScratch,
 ) -> f64 {
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
-        // SAFETY: the processor supports AVX2 (checked just above).
-        return unsafe { frame_gram_avx2(prob, p, q, targets, half, part, sc) };
+        // SAFETY: the processor supports AVX2 (checked just above). The gathers compile to
+        // wider moves; the arithmetic is the same in the same order.
+        return unsafe { frame_gram_avx2(prob, p, q, targets, half, sc) };
     }
-    frame_gram_impl(prob, p, q, targets, half, part, sc)
+    frame_gram_impl(prob, p, q, targets, half, sc)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -90,10 +90,9 @@ unsafe fn frame_gram_avx2(
     q: &[f64],
     targets: &[Vector3<f64>],
     half: &[f64],
-    part: Part,
     sc: &mut FrameScratch,
 ) -> f64 {
-    frame_gram_impl(prob, p, q, targets, half, part, sc)
+    frame_gram_impl(prob, p, q, targets, half, sc)
 }
 
 #[inline(always)]
@@ -103,7 +102,6 @@ fn frame_gram_impl(
     q: &[f64],
     targets: &[Vector3<f64>],
     half: &[f64],
-    part: Part,
     sc: &mut FrameScratch,
 ) -> f64 {
     let model = prob.model;
@@ -142,36 +140,72 @@ fn frame_gram_impl(
         for (x, &(row, sw)) in col.iter_mut().zip(&sc.rows) {
             *x = sw * scale * src[row];
         }
-        let lo = col.iter().position(|&x| x != 0.0).unwrap_or(nr);
-        let hi = col.iter().rposition(|&x| x != 0.0).map_or(lo, |i| i + 1);
-        sc.range[a] = (lo, hi.max(lo));
+        sc.range[a] = col.iter().position(|&x| x != 0.0).unwrap_or(nr);
     }
-    let rw = &sc.rw[..nr];
-    let jw = &sc.jw;
-    let range = &sc.range;
-    let gram = &mut sc.gram;
-    let top = match part {
-        Part::All => n,
-        Part::Coordinates => nq,
-    };
-    for a in 0..n {
-        let (lo_a, hi_a) = range[a];
-        let col_a = &jw[a * nr..(a + 1) * nr];
-        if a < top {
-            sc.grad[a] = dot(&col_a[lo_a..hi_a], &rw[lo_a..hi_a]);
+    // Columns in order of their first nonzero row: every row's nonzero entries then lie in
+    // a prefix of the reordered columns (exactly so when the markers are listed parent
+    // segment first; otherwise the prefix holds a few zeros, which change nothing). The
+    // residual goes first, so column 0 of `X = [r̃ | J̃ reordered]` is always active.
+    let perm = &mut sc.perm;
+    perm.clear();
+    perm.extend(0..n);
+    perm.sort_unstable_by_key(|&a| (sc.range[a], a));
+    let m = n + 1;
+    let x = &mut sc.xrow;
+    x.clear();
+    x.extend_from_slice(&sc.rw[..nr]);
+    for &a in perm.iter() {
+        x.extend_from_slice(&sc.jw[a * nr..(a + 1) * nr]);
+    }
+    // XᵀX (m × m, column-major) summed over runs of rows with the same active prefix:
+    // each run is one small dense product (matrixmultiply's dgemm).
+    let g = &mut sc.packed;
+    g.clear();
+    g.resize(m * m, 0.0);
+    let mut active = 0;
+    let mut r0 = 0;
+    while r0 < nr {
+        while active < n && sc.range[perm[active]] <= r0 {
+            active += 1;
         }
-        // Part::Coordinates: U (c ≤ a < n_q) and W (c < n_q ≤ a), not V.
-        let last = if part == Part::All { a } else { a.min(nq - 1) };
-        for c in 0..=last {
-            let lo = lo_a.max(range[c].0);
-            let hi = hi_a.min(range[c].1);
-            let value = if lo < hi {
-                dot(&col_a[lo..hi], &jw[c * nr + lo..c * nr + hi])
-            } else {
-                0.0
-            };
-            gram[c * n + a] = value;
-            gram[a * n + c] = value;
+        let next = if active < n {
+            sc.range[perm[active]].clamp(r0 + 1, nr)
+        } else {
+            nr
+        };
+        let k = active + 1;
+        let rows = next - r0;
+        // SAFETY: A = Xᵀ restricted to (k × rows) reads x[c·nr + r0 + r] for c < k ≤ m,
+        // r < rows ≤ nr − r0: inside x (m·nr). C (k × k, stride m) lies inside g (m·m).
+        unsafe {
+            matrixmultiply::dgemm(
+                k,
+                rows,
+                k,
+                1.0,
+                x.as_ptr().add(r0),
+                nr as isize,
+                1,
+                x.as_ptr().add(r0),
+                1,
+                nr as isize,
+                1.0,
+                g.as_mut_ptr(),
+                1,
+                m as isize,
+            );
+        }
+        r0 = next;
+    }
+    let gram = &mut sc.gram;
+    for a in 0..n {
+        let pa = perm[a];
+        sc.grad[pa] = g[a + 1];
+        for c in 0..=a {
+            let pc = perm[c];
+            let value = g[(c + 1) * m + a + 1];
+            gram[pc * n + pa] = value;
+            gram[pa * n + pc] = value;
         }
     }
     cost

@@ -20,10 +20,10 @@
 
 use rayon::prelude::*;
 
-use super::kernel::{dot, frame_gram, FrameScratch, Part};
+use super::kernel::{dot, frame_gram, FrameScratch};
 use super::Problem;
 use crate::kinematics::{forward_kinematics, KinData, Want};
-use crate::linalg::{cholesky_in_place, cholesky_solve, forward_solve};
+use crate::linalg::{cholesky_in_place, cholesky_solve};
 
 /// Frames per parallel work item (fixed: it sets the order of every floating-point sum).
 pub(crate) const CHUNK: usize = 32;
@@ -111,15 +111,7 @@ impl Blocks {
         if f < self.cached {
             return &self.store[f * per..(f + 1) * per];
         }
-        frame_gram(
-            prob,
-            &self.p,
-            &qs[f],
-            &prob.frames[f],
-            &self.half,
-            Part::Coordinates,
-            sc,
-        );
+        frame_gram(prob, &self.p, &qs[f], &prob.frames[f], &self.half, sc);
         let mut out = std::mem::take(&mut sc.buf);
         out.resize(per, 0.0);
         split(&sc.gram, self.nq, self.nf, &sc.grad, &mut out);
@@ -163,7 +155,7 @@ pub(crate) fn assemble(prob: &Problem, p: &[f64], qs: &[Vec<f64>], b: &mut Block
                 let mut cost = 0.0;
                 let start = c * CHUNK;
                 for f in start..(start + CHUNK).min(qs.len()) {
-                    cost += frame_gram(prob, p, &qs[f], &prob.frames[f], half, Part::All, sc);
+                    cost += frame_gram(prob, p, &qs[f], &prob.frames[f], half, sc);
                     for l in 0..nf {
                         let src = &sc.gram[(nq + l) * n + nq..(nq + l + 1) * n];
                         for (x, y) in v[l * nf..(l + 1) * nf].iter_mut().zip(src) {
@@ -187,6 +179,25 @@ pub(crate) fn assemble(prob: &Problem, p: &[f64], qs: &[Vec<f64>], b: &mut Block
         add(&mut b.v, &v);
         add(&mut b.gs, &gs);
         b.cost += cost;
+    }
+}
+
+/// Solves `L Y = B` in place for `B` (`n × m`, row-major): row by row, each row update an
+/// operation on `m` contiguous numbers.
+fn forward_solve_rows(l: &[f64], n: usize, m: usize, b: &mut [f64]) {
+    for i in 0..n {
+        let (done, rest) = b.split_at_mut(i * m);
+        let row = &mut rest[..m];
+        for k in 0..i {
+            let lik = l[k * n + i];
+            for (x, y) in row.iter_mut().zip(&done[k * m..(k + 1) * m]) {
+                *x -= lik * y;
+            }
+        }
+        let d = 1.0 / l[i * n + i];
+        for x in row.iter_mut() {
+            *x *= d;
+        }
     }
 }
 
@@ -221,45 +232,65 @@ pub(crate) fn solve(
 ) -> bool {
     let (nq, nf) = (b.nq, b.nf);
     let blocks = &*b;
-    let parts: Vec<Option<(Vec<f64>, Vec<f64>)>> = (0..blocks.chunks())
+    let m = nf + 1;
+    let parts: Vec<Option<Vec<f64>>> = (0..blocks.chunks())
         .into_par_iter()
         .map_init(
             || FrameScratch::new(prob),
             |sc, c| {
-                let mut s = vec![0.0; nf * nf];
-                let mut rhs = vec![0.0; nf];
+                let range = blocks.chunk_frames(c);
                 let mut l = std::mem::take(&mut sc.fac);
+                // The chunk's Z_i = L_i⁻¹ [W_i | g_i] stacked: (frames·n_q) × (n_f + 1),
+                // row-major, so that the substitution runs along contiguous rows.
                 let mut z = std::mem::take(&mut sc.vec);
-                let mut ok = true;
-                for f in blocks.chunk_frames(c) {
+                z.clear();
+                z.resize(range.len() * nq * m, 0.0);
+                for (i, f) in range.clone().enumerate() {
                     let blk = blocks.frame(prob, qs, f, sc);
                     let (u, rest) = blk.split_at(nq * nq);
                     let (w, g) = rest.split_at(nq * nf);
                     if !factor_damped(u, nq, lambda, &mut l) {
-                        ok = false;
-                        break;
+                        sc.fac = l;
+                        sc.vec = z;
+                        return None;
                     }
-                    // With U* = L Lᵀ: Wᵀ U*⁻¹ W = ZᵀZ and Wᵀ U*⁻¹ g = Zᵀy for Z = L⁻¹W,
-                    // y = L⁻¹g (forward substitutions only; z holds [Z | y]).
-                    z.clear();
-                    z.extend_from_slice(w);
-                    z.extend_from_slice(g);
-                    for k in 0..=nf {
-                        forward_solve(&l, nq, &mut z[k * nq..(k + 1) * nq]);
-                    }
-                    let y = &z[nf * nq..];
-                    // ZᵀZ is symmetric: one triangle here, mirrored after the sum.
-                    for k in 0..nf {
-                        let zk = &z[k * nq..(k + 1) * nq];
-                        rhs[k] += dot(zk, y);
-                        for c in 0..=k {
-                            s[c * nf + k] += dot(zk, &z[c * nq..(c + 1) * nq]);
+                    let zf = &mut z[i * nq * m..(i + 1) * nq * m];
+                    for a in 0..nq {
+                        let row = &mut zf[a * m..(a + 1) * m];
+                        for k in 0..nf {
+                            row[k] = w[k * nq + a];
                         }
+                        row[nf] = g[a];
                     }
+                    forward_solve_rows(&l, nq, m, zf);
+                }
+                // With U* = L Lᵀ: Wᵀ U*⁻¹ W = ZᵀZ and Wᵀ U*⁻¹ g = Zᵀy, so the chunk's share of
+                // both is one product [Z | y]ᵀ[Z | y] ((n_f + 1) × (n_f + 1), column-major).
+                let mut zz = vec![0.0; m * m];
+                let rows = range.len() * nq;
+                // SAFETY: A = Zᵀ (m × rows) and B = Z (rows × m) read z (rows·m) with strides
+                // (1, m) and (m, 1); C (m × m, column-major) is zz.
+                unsafe {
+                    matrixmultiply::dgemm(
+                        m,
+                        rows,
+                        m,
+                        1.0,
+                        z.as_ptr(),
+                        1,
+                        m as isize,
+                        z.as_ptr(),
+                        m as isize,
+                        1,
+                        0.0,
+                        zz.as_mut_ptr(),
+                        1,
+                        m as isize,
+                    );
                 }
                 sc.fac = l;
                 sc.vec = z;
-                ok.then_some((s, rhs))
+                Some(zz)
             },
         )
         .collect();
@@ -268,21 +299,20 @@ pub(crate) fn solve(
         s[k * nf + k] *= 1.0 + lambda;
     }
     let mut rhs = b.gs.clone();
-    let mut zz = vec![0.0; nf * nf];
-    let mut zy = vec![0.0; nf];
+    let mut zz = vec![0.0; m * m];
     for part in parts {
-        let Some((part_s, part_rhs)) = part else {
+        let Some(part) = part else {
             return false;
         };
-        add(&mut zz, &part_s);
-        add(&mut zy, &part_rhs);
+        add(&mut zz, &part);
     }
+    // The lower triangle, mirrored (the product's two triangles may differ in the last bit).
     for k in 0..nf {
-        rhs[k] -= zy[k];
+        rhs[k] -= zz[nf * m + k];
         for c in 0..=k {
-            s[c * nf + k] -= zz[c * nf + k];
+            s[c * nf + k] -= zz[c * m + k];
             if c != k {
-                s[k * nf + c] -= zz[c * nf + k];
+                s[k * nf + c] -= zz[c * m + k];
             }
         }
     }

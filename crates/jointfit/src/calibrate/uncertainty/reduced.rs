@@ -4,7 +4,7 @@ use nalgebra::{DMatrix, DVector};
 
 use rayon::prelude::*;
 
-use super::super::kernel::{frame_gram, FrameScratch, Part};
+use super::super::kernel::{frame_gram, FrameScratch};
 use super::super::schur::CHUNK;
 use super::super::Problem;
 use crate::linalg::{cholesky_in_place, cholesky_solve};
@@ -67,7 +67,7 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
                 let mut y = vec![0.0; nq * nf];
                 let mut yg = vec![0.0; nq];
                 for f in c * CHUNK..((c + 1) * CHUNK).min(frames) {
-                    cost += frame_gram(prob, p, &qs[f], &prob.frames[f], &half, Part::All, sc);
+                    cost += frame_gram(prob, p, &qs[f], &prob.frames[f], &half, sc);
                     let (gram, grad) = (&sc.gram, &sc.grad);
                     for a in 0..nq {
                         u[a * nq..(a + 1) * nq].copy_from_slice(&gram[a * n..a * n + nq]);
