@@ -1,6 +1,7 @@
 //! The `jointfit` command-line tool: thin clap front end, one module per subcommand.
 
 mod bench_cmd;
+mod bench_perf;
 mod calibrate_cmd;
 mod check_cmd;
 mod common;
