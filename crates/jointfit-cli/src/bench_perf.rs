@@ -45,7 +45,7 @@ pub fn opensim_ik(model: &Model, trc: &Path, repeat: usize) -> Result<OpenSimIk,
     jointfit_io::osim::write_osim(&osim, model, &model.nominal_params())
         .map_err(|e| format!("exporting the model: {e}"))?;
     let weights: serde_json::Map<String, serde_json::Value> = model
-        .markers
+        .markers()
         .iter()
         .map(|m| (m.name.clone(), serde_json::json!(m.weight)))
         .collect();
@@ -99,7 +99,7 @@ pub fn long_trial(frames: usize) -> Result<(Model, Vec<f64>, Trial)> {
     let cycle = synth::coordinates(&model, synth::Motion::All, 150)?;
     let coords: Vec<Vec<f64>> = (0..frames).map(|f| cycle[f % 150].clone()).collect();
     let p_true: Vec<f64> = model
-        .parameters
+        .parameters()
         .iter()
         .enumerate()
         .map(|(k, x)| x.nominal + 0.1 * (x.upper - x.lower) * (k as f64 * 1.7).sin())

@@ -112,7 +112,7 @@ fn frame_gram_impl(
     // Rows: (model row 3j + axis, √w_j) of the present markers.
     sc.rows.clear();
     let mut cost = 0.0;
-    for (j, m) in model.markers.iter().enumerate() {
+    for (j, m) in model.markers().iter().enumerate() {
         let t = targets[j];
         if t.x.is_nan() || m.weight <= 0.0 {
             continue;

@@ -417,7 +417,7 @@ pub(crate) fn cost_at(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> f64 {
                 let mut total = 0.0;
                 for (q, targets) in qs.iter().zip(&prob.frames[c * CHUNK..]) {
                     forward_kinematics(prob.model, p, q, Want::POSITIONS, kin);
-                    for (j, m) in prob.model.markers.iter().enumerate() {
+                    for (j, m) in prob.model.markers().iter().enumerate() {
                         if !targets[j].x.is_nan() && m.weight > 0.0 {
                             total += m.weight * (targets[j] - kin.markers[j]).norm_squared();
                         }
@@ -442,7 +442,7 @@ mod tests {
     /// A moving leg's markers at parameters away from nominal, with a deterministic wobble.
     fn problem_trial(model: &Model, frames: usize) -> Trial {
         let p: Vec<f64> = model
-            .parameters
+            .parameters()
             .iter()
             .enumerate()
             .map(|(k, x)| x.nominal + 0.15 * (x.upper - x.lower) * (k as f64).sin())
@@ -461,7 +461,7 @@ mod tests {
                 positions.push(x + Vector3::new(e(0), e(1), e(2)));
             }
         }
-        let labels = model.markers.iter().map(|m| m.name.clone()).collect();
+        let labels = model.markers().iter().map(|m| m.name.clone()).collect();
         Trial::new(labels, 100.0, 1, positions).unwrap()
     }
 
