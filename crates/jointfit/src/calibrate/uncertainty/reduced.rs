@@ -66,8 +66,9 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
                 let mut l = vec![0.0; nq * nq];
                 let mut y = vec![0.0; nq * nf];
                 let mut yg = vec![0.0; nq];
-                for f in c * CHUNK..((c + 1) * CHUNK).min(frames) {
-                    cost += frame_gram(prob, p, &qs[f], &prob.frames[f], &half, sc);
+                let range = c * CHUNK..((c + 1) * CHUNK).min(frames);
+                for (q, targets) in qs[range.clone()].iter().zip(&prob.frames[range]) {
+                    cost += frame_gram(prob, p, q, targets, &half, sc);
                     let (gram, grad) = (&sc.gram, &sc.grad);
                     for a in 0..nq {
                         u[a * nq..(a + 1) * nq].copy_from_slice(&gram[a * n..a * n + nq]);
