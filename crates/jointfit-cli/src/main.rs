@@ -9,6 +9,7 @@ mod output;
 mod validate;
 
 mod bench_cmd;
+mod bench_perf;
 mod calibrate_cmd;
 mod check_cmd;
 mod common;
