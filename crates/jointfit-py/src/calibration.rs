@@ -76,10 +76,12 @@ impl PyCalibration {
     fn frames(&self) -> (usize, usize) {
         (self.cal.frames, self.cal.skipped_frames)
     }
+    /// Whether the outer solver met its convergence test.
     #[getter]
     fn converged(&self) -> bool {
         self.cal.converged
     }
+    /// Outer iterations.
     #[getter]
     fn iterations(&self) -> usize {
         self.cal.iterations

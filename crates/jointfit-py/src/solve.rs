@@ -173,10 +173,12 @@ impl PyIkResult {
     fn coordinates<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         self.coords.clone().into_pyarray(py)
     }
+    /// Names of the columns of `coordinates`.
     #[getter]
     fn coordinate_names(&self) -> Vec<String> {
         self.coordinate_names.clone()
     }
+    /// Names of the columns of `errors` (the model's markers).
     #[getter]
     fn marker_names(&self) -> Vec<String> {
         self.marker_names.clone()

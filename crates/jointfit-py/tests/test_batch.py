@@ -8,15 +8,26 @@ import pytest
 import jointfit as jf
 
 
-def _jobs():
-    """Four jobs, trials by value (synthetic) and by path is covered in the CLI equality
-    test; the third one fails (unknown joint group)."""
+@pytest.fixture(scope="module")
+def subject(data_dir, tmp_path_factory):
+    """OpenCap's expert subject as a model file, for jobs that go by path."""
+    d = data_dir / "opencap_expert1"
+    path = tmp_path_factory.mktemp("batch") / "subject.toml"
+    jf.personalize(d / "static1.trc", markers="opencap").save(path)
+    return path, d / "walking1.trc"
+
+
+def _jobs(subject):
+    """Four jobs: three with synthetic trials sent by value (the third fails: unknown joint
+    group), one with a model file and a real trial read by path where it runs."""
     jobs = []
     for k, (motion, joints) in enumerate([("knee", ["knee"]), ("ankle", ["ankle"]),
-                                          ("knee", ["elbow"]), ("all", None)]):
+                                          ("knee", ["elbow"])]):
         trial, _ = jf.synthesize(motion=motion, frames=40, noise_mm=5.0, seed=10 + k)
         jobs.append(jf.Job(model="lower-limb-right", trials=[trial], joints=joints,
                            name=f"s{k}"))
+    model_path, trial_path = subject
+    jobs.append(jf.Job(model=model_path, trials=[trial_path], name="s3"))
     return jobs
 
 
@@ -31,8 +42,8 @@ def _check(results, jobs):
             assert r == job.run()  # a batch result is the job's own result
 
 
-def test_sequential_batch_in_job_order_with_progress(capsys):
-    jobs = _jobs()
+def test_sequential_batch_in_job_order_with_progress(capsys, subject):
+    jobs = _jobs(subject)
     results = jf.batch(jobs)
     _check(results, jobs)
     err = capsys.readouterr().err
@@ -43,8 +54,8 @@ def test_sequential_batch_in_job_order_with_progress(capsys):
     assert again[:2] == results[:2] and again[3] == results[3]
 
 
-def test_job_pickles_with_trials_by_value():
-    job = _jobs()[0]
+def test_job_pickles_with_trials_by_value(subject):
+    job = _jobs(subject)[0]
     back = pickle.loads(pickle.dumps(job))
     assert back.run() == job.run()
 
@@ -54,9 +65,9 @@ def test_batch_rejects_non_jobs():
         jf.batch(["walk.c3d"])
 
 
-def test_dask_local_cluster_equals_sequential(capsys):
-    distributed = pytest.importorskip("dask.distributed")
-    jobs = _jobs()
+def test_dask_local_cluster_equals_sequential(capsys, subject):
+    from dask import distributed  # installed from scripts/requirements.txt
+    jobs = _jobs(subject)
     sequential = jf.batch(jobs, progress=False)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster:
