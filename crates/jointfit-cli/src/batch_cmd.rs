@@ -249,11 +249,12 @@ pub fn run(args: BatchArgs) -> Result<()> {
         );
     }
     if failed > 0 {
-        bail!(
+        return Err(crate::output::PartialFailure(format!(
             "{failed} of {} jobs failed (their errors are in {})",
             outcomes.len(),
             args.output.join("results.csv").display()
-        );
+        ))
+        .into());
     }
     Ok(())
 }

@@ -12,6 +12,7 @@ pub mod atomic;
 pub mod batch;
 pub mod c3d;
 pub mod csv;
+pub mod message;
 pub mod osim;
 pub mod staging;
 pub mod sto;

@@ -96,7 +96,7 @@ impl PyModel {
     #[getter]
     fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
-        for p in &self.model.parameters {
+        for p in self.model.parameters() {
             d.set_item(&p.name, p.nominal)?;
         }
         Ok(d)
@@ -106,7 +106,7 @@ impl PyModel {
     #[getter]
     fn bounds<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
-        for p in &self.model.parameters {
+        for p in self.model.parameters() {
             d.set_item(&p.name, (p.lower, p.upper))?;
         }
         Ok(d)
@@ -116,7 +116,7 @@ impl PyModel {
     #[getter]
     fn groups(&self) -> BTreeMap<String, Vec<String>> {
         let mut out: BTreeMap<String, Vec<String>> = BTreeMap::new();
-        for p in &self.model.parameters {
+        for p in self.model.parameters() {
             out.entry(p.group.clone()).or_default().push(p.name.clone());
         }
         out
@@ -126,7 +126,7 @@ impl PyModel {
     #[getter]
     fn units(&self) -> BTreeMap<String, &'static str> {
         self.model
-            .parameters
+            .parameters()
             .iter()
             .map(|p| {
                 let u = match p.unit {
@@ -142,7 +142,7 @@ impl PyModel {
     #[getter]
     fn coordinate_names(&self) -> Vec<String> {
         self.model
-            .coordinates
+            .coordinates()
             .iter()
             .map(|c| c.name.clone())
             .collect()
@@ -151,7 +151,11 @@ impl PyModel {
     /// Marker names, in model order.
     #[getter]
     fn marker_names(&self) -> Vec<String> {
-        self.model.markers.iter().map(|m| m.name.clone()).collect()
+        self.model
+            .markers()
+            .iter()
+            .map(|m| m.name.clone())
+            .collect()
     }
 
     /// A copy with some parameters changed (dict name → value, m or rad).

@@ -270,8 +270,8 @@ pub fn ik(
     }
     let (nf, nq, nm) = (fit.frames.len(), model.n_q(), model.n_markers());
     Ok(PyIkResult {
-        coordinate_names: model.coordinates.iter().map(|c| c.name.clone()).collect(),
-        marker_names: model.markers.iter().map(|m| m.name.clone()).collect(),
+        coordinate_names: model.coordinates().iter().map(|c| c.name.clone()).collect(),
+        marker_names: model.markers().iter().map(|m| m.name.clone()).collect(),
         coords: Array2::from_shape_fn((nf, nq), |(f, k)| fit.coords[f][k]),
         errors: Array2::from_shape_fn((nf, nm), |(f, j)| fit.errors[f][j]),
         solved: fit.frames.iter().map(|f| f.solved()).collect(),

@@ -183,7 +183,7 @@ pub fn calibrate(
         .iter()
         .zip(&u.params)
         .map(|(&i, pu)| {
-            let par = &model.parameters[i];
+            let par = &model.parameters()[i];
             // The uncertainty rows are in display units (mm, deg): back to SI.
             let (unit, to_si) = match par.unit {
                 Unit::Metre => ("m", 1e-3),

@@ -90,16 +90,10 @@ pub enum JobError {
     NoTrials,
 }
 
-/// The one-line message of an error and its causes, joined by `": "` (the command line
-/// prints the same chain after `jointfit: error: `).
+/// The one-line message of an error and its causes, as the command line prints it after
+/// `jointfit: error: ` ([`crate::message::of_error`]).
 pub fn message(e: &(dyn std::error::Error + 'static)) -> String {
-    let mut parts = vec![e.to_string()];
-    let mut cur = e.source();
-    while let Some(s) = cur {
-        parts.push(s.to_string());
-        cur = s.source();
-    }
-    parts.join(": ")
+    crate::message::of_error(e)
 }
 
 /// Filtering that moves a marker further than this is reported (m).

@@ -58,15 +58,15 @@ fn job_recovers_the_true_knee() {
             row.fitted,
             truth[i]
         );
-        assert_eq!(row.start, model.parameters[i].nominal);
+        assert_eq!(row.start, model.parameters()[i].nominal);
     }
     assert!(cal.rms_after < 1e-6 && cal.rms_before > 1e-3, "{cal:?}");
     // The fitted model carries the fitted values; the fixed ones stay nominal.
     let fitted = Model::compile(&cal.model).unwrap();
-    for (i, par) in fitted.parameters.iter().enumerate() {
+    for (i, par) in fitted.parameters().iter().enumerate() {
         match cal.parameters.iter().find(|r| r.name == par.name) {
             Some(r) => assert_eq!(par.nominal, r.fitted),
-            None => assert_eq!(par.nominal, model.parameters[i].nominal),
+            None => assert_eq!(par.nominal, model.parameters()[i].nominal),
         }
     }
 }
