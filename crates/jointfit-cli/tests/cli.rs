@@ -6,6 +6,8 @@ use std::process::Command;
 mod data;
 #[path = "cli/ident.rs"]
 mod ident;
+#[path = "cli/ik.rs"]
+mod ik;
 #[path = "cli/osim.rs"]
 mod osim;
 #[path = "cli/personalize.rs"]

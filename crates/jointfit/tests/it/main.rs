@@ -2,6 +2,7 @@
 
 mod calibrate;
 mod ik;
+mod ik_robust;
 mod kinematics;
 mod landmarks;
 mod models;
