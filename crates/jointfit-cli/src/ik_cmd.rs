@@ -54,6 +54,8 @@ struct Summary {
     held_frames: usize,
     /// Marker samples rejected as gross errors.
     rejected: Vec<RejectedJson>,
+    /// Data-check findings (warnings; errors stop the command).
+    checks: Vec<CheckJson>,
     mean_frame_rms_mm: f64,
     max_frame_rms_mm: f64,
     marker_rms_mm: Vec<(String, f64)>,
@@ -67,6 +69,12 @@ struct UnsolvedJson {
     last_frame: i64,
     frames: usize,
     reason: String,
+}
+
+#[derive(Serialize)]
+struct CheckJson {
+    kind: &'static str,
+    message: String,
 }
 
 #[derive(Serialize)]
@@ -93,6 +101,7 @@ pub fn run(args: IkArgs) -> Result<()> {
             absent.join(", ")
         );
     }
+    let findings = crate::common::run_checks(&model, &trial, &args.trial)?;
     let start = Instant::now();
     let opts = IkOptions {
         hold_undetermined: args.hold_undetermined,
@@ -121,7 +130,14 @@ pub fn run(args: IkArgs) -> Result<()> {
         jointfit_io::atomic::write_atomic(path, errors_csv(&model, &trial, &fit).as_bytes())
             .with_context(|| format!("writing {}", path.display()))?;
     }
-    let summary = summarize(&model, &trial, &fit, seconds);
+    let mut summary = summarize(&model, &trial, &fit, seconds);
+    summary.checks = findings
+        .iter()
+        .map(|f| CheckJson {
+            kind: f.kind.as_str(),
+            message: f.message.clone(),
+        })
+        .collect();
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
@@ -191,6 +207,7 @@ fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f64) -> Summ
             .filter(|f| f.solved() && !f.held.is_empty())
             .count(),
         rejected,
+        checks: Vec::new(),
         mean_frame_rms_mm: rms.iter().sum::<f64>() / rms.len().max(1) as f64 * MM,
         max_frame_rms_mm: rms.iter().cloned().fold(0.0, f64::max) * MM,
         marker_rms_mm: model

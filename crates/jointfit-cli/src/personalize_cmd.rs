@@ -80,6 +80,8 @@ fn load_marker_set(arg: &str) -> Result<MarkerSet> {
 pub fn run(args: PersonalizeArgs) -> Result<()> {
     let set = load_marker_set(&args.markers)?;
     let trial = load_trial(&args.static_trial, args.up, None)?;
+    let scale: Vec<_> = jointfit::checks::check_scale(&trial).into_iter().collect();
+    crate::common::report_findings(&scale, &args.static_trial)?;
     let side = match args.side {
         SideArg::Right => Side::Right,
         SideArg::Left => Side::Left,

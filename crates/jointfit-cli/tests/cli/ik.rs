@@ -215,3 +215,72 @@ fn unsolved_frames_are_ranges_and_can_be_held() {
         assert!(worst < 1e-3, "row {row}: {worst}");
     }
 }
+
+/// A C3D cut on a 512-byte block boundary (about half its data section) reads short; every
+/// command that reads it says so on stderr (the reader's note), not only `inspect`.
+#[test]
+fn a_cut_c3d_is_announced_by_every_command() {
+    let (Some(c3d), Some(stat)) = (
+        data_file("biobuddy_functional_vicon/Test_func_rhip.c3d"),
+        data_file("biobuddy_functional_vicon/anatomical_posture.c3d"),
+    ) else {
+        return;
+    };
+    let dir = scratch("cut");
+    let bytes = std::fs::read(&c3d).unwrap();
+    let cut = dir.join("cut.c3d");
+    let keep = (bytes.len() / 2) / 512 * 512;
+    std::fs::write(&cut, &bytes[..keep]).unwrap();
+    let full = jointfit_io::trial_file::read_trial(&c3d)
+        .unwrap()
+        .n_frames();
+    let short = jointfit_io::trial_file::read_trial(&cut)
+        .unwrap()
+        .n_frames();
+    assert!(short < full, "{short} of {full}");
+    let subject = dir.join("pig.toml");
+    let (ok, _, err) = jointfit(&[
+        "personalize",
+        "--static",
+        s(&stat),
+        "--markers",
+        "plugin-gait",
+        "--side",
+        "right",
+        "--up=-z",
+        "-o",
+        s(&subject),
+    ]);
+    assert!(ok, "{err}");
+    let said = |err: &str| {
+        err.lines().any(|l| {
+            l.starts_with("jointfit: warning: ")
+                && l.contains("cut.c3d")
+                && l.contains(&format!("declares {full} frames"))
+        })
+    };
+    let (ok, _, err) = jointfit(&["convert", s(&cut), s(&dir.join("cut.trc")), "--up=-z"]);
+    assert!(ok && said(&err), "convert: {err}");
+    let (ok, _, err) = jointfit(&[
+        "ik",
+        s(&subject),
+        s(&cut),
+        "--up=-z",
+        "-o",
+        s(&dir.join("cut.mot")),
+    ]);
+    assert!(ok && said(&err), "ik: {err}");
+    let (ok, _, err) = jointfit(&[
+        "personalize",
+        "--static",
+        s(&cut),
+        "--markers",
+        "plugin-gait",
+        "--side",
+        "right",
+        "--up=-z",
+        "-o",
+        s(&dir.join("cut.toml")),
+    ]);
+    assert!(said(&err), "personalize (ok {ok}): {err}");
+}
