@@ -31,6 +31,7 @@ impl From<Up> for UpAxis {
 /// marker by more than 2 cm, on stderr.
 pub fn load_trial(path: &Path, up: Up, filter_hz: Option<f64>) -> Result<Trial> {
     let (mut trial, notes) = jointfit_io::trial_file::read_trial_noted(path)?;
+    crate::validate::check_trial(path, &trial)?;
     for note in notes {
         eprintln!("jointfit: warning: {}: {note}", path.display());
     }
@@ -41,7 +42,7 @@ pub fn load_trial(path: &Path, up: Up, filter_hz: Option<f64>) -> Result<Trial> 
             ..LowPass::default()
         };
         let (filtered, report) = filter_trial(&trial, &lp)
-            .with_context(|| format!("{}: filtering at {hz} Hz", path.display()))?;
+            .with_context(|| format!("{}: --filter {hz} Hz", path.display()))?;
         for m in report.moved_more_than(0.02) {
             eprintln!(
                 "jointfit: warning: {}: filtering moved marker {} by {:.1} mm",

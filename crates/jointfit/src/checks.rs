@@ -137,15 +137,16 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
             .map(|c| trial.frame(f)[c])
             .filter(|p| p.x.is_finite())
     };
-    let name = |j: usize| model.markers[j].name.as_str();
+    let name = |j: usize| model.markers()[j].name.as_str();
     // Marker pairs of one segment with the model's distance.
-    let mut segments: Vec<Vec<usize>> = vec![Vec::new(); model.segments.len()];
-    for (j, m) in model.markers.iter().enumerate() {
+    let mut segments: Vec<Vec<usize>> = vec![Vec::new(); model.segments().len()];
+    for (j, m) in model.markers().iter().enumerate() {
         if col(j).is_some() {
             segments[m.segment.0].push(j);
         }
     }
-    let reference = |a: usize, b: usize| (model.markers[a].local - model.markers[b].local).norm();
+    let reference =
+        |a: usize, b: usize| (model.markers()[a].local - model.markers()[b].local).norm();
 
     // Clusters.
     for markers in &segments {
@@ -171,7 +172,7 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                             name(b),
                             median * 1e3,
                             r * 1e3,
-                            seg = model.segments[model.markers[a].segment.0].name
+                            seg = model.segments()[model.markers()[a].segment.0].name
                         ),
                     });
                 }
@@ -217,7 +218,7 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                             name(b),
                             first + start as i64,
                             first + end as i64,
-                            model.segments[model.markers[a].segment.0].name
+                            model.segments()[model.markers()[a].segment.0].name
                         ),
                     });
                 }

@@ -1,17 +1,11 @@
 //! `jointfit ik` on real trials with gaps, sparse segments and gross errors.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use jointfit::testing::data_file;
+use jointfit_testkit::{data_file, scratch};
 use serde_json::Value;
 
 use super::jointfit;
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("jointfit-ik-cli-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
@@ -87,7 +81,8 @@ fn jam_overground_with_a_two_marker_foot_is_solved() {
     ) else {
         return;
     };
-    let dir = scratch("jam");
+    let tmp = scratch("ik-cli-jam");
+    let dir = tmp.path();
     let subject = dir.join("jam.toml");
     personalize(&stat, "jam", &subject);
     let v = ik(&subject, &walk, &dir.join("walk.mot"), &[]);
@@ -108,7 +103,8 @@ fn walking1_with_a_wild_sample_recovers() {
     ) else {
         return;
     };
-    let dir = scratch("wild");
+    let tmp = scratch("ik-cli-wild");
+    let dir = tmp.path();
     let subject = dir.join("subject.toml");
     personalize(&stat, "opencap", &subject);
     let wild = dir.join("walking1_wild.trc");
@@ -155,7 +151,8 @@ fn unsolved_frames_are_ranges_and_can_be_held() {
     ) else {
         return;
     };
-    let dir = scratch("gap");
+    let tmp = scratch("ik-cli-gap");
+    let dir = tmp.path();
     let subject = dir.join("subject.toml");
     personalize(&stat, "opencap", &subject);
     let gap = dir.join("walking1_gap.trc");
@@ -226,7 +223,8 @@ fn a_cut_c3d_is_announced_by_every_command() {
     ) else {
         return;
     };
-    let dir = scratch("cut");
+    let tmp = scratch("ik-cli-cut");
+    let dir = tmp.path();
     let bytes = std::fs::read(&c3d).unwrap();
     let cut = dir.join("cut.c3d");
     let keep = (bytes.len() / 2) / 512 * 512;

@@ -5,17 +5,10 @@
 //! header values. Variants OpenSim refuses (extra header fields, trailing data columns) must
 //! not panic here; what we do with them is stated in the asserts.
 
-use std::path::PathBuf;
-
 use jointfit_io::trc::read_trc_file;
+use jointfit_testkit::scratch;
 
 use super::oracle::{self, num};
-
-fn scratch() -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("jointfit-trc-field-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 const KEYS: &str = "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\t\
                     OrigDataStartFrame\tOrigNumFrames";
@@ -46,7 +39,8 @@ fn variant(keys: &str, values: &str, row_end: &str, nl: &str) -> String {
 
 #[test]
 fn field_trc_variants_read_as_opensim_reads_them() {
-    let dir = scratch();
+    let tmp = scratch("trc-field");
+    let dir = tmp.path();
     let plain_values = "100\t100\t6\t3\tmm\t100\t1\t6";
     let cases: Vec<(&str, String, bool)> = vec![
         // (name, text, must OpenSim read it)

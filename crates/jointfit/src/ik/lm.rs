@@ -126,7 +126,7 @@ pub(super) fn frame_weights(
     rejected: &mut Vec<usize>,
 ) {
     rejected.clear();
-    for (j, m) in model.markers.iter().enumerate() {
+    for (j, m) in model.markers().iter().enumerate() {
         let t = &targets[j];
         w[j] = 0.0;
         if m.weight <= 0.0 || t.iter().any(|v| v.is_nan()) {
@@ -234,7 +234,7 @@ pub fn solve_frame(
                     cost: f64::NAN,
                     iterations,
                     status: FrameStatus::Undetermined {
-                        coordinate: model.coordinates[c].name.clone(),
+                        coordinate: model.coordinates()[c].name.clone(),
                     },
                     held: Vec::new(),
                     rejected,

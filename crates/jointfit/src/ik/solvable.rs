@@ -112,7 +112,7 @@ impl Solvability {
             &mut self.a,
             &mut self.g,
         );
-        let limit = |c: usize| match model.coordinates[c].kind {
+        let limit = |c: usize| match model.coordinates()[c].kind {
             CoordKind::Rotational => opts.max_angle_per_mm,
             CoordKind::Translational => opts.max_translation_per_mm,
         };
@@ -173,7 +173,7 @@ impl Solvability {
 /// lock): the defaults plus distinct angles of 0.1–0.4 rad.
 fn generic_configuration(model: &Model) -> Vec<f64> {
     model
-        .coordinates
+        .coordinates()
         .iter()
         .enumerate()
         .map(|(i, c)| match c.kind {

@@ -65,7 +65,7 @@ fn sparse_segments_are_solved_through_the_chain() {
     drop_markers(&mut trial, &gone, 0..30);
     // Oracle: the explicit Jacobian of the present markers has full rank at the truth.
     let present: Vec<bool> = model
-        .markers
+        .markers()
         .iter()
         .map(|m| !gone.contains(&m.name.as_str()))
         .collect();
@@ -102,7 +102,7 @@ fn undetermined_coordinate_is_named_and_ranged() {
     assert!(fit.coords[6].iter().all(|v| v.is_nan()));
     let named = model.coord_id(coordinate).unwrap().0;
     let present: Vec<bool> = model
-        .markers
+        .markers()
         .iter()
         .map(|m| !gone.contains(&m.name.as_str()))
         .collect();

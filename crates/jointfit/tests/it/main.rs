@@ -7,5 +7,4 @@ mod ik_robust;
 mod kinematics;
 mod landmarks;
 mod models;
-mod sample_models;
 mod uncertainty;
