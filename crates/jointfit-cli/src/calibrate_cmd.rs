@@ -669,6 +669,9 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         .iter()
         .map(|t| load_trial(t, args.up, args.filter))
         .collect::<Result<_>>()?;
+    for (trial, path) in trials.iter().zip(&args.trials) {
+        crate::common::run_checks(&model, trial, path)?;
+    }
     let refs: Vec<&Trial> = trials.iter().collect();
     let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
     let opts = uncertainty_options(

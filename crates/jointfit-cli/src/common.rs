@@ -26,11 +26,15 @@ impl From<Up> for UpAxis {
     }
 }
 
-/// Reads a motion file, rotates it to Y-up and low-pass filters it when asked; warns on
-/// stderr when filtering moves a marker by more than 2 cm.
+/// Reads a motion file, rotates it to Y-up and low-pass filters it when asked; prints the
+/// reader's notes (assumed units, short data, extra rows, …) and warns when filtering moves a
+/// marker by more than 2 cm, on stderr.
 pub fn load_trial(path: &Path, up: Up, filter_hz: Option<f64>) -> Result<Trial> {
-    let mut trial = jointfit_io::trial_file::read_trial(path)?;
+    let (mut trial, notes) = jointfit_io::trial_file::read_trial_noted(path)?;
     crate::validate::check_trial(path, &trial)?;
+    for note in notes {
+        eprintln!("jointfit: warning: {}: {note}", path.display());
+    }
     trial.rotate(&up_axis_rotation(up.into()));
     if let Some(hz) = filter_hz {
         let lp = LowPass {
@@ -53,3 +57,33 @@ pub fn load_trial(path: &Path, up: Up, filter_hz: Option<f64>) -> Result<Trial> 
 }
 
 pub const MM: f64 = 1e3;
+
+/// Runs the data checks of `trial` against `model` ([`jointfit::checks`]): warnings go to
+/// stderr, one line each; an error (e.g. wrong units) stops the command. Returns the findings.
+pub fn run_checks(
+    model: &jointfit::model::Model,
+    trial: &Trial,
+    path: &Path,
+) -> Result<Vec<jointfit::checks::Finding>> {
+    let (map, _) = jointfit::ik::MarkerMap::allowing_absent(model, trial.labels());
+    let findings = jointfit::checks::check_trial(model, trial, &map);
+    report_findings(&findings, path)?;
+    Ok(findings)
+}
+
+/// Prints warnings on stderr and fails on the first error.
+pub fn report_findings(findings: &[jointfit::checks::Finding], path: &Path) -> Result<()> {
+    use jointfit::checks::Severity;
+    for f in findings.iter().filter(|f| f.severity == Severity::Warning) {
+        eprintln!(
+            "jointfit: check: {}: {}: {}",
+            path.display(),
+            f.kind.as_str(),
+            f.message
+        );
+    }
+    if let Some(f) = findings.iter().find(|f| f.severity == Severity::Error) {
+        anyhow::bail!("{}: {}", path.display(), f.message);
+    }
+    Ok(())
+}

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use jointfit::ik::{solve_trial, FrameStatus, IkOptions, MarkerMap, TrialFit};
+use jointfit::ik::{solve_trial, unsolved_ranges, IkOptions, MarkerMap, TrialFit};
 use jointfit::model::{CoordKind, Model};
 use jointfit::trial::Trial;
 use jointfit_io::sto::{write_sto, Table};
@@ -31,6 +31,14 @@ pub struct IkArgs {
     /// Which axis of the file points up.
     #[arg(long, value_enum, default_value = "y")]
     pub up: Up,
+    /// Solve frames whose markers leave some coordinates undetermined by holding those at
+    /// the previous frame's values (instead of leaving the frame out).
+    #[arg(long)]
+    pub hold_undetermined: bool,
+    /// Keep every marker sample that is finite and within 1 km (no gross-error rejection
+    /// after the fit; OpenSim's behaviour).
+    #[arg(long)]
+    pub keep_outliers: bool,
     /// Print a JSON summary on stdout.
     #[arg(long)]
     pub json: bool,
@@ -40,12 +48,39 @@ pub struct IkArgs {
 struct Summary {
     frames: usize,
     solved_frames: usize,
-    unsolved: Vec<String>,
+    /// Runs of frames not solved (file frame numbers, inclusive) and why.
+    unsolved: Vec<UnsolvedJson>,
+    /// Frames solved with coordinates held at the previous frame's values.
+    held_frames: usize,
+    /// Marker samples rejected as gross errors.
+    rejected: Vec<RejectedJson>,
+    /// Data-check findings (warnings; errors stop the command).
+    checks: Vec<CheckJson>,
     mean_frame_rms_mm: f64,
     max_frame_rms_mm: f64,
     marker_rms_mm: Vec<(String, f64)>,
     solve_seconds: f64,
     frames_per_second: f64,
+}
+
+#[derive(Serialize)]
+struct UnsolvedJson {
+    first_frame: i64,
+    last_frame: i64,
+    frames: usize,
+    reason: String,
+}
+
+#[derive(Serialize)]
+struct CheckJson {
+    kind: &'static str,
+    message: String,
+}
+
+#[derive(Serialize)]
+struct RejectedJson {
+    frame: i64,
+    marker: String,
 }
 
 pub fn run(args: IkArgs) -> Result<()> {
@@ -59,8 +94,8 @@ pub fn run(args: IkArgs) -> Result<()> {
     files.check()?;
     let model = jointfit_io::model_file::load_model(&args.model)?;
     let trial = load_trial(&args.trial, args.up, args.filter)?;
-    // Markers the file lacks altogether are missing in every frame; frames whose segments
-    // keep too few markers are reported as unsolved, as for gaps.
+    // Markers the file lacks altogether are missing in every frame; frames whose present
+    // markers leave a coordinate undetermined are reported as unsolved, as for gaps.
     let (map, absent) = MarkerMap::allowing_absent(&model, trial.labels());
     if absent.len() == model.n_markers() {
         // Nothing in common: the strict matcher's error lists both sides.
@@ -74,22 +109,23 @@ pub fn run(args: IkArgs) -> Result<()> {
             absent.join(", ")
         );
     }
+    let findings = crate::common::run_checks(&model, &trial, &args.trial)?;
     let start = Instant::now();
-    let fit = solve_trial(
-        &model,
-        &model.nominal_params(),
-        &trial,
-        &map,
-        &IkOptions::default(),
-    )?;
+    let opts = IkOptions {
+        hold_undetermined: args.hold_undetermined,
+        outlier_distance: if args.keep_outliers {
+            f64::INFINITY
+        } else {
+            IkOptions::default().outlier_distance
+        },
+        ..IkOptions::default()
+    };
+    let fit = solve_trial(&model, &model.nominal_params(), &trial, &map, &opts)?;
     let seconds = start.elapsed().as_secs_f64();
     if !fit.frames.iter().any(|f| f.solved()) {
-        let why = match fit.frames.first().map(|f| &f.status) {
-            Some(FrameStatus::TooFewMarkers { segment, present }) => format!(
-                " (first frame: segment {segment} has {present} of the {} markers it needs)",
-                IkOptions::default().min_markers_per_segment
-            ),
-            _ => String::new(),
+        let why = match unsolved_ranges(&fit).first() {
+            Some(r) => format!(" (first frame: {})", r.reason),
+            None => String::new(),
         };
         bail!(
             "{}: no frame could be solved{why}; nothing written",
@@ -102,13 +138,20 @@ pub fn run(args: IkArgs) -> Result<()> {
         jointfit_io::atomic::write_atomic(path, errors_csv(&model, &trial, &fit).as_bytes())
             .with_context(|| format!("writing {}", path.display()))?;
     }
-    let summary = summarize(&model, &trial, &fit, seconds);
+    let mut summary = summarize(&model, &trial, &fit, seconds);
     if !(summary.mean_frame_rms_mm.is_finite() && summary.max_frame_rms_mm.is_finite()) {
         bail!(
             "{}: inverse kinematics gave non-finite marker errors; nothing written",
             args.trial.display()
         );
     }
+    summary.checks = findings
+        .iter()
+        .map(|f| CheckJson {
+            kind: f.kind.as_str(),
+            message: f.message.clone(),
+        })
+        .collect();
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
@@ -120,8 +163,17 @@ pub fn run(args: IkArgs) -> Result<()> {
             "RMS marker error per frame: mean {:.2} mm, max {:.2} mm",
             summary.mean_frame_rms_mm, summary.max_frame_rms_mm
         );
-        for u in &summary.unsolved {
-            println!("not solved: {u}");
+        if let Some(line) = unsolved_line(&summary) {
+            println!("{line}");
+        }
+        if summary.held_frames > 0 {
+            println!(
+                "{} frames solved with undetermined coordinates held at the previous frame's values",
+                summary.held_frames
+            );
+        }
+        if let Some(line) = rejected_line(&summary.rejected) {
+            println!("{line}");
         }
         let mut t = crate::table::Table::new(&["marker", "RMS mm"]);
         for (name, v) in &summary.marker_rms_mm {
@@ -138,23 +190,38 @@ fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f64) -> Summ
         .map(|f| fit.frame_rms(f))
         .filter(|v| !v.is_nan())
         .collect();
-    let unsolved = fit
+    let first = trial.first_frame();
+    let unsolved = unsolved_ranges(fit)
+        .into_iter()
+        .map(|r| UnsolvedJson {
+            first_frame: first + r.first as i64,
+            last_frame: first + r.last as i64,
+            frames: r.last - r.first + 1,
+            reason: r.reason,
+        })
+        .collect();
+    let rejected = fit
         .frames
         .iter()
         .enumerate()
-        .filter_map(|(f, fr)| match &fr.status {
-            FrameStatus::TooFewMarkers { segment, present } => Some(format!(
-                "frame {} (file frame {}): segment {segment} has {present} markers",
-                f,
-                trial.first_frame() + f as i64
-            )),
-            _ => None,
+        .flat_map(|(f, fr)| {
+            fr.rejected.iter().map(move |&j| RejectedJson {
+                frame: first + f as i64,
+                marker: model.markers()[j].name.clone(),
+            })
         })
         .collect();
     Summary {
         frames: fit.frames.len(),
         solved_frames: rms.len(),
         unsolved,
+        held_frames: fit
+            .frames
+            .iter()
+            .filter(|f| f.solved() && !f.held.is_empty())
+            .count(),
+        rejected,
+        checks: Vec::new(),
         mean_frame_rms_mm: rms.iter().sum::<f64>() / rms.len().max(1) as f64 * MM,
         max_frame_rms_mm: rms.iter().cloned().fold(0.0, f64::max) * MM,
         marker_rms_mm: model
@@ -166,6 +233,52 @@ fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f64) -> Summ
         solve_seconds: seconds,
         frames_per_second: fit.frames.len() as f64 / seconds.max(1e-12),
     }
+}
+
+/// One line for every unsolved frame: `not solved: 7 frames: 40–45 (why), 80 (why)`.
+fn unsolved_line(summary: &Summary) -> Option<String> {
+    if summary.unsolved.is_empty() {
+        return None;
+    }
+    let total: usize = summary.unsolved.iter().map(|r| r.frames).sum();
+    let runs: Vec<String> = summary
+        .unsolved
+        .iter()
+        .map(|r| {
+            if r.first_frame == r.last_frame {
+                format!("{} ({})", r.first_frame, r.reason)
+            } else {
+                format!("{}-{} ({})", r.first_frame, r.last_frame, r.reason)
+            }
+        })
+        .collect();
+    Some(format!(
+        "not solved: {total} frames (file frame numbers): {}",
+        runs.join(", ")
+    ))
+}
+
+/// One line for the rejected samples: counts per marker with the first frame of each.
+fn rejected_line(rejected: &[RejectedJson]) -> Option<String> {
+    if rejected.is_empty() {
+        return None;
+    }
+    let mut per_marker: Vec<(&str, usize, i64)> = Vec::new();
+    for r in rejected {
+        match per_marker.iter_mut().find(|(m, _, _)| *m == r.marker) {
+            Some(e) => e.1 += 1,
+            None => per_marker.push((&r.marker, 1, r.frame)),
+        }
+    }
+    let parts: Vec<String> = per_marker
+        .iter()
+        .map(|(m, n, f)| format!("{m} in {n} frames (first {f})"))
+        .collect();
+    Some(format!(
+        "rejected as gross errors: {} samples: {}",
+        rejected.len(),
+        parts.join(", ")
+    ))
 }
 
 /// Joint angles in degrees (rotations) and metres (translations), OpenSim's layout.

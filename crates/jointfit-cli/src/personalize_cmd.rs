@@ -85,6 +85,8 @@ pub fn run(args: PersonalizeArgs) -> Result<()> {
         .check()?;
     let set = load_marker_set(&args.markers)?;
     let trial = load_trial(&args.static_trial, args.up, None)?;
+    let scale: Vec<_> = jointfit::checks::check_scale(&trial).into_iter().collect();
+    crate::common::report_findings(&scale, &args.static_trial)?;
     let side = match args.side {
         SideArg::Right => Side::Right,
         SideArg::Left => Side::Left,

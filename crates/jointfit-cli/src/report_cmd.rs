@@ -266,7 +266,7 @@ pub fn write_calibration_report(
     });
     if report.skipped_frames > 0 {
         input.notes.push(format!(
-            "{} frames were left out of the calibration because a segment had too few markers.",
+            "{} frames were left out of the calibration because their markers left a coordinate undetermined.",
             report.skipped_frames
         ));
     }

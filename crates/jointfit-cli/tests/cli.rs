@@ -10,6 +10,8 @@ mod data;
 mod fuzz;
 #[path = "cli/ident.rs"]
 mod ident;
+#[path = "cli/ik.rs"]
+mod ik;
 #[path = "cli/osim.rs"]
 mod osim;
 #[path = "cli/personalize.rs"]

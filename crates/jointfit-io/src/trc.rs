@@ -12,7 +12,11 @@
 //!    `DataRate` (Hz, the rate of the rows below), `NumFrames`, `NumMarkers` and `Units` are
 //!    required; the camera rate and the three `Orig*` values describe the recording the file
 //!    was cut from and are kept in [`TrcHeader`] but not used.
-//! 3. Those values. Padding blanks around a value are ignored.
+//! 3. Those values. Padding blanks around a value are ignored. When lines 2 and 3 hold the same
+//!    number of non-empty cells but not at the same places (doubled tabs, as in the files of
+//!    OpenSim's own pipelines), the non-empty cells are paired in order, as OpenSim 4.6 does;
+//!    otherwise by position, so that a blank optional value stays blank. `NumFrames` and
+//!    `NumMarkers` may be written as whole decimals (`100.0`).
 //! 4. `Frame#`, `Time`, then one label per marker. Labels usually sit in every third cell with
 //!    two empty cells after each (one cell per coordinate); some writers (an older OpenSim
 //!    exporter) place them differently, so when the every-third-cell layout does not hold the
@@ -305,7 +309,7 @@ pub fn parse_trc(text: &str, name: &str) -> Result<Trial, TrcError> {
     strict(parse_trc_file(text, name)?, name)
 }
 
-fn strict(file: TrcFile, name: &str) -> Result<Trial, TrcError> {
+pub(crate) fn strict(file: TrcFile, name: &str) -> Result<Trial, TrcError> {
     for note in &file.notes {
         if let TrcNote::TimeDisagreesWithRate {
             line,

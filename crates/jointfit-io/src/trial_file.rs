@@ -30,13 +30,42 @@ pub fn read_trial(path: &Path) -> Result<Trial, TrialFileError> {
     }
 }
 
+/// Reads a motion file like [`read_trial`] and returns, with the trial, what the reader
+/// noticed and decided (TRC notes, C3D warnings: assumed units, rows beyond the header's
+/// count, a data section shorter than the frames declared, …), one sentence each, for the
+/// caller to show wherever the trial is used.
+pub fn read_trial_noted(path: &Path) -> Result<(Trial, Vec<String>), TrialFileError> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    match ext.as_deref() {
+        Some("trc") => {
+            let file = crate::trc::read_trc_file(path)?;
+            let notes = file.notes.iter().map(|n| n.to_string()).collect();
+            Ok((
+                crate::trc::strict(file, &path.display().to_string())?,
+                notes,
+            ))
+        }
+        Some("c3d") => {
+            let c3d = crate::c3d::read_c3d(path)?;
+            let notes = c3d.warnings.clone();
+            Ok((c3d_trial(path, &c3d)?, notes))
+        }
+        _ => Err(TrialFileError::UnknownType(path.display().to_string())),
+    }
+}
+
 fn read_c3d(path: &Path) -> Result<Trial, TrialFileError> {
-    let trial = crate::c3d::read_c3d(path)?
-        .to_trial()
-        .map_err(|e| TrialFileError::Other {
-            path: path.display().to_string(),
-            message: e.to_string(),
-        })?;
+    c3d_trial(path, &crate::c3d::read_c3d(path)?)
+}
+
+fn c3d_trial(path: &Path, c3d: &crate::c3d::C3d) -> Result<Trial, TrialFileError> {
+    let trial = c3d.to_trial().map_err(|e| TrialFileError::Other {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    })?;
     strip_subject_prefix(trial).map_err(|e| TrialFileError::Other {
         path: path.display().to_string(),
         message: e.to_string(),

@@ -90,7 +90,7 @@ pub fn analyze_with_progress(
         if unsolved > 0 {
             input.notes.push(format!(
                 "{name}: {unsolved} of {} frames could not be solved with the fitted model \
-                 (too few markers on a segment); they are gaps in the figures.",
+                 (their markers left a coordinate undetermined); they are gaps in the figures.",
                 fit.frames.len()
             ));
         }

@@ -10,6 +10,7 @@
 //! `jointfit-io`, the command line in `jointfit-cli`.
 
 pub mod calibrate;
+pub mod checks;
 pub mod ik;
 pub mod kinematics;
 pub mod landmarks;

@@ -124,9 +124,28 @@ pub(super) fn parse(text: &str) -> Result<TrcFile, TrcErrorKind> {
 }
 
 fn parse_header(keys: &str, values: &str) -> Result<TrcHeader, TrcErrorKind> {
+    let keys: Vec<&str> = keys.split('\t').map(str::trim).collect();
     let values: Vec<&str> = values.split('\t').map(str::trim).collect();
+    // Doubled or blank separators (OpenSim's own pipeline files have them on line 3): when
+    // the two lines hold the same number of non-empty cells but not at the same places, they
+    // are paired in order, as OpenSim does. Otherwise cells pair by position, so a blank
+    // optional value stays blank.
+    fn compact<'a>(cells: &[&'a str]) -> Vec<&'a str> {
+        cells.iter().copied().filter(|c| !c.is_empty()).collect()
+    }
+    let misplaced = keys
+        .iter()
+        .zip(values.iter().chain(std::iter::repeat(&"")))
+        .any(|(k, v)| k.is_empty() != v.is_empty());
+    if misplaced && compact(&keys).len() == compact(&values).len() {
+        return pair_header(&compact(&keys), &compact(&values));
+    }
+    pair_header(&keys, &values)
+}
+
+fn pair_header(keys: &[&str], values: &[&str]) -> Result<TrcHeader, TrcErrorKind> {
     let mut found: [Option<&str>; 8] = [None; 8];
-    for (i, key) in keys.split('\t').map(str::trim).enumerate() {
+    for (i, key) in keys.iter().enumerate() {
         if let Some(k) = HEADER_KEYS.iter().position(|h| h.eq_ignore_ascii_case(key)) {
             found[k] = Some(values.get(i).copied().unwrap_or(""));
         }
@@ -138,8 +157,15 @@ fn parse_header(keys: &str, values: &str) -> Result<TrcHeader, TrcErrorKind> {
     };
     let count = |k: usize| -> Result<usize, TrcErrorKind> {
         let v = required(k)?;
+        // `100.0` is a count too (OpenSim reads it; its pipeline files write it).
         v.parse::<usize>()
-            .map_err(|_| TrcErrorKind::BadHeaderValue {
+            .ok()
+            .or_else(|| {
+                parse_number(v)
+                    .filter(|x| x.fract() == 0.0 && *x >= 0.0 && *x < 1e15)
+                    .map(|x| x as usize)
+            })
+            .ok_or_else(|| TrcErrorKind::BadHeaderValue {
                 line: 3,
                 key: HEADER_KEYS[k],
                 value: v.to_string(),

@@ -5,5 +5,6 @@
 mod oracle;
 mod osim;
 mod sto;
+mod trc_field;
 mod trc_files;
 mod trc_format;

@@ -33,7 +33,9 @@ pub mod varpro;
 use nalgebra::Vector3;
 use thiserror::Error;
 
-use crate::ik::{solve_frame, FrameStatus, IkOptions, IkWorkspace, MarkerMap};
+use crate::ik::{
+    is_gross, solve_frame, undetermined_coordinate, FrameStatus, IkOptions, IkWorkspace, MarkerMap,
+};
 use crate::model::{Model, ParamId};
 use crate::trial::Trial;
 
@@ -92,13 +94,14 @@ pub struct Problem<'m> {
     pub frames: Vec<Vec<Vector3<f64>>>,
     /// Per fitted frame: (trial index, frame index in that trial).
     pub origin: Vec<(usize, usize)>,
-    /// Frames left out because some segment had too few markers: (trial, frame).
+    /// Frames left out because their markers left a coordinate undetermined: (trial, frame).
     pub skipped: Vec<(usize, usize)>,
     pub ik: IkOptions,
 }
 
 impl<'m> Problem<'m> {
-    /// Builds a problem from trials; frames with too few markers on a segment are skipped.
+    /// Builds a problem from trials; frames whose present markers leave a coordinate
+    /// undetermined ([`crate::ik::solvable`]) are skipped.
     pub fn new(
         model: &'m Model,
         base: Vec<f64>,
@@ -116,10 +119,14 @@ impl<'m> Problem<'m> {
         }
         // The outer level differentiates through the inner solutions (envelope theorem), so
         // they are solved tighter than plain IK needs.
+        // The outer gradient counts every present marker, so no marker is rejected inside
+        // the inner level; gross samples are dropped here, once, for both levels.
         let ik = IkOptions {
             step_tolerance: 1e-11,
+            outlier_distance: f64::INFINITY,
             ..IkOptions::default()
         };
+        let mut ws = IkWorkspace::new(model);
         let mut frames = Vec::new();
         let mut origin = Vec::new();
         let mut skipped = Vec::new();
@@ -128,7 +135,10 @@ impl<'m> Problem<'m> {
             let map = MarkerMap::by_name(model, trial.labels())?;
             for f in 0..trial.n_frames() {
                 map.targets(trial, f, &mut targets);
-                if enough_markers(model, &targets, &ik) {
+                for t in targets.iter_mut().filter(|t| !t.x.is_nan() && is_gross(t)) {
+                    *t = Vector3::from_element(f64::NAN);
+                }
+                if undetermined_coordinate(model, &base, &targets, &ik, &mut ws).is_none() {
                     frames.push(targets.clone());
                     origin.push((t, f));
                 } else {
@@ -229,18 +239,6 @@ impl<'m> Problem<'m> {
         });
         crate::ik::rms(errors)
     }
-}
-
-fn enough_markers(model: &Model, targets: &[Vector3<f64>], opts: &IkOptions) -> bool {
-    let mut present = vec![0usize; model.segments().len()];
-    let mut carries = vec![false; model.segments().len()];
-    for (j, m) in model.markers().iter().enumerate() {
-        if m.weight > 0.0 {
-            carries[m.segment.0] = true;
-            present[m.segment.0] += !targets[j].x.is_nan() as usize;
-        }
-    }
-    (0..present.len()).all(|s| !carries[s] || present[s] >= opts.min_markers_per_segment)
 }
 
 /// The result of an outer solve.

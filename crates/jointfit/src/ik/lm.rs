@@ -4,6 +4,7 @@
 use nalgebra::Vector3;
 
 use super::normal::Moments;
+use super::solvable::Solvability;
 use super::{FrameFit, FrameStatus, IkOptions};
 use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::linalg::{cholesky_in_place, cholesky_solve};
@@ -20,8 +21,10 @@ pub struct IkWorkspace {
     pub(super) g: Vec<f64>,
     pub(super) delta: Vec<f64>,
     pub(super) q_trial: Vec<f64>,
-    pub(super) all: Vec<usize>,
+    pub(super) active: Vec<usize>,
+    pub(super) start: Vec<f64>,
     pub(super) moments: Moments,
+    pub(super) solvability: Solvability,
 }
 
 impl IkWorkspace {
@@ -36,8 +39,10 @@ impl IkWorkspace {
             g: vec![0.0; n],
             delta: vec![0.0; n],
             q_trial: vec![0.0; n],
-            all: (0..n).collect(),
+            active: Vec::with_capacity(n),
+            start: vec![0.0; n],
             moments: Moments::new(model),
+            solvability: Solvability::new(model),
         }
     }
     /// Kinematics at the last solution (marker positions of the last accepted point).
@@ -56,32 +61,83 @@ fn cost_of(markers: &[Vector3<f64>], targets: &[Vector3<f64>], w: &[f64]) -> f64
     c
 }
 
-/// Sets marker weights for a frame (model weight, 0 when missing) and checks coverage.
+/// A marker sample farther than this from the laboratory origin (m) is a gross error.
+const ABSURD_DISTANCE: f64 = 1e3;
+
+/// The present marker farthest from its model position when it is a gross error (see
+/// [`IkOptions::outlier_distance`]).
+fn gross_error(targets: &[Vector3<f64>], ws: &IkWorkspace, opts: &IkOptions) -> Option<usize> {
+    let mut worst = None;
+    let mut farthest = opts.outlier_distance;
+    for (j, &w) in ws.weights.iter().enumerate() {
+        if w > 0.0 {
+            let d = (targets[j] - ws.cur.markers[j]).norm();
+            if d > farthest {
+                farthest = d;
+                worst = Some(j);
+            }
+        }
+    }
+    // Rare path: only frames with a large residual pay for the median.
+    worst?;
+    let mut d: Vec<f64> = (0..targets.len())
+        .filter(|&j| ws.weights[j] > 0.0)
+        .map(|j| (targets[j] - ws.cur.markers[j]).norm())
+        .collect();
+    d.sort_by(f64::total_cmp);
+    let median = if d.len() % 2 == 1 {
+        d[d.len() / 2]
+    } else {
+        0.5 * (d[d.len() / 2 - 1] + d[d.len() / 2])
+    };
+    worst.filter(|_| farthest > opts.outlier_ratio * median)
+}
+
+/// Whether a (non-NaN) marker sample is a gross error: not finite, or farther than 1 km from
+/// the laboratory origin.
+pub fn is_gross(t: &Vector3<f64>) -> bool {
+    let d = t.norm();
+    !d.is_finite() || d >= ABSURD_DISTANCE
+}
+
+/// The first coordinate the present markers of `targets` leave undetermined at parameters
+/// `p` ([`super::solvable`]); `None` when the frame is solvable.
+pub fn undetermined_coordinate(
+    model: &Model,
+    p: &[f64],
+    targets: &[Vector3<f64>],
+    opts: &IkOptions,
+    ws: &mut IkWorkspace,
+) -> Option<usize> {
+    let mut rejected = Vec::new();
+    frame_weights(model, targets, &mut ws.weights, &mut rejected);
+    ws.solvability
+        .undetermined(model, p, &ws.weights, opts)
+        .first()
+        .copied()
+}
+
+/// Sets marker weights for a frame: the model weight, 0 when missing (any coordinate NaN) or
+/// absurd (not finite, or beyond [`ABSURD_DISTANCE`]); absurd samples are listed in `rejected`.
 pub(super) fn frame_weights(
     model: &Model,
     targets: &[Vector3<f64>],
-    opts: &IkOptions,
     w: &mut [f64],
-) -> Result<(), FrameStatus> {
-    let mut present = vec![0usize; model.segments().len()];
-    let mut carries = vec![false; model.segments().len()];
+    rejected: &mut Vec<usize>,
+) {
+    rejected.clear();
     for (j, m) in model.markers().iter().enumerate() {
-        let ok = !targets[j].x.is_nan() && m.weight > 0.0;
-        w[j] = if ok { m.weight } else { 0.0 };
-        if m.weight > 0.0 {
-            carries[m.segment.0] = true;
-            present[m.segment.0] += ok as usize;
+        let t = &targets[j];
+        w[j] = 0.0;
+        if m.weight <= 0.0 || t.iter().any(|v| v.is_nan()) {
+            continue;
         }
-    }
-    for s in 0..model.segments().len() {
-        if carries[s] && present[s] < opts.min_markers_per_segment {
-            return Err(FrameStatus::TooFewMarkers {
-                segment: model.segments()[s].name.clone(),
-                present: present[s],
-            });
+        if is_gross(t) {
+            rejected.push(j);
+            continue;
         }
+        w[j] = m.weight;
     }
-    Ok(())
 }
 
 /// Levenberg–Marquardt over the coordinates listed in `active` (others fixed), with the
@@ -153,6 +209,11 @@ pub(super) fn lm(
 
 /// Solves one frame in place: `q` is the starting point on entry, the solution on exit.
 /// `targets` holds one position per model marker (NaN when missing).
+///
+/// Checks that the present markers determine the coordinates ([`super::solvable`]); rejects
+/// gross errors (see the module docs): after each fit, while the marker farthest from its
+/// model position is a gross error ([`IkOptions::outlier_distance`]), it is dropped and the
+/// frame solved again from the entry point.
 pub fn solve_frame(
     model: &Model,
     p: &[f64],
@@ -161,23 +222,61 @@ pub fn solve_frame(
     opts: &IkOptions,
     ws: &mut IkWorkspace,
 ) -> FrameFit {
-    if let Err(status) = frame_weights(model, targets, opts, &mut ws.weights) {
-        return FrameFit {
-            cost: f64::NAN,
-            iterations: 0,
-            status,
-        };
-    }
-    let active = std::mem::take(&mut ws.all);
-    let (cost, iterations, converged) = lm(model, p, targets, q, &active, opts, ws);
-    ws.all = active;
-    FrameFit {
-        cost,
-        iterations,
-        status: if converged {
-            FrameStatus::Converged
-        } else {
-            FrameStatus::MaxIterations
-        },
+    let mut rejected = Vec::new();
+    frame_weights(model, targets, &mut ws.weights, &mut rejected);
+    ws.start.copy_from_slice(q);
+    let mut iterations = 0;
+    loop {
+        let undetermined = ws.solvability.undetermined(model, p, &ws.weights, opts);
+        if let Some(&c) = undetermined.first() {
+            if !opts.hold_undetermined {
+                return FrameFit {
+                    cost: f64::NAN,
+                    iterations,
+                    status: FrameStatus::Undetermined {
+                        coordinate: model.coordinates()[c].name.clone(),
+                    },
+                    held: Vec::new(),
+                    rejected,
+                };
+            }
+        }
+        let held = undetermined.to_vec();
+        let mut active = std::mem::take(&mut ws.active);
+        active.clear();
+        active.extend((0..model.n_q()).filter(|c| !held.contains(c)));
+        q.copy_from_slice(&ws.start);
+        let (cost, its, converged) = lm(model, p, targets, q, &active, opts, ws);
+        ws.active = active;
+        iterations += its;
+        if !cost.is_finite() || q.iter().any(|v| !v.is_finite()) {
+            return FrameFit {
+                cost,
+                iterations,
+                status: FrameStatus::Diverged,
+                held,
+                rejected,
+            };
+        }
+        let worst = gross_error(targets, ws, opts);
+        match worst {
+            Some(j) => {
+                ws.weights[j] = 0.0;
+                rejected.push(j);
+            }
+            None => {
+                return FrameFit {
+                    cost,
+                    iterations,
+                    status: if converged {
+                        FrameStatus::Converged
+                    } else {
+                        FrameStatus::MaxIterations
+                    },
+                    held,
+                    rejected,
+                }
+            }
+        }
     }
 }

@@ -13,21 +13,31 @@
 //! Frames are solved in order, each warm-started from the previous solutions (the paper's
 //! scheme, with a linear extrapolation of the last two). The first frame is seeded from the root segment's markers alone: the root joint's
 //! coordinates are fitted from several starting orientations and the best fit is kept, the
-//! other coordinates start at their defaults. A frame in which some segment that carries
-//! markers has fewer than three of them present is reported, not guessed.
+//! other coordinates start at their defaults.
+//!
+//! A frame is solved when its present markers determine every coordinate through the chain
+//! ([`solvable`]); otherwise it is reported with the undetermined coordinate, or (with
+//! [`IkOptions::hold_undetermined`]) solved with those coordinates held at the previous
+//! frame's values. Gross errors do not reach the solution: a marker sample that is not finite
+//! or lies farther than 1 km from the origin counts as missing, and after the fit the marker
+//! farthest from its model position is rejected and the frame re-solved while that distance
+//! is both large and large against the frame's other residuals ([`IkOptions::outlier_distance`];
+//! each rejection is reported). A frame whose result
+//! is not finite is not solved, and the next frame starts again from seeding.
 
 mod lm;
 mod markers;
 mod normal;
 mod seed;
+pub mod solvable;
 mod trial_fit;
 
 use thiserror::Error;
 
-pub use lm::{solve_frame, IkWorkspace};
+pub use lm::{is_gross, solve_frame, undetermined_coordinate, IkWorkspace};
 pub use markers::MarkerMap;
 pub use seed::seed_frame;
-pub use trial_fit::{extrapolate, rms, solve_trial, TrialFit};
+pub use trial_fit::{extrapolate, rms, solve_trial, unsolved_ranges, TrialFit, UnsolvedRange};
 
 /// Why IK could not start.
 #[derive(Debug, Error, PartialEq)]
@@ -51,8 +61,22 @@ pub struct IkOptions {
     /// 1e-8, is far below what any marker data determines (1e-8 rad = 6e-7 deg, 1e-8 m =
     /// 1e-5 mm).
     pub step_tolerance: f64,
-    /// Minimum present markers on every segment that carries markers.
-    pub min_markers_per_segment: usize,
+    /// A rotational coordinate is undetermined when 1 mm of noise on the present markers
+    /// moves it by more than this standard deviation (rad; see [`solvable`]).
+    pub max_angle_per_mm: f64,
+    /// The same for a translational coordinate (m per mm of marker noise).
+    pub max_translation_per_mm: f64,
+    /// Solve frames with undetermined coordinates by holding those at the values they enter
+    /// with (the previous frame's solution in [`solve_trial`]) instead of skipping them.
+    pub hold_undetermined: bool,
+    /// After the fit, a marker farther than this from its model position (m) *and* farther
+    /// than [`IkOptions::outlier_ratio`] times the median distance of the frame's present
+    /// markers is rejected as a gross error and the frame re-solved without it (farthest
+    /// first, one at a time). The ratio keeps a model that is off everywhere (a systematic
+    /// error, for the data checks) from losing its markers.
+    pub outlier_distance: f64,
+    /// See [`IkOptions::outlier_distance`].
+    pub outlier_ratio: f64,
 }
 
 impl Default for IkOptions {
@@ -60,7 +84,11 @@ impl Default for IkOptions {
         IkOptions {
             max_iterations: 100,
             step_tolerance: 1e-8,
-            min_markers_per_segment: 3,
+            max_angle_per_mm: 2f64.to_radians(),
+            max_translation_per_mm: 0.01,
+            hold_undetermined: false,
+            outlier_distance: 0.05,
+            outlier_ratio: 5.0,
         }
     }
 }
@@ -71,11 +99,13 @@ pub enum FrameStatus {
     Converged,
     /// The iteration budget ran out (the result is the best point found).
     MaxIterations,
-    /// A segment with markers had fewer than the minimum present: not solved.
-    TooFewMarkers {
-        segment: String,
-        present: usize,
+    /// The present markers leave `coordinate` undetermined (the first found; see
+    /// [`solvable`]): not solved.
+    Undetermined {
+        coordinate: String,
     },
+    /// The result was not finite: not solved.
+    Diverged,
 }
 
 /// The outcome of one frame.
@@ -85,10 +115,18 @@ pub struct FrameFit {
     pub cost: f64,
     pub iterations: usize,
     pub status: FrameStatus,
+    /// Coordinates held at their entry values because the markers left them undetermined.
+    pub held: Vec<usize>,
+    /// Model markers whose samples were rejected as gross errors (not finite beyond the
+    /// missing ones, absurdly far, or farther than the outlier distance after the fit).
+    pub rejected: Vec<usize>,
 }
 
 impl FrameFit {
     pub fn solved(&self) -> bool {
-        !matches!(self.status, FrameStatus::TooFewMarkers { .. })
+        matches!(
+            self.status,
+            FrameStatus::Converged | FrameStatus::MaxIterations
+        )
     }
 }

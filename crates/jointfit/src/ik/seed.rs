@@ -9,6 +9,9 @@ use crate::model::{CoordKind, Model};
 /// A starting point for a frame with no previous solution: defaults everywhere, then the
 /// coordinates of the joints of root segments fitted to those segments' markers alone from
 /// several starting orientations (every rotational root coordinate at 0, ±90° or 180°).
+/// A root with fewer than three markers present is fitted to every present marker instead
+/// (the other coordinates at their defaults): the chain below it fixes what its own markers
+/// cannot.
 pub fn seed_frame(
     model: &Model,
     p: &[f64],
@@ -21,7 +24,8 @@ pub fn seed_frame(
         .filter(|&s| model.segments()[s].parent.is_none())
         .collect();
     let full_weights = {
-        let _ = frame_weights(model, targets, opts, &mut ws.weights);
+        let mut rejected = Vec::new();
+        frame_weights(model, targets, &mut ws.weights, &mut rejected);
         ws.weights.clone()
     };
     for &root in &roots {
@@ -40,7 +44,10 @@ pub fn seed_frame(
             };
         }
         if ws.weights.iter().filter(|&&w| w > 0.0).count() < 3 {
-            continue;
+            ws.weights.copy_from_slice(&full_weights);
+            if ws.weights.iter().filter(|&&w| w > 0.0).count() < 3 {
+                continue;
+            }
         }
         // Translations start at the centroid offset; rotations from a grid.
         let rot: Vec<usize> = active

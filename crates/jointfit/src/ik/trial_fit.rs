@@ -1,6 +1,9 @@
 //! The trial loop: every frame in order, warm-started from the ones before.
 
-use super::{seed_frame, solve_frame, FrameFit, IkError, IkOptions, IkWorkspace, MarkerMap};
+use super::lm::frame_weights;
+use super::{
+    seed_frame, solve_frame, FrameFit, FrameStatus, IkError, IkOptions, IkWorkspace, MarkerMap,
+};
 use crate::model::Model;
 use crate::trial::Trial;
 
@@ -77,6 +80,10 @@ pub fn solve_trial(
         frames: Vec::with_capacity(trial.n_frames()),
         errors: Vec::with_capacity(trial.n_frames()),
     };
+    let no_hold = IkOptions {
+        hold_undetermined: false,
+        ..*opts
+    };
     for f in 0..trial.n_frames() {
         map.targets(trial, f, &mut targets);
         let mut qf = match (&q, &q_before) {
@@ -84,10 +91,28 @@ pub fn solve_trial(
             (Some(prev), None) => prev.clone(),
             (None, _) => seed_frame(model, p, &targets, opts, &mut ws),
         };
-        let fit = solve_frame(model, p, &targets, &mut qf, opts, &mut ws);
+        let frame_opts = match &q {
+            Some(prev) if opts.hold_undetermined => {
+                // Held coordinates stay exactly at the previous frame's values.
+                let mut rejected = Vec::new();
+                frame_weights(model, &targets, &mut ws.weights, &mut rejected);
+                for &c in ws.solvability.undetermined(model, p, &ws.weights, opts) {
+                    qf[c] = prev[c];
+                }
+                opts
+            }
+            _ => &no_hold,
+        };
+        let fit = solve_frame(model, p, &targets, &mut qf, frame_opts, &mut ws);
         if fit.solved() {
             let errs = (0..model.n_markers())
-                .map(|j| (targets[j] - ws.cur.markers[j]).norm())
+                .map(|j| {
+                    if fit.rejected.contains(&j) {
+                        f64::NAN
+                    } else {
+                        (targets[j] - ws.cur.markers[j]).norm()
+                    }
+                })
                 .collect();
             out.errors.push(errs);
             out.coords.push(qf.clone());
@@ -95,10 +120,45 @@ pub fn solve_trial(
         } else {
             out.errors.push(vec![f64::NAN; model.n_markers()]);
             out.coords.push(vec![f64::NAN; model.n_q()]);
-            // Across a gap the velocity is unknown: restart from the last solution alone.
+            // Across a gap the velocity is unknown: restart from the last solution alone;
+            // after a result that went wrong, from seeding.
             q_before = None;
+            if fit.status == FrameStatus::Diverged {
+                q = None;
+            }
         }
         out.frames.push(fit);
     }
     Ok(out)
+}
+
+/// A run of consecutive frames not solved for the same reason.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct UnsolvedRange {
+    /// First and last frame index (inclusive, from 0).
+    pub first: usize,
+    pub last: usize,
+    /// Why, e.g. `hip_flexion undetermined` or `diverged`.
+    pub reason: String,
+}
+
+/// The frames of `fit` not solved, as runs of consecutive frames with one reason.
+pub fn unsolved_ranges(fit: &TrialFit) -> Vec<UnsolvedRange> {
+    let mut out: Vec<UnsolvedRange> = Vec::new();
+    for (f, frame) in fit.frames.iter().enumerate() {
+        let reason = match &frame.status {
+            FrameStatus::Converged | FrameStatus::MaxIterations => continue,
+            FrameStatus::Undetermined { coordinate } => format!("{coordinate} undetermined"),
+            FrameStatus::Diverged => "diverged".to_string(),
+        };
+        match out.last_mut() {
+            Some(r) if r.last + 1 == f && r.reason == reason => r.last = f,
+            _ => out.push(UnsolvedRange {
+                first: f,
+                last: f,
+                reason,
+            }),
+        }
+    }
+    out
 }

@@ -1,7 +1,9 @@
 //! Integration tests of the core library (one test binary for the crate).
 
 mod calibrate;
+mod checks;
 mod ik;
+mod ik_robust;
 mod kinematics;
 mod landmarks;
 mod models;

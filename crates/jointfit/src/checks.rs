@@ -1,0 +1,305 @@
+//! Data checks before any fit: what in a trial would silently bend the fitted joints.
+//!
+//! * **Scale** ([`check_scale`]): the markers of a standing or moving person span about
+//!   0.3–2.5 m. The median over frames of the largest distance between two present markers
+//!   outside [`PLAUSIBLE_SPAN`] (0.05–6 m, room for partial marker sets and stray markers)
+//!   means the declared units are wrong (millimetre data declared `m` span about 1000 m); the
+//!   finding names the likely factor and the fix.
+//! * Against a subject model ([`check_trial`]), for markers on one segment, whose distances
+//!   the rigid model fixes (`‖local_a − local_b‖`, measured on the static trial):
+//!   - **cluster**: the median distance of a pair over the trial differs from the model's by
+//!     more than [`CLUSTER_TOLERANCE`]: a marker was re-attached or the cluster slipped;
+//!   - **swap**: in a frame, exchanging the labels of two markers of a segment fits the model's
+//!     distances to the segment's other markers far better than the labels as written;
+//!     reported as runs of frames;
+//!   - **jump**: a marker moves faster than [`JUMP_SPEED`] between consecutive frames;
+//!   - **gaps**: frames in which a model marker is missing, with the longest run.
+//!
+//! Nothing here changes the data; the findings are for the user (and the report).
+
+use nalgebra::Vector3;
+
+use crate::ik::MarkerMap;
+use crate::model::Model;
+use crate::trial::Trial;
+
+/// Distance change within a segment's cluster above which a pair is reported (m).
+pub const CLUSTER_TOLERANCE: f64 = 0.01;
+/// Marker speed above which a frame-to-frame displacement is a jump (m/s); the fastest body
+/// markers (the foot in sprinting) stay below 20 m/s.
+pub const JUMP_SPEED: f64 = 30.0;
+/// Spans of a trial's markers that pass the units check (m).
+pub const PLAUSIBLE_SPAN: [f64; 2] = [0.05, 6.0];
+
+/// How serious a finding is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Severity {
+    /// Worth a look; the fit can go on.
+    Warning,
+    /// The data cannot be fitted as they are.
+    Error,
+}
+
+/// What a finding is about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CheckKind {
+    Scale,
+    Cluster,
+    Swap,
+    Jump,
+    Gaps,
+}
+
+impl CheckKind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            CheckKind::Scale => "scale",
+            CheckKind::Cluster => "cluster",
+            CheckKind::Swap => "swap",
+            CheckKind::Jump => "jump",
+            CheckKind::Gaps => "gaps",
+        }
+    }
+}
+
+/// One finding: a sentence naming the markers, frames and sizes involved.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Finding {
+    pub kind: CheckKind,
+    pub severity: Severity,
+    pub message: String,
+}
+
+/// The median over frames of the largest distance between two present markers (m); `None`
+/// when no frame has two markers. At most 200 frames, evenly spaced, are looked at.
+pub fn marker_span(trial: &Trial) -> Option<f64> {
+    let n = trial.n_frames();
+    let step = n.div_ceil(200).max(1);
+    let mut spans: Vec<f64> = (0..n)
+        .step_by(step)
+        .filter_map(|f| {
+            let present: Vec<&Vector3<f64>> =
+                trial.frame(f).iter().filter(|p| p.x.is_finite()).collect();
+            let mut best: Option<f64> = None;
+            for (i, a) in present.iter().enumerate() {
+                for b in &present[i + 1..] {
+                    let d = (*a - *b).norm();
+                    best = Some(best.map_or(d, |m: f64| m.max(d)));
+                }
+            }
+            best
+        })
+        .collect();
+    if spans.is_empty() {
+        return None;
+    }
+    spans.sort_by(f64::total_cmp);
+    Some(spans[spans.len() / 2])
+}
+
+/// The units check (see the module docs): an error when the markers' span is outside
+/// [`PLAUSIBLE_SPAN`], naming the likely factor.
+pub fn check_scale(trial: &Trial) -> Option<Finding> {
+    let span = marker_span(trial)?;
+    if (PLAUSIBLE_SPAN[0]..=PLAUSIBLE_SPAN[1]).contains(&span) {
+        return None;
+    }
+    // The power of ten that brings the span nearest to 1 m.
+    let power = span.log10().round() as i32;
+    let hint = match power {
+        3 => "millimetre data read as metres: declare the units as mm",
+        2 => "centimetre data read as metres: declare the units as cm",
+        1 => "millimetre data read as centimetres: declare the units as mm",
+        -1 => "centimetre data read as millimetres: declare the units as cm",
+        -2 => "metre data read as centimetres: declare the units as m",
+        -3 => "metre data read as millimetres: declare the units as m",
+        _ => "the units or the data are wrong",
+    };
+    Some(Finding {
+        kind: CheckKind::Scale,
+        severity: Severity::Error,
+        message: format!(
+            "the markers span {span:.3} m (a person spans about 0.3–2.5 m): this looks like \
+             {hint} (TRC: the Units value on line 3; C3D: the POINT:UNITS parameter)"
+        ),
+    })
+}
+
+/// Every check of the module docs for `trial` against the subject `model` (markers matched
+/// by `map`). Frame numbers in messages are the file's.
+pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding> {
+    let mut out: Vec<Finding> = check_scale(trial).into_iter().collect();
+    let first = trial.first_frame();
+    let n = trial.n_frames();
+    let col = |j: usize| map.columns[j];
+    let pos = |f: usize, j: usize| -> Option<Vector3<f64>> {
+        col(j)
+            .map(|c| trial.frame(f)[c])
+            .filter(|p| p.x.is_finite())
+    };
+    let name = |j: usize| model.markers()[j].name.as_str();
+    // Marker pairs of one segment with the model's distance.
+    let mut segments: Vec<Vec<usize>> = vec![Vec::new(); model.segments().len()];
+    for (j, m) in model.markers().iter().enumerate() {
+        if col(j).is_some() {
+            segments[m.segment.0].push(j);
+        }
+    }
+    let reference =
+        |a: usize, b: usize| (model.markers()[a].local - model.markers()[b].local).norm();
+
+    // Clusters.
+    for markers in &segments {
+        for (i, &a) in markers.iter().enumerate() {
+            for &b in &markers[i + 1..] {
+                let mut d: Vec<f64> = (0..n)
+                    .filter_map(|f| Some((pos(f, a)? - pos(f, b)?).norm()))
+                    .collect();
+                if d.is_empty() {
+                    continue;
+                }
+                d.sort_by(f64::total_cmp);
+                let median = d[d.len() / 2];
+                let r = reference(a, b);
+                if (median - r).abs() > CLUSTER_TOLERANCE {
+                    out.push(Finding {
+                        kind: CheckKind::Cluster,
+                        severity: Severity::Warning,
+                        message: format!(
+                            "{seg}: {} to {} is {:.1} mm in this trial (median) but {:.1} mm in \
+                             the subject model (static trial): a marker moved or was re-attached",
+                            name(a),
+                            name(b),
+                            median * 1e3,
+                            r * 1e3,
+                            seg = model.segments()[model.markers()[a].segment.0].name
+                        ),
+                    });
+                }
+            }
+        }
+    }
+
+    // Swaps: runs of frames where exchanging two labels fits the other markers far better.
+    for markers in &segments {
+        for (i, &a) in markers.iter().enumerate() {
+            for &b in &markers[i + 1..] {
+                let others: Vec<usize> = markers
+                    .iter()
+                    .copied()
+                    .filter(|&c| c != a && c != b)
+                    .collect();
+                if others.is_empty() {
+                    continue;
+                }
+                let swapped = |f: usize| -> bool {
+                    let (Some(pa), Some(pb)) = (pos(f, a), pos(f, b)) else {
+                        return false;
+                    };
+                    let (mut plain, mut crossed, mut count) = (0.0, 0.0, 0usize);
+                    for &c in &others {
+                        let Some(pc) = pos(f, c) else { continue };
+                        let (dac, dbc) = ((pa - pc).norm(), (pb - pc).norm());
+                        let (rac, rbc) = (reference(a, c), reference(b, c));
+                        plain += (dac - rac).abs() + (dbc - rbc).abs();
+                        crossed += (dbc - rac).abs() + (dac - rbc).abs();
+                        count += 1;
+                    }
+                    count > 0 && plain > 0.02 * count as f64 && crossed < 0.3 * plain
+                };
+                for (start, end) in runs((0..n).map(swapped)) {
+                    out.push(Finding {
+                        kind: CheckKind::Swap,
+                        severity: Severity::Warning,
+                        message: format!(
+                            "{} and {} look swapped in frames {}–{}: exchanged, they fit the \
+                             subject model's distances to the other {} markers",
+                            name(a),
+                            name(b),
+                            first + start as i64,
+                            first + end as i64,
+                            model.segments()[model.markers()[a].segment.0].name
+                        ),
+                    });
+                }
+            }
+        }
+    }
+
+    // Jumps and gaps, per model marker.
+    let max_step = JUMP_SPEED / trial.rate();
+    for j in 0..model.n_markers() {
+        if col(j).is_none() {
+            continue;
+        }
+        let jumps: Vec<usize> = (1..n)
+            .filter(|&f| match (pos(f - 1, j), pos(f, j)) {
+                (Some(p0), Some(p1)) => (p1 - p0).norm() > max_step,
+                _ => false,
+            })
+            .collect();
+        if let Some(&f) = jumps.first() {
+            out.push(Finding {
+                kind: CheckKind::Jump,
+                severity: Severity::Warning,
+                message: format!(
+                    "{} jumps faster than {JUMP_SPEED} m/s in {} frames (first: frame {})",
+                    name(j),
+                    jumps.len(),
+                    first + f as i64
+                ),
+            });
+        }
+        let gaps = runs((0..n).map(|f| pos(f, j).is_none()));
+        if !gaps.is_empty() {
+            let missing: usize = gaps.iter().map(|(s, e)| e - s + 1).sum();
+            let (s, e) = *gaps.iter().max_by_key(|(s, e)| e - s).expect("non-empty");
+            out.push(Finding {
+                kind: CheckKind::Gaps,
+                severity: Severity::Warning,
+                message: format!(
+                    "{} is missing in {missing} of {n} frames ({} gaps; longest frames {}–{})",
+                    name(j),
+                    gaps.len(),
+                    first + s as i64,
+                    first + e as i64
+                ),
+            });
+        }
+    }
+    out
+}
+
+/// Runs of `true` as inclusive `(start, end)` indices.
+fn runs(flags: impl Iterator<Item = bool>) -> Vec<(usize, usize)> {
+    let mut out: Vec<(usize, usize)> = Vec::new();
+    let mut open: Option<usize> = None;
+    let mut last = 0;
+    for (i, on) in flags.enumerate() {
+        last = i;
+        match (on, open) {
+            (true, None) => open = Some(i),
+            (false, Some(s)) => {
+                out.push((s, i - 1));
+                open = None;
+            }
+            _ => {}
+        }
+    }
+    if let Some(s) = open {
+        out.push((s, last));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::runs;
+
+    #[test]
+    fn runs_are_inclusive_ranges() {
+        let f = [false, true, true, false, true];
+        assert_eq!(runs(f.into_iter()), vec![(1, 2), (4, 4)]);
+        assert!(runs([false, false].into_iter()).is_empty());
+    }
+}
