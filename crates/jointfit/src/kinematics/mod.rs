@@ -195,7 +195,7 @@ impl KinData {
                     if matches!(step.source, Source::Param { .. }) {
                         self.step_local[k] = (pose.axis_of(&step.motion), pose.trans);
                     }
-                    pose.apply(&step.motion, source_value(&step.source, p, &[]));
+                    pose.apply(&step.motion, source_value(model, &step.source, p, &[]));
                 }
                 self.block_pose[*id] = pose;
             }
@@ -239,11 +239,12 @@ impl Want {
 }
 
 #[inline]
-fn source_value(source: &Source, p: &[f64], q: &[f64]) -> f64 {
+fn source_value(model: &Model, source: &Source, p: &[f64], q: &[f64]) -> f64 {
     match *source {
         Source::Const(v) => v,
         Source::Coord { index, scale } => scale * q[index],
         Source::Param { index, scale } => scale * p[index],
+        Source::Func { index, fun, scale } => scale * model.functions[fun].eval(q[index]).0,
     }
 }
 
@@ -283,11 +284,24 @@ pub fn forward_kinematics(model: &Model, p: &[f64], q: &[f64], want: Want, data:
                 }
                 &Item::Coord(k) => {
                     let step = &model.steps[k];
-                    if want.dq || want.dp || want.axes {
+                    let frames = want.dq || want.dp || want.axes;
+                    if frames {
                         data.step_axis[k] = pose.axis_of(&step.motion);
                         data.step_origin[k] = pose.trans;
                     }
-                    pose.apply(&step.motion, source_value(&step.source, p, q));
+                    let value = match step.source {
+                        // A step through functions: its axis carries ∂s/∂q
+                        // (crate::model::custom), the Jacobian column scale is 1.
+                        Source::Func { index, fun, scale } => {
+                            let (v, d) = model.functions[fun].eval(q[index]);
+                            if frames {
+                                data.step_axis[k] *= scale * d;
+                            }
+                            scale * v
+                        }
+                        ref source => source_value(model, source, p, q),
+                    };
+                    pose.apply(&step.motion, value);
                 }
             }
         }

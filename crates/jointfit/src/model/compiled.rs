@@ -45,12 +45,28 @@ pub struct Segment {
 /// The kind of motion a joint allows, with unit axes.
 #[derive(Debug, Clone, PartialEq)]
 pub enum JointKind {
-    Free { rotation_axes: [Vector3<f64>; 3] },
-    Gimbal { axes: [Vector3<f64>; 3] },
-    Universal { axes: [Vector3<f64>; 2] },
-    Pin { axis: Vector3<f64> },
-    Slider { axis: Vector3<f64> },
+    Free {
+        rotation_axes: [Vector3<f64>; 3],
+    },
+    Gimbal {
+        axes: [Vector3<f64>; 3],
+    },
+    Universal {
+        axes: [Vector3<f64>; 2],
+    },
+    Pin {
+        axis: Vector3<f64>,
+    },
+    Slider {
+        axis: Vector3<f64>,
+    },
     Weld,
+    /// Transform axes driven by functions of coordinates ([`super::custom`]); `dof` counts
+    /// the joint's coordinates in `q` (locked and coupled ones are not).
+    Custom {
+        axes: Vec<super::custom::TransformAxis>,
+        dof: usize,
+    },
 }
 
 impl JointKind {
@@ -61,6 +77,7 @@ impl JointKind {
             JointKind::Universal { .. } => 2,
             JointKind::Pin { .. } | JointKind::Slider { .. } => 1,
             JointKind::Weld => 0,
+            JointKind::Custom { dof, .. } => *dof,
         }
     }
     pub fn type_name(&self) -> &'static str {
@@ -71,6 +88,7 @@ impl JointKind {
             JointKind::Pin { .. } => "pin",
             JointKind::Slider { .. } => "slider",
             JointKind::Weld => "weld",
+            JointKind::Custom { .. } => "custom",
         }
     }
     /// The elementary motions in order: (is_rotation, unit axis).
@@ -85,7 +103,7 @@ impl JointKind {
             JointKind::Universal { axes } => axes.iter().map(|a| (true, *a)).collect(),
             JointKind::Pin { axis } => vec![(true, *axis)],
             JointKind::Slider { axis } => vec![(false, *axis)],
-            JointKind::Weld => vec![],
+            JointKind::Weld | JointKind::Custom { .. } => vec![],
         }
     }
 }
@@ -179,8 +197,27 @@ impl Motion {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum Source {
     Const(f64),
-    Coord { index: usize, scale: f64 },
-    Param { index: usize, scale: f64 },
+    Coord {
+        index: usize,
+        scale: f64,
+    },
+    Param {
+        index: usize,
+        scale: f64,
+    },
+    /// `scale · functions[fun](q[index])` ([`super::custom`]).
+    Func {
+        index: usize,
+        fun: usize,
+        scale: f64,
+    },
+}
+
+impl Source {
+    /// Whether the step reads a coordinate.
+    pub(crate) fn is_coordinate(&self) -> bool {
+        matches!(self, Source::Coord { .. } | Source::Func { .. })
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -201,6 +238,10 @@ pub struct Model {
     pub coordinates: Vec<Coordinate>,
     pub parameters: Vec<Parameter>,
     pub markers: Vec<Marker>,
+    /// Coordinates outside `q`: locked, or coupled to one in `q`.
+    pub dependents: Vec<super::custom::DependentCoordinate>,
+    /// The functions of [`Source::Func`] steps.
+    pub(crate) functions: Vec<super::custom::AxisFn>,
     /// Elementary steps of all segments, segment by segment.
     pub(crate) steps: Vec<Step>,
     /// How forward kinematics walks the steps (blocks, Jacobian columns).
@@ -286,7 +327,7 @@ impl Model {
     }
 }
 
-fn parse_axis(axis: &AxisSpec, what: &str) -> Result<Vector3<f64>, ModelError> {
+pub(crate) fn parse_axis(axis: &AxisSpec, what: &str) -> Result<Vector3<f64>, ModelError> {
     match axis {
         AxisSpec::Named(s) => match s.trim() {
             "x" | "+x" => Ok(Vector3::x()),
@@ -333,12 +374,16 @@ fn joint_kind(spec: &JointKindSpec, joint: &str) -> Result<JointKind, ModelError
         JointKindSpec::Pin { axis } => JointKind::Pin { axis: ax(axis, 0)? },
         JointKindSpec::Slider { axis } => JointKind::Slider { axis: ax(axis, 0)? },
         JointKindSpec::Weld => JointKind::Weld,
+        JointKindSpec::Custom { axes } => JointKind::Custom {
+            axes: super::custom::compile_axes(axes, joint)?,
+            dof: 0,
+        },
     })
 }
 
 /// The elementary motion for a unit axis; principal axes get the fast specialised form and a
 /// negative principal axis flips the sign of the scalar instead.
-fn motion_for(rotation: bool, axis: &Vector3<f64>) -> (Motion, f64) {
+pub(crate) fn motion_for(rotation: bool, axis: &Vector3<f64>) -> (Motion, f64) {
     let principal = [
         (Vector3::x(), Motion::RotX, Motion::TransX),
         (Vector3::y(), Motion::RotY, Motion::TransY),
@@ -552,6 +597,9 @@ impl<'a> Compiler<'a> {
     fn run(self) -> Result<Model, ModelError> {
         let spec = self.spec;
         let order = self.topological_joints()?;
+        let roles = super::custom::roles(spec, &order)?;
+        let mut dependents = Vec::new();
+        let mut functions = Vec::new();
         // Segment i of the model is the child of the i-th joint in topological order.
         let new_seg_of: HashMap<&str, usize> = order
             .iter()
@@ -576,8 +624,9 @@ impl<'a> Compiler<'a> {
 
         for (ji, &j) in order.iter().enumerate() {
             let js = &spec.joints[j];
-            let kind = joint_kind(&js.kind, &js.name)?;
-            if js.coordinates.len() != kind.dof() {
+            let mut kind = joint_kind(&js.kind, &js.name)?;
+            let custom = matches!(kind, JointKind::Custom { .. });
+            if !custom && js.coordinates.len() != kind.dof() {
                 return Err(ModelError::Invalid(format!(
                     "joint {:?} is {} with {} degrees of freedom but lists {} coordinates",
                     js.name,
@@ -607,9 +656,8 @@ impl<'a> Compiler<'a> {
                 &mut uses,
             )?;
             // Joint motion.
-            for (k, ((rotation, axis), cs)) in
-                kind.motions().into_iter().zip(&js.coordinates).enumerate()
-            {
+            let motions = kind.motions();
+            for (k, cs) in js.coordinates.iter().enumerate() {
                 let name = cs.name();
                 check_name(name, "coordinate")?;
                 if coord_names.insert(name.to_string(), ()).is_some() {
@@ -618,11 +666,12 @@ impl<'a> Compiler<'a> {
                         name: name.to_string(),
                     });
                 }
-                let ckind = if rotation {
-                    CoordKind::Rotational
-                } else {
-                    CoordKind::Translational
-                };
+                let ckind =
+                    super::custom::custom_coord_kind(&js.kind, name).unwrap_or(if motions[k].0 {
+                        CoordKind::Rotational
+                    } else {
+                        CoordKind::Translational
+                    });
                 let (range, default) = match cs {
                     CoordinateSpec::Name(_) => (None, 0.0),
                     CoordinateSpec::Full { range, default, .. } => (*range, *default),
@@ -640,6 +689,31 @@ impl<'a> Compiler<'a> {
                         "coordinate {name:?}: range {range:?} / default {default} invalid"
                     )));
                 }
+                let index = match &roles[name] {
+                    super::custom::Role::Free(i) => *i,
+                    other => {
+                        let rule = match other {
+                            super::custom::Role::Locked(v) => super::custom::CoordRule::Locked(*v),
+                            super::custom::Role::Coupled { independent, g } => {
+                                super::custom::CoordRule::Coupled {
+                                    independent: *independent,
+                                    function: g.clone(),
+                                }
+                            }
+                            super::custom::Role::Free(_) => unreachable!(),
+                        };
+                        dependents.push(super::custom::DependentCoordinate {
+                            name: name.to_string(),
+                            joint: JointId(ji),
+                            kind: ckind,
+                            range,
+                            default,
+                            rule,
+                        });
+                        continue;
+                    }
+                };
+                debug_assert_eq!(index, coordinates.len());
                 coordinates.push(Coordinate {
                     name: name.to_string(),
                     joint: JointId(ji),
@@ -647,14 +721,17 @@ impl<'a> Compiler<'a> {
                     range,
                     default,
                 });
-                let (motion, sign) = motion_for(rotation, &axis);
-                steps.push(Step {
-                    motion,
-                    source: Source::Coord {
-                        index: first_coord + k,
-                        scale: sign,
-                    },
-                });
+                if !custom {
+                    let (motion, sign) = motion_for(motions[k].0, &motions[k].1);
+                    steps.push(Step {
+                        motion,
+                        source: Source::Coord { index, scale: sign },
+                    });
+                }
+            }
+            if let JointKind::Custom { axes, dof } = &mut kind {
+                *dof = coordinates.len() - first_coord;
+                super::custom::axis_steps(axes, js, &roles, &mut functions, &mut steps)?;
             }
             // Child offset, inverted: Rz⁻¹ Ry⁻¹ Rx⁻¹ T(−t).
             self.offset_steps(
@@ -748,6 +825,8 @@ impl<'a> Compiler<'a> {
             coordinates,
             parameters,
             markers,
+            dependents,
+            functions,
             steps,
             plan,
             spec: spec.clone(),

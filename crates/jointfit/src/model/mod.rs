@@ -2,6 +2,8 @@
 //! ([`Model`]), and the built-in sample models ([`lower_limb`]).
 
 mod compiled;
+pub mod custom;
+pub mod functions;
 pub mod lower_limb;
 pub(crate) mod plan;
 pub mod spec;
