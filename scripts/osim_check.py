@@ -100,10 +100,27 @@ def fk(req):
     model, state = load(req["model"])
     out = model_summary(model)
     out["positions"] = []
+    out["body_poses"] = []
+    out["qerr"] = []
     for pose in req["poses"]:
         set_pose(model, state, req["coordinates"], pose)
         out["positions"].append(marker_positions(model, state))
+        if req.get("bodies"):
+            out["body_poses"].append(body_poses(model, state))
+            qerr = state.getQErr()
+            out["qerr"].append(max([abs(qerr.get(i)) for i in range(qerr.size())] + [0.0]))
     answer(out)
+
+
+def body_poses(model, state):
+    out = {}
+    bs = model.getBodySet()
+    for i in range(bs.getSize()):
+        b = bs.get(i)
+        x = b.getTransformInGround(state)
+        r = x.R()
+        out[b.getName()] = vec(x.p()) + [r.get(a, c) for a in range(3) for c in range(3)]
+    return out
 
 
 def read_trc(path):

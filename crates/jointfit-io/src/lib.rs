@@ -11,6 +11,7 @@
 pub mod atomic;
 pub mod c3d;
 pub mod osim;
+pub mod osim_read;
 pub mod sto;
 pub mod trc;
 

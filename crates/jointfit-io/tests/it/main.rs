@@ -4,6 +4,7 @@
 
 mod oracle;
 mod osim;
+mod osim_read;
 mod sto;
 mod trc_files;
 mod trc_format;

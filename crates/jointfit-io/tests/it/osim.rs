@@ -26,7 +26,7 @@ fn script() -> PathBuf {
 }
 
 /// Runs `osim_check.py MODE` with `request` on stdin; `None` (skipped) without Python.
-fn check(mode: &str, request: &Value) -> Option<Value> {
+pub(super) fn check(mode: &str, request: &Value) -> Option<Value> {
     let python = jointfit::testing::python()?;
     let mut child = Command::new(&python)
         .arg(script())

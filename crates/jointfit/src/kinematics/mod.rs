@@ -138,6 +138,9 @@ pub struct KinData {
     step_origin: Vec<Vector3<f64>>,
     /// The parameter vector the block cache below was computed for (NaN: none yet).
     cached_p: Vec<f64>,
+    /// Whether the block cache holds anything (a model without parameters has an empty
+    /// `cached_p` that always equals `p`).
+    blocks_ready: bool,
     /// Per block: its composed transform for `cached_p`.
     block_pose: Vec<Pose>,
     /// Per parameter step: axis and origin in the frame at the start of its block.
@@ -162,6 +165,7 @@ impl KinData {
             step_axis: vec![Vector3::zeros(); ns],
             step_origin: vec![Vector3::zeros(); ns],
             cached_p: vec![f64::NAN; model.n_p()],
+            blocks_ready: false,
             block_pose: vec![Pose::identity(); model.plan.n_blocks],
             step_local: vec![(Vector3::zeros(), Vector3::zeros()); ns],
         }
@@ -181,9 +185,10 @@ impl KinData {
 
     /// Recomputes the parameter-only blocks when `p` differs from the cached one.
     fn update_blocks(&mut self, model: &Model, p: &[f64]) {
-        if self.cached_p.as_slice() == p {
+        if self.blocks_ready && self.cached_p.as_slice() == p {
             return;
         }
+        self.blocks_ready = true;
         for items in &model.plan.items {
             for item in items {
                 let Item::Block { id, steps } = item else {

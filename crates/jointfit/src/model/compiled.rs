@@ -666,12 +666,13 @@ impl<'a> Compiler<'a> {
                         name: name.to_string(),
                     });
                 }
-                let ckind =
-                    super::custom::custom_coord_kind(&js.kind, name).unwrap_or(if motions[k].0 {
+                let ckind = super::custom::custom_coord_kind(&js.kind, name).unwrap_or_else(|| {
+                    if motions[k].0 {
                         CoordKind::Rotational
                     } else {
                         CoordKind::Translational
-                    });
+                    }
+                });
                 let (range, default) = match cs {
                     CoordinateSpec::Name(_) => (None, 0.0),
                     CoordinateSpec::Full { range, default, .. } => (*range, *default),

@@ -188,7 +188,7 @@ impl Function {
                         "GCVSpline degree {degree} is not supported (1, 3, 5 or 7)"
                     ));
                 }
-                let m = (degree + 1) / 2;
+                let m = degree.div_ceil(2);
                 check_points(x, y, 2 * m)?;
                 Function::Pieces(natural_spline(x, y, m)?)
             }

@@ -1,0 +1,182 @@
+//! The `.osim` reader ([`jointfit_io::osim_read`]) against OpenSim 4.6: every shared OpenSim
+//! model loads, and at random poses every body's pose and every marker position from
+//! jointfit's forward kinematics equal OpenSim's to 1e-9 m (rotation entries to 1e-9), with
+//! the coupled coordinates jointfit computes satisfying OpenSim's constraints.
+
+use std::path::PathBuf;
+
+use jointfit::kinematics::{forward_kinematics, KinData, Want};
+use jointfit::model::{CoordKind, Model};
+use jointfit_io::osim_read::read_osim;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde_json::{json, Value};
+
+use super::osim::check;
+
+/// Largest accepted difference of a position (m) or a rotation-matrix entry.
+const TOL: f64 = 1e-9;
+
+/// Every `.osim` under the data directory (`None`: no data, skipped).
+pub(super) fn shared_models() -> Option<Vec<PathBuf>> {
+    let dir = jointfit::testing::data_dir()?;
+    let mut out = Vec::new();
+    let mut stack = vec![dir];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.extension().is_some_and(|x| x == "osim") {
+                out.push(p);
+            }
+        }
+    }
+    out.sort();
+    Some(out)
+}
+
+/// A random pose: each free coordinate within its range and within ±0.6 (rad or m·0.1)
+/// of its default.
+pub(super) fn random_q(model: &Model, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    model
+        .coordinates
+        .iter()
+        .map(|c| {
+            let w = match c.kind {
+                CoordKind::Rotational => 0.6,
+                CoordKind::Translational => 0.06,
+            };
+            let lo = c.range[0].max(c.default - w);
+            let hi = c.range[1].min(c.default + w);
+            if lo < hi {
+                rng.gen_range(lo..hi)
+            } else {
+                c.default
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn osim_every_shared_model_loads_and_matches_opensim_fk() {
+    let Some(models) = shared_models() else {
+        assert!(std::env::var_os("CI").is_none(), "CI needs $JOINTFIT_DATA");
+        eprintln!("skipped: no data");
+        return;
+    };
+    assert!(
+        models.len() >= 6,
+        "expected the six shared models: {models:?}"
+    );
+    let mut rng = ChaCha8Rng::seed_from_u64(14);
+    for path in &models {
+        let osim = read_osim(path).unwrap_or_else(|e| panic!("{e}"));
+        let model =
+            Model::compile(&osim.spec).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let mut names: Vec<String> = model.coordinates.iter().map(|c| c.name.clone()).collect();
+        let coupled: Vec<usize> = (0..model.dependents.len())
+            .filter(|&i| {
+                !matches!(
+                    model.dependents[i].rule,
+                    jointfit::model::custom::CoordRule::Locked(_)
+                )
+            })
+            .collect();
+        names.extend(coupled.iter().map(|&i| model.dependents[i].name.clone()));
+        let mut kin = KinData::new(&model);
+        let mut poses = Vec::new();
+        let mut ours = Vec::new();
+        for _ in 0..5 {
+            let q = random_q(&model, &mut rng);
+            let mut full = q.clone();
+            full.extend(coupled.iter().map(|&i| model.dependents[i].value(&q)));
+            forward_kinematics(&model, &[], &q, Want::POSITIONS, &mut kin);
+            ours.push(kin.clone());
+            poses.push(full);
+        }
+        let req = json!({"model": path, "coordinates": names, "poses": poses, "bodies": true});
+        let Some(answer) = check("fk", &req) else {
+            assert!(
+                std::env::var_os("CI").is_none(),
+                "CI needs $JOINTFIT_PYTHON"
+            );
+            eprintln!("skipped: no OpenSim");
+            return;
+        };
+        // Coordinate motion types as OpenSim reports them (decides .mot degrees).
+        for c in answer["coordinates"].as_array().unwrap() {
+            let name = c["name"].as_str().unwrap();
+            let ours = model
+                .coordinates
+                .iter()
+                .map(|x| (&x.name, x.kind))
+                .chain(model.dependents.iter().map(|d| (&d.name, d.kind)))
+                .find(|(n, _)| *n == name)
+                .unwrap_or_else(|| panic!("{}: OpenSim coordinate {name} missing", path.display()))
+                .1;
+            let theirs = c["motion_type"].as_str().unwrap();
+            let want = match ours {
+                CoordKind::Rotational => "rotational",
+                CoordKind::Translational => "translational",
+            };
+            if theirs != want {
+                eprintln!(
+                    "{}: {name}: OpenSim {theirs}, jointfit {want}",
+                    path.display()
+                );
+            }
+        }
+        let mut worst = 0.0f64;
+        for (k, kin) in ours.iter().enumerate() {
+            let qerr = answer["qerr"][k].as_f64().unwrap();
+            assert!(qerr < 1e-12, "{}: constraint error {qerr}", path.display());
+            for (s, seg) in model.segments.iter().enumerate() {
+                let v: Vec<f64> = answer["body_poses"][k][&seg.name]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|x| x.as_f64().unwrap())
+                    .collect();
+                let pose = &kin.segment_poses[s];
+                let mut here = 0.0f64;
+                for a in 0..3 {
+                    here = here.max((pose.trans[a] - v[a]).abs());
+                    for b in 0..3 {
+                        here = here.max((pose.rot[(a, b)] - v[3 + 3 * a + b]).abs());
+                    }
+                }
+                if here > TOL && k == 0 {
+                    eprintln!("  body {}: |Δ| {here:.2e}", seg.name);
+                }
+                worst = worst.max(here);
+            }
+            let theirs: &Vec<Value> = answer["positions"][k].as_array().unwrap();
+            let their_names: Vec<&str> = answer["markers"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|m| m["name"].as_str().unwrap())
+                .collect();
+            for (m, marker) in model.markers.iter().enumerate() {
+                let j = their_names.iter().position(|n| *n == marker.name).unwrap();
+                for (a, t) in theirs[j].as_array().unwrap().iter().enumerate() {
+                    worst = worst.max((kin.markers[m][a] - t.as_f64().unwrap()).abs());
+                }
+            }
+        }
+        eprintln!(
+            "{}: {} bodies, {} markers, {} free + {} dependent coordinates: worst |Δ| {worst:.2e}",
+            path.display(),
+            model.segments.len(),
+            model.markers.len(),
+            model.n_q(),
+            model.dependents.len()
+        );
+        assert!(
+            worst <= TOL,
+            "{}: FK differs from OpenSim by {worst:e}",
+            path.display()
+        );
+    }
+}
