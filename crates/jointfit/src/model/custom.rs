@@ -232,7 +232,7 @@ pub(crate) fn compile_axes(
                 .map_err(|e| ModelError::Invalid(format!("{what}: {e}")))?;
             Ok(TransformAxis {
                 rotation: a.motion == AxisMotion::Rotation,
-                axis: super::compiled::parse_axis(&a.axis, &what)?,
+                axis: super::validate::parse_axis(&a.axis, &what)?,
                 coordinate: a.coordinate.clone(),
                 function,
             })
@@ -248,7 +248,8 @@ pub(crate) fn axis_steps(
     functions: &mut Vec<AxisFn>,
     steps: &mut Vec<super::compiled::Step>,
 ) -> Result<(), ModelError> {
-    use super::compiled::{motion_for, Source, Step};
+    use super::compile::motion_for;
+    use super::compiled::{Source, Step};
     for (k, a) in axes.iter().enumerate() {
         let (motion, sign) = motion_for(a.rotation, &a.axis);
         let source = match (&a.coordinate, a.function.constant()) {
