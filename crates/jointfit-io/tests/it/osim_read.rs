@@ -180,3 +180,64 @@ fn osim_every_shared_model_loads_and_matches_opensim_fk() {
         );
     }
 }
+
+/// jointfit's functions equal OpenSim's (value and first derivative) inside, at and beyond
+/// the knots: the FMM SimmSpline, natural GCV splines of degree 1, 3 and 5 and the
+/// piecewise linear function (whose derivative at a kink is not compared).
+#[test]
+fn osim_functions_match_opensim() {
+    use jointfit::model::functions::{Function, FunctionSpec};
+    let x = vec![-1.2, 0.0, 0.4, 1.1, 2.5, 3.0, 4.2, 5.0, 6.1];
+    let y = vec![0.3, 0.0, 0.5, -0.2, -1.0, 2.0, 1.0, 0.3, 0.9];
+    let at: Vec<f64> = (0..=90)
+        .map(|i| -2.5 + 0.1 * i as f64)
+        .chain(x.clone())
+        .collect();
+    let mut ours = Vec::new();
+    let mut req = Vec::new();
+    for (kind, degree) in [
+        ("SimmSpline", 0),
+        ("GCVSpline", 1),
+        ("GCVSpline", 3),
+        ("GCVSpline", 5),
+        ("PiecewiseLinearFunction", 0),
+    ] {
+        req.push(json!({"type": kind, "degree": degree, "x": &x, "y": &y}));
+        let (x, y) = (x.clone(), y.clone());
+        let spec = match kind {
+            "SimmSpline" => FunctionSpec::SimmSpline { x, y },
+            "GCVSpline" => FunctionSpec::GcvSpline { degree, x, y },
+            _ => FunctionSpec::PiecewiseLinear { x, y },
+        };
+        ours.push((kind, degree, Function::new(&spec).unwrap()));
+    }
+    let Some(answer) = check("functions", &json!({"functions": req, "at": at})) else {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI needs $JOINTFIT_PYTHON"
+        );
+        eprintln!("skipped: no OpenSim");
+        return;
+    };
+    for (i, (kind, degree, f)) in ours.iter().enumerate() {
+        let mut worst = [0.0f64; 2];
+        for (k, &t) in at.iter().enumerate() {
+            let (v, d) = f.eval(t);
+            let theirs = &answer["values"][i][k];
+            worst[0] = worst[0].max((v - theirs[0].as_f64().unwrap()).abs());
+            // A piecewise linear function has no derivative at a kink; OpenSim's one-sided
+            // choice there depends on its interval search, so only values are compared.
+            if !(*kind == "PiecewiseLinearFunction" && x.contains(&t)) {
+                worst[1] = worst[1].max((d - theirs[1].as_f64().unwrap()).abs());
+            }
+        }
+        eprintln!(
+            "{kind} {degree}: |Δf| {:.1e}, |Δf′| {:.1e}",
+            worst[0], worst[1]
+        );
+        assert!(
+            worst[0] < 1e-10 && worst[1] < 1e-9,
+            "{kind} {degree}: {worst:?}"
+        );
+    }
+}

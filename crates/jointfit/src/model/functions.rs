@@ -104,6 +104,9 @@ pub struct Pieces {
     coef: Vec<Vec<f64>>,
     left: Vec<f64>,
     right: Vec<f64>,
+    /// At a knot use the piece that starts there (GCVSPL's choice) instead of the one that
+    /// ends there (OpenSim's piecewise linear function); only a kink's derivative differs.
+    right_at_knots: bool,
 }
 
 /// `(value, derivative)` of `Σ c_k t^k` by Horner's rule.
@@ -123,12 +126,16 @@ impl Pieces {
         if u < self.x[0] {
             return horner(&self.left, u - self.x[0]);
         }
-        if u > self.x[n - 1] {
+        if u > self.x[n - 1] || (self.right_at_knots && u == self.x[n - 1]) {
             return horner(&self.right, u - self.x[n - 1]);
         }
-        // Interval i with x_i < u ≤ x_{i+1} (the first for u = x_0), as OpenSim picks it
-        // (it matters only for the derivative of a piecewise linear function at a knot).
-        let i = (self.x.partition_point(|&k| k < u).max(1) - 1).min(n - 2);
+        // Interval i with x_i < u ≤ x_{i+1} (or x_i ≤ u < x_{i+1}), as OpenSim picks it.
+        let after = if self.right_at_knots {
+            self.x.partition_point(|&k| k <= u)
+        } else {
+            self.x.partition_point(|&k| k < u)
+        };
+        let i = (after.max(1) - 1).min(n - 2);
         let h = self.x[i + 1] - self.x[i];
         let (v, d) = horner(&self.coef[i], (u - self.x[i]) / h);
         (v, d / h)
@@ -172,6 +179,7 @@ impl Function {
                     coef: coef.collect(),
                     left: vec![y[0], slope0],
                     right: vec![y[n - 1], slope1],
+                    right_at_knots: false,
                 })
             }
             FunctionSpec::SimmSpline { x, y } => {
@@ -317,6 +325,7 @@ fn fmm_spline(x: &[f64], y: &[f64]) -> Pieces {
         coef,
         left: vec![y[0], b[0]],
         right: vec![y[n - 1], b[n - 1]],
+        right_at_knots: false,
     }
 }
 
@@ -392,6 +401,7 @@ fn natural_spline(x: &[f64], y: &[f64], m: usize) -> Result<Pieces, String> {
         coef,
         left,
         right,
+        right_at_knots: true,
     })
 }
 

@@ -184,3 +184,109 @@ position = [0.02, 0.02, 0.02]
     )
     .expect("kitchen-sink spec parses")
 }
+
+/// Custom joints through every function type: splines and polynomials of a coordinate, a
+/// locked coordinate, a coordinate coupled to another joint's, an oblique axis, and
+/// parameters on the offsets around them. Coordinates: q1, q2, q4 (q3 locked, qd coupled).
+pub fn custom_joints() -> ModelSpec {
+    ModelSpec::from_toml(
+        r#"
+name = "custom-joints"
+segments = [{ name = "a" }, { name = "b" }]
+
+[[joints]]
+name = "j1"
+parent = "ground"
+child = "a"
+coordinates = ["q1", "q2", { name = "q3", default = 0.3, locked = true }]
+[joints.kind]
+type = "custom"
+[[joints.kind.axes]]
+motion = "translation"
+axis = "x"
+coordinate = "q1"
+function = { type = "simm_spline", x = [-4.0, -1.0, 0.0, 0.7, 2.0, 4.0], y = [0.1, -0.05, 0.0, 0.02, 0.08, -0.1] }
+[[joints.kind.axes]]
+motion = "translation"
+axis = "-y"
+coordinate = "q1"
+function = { type = "polynomial", coefficients = [0.01, -0.02, 0.03, 0.5] }
+[[joints.kind.axes]]
+motion = "rotation"
+axis = "z"
+coordinate = "q1"
+[[joints.kind.axes]]
+motion = "rotation"
+axis = [1.0, 1.0, 0.2]
+coordinate = "q2"
+function = { type = "gcv_spline", degree = 5, x = [-4.0, -2.0, -0.5, 0.0, 1.0, 2.5, 4.0], y = [-1.0, -0.6, -0.2, 0.0, 0.3, 0.5, 0.9] }
+[[joints.kind.axes]]
+motion = "rotation"
+axis = "x"
+coordinate = "q3"
+function = { type = "multiplier", scale = 2.0, function = { type = "linear", slope = 1.0, intercept = 0.1 } }
+
+[[joints]]
+name = "j2"
+parent = "a"
+child = "b"
+coordinates = ["q4", "qd"]
+parent_offset = { ty = "len", rx = "tilt" }
+[joints.kind]
+type = "custom"
+[[joints.kind.axes]]
+motion = "translation"
+axis = [0.0, 1.0, 1.0]
+coordinate = "qd"
+function = { type = "multiplier", scale = 0.5, function = { type = "natural_cubic_spline", x = [-5.0, -1.0, 0.5, 5.0], y = [0.0, 0.05, 0.02, -0.03] } }
+[[joints.kind.axes]]
+motion = "rotation"
+axis = "z"
+coordinate = "qd"
+function = { type = "gcv_spline", degree = 3, x = [-5.0, -2.0, 0.0, 1.5, 5.0], y = [-2.0, -1.1, 0.0, 0.8, 2.5] }
+[[joints.kind.axes]]
+motion = "rotation"
+axis = "y"
+coordinate = "q4"
+function = { type = "linear", slope = -1.5, intercept = 0.2 }
+
+[[couplers]]
+name = "follow"
+dependent = "qd"
+independent = "q1"
+function = { type = "polynomial", coefficients = [0.1, 0.9, 0.05] }
+
+[[parameters]]
+name = "len"
+group = "j2"
+unit = "m"
+nominal = -0.4
+lower = -0.5
+upper = -0.3
+
+[[parameters]]
+name = "tilt"
+group = "j2"
+unit = "rad"
+nominal = 0.1
+lower = -0.5
+upper = 0.5
+
+[[markers]]
+name = "m_a"
+segment = "a"
+position = [0.05, -0.1, 0.07]
+
+[[markers]]
+name = "m_b1"
+segment = "b"
+position = [0.03, -0.05, -0.02]
+
+[[markers]]
+name = "m_b2"
+segment = "b"
+position = [-0.1, -0.2, 0.04]
+"#,
+    )
+    .expect("custom-joints spec parses")
+}
