@@ -6,7 +6,8 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use jointfit::ik::{solve_trial, FrameStatus, IkOptions, MarkerMap, TrialFit};
-use jointfit::model::{CoordKind, Model};
+use jointfit::model::custom::MotionType;
+use jointfit::model::Model;
 use jointfit::trial::Trial;
 use jointfit_io::sto::{write_sto, Table};
 use serde::Serialize;
@@ -67,19 +68,14 @@ pub fn run(args: IkArgs) -> Result<()> {
         );
     }
     let start = Instant::now();
-    let fit = solve_trial(
-        &model,
-        &model.nominal_params(),
-        &trial,
-        &map,
-        &IkOptions::default(),
-    )?;
+    let opts = ik_options(&args.model);
+    let fit = solve_trial(&model, &model.nominal_params(), &trial, &map, &opts)?;
     let seconds = start.elapsed().as_secs_f64();
     if !fit.frames.iter().any(|f| f.solved()) {
         let why = match fit.frames.first().map(|f| &f.status) {
             Some(FrameStatus::TooFewMarkers { segment, present }) => format!(
                 " (first frame: segment {segment} has {present} of the {} markers it needs)",
-                IkOptions::default().min_markers_per_segment
+                opts.min_markers_per_segment
             ),
             _ => String::new(),
         };
@@ -155,15 +151,41 @@ fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f64) -> Summ
 }
 
 /// Joint angles in degrees (rotations) and metres (translations), OpenSim's layout.
+/// IK settings for a model: an OpenSim model is solved as OpenSim does, whatever the
+/// number of markers on each segment (the whole-body problem decides); the built-in legs
+/// need three markers on every segment that carries any.
+pub fn ik_options(model: &str) -> IkOptions {
+    let mut opts = IkOptions::default();
+    if jointfit_io::model_file::is_osim(std::path::Path::new(model)) {
+        opts.min_markers_per_segment = 0;
+    }
+    opts
+}
+
+/// Coordinates per frame in OpenSim's `.mot` convention: degrees for rotational
+/// coordinates (OpenSim's motion type), locked and coupled coordinates included.
 pub fn angles_table(model: &Model, trial: &Trial, fit: &TrialFit) -> Table {
-    let names: Vec<&str> = model.coordinates.iter().map(|c| c.name.as_str()).collect();
+    let names: Vec<&str> = model
+        .coordinates
+        .iter()
+        .map(|c| c.name.as_str())
+        .chain(model.dependents.iter().map(|d| d.name.as_str()))
+        .collect();
+    let unit = |motion: MotionType, v: f64| match motion {
+        MotionType::Rotational => v.to_degrees(),
+        MotionType::Translational | MotionType::Coupled => v,
+    };
     let mut table = Table::new("Coordinates", &names, true);
     for (f, q) in fit.coords.iter().enumerate() {
         let mut row = vec![trial.time(f)];
-        row.extend(model.coordinates.iter().zip(q).map(|(c, v)| match c.kind {
-            CoordKind::Rotational => v.to_degrees(),
-            CoordKind::Translational => *v,
-        }));
+        row.extend(
+            model
+                .coordinates
+                .iter()
+                .zip(q)
+                .map(|(c, v)| unit(c.motion, *v)),
+        );
+        row.extend(model.dependents.iter().map(|d| unit(d.motion, d.value(q))));
         table.rows.push(row);
     }
     table

@@ -11,7 +11,7 @@ use super::compiled::{
     CoordKind, Coordinate, Joint, JointId, JointKind, Marker, Model, Motion, ParamUse, Parameter,
     Segment, SegmentId, Source, Step,
 };
-use super::custom::{CoordRule, DependentCoordinate, Role};
+use super::custom::{CoordRule, DependentCoordinate, MotionType, Role};
 use super::spec::{CoordinateSpec, OffsetSpec, Unit, OFFSET_SCALARS};
 use super::validate::{check_name, joint_kind, Compiler};
 use super::ModelError;
@@ -98,6 +98,10 @@ impl Compiler<'_> {
                         CoordKind::Translational
                     }
                 });
+                let motion = super::custom::opensim_motion(&js.kind, name).unwrap_or(match ckind {
+                    CoordKind::Rotational => MotionType::Rotational,
+                    CoordKind::Translational => MotionType::Translational,
+                });
                 let (range, default) = match cs {
                     CoordinateSpec::Name(_) => (None, 0.0),
                     CoordinateSpec::Full { range, default, .. } => (*range, *default),
@@ -130,6 +134,7 @@ impl Compiler<'_> {
                             name: name.to_string(),
                             joint: JointId(ji),
                             kind: ckind,
+                            motion,
                             range,
                             default,
                             rule,
@@ -142,6 +147,7 @@ impl Compiler<'_> {
                     name: name.to_string(),
                     joint: JointId(ji),
                     kind: ckind,
+                    motion,
                     range,
                     default,
                 });

@@ -125,6 +125,8 @@ pub struct Coordinate {
     pub name: String,
     pub joint: JointId,
     pub kind: CoordKind,
+    /// OpenSim's motion type (the unit in `.mot` files; `kind` for built-in joint kinds).
+    pub motion: super::custom::MotionType,
     /// Lower and upper limit (rad or m); informative, IK does not clamp.
     pub range: [f64; 2],
     pub default: f64,

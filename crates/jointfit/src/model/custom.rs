@@ -26,7 +26,7 @@ use nalgebra::Vector3;
 
 use super::compiled::{CoordKind, JointId};
 use super::functions::Function;
-use super::spec::{AxisMotion, CoordinateSpec, JointKindSpec, ModelSpec};
+use super::spec::{AxisMotion, CoordinateSpec, FunctionSpec, JointKindSpec, ModelSpec};
 use super::ModelError;
 
 /// One transform axis of a compiled custom joint.
@@ -80,6 +80,8 @@ pub struct DependentCoordinate {
     pub name: String,
     pub joint: JointId,
     pub kind: CoordKind,
+    /// OpenSim's motion type (the unit in `.mot` files).
+    pub motion: MotionType,
     pub range: [f64; 2],
     pub default: f64,
     pub rule: CoordRule,
@@ -95,6 +97,47 @@ impl DependentCoordinate {
             } => function.value(q[*independent]),
         }
     }
+}
+
+/// OpenSim's classification of a coordinate, which decides its unit in `.mot` files
+/// (degrees only for `Rotational`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MotionType {
+    Rotational,
+    Translational,
+    /// Drives its axes only through scaled or nonlinear functions.
+    Coupled,
+}
+
+/// OpenSim 4's rule (`CustomJoint`): visiting rotation1..3 then translation1..3, an axis that
+/// reads the coordinate through a `LinearFunction` of slope ±1 makes it rotational or
+/// translational (the last such axis wins); any other function makes it coupled unless a
+/// pure axis decides.
+pub(crate) fn opensim_motion(kind: &JointKindSpec, name: &str) -> Option<MotionType> {
+    let JointKindSpec::Custom { axes } = kind else {
+        return None;
+    };
+    let mut mt = None;
+    for motion in [AxisMotion::Rotation, AxisMotion::Translation] {
+        for a in axes
+            .iter()
+            .filter(|a| a.motion == motion && a.coordinate.as_deref() == Some(name))
+        {
+            match a.function {
+                FunctionSpec::Linear { slope, .. } if slope == 1.0 || slope == -1.0 => {
+                    mt = Some(match motion {
+                        AxisMotion::Rotation => MotionType::Rotational,
+                        AxisMotion::Translation => MotionType::Translational,
+                    })
+                }
+                _ => {
+                    mt.get_or_insert(MotionType::Coupled);
+                }
+            }
+        }
+    }
+    // A coordinate that drives nothing is what OpenSim leaves undefined; call it coupled.
+    Some(mt.unwrap_or(MotionType::Coupled))
 }
 
 /// What the compiler needs to know about a coordinate before it emits steps.
