@@ -10,8 +10,10 @@
 
 pub mod atomic;
 pub mod c3d;
+pub mod csv;
 pub mod osim;
 pub mod osim_read;
+pub mod staging;
 pub mod sto;
 pub mod trc;
 

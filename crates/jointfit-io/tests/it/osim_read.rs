@@ -13,14 +13,20 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
 
-use super::osim::check;
+use jointfit_testkit::script::osim_check;
+
+/// Runs `osim_check.py MODE` with `request` on stdin; `None` (skipped) without Python.
+fn check(mode: &str, request: &Value) -> Option<Value> {
+    let python = jointfit_testkit::python()?;
+    Some(osim_check(&python, mode, request, None))
+}
 
 /// Largest accepted difference of a position (m) or a rotation-matrix entry.
 const TOL: f64 = 1e-9;
 
 /// Every `.osim` under the data directory (`None`: no data, skipped).
 pub(super) fn shared_models() -> Option<Vec<PathBuf>> {
-    let dir = jointfit::testing::data_dir()?;
+    let dir = jointfit_testkit::data_dir()?;
     let mut out = Vec::new();
     let mut stack = vec![dir];
     while let Some(d) = stack.pop() {
@@ -41,7 +47,7 @@ pub(super) fn shared_models() -> Option<Vec<PathBuf>> {
 /// of its default.
 pub(super) fn random_q(model: &Model, rng: &mut ChaCha8Rng) -> Vec<f64> {
     model
-        .coordinates
+        .coordinates()
         .iter()
         .map(|c| {
             let w = match c.kind {
@@ -75,23 +81,23 @@ fn osim_every_shared_model_loads_and_matches_opensim_fk() {
         let osim = read_osim(path).unwrap_or_else(|e| panic!("{e}"));
         let model =
             Model::compile(&osim.spec).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let mut names: Vec<String> = model.coordinates.iter().map(|c| c.name.clone()).collect();
-        let coupled: Vec<usize> = (0..model.dependents.len())
+        let mut names: Vec<String> = model.coordinates().iter().map(|c| c.name.clone()).collect();
+        let coupled: Vec<usize> = (0..model.dependents().len())
             .filter(|&i| {
                 !matches!(
-                    model.dependents[i].rule,
+                    model.dependents()[i].rule,
                     jointfit::model::custom::CoordRule::Locked(_)
                 )
             })
             .collect();
-        names.extend(coupled.iter().map(|&i| model.dependents[i].name.clone()));
+        names.extend(coupled.iter().map(|&i| model.dependents()[i].name.clone()));
         let mut kin = KinData::new(&model);
         let mut poses = Vec::new();
         let mut ours = Vec::new();
         for _ in 0..5 {
             let q = random_q(&model, &mut rng);
             let mut full = q.clone();
-            full.extend(coupled.iter().map(|&i| model.dependents[i].value(&q)));
+            full.extend(coupled.iter().map(|&i| model.dependents()[i].value(&q)));
             forward_kinematics(&model, &[], &q, Want::POSITIONS, &mut kin);
             ours.push(kin.clone());
             poses.push(full);
@@ -109,10 +115,10 @@ fn osim_every_shared_model_loads_and_matches_opensim_fk() {
         for c in answer["coordinates"].as_array().unwrap() {
             let name = c["name"].as_str().unwrap();
             let ours = model
-                .coordinates
+                .coordinates()
                 .iter()
                 .map(|x| (&x.name, x.motion))
-                .chain(model.dependents.iter().map(|d| (&d.name, d.motion)))
+                .chain(model.dependents().iter().map(|d| (&d.name, d.motion)))
                 .find(|(n, _)| *n == name)
                 .unwrap_or_else(|| panic!("{}: OpenSim coordinate {name} missing", path.display()))
                 .1;
@@ -128,7 +134,7 @@ fn osim_every_shared_model_loads_and_matches_opensim_fk() {
         for (k, kin) in ours.iter().enumerate() {
             let qerr = answer["qerr"][k].as_f64().unwrap();
             assert!(qerr < 1e-12, "{}: constraint error {qerr}", path.display());
-            for (s, seg) in model.segments.iter().enumerate() {
+            for (s, seg) in model.segments().iter().enumerate() {
                 let v: Vec<f64> = answer["body_poses"][k][&seg.name]
                     .as_array()
                     .unwrap()
@@ -155,7 +161,7 @@ fn osim_every_shared_model_loads_and_matches_opensim_fk() {
                 .iter()
                 .map(|m| m["name"].as_str().unwrap())
                 .collect();
-            for (m, marker) in model.markers.iter().enumerate() {
+            for (m, marker) in model.markers().iter().enumerate() {
                 let j = their_names.iter().position(|n| *n == marker.name).unwrap();
                 for (a, t) in theirs[j].as_array().unwrap().iter().enumerate() {
                     worst = worst.max((kin.markers[m][a] - t.as_f64().unwrap()).abs());
@@ -165,10 +171,10 @@ fn osim_every_shared_model_loads_and_matches_opensim_fk() {
         eprintln!(
             "{}: {} bodies, {} markers, {} free + {} dependent coordinates: worst |Δ| {worst:.2e}",
             path.display(),
-            model.segments.len(),
-            model.markers.len(),
+            model.segments().len(),
+            model.markers().len(),
             model.n_q(),
-            model.dependents.len()
+            model.dependents().len()
         );
         assert!(
             worst <= TOL,
