@@ -16,6 +16,7 @@
 
 mod functions;
 mod joints;
+pub mod personalize;
 mod write;
 mod xml;
 

@@ -244,3 +244,113 @@ fn osim_functions_match_opensim() {
         );
     }
 }
+
+/// Personalizing hip_r and walker_knee_r of the OpenCap hand-scaled model: the written file
+/// differs from the input only in those joints' `<translation>`/`<orientation>` lines, reads
+/// back to the same kinematics as the parameterized model at the fitted values, and OpenSim
+/// 4.6 loads it and puts every marker where jointfit does (1e-9 m).
+#[test]
+fn osim_write_back_changes_only_the_personalized_frames() {
+    use jointfit_io::osim_read::parse_osim;
+    use jointfit_io::osim_read::personalize::{fitted_text, parameterize};
+    let Some(path) = jointfit_testkit::data_file("opencap_expert1/hand_scaled.osim") else {
+        assert!(std::env::var_os("CI").is_none(), "CI needs $JOINTFIT_DATA");
+        eprintln!("skipped: no data");
+        return;
+    };
+    let osim = read_osim(&path).unwrap();
+    let spec = parameterize(&osim, &["hip_r", "walker_knee_r"]).unwrap();
+    assert_eq!(spec.parameters.len(), 24);
+    let model = Model::compile(&spec).unwrap();
+    // A "fitted" vector: every parameter moved inside its bounds.
+    let p: Vec<f64> = model
+        .parameters()
+        .iter()
+        .enumerate()
+        .map(|(i, par)| par.nominal + (par.upper - par.nominal) * (0.1 + 0.05 * (i % 7) as f64))
+        .collect();
+    let text = fitted_text(&osim, &spec, &p).unwrap();
+    let old: Vec<&str> = osim.text.lines().collect();
+    let new: Vec<&str> = text.lines().collect();
+    assert_eq!(old.len(), new.len());
+    let changed: Vec<(usize, &str)> = (0..old.len())
+        .filter(|&i| old[i] != new[i])
+        .map(|i| (i, new[i]))
+        .collect();
+    for (i, line) in &changed {
+        eprintln!("line {}: {} -> {}", i + 1, old[*i].trim(), line.trim());
+        assert!(
+            line.contains("<translation>") || line.contains("<orientation>"),
+            "unexpected change at line {}: {line}",
+            i + 1
+        );
+    }
+    assert_eq!(changed.len(), 8, "4 frames × (translation, orientation)");
+    // Every changed line lies inside one of the two joints.
+    for (i, _) in &changed {
+        let owner = old[..*i]
+            .iter()
+            .rev()
+            .find(|l| l.contains("Joint name="))
+            .unwrap();
+        assert!(
+            owner.contains("\"hip_r\"") || owner.contains("\"walker_knee_r\""),
+            "{owner}"
+        );
+    }
+    // Read back: the same kinematics without parameters.
+    let back = parse_osim(text.clone(), &path).unwrap();
+    let back_model = Model::compile(&back.spec).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let q = random_q(&model, &mut rng);
+    let mut a = KinData::new(&model);
+    let mut b = KinData::new(&back_model);
+    forward_kinematics(&model, &p, &q, Want::POSITIONS, &mut a);
+    forward_kinematics(&back_model, &[], &q, Want::POSITIONS, &mut b);
+    for (x, y) in a.markers.iter().zip(&b.markers) {
+        assert!((x - y).norm() < 1e-12, "{x} vs {y}");
+    }
+    // OpenSim loads the written file and agrees.
+    let dir = jointfit_testkit::scratch("osim-write-back");
+    let out = dir.path().join("personalized.osim");
+    std::fs::write(&out, &text).unwrap();
+    let names: Vec<&str> = model
+        .coordinates()
+        .iter()
+        .map(|c| c.name.as_str())
+        .collect();
+    let mut full = q.clone();
+    let mut all = names.clone();
+    for d in model.dependents() {
+        if matches!(d.rule, jointfit::model::custom::CoordRule::Coupled { .. }) {
+            all.push(&d.name);
+            full.push(d.value(&q));
+        }
+    }
+    let Some(answer) = check(
+        "fk",
+        &json!({"model": out, "coordinates": all, "poses": [full]}),
+    ) else {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI needs $JOINTFIT_PYTHON"
+        );
+        eprintln!("skipped: no OpenSim");
+        return;
+    };
+    let theirs = answer["positions"][0].as_array().unwrap();
+    let mut worst = 0.0f64;
+    for (m, marker) in model.markers().iter().enumerate() {
+        let j = answer["markers"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .position(|x| x["name"] == marker.name.as_str())
+            .unwrap();
+        for (k, t) in theirs[j].as_array().unwrap().iter().enumerate() {
+            worst = worst.max((a.markers[m][k] - t.as_f64().unwrap()).abs());
+        }
+    }
+    eprintln!("written model: OpenSim vs jointfit markers |Δ| {worst:.1e}");
+    assert!(worst < 1e-9, "{worst}");
+}
