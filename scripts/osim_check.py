@@ -18,6 +18,10 @@ Usage: osim_check.py MODE < request.json
         to radians for rotational coordinates as OpenSim does, and reports the values and
         the marker distances from the trial at them.
 
+  functions {"functions": [{"type": T, "x": [...], "y": [...], "degree": D}...], "at": [X...]}
+        builds each OpenSim function (SimmSpline, GCVSpline, PiecewiseLinearFunction) and
+        reports its value and first derivative at every X.
+
 The answer is one line "@@" + JSON on stdout (OpenSim logs to the same stream). Marker
 distances use the trial markers as OpenSim reads them (TimeSeriesTableVec3, converted to
 metres from the file's Units); a marker missing in a frame gives null.
@@ -100,10 +104,46 @@ def fk(req):
     model, state = load(req["model"])
     out = model_summary(model)
     out["positions"] = []
+    out["body_poses"] = []
+    out["qerr"] = []
     for pose in req["poses"]:
         set_pose(model, state, req["coordinates"], pose)
         out["positions"].append(marker_positions(model, state))
+        if req.get("bodies"):
+            out["body_poses"].append(body_poses(model, state))
+            qerr = state.getQErr()
+            out["qerr"].append(max([abs(qerr.get(i)) for i in range(qerr.size())] + [0.0]))
     answer(out)
+
+
+def body_poses(model, state):
+    out = {}
+    bs = model.getBodySet()
+    for i in range(bs.getSize()):
+        b = bs.get(i)
+        x = b.getTransformInGround(state)
+        r = x.R()
+        out[b.getName()] = vec(x.p()) + [r.get(a, c) for a in range(3) for c in range(3)]
+    return out
+
+
+def functions(req):
+    out = []
+    for spec in req["functions"]:
+        kind = spec["type"]
+        if kind == "GCVSpline":
+            f = osim.GCVSpline()
+            f.setDegree(spec["degree"])
+        else:
+            f = getattr(osim, kind)()
+        for a, b in zip(spec["x"], spec["y"]):
+            f.addPoint(a, b)
+        vals = []
+        for t in req["at"]:
+            v = osim.Vector(1, t)
+            vals.append([f.calcValue(v), f.calcDerivative(osim.StdVectorInt([0]), v)])
+        out.append(vals)
+    answer({"values": out})
 
 
 def read_trc(path):
@@ -278,10 +318,10 @@ def mot(req):
 def main(argv):
     osim.Logger.setLevelString("error")
     osim.Logger.removeFileSink()  # no opensim.log in the caller's directory
-    if len(argv) != 2 or argv[1] not in ("fk", "ik", "mot"):
+    if len(argv) != 2 or argv[1] not in ("fk", "ik", "mot", "functions"):
         sys.exit(__doc__)
     req = json.load(sys.stdin)
-    {"fk": fk, "ik": ik, "mot": mot}[argv[1]](req)
+    {"fk": fk, "ik": ik, "mot": mot, "functions": functions}[argv[1]](req)
 
 
 if __name__ == "__main__":

@@ -6,7 +6,8 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use jointfit::ik::{solve_trial, unsolved_ranges, IkOptions, MarkerMap, TrialFit};
-use jointfit::model::{CoordKind, Model};
+use jointfit::model::custom::MotionType;
+use jointfit::model::Model;
 use jointfit::trial::Trial;
 use jointfit_io::sto::{write_sto, Table};
 use serde::Serialize;
@@ -281,13 +282,19 @@ fn rejected_line(rejected: &[RejectedJson]) -> Option<String> {
     ))
 }
 
-/// Joint angles in degrees (rotations) and metres (translations), OpenSim's layout.
+/// Coordinates per frame in OpenSim's `.mot` convention: degrees for rotational
+/// coordinates (OpenSim's motion type), locked and coupled coordinates included.
 pub fn angles_table(model: &Model, trial: &Trial, fit: &TrialFit) -> Table {
     let names: Vec<&str> = model
         .coordinates()
         .iter()
         .map(|c| c.name.as_str())
+        .chain(model.dependents().iter().map(|d| d.name.as_str()))
         .collect();
+    let unit = |motion: MotionType, v: f64| match motion {
+        MotionType::Rotational => v.to_degrees(),
+        MotionType::Translational | MotionType::Coupled => v,
+    };
     let mut table = Table::new("Coordinates", &names, true);
     for (f, q) in fit.coords.iter().enumerate() {
         let mut row = vec![trial.time(f)];
@@ -296,10 +303,13 @@ pub fn angles_table(model: &Model, trial: &Trial, fit: &TrialFit) -> Table {
                 .coordinates()
                 .iter()
                 .zip(q)
-                .map(|(c, v)| match c.kind {
-                    CoordKind::Rotational => v.to_degrees(),
-                    CoordKind::Translational => *v,
-                }),
+                .map(|(c, v)| unit(c.motion, *v)),
+        );
+        row.extend(
+            model
+                .dependents()
+                .iter()
+                .map(|d| unit(d.motion, d.value(q))),
         );
         table.rows.push(row);
     }

@@ -110,6 +110,7 @@ impl Summary {
                 JointKind::Universal { axes } => axes.iter().map(v).collect(),
                 JointKind::Pin { axis } | JointKind::Slider { axis } => vec![v(axis)],
                 JointKind::Weld => vec![],
+                JointKind::Custom { axes, .. } => axes.iter().map(|a| v(&a.axis)).collect(),
             }
         };
         Summary {

@@ -14,6 +14,7 @@ pub mod c3d;
 pub mod csv;
 pub mod message;
 pub mod osim;
+pub mod osim_read;
 pub mod staging;
 pub mod sto;
 pub mod trc;

@@ -19,12 +19,14 @@ pub enum ModelFileError {
     Parse { path: PathBuf, message: String },
     #[error("{path}: invalid model: {source}")]
     Invalid { path: PathBuf, source: ModelError },
+    #[error(transparent)]
+    Osim(#[from] crate::osim_read::OsimReadError),
     #[error("{name:?} is neither a model file nor a built-in model ({})", BUILTIN_NAMES.join(", "))]
     NotFound { name: String },
 }
 
-/// Reads a model description: a built-in name (`lower-limb-right`, `lower-limb-left`) or a
-/// TOML file path.
+/// Reads a model description: a built-in name (`lower-limb-right`, `lower-limb-left`), an
+/// OpenSim 4 `.osim` file (see [`crate::osim_read`]) or a TOML file path.
 pub fn load_spec(name_or_path: &str) -> Result<ModelSpec, ModelFileError> {
     let path = Path::new(name_or_path);
     if BUILTIN_NAMES.contains(&name_or_path) && !path.exists() {
@@ -35,6 +37,9 @@ pub fn load_spec(name_or_path: &str) -> Result<ModelSpec, ModelFileError> {
             name: name_or_path.to_string(),
         });
     }
+    if is_osim(path) {
+        return Ok(crate::osim_read::read_osim(path)?.spec);
+    }
     let text = std::fs::read_to_string(path).map_err(|source| ModelFileError::Read {
         path: path.to_path_buf(),
         source,
@@ -43,6 +48,12 @@ pub fn load_spec(name_or_path: &str) -> Result<ModelSpec, ModelFileError> {
         path: path.to_path_buf(),
         message: toml_one_line(&text, &e),
     })
+}
+
+/// Whether a path names an OpenSim model (`.osim`, any case).
+pub fn is_osim(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("osim"))
 }
 
 /// A TOML error as one line, `line L, column C: message`, without the quoted source line

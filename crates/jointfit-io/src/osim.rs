@@ -114,6 +114,11 @@ pub enum OsimError {
         first: usize,
         second: usize,
     },
+    #[error(
+        "joint {joint:?} is a custom joint (read from an .osim): its model is written back into \
+         the original file (calibrate MODEL.osim … -o OUT.osim), not exported"
+    )]
+    CustomJoint { joint: String },
     #[error("joint {joint:?}: offset scalar refers to unknown parameter {param:?}")]
     UnknownParameter { joint: String, param: String },
     #[error("{path}: cannot write: {source}")]
@@ -366,6 +371,11 @@ fn spatial_axes<'a>(
         JointKind::Pin { axis } => (one(*axis, coords[0]), fixed_xyz),
         JointKind::Slider { axis } => (fixed_xyz, one(*axis, coords[0])),
         JointKind::Weld => unreachable!("a weld joint is a WeldJoint"),
+        JointKind::Custom { .. } => {
+            return Err(OsimError::CustomJoint {
+                joint: joint.to_string(),
+            })
+        }
     };
     for (what, set) in [("rotation", &rot), ("translation", &trans)] {
         for i in 0..3 {

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use jointfit::ik::{solve_trial, FrameStatus, IkOptions, MarkerMap};
+use jointfit::ik::{solve_trial, IkOptions, MarkerMap};
 use jointfit::landmarks::PRESET_NAMES;
 use jointfit::landmarks::{
     personalize as landmarks, HipCentreMethod, MarkerSet, PersonalizeOptions,
@@ -256,12 +256,9 @@ pub fn ik(
         .detach(|| solve_trial(&model, &p, &trial.trial, &map, &IkOptions::default()))
         .map_err(|e| err(&e))?;
     if !fit.frames.iter().any(|f| f.solved()) {
-        let why = match fit.frames.first().map(|f| &f.status) {
-            Some(FrameStatus::TooFewMarkers { segment, present }) => format!(
-                " (first frame: segment {segment} has {present} of the {} markers it needs)",
-                IkOptions::default().min_markers_per_segment
-            ),
-            _ => String::new(),
+        let why = match jointfit::ik::unsolved_ranges(&fit).first() {
+            Some(r) => format!(" (first frame: {})", r.reason),
+            None => String::new(),
         };
         return Err(msg(format!(
             "{}: no frame could be solved{why}",

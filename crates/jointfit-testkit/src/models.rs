@@ -24,12 +24,23 @@ pub fn all_kinds() -> ModelSpec {
     parse(include_str!("../models/all_kinds.toml"), "all_kinds")
 }
 
+/// Custom joints through every function type: splines and polynomials of a coordinate, a
+/// locked coordinate, a coordinate coupled to another joint's, an oblique axis, and
+/// parameters on the offsets around them. Coordinates: q1, q2, q4 (q3 locked, qd coupled).
+pub fn custom_joints() -> ModelSpec {
+    parse(
+        include_str!("../models/custom_joints.toml"),
+        "custom_joints",
+    )
+}
+
 /// Every sample model above, compiled, with its name.
 pub fn all() -> Vec<(&'static str, Model)> {
     [
         ("two_link", two_link()),
         ("kitchen_sink", kitchen_sink()),
         ("all_kinds", all_kinds()),
+        ("custom_joints", custom_joints()),
     ]
     .into_iter()
     .map(|(n, s)| {

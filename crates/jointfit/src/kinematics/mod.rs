@@ -138,6 +138,9 @@ pub struct KinData {
     step_origin: Vec<Vector3<f64>>,
     /// The parameter vector the block cache below was computed for (NaN: none yet).
     cached_p: Vec<f64>,
+    /// Whether the block cache holds anything (a model without parameters has an empty
+    /// `cached_p` that always equals `p`).
+    blocks_ready: bool,
     /// Per block: its composed transform for `cached_p`.
     block_pose: Vec<Pose>,
     /// Per parameter step: axis and origin in the frame at the start of its block.
@@ -162,6 +165,7 @@ impl KinData {
             step_axis: vec![Vector3::zeros(); ns],
             step_origin: vec![Vector3::zeros(); ns],
             cached_p: vec![f64::NAN; model.n_p()],
+            blocks_ready: false,
             block_pose: vec![Pose::identity(); model.plan.n_blocks],
             step_local: vec![(Vector3::zeros(), Vector3::zeros()); ns],
         }
@@ -181,9 +185,10 @@ impl KinData {
 
     /// Recomputes the parameter-only blocks when `p` differs from the cached one.
     fn update_blocks(&mut self, model: &Model, p: &[f64]) {
-        if self.cached_p.as_slice() == p {
+        if self.blocks_ready && self.cached_p.as_slice() == p {
             return;
         }
+        self.blocks_ready = true;
         for items in &model.plan.items {
             for item in items {
                 let Item::Block { id, steps } = item else {
@@ -195,7 +200,7 @@ impl KinData {
                     if matches!(step.source, Source::Param { .. }) {
                         self.step_local[k] = (pose.axis_of(&step.motion), pose.trans);
                     }
-                    pose.apply(&step.motion, source_value(&step.source, p, &[]));
+                    pose.apply(&step.motion, source_value(model, &step.source, p, &[]));
                 }
                 self.block_pose[*id] = pose;
             }
@@ -239,11 +244,12 @@ impl Want {
 }
 
 #[inline]
-fn source_value(source: &Source, p: &[f64], q: &[f64]) -> f64 {
+fn source_value(model: &Model, source: &Source, p: &[f64], q: &[f64]) -> f64 {
     match *source {
         Source::Const(v) => v,
         Source::Coord { index, scale } => scale * q[index],
         Source::Param { index, scale } => scale * p[index],
+        Source::Func { index, fun, scale } => scale * model.functions[fun].eval(q[index]).0,
     }
 }
 
@@ -283,11 +289,24 @@ pub fn forward_kinematics(model: &Model, p: &[f64], q: &[f64], want: Want, data:
                 }
                 &Item::Coord(k) => {
                     let step = &model.steps[k];
-                    if want.dq || want.dp || want.axes {
+                    let frames = want.dq || want.dp || want.axes;
+                    if frames {
                         data.step_axis[k] = pose.axis_of(&step.motion);
                         data.step_origin[k] = pose.trans;
                     }
-                    pose.apply(&step.motion, source_value(&step.source, p, q));
+                    let value = match step.source {
+                        // A step through functions: its axis carries ∂s/∂q
+                        // (crate::model::custom), the Jacobian column scale is 1.
+                        Source::Func { index, fun, scale } => {
+                            let (v, d) = model.functions[fun].eval(q[index]);
+                            if frames {
+                                data.step_axis[k] *= scale * d;
+                            }
+                            scale * v
+                        }
+                        ref source => source_value(model, source, p, q),
+                    };
+                    pose.apply(&step.motion, value);
                 }
             }
         }

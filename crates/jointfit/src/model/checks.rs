@@ -87,6 +87,7 @@ pub fn check_spec(spec: &ModelSpec) -> Result<(), ModelError> {
                 name,
                 range,
                 default,
+                ..
             } = c
             {
                 let mut vals = vec![*default];

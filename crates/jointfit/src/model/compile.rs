@@ -8,9 +8,10 @@ use std::collections::HashMap;
 use nalgebra::{Unit as UnitVec, Vector3};
 
 use super::compiled::{
-    CoordKind, Coordinate, Joint, JointId, Marker, Model, Motion, ParamUse, Parameter, Segment,
-    SegmentId, Source, Step,
+    CoordKind, Coordinate, Joint, JointId, JointKind, Marker, Model, Motion, ParamUse, Parameter,
+    Segment, SegmentId, Source, Step,
 };
+use super::custom::{CoordRule, DependentCoordinate, MotionType, Role};
 use super::spec::{CoordinateSpec, OffsetSpec, Unit, OFFSET_SCALARS};
 use super::validate::{check_name, joint_kind, Compiler};
 use super::ModelError;
@@ -21,6 +22,9 @@ impl Compiler<'_> {
     pub(super) fn run(self) -> Result<Model, ModelError> {
         let spec = self.spec;
         let order = self.topological_joints()?;
+        let roles = super::custom::roles(spec, &order)?;
+        let mut dependents = Vec::new();
+        let mut functions = Vec::new();
         // Segment i of the model is the child of the i-th joint in topological order.
         let new_seg_of: HashMap<&str, usize> = order
             .iter()
@@ -45,8 +49,9 @@ impl Compiler<'_> {
 
         for (ji, &j) in order.iter().enumerate() {
             let js = &spec.joints[j];
-            let kind = joint_kind(&js.kind, &js.name)?;
-            if js.coordinates.len() != kind.dof() {
+            let mut kind = joint_kind(&js.kind, &js.name)?;
+            let custom = matches!(kind, JointKind::Custom { .. });
+            if !custom && js.coordinates.len() != kind.dof() {
                 return Err(ModelError::Invalid(format!(
                     "joint {:?} is {} with {} degrees of freedom but lists {} coordinates",
                     js.name,
@@ -76,9 +81,8 @@ impl Compiler<'_> {
                 &mut uses,
             )?;
             // Joint motion.
-            for (k, ((rotation, axis), cs)) in
-                kind.motions().into_iter().zip(&js.coordinates).enumerate()
-            {
+            let motions = kind.motions();
+            for (k, cs) in js.coordinates.iter().enumerate() {
                 let name = cs.name();
                 check_name(name, "coordinate")?;
                 if coord_names.insert(name.to_string(), ()).is_some() {
@@ -87,11 +91,17 @@ impl Compiler<'_> {
                         name: name.to_string(),
                     });
                 }
-                let ckind = if rotation {
-                    CoordKind::Rotational
-                } else {
-                    CoordKind::Translational
-                };
+                let ckind = super::custom::custom_coord_kind(&js.kind, name).unwrap_or_else(|| {
+                    if motions[k].0 {
+                        CoordKind::Rotational
+                    } else {
+                        CoordKind::Translational
+                    }
+                });
+                let motion = super::custom::opensim_motion(&js.kind, name).unwrap_or(match ckind {
+                    CoordKind::Rotational => MotionType::Rotational,
+                    CoordKind::Translational => MotionType::Translational,
+                });
                 let (range, default) = match cs {
                     CoordinateSpec::Name(_) => (None, 0.0),
                     CoordinateSpec::Full { range, default, .. } => (*range, *default),
@@ -109,21 +119,49 @@ impl Compiler<'_> {
                         "coordinate {name:?}: range {range:?} / default {default} invalid"
                     )));
                 }
+                let index = match &roles[name] {
+                    Role::Free(i) => *i,
+                    other => {
+                        let rule = match other {
+                            Role::Locked(v) => CoordRule::Locked(*v),
+                            Role::Coupled { independent, g } => CoordRule::Coupled {
+                                independent: *independent,
+                                function: g.clone(),
+                            },
+                            Role::Free(_) => unreachable!("handled above"),
+                        };
+                        dependents.push(DependentCoordinate {
+                            name: name.to_string(),
+                            joint: JointId(ji),
+                            kind: ckind,
+                            motion,
+                            range,
+                            default,
+                            rule,
+                        });
+                        continue;
+                    }
+                };
+                debug_assert_eq!(index, coordinates.len());
                 coordinates.push(Coordinate {
                     name: name.to_string(),
                     joint: JointId(ji),
                     kind: ckind,
+                    motion,
                     range,
                     default,
                 });
-                let (motion, sign) = motion_for(rotation, &axis);
-                steps.push(Step {
-                    motion,
-                    source: Source::Coord {
-                        index: first_coord + k,
-                        scale: sign,
-                    },
-                });
+                if !custom {
+                    let (motion, sign) = motion_for(motions[k].0, &motions[k].1);
+                    steps.push(Step {
+                        motion,
+                        source: Source::Coord { index, scale: sign },
+                    });
+                }
+            }
+            if let JointKind::Custom { axes, dof } = &mut kind {
+                *dof = coordinates.len() - first_coord;
+                super::custom::axis_steps(axes, js, &roles, &mut functions, &mut steps)?;
             }
             // Child offset, inverted: Rz⁻¹ Ry⁻¹ Rx⁻¹ T(−t).
             self.offset_steps(
@@ -217,6 +255,8 @@ impl Compiler<'_> {
             coordinates,
             parameters,
             markers,
+            dependents,
+            functions,
             steps,
             plan,
             spec: spec.clone(),
@@ -273,7 +313,7 @@ impl Compiler<'_> {
 
 /// The elementary motion for a unit axis; principal axes get the fast specialised form and a
 /// negative principal axis flips the sign of the scalar instead.
-fn motion_for(rotation: bool, axis: &Vector3<f64>) -> (Motion, f64) {
+pub(crate) fn motion_for(rotation: bool, axis: &Vector3<f64>) -> (Motion, f64) {
     let principal = [
         (Vector3::x(), Motion::RotX, Motion::TransX),
         (Vector3::y(), Motion::RotY, Motion::TransY),

@@ -77,6 +77,12 @@ pub enum JointKind {
     Slider { axis: Vector3<f64> },
     /// No coordinate: the child joint frame coincides with the parent joint frame.
     Weld,
+    /// Transform axes driven by functions of coordinates ([`super::custom`]); `dof` counts
+    /// the joint's coordinates in `q` (locked and coupled ones are not).
+    Custom {
+        axes: Vec<super::custom::TransformAxis>,
+        dof: usize,
+    },
 }
 
 impl JointKind {
@@ -88,6 +94,7 @@ impl JointKind {
             JointKind::Universal { .. } => 2,
             JointKind::Pin { .. } | JointKind::Slider { .. } => 1,
             JointKind::Weld => 0,
+            JointKind::Custom { dof, .. } => *dof,
         }
     }
     /// The name used in model descriptions: `free`, `gimbal`, `universal`, `pin`, `slider`,
@@ -100,6 +107,7 @@ impl JointKind {
             JointKind::Pin { .. } => "pin",
             JointKind::Slider { .. } => "slider",
             JointKind::Weld => "weld",
+            JointKind::Custom { .. } => "custom",
         }
     }
     /// The elementary motions in order: (is_rotation, unit axis).
@@ -114,7 +122,7 @@ impl JointKind {
             JointKind::Universal { axes } => axes.iter().map(|a| (true, *a)).collect(),
             JointKind::Pin { axis } => vec![(true, *axis)],
             JointKind::Slider { axis } => vec![(false, *axis)],
-            JointKind::Weld => vec![],
+            JointKind::Weld | JointKind::Custom { .. } => vec![],
         }
     }
 }
@@ -153,6 +161,8 @@ pub struct Coordinate {
     pub joint: JointId,
     /// Angle (rad) or length (m).
     pub kind: CoordKind,
+    /// OpenSim's motion type (the unit in `.mot` files; `kind` for built-in joint kinds).
+    pub motion: super::custom::MotionType,
     /// `[lower, upper]` limit in rad or m, `lower < upper`; informative only (IK does not
     /// clamp). Default `[−π, π]` or `[−10, 10]` m.
     pub range: [f64; 2],
@@ -244,8 +254,27 @@ impl Motion {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum Source {
     Const(f64),
-    Coord { index: usize, scale: f64 },
-    Param { index: usize, scale: f64 },
+    Coord {
+        index: usize,
+        scale: f64,
+    },
+    Param {
+        index: usize,
+        scale: f64,
+    },
+    /// `scale · functions[fun](q[index])` ([`super::custom`]).
+    Func {
+        index: usize,
+        fun: usize,
+        scale: f64,
+    },
+}
+
+impl Source {
+    /// Whether the step reads a coordinate.
+    pub(crate) fn is_coordinate(&self) -> bool {
+        matches!(self, Source::Coord { .. } | Source::Func { .. })
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -292,6 +321,10 @@ pub struct Model {
     pub(super) parameters: Vec<Parameter>,
     /// `n_mrk` markers, in the order of the description.
     pub(super) markers: Vec<Marker>,
+    /// Coordinates outside `q`: locked, or coupled to one in `q`.
+    pub(super) dependents: Vec<super::custom::DependentCoordinate>,
+    /// The functions of [`Source::Func`] steps.
+    pub(crate) functions: Vec<super::custom::AxisFn>,
     /// Elementary steps of all segments, segment by segment.
     pub(crate) steps: Vec<Step>,
     /// How forward kinematics walks the steps (blocks, Jacobian columns).
@@ -325,6 +358,12 @@ impl Model {
     #[inline]
     pub fn coordinates(&self) -> &[Coordinate] {
         &self.coordinates
+    }
+    /// Coordinates outside `q` (locked, or coupled to one in `q`), in joint order; their
+    /// values follow from `q` ([`super::custom::DependentCoordinate::value`]).
+    #[inline]
+    pub fn dependents(&self) -> &[super::custom::DependentCoordinate] {
+        &self.dependents
     }
     /// Parameters (`n_p`), indexed by [`ParamId`]; the layout of every `p` vector.
     #[inline]

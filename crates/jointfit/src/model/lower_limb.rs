@@ -359,6 +359,8 @@ fn coord(name: &str, lo_deg: f64, hi_deg: f64) -> CoordinateSpec {
         name: name.to_string(),
         range: Some([lo_deg * DEG, hi_deg * DEG]),
         default: 0.0,
+        locked: false,
+        clamped: false,
     }
 }
 
@@ -456,16 +458,22 @@ pub fn lower_limb(side: Side) -> ModelSpec {
                 name: "pelvis_tx".into(),
                 range: Some([-5.0, 5.0]),
                 default: 0.0,
+                locked: false,
+                clamped: false,
             },
             CoordinateSpec::Full {
                 name: "pelvis_ty".into(),
                 range: Some([-1.0, 3.0]),
                 default: 0.95,
+                locked: false,
+                clamped: false,
             },
             CoordinateSpec::Full {
                 name: "pelvis_tz".into(),
                 range: Some([-5.0, 5.0]),
                 default: 0.0,
+                locked: false,
+                clamped: false,
             },
             coord("pelvis_tilt", -90.0, 90.0),
             coord("pelvis_list", -90.0, 90.0),
@@ -621,5 +629,6 @@ pub fn lower_limb(side: Side) -> ModelSpec {
         joints: vec![pelvis, hip, knee, talocrural, subtalar],
         parameters: PARAMS.iter().map(param_spec).collect(),
         markers,
+        couplers: vec![],
     }
 }

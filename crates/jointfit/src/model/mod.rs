@@ -4,6 +4,8 @@
 pub mod checks;
 mod compile;
 mod compiled;
+pub mod custom;
+pub mod functions;
 pub mod lower_limb;
 pub(crate) mod plan;
 pub mod spec;

@@ -54,13 +54,13 @@ impl Plan {
             let mut seg_items = Vec::new();
             let mut k = range.start;
             while k < range.end {
-                if matches!(steps[k].source, Source::Coord { .. }) {
+                if steps[k].source.is_coordinate() {
                     seg_items.push(Item::Coord(k));
                     k += 1;
                     continue;
                 }
                 let start = k;
-                while k < range.end && !matches!(steps[k].source, Source::Coord { .. }) {
+                while k < range.end && !steps[k].source.is_coordinate() {
                     k += 1;
                 }
                 seg_items.push(Item::Block {
@@ -84,6 +84,8 @@ impl Plan {
                 let (list, col, scale) = match steps[k].source {
                     Source::Const(_) => continue,
                     Source::Coord { index, scale } => (&mut q, index, scale),
+                    // The derivative σ·scale is folded into the step axis at evaluation.
+                    Source::Func { index, .. } => (&mut q, index, 1.0),
                     Source::Param { index, scale } => (&mut p, index, scale),
                 };
                 let first = !list.iter().any(|c: &JCol| c.col == col);

@@ -46,6 +46,8 @@
 
 use serde::{Deserialize, Serialize};
 
+pub use super::functions::FunctionSpec;
+
 /// A whole model: segments, the joints that connect them, parameters and markers.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -60,6 +62,41 @@ pub struct ModelSpec {
     pub parameters: Vec<ParameterSpec>,
     #[serde(default)]
     pub markers: Vec<MarkerSpec>,
+    /// Coordinates that follow others (OpenSim's `CoordinateCouplerConstraint`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub couplers: Vec<CouplerSpec>,
+}
+
+/// `dependent = function(independent)`: the dependent coordinate leaves the coordinate vector
+/// `q` and follows its independent coordinate exactly (the chain rule carries ∂/∂q).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CouplerSpec {
+    pub name: String,
+    pub dependent: String,
+    pub independent: String,
+    pub function: FunctionSpec,
+}
+
+/// One elementary motion of a [`JointKindSpec::Custom`] joint: a rotation about, or a
+/// translation along, `axis` of the frame produced by the axes before it, by
+/// `function(coordinate)` (or the constant `function` when no coordinate is named).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TransformAxisSpec {
+    pub motion: AxisMotion,
+    pub axis: AxisSpec,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coordinate: Option<String>,
+    #[serde(default = "FunctionSpec::identity")]
+    pub function: FunctionSpec,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AxisMotion {
+    Rotation,
+    Translation,
 }
 
 /// A rigid segment. `ground` is implicit and must not be listed.
@@ -109,6 +146,10 @@ pub enum JointKindSpec {
     Slider { axis: AxisSpec },
     /// No motion.
     Weld,
+    /// Any sequence of transform axes, each a function of one coordinate (OpenSim's
+    /// `CustomJoint`, and every other OpenSim joint written that way). Coordinates may be
+    /// locked; a coordinate may drive several axes.
+    Custom { axes: Vec<TransformAxisSpec> },
 }
 
 /// An axis: `"x"`, `"+y"`, `"-z"` or an arbitrary non-zero vector (normalised on compile).
@@ -136,7 +177,17 @@ pub enum CoordinateSpec {
         range: Option<[f64; 2]>,
         #[serde(default, skip_serializing_if = "is_zero")]
         default: f64,
+        /// Held at `default` (custom joints only): not part of `q`.
+        #[serde(default, skip_serializing_if = "is_false")]
+        locked: bool,
+        /// OpenSim's flag that the value should stay in `range` (carried, informative).
+        #[serde(default, skip_serializing_if = "is_false")]
+        clamped: bool,
     },
+}
+
+fn is_false(x: &bool) -> bool {
+    !*x
 }
 
 impl CoordinateSpec {

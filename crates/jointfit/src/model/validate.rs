@@ -189,7 +189,7 @@ impl<'a> Compiler<'a> {
 }
 
 /// A unit axis from `x`, `-y`, … or a non-zero vector (normalised).
-fn parse_axis(axis: &AxisSpec, what: &str) -> Result<Vector3<f64>, ModelError> {
+pub(crate) fn parse_axis(axis: &AxisSpec, what: &str) -> Result<Vector3<f64>, ModelError> {
     match axis {
         AxisSpec::Named(s) => match s.trim() {
             "x" | "+x" => Ok(Vector3::x()),
@@ -237,6 +237,10 @@ pub(super) fn joint_kind(spec: &JointKindSpec, joint: &str) -> Result<JointKind,
         JointKindSpec::Pin { axis } => JointKind::Pin { axis: ax(axis, 0)? },
         JointKindSpec::Slider { axis } => JointKind::Slider { axis: ax(axis, 0)? },
         JointKindSpec::Weld => JointKind::Weld,
+        JointKindSpec::Custom { axes } => JointKind::Custom {
+            axes: super::custom::compile_axes(axes, joint)?,
+            dof: 0,
+        },
     })
 }
 

@@ -7,7 +7,7 @@ use jointfit::model::{CoordKind, Model};
 use nalgebra::{DMatrix, Matrix3, Vector3};
 use proptest::prelude::*;
 
-use jointfit_testkit::models::{kitchen_sink, two_link};
+use jointfit_testkit::models::{custom_joints, kitchen_sink, two_link};
 
 /// Coordinates and parameters from unit-interval samples: rotations in [−π, π],
 /// translations in [−1, 1] m, parameters inside their bounds.
@@ -76,6 +76,13 @@ proptest! {
         prop_assert_eq!(&reused.markers, &fresh.markers);
         prop_assert_eq!(reused.jq(), fresh.jq());
         prop_assert_eq!(reused.jp(), fresh.jp());
+    }
+
+    /// Steps through functions (splines, polynomials, a coupled coordinate by the chain
+    /// rule) next to parameterized offsets.
+    #[test]
+    fn custom_joint_jacobians_match_finite_differences(u in units(3 + 2)) {
+        check_jacobians(&custom_joints(), &u)?;
     }
 
     #[test]

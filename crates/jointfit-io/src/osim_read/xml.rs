@@ -1,0 +1,95 @@
+//! Small helpers over `roxmltree` for OpenSim documents: child lookup, numbers, positions.
+
+use roxmltree::Node;
+
+use super::Fail;
+
+/// The first element child with this tag.
+pub(crate) fn child<'a, 'i>(node: Node<'a, 'i>, tag: &str) -> Option<Node<'a, 'i>> {
+    node.children()
+        .find(|c| c.is_element() && c.tag_name().name() == tag)
+}
+
+/// Element children.
+pub(crate) fn elements<'a, 'i>(node: Node<'a, 'i>) -> impl Iterator<Item = Node<'a, 'i>> {
+    node.children().filter(|c| c.is_element())
+}
+
+/// The `name` attribute (empty when absent).
+pub(crate) fn name<'a>(node: Node<'a, '_>) -> &'a str {
+    node.attribute("name").unwrap_or("")
+}
+
+/// `Tag "name"` for error messages.
+pub(crate) fn label(node: Node) -> String {
+    format!("{} {:?}", node.tag_name().name(), name(node))
+}
+
+/// The text of a child element, trimmed (`None` when the child is absent).
+pub(crate) fn text<'a>(node: Node<'a, '_>, tag: &str) -> Option<&'a str> {
+    child(node, tag).map(|c| c.text().unwrap_or("").trim())
+}
+
+/// Whitespace-separated numbers of a child element.
+pub(crate) fn numbers(node: Node, tag: &str) -> Result<Vec<f64>, Fail> {
+    let Some(c) = child(node, tag) else {
+        return Err(Fail::at(node, format!("missing <{tag}>")));
+    };
+    parse_numbers(c)
+}
+
+/// Whitespace-separated numbers of an element's own text.
+pub(crate) fn parse_numbers(c: Node) -> Result<Vec<f64>, Fail> {
+    c.text()
+        .unwrap_or("")
+        .split_whitespace()
+        .map(|t| {
+            t.parse::<f64>().map_err(|_| {
+                Fail::at(
+                    c,
+                    format!("<{}>: {t:?} is not a number", c.tag_name().name()),
+                )
+            })
+        })
+        .collect()
+}
+
+pub(crate) fn number(node: Node, tag: &str) -> Result<f64, Fail> {
+    let v = numbers(node, tag)?;
+    match v.as_slice() {
+        [x] => Ok(*x),
+        _ => Err(Fail::at(
+            node,
+            format!("<{tag}> needs one number, has {}", v.len()),
+        )),
+    }
+}
+
+pub(crate) fn vec3(node: Node, tag: &str) -> Result<[f64; 3], Fail> {
+    let v = numbers(node, tag)?;
+    match v.as_slice() {
+        [x, y, z] => Ok([*x, *y, *z]),
+        _ => Err(Fail::at(
+            node,
+            format!("<{tag}> needs three numbers, has {}", v.len()),
+        )),
+    }
+}
+
+/// A boolean child (`true`/`false`, absent: `default`).
+pub(crate) fn flag(node: Node, tag: &str, default: bool) -> Result<bool, Fail> {
+    match text(node, tag) {
+        None => Ok(default),
+        Some("true") => Ok(true),
+        Some("false") => Ok(false),
+        Some(other) => Err(Fail::at(
+            node,
+            format!("<{tag}>: {other:?} is not true or false"),
+        )),
+    }
+}
+
+/// The last component of an OpenSim component path (`/bodyset/femur_r` → `femur_r`).
+pub(crate) fn path_leaf(path: &str) -> &str {
+    path.trim().rsplit('/').next().unwrap_or("").trim()
+}

@@ -1,0 +1,497 @@
+//! Scalar functions of one coordinate, as OpenSim's joints and coordinate couplers use them:
+//! value and exact first derivative.
+//!
+//! A [`FunctionSpec`] is what a model file says; [`Function::new`] validates it and
+//! precomputes the spline coefficients once. The definitions follow OpenSim 4.x:
+//!
+//! * `Constant`: `f(x) = c`.
+//! * `LinearFunction`, coefficients `[a, b]`: `f(x) = a·x + b`.
+//! * `PolynomialFunction`, coefficients `[c₀, …, c_n]` highest power first (SimTK's
+//!   `Function::Polynomial`): `f(x) = c₀ xⁿ + … + c_n`.
+//! * `PiecewiseLinearFunction`: linear interpolation of the points, the end segments
+//!   extended beyond the data.
+//! * `SimmSpline`: the cubic spline of Forsythe, Malcolm & Moler (*Computer Methods for
+//!   Mathematical Computations*, 1977, routine `spline`): its end conditions match the third
+//!   derivatives of the cubics through the first and last four points (none for three
+//!   points, a straight line for two); beyond the data it continues along the end tangents.
+//! * `NaturalCubicSpline`, and `GCVSpline` of odd degree `2m − 1` (which OpenSim fits with
+//!   Woltring's GCVSPL at zero smoothing, i.e. interpolates): the *natural* interpolating
+//!   spline of that degree, `C^{2m−2}` at the knots, with derivatives `m … 2m − 2` zero at
+//!   both ends; beyond the data it is the degree `m − 1` Taylor polynomial of the end
+//!   (Schoenberg's natural spline; for cubics the end tangent line). Its coefficients come
+//!   from one linear solve over all pieces, in the scaled variable `s = (x − x_i)/h_i`.
+//! * `MultiplierFunction`: `f(x) = scale · g(x)`.
+//!
+//! Checked against OpenSim 4.6 (`tests/it/osim_functions.rs` in `jointfit-io`) and against
+//! finite differences.
+
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+
+/// A function as written in a model description (OpenSim's element names, snake case).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum FunctionSpec {
+    Constant {
+        value: f64,
+    },
+    Linear {
+        slope: f64,
+        intercept: f64,
+    },
+    Polynomial {
+        /// Highest power first.
+        coefficients: Vec<f64>,
+    },
+    PiecewiseLinear {
+        x: Vec<f64>,
+        y: Vec<f64>,
+    },
+    SimmSpline {
+        x: Vec<f64>,
+        y: Vec<f64>,
+    },
+    NaturalCubicSpline {
+        x: Vec<f64>,
+        y: Vec<f64>,
+    },
+    GcvSpline {
+        degree: usize,
+        x: Vec<f64>,
+        y: Vec<f64>,
+    },
+    Multiplier {
+        scale: f64,
+        function: Box<FunctionSpec>,
+    },
+}
+
+impl FunctionSpec {
+    /// The identity `f(x) = x`.
+    pub fn identity() -> Self {
+        FunctionSpec::Linear {
+            slope: 1.0,
+            intercept: 0.0,
+        }
+    }
+    /// The constant value, when the function is constant (used to drop fixed axes).
+    pub fn constant_value(&self) -> Option<f64> {
+        match self {
+            FunctionSpec::Constant { value } => Some(*value),
+            FunctionSpec::Multiplier { scale, function } => {
+                function.constant_value().map(|v| scale * v)
+            }
+            _ => None,
+        }
+    }
+}
+
+/// A validated function with precomputed coefficients.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Function {
+    Constant(f64),
+    Linear { slope: f64, intercept: f64 },
+    Polynomial(Vec<f64>),
+    Pieces(Pieces),
+    Scaled { scale: f64, inner: Box<Function> },
+}
+
+/// A piecewise polynomial: on `[x_i, x_{i+1}]`, `Σ_k coef[i][k] s^k` with
+/// `s = (x − x_i)/(x_{i+1} − x_i)`; outside, Taylor polynomials `Σ_k c_k (x − x_end)^k`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pieces {
+    x: Vec<f64>,
+    coef: Vec<Vec<f64>>,
+    left: Vec<f64>,
+    right: Vec<f64>,
+    /// At a knot use the piece that starts there (GCVSPL's choice) instead of the one that
+    /// ends there (OpenSim's piecewise linear function); only a kink's derivative differs.
+    right_at_knots: bool,
+}
+
+/// `(value, derivative)` of `Σ c_k t^k` by Horner's rule.
+fn horner(c: &[f64], t: f64) -> (f64, f64) {
+    let mut v = 0.0;
+    let mut d = 0.0;
+    for &ck in c.iter().rev() {
+        d = d * t + v;
+        v = v * t + ck;
+    }
+    (v, d)
+}
+
+impl Pieces {
+    fn eval(&self, u: f64) -> (f64, f64) {
+        let n = self.x.len();
+        if u < self.x[0] {
+            return horner(&self.left, u - self.x[0]);
+        }
+        if u > self.x[n - 1] || (self.right_at_knots && u == self.x[n - 1]) {
+            return horner(&self.right, u - self.x[n - 1]);
+        }
+        // Interval i with x_i < u ≤ x_{i+1} (or x_i ≤ u < x_{i+1}), as OpenSim picks it.
+        let after = if self.right_at_knots {
+            self.x.partition_point(|&k| k <= u)
+        } else {
+            self.x.partition_point(|&k| k < u)
+        };
+        let i = (after.max(1) - 1).min(n - 2);
+        let h = self.x[i + 1] - self.x[i];
+        let (v, d) = horner(&self.coef[i], (u - self.x[i]) / h);
+        (v, d / h)
+    }
+}
+
+impl Function {
+    /// Validates a description; the error says what is wrong (the caller names the item).
+    pub fn new(spec: &FunctionSpec) -> Result<Function, String> {
+        let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+        Ok(match spec {
+            FunctionSpec::Constant { value } => {
+                if !value.is_finite() {
+                    return Err(format!("constant {value} is not finite"));
+                }
+                Function::Constant(*value)
+            }
+            FunctionSpec::Linear { slope, intercept } => {
+                if !finite(&[*slope, *intercept]) {
+                    return Err("linear function coefficients must be finite".into());
+                }
+                Function::Linear {
+                    slope: *slope,
+                    intercept: *intercept,
+                }
+            }
+            FunctionSpec::Polynomial { coefficients } => {
+                if coefficients.is_empty() || !finite(coefficients) {
+                    return Err("polynomial needs finite coefficients".into());
+                }
+                Function::Polynomial(coefficients.clone())
+            }
+            FunctionSpec::PiecewiseLinear { x, y } => {
+                check_points(x, y, 2)?;
+                let coef = (0..x.len() - 1).map(|i| vec![y[i], y[i + 1] - y[i]]);
+                let n = x.len();
+                let slope0 = (y[1] - y[0]) / (x[1] - x[0]);
+                let slope1 = (y[n - 1] - y[n - 2]) / (x[n - 1] - x[n - 2]);
+                Function::Pieces(Pieces {
+                    x: x.clone(),
+                    coef: coef.collect(),
+                    left: vec![y[0], slope0],
+                    right: vec![y[n - 1], slope1],
+                    right_at_knots: false,
+                })
+            }
+            FunctionSpec::SimmSpline { x, y } => {
+                check_points(x, y, 2)?;
+                Function::Pieces(fmm_spline(x, y))
+            }
+            FunctionSpec::NaturalCubicSpline { x, y } => {
+                check_points(x, y, 2)?;
+                Function::Pieces(natural_spline(x, y, 2)?)
+            }
+            FunctionSpec::GcvSpline { degree, x, y } => {
+                if degree % 2 == 0 || *degree > 7 {
+                    return Err(format!(
+                        "GCVSpline degree {degree} is not supported (1, 3, 5 or 7)"
+                    ));
+                }
+                let m = degree.div_ceil(2);
+                check_points(x, y, 2 * m)?;
+                Function::Pieces(natural_spline(x, y, m)?)
+            }
+            FunctionSpec::Multiplier { scale, function } => {
+                if !scale.is_finite() {
+                    return Err(format!("multiplier scale {scale} is not finite"));
+                }
+                Function::Scaled {
+                    scale: *scale,
+                    inner: Box::new(Function::new(function)?),
+                }
+            }
+        })
+    }
+
+    /// `(f(x), f′(x))`.
+    pub fn eval(&self, x: f64) -> (f64, f64) {
+        match self {
+            Function::Constant(c) => (*c, 0.0),
+            Function::Linear { slope, intercept } => (slope * x + intercept, *slope),
+            Function::Polynomial(c) => {
+                let mut v = 0.0;
+                let mut d = 0.0;
+                for &ck in c {
+                    d = d * x + v;
+                    v = v * x + ck;
+                }
+                (v, d)
+            }
+            Function::Pieces(p) => p.eval(x),
+            Function::Scaled { scale, inner } => {
+                let (v, d) = inner.eval(x);
+                (scale * v, scale * d)
+            }
+        }
+    }
+
+    /// The value when the function is constant.
+    pub fn constant(&self) -> Option<f64> {
+        match self {
+            Function::Constant(c) => Some(*c),
+            Function::Scaled { scale, inner } => inner.constant().map(|v| scale * v),
+            _ => None,
+        }
+    }
+
+    pub fn value(&self, x: f64) -> f64 {
+        self.eval(x).0
+    }
+}
+
+fn check_points(x: &[f64], y: &[f64], min: usize) -> Result<(), String> {
+    if x.len() != y.len() {
+        return Err(format!("{} x values but {} y values", x.len(), y.len()));
+    }
+    if x.len() < min {
+        return Err(format!("needs at least {min} points, has {}", x.len()));
+    }
+    if !x.iter().chain(y).all(|v| v.is_finite()) {
+        return Err("points must be finite".into());
+    }
+    if let Some(i) = (1..x.len()).find(|&i| x[i] <= x[i - 1]) {
+        return Err(format!(
+            "x values must increase strictly (x[{}] = {} after {})",
+            i,
+            x[i],
+            x[i - 1]
+        ));
+    }
+    Ok(())
+}
+
+/// Forsythe–Malcolm–Moler cubic spline (module docs), as local cubics
+/// `y_i + b_i t + c_i t² + d_i t³`, `t = x − x_i`, rewritten in `s = t/h_i`.
+fn fmm_spline(x: &[f64], y: &[f64]) -> Pieces {
+    let n = x.len();
+    let (mut b, mut c, mut d) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    if n == 2 {
+        b[0] = (y[1] - y[0]) / (x[1] - x[0]);
+        b[1] = b[0];
+    } else {
+        // Tridiagonal system for σ_i: diagonal b, off-diagonal d, right-hand side c.
+        d[0] = x[1] - x[0];
+        c[1] = (y[1] - y[0]) / d[0];
+        for i in 1..n - 1 {
+            d[i] = x[i + 1] - x[i];
+            b[i] = 2.0 * (d[i - 1] + d[i]);
+            c[i + 1] = (y[i + 1] - y[i]) / d[i];
+            c[i] = c[i + 1] - c[i];
+        }
+        b[0] = -d[0];
+        b[n - 1] = -d[n - 2];
+        c[0] = 0.0;
+        c[n - 1] = 0.0;
+        if n > 3 {
+            c[0] = c[2] / (x[3] - x[1]) - c[1] / (x[2] - x[0]);
+            c[n - 1] = c[n - 2] / (x[n - 1] - x[n - 3]) - c[n - 3] / (x[n - 2] - x[n - 4]);
+            c[0] = c[0] * d[0] * d[0] / (x[3] - x[0]);
+            c[n - 1] = -c[n - 1] * d[n - 2] * d[n - 2] / (x[n - 1] - x[n - 4]);
+        }
+        for i in 1..n {
+            let t = d[i - 1] / b[i - 1];
+            b[i] -= t * d[i - 1];
+            c[i] -= t * c[i - 1];
+        }
+        c[n - 1] /= b[n - 1];
+        for i in (0..n - 1).rev() {
+            c[i] = (c[i] - d[i] * c[i + 1]) / b[i];
+        }
+        b[n - 1] = (y[n - 1] - y[n - 2]) / d[n - 2] + d[n - 2] * (c[n - 2] + 2.0 * c[n - 1]);
+        for i in 0..n - 1 {
+            b[i] = (y[i + 1] - y[i]) / d[i] - d[i] * (c[i + 1] + 2.0 * c[i]);
+            d[i] = (c[i + 1] - c[i]) / d[i];
+            c[i] *= 3.0;
+        }
+        c[n - 1] *= 3.0;
+    }
+    let coef = (0..n - 1)
+        .map(|i| {
+            let h = x[i + 1] - x[i];
+            vec![y[i], b[i] * h, c[i] * h * h, d[i] * h * h * h]
+        })
+        .collect();
+    Pieces {
+        x: x.to_vec(),
+        coef,
+        left: vec![y[0], b[0]],
+        right: vec![y[n - 1], b[n - 1]],
+        right_at_knots: false,
+    }
+}
+
+/// `k!/(k−j)!`.
+fn falling(k: usize, j: usize) -> f64 {
+    ((k - j + 1)..=k).map(|v| v as f64).product()
+}
+
+/// The natural interpolating spline of degree `2m − 1` (module docs), solved for all pieces
+/// at once in the scaled variable: piece `i` is `Σ_{k<2m} a_{ik} s^k`, `s = (x − x_i)/h_i`,
+/// so `f^{(j)}(x_i) = j! a_{ij} / h_i^j`.
+fn natural_spline(x: &[f64], y: &[f64], m: usize) -> Result<Pieces, String> {
+    let n = x.len();
+    let deg = 2 * m; // coefficients per piece
+    let np = n - 1;
+    let size = deg * np;
+    let h: Vec<f64> = (0..np).map(|i| x[i + 1] - x[i]).collect();
+    let mut a = DMatrix::<f64>::zeros(size, size);
+    let mut rhs = DVector::<f64>::zeros(size);
+    let mut row = 0;
+    let col = |i: usize, k: usize| i * deg + k;
+    for i in 0..np {
+        a[(row, col(i, 0))] = 1.0;
+        rhs[row] = y[i];
+        row += 1;
+        for k in 0..deg {
+            a[(row, col(i, k))] = 1.0;
+        }
+        rhs[row] = y[i + 1];
+        row += 1;
+    }
+    // Continuity of derivatives 1 … 2m−2 at interior knots, multiplied by h_i^j:
+    // Σ_k a_{ik} k!/(k−j)! = j! a_{i+1,j} (h_i/h_{i+1})^j.
+    for i in 0..np.saturating_sub(1) {
+        for j in 1..=deg - 2 {
+            for k in j..deg {
+                a[(row, col(i, k))] = falling(k, j);
+            }
+            a[(row, col(i + 1, j))] = -falling(j, j) * (h[i] / h[i + 1]).powi(j as i32);
+            row += 1;
+        }
+    }
+    // Natural end conditions: derivatives m … 2m−2 vanish at both ends.
+    for j in m..=deg - 2 {
+        a[(row, col(0, j))] = 1.0;
+        row += 1;
+        for k in j..deg {
+            a[(row, col(np - 1, k))] = falling(k, j);
+        }
+        row += 1;
+    }
+    debug_assert_eq!(row, size);
+    let sol = a
+        .lu()
+        .solve(&rhs)
+        .ok_or_else(|| "spline system is singular".to_string())?;
+    let coef: Vec<Vec<f64>> = (0..np)
+        .map(|i| (0..deg).map(|k| sol[col(i, k)]).collect())
+        .collect();
+    // Taylor polynomials of degree m−1 at the ends, in absolute units.
+    let left = (0..m).map(|j| coef[0][j] / h[0].powi(j as i32)).collect();
+    let last = &coef[np - 1];
+    let hl = h[np - 1];
+    let right = (0..m)
+        .map(|j| {
+            // f^{(j)}(x_n)/j! = Σ_k a_k C(k, j) / h^j
+            let dj: f64 = (j..deg).map(|k| last[k] * falling(k, j)).sum();
+            dj / falling(j, j) / hl.powi(j as i32)
+        })
+        .collect();
+    Ok(Pieces {
+        x: x.to_vec(),
+        coef,
+        left,
+        right,
+        right_at_knots: true,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pts() -> (Vec<f64>, Vec<f64>) {
+        (
+            vec![0.0, 1.0, 2.5, 3.0, 4.2, 5.0, 6.1],
+            vec![0.0, 0.5, -1.0, 2.0, 1.0, 0.3, 0.9],
+        )
+    }
+
+    fn fd(f: &Function, x: f64) -> f64 {
+        let h = 1e-6;
+        (f.value(x + h) - f.value(x - h)) / (2.0 * h)
+    }
+
+    #[test]
+    fn splines_interpolate_and_derivatives_match_differences() {
+        let (x, y) = pts();
+        for spec in [
+            FunctionSpec::SimmSpline {
+                x: x.clone(),
+                y: y.clone(),
+            },
+            FunctionSpec::NaturalCubicSpline {
+                x: x.clone(),
+                y: y.clone(),
+            },
+            FunctionSpec::GcvSpline {
+                degree: 5,
+                x: x.clone(),
+                y: y.clone(),
+            },
+            FunctionSpec::PiecewiseLinear {
+                x: x.clone(),
+                y: y.clone(),
+            },
+        ] {
+            let f = Function::new(&spec).unwrap();
+            for (xi, yi) in x.iter().zip(&y) {
+                assert!((f.value(*xi) - yi).abs() < 1e-12, "{spec:?} at {xi}");
+            }
+            for u in [-1.3, 0.4, 1.7, 2.7, 3.9, 5.5, 6.0, 7.2] {
+                let (_, d) = f.eval(u);
+                assert!((d - fd(&f, u)).abs() < 1e-6, "{spec:?} at {u}: {d}");
+            }
+        }
+    }
+
+    #[test]
+    fn natural_spline_is_smooth_and_natural() {
+        let (x, y) = pts();
+        // Quintic: third derivative zero beyond the end (checked by differences of the first
+        // derivative); continuity at the knots is checked against OpenSim.
+        let f = Function::new(&FunctionSpec::GcvSpline { degree: 5, x, y }).unwrap();
+        let d1 = |u: f64| f.eval(u).1;
+        let d2 = |u: f64| (d1(u + 1e-5) - d1(u - 1e-5)) / 2e-5;
+        let d3 = |u: f64| (d2(u + 1e-3) - d2(u - 1e-3)) / 2e-3;
+        assert!(d3(-0.5).abs() < 1e-3, "{}", d3(-0.5));
+    }
+
+    #[test]
+    fn polynomial_and_multiplier() {
+        let p = Function::new(&FunctionSpec::Multiplier {
+            scale: 2.0,
+            function: Box::new(FunctionSpec::Polynomial {
+                coefficients: vec![1.0, -2.0, 3.0],
+            }),
+        })
+        .unwrap();
+        assert_eq!(p.eval(2.0), (2.0 * (4.0 - 4.0 + 3.0), 2.0 * (4.0 - 2.0)));
+    }
+
+    #[test]
+    fn bad_input_is_named() {
+        let e = Function::new(&FunctionSpec::SimmSpline {
+            x: vec![0.0, 1.0, 1.0],
+            y: vec![0.0; 3],
+        })
+        .unwrap_err();
+        assert!(e.contains("x[2] = 1 after 1"), "{e}");
+        let e = Function::new(&FunctionSpec::GcvSpline {
+            degree: 4,
+            x: vec![0.0, 1.0],
+            y: vec![0.0; 2],
+        })
+        .unwrap_err();
+        assert!(e.contains("degree 4"), "{e}");
+    }
+}
