@@ -162,6 +162,7 @@ pub(crate) fn assemble(
             }
         }
     }
+    b.cost += prob.add_prior(p, &mut b.gs, &mut b.v);
 }
 
 /// The decrease of the objective that the linearized model predicts for the step
@@ -317,5 +318,5 @@ pub(crate) fn cost_at(prob: &Problem, p: &[f64], qs: &[Vec<f64>], kin: &mut KinD
             }
         }
     }
-    total
+    total + prob.prior_cost(p)
 }

@@ -58,6 +58,7 @@ mod frames;
 pub mod functional;
 pub mod markerset;
 pub(crate) mod nominal;
+pub mod priors;
 pub mod window;
 
 use nalgebra::Vector3;
@@ -332,6 +333,7 @@ pub fn personalize(
     let mut spec = lower_limb(side);
     nominal::fill_offsets(&mut spec, &offsets);
     nominal::set_bounds(&mut spec, &an);
+    priors::fill_landmark_priors(&mut spec, opts.hip_centre);
     let f = &an.frames;
     let poses: [(&str, Pose); 5] = [
         ("pelvis", f.pelvis),

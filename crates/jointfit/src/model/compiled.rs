@@ -139,6 +139,10 @@ pub struct Parameter {
     pub lower: f64,
     pub upper: f64,
     pub description: String,
+    /// Prior standard deviation (m or rad), if the parameter has a prior.
+    pub prior_sd: Option<f64>,
+    /// Prior mean (m or rad): the spec's `prior_mean`, else its nominal value.
+    pub prior_mean: f64,
     /// Every offset scalar that reads this parameter (at least one).
     pub uses: Vec<ParamUse>,
 }
@@ -271,10 +275,14 @@ impl Model {
     }
 
     /// A copy of the description with the given parameter values written in as nominal values
-    /// (bounds unchanged). Used to save a fitted model.
+    /// (bounds unchanged). Used to save a fitted model. A parameter with a prior keeps its
+    /// prior mean (written out as `prior_mean` when it was the nominal value).
     pub fn spec_with_nominal(&self, p: &[f64]) -> ModelSpec {
         let mut spec = self.spec.clone();
         for (ps, v) in spec.parameters.iter_mut().zip(p) {
+            if ps.prior_sd.is_some() && ps.prior_mean.is_none() {
+                ps.prior_mean = Some(ps.nominal);
+            }
             ps.nominal = *v;
         }
         spec
@@ -411,6 +419,20 @@ impl<'a> Compiler<'a> {
                 return Err(ModelError::BadBounds {
                     name: p.name.clone(),
                     detail: format!("need finite lower < upper, got [{}, {}]", p.lower, p.upper),
+                });
+            }
+            if let Some(sd) = p.prior_sd {
+                if !(sd.is_finite() && sd > 0.0) {
+                    return Err(ModelError::BadBounds {
+                        name: p.name.clone(),
+                        detail: format!("prior_sd must be finite and > 0, got {sd}"),
+                    });
+                }
+            }
+            if p.prior_mean.is_some_and(|m| !m.is_finite()) {
+                return Err(ModelError::BadBounds {
+                    name: p.name.clone(),
+                    detail: "prior_mean must be finite".into(),
                 });
             }
             if p.nominal < p.lower || p.nominal > p.upper {
@@ -694,6 +716,8 @@ impl<'a> Compiler<'a> {
                 lower: ps.lower,
                 upper: ps.upper,
                 description: ps.description.clone(),
+                prior_sd: ps.prior_sd,
+                prior_mean: ps.prior_mean.unwrap_or(ps.nominal),
                 uses: u,
             });
         }

@@ -34,7 +34,13 @@ fn rich_motion(model: &Model, f: usize, frames: usize) -> Vec<f64> {
 
 /// Markers from `p_true` along the rich motion, plus skin-artifact-like sinusoids of at most
 /// `amplitude` metres per marker axis.
-fn synthetic(model: &Model, p_true: &[f64], frames: usize, amplitude: f64, seed: u64) -> Trial {
+pub(crate) fn synthetic(
+    model: &Model,
+    p_true: &[f64],
+    frames: usize,
+    amplitude: f64,
+    seed: u64,
+) -> Trial {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let noise: Vec<(f64, f64, f64)> = (0..3 * model.n_markers())
         .map(|_| {
@@ -73,7 +79,7 @@ fn synthetic(model: &Model, p_true: &[f64], frames: usize, amplitude: f64, seed:
 }
 
 /// True parameters: nominal moved by up to 40 % of the half-range of each bound.
-fn perturbed(model: &Model, seed: u64) -> Vec<f64> {
+pub(crate) fn perturbed(model: &Model, seed: u64) -> Vec<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     model
         .parameters

@@ -5,5 +5,6 @@ mod ik;
 mod kinematics;
 mod landmarks;
 mod models;
+mod priors;
 mod sample_models;
 mod uncertainty;

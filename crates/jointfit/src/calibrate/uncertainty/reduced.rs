@@ -107,7 +107,8 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
         normal,
         scores,
         frame_normals,
-        cost: b.cost,
+        // The marker term only: σ² is a marker-noise variance.
+        cost: b.cost - prob.prior_cost(p),
         observations,
         n_q: nq,
     }
