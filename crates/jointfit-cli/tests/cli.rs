@@ -4,6 +4,8 @@ use std::process::Command;
 
 #[path = "cli/data.rs"]
 mod data;
+#[path = "cli/functional.rs"]
+mod functional;
 #[path = "cli/ident.rs"]
 mod ident;
 #[path = "cli/osim.rs"]

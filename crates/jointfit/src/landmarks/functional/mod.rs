@@ -31,6 +31,7 @@
 //! centre (per axis of the static frame) and, for an axis, the RMS angle between replicate
 //! axes and the estimate.
 
+pub(crate) mod apply;
 mod sara;
 mod score;
 
@@ -39,6 +40,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use thiserror::Error;
 
+pub use apply::{FunctionalReport, FunctionalTrials};
 pub use sara::{sara, AxisFit};
 pub use score::{score, CentreFit};
 
