@@ -17,3 +17,4 @@ pub mod trc;
 pub mod model_file;
 mod text;
 pub mod trial_file;
+pub mod xml;

@@ -82,6 +82,7 @@ use thiserror::Error;
 
 use crate::atomic::write_atomic;
 use crate::text::format_shortest;
+use crate::xml::escape;
 
 /// Placeholder mass of every body (kg).
 pub const PLACEHOLDER_MASS: f64 = 1.0;
@@ -145,11 +146,11 @@ pub fn to_osim(model: &Model, p: &[f64]) -> Result<String, OsimError> {
     x.push_str("<?xml version=\"1.0\" encoding=\"UTF-8\" ?>\n");
     x.push_str("<OpenSimDocument Version=\"40000\">\n");
     header_comment(&mut x, model, p);
-    let _ = writeln!(x, "  <Model name=\"{}\">", esc(&sanitize(&model.name)));
+    let _ = writeln!(x, "  <Model name=\"{}\">", escape(&sanitize(&model.name)));
     let _ = writeln!(
         x,
         "    <credits>{}</credits>",
-        esc(&format!(
+        escape(&format!(
             "exported by jointfit {} from model {:?}",
             env!("CARGO_PKG_VERSION"),
             model.name
@@ -161,7 +162,7 @@ pub fn to_osim(model: &Model, p: &[f64]) -> Result<String, OsimError> {
 
     x.push_str("    <BodySet name=\"bodyset\">\n      <objects>\n");
     for seg in &model.segments {
-        let _ = writeln!(x, "        <Body name=\"{}\">", esc(&seg.name));
+        let _ = writeln!(x, "        <Body name=\"{}\">", escape(&seg.name));
         let _ = writeln!(x, "          <mass>{}</mass>", num(PLACEHOLDER_MASS));
         x.push_str("          <mass_center>0 0 0</mass_center>\n");
         let i = num(PLACEHOLDER_INERTIA);
@@ -184,22 +185,22 @@ pub fn to_osim(model: &Model, p: &[f64]) -> Result<String, OsimError> {
             JointKind::Weld => "WeldJoint",
             _ => "CustomJoint",
         };
-        let _ = writeln!(x, "        <{tag} name=\"{}\">", esc(&joint.name));
+        let _ = writeln!(x, "        <{tag} name=\"{}\">", escape(&joint.name));
         let _ = writeln!(
             x,
             "          <socket_parent_frame>{}_offset</socket_parent_frame>",
-            esc(parent)
+            escape(parent)
         );
         let _ = writeln!(
             x,
             "          <socket_child_frame>{}_offset</socket_child_frame>",
-            esc(child)
+            escape(child)
         );
         let coords = &model.coordinates[joint.first_coord..joint.first_coord + joint.kind.dof()];
         if !coords.is_empty() {
             x.push_str("          <coordinates>\n");
             for c in coords {
-                let _ = writeln!(x, "            <Coordinate name=\"{}\">", esc(&c.name));
+                let _ = writeln!(x, "            <Coordinate name=\"{}\">", escape(&c.name));
                 let _ = writeln!(
                     x,
                     "              <default_value>{}</default_value>",
@@ -238,11 +239,11 @@ pub fn to_osim(model: &Model, p: &[f64]) -> Result<String, OsimError> {
 
     x.push_str("    <MarkerSet name=\"markerset\">\n      <objects>\n");
     for m in &model.markers {
-        let _ = writeln!(x, "        <Marker name=\"{}\">", esc(&m.name));
+        let _ = writeln!(x, "        <Marker name=\"{}\">", escape(&m.name));
         let _ = writeln!(
             x,
             "          <socket_parent_frame>/bodyset/{}</socket_parent_frame>",
-            esc(&model.segments[m.segment.0].name)
+            escape(&model.segments[m.segment.0].name)
         );
         let _ = writeln!(x, "          <location>{}</location>", vec3(&m.local));
         x.push_str("          <fixed>true</fixed>\n");
@@ -403,7 +404,7 @@ fn transform_axis(x: &mut String, k: usize, axis: &Vector3<f64>, coord: Option<&
     let _ = writeln!(
         x,
         "              <coordinates>{}</coordinates>",
-        coord.map(esc).unwrap_or_default()
+        coord.map(escape).unwrap_or_default()
     );
     let _ = writeln!(x, "              <axis>{}</axis>", vec3(axis));
     match coord {
@@ -425,12 +426,12 @@ fn offset_frame(x: &mut String, owner: &str, o: &Offset) {
     let _ = writeln!(
         x,
         "            <PhysicalOffsetFrame name=\"{}_offset\">",
-        esc(owner)
+        escape(owner)
     );
     let parent = if owner == "ground" {
         "/ground".to_string()
     } else {
-        format!("/bodyset/{}", esc(owner))
+        format!("/bodyset/{}", escape(owner))
     };
     let _ = writeln!(x, "              <socket_parent>{parent}</socket_parent>");
     let t = Vector3::from(o.translation);
@@ -537,22 +538,6 @@ fn sanitize(name: &str) -> String {
     }
 }
 
-/// XML character data / attribute value escaping.
-fn esc(s: &str) -> String {
-    let mut out = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&apos;"),
-            c => out.push(c),
-        }
-    }
-    out
-}
-
 /// Text that may sit inside `<!-- … -->`: no `--` and no control characters but newlines.
 fn comment_safe(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
@@ -601,7 +586,6 @@ mod tests {
 
     #[test]
     fn escaping() {
-        assert_eq!(esc("a<b&\"c'>"), "a&lt;b&amp;&quot;c&apos;&gt;");
         assert_eq!(comment_safe("a--b---c-"), "a- -b- - -c- ");
         assert_eq!(sanitize("my model/1"), "my_model_1");
         assert_eq!(sanitize(".."), "jointfit_model");

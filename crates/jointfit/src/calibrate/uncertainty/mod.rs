@@ -68,9 +68,9 @@
 //! the rest are determined (subset selection on `S`).
 
 mod estimators;
+mod explain;
 mod reduced;
 mod subset;
-mod words;
 
 use serde::{Deserialize, Serialize};
 
@@ -78,10 +78,10 @@ use super::{Fit, Problem};
 use crate::model::Unit;
 use estimators::{conservative, continuity, covariances, critical, Covariances};
 pub use estimators::{normal_quantile, t_quantile};
+pub use explain::coordinate_ranges;
+use explain::{reason, weak_directions};
 pub use reduced::{reduced_system, Reduced};
 pub use subset::unidentifiable_subset;
-pub use words::coordinate_ranges;
-use words::{reason, weak_directions};
 
 /// Eigenvalues of `S` below this fraction of the largest count as zero (not determined).
 const NULL_RATIO: f64 = 1e-10;

@@ -1,4 +1,5 @@
-//! Identifiability in words: ranges of motion, reasons, weak directions.
+//! Identifiability explained: ranges of motion, the reason a parameter is poorly
+//! determined, and weak directions named after the parameters they combine.
 
 use super::super::Problem;
 use super::estimators::{conservative, Covariances};
