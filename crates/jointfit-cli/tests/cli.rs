@@ -12,6 +12,8 @@ mod ident;
 mod osim;
 #[path = "cli/personalize.rs"]
 mod personalize;
+#[path = "cli/priors.rs"]
+mod priors;
 #[path = "cli/report.rs"]
 mod report;
 #[path = "cli/synth.rs"]
