@@ -70,13 +70,16 @@ fn sd_in(frame: &Pose, cov: &Matrix3<f64>, floor: f64) -> Vector3<f64> {
     c.diagonal().map(|v| (v.max(0.0) + floor * floor).sqrt())
 }
 
+/// Prior SDs of the parameters the functional methods set, by template parameter name.
+pub(crate) type PriorSds = Vec<(&'static str, f64)>;
+
 /// Applies the functional trials to `an`; returns the report and the prior SDs of the
-/// parameters they set (by template parameter name).
+/// parameters they set.
 pub(crate) fn apply(
     an: &mut Anatomy,
     cluster: &dyn Fn(&str) -> Result<Cluster, LandmarkError>,
     trials: &FunctionalTrials,
-) -> Result<(FunctionalReport, Vec<(&'static str, f64)>), LandmarkError> {
+) -> Result<(FunctionalReport, PriorSds), LandmarkError> {
     let mut report = FunctionalReport {
         hip: None,
         landmark_hip_centre: an.hip_centre,
