@@ -44,14 +44,20 @@ pub struct CalibrateArgs {
     pub joints: Vec<String>,
     #[arg(long, value_enum, default_value = "joint")]
     pub method: Method,
-    /// Fitted model (TOML).
+    /// Fitted model (TOML). It may be the subject model file itself only with --force.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Allow --output to replace the subject model file (an in-place update).
+    #[arg(long)]
+    pub force: bool,
+    /// Keep a fit that did not converge and exit 0 (otherwise: exit status 3, nothing written).
+    #[arg(long)]
+    pub accept_unconverged: bool,
     /// Start from the parameters of an earlier fit (same model structure).
     #[arg(long)]
     pub seed_from: Option<String>,
     /// Low-pass filter cutoff in Hz.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::validate::cutoff_hz)]
     pub filter: Option<f64>,
     /// Random seed of the particle swarm and of the extra starts.
     #[arg(long, default_value_t = 1)]
@@ -69,13 +75,14 @@ pub struct CalibrateArgs {
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
     /// Flag length parameters whose 95 % interval half-width exceeds this (mm).
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true, value_parser = crate::validate::positive)]
     pub threshold_mm: f64,
     /// Flag angle parameters whose 95 % interval half-width exceeds this (deg).
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true, value_parser = crate::validate::positive)]
     pub threshold_deg: f64,
-    /// Moving-block bootstrap replicates for the intervals (0: white, HAC and jackknife only).
-    #[arg(long, default_value_t = 0)]
+    /// Moving-block bootstrap replicates for the intervals (0: white, HAC and jackknife only;
+    /// at most 2000, each is a refit).
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true, value_parser = crate::validate::bootstrap)]
     pub bootstrap: usize,
     /// Refit with the parameters this trial cannot determine held at their starting
     /// (landmark/nominal) values (subset selection on the reduced normal matrix).
@@ -309,7 +316,7 @@ pub fn calibrate_params(
     let seconds = clock.elapsed().as_secs_f64();
     let names = |v: Vec<f64>| -> Vec<(String, f64)> {
         model
-            .markers
+            .markers()
             .iter()
             .zip(v)
             .map(|(m, r)| (m.name.clone(), r * MM))
@@ -319,7 +326,7 @@ pub fn calibrate_params(
         .free
         .iter()
         .map(|&i| {
-            let par = &model.parameters[i];
+            let par = &model.parameters()[i];
             let (unit, k) = match par.unit {
                 Unit::Metre => ("mm", MM),
                 Unit::Radian => ("deg", 180.0 / std::f64::consts::PI),
@@ -424,7 +431,7 @@ fn multi_start(
         .free
         .iter()
         .map(|&i| {
-            let par = &prob.model.parameters[i];
+            let par = &prob.model.parameters()[i];
             let k = match par.unit {
                 Unit::Metre => MM,
                 Unit::Radian => 180.0 / std::f64::consts::PI,
@@ -488,7 +495,7 @@ pub fn attach_uncertainty(
             .iter_mut()
             .zip(share.iter().zip(&prob.free))
         {
-            if model.parameters[i].prior_sd.is_some() && sh.is_finite() {
+            if model.parameters()[i].prior_sd.is_some() && sh.is_finite() {
                 row.data_share = Some(sh);
                 row.source = Some(jointfit::calibrate::prior::Source::of(sh));
             }
@@ -551,7 +558,7 @@ pub fn calibrate_with_uncertainty(
         }
         fixed.extend(
             drop.iter()
-                .map(|&k| model.parameters[free[k].0].name.clone()),
+                .map(|&k| model.parameters()[free[k].0].name.clone()),
         );
         free = free
             .iter()
@@ -763,6 +770,18 @@ pub fn print_uncertainty_notes(u: &Uncertainty, fixed: &[String]) {
 }
 
 pub fn run(args: CalibrateArgs) -> Result<()> {
+    let mut files = crate::output::Files::new().model("model", &args.model);
+    for t in &args.trials {
+        files = files.input("trial", t);
+    }
+    if let Some(s) = &args.seed_from {
+        files = files.model("--seed-from", s);
+    }
+    files = files.output_in_place("output", &args.output, args.force);
+    if let Some(dir) = &args.report {
+        files = files.output("--report", dir.join("index.html"));
+    }
+    files.check()?;
     let spec = jointfit_io::model_file::load_spec(&args.model)?;
     let input_model = jointfit_io::model_file::load_model(&args.model)?;
     let mut fit_spec = input_model.spec().clone();
@@ -776,9 +795,13 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let mut start = model.nominal_params();
     if let Some(seed) = &args.seed_from {
         let earlier = jointfit_io::model_file::load_model(seed)?;
-        for (i, par) in model.parameters.iter().enumerate() {
+        for (i, par) in model.parameters().iter().enumerate() {
             match earlier.param_id(&par.name) {
-                Some(id) => start[i] = earlier.parameters[id.0].nominal.clamp(par.lower, par.upper),
+                Some(id) => {
+                    start[i] = earlier.parameters()[id.0]
+                        .nominal
+                        .clamp(par.lower, par.upper)
+                }
                 None => bail!(
                     "{seed}: has no parameter {:?} of the subject model",
                     par.name
@@ -811,6 +834,14 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         args.starts as usize,
         args.marker_noise_mm.map(|mm| mm / MM),
     )?;
+    if !report.converged && !args.accept_unconverged {
+        if args.json {
+            println!("{}", serde_json::to_string_pretty(&report)?);
+        } else {
+            print_report(&report);
+        }
+        return Err(crate::output::Unconverged("the calibration".into()).into());
+    }
     // The fitted model keeps the input file's priors (overrides apply to this run only).
     let mut fitted = input_model.spec_with_nominal(&fit.p);
     fitted.name = format!("{} (fitted)", spec.name);

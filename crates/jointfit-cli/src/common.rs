@@ -30,6 +30,7 @@ impl From<Up> for UpAxis {
 /// stderr when filtering moves a marker by more than 2 cm.
 pub fn load_trial(path: &Path, up: Up, filter_hz: Option<f64>) -> Result<Trial> {
     let mut trial = jointfit_io::trial_file::read_trial(path)?;
+    crate::validate::check_trial(path, &trial)?;
     trial.rotate(&up_axis_rotation(up.into()));
     if let Some(hz) = filter_hz {
         let lp = LowPass {
@@ -37,7 +38,7 @@ pub fn load_trial(path: &Path, up: Up, filter_hz: Option<f64>) -> Result<Trial> 
             ..LowPass::default()
         };
         let (filtered, report) = filter_trial(&trial, &lp)
-            .with_context(|| format!("{}: filtering at {hz} Hz", path.display()))?;
+            .with_context(|| format!("{}: --filter {hz} Hz", path.display()))?;
         for m in report.moved_more_than(0.02) {
             eprintln!(
                 "jointfit: warning: {}: filtering moved marker {} by {:.1} mm",

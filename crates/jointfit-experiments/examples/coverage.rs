@@ -127,11 +127,11 @@ fn main() {
         bw_sum += u.hac_bandwidth.unwrap_or(0.0);
         for (k, p) in u.params.iter().enumerate() {
             let i = prob.free[k];
-            let f = match model.parameters[i].unit {
+            let f = match model.parameters()[i].unit {
                 Unit::Metre => 1e3,
                 Unit::Radian => 180.0 / std::f64::consts::PI,
             };
-            let threshold = match model.parameters[i].unit {
+            let threshold = match model.parameters()[i].unit {
                 Unit::Metre => u.threshold_mm,
                 Unit::Radian => u.threshold_deg,
             };
@@ -233,7 +233,10 @@ fn main() {
         .map(|(k, c)| {
             format!(
                 "{} {}/{} (at bound {})",
-                model.parameters[free[k].0].name, c.1, c.0, c.2
+                model.parameters()[free[k].0].name,
+                c.1,
+                c.0,
+                c.2
             )
         })
         .collect();

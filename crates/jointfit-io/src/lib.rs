@@ -10,7 +10,9 @@
 
 pub mod atomic;
 pub mod c3d;
+pub mod csv;
 pub mod osim;
+pub mod staging;
 pub mod sto;
 pub mod trc;
 

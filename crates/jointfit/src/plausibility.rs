@@ -53,7 +53,7 @@ pub const RADIUS_95_2D: f64 = 2.448;
 pub const HIP_LATERAL_FRACTION: f64 = 0.9;
 
 fn sd_of(model: &Model, i: usize) -> f64 {
-    let p = &model.parameters[i];
+    let p = &model.parameters()[i];
     p.prior_sd.unwrap_or_else(|| {
         landmark_prior(&p.name, HipCentreMethod::Bell).map_or(f64::NAN, |e: PriorEntry| e.sd)
     })
@@ -61,9 +61,9 @@ fn sd_of(model: &Model, i: usize) -> f64 {
 
 /// Half the inter-ASIS distance (m) from the pelvis markers on the pelvis z axis, if any.
 pub fn half_pelvis_width(model: &Model) -> Option<f64> {
-    let pelvis = model.segments.iter().position(|s| s.name == "pelvis")?;
+    let pelvis = model.segments().iter().position(|s| s.name == "pelvis")?;
     let zs: Vec<f64> = model
-        .markers
+        .markers()
         .iter()
         .filter(|m| m.segment.0 == pelvis && m.local.x.abs() < 1e-6 && m.local.y.abs() < 1e-6)
         .map(|m| m.local.z.abs())
@@ -79,7 +79,7 @@ fn pin_axis(rx: f64, ry: f64) -> Vector3<f64> {
 /// Runs every check that the model's parameters allow on the parameter vector `p`.
 pub fn check(model: &Model, p: &[f64]) -> Vec<Check> {
     let id = |n: &str| model.param_id(n).map(|x| x.0);
-    let mean = |i: usize| model.parameters[i].prior_mean;
+    let mean = |i: usize| model.parameters()[i].prior_mean;
     let mut out = Vec::new();
     let hip: Option<Vec<usize>> = [
         "hip_pelvis_anterior",
@@ -92,7 +92,7 @@ pub fn check(model: &Model, p: &[f64]) -> Vec<Check> {
     if let Some(h) = hip {
         let names: Vec<String> = h
             .iter()
-            .map(|&i| model.parameters[i].name.clone())
+            .map(|&i| model.parameters()[i].name.clone())
             .collect();
         if let Some(half) = half_pelvis_width(model) {
             let limit = HIP_LATERAL_FRACTION * half;

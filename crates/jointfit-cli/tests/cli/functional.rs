@@ -2,7 +2,7 @@
 //! (`biobuddy_functional_vicon`, plug-in gait, −Z up), through `personalize`.
 
 use jointfit::model::spec::ModelSpec;
-use jointfit::testing::data_file;
+use jointfit_testkit::{data_file, scratch};
 
 use super::jointfit;
 
@@ -12,8 +12,7 @@ fn run(side: &str) -> Option<(serde_json::Value, ModelSpec)> {
     let stat = data_file("biobuddy_functional_vicon/Test_func_anat.c3d")?;
     let hip = data_file(&format!("biobuddy_functional_vicon/Test_func_{s}hip.c3d"))?;
     let knee = data_file(&format!("biobuddy_functional_vicon/Test_func_{s}knee.c3d"))?;
-    let dir = std::env::temp_dir().join(format!("jointfit-functional-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch("functional");
     let out = dir.join(format!("{side}.toml"));
     let (ok, stdout, stderr) = jointfit(&[
         "personalize",

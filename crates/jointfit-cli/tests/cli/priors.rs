@@ -1,13 +1,11 @@
 //! `calibrate` with the model file's priors (the default) against `--prior none`, on the
 //! shared OpenCap walking trial.
 
-use jointfit::testing::data_file;
+use jointfit_testkit::{data_file, scratch, ScratchDir};
 
 use super::jointfit;
 
-fn tmp(name: &str) -> String {
-    let dir = std::env::temp_dir().join(format!("jointfit-priors-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+fn tmp(dir: &ScratchDir, name: &str) -> String {
     dir.join(name).display().to_string()
 }
 
@@ -30,7 +28,8 @@ fn map_fit_holds_the_hip_closer_and_reports_where_information_came_from() {
     ) else {
         return;
     };
-    let model = tmp("oc.toml");
+    let dir = scratch("priors");
+    let model = tmp(&dir, "oc.toml");
     let (ok, _, err) = jointfit(&[
         "personalize",
         "--static",
@@ -44,7 +43,7 @@ fn map_fit_holds_the_hip_closer_and_reports_where_information_came_from() {
     ]);
     assert!(ok, "{err}");
     let fit = |prior: &str, json: bool| {
-        let out = tmp(&format!("fit-{prior}.toml"));
+        let out = tmp(&dir, &format!("fit-{prior}.toml"));
         let mut args = vec![
             "calibrate",
             &model,
@@ -121,7 +120,8 @@ fn bad_prior_overrides_are_one_line_errors() {
         ("elbow=5mm", "no parameter or group"),
         ("knee", "expected NAME=VALUE"),
     ] {
-        let out = tmp("never.toml");
+        let dir = scratch("priors-bad");
+        let out = tmp(&dir, "never.toml");
         let (ok, _, err) = jointfit(&[
             "calibrate",
             "lower-limb-right",

@@ -36,7 +36,7 @@ impl Prior {
     /// The prior that the model file states (`prior_sd`, `prior_mean`) for the parameters
     /// `free`; `None` when none of them has a prior SD.
     pub fn from_model(model: &Model, free: &[usize], noise: f64) -> Option<Prior> {
-        let pars: Vec<_> = free.iter().map(|&i| &model.parameters[i]).collect();
+        let pars: Vec<_> = free.iter().map(|&i| &model.parameters()[i]).collect();
         if pars.iter().all(|p| p.prior_sd.is_none()) {
             return None;
         }

@@ -63,9 +63,9 @@ pub(super) fn frame_weights(
     opts: &IkOptions,
     w: &mut [f64],
 ) -> Result<(), FrameStatus> {
-    let mut present = vec![0usize; model.segments.len()];
-    let mut carries = vec![false; model.segments.len()];
-    for (j, m) in model.markers.iter().enumerate() {
+    let mut present = vec![0usize; model.segments().len()];
+    let mut carries = vec![false; model.segments().len()];
+    for (j, m) in model.markers().iter().enumerate() {
         let ok = !targets[j].x.is_nan() && m.weight > 0.0;
         w[j] = if ok { m.weight } else { 0.0 };
         if m.weight > 0.0 {
@@ -73,10 +73,10 @@ pub(super) fn frame_weights(
             present[m.segment.0] += ok as usize;
         }
     }
-    for s in 0..model.segments.len() {
+    for s in 0..model.segments().len() {
         if carries[s] && present[s] < opts.min_markers_per_segment {
             return Err(FrameStatus::TooFewMarkers {
-                segment: model.segments[s].name.clone(),
+                segment: model.segments()[s].name.clone(),
                 present: present[s],
             });
         }

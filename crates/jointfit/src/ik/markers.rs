@@ -33,7 +33,7 @@ impl MarkerMap {
     pub fn allowing_absent(model: &Model, labels: &[String]) -> (MarkerMap, Vec<String>) {
         let mut absent = Vec::new();
         let columns = model
-            .markers
+            .markers()
             .iter()
             .map(|m| {
                 let c = labels.iter().position(|l| l == &m.name);

@@ -192,7 +192,7 @@ mod tests {
                 .map(|(j, x)| x + 0.01 * Vector3::new((j as f64).sin(), 0.3, (case as f64).cos()))
                 .collect();
             let weights: Vec<f64> = model
-                .markers
+                .markers()
                 .iter()
                 .enumerate()
                 .map(|(j, m)| if (j + case) % 5 == 0 { 0.0 } else { m.weight })

@@ -17,22 +17,22 @@ pub fn seed_frame(
     ws: &mut IkWorkspace,
 ) -> Vec<f64> {
     let mut q = model.default_coords();
-    let roots: Vec<usize> = (0..model.segments.len())
-        .filter(|&s| model.segments[s].parent.is_none())
+    let roots: Vec<usize> = (0..model.segments().len())
+        .filter(|&s| model.segments()[s].parent.is_none())
         .collect();
     let full_weights = {
         let _ = frame_weights(model, targets, opts, &mut ws.weights);
         ws.weights.clone()
     };
     for &root in &roots {
-        let joint = &model.joints[model.segments[root].joint.0];
+        let joint = &model.joints()[model.segments()[root].joint.0];
         let active: Vec<usize> =
             (joint.first_coord..joint.first_coord + joint.kind.dof()).collect();
         if active.is_empty() {
             continue;
         }
         // Only this root's markers count.
-        for (j, m) in model.markers.iter().enumerate() {
+        for (j, m) in model.markers().iter().enumerate() {
             ws.weights[j] = if m.segment.0 == root {
                 full_weights[j]
             } else {
@@ -46,7 +46,7 @@ pub fn seed_frame(
         let rot: Vec<usize> = active
             .iter()
             .copied()
-            .filter(|&c| model.coordinates[c].kind == CoordKind::Rotational)
+            .filter(|&c| model.coordinates()[c].kind == CoordKind::Rotational)
             .collect();
         let grid = [
             0.0,

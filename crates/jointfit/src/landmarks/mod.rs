@@ -429,7 +429,7 @@ pub fn personalize_with(
         &mut kin,
     );
     let static_fk_error = model
-        .markers
+        .markers()
         .iter()
         .zip(&kin.markers)
         .map(|(m, x)| (x - at(&m.name)).norm())

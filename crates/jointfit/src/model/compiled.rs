@@ -9,6 +9,21 @@
 //!
 //! Because parameters and coordinates enter the same way, ∂/∂q and ∂/∂p are computed by the
 //! same geometric rule (see [`crate::kinematics`]).
+//!
+//! # Conventions of every field below
+//!
+//! * Units are SI: lengths in metres, angles in radians (display code converts).
+//! * Frames: *world* is the ground frame (model convention: x anterior, y superior, z to the
+//!   right; see `docs/architecture.md`). Each segment has its own body-fixed frame; the *parent
+//!   joint frame* of a joint is fixed in the parent segment (the parent offset `t_p, r_p`), the
+//!   *child joint frame* is fixed in the child segment (the child offset `t_c, r_c`), and the
+//!   joint's coordinates move the second relative to the first.
+//! * Shapes: `n_seg = n_joint` (one joint per segment), `n_q` coordinates, `n_p` parameters,
+//!   `n_mrk` markers. Indices are the typed ids [`SegmentId`], [`JointId`], [`CoordId`],
+//!   [`ParamId`] or, for markers, a plain `usize`.
+//! * A [`Model`] is read-only after [`Model::compile`]: its fields are private and the
+//!   accessors hand out shared slices. To change a model, edit its [`ModelSpec`]
+//!   ([`Model::spec`], [`Model::spec_with_nominal`]) and compile again.
 
 use nalgebra::{Matrix3, Unit as UnitVec, Vector3};
 
@@ -29,26 +44,43 @@ pub struct ParamId(pub usize);
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct CoordId(pub usize);
 
+/// A rigid body of the chain (pelvis, thigh, …). Its frame is body-fixed; the child offset of
+/// [`Segment::joint`] places the joint frame in it.
 #[derive(Debug, Clone)]
 pub struct Segment {
+    /// Unique name, as in the description (never `ground`).
     pub name: String,
-    /// `None` for a segment attached to ground.
+    /// The parent segment; `None` when the segment is attached to ground (the world frame).
+    /// Always a lower index than the segment itself (topological order).
     pub parent: Option<SegmentId>,
+    /// The joint that attaches this segment to its parent; `joint.0 == ` this segment's index.
     pub joint: JointId,
 }
 
-/// The kind of motion a joint allows, with unit axes.
+/// The kind of motion a joint allows, with unit axes (dimensionless, norm 1).
+///
+/// Successive motions act about / along the axes of the *current* frame (body-fixed,
+/// intrinsic order): the first axis is expressed in the parent joint frame, the second in the
+/// frame after the first motion, and so on. Each motion reads one coordinate, in order.
 #[derive(Debug, Clone, PartialEq)]
 pub enum JointKind {
+    /// 6 coordinates: translations along x, y, z of the parent joint frame (m), then rotations
+    /// about `rotation_axes[0..3]` (rad).
     Free { rotation_axes: [Vector3<f64>; 3] },
+    /// 3 coordinates: rotations about `axes[0]`, `axes[1]`, `axes[2]` in turn (rad).
     Gimbal { axes: [Vector3<f64>; 3] },
+    /// 2 coordinates: rotations about `axes[0]`, then `axes[1]` (rad).
     Universal { axes: [Vector3<f64>; 2] },
+    /// 1 coordinate: rotation about `axis` (rad).
     Pin { axis: Vector3<f64> },
+    /// 1 coordinate: translation along `axis` (m).
     Slider { axis: Vector3<f64> },
+    /// No coordinate: the child joint frame coincides with the parent joint frame.
     Weld,
 }
 
 impl JointKind {
+    /// Number of coordinates (degrees of freedom): 6, 3, 2, 1, 1 or 0.
     pub fn dof(&self) -> usize {
         match self {
             JointKind::Free { .. } => 6,
@@ -58,6 +90,8 @@ impl JointKind {
             JointKind::Weld => 0,
         }
     }
+    /// The name used in model descriptions: `free`, `gimbal`, `universal`, `pin`, `slider`,
+    /// `weld`.
     pub fn type_name(&self) -> &'static str {
         match self {
             JointKind::Free { .. } => "free",
@@ -85,13 +119,20 @@ impl JointKind {
     }
 }
 
+/// A joint: moves the child joint frame relative to the parent joint frame,
+/// `parent_from_child = T(t_p) R(r_p) · motion(q) · (T(t_c) R(r_c))⁻¹`.
 #[derive(Debug, Clone)]
 pub struct Joint {
+    /// Unique name, as in the description.
     pub name: String,
+    /// The segment the parent joint frame is fixed in; `None` for ground.
     pub parent: Option<SegmentId>,
+    /// The segment this joint moves; `child.0 ==` this joint's index.
     pub child: SegmentId,
+    /// Motion type and unit axes.
     pub kind: JointKind,
-    /// Coordinates of this joint: `first..first + kind.dof()`.
+    /// Index in `q` of the joint's first coordinate; its coordinates are
+    /// `first_coord..first_coord + kind.dof()`, contiguous and in motion order.
     pub first_coord: usize,
 }
 
@@ -102,37 +143,60 @@ pub enum CoordKind {
     Translational,
 }
 
+/// One generalized coordinate: one entry of the per-frame vector `q` that inverse
+/// kinematics solves for.
 #[derive(Debug, Clone)]
 pub struct Coordinate {
+    /// Unique name (OpenSim style, e.g. `hip_flexion_r`).
     pub name: String,
+    /// The joint whose motion reads this coordinate.
     pub joint: JointId,
+    /// Angle (rad) or length (m).
     pub kind: CoordKind,
-    /// Lower and upper limit (rad or m); informative, IK does not clamp.
+    /// `[lower, upper]` limit in rad or m, `lower < upper`; informative only (IK does not
+    /// clamp). Default `[−π, π]` or `[−10, 10]` m.
     pub range: [f64; 2],
+    /// Value in the default pose (rad or m); 0 unless the description says otherwise.
     pub default: f64,
 }
 
-/// Where a parameter sits: which joint, which offset, which scalar.
+/// One place a parameter enters the model: offset scalar `scalar` of one joint offset
+/// takes the value `scale · p[k]`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParamUse {
+    /// The joint whose offset reads the parameter.
     pub joint: JointId,
-    /// The segment whose offset frame the scalar belongs to (`None`: ground).
+    /// The segment the offset frame is fixed in: the joint's parent for a parent offset
+    /// (`None`: ground), its child for a child offset.
     pub segment: Option<SegmentId>,
-    /// True for the parent offset, false for the child offset.
+    /// True for the parent offset `(t_p, r_p)`, false for the child offset `(t_c, r_c)`.
     pub in_parent_offset: bool,
-    /// `"tx"`, …, `"rz"`.
+    /// Which of the six offset scalars: `"tx"`, `"ty"`, `"tz"` (m, along the axes of the
+    /// segment frame) or `"rx"`, `"ry"`, `"rz"` (rad, the body-fixed `Rx·Ry·Rz` sequence).
     pub scalar: &'static str,
+    /// Dimensionless factor as written in the description (non-zero; often 1 or −1, e.g. a
+    /// left-side mirror of a right-side parameter).
     pub scale: f64,
 }
 
+/// One joint parameter: one entry of the vector `p` that calibration fits, shared by every
+/// frame of every trial (Reinbolt et al. 2005: joint positions and orientations in the
+/// segments).
 #[derive(Debug, Clone)]
 pub struct Parameter {
+    /// Unique name (e.g. `knee_ty_thigh`).
     pub name: String,
+    /// Selection group (e.g. `hip`, `knee`, `ankle`); `--params GROUP` frees a whole group.
     pub group: String,
+    /// Metre for offset translations, radian for offset rotations.
     pub unit: Unit,
+    /// Value in the uncalibrated (generic or scaled) model, in `unit`.
     pub nominal: f64,
+    /// Lower bound for calibration, in `unit`; finite, `lower < upper`.
     pub lower: f64,
+    /// Upper bound for calibration, in `unit`; finite.
     pub upper: f64,
+    /// Free text shown in reports and in identifiability explanations.
     pub description: String,
     /// Prior standard deviation (m or rad), if the parameter has a prior.
     pub prior_sd: Option<f64>,
@@ -142,12 +206,17 @@ pub struct Parameter {
     pub uses: Vec<ParamUse>,
 }
 
+/// A model marker: a point fixed in a segment, matched by name to a measured trajectory.
 #[derive(Debug, Clone)]
 pub struct Marker {
+    /// Unique name; the trial's marker label it is compared with.
     pub name: String,
+    /// The segment the marker is fixed in (never ground).
     pub segment: SegmentId,
-    /// Position in the segment frame (m).
+    /// Position in the segment frame (m), 3-vector.
     pub local: Vector3<f64>,
+    /// Non-negative weight of the marker's squared residual in IK and calibration
+    /// (dimensionless; 0 ignores the marker).
     pub weight: f64,
 }
 
@@ -189,17 +258,25 @@ pub(crate) struct Step {
 }
 
 /// A validated, immutable, index-based kinematic model (`Send + Sync`).
+///
+/// Built only by [`Model::compile`]; read through the accessors below. Per-frame state
+/// (poses, marker positions, Jacobians) lives in [`crate::kinematics::KinData`], never here.
 #[derive(Debug, Clone)]
 pub struct Model {
-    pub name: String,
-    pub description: String,
-    /// Segments in topological order (every parent before its children).
-    pub segments: Vec<Segment>,
-    /// `joints[i]` attaches `segments[i]` to its parent.
-    pub joints: Vec<Joint>,
-    pub coordinates: Vec<Coordinate>,
-    pub parameters: Vec<Parameter>,
-    pub markers: Vec<Marker>,
+    /// Model name (free text, used in file names and reports).
+    pub(super) name: String,
+    /// Free-text description.
+    pub(super) description: String,
+    /// `n_seg` segments in topological order (every parent before its children).
+    pub(super) segments: Vec<Segment>,
+    /// `n_seg` joints; `joints[i]` attaches `segments[i]` to its parent.
+    pub(super) joints: Vec<Joint>,
+    /// `n_q` coordinates, joint by joint in joint order (see [`Joint::first_coord`]).
+    pub(super) coordinates: Vec<Coordinate>,
+    /// `n_p` parameters, in the order of the description.
+    pub(super) parameters: Vec<Parameter>,
+    /// `n_mrk` markers, in the order of the description.
+    pub(super) markers: Vec<Marker>,
     /// Elementary steps of all segments, segment by segment.
     pub(crate) steps: Vec<Step>,
     /// How forward kinematics walks the steps (blocks, Jacobian columns).
@@ -209,12 +286,50 @@ pub struct Model {
 }
 
 impl Model {
+    /// Model name.
+    #[inline]
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+    /// Free-text description.
+    #[inline]
+    pub fn description(&self) -> &str {
+        &self.description
+    }
+    /// Segments in topological order (`n_seg`), indexed by [`SegmentId`].
+    #[inline]
+    pub fn segments(&self) -> &[Segment] {
+        &self.segments
+    }
+    /// Joints (`n_seg`), indexed by [`JointId`]; joint `i` moves segment `i`.
+    #[inline]
+    pub fn joints(&self) -> &[Joint] {
+        &self.joints
+    }
+    /// Coordinates (`n_q`), indexed by [`CoordId`]; the layout of every `q` vector.
+    #[inline]
+    pub fn coordinates(&self) -> &[Coordinate] {
+        &self.coordinates
+    }
+    /// Parameters (`n_p`), indexed by [`ParamId`]; the layout of every `p` vector.
+    #[inline]
+    pub fn parameters(&self) -> &[Parameter] {
+        &self.parameters
+    }
+    /// Markers (`n_mrk`); the layout of every marker-position vector.
+    #[inline]
+    pub fn markers(&self) -> &[Marker] {
+        &self.markers
+    }
+    /// Number of coordinates `n_q`.
     pub fn n_q(&self) -> usize {
         self.coordinates.len()
     }
+    /// Number of parameters `n_p`.
     pub fn n_p(&self) -> usize {
         self.parameters.len()
     }
+    /// Number of markers `n_mrk`.
     pub fn n_markers(&self) -> usize {
         self.markers.len()
     }
@@ -230,24 +345,28 @@ impl Model {
     pub fn default_coords(&self) -> Vec<f64> {
         self.coordinates.iter().map(|c| c.default).collect()
     }
+    /// The segment of that name.
     pub fn segment_id(&self, name: &str) -> Option<SegmentId> {
         self.segments
             .iter()
             .position(|s| s.name == name)
             .map(SegmentId)
     }
+    /// The parameter of that name.
     pub fn param_id(&self, name: &str) -> Option<ParamId> {
         self.parameters
             .iter()
             .position(|s| s.name == name)
             .map(ParamId)
     }
+    /// The coordinate of that name.
     pub fn coord_id(&self, name: &str) -> Option<CoordId> {
         self.coordinates
             .iter()
             .position(|s| s.name == name)
             .map(CoordId)
     }
+    /// Index of the marker of that name.
     pub fn marker_index(&self, name: &str) -> Option<usize> {
         self.markers.iter().position(|m| m.name == name)
     }
@@ -285,6 +404,7 @@ impl Model {
 
     /// Validates and compiles a description. Every error names the offending item.
     pub fn compile(spec: &ModelSpec) -> Result<Model, ModelError> {
+        super::checks::check_spec(spec)?;
         super::validate::Compiler::new(spec)?.run()
     }
 }

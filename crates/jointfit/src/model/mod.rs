@@ -1,6 +1,7 @@
 //! Kinematic models: the description people write ([`spec`]), the compiled model
 //! ([`Model`]), and the built-in sample models ([`lower_limb`]).
 
+pub mod checks;
 mod compile;
 mod compiled;
 pub mod lower_limb;

@@ -6,5 +6,4 @@ mod kinematics;
 mod landmarks;
 mod models;
 mod priors;
-mod sample_models;
 mod uncertainty;

@@ -120,7 +120,7 @@ fn a_tight_prior_holds_the_mean_and_an_infinite_one_changes_nothing() {
     let free = params_for_groups(&model, &["knee"]).unwrap();
     let mut base = p_true.clone();
     for id in &free {
-        base[id.0] = model.parameters[id.0].nominal;
+        base[id.0] = model.parameters()[id.0].nominal;
     }
     let mut prob = Problem::new(&model, base.clone(), &free, &[&trial])
         .unwrap()
@@ -136,8 +136,8 @@ fn a_tight_prior_holds_the_mean_and_an_infinite_one_changes_nothing() {
         .for_each(|s| *s = 4e-7);
     let held = solve_joint(&prob, &s0, q0.clone(), &JointOptions::default());
     for &i in &prob.free {
-        let d = (held.p[i] - model.parameters[i].prior_mean).abs();
-        assert!(d < 1e-5, "{}: {d:e}", model.parameters[i].name);
+        let d = (held.p[i] - model.parameters()[i].prior_mean).abs();
+        assert!(d < 1e-5, "{}: {d:e}", model.parameters()[i].name);
     }
     // No prior information at all: noiseless data give the truth exactly.
     prob.prior
@@ -149,7 +149,7 @@ fn a_tight_prior_holds_the_mean_and_an_infinite_one_changes_nothing() {
     let free_fit = solve_joint(&prob, &s0, q0, &JointOptions::default());
     for &i in &prob.free {
         let d = (free_fit.p[i] - p_true[i]).abs();
-        assert!(d < 1e-9, "{}: {d:e}", model.parameters[i].name);
+        assert!(d < 1e-9, "{}: {d:e}", model.parameters()[i].name);
     }
 }
 
@@ -164,7 +164,7 @@ fn the_prior_reduces_errors_when_truth_follows_it() {
     for seed in 1..=8u64 {
         let mut rng = ChaCha8Rng::seed_from_u64(seed + 100);
         let p_true: Vec<f64> = model
-            .parameters
+            .parameters()
             .iter()
             .map(|p| {
                 let sd = p.prior_sd.unwrap();
@@ -179,7 +179,7 @@ fn the_prior_reduces_errors_when_truth_follows_it() {
         let q0 = plain.initial_coords(&base);
         let f_map = solve_joint(&map, &s0, q0.clone(), &JointOptions::default());
         let f_plain = solve_joint(&plain, &s0, q0, &JointOptions::default());
-        for (i, p) in model.parameters.iter().enumerate() {
+        for (i, p) in model.parameters().iter().enumerate() {
             let sd = p.prior_sd.unwrap();
             with += ((f_map.p[i] - p_true[i]) / sd).powi(2);
             without += ((f_plain.p[i] - p_true[i]) / sd).powi(2);

@@ -333,9 +333,9 @@ fn build(
     let z = crit.0;
     let ranges = coordinate_ranges(model, qs);
     let scale: Vec<f64> = (0..nf)
-        .map(|k| prob.half_range(k) * display(model.parameters[prob.free[k]].unit).0)
+        .map(|k| prob.half_range(k) * display(model.parameters()[prob.free[k]].unit).0)
         .collect();
-    let threshold = |k: usize| match model.parameters[prob.free[k]].unit {
+    let threshold = |k: usize| match model.parameters()[prob.free[k]].unit {
         Unit::Metre => opts.threshold_m * 1e3,
         Unit::Radian => opts.threshold_rad.to_degrees(),
     };
@@ -356,7 +356,7 @@ fn build(
     let params = (0..nf)
         .map(|k| {
             let i = prob.free[k];
-            let par = &model.parameters[i];
+            let par = &model.parameters()[i];
             let (f, unit) = display(par.unit);
             let value = p[i] * f;
             let at_bound = s[k].abs() >= 1.0 - 1e-9;
@@ -381,7 +381,7 @@ fn build(
                     .filter_map(|b| corr[k][b].map(|r| (b, r)))
                     .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
                     .filter(|(_, r)| r.abs() >= 0.9)
-                    .map(|(b, r)| (model.parameters[prob.free[b]].name.as_str(), r));
+                    .map(|(b, r)| (model.parameters()[prob.free[b]].name.as_str(), r));
                 let mut text = reason(model, i, at_bound, &ranges, partner);
                 // `scale[k]` is the bounds' half-width in display units.
                 if half_width.is_some_and(|h| h > scale[k]) {

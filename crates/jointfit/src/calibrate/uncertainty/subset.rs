@@ -20,7 +20,7 @@ pub fn unidentifiable_subset(prob: &Problem, fit: &Fit, opts: &UncertaintyOption
     let red = reduced_system(prob, &fit.p, &fit.coords);
     let same = continuity(prob);
     let crit = critical(opts.level, opts);
-    let threshold = |k: usize| match prob.model.parameters[prob.free[k]].unit {
+    let threshold = |k: usize| match prob.model.parameters()[prob.free[k]].unit {
         Unit::Metre => opts.threshold_m,
         Unit::Radian => opts.threshold_rad,
     };
