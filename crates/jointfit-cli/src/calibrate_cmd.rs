@@ -231,6 +231,21 @@ pub fn calibrate_params(
         .observations
         .max(1);
     prob = prob.with_model_prior(noise.unwrap_or((data_before / observations as f64).sqrt()));
+    if noise.is_none() && prob.prior.is_some() {
+        // σ from the residuals of a preliminary MAP fit, inflated for their correlation in
+        // time (see `prior::correlation_inflation`); the reported fit then uses that σ.
+        let pre = solve_joint_observed(&prob, &s0, q0.clone(), &JointOptions::default(), |_, _| {});
+        let red = jointfit::calibrate::uncertainty::reduced_system(&prob, &pre.p, &pre.coords);
+        let plain = Problem::new(model, start.clone(), free, trials)?;
+        let u = analyze(&plain, &pre, &UncertaintyOptions::default());
+        let kappa = jointfit::calibrate::prior::correlation_inflation(&u);
+        let sigma = (red.sigma2() * kappa).sqrt();
+        if sigma.is_finite() && sigma > 0.0 {
+            if let Some(pr) = prob.prior.as_mut() {
+                pr.noise = sigma;
+            }
+        }
+    }
     let cost_before = data_before + prob.prior_cost(&start);
     // Progress on stderr (see `progress`) and the objective per stage for the report.
     let mut bars = crate::progress::StageProgress::new("iterations");
@@ -283,36 +298,12 @@ pub fn calibrate_params(
         }
     };
     bars.finish();
-    let (mut fit, multistart) = if starts > 1 && method != Method::Pso {
+    let (fit, multistart) = if starts > 1 && method != Method::Pso {
         let (best, summary) = multi_start(&prob, &start, fit, starts, seed, method);
         (best, Some(summary))
     } else {
         (fit, None)
     };
-    if noise.is_none() && prob.prior.is_some() {
-        // σ from the fit's residuals, inflated for their correlation in time (see
-        // `prior::correlation_inflation`), then the optimum for that σ.
-        let red = jointfit::calibrate::uncertainty::reduced_system(&prob, &fit.p, &fit.coords);
-        let plain = Problem::new(model, start.clone(), free, trials)?;
-        let u = analyze(&plain, &fit, &UncertaintyOptions::default());
-        let kappa = jointfit::calibrate::prior::correlation_inflation(&u);
-        let sigma = (red.sigma2() * kappa).sqrt();
-        if sigma.is_finite() && sigma > 0.0 {
-            if let Some(pr) = prob.prior.as_mut() {
-                pr.noise = sigma;
-            }
-            let before = (fit.iterations, fit.evaluations);
-            fit = solve_joint_observed(
-                &prob,
-                &fit.s,
-                fit.coords.clone(),
-                &JointOptions::default(),
-                |_, _| {},
-            );
-            fit.iterations += before.0;
-            fit.evaluations += before.1;
-        }
-    }
     let seconds = clock.elapsed().as_secs_f64();
     let names = |v: Vec<f64>| -> Vec<(String, f64)> {
         model
