@@ -27,6 +27,7 @@
 //! posteriori objective `e_inner(p) + σ² Σ_k ((p_k − μ_k)/s_k)²` instead (see [`prior`]).
 
 pub mod joint;
+mod kernel;
 pub mod prior;
 pub mod pso;
 mod schur;
