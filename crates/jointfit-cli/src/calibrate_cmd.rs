@@ -88,6 +88,18 @@ pub struct CalibrateArgs {
     /// (landmark/nominal) values (subset selection on the reduced normal matrix).
     #[arg(long)]
     pub fix_unidentifiable: bool,
+    /// Parameter priors: `model` (the model file's prior_sd/prior_mean, written by
+    /// personalize: a maximum a posteriori fit) or `none` (Reinbolt's unregularized fit).
+    #[arg(long, value_enum, default_value = "model")]
+    pub prior: crate::prior_args::PriorArg,
+    /// Marker noise SD (mm) that weighs the prior against the markers (default: estimated
+    /// from the residuals of the fit).
+    #[arg(long, value_name = "MM")]
+    pub marker_noise_mm: Option<f64>,
+    /// Override prior SDs: NAME=VALUE, NAME a group (hip, knee, ankle, all) or parameter,
+    /// VALUE in mm or deg; e.g. knee=5mm,knee=3deg,hip_pelvis_lateral=8mm.
+    #[arg(long, value_delimiter = ',', value_name = "NAME=VALUE")]
+    pub prior_sd: Vec<String>,
 }
 
 #[derive(Serialize)]
@@ -105,6 +117,12 @@ pub struct ParamReport {
     /// `determined`, `poor` or `undetermined`.
     pub identifiability: Option<Identifiability>,
     pub uncertainty_method: Option<jointfit::calibrate::uncertainty::SeMethod>,
+    /// Prior SD and mean (same unit), when the fit used a prior on this parameter.
+    pub prior_sd: Option<f64>,
+    pub prior_mean: Option<f64>,
+    /// Share of the posterior information that came from the trial (0–1), and in words.
+    pub data_share: Option<f64>,
+    pub source: Option<jointfit::calibrate::prior::Source>,
 }
 
 #[derive(Serialize)]
@@ -132,6 +150,12 @@ pub struct Report {
     pub fixed_unidentifiable: Vec<String>,
     /// Several starts (`--starts N`): the optima they reached.
     pub multistart: Option<MultiStart>,
+    /// Marker noise SD (mm) that weighed the prior; `None`: no prior (unregularized fit).
+    pub prior_noise_mm: Option<f64>,
+    /// Whether that noise was estimated from the residuals (else given).
+    pub prior_noise_estimated: bool,
+    /// Anatomical plausibility of the fitted joints (`jointfit::plausibility`).
+    pub plausibility: Vec<jointfit::plausibility::Check>,
 }
 
 /// One optimizer stage (e.g. the particle swarm, then its polish).
@@ -178,10 +202,14 @@ pub fn calibrate(
     seed: u64,
 ) -> Result<(Fit, Report)> {
     let free = params_for_groups(model, groups)?;
-    calibrate_params(model, start, trials, &free, method, seed, 1)
+    calibrate_params(model, start, trials, &free, method, seed, 1, None)
 }
 
-/// [`calibrate`] with the free parameters given by id.
+/// [`calibrate`] with the free parameters given by id. With priors in the model file the fit
+/// is the maximum a posteriori one, weighted by marker noise `noise` (m), or, when `None`, by
+/// the noise estimated from the residuals: first the starting residual RMS, then (one
+/// refinement, polished by the joint solver) the fit's residual σ.
+#[allow(clippy::too_many_arguments)]
 pub fn calibrate_params(
     model: &Model,
     start: Vec<f64>,
@@ -190,14 +218,35 @@ pub fn calibrate_params(
     method: Method,
     seed: u64,
     starts: usize,
+    noise: Option<f64>,
 ) -> Result<(Fit, Report)> {
-    let prob = Problem::new(model, start.clone(), free, trials)?;
+    let mut prob = Problem::new(model, start.clone(), free, trials)?;
     let clock = Instant::now();
     let q0 = prob.initial_coords(&start);
     let s0 = prob.to_scaled(&start);
     let mut ws = jointfit::ik::IkWorkspace::new(model);
     let mut q_before = q0.clone();
-    let cost_before = prob.inner(&start, &mut q_before, &mut ws);
+    let data_before = prob.inner(&start, &mut q_before, &mut ws);
+    let observations = jointfit::calibrate::uncertainty::reduced_system(&prob, &start, &q_before)
+        .observations
+        .max(1);
+    prob = prob.with_model_prior(noise.unwrap_or((data_before / observations as f64).sqrt()));
+    if noise.is_none() && prob.prior.is_some() {
+        // σ from the residuals of a preliminary MAP fit, inflated for their correlation in
+        // time (see `prior::correlation_inflation`); the reported fit then uses that σ.
+        let pre = solve_joint_observed(&prob, &s0, q0.clone(), &JointOptions::default(), |_, _| {});
+        let red = jointfit::calibrate::uncertainty::reduced_system(&prob, &pre.p, &pre.coords);
+        let plain = Problem::new(model, start.clone(), free, trials)?;
+        let u = analyze(&plain, &pre, &UncertaintyOptions::default());
+        let kappa = jointfit::calibrate::prior::correlation_inflation(&u);
+        let sigma = (red.sigma2() * kappa).sqrt();
+        if sigma.is_finite() && sigma > 0.0 {
+            if let Some(pr) = prob.prior.as_mut() {
+                pr.noise = sigma;
+            }
+        }
+    }
+    let cost_before = data_before + prob.prior_cost(&start);
     // Progress on stderr (see `progress`) and the objective per stage for the report.
     let mut bars = crate::progress::StageProgress::new("iterations");
     let mut convergence: Vec<ConvergenceStage> = Vec::new();
@@ -273,6 +322,7 @@ pub fn calibrate_params(
                 Unit::Metre => ("mm", MM),
                 Unit::Radian => ("deg", 180.0 / std::f64::consts::PI),
             };
+            let prior_sd = prob.prior.as_ref().and(par.prior_sd);
             ParamReport {
                 name: par.name.clone(),
                 group: par.group.clone(),
@@ -284,6 +334,10 @@ pub fn calibrate_params(
                 ci95: None,
                 identifiability: None,
                 uncertainty_method: None,
+                prior_sd: prior_sd.map(|s| s * k),
+                prior_mean: prior_sd.map(|_| par.prior_mean * k),
+                data_share: None,
+                source: None,
             }
         })
         .collect();
@@ -307,6 +361,9 @@ pub fn calibrate_params(
         uncertainty: None,
         fixed_unidentifiable: Vec::new(),
         multistart,
+        prior_noise_mm: prob.prior.as_ref().map(|p| p.noise * MM),
+        prior_noise_estimated: noise.is_none(),
+        plausibility: jointfit::plausibility::check(model, &fit.p),
     };
     Ok((fit, report))
 }
@@ -416,8 +473,25 @@ pub fn attach_uncertainty(
     opts: &UncertaintyOptions,
     report: &mut Report,
 ) -> Result<()> {
-    let prob = Problem::new(model, start.to_vec(), free, trials)?;
+    let mut prob = Problem::new(model, start.to_vec(), free, trials)?;
+    if let Some(noise_mm) = report.prior_noise_mm {
+        prob = prob.with_model_prior(noise_mm / MM);
+    }
     let u = analyze(&prob, fit, opts);
+    if prob.prior.is_some() {
+        let red = jointfit::calibrate::uncertainty::reduced_system(&prob, &fit.p, &fit.coords);
+        let share = jointfit::calibrate::prior::data_share(&prob, &red.normal);
+        for (row, (&sh, &i)) in report
+            .parameters
+            .iter_mut()
+            .zip(share.iter().zip(&prob.free))
+        {
+            if model.parameters()[i].prior_sd.is_some() && sh.is_finite() {
+                row.data_share = Some(sh);
+                row.source = Some(jointfit::calibrate::prior::Source::of(sh));
+            }
+        }
+    }
     for (row, pu) in report.parameters.iter_mut().zip(&u.params) {
         row.se = pu.se;
         row.ci95 = pu.ci;
@@ -441,15 +515,27 @@ pub fn calibrate_with_uncertainty(
     opts: &UncertaintyOptions,
     fix_unidentifiable: bool,
     starts: usize,
+    noise: Option<f64>,
 ) -> Result<(Fit, Report)> {
     let mut free = params_for_groups(model, groups)?;
-    let (mut fit, mut report) =
-        calibrate_params(model, start.clone(), trials, &free, method, seed, starts)?;
+    let (mut fit, mut report) = calibrate_params(
+        model,
+        start.clone(),
+        trials,
+        &free,
+        method,
+        seed,
+        starts,
+        noise,
+    )?;
     let mut fixed = Vec::new();
     // Subset selection plans on the reduced normal matrix of the current fit; a refit moves
     // the optimum a little, so the selection is repeated (at most three rounds).
     for _ in 0..if fix_unidentifiable { 3 } else { 0 } {
-        let prob = Problem::new(model, start.clone(), &free, trials)?;
+        let mut prob = Problem::new(model, start.clone(), &free, trials)?;
+        if let Some(noise_mm) = report.prior_noise_mm {
+            prob = prob.with_model_prior(noise_mm / MM);
+        }
         let drop = unidentifiable_subset(&prob, &fit, opts);
         if drop.is_empty() {
             break;
@@ -471,8 +557,16 @@ pub fn calibrate_with_uncertainty(
             .filter(|(k, _)| !drop.contains(k))
             .map(|(_, id)| *id)
             .collect();
-        (fit, report) =
-            calibrate_params(model, start.clone(), trials, &free, method, seed, starts)?;
+        (fit, report) = calibrate_params(
+            model,
+            start.clone(),
+            trials,
+            &free,
+            method,
+            seed,
+            starts,
+            noise,
+        )?;
     }
     attach_uncertainty(model, &start, trials, &free, &fit, opts, &mut report)?;
     report.fixed_unidentifiable = fixed;
@@ -556,8 +650,21 @@ pub fn print_report(report: &Report) {
         ]);
     }
     print!("{}", t.render());
-    if let Some(u) = &report.uncertainty {
-        print_uncertainty_notes(u, &report.fixed_unidentifiable);
+    match (&report.uncertainty, report.prior_noise_mm) {
+        (Some(u), None) => print_uncertainty_notes(u, &report.fixed_unidentifiable),
+        (_, Some(noise)) => print_prior_summary(report, noise),
+        (None, None) => {}
+    }
+    for c in report.plausibility.iter().filter(|c| !c.ok) {
+        eprintln!(
+            "jointfit: warning: implausible {}: {:.1} {u} > {:.1} {u} ({:.1} {u} outside; {})",
+            c.check,
+            c.value,
+            c.limit,
+            c.excess(),
+            c.parameters.join(", "),
+            u = c.unit
+        );
     }
     println!(
         "RMS marker distance: {:.2} mm before, {:.2} mm after ({:.0}% lower)",
@@ -574,6 +681,27 @@ pub fn print_report(report: &Report) {
         t.row(vec![name.clone(), format!("{b:.2}"), format!("{a:.2}")]);
     }
     print!("{}", t.render());
+}
+
+/// With a prior: which parameters the trial determined, and the weighting noise.
+fn print_prior_summary(report: &Report, noise_mm: f64) {
+    println!(
+        "maximum a posteriori fit: priors from the model file, marker noise σ = {noise_mm:.2} \
+         mm ({}); intervals include the prior",
+        if report.prior_noise_estimated {
+            "estimated from the residuals"
+        } else {
+            "given"
+        }
+    );
+    let rows: Vec<(String, String, Option<jointfit::calibrate::prior::Source>)> = report
+        .parameters
+        .iter()
+        .map(|p| (p.group.clone(), p.name.clone(), p.source))
+        .collect();
+    for line in crate::prior_args::summary(&rows) {
+        println!("  {line}");
+    }
 }
 
 /// How the intervals were made, the warnings for flagged parameters, the weak combinations.
@@ -646,7 +774,15 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     }
     files.check()?;
     let spec = jointfit_io::model_file::load_spec(&args.model)?;
-    let model = jointfit_io::model_file::load_model(&args.model)?;
+    let input_model = jointfit_io::model_file::load_model(&args.model)?;
+    let mut fit_spec = input_model.spec().clone();
+    crate::prior_args::apply(&mut fit_spec, args.prior, &args.prior_sd)?;
+    if let Some(mm) = args.marker_noise_mm {
+        if !(mm.is_finite() && mm > 0.0) {
+            bail!("--marker-noise-mm must be a positive number of millimetres, got {mm}");
+        }
+    }
+    let model = Model::compile(&fit_spec)?;
     let mut start = model.nominal_params();
     if let Some(seed) = &args.seed_from {
         let earlier = jointfit_io::model_file::load_model(seed)?;
@@ -690,6 +826,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         &opts,
         args.fix_unidentifiable,
         args.starts as usize,
+        args.marker_noise_mm.map(|mm| mm / MM),
     )?;
     if !report.converged && !args.accept_unconverged {
         if args.json {
@@ -699,7 +836,8 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         }
         return Err(crate::output::Unconverged("the calibration".into()).into());
     }
-    let mut fitted = model.spec_with_nominal(&fit.p);
+    // The fitted model keeps the input file's priors (overrides apply to this run only).
+    let mut fitted = input_model.spec_with_nominal(&fit.p);
     fitted.name = format!("{} (fitted)", spec.name);
     jointfit_io::model_file::save_spec(&args.output, &fitted)
         .with_context(|| format!("writing {}", args.output.display()))?;

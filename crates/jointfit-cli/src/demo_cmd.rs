@@ -61,6 +61,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         &jointfit::calibrate::uncertainty::UncertaintyOptions::default(),
         false,
         1,
+        None,
     )?;
     print_report(&report);
     let mut t = crate::table::Table::new(&[

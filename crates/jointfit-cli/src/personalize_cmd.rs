@@ -5,8 +5,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
+use jointfit::landmarks::functional::{FunctionalReport, FunctionalTrials};
 use jointfit::landmarks::{
-    personalize, HipCentreMethod, MarkerSet, PersonalizeOptions, Personalized, PRESET_NAMES,
+    personalize_with, HipCentreMethod, MarkerSet, PersonalizeOptions, Personalized, PRESET_NAMES,
 };
 use jointfit::model::lower_limb::Side;
 use jointfit::model::Unit;
@@ -41,6 +42,14 @@ pub struct PersonalizeArgs {
     /// prints its distance from ours, averaged over the same window. Repeatable.
     #[arg(long = "compare-hjc", value_name = "LABEL")]
     compare_hjc: Vec<String>,
+    /// Functional hip trial (circumduction / star arcs): the hip centre by SCoRE
+    /// (Ehrig et al. 2006) replaces the regression as nominal value and prior mean.
+    #[arg(long, value_name = "FILE")]
+    functional_hip: Option<PathBuf>,
+    /// Functional knee trial (flexion-extension): the knee axis by SARA (Ehrig et al. 2007)
+    /// replaces the epicondylar axis as nominal value and prior mean.
+    #[arg(long, value_name = "FILE")]
+    functional_knee: Option<PathBuf>,
     /// Print the summary as JSON.
     #[arg(long)]
     json: bool,
@@ -106,12 +115,29 @@ pub fn run(args: PersonalizeArgs) -> Result<()> {
         ..PersonalizeOptions::default()
     };
     let static_name = args.static_trial.display().to_string();
-    let mut result = personalize(&trial, &set, side, &opts).with_context(|| {
+    let load = |p: &Option<PathBuf>| p.as_ref().map(|p| load_trial(p, args.up, None)).transpose();
+    let (hip_trial, knee_trial) = (load(&args.functional_hip)?, load(&args.functional_knee)?);
+    let func = FunctionalTrials {
+        hip: hip_trial.as_ref(),
+        knee: knee_trial.as_ref(),
+        ..FunctionalTrials::default()
+    };
+    let mut result = personalize_with(&trial, &set, side, &opts, &func).with_context(|| {
         let up = args
             .up
             .to_possible_value()
             .map_or("?".into(), |v| v.get_name().to_string());
-        format!("{static_name} (read with --up={up}): cannot personalize")
+        let functional: Vec<String> = [&args.functional_hip, &args.functional_knee]
+            .into_iter()
+            .flatten()
+            .map(|p| p.display().to_string())
+            .collect();
+        let with = if functional.is_empty() {
+            String::new()
+        } else {
+            format!(" with functional trial(s) {}", functional.join(", "))
+        };
+        format!("{static_name} (read with --up={up}){with}: cannot personalize")
     })?;
     result.spec.description = format!("{}; from {static_name}", result.spec.description);
 
@@ -189,6 +215,51 @@ struct Summary {
     segments: Vec<SegmentRow>,
     static_fk_error_mm: f64,
     hjc_comparison: Vec<HjcComparison>,
+    /// Functional hip centre / knee axis against the landmark estimates.
+    functional: Option<FunctionalSummary>,
+    /// Prior SD per parameter (mm or deg), in the model's order.
+    prior_sd: Vec<(String, f64)>,
+}
+
+/// Functional methods' results (mm, deg), in the static trial's frame.
+#[derive(Serialize)]
+struct FunctionalSummary {
+    /// SCoRE hip centre minus the regression's (pelvis frame: anterior, superior, lateral).
+    hip_minus_landmark_mm: Option<[f64; 3]>,
+    hip_shift_mm: Option<f64>,
+    /// Bootstrap SD of the hip centre per static-frame axis.
+    hip_sd_mm: Option<[f64; 3]>,
+    hip_rms_gap_mm: Option<f64>,
+    hip_range_deg: Option<f64>,
+    /// Angle between the SARA axis and the epicondylar axis.
+    knee_axis_angle_deg: Option<f64>,
+    knee_axis_sd_deg: Option<f64>,
+    knee_point_shift_mm: Option<f64>,
+    knee_rms_gap_mm: Option<f64>,
+    knee_range_deg: Option<f64>,
+}
+
+impl FunctionalSummary {
+    fn of(f: &FunctionalReport, r: &Personalized, side: Side) -> Self {
+        let lat = if side == Side::Right { 1.0 } else { -1.0 };
+        let h = f.hip.as_ref();
+        let k = f.knee.as_ref();
+        FunctionalSummary {
+            hip_minus_landmark_mm: h.map(|h| {
+                let d = r.frames.pelvis.rot.transpose() * (h.centre - f.landmark_hip_centre);
+                [d.x * 1e3, d.y * 1e3, lat * d.z * 1e3]
+            }),
+            hip_shift_mm: f.hip_shift().map(|d| d * 1e3),
+            hip_sd_mm: h.map(|h| [h.sd.x * 1e3, h.sd.y * 1e3, h.sd.z * 1e3]),
+            hip_rms_gap_mm: h.map(|h| h.rms_gap * 1e3),
+            hip_range_deg: h.map(|h| h.range_of_motion.to_degrees()),
+            knee_axis_angle_deg: f.knee_angle().map(f64::to_degrees),
+            knee_axis_sd_deg: k.map(|k| k.angle_rms.to_degrees()),
+            knee_point_shift_mm: k.map(|k| (k.point - f.landmark_knee_centre).norm() * 1e3),
+            knee_rms_gap_mm: k.map(|k| k.rms_gap * 1e3),
+            knee_range_deg: k.map(|k| k.range_of_motion.to_degrees()),
+        }
+    }
 }
 
 impl Summary {
@@ -257,6 +328,22 @@ impl Summary {
                 .collect(),
             static_fk_error_mm: rep.static_fk_error * 1e3,
             hjc_comparison,
+            functional: rep
+                .functional
+                .as_ref()
+                .map(|f| FunctionalSummary::of(f, r, side)),
+            prior_sd: r
+                .spec
+                .parameters
+                .iter()
+                .filter_map(|p| {
+                    let k = match p.unit {
+                        Unit::Radian => 180.0 / std::f64::consts::PI,
+                        Unit::Metre => 1e3,
+                    };
+                    p.prior_sd.map(|sd| (p.name.clone(), sd * k))
+                })
+                .collect(),
         }
     }
 
@@ -338,6 +425,36 @@ impl Summary {
                  {:+.1} mm)\n",
                 c.marker, c.distance_mm, c.delta_mm[0], c.delta_mm[1], c.delta_mm[2]
             );
+        }
+        if let Some(f) = &self.functional {
+            if let (Some(d), Some(s), Some(sd)) =
+                (f.hip_minus_landmark_mm, f.hip_shift_mm, f.hip_sd_mm)
+            {
+                out += &format!(
+                    "functional hip centre (SCoRE): {s:.1} mm from the regression (anterior \
+                     {:+.1}, superior {:+.1}, lateral {:+.1} mm); bootstrap SD {:.1}/{:.1}/{:.1} \
+                     mm; centre gap RMS {:.1} mm over {:.0} deg of motion\n",
+                    d[0],
+                    d[1],
+                    d[2],
+                    sd[0],
+                    sd[1],
+                    sd[2],
+                    f.hip_rms_gap_mm.unwrap_or(f64::NAN),
+                    f.hip_range_deg.unwrap_or(f64::NAN)
+                );
+            }
+            if let Some(a) = f.knee_axis_angle_deg {
+                out += &format!(
+                    "functional knee axis (SARA): {a:.1} deg from the epicondylar axis \
+                     (bootstrap {:.1} deg), point {:.1} mm from mid-epicondyles; gap RMS {:.1} \
+                     mm over {:.0} deg of motion\n",
+                    f.knee_axis_sd_deg.unwrap_or(f64::NAN),
+                    f.knee_point_shift_mm.unwrap_or(f64::NAN),
+                    f.knee_rms_gap_mm.unwrap_or(f64::NAN),
+                    f.knee_range_deg.unwrap_or(f64::NAN)
+                );
+            }
         }
         out += &format!(
             "static pose reproduced to {:.1e} mm; all 27 parameters: jointfit model show {}\n",

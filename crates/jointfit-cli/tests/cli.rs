@@ -6,6 +6,8 @@ use std::process::Command;
 mod batch;
 #[path = "cli/data.rs"]
 mod data;
+#[path = "cli/functional.rs"]
+mod functional;
 #[path = "cli/fuzz.rs"]
 mod fuzz;
 #[path = "cli/ident.rs"]
@@ -16,6 +18,8 @@ mod ik;
 mod osim;
 #[path = "cli/personalize.rs"]
 mod personalize;
+#[path = "cli/priors.rs"]
+mod priors;
 #[path = "cli/reliability.rs"]
 mod reliability;
 #[path = "cli/report.rs"]

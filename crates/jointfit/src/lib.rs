@@ -16,6 +16,7 @@ pub mod kinematics;
 pub mod landmarks;
 pub mod linalg;
 pub mod model;
+pub mod plausibility;
 pub mod signal;
 #[doc(hidden)]
 pub mod testing;

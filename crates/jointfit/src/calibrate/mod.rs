@@ -22,9 +22,13 @@
 //!   matrix equal to the undamped Schur complement above.
 //! * [`pso`]: the particle swarm of Schutte et al. 2005 (global, derivative-free), each cost
 //!   evaluation a full set of inner solves.
+//!
+//! With a [`prior::Prior`] attached ([`Problem::prior`]), all three minimize the maximum a
+//! posteriori objective `e_inner(p) + σ² Σ_k ((p_k − μ_k)/s_k)²` instead (see [`prior`]).
 
 pub mod joint;
 mod kernel;
+pub mod prior;
 pub mod pso;
 mod schur;
 pub mod uncertainty;
@@ -97,6 +101,8 @@ pub struct Problem<'m> {
     /// Frames left out because their markers left a coordinate undetermined: (trial, frame).
     pub skipped: Vec<(usize, usize)>,
     pub ik: IkOptions,
+    /// Gaussian prior on the free parameters (None: the paper's unregularized fit).
+    pub prior: Option<prior::Prior>,
 }
 
 impl<'m> Problem<'m> {
@@ -157,6 +163,7 @@ impl<'m> Problem<'m> {
             origin,
             skipped,
             ik,
+            prior: None,
         })
     }
 
@@ -192,7 +199,8 @@ impl<'m> Problem<'m> {
     }
 
     /// Solves every frame's inner problem at `p`, warm-starting from `qs` (updated in place).
-    /// Returns `e_inner(p)`, the summed weighted squared marker error (m²).
+    /// Returns `e_inner(p)`, the summed weighted squared marker error (m²), plus the prior
+    /// term [`Problem::prior_cost`] when a prior is attached.
     pub fn inner(&self, p: &[f64], qs: &mut [Vec<f64>], ws: &mut IkWorkspace) -> f64 {
         let mut total = 0.0;
         for (f, targets) in self.frames.iter().enumerate() {
@@ -200,7 +208,7 @@ impl<'m> Problem<'m> {
             debug_assert!(fit.status != FrameStatus::Converged || fit.cost.is_finite());
             total += fit.cost;
         }
-        total
+        total + self.prior_cost(p)
     }
 
     /// Starting coordinates for every frame at `p`: seeded IK, warm-started within each trial.

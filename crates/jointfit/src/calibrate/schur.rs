@@ -180,6 +180,7 @@ pub(crate) fn assemble(prob: &Problem, p: &[f64], qs: &[Vec<f64>], b: &mut Block
         add(&mut b.gs, &gs);
         b.cost += cost;
     }
+    b.cost += prob.add_prior(p, &mut b.gs, &mut b.v);
 }
 
 /// Solves `L Y = B` in place for `B` (`n × m`, row-major): row by row, each row update an
@@ -427,7 +428,7 @@ pub(crate) fn cost_at(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> f64 {
             },
         )
         .collect();
-    parts.iter().sum()
+    parts.iter().sum::<f64>() + prob.prior_cost(p)
 }
 
 #[cfg(test)]

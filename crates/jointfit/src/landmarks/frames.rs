@@ -46,6 +46,9 @@ pub(crate) struct Anatomy {
     pub frames: SegmentFrames,
     /// Hip centre in the pelvis frame (m).
     pub hip_in_pelvis: Vector3<f64>,
+    /// Hip centre in the thigh frame (m): zero for the landmark method (the thigh origin),
+    /// the functional centre's offset when a functional hip trial is used.
+    pub hip_in_thigh: Vector3<f64>,
     pub hip_centre: Vector3<f64>,
     pub knee_centre: Vector3<f64>,
     pub ankle_centre: Vector3<f64>,
@@ -219,6 +222,7 @@ pub(crate) fn anatomy(
             foot,
         },
         hip_in_pelvis,
+        hip_in_thigh: Vector3::zeros(),
         hip_centre,
         knee_centre,
         ankle_centre,

@@ -55,8 +55,10 @@
 //! [`lower_limb`]: crate::model::lower_limb::lower_limb
 
 mod frames;
+pub mod functional;
 pub mod markerset;
 pub(crate) mod nominal;
+pub mod priors;
 pub mod window;
 
 use nalgebra::Vector3;
@@ -124,6 +126,11 @@ pub enum LandmarkError {
     InvalidOption(String),
     #[error("the personalized model does not compile: {0}")]
     Model(ModelError),
+    #[error("functional {joint} trial: {error}")]
+    Functional {
+        joint: &'static str,
+        error: functional::FunctionalError,
+    },
     #[error("internal error (a bug): {0}")]
     Internal(String),
 }
@@ -215,6 +222,8 @@ pub struct PersonalizeReport {
     /// Largest distance between a tracking marker of the averaged frame and the model's
     /// marker at the static pose (m): ~1e-15 unless something is wrong.
     pub static_fk_error: f64,
+    /// Functional hip centre / knee axis, when functional trials were given.
+    pub functional: Option<functional::FunctionalReport>,
 }
 
 /// The result of [`personalize`].
@@ -259,6 +268,25 @@ pub fn personalize(
     set: &MarkerSet,
     side: Side,
     opts: &PersonalizeOptions,
+) -> Result<Personalized, LandmarkError> {
+    personalize_with(
+        trial,
+        set,
+        side,
+        opts,
+        &functional::FunctionalTrials::default(),
+    )
+}
+
+/// [`personalize`] with the hip centre (SCoRE) and/or knee axis (SARA) taken from
+/// functional trials ([`functional`]); their bootstrap spread sets those parameters' prior
+/// SDs, the landmark table the others' ([`priors`]).
+pub fn personalize_with(
+    trial: &Trial,
+    set: &MarkerSet,
+    side: Side,
+    opts: &PersonalizeOptions,
+    func: &functional::FunctionalTrials,
 ) -> Result<Personalized, LandmarkError> {
     check_options(opts)?;
     set.validate()?;
@@ -325,12 +353,33 @@ pub fn personalize(
         let pts: Vec<_> = list.iter().map(|l| at(l)).collect();
         frames::check_spread(seg, list, &pts, opts.min_marker_spread)?;
     }
-    let an = frames::anatomy(&lm, side, opts)?;
+    let mut an = frames::anatomy(&lm, side, opts)?;
+    let cluster = |seg: &str| -> Result<functional::Cluster, LandmarkError> {
+        let labels = set.tracking(side, seg)?.to_vec();
+        let reference = labels.iter().map(|l| at(l)).collect();
+        Ok(functional::Cluster {
+            segment: seg.to_string(),
+            labels,
+            reference,
+        })
+    };
+    let (functional_report, functional_sds) = if func.hip.is_some() || func.knee.is_some() {
+        let (r, sds) = functional::apply::apply(&mut an, &cluster, func)?;
+        (Some(r), sds)
+    } else {
+        (None, Vec::new())
+    };
     let offsets = nominal::offsets(&an, side)?;
 
     let mut spec = lower_limb(side);
     nominal::fill_offsets(&mut spec, &offsets);
     nominal::set_bounds(&mut spec, &an);
+    for (name, sd) in &functional_sds {
+        if let Some(p) = spec.parameters.iter_mut().find(|p| p.name == *name) {
+            p.prior_sd = Some(*sd);
+        }
+    }
+    priors::fill_landmark_priors(&mut spec, opts.hip_centre);
     let f = &an.frames;
     let poses: [(&str, Pose); 5] = [
         ("pelvis", f.pelvis),
@@ -427,11 +476,15 @@ pub fn personalize(
         ankle_width: an.ankle_width,
         thigh_length: (an.hip_centre - an.knee_centre).norm(),
         shank_length: (an.knee_centre - an.ankle_centre).norm(),
-        hip_centre: an.hip_centre,
+        hip_centre: functional_report
+            .as_ref()
+            .and_then(|r| r.hip.as_ref())
+            .map_or(an.hip_centre, |h| h.centre),
         knee_centre: an.knee_centre,
         ankle_centre: an.ankle_centre,
         segments,
         static_fk_error,
+        functional: functional_report,
     };
     Ok(Personalized {
         spec,

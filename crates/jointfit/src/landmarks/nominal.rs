@@ -76,6 +76,9 @@ pub(crate) fn offsets(an: &Anatomy, side: Side) -> Result<Offsets, LandmarkError
         0.0,
     ];
 
+    let h = an.hip_in_thigh;
+    let hip_child = [h.x, h.y, h.z, 0.0, 0.0, 0.0];
+
     let kt = in_frame(&f.thigh, &an.knee_centre);
     let (krx, kry) = pin_z_angles(&local(&f.thigh, &an.knee_axis));
     let knee_parent = [kt.x, kt.y, kt.z, krx, kry, 0.0];
@@ -121,7 +124,7 @@ pub(crate) fn offsets(an: &Anatomy, side: Side) -> Result<Offsets, LandmarkError
     Ok(Offsets(
         vec![
             ("ground_pelvis", zero, zero),
-            ("hip", hip_parent, zero),
+            ("hip", hip_parent, hip_child),
             ("knee", knee_parent, knee_child),
             ("talocrural", talo_parent, [0.0, 0.0, 0.0, 0.0, 0.0, level]),
             ("subtalar", sub_parent, sub_child),

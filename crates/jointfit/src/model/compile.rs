@@ -201,6 +201,8 @@ impl Compiler<'_> {
                 lower: ps.lower,
                 upper: ps.upper,
                 description: ps.description.clone(),
+                prior_sd: ps.prior_sd,
+                prior_mean: ps.prior_mean.unwrap_or(ps.nominal),
                 uses: u,
             });
         }

@@ -209,6 +209,10 @@ pub struct Parameter {
     pub upper: f64,
     /// Free text shown in reports and in identifiability explanations.
     pub description: String,
+    /// Prior standard deviation (m or rad), if the parameter has a prior.
+    pub prior_sd: Option<f64>,
+    /// Prior mean (m or rad): the spec's `prior_mean`, else its nominal value.
+    pub prior_mean: f64,
     /// Every offset scalar that reads this parameter (at least one).
     pub uses: Vec<ParamUse>,
 }
@@ -443,10 +447,14 @@ impl Model {
     }
 
     /// A copy of the description with the given parameter values written in as nominal values
-    /// (bounds unchanged). Used to save a fitted model.
+    /// (bounds unchanged). Used to save a fitted model. A parameter with a prior keeps its
+    /// prior mean (written out as `prior_mean` when it was the nominal value).
     pub fn spec_with_nominal(&self, p: &[f64]) -> ModelSpec {
         let mut spec = self.spec.clone();
         for (ps, v) in spec.parameters.iter_mut().zip(p) {
+            if ps.prior_sd.is_some() && ps.prior_mean.is_none() {
+                ps.prior_mean = Some(ps.nominal);
+            }
             ps.nominal = *v;
         }
         spec

@@ -330,6 +330,8 @@ fn param_spec(row: &ParamRow) -> ParameterSpec {
         lower: (value - half) * k,
         upper: (value + half) * k,
         description: doc.to_string(),
+        prior_sd: None,
+        prior_mean: None,
     }
 }
 

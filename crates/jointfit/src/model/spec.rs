@@ -316,6 +316,14 @@ pub struct ParameterSpec {
     pub upper: f64,
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub description: String,
+    /// Standard deviation of the parameter's prior (m or rad): the accuracy of the method
+    /// that gave its nominal value (see `docs/priors.md`). None: no prior (a flat prior
+    /// inside the bounds, as in Reinbolt et al. 2005).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub prior_sd: Option<f64>,
+    /// Mean of the prior (m or rad); None: the nominal value.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub prior_mean: Option<f64>,
 }
 
 /// A marker fixed in a segment.

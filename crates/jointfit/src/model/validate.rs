@@ -51,6 +51,20 @@ impl<'a> Compiler<'a> {
                     detail: format!("need finite lower < upper, got [{}, {}]", p.lower, p.upper),
                 });
             }
+            if let Some(sd) = p.prior_sd {
+                if !(sd.is_finite() && sd > 0.0) {
+                    return Err(ModelError::BadBounds {
+                        name: p.name.clone(),
+                        detail: format!("prior_sd must be finite and > 0, got {sd}"),
+                    });
+                }
+            }
+            if p.prior_mean.is_some_and(|m| !m.is_finite()) {
+                return Err(ModelError::BadBounds {
+                    name: p.name.clone(),
+                    detail: "prior_mean must be finite".into(),
+                });
+            }
             if p.nominal < p.lower || p.nominal > p.upper {
                 return Err(ModelError::BadBounds {
                     name: p.name.clone(),

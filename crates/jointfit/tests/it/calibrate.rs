@@ -33,7 +33,13 @@ fn rich_motion(model: &Model, f: usize, frames: usize) -> Vec<f64> {
 
 /// Markers from `p_true` along the rich motion at 50 Hz, plus skin-artifact sinusoids of at
 /// most `amplitude` metres per marker axis (the testkit's generator).
-fn synthetic(model: &Model, p_true: &[f64], frames: usize, amplitude: f64, seed: u64) -> Trial {
+pub(crate) fn synthetic(
+    model: &Model,
+    p_true: &[f64],
+    frames: usize,
+    amplitude: f64,
+    seed: u64,
+) -> Trial {
     let noise = if amplitude > 0.0 {
         Noise::Skin { amplitude }
     } else {
@@ -44,7 +50,7 @@ fn synthetic(model: &Model, p_true: &[f64], frames: usize, amplitude: f64, seed:
 }
 
 /// True parameters: nominal moved by up to 40 % of the half-range of each bound.
-fn perturbed(model: &Model, seed: u64) -> Vec<f64> {
+pub(crate) fn perturbed(model: &Model, seed: u64) -> Vec<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     model
         .parameters()

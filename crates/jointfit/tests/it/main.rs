@@ -7,4 +7,5 @@ mod ik_robust;
 mod kinematics;
 mod landmarks;
 mod models;
+mod priors;
 mod uncertainty;

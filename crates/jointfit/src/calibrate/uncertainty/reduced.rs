@@ -126,6 +126,10 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
         cost += part_cost;
     }
     normal = (&normal + normal.transpose()) * 0.5;
+    // The prior's information (zero without a prior): `S` is then the posterior's.
+    for (k, d) in prob.prior_information().into_iter().enumerate() {
+        normal[(k, k)] += d;
+    }
     let observations = prob
         .frames
         .iter()
@@ -141,6 +145,7 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
         normal,
         scores,
         frame_normals,
+        // The marker term only: σ² is a marker-noise variance.
         cost,
         observations,
         n_q: nq,

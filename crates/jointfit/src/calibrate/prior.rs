@@ -1,0 +1,200 @@
+//! Gaussian priors on the joint parameters: the maximum a posteriori (MAP) objective.
+//!
+//! With markers measured with independent noise of SD σ per coordinate and a prior
+//! `p_k ~ N(μ_k, s_k²)` on each free parameter, the negative log posterior is, up to a
+//! constant and the factor `1/(2σ²)`,
+//!
+//! `F(p, q) = Σ_i Σ_j w_j ‖m_ij − x_j(p, q_i)‖²  +  σ² Σ_k ((p_k − μ_k)/s_k)²`.
+//!
+//! The first term is Reinbolt et al.'s objective; the second behaves like one extra residual
+//! `σ (μ_k − p_k)/s_k` per parameter, so every solver keeps its structure: the joint solver's
+//! reduced normal matrix gains the diagonal `σ² h_k²/s_k²` (`h_k = ∂p_k/∂s_k`, the half-range
+//! of the bounds) and its gradient the term `σ² h_k (μ_k − p_k)/s_k²`; the two-level solvers
+//! and the particle swarm add the term to `e_inner`. Without a prior (`Problem::prior` is
+//! `None`) the fit is the paper's unregularized least squares. Parameters without a prior
+//! SD (`s_k = ∞`) contribute nothing.
+//!
+//! σ is the marker noise in metres. It is either given (`--marker-noise-mm`) or estimated
+//! from the residuals of a fit, `σ² = e / (m − N·n_q − n_f)` (see
+//! [`super::uncertainty`]); the front end iterates fit → σ → fit once.
+
+use super::Problem;
+use crate::model::Model;
+
+/// A Gaussian prior on the free parameters of a [`Problem`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Prior {
+    /// Per free parameter (order of `Problem::free`): prior mean (m or rad).
+    pub mean: Vec<f64>,
+    /// Per free parameter: prior SD (m or rad); `f64::INFINITY` for no prior.
+    pub sd: Vec<f64>,
+    /// Marker noise σ (m): weight of the prior term relative to the marker term.
+    pub noise: f64,
+}
+
+impl Prior {
+    /// The prior that the model file states (`prior_sd`, `prior_mean`) for the parameters
+    /// `free`; `None` when none of them has a prior SD.
+    pub fn from_model(model: &Model, free: &[usize], noise: f64) -> Option<Prior> {
+        let pars: Vec<_> = free.iter().map(|&i| &model.parameters()[i]).collect();
+        if pars.iter().all(|p| p.prior_sd.is_none()) {
+            return None;
+        }
+        Some(Prior {
+            mean: pars.iter().map(|p| p.prior_mean).collect(),
+            sd: pars
+                .iter()
+                .map(|p| p.prior_sd.unwrap_or(f64::INFINITY))
+                .collect(),
+            noise,
+        })
+    }
+
+    /// Weight `σ²/s_k²` of parameter k's prior residual (0 without a prior).
+    pub fn weight(&self, k: usize) -> f64 {
+        let w = (self.noise / self.sd[k]).powi(2);
+        if w.is_finite() {
+            w
+        } else {
+            0.0
+        }
+    }
+}
+
+impl Problem<'_> {
+    /// The prior term `σ² Σ_k ((p_k − μ_k)/s_k)²` at the full parameter vector `p` (m²); 0
+    /// without a prior.
+    pub fn prior_cost(&self, p: &[f64]) -> f64 {
+        let Some(pr) = &self.prior else {
+            return 0.0;
+        };
+        self.free
+            .iter()
+            .enumerate()
+            .map(|(k, &i)| pr.weight(k) * (p[i] - pr.mean[k]).powi(2))
+            .sum()
+    }
+
+    /// Attaches the model file's prior with marker noise `noise` (m); without any `prior_sd`
+    /// among the free parameters the problem stays unregularized.
+    pub fn with_model_prior(mut self, noise: f64) -> Self {
+        self.prior = Prior::from_model(self.model, &self.free, noise);
+        self
+    }
+
+    /// The prior term's share of the normal equations in scaled units: adds
+    /// `σ²h_k(μ_k − p_k)/s_k²` to `gs[k]` and `σ²h_k²/s_k²` to the diagonal of `v` (n_f × n_f,
+    /// column-major); returns the prior cost.
+    pub(crate) fn add_prior(&self, p: &[f64], gs: &mut [f64], v: &mut [f64]) -> f64 {
+        let Some(pr) = &self.prior else {
+            return 0.0;
+        };
+        let nf = self.n_free();
+        let mut cost = 0.0;
+        for (k, &i) in self.free.iter().enumerate() {
+            let w = pr.weight(k);
+            let h = self.half_range(k);
+            let r = pr.mean[k] - p[i];
+            cost += w * r * r;
+            gs[k] += w * h * r;
+            v[k * nf + k] += w * h * h;
+        }
+        cost
+    }
+
+    /// Prior information of the free parameters in scaled units (`σ²h_k²/s_k²`, the
+    /// diagonal the prior adds to the reduced normal matrix); zeros without a prior.
+    pub fn prior_information(&self) -> Vec<f64> {
+        (0..self.n_free())
+            .map(|k| match &self.prior {
+                Some(pr) => pr.weight(k) * self.half_range(k).powi(2),
+                None => 0.0,
+            })
+            .collect()
+    }
+}
+
+/// Where a parameter's posterior information came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Source {
+    /// ≥ 80 % of the information is the trial's: the prior barely matters.
+    DeterminedByTrial,
+    /// 30–80 %: trial and prior both shape the estimate.
+    Partly,
+    /// < 30 %: the estimate is essentially the prior's (landmark/functional) value.
+    HeldByPrior,
+}
+
+impl Source {
+    pub fn of(share: f64) -> Source {
+        if share >= 0.8 {
+            Source::DeterminedByTrial
+        } else if share >= 0.3 {
+            Source::Partly
+        } else {
+            Source::HeldByPrior
+        }
+    }
+    pub fn words(self) -> &'static str {
+        match self {
+            Source::DeterminedByTrial => "determined by the trial",
+            Source::Partly => "partly determined",
+            Source::HeldByPrior => "held by the prior",
+        }
+    }
+}
+
+/// Per free parameter, the share of its posterior information that came from the data:
+/// `1 − var_post/var_prior = 1 − d_k [S⁻¹]_kk`, with `S` the reduced normal matrix including
+/// the prior's diagonal `d` ([`Problem::prior_information`]); 1 for a parameter without a
+/// prior, NaN when `S` is singular. Posterior variances are never larger than prior ones
+/// (`S ⪰ D`), so the share lies in [0, 1].
+pub fn data_share(prob: &Problem, normal: &nalgebra::DMatrix<f64>) -> Vec<f64> {
+    let d = prob.prior_information();
+    let inv = normal.clone().cholesky().map(|c| c.inverse());
+    (0..prob.n_free())
+        .map(|k| {
+            if d[k] == 0.0 {
+                return 1.0;
+            }
+            match &inv {
+                Some(inv) => (1.0 - d[k] * inv[(k, k)]).clamp(0.0, 1.0),
+                None => f64::NAN,
+            }
+        })
+        .collect()
+}
+
+/// How much time-correlated residuals (skin artefact, marker misplacement) overstate the
+/// information of the marker term: the geometric mean over the free parameters of
+/// `(se_robust / se_white)²`, with `se_robust` the larger of the HAC and jackknife standard
+/// errors of an analysis *without* the prior ([`super::uncertainty::analyze`]); at least 1.
+///
+/// Weighting the marker term by `1/(κσ²)` instead of `1/σ²` is the "magnitude adjustment"
+/// of a misspecified (here: independence) likelihood (Pauli, Racugno & Ventura 2011,
+/// Statistica Sinica 21:149–164; Ribatet et al. 2012): the posterior's curvature then
+/// matches the robust sandwich covariance on average. Without it, thousands of correlated
+/// marker samples would count as independent and swamp any prior.
+pub fn correlation_inflation(u: &super::uncertainty::Uncertainty) -> f64 {
+    let mut sum = 0.0;
+    let mut n = 0usize;
+    for p in &u.params {
+        let robust = match (p.se_hac, p.se_jackknife) {
+            (Some(a), Some(b)) => a.max(b),
+            (Some(a), None) | (None, Some(a)) => a,
+            (None, None) => continue,
+        };
+        if let Some(w) = p.se_white {
+            if w > 0.0 && robust.is_finite() && robust > 0.0 {
+                sum += 2.0 * (robust / w).ln();
+                n += 1;
+            }
+        }
+    }
+    if n == 0 {
+        1.0
+    } else {
+        (sum / n as f64).exp().max(1.0)
+    }
+}

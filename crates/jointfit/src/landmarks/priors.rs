@@ -1,0 +1,131 @@
+//! Prior standard deviations of the leg model's parameters: how far the anatomical-landmark
+//! (or functional) estimate of each parameter typically is from the truth.
+//!
+//! A maximum a posteriori fit (`calibrate::prior`) pulls each parameter toward its nominal
+//! value with weight `1/sd²`, so these numbers decide how much a trial must show before a
+//! joint moves. Each entry names its source; where the literature gives a 3-D error or a
+//! 95 % radius for an isotropic error, the per-axis SD follows from the χ₃ distribution
+//! (mean distance 1.596 σ, 95 % radius 2.796 σ). The table with the derivations is in
+//! `docs/priors.md`.
+
+use super::HipCentreMethod;
+use crate::model::spec::ModelSpec;
+
+/// One prior: standard deviation (m or rad) and where it comes from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PriorEntry {
+    pub sd: f64,
+    pub source: &'static str,
+}
+
+const MM: f64 = 1e-3;
+const DEG: f64 = std::f64::consts::PI / 180.0;
+
+/// Per-axis SD of a regression hip centre (m).
+pub fn hip_regression_sd(method: HipCentreMethod) -> PriorEntry {
+    match method {
+        HipCentreMethod::Bell => PriorEntry {
+            sd: 12.0 * MM,
+            source: "Bell et al. 1989/1990: 95 % of adult hip centres within 26 mm (9.3 mm \
+                     per axis), widened for skin-marker ASIS palpation (Della Croce et al. 2005)",
+        },
+        HipCentreMethod::Harrington => PriorEntry {
+            sd: 10.0 * MM,
+            source: "Harrington et al. 2007 regression vs CT, 12.3 ± 5.9 mm 3-D (Mantovani \
+                     et al. 2016; 7.7 mm per axis), widened for skin-marker palpation",
+        },
+    }
+}
+
+/// The prior SD of a lower-limb template parameter estimated by the landmark method.
+pub fn landmark_prior(name: &str, hip: HipCentreMethod) -> Option<PriorEntry> {
+    let e = |sd: f64, source: &'static str| Some(PriorEntry { sd, source });
+    match name {
+        n if n.starts_with("hip_") => Some(hip_regression_sd(hip)),
+        "knee_thigh_frontal"
+        | "knee_thigh_transverse"
+        | "knee_shank_frontal"
+        | "knee_shank_transverse" => e(
+            5.0 * DEG,
+            "epicondyle palpation ≈ 6 mm per landmark over a ≈ 100 mm knee width \
+             (Della Croce et al. 1999) ⇒ ≈ 5°; transepicondylar ≈ optimal flexion axis \
+             (Churchill et al. 1998, 2.9° representation error)",
+        ),
+        "knee_thigh_anterior"
+        | "knee_thigh_superior"
+        | "knee_shank_anterior"
+        | "knee_shank_superior"
+        | "knee_shank_lateral" => e(
+            8.0 * MM,
+            "mid-epicondyle point vs flexion axis: palpation (Della Croce et al. 1999) and \
+             axis offset (Churchill et al. 1998, 3.4 mm)",
+        ),
+        "talocrural_shank_frontal" => e(
+            4.0 * DEG,
+            "talocrural axis vs tibia 80° ± 4° across 46 specimens (Isman & Inman 1969; \
+             Inman 1976)",
+        ),
+        "talocrural_shank_transverse" => e(
+            6.0 * DEG,
+            "talocrural axis vs transmalleolar line in the transverse plane (Inman 1976; \
+             Lundberg et al. 1989), judged ≈ 6°",
+        ),
+        "talocrural_shank_anterior" | "talocrural_shank_superior" | "talocrural_shank_lateral" => {
+            e(
+                6.0 * MM,
+                "the axis passes a few mm distal to the malleolar tips (Inman 1976); \
+                 malleolus palpation is precise (bony, thin tissue)",
+            )
+        }
+        "subtalar_foot_sagittal" => e(
+            9.0 * DEG,
+            "subtalar elevation 42° ± 9° (range 20.5–68.5°) in 46 specimens (Isman & Inman \
+             1969; Inman 1976)",
+        ),
+        "subtalar_foot_transverse" | "subtalar_talus_transverse" => e(
+            11.0 * DEG,
+            "subtalar medial deviation 23° ± 11° (range 4–47°) in 46 specimens (Isman & \
+             Inman 1969; Inman 1976)",
+        ),
+        "subtalar_talus_superior" => e(
+            5.0 * MM,
+            "distance between the talocrural and subtalar axes (Reinbolt's 12.4 mm; \
+             judged ± 5 mm from Isman & Inman 1969)",
+        ),
+        "subtalar_foot_anterior" | "subtalar_foot_superior" | "subtalar_foot_lateral" => e(
+            10.0 * MM,
+            "subtalar axis position in the foot follows from the population-mean angles \
+             (Inman 1976): judged ± 10 mm",
+        ),
+        _ => None,
+    }
+}
+
+/// Writes `prior_sd` into every template parameter that has a landmark prior (leaves
+/// parameters that already have one alone).
+pub fn fill_landmark_priors(spec: &mut ModelSpec, hip: HipCentreMethod) {
+    for p in &mut spec.parameters {
+        if p.prior_sd.is_none() {
+            p.prior_sd = landmark_prior(&p.name, hip).map(|e| e.sd);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::lower_limb::{lower_limb, Side};
+
+    #[test]
+    fn every_template_parameter_has_a_prior() {
+        let mut spec = lower_limb(Side::Right);
+        fill_landmark_priors(&mut spec, HipCentreMethod::Bell);
+        for p in &spec.parameters {
+            let sd = p
+                .prior_sd
+                .unwrap_or_else(|| panic!("{} has no prior", p.name));
+            // A prior is narrower than the search bounds (else it would add nothing).
+            assert!(sd < 0.5 * (p.upper - p.lower), "{}: {sd}", p.name);
+        }
+    }
+}

@@ -1,0 +1,220 @@
+//! Anatomical plausibility of fitted joint parameters of the lower-limb template.
+//!
+//! After a fit, each joint is compared with an envelope around where the landmark (or
+//! functional) method puts it. The envelopes are the 95 % regions of the priors
+//! (`landmarks::priors`, `docs/priors.md`), so a violation says "the fit moved this joint
+//! further than the method that placed it is ever this wrong in 95 % of people":
+//!
+//! * **hip centre lateral offset** `≤ 0.9 × PW/2` (PW: inter-ASIS distance, read off the
+//!   model's ASIS markers, which sit at `(0, 0, ±PW/2)` in the pelvis frame of a personalized
+//!   model): the hip centre lies medial to the ASIS (Bell et al. 1990 put it at 0.36·PW from
+//!   the midline; Harrington et al. 2007 at 0.33·PW + 7 mm);
+//! * **hip centre distance** from the prior mean in the pelvis `≤ 2.80 σ` (the 95 % radius
+//!   of an isotropic 3-D normal with the prior's per-axis σ; 34 mm for Bell's 12 mm);
+//! * **axis angles** (knee axis in thigh and in shank, talocrural axis in shank, subtalar
+//!   axis in foot) from the prior mean's direction `≤ 2.45 σ` (the 95 % radius of a 2-D
+//!   normal of the two orientation angles; 12° for the epicondylar axis' 5°).
+//!
+//! Without priors in the model the envelopes use the landmark table's SDs.
+
+use nalgebra::Vector3;
+
+use crate::landmarks::priors::{landmark_prior, PriorEntry};
+use crate::landmarks::HipCentreMethod;
+use crate::model::Model;
+
+/// One plausibility check.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Check {
+    /// What is checked, e.g. `hip centre lateral offset`.
+    pub check: String,
+    /// The parameters involved.
+    pub parameters: Vec<String>,
+    /// Measured value and the limit, in `unit` (`mm` or `deg`).
+    pub value: f64,
+    pub limit: f64,
+    pub unit: &'static str,
+    /// False when outside the envelope.
+    pub ok: bool,
+}
+
+impl Check {
+    /// How far outside the envelope (0 when inside).
+    pub fn excess(&self) -> f64 {
+        (self.value - self.limit).max(0.0)
+    }
+}
+
+/// 95 % radius of an isotropic 3-D normal, in σ (√χ²₃(0.95)).
+pub const RADIUS_95_3D: f64 = 2.795;
+/// 95 % radius of an isotropic 2-D normal, in σ (√χ²₂(0.95)).
+pub const RADIUS_95_2D: f64 = 2.448;
+/// Largest accepted hip-centre lateral offset as a fraction of half the inter-ASIS width.
+pub const HIP_LATERAL_FRACTION: f64 = 0.9;
+
+fn sd_of(model: &Model, i: usize) -> f64 {
+    let p = &model.parameters()[i];
+    p.prior_sd.unwrap_or_else(|| {
+        landmark_prior(&p.name, HipCentreMethod::Bell).map_or(f64::NAN, |e: PriorEntry| e.sd)
+    })
+}
+
+/// Half the inter-ASIS distance (m) from the pelvis markers on the pelvis z axis, if any.
+pub fn half_pelvis_width(model: &Model) -> Option<f64> {
+    let pelvis = model.segments().iter().position(|s| s.name == "pelvis")?;
+    let zs: Vec<f64> = model
+        .markers()
+        .iter()
+        .filter(|m| m.segment.0 == pelvis && m.local.x.abs() < 1e-6 && m.local.y.abs() < 1e-6)
+        .map(|m| m.local.z.abs())
+        .collect();
+    (zs.len() == 2).then(|| 0.5 * (zs[0] + zs[1]))
+}
+
+/// Unit axis of a pin about z tilted by (rx, ry): `(sin ry, −sin rx cos ry, cos rx cos ry)`.
+fn pin_axis(rx: f64, ry: f64) -> Vector3<f64> {
+    Vector3::new(ry.sin(), -rx.sin() * ry.cos(), rx.cos() * ry.cos())
+}
+
+/// Runs every check that the model's parameters allow on the parameter vector `p`.
+pub fn check(model: &Model, p: &[f64]) -> Vec<Check> {
+    let id = |n: &str| model.param_id(n).map(|x| x.0);
+    let mean = |i: usize| model.parameters()[i].prior_mean;
+    let mut out = Vec::new();
+    let hip: Option<Vec<usize>> = [
+        "hip_pelvis_anterior",
+        "hip_pelvis_superior",
+        "hip_pelvis_lateral",
+    ]
+    .iter()
+    .map(|n| id(n))
+    .collect();
+    if let Some(h) = hip {
+        let names: Vec<String> = h
+            .iter()
+            .map(|&i| model.parameters()[i].name.clone())
+            .collect();
+        if let Some(half) = half_pelvis_width(model) {
+            let limit = HIP_LATERAL_FRACTION * half;
+            out.push(Check {
+                check: "hip centre lateral offset (≤ 0.9 × half the inter-ASIS width)".into(),
+                parameters: vec![names[2].clone()],
+                value: p[h[2]] * 1e3,
+                limit: limit * 1e3,
+                unit: "mm",
+                ok: p[h[2]] <= limit,
+            });
+        }
+        let d = h
+            .iter()
+            .map(|&i| (p[i] - mean(i)).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let sd = h.iter().map(|&i| sd_of(model, i)).fold(0.0, f64::max);
+        let limit = RADIUS_95_3D * sd;
+        out.push(Check {
+            check: "hip centre distance from the landmark/functional estimate".into(),
+            parameters: names,
+            value: d * 1e3,
+            limit: limit * 1e3,
+            unit: "mm",
+            ok: d <= limit,
+        });
+    }
+    let axes: [(&str, &str, &str); 4] = [
+        (
+            "knee axis in thigh",
+            "knee_thigh_frontal",
+            "knee_thigh_transverse",
+        ),
+        (
+            "knee axis in shank",
+            "knee_shank_frontal",
+            "knee_shank_transverse",
+        ),
+        (
+            "talocrural axis in shank",
+            "talocrural_shank_frontal",
+            "talocrural_shank_transverse",
+        ),
+        (
+            "subtalar axis in foot",
+            "subtalar_foot_sagittal",
+            "subtalar_foot_transverse",
+        ),
+    ];
+    for (what, a, b) in axes {
+        let (Some(ia), Some(ib)) = (id(a), id(b)) else {
+            continue;
+        };
+        // The subtalar foot axis is x turned by (ry = transverse, rz = sagittal); the others
+        // are z turned by (rx = frontal, ry = transverse).
+        let dir = |va: f64, vb: f64| {
+            if a == "subtalar_foot_sagittal" {
+                Vector3::new(vb.cos() * va.cos(), va.sin(), -vb.sin() * va.cos())
+            } else {
+                pin_axis(va, vb)
+            }
+        };
+        let angle = dir(p[ia], p[ib]).angle(&dir(mean(ia), mean(ib)));
+        let sd = sd_of(model, ia).max(sd_of(model, ib));
+        let limit = RADIUS_95_2D * sd;
+        out.push(Check {
+            check: format!("{what}: angle from the landmark/functional axis"),
+            parameters: vec![a.to_string(), b.to_string()],
+            value: angle.to_degrees(),
+            limit: limit.to_degrees(),
+            unit: "deg",
+            ok: angle <= limit,
+        });
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::landmarks::priors::fill_landmark_priors;
+    use crate::model::lower_limb::{lower_limb, Side};
+
+    fn model() -> Model {
+        // The template's ASIS markers sit at (0, 0, ±120 mm): PW/2 = 120 mm.
+        let mut spec = lower_limb(Side::Left);
+        fill_landmark_priors(&mut spec, HipCentreMethod::Bell);
+        Model::compile(&spec).unwrap()
+    }
+
+    #[test]
+    fn nominal_passes_and_moves_are_measured() {
+        let m = model();
+        let p0 = m.nominal_params();
+        let checks = check(&m, &p0);
+        assert_eq!(checks.len(), 6);
+        for c in &checks {
+            assert!(c.ok, "{c:?}");
+        }
+        // Hip lateral to 120 mm (> 0.9 × 120 mm), 34 mm from the mean (> 2.8 × 12 mm).
+        let mut p = p0.clone();
+        let lat = m.param_id("hip_pelvis_lateral").unwrap().0;
+        p[lat] = 0.120;
+        let shift = 0.120 - p0[lat];
+        let c = check(&m, &p);
+        assert!(
+            !c[0].ok && (c[0].excess() - 12.0).abs() < 1e-6,
+            "{:?}",
+            c[0]
+        );
+        assert!((c[1].value - shift * 1e3).abs() < 1e-6);
+        assert!(!c[1].ok, "33.7 mm > 2.8 × 12 mm: {:?}", c[1]);
+        // Knee axis turned 15° in the frontal plane of the thigh: 15° > 12.2°.
+        let mut p = p0.clone();
+        let f = m.param_id("knee_thigh_frontal").unwrap().0;
+        p[f] += 15f64.to_radians();
+        let c = check(&m, &p);
+        let knee = c
+            .iter()
+            .find(|c| c.check.starts_with("knee axis in thigh"))
+            .unwrap();
+        assert!(!knee.ok && (knee.value - 15.0).abs() < 1e-6, "{knee:?}");
+    }
+}
