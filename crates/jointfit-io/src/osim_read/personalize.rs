@@ -78,6 +78,8 @@ pub fn parameterize(model: &OsimModel, selections: &[&str]) -> Result<ModelSpec,
                     lower: v - half,
                     upper: v + half,
                     description: format!("{} frame {:?} of {joint}", side_word(side), site.frame),
+                    prior_sd: None,
+                    prior_mean: None,
                 });
                 let offset = match side {
                     Side::Parent => &mut spec.joints[j].parent_offset,
