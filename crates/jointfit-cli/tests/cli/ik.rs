@@ -92,9 +92,11 @@ fn jam_overground_with_a_two_marker_foot_is_solved() {
     assert!(v["max_frame_rms_mm"].as_f64().unwrap() < 20.0, "{v}");
 }
 
-/// One coordinate of 1e21 mm in one marker of frame 41 of walking1: the sample is rejected
-/// and reported, every frame is solved, and the coordinates agree with the clean trial's
-/// (frame 41 to within what dropping one marker changes, the rest to solver precision).
+/// One coordinate of 1e21 mm in one marker of frame 41 of walking1 is refused when the file
+/// is read (one line naming frame and marker; issue 16's input validation). A wild sample the
+/// reader lets through (the same coordinate 2 m off) is rejected by IK and reported: every
+/// frame is solved, and the coordinates agree with the clean trial's (frame 41 to within what
+/// dropping one marker changes, the rest to solver precision).
 #[test]
 fn walking1_with_a_wild_sample_recovers() {
     let (Some(stat), Some(walk)) = (
@@ -107,10 +109,21 @@ fn walking1_with_a_wild_sample_recovers() {
     let dir = tmp.path();
     let subject = dir.join("subject.toml");
     personalize(&stat, "opencap", &subject);
+    let absurd = dir.join("walking1_1e21.trc");
+    edit_trc(&walk, &absurd, |frame, label, cells| {
+        if frame == 41 && label == "r_knee" {
+            cells[1] = "1e21".into();
+        }
+    });
+    let (ok, _, err) = jointfit(&["ik", s(&subject), s(&absurd), "-o", s(&dir.join("a.mot"))]);
+    assert!(!ok);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("frame 41, marker r_knee"), "{err}");
     let wild = dir.join("walking1_wild.trc");
     edit_trc(&walk, &wild, |frame, label, cells| {
         if frame == 41 && label == "r_knee" {
-            cells[1] = "1e21".into();
+            let y: f64 = cells[1].trim().parse().unwrap();
+            cells[1] = format!("{:.5}", y + 2000.0);
         }
     });
     let clean = ik(&subject, &walk, &dir.join("clean.mot"), &[]);
