@@ -19,6 +19,7 @@
 use std::fs;
 use std::io::{self, Write};
 use std::path::{Component, Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 use std::sync::Mutex;
 
 use anyhow::{bail, Result};
@@ -116,8 +117,17 @@ impl std::fmt::Display for Unconverged {
 
 impl std::error::Error for Unconverged {}
 
+/// Set while a batch's files are renamed into place.
+static COMMITTING: AtomicBool = AtomicBool::new(false);
+/// A cleanup signal that arrived while [`COMMITTING`] was set.
+static PENDING_SIGNAL: AtomicI32 = AtomicI32::new(0);
+
 #[cfg(unix)]
 extern "C" fn on_signal(sig: libc::c_int) {
+    if COMMITTING.load(Ordering::SeqCst) {
+        PENDING_SIGNAL.store(sig, Ordering::SeqCst);
+        return;
+    }
     jointfit_io::staging::remove_registered_temps();
     // SAFETY: signal(2) and raise(3) are async-signal-safe; the default action ends the
     // process with the signal's usual status.
@@ -463,7 +473,19 @@ pub fn finish(
     let result = result.and_then(|()| flush_stdout());
     pause_for_tests();
     let result = result.and_then(|()| match batch {
-        Some(b) => b.commit().map(|_| ()).map_err(anyhow::Error::from),
+        Some(b) => {
+            // An interrupt during the renames waits for the last one, so that it lands
+            // before the first rename or after the last, never between two.
+            COMMITTING.store(true, Ordering::SeqCst);
+            let r = b.commit().map(|_| ()).map_err(anyhow::Error::from);
+            COMMITTING.store(false, Ordering::SeqCst);
+            let sig = PENDING_SIGNAL.swap(0, Ordering::SeqCst);
+            if sig != 0 {
+                #[cfg(unix)]
+                on_signal(sig);
+            }
+            r
+        }
         None => Ok(()),
     });
     match result {
