@@ -12,7 +12,8 @@
 //!   opened by `main`: nothing is renamed into place unless the whole command succeeded, and
 //!   SIGINT/SIGTERM/SIGHUP remove the temporary files ([`install_signal_handlers`]).
 //! - **Exit status.** 0 success; 1 error (nothing written); 2 bad command line; 3 a fit did
-//!   not converge (nothing written; `--accept-unconverged` keeps it and exits 0).
+//!   not converge (nothing written; `--accept-unconverged` keeps it and exits 0); 4 some jobs
+//!   of `jointfit batch` failed (its files are kept: the results table records the failures).
 //! - **Errors.** [`one_line`]: the causes joined on one line, each said once, long tokens
 //!   elided and huge numbers shown in scientific notation.
 
@@ -26,6 +27,8 @@ use anyhow::{bail, Result};
 
 /// Exit status of a fit that did not converge (see the module docs).
 pub const EXIT_UNCONVERGED: u8 = 3;
+/// Exit status of a batch some of whose jobs failed (see the module docs).
+pub const EXIT_PARTIAL: u8 = 4;
 /// Exit status of a command line that clap rejects.
 pub const EXIT_USAGE: u8 = 2;
 
@@ -121,6 +124,19 @@ impl std::error::Error for Unconverged {}
 static COMMITTING: AtomicBool = AtomicBool::new(false);
 /// A cleanup signal that arrived while [`COMMITTING`] was set.
 static PENDING_SIGNAL: AtomicI32 = AtomicI32::new(0);
+
+/// Some jobs of a batch failed; `main` keeps the files written (they record the failures)
+/// and turns it into exit status [`EXIT_PARTIAL`].
+#[derive(Debug)]
+pub struct PartialFailure(pub String);
+
+impl std::fmt::Display for PartialFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} (exit status {EXIT_PARTIAL})", self.0)
+    }
+}
+
+impl std::error::Error for PartialFailure {}
 
 #[cfg(unix)]
 extern "C" fn on_signal(sig: libc::c_int) {
@@ -348,61 +364,12 @@ impl Files {
     }
 }
 
-/// Longest token kept whole in an error message (a quoted input, a path, a number).
-pub const MAX_TOKEN_CHARS: usize = 80;
-/// Longest error message.
-pub const MAX_MESSAGE_CHARS: usize = 1000;
+pub use jointfit_io::message::tidy;
 
-/// The error and its causes on one line, each cause said once: a cause whose text the
-/// message already holds (thiserror types that print their source, wrapped by anyhow
-/// contexts) is skipped. Whitespace runs become one space; see [`tidy`].
+/// The error and its causes on one line (see [`jointfit_io::message::one_line`], which the
+/// Python package uses too, so both say the same).
 pub fn one_line(e: &anyhow::Error) -> String {
-    let mut msg = String::new();
-    for cause in e.chain() {
-        let s = cause.to_string();
-        let s = s.split_whitespace().collect::<Vec<_>>().join(" ");
-        if s.is_empty() || msg.contains(&s) {
-            continue;
-        }
-        if !msg.is_empty() {
-            msg.push_str(": ");
-        }
-        msg.push_str(&s);
-    }
-    tidy(&msg)
-}
-
-/// A one-line message with numbers of more than 24 characters in scientific notation,
-/// tokens longer than [`MAX_TOKEN_CHARS`] elided in the middle, and the whole capped at
-/// [`MAX_MESSAGE_CHARS`].
-pub fn tidy(msg: &str) -> String {
-    let tokens: Vec<String> = msg
-        .split(' ')
-        .map(|t| {
-            let core = t.trim_end_matches([',', ';', ':', ')', '.']);
-            let tail = &t[core.len()..];
-            if core.len() > 24 {
-                if let Ok(v) = core.parse::<f64>() {
-                    return format!("{v:e}{tail}");
-                }
-            }
-            let n = t.chars().count();
-            if n > MAX_TOKEN_CHARS {
-                let head: String = t.chars().take(60).collect();
-                let end: String = t.chars().skip(n - 16).collect();
-                format!("{head}…[{} characters]…{end}", n - 76)
-            } else {
-                t.to_string()
-            }
-        })
-        .collect();
-    let out = tokens.join(" ");
-    if out.chars().count() > MAX_MESSAGE_CHARS {
-        let cut: String = out.chars().take(MAX_MESSAGE_CHARS).collect();
-        format!("{cut}…")
-    } else {
-        out
-    }
+    jointfit_io::message::one_line(e.chain().map(|c| c.to_string()))
 }
 
 /// A clap error on one line (its first lines up to the usage, without the misleading
@@ -464,6 +431,20 @@ fn pause_for_tests() {
     }
 }
 
+/// Renames a batch's files into place. An interrupt during the renames waits for the last
+/// one, so that it lands before the first rename or after the last, never between two.
+fn commit(b: jointfit_io::staging::Batch) -> Result<()> {
+    COMMITTING.store(true, Ordering::SeqCst);
+    let r = b.commit().map(|_| ()).map_err(anyhow::Error::from);
+    COMMITTING.store(false, Ordering::SeqCst);
+    let sig = PENDING_SIGNAL.swap(0, Ordering::SeqCst);
+    if sig != 0 {
+        #[cfg(unix)]
+        on_signal(sig);
+    }
+    r
+}
+
 /// Ends a run: on success with standard output intact, commits the batch of written files;
 /// otherwise discards it and prints one error line. Returns the exit status.
 pub fn finish(
@@ -472,20 +453,14 @@ pub fn finish(
 ) -> std::process::ExitCode {
     let result = result.and_then(|()| flush_stdout());
     pause_for_tests();
+    // A partly failed batch keeps its files: commit as on success, then report.
+    let partial = matches!(&result, Err(e) if e.downcast_ref::<PartialFailure>().is_some());
+    let (result, batch) = match (result, batch) {
+        (Err(e), Some(b)) if partial => (commit(b).and(Err(e)), None),
+        (r, b) => (r, b),
+    };
     let result = result.and_then(|()| match batch {
-        Some(b) => {
-            // An interrupt during the renames waits for the last one, so that it lands
-            // before the first rename or after the last, never between two.
-            COMMITTING.store(true, Ordering::SeqCst);
-            let r = b.commit().map(|_| ()).map_err(anyhow::Error::from);
-            COMMITTING.store(false, Ordering::SeqCst);
-            let sig = PENDING_SIGNAL.swap(0, Ordering::SeqCst);
-            if sig != 0 {
-                #[cfg(unix)]
-                on_signal(sig);
-            }
-            r
-        }
+        Some(b) => commit(b),
         None => Ok(()),
     });
     match result {
@@ -494,6 +469,8 @@ pub fn finish(
             eprintln!("jointfit: error: {}", one_line(&e));
             if e.downcast_ref::<Unconverged>().is_some() {
                 std::process::ExitCode::from(EXIT_UNCONVERGED)
+            } else if e.downcast_ref::<PartialFailure>().is_some() {
+                std::process::ExitCode::from(EXIT_PARTIAL)
             } else {
                 std::process::ExitCode::FAILURE
             }
@@ -504,12 +481,12 @@ pub fn finish(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use jointfit_io::message::MAX_MESSAGE_CHARS;
 
     #[test]
     fn an_unconverged_fit_is_status_3_and_discards_the_batch() {
         use std::process::ExitCode;
-        let dir = std::env::temp_dir().join(format!("jointfit-unconv-{}", std::process::id()));
-        fs::create_dir_all(&dir).unwrap();
+        let dir = jointfit_testkit::scratch("unconv");
         let out = dir.join("fitted.toml");
         let batch = jointfit_io::staging::Batch::begin().unwrap();
         jointfit_io::atomic::write_atomic(&out, b"fit").unwrap();
@@ -521,7 +498,6 @@ mod tests {
         assert_eq!(fs::read_dir(&dir).unwrap().count(), 0, "nothing written");
         let other = finish(Err(anyhow::anyhow!("x")), None);
         assert_eq!(other, ExitCode::FAILURE);
-        fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -551,7 +527,7 @@ mod tests {
 
     #[test]
     fn identity_sees_through_spellings_and_links() {
-        let dir = std::env::temp_dir().join(format!("jointfit-ident-{}", std::process::id()));
+        let dir = jointfit_testkit::scratch("ident");
         fs::create_dir_all(dir.join("sub")).unwrap();
         let a = dir.join("a.trc");
         fs::write(&a, b"x").unwrap();
@@ -589,6 +565,5 @@ mod tests {
             .output_in_place("output", &a, true)
             .check()
             .is_ok());
-        fs::remove_dir_all(&dir).unwrap();
     }
 }
