@@ -20,6 +20,7 @@
 use std::fs;
 use std::io::{self, Write};
 use std::path::{Component, Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 use std::sync::Mutex;
 
 use anyhow::{bail, Result};
@@ -119,6 +120,11 @@ impl std::fmt::Display for Unconverged {
 
 impl std::error::Error for Unconverged {}
 
+/// Set while a batch's files are renamed into place.
+static COMMITTING: AtomicBool = AtomicBool::new(false);
+/// A cleanup signal that arrived while [`COMMITTING`] was set.
+static PENDING_SIGNAL: AtomicI32 = AtomicI32::new(0);
+
 /// Some jobs of a batch failed; `main` keeps the files written (they record the failures)
 /// and turns it into exit status [`EXIT_PARTIAL`].
 #[derive(Debug)]
@@ -134,6 +140,10 @@ impl std::error::Error for PartialFailure {}
 
 #[cfg(unix)]
 extern "C" fn on_signal(sig: libc::c_int) {
+    if COMMITTING.load(Ordering::SeqCst) {
+        PENDING_SIGNAL.store(sig, Ordering::SeqCst);
+        return;
+    }
     jointfit_io::staging::remove_registered_temps();
     // SAFETY: signal(2) and raise(3) are async-signal-safe; the default action ends the
     // process with the signal's usual status.
@@ -421,6 +431,20 @@ fn pause_for_tests() {
     }
 }
 
+/// Renames a batch's files into place. An interrupt during the renames waits for the last
+/// one, so that it lands before the first rename or after the last, never between two.
+fn commit(b: jointfit_io::staging::Batch) -> Result<()> {
+    COMMITTING.store(true, Ordering::SeqCst);
+    let r = b.commit().map(|_| ()).map_err(anyhow::Error::from);
+    COMMITTING.store(false, Ordering::SeqCst);
+    let sig = PENDING_SIGNAL.swap(0, Ordering::SeqCst);
+    if sig != 0 {
+        #[cfg(unix)]
+        on_signal(sig);
+    }
+    r
+}
+
 /// Ends a run: on success with standard output intact, commits the batch of written files;
 /// otherwise discards it and prints one error line. Returns the exit status.
 pub fn finish(
@@ -432,11 +456,11 @@ pub fn finish(
     // A partly failed batch keeps its files: commit as on success, then report.
     let partial = matches!(&result, Err(e) if e.downcast_ref::<PartialFailure>().is_some());
     let (result, batch) = match (result, batch) {
-        (Err(e), Some(b)) if partial => (b.commit().map_err(anyhow::Error::from).and(Err(e)), None),
+        (Err(e), Some(b)) if partial => (commit(b).and(Err(e)), None),
         (r, b) => (r, b),
     };
     let result = result.and_then(|()| match batch {
-        Some(b) => b.commit().map(|_| ()).map_err(anyhow::Error::from),
+        Some(b) => commit(b),
         None => Ok(()),
     });
     match result {
