@@ -98,7 +98,16 @@ fn bad_model_is_a_one_line_error() {
 /// finite positive number and the IK it times converges in a handful of iterations.
 #[test]
 fn bench_runs_without_data() {
-    let (ok, out, err) = jointfit(&["bench", "--data", "/nonexistent-jointfit-data", "--json"]);
+    let (ok, out, err) = jointfit(&[
+        "bench",
+        "--data",
+        "/nonexistent-jointfit-data",
+        "--json",
+        "--long-frames",
+        "200",
+        "--rss-frames",
+        "200",
+    ]);
     assert!(ok, "{err}");
     let v: serde_json::Value = serde_json::from_str(&out).expect("valid JSON");
     assert!(
@@ -112,12 +121,17 @@ fn bench_runs_without_data() {
         "ik_warm_us_per_frame",
         "joint_27_ms",
         "gradient_27_ms",
+        "peak_rss_mb",
     ] {
         let x = v[key].as_f64().unwrap();
         assert!(x.is_finite() && x > 0.0, "{key} = {x}");
     }
     let iterations = v["ik_iterations_per_frame"].as_f64().unwrap();
     assert!((1.0..=12.0).contains(&iterations), "{iterations}");
+    // The long-fit figures are there (their values are timings, not asserted).
+    let long = &v["long_fit"];
+    assert_eq!(long["frames"].as_u64(), Some(200), "{out}");
+    assert!(long["two_over_one"].as_f64().unwrap().is_finite(), "{out}");
 }
 
 /// `--starts 3`: three optima reported, and the fit kept is the best of them.

@@ -87,7 +87,7 @@ pub fn solve_joint_observed(
                 .map(|(q, d)| q.iter().zip(d).map(|(a, b)| a + b).collect())
                 .collect();
             let p_try = prob.to_params(&s_try);
-            let c = cost_at(prob, &p_try, &q_try);
+            let c = cost_at(prob, &blocks, &p_try, &q_try);
             evaluations += 1;
             if c <= cost {
                 step = ds_eff

@@ -13,6 +13,9 @@
 //! (its kernels chosen at run time for the processor's vector units). The same operations run
 //! in the same order whatever the thread count.
 
+use std::ops::{Deref, DerefMut};
+use std::sync::Mutex;
+
 use nalgebra::Vector3;
 
 use super::Problem;
@@ -58,6 +61,59 @@ impl FrameScratch {
             buf: Vec::new(),
             fac: Vec::new(),
             vec: Vec::new(),
+        }
+    }
+}
+
+/// Workspaces kept from one parallel pass to the next (one per worker that ran), so that a
+/// pass does not build new ones. Which workspace a chunk gets does not matter: the kernel
+/// overwrites everything it reads.
+#[derive(Default)]
+pub(crate) struct ScratchPool(Mutex<Vec<FrameScratch>>);
+
+impl ScratchPool {
+    /// A workspace from the pool (or a new one), returned to the pool when dropped.
+    pub fn take<'a>(&'a self, prob: &Problem) -> Pooled<'a> {
+        let sc = self
+            .0
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .pop()
+            .unwrap_or_else(|| FrameScratch::new(prob));
+        Pooled {
+            pool: self,
+            sc: Some(sc),
+        }
+    }
+}
+
+/// A workspace on loan from a [`ScratchPool`].
+pub(crate) struct Pooled<'a> {
+    pool: &'a ScratchPool,
+    sc: Option<FrameScratch>,
+}
+
+impl Deref for Pooled<'_> {
+    type Target = FrameScratch;
+    fn deref(&self) -> &FrameScratch {
+        self.sc.as_ref().expect("present until dropped")
+    }
+}
+
+impl DerefMut for Pooled<'_> {
+    fn deref_mut(&mut self) -> &mut FrameScratch {
+        self.sc.as_mut().expect("present until dropped")
+    }
+}
+
+impl Drop for Pooled<'_> {
+    fn drop(&mut self) {
+        if let Some(sc) = self.sc.take() {
+            self.pool
+                .0
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .push(sc);
         }
     }
 }

@@ -20,9 +20,9 @@
 
 use rayon::prelude::*;
 
-use super::kernel::{dot, frame_gram, FrameScratch};
+use super::kernel::{dot, frame_gram, FrameScratch, ScratchPool};
 use super::Problem;
-use crate::kinematics::{forward_kinematics, KinData, Want};
+use crate::kinematics::{forward_kinematics, Want};
 use crate::linalg::{cholesky_in_place, cholesky_solve};
 
 /// Frames per parallel work item (fixed: it sets the order of every floating-point sum).
@@ -31,7 +31,6 @@ pub(crate) const CHUNK: usize = 32;
 /// Memory for cached per-frame blocks (bytes); frames beyond it are recomputed.
 pub(crate) const CACHE_BYTES: usize = 48 << 20;
 
-#[derive(Debug, Clone)]
 pub(crate) struct Blocks {
     pub nq: usize,
     pub nf: usize,
@@ -52,6 +51,8 @@ pub(crate) struct Blocks {
     half: Vec<f64>,
     /// Damping of the last successful [`solve`].
     lambda: f64,
+    /// Workspaces of the parallel passes.
+    pool: ScratchPool,
 }
 
 impl Blocks {
@@ -84,6 +85,7 @@ impl Blocks {
             p: Vec::new(),
             half: (0..nf).map(|k| prob.half_range(k)).collect(),
             lambda: 0.0,
+            pool: ScratchPool::default(),
         }
     }
 
@@ -144,11 +146,12 @@ pub(crate) fn assemble(prob: &Problem, p: &[f64], qs: &[Vec<f64>], b: &mut Block
     let mut slots: Vec<Option<&mut [f64]>> = b.store.chunks_mut(CHUNK * per).map(Some).collect();
     slots.resize_with(chunks, || None);
     let half = &b.half;
+    let pool = &b.pool;
     let parts: Vec<(Vec<f64>, Vec<f64>, f64)> = slots
         .into_par_iter()
         .enumerate()
         .map_init(
-            || FrameScratch::new(prob),
+            || pool.take(prob),
             |sc, (c, mut slot)| {
                 let mut v = vec![0.0; nf * nf];
                 let mut gs = vec![0.0; nf];
@@ -237,7 +240,7 @@ pub(crate) fn solve(
     let parts: Vec<Option<Vec<f64>>> = (0..blocks.chunks())
         .into_par_iter()
         .map_init(
-            || FrameScratch::new(prob),
+            || blocks.pool.take(prob),
             |sc, c| {
                 let range = blocks.chunk_frames(c);
                 let mut l = std::mem::take(&mut sc.fac);
@@ -357,7 +360,7 @@ pub(crate) fn back_substitute(
         .par_chunks_mut(CHUNK)
         .enumerate()
         .map_init(
-            || FrameScratch::new(prob),
+            || b.pool.take(prob),
             |sc, (c, dq)| {
                 let mut l = std::mem::take(&mut sc.fac);
                 let mut wd = std::mem::take(&mut sc.vec);
@@ -407,14 +410,16 @@ pub(crate) fn active_bounds(s: &[f64], gs: &[f64]) -> Vec<bool> {
         .collect()
 }
 
-/// Objective at `(p, qs)` without derivatives (m²), summed over fixed chunks of frames.
-pub(crate) fn cost_at(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> f64 {
+/// Objective at `(p, qs)` without derivatives (m²), summed over fixed chunks of frames
+/// (`b`: the workspaces).
+pub(crate) fn cost_at(prob: &Problem, b: &Blocks, p: &[f64], qs: &[Vec<f64>]) -> f64 {
     let parts: Vec<f64> = qs
         .par_chunks(CHUNK)
         .enumerate()
         .map_init(
-            || KinData::new(prob.model),
-            |kin, (c, qs)| {
+            || b.pool.take(prob),
+            |sc, (c, qs)| {
+                let kin = &mut sc.kin;
                 let mut total = 0.0;
                 for (q, targets) in qs.iter().zip(&prob.frames[c * CHUNK..]) {
                     forward_kinematics(prob.model, p, q, Want::POSITIONS, kin);
@@ -435,6 +440,7 @@ pub(crate) fn cost_at(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> f64 {
 mod tests {
     use super::*;
     use crate::calibrate::params_for_groups;
+    use crate::kinematics::KinData;
     use crate::model::lower_limb::{lower_limb, Side};
     use crate::model::Model;
     use crate::trial::Trial;
