@@ -1,11 +1,11 @@
-//! Shared pieces of the subcommands: reading trials, units, per-marker summaries.
+//! Shared pieces of the subcommands: the up-axis option and reading trials with warnings.
 
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::ValueEnum;
-use jointfit::signal::{filter_trial, LowPass};
-use jointfit::trial::{up_axis_rotation, Trial, UpAxis};
+use jointfit::trial::{Trial, UpAxis};
+use jointfit_io::trial_file::LoadOptions;
 
 /// Which lab axis points up in the input file.
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -26,29 +26,16 @@ impl From<Up> for UpAxis {
     }
 }
 
-/// Reads a motion file, rotates it to Y-up and low-pass filters it when asked; warns on
-/// stderr when filtering moves a marker by more than 2 cm.
+/// Reads a motion file ([`jointfit_io::trial_file::load_trial`]), printing its warnings on
+/// stderr.
 pub fn load_trial(path: &Path, up: Up, filter_hz: Option<f64>) -> Result<Trial> {
-    let mut trial = jointfit_io::trial_file::read_trial(path)?;
-    trial.rotate(&up_axis_rotation(up.into()));
-    if let Some(hz) = filter_hz {
-        let lp = LowPass {
-            cutoff_hz: hz,
-            ..LowPass::default()
-        };
-        let (filtered, report) = filter_trial(&trial, &lp)
-            .with_context(|| format!("{}: filtering at {hz} Hz", path.display()))?;
-        for m in report.moved_more_than(0.02) {
-            eprintln!(
-                "jointfit: warning: {}: filtering moved marker {} by {:.1} mm",
-                path.display(),
-                m.label,
-                m.max_displacement_m * 1e3
-            );
-        }
-        trial = filtered;
+    let options = LoadOptions {
+        up: up.into(),
+        filter_hz,
+    };
+    let (trial, warnings) = jointfit_io::trial_file::load_trial(path, &options)?;
+    for w in warnings {
+        eprintln!("jointfit: warning: {w}");
     }
     Ok(trial)
 }
-
-pub const MM: f64 = 1e3;

@@ -5,13 +5,14 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use jointfit::ik::{solve_trial, FrameStatus, IkOptions, MarkerMap, TrialFit};
-use jointfit::model::{CoordKind, Model};
+use jointfit::ik::{FrameStatus, IkOptions, TrialFit};
+use jointfit::model::{Model, MM_PER_M};
 use jointfit::trial::Trial;
-use jointfit_io::sto::{write_sto, Table};
+use jointfit::workflow::{self, WorkflowError};
+use jointfit_io::sto::{coordinates_table, write_sto};
 use serde::Serialize;
 
-use crate::common::{load_trial, Up, MM};
+use crate::common::{load_trial, Up};
 
 #[derive(Args)]
 pub struct IkArgs {
@@ -51,45 +52,33 @@ struct Summary {
 pub fn run(args: IkArgs) -> Result<()> {
     let model = jointfit_io::model_file::load_model(&args.model)?;
     let trial = load_trial(&args.trial, args.up, args.filter)?;
-    // Markers the file lacks altogether are missing in every frame; frames whose segments
-    // keep too few markers are reported as unsolved, as for gaps.
-    let (map, absent) = MarkerMap::allowing_absent(&model, trial.labels());
-    if absent.len() == model.n_markers() {
-        // Nothing in common: the strict matcher's error lists both sides.
-        MarkerMap::by_name(&model, trial.labels())
-            .with_context(|| args.trial.display().to_string())?;
-    }
-    if !absent.is_empty() {
-        eprintln!(
-            "jointfit: warning: {}: lacks model markers {}; they count as missing in every frame",
-            args.trial.display(),
-            absent.join(", ")
-        );
-    }
     let start = Instant::now();
-    let fit = solve_trial(
+    let run = match workflow::ik_trial(
         &model,
         &model.nominal_params(),
         &trial,
-        &map,
         &IkOptions::default(),
-    )?;
+    ) {
+        Ok(run) => run,
+        Err(e @ WorkflowError::NoFrameSolved { .. }) => {
+            bail!("{}: {e}; nothing written", args.trial.display())
+        }
+        Err(e) => return Err(e).with_context(|| args.trial.display().to_string()),
+    };
     let seconds = start.elapsed().as_secs_f64();
-    if !fit.frames.iter().any(|f| f.solved()) {
-        let why = match fit.frames.first().map(|f| &f.status) {
-            Some(FrameStatus::TooFewMarkers { segment, present }) => format!(
-                " (first frame: segment {segment} has {present} of the {} markers it needs)",
-                IkOptions::default().min_markers_per_segment
-            ),
-            _ => String::new(),
-        };
-        bail!(
-            "{}: no frame could be solved{why}; nothing written",
-            args.trial.display()
+    if !run.absent.is_empty() {
+        eprintln!(
+            "jointfit: warning: {}: lacks model markers {}; they count as missing in every frame",
+            args.trial.display(),
+            run.absent.join(", ")
         );
     }
-    write_sto(&args.output, &angles_table(&model, &trial, &fit))
-        .with_context(|| format!("writing {}", args.output.display()))?;
+    let fit = run.fit;
+    write_sto(
+        &args.output,
+        &coordinates_table(&model, &trial, &fit.coords),
+    )
+    .with_context(|| format!("writing {}", args.output.display()))?;
     if let Some(path) = &args.errors {
         jointfit_io::atomic::write_atomic(path, errors_csv(&model, &trial, &fit).as_bytes())
             .with_context(|| format!("writing {}", path.display()))?;
@@ -141,32 +130,17 @@ fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f64) -> Summ
         frames: fit.frames.len(),
         solved_frames: rms.len(),
         unsolved,
-        mean_frame_rms_mm: rms.iter().sum::<f64>() / rms.len().max(1) as f64 * MM,
-        max_frame_rms_mm: rms.iter().cloned().fold(0.0, f64::max) * MM,
+        mean_frame_rms_mm: rms.iter().sum::<f64>() / rms.len().max(1) as f64 * MM_PER_M,
+        max_frame_rms_mm: rms.iter().cloned().fold(0.0, f64::max) * MM_PER_M,
         marker_rms_mm: model
             .markers
             .iter()
             .enumerate()
-            .map(|(j, m)| (m.name.clone(), fit.marker_rms(j) * MM))
+            .map(|(j, m)| (m.name.clone(), fit.marker_rms(j) * MM_PER_M))
             .collect(),
         solve_seconds: seconds,
         frames_per_second: fit.frames.len() as f64 / seconds.max(1e-12),
     }
-}
-
-/// Joint angles in degrees (rotations) and metres (translations), OpenSim's layout.
-pub fn angles_table(model: &Model, trial: &Trial, fit: &TrialFit) -> Table {
-    let names: Vec<&str> = model.coordinates.iter().map(|c| c.name.as_str()).collect();
-    let mut table = Table::new("Coordinates", &names, true);
-    for (f, q) in fit.coords.iter().enumerate() {
-        let mut row = vec![trial.time(f)];
-        row.extend(model.coordinates.iter().zip(q).map(|(c, v)| match c.kind {
-            CoordKind::Rotational => v.to_degrees(),
-            CoordKind::Translational => *v,
-        }));
-        table.rows.push(row);
-    }
-    table
 }
 
 fn errors_csv(model: &Model, trial: &Trial, fit: &TrialFit) -> String {
@@ -181,7 +155,7 @@ fn errors_csv(model: &Model, trial: &Trial, fit: &TrialFit) -> String {
         if v.is_nan() {
             String::new()
         } else {
-            format!("{:.4}", v * MM)
+            format!("{:.4}", v * MM_PER_M)
         }
     };
     for f in 0..fit.frames.len() {

@@ -24,6 +24,7 @@ use jointfit::calibrate::uncertainty::{analyze, Identifiability, UncertaintyOpti
 use jointfit::calibrate::{params_for_groups, Problem};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::{Model, Unit};
+use jointfit::solver::NoObserver;
 use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion, SkinNoise};
 
 struct Args {
@@ -115,6 +116,7 @@ fn main() {
             &prob.to_scaled(&start),
             prob.initial_coords(&start),
             &JointOptions::default(),
+            &mut NoObserver,
         );
         let opts = UncertaintyOptions {
             bootstrap_replicates: args.replicates,

@@ -515,10 +515,10 @@ pub fn run_synthetic_column(
     spec: &ColumnSpec,
     perturb_mm: f64,
     perturb_deg: f64,
-    settings: &crate::protocol::FitSettings,
+    settings: &jointfit::workflow::FitSettings,
     first_seed: u64,
     seeds: usize,
-) -> Result<SyntheticColumn, jointfit::calibrate::CalibError> {
+) -> Result<SyntheticColumn, jointfit::workflow::WorkflowError> {
     run_synthetic_column_observed(
         model,
         truth,
@@ -541,11 +541,11 @@ pub fn run_synthetic_column_observed(
     spec: &ColumnSpec,
     perturb_mm: f64,
     perturb_deg: f64,
-    settings: &crate::protocol::FitSettings,
+    settings: &jointfit::workflow::FitSettings,
     first_seed: u64,
     seeds: usize,
     case_done: &mut dyn FnMut(usize),
-) -> Result<SyntheticColumn, jointfit::calibrate::CalibError> {
+) -> Result<SyntheticColumn, jointfit::workflow::WorkflowError> {
     use crate::protocol::{synthetic_case, SyntheticSetup};
     use crate::synth::Noise;
     let groups: Vec<&str> = spec.groups.iter().map(|g| g.as_str()).collect();

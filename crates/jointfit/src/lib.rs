@@ -15,6 +15,8 @@ pub mod landmarks;
 pub mod linalg;
 pub mod model;
 pub mod signal;
+pub mod solver;
 #[doc(hidden)]
 pub mod testing;
 pub mod trial;
+pub mod workflow;

@@ -34,6 +34,7 @@ use thiserror::Error;
 
 use crate::ik::{solve_frame, FrameStatus, IkOptions, IkWorkspace, MarkerMap};
 use crate::model::{Model, ParamId};
+pub use crate::solver::Termination;
 use crate::trial::Trial;
 
 #[derive(Debug, Error, PartialEq)]
@@ -259,5 +260,13 @@ pub struct Fit {
     pub evaluations: usize,
     /// Best objective after each outer iteration.
     pub history: Vec<f64>,
-    pub converged: bool,
+    /// Why the solver stopped.
+    pub termination: Termination,
+}
+
+impl Fit {
+    /// Whether the solver's convergence test passed (not stalled, not out of iterations).
+    pub fn converged(&self) -> bool {
+        self.termination.converged()
+    }
 }

@@ -22,6 +22,7 @@ use thiserror::Error;
 use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::linalg::{cholesky_in_place, cholesky_solve};
 use crate::model::{CoordKind, Model};
+use crate::solver::Termination;
 use crate::trial::Trial;
 
 /// Why IK could not start.
@@ -117,6 +118,9 @@ pub enum FrameStatus {
     Converged,
     /// The iteration budget ran out (the result is the best point found).
     MaxIterations,
+    /// No step lowered the cost even at damping 1e10 (the result is the best point found;
+    /// not a verified minimum).
+    Stalled,
     /// A segment with markers had fewer than the minimum present: not solved.
     TooFewMarkers {
         segment: String,
@@ -371,7 +375,7 @@ fn frame_weights(
 }
 
 /// Levenberg–Marquardt over the coordinates listed in `active` (others fixed), with the
-/// weights already in `ws.weights`. Returns (cost, iterations, converged).
+/// weights already in `ws.weights`. Returns (cost, iterations, how it ended).
 fn lm(
     model: &Model,
     p: &[f64],
@@ -380,7 +384,7 @@ fn lm(
     active: &[usize],
     opts: &IkOptions,
     ws: &mut IkWorkspace,
-) -> (f64, usize, bool) {
+) -> (f64, usize, Termination) {
     let n = active.len();
     ws.moments.set_active(active);
     forward_kinematics(model, p, q, Want::AXES, &mut ws.cur);
@@ -401,7 +405,7 @@ fn lm(
             if !cholesky_in_place(&mut ws.l[..n * n], n) {
                 lambda *= 10.0;
                 if lambda > 1e10 {
-                    return (cost, iterations, true);
+                    return (cost, iterations, Termination::Stalled);
                 }
                 continue;
             }
@@ -420,21 +424,21 @@ fn lm(
                 cost = trial_cost;
                 lambda = (lambda / 10.0).max(1e-12);
                 if step_max < opts.step_tolerance {
-                    return (cost, iterations, true);
+                    return (cost, iterations, Termination::Converged);
                 }
                 break;
             }
             if step_max < opts.step_tolerance {
                 // Even a negligible step does not lower the cost: minimum to working precision.
-                return (cost, iterations, true);
+                return (cost, iterations, Termination::Converged);
             }
             lambda *= 10.0;
             if lambda > 1e10 {
-                return (cost, iterations, true);
+                return (cost, iterations, Termination::Stalled);
             }
         }
     }
-    (cost, iterations, false)
+    (cost, iterations, Termination::IterationLimit)
 }
 
 /// Solves one frame in place: `q` is the starting point on entry, the solution on exit.
@@ -455,15 +459,15 @@ pub fn solve_frame(
         };
     }
     let active = std::mem::take(&mut ws.all);
-    let (cost, iterations, converged) = lm(model, p, targets, q, &active, opts, ws);
+    let (cost, iterations, end) = lm(model, p, targets, q, &active, opts, ws);
     ws.all = active;
     FrameFit {
         cost,
         iterations,
-        status: if converged {
-            FrameStatus::Converged
-        } else {
-            FrameStatus::MaxIterations
+        status: match end {
+            Termination::Converged => FrameStatus::Converged,
+            Termination::Stalled => FrameStatus::Stalled,
+            Termination::IterationLimit => FrameStatus::MaxIterations,
         },
     }
 }
