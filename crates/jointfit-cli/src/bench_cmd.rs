@@ -13,7 +13,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 use jointfit::calibrate::params_for_groups;
-use jointfit::ik::{IkOptions, IkWorkspace, MarkerMap};
+use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::landmarks::{personalize, MarkerSet, PersonalizeOptions};
 use jointfit::model::lower_limb::{lower_limb, Side};
@@ -159,7 +159,6 @@ pub fn run(args: BenchArgs) -> Result<()> {
         .iter()
         .position(|q| q[0].is_finite())
         .context("no frame of the trial could be solved")?;
-    let mut ws = IkWorkspace::new(&model);
     let warm_frames = (first + 1..trial.n_frames()).count().max(1) as f64;
     let mut iterations = 0usize;
     let warm = median_time(21, || {
@@ -171,7 +170,6 @@ pub fn run(args: BenchArgs) -> Result<()> {
             first,
             &reference.coords[first],
             &opts,
-            &mut ws,
         );
     });
     fig.ik_warm_us_per_frame = warm / warm_frames * 1e6;

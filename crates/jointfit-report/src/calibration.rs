@@ -52,6 +52,7 @@ pub fn seed_use(cal: &Calibration) -> String {
 /// figures from inverse kinematics with the start (`baseline_label`) and the fitted
 /// parameters, the parameter table with the intervals, the convergence of the best start,
 /// and the settings. `progress(done, total)` follows the inverse-kinematics passes.
+#[allow(clippy::too_many_arguments)]
 pub fn calibration_input(
     title: &str,
     baseline_label: &str,
@@ -137,4 +138,70 @@ pub fn calibration_input(
     settings.push(("date".to_string(), provenance.date.clone()));
     input.settings = settings;
     Ok(input)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use jointfit::calibrate::params_for_groups;
+    use jointfit::model::lower_limb::{lower_limb, Side};
+    use jointfit::workflow::{calibrate, FitSettings, NoObserver};
+    use jointfit_experiments::synth::{coordinates, markers, Motion};
+
+    fn knee_fit(settings: &FitSettings) -> (Model, Calibration, Trial) {
+        let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+        let p = model.nominal_params();
+        let (trial, _) = markers(
+            &model,
+            &p,
+            &coordinates(&model, Motion::Knee, 20).unwrap(),
+            50.0,
+            None,
+        );
+        let free = params_for_groups(&model, &["knee"]).unwrap();
+        let start = jointfit::workflow::perturb(&model, &p, &[free[0].0], 10.0, 5.0, 1);
+        let cal = calibrate(&model, &start, &[&trial], &free, settings, &mut NoObserver).unwrap();
+        (model, cal, trial)
+    }
+
+    /// Issue 18 item 6: the seed drives `--starts` (and the bootstrap), so the report must
+    /// not call it unused then; with one start of the joint method it is unused.
+    #[test]
+    fn the_seed_is_reported_as_used_when_it_drives_the_starts() {
+        let several = FitSettings {
+            starts: 3,
+            seed: 7,
+            ..FitSettings::default()
+        };
+        let (model, cal, trial) = knee_fit(&several);
+        let text = seed_use(&cal);
+        assert!(
+            text.starts_with("7 (") && text.contains("extra starts"),
+            "{text}"
+        );
+        assert!(!text.contains("not used"), "{text}");
+        let input = calibration_input(
+            "t",
+            "start",
+            &model,
+            &cal,
+            &[("knee".to_string(), &trial)],
+            &Provenance::default(),
+            0.5,
+            &mut |_, _| {},
+        )
+        .unwrap();
+        let row = input
+            .settings
+            .iter()
+            .find(|(k, _)| k == "random seed")
+            .unwrap();
+        assert_eq!(row.1, text);
+        // The convergence panel shows the winning start and says which.
+        let c = input.convergence.as_ref().unwrap();
+        assert_eq!(c.start, Some((cal.best_start, 3)));
+        assert_eq!(c.iterations, cal.start_runs[cal.best_start].iterations);
+        let (_, cal, _) = knee_fit(&FitSettings::default());
+        assert!(seed_use(&cal).contains("not used"), "{}", seed_use(&cal));
+    }
 }

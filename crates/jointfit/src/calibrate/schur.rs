@@ -13,7 +13,7 @@ use nalgebra::Vector3;
 
 use super::Problem;
 use crate::kinematics::{forward_kinematics, KinData, Want};
-use crate::linalg::{backward_solve, cholesky_in_place, cholesky_solve, forward_solve};
+use crate::linalg::{backward_solve, Cholesky};
 
 #[derive(Debug, Clone)]
 pub(crate) struct Blocks {
@@ -212,20 +212,20 @@ pub(crate) fn solve(
         for i in 0..nq {
             l[i * nq + i] += lambda * u[i * nq + i] + 1e-14 * max_diag + 1e-300;
         }
-        if !cholesky_in_place(l, nq) {
+        let Some(chol) = Cholesky::factor(l, nq) else {
             return false;
-        }
+        };
         // With U* = L Lᵀ: Wᵀ U*⁻¹ W = ZᵀZ and Wᵀ U*⁻¹ g = Zᵀy for Z = L⁻¹W, y = L⁻¹g, so
         // only forward substitutions are needed here (back-substitution finishes δq).
         let w = &b.w[f * nq * nf..(f + 1) * nq * nf];
         let z = &mut b.y_mat[f * nq * nf..(f + 1) * nq * nf];
         z.copy_from_slice(w);
         for k in 0..nf {
-            forward_solve(l, nq, &mut z[k * nq..(k + 1) * nq]);
+            chol.forward(&mut z[k * nq..(k + 1) * nq]);
         }
         let y = &mut b.y_vec[f * nq..(f + 1) * nq];
         y.copy_from_slice(&b.g[f * nq..(f + 1) * nq]);
-        forward_solve(l, nq, y);
+        chol.forward(y);
         // ZᵀZ is symmetric: compute one triangle, mirror it.
         for k in 0..nf {
             let zk = &z[k * nq..(k + 1) * nq];
@@ -253,11 +253,11 @@ pub(crate) fn solve(
     for k in 0..nf {
         s[k * nf + k] += 1e-14 * max_diag + 1e-300;
     }
-    if !cholesky_in_place(&mut s, nf) {
+    let Some(chol) = Cholesky::factor(&mut s, nf) else {
         return false;
-    }
+    };
     ds.copy_from_slice(&rhs);
-    cholesky_solve(&s, nf, ds);
+    chol.solve(ds);
     back_substitute(b, ds, dq);
     true
 }

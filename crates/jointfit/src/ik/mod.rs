@@ -20,7 +20,7 @@ use nalgebra::{Matrix3, Vector3};
 use thiserror::Error;
 
 use crate::kinematics::{forward_kinematics, KinData, Want};
-use crate::linalg::{cholesky_in_place, cholesky_solve};
+use crate::linalg::Cholesky;
 use crate::model::{CoordKind, Model};
 use crate::solver::Termination;
 use crate::trial::Trial;
@@ -402,15 +402,15 @@ fn lm(
             for i in 0..n {
                 ws.l[i * n + i] += lambda * ws.a[i * n + i] + 1e-14 * max_diag + 1e-300;
             }
-            if !cholesky_in_place(&mut ws.l[..n * n], n) {
+            let Some(chol) = Cholesky::factor(&mut ws.l[..n * n], n) else {
                 lambda *= 10.0;
                 if lambda > 1e10 {
                     return (cost, iterations, Termination::Stalled);
                 }
                 continue;
-            }
+            };
             ws.delta[..n].copy_from_slice(&ws.g[..n]);
-            cholesky_solve(&ws.l[..n * n], n, &mut ws.delta[..n]);
+            chol.solve(&mut ws.delta[..n]);
             let step_max = ws.delta[..n].iter().fold(0.0f64, |m, d| m.max(d.abs()));
             ws.q_trial.copy_from_slice(q);
             for (i, &c) in active.iter().enumerate() {
@@ -508,7 +508,8 @@ pub fn seed_frame(
         if ws.weights.iter().filter(|&&w| w > 0.0).count() < 3 {
             continue;
         }
-        // Translations start at the centroid offset; rotations from a grid.
+        // Translations start at their default values (the cost is quadratic in them, so the
+        // first iterations carry them to the markers, however far); rotations from a grid.
         let rot: Vec<usize> = active
             .iter()
             .copied()

@@ -59,8 +59,8 @@ pub fn ik_warm_started(
     first: usize,
     q_first: &[f64],
     opts: &IkOptions,
-    ws: &mut IkWorkspace,
 ) -> usize {
+    let mut ws = IkWorkspace::new(model);
     let mut targets = Vec::with_capacity(model.n_markers());
     let mut iterations = 0;
     let mut before = q_first.to_vec();
@@ -72,7 +72,7 @@ pub fn ik_warm_started(
         } else {
             q.clone()
         };
-        iterations += solve_frame(model, p, &targets, &mut next, opts, ws).iterations;
+        iterations += solve_frame(model, p, &targets, &mut next, opts, &mut ws).iterations;
         before = std::mem::replace(&mut q, next);
     }
     iterations
@@ -120,8 +120,8 @@ mod tests {
         assert_eq!(p[a], source.parameters[a].nominal);
         assert_ne!(p[a], target.parameters[a].nominal);
         assert_eq!(p[b], lo_b);
-        for i in 2..p.len() {
-            assert_eq!(p[i], target.parameters[i].nominal);
+        for (v, par) in p.iter().zip(&target.parameters).skip(2) {
+            assert_eq!(*v, par.nominal);
         }
         // A source without one of the target's parameters is an error naming both.
         // The same leg with one parameter renamed (everywhere it is used).
@@ -132,7 +132,10 @@ mod tests {
         match transfer_params(&wider, &source, "x.toml") {
             Err(e) => {
                 let msg = e.to_string();
-                assert!(msg.contains("x.toml") && msg.contains("extra_offset"), "{msg}");
+                assert!(
+                    msg.contains("x.toml") && msg.contains("extra_offset"),
+                    "{msg}"
+                );
             }
             Ok(_) => panic!("missing parameter accepted"),
         }

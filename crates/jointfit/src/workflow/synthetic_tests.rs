@@ -264,3 +264,39 @@ fn ik_trial_solves_every_frame_and_names_what_is_missing() {
     let other = Trial::new(vec!["X".into()], 50.0, 1, vec![Vector3::zeros(); 3]).unwrap();
     assert!(ik_trial(&model, &p, &other, &crate::ik::IkOptions::default()).is_err());
 }
+
+/// Issue 18 item 6: `seed_frame` starts the root's translations at their default values
+/// (not at a centroid offset) and relies on the first iterations to carry them; a subject
+/// tens of metres from the lab origin, turned about the vertical, is still found.
+#[test]
+fn seeding_finds_a_subject_far_from_the_origin() {
+    let model = leg();
+    let p = model.nominal_params();
+    let near = synthetic(&model, &p, 10, 0.0);
+    let turn = nalgebra::Rotation3::from_axis_angle(&Vector3::y_axis(), 2.5);
+    let shift = Vector3::new(30.0, 0.0, -20.0);
+    let far: Vec<Vector3<f64>> = near.positions().iter().map(|x| turn * x + shift).collect();
+    let far = Trial::new(near.labels().to_vec(), 50.0, 1, far).unwrap();
+    let opts = crate::ik::IkOptions::default();
+    let mut ws = crate::ik::IkWorkspace::new(&model);
+    let map = crate::ik::MarkerMap::by_name(&model, far.labels()).unwrap();
+    let mut targets = Vec::new();
+    map.targets(&far, 0, &mut targets);
+    let seed = crate::ik::seed_frame(&model, &p, &targets, &opts, &mut ws);
+    let tx = model.coord_id("pelvis_tx").unwrap().0;
+    // From the default 0 the seeding's iterations alone carry the pelvis 30 m.
+    assert_eq!(model.default_coords()[tx], 0.0);
+    assert!(
+        (seed[tx] - 30.0).abs() < 0.05,
+        "seeded pelvis_tx {}",
+        seed[tx]
+    );
+    let run = ik_trial(&model, &p, &far, &opts).unwrap();
+    for f in 0..10 {
+        assert!(
+            run.fit.frame_rms(f) < 1e-7,
+            "frame {f}: {}",
+            run.fit.frame_rms(f)
+        );
+    }
+}
