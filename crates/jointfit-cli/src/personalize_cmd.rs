@@ -9,7 +9,6 @@ use jointfit::landmarks::{
     personalize, HipCentreMethod, MarkerSet, PersonalizeOptions, Personalized, PRESET_NAMES,
 };
 use jointfit::model::lower_limb::Side;
-use jointfit::model::Unit;
 use serde::Serialize;
 
 use crate::common::{load_trial, Up};
@@ -199,13 +198,7 @@ impl Summary {
             .spec
             .parameters
             .iter()
-            .map(|p| {
-                let k = match p.unit {
-                    Unit::Radian => 180.0 / std::f64::consts::PI,
-                    Unit::Metre => 1e3,
-                };
-                (p.name.clone(), p.nominal * k)
-            })
+            .map(|p| (p.name.clone(), p.unit.to_display(p.nominal)))
             .collect();
         let static_pose = r
             .spec

@@ -129,10 +129,7 @@ fn main() {
         bw_sum += u.hac_bandwidth.unwrap_or(0.0);
         for (k, p) in u.params.iter().enumerate() {
             let i = prob.free[k];
-            let f = match model.parameters[i].unit {
-                Unit::Metre => 1e3,
-                Unit::Radian => 180.0 / std::f64::consts::PI,
-            };
+            let f = model.parameters[i].unit.display_scale();
             let threshold = match model.parameters[i].unit {
                 Unit::Metre => u.threshold_mm,
                 Unit::Radian => u.threshold_deg,

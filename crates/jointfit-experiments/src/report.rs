@@ -138,10 +138,7 @@ impl Table2 {
 }
 
 fn unit_of(u: Unit) -> (&'static str, f64) {
-    match u {
-        Unit::Metre => ("mm", 1e3),
-        Unit::Radian => ("deg", 180.0 / std::f64::consts::PI),
-    }
+    (u.display_suffix(), u.display_scale())
 }
 
 /// Everything one `reproduce` run produced, with what produced it.
