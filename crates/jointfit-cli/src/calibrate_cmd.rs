@@ -49,14 +49,20 @@ pub struct CalibrateArgs {
     pub joints: Vec<String>,
     #[arg(long, value_enum, default_value = "joint")]
     pub method: MethodArg,
-    /// Fitted model (TOML).
+    /// Fitted model (TOML). It may be the subject model file itself only with --force.
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Allow --output to replace the subject model file (an in-place update).
+    #[arg(long)]
+    pub force: bool,
+    /// Keep a fit that did not converge and exit 0 (otherwise: exit status 3, nothing written).
+    #[arg(long)]
+    pub accept_unconverged: bool,
     /// Start from the parameters of an earlier fit (same model structure).
     #[arg(long)]
     pub seed_from: Option<String>,
     /// Low-pass filter cutoff in Hz.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::validate::cutoff_hz)]
     pub filter: Option<f64>,
     /// Random seed of the particle swarm and of the extra starts.
     #[arg(long, default_value_t = 1)]
@@ -74,13 +80,14 @@ pub struct CalibrateArgs {
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
     /// Flag length parameters whose 95 % interval half-width exceeds this (mm).
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true, value_parser = crate::validate::positive)]
     pub threshold_mm: f64,
     /// Flag angle parameters whose 95 % interval half-width exceeds this (deg).
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true, value_parser = crate::validate::positive)]
     pub threshold_deg: f64,
-    /// Moving-block bootstrap replicates for the intervals (0: white, HAC and jackknife only).
-    #[arg(long, default_value_t = 0)]
+    /// Moving-block bootstrap replicates for the intervals (0: white, HAC and jackknife only;
+    /// at most 2000, each is a refit).
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true, value_parser = crate::validate::bootstrap)]
     pub bootstrap: usize,
     /// Refit with the parameters this trial cannot determine held at their starting
     /// (landmark/nominal) values (subset selection on the reduced normal matrix).
@@ -314,6 +321,18 @@ pub fn print_uncertainty_notes(u: &Uncertainty, fixed: &[String]) {
 }
 
 pub fn run(args: CalibrateArgs) -> Result<()> {
+    let mut files = crate::output::Files::new().model("model", &args.model);
+    for t in &args.trials {
+        files = files.input("trial", t);
+    }
+    if let Some(s) = &args.seed_from {
+        files = files.model("--seed-from", s);
+    }
+    files = files.output_in_place("output", &args.output, args.force);
+    if let Some(dir) = &args.report {
+        files = files.output("--report", dir.join("index.html"));
+    }
+    files.check()?;
     let spec = jointfit_io::model_file::load_spec(&args.model)?;
     let model = jointfit_io::model_file::load_model(&args.model)?;
     let start = match &args.seed_from {
@@ -343,6 +362,20 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     )?;
     observer.finish();
     let seconds = clock.elapsed().as_secs_f64();
+    if !cal.converged && !args.accept_unconverged {
+        if args.json {
+            let report = Report {
+                calibration: &cal,
+                seconds,
+            };
+            println!("{}", serde_json::to_string_pretty(&report)?);
+        } else {
+            print_report(&cal, seconds);
+        }
+        return Err(
+            crate::output::Unconverged(format!("the calibration ({})", cal.termination)).into(),
+        );
+    }
     let mut fitted = model.spec_with_nominal(&cal.fit.p);
     fitted.name = format!("{} (fitted)", spec.name);
     jointfit_io::model_file::save_spec(&args.output, &fitted)

@@ -31,18 +31,18 @@ pub struct CheckArgs {
     #[arg(long, value_enum, default_value = "y")]
     pub up: Up,
     /// Low-pass filter cutoff in Hz.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::validate::cutoff_hz)]
     pub filter: Option<f64>,
     /// Flag length parameters whose predicted 95 % half-width exceeds this (mm).
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true, value_parser = crate::validate::positive)]
     pub threshold_mm: f64,
     /// Flag angle parameters whose predicted 95 % half-width exceeds this (deg).
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true, value_parser = crate::validate::positive)]
     pub threshold_deg: f64,
     /// Assumed skin-artifact noise, standard deviation per axis (mm). Default: estimated from
     /// the residuals of IK with the nominal model, which include the model's misfit (so the
     /// prediction errs on the side of flagging).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::validate::noise_mm)]
     pub noise_mm: Option<f64>,
     /// Print a JSON report on stdout.
     #[arg(long)]

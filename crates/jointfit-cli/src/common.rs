@@ -5,7 +5,7 @@ use std::path::Path;
 use anyhow::Result;
 use clap::ValueEnum;
 use jointfit::trial::{Trial, UpAxis};
-use jointfit_io::trial_file::LoadOptions;
+use jointfit_io::trial_file::{LoadOptions, TrialFileError};
 
 /// Which lab axis points up in the input file.
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -26,14 +26,22 @@ impl From<Up> for UpAxis {
     }
 }
 
-/// Reads a motion file ([`jointfit_io::trial_file::load_trial`]), printing its warnings on
-/// stderr.
+/// Reads a motion file, checks it is plausible, rotates it to Y up and low-pass filters it
+/// when asked ([`jointfit_io::trial_file::prepare_trial`]), printing its warnings on stderr.
 pub fn load_trial(path: &Path, up: Up, filter_hz: Option<f64>) -> Result<Trial> {
+    let trial = jointfit_io::trial_file::read_trial(path)?;
+    crate::validate::check_trial(path, &trial)?;
     let options = LoadOptions {
         up: up.into(),
         filter_hz,
     };
-    let (trial, warnings) = jointfit_io::trial_file::load_trial(path, &options)?;
+    let (trial, warnings) = match jointfit_io::trial_file::prepare_trial(trial, path, &options) {
+        Ok(ok) => ok,
+        Err(TrialFileError::Filter { path, hz, source }) => {
+            return Err(anyhow::Error::new(source).context(format!("{path}: --filter {hz} Hz")))
+        }
+        Err(e) => return Err(e.into()),
+    };
     for w in warnings {
         eprintln!("jointfit: warning: {w}");
     }

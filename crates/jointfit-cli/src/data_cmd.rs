@@ -27,7 +27,7 @@ pub struct ConvertArgs {
     /// TRC file to write (replaced atomically)
     output: PathBuf,
     /// Low-pass filter cutoff in Hz (zero-phase Butterworth, effective order 4)
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::validate::cutoff_hz)]
     filter: Option<f64>,
     /// Which axis of the input points up; the output is Y-up (OpenSim's convention)
     #[arg(long, alias = "rotate", value_enum, default_value = "y")]
@@ -36,7 +36,7 @@ pub struct ConvertArgs {
     #[arg(long, value_enum, default_value = "mm")]
     units: UnitsArg,
     /// Digits after the decimal point
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, allow_negative_numbers = true, value_parser = crate::validate::decimals)]
     decimals: usize,
     /// Keep only these markers (comma-separated labels, in this order)
     #[arg(long, value_delimiter = ',')]
@@ -122,6 +122,7 @@ pub fn inspect(args: InspectArgs) -> Result<()> {
         )
     };
     let trial = jointfit_io::trial_file::read_trial(path)?;
+    crate::validate::check_trial(path, &trial)?;
     let summary = Summary {
         file: path.display().to_string(),
         format,
@@ -171,6 +172,10 @@ pub fn inspect(args: InspectArgs) -> Result<()> {
 }
 
 pub fn convert(args: ConvertArgs) -> Result<()> {
+    crate::output::Files::new()
+        .input("input", &args.input)
+        .output("output", &args.output)
+        .check()?;
     format_of(&args.input)?;
     let mut trial = load_trial(&args.input, args.up, args.filter)?;
     if !args.markers.is_empty() {

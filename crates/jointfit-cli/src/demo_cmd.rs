@@ -18,10 +18,10 @@ use crate::calibrate_cmd::{print_report, MethodArg, ProgressObserver};
 #[derive(Args)]
 pub struct DemoArgs {
     /// Frames of the synthetic trial.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 100, allow_negative_numbers = true, value_parser = crate::validate::frames)]
     pub frames: usize,
     /// Maximum skin-artifact amplitude in mm (0: noiseless).
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true, value_parser = crate::validate::noise_mm_or_zero)]
     pub noise_mm: f64,
     /// Seed of the true parameters and the noise.
     #[arg(long, default_value_t = 1)]
@@ -84,7 +84,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
     ]);
     let mut inside = 0usize;
     let (mut pos, mut ori) = (Vec::new(), Vec::new());
-    for (i, par) in model.parameters.iter().enumerate() {
+    for (i, par) in model.parameters().iter().enumerate() {
         let k = par.unit.display_scale();
         let err = (fit.p[i] - truth[i]) * k;
         match par.unit {
@@ -113,7 +113,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
     let rms = |v: &[f64]| (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt();
     println!(
         "true value inside the reported 95% interval for {inside} of {} parameters",
-        model.parameters.len()
+        model.parameters().len()
     );
     println!(
         "RMS parameter error: positions {:.3} mm, orientations {:.3} deg (paper, noisy full leg: 8.16 mm, 10.37 deg)",

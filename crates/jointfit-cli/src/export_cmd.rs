@@ -30,6 +30,10 @@ pub fn run(cmd: ExportCommand) -> Result<()> {
 }
 
 fn osim(args: OsimArgs) -> Result<()> {
+    crate::output::Files::new()
+        .model("model", &args.model)
+        .output("output", &args.output)
+        .check()?;
     let model = jointfit_io::model_file::load_model(&args.model)?;
     jointfit_io::osim::write_osim(&args.output, &model, &model.nominal_params())
         .with_context(|| format!("{}: cannot export to OpenSim", args.model))?;
@@ -37,8 +41,8 @@ fn osim(args: OsimArgs) -> Result<()> {
         "wrote {} ({} bodies, {} joints, {} coordinates, {} markers; masses and inertias are \
          placeholders)",
         args.output.display(),
-        model.segments.len(),
-        model.joints.len(),
+        model.segments().len(),
+        model.joints().len(),
         model.n_q(),
         model.n_markers()
     );

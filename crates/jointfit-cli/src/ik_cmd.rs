@@ -27,7 +27,7 @@ pub struct IkArgs {
     #[arg(long)]
     pub errors: Option<PathBuf>,
     /// Low-pass filter cutoff in Hz (zero-phase Butterworth, effective order 4).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::validate::cutoff_hz)]
     pub filter: Option<f64>,
     /// Which axis of the file points up.
     #[arg(long, value_enum, default_value = "y")]
@@ -50,6 +50,14 @@ struct Summary {
 }
 
 pub fn run(args: IkArgs) -> Result<()> {
+    let mut files = crate::output::Files::new()
+        .model("model", &args.model)
+        .input("trial", &args.trial)
+        .output("output", &args.output);
+    if let Some(e) = &args.errors {
+        files = files.output("--errors", e);
+    }
+    files.check()?;
     let model = jointfit_io::model_file::load_model(&args.model)?;
     let trial = load_trial(&args.trial, args.up, args.filter)?;
     let start = Instant::now();
@@ -84,6 +92,12 @@ pub fn run(args: IkArgs) -> Result<()> {
             .with_context(|| format!("writing {}", path.display()))?;
     }
     let summary = summarize(&model, &trial, &fit, seconds);
+    if !(summary.mean_frame_rms_mm.is_finite() && summary.max_frame_rms_mm.is_finite()) {
+        bail!(
+            "{}: inverse kinematics gave non-finite marker errors; nothing written",
+            args.trial.display()
+        );
+    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
@@ -133,7 +147,7 @@ fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f64) -> Summ
         mean_frame_rms_mm: rms.iter().sum::<f64>() / rms.len().max(1) as f64 * MM_PER_M,
         max_frame_rms_mm: rms.iter().cloned().fold(0.0, f64::max) * MM_PER_M,
         marker_rms_mm: model
-            .markers
+            .markers()
             .iter()
             .enumerate()
             .map(|(j, m)| (m.name.clone(), fit.marker_rms(j) * MM_PER_M))
@@ -145,10 +159,9 @@ fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f64) -> Summ
 
 fn errors_csv(model: &Model, trial: &Trial, fit: &TrialFit) -> String {
     let mut out = String::from("frame,time,rms_mm");
-    for m in &model.markers {
+    for m in model.markers() {
         out.push(',');
-        out.push_str(&m.name);
-        out.push_str("_mm");
+        out.push_str(&jointfit_io::csv::field(&format!("{}_mm", m.name)));
     }
     out.push('\n');
     let cell = |v: f64| {

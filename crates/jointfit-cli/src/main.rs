@@ -1,4 +1,12 @@
 //! The `jointfit` command-line tool: thin clap front end, one module per subcommand.
+//!
+//! Exit status: 0 success; 1 error (one line on stderr, no file written); 2 bad command line;
+//! 3 a fit did not converge (nothing written unless `--accept-unconverged`). See [`output`].
+
+// First: its never-panicking print macros replace std's in every module declared below.
+#[macro_use]
+mod output;
+mod validate;
 
 mod bench_cmd;
 mod calibrate_cmd;
@@ -73,7 +81,13 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
-    let cli = Cli::parse();
+    output::install_signal_handlers();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return output::clap_error(e),
+    };
+    // Every file of the command lands together, or none does (see `output`).
+    let batch = jointfit_io::staging::Batch::begin().ok();
     let result = match cli.command {
         Command::Model { command } => model_cmd::run(command),
         Command::Inspect(args) => data_cmd::inspect(args),
@@ -89,13 +103,5 @@ fn main() -> ExitCode {
         Command::Synth(args) => synth_cmd::run(args),
         Command::Reproduce(args) => reproduce_cmd::run(args),
     };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            // One line: the chain of causes joined, as in "file: line 3: ...".
-            let msg: Vec<String> = e.chain().map(|c| c.to_string()).collect();
-            eprintln!("jointfit: error: {}", msg.join(": "));
-            ExitCode::FAILURE
-        }
-    }
+    output::finish(result, batch)
 }

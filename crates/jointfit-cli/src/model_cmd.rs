@@ -100,7 +100,7 @@ fn round(x: f64, decimals: i32) -> f64 {
 impl Summary {
     fn of(model: &Model) -> Summary {
         let seg_name = |s: Option<jointfit::model::SegmentId>| {
-            s.map_or("ground".to_string(), |s| model.segments[s.0].name.clone())
+            s.map_or("ground".to_string(), |s| model.segments()[s.0].name.clone())
         };
         let axes = |k: &JointKind| -> Vec<[f64; 3]> {
             let v = |a: &nalgebra::Vector3<f64>| [a.x, a.y, a.z];
@@ -113,10 +113,10 @@ impl Summary {
             }
         };
         Summary {
-            name: model.name.clone(),
-            description: model.description.clone(),
+            name: model.name().to_string(),
+            description: model.description().to_string(),
             segments: model
-                .segments
+                .segments()
                 .iter()
                 .map(|s| SegmentRow {
                     name: s.name.clone(),
@@ -124,7 +124,7 @@ impl Summary {
                 })
                 .collect(),
             joints: model
-                .joints
+                .joints()
                 .iter()
                 .map(|j| JointRow {
                     name: j.name.clone(),
@@ -132,14 +132,14 @@ impl Summary {
                     axes: axes(&j.kind),
                     parent: seg_name(j.parent),
                     child: seg_name(Some(j.child)),
-                    coordinates: model.coordinates[j.first_coord..j.first_coord + j.kind.dof()]
+                    coordinates: model.coordinates()[j.first_coord..j.first_coord + j.kind.dof()]
                         .iter()
                         .map(|c| c.name.clone())
                         .collect(),
                 })
                 .collect(),
             coordinates: model
-                .coordinates
+                .coordinates()
                 .iter()
                 .map(|c| {
                     let (unit, k) = match c.kind {
@@ -148,7 +148,7 @@ impl Summary {
                     };
                     CoordRow {
                         name: c.name.clone(),
-                        joint: model.joints[c.joint.0].name.clone(),
+                        joint: model.joints()[c.joint.0].name.clone(),
                         unit,
                         range: [round(c.range[0] * k, 6), round(c.range[1] * k, 6)],
                         default: round(c.default * k, 6),
@@ -156,7 +156,7 @@ impl Summary {
                 })
                 .collect(),
             parameters: model
-                .parameters
+                .parameters()
                 .iter()
                 .map(|p| {
                     let (unit, k) = (p.unit.display_suffix(), p.unit.display_scale());
@@ -173,11 +173,11 @@ impl Summary {
                 })
                 .collect(),
             markers: model
-                .markers
+                .markers()
                 .iter()
                 .map(|m| MarkerRow {
                     name: m.name.clone(),
-                    segment: model.segments[m.segment.0].name.clone(),
+                    segment: model.segments()[m.segment.0].name.clone(),
                     position_mm: [
                         round(m.local.x * 1e3, 6),
                         round(m.local.y * 1e3, 6),

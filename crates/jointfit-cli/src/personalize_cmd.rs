@@ -31,7 +31,7 @@ pub struct PersonalizeArgs {
     #[arg(long, value_enum, default_value = "bell")]
     hip: HipArg,
     /// Length of the averaged static window (s).
-    #[arg(long, default_value_t = 1.0, value_name = "SECONDS")]
+    #[arg(long, default_value_t = 1.0, value_name = "SECONDS", allow_negative_numbers = true, value_parser = crate::validate::positive)]
     window: f64,
     /// Model name written into the file (default: the output file's stem).
     #[arg(long)]
@@ -77,6 +77,11 @@ fn load_marker_set(arg: &str) -> Result<MarkerSet> {
 }
 
 pub fn run(args: PersonalizeArgs) -> Result<()> {
+    crate::output::Files::new()
+        .input("static trial", &args.static_trial)
+        .model("marker set", &args.markers)
+        .output("output", &args.output)
+        .check()?;
     let set = load_marker_set(&args.markers)?;
     let trial = load_trial(&args.static_trial, args.up, None)?;
     let side = match args.side {

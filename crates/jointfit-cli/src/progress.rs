@@ -57,17 +57,35 @@ pub struct Progress {
 }
 
 const BAR_WIDTH: usize = 20;
+
+/// Longest log interval `JOINTFIT_PROGRESS_SECONDS` may set (one day).
+pub const MAX_LOG_SECONDS: f64 = 86_400.0;
+
+/// The log interval in `JOINTFIT_PROGRESS_SECONDS`: a finite number of seconds from 0 to
+/// [`MAX_LOG_SECONDS`], else `None`.
+fn log_interval(s: &str) -> Option<f64> {
+    s.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|v| (0.0..=MAX_LOG_SECONDS).contains(v))
+}
 const SPINNER: [char; 4] = ['|', '/', '-', '\\'];
 
 impl Progress {
     /// A task called `label`, with `total` steps when known.
     pub fn new(label: &str, total: Option<u64>) -> Progress {
         let mode = Mode::from_env();
-        let secs = std::env::var("JOINTFIT_PROGRESS_SECONDS")
-            .ok()
-            .and_then(|s| s.parse::<f64>().ok())
-            .filter(|s| s.is_finite() && *s >= 0.0)
-            .unwrap_or(5.0);
+        let secs = match std::env::var("JOINTFIT_PROGRESS_SECONDS") {
+            Ok(s) => log_interval(&s).unwrap_or_else(|| {
+                eprintln!(
+                    "jointfit: warning: JOINTFIT_PROGRESS_SECONDS={}: not a number of seconds \
+                     from 0 to {MAX_LOG_SECONDS}; using 5",
+                    crate::output::tidy(&s)
+                );
+                5.0
+            }),
+            Err(_) => 5.0,
+        };
         Progress::with_mode(label, total, mode, Duration::from_secs_f64(secs))
     }
 
@@ -152,7 +170,7 @@ impl Progress {
             return None;
         }
         let per = self.start.elapsed().as_secs_f64() / self.pos as f64;
-        Some(Duration::from_secs_f64(per * (total - self.pos) as f64))
+        Duration::try_from_secs_f64(per * (total - self.pos) as f64).ok()
     }
 
     fn count(&self) -> String {
@@ -403,5 +421,14 @@ mod tests {
         assert!(eta >= 0.119, "{eta}");
         p.set(4, "");
         assert_eq!(p.eta(), None);
+    }
+
+    #[test]
+    fn log_interval_is_bounded() {
+        assert_eq!(log_interval("2.5"), Some(2.5));
+        assert_eq!(log_interval("0"), Some(0.0));
+        for bad in ["1e20", "-1", "NaN", "inf", "x", "86401"] {
+            assert_eq!(log_interval(bad), None, "{bad}");
+        }
     }
 }

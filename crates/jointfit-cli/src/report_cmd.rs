@@ -30,7 +30,7 @@ pub struct ReportArgs {
     #[arg(long, value_enum, default_value = "y")]
     pub up: Up,
     /// Low-pass filter cutoff in Hz (use the one the calibration used).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::validate::cutoff_hz)]
     pub filter: Option<f64>,
     /// Output directory; the report is DIR/index.html.
     #[arg(short, long, value_name = "DIR")]
@@ -38,6 +38,16 @@ pub struct ReportArgs {
 }
 
 pub fn run(args: ReportArgs) -> Result<()> {
+    let mut files = crate::output::Files::new().model("model", &args.model);
+    for t in &args.trials {
+        files = files.input("trial", t);
+    }
+    if let Some(l) = &args.landmark {
+        files = files.model("--landmark", l);
+    }
+    files
+        .output("report", args.output.join("index.html"))
+        .check()?;
     let spec = jointfit_io::model_file::load_spec(&args.model)?;
     let model = jointfit_io::model_file::load_model(&args.model)?;
     let fitted = model.nominal_params();
@@ -96,10 +106,10 @@ pub fn run(args: ReportArgs) -> Result<()> {
 fn params_by_name(model: &Model, model_path: &str, path: &str) -> Result<Vec<f64>> {
     let other = jointfit_io::model_file::load_model(path)?;
     model
-        .parameters
+        .parameters()
         .iter()
         .map(|par| match other.param_id(&par.name) {
-            Some(id) => Ok(other.parameters[id.0].nominal),
+            Some(id) => Ok(other.parameters()[id.0].nominal),
             None => bail!("{path}: has no parameter {:?} of {model_path}", par.name),
         })
         .collect()

@@ -64,10 +64,10 @@ pub struct ReproduceArgs {
     pub method: MethodArg,
     /// Starts per fit: the given start plus this many minus one starts moved from it by up to
     /// 20 mm / 10° (seeded); the lowest cost wins. Ignored by --method pso.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, allow_negative_numbers = true, value_parser = crate::validate::runs)]
     pub starts: usize,
     /// Noisy synthetic runs per column (seeds first-seed, first-seed+1, ...).
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = 10, allow_negative_numbers = true, value_parser = crate::validate::runs)]
     pub seeds: usize,
     #[arg(long, default_value_t = 1)]
     pub first_seed: u64,
@@ -75,22 +75,22 @@ pub struct ReproduceArgs {
     #[arg(long, default_value = "lower-limb-right")]
     pub subject: String,
     /// Frames of each synthetic joint motion (the paper: 50).
-    #[arg(long, default_value_t = 50)]
+    #[arg(long, default_value_t = 50, allow_negative_numbers = true, value_parser = crate::validate::frames)]
     pub frames: usize,
     /// Sampling rate of the synthetic joint motions (Hz): the time axis of the skin noise.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true, value_parser = crate::validate::rate_hz)]
     pub rate: f64,
     /// Multiplies the synthetic joint excursions.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, value_parser = crate::validate::amplitude)]
     pub amplitude: f64,
     /// Start = truth moved by up to this many mm per fitted position parameter.
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true, value_parser = crate::validate::perturb_mm)]
     pub perturb_mm: f64,
     /// Start = truth moved by up to this many degrees per fitted orientation parameter.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true, value_parser = crate::validate::perturb_deg)]
     pub perturb_deg: f64,
     /// Use every K-th frame of the experimental trials (after filtering); 1 uses them all.
-    #[arg(long, default_value_t = 1, value_name = "K")]
+    #[arg(long, default_value_t = 1, value_name = "K", allow_negative_numbers = true, value_parser = crate::validate::runs)]
     pub stride: usize,
     /// Trials of opencap_expert1 the full leg is fitted on (comma-separated; the first is
     /// also the synthetic gait motion), e.g. walking1.trc,squats1.trc.
@@ -251,7 +251,7 @@ fn opencap(data: &Path, stride: usize, trials: &[String]) -> Result<Subject> {
 /// A note naming the parameters of `p` that ended on a bound of their search box.
 fn bounds_note(model: &Model, method: &str, p: &[f64]) -> Option<String> {
     let at: Vec<String> = model
-        .parameters
+        .parameters()
         .iter()
         .zip(p)
         .filter(|(par, v)| {
@@ -596,7 +596,7 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
         Which::Table1 => "table1",
         Which::Table2 => "table2",
     };
-    std::fs::create_dir_all(&args.output)
+    jointfit_io::staging::create_dir_all(&args.output)
         .with_context(|| format!("{}: cannot create", args.output.display()))?;
     let md = report.markdown();
     for (ext, text) in [

@@ -44,34 +44,34 @@ pub struct SynthArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Frames of a synthetic motion (not gait).
-    #[arg(long, default_value_t = 50)]
+    #[arg(long, default_value_t = 50, allow_negative_numbers = true, value_parser = crate::validate::frames)]
     pub frames: usize,
     /// Sampling rate of a synthetic motion (Hz); gait keeps its trial's rate.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true, value_parser = crate::validate::rate_hz)]
     pub rate: f64,
     /// Multiplies the joint excursions of a synthetic motion.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, value_parser = crate::validate::amplitude)]
     pub amplitude: f64,
     /// Largest skin-artifact amplitude per marker-axis (mm).
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true, value_parser = crate::validate::noise_mm_or_zero)]
     pub skin_mm: f64,
     /// Largest skin-artifact angular frequency (rad/s).
-    #[arg(long, default_value_t = 25.0)]
+    #[arg(long, default_value_t = 25.0, allow_negative_numbers = true, value_parser = crate::validate::omega)]
     pub skin_omega: f64,
     /// Standard deviation of white noise per axis (mm).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, value_parser = crate::validate::noise_mm_or_zero)]
     pub white_mm: f64,
     /// True positions = nominal moved by up to this many mm (uniform, seeded).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = crate::validate::perturb_mm)]
     pub perturb_mm: f64,
     /// True orientations = nominal moved by up to this many degrees (uniform, seeded).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = crate::validate::perturb_deg)]
     pub perturb_deg: f64,
     /// Vertical axis of the gait trial's file.
     #[arg(long, value_enum, default_value = "y")]
     pub up: Up,
     /// Low-pass cutoff (Hz) applied to the gait trial before IK.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::validate::cutoff_hz)]
     pub filter: Option<f64>,
     /// Output markers (TRC, mm, written atomically).
     #[arg(short, long)]
@@ -104,6 +104,14 @@ struct Summary {
 }
 
 pub fn run(args: SynthArgs) -> Result<()> {
+    let mut files = crate::output::Files::new().model("model", &args.model);
+    if let Some(gait) = args.motion.strip_prefix("gait:") {
+        files = files.input("gait trial", gait);
+    }
+    files
+        .output("output", &args.output)
+        .output("--truth", &args.truth)
+        .check()?;
     let spec = jointfit_io::model_file::load_spec(&args.model)?;
     let model = jointfit_io::model_file::load_model(&args.model)?;
     let check = |ok: bool, what: &str, v: f64| -> Result<()> {

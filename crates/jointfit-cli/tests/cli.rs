@@ -4,12 +4,16 @@ use std::process::Command;
 
 #[path = "cli/data.rs"]
 mod data;
+#[path = "cli/fuzz.rs"]
+mod fuzz;
 #[path = "cli/ident.rs"]
 mod ident;
 #[path = "cli/osim.rs"]
 mod osim;
 #[path = "cli/personalize.rs"]
 mod personalize;
+#[path = "cli/reliability.rs"]
+mod reliability;
 #[path = "cli/report.rs"]
 mod report;
 #[path = "cli/synth.rs"]
@@ -59,8 +63,7 @@ fn model_show_json() {
 
 #[test]
 fn model_show_file_round_trip() {
-    let dir = std::env::temp_dir().join(format!("jointfit-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = jointfit_testkit::scratch("cli");
     let path = dir.join("leg.toml");
     let spec = jointfit::model::lower_limb::builtin("lower-limb-right").unwrap();
     std::fs::write(&path, spec.to_toml()).unwrap();
@@ -112,8 +115,7 @@ fn bench_runs_without_data() {
 /// `--starts 3`: three optima reported, and the fit kept is the best of them.
 #[test]
 fn calibrate_multi_start_keeps_the_best() {
-    let dir = std::env::temp_dir().join(format!("jointfit-starts-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = jointfit_testkit::scratch("starts");
     let trc = dir.join("hip.trc");
     let truth = dir.join("truth.toml");
     let fitted = dir.join("fitted.toml");

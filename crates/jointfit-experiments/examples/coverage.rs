@@ -129,8 +129,8 @@ fn main() {
         bw_sum += u.hac_bandwidth.unwrap_or(0.0);
         for (k, p) in u.params.iter().enumerate() {
             let i = prob.free[k];
-            let f = model.parameters[i].unit.display_scale();
-            let threshold = match model.parameters[i].unit {
+            let f = model.parameters()[i].unit.display_scale();
+            let threshold = match model.parameters()[i].unit {
                 Unit::Metre => u.threshold_mm,
                 Unit::Radian => u.threshold_deg,
             };
@@ -232,7 +232,10 @@ fn main() {
         .map(|(k, c)| {
             format!(
                 "{} {}/{} (at bound {})",
-                model.parameters[free[k].0].name, c.1, c.0, c.2
+                model.parameters()[free[k].0].name,
+                c.1,
+                c.0,
+                c.2
             )
         })
         .collect();

@@ -347,7 +347,7 @@ mod tests {
     fn table2_matches_the_builtin_model() {
         let model = Model::compile(&lower_limb(Side::Right)).unwrap();
         assert_eq!(model.n_p(), TABLE2.len());
-        for (par, row) in model.parameters.iter().zip(TABLE2) {
+        for (par, row) in model.parameters().iter().zip(TABLE2) {
             assert_eq!(par.name, row.0);
             let k = par.unit.display_scale();
             assert!((par.nominal * k - row.4).abs() < 0.006, "{}", row.0);

@@ -93,7 +93,7 @@ pub fn param_errors(
     let (mut ori, mut pos) = (Vec::new(), Vec::new());
     for &i in free {
         let d = a[i] - b[i];
-        match model.parameters[i].unit {
+        match model.parameters()[i].unit {
             Unit::Radian => ori.push(d.to_degrees()),
             Unit::Metre => pos.push(d * jointfit::model::MM_PER_M),
         }

@@ -103,7 +103,7 @@ impl Table2 {
     /// Builds the table from full parameter vectors (SI) per method.
     pub fn new(subject: &str, model: &Model, methods: &[(&str, Option<&[f64]>)]) -> Table2 {
         let rows = model
-            .parameters
+            .parameters()
             .iter()
             .enumerate()
             .map(|(i, par)| {

@@ -296,7 +296,7 @@ pub fn synthesize(
             positions.push(x + n);
         }
     }
-    let labels = model.markers.iter().map(|m| m.name.clone()).collect();
+    let labels = model.markers().iter().map(|m| m.name.clone()).collect();
     let trial = Trial::new(labels, rate, 1, positions).expect("synthetic trial is well formed");
     let c = count.max(1) as f64;
     let rms_axis = sums.map(|s| (s / c).sqrt());
@@ -336,7 +336,7 @@ pub fn gait_coordinates(
 pub fn perturbed_params(model: &Model, fraction: f64, seed: u64) -> Vec<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     model
-        .parameters
+        .parameters()
         .iter()
         .map(|p| {
             let half = 0.5 * (p.upper - p.lower);

@@ -4,8 +4,8 @@
 //! `JOINTFIT_DATA=… cargo bench -p jointfit-io --bench c3d`
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
-use jointfit::testing::data_file;
 use jointfit_io::c3d::parse_c3d;
+use jointfit_testkit::data_file;
 
 fn bench(c: &mut Criterion) {
     let Some(path) = data_file("c3d_reader/ezc3d/Vicon.c3d") else {

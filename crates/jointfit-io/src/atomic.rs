@@ -4,11 +4,17 @@
 //! directory (so that the final rename never crosses a file system), flushes it to disk, and
 //! renames it over the destination. If anything fails before the rename, the temporary file
 //! is removed and the destination is left as it was.
+//!
+//! The temporary file is registered for removal by a signal handler, and inside an open
+//! [`Batch`](crate::staging::Batch) its rename waits for the batch's commit (see
+//! [`crate::staging`]).
 
 use std::fs::{self, File, OpenOptions};
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::staging;
 
 /// Distinguishes temporary files of concurrent writers within one process.
 static COUNTER: AtomicU64 = AtomicU64::new(0);
@@ -28,20 +34,41 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    let (tmp_path, mut file) = create_temp(&dir, &file_name.to_string_lossy())?;
+    let base = file_name.to_string_lossy();
+    staging::sweep_stale(&dir, &base);
+    let (tmp_path, mut file) = create_temp(&dir, &base)?;
+    let slot = staging::register(&tmp_path);
     let result = (|| {
         file.write_all(bytes)?;
         file.sync_all()?;
         drop(file);
-        fs::rename(&tmp_path, path)
+        if staging::defer(&tmp_path, path, slot) {
+            return Ok(false);
+        }
+        fs::rename(&tmp_path, path).map(|()| true)
     })();
-    if let Err(e) = result {
-        // The temporary file may or may not exist at this point; either way it must go.
-        let _ = fs::remove_file(&tmp_path);
-        return Err(e);
+    match result {
+        Ok(false) => Ok(()),
+        Ok(true) => {
+            staging::unregister(slot);
+            sync_dir(&dir);
+            Ok(())
+        }
+        Err(e) => {
+            // The temporary file may or may not exist at this point; either way it must go.
+            let _ = fs::remove_file(&tmp_path);
+            staging::unregister(slot);
+            Err(e)
+        }
     }
-    sync_dir(&dir);
-    Ok(())
+}
+
+/// Makes a rename into `path`'s directory durable (best effort).
+pub(crate) fn sync_parent(path: &Path) {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => sync_dir(d),
+        _ => sync_dir(Path::new(".")),
+    }
 }
 
 /// Creates a new, previously non-existent temporary file in `dir`.

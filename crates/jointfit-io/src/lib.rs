@@ -10,10 +10,13 @@
 
 pub mod atomic;
 pub mod c3d;
+pub mod csv;
 pub mod osim;
+pub mod staging;
 pub mod sto;
 pub mod trc;
 
 pub mod model_file;
 mod text;
 pub mod trial_file;
+pub mod xml;

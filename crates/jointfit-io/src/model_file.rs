@@ -14,11 +14,9 @@ pub enum ModelFileError {
         path: PathBuf,
         source: std::io::Error,
     },
-    #[error("{path}: {source}")]
-    Parse {
-        path: PathBuf,
-        source: Box<toml::de::Error>,
-    },
+    /// A TOML syntax or schema error, on one line: `line L, column C: what`.
+    #[error("{path}: {message}")]
+    Parse { path: PathBuf, message: String },
     #[error("{path}: invalid model: {source}")]
     Invalid { path: PathBuf, source: ModelError },
     #[error("{name:?} is neither a model file nor a built-in model ({})", BUILTIN_NAMES.join(", "))]
@@ -41,10 +39,37 @@ pub fn load_spec(name_or_path: &str) -> Result<ModelSpec, ModelFileError> {
         path: path.to_path_buf(),
         source,
     })?;
-    ModelSpec::from_toml(&text).map_err(|source| ModelFileError::Parse {
+    ModelSpec::from_toml(&text).map_err(|e| ModelFileError::Parse {
         path: path.to_path_buf(),
-        source: Box::new(source),
+        message: toml_one_line(&text, &e),
     })
+}
+
+/// A TOML error as one line, `line L, column C: message`, without the quoted source line
+/// (which may be megabytes long); the message is capped at 200 characters.
+fn toml_one_line(text: &str, e: &toml::de::Error) -> String {
+    let msg: String = e.message().split_whitespace().collect::<Vec<_>>().join(" ");
+    let msg = if msg.chars().count() > 200 {
+        format!("{}…", msg.chars().take(200).collect::<String>())
+    } else {
+        msg
+    };
+    match e.span() {
+        Some(span) => {
+            let before = &text.as_bytes()[..span.start.min(text.len())];
+            let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
+            let line_start = before
+                .iter()
+                .rposition(|&b| b == b'\n')
+                .map_or(0, |i| i + 1);
+            let column = String::from_utf8_lossy(&before[line_start..])
+                .chars()
+                .count()
+                + 1;
+            format!("TOML error at line {line}, column {column}: {msg}")
+        }
+        None => format!("TOML error: {msg}"),
+    }
 }
 
 /// Writes a model description as TOML, atomically (temp file + rename).
@@ -73,8 +98,7 @@ mod tests {
             e,
             "\"no-such-model\" is neither a model file nor a built-in model (lower-limb-right, lower-limb-left)"
         );
-        let dir = std::env::temp_dir().join(format!("jointfit-mf-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = jointfit_testkit::scratch("mf");
         let bad = dir.join("bad.toml");
         std::fs::write(&bad, "name = \"x\"\nsegments = 3\n").unwrap();
         let e = load_model(bad.to_str().unwrap()).unwrap_err().to_string();

@@ -82,6 +82,7 @@ use thiserror::Error;
 
 use crate::atomic::write_atomic;
 use crate::text::format_shortest;
+use crate::xml::escape;
 
 /// Placeholder mass of every body (kg).
 pub const PLACEHOLDER_MASS: f64 = 1.0;
@@ -131,7 +132,7 @@ pub fn to_osim(model: &Model, p: &[f64]) -> Result<String, OsimError> {
             expected: model.n_p(),
         });
     }
-    for (par, &v) in model.parameters.iter().zip(p) {
+    for (par, &v) in model.parameters().iter().zip(p) {
         if !v.is_finite() {
             return Err(OsimError::NonFiniteParam {
                 name: par.name.clone(),
@@ -145,14 +146,14 @@ pub fn to_osim(model: &Model, p: &[f64]) -> Result<String, OsimError> {
     x.push_str("<?xml version=\"1.0\" encoding=\"UTF-8\" ?>\n");
     x.push_str("<OpenSimDocument Version=\"40000\">\n");
     header_comment(&mut x, model, p);
-    let _ = writeln!(x, "  <Model name=\"{}\">", esc(&sanitize(&model.name)));
+    let _ = writeln!(x, "  <Model name=\"{}\">", escape(&sanitize(model.name())));
     let _ = writeln!(
         x,
         "    <credits>{}</credits>",
-        esc(&format!(
+        escape(&format!(
             "exported by jointfit {} from model {:?}",
             env!("CARGO_PKG_VERSION"),
-            model.name
+            model.name()
         ))
     );
     x.push_str("    <length_units>meters</length_units>\n");
@@ -160,8 +161,8 @@ pub fn to_osim(model: &Model, p: &[f64]) -> Result<String, OsimError> {
     x.push_str("    <gravity>0 -9.80665 0</gravity>\n");
 
     x.push_str("    <BodySet name=\"bodyset\">\n      <objects>\n");
-    for seg in &model.segments {
-        let _ = writeln!(x, "        <Body name=\"{}\">", esc(&seg.name));
+    for seg in model.segments() {
+        let _ = writeln!(x, "        <Body name=\"{}\">", escape(&seg.name));
         let _ = writeln!(x, "          <mass>{}</mass>", num(PLACEHOLDER_MASS));
         x.push_str("          <mass_center>0 0 0</mass_center>\n");
         let i = num(PLACEHOLDER_INERTIA);
@@ -171,35 +172,35 @@ pub fn to_osim(model: &Model, p: &[f64]) -> Result<String, OsimError> {
     x.push_str("      </objects>\n    </BodySet>\n");
 
     x.push_str("    <JointSet name=\"jointset\">\n      <objects>\n");
-    for (ji, joint) in model.joints.iter().enumerate() {
+    for (ji, joint) in model.joints().iter().enumerate() {
         let spec = joint_spec(model, ji);
         let parent = match joint.parent {
-            Some(s) => model.segments[s.0].name.as_str(),
+            Some(s) => model.segments()[s.0].name.as_str(),
             None => "ground",
         };
-        let child = model.segments[joint.child.0].name.as_str();
+        let child = model.segments()[joint.child.0].name.as_str();
         let parent_offset = eval_offset(model, p, &spec.parent_offset, &joint.name)?;
         let child_offset = eval_offset(model, p, &spec.child_offset, &joint.name)?;
         let tag = match joint.kind {
             JointKind::Weld => "WeldJoint",
             _ => "CustomJoint",
         };
-        let _ = writeln!(x, "        <{tag} name=\"{}\">", esc(&joint.name));
+        let _ = writeln!(x, "        <{tag} name=\"{}\">", escape(&joint.name));
         let _ = writeln!(
             x,
             "          <socket_parent_frame>{}_offset</socket_parent_frame>",
-            esc(parent)
+            escape(parent)
         );
         let _ = writeln!(
             x,
             "          <socket_child_frame>{}_offset</socket_child_frame>",
-            esc(child)
+            escape(child)
         );
-        let coords = &model.coordinates[joint.first_coord..joint.first_coord + joint.kind.dof()];
+        let coords = &model.coordinates()[joint.first_coord..joint.first_coord + joint.kind.dof()];
         if !coords.is_empty() {
             x.push_str("          <coordinates>\n");
             for c in coords {
-                let _ = writeln!(x, "            <Coordinate name=\"{}\">", esc(&c.name));
+                let _ = writeln!(x, "            <Coordinate name=\"{}\">", escape(&c.name));
                 let _ = writeln!(
                     x,
                     "              <default_value>{}</default_value>",
@@ -237,12 +238,12 @@ pub fn to_osim(model: &Model, p: &[f64]) -> Result<String, OsimError> {
     x.push_str("      </objects>\n    </JointSet>\n");
 
     x.push_str("    <MarkerSet name=\"markerset\">\n      <objects>\n");
-    for m in &model.markers {
-        let _ = writeln!(x, "        <Marker name=\"{}\">", esc(&m.name));
+    for m in model.markers() {
+        let _ = writeln!(x, "        <Marker name=\"{}\">", escape(&m.name));
         let _ = writeln!(
             x,
             "          <socket_parent_frame>/bodyset/{}</socket_parent_frame>",
-            esc(&model.segments[m.segment.0].name)
+            escape(&model.segments()[m.segment.0].name)
         );
         let _ = writeln!(x, "          <location>{}</location>", vec3(&m.local));
         x.push_str("          <fixed>true</fixed>\n");
@@ -264,7 +265,7 @@ pub fn write_osim(path: &Path, model: &Model, p: &[f64]) -> Result<(), OsimError
 
 /// The description of joint `ji` (the compiled model keeps the spec it came from).
 fn joint_spec(model: &Model, ji: usize) -> &JointSpec {
-    let name = &model.joints[ji].name;
+    let name = &model.joints()[ji].name;
     model
         .spec()
         .joints
@@ -403,7 +404,7 @@ fn transform_axis(x: &mut String, k: usize, axis: &Vector3<f64>, coord: Option<&
     let _ = writeln!(
         x,
         "              <coordinates>{}</coordinates>",
-        coord.map(esc).unwrap_or_default()
+        coord.map(escape).unwrap_or_default()
     );
     let _ = writeln!(x, "              <axis>{}</axis>", vec3(axis));
     match coord {
@@ -425,12 +426,12 @@ fn offset_frame(x: &mut String, owner: &str, o: &Offset) {
     let _ = writeln!(
         x,
         "            <PhysicalOffsetFrame name=\"{}_offset\">",
-        esc(owner)
+        escape(owner)
     );
     let parent = if owner == "ground" {
         "/ground".to_string()
     } else {
-        format!("/bodyset/{}", esc(owner))
+        format!("/bodyset/{}", escape(owner))
     };
     let _ = writeln!(x, "              <socket_parent>{parent}</socket_parent>");
     let t = Vector3::from(o.translation);
@@ -446,10 +447,10 @@ fn header_comment(x: &mut String, model: &Model, p: &[f64]) {
         c,
         "Exported by jointfit {} from model {:?}.",
         env!("CARGO_PKG_VERSION"),
-        model.name
+        model.name()
     );
-    if !model.description.is_empty() {
-        let _ = writeln!(c, "Description: {}", model.description);
+    if !model.description().is_empty() {
+        let _ = writeln!(c, "Description: {}", model.description());
     }
     let _ = writeln!(
         c,
@@ -462,14 +463,14 @@ fn header_comment(x: &mut String, model: &Model, p: &[f64]) {
          CustomJoint SpatialTransforms (body-fixed rotations, then translations in the parent \
          joint frame; identity LinearFunctions), welds as WeldJoints.\n",
     );
-    if !model.parameters.is_empty() {
+    if !model.parameters().is_empty() {
         c.push_str("Joint parameters (m, rad) the offsets were evaluated with:\n");
-        for (par, v) in model.parameters.iter().zip(p) {
+        for (par, v) in model.parameters().iter().zip(p) {
             let _ = writeln!(c, "  {} = {}", par.name, format_shortest(*v));
         }
     }
     let weighted: Vec<String> = model
-        .markers
+        .markers()
         .iter()
         .filter(|m| m.weight != 1.0)
         .map(|m| format!("{} {}", m.name, format_shortest(m.weight)))
@@ -489,19 +490,23 @@ fn check_names(model: &Model) -> Result<(), OsimError> {
     let lists: [(&'static str, Vec<&str>); 4] = [
         (
             "segment",
-            model.segments.iter().map(|s| s.name.as_str()).collect(),
+            model.segments().iter().map(|s| s.name.as_str()).collect(),
         ),
         (
             "joint",
-            model.joints.iter().map(|s| s.name.as_str()).collect(),
+            model.joints().iter().map(|s| s.name.as_str()).collect(),
         ),
         (
             "coordinate",
-            model.coordinates.iter().map(|s| s.name.as_str()).collect(),
+            model
+                .coordinates()
+                .iter()
+                .map(|s| s.name.as_str())
+                .collect(),
         ),
         (
             "marker",
-            model.markers.iter().map(|s| s.name.as_str()).collect(),
+            model.markers().iter().map(|s| s.name.as_str()).collect(),
         ),
     ];
     for (kind, names) in lists {
@@ -535,22 +540,6 @@ fn sanitize(name: &str) -> String {
     } else {
         "jointfit_model".to_string()
     }
-}
-
-/// XML character data / attribute value escaping.
-fn esc(s: &str) -> String {
-    let mut out = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&apos;"),
-            c => out.push(c),
-        }
-    }
-    out
 }
 
 /// Text that may sit inside `<!-- … -->`: no `--` and no control characters but newlines.
@@ -601,7 +590,6 @@ mod tests {
 
     #[test]
     fn escaping() {
-        assert_eq!(esc("a<b&\"c'>"), "a&lt;b&amp;&quot;c&apos;&gt;");
         assert_eq!(comment_safe("a--b---c-"), "a- -b- - -c- ");
         assert_eq!(sanitize("my model/1"), "my_model_1");
         assert_eq!(sanitize(".."), "jointfit_model");

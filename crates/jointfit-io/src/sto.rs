@@ -457,14 +457,24 @@ pub fn coordinates_table(
     coords: &[Vec<f64>],
 ) -> Table {
     use jointfit::model::CoordKind;
-    let names: Vec<&str> = model.coordinates.iter().map(|c| c.name.as_str()).collect();
+    let names: Vec<&str> = model
+        .coordinates()
+        .iter()
+        .map(|c| c.name.as_str())
+        .collect();
     let mut table = Table::new("Coordinates", &names, true);
     for (f, q) in coords.iter().enumerate() {
         let mut row = vec![trial.time(f)];
-        row.extend(model.coordinates.iter().zip(q).map(|(c, v)| match c.kind {
-            CoordKind::Rotational => v.to_degrees(),
-            CoordKind::Translational => *v,
-        }));
+        row.extend(
+            model
+                .coordinates()
+                .iter()
+                .zip(q)
+                .map(|(c, v)| match c.kind {
+                    CoordKind::Rotational => v.to_degrees(),
+                    CoordKind::Translational => *v,
+                }),
+        );
         table.rows.push(row);
     }
     table

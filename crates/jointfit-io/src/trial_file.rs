@@ -15,6 +15,13 @@ pub enum TrialFileError {
     UnknownType(String),
     #[error("{path}: {message}")]
     Other { path: String, message: String },
+    #[error("{path}: filtering at {hz} Hz: {source}")]
+    Filter {
+        path: String,
+        hz: f64,
+        #[source]
+        source: jointfit::signal::SignalError,
+    },
 }
 
 /// Reads a motion file, choosing the reader by extension (case-insensitive).
@@ -105,14 +112,21 @@ impl std::fmt::Display for FilterWarning {
     }
 }
 
-/// Reads a motion file ([`read_trial`]), rotates it to Y up and low-pass filters it when
-/// asked; returns the trial and a warning for every marker the filter moved by more than
-/// 2 cm.
+/// Reads a motion file ([`read_trial`]) and prepares it ([`prepare_trial`]).
 pub fn load_trial(
     path: &Path,
     options: &LoadOptions,
 ) -> Result<(Trial, Vec<FilterWarning>), TrialFileError> {
-    let mut trial = read_trial(path)?;
+    prepare_trial(read_trial(path)?, path, options)
+}
+
+/// Rotates a trial read from `path` to Y up and low-pass filters it when asked; returns it
+/// with a warning for every marker the filter moved by more than 2 cm.
+pub fn prepare_trial(
+    mut trial: Trial,
+    path: &Path,
+    options: &LoadOptions,
+) -> Result<(Trial, Vec<FilterWarning>), TrialFileError> {
     trial.rotate(&jointfit::trial::up_axis_rotation(options.up));
     let mut warnings = Vec::new();
     if let Some(hz) = options.filter_hz {
@@ -120,11 +134,13 @@ pub fn load_trial(
             cutoff_hz: hz,
             ..jointfit::signal::LowPass::default()
         };
-        let (filtered, report) =
-            jointfit::signal::filter_trial(&trial, &lp).map_err(|e| TrialFileError::Other {
+        let (filtered, report) = jointfit::signal::filter_trial(&trial, &lp).map_err(|source| {
+            TrialFileError::Filter {
                 path: path.display().to_string(),
-                message: format!("filtering at {hz} Hz: {e}"),
-            })?;
+                hz,
+                source,
+            }
+        })?;
         warnings.extend(report.moved_more_than(0.02).map(|m| FilterWarning {
             path: path.display().to_string(),
             marker: m.label.clone(),

@@ -13,8 +13,8 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use jointfit::testing::data_dir;
 use jointfit_io::c3d::parse_c3d;
+use jointfit_testkit::data_dir;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -21,8 +21,8 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use jointfit::testing::{data_dir, python};
 use jointfit_io::c3d::{read_c3d, C3d, C3dError};
+use jointfit_testkit::{data_dir, python};
 use serde_json::Value;
 
 /// Largest accepted coordinate difference, mm.
@@ -425,12 +425,11 @@ fn c3d_matches_ezc3d_and_c3d_on_every_sample() {
         "expected the C3D sample set, found {}",
         files.len()
     );
-    let out = std::env::temp_dir().join(format!("jointfit-c3d-ref-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&out);
+    let out = jointfit_testkit::scratch("c3d-ref");
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/c3d_reference.py");
     let status = Command::new(&py)
         .arg(&script)
-        .arg(&out)
+        .arg(out.path())
         .args(&files)
         .status()
         .expect("run the Python oracle");

@@ -66,7 +66,7 @@ pub fn analyze_with_progress(
             (0..f.frames.len()).map(|i| f.frame_rms(i) * MM).collect()
         };
         let coords = model
-            .coordinates
+            .coordinates()
             .iter()
             .enumerate()
             .map(|(c, coord)| {
@@ -75,7 +75,7 @@ pub fn analyze_with_progress(
                     CoordKind::Translational => ("mm", MM),
                 };
                 let series = |f: &TrialFit| f.coords.iter().map(|q| q[c] * k).collect();
-                let joint = &model.joints[coord.joint.0];
+                let joint = &model.joints()[coord.joint.0];
                 CoordSeries {
                     name: coord.name.clone(),
                     joint: joint.name.clone(),
@@ -116,7 +116,7 @@ pub fn analyze_with_progress(
         });
     }
     input.markers = model
-        .markers
+        .markers()
         .iter()
         .enumerate()
         .map(|(j, m)| MarkerRms {
@@ -141,7 +141,7 @@ pub fn parameter_rows(
     free: Option<&[usize]>,
 ) -> Vec<ParamRow> {
     model
-        .parameters
+        .parameters()
         .iter()
         .enumerate()
         .map(|(i, par)| {

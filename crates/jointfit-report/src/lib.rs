@@ -38,7 +38,7 @@ pub fn write_report(dir: &Path, input: &ReportInput) -> Result<PathBuf, ReportEr
         let path = path.display().to_string();
         move |source| ReportError::Io { path, source }
     };
-    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    jointfit_io::staging::create_dir_all(dir).map_err(io(dir))?;
     let path = dir.join("index.html");
     jointfit_io::atomic::write_atomic(&path, html::render(input).as_bytes()).map_err(io(&path))?;
     Ok(path)

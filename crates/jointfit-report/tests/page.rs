@@ -208,8 +208,7 @@ fn truth_beats_nominal_in_the_numbers_shown() {
 #[test]
 fn written_atomically_into_a_new_directory() {
     let Built { input, page } = build();
-    let dir = std::env::temp_dir().join(format!("jointfit-report-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = jointfit_testkit::scratch("report");
     let path = write_report(&dir.join("nested"), &input).unwrap();
     assert_eq!(path, dir.join("nested/index.html"));
     let written = std::fs::read_to_string(&path).unwrap();
@@ -222,11 +221,6 @@ fn written_atomically_into_a_new_directory() {
     std::fs::write(&blocker, b"x").unwrap();
     let err = write_report(&blocker, &input).unwrap_err().to_string();
     assert!(err.contains("file"), "{err}");
-    std::fs::remove_dir_all(&dir).unwrap();
-}
-
-fn in_ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| !v.is_empty() && v != "0" && v != "false")
 }
 
 fn chromium() -> Option<PathBuf> {
@@ -293,15 +287,14 @@ fn hex(c: &str) -> [u8; 3] {
 fn renders_in_headless_chromium() {
     let Some(browser) = chromium() else {
         assert!(
-            !in_ci(),
+            !jointfit_testkit::in_ci(),
             "chromium is not installed; CI must have it (.ci/run)"
         );
         eprintln!("skipped: chromium not installed");
         return;
     };
     let Built { input, .. } = build();
-    let dir = std::env::temp_dir().join(format!("jointfit-render-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = jointfit_testkit::scratch("render");
     let html = write_report(&dir, &input).unwrap();
     let png = dir.join("shot.png");
     let (w, h) = (1280u32, 3000u32);

@@ -44,7 +44,7 @@ fn trial(model: &Model, p: &[f64], frames: usize) -> Trial {
             );
         }
     }
-    let labels = model.markers.iter().map(|m| m.name.clone()).collect();
+    let labels = model.markers().iter().map(|m| m.name.clone()).collect();
     Trial::new(labels, 100.0, 1, pos).unwrap()
 }
 
@@ -52,7 +52,7 @@ fn benches(c: &mut Criterion) {
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
     let mut truth = model.nominal_params();
     for (i, v) in truth.iter_mut().enumerate() {
-        let par = &model.parameters[i];
+        let par = &model.parameters()[i];
         *v += 0.2 * (par.upper - par.lower) * if i % 2 == 0 { 0.5 } else { -0.5 };
     }
     let gait = trial(&model, &truth, 150);

@@ -1,4 +1,5 @@
-//! Test support shared by every crate's tests: where the real data and the Python oracles are.
+//! Where the real data and the Python oracles are (test support; other crates reach it as
+//! `jointfit_testkit::env`).
 //!
 //! Real motion-capture data are never copied into the repository; tests read them from
 //! `$JOINTFIT_DATA` (default: `../shared/data` beside the repository root). Python oracles
@@ -8,7 +9,9 @@
 
 use std::path::PathBuf;
 
-fn in_ci() -> bool {
+/// True when the environment variable `CI` is set to something other than empty, `0` or
+/// `false`: missing data or oracles are then failures, not skips.
+pub fn in_ci() -> bool {
     std::env::var_os("CI").is_some_and(|v| !v.is_empty() && v != "0" && v != "false")
 }
 

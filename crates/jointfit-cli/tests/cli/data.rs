@@ -1,16 +1,10 @@
 //! `jointfit inspect` and `jointfit convert` on real files.
 
-use jointfit::testing::data_file;
 use jointfit::trial::{up_axis_rotation, UpAxis};
 use jointfit_io::trial_file::read_trial;
+use jointfit_testkit::{data_file, scratch};
 
 use super::jointfit;
-
-fn temp(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("jointfit-data-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
 
 /// `inspect --json` reports what the readers see, and counts gaps like an independent scan.
 #[test]
@@ -44,7 +38,8 @@ fn convert_c3d_to_y_up_trc() {
     let Some(path) = data_file("biobuddy_functional_vicon/Test_func_rknee.c3d") else {
         return;
     };
-    let out = temp("rknee.trc");
+    let dir = scratch("data-cli");
+    let out = dir.join("rknee.trc");
     let (ok, _, err) = jointfit(&[
         "convert",
         path.to_str().unwrap(),
@@ -83,7 +78,8 @@ fn convert_errors_name_the_problem() {
     let Some(path) = data_file("opencap_expert1/walking1.trc") else {
         return;
     };
-    let out = temp("never.trc");
+    let dir = scratch("data-cli");
+    let out = dir.join("never.trc");
     let (ok, _, err) = jointfit(&[
         "convert",
         path.to_str().unwrap(),
@@ -107,7 +103,8 @@ fn ik_on_a_trial_lacking_model_markers() {
     ) else {
         return;
     };
-    let subject = temp("absent-subject.toml");
+    let dir = scratch("data-cli");
+    let subject = dir.join("absent-subject.toml");
     let (ok, _, err) = jointfit(&[
         "personalize",
         "--static",
@@ -123,7 +120,7 @@ fn ik_on_a_trial_lacking_model_markers() {
     let model = jointfit_io::model_file::load_model(subject.to_str().unwrap()).unwrap();
     let keep = |drop: &[&str]| -> String {
         model
-            .markers
+            .markers()
             .iter()
             .map(|m| m.name.as_str())
             .filter(|n| !drop.contains(n))
@@ -131,8 +128,8 @@ fn ik_on_a_trial_lacking_model_markers() {
             .join(",")
     };
     let ik = |drop: &[&str], name: &str| {
-        let trc = temp(&format!("{name}.trc"));
-        let mot = temp(&format!("{name}.mot"));
+        let trc = dir.join(format!("{name}.trc"));
+        let mot = dir.join(format!("{name}.mot"));
         let (ok, _, err) = jointfit(&[
             "convert",
             walk.to_str().unwrap(),

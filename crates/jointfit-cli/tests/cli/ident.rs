@@ -9,6 +9,7 @@ use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion
 use jointfit_io::trc::{write_trc, TrcWriteOptions};
 
 use super::jointfit;
+use jointfit_testkit::ScratchDir;
 
 /// A synthetic trial of `motion` (true parameters perturbed from nominal, skin noise up to
 /// 10 mm) written to `dir`; returns the path.
@@ -26,10 +27,8 @@ fn trial(dir: &Path, motion: Motion, seed: u64) -> PathBuf {
     path
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("jointfit-ident-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn tmp(name: &str) -> ScratchDir {
+    jointfit_testkit::scratch(&format!("ident-{name}"))
 }
 
 #[test]

@@ -8,11 +8,12 @@
 //! Run `cargo test --release -p jointfit-cli --test cli osim -- --nocapture` to see the
 //! comparison and the speed of both programs.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::path::Path;
 use std::time::Instant;
 
 use jointfit::model::{CoordKind, Model};
+use jointfit_testkit::script::osim_check;
+use jointfit_testkit::ScratchDir;
 use serde_json::{json, Value};
 
 use super::jointfit;
@@ -26,44 +27,13 @@ const MARKER_TOL_MM: f64 = 0.01;
 /// local minimum, reported separately.
 const OTHER_MINIMUM: f64 = 1.0;
 
-fn script() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/osim_check.py")
-}
-
-/// Runs `osim_check.py MODE` with `request` on stdin and parses its `@@` JSON line.
+/// Runs `osim_check.py MODE` with `request` on stdin in `cwd` and parses its `@@` JSON line.
 fn check(python: &Path, mode: &str, request: &Value, cwd: &Path) -> Value {
-    let mut child = Command::new(python)
-        .arg(script())
-        .arg(mode)
-        .current_dir(cwd)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap_or_else(|e| panic!("cannot run {}: {e}", python.display()));
-    {
-        use std::io::Write;
-        let mut stdin = child.stdin.take().unwrap();
-        stdin.write_all(request.to_string().as_bytes()).unwrap();
-    }
-    let out = child.wait_with_output().unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "osim_check.py {mode} failed: {}\n{stdout}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let line = stdout
-        .lines()
-        .find_map(|l| l.strip_prefix("@@"))
-        .unwrap_or_else(|| panic!("osim_check.py {mode} printed no result: {stdout}"));
-    serde_json::from_str(line).expect("osim_check.py prints JSON")
+    osim_check(python, mode, request, Some(cwd))
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("jointfit-osim-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(name: &str) -> ScratchDir {
+    jointfit_testkit::scratch(&format!("osim-{name}"))
 }
 
 fn s(p: &Path) -> &str {
@@ -84,7 +54,7 @@ fn read_errors_csv(path: &Path, model: &Model) -> Vec<Vec<f64>> {
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let cols: Vec<usize> = model
-        .markers
+        .markers()
         .iter()
         .map(|m| {
             let label = format!("{}_mm", m.name);
@@ -110,7 +80,7 @@ fn osim_errors_mm(answer: &Value, model: &Model) -> Vec<Vec<f64>> {
         .map(|m| m.as_str().unwrap())
         .collect();
     let order: Vec<usize> = model
-        .markers
+        .markers()
         .iter()
         .map(|m| names.iter().position(|n| *n == m.name).unwrap())
         .collect();
@@ -134,7 +104,7 @@ fn osim_coords(answer: &Value, key: &str, model: &Model) -> Vec<Vec<f64>> {
         .map(|m| m.as_str().unwrap())
         .collect();
     let order: Vec<usize> = model
-        .coordinates
+        .coordinates()
         .iter()
         .map(|c| names.iter().position(|n| *n == c.name).unwrap())
         .collect();
@@ -153,7 +123,7 @@ fn osim_coords(answer: &Value, key: &str, model: &Model) -> Vec<Vec<f64>> {
 /// for rotations, millimetres for translations; and the coordinate it occurs at.
 fn coord_diff(model: &Model, a: &[f64], b: &[f64]) -> (f64, String) {
     let mut worst = (0.0, String::new());
-    for (c, (x, y)) in model.coordinates.iter().zip(a.iter().zip(b)) {
+    for (c, (x, y)) in model.coordinates().iter().zip(a.iter().zip(b)) {
         let d = match c.kind {
             CoordKind::Rotational => {
                 let d = (x - y).to_degrees().rem_euclid(360.0);
@@ -264,11 +234,11 @@ fn opensim_ik_on_squats_matches_jointfit_ik() {
 /// and OpenSim's InverseKinematicsTool on `trial`, compares, and prints the speed of both
 /// (best of `repeat` runs each).
 fn compare_ik(side: &str, trial: &str, repeat: usize) {
-    let Some(stat) = jointfit::testing::data_file("opencap_expert1/static1.trc") else {
+    let Some(stat) = jointfit_testkit::data_file("opencap_expert1/static1.trc") else {
         return;
     };
-    let walk = jointfit::testing::data_file(&format!("opencap_expert1/{trial}")).unwrap();
-    let Some(python) = jointfit::testing::python() else {
+    let walk = jointfit_testkit::data_file(&format!("opencap_expert1/{trial}")).unwrap();
+    let Some(python) = jointfit_testkit::python() else {
         return;
     };
     let dir = scratch(&format!("ik-{side}-{trial}"));
@@ -320,14 +290,14 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
     let ours = ours.unwrap();
     let model = jointfit_io::model_file::load_model(s(&subject)).unwrap();
     let weights: serde_json::Map<String, Value> = model
-        .markers
+        .markers()
         .iter()
         .map(|m| (m.name.clone(), json!(m.weight)))
         .collect();
     let theirs = check(
         &python,
         "ik",
-        &json!({"model": osim, "trc": walk, "out_dir": dir, "weights": weights,
+        &json!({"model": osim, "trc": walk, "out_dir": dir.path(), "weights": weights,
                 "accuracy": 1e-8, "repeat": repeat}),
         &dir,
     );
@@ -349,7 +319,7 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
     // both of its readers, and its own kinematics at those angles reproduces the marker
     // errors jointfit reported (so values and units survived the file).
     // TimeSeriesTable holds time as its independent column, not as a label.
-    let labels: Vec<String> = model.coordinates.iter().map(|c| c.name.clone()).collect();
+    let labels: Vec<String> = model.coordinates().iter().map(|c| c.name.clone()).collect();
     let got_labels: Vec<String> = read_back["labels"]
         .as_array()
         .unwrap()
@@ -363,7 +333,7 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
     let table = jointfit_io::sto::read_sto(&mot).unwrap();
     assert_eq!(jf_q.len(), n);
     for f in 0..n {
-        for (k, c) in model.coordinates.iter().enumerate() {
+        for (k, c) in model.coordinates().iter().enumerate() {
             let written = table.rows[f][k + 1];
             let si = match c.kind {
                 CoordKind::Rotational => written.to_radians(),
@@ -388,7 +358,7 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
             assert!(
                 d <= 1e-3,
                 "frame {f} marker {}: {d} mm",
-                model.markers[j].name
+                model.markers()[j].name
             );
         }
     }
@@ -407,7 +377,7 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
             .fold(0.0, f64::max);
         let cost = |e: &[f64]| {
             model
-                .markers
+                .markers()
                 .iter()
                 .zip(e)
                 .map(|(m, v)| m.weight * v * v)
@@ -423,7 +393,7 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
         }
         angle_worst = angle_worst.max(dq);
         marker_worst = marker_worst.max(de);
-        let tol = match model.coordinates[model.coord_id(&at).map_or(0, |c| c.0)].kind {
+        let tol = match model.coordinates()[model.coord_id(&at).map_or(0, |c| c.0)].kind {
             CoordKind::Rotational => ANGLE_TOL_DEG,
             CoordKind::Translational => TRANS_TOL_MM,
         };
@@ -443,7 +413,7 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
         .map(|c| c.as_str().unwrap())
         .collect();
     let solver_last: Vec<f64> = model
-        .coordinates
+        .coordinates()
         .iter()
         .map(|c| last_solver[names.iter().position(|n| *n == c.name).unwrap()])
         .collect();

@@ -11,8 +11,8 @@ use jointfit::landmarks::{
 use jointfit::model::lower_limb::Side;
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;
-use jointfit::testing::data_file;
 use jointfit::trial::{up_axis_rotation, Trial, UpAxis};
+use jointfit_testkit::data_file;
 use nalgebra::Vector3;
 
 use super::jointfit;
@@ -66,7 +66,7 @@ fn check(
     let mut kin = KinData::new(&model);
     forward_kinematics(&model, &p, &out.static_q, Want::POSITIONS, &mut kin);
     let worst = model
-        .markers
+        .markers()
         .iter()
         .zip(&kin.markers)
         .map(|(m, x)| (x - mean_over_window(&trial, &out, &m.name)).norm())
@@ -220,7 +220,7 @@ fn ik_recovers_the_static_pose() {
     let model = Model::compile(&out.spec).unwrap();
     let p = model.nominal_params();
     let targets: Vec<Vector3<f64>> = model
-        .markers
+        .markers()
         .iter()
         .map(|m| mean_over_window(&trial, &out, &m.name))
         .collect();
@@ -243,8 +243,7 @@ fn cli_personalize_writes_a_model_that_loads() {
     let Some(path) = data_file("opencap_expert1/static1.trc") else {
         return;
     };
-    let dir = std::env::temp_dir().join(format!("jointfit-pers-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = jointfit_testkit::scratch("pers");
     let out = dir.join("expert1-right.toml");
     let args = [
         "personalize",
@@ -347,8 +346,7 @@ fn cli_personalize_c3d() {
     let Some(path) = data_file("biobuddy_functional_vicon/Test_func_anat.c3d") else {
         return;
     };
-    let dir = std::env::temp_dir().join(format!("jointfit-pers-c3d-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = jointfit_testkit::scratch("pers-c3d");
     let out = dir.join("vicon-left.toml");
     let (ok, stdout, stderr) = jointfit(&[
         "personalize",

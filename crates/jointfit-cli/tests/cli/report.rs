@@ -1,11 +1,12 @@
 //! HTML reports and progress output through the binary: `calibrate --report`, `report`, and
 //! progress lines on stderr that never touch stdout.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
-use jointfit::testing::data_file;
 use jointfit_report::check::{external_references, parse, Element};
+use jointfit_testkit::data_file;
+use jointfit_testkit::ScratchDir;
 
 /// Runs the binary with extra environment variables: (success, stdout, stderr).
 fn run(args: &[&str], env: &[(&str, &str)]) -> (bool, String, String) {
@@ -22,11 +23,8 @@ fn run(args: &[&str], env: &[(&str, &str)]) -> (bool, String, String) {
     )
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("jointfit-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(name: &str) -> ScratchDir {
+    jointfit_testkit::scratch(&format!("cli-{name}"))
 }
 
 fn s(p: &Path) -> &str {

@@ -1,16 +1,13 @@
 //! `jointfit synth` and `jointfit reproduce`: the known synthetic truth is the oracle.
 
-use std::path::PathBuf;
-
 use jointfit::model::{Model, Unit};
-use jointfit::testing::{data_dir, data_file};
+use jointfit_testkit::{data_dir, data_file};
 
 use super::jointfit;
+use jointfit_testkit::ScratchDir;
 
-fn tmp(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("jointfit-synth-{tag}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn tmp(tag: &str) -> ScratchDir {
+    jointfit_testkit::scratch(&format!("synth-{tag}"))
 }
 
 fn load(path: &std::path::Path) -> Model {
@@ -59,10 +56,10 @@ fn synth_then_calibrate_recovers_the_truth_file() {
     .unwrap();
     let mut moved = 0.0f64;
     for ((a, b), n) in t
-        .parameters
+        .parameters()
         .iter()
-        .zip(&f.parameters)
-        .zip(&nominal.parameters)
+        .zip(f.parameters())
+        .zip(nominal.parameters())
     {
         assert_eq!(a.name, b.name);
         let k = match a.unit {
@@ -319,9 +316,9 @@ fn synth_gait_from_a_real_trial() {
     assert!(ok, "{err}");
     let (t, f) = (load(&truth), load(&fitted));
     let worst = t
-        .parameters
+        .parameters()
         .iter()
-        .zip(&f.parameters)
+        .zip(f.parameters())
         .map(|(a, b)| (a.nominal - b.nominal).abs())
         .fold(0.0, f64::max);
     // Gait exercises some axes little (the paper's point), but without noise the optimum is

@@ -1,34 +1,16 @@
 //! Runs `scripts/opensim_oracle.py` and collects its `@@` result lines.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
-pub fn script() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/opensim_oracle.py")
-}
+use jointfit_testkit::script::{result_lines, Script};
 
 /// The tab-separated fields of every result line, or `None` (skipped) without Python.
 ///
 /// # Panics
 /// When the script fails to run or exits with an error.
 pub fn run(args: &[&str]) -> Option<Vec<Vec<String>>> {
-    let python = jointfit::testing::python()?;
-    let out = Command::new(&python)
-        .arg(script())
-        .args(args)
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run {}: {e}", python.display()));
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "oracle {args:?} failed: {}\n{}",
-        String::from_utf8_lossy(&out.stderr),
-        stdout
-    );
+    let python = jointfit_testkit::python()?;
+    let stdout = Script::new(&python, "opensim_oracle.py").args(args).run();
     Some(
-        stdout
-            .lines()
-            .filter_map(|l| l.strip_prefix("@@"))
+        result_lines(&stdout)
             .map(|l| l.split('\t').map(str::to_string).collect())
             .collect(),
     )

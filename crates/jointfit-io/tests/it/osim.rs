@@ -5,8 +5,6 @@
 //! OpenCap static trial, and a model with every joint kind.
 
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
 
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::landmarks::{personalize, MarkerSet, PersonalizeOptions};
@@ -14,6 +12,8 @@ use jointfit::model::lower_limb::{builtin, Side};
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::{CoordKind, JointKind, Model};
 use jointfit_io::osim::{to_osim, write_osim, OsimError};
+use jointfit_testkit::models::all_kinds;
+use jointfit_testkit::script::osim_check;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
@@ -21,163 +21,14 @@ use serde_json::{json, Value};
 /// Largest marker-position difference accepted between OpenSim and jointfit (m).
 const FK_TOL: f64 = 1e-6;
 
-fn script() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/osim_check.py")
-}
-
 /// Runs `osim_check.py MODE` with `request` on stdin; `None` (skipped) without Python.
 fn check(mode: &str, request: &Value) -> Option<Value> {
-    let python = jointfit::testing::python()?;
-    let mut child = Command::new(&python)
-        .arg(script())
-        .arg(mode)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap_or_else(|e| panic!("cannot run {}: {e}", python.display()));
-    {
-        use std::io::Write;
-        let mut stdin = child.stdin.take().unwrap();
-        stdin.write_all(request.to_string().as_bytes()).unwrap();
-    }
-    let out = child.wait_with_output().unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "osim_check.py {mode} failed: {}\n{stdout}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let line = stdout
-        .lines()
-        .find_map(|l| l.strip_prefix("@@"))
-        .unwrap_or_else(|| panic!("osim_check.py {mode} printed no result: {stdout}"));
-    Some(serde_json::from_str(line).expect("osim_check.py prints JSON"))
-}
-
-/// A model with every joint kind the spec allows, non-principal and negative axes, rotated
-/// and translated offsets, and parameters read with scales (including −1).
-fn all_kinds_spec() -> ModelSpec {
-    let text = r#"
-name = "all-kinds"
-segments = [{ name = "base" }, { name = "arm" }, { name = "hand" }, { name = "finger" },
-            { name = "tip" }, { name = "cap" }]
-
-[[joints]]
-name = "root"
-parent = "ground"
-child = "base"
-kind = { type = "free", rotation_axes = ["y", "-x", [0.2, 0.1, 1.0]] }
-coordinates = ["b_tx", "b_ty", { name = "b_tz", range = [-2.0, 2.0], default = 0.3 }, "b_r1", "b_r2", "b_r3"]
-parent_offset = { tx = 0.1, ry = 0.4 }
-
-[[joints]]
-name = "shoulder"
-parent = "base"
-child = "arm"
-kind = { type = "gimbal", axes = ["x", [0.3, 1.0, -0.2], "-z"] }
-coordinates = ["s1", "s2", "s3"]
-parent_offset = { tx = "sh_x", ty = { param = "sh_y", scale = -1.0 }, rz = 0.3, rx = "sh_rx" }
-child_offset = { tz = 0.05, ry = { param = "sh_rx", scale = 0.5 } }
-
-[[joints]]
-name = "elbow"
-parent = "arm"
-child = "hand"
-kind = { type = "universal", axes = ["z", [1.0, 0.4, 0.0]] }
-coordinates = ["e1", { name = "e2", range = [-1.0, 1.5] }]
-parent_offset = { ty = -0.3, rx = 0.2 }
-
-[[joints]]
-name = "wrist"
-parent = "hand"
-child = "finger"
-kind = { type = "pin", axis = [0.6, -0.3, 0.74] }
-coordinates = ["w"]
-parent_offset = { tx = 0.02, ty = -0.25, rz = -0.7 }
-child_offset = { tx = -0.01, rx = 0.3, ry = -0.2, rz = 0.1 }
-
-[[joints]]
-name = "slide"
-parent = "finger"
-child = "tip"
-kind = { type = "slider", axis = [0.0, -1.0, 0.3] }
-coordinates = [{ name = "sl", range = [-0.1, 0.2] }]
-parent_offset = { ty = -0.05 }
-
-[[joints]]
-name = "glue"
-parent = "base"
-child = "cap"
-kind = { type = "weld" }
-parent_offset = { tx = 0.05, ty = 0.2, rx = 0.1, ry = -0.3, rz = 0.5 }
-child_offset = { tz = "sh_x" }
-
-[[parameters]]
-name = "sh_x"
-group = "shoulder"
-unit = "m"
-nominal = 0.02
-lower = -0.05
-upper = 0.05
-
-[[parameters]]
-name = "sh_y"
-group = "shoulder"
-unit = "m"
-nominal = 0.2
-lower = 0.1
-upper = 0.3
-
-[[parameters]]
-name = "sh_rx"
-group = "shoulder"
-unit = "rad"
-nominal = 0.1
-lower = -0.3
-upper = 0.3
-
-[[markers]]
-name = "b1"
-segment = "base"
-position = [0.1, 0.0, 0.0]
-
-[[markers]]
-name = "b2"
-segment = "base"
-position = [0.0, 0.1, 0.05]
-
-[[markers]]
-name = "a1"
-segment = "arm"
-position = [0.01, -0.2, 0.03]
-
-[[markers]]
-name = "h1"
-segment = "hand"
-position = [0.03, -0.1, -0.02]
-
-[[markers]]
-name = "f1"
-segment = "finger"
-position = [0.0, -0.04, 0.01]
-
-[[markers]]
-name = "t1"
-segment = "tip"
-position = [0.01, 0.0, 0.0]
-weight = 2.5
-
-[[markers]]
-name = "c1"
-segment = "cap"
-position = [0.0, 0.03, -0.04]
-"#;
-    ModelSpec::from_toml(text).unwrap()
+    let python = jointfit_testkit::python()?;
+    Some(osim_check(&python, mode, request, None))
 }
 
 fn personalized_subject() -> Option<Model> {
-    let path = jointfit::testing::data_file("opencap_expert1/static1.trc")?;
+    let path = jointfit_testkit::data_file("opencap_expert1/static1.trc")?;
     let trial = jointfit_io::trc::read_trc(&path).unwrap();
     let set = MarkerSet::preset("opencap").unwrap();
     let opts = PersonalizeOptions {
@@ -198,7 +49,7 @@ fn param_sets(model: &Model, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
     if model.n_p() > 0 {
         sets.push(
             model
-                .parameters
+                .parameters()
                 .iter()
                 .map(|p| rng.gen_range(p.lower..p.upper))
                 .collect(),
@@ -211,7 +62,7 @@ fn param_sets(model: &Model, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
 /// translations in ±0.5 m.
 fn random_q(model: &Model, rng: &mut ChaCha8Rng) -> Vec<f64> {
     model
-        .coordinates
+        .coordinates()
         .iter()
         .map(|c| match c.kind {
             CoordKind::Rotational => rng.gen_range(-3.1..3.1),
@@ -226,7 +77,11 @@ fn random_q(model: &Model, rng: &mut ChaCha8Rng) -> Vec<f64> {
 fn compare_fk(model: &Model, seed: u64) -> Option<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let dir = tempdir();
-    let names: Vec<&str> = model.coordinates.iter().map(|c| c.name.as_str()).collect();
+    let names: Vec<&str> = model
+        .coordinates()
+        .iter()
+        .map(|c| c.name.as_str())
+        .collect();
     let mut worst = 0.0f64;
     for (k, p) in param_sets(model, &mut rng).into_iter().enumerate() {
         let path = dir.path().join(format!("m{k}.osim"));
@@ -247,7 +102,7 @@ fn compare_fk(model: &Model, seed: u64) -> Option<f64> {
             .collect();
         for (pose, got) in poses.iter().zip(answer["positions"].as_array().unwrap()) {
             forward_kinematics(model, &p, pose, Want::POSITIONS, &mut data);
-            for (j, m) in model.markers.iter().enumerate() {
+            for (j, m) in model.markers().iter().enumerate() {
                 let o = osim_markers.iter().position(|n| *n == m.name).unwrap();
                 let xyz = &got[o];
                 for a in 0..3 {
@@ -256,7 +111,7 @@ fn compare_fk(model: &Model, seed: u64) -> Option<f64> {
                     assert!(
                         d <= FK_TOL,
                         "{}: marker {} axis {a} differs by {d} m at q = {pose:?}, p = {p:?}",
-                        model.name,
+                        model.name(),
                         m.name
                     );
                 }
@@ -265,7 +120,7 @@ fn compare_fk(model: &Model, seed: u64) -> Option<f64> {
     }
     eprintln!(
         "osim fk {}: max |OpenSim − jointfit| marker difference {worst:.3e} m",
-        model.name
+        model.name()
     );
     Some(worst)
 }
@@ -279,7 +134,7 @@ fn check_summary(model: &Model, a: &Value) {
         .iter()
         .map(|b| b.as_str().unwrap())
         .collect();
-    let segs: Vec<&str> = model.segments.iter().map(|s| s.name.as_str()).collect();
+    let segs: Vec<&str> = model.segments().iter().map(|s| s.name.as_str()).collect();
     assert_eq!(bodies, segs);
     let joints: HashMap<&str, &Value> = a["joints"]
         .as_array()
@@ -287,15 +142,16 @@ fn check_summary(model: &Model, a: &Value) {
         .iter()
         .map(|j| (j["name"].as_str().unwrap(), j))
         .collect();
-    assert_eq!(joints.len(), model.joints.len());
-    for j in &model.joints {
+    assert_eq!(joints.len(), model.joints().len());
+    for j in model.joints() {
         let o = joints[j.name.as_str()];
         let parent = j
             .parent
-            .map_or("ground", |s| model.segments[s.0].name.as_str());
+            .map_or("ground", |s| model.segments()[s.0].name.as_str());
         assert_eq!(o["parent"], parent, "joint {}", j.name);
         assert_eq!(
-            o["child"], model.segments[j.child.0].name,
+            o["child"],
+            model.segments()[j.child.0].name,
             "joint {}",
             j.name
         );
@@ -310,7 +166,7 @@ fn check_summary(model: &Model, a: &Value) {
             .iter()
             .map(|c| c.as_str().unwrap())
             .collect();
-        let mut ours: Vec<&str> = model.coordinates[j.first_coord..j.first_coord + j.kind.dof()]
+        let mut ours: Vec<&str> = model.coordinates()[j.first_coord..j.first_coord + j.kind.dof()]
             .iter()
             .map(|c| c.name.as_str())
             .collect();
@@ -321,13 +177,13 @@ fn check_summary(model: &Model, a: &Value) {
     let coords = a["coordinates"].as_array().unwrap();
     assert_eq!(coords.len(), model.n_q());
     for c in coords {
-        let ours = &model.coordinates[model.coord_id(c["name"].as_str().unwrap()).unwrap().0];
+        let ours = &model.coordinates()[model.coord_id(c["name"].as_str().unwrap()).unwrap().0];
         let kind = match ours.kind {
             CoordKind::Rotational => "rotational",
             CoordKind::Translational => "translational",
         };
         assert_eq!(c["motion_type"], kind, "coordinate {}", ours.name);
-        assert_eq!(c["joint"], model.joints[ours.joint.0].name);
+        assert_eq!(c["joint"], model.joints()[ours.joint.0].name);
         assert_eq!(c["range"][0].as_f64().unwrap(), ours.range[0]);
         assert_eq!(c["range"][1].as_f64().unwrap(), ours.range[1]);
         assert_eq!(c["default"].as_f64().unwrap(), ours.default);
@@ -336,9 +192,9 @@ fn check_summary(model: &Model, a: &Value) {
     }
     let markers = a["markers"].as_array().unwrap();
     assert_eq!(markers.len(), model.n_markers());
-    for (m, o) in model.markers.iter().zip(markers) {
+    for (m, o) in model.markers().iter().zip(markers) {
         assert_eq!(o["name"], m.name);
-        assert_eq!(o["parent"], model.segments[m.segment.0].name);
+        assert_eq!(o["parent"], model.segments()[m.segment.0].name);
         // OpenSim's number parser may land one ulp away from the shortest decimal form.
         for k in 0..3 {
             let d = (o["location"][k].as_f64().unwrap() - m.local[k]).abs();
@@ -368,7 +224,7 @@ fn osim_fk_personalized_subject_matches_opensim() {
 
 #[test]
 fn osim_fk_every_joint_kind_matches_opensim() {
-    let model = Model::compile(&all_kinds_spec()).unwrap();
+    let model = Model::compile(&all_kinds()).unwrap();
     compare_fk(&model, 13);
 }
 
@@ -389,7 +245,7 @@ fn numbers(s: &str) -> Vec<f64> {
 /// hold the parameter values (with their scales), every coordinate and marker is there.
 #[test]
 fn osim_xml_structure() {
-    let spec = all_kinds_spec();
+    let spec = all_kinds();
     let model = Model::compile(&spec).unwrap();
     let p = vec![-0.03, 0.25, 0.2];
     let text = to_osim(&model, &p).unwrap();
@@ -425,7 +281,7 @@ fn osim_xml_structure() {
         .iter()
         .map(|b| b.attribute("name").unwrap())
         .collect();
-    let segs: Vec<&str> = model.segments.iter().map(|s| s.name.as_str()).collect();
+    let segs: Vec<&str> = model.segments().iter().map(|s| s.name.as_str()).collect();
     assert_eq!(body_names, segs, "the model's topological order");
     assert_eq!(segs, ["base", "arm", "cap", "hand", "finger", "tip"]);
     for b in &bodies {
@@ -492,7 +348,11 @@ fn osim_xml_structure() {
             }
         }
     }
-    let expected: Vec<&str> = model.coordinates.iter().map(|c| c.name.as_str()).collect();
+    let expected: Vec<&str> = model
+        .coordinates()
+        .iter()
+        .map(|c| c.name.as_str())
+        .collect();
     assert_eq!(coords, expected);
 
     // The shoulder's parent offset: tx = sh_x, ty = −sh_y, rx = sh_rx, rz = 0.3; its child
@@ -522,11 +382,11 @@ fn osim_xml_structure() {
 
     let markers = set("MarkerSet");
     assert_eq!(markers.len(), model.n_markers());
-    for (x, m) in markers.iter().zip(&model.markers) {
+    for (x, m) in markers.iter().zip(model.markers()) {
         assert_eq!(x.attribute("name"), Some(m.name.as_str()));
         assert_eq!(
             child_text(*x, "socket_parent_frame"),
-            format!("/bodyset/{}", model.segments[m.segment.0].name)
+            format!("/bodyset/{}", model.segments()[m.segment.0].name)
         );
         assert_eq!(numbers(child_text(*x, "location")), m.local.as_slice());
     }
@@ -601,7 +461,7 @@ fn osim_errors() {
     );
 
     // A z-x-z gimbal (proper Euler angles) repeats an axis: no CustomJoint can hold it.
-    let mut spec = all_kinds_spec();
+    let mut spec = all_kinds();
     spec.joints[1].kind = ModelSpec::from_toml(
         "name = \"x\"\nsegments = []\n[[joints]]\nname = \"j\"\nparent = \"ground\"\n\
          child = \"s\"\nkind = { type = \"gimbal\", axes = [\"z\", \"x\", \"-z\"] }\n",
@@ -617,15 +477,15 @@ fn osim_errors() {
         "joint \"shoulder\": rotation axes 1 and 3 are parallel; an OpenSim CustomJoint needs \
          independent axes, so this joint cannot be exported"
     );
-    // A universal joint with parallel axes.
-    let mut spec = all_kinds_spec();
+    // A universal joint with parallel axes: refused when the model is loaded, before any
+    // export (jointfit::model::checks).
+    let mut spec = all_kinds();
     if let jointfit::model::spec::JointKindSpec::Universal { axes } = &mut spec.joints[2].kind {
         axes[1] = jointfit::model::spec::AxisSpec::Vector([0.0, 0.0, -2.0]);
     }
-    let model = Model::compile(&spec).unwrap();
-    let e = to_osim(&model, &model.nominal_params()).unwrap_err();
+    let e = Model::compile(&spec).unwrap_err().to_string();
     assert!(
-        matches!(&e, OsimError::ParallelAxes { joint, .. } if joint == "elbow"),
+        e.starts_with("joint \"elbow\": rotation axes 1 and 2 are parallel"),
         "{e}"
     );
     // An unwritable destination names the file; nothing is left behind.

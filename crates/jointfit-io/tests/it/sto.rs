@@ -4,10 +4,10 @@
 use std::collections::BTreeSet;
 use std::path::Path;
 
-use jointfit::testing::data_dir;
 use jointfit_io::sto::{
     format_sto, parse_sto, read_sto, write_sto, StoErrorKind, StoWriteError, Table,
 };
+use jointfit_testkit::data_dir;
 use proptest::prelude::*;
 
 use crate::oracle::{self, num, same};

@@ -5,12 +5,12 @@
 use std::collections::BTreeSet;
 use std::path::Path;
 
-use jointfit::testing::data_dir;
 use jointfit::trial::Trial;
 use jointfit_io::trc::{
     format_trc, parse_trc_file, read_trc, read_trc_file, TrcErrorKind, TrcNote, TrcUnits,
     TrcWriteOptions,
 };
+use jointfit_testkit::data_dir;
 
 use crate::oracle::{self, num, same};
 

@@ -156,7 +156,7 @@ impl<'m> Problem<'m> {
 
     /// Half-width of free parameter `k`'s bounds: `∂p/∂s`.
     pub fn half_range(&self, k: usize) -> f64 {
-        let par = &self.model.parameters[self.free[k]];
+        let par = &self.model.parameters()[self.free[k]];
         0.5 * (par.upper - par.lower)
     }
 
@@ -165,7 +165,7 @@ impl<'m> Problem<'m> {
         self.free
             .iter()
             .map(|&i| {
-                let par = &self.model.parameters[i];
+                let par = &self.model.parameters()[i];
                 2.0 * (p[i] - par.lower) / (par.upper - par.lower) - 1.0
             })
             .collect()
@@ -175,7 +175,7 @@ impl<'m> Problem<'m> {
     pub fn to_params(&self, s: &[f64]) -> Vec<f64> {
         let mut p = self.base.clone();
         for (k, &i) in self.free.iter().enumerate() {
-            let par = &self.model.parameters[i];
+            let par = &self.model.parameters()[i];
             p[i] = par.lower + (s[k] + 1.0) * 0.5 * (par.upper - par.lower);
         }
         p
@@ -232,9 +232,9 @@ impl<'m> Problem<'m> {
 }
 
 fn enough_markers(model: &Model, targets: &[Vector3<f64>], opts: &IkOptions) -> bool {
-    let mut present = vec![0usize; model.segments.len()];
-    let mut carries = vec![false; model.segments.len()];
-    for (j, m) in model.markers.iter().enumerate() {
+    let mut present = vec![0usize; model.segments().len()];
+    let mut carries = vec![false; model.segments().len()];
+    for (j, m) in model.markers().iter().enumerate() {
         if m.weight > 0.0 {
             carries[m.segment.0] = true;
             present[m.segment.0] += !targets[j].x.is_nan() as usize;

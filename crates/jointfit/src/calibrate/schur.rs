@@ -90,7 +90,7 @@ pub(crate) fn assemble(
     for (f, targets) in prob.frames.iter().enumerate() {
         forward_kinematics(model, p, &qs[f], Want::BOTH, kin);
         rows.clear();
-        for (j, m) in model.markers.iter().enumerate() {
+        for (j, m) in model.markers().iter().enumerate() {
             let t: Vector3<f64> = targets[j];
             if t.x.is_nan() || m.weight <= 0.0 {
                 continue;
@@ -311,7 +311,7 @@ pub(crate) fn cost_at(prob: &Problem, p: &[f64], qs: &[Vec<f64>], kin: &mut KinD
     let mut total = 0.0;
     for (f, targets) in prob.frames.iter().enumerate() {
         forward_kinematics(prob.model, p, &qs[f], Want::POSITIONS, kin);
-        for (j, m) in prob.model.markers.iter().enumerate() {
+        for (j, m) in prob.model.markers().iter().enumerate() {
             if !targets[j].x.is_nan() && m.weight > 0.0 {
                 total += m.weight * (targets[j] - kin.markers[j]).norm_squared();
             }

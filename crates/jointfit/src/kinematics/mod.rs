@@ -155,7 +155,7 @@ impl KinData {
         let nm = model.n_markers();
         let ns = model.steps.len();
         KinData {
-            segment_poses: vec![Pose::identity(); model.segments.len()],
+            segment_poses: vec![Pose::identity(); model.segments().len()],
             markers: vec![Vector3::zeros(); nm],
             jq: DMatrix::zeros(3 * nm, model.n_q()),
             jp: DMatrix::zeros(3 * nm, model.n_p()),
@@ -262,7 +262,7 @@ pub fn forward_kinematics(model: &Model, p: &[f64], q: &[f64], want: Want, data:
         "workspace built for another model"
     );
     data.update_blocks(model, p);
-    for (s, seg) in model.segments.iter().enumerate() {
+    for (s, seg) in model.segments().iter().enumerate() {
         let mut pose = match seg.parent {
             Some(parent) => data.segment_poses[parent.0],
             None => Pose::identity(),
@@ -293,7 +293,7 @@ pub fn forward_kinematics(model: &Model, p: &[f64], q: &[f64], want: Want, data:
         }
         data.segment_poses[s] = pose;
     }
-    for (m, marker) in model.markers.iter().enumerate() {
+    for (m, marker) in model.markers().iter().enumerate() {
         data.markers[m] = data.segment_poses[marker.segment.0].transform_point(&marker.local);
     }
     if want.dq {

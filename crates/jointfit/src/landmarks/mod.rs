@@ -380,7 +380,7 @@ pub fn personalize(
         &mut kin,
     );
     let static_fk_error = model
-        .markers
+        .markers()
         .iter()
         .zip(&kin.markers)
         .map(|(m, x)| (x - at(&m.name)).norm())

@@ -248,15 +248,15 @@ pub(crate) fn static_coordinates(
             .ok_or_else(|| LandmarkError::Internal(format!("no frame for segment {name:?}")))
     };
     let mut q = vec![0.0; model.n_q()];
-    for joint in &model.joints {
+    for joint in model.joints() {
         let (po, co) = offsets
             .get(&joint.name)
             .ok_or_else(|| LandmarkError::Internal(format!("no offsets for {:?}", joint.name)))?;
         let parent = match joint.parent {
-            Some(s) => pose(&model.segments[s.0].name)?,
+            Some(s) => pose(&model.segments()[s.0].name)?,
             None => Pose::identity(),
         };
-        let child = pose(&model.segments[joint.child.0].name)?;
+        let child = pose(&model.segments()[joint.child.0].name)?;
         let m = parent
             .compose(&pose_of(po))
             .inverse()

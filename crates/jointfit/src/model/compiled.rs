@@ -9,15 +9,25 @@
 //!
 //! Because parameters and coordinates enter the same way, ∂/∂q and ∂/∂p are computed by the
 //! same geometric rule (see [`crate::kinematics`]).
-
-use std::collections::HashMap;
+//!
+//! # Conventions of every field below
+//!
+//! * Units are SI: lengths in metres, angles in radians (display code converts).
+//! * Frames: *world* is the ground frame (model convention: x anterior, y superior, z to the
+//!   right; see `docs/architecture.md`). Each segment has its own body-fixed frame; the *parent
+//!   joint frame* of a joint is fixed in the parent segment (the parent offset `t_p, r_p`), the
+//!   *child joint frame* is fixed in the child segment (the child offset `t_c, r_c`), and the
+//!   joint's coordinates move the second relative to the first.
+//! * Shapes: `n_seg = n_joint` (one joint per segment), `n_q` coordinates, `n_p` parameters,
+//!   `n_mrk` markers. Indices are the typed ids [`SegmentId`], [`JointId`], [`CoordId`],
+//!   [`ParamId`] or, for markers, a plain `usize`.
+//! * A [`Model`] is read-only after [`Model::compile`]: its fields are private and the
+//!   accessors hand out shared slices. To change a model, edit its [`ModelSpec`]
+//!   ([`Model::spec`], [`Model::spec_with_nominal`]) and compile again.
 
 use nalgebra::{Matrix3, Unit as UnitVec, Vector3};
 
-use super::spec::{
-    AxisSpec, CoordinateSpec, JointKindSpec, ModelSpec, OffsetSpec, ScalarSpec, Unit,
-    OFFSET_SCALARS,
-};
+use super::spec::{ModelSpec, Unit};
 use super::ModelError;
 use crate::kinematics::Pose;
 
@@ -34,26 +44,43 @@ pub struct ParamId(pub usize);
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct CoordId(pub usize);
 
+/// A rigid body of the chain (pelvis, thigh, …). Its frame is body-fixed; the child offset of
+/// [`Segment::joint`] places the joint frame in it.
 #[derive(Debug, Clone)]
 pub struct Segment {
+    /// Unique name, as in the description (never `ground`).
     pub name: String,
-    /// `None` for a segment attached to ground.
+    /// The parent segment; `None` when the segment is attached to ground (the world frame).
+    /// Always a lower index than the segment itself (topological order).
     pub parent: Option<SegmentId>,
+    /// The joint that attaches this segment to its parent; `joint.0 == ` this segment's index.
     pub joint: JointId,
 }
 
-/// The kind of motion a joint allows, with unit axes.
+/// The kind of motion a joint allows, with unit axes (dimensionless, norm 1).
+///
+/// Successive motions act about / along the axes of the *current* frame (body-fixed,
+/// intrinsic order): the first axis is expressed in the parent joint frame, the second in the
+/// frame after the first motion, and so on. Each motion reads one coordinate, in order.
 #[derive(Debug, Clone, PartialEq)]
 pub enum JointKind {
+    /// 6 coordinates: translations along x, y, z of the parent joint frame (m), then rotations
+    /// about `rotation_axes[0..3]` (rad).
     Free { rotation_axes: [Vector3<f64>; 3] },
+    /// 3 coordinates: rotations about `axes[0]`, `axes[1]`, `axes[2]` in turn (rad).
     Gimbal { axes: [Vector3<f64>; 3] },
+    /// 2 coordinates: rotations about `axes[0]`, then `axes[1]` (rad).
     Universal { axes: [Vector3<f64>; 2] },
+    /// 1 coordinate: rotation about `axis` (rad).
     Pin { axis: Vector3<f64> },
+    /// 1 coordinate: translation along `axis` (m).
     Slider { axis: Vector3<f64> },
+    /// No coordinate: the child joint frame coincides with the parent joint frame.
     Weld,
 }
 
 impl JointKind {
+    /// Number of coordinates (degrees of freedom): 6, 3, 2, 1, 1 or 0.
     pub fn dof(&self) -> usize {
         match self {
             JointKind::Free { .. } => 6,
@@ -63,6 +90,8 @@ impl JointKind {
             JointKind::Weld => 0,
         }
     }
+    /// The name used in model descriptions: `free`, `gimbal`, `universal`, `pin`, `slider`,
+    /// `weld`.
     pub fn type_name(&self) -> &'static str {
         match self {
             JointKind::Free { .. } => "free",
@@ -74,7 +103,7 @@ impl JointKind {
         }
     }
     /// The elementary motions in order: (is_rotation, unit axis).
-    fn motions(&self) -> Vec<(bool, Vector3<f64>)> {
+    pub(super) fn motions(&self) -> Vec<(bool, Vector3<f64>)> {
         match self {
             JointKind::Free { rotation_axes } => [Vector3::x(), Vector3::y(), Vector3::z()]
                 .into_iter()
@@ -90,13 +119,20 @@ impl JointKind {
     }
 }
 
+/// A joint: moves the child joint frame relative to the parent joint frame,
+/// `parent_from_child = T(t_p) R(r_p) · motion(q) · (T(t_c) R(r_c))⁻¹`.
 #[derive(Debug, Clone)]
 pub struct Joint {
+    /// Unique name, as in the description.
     pub name: String,
+    /// The segment the parent joint frame is fixed in; `None` for ground.
     pub parent: Option<SegmentId>,
+    /// The segment this joint moves; `child.0 ==` this joint's index.
     pub child: SegmentId,
+    /// Motion type and unit axes.
     pub kind: JointKind,
-    /// Coordinates of this joint: `first..first + kind.dof()`.
+    /// Index in `q` of the joint's first coordinate; its coordinates are
+    /// `first_coord..first_coord + kind.dof()`, contiguous and in motion order.
     pub first_coord: usize,
 }
 
@@ -107,48 +143,76 @@ pub enum CoordKind {
     Translational,
 }
 
+/// One generalized coordinate: one entry of the per-frame vector `q` that inverse
+/// kinematics solves for.
 #[derive(Debug, Clone)]
 pub struct Coordinate {
+    /// Unique name (OpenSim style, e.g. `hip_flexion_r`).
     pub name: String,
+    /// The joint whose motion reads this coordinate.
     pub joint: JointId,
+    /// Angle (rad) or length (m).
     pub kind: CoordKind,
-    /// Lower and upper limit (rad or m); informative, IK does not clamp.
+    /// `[lower, upper]` limit in rad or m, `lower < upper`; informative only (IK does not
+    /// clamp). Default `[−π, π]` or `[−10, 10]` m.
     pub range: [f64; 2],
+    /// Value in the default pose (rad or m); 0 unless the description says otherwise.
     pub default: f64,
 }
 
-/// Where a parameter sits: which joint, which offset, which scalar.
+/// One place a parameter enters the model: offset scalar `scalar` of one joint offset
+/// takes the value `scale · p[k]`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParamUse {
+    /// The joint whose offset reads the parameter.
     pub joint: JointId,
-    /// The segment whose offset frame the scalar belongs to (`None`: ground).
+    /// The segment the offset frame is fixed in: the joint's parent for a parent offset
+    /// (`None`: ground), its child for a child offset.
     pub segment: Option<SegmentId>,
-    /// True for the parent offset, false for the child offset.
+    /// True for the parent offset `(t_p, r_p)`, false for the child offset `(t_c, r_c)`.
     pub in_parent_offset: bool,
-    /// `"tx"`, …, `"rz"`.
+    /// Which of the six offset scalars: `"tx"`, `"ty"`, `"tz"` (m, along the axes of the
+    /// segment frame) or `"rx"`, `"ry"`, `"rz"` (rad, the body-fixed `Rx·Ry·Rz` sequence).
     pub scalar: &'static str,
+    /// Dimensionless factor as written in the description (non-zero; often 1 or −1, e.g. a
+    /// left-side mirror of a right-side parameter).
     pub scale: f64,
 }
 
+/// One joint parameter: one entry of the vector `p` that calibration fits, shared by every
+/// frame of every trial (Reinbolt et al. 2005: joint positions and orientations in the
+/// segments).
 #[derive(Debug, Clone)]
 pub struct Parameter {
+    /// Unique name (e.g. `knee_ty_thigh`).
     pub name: String,
+    /// Selection group (e.g. `hip`, `knee`, `ankle`); `--params GROUP` frees a whole group.
     pub group: String,
+    /// Metre for offset translations, radian for offset rotations.
     pub unit: Unit,
+    /// Value in the uncalibrated (generic or scaled) model, in `unit`.
     pub nominal: f64,
+    /// Lower bound for calibration, in `unit`; finite, `lower < upper`.
     pub lower: f64,
+    /// Upper bound for calibration, in `unit`; finite.
     pub upper: f64,
+    /// Free text shown in reports and in identifiability explanations.
     pub description: String,
     /// Every offset scalar that reads this parameter (at least one).
     pub uses: Vec<ParamUse>,
 }
 
+/// A model marker: a point fixed in a segment, matched by name to a measured trajectory.
 #[derive(Debug, Clone)]
 pub struct Marker {
+    /// Unique name; the trial's marker label it is compared with.
     pub name: String,
+    /// The segment the marker is fixed in (never ground).
     pub segment: SegmentId,
-    /// Position in the segment frame (m).
+    /// Position in the segment frame (m), 3-vector.
     pub local: Vector3<f64>,
+    /// Non-negative weight of the marker's squared residual in IK and calibration
+    /// (dimensionless; 0 ignores the marker).
     pub weight: f64,
 }
 
@@ -190,32 +254,78 @@ pub(crate) struct Step {
 }
 
 /// A validated, immutable, index-based kinematic model (`Send + Sync`).
+///
+/// Built only by [`Model::compile`]; read through the accessors below. Per-frame state
+/// (poses, marker positions, Jacobians) lives in [`crate::kinematics::KinData`], never here.
 #[derive(Debug, Clone)]
 pub struct Model {
-    pub name: String,
-    pub description: String,
-    /// Segments in topological order (every parent before its children).
-    pub segments: Vec<Segment>,
-    /// `joints[i]` attaches `segments[i]` to its parent.
-    pub joints: Vec<Joint>,
-    pub coordinates: Vec<Coordinate>,
-    pub parameters: Vec<Parameter>,
-    pub markers: Vec<Marker>,
+    /// Model name (free text, used in file names and reports).
+    pub(super) name: String,
+    /// Free-text description.
+    pub(super) description: String,
+    /// `n_seg` segments in topological order (every parent before its children).
+    pub(super) segments: Vec<Segment>,
+    /// `n_seg` joints; `joints[i]` attaches `segments[i]` to its parent.
+    pub(super) joints: Vec<Joint>,
+    /// `n_q` coordinates, joint by joint in joint order (see [`Joint::first_coord`]).
+    pub(super) coordinates: Vec<Coordinate>,
+    /// `n_p` parameters, in the order of the description.
+    pub(super) parameters: Vec<Parameter>,
+    /// `n_mrk` markers, in the order of the description.
+    pub(super) markers: Vec<Marker>,
     /// Elementary steps of all segments, segment by segment.
     pub(crate) steps: Vec<Step>,
     /// How forward kinematics walks the steps (blocks, Jacobian columns).
     pub(crate) plan: super::plan::Plan,
     /// The description this model was compiled from.
-    spec: ModelSpec,
+    pub(super) spec: ModelSpec,
 }
 
 impl Model {
+    /// Model name.
+    #[inline]
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+    /// Free-text description.
+    #[inline]
+    pub fn description(&self) -> &str {
+        &self.description
+    }
+    /// Segments in topological order (`n_seg`), indexed by [`SegmentId`].
+    #[inline]
+    pub fn segments(&self) -> &[Segment] {
+        &self.segments
+    }
+    /// Joints (`n_seg`), indexed by [`JointId`]; joint `i` moves segment `i`.
+    #[inline]
+    pub fn joints(&self) -> &[Joint] {
+        &self.joints
+    }
+    /// Coordinates (`n_q`), indexed by [`CoordId`]; the layout of every `q` vector.
+    #[inline]
+    pub fn coordinates(&self) -> &[Coordinate] {
+        &self.coordinates
+    }
+    /// Parameters (`n_p`), indexed by [`ParamId`]; the layout of every `p` vector.
+    #[inline]
+    pub fn parameters(&self) -> &[Parameter] {
+        &self.parameters
+    }
+    /// Markers (`n_mrk`); the layout of every marker-position vector.
+    #[inline]
+    pub fn markers(&self) -> &[Marker] {
+        &self.markers
+    }
+    /// Number of coordinates `n_q`.
     pub fn n_q(&self) -> usize {
         self.coordinates.len()
     }
+    /// Number of parameters `n_p`.
     pub fn n_p(&self) -> usize {
         self.parameters.len()
     }
+    /// Number of markers `n_mrk`.
     pub fn n_markers(&self) -> usize {
         self.markers.len()
     }
@@ -231,24 +341,28 @@ impl Model {
     pub fn default_coords(&self) -> Vec<f64> {
         self.coordinates.iter().map(|c| c.default).collect()
     }
+    /// The segment of that name.
     pub fn segment_id(&self, name: &str) -> Option<SegmentId> {
         self.segments
             .iter()
             .position(|s| s.name == name)
             .map(SegmentId)
     }
+    /// The parameter of that name.
     pub fn param_id(&self, name: &str) -> Option<ParamId> {
         self.parameters
             .iter()
             .position(|s| s.name == name)
             .map(ParamId)
     }
+    /// The coordinate of that name.
     pub fn coord_id(&self, name: &str) -> Option<CoordId> {
         self.coordinates
             .iter()
             .position(|s| s.name == name)
             .map(CoordId)
     }
+    /// Index of the marker of that name.
     pub fn marker_index(&self, name: &str) -> Option<usize> {
         self.markers.iter().position(|m| m.name == name)
     }
@@ -282,564 +396,9 @@ impl Model {
 
     /// Validates and compiles a description. Every error names the offending item.
     pub fn compile(spec: &ModelSpec) -> Result<Model, ModelError> {
-        Compiler::new(spec)?.run()
+        super::checks::check_spec(spec)?;
+        super::validate::Compiler::new(spec)?.run()
     }
-}
-
-fn parse_axis(axis: &AxisSpec, what: &str) -> Result<Vector3<f64>, ModelError> {
-    match axis {
-        AxisSpec::Named(s) => match s.trim() {
-            "x" | "+x" => Ok(Vector3::x()),
-            "y" | "+y" => Ok(Vector3::y()),
-            "z" | "+z" => Ok(Vector3::z()),
-            "-x" => Ok(-Vector3::x()),
-            "-y" => Ok(-Vector3::y()),
-            "-z" => Ok(-Vector3::z()),
-            other => Err(ModelError::BadAxis {
-                item: what.to_string(),
-                axis: other.to_string(),
-            }),
-        },
-        AxisSpec::Vector(v) => {
-            let v = Vector3::from(*v);
-            let n = v.norm();
-            if !n.is_finite() || n < 1e-12 {
-                return Err(ModelError::BadAxis {
-                    item: what.to_string(),
-                    axis: format!("{:?}", v.as_slice()),
-                });
-            }
-            Ok(v / n)
-        }
-    }
-}
-
-fn joint_kind(spec: &JointKindSpec, joint: &str) -> Result<JointKind, ModelError> {
-    let ax = |a: &AxisSpec, i: usize| parse_axis(a, &format!("joint {joint:?} axis {}", i + 1));
-    Ok(match spec {
-        JointKindSpec::Free { rotation_axes } => JointKind::Free {
-            rotation_axes: [
-                ax(&rotation_axes[0], 0)?,
-                ax(&rotation_axes[1], 1)?,
-                ax(&rotation_axes[2], 2)?,
-            ],
-        },
-        JointKindSpec::Gimbal { axes } => JointKind::Gimbal {
-            axes: [ax(&axes[0], 0)?, ax(&axes[1], 1)?, ax(&axes[2], 2)?],
-        },
-        JointKindSpec::Universal { axes } => JointKind::Universal {
-            axes: [ax(&axes[0], 0)?, ax(&axes[1], 1)?],
-        },
-        JointKindSpec::Pin { axis } => JointKind::Pin { axis: ax(axis, 0)? },
-        JointKindSpec::Slider { axis } => JointKind::Slider { axis: ax(axis, 0)? },
-        JointKindSpec::Weld => JointKind::Weld,
-    })
-}
-
-/// The elementary motion for a unit axis; principal axes get the fast specialised form and a
-/// negative principal axis flips the sign of the scalar instead.
-fn motion_for(rotation: bool, axis: &Vector3<f64>) -> (Motion, f64) {
-    let principal = [
-        (Vector3::x(), Motion::RotX, Motion::TransX),
-        (Vector3::y(), Motion::RotY, Motion::TransY),
-        (Vector3::z(), Motion::RotZ, Motion::TransZ),
-    ];
-    for (a, r, t) in principal {
-        for sign in [1.0f64, -1.0] {
-            if (axis - a * sign).norm() < 1e-15 {
-                return (if rotation { r } else { t }, sign);
-            }
-        }
-    }
-    let u = UnitVec::new_normalize(*axis);
-    (
-        if rotation {
-            Motion::Rot(u)
-        } else {
-            Motion::Trans(u)
-        },
-        1.0,
-    )
-}
-
-fn offset_motion(k: usize) -> Motion {
-    [
-        Motion::TransX,
-        Motion::TransY,
-        Motion::TransZ,
-        Motion::RotX,
-        Motion::RotY,
-        Motion::RotZ,
-    ][k]
-        .clone()
-}
-
-struct Compiler<'a> {
-    spec: &'a ModelSpec,
-    seg_index: HashMap<&'a str, usize>,
-    param_index: HashMap<&'a str, usize>,
-}
-
-impl<'a> Compiler<'a> {
-    fn new(spec: &'a ModelSpec) -> Result<Self, ModelError> {
-        let mut seg_index = HashMap::new();
-        for (i, s) in spec.segments.iter().enumerate() {
-            check_name(&s.name, "segment")?;
-            if s.name == "ground" {
-                return Err(ModelError::Invalid(
-                    "segment \"ground\" is implicit and must not be listed".into(),
-                ));
-            }
-            if seg_index.insert(s.name.as_str(), i).is_some() {
-                return Err(ModelError::Duplicate {
-                    kind: "segment",
-                    name: s.name.clone(),
-                });
-            }
-        }
-        let mut param_index = HashMap::new();
-        for (i, p) in spec.parameters.iter().enumerate() {
-            check_name(&p.name, "parameter")?;
-            if param_index.insert(p.name.as_str(), i).is_some() {
-                return Err(ModelError::Duplicate {
-                    kind: "parameter",
-                    name: p.name.clone(),
-                });
-            }
-            let vals = [p.nominal, p.lower, p.upper];
-            if vals.iter().any(|v| !v.is_finite()) || p.lower >= p.upper {
-                return Err(ModelError::BadBounds {
-                    name: p.name.clone(),
-                    detail: format!("need finite lower < upper, got [{}, {}]", p.lower, p.upper),
-                });
-            }
-            if p.nominal < p.lower || p.nominal > p.upper {
-                return Err(ModelError::BadBounds {
-                    name: p.name.clone(),
-                    detail: format!(
-                        "nominal {} lies outside [{}, {}]",
-                        p.nominal, p.lower, p.upper
-                    ),
-                });
-            }
-        }
-        Ok(Self {
-            spec,
-            seg_index,
-            param_index,
-        })
-    }
-
-    /// Orders joints so that every parent segment comes before its children.
-    fn topological_joints(&self) -> Result<Vec<usize>, ModelError> {
-        let spec = self.spec;
-        let mut joint_of_child: Vec<Option<usize>> = vec![None; spec.segments.len()];
-        let mut joint_names = HashMap::new();
-        for (j, js) in spec.joints.iter().enumerate() {
-            check_name(&js.name, "joint")?;
-            if joint_names.insert(js.name.as_str(), j).is_some() {
-                return Err(ModelError::Duplicate {
-                    kind: "joint",
-                    name: js.name.clone(),
-                });
-            }
-            let child = *self.seg_index.get(js.child.as_str()).ok_or_else(|| {
-                ModelError::UnknownSegment {
-                    segment: js.child.clone(),
-                    used_by: format!("joint {:?} (child)", js.name),
-                }
-            })?;
-            if js.parent != "ground" && !self.seg_index.contains_key(js.parent.as_str()) {
-                return Err(ModelError::UnknownSegment {
-                    segment: js.parent.clone(),
-                    used_by: format!("joint {:?} (parent)", js.name),
-                });
-            }
-            if js.parent == js.child {
-                return Err(ModelError::Invalid(format!(
-                    "joint {:?} connects segment {:?} to itself",
-                    js.name, js.child
-                )));
-            }
-            if let Some(other) = joint_of_child[child] {
-                return Err(ModelError::Invalid(format!(
-                    "segment {:?} is the child of two joints: {:?} and {:?}",
-                    js.child, spec.joints[other].name, js.name
-                )));
-            }
-            joint_of_child[child] = Some(j);
-        }
-        for (s, j) in joint_of_child.iter().enumerate() {
-            if j.is_none() {
-                return Err(ModelError::Invalid(format!(
-                    "segment {:?} is not the child of any joint",
-                    spec.segments[s].name
-                )));
-            }
-        }
-        // Depth-first from ground, children in spec order.
-        let mut order = Vec::with_capacity(spec.joints.len());
-        let mut stack = vec!["ground"];
-        while let Some(parent) = stack.pop() {
-            let children: Vec<usize> = (0..spec.joints.len())
-                .filter(|&j| spec.joints[j].parent == parent)
-                .collect();
-            for &j in children.iter().rev() {
-                stack.push(spec.joints[j].child.as_str());
-            }
-            order.extend(children);
-        }
-        if order.len() != spec.joints.len() {
-            let reached: std::collections::HashSet<usize> = order.iter().copied().collect();
-            let stray = (0..spec.joints.len())
-                .find(|j| !reached.contains(j))
-                .expect("some joint is unreached");
-            return Err(ModelError::Invalid(format!(
-                "joint {:?} is not connected to ground (a loop of segments?)",
-                spec.joints[stray].name
-            )));
-        }
-        Ok(order)
-    }
-
-    fn scalar_source(
-        &self,
-        s: &ScalarSpec,
-        sign: f64,
-        unit: Unit,
-        what: &str,
-    ) -> Result<Source, ModelError> {
-        match s {
-            ScalarSpec::Fixed(v) => {
-                if !v.is_finite() {
-                    return Err(ModelError::Invalid(format!(
-                        "{what}: value {v} is not finite"
-                    )));
-                }
-                Ok(Source::Const(sign * v))
-            }
-            _ => {
-                let (name, scale) = s.as_param().expect("non-fixed scalar is a parameter");
-                let &index =
-                    self.param_index
-                        .get(name)
-                        .ok_or_else(|| ModelError::UnknownParameter {
-                            name: name.to_string(),
-                            used_by: what.to_string(),
-                        })?;
-                if !scale.is_finite() || scale == 0.0 {
-                    return Err(ModelError::Invalid(format!(
-                        "{what}: scale of parameter {name:?} must be finite and non-zero"
-                    )));
-                }
-                let declared = self.spec.parameters[index].unit;
-                if declared != unit {
-                    return Err(ModelError::UnitMismatch {
-                        name: name.to_string(),
-                        used_by: what.to_string(),
-                        declared,
-                        needed: unit,
-                    });
-                }
-                Ok(Source::Param {
-                    index,
-                    scale: sign * scale,
-                })
-            }
-        }
-    }
-
-    fn run(self) -> Result<Model, ModelError> {
-        let spec = self.spec;
-        let order = self.topological_joints()?;
-        // Segment i of the model is the child of the i-th joint in topological order.
-        let new_seg_of: HashMap<&str, usize> = order
-            .iter()
-            .enumerate()
-            .map(|(i, &j)| (spec.joints[j].child.as_str(), i))
-            .collect();
-        let seg_id = |name: &str| -> Option<SegmentId> {
-            if name == "ground" {
-                None
-            } else {
-                Some(SegmentId(new_seg_of[name]))
-            }
-        };
-
-        let mut segments = Vec::new();
-        let mut joints = Vec::new();
-        let mut coordinates: Vec<Coordinate> = Vec::new();
-        let mut steps: Vec<Step> = Vec::new();
-        let mut step_ranges = Vec::new();
-        let mut uses: Vec<Vec<ParamUse>> = vec![Vec::new(); spec.parameters.len()];
-        let mut coord_names = HashMap::new();
-
-        for (ji, &j) in order.iter().enumerate() {
-            let js = &spec.joints[j];
-            let kind = joint_kind(&js.kind, &js.name)?;
-            if js.coordinates.len() != kind.dof() {
-                return Err(ModelError::Invalid(format!(
-                    "joint {:?} is {} with {} degrees of freedom but lists {} coordinates",
-                    js.name,
-                    kind.type_name(),
-                    kind.dof(),
-                    js.coordinates.len()
-                )));
-            }
-            let parent = seg_id(&js.parent);
-            let child = SegmentId(ji);
-            segments.push(super::compiled::Segment {
-                name: js.child.clone(),
-                parent,
-                joint: JointId(ji),
-            });
-            let first_coord = coordinates.len();
-            let start = steps.len();
-
-            // Parent offset: T(t) Rx Ry Rz.
-            self.offset_steps(
-                &js.parent_offset,
-                false,
-                &js.name,
-                parent,
-                JointId(ji),
-                &mut steps,
-                &mut uses,
-            )?;
-            // Joint motion.
-            for (k, ((rotation, axis), cs)) in
-                kind.motions().into_iter().zip(&js.coordinates).enumerate()
-            {
-                let name = cs.name();
-                check_name(name, "coordinate")?;
-                if coord_names.insert(name.to_string(), ()).is_some() {
-                    return Err(ModelError::Duplicate {
-                        kind: "coordinate",
-                        name: name.to_string(),
-                    });
-                }
-                let ckind = if rotation {
-                    CoordKind::Rotational
-                } else {
-                    CoordKind::Translational
-                };
-                let (range, default) = match cs {
-                    CoordinateSpec::Name(_) => (None, 0.0),
-                    CoordinateSpec::Full { range, default, .. } => (*range, *default),
-                };
-                let range = range.unwrap_or(match ckind {
-                    CoordKind::Rotational => [-std::f64::consts::PI, std::f64::consts::PI],
-                    CoordKind::Translational => [-10.0, 10.0],
-                });
-                if !(range[0].is_finite()
-                    && range[1].is_finite()
-                    && range[0] < range[1]
-                    && default.is_finite())
-                {
-                    return Err(ModelError::Invalid(format!(
-                        "coordinate {name:?}: range {range:?} / default {default} invalid"
-                    )));
-                }
-                coordinates.push(Coordinate {
-                    name: name.to_string(),
-                    joint: JointId(ji),
-                    kind: ckind,
-                    range,
-                    default,
-                });
-                let (motion, sign) = motion_for(rotation, &axis);
-                steps.push(Step {
-                    motion,
-                    source: Source::Coord {
-                        index: first_coord + k,
-                        scale: sign,
-                    },
-                });
-            }
-            // Child offset, inverted: Rz⁻¹ Ry⁻¹ Rx⁻¹ T(−t).
-            self.offset_steps(
-                &js.child_offset,
-                true,
-                &js.name,
-                Some(child),
-                JointId(ji),
-                &mut steps,
-                &mut uses,
-            )?;
-            joints.push(Joint {
-                name: js.name.clone(),
-                parent,
-                child,
-                kind,
-                first_coord,
-            });
-            let merged = merge_constants(steps.split_off(start));
-            steps.extend(merged);
-            step_ranges.push(start..steps.len());
-        }
-
-        let mut parameters = Vec::with_capacity(spec.parameters.len());
-        for (ps, u) in spec.parameters.iter().zip(uses) {
-            if u.is_empty() {
-                return Err(ModelError::Invalid(format!(
-                    "parameter {:?} is not used by any joint offset",
-                    ps.name
-                )));
-            }
-            parameters.push(Parameter {
-                name: ps.name.clone(),
-                group: ps.group.clone(),
-                unit: ps.unit,
-                nominal: ps.nominal,
-                lower: ps.lower,
-                upper: ps.upper,
-                description: ps.description.clone(),
-                uses: u,
-            });
-        }
-
-        let mut markers = Vec::with_capacity(spec.markers.len());
-        let mut marker_names = HashMap::new();
-        for m in &spec.markers {
-            check_name(&m.name, "marker")?;
-            if marker_names.insert(m.name.as_str(), ()).is_some() {
-                return Err(ModelError::Duplicate {
-                    kind: "marker",
-                    name: m.name.clone(),
-                });
-            }
-            if m.segment == "ground" || !new_seg_of.contains_key(m.segment.as_str()) {
-                return Err(ModelError::UnknownSegment {
-                    segment: m.segment.clone(),
-                    used_by: format!("marker {:?}", m.name),
-                });
-            }
-            if m.position.iter().any(|v| !v.is_finite())
-                || !(m.weight.is_finite() && m.weight >= 0.0)
-            {
-                return Err(ModelError::Invalid(format!(
-                    "marker {:?}: position and weight must be finite, weight ≥ 0",
-                    m.name
-                )));
-            }
-            markers.push(Marker {
-                name: m.name.clone(),
-                segment: SegmentId(new_seg_of[m.segment.as_str()]),
-                local: Vector3::from(m.position),
-                weight: m.weight,
-            });
-        }
-
-        let plan = super::plan::Plan::new(
-            &steps,
-            &step_ranges,
-            &segments
-                .iter()
-                .map(|s| s.parent.map(|p| p.0))
-                .collect::<Vec<_>>(),
-            &markers.iter().map(|m| m.segment.0).collect::<Vec<_>>(),
-        );
-
-        Ok(Model {
-            name: spec.name.clone(),
-            description: spec.description.clone(),
-            segments,
-            joints,
-            coordinates,
-            parameters,
-            markers,
-            steps,
-            plan,
-            spec: spec.clone(),
-        })
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn offset_steps(
-        &self,
-        offset: &OffsetSpec,
-        inverse: bool,
-        joint: &str,
-        segment: Option<SegmentId>,
-        joint_id: JointId,
-        steps: &mut Vec<Step>,
-        uses: &mut [Vec<ParamUse>],
-    ) -> Result<(), ModelError> {
-        let scalars = offset.scalars();
-        let which = if inverse {
-            "child_offset"
-        } else {
-            "parent_offset"
-        };
-        // Forward order tx ty tz rx ry rz; inverse order rz ry rx tx ty tz with negated values.
-        let order: [usize; 6] = if inverse {
-            [5, 4, 3, 0, 1, 2]
-        } else {
-            [0, 1, 2, 3, 4, 5]
-        };
-        let sign = if inverse { -1.0 } else { 1.0 };
-        for k in order {
-            let unit = if k < 3 { Unit::Metre } else { Unit::Radian };
-            let what = format!("joint {joint:?} {which}.{}", OFFSET_SCALARS[k]);
-            let source = self.scalar_source(scalars[k], sign, unit, &what)?;
-            if let Source::Param { index, scale } = source {
-                uses[index].push(ParamUse {
-                    joint: joint_id,
-                    segment,
-                    in_parent_offset: !inverse,
-                    scalar: OFFSET_SCALARS[k],
-                    scale: scale * sign,
-                });
-            }
-            if source != Source::Const(0.0) {
-                steps.push(Step {
-                    motion: offset_motion(k),
-                    source,
-                });
-            }
-        }
-        Ok(())
-    }
-}
-
-/// Replaces runs of constant steps by one fixed transform (dropped when it is the identity).
-fn merge_constants(steps: Vec<Step>) -> Vec<Step> {
-    let mut out: Vec<Step> = Vec::with_capacity(steps.len());
-    let mut acc: Option<Pose> = None;
-    let flush = |acc: &mut Option<Pose>, out: &mut Vec<Step>| {
-        if let Some(p) = acc.take() {
-            if !p.is_identity() {
-                out.push(Step {
-                    motion: Motion::Fixed(p),
-                    source: Source::Const(0.0),
-                });
-            }
-        }
-    };
-    for s in steps {
-        match s.source {
-            Source::Const(v) => {
-                let mut p = acc.take().unwrap_or_else(Pose::identity);
-                p.apply(&s.motion, v);
-                acc = Some(p);
-            }
-            _ => {
-                flush(&mut acc, &mut out);
-                out.push(s);
-            }
-        }
-    }
-    flush(&mut acc, &mut out);
-    out
-}
-
-fn check_name(name: &str, kind: &'static str) -> Result<(), ModelError> {
-    if name.trim().is_empty() || name.trim() != name {
-        return Err(ModelError::Invalid(format!(
-            "{kind} name {name:?} must be non-empty without surrounding spaces"
-        )));
-    }
-    Ok(())
 }
 
 /// Rotation matrix `Rx(a)·Ry(b)·Rz(c)` of an offset frame.

@@ -1,10 +1,13 @@
 //! Kinematic models: the description people write ([`spec`]), the compiled model
 //! ([`Model`]), and the built-in sample models ([`lower_limb`]).
 
+pub mod checks;
+mod compile;
 mod compiled;
 pub mod lower_limb;
 pub(crate) mod plan;
 pub mod spec;
+mod validate;
 
 pub use compiled::{
     offset_rotation, CoordId, CoordKind, Coordinate, Joint, JointId, JointKind, Marker, Model,

@@ -311,7 +311,7 @@ fn fit_free(
     let fit = fits.swap_remove(best);
     let names = |v: Vec<f64>| -> Vec<(String, f64)> {
         model
-            .markers
+            .markers()
             .iter()
             .zip(v)
             .map(|(m, r)| (m.name.clone(), r * MM_PER_M))
@@ -321,7 +321,7 @@ fn fit_free(
         .free
         .iter()
         .map(|&i| {
-            let par = &model.parameters[i];
+            let par = &model.parameters()[i];
             let k = par.unit.display_scale();
             ParamRow {
                 name: par.name.clone(),
@@ -373,7 +373,7 @@ fn multi_start_summary(prob: &Problem, fits: &[Fit], best: usize) -> MultiStart 
         .free
         .iter()
         .map(|&i| {
-            let par = &prob.model.parameters[i];
+            let par = &prob.model.parameters()[i];
             let (lo, hi) = fits
                 .iter()
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), f| {
@@ -422,7 +422,7 @@ pub fn calibrate(
         if drop.len() == free.len() {
             let mut groups: Vec<&str> = Vec::new();
             for id in &free {
-                let g = model.parameters[id.0].group.as_str();
+                let g = model.parameters()[id.0].group.as_str();
                 if !groups.contains(&g) {
                     groups.push(g);
                 }
@@ -433,7 +433,7 @@ pub fn calibrate(
         }
         fixed.extend(
             drop.iter()
-                .map(|&k| model.parameters[free[k].0].name.clone()),
+                .map(|&k| model.parameters()[free[k].0].name.clone()),
         );
         free = free
             .iter()
@@ -485,7 +485,7 @@ pub fn perturb(
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut p = base.to_vec();
     for &i in free {
-        let par = &model.parameters[i];
+        let par = &model.parameters()[i];
         let span = match par.unit {
             Unit::Metre => mm * crate::model::M_PER_MM,
             Unit::Radian => deg.to_radians(),

@@ -87,10 +87,12 @@ pub fn transfer_params(
     source_name: &str,
 ) -> Result<Vec<f64>, WorkflowError> {
     target
-        .parameters
+        .parameters()
         .iter()
         .map(|par| match source.param_id(&par.name) {
-            Some(id) => Ok(source.parameters[id.0].nominal.clamp(par.lower, par.upper)),
+            Some(id) => Ok(source.parameters()[id.0]
+                .nominal
+                .clamp(par.lower, par.upper)),
             None => Err(WorkflowError::MissingParameter {
                 source_model: source_name.to_string(),
                 name: par.name.clone(),
@@ -110,17 +112,17 @@ mod tests {
         let mut spec = lower_limb(Side::Right);
         // Move one parameter inside its bounds and one beyond them.
         let (a, b) = (0, 1);
-        let lo_b = target.parameters[b].lower;
+        let lo_b = target.parameters()[b].lower;
         spec.parameters[a].nominal +=
-            0.25 * (target.parameters[a].upper - spec.parameters[a].nominal);
+            0.25 * (target.parameters()[a].upper - spec.parameters[a].nominal);
         spec.parameters[b].nominal = lo_b - 1.0;
         spec.parameters[b].lower = lo_b - 2.0;
         let source = Model::compile(&spec).unwrap();
         let p = transfer_params(&target, &source, "earlier.toml").unwrap();
-        assert_eq!(p[a], source.parameters[a].nominal);
-        assert_ne!(p[a], target.parameters[a].nominal);
+        assert_eq!(p[a], source.parameters()[a].nominal);
+        assert_ne!(p[a], target.parameters()[a].nominal);
         assert_eq!(p[b], lo_b);
-        for (v, par) in p.iter().zip(&target.parameters).skip(2) {
+        for (v, par) in p.iter().zip(target.parameters()).skip(2) {
             assert_eq!(*v, par.nominal);
         }
         // A source without one of the target's parameters is an error naming both.

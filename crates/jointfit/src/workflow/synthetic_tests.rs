@@ -32,7 +32,7 @@ fn synthetic(model: &Model, p: &[f64], frames: usize, noise: f64) -> Trial {
             positions.push(x + Vector3::new(d(0), d(1), d(2)));
         }
     }
-    let labels = model.markers.iter().map(|m| m.name.clone()).collect();
+    let labels = model.markers().iter().map(|m| m.name.clone()).collect();
     Trial::new(labels, 50.0, 1, positions).unwrap()
 }
 
@@ -86,8 +86,8 @@ fn calibrate_recovers_the_truth_and_fills_the_rows() {
     assert!(cal.converged);
     assert_eq!(cal.parameters.len(), free.len());
     for (row, &i) in cal.parameters.iter().zip(&idx) {
-        let unit = model.parameters[i].unit;
-        assert_eq!(row.name, model.parameters[i].name);
+        let unit = model.parameters()[i].unit;
+        assert_eq!(row.name, model.parameters()[i].name);
         assert_eq!(row.unit, unit.display_suffix());
         assert!(
             (row.fitted - unit.to_display(truth[i])).abs() < 1e-6,
@@ -169,7 +169,7 @@ fn restart_points_are_seeded_distinct_and_bounded() {
     assert_eq!(a, restart_point(&model, &start, &free, 20.0, 10.0, 7, 1));
     assert_ne!(a, restart_point(&model, &start, &free, 20.0, 10.0, 7, 2));
     assert_ne!(a, restart_point(&model, &start, &free, 20.0, 10.0, 8, 1));
-    for (i, par) in model.parameters.iter().enumerate() {
+    for (i, par) in model.parameters().iter().enumerate() {
         let d = par.unit.to_display(a[i] - start[i]).abs();
         let limit = match par.unit {
             crate::model::Unit::Metre => 20.0,
@@ -196,7 +196,7 @@ fn unidentifiable_parameters_are_held_at_their_start() {
         forward_kinematics(&model, &nominal, &q, Want::POSITIONS, &mut kin);
         positions.extend(kin.markers.iter().copied());
     }
-    let labels = model.markers.iter().map(|m| m.name.clone()).collect();
+    let labels = model.markers().iter().map(|m| m.name.clone()).collect();
     let trial = Trial::new(labels, 50.0, 1, positions).unwrap();
     let free = params_for_groups(&model, &["all"]).unwrap();
     let settings = FitSettings {

@@ -5,12 +5,11 @@ use jointfit::calibrate::pso::{solve_pso, PsoOptions};
 use jointfit::calibrate::varpro::{gradient, solve_varpro, VarProOptions};
 use jointfit::calibrate::{params_for_groups, Problem};
 use jointfit::ik::IkWorkspace;
-use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::{Model, Unit};
 use jointfit::solver::{NoObserver, Observer, Termination};
 use jointfit::trial::Trial;
-use nalgebra::Vector3;
+use jointfit_testkit::synth::{synthetic_trial, Noise};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -33,51 +32,23 @@ fn rich_motion(model: &Model, f: usize, frames: usize) -> Vec<f64> {
     q
 }
 
-/// Markers from `p_true` along the rich motion, plus skin-artifact-like sinusoids of at most
-/// `amplitude` metres per marker axis.
+/// Markers from `p_true` along the rich motion at 50 Hz, plus skin-artifact sinusoids of at
+/// most `amplitude` metres per marker axis (the testkit's generator).
 fn synthetic(model: &Model, p_true: &[f64], frames: usize, amplitude: f64, seed: u64) -> Trial {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let noise: Vec<(f64, f64, f64)> = (0..3 * model.n_markers())
-        .map(|_| {
-            (
-                rng.gen_range(0.0..amplitude.max(1e-300)),
-                rng.gen_range(0.0..25.0),
-                rng.gen_range(0.0..std::f64::consts::TAU),
-            )
-        })
-        .collect();
-    let mut kin = KinData::new(model);
-    let mut positions = Vec::new();
-    for f in 0..frames {
-        forward_kinematics(
-            model,
-            p_true,
-            &rich_motion(model, f, frames),
-            Want::POSITIONS,
-            &mut kin,
-        );
-        let t = f as f64 / 50.0;
-        for (j, x) in kin.markers.iter().enumerate() {
-            let n = |k: usize| {
-                let (a, w, phi) = noise[3 * j + k];
-                if amplitude > 0.0 {
-                    a * (w * t + phi).sin()
-                } else {
-                    0.0
-                }
-            };
-            positions.push(x + Vector3::new(n(0), n(1), n(2)));
-        }
-    }
-    let labels = model.markers.iter().map(|m| m.name.clone()).collect();
-    Trial::new(labels, 50.0, 1, positions).unwrap()
+    let noise = if amplitude > 0.0 {
+        Noise::Skin { amplitude }
+    } else {
+        Noise::None
+    };
+    let motion = |f: usize| rich_motion(model, f, frames);
+    synthetic_trial(model, p_true, frames, 50.0, motion, noise, seed).trial
 }
 
 /// True parameters: nominal moved by up to 40 % of the half-range of each bound.
 fn perturbed(model: &Model, seed: u64) -> Vec<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     model
-        .parameters
+        .parameters()
         .iter()
         .map(|p| p.nominal + rng.gen_range(-0.4..0.4) * 0.5 * (p.upper - p.lower))
         .collect()
@@ -88,7 +59,7 @@ fn errors(model: &Model, free: &[usize], a: &[f64], b: &[f64]) -> (f64, f64) {
     let (mut mm, mut deg) = (0.0f64, 0.0f64);
     for &i in free {
         let d = (a[i] - b[i]).abs();
-        match model.parameters[i].unit {
+        match model.parameters()[i].unit {
             Unit::Metre => mm = mm.max(d * 1e3),
             Unit::Radian => deg = deg.max(d.to_degrees()),
         }
@@ -106,7 +77,7 @@ fn noiseless_recovery_joint_and_varpro() {
         // Fixed parameters at their true values, free ones start at nominal.
         let mut base = p_true.clone();
         for id in &free {
-            base[id.0] = model.parameters[id.0].nominal;
+            base[id.0] = model.parameters()[id.0].nominal;
         }
         let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
         let s0 = prob.to_scaled(&base);
@@ -141,7 +112,7 @@ fn joint_and_two_level_reach_the_same_noisy_optimum() {
         let free = params_for_groups(&model, groups).unwrap();
         let mut base = p_true.clone();
         for id in &free {
-            base[id.0] = model.parameters[id.0].nominal;
+            base[id.0] = model.parameters()[id.0].nominal;
         }
         let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
         let s0 = prob.to_scaled(&base);
@@ -225,7 +196,7 @@ fn pso_then_local_polish_recovers_the_hip() {
     let free = params_for_groups(&model, &["hip"]).unwrap();
     let mut base = p_true.clone();
     for id in &free {
-        base[id.0] = model.parameters[id.0].nominal;
+        base[id.0] = model.parameters()[id.0].nominal;
     }
     let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
     let q0 = prob.initial_coords(&base);
@@ -351,7 +322,7 @@ fn pso_then_local_polish_recovers_knee_ankle_and_full_leg() {
         let free = params_for_groups(&model, &[group]).unwrap();
         let mut base = p_true.clone();
         for id in &free {
-            base[id.0] = model.parameters[id.0].nominal;
+            base[id.0] = model.parameters()[id.0].nominal;
         }
         let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
         let q0 = prob.initial_coords(&base);

@@ -5,6 +5,7 @@ use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
 use jointfit::trial::Trial;
+use jointfit_testkit::synth;
 use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -30,29 +31,22 @@ fn motion(model: &Model, f: usize, heading: f64) -> Vec<f64> {
     q
 }
 
+/// Exact markers along the walking-like motion at 100 Hz, and the true coordinates.
 fn synthetic_trial(
     model: &Model,
     p: &[f64],
     frames: usize,
     heading: f64,
 ) -> (Trial, Vec<Vec<f64>>) {
-    let mut data = KinData::new(model);
-    let mut positions = Vec::new();
-    let mut truth = Vec::new();
-    for f in 0..frames {
-        let q = motion(model, f, heading);
-        forward_kinematics(model, p, &q, Want::POSITIONS, &mut data);
-        positions.extend_from_slice(&data.markers);
-        truth.push(q);
-    }
-    let labels = model.markers.iter().map(|m| m.name.clone()).collect();
-    (Trial::new(labels, 100.0, 1, positions).unwrap(), truth)
+    let motion = |f: usize| motion(model, f, heading);
+    let s = synth::synthetic_trial(model, p, frames, 100.0, motion, synth::Noise::None, 0);
+    (s.trial, s.coords)
 }
 
 fn random_params(model: &Model, seed: u64) -> Vec<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     model
-        .parameters
+        .parameters()
         .iter()
         .map(|p| p.nominal + rng.gen_range(-0.3..0.3) * (p.upper - p.lower) / 2.0)
         .collect()
@@ -77,7 +71,7 @@ fn recovers_known_coordinates_exactly() {
                     assert!(
                         d.abs() <= 1e-9,
                         "{side:?} heading {heading} frame {f} coordinate {} off by {d:e}",
-                        model.coordinates[i].name
+                        model.coordinates()[i].name
                     );
                 }
             }

@@ -7,13 +7,13 @@ use jointfit::model::{CoordKind, Model};
 use nalgebra::{DMatrix, Matrix3, Vector3};
 use proptest::prelude::*;
 
-use crate::sample_models::{kitchen_sink, two_link};
+use jointfit_testkit::models::{kitchen_sink, two_link};
 
 /// Coordinates and parameters from unit-interval samples: rotations in [−π, π],
 /// translations in [−1, 1] m, parameters inside their bounds.
 fn sample(model: &Model, u: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let q = model
-        .coordinates
+        .coordinates()
         .iter()
         .zip(u)
         .map(|(c, &t)| match c.kind {
@@ -22,7 +22,7 @@ fn sample(model: &Model, u: &[f64]) -> (Vec<f64>, Vec<f64>) {
         })
         .collect();
     let p = model
-        .parameters
+        .parameters()
         .iter()
         .zip(&u[model.n_q()..])
         .map(|(par, &t)| par.lower + t * (par.upper - par.lower))
@@ -44,8 +44,8 @@ fn check_jacobians(spec: &ModelSpec, u: &[f64]) -> Result<(), TestCaseError> {
     let h = 1e-6;
     let eq = rel_err(data.jq(), &fd::jacobian_q(&model, &p, &q, h));
     let ep = rel_err(data.jp(), &fd::jacobian_p(&model, &p, &q, h));
-    prop_assert!(eq <= 1e-6, "{}: dq relative error {eq:e}", model.name);
-    prop_assert!(ep <= 1e-6, "{}: dp relative error {ep:e}", model.name);
+    prop_assert!(eq <= 1e-6, "{}: dq relative error {eq:e}", model.name());
+    prop_assert!(ep <= 1e-6, "{}: dp relative error {ep:e}", model.name());
     // Asking for one Jacobian gives the same numbers as asking for both.
     let mut only_q = KinData::new(&model);
     forward_kinematics(&model, &p, &q, Want::DQ, &mut only_q);
@@ -179,7 +179,7 @@ position = [0.3, -0.2, 0.1]
         forward_kinematics(&right, &p, &q, Want::POSITIONS, &mut dr);
         forward_kinematics(&left, &p, &ql, Want::POSITIONS, &mut dl);
         let mirror = Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, -1.0));
-        for (i, m) in right.markers.iter().enumerate() {
+        for (i, m) in right.markers().iter().enumerate() {
             let twin = match m.name.as_str() {
                 "RASI" => "LASI".to_string(),
                 "LASI" => "RASI".to_string(),

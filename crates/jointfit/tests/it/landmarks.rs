@@ -11,6 +11,7 @@ use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::spec::{MarkerSpec, ModelSpec};
 use jointfit::model::Model;
 use jointfit::trial::{up_axis_rotation, Trial, UpAxis};
+use jointfit_testkit::synth::{synthetic_trial, Noise};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
 const PW: f64 = 0.24;
@@ -125,11 +126,8 @@ fn static_pose(model: &Model) -> Vec<f64> {
 
 /// Markers of `model` at `q`, repeated over `frames` frames at 100 Hz.
 fn trial_at(model: &Model, q: &[f64], frames: usize) -> Trial {
-    let mut kin = KinData::new(model);
-    forward_kinematics(model, &model.nominal_params(), q, Want::POSITIONS, &mut kin);
-    let labels = model.markers.iter().map(|m| m.name.clone()).collect();
-    let positions = (0..frames).flat_map(|_| kin.markers.clone()).collect();
-    Trial::new(labels, 100.0, 1, positions).unwrap()
+    let p = model.nominal_params();
+    synthetic_trial(model, &p, frames, 100.0, |_| q.to_vec(), Noise::None, 0).trial
 }
 
 fn synthetic(side: Side) -> (Model, Vec<f64>, Trial) {
@@ -157,7 +155,7 @@ fn markers_at(model: &Model, p: &[f64], q: &[f64]) -> Vec<(String, Vector3<f64>)
     let mut kin = KinData::new(model);
     forward_kinematics(model, p, q, Want::POSITIONS, &mut kin);
     model
-        .markers
+        .markers()
         .iter()
         .map(|m| m.name.clone())
         .zip(kin.markers)
@@ -218,7 +216,7 @@ fn static_pose_is_reproduced_and_joints_recovered() {
             "talocrural_shank_superior",
             "talocrural_shank_lateral",
         ] {
-            let t = truth.parameters[truth.param_id(name).unwrap().0].nominal;
+            let t = truth.parameters()[truth.param_id(name).unwrap().0].nominal;
             assert!(
                 (get(name) - t).abs() < 1e-12,
                 "{side:?} {name}: {} vs {t}",
@@ -229,7 +227,7 @@ fn static_pose_is_reproduced_and_joints_recovered() {
             .static_q
             .iter()
             .zip(&q_truth)
-            .zip(&model.coordinates)
+            .zip(model.coordinates())
             .take(10)
         {
             assert!((got - want).abs() < 1e-12, "{side:?} {}", c.name);

@@ -5,5 +5,4 @@ mod ik;
 mod kinematics;
 mod landmarks;
 mod models;
-mod sample_models;
 mod uncertainty;

@@ -4,7 +4,7 @@ use jointfit::model::lower_limb::{builtin, lower_limb, Side};
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::{Model, ModelError};
 
-use crate::sample_models::{kitchen_sink, two_link};
+use jointfit_testkit::models::{kitchen_sink, two_link};
 
 #[test]
 fn leg_model_has_the_papers_counts() {
@@ -20,12 +20,12 @@ fn leg_model_has_the_papers_counts() {
             model
                 .params_in_group(g)
                 .iter()
-                .filter(|id| model.parameters[id.0].unit == jointfit::model::Unit::Radian)
+                .filter(|id| model.parameters()[id.0].unit == jointfit::model::Unit::Radian)
                 .count()
         };
         // Knee: 4 orientations, 5 positions; ankle: 5 orientations, 7 positions.
         assert_eq!((rot("hip"), rot("knee"), rot("ankle")), (0, 4, 5));
-        let kinds: Vec<_> = model.joints.iter().map(|j| j.kind.type_name()).collect();
+        let kinds: Vec<_> = model.joints().iter().map(|j| j.kind.type_name()).collect();
         assert_eq!(kinds, ["free", "gimbal", "pin", "pin", "pin"]);
     }
 }
@@ -173,6 +173,6 @@ fn joints_may_be_listed_in_any_order() {
     let mut spec = two_link();
     spec.joints.reverse();
     let model = Model::compile(&spec).unwrap();
-    assert_eq!(model.segments[0].name, "upper");
-    assert_eq!(model.coordinates[0].name, "shoulder_angle");
+    assert_eq!(model.segments()[0].name, "upper");
+    assert_eq!(model.coordinates()[0].name, "shoulder_angle");
 }

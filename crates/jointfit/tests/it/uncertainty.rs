@@ -14,7 +14,8 @@ use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::{Model, Unit};
 use jointfit::solver::NoObserver;
 use jointfit::trial::Trial;
-use nalgebra::{DMatrix, Vector3};
+use jointfit_testkit::synth;
+use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -72,6 +73,7 @@ enum Noise {
     White,
 }
 
+/// Markers from `p_true` along motion `m` at 50 Hz with the testkit's generator.
 fn synthetic(
     model: &Model,
     p_true: &[f64],
@@ -81,51 +83,19 @@ fn synthetic(
     amplitude: f64,
     seed: u64,
 ) -> Trial {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let terms: Vec<(f64, f64, f64)> = (0..3 * model.n_markers())
-        .map(|_| {
-            (
-                rng.gen_range(0.0..=amplitude),
-                rng.gen_range(0.0..=25.0),
-                rng.gen_range(0.0..std::f64::consts::TAU),
-            )
-        })
-        .collect();
-    let mut gauss = || {
-        // Box–Muller.
-        let u1: f64 = rng.gen_range(f64::EPSILON..1.0);
-        let u2: f64 = rng.gen();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    let noise = match noise {
+        Noise::Skin => synth::Noise::Skin { amplitude },
+        Noise::White => synth::Noise::White { sd: amplitude },
     };
-    let mut kin = KinData::new(model);
-    let mut positions = Vec::new();
-    for f in 0..frames {
-        let q = pose(model, m, f as f64 / frames as f64);
-        forward_kinematics(model, p_true, &q, Want::POSITIONS, &mut kin);
-        let t = f as f64 / 50.0;
-        for (j, x) in kin.markers.iter().enumerate() {
-            let mut n = Vector3::zeros();
-            for k in 0..3 {
-                n[k] = match noise {
-                    Noise::Skin => {
-                        let (a, w, phi) = terms[3 * j + k];
-                        a * (w * t + phi).sin()
-                    }
-                    Noise::White => amplitude * gauss(),
-                };
-            }
-            positions.push(x + n);
-        }
-    }
-    let labels = model.markers.iter().map(|m| m.name.clone()).collect();
-    Trial::new(labels, 50.0, 1, positions).unwrap()
+    let motion = |f: usize| pose(model, m, f as f64 / frames as f64);
+    synth::synthetic_trial(model, p_true, frames, 50.0, motion, noise, seed).trial
 }
 
 /// Truth: nominal moved by up to 30 % of each half-range (seeded).
 fn perturbed(model: &Model, seed: u64) -> Vec<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     model
-        .parameters
+        .parameters()
         .iter()
         .map(|p| p.nominal + rng.gen_range(-0.3..0.3) * 0.5 * (p.upper - p.lower))
         .collect()
@@ -147,7 +117,7 @@ fn fit_from_nominal<'m>(model: &'m Model, trial: &Trial, groups: &[&str]) -> (Pr
 }
 
 fn display(model: &Model, i: usize) -> f64 {
-    match model.parameters[i].unit {
+    match model.parameters()[i].unit {
         Unit::Metre => 1e3,
         Unit::Radian => 180.0 / std::f64::consts::PI,
     }
@@ -272,7 +242,7 @@ fn uncertainty_white_covariance_matches_the_scatter_of_fits_over_seeds() {
         assert!(
             (0.3..=2.2).contains(&ratio),
             "{}: empirical variance {var:e} vs predicted {pred:e}",
-            model.parameters[free[k]].name
+            model.parameters()[free[k]].name
         );
         log_ratios.push(ratio.ln());
     }

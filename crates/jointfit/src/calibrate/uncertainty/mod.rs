@@ -68,9 +68,9 @@
 //! the rest are determined (subset selection on `S`).
 
 mod estimators;
+mod explain;
 mod reduced;
 mod subset;
-mod words;
 
 use serde::{Deserialize, Serialize};
 
@@ -78,10 +78,10 @@ use super::{Fit, Problem};
 use crate::model::Unit;
 use estimators::{conservative, continuity, covariances, critical, Covariances};
 pub use estimators::{normal_quantile, t_quantile};
+pub use explain::coordinate_ranges;
+use explain::{reason, weak_directions};
 pub use reduced::{reduced_system, Reduced};
 pub use subset::unidentifiable_subset;
-pub use words::coordinate_ranges;
-use words::{reason, weak_directions};
 
 /// Eigenvalues of `S` below this fraction of the largest count as zero (not determined).
 const NULL_RATIO: f64 = 1e-10;
@@ -340,10 +340,10 @@ fn build(
     let z = crit.0;
     let ranges = coordinate_ranges(model, qs);
     let scale: Vec<f64> = (0..nf)
-        .map(|k| prob.half_range(k) * display(model.parameters[prob.free[k]].unit).0)
+        .map(|k| prob.half_range(k) * display(model.parameters()[prob.free[k]].unit).0)
         .collect();
     let threshold = |k: usize| {
-        let unit = model.parameters[prob.free[k]].unit;
+        let unit = model.parameters()[prob.free[k]].unit;
         unit.to_display(opts.threshold(unit))
     };
     let corr: Vec<Vec<Option<f64>>> = (0..nf)
@@ -363,7 +363,7 @@ fn build(
     let params = (0..nf)
         .map(|k| {
             let i = prob.free[k];
-            let par = &model.parameters[i];
+            let par = &model.parameters()[i];
             let (f, unit) = display(par.unit);
             let value = p[i] * f;
             let at_bound = s[k].abs() >= 1.0 - 1e-9;
@@ -388,7 +388,7 @@ fn build(
                     .filter_map(|b| corr[k][b].map(|r| (b, r)))
                     .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
                     .filter(|(_, r)| r.abs() >= 0.9)
-                    .map(|(b, r)| (model.parameters[prob.free[b]].name.as_str(), r));
+                    .map(|(b, r)| (model.parameters()[prob.free[b]].name.as_str(), r));
                 let mut text = reason(model, i, at_bound, &ranges, partner);
                 // `scale[k]` is the bounds' half-width in display units.
                 if half_width.is_some_and(|h| h > scale[k]) {

@@ -97,7 +97,7 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
         .iter()
         .map(|t| {
             t.iter()
-                .zip(&prob.model.markers)
+                .zip(prob.model.markers())
                 .filter(|(x, m)| !x.x.is_nan() && m.weight > 0.0)
                 .count()
                 * 3

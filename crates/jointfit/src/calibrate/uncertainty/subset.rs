@@ -19,7 +19,7 @@ pub fn unidentifiable_subset(prob: &Problem, fit: &Fit, opts: &UncertaintyOption
     let red = reduced_system(prob, &fit.p, &fit.coords);
     let same = continuity(prob);
     let crit = critical(opts.level, opts);
-    let threshold = |k: usize| opts.threshold(prob.model.parameters[prob.free[k]].unit);
+    let threshold = |k: usize| opts.threshold(prob.model.parameters()[prob.free[k]].unit);
     let mut keep: Vec<usize> = (0..prob.n_free()).collect();
     let mut removed = Vec::new();
     while !keep.is_empty() {

@@ -1,4 +1,5 @@
-//! Identifiability in words: ranges of motion, reasons, weak directions.
+//! Identifiability explained: ranges of motion, the reason a parameter is poorly
+//! determined, and weak directions named after the parameters they combine.
 
 use super::super::Problem;
 use super::estimators::{conservative, Covariances};
@@ -10,7 +11,7 @@ use crate::model::{CoordKind, Model, Unit};
 /// Ranges of motion of every coordinate over the frames `qs` (display units).
 pub fn coordinate_ranges(model: &Model, qs: &[Vec<f64>]) -> Vec<CoordRange> {
     model
-        .coordinates
+        .coordinates()
         .iter()
         .enumerate()
         .map(|(c, coord)| {
@@ -25,7 +26,7 @@ pub fn coordinate_ranges(model: &Model, qs: &[Vec<f64>]) -> Vec<CoordRange> {
             let (lo, hi) = if lo.is_finite() { (lo, hi) } else { (0.0, 0.0) };
             CoordRange {
                 name: coord.name.clone(),
-                joint: model.joints[coord.joint.0].name.clone(),
+                joint: model.joints()[coord.joint.0].name.clone(),
                 unit: unit.to_string(),
                 min: lo * k,
                 max: hi * k,
@@ -68,14 +69,14 @@ pub(super) fn reason(
     ranges: &[CoordRange],
     partner: Option<(&str, f64)>,
 ) -> String {
-    let par = &model.parameters[i];
+    let par = &model.parameters()[i];
     let mut parts = Vec::new();
     let joint = par.uses.first().map(|u| u.joint.0);
     if let Some(j) = joint {
-        let jname = &model.joints[j].name;
+        let jname = &model.joints()[j].name;
         let coords: Vec<&CoordRange> = ranges
             .iter()
-            .zip(&model.coordinates)
+            .zip(model.coordinates())
             .filter(|(_, c)| c.joint.0 == j && c.kind == CoordKind::Rotational)
             .map(|(r, _)| r)
             .collect();
@@ -162,7 +163,7 @@ pub(super) fn weak_directions(
         let mut comps: Vec<usize> = (0..nf).filter(|&k| v[k] * v[k] >= 0.1).collect();
         comps.sort_by(|&a, &b| v[b].abs().total_cmp(&v[a].abs()));
         let over = (0..nf).any(|k| {
-            let par = &model.parameters[prob.free[k]];
+            let par = &model.parameters()[prob.free[k]];
             let t = par.unit.to_display(opts.threshold(par.unit));
             hw * v[k].abs() * scale[k] > t
         });
@@ -172,7 +173,7 @@ pub(super) fn weak_directions(
         let components: Vec<DirectionComponent> = comps
             .iter()
             .map(|&k| {
-                let par = &model.parameters[prob.free[k]];
+                let par = &model.parameters()[prob.free[k]];
                 DirectionComponent {
                     name: par.name.clone(),
                     coefficient: v[k],
@@ -184,7 +185,7 @@ pub(super) fn weak_directions(
         let words: Vec<String> = comps
             .iter()
             .map(|&k| {
-                let par = &model.parameters[prob.free[k]];
+                let par = &model.parameters()[prob.free[k]];
                 let sign = if v[k] * v[comps[0]] >= 0.0 {
                     "+"
                 } else {
@@ -239,32 +240,34 @@ pub(super) fn headline(model: &Model, ids: &[usize]) -> String {
     use crate::model::JointKind;
     let mut joints: Vec<usize> = ids
         .iter()
-        .filter_map(|&i| model.parameters[i].uses.first().map(|u| u.joint.0))
+        .filter_map(|&i| model.parameters()[i].uses.first().map(|u| u.joint.0))
         .collect();
     joints.sort();
     joints.dedup();
     if joints.len() != 1 {
         let names: Vec<&str> = joints
             .iter()
-            .map(|&j| model.joints[j].name.as_str())
+            .map(|&j| model.joints()[j].name.as_str())
             .collect();
         return format!("{} parameters together,", names.join(" and "));
     }
-    let joint = &model.joints[joints[0]];
+    let joint = &model.joints()[joints[0]];
     let point = match joint.kind {
         JointKind::Pin { .. } | JointKind::Slider { .. } => "axis position",
         _ => "centre",
     };
     let mut scalars: Vec<&str> = ids
         .iter()
-        .filter_map(|&i| model.parameters[i].uses.first().map(|u| u.scalar))
+        .filter_map(|&i| model.parameters()[i].uses.first().map(|u| u.scalar))
         .collect();
     scalars.sort();
     scalars.dedup();
-    let all_lengths = ids.iter().all(|&i| model.parameters[i].unit == Unit::Metre);
+    let all_lengths = ids
+        .iter()
+        .all(|&i| model.parameters()[i].unit == Unit::Metre);
     let all_angles = ids
         .iter()
-        .all(|&i| model.parameters[i].unit == Unit::Radian);
+        .all(|&i| model.parameters()[i].unit == Unit::Radian);
     let name = &joint.name;
     if all_lengths && scalars.len() == 1 {
         let axis = match scalars[0] {

@@ -1,0 +1,541 @@
+//! What the program writes, and how it ends.
+//!
+//! - **Console.** `println!`, `print!`, `eprintln!` and `eprint!` are replaced, for every
+//!   module declared after this one in `main.rs`, by versions that never panic: a failed write
+//!   to standard output (`> /dev/full`) is remembered, later output is dropped, and the run
+//!   ends with exit status 1 and a one-line error; failed writes to standard error are ignored
+//!   (there is nowhere left to report them).
+//! - **Files.** [`Files`] checks, before any work, that no output is an input or another
+//!   output (compared by device and inode for existing files, by canonical directory and name
+//!   for new ones, so symlinks, hard links and `a/../b` spellings count). Every file is written
+//!   through `jointfit_io::atomic::write_atomic` inside one `jointfit_io::staging::Batch`
+//!   opened by `main`: nothing is renamed into place unless the whole command succeeded, and
+//!   SIGINT/SIGTERM/SIGHUP remove the temporary files ([`install_signal_handlers`]).
+//! - **Exit status.** 0 success; 1 error (nothing written); 2 bad command line; 3 a fit did
+//!   not converge (nothing written; `--accept-unconverged` keeps it and exits 0).
+//! - **Errors.** [`one_line`]: the causes joined on one line, each said once, long tokens
+//!   elided and huge numbers shown in scientific notation.
+
+use std::fs;
+use std::io::{self, Write};
+use std::path::{Component, Path, PathBuf};
+use std::sync::Mutex;
+
+use anyhow::{bail, Result};
+
+/// Exit status of a fit that did not converge (see the module docs).
+pub const EXIT_UNCONVERGED: u8 = 3;
+/// Exit status of a command line that clap rejects.
+pub const EXIT_USAGE: u8 = 2;
+
+/// `println!` that never panics (see the module docs).
+macro_rules! println {
+    () => {
+        $crate::output::stdout_fmt(format_args!("\n"))
+    };
+    ($($arg:tt)*) => {
+        $crate::output::stdout_fmt(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+
+/// `print!` that never panics (see the module docs).
+macro_rules! print {
+    ($($arg:tt)*) => {
+        $crate::output::stdout_fmt(format_args!($($arg)*))
+    };
+}
+
+/// `eprintln!` that never panics (see the module docs).
+macro_rules! eprintln {
+    () => {
+        $crate::output::stderr_fmt(format_args!("\n"))
+    };
+    ($($arg:tt)*) => {
+        $crate::output::stderr_fmt(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+
+/// `eprint!` that never panics (see the module docs).
+#[allow(unused_macros)]
+macro_rules! eprint {
+    ($($arg:tt)*) => {
+        $crate::output::stderr_fmt(format_args!($($arg)*))
+    };
+}
+
+/// The first failed write to standard output, if any.
+static STDOUT_ERROR: Mutex<Option<String>> = Mutex::new(None);
+
+fn stdout_error() -> std::sync::MutexGuard<'static, Option<String>> {
+    STDOUT_ERROR.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// Writes to standard output; after the first failure, remembers it and writes nothing more.
+pub fn stdout_fmt(args: std::fmt::Arguments) {
+    let mut failed = stdout_error();
+    if failed.is_some() {
+        return;
+    }
+    if let Err(e) = io::stdout().lock().write_fmt(args) {
+        *failed = Some(e.to_string());
+    }
+}
+
+/// Writes to standard error, ignoring failures.
+pub fn stderr_fmt(args: std::fmt::Arguments) {
+    let _ = io::stderr().lock().write_fmt(args);
+}
+
+/// Flushes standard output; `Err` with the first write failure of the run.
+pub fn flush_stdout() -> Result<()> {
+    let flushed = io::stdout().lock().flush();
+    let mut failed = stdout_error();
+    if let (Err(e), None) = (flushed, failed.as_ref()) {
+        *failed = Some(e.to_string());
+    }
+    match failed.as_ref() {
+        Some(e) => bail!("cannot write to standard output: {e}"),
+        None => Ok(()),
+    }
+}
+
+/// A fit that did not converge; `main` turns it into exit status [`EXIT_UNCONVERGED`].
+#[derive(Debug)]
+pub struct Unconverged(pub String);
+
+impl std::fmt::Display for Unconverged {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} did not converge; nothing written (exit status {EXIT_UNCONVERGED}; rerun with \
+             --accept-unconverged to keep the result)",
+            self.0
+        )
+    }
+}
+
+impl std::error::Error for Unconverged {}
+
+#[cfg(unix)]
+extern "C" fn on_signal(sig: libc::c_int) {
+    jointfit_io::staging::remove_registered_temps();
+    // SAFETY: signal(2) and raise(3) are async-signal-safe; the default action ends the
+    // process with the signal's usual status.
+    unsafe {
+        libc::signal(sig, libc::SIG_DFL);
+        libc::raise(sig);
+    }
+}
+
+/// SIGINT, SIGTERM, SIGHUP and SIGPIPE (a closed pipe) remove the temporary files of unfinished writes, then end the
+/// process as the signal would have.
+pub fn install_signal_handlers() {
+    #[cfg(unix)]
+    for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP, libc::SIGPIPE] {
+        // SAFETY: the handler only touches atomics and calls async-signal-safe functions.
+        unsafe {
+            libc::signal(sig, on_signal as *const () as libc::sighandler_t);
+        }
+    }
+}
+
+/// How a file is known: device and inode when it exists, else its canonical directory and
+/// name (or, when the directory does not exist either, the absolute path with `.` and `..`
+/// resolved by spelling).
+#[derive(Debug, PartialEq, Eq)]
+enum Identity {
+    Inode(u64, u64),
+    Path(PathBuf),
+}
+
+fn identity(p: &Path) -> Identity {
+    #[cfg(unix)]
+    if let Ok(md) = fs::metadata(p) {
+        use std::os::unix::fs::MetadataExt;
+        return Identity::Inode(md.dev(), md.ino());
+    }
+    let canonical = match (p.parent(), p.file_name()) {
+        (Some(dir), Some(name)) => {
+            let dir = if dir.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                dir
+            };
+            fs::canonicalize(dir).ok().map(|d| d.join(name))
+        }
+        _ => None,
+    };
+    // `t.trc/` and similar spellings: the file the directory and name lead to.
+    #[cfg(unix)]
+    if let Some(md) = canonical.as_ref().and_then(|c| fs::metadata(c).ok()) {
+        use std::os::unix::fs::MetadataExt;
+        return Identity::Inode(md.dev(), md.ino());
+    }
+    Identity::Path(canonical.unwrap_or_else(|| lexical_absolute(p)))
+}
+
+fn lexical_absolute(p: &Path) -> PathBuf {
+    let base = std::env::current_dir().unwrap_or_default();
+    let mut out = PathBuf::new();
+    for c in base.join(p).components() {
+        match c {
+            Component::ParentDir => {
+                out.pop();
+            }
+            Component::CurDir => {}
+            other => out.push(other),
+        }
+    }
+    out
+}
+
+struct Entry {
+    what: String,
+    path: PathBuf,
+    /// Outputs only: may replace an input when the command's `--force` is given.
+    in_place_ok: bool,
+}
+
+/// The inputs and outputs of one command, checked before any work (see the module docs).
+#[derive(Default)]
+pub struct Files {
+    inputs: Vec<Entry>,
+    outputs: Vec<Entry>,
+    force: bool,
+}
+
+impl Files {
+    pub fn new() -> Files {
+        Files::default()
+    }
+
+    /// An input file (`what` names it in messages, e.g. `"trial"`).
+    pub fn input(mut self, what: &str, path: impl AsRef<Path>) -> Files {
+        self.inputs.push(Entry {
+            what: what.to_string(),
+            path: path.as_ref().to_path_buf(),
+            in_place_ok: false,
+        });
+        self
+    }
+
+    /// A model argument: an input when it names an existing file (not a built-in name).
+    pub fn model(self, what: &str, name_or_path: &str) -> Files {
+        if Path::new(name_or_path).is_file() {
+            self.input(what, name_or_path)
+        } else {
+            self
+        }
+    }
+
+    /// An output file, which must not be an input or another output.
+    pub fn output(mut self, what: &str, path: impl AsRef<Path>) -> Files {
+        self.outputs.push(Entry {
+            what: what.to_string(),
+            path: path.as_ref().to_path_buf(),
+            in_place_ok: false,
+        });
+        self
+    }
+
+    /// An output that may replace an input when `force` is set (an in-place update).
+    pub fn output_in_place(mut self, what: &str, path: impl AsRef<Path>, force: bool) -> Files {
+        self.outputs.push(Entry {
+            what: what.to_string(),
+            path: path.as_ref().to_path_buf(),
+            in_place_ok: true,
+        });
+        self.force |= force;
+        self
+    }
+
+    /// Refuses outputs that are directories, lack a file name, or coincide with an input
+    /// (unless allowed) or with each other.
+    pub fn check(self) -> Result<()> {
+        for o in &self.outputs {
+            let shown = o.path.display();
+            if o.path.file_name().is_none() {
+                bail!("{shown}: {} does not name a file", o.what);
+            }
+            if o.path.is_dir() {
+                bail!("{shown}: {} is a directory, not a file", o.what);
+            }
+        }
+        let ins: Vec<(&Entry, Identity)> = self
+            .inputs
+            .iter()
+            .filter(|e| e.path.exists())
+            .map(|e| (e, identity(&e.path)))
+            .collect();
+        let outs: Vec<(&Entry, Identity)> = self
+            .outputs
+            .iter()
+            .map(|e| (e, identity(&e.path)))
+            .collect();
+        for (o, oid) in &outs {
+            for (i, iid) in &ins {
+                if oid == iid && !(o.in_place_ok && self.force) {
+                    let hint = if o.in_place_ok {
+                        " (add --force to update it in place)"
+                    } else {
+                        ""
+                    };
+                    bail!(
+                        "{}: {} is the same file as {} {}; refusing to overwrite an input{hint}",
+                        o.path.display(),
+                        o.what,
+                        i.what,
+                        i.path.display()
+                    );
+                }
+            }
+        }
+        for (k, (a, aid)) in outs.iter().enumerate() {
+            for (b, bid) in &outs[k + 1..] {
+                if aid == bid {
+                    bail!(
+                        "{} ({}) and {} ({}) are the same file; each output needs its own",
+                        a.path.display(),
+                        a.what,
+                        b.path.display(),
+                        b.what
+                    );
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Longest token kept whole in an error message (a quoted input, a path, a number).
+pub const MAX_TOKEN_CHARS: usize = 80;
+/// Longest error message.
+pub const MAX_MESSAGE_CHARS: usize = 1000;
+
+/// The error and its causes on one line, each cause said once: a cause whose text the
+/// message already holds (thiserror types that print their source, wrapped by anyhow
+/// contexts) is skipped. Whitespace runs become one space; see [`tidy`].
+pub fn one_line(e: &anyhow::Error) -> String {
+    let mut msg = String::new();
+    for cause in e.chain() {
+        let s = cause.to_string();
+        let s = s.split_whitespace().collect::<Vec<_>>().join(" ");
+        if s.is_empty() || msg.contains(&s) {
+            continue;
+        }
+        if !msg.is_empty() {
+            msg.push_str(": ");
+        }
+        msg.push_str(&s);
+    }
+    tidy(&msg)
+}
+
+/// A one-line message with numbers of more than 24 characters in scientific notation,
+/// tokens longer than [`MAX_TOKEN_CHARS`] elided in the middle, and the whole capped at
+/// [`MAX_MESSAGE_CHARS`].
+pub fn tidy(msg: &str) -> String {
+    let tokens: Vec<String> = msg
+        .split(' ')
+        .map(|t| {
+            let core = t.trim_end_matches([',', ';', ':', ')', '.']);
+            let tail = &t[core.len()..];
+            if core.len() > 24 {
+                if let Ok(v) = core.parse::<f64>() {
+                    return format!("{v:e}{tail}");
+                }
+            }
+            let n = t.chars().count();
+            if n > MAX_TOKEN_CHARS {
+                let head: String = t.chars().take(60).collect();
+                let end: String = t.chars().skip(n - 16).collect();
+                format!("{head}…[{} characters]…{end}", n - 76)
+            } else {
+                t.to_string()
+            }
+        })
+        .collect();
+    let out = tokens.join(" ");
+    if out.chars().count() > MAX_MESSAGE_CHARS {
+        let cut: String = out.chars().take(MAX_MESSAGE_CHARS).collect();
+        format!("{cut}…")
+    } else {
+        out
+    }
+}
+
+/// A clap error on one line (its first lines up to the usage, without the misleading
+/// `-- -6` hint), or help/version text as clap prints it.
+pub fn clap_error(e: clap::Error) -> std::process::ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(
+        e.kind(),
+        ErrorKind::DisplayHelp
+            | ErrorKind::DisplayVersion
+            | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+    ) {
+        let _ = e.print();
+        let code = if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
+            EXIT_USAGE
+        } else {
+            0
+        };
+        return std::process::ExitCode::from(code);
+    }
+    let text = e.to_string();
+    let mut parts = Vec::new();
+    for line in text.lines() {
+        let line = line.trim();
+        if line.starts_with("Usage:") || line.starts_with("For more information") {
+            break;
+        }
+        if line.is_empty() || line.starts_with("tip: to pass") {
+            continue;
+        }
+        parts.push(line.strip_prefix("error: ").unwrap_or(line));
+    }
+    eprintln!(
+        "jointfit: error: {} (see --help)",
+        tidy(
+            &parts
+                .join(" ")
+                .split_whitespace()
+                .collect::<Vec<_>>()
+                .join(" ")
+        )
+    );
+    std::process::ExitCode::from(EXIT_USAGE)
+}
+
+/// Longest pause [`PAUSE_VARIABLE`] may ask for (s).
+const MAX_PAUSE_SECONDS: f64 = 30.0;
+/// Testing hook: seconds to wait between writing the temporary files and renaming them, so
+/// that a test can interrupt a run while its temporary files exist (at most 30 s).
+pub const PAUSE_VARIABLE: &str = "JOINTFIT_TEST_PAUSE_BEFORE_COMMIT";
+
+fn pause_for_tests() {
+    if let Some(s) = std::env::var(PAUSE_VARIABLE)
+        .ok()
+        .and_then(|s| s.parse::<f64>().ok())
+        .filter(|s| (0.0..=MAX_PAUSE_SECONDS).contains(s))
+    {
+        std::thread::sleep(std::time::Duration::from_secs_f64(s));
+    }
+}
+
+/// Ends a run: on success with standard output intact, commits the batch of written files;
+/// otherwise discards it and prints one error line. Returns the exit status.
+pub fn finish(
+    result: Result<()>,
+    batch: Option<jointfit_io::staging::Batch>,
+) -> std::process::ExitCode {
+    let result = result.and_then(|()| flush_stdout());
+    pause_for_tests();
+    let result = result.and_then(|()| match batch {
+        Some(b) => b.commit().map(|_| ()).map_err(anyhow::Error::from),
+        None => Ok(()),
+    });
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("jointfit: error: {}", one_line(&e));
+            if e.downcast_ref::<Unconverged>().is_some() {
+                std::process::ExitCode::from(EXIT_UNCONVERGED)
+            } else {
+                std::process::ExitCode::FAILURE
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_unconverged_fit_is_status_3_and_discards_the_batch() {
+        use std::process::ExitCode;
+        let dir = std::env::temp_dir().join(format!("jointfit-unconv-{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let out = dir.join("fitted.toml");
+        let batch = jointfit_io::staging::Batch::begin().unwrap();
+        jointfit_io::atomic::write_atomic(&out, b"fit").unwrap();
+        let code = finish(
+            Err(Unconverged("the calibration".into()).into()),
+            Some(batch),
+        );
+        assert_eq!(code, ExitCode::from(EXIT_UNCONVERGED));
+        assert_eq!(fs::read_dir(&dir).unwrap().count(), 0, "nothing written");
+        let other = finish(Err(anyhow::anyhow!("x")), None);
+        assert_eq!(other, ExitCode::FAILURE);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn causes_are_said_once_on_one_line() {
+        let inner = io::Error::new(io::ErrorKind::NotFound, "No such file (os error 2)");
+        let e = anyhow::Error::new(inner)
+            .context("x.trc: cannot read: No such file (os error 2)")
+            .context("loading trial\n  second line");
+        assert_eq!(
+            one_line(&e),
+            "loading trial second line: x.trc: cannot read: No such file (os error 2)"
+        );
+    }
+
+    #[test]
+    fn long_tokens_and_numbers_are_shortened() {
+        let big = format!("rate {}0 Hz", "1".repeat(300));
+        let t = tidy(&big);
+        assert!(t.starts_with("rate 1.111") && t.ends_with("e300 Hz"), "{t}");
+        let long = format!("bad value \"{}\"", "a".repeat(5000));
+        let t = tidy(&long);
+        assert!(t.chars().count() < 200, "{t}");
+        assert!(t.contains("[4926 characters]"), "{t}");
+        let many = "word ".repeat(1000);
+        assert!(tidy(&many).chars().count() <= MAX_MESSAGE_CHARS + 1);
+    }
+
+    #[test]
+    fn identity_sees_through_spellings_and_links() {
+        let dir = std::env::temp_dir().join(format!("jointfit-ident-{}", std::process::id()));
+        fs::create_dir_all(dir.join("sub")).unwrap();
+        let a = dir.join("a.trc");
+        fs::write(&a, b"x").unwrap();
+        let spelled = dir.join("sub/../a.trc");
+        assert_eq!(identity(&a), identity(&spelled));
+        #[cfg(unix)]
+        {
+            let link = dir.join("link.trc");
+            let _ = fs::remove_file(&link);
+            std::os::unix::fs::symlink(&a, &link).unwrap();
+            assert_eq!(identity(&a), identity(&link));
+            let hard = dir.join("hard.trc");
+            let _ = fs::remove_file(&hard);
+            fs::hard_link(&a, &hard).unwrap();
+            assert_eq!(identity(&a), identity(&hard));
+        }
+        let new1 = dir.join("new.trc");
+        let new2 = dir.join("sub/./../new.trc");
+        assert_eq!(identity(&new1), identity(&new2));
+        assert_ne!(identity(&new1), identity(&a));
+        let err = Files::new()
+            .input("trial", &a)
+            .output("output", &spelled)
+            .check()
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("refusing to overwrite an input"), "{err}");
+        assert!(Files::new()
+            .output("output", &new1)
+            .output("--truth", &new2)
+            .check()
+            .is_err());
+        assert!(Files::new()
+            .input("model", &a)
+            .output_in_place("output", &a, true)
+            .check()
+            .is_ok());
+        fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,562 @@
+//! The reproducers of issue 16, one test each: outputs never destroy inputs, a failed run
+//! writes nothing, no panics, bad values and data are refused by name, errors are one line
+//! with each cause once, CSV is quoted. The oracle is the file system (bytes before and after,
+//! directory listings) and, for the CSV, Python's `csv` module.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+use super::jointfit;
+
+/// A scratch directory with a small noiseless synthetic trial `t.trc` and its model `m.toml`.
+pub struct Scratch {
+    pub dir: PathBuf,
+}
+
+impl Scratch {
+    pub fn new(tag: &str) -> Scratch {
+        let dir = std::env::temp_dir().join(format!("jointfit-rel-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let s = Scratch { dir };
+        let (ok, _, err) = jointfit(&[
+            "synth",
+            "lower-limb-right",
+            "--motion",
+            "hip",
+            "--frames",
+            "30",
+            "-o",
+            &s.p("t.trc"),
+            "--truth",
+            &s.p("m.toml"),
+        ]);
+        assert!(ok, "{err}");
+        s
+    }
+
+    /// The path of `name` in the directory, as a string.
+    pub fn p(&self, name: &str) -> String {
+        self.dir.join(name).to_str().unwrap().to_string()
+    }
+
+    /// Every entry of the directory (recursively), with its bytes (directories: empty).
+    pub fn snapshot(&self) -> Vec<(String, Vec<u8>)> {
+        let mut out = Vec::new();
+        walk_dir(&self.dir, &mut out);
+        out.sort();
+        out
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+/// Every entry under `root` (recursively) with its bytes; directories end in `/`, symlinks
+/// in `@`.
+pub fn walk_dir(root: &Path, out: &mut Vec<(String, Vec<u8>)>) {
+    walk(root, root, out);
+}
+
+fn walk(root: &Path, dir: &Path, out: &mut Vec<(String, Vec<u8>)>) {
+    for e in std::fs::read_dir(dir).unwrap() {
+        let e = e.unwrap();
+        let path = e.path();
+        let rel = path.strip_prefix(root).unwrap().display().to_string();
+        let ft = e.file_type().unwrap();
+        if ft.is_dir() {
+            out.push((format!("{rel}/"), Vec::new()));
+            walk(root, &path, out);
+        } else if ft.is_symlink() {
+            out.push((format!("{rel}@"), Vec::new()));
+        } else {
+            out.push((rel, std::fs::read(&path).unwrap()));
+        }
+    }
+}
+
+fn run(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_jointfit"))
+        .args(args)
+        .output()
+        .expect("jointfit runs")
+}
+
+/// A refused run: non-zero exit, no panic, one line on stderr, nothing in the directory
+/// changed; returns stderr.
+fn refused(s: &Scratch, args: &[&str]) -> String {
+    let before = s.snapshot();
+    let out = run(args);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(!out.status.success(), "{args:?} succeeded: {err}");
+    assert_ne!(out.status.code(), Some(101), "{args:?} panicked: {err}");
+    assert!(!err.contains("panicked"), "{args:?}: {err}");
+    assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
+    assert!(err.starts_with("jointfit: error: "), "{err}");
+    assert!(
+        s.snapshot() == before,
+        "{args:?} changed the directory: {err}"
+    );
+    err
+}
+
+#[test]
+fn outputs_never_overwrite_inputs() {
+    let s = Scratch::new("inputs");
+    let (m, t) = (s.p("m.toml"), s.p("t.trc"));
+    std::fs::create_dir_all(s.dir.join("sub")).unwrap();
+    let spelled = s.p("sub/../t.trc");
+    let cases: Vec<Vec<&str>> = vec![
+        vec!["ik", &m, &t, "-o", &t],
+        vec!["ik", &m, &t, "-o", "/dev/null/x.mot", "--errors", &t],
+        vec!["ik", &m, &t, "-o", &spelled],
+        vec![
+            "personalize",
+            "--static",
+            &t,
+            "--markers",
+            "gait2392",
+            "--side",
+            "right",
+            "-o",
+            &t,
+        ],
+        vec!["calibrate", &m, &t, "-o", &t],
+        vec!["export", "osim", &m, "-o", &m],
+        vec!["synth", &m, "-o", &m, "--truth", "/dev/null/x.toml"],
+        vec!["convert", &t, &t],
+        vec!["convert", &t, &spelled],
+    ];
+    let gait = format!("gait:{t}");
+    let mut cases = cases;
+    cases.push(vec![
+        "synth",
+        "lower-limb-right",
+        "--motion",
+        &gait,
+        "-o",
+        &t,
+        "--truth",
+        "/dev/null/x.toml",
+    ]);
+    for args in &cases {
+        let err = refused(&s, args);
+        assert!(
+            err.contains("refusing to overwrite an input"),
+            "{args:?}: {err}"
+        );
+    }
+    // Two outputs naming one file (the TRC used to be replaced by the TOML).
+    let x = s.p("x");
+    let x2 = s.p("./sub/../x");
+    let err = refused(&s, &["synth", "lower-limb-right", "-o", &x, "--truth", &x2]);
+    assert!(err.contains("are the same file"), "{err}");
+}
+
+#[cfg(unix)]
+#[test]
+fn links_are_the_same_file() {
+    let s = Scratch::new("links");
+    let (m, t) = (s.p("m.toml"), s.p("t.trc"));
+    std::os::unix::fs::symlink(&t, s.dir.join("sym.trc")).unwrap();
+    std::fs::hard_link(&t, s.dir.join("hard.trc")).unwrap();
+    for out in [s.p("sym.trc"), s.p("hard.trc")] {
+        let err = refused(&s, &["convert", &t, &out]);
+        assert!(err.contains("refusing to overwrite an input"), "{err}");
+        let err = refused(&s, &["ik", &m, &out, "-o", &t]);
+        assert!(err.contains("refusing to overwrite an input"), "{err}");
+    }
+}
+
+/// `calibrate M.toml … -o M.toml` is refused without --force and updates M.toml with it.
+#[test]
+fn calibrate_updates_a_model_in_place_only_with_force() {
+    let s = Scratch::new("force");
+    let (m, t) = (s.p("m.toml"), s.p("t.trc"));
+    let err = refused(&s, &["calibrate", &m, &t, "--joints", "hip", "-o", &m]);
+    assert!(err.contains("add --force"), "{err}");
+    let before = std::fs::read(&m).unwrap();
+    let (ok, _, err) = jointfit(&["calibrate", &m, &t, "--joints", "hip", "-o", &m, "--force"]);
+    assert!(ok, "{err}");
+    let after = std::fs::read_to_string(&m).unwrap();
+    assert_ne!(before, after.as_bytes());
+    assert!(after.contains("(fitted)"), "{after}");
+}
+
+#[test]
+fn a_failed_multi_file_run_writes_nothing() {
+    let s = Scratch::new("partial");
+    let (m, t) = (s.p("m.toml"), s.p("t.trc"));
+    let ok_mot = s.p("ok.mot");
+    let bad_csv = s.p("nodir/e.csv");
+    refused(&s, &["ik", &m, &t, "-o", &ok_mot, "--errors", &bad_csv]);
+    refused(
+        &s,
+        &[
+            "synth",
+            "lower-limb-right",
+            "-o",
+            &s.p("new.trc"),
+            "--truth",
+            "/nonexistent/t.toml",
+        ],
+    );
+    // A report into a new directory whose trial cannot be read leaves no directory.
+    refused(&s, &["report", &m, &s.p("missing.trc"), "-o", &s.p("rep")]);
+    // A calibration whose model and report are both written, then fails (stdout full):
+    // neither file nor the report's new directory stays.
+    #[cfg(target_os = "linux")]
+    {
+        let before = s.snapshot();
+        let out = Command::new(env!("CARGO_BIN_EXE_jointfit"))
+            .args(["calibrate", &m, &t, "--joints", "hip", "-o", &s.p("f.toml")])
+            .args(["--report", &s.p("crep/deeper")])
+            .stdout(std::fs::File::create("/dev/full").unwrap())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(err.contains("cannot write to standard output"), "{err}");
+        assert!(
+            s.snapshot() == before,
+            "{:?}",
+            s.snapshot().iter().map(|x| &x.0).collect::<Vec<_>>()
+        );
+    }
+}
+
+#[test]
+fn huge_counts_are_refused_not_panics() {
+    let s = Scratch::new("counts");
+    for frames in ["18446744073709551615", "4294967296", "100000000", "0", "-1"] {
+        let err = refused(
+            &s,
+            &[
+                "synth",
+                "lower-limb-right",
+                "--frames",
+                frames,
+                "-o",
+                &s.p("a.trc"),
+                "--truth",
+                &s.p("a.toml"),
+            ],
+        );
+        assert!(err.contains("--frames"), "{err}");
+    }
+    let (m, t) = (s.p("m.toml"), s.p("t.trc"));
+    let err = refused(
+        &s,
+        &[
+            "calibrate",
+            &m,
+            &t,
+            "--bootstrap",
+            "100000000",
+            "-o",
+            &s.p("f.toml"),
+        ],
+    );
+    assert!(err.contains("--bootstrap") && err.contains("2000"), "{err}");
+    let err = refused(
+        &s,
+        &["convert", &t, &s.p("o.trc"), "--decimals", "1000000000"],
+    );
+    assert!(err.contains("--decimals"), "{err}");
+}
+
+#[test]
+fn progress_interval_from_the_environment_is_validated() {
+    let s = Scratch::new("progress");
+    let (m, t) = (s.p("m.toml"), s.p("t.trc"));
+    let out = Command::new(env!("CARGO_BIN_EXE_jointfit"))
+        .args(["report", &m, &t, "-o", &s.p("rep")])
+        .env("JOINTFIT_PROGRESS_SECONDS", "1e20")
+        .env("JOINTFIT_PROGRESS", "log")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("JOINTFIT_PROGRESS_SECONDS=1e20"), "{err}");
+    assert!(s.dir.join("rep/index.html").is_file());
+}
+
+#[cfg(target_os = "linux")]
+#[test]
+fn a_full_stdout_is_an_error_not_a_panic() {
+    let s = Scratch::new("full");
+    let (m, t) = (s.p("m.toml"), s.p("t.trc"));
+    let mot = s.p("o.mot");
+    let cases: Vec<Vec<&str>> = vec![
+        vec!["model", "show", "lower-limb-right"],
+        vec!["model", "show", &m, "--json"],
+        vec!["inspect", &t, "--json"],
+        vec!["ik", &m, &t, "-o", &mot],
+    ];
+    for args in cases {
+        let before = s.snapshot();
+        let out = Command::new(env!("CARGO_BIN_EXE_jointfit"))
+            .args(&args)
+            .stdout(std::fs::File::create("/dev/full").unwrap())
+            .stderr(Stdio::piped())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert_eq!(
+            err.trim(),
+            "jointfit: error: cannot write to standard output: No space left on device (os error 28)",
+            "{args:?}"
+        );
+        assert!(s.snapshot() == before, "{args:?} left a file");
+    }
+}
+
+#[test]
+fn bad_numbers_are_refused_by_name() {
+    let s = Scratch::new("numbers");
+    let (m, t) = (s.p("m.toml"), s.p("t.trc"));
+    let o = s.p("o.trc");
+    for (args, name) in [
+        (vec!["check", &m, &t, "--noise-mm", "NaN"], "--noise-mm"),
+        (vec!["check", &m, &t, "--noise-mm=-4"], "--noise-mm"),
+        (vec!["check", &m, &t, "--noise-mm", "-4"], "--noise-mm"),
+        (
+            vec!["check", &m, &t, "--threshold-mm", "inf"],
+            "--threshold-mm",
+        ),
+        (vec!["convert", &t, &o, "--filter", "1e-7"], "--filter"),
+        (vec!["convert", &t, &o, "--filter", "-6"], "--filter"),
+        (vec!["convert", &t, &o, "--filter", "NaN"], "--filter"),
+        // 30 frames at 10 Hz: 6 Hz is above Nyquist (5 Hz).
+        (vec!["convert", &t, &o, "--filter", "6"], "--filter"),
+        (
+            vec!["ik", &m, &t, "-o", &o, "--filter", "1e-300"],
+            "--filter",
+        ),
+        (vec!["demo", "--noise-mm", "-1"], "--noise-mm"),
+        (
+            vec![
+                "synth", &m, "-o", &o, "--truth", "x.toml", "--rate", "1e300",
+            ],
+            "--rate",
+        ),
+        (
+            vec![
+                "synth",
+                &m,
+                "-o",
+                &o,
+                "--truth",
+                "x.toml",
+                "--perturb-mm",
+                "-4",
+            ],
+            "--perturb-mm",
+        ),
+    ] {
+        let err = refused(&s, &args);
+        assert!(err.contains(name), "{args:?}: {err}");
+        assert!(!err.contains("-- -"), "{args:?}: clap's hint: {err}");
+    }
+}
+
+/// Rewrites every data line of a TRC file (after the 5 header lines) with `f`.
+fn rewrite_trc(src: &str, dst: &str, f: impl Fn(usize, &str) -> String) {
+    let text = std::fs::read_to_string(src).unwrap();
+    let out: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| if i < 5 { l.to_string() } else { f(i, l) })
+        .collect();
+    std::fs::write(dst, out.join("\n") + "\n").unwrap();
+}
+
+#[test]
+fn absurd_data_are_errors_not_rms_zero() {
+    let s = Scratch::new("absurd");
+    let (m, t) = (s.p("m.toml"), s.p("t.trc"));
+    let huge = s.p("huge.trc");
+    rewrite_trc(&t, &huge, |_, l| {
+        let mut cells: Vec<String> = l.split('\t').map(str::to_string).collect();
+        for c in cells.iter_mut().skip(2) {
+            if !c.is_empty() {
+                *c = "1e300".into();
+            }
+        }
+        cells.join("\t")
+    });
+    let err = refused(&s, &["ik", &m, &huge, "-o", &s.p("o.mot")]);
+    assert!(err.contains("frame 1, marker"), "{err}");
+    // A model nominal of 1e300 (with bounds that allow it).
+    let spec = std::fs::read_to_string(&m).unwrap();
+    let bad = s.p("bad.toml");
+    let mut lines: Vec<String> = spec.lines().map(str::to_string).collect();
+    let i = lines.iter().position(|l| l.starts_with("nominal")).unwrap();
+    lines[i] = "nominal = 1e300".into();
+    lines[i + 2] = "upper = 1e301".into();
+    std::fs::write(&bad, lines.join("\n")).unwrap();
+    let err = refused(&s, &["ik", &bad, &t, "-o", &s.p("o.mot")]);
+    assert!(err.contains("implausibly large"), "{err}");
+    // nominal = nan is blamed on the nominal, not the bounds.
+    lines[i] = "nominal = nan".into();
+    lines[i + 2] = "upper = 1".into();
+    std::fs::write(&bad, lines.join("\n")).unwrap();
+    let err = refused(&s, &["model", "show", &bad]);
+    assert!(err.contains("nominal NaN is not a finite number"), "{err}");
+    // A free joint whose three rotation axes are one.
+    let zzz = spec.replacen(
+        "rotation_axes = [",
+        "rotation_axes = [\"z\", \"z\", \"z\"]\nold_axes = [",
+        1,
+    );
+    assert_ne!(zzz, spec, "the model has a free joint");
+    let zzz = drop_line_after(&zzz, "old_axes = [");
+    std::fs::write(&bad, zzz).unwrap();
+    let err = refused(&s, &["model", "show", &bad]);
+    assert!(err.contains("are parallel"), "{err}");
+}
+
+/// Removes the (possibly multi-line) TOML array that starts with `start`.
+fn drop_line_after(text: &str, start: &str) -> String {
+    let i = text.find(start).unwrap();
+    let j = i + text[i..].find(']').unwrap();
+    let end = j + text[j..].find('\n').map_or(text.len() - j, |k| k + 1);
+    format!("{}{}", &text[..i], &text[end..])
+}
+
+#[test]
+fn errors_say_each_cause_once_on_one_line() {
+    let s = Scratch::new("messages");
+    std::fs::write(s.dir.join("empty.c3d"), b"").unwrap();
+    let err = refused(&s, &["inspect", &s.p("empty.c3d")]);
+    assert_eq!(err.matches("too short").count(), 1, "{err}");
+    let err = refused(&s, &["inspect", &s.p("none.trc")]);
+    assert_eq!(err.matches("os error 2").count(), 1, "{err}");
+    std::fs::write(s.dir.join("bad.toml"), "name = \"x\"\n[[bad\n").unwrap();
+    let err = refused(&s, &["model", "show", &s.p("bad.toml")]);
+    assert!(err.contains("line 2, column 6"), "{err}");
+    assert_eq!(err.matches("invalid table header").count(), 1, "{err}");
+    // A 5 MB line in a model file.
+    let long = format!("name = \"{}\n", "x".repeat(5_000_000));
+    std::fs::write(s.dir.join("long.toml"), long).unwrap();
+    let err = refused(&s, &["model", "show", &s.p("long.toml")]);
+    assert!(err.len() < 1500, "{} bytes", err.len());
+    // A DataRate of 1e300 is not printed with 300 digits.
+    let text = std::fs::read_to_string(s.p("t.trc")).unwrap();
+    let mut lines: Vec<&str> = text.lines().collect();
+    let rates = lines[2].to_string();
+    let fields: Vec<&str> = rates.split('\t').collect();
+    let new_rates = format!("1e300\t1e300\t{}", fields[2..].join("\t"));
+    lines[2] = &new_rates;
+    std::fs::write(s.dir.join("rate.trc"), lines.join("\n")).unwrap();
+    let out = run(&["inspect", &s.p("rate.trc")]);
+    let all =
+        String::from_utf8_lossy(&out.stdout).to_string() + &String::from_utf8_lossy(&out.stderr);
+    assert!(!all.contains("0000000000000000000000000"), "{all}");
+}
+
+#[test]
+fn errors_csv_quotes_labels_with_commas_and_quotes() {
+    let Some(python) = jointfit::testing::python() else {
+        println!("skipped: no JOINTFIT_PYTHON");
+        return;
+    };
+    let s = Scratch::new("csv");
+    let m = s.p("m.toml");
+    let spec = std::fs::read_to_string(&m)
+        .unwrap()
+        .replace("\"RASI\"", "\"R,ASI\"")
+        .replace("\"RTHI\"", "\"R\\\"THI\"");
+    let odd = s.p("odd.toml");
+    std::fs::write(&odd, spec).unwrap();
+    let (t, truth) = (s.p("odd.trc"), s.p("odd_truth.toml"));
+    let (ok, _, err) = jointfit(&[
+        "synth", &odd, "--motion", "hip", "-o", &t, "--truth", &truth,
+    ]);
+    assert!(ok, "{err}");
+    let csv = s.p("e.csv");
+    let (ok, _, err) = jointfit(&["ik", &odd, &t, "-o", &s.p("o.mot"), "--errors", &csv]);
+    assert!(ok, "{err}");
+    let script = "import csv,sys,json\nrows=list(csv.reader(open(sys.argv[1],newline='')))\nprint(json.dumps([rows[0],sorted(set(len(r) for r in rows))]))";
+    let out = Command::new(python)
+        .args(["-c", script, &csv])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let header: Vec<&str> = v[0]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_str().unwrap())
+        .collect();
+    assert!(header.contains(&"R,ASI_mm"), "{header:?}");
+    assert!(header.contains(&"R\"THI_mm"), "{header:?}");
+    assert_eq!(
+        v[1],
+        serde_json::json!([header.len()]),
+        "every row as wide as the header"
+    );
+}
+
+/// Interrupting a run while its temporary files exist removes them (SIGINT, SIGTERM); a
+/// SIGKILL leaves them, and the next write into the directory sweeps them.
+#[cfg(target_os = "linux")]
+#[test]
+fn signals_leave_no_temporary_file() {
+    let s = Scratch::new("signals");
+    let (m, t) = (s.p("m.toml"), s.p("t.trc"));
+    let temps = |s: &Scratch| -> Vec<String> {
+        s.snapshot()
+            .into_iter()
+            .map(|(n, _)| n)
+            .filter(|n| n.ends_with(".tmp"))
+            .collect()
+    };
+    for (sig, args) in [
+        (libc::SIGINT, vec!["convert", &t, &s.p("c.trc")]),
+        (
+            libc::SIGTERM,
+            vec!["ik", &m, &t, "-o", &s.p("i.mot"), "--errors", &s.p("e.csv")],
+        ),
+        (libc::SIGKILL, vec!["convert", &t, &s.p("k.trc")]),
+    ] {
+        let before = s.snapshot();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_jointfit"))
+            .args(&args)
+            .env("JOINTFIT_TEST_PAUSE_BEFORE_COMMIT", "20")
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let start = std::time::Instant::now();
+        while temps(&s).is_empty() {
+            assert!(start.elapsed().as_secs() < 60, "no temporary file appeared");
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        // SAFETY: signalling our own child process.
+        unsafe {
+            libc::kill(child.id() as libc::pid_t, sig);
+        }
+        let status = child.wait().unwrap();
+        assert!(!status.success());
+        if sig == libc::SIGKILL {
+            assert!(!temps(&s).is_empty(), "SIGKILL cannot be caught");
+            let (ok, _, err) = jointfit(&["convert", &t, &s.p("k.trc")]);
+            assert!(ok, "{err}");
+            assert!(temps(&s).is_empty(), "{:?}", temps(&s));
+        } else {
+            use std::os::unix::process::ExitStatusExt;
+            assert_eq!(status.signal(), Some(sig));
+            assert!(s.snapshot() == before, "signal {sig} left {:?}", temps(&s));
+        }
+    }
+}
