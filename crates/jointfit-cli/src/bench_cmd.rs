@@ -24,6 +24,7 @@ use jointfit_experiments::synth;
 use rayon::prelude::*;
 use serde::Serialize;
 
+use crate::bench_perf;
 use crate::common::{load_trial, Up};
 
 #[derive(Args)]
@@ -37,6 +38,15 @@ pub struct BenchArgs {
     /// Print the figures as JSON.
     #[arg(long)]
     json: bool,
+    /// Frames of the synthetic calibration timed on 1 and 2 threads (0: skip).
+    #[arg(long, default_value_t = 10_000)]
+    long_frames: usize,
+    /// Frames of the synthetic calibration whose peak memory is measured (0: skip).
+    #[arg(long, default_value_t = 20_000)]
+    rss_frames: usize,
+    /// Internal: run one calibration of this many frames and print its peak RSS.
+    #[arg(long, hide = true)]
+    rss_child: Option<usize>,
 }
 
 #[derive(Serialize, Default)]
@@ -57,6 +67,15 @@ struct Figures {
     joint_27_ms: f64,
     gradient_27_ms: f64,
     pso_hip_50_ms: Option<f64>,
+    opensim: Option<bench_perf::OpenSimIk>,
+    /// OpenSim's IK solver time over jointfit's whole-trial IK (goal ≥ 100).
+    opensim_ik_over_jointfit_ik: Option<f64>,
+    /// jointfit's 27-parameter fit over one OpenSim IK solve of the trial (goal ≤ 0.2).
+    fit_over_opensim_ik: Option<f64>,
+    long_fit: Option<bench_perf::LongFit>,
+    rss_frames: usize,
+    /// Peak RSS of the `rss_frames` calibration (MB; goal ≤ 150 at 20 k frames).
+    peak_rss_mb: Option<f64>,
 }
 
 /// Median wall time (s) of `runs` calls of `f`.
@@ -70,6 +89,16 @@ fn median_time(runs: usize, mut f: impl FnMut()) -> f64 {
         .collect();
     times.sort_by(f64::total_cmp);
     times[times.len() / 2]
+}
+
+/// The real trial's path, when the shared data are there.
+fn trial_path(data: Option<PathBuf>) -> Option<PathBuf> {
+    let dir = data
+        .or_else(|| std::env::var_os("JOINTFIT_DATA").map(PathBuf::from))
+        .unwrap_or_else(|| PathBuf::from("../shared/data"))
+        .join("opencap_expert1");
+    let trc = dir.join("walking1.trc");
+    (trc.exists() && dir.join("static1.trc").exists()).then_some(trc)
 }
 
 /// The subject model and gait trial to time, and where they came from.
@@ -116,6 +145,10 @@ fn workload(data: Option<PathBuf>) -> Result<(Model, Trial, String)> {
 }
 
 pub fn run(args: BenchArgs) -> Result<()> {
+    if let Some(frames) = args.rss_child {
+        return bench_perf::rss_child(frames);
+    }
+    let trc = trial_path(args.data.clone());
     let (model, trial, source) = workload(args.data)?;
     let p = model.nominal_params();
     let map = MarkerMap::by_name(&model, trial.labels())?;
@@ -218,6 +251,26 @@ pub fn run(args: BenchArgs) -> Result<()> {
         fig.pso_hip_50_ms = Some(median_time(1, || fit(Method::Pso, &hip, &short)) * 1e3);
     }
 
+    let mut opensim_note = String::from("OpenSim: not available (synthetic workload)");
+    if let Some(trc) = &trc {
+        match bench_perf::opensim_ik(&model, trc, 3) {
+            Ok(os) => {
+                let ours_ms = fig.ik_trial_us_per_frame * fig.frames as f64 / 1e3;
+                fig.opensim_ik_over_jointfit_ik = Some(os.solver_ms / ours_ms);
+                fig.fit_over_opensim_ik = Some(fig.joint_27_ms / os.solver_ms);
+                fig.opensim = Some(os);
+            }
+            Err(e) => opensim_note = format!("OpenSim: not available ({e})"),
+        }
+    }
+    if args.long_frames > 0 {
+        fig.long_fit = Some(bench_perf::long_fit(args.long_frames)?);
+    }
+    fig.rss_frames = args.rss_frames;
+    if args.rss_frames > 0 {
+        fig.peak_rss_mb = Some(bench_perf::peak_rss(args.rss_frames)?.0);
+    }
+
     if args.json {
         println!("{}", serde_json::to_string_pretty(&fig)?);
         return Ok(());
@@ -245,6 +298,38 @@ pub fn run(args: BenchArgs) -> Result<()> {
     println!("calibrate 27, gradient      {:8.1} ms", fig.gradient_27_ms);
     if let Some(ms) = fig.pso_hip_50_ms {
         println!("calibrate hip, PSO, 50 fr.  {:8.1} ms", ms);
+    }
+    match (
+        &fig.opensim,
+        fig.opensim_ik_over_jointfit_ik,
+        fig.fit_over_opensim_ik,
+    ) {
+        (Some(os), Some(ik), Some(fit)) => {
+            println!(
+                "OpenSim 4.6 IK solver       {:8.1} ms  (tool with files {:.1} ms)",
+                os.solver_ms, os.tool_ms
+            );
+            println!("  OpenSim IK / jointfit IK  {ik:8.1}   (goal ≥ 100)");
+            println!("  jointfit fit / OpenSim IK {fit:8.3}   (goal ≤ 0.2)");
+        }
+        _ => println!("{opensim_note}"),
+    }
+    if let Some(l) = &fig.long_fit {
+        println!(
+            "calibrate 27, {} synthetic frames: {:.2} s on 1 thread, {:.2} s on 2 \
+             (2/1 = {:.2}, goal ≤ 0.65; {} iterations)",
+            l.frames, l.fit_1_thread_s, l.fit_2_threads_s, l.two_over_one, l.iterations
+        );
+        println!(
+            "  uncertainty               {:8.3} s  ({:.3} of the fit, goal ≤ 0.1)",
+            l.uncertainty_s, l.uncertainty_over_fit
+        );
+    }
+    if let Some(mb) = fig.peak_rss_mb {
+        println!(
+            "peak RSS, calibrate 27 on {} synthetic frames: {:.0} MB (goal ≤ 150 at 20 k)",
+            fig.rss_frames, mb
+        );
     }
     Ok(())
 }

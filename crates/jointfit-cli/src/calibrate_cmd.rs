@@ -330,7 +330,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     }
     files = files.output_in_place("output", &args.output, args.force);
     if let Some(dir) = &args.report {
-        files = files.output("--report", dir.join("index.html"));
+        files = files.output_in_dir("--report", dir, "index.html");
     }
     files.check()?;
     let spec = jointfit_io::model_file::load_spec(&args.model)?;

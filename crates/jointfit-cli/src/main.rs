@@ -8,7 +8,9 @@
 mod output;
 mod validate;
 
+mod batch_cmd;
 mod bench_cmd;
+mod bench_perf;
 mod calibrate_cmd;
 mod check_cmd;
 mod common;
@@ -52,6 +54,8 @@ enum Command {
     Ik(ik_cmd::IkArgs),
     /// Fit joint parameters to one or more trials (two-level optimization).
     Calibrate(calibrate_cmd::CalibrateArgs),
+    /// Many calibrations from a manifest on all cores; resumable; results table CSV + JSON.
+    Batch(batch_cmd::BatchArgs),
     /// Before a fit: each joint's range of motion and which parameters the trial can determine.
     Check(check_cmd::CheckArgs),
     /// Synthesize a noisy trial from the built-in leg, calibrate it, show what was recovered.
@@ -94,6 +98,7 @@ fn main() -> ExitCode {
         Command::Convert(args) => data_cmd::convert(args),
         Command::Ik(args) => ik_cmd::run(args),
         Command::Calibrate(args) => calibrate_cmd::run(args),
+        Command::Batch(args) => batch_cmd::run(args),
         Command::Check(args) => check_cmd::run(args),
         Command::Demo(args) => demo_cmd::run(args),
         Command::Personalize(args) => personalize_cmd::run(args),

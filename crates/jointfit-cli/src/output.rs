@@ -12,7 +12,8 @@
 //!   opened by `main`: nothing is renamed into place unless the whole command succeeded, and
 //!   SIGINT/SIGTERM/SIGHUP remove the temporary files ([`install_signal_handlers`]).
 //! - **Exit status.** 0 success; 1 error (nothing written); 2 bad command line; 3 a fit did
-//!   not converge (nothing written; `--accept-unconverged` keeps it and exits 0).
+//!   not converge (nothing written; `--accept-unconverged` keeps it and exits 0); 4 some jobs
+//!   of `jointfit batch` failed (its files are kept: the results table records the failures).
 //! - **Errors.** [`one_line`]: the causes joined on one line, each said once, long tokens
 //!   elided and huge numbers shown in scientific notation.
 
@@ -25,6 +26,8 @@ use anyhow::{bail, Result};
 
 /// Exit status of a fit that did not converge (see the module docs).
 pub const EXIT_UNCONVERGED: u8 = 3;
+/// Exit status of a batch some of whose jobs failed (see the module docs).
+pub const EXIT_PARTIAL: u8 = 4;
 /// Exit status of a command line that clap rejects.
 pub const EXIT_USAGE: u8 = 2;
 
@@ -116,6 +119,19 @@ impl std::fmt::Display for Unconverged {
 
 impl std::error::Error for Unconverged {}
 
+/// Some jobs of a batch failed; `main` keeps the files written (they record the failures)
+/// and turns it into exit status [`EXIT_PARTIAL`].
+#[derive(Debug)]
+pub struct PartialFailure(pub String);
+
+impl std::fmt::Display for PartialFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} (exit status {EXIT_PARTIAL})", self.0)
+    }
+}
+
+impl std::error::Error for PartialFailure {}
+
 #[cfg(unix)]
 extern "C" fn on_signal(sig: libc::c_int) {
     jointfit_io::staging::remove_registered_temps();
@@ -194,6 +210,8 @@ struct Entry {
     path: PathBuf,
     /// Outputs only: may replace an input when the command's `--force` is given.
     in_place_ok: bool,
+    /// Outputs only: the command creates the file's directory when it is missing.
+    creates_dir: bool,
 }
 
 /// The inputs and outputs of one command, checked before any work (see the module docs).
@@ -215,6 +233,7 @@ impl Files {
             what: what.to_string(),
             path: path.as_ref().to_path_buf(),
             in_place_ok: false,
+            creates_dir: false,
         });
         self
     }
@@ -228,12 +247,25 @@ impl Files {
         }
     }
 
-    /// An output file, which must not be an input or another output.
+    /// An output file, which must not be an input or another output; its directory must
+    /// exist.
     pub fn output(mut self, what: &str, path: impl AsRef<Path>) -> Files {
         self.outputs.push(Entry {
             what: what.to_string(),
             path: path.as_ref().to_path_buf(),
             in_place_ok: false,
+            creates_dir: false,
+        });
+        self
+    }
+
+    /// An output file `dir/name` whose directory the command creates when missing.
+    pub fn output_in_dir(mut self, what: &str, dir: &Path, name: &str) -> Files {
+        self.outputs.push(Entry {
+            what: what.to_string(),
+            path: dir.join(name),
+            in_place_ok: false,
+            creates_dir: true,
         });
         self
     }
@@ -244,13 +276,14 @@ impl Files {
             what: what.to_string(),
             path: path.as_ref().to_path_buf(),
             in_place_ok: true,
+            creates_dir: false,
         });
         self.force |= force;
         self
     }
 
-    /// Refuses outputs that are directories, lack a file name, or coincide with an input
-    /// (unless allowed) or with each other.
+    /// Refuses outputs that are directories, lack a file name, coincide with an input
+    /// (unless allowed) or with each other, or lie in a directory that does not exist.
     pub fn check(self) -> Result<()> {
         for o in &self.outputs {
             let shown = o.path.display();
@@ -303,65 +336,30 @@ impl Files {
                 }
             }
         }
+        for o in &self.outputs {
+            let dir = match o.path.parent() {
+                Some(d) if !d.as_os_str().is_empty() => d,
+                _ => Path::new("."),
+            };
+            if !o.creates_dir && !dir.is_dir() {
+                bail!(
+                    "{}: {} cannot be written: directory {} does not exist",
+                    o.path.display(),
+                    o.what,
+                    dir.display()
+                );
+            }
+        }
         Ok(())
     }
 }
 
-/// Longest token kept whole in an error message (a quoted input, a path, a number).
-pub const MAX_TOKEN_CHARS: usize = 80;
-/// Longest error message.
-pub const MAX_MESSAGE_CHARS: usize = 1000;
+pub use jointfit_io::message::tidy;
 
-/// The error and its causes on one line, each cause said once: a cause whose text the
-/// message already holds (thiserror types that print their source, wrapped by anyhow
-/// contexts) is skipped. Whitespace runs become one space; see [`tidy`].
+/// The error and its causes on one line (see [`jointfit_io::message::one_line`], which the
+/// Python package uses too, so both say the same).
 pub fn one_line(e: &anyhow::Error) -> String {
-    let mut msg = String::new();
-    for cause in e.chain() {
-        let s = cause.to_string();
-        let s = s.split_whitespace().collect::<Vec<_>>().join(" ");
-        if s.is_empty() || msg.contains(&s) {
-            continue;
-        }
-        if !msg.is_empty() {
-            msg.push_str(": ");
-        }
-        msg.push_str(&s);
-    }
-    tidy(&msg)
-}
-
-/// A one-line message with numbers of more than 24 characters in scientific notation,
-/// tokens longer than [`MAX_TOKEN_CHARS`] elided in the middle, and the whole capped at
-/// [`MAX_MESSAGE_CHARS`].
-pub fn tidy(msg: &str) -> String {
-    let tokens: Vec<String> = msg
-        .split(' ')
-        .map(|t| {
-            let core = t.trim_end_matches([',', ';', ':', ')', '.']);
-            let tail = &t[core.len()..];
-            if core.len() > 24 {
-                if let Ok(v) = core.parse::<f64>() {
-                    return format!("{v:e}{tail}");
-                }
-            }
-            let n = t.chars().count();
-            if n > MAX_TOKEN_CHARS {
-                let head: String = t.chars().take(60).collect();
-                let end: String = t.chars().skip(n - 16).collect();
-                format!("{head}…[{} characters]…{end}", n - 76)
-            } else {
-                t.to_string()
-            }
-        })
-        .collect();
-    let out = tokens.join(" ");
-    if out.chars().count() > MAX_MESSAGE_CHARS {
-        let cut: String = out.chars().take(MAX_MESSAGE_CHARS).collect();
-        format!("{cut}…")
-    } else {
-        out
-    }
+    jointfit_io::message::one_line(e.chain().map(|c| c.to_string()))
 }
 
 /// A clap error on one line (its first lines up to the usage, without the misleading
@@ -431,6 +429,12 @@ pub fn finish(
 ) -> std::process::ExitCode {
     let result = result.and_then(|()| flush_stdout());
     pause_for_tests();
+    // A partly failed batch keeps its files: commit as on success, then report.
+    let partial = matches!(&result, Err(e) if e.downcast_ref::<PartialFailure>().is_some());
+    let (result, batch) = match (result, batch) {
+        (Err(e), Some(b)) if partial => (b.commit().map_err(anyhow::Error::from).and(Err(e)), None),
+        (r, b) => (r, b),
+    };
     let result = result.and_then(|()| match batch {
         Some(b) => b.commit().map(|_| ()).map_err(anyhow::Error::from),
         None => Ok(()),
@@ -441,6 +445,8 @@ pub fn finish(
             eprintln!("jointfit: error: {}", one_line(&e));
             if e.downcast_ref::<Unconverged>().is_some() {
                 std::process::ExitCode::from(EXIT_UNCONVERGED)
+            } else if e.downcast_ref::<PartialFailure>().is_some() {
+                std::process::ExitCode::from(EXIT_PARTIAL)
             } else {
                 std::process::ExitCode::FAILURE
             }
@@ -451,12 +457,12 @@ pub fn finish(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use jointfit_io::message::MAX_MESSAGE_CHARS;
 
     #[test]
     fn an_unconverged_fit_is_status_3_and_discards_the_batch() {
         use std::process::ExitCode;
-        let dir = std::env::temp_dir().join(format!("jointfit-unconv-{}", std::process::id()));
-        fs::create_dir_all(&dir).unwrap();
+        let dir = jointfit_testkit::scratch("unconv");
         let out = dir.join("fitted.toml");
         let batch = jointfit_io::staging::Batch::begin().unwrap();
         jointfit_io::atomic::write_atomic(&out, b"fit").unwrap();
@@ -468,7 +474,6 @@ mod tests {
         assert_eq!(fs::read_dir(&dir).unwrap().count(), 0, "nothing written");
         let other = finish(Err(anyhow::anyhow!("x")), None);
         assert_eq!(other, ExitCode::FAILURE);
-        fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
@@ -498,7 +503,7 @@ mod tests {
 
     #[test]
     fn identity_sees_through_spellings_and_links() {
-        let dir = std::env::temp_dir().join(format!("jointfit-ident-{}", std::process::id()));
+        let dir = jointfit_testkit::scratch("ident");
         fs::create_dir_all(dir.join("sub")).unwrap();
         let a = dir.join("a.trc");
         fs::write(&a, b"x").unwrap();
@@ -536,6 +541,5 @@ mod tests {
             .output_in_place("output", &a, true)
             .check()
             .is_ok());
-        fs::remove_dir_all(&dir).unwrap();
     }
 }

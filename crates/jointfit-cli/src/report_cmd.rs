@@ -46,7 +46,7 @@ pub fn run(args: ReportArgs) -> Result<()> {
         files = files.model("--landmark", l);
     }
     files
-        .output("report", args.output.join("index.html"))
+        .output_in_dir("report", &args.output, "index.html")
         .check()?;
     let spec = jointfit_io::model_file::load_spec(&args.model)?;
     let model = jointfit_io::model_file::load_model(&args.model)?;

@@ -2,6 +2,8 @@
 
 use std::process::Command;
 
+#[path = "cli/batch.rs"]
+mod batch;
 #[path = "cli/data.rs"]
 mod data;
 #[path = "cli/fuzz.rs"]

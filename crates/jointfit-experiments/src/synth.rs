@@ -2,8 +2,8 @@
 //! doi:10.1016/j.jbiomech.2004.03.031, §2 "synthetic movement data").
 //!
 //! ## Motions
-//! Motions follow the paper's synthetic trials (ARCHITECTURE.md §2; Reinbolt's thesis: 50
-//! frames each). With `t = f / frames` the phase of frame `f` and `a` the amplitude factor
+//! Motions follow the paper's synthetic trials (`docs/architecture.md` §6; Reinbolt's thesis:
+//! 50 frames each). With `t = f / frames` the phase of frame `f` and `a` the amplitude factor
 //! (default 1):
 //!
 //! * **hip**: circumduction, ~3.5 cycles: flexion `20° + a·28.6° sin(3.5·2πt)`, adduction

@@ -9,8 +9,10 @@
 //! - [`osim`]: OpenSim 4 model export, checked against OpenSim 4.6 (`tests/it/osim.rs`).
 
 pub mod atomic;
+pub mod batch;
 pub mod c3d;
 pub mod csv;
+pub mod message;
 pub mod osim;
 pub mod staging;
 pub mod sto;

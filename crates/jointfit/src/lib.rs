@@ -3,7 +3,8 @@
 //! The method is the two-level optimization of Reinbolt, Schutte, Fregly, Koh, Haftka,
 //! George & Mitchell (2005), "Determination of patient-specific multi-joint kinematic models
 //! through two-level optimization", J Biomech 38:621–626, doi:10.1016/j.jbiomech.2004.03.031.
-//! See `ARCHITECTURE.md` in the repository for the model, the frames and the conventions.
+//! See `docs/architecture.md` in the repository for the layers, the data flow, the model, the
+//! frames and the conventions.
 //!
 //! This crate has no file formats and never prints: readers and writers live in
 //! `jointfit-io`, the command line in `jointfit-cli`.

@@ -2,7 +2,7 @@
 //!
 //! A [`Trial`] is what every reader produces and every solver consumes. Positions are in
 //! metres in the laboratory frame as recorded; [`Trial::rotate`] maps a lab whose vertical is
-//! Z (or −Z) onto the model's Y-up convention (ARCHITECTURE.md §2: x anterior, y superior,
+//! Z (or −Z) onto the model's Y-up convention (docs/architecture.md §6: x anterior, y superior,
 //! z to the right).
 //!
 //! A sample is *missing* when any of its three coordinates is NaN; readers turn every

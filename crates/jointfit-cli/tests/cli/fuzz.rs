@@ -216,7 +216,7 @@ impl Gen<'_> {
     fn command(&mut self) -> Vec<String> {
         let s = |x: &str| x.to_string();
         self.used.clear();
-        let which = self.rng.gen_range(0..10);
+        let which = self.rng.gen_range(0..11);
         let mut a: Vec<String> = match which {
             0 => vec![s("model"), s("show"), self.pick(self.models)],
             1 => vec![s("inspect"), self.pick(self.trials)],
@@ -272,6 +272,15 @@ impl Gen<'_> {
                 s("-o"),
                 self.output("toml"),
             ],
+            10 => {
+                // Small frame counts only: a valid large one is a legitimately long run.
+                let frames = ["2", "5", "0", "-1", "abc", "100001", "1e3"];
+                vec![
+                    s("demo"),
+                    s("--frames"),
+                    frames.choose(&mut self.rng).unwrap().to_string(),
+                ]
+            }
             _ => vec![
                 s("report"),
                 self.pick(self.models),
@@ -288,6 +297,7 @@ impl Gen<'_> {
             5 => &["--frames", "--rate", "--perturb-mm", "--white-mm"],
             7 => &["--filter", "--bootstrap", "--threshold-deg"],
             8 => &["--window"],
+            10 => &["--noise-mm"],
             _ => &[],
         };
         for opt in numeric {
@@ -311,6 +321,33 @@ impl Gen<'_> {
         }
         if matches!(which, 0 | 1 | 3 | 4 | 5 | 7) && self.maybe(0.3) {
             a.push(s("--json"));
+        }
+        if matches!(which, 2 | 3 | 4 | 7 | 8 | 9) && self.maybe(0.2) {
+            a.push(s("--up"));
+            a.push(
+                ["y", "z", "-z", "x"]
+                    .choose(&mut self.rng)
+                    .unwrap()
+                    .to_string(),
+            );
+        }
+        if which == 2 && self.maybe(0.3) {
+            a.push(s("--units"));
+            a.push(
+                ["mm", "cm", "m", "km"]
+                    .choose(&mut self.rng)
+                    .unwrap()
+                    .to_string(),
+            );
+        }
+        if which == 2 && self.maybe(0.2) {
+            a.push(s("--markers"));
+            a.push(
+                ["RASI,LASI", "NOPE", "", "RASI,RASI"]
+                    .choose(&mut self.rng)
+                    .unwrap()
+                    .to_string(),
+            );
         }
         a
     }

@@ -203,7 +203,10 @@ fn export_osim_bad_input_is_a_one_line_error() {
     let (ok, _, err) = jointfit(&["export", "osim", "lower-limb-right", "-o", s(&missing)]);
     assert!(!ok);
     assert!(
-        err.contains(&format!("{}: cannot write", missing.display())),
+        err.contains(&format!(
+            "{}: output cannot be written: directory",
+            missing.display()
+        )),
         "{err}"
     );
     assert!(!out.exists());

@@ -3,21 +3,21 @@
 //! with each cause once, CSV is quoted. The oracle is the file system (bytes before and after,
 //! directory listings) and, for the CSV, Python's `csv` module.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output, Stdio};
+
+use jointfit_testkit::ScratchDir;
 
 use super::jointfit;
 
 /// A scratch directory with a small noiseless synthetic trial `t.trc` and its model `m.toml`.
 pub struct Scratch {
-    pub dir: PathBuf,
+    pub dir: ScratchDir,
 }
 
 impl Scratch {
     pub fn new(tag: &str) -> Scratch {
-        let dir = std::env::temp_dir().join(format!("jointfit-rel-{tag}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = jointfit_testkit::scratch(&format!("rel-{tag}"));
         let s = Scratch { dir };
         let (ok, _, err) = jointfit(&[
             "synth",
@@ -46,12 +46,6 @@ impl Scratch {
         walk_dir(&self.dir, &mut out);
         out.sort();
         out
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.dir);
     }
 }
 
@@ -461,7 +455,7 @@ fn errors_say_each_cause_once_on_one_line() {
 
 #[test]
 fn errors_csv_quotes_labels_with_commas_and_quotes() {
-    let Some(python) = jointfit::testing::python() else {
+    let Some(python) = jointfit_testkit::python() else {
         println!("skipped: no JOINTFIT_PYTHON");
         return;
     };

@@ -5,11 +5,8 @@
 //! recomputed for the clamped parameter step, and parameters at a bound whose descent
 //! direction points outward are held for the step.
 
-use super::schur::{
-    active_bounds, assemble, back_substitute, cost_at, predicted_decrease, solve, Blocks,
-};
+use super::schur::{active_bounds, assemble, back_substitute, cost_at, solve, Blocks};
 use super::{Fit, Problem};
-use crate::kinematics::KinData;
 use crate::solver::{Observer, Termination};
 
 /// Settings of the joint solver.
@@ -50,8 +47,7 @@ pub fn solve_joint(
     let nq = prob.model.n_q();
     let nf = prob.n_free();
     let frames = prob.frames.len();
-    let mut kin = KinData::new(prob.model);
-    let mut blocks = Blocks::new(frames, nq, nf);
+    let mut blocks = Blocks::new(prob);
     let mut s: Vec<f64> = s0.iter().map(|v| v.clamp(-1.0, 1.0)).collect();
     let mut qs = q0;
     let mut ds = vec![0.0; nf];
@@ -64,7 +60,7 @@ pub fn solve_joint(
     let mut iterations = 0;
     let mut termination = Termination::IterationLimit;
     let mut p = prob.to_params(&s);
-    assemble(prob, &p, &qs, &mut kin, &mut blocks);
+    assemble(prob, &p, &qs, &mut blocks);
     evaluations += 1;
     let mut cost = blocks.cost;
     while iterations < opts.max_iterations {
@@ -74,7 +70,7 @@ pub fn solve_joint(
         let mut step = 0.0f64;
         let mut decrease = 0.0;
         while lambda < 1e16 {
-            if !solve(&mut blocks, lambda, &fixed, &mut ds, &mut dq) {
+            if !solve(prob, &qs, &mut blocks, lambda, &fixed, &mut ds) {
                 lambda *= 10.0;
                 continue;
             }
@@ -84,14 +80,14 @@ pub fn solve_joint(
                 .map(|(a, d)| (a + d).clamp(-1.0, 1.0))
                 .collect();
             let ds_eff: Vec<f64> = s_try.iter().zip(&s).map(|(a, b)| a - b).collect();
-            back_substitute(&blocks, &ds_eff, &mut dq);
+            let predicted = back_substitute(prob, &qs, &blocks, &ds_eff, &mut dq);
             let q_try: Vec<Vec<f64>> = qs
                 .iter()
                 .zip(&dq)
                 .map(|(q, d)| q.iter().zip(d).map(|(a, b)| a + b).collect())
                 .collect();
             let p_try = prob.to_params(&s_try);
-            let c = cost_at(prob, &p_try, &q_try, &mut kin);
+            let c = cost_at(prob, &p_try, &q_try);
             evaluations += 1;
             if c <= cost {
                 step = ds_eff
@@ -100,7 +96,6 @@ pub fn solve_joint(
                     .fold(0.0f64, |m, v| m.max(v.abs()));
                 // Gain ratio ρ = actual / predicted decrease: near 1 the quadratic model is
                 // good and the damping shrinks by up to 3; a poor model keeps it.
-                let predicted = predicted_decrease(&blocks, &ds_eff, &dq);
                 let rho = if predicted > 0.0 {
                     (cost - c) / predicted
                 } else {
@@ -131,7 +126,7 @@ pub fn solve_joint(
             termination = Termination::Converged;
             break;
         }
-        assemble(prob, &p, &qs, &mut kin, &mut blocks);
+        assemble(prob, &p, &qs, &mut blocks);
         evaluations += 1;
         cost = blocks.cost;
     }

@@ -24,6 +24,7 @@
 //!   evaluation a full set of inner solves.
 
 pub mod joint;
+mod kernel;
 pub mod pso;
 mod schur;
 pub mod uncertainty;

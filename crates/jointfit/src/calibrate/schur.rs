@@ -8,234 +8,311 @@
 //! The damped step solves `[U* W; Wᵀ V*] [δq; δs] = [g; g_s]` (`*`: diagonal scaled by
 //! `1 + λ`): `S = V* − Σ W_iᵀ U_i*⁻¹ W_i`, `S δs = g_s − Σ W_iᵀ U_i*⁻¹ g_i`, then
 //! `δq_i = U_i*⁻¹ (g_i − W_i δs)`. Cost: O(frames · n_q² · n_f) instead of a dense solve.
+//!
+//! **Memory.** Only `U_i`, `W_i`, `g_i` are kept per frame (`n_q² + n_q·n_f + n_q` numbers),
+//! and only for as many frames as fit in [`CACHE_BYTES`]; the blocks of the other frames are
+//! recomputed from the kinematics when a pass needs them. The working set therefore does not
+//! grow with the trial beyond the coordinates themselves.
+//!
+//! **Threads.** Every pass runs over fixed chunks of [`CHUNK`] frames in parallel (rayon);
+//! each chunk sums its frames in order and the chunk sums are added in chunk order, so the
+//! results are the same bit for bit whatever the number of threads.
 
-use nalgebra::Vector3;
+use rayon::prelude::*;
 
+use super::kernel::{dot, frame_gram, FrameScratch};
 use super::Problem;
 use crate::kinematics::{forward_kinematics, KinData, Want};
-use crate::linalg::{backward_solve, Cholesky};
+use crate::linalg::{cholesky_in_place, cholesky_solve, Cholesky};
+
+/// Frames per parallel work item (fixed: it sets the order of every floating-point sum).
+pub(crate) const CHUNK: usize = 32;
+
+/// Memory for cached per-frame blocks (bytes); frames beyond it are recomputed.
+pub(crate) const CACHE_BYTES: usize = 48 << 20;
 
 #[derive(Debug, Clone)]
 pub(crate) struct Blocks {
     pub nq: usize,
     pub nf: usize,
-    /// Per frame `n_q × n_q`, column-major.
-    pub u: Vec<f64>,
-    /// Per frame `n_q × n_f`, column-major.
-    pub w: Vec<f64>,
-    /// Per frame `n_q`.
-    pub g: Vec<f64>,
-    /// `n_f × n_f`.
+    frames: usize,
+    /// Frames (a prefix, a multiple of [`CHUNK`] unless all) whose blocks are in `store`.
+    cached: usize,
+    /// Per cached frame: `U_i` (n_q × n_q, column-major), `W_i` (n_q × n_f), `g_i` (n_q).
+    store: Vec<f64>,
+    /// `V` (n_f × n_f, column-major).
     pub v: Vec<f64>,
+    /// `g_s` (n_f).
     pub gs: Vec<f64>,
-    /// Per frame `J_s,iᵀ W r_i` (n_f each): frame i's share of `gs`.
-    pub gs_frame: Vec<f64>,
-    /// Per frame `J_s,iᵀ W J_s,i` (n_f × n_f each, column-major): frame i's share of `v`.
-    pub v_frame: Vec<f64>,
     /// Objective at the assembly point (m²).
     pub cost: f64,
-    // Per frame: the Cholesky factor `L` of `U*`, `Z = L⁻¹ W` and `y = L⁻¹ g`.
-    l_fac: Vec<f64>,
-    y_mat: Vec<f64>,
-    y_vec: Vec<f64>,
+    /// Parameters of the assembly point (to recompute uncached frames).
+    p: Vec<f64>,
+    /// Half-ranges of the free parameters.
+    half: Vec<f64>,
+    /// Damping of the last successful [`solve`].
+    lambda: f64,
 }
 
 impl Blocks {
-    pub fn new(n_frames: usize, nq: usize, nf: usize) -> Self {
+    /// Room for the blocks of `n_frames` frames within [`CACHE_BYTES`].
+    pub fn new(prob: &Problem) -> Self {
+        Self::with_budget(prob, CACHE_BYTES)
+    }
+
+    /// As [`Blocks::new`] with a cache of at most `bytes` (0: recompute every frame).
+    pub fn with_budget(prob: &Problem, bytes: usize) -> Self {
+        let nq = prob.model.n_q();
+        let nf = prob.n_free();
+        let frames = prob.frames.len();
+        let per = nq * nq + nq * nf + nq;
+        let fit = bytes / (8 * per.max(1));
+        let cached = if fit >= frames {
+            frames
+        } else {
+            fit / CHUNK * CHUNK
+        };
         Blocks {
             nq,
             nf,
-            u: vec![0.0; n_frames * nq * nq],
-            w: vec![0.0; n_frames * nq * nf],
-            g: vec![0.0; n_frames * nq],
+            frames,
+            cached,
+            store: vec![0.0; cached * per],
             v: vec![0.0; nf * nf],
             gs: vec![0.0; nf],
-            gs_frame: vec![0.0; n_frames * nf],
-            v_frame: vec![0.0; n_frames * nf * nf],
             cost: 0.0,
-            l_fac: vec![0.0; n_frames * nq * nq],
-            y_mat: vec![0.0; n_frames * nq * nf],
-            y_vec: vec![0.0; n_frames * nq],
+            p: Vec::new(),
+            half: (0..nf).map(|k| prob.half_range(k)).collect(),
+            lambda: 0.0,
         }
+    }
+
+    fn per(&self) -> usize {
+        self.nq * self.nq + self.nq * self.nf + self.nq
+    }
+
+    fn chunks(&self) -> usize {
+        self.frames.div_ceil(CHUNK)
+    }
+
+    fn chunk_frames(&self, c: usize) -> std::ops::Range<usize> {
+        c * CHUNK..((c + 1) * CHUNK).min(self.frames)
+    }
+
+    /// Frame f's `[U | W | g]`: from the cache, or recomputed at the assembly point.
+    fn frame<'a>(
+        &'a self,
+        prob: &Problem,
+        qs: &[Vec<f64>],
+        f: usize,
+        sc: &'a mut FrameScratch,
+    ) -> &'a [f64] {
+        let per = self.per();
+        if f < self.cached {
+            return &self.store[f * per..(f + 1) * per];
+        }
+        frame_gram(prob, &self.p, &qs[f], &prob.frames[f], &self.half, sc);
+        let mut out = std::mem::take(&mut sc.buf);
+        out.resize(per, 0.0);
+        split(&sc.gram, self.nq, self.nf, &sc.grad, &mut out);
+        sc.buf = out;
+        &sc.buf
     }
 }
 
-/// Assembles the normal equations at `(p, qs)`.
-///
-/// Per frame the weighted Jacobian `√W [J_q | J_s]` is gathered column by column over the
-/// present markers' rows; each column is nonzero only on the rows of the markers its
-/// coordinate or parameter moves, so every Gram entry is a dot product over the overlap of
-/// two columns' nonzero row ranges.
-pub(crate) fn assemble(
-    prob: &Problem,
-    p: &[f64],
-    qs: &[Vec<f64>],
-    kin: &mut KinData,
-    b: &mut Blocks,
-) {
-    let model = prob.model;
+/// Copies `U`, `W` and `g` out of a frame's Gram matrix and gradient into `[U | W | g]`.
+fn split(gram: &[f64], nq: usize, nf: usize, grad: &[f64], out: &mut [f64]) {
+    let n = nq + nf;
+    for c in 0..nq {
+        out[c * nq..(c + 1) * nq].copy_from_slice(&gram[c * n..c * n + nq]);
+    }
+    let w = &mut out[nq * nq..nq * nq + nq * nf];
+    for k in 0..nf {
+        w[k * nq..(k + 1) * nq].copy_from_slice(&gram[(nq + k) * n..(nq + k) * n + nq]);
+    }
+    out[nq * nq + nq * nf..].copy_from_slice(&grad[..nq]);
+}
+
+/// Assembles the normal equations at `(p, qs)`: `V`, `g_s`, the objective, and the cached
+/// frames' blocks.
+pub(crate) fn assemble(prob: &Problem, p: &[f64], qs: &[Vec<f64>], b: &mut Blocks) {
     let (nq, nf) = (b.nq, b.nf);
     let n = nq + nf;
-    let nrows = 3 * model.n_markers();
-    let half: Vec<f64> = (0..nf).map(|k| prob.half_range(k)).collect();
+    let per = b.per();
+    b.p = p.to_vec();
+    let chunks = b.chunks();
+    let mut slots: Vec<Option<&mut [f64]>> = b.store.chunks_mut(CHUNK * per).map(Some).collect();
+    slots.resize_with(chunks, || None);
+    let half = &b.half;
+    let parts: Vec<(Vec<f64>, Vec<f64>, f64)> = slots
+        .into_par_iter()
+        .enumerate()
+        .map_init(
+            || FrameScratch::new(prob),
+            |sc, (c, mut slot)| {
+                let mut v = vec![0.0; nf * nf];
+                let mut gs = vec![0.0; nf];
+                let mut cost = 0.0;
+                let start = c * CHUNK;
+                for f in start..(start + CHUNK).min(qs.len()) {
+                    cost += frame_gram(prob, p, &qs[f], &prob.frames[f], half, sc);
+                    for l in 0..nf {
+                        let src = &sc.gram[(nq + l) * n + nq..(nq + l + 1) * n];
+                        for (x, y) in v[l * nf..(l + 1) * nf].iter_mut().zip(src) {
+                            *x += y;
+                        }
+                        gs[l] += sc.grad[nq + l];
+                    }
+                    if let Some(slot) = slot.as_deref_mut() {
+                        let out = &mut slot[(f - start) * per..(f - start + 1) * per];
+                        split(&sc.gram, nq, nf, &sc.grad, out);
+                    }
+                }
+                (v, gs, cost)
+            },
+        )
+        .collect();
     b.v.fill(0.0);
     b.gs.fill(0.0);
     b.cost = 0.0;
-    // Rows: (model row 3j + axis, √w_j) of the present markers.
-    let mut rows: Vec<(usize, f64)> = Vec::with_capacity(nrows);
-    let mut jw = vec![0.0; n * nrows];
-    let mut rw = vec![0.0; nrows];
-    let mut range = vec![(0usize, 0usize); n];
-    let mut gram = vec![0.0; n * n];
-    for (f, targets) in prob.frames.iter().enumerate() {
-        forward_kinematics(model, p, &qs[f], Want::BOTH, kin);
-        rows.clear();
-        for (j, m) in model.markers().iter().enumerate() {
-            let t: Vector3<f64> = targets[j];
-            if t.x.is_nan() || m.weight <= 0.0 {
-                continue;
-            }
-            let r = t - kin.markers[j];
-            b.cost += m.weight * r.norm_squared();
-            let sw = m.weight.sqrt();
-            for axis in 0..3 {
-                rw[rows.len()] = sw * r[axis];
-                rows.push((3 * j + axis, sw));
+    for (v, gs, cost) in parts {
+        add(&mut b.v, &v);
+        add(&mut b.gs, &gs);
+        b.cost += cost;
+    }
+}
+
+/// Solves `L Y = B` in place for `B` (`n × m`, row-major): row by row, each row update an
+/// operation on `m` contiguous numbers.
+fn forward_solve_rows(l: &[f64], n: usize, m: usize, b: &mut [f64]) {
+    for i in 0..n {
+        let (done, rest) = b.split_at_mut(i * m);
+        let row = &mut rest[..m];
+        for k in 0..i {
+            let lik = l[k * n + i];
+            for (x, y) in row.iter_mut().zip(&done[k * m..(k + 1) * m]) {
+                *x -= lik * y;
             }
         }
-        let nr = rows.len();
-        let jq = kin.jq().as_slice();
-        let jp = kin.jp().as_slice();
-        for a in 0..n {
-            let (src, scale) = if a < nq {
-                (&jq[a * nrows..(a + 1) * nrows], 1.0)
-            } else {
-                let k = a - nq;
-                let pi = prob.free[k];
-                (&jp[pi * nrows..(pi + 1) * nrows], half[k])
-            };
-            let col = &mut jw[a * nr..(a + 1) * nr];
-            for (x, &(row, sw)) in col.iter_mut().zip(&rows) {
-                *x = sw * scale * src[row];
-            }
-            let lo = col.iter().position(|&x| x != 0.0).unwrap_or(nr);
-            let hi = col.iter().rposition(|&x| x != 0.0).map_or(lo, |i| i + 1);
-            range[a] = (lo, hi.max(lo));
-        }
-        let rw = &rw[..nr];
-        for a in 0..n {
-            let (lo_a, hi_a) = range[a];
-            let col_a = &jw[a * nr..(a + 1) * nr];
-            let g = dot(&col_a[lo_a..hi_a], &rw[lo_a..hi_a]);
-            if a < nq {
-                b.g[f * nq + a] = g;
-            } else {
-                b.gs[a - nq] += g;
-                b.gs_frame[f * nf + a - nq] = g;
-            }
-            for c in 0..=a {
-                let lo = lo_a.max(range[c].0);
-                let hi = hi_a.min(range[c].1);
-                let value = if lo < hi {
-                    dot(&col_a[lo..hi], &jw[c * nr + lo..c * nr + hi])
-                } else {
-                    0.0
-                };
-                gram[c * n + a] = value;
-                gram[a * n + c] = value;
-            }
-        }
-        // Split the symmetric Gram matrix into U_i, W_i and V.
-        let u = &mut b.u[f * nq * nq..(f + 1) * nq * nq];
-        for c in 0..nq {
-            u[c * nq..(c + 1) * nq].copy_from_slice(&gram[c * n..c * n + nq]);
-        }
-        let w = &mut b.w[f * nq * nf..(f + 1) * nq * nf];
-        for k in 0..nf {
-            w[k * nq..(k + 1) * nq].copy_from_slice(&gram[(nq + k) * n..(nq + k) * n + nq]);
-        }
-        for l in 0..nf {
-            let src = &gram[(nq + l) * n + nq..(nq + l + 1) * n];
-            b.v_frame[(f * nf + l) * nf..(f * nf + l + 1) * nf].copy_from_slice(src);
-            for (v, x) in b.v[l * nf..(l + 1) * nf].iter_mut().zip(src) {
-                *v += x;
-            }
+        let d = 1.0 / l[i * n + i];
+        for x in row.iter_mut() {
+            *x *= d;
         }
     }
 }
 
-/// The decrease of the objective that the linearized model predicts for the step
-/// `(δq, δs)`: `2 gᵀδ − δᵀ H δ` with `H = JᵀWJ` in block form (the objective is
-/// `Σ w‖r‖²` and `g = JᵀW r`). The ratio of actual to predicted decrease drives the damping.
-pub(crate) fn predicted_decrease(b: &Blocks, ds: &[f64], dq: &[Vec<f64>]) -> f64 {
-    let (nq, nf) = (b.nq, b.nf);
-    let mut lin = dot(&b.gs, ds);
-    let mut quad = 0.0;
-    for k in 0..nf {
-        quad += ds[k] * dot(&b.v[k * nf..(k + 1) * nf], ds);
+fn add(acc: &mut [f64], x: &[f64]) {
+    for (a, b) in acc.iter_mut().zip(x) {
+        *a += b;
     }
-    for (f, d) in dq.iter().enumerate() {
-        lin += dot(&b.g[f * nq..(f + 1) * nq], d);
-        let u = &b.u[f * nq * nq..(f + 1) * nq * nq];
-        let w = &b.w[f * nq * nf..(f + 1) * nq * nf];
-        for a in 0..nq {
-            quad += d[a] * dot(&u[a * nq..(a + 1) * nq], d);
-        }
-        for k in 0..nf {
-            quad += 2.0 * ds[k] * dot(&w[k * nq..(k + 1) * nq], d);
-        }
-    }
-    2.0 * lin - quad
 }
 
-/// Damped step: fills `ds` (n_f) and `dq` (per frame n_q). `fixed[k]` pins parameter k
-/// (`δs_k = 0`). Returns false when a system is not positive definite at this damping.
+/// `U* = U + λ diag(U) + ε` factored in place into `l` (`ε` a tiny ridge relative to the
+/// largest diagonal). False when not positive definite.
+fn factor_damped(u: &[f64], nq: usize, lambda: f64, l: &mut Vec<f64>) -> bool {
+    l.clear();
+    l.extend_from_slice(u);
+    let max_diag = (0..nq).fold(0.0f64, |m, i| m.max(u[i * nq + i]));
+    for i in 0..nq {
+        l[i * nq + i] += lambda * u[i * nq + i] + 1e-14 * max_diag + 1e-300;
+    }
+    cholesky_in_place(l, nq)
+}
+
+/// Damped step on the parameters: fills `ds` (n_f). `fixed[k]` pins parameter k (`δs_k = 0`).
+/// `qs` are the coordinates of the last [`assemble`]. Returns false when a system is not
+/// positive definite at this damping. [`back_substitute`] then gives the coordinate steps.
 pub(crate) fn solve(
+    prob: &Problem,
+    qs: &[Vec<f64>],
     b: &mut Blocks,
     lambda: f64,
     fixed: &[bool],
     ds: &mut [f64],
-    dq: &mut [Vec<f64>],
 ) -> bool {
     let (nq, nf) = (b.nq, b.nf);
-    let frames = b.g.len() / nq;
+    let blocks = &*b;
+    let m = nf + 1;
+    let parts: Vec<Option<Vec<f64>>> = (0..blocks.chunks())
+        .into_par_iter()
+        .map_init(
+            || FrameScratch::new(prob),
+            |sc, c| {
+                let range = blocks.chunk_frames(c);
+                let mut l = std::mem::take(&mut sc.fac);
+                // The chunk's Z_i = L_i⁻¹ [W_i | g_i] stacked: (frames·n_q) × (n_f + 1),
+                // row-major, so that the substitution runs along contiguous rows.
+                let mut z = std::mem::take(&mut sc.vec);
+                z.clear();
+                z.resize(range.len() * nq * m, 0.0);
+                for (i, f) in range.clone().enumerate() {
+                    let blk = blocks.frame(prob, qs, f, sc);
+                    let (u, rest) = blk.split_at(nq * nq);
+                    let (w, g) = rest.split_at(nq * nf);
+                    if !factor_damped(u, nq, lambda, &mut l) {
+                        sc.fac = l;
+                        sc.vec = z;
+                        return None;
+                    }
+                    let zf = &mut z[i * nq * m..(i + 1) * nq * m];
+                    for a in 0..nq {
+                        let row = &mut zf[a * m..(a + 1) * m];
+                        for k in 0..nf {
+                            row[k] = w[k * nq + a];
+                        }
+                        row[nf] = g[a];
+                    }
+                    forward_solve_rows(&l, nq, m, zf);
+                }
+                // With U* = L Lᵀ: Wᵀ U*⁻¹ W = ZᵀZ and Wᵀ U*⁻¹ g = Zᵀy, so the chunk's share of
+                // both is one product [Z | y]ᵀ[Z | y] ((n_f + 1) × (n_f + 1), column-major).
+                let mut zz = vec![0.0; m * m];
+                let rows = range.len() * nq;
+                // SAFETY: A = Zᵀ (m × rows) and B = Z (rows × m) read z (rows·m) with strides
+                // (1, m) and (m, 1); C (m × m, column-major) is zz.
+                unsafe {
+                    matrixmultiply::dgemm(
+                        m,
+                        rows,
+                        m,
+                        1.0,
+                        z.as_ptr(),
+                        1,
+                        m as isize,
+                        z.as_ptr(),
+                        m as isize,
+                        1,
+                        0.0,
+                        zz.as_mut_ptr(),
+                        1,
+                        m as isize,
+                    );
+                }
+                sc.fac = l;
+                sc.vec = z;
+                Some(zz)
+            },
+        )
+        .collect();
     let mut s = b.v.clone();
     for k in 0..nf {
         s[k * nf + k] *= 1.0 + lambda;
     }
     let mut rhs = b.gs.clone();
-    for f in 0..frames {
-        let u = &b.u[f * nq * nq..(f + 1) * nq * nq];
-        let l = &mut b.l_fac[f * nq * nq..(f + 1) * nq * nq];
-        l.copy_from_slice(u);
-        let max_diag = (0..nq).fold(0.0f64, |m, i| m.max(u[i * nq + i]));
-        for i in 0..nq {
-            l[i * nq + i] += lambda * u[i * nq + i] + 1e-14 * max_diag + 1e-300;
-        }
-        let Some(chol) = Cholesky::factor(l, nq) else {
+    let mut zz = vec![0.0; m * m];
+    for part in parts {
+        let Some(part) = part else {
             return false;
         };
-        // With U* = L Lᵀ: Wᵀ U*⁻¹ W = ZᵀZ and Wᵀ U*⁻¹ g = Zᵀy for Z = L⁻¹W, y = L⁻¹g, so
-        // only forward substitutions are needed here (back-substitution finishes δq).
-        let w = &b.w[f * nq * nf..(f + 1) * nq * nf];
-        let z = &mut b.y_mat[f * nq * nf..(f + 1) * nq * nf];
-        z.copy_from_slice(w);
-        for k in 0..nf {
-            chol.forward(&mut z[k * nq..(k + 1) * nq]);
-        }
-        let y = &mut b.y_vec[f * nq..(f + 1) * nq];
-        y.copy_from_slice(&b.g[f * nq..(f + 1) * nq]);
-        chol.forward(y);
-        // ZᵀZ is symmetric: compute one triangle, mirror it.
-        for k in 0..nf {
-            let zk = &z[k * nq..(k + 1) * nq];
-            rhs[k] -= dot(zk, y);
-            for c in 0..=k {
-                let value = dot(zk, &z[c * nq..(c + 1) * nq]);
-                s[c * nf + k] -= value;
-                if c != k {
-                    s[k * nf + c] -= value;
-                }
+        add(&mut zz, &part);
+    }
+    // The lower triangle, mirrored (the product's two triangles may differ in the last bit).
+    for k in 0..nf {
+        rhs[k] -= zz[nf * m + k];
+        for c in 0..=k {
+            s[c * nf + k] -= zz[c * m + k];
+            if c != k {
+                s[k * nf + c] -= zz[c * m + k];
             }
         }
     }
@@ -258,44 +335,67 @@ pub(crate) fn solve(
     };
     ds.copy_from_slice(&rhs);
     chol.solve(ds);
-    back_substitute(b, ds, dq);
+    b.lambda = lambda;
     true
 }
 
-/// `δq_i = U_i*⁻¹ (g_i − W_i δs) = L_i⁻ᵀ (y_i − Z_i δs)` for a given (possibly clamped) `δs`.
-pub(crate) fn back_substitute(b: &Blocks, ds: &[f64], dq: &mut [Vec<f64>]) {
+/// `δq_i = U_i*⁻¹ (g_i − W_i δs)` for a given (possibly clamped) `δs`, at the damping of the
+/// last [`solve`]. Returns the decrease of the objective that the linearized model predicts
+/// for the step `(δq, δs)`: `2 hᵀδ − δᵀ H δ` with `H = JᵀWJ` (undamped) and `h = JᵀWr` in
+/// block form (the objective is `Σ w‖r‖²`); the ratio of actual to predicted decrease drives
+/// the damping.
+pub(crate) fn back_substitute(
+    prob: &Problem,
+    qs: &[Vec<f64>],
+    b: &Blocks,
+    ds: &[f64],
+    dq: &mut [Vec<f64>],
+) -> f64 {
     let (nq, nf) = (b.nq, b.nf);
-    for (f, d) in dq.iter_mut().enumerate() {
-        let z = &b.y_mat[f * nq * nf..(f + 1) * nq * nf];
-        d.copy_from_slice(&b.y_vec[f * nq..(f + 1) * nq]);
-        for k in 0..nf {
-            let dk = ds[k];
-            for (x, zk) in d.iter_mut().zip(&z[k * nq..(k + 1) * nq]) {
-                *x -= zk * dk;
-            }
-        }
-        backward_solve(&b.l_fac[f * nq * nq..(f + 1) * nq * nq], nq, d);
+    let parts: Vec<f64> = dq
+        .par_chunks_mut(CHUNK)
+        .enumerate()
+        .map_init(
+            || FrameScratch::new(prob),
+            |sc, (c, dq)| {
+                let mut l = std::mem::take(&mut sc.fac);
+                let mut wd = std::mem::take(&mut sc.vec);
+                let mut pred = 0.0;
+                for (f, d) in b.chunk_frames(c).zip(dq.iter_mut()) {
+                    let blk = b.frame(prob, qs, f, sc);
+                    let (u, rest) = blk.split_at(nq * nq);
+                    let (w, g) = rest.split_at(nq * nf);
+                    // Positive definite: the same factorisation succeeded in `solve`.
+                    let ok = factor_damped(u, nq, b.lambda, &mut l);
+                    debug_assert!(ok);
+                    d.copy_from_slice(g);
+                    for k in 0..nf {
+                        let dk = ds[k];
+                        for (x, wk) in d.iter_mut().zip(&w[k * nq..(k + 1) * nq]) {
+                            *x -= wk * dk;
+                        }
+                    }
+                    cholesky_solve(&l, nq, d);
+                    // Frame i's share of 2 hᵀδ − δᵀHδ: 2 gᵀδq − δqᵀUδq − 2 δsᵀWᵀδq.
+                    let mut quad = 0.0;
+                    for a in 0..nq {
+                        quad += d[a] * dot(&u[a * nq..(a + 1) * nq], d);
+                    }
+                    wd.clear();
+                    wd.extend((0..nf).map(|k| dot(&w[k * nq..(k + 1) * nq], d)));
+                    pred += 2.0 * dot(g, d) - quad - 2.0 * dot(ds, &wd);
+                }
+                sc.fac = l;
+                sc.vec = wd;
+                pred
+            },
+        )
+        .collect();
+    let mut quad = 0.0;
+    for k in 0..nf {
+        quad += ds[k] * dot(&b.v[k * nf..(k + 1) * nf], ds);
     }
-}
-
-/// `Σ a_i b_i` with four independent accumulators (vectorizes).
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len().min(b.len());
-    let (a, b) = (&a[..n], &b[..n]);
-    let mut acc = [0.0; 4];
-    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-    let tail: f64 = ca
-        .remainder()
-        .iter()
-        .zip(cb.remainder())
-        .map(|(x, y)| x * y)
-        .sum();
-    for (x, y) in ca.zip(cb) {
-        for i in 0..4 {
-            acc[i] += x[i] * y[i];
-        }
-    }
-    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+    parts.iter().sum::<f64>() + 2.0 * dot(&b.gs, ds) - quad
 }
 
 /// Parameters at a bound whose descent direction points outward are held for the step.
@@ -306,16 +406,162 @@ pub(crate) fn active_bounds(s: &[f64], gs: &[f64]) -> Vec<bool> {
         .collect()
 }
 
-/// Objective at `(p, qs)` without derivatives (m²).
-pub(crate) fn cost_at(prob: &Problem, p: &[f64], qs: &[Vec<f64>], kin: &mut KinData) -> f64 {
-    let mut total = 0.0;
-    for (f, targets) in prob.frames.iter().enumerate() {
-        forward_kinematics(prob.model, p, &qs[f], Want::POSITIONS, kin);
-        for (j, m) in prob.model.markers().iter().enumerate() {
-            if !targets[j].x.is_nan() && m.weight > 0.0 {
-                total += m.weight * (targets[j] - kin.markers[j]).norm_squared();
+/// Objective at `(p, qs)` without derivatives (m²), summed over fixed chunks of frames.
+pub(crate) fn cost_at(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> f64 {
+    let parts: Vec<f64> = qs
+        .par_chunks(CHUNK)
+        .enumerate()
+        .map_init(
+            || KinData::new(prob.model),
+            |kin, (c, qs)| {
+                let mut total = 0.0;
+                for (q, targets) in qs.iter().zip(&prob.frames[c * CHUNK..]) {
+                    forward_kinematics(prob.model, p, q, Want::POSITIONS, kin);
+                    for (j, m) in prob.model.markers().iter().enumerate() {
+                        if !targets[j].x.is_nan() && m.weight > 0.0 {
+                            total += m.weight * (targets[j] - kin.markers[j]).norm_squared();
+                        }
+                    }
+                }
+                total
+            },
+        )
+        .collect();
+    parts.iter().sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibrate::params_for_groups;
+    use crate::model::lower_limb::{lower_limb, Side};
+    use crate::model::Model;
+    use crate::trial::Trial;
+    use nalgebra::{DMatrix, DVector, Vector3};
+
+    /// A moving leg's markers at parameters away from nominal, with a deterministic wobble.
+    fn problem_trial(model: &Model, frames: usize) -> Trial {
+        let p: Vec<f64> = model
+            .parameters()
+            .iter()
+            .enumerate()
+            .map(|(k, x)| x.nominal + 0.15 * (x.upper - x.lower) * (k as f64).sin())
+            .collect();
+        let mut kin = KinData::new(model);
+        let mut positions = Vec::new();
+        for f in 0..frames {
+            let t = f as f64 / frames as f64;
+            let mut q = model.default_coords();
+            for (i, v) in q.iter_mut().enumerate() {
+                *v += 0.3 * (6.0 * t + i as f64).sin();
+            }
+            forward_kinematics(model, &p, &q, Want::POSITIONS, &mut kin);
+            for (j, x) in kin.markers.iter().enumerate() {
+                let e = |k: usize| 0.003 * ((f * 7 + j * 3 + k) as f64 * 1.3).sin();
+                positions.push(x + Vector3::new(e(0), e(1), e(2)));
             }
         }
+        let labels = model.markers().iter().map(|m| m.name.clone()).collect();
+        Trial::new(labels, 100.0, 1, positions).unwrap()
     }
-    total
+
+    /// One damped step with a given cache budget: `(δs, δq, predicted decrease)`.
+    fn step(prob: &Problem, budget: usize, lambda: f64) -> (Vec<f64>, Vec<Vec<f64>>, f64) {
+        let p = prob.model.nominal_params();
+        let qs = prob.initial_coords(&p);
+        let mut b = Blocks::with_budget(prob, budget);
+        assemble(prob, &p, &qs, &mut b);
+        let mut ds = vec![0.0; b.nf];
+        let fixed = vec![false; b.nf];
+        assert!(solve(prob, &qs, &mut b, lambda, &fixed, &mut ds));
+        let mut dq = vec![vec![0.0; b.nq]; qs.len()];
+        let pred = back_substitute(prob, &qs, &b, &ds, &mut dq);
+        (ds, dq, pred)
+    }
+
+    #[test]
+    fn recomputed_blocks_give_the_cached_step_bit_for_bit() {
+        let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+        let trial = problem_trial(&model, 100);
+        let free = params_for_groups(&model, &["all"]).unwrap();
+        let prob = Problem::new(&model, model.nominal_params(), &free, &[&trial]).unwrap();
+        let (nq, nf) = (model.n_q(), prob.n_free());
+        let one_chunk = 8 * CHUNK * (nq * nq + nq * nf + nq);
+        let full = step(&prob, usize::MAX, 1e-3);
+        for budget in [0, one_chunk, 2 * one_chunk + 100] {
+            let other = step(&prob, budget, 1e-3);
+            assert_eq!(full, other, "budget {budget}");
+        }
+    }
+
+    #[test]
+    fn schur_step_solves_the_dense_damped_system() {
+        let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+        let trial = problem_trial(&model, 40);
+        let free = params_for_groups(&model, &["all"]).unwrap();
+        let prob = Problem::new(&model, model.nominal_params(), &free, &[&trial]).unwrap();
+        let lambda = 1e-2;
+        let (ds, dq, pred) = step(&prob, usize::MAX, lambda);
+        // The dense block-arrow system from the same blocks.
+        let p = model.nominal_params();
+        let qs = prob.initial_coords(&p);
+        let mut b = Blocks::new(&prob);
+        assemble(&prob, &p, &qs, &mut b);
+        let (nq, nf, frames) = (b.nq, b.nf, qs.len());
+        let dim = frames * nq + nf;
+        let mut h = DMatrix::zeros(dim, dim);
+        let mut rhs = DVector::zeros(dim);
+        let per = b.per();
+        for f in 0..frames {
+            let blk = &b.store[f * per..(f + 1) * per];
+            let (u, rest) = blk.split_at(nq * nq);
+            let (w, g) = rest.split_at(nq * nf);
+            let o = f * nq;
+            for a in 0..nq {
+                for c in 0..nq {
+                    h[(o + a, o + c)] = u[c * nq + a];
+                }
+                h[(o + a, o + a)] *= 1.0 + lambda;
+                rhs[o + a] = g[a];
+                for k in 0..nf {
+                    h[(o + a, frames * nq + k)] = w[k * nq + a];
+                    h[(frames * nq + k, o + a)] = w[k * nq + a];
+                }
+            }
+        }
+        for k in 0..nf {
+            for c in 0..nf {
+                h[(frames * nq + k, frames * nq + c)] = b.v[c * nf + k];
+            }
+            h[(frames * nq + k, frames * nq + k)] *= 1.0 + lambda;
+            rhs[frames * nq + k] = b.gs[k];
+        }
+        let x = h.clone().cholesky().expect("positive definite").solve(&rhs);
+        let scale = x.amax();
+        for k in 0..nf {
+            let e = (ds[k] - x[frames * nq + k]).abs();
+            assert!(
+                e <= 1e-7 * scale,
+                "δs[{k}]: {} vs {}",
+                ds[k],
+                x[frames * nq + k]
+            );
+        }
+        for f in 0..frames {
+            for a in 0..nq {
+                let e = (dq[f][a] - x[f * nq + a]).abs();
+                assert!(e <= 1e-7 * scale, "δq[{f}][{a}]");
+            }
+        }
+        // Predicted decrease 2 hᵀx − xᵀ H₀ x with the undamped H₀.
+        let mut h0 = h.clone();
+        for i in 0..dim {
+            h0[(i, i)] /= 1.0 + lambda;
+        }
+        let expected = 2.0 * rhs.dot(&x) - x.dot(&(&h0 * &x));
+        assert!(
+            (pred - expected).abs() <= 1e-7 * expected.abs(),
+            "{pred} vs {expected}"
+        );
+    }
 }

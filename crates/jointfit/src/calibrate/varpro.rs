@@ -6,10 +6,9 @@
 //! Jacobian `J_red = (I − J_q (J_qᵀWJ_q)⁻¹ J_qᵀW) J_p`) and the envelope-theorem gradient
 //! `Σ J_p,iᵀ W r_i`. A step is accepted when the re-solved `e_inner` drops.
 
-use super::schur::{active_bounds, assemble, solve, Blocks};
+use super::schur::{active_bounds, assemble, back_substitute, solve, Blocks};
 use super::{Fit, Problem};
 use crate::ik::IkWorkspace;
-use crate::kinematics::KinData;
 use crate::solver::{Observer, Termination};
 
 /// Settings of the two-level gradient solver.
@@ -32,9 +31,8 @@ impl Default for VarProOptions {
 /// The envelope-theorem gradient `∂e_inner/∂s` at `s` with inner solutions `qs`:
 /// `−2 Σ_i J_s,iᵀ W r_i` (valid where every `q_i` is an inner optimum).
 pub fn gradient(prob: &Problem, s: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
-    let mut kin = KinData::new(prob.model);
-    let mut blocks = Blocks::new(prob.frames.len(), prob.model.n_q(), prob.n_free());
-    assemble(prob, &prob.to_params(s), qs, &mut kin, &mut blocks);
+    let mut blocks = Blocks::with_budget(prob, 0);
+    assemble(prob, &prob.to_params(s), qs, &mut blocks);
     blocks.gs.iter().map(|g| -2.0 * g).collect()
 }
 
@@ -55,9 +53,8 @@ pub fn solve_varpro(
     let nq = prob.model.n_q();
     let nf = prob.n_free();
     let frames = prob.frames.len();
-    let mut kin = KinData::new(prob.model);
     let mut ws = IkWorkspace::new(prob.model);
-    let mut blocks = Blocks::new(frames, nq, nf);
+    let mut blocks = Blocks::new(prob);
     let mut s: Vec<f64> = s0.iter().map(|v| v.clamp(-1.0, 1.0)).collect();
     let mut p = prob.to_params(&s);
     let mut qs = q0;
@@ -71,15 +68,16 @@ pub fn solve_varpro(
     let mut termination = Termination::IterationLimit;
     while iterations < opts.max_iterations {
         iterations += 1;
-        assemble(prob, &p, &qs, &mut kin, &mut blocks);
+        assemble(prob, &p, &qs, &mut blocks);
         let fixed = active_bounds(&s, &blocks.gs);
         let mut accepted = false;
         let mut step = 0.0f64;
         while lambda < 1e16 {
-            if !solve(&mut blocks, lambda, &fixed, &mut ds, &mut dq) {
+            if !solve(prob, &qs, &mut blocks, lambda, &fixed, &mut ds) {
                 lambda *= 10.0;
                 continue;
             }
+            back_substitute(prob, &qs, &blocks, &ds, &mut dq);
             let s_try: Vec<f64> = s
                 .iter()
                 .zip(&ds)

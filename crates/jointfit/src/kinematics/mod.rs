@@ -13,7 +13,7 @@
 //! in world coordinates (`R_k`, `o_k`: the pose accumulated just before step `k`). By the
 //! chain rule `∂m/∂x = Σ_k c_k ∂m/∂s_k` over the steps that read `x`. These are the usual
 //! geometric (screw) Jacobian columns; the same rule serves `q` and `p`, which is why the
-//! model treats parameters as inputs like coordinates (ARCHITECTURE.md §4).
+//! model treats parameters as inputs like coordinates (docs/architecture.md §2).
 //!
 //! [`fd`] holds the central finite-difference twins used as test oracles.
 

@@ -1,4 +1,4 @@
-//! Segment frames from averaged static landmarks (ARCHITECTURE.md §2), the regression hip
+//! Segment frames from averaged static landmarks (docs/architecture.md §6), the regression hip
 //! centre, the joint axes, and the checks that catch swapped labels and degenerate markers.
 //!
 //! Every frame is built from the markers alone, so the laboratory heading does not matter:
@@ -100,7 +100,7 @@ fn perpendicular(
     })
 }
 
-/// Builds the frames, hip centre and axes (ARCHITECTURE.md §2) and checks them.
+/// Builds the frames, hip centre and axes (docs/architecture.md §6) and checks them.
 pub(crate) fn anatomy(
     lm: &Landmarks,
     side: Side,

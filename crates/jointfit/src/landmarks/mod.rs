@@ -8,7 +8,7 @@
 //! 1. **Window.** Consecutive frames in which every needed marker is present; among those of
 //!    the requested length (default 1 s; shortened to the longest complete run), the one with
 //!    the least marker motion ([`window`]). Markers are averaged over it.
-//! 2. **Frames** (ARCHITECTURE.md §2), from the averaged markers only, so the laboratory
+//! 2. **Frames** (docs/architecture.md §6), from the averaged markers only, so the laboratory
 //!    heading is irrelevant (the trial must be Y-up): pelvis (mid-ASIS; z left → right ASIS;
 //!    x anterior in the plane of the ASIS and mid-PSIS or sacrum), thigh (hip centre; y knee
 //!    centre → hip centre; z epicondyles made orthogonal), shank (knee centre; y ankle centre

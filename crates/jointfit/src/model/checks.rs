@@ -40,6 +40,12 @@ pub fn check_spec(spec: &ModelSpec) -> Result<(), ModelError> {
                     detail: format!("{what} bound {v} is not a finite number"),
                 });
             }
+            if v.abs() > limit {
+                return Err(ModelError::BadBounds {
+                    name: p.name.clone(),
+                    detail: format!("{what} bound {v:e} is implausibly large (limit ±{limit})"),
+                });
+            }
         }
         if !p.nominal.is_finite() {
             return Err(invalid(format!(
@@ -182,9 +188,12 @@ mod tests {
     fn huge_nominal_is_rejected() {
         let mut s = leg();
         s.parameters[0].nominal = 1e300;
-        s.parameters[0].upper = 1e301;
         let e = Model::compile(&s).unwrap_err().to_string();
-        assert!(e.contains("implausibly large"), "{e}");
+        assert!(e.contains("nominal 1e300 is implausibly large"), "{e}");
+        let mut s = leg();
+        s.parameters[0].upper = 1e300;
+        let e = Model::compile(&s).unwrap_err().to_string();
+        assert!(e.contains("upper bound 1e300 is implausibly large"), "{e}");
     }
 
     #[test]

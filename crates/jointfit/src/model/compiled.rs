@@ -147,7 +147,7 @@ pub enum CoordKind {
 /// kinematics solves for.
 #[derive(Debug, Clone)]
 pub struct Coordinate {
-    /// Unique name (OpenSim style, e.g. `hip_flexion_r`).
+    /// Unique name (e.g. `hip_flexion`).
     pub name: String,
     /// The joint whose motion reads this coordinate.
     pub joint: JointId,
@@ -184,9 +184,10 @@ pub struct ParamUse {
 /// segments).
 #[derive(Debug, Clone)]
 pub struct Parameter {
-    /// Unique name (e.g. `knee_ty_thigh`).
+    /// Unique name (e.g. `hip_pelvis_anterior`).
     pub name: String,
-    /// Selection group (e.g. `hip`, `knee`, `ankle`); `--params GROUP` frees a whole group.
+    /// Selection group (e.g. `hip`, `knee`, `ankle`); `calibrate --joints GROUP` frees a
+    /// whole group.
     pub group: String,
     /// Metre for offset translations, radian for offset rotations.
     pub unit: Unit,
@@ -257,6 +258,24 @@ pub(crate) struct Step {
 ///
 /// Built only by [`Model::compile`]; read through the accessors below. Per-frame state
 /// (poses, marker positions, Jacobians) lives in [`crate::kinematics::KinData`], never here.
+///
+/// ```
+/// use jointfit::model::lower_limb::{lower_limb, Side};
+/// use jointfit::model::Model;
+///
+/// let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+/// assert_eq!((model.n_q(), model.n_p()), (12, 27));
+/// assert_eq!(model.segments()[model.joints()[1].child.0].name, "thigh");
+/// ```
+///
+/// A compiled model cannot be changed; edit its description and compile again:
+///
+/// ```compile_fail
+/// # use jointfit::model::lower_limb::{lower_limb, Side};
+/// # use jointfit::model::Model;
+/// let mut model = Model::compile(&lower_limb(Side::Right)).unwrap();
+/// model.parameters[0].nominal = 0.0; // error[E0616]: field `parameters` is private
+/// ```
 #[derive(Debug, Clone)]
 pub struct Model {
     /// Model name (free text, used in file names and reports).

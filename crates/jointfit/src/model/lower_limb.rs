@@ -1,6 +1,7 @@
 //! The paper's sample model: one leg, 12 coordinates, 27 joint parameters.
 //!
-//! Reinbolt et al. 2005 (J Biomech 38:621–626), Figs. 1–3 and Table 2; ARCHITECTURE.md §2.
+//! Reinbolt et al. 2005 (J Biomech 38:621–626), Figs. 1–3 and Table 2; `docs/architecture.md`
+//! §6.
 //!
 //! | joint | kind | coordinates | parameters |
 //! |---|---|---|---|

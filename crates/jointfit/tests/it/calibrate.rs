@@ -347,3 +347,55 @@ fn pso_then_local_polish_recovers_knee_ankle_and_full_leg() {
         );
     }
 }
+
+/// Runs `f` on a local pool of `threads` threads.
+fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(f)
+}
+
+#[test]
+fn thread_count_never_changes_the_joint_fit_or_its_reduced_system() {
+    // Long enough for many 32-frame chunks; noisy so that every digit matters.
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p_true = perturbed(&model, 21);
+    let trial = synthetic(&model, &p_true, 333, 0.006, 4);
+    let free = params_for_groups(&model, &["all"]).unwrap();
+    let start = model.nominal_params();
+    let prob = Problem::new(&model, start.clone(), &free, &[&trial]).unwrap();
+    let s0 = prob.to_scaled(&start);
+    let q0 = prob.initial_coords(&start);
+    let opts = JointOptions {
+        max_iterations: 12,
+        ..JointOptions::default()
+    };
+    let run = |threads| {
+        on_threads(threads, || {
+            let fit = solve_joint(&prob, &s0, q0.clone(), &opts, &mut NoObserver);
+            let red = jointfit::calibrate::uncertainty::reduced_system(&prob, &fit.p, &fit.coords);
+            let grad = gradient(&prob, &fit.s, &fit.coords);
+            (fit, red, grad)
+        })
+    };
+    let (one, red_one, grad_one) = run(1);
+    let (two, red_two, grad_two) = run(2);
+    assert!(one.history.len() >= 5, "too few iterations to compare");
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&one.s), bits(&two.s));
+    assert_eq!(bits(&one.history), bits(&two.history));
+    assert_eq!(one.cost.to_bits(), two.cost.to_bits());
+    for (a, b) in one.coords.iter().zip(&two.coords) {
+        assert_eq!(bits(a), bits(b));
+    }
+    assert_eq!(
+        bits(red_one.normal.as_slice()),
+        bits(red_two.normal.as_slice())
+    );
+    for (a, b) in red_one.scores.iter().zip(&red_two.scores) {
+        assert_eq!(bits(a.as_slice()), bits(b.as_slice()));
+    }
+    assert_eq!(bits(&grad_one), bits(&grad_two));
+}

@@ -2,9 +2,11 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::super::schur::{assemble, Blocks};
+use rayon::prelude::*;
+
+use super::super::kernel::{frame_gram, FrameScratch};
+use super::super::schur::CHUNK;
 use super::super::Problem;
-use crate::kinematics::KinData;
 use crate::linalg::Cholesky;
 
 /// The reduced normal equations at one point `(p, q_1 … q_N)`.
@@ -40,56 +42,88 @@ impl Reduced {
 }
 
 /// Builds `S` and the per-frame scores at parameters `p` and coordinates `qs` (one per frame
-/// of `prob`).
+/// of `prob`). Frames are processed in fixed chunks in parallel and their sums added in
+/// chunk order (the same result whatever the thread count); no per-frame Jacobian blocks are
+/// kept beyond the frame being reduced.
 pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
     let nq = prob.model.n_q();
     let nf = prob.n_free();
+    let n = nq + nf;
     let frames = prob.frames.len();
-    let mut kin = KinData::new(prob.model);
-    let mut b = Blocks::new(frames, nq, nf);
-    assemble(prob, p, qs, &mut kin, &mut b);
-    let mut normal = DMatrix::from_column_slice(nf, nf, &b.v);
+    let half: Vec<f64> = (0..nf).map(|k| prob.half_range(k)).collect();
+    type Chunk = (DMatrix<f64>, Vec<DVector<f64>>, Vec<DMatrix<f64>>, f64);
+    let parts: Vec<Chunk> = (0..frames.div_ceil(CHUNK))
+        .into_par_iter()
+        .map_init(
+            || FrameScratch::new(prob),
+            |sc, c| {
+                let mut normal = DMatrix::zeros(nf, nf);
+                let mut scores = Vec::with_capacity(CHUNK);
+                let mut frame_normals = Vec::with_capacity(CHUNK);
+                let mut cost = 0.0;
+                let mut u = vec![0.0; nq * nq];
+                let mut w = vec![0.0; nq * nf];
+                let mut l = vec![0.0; nq * nq];
+                let mut y = vec![0.0; nq * nf];
+                let mut yg = vec![0.0; nq];
+                let range = c * CHUNK..((c + 1) * CHUNK).min(frames);
+                for (q, targets) in qs[range.clone()].iter().zip(&prob.frames[range]) {
+                    cost += frame_gram(prob, p, q, targets, &half, sc);
+                    let (gram, grad) = (&sc.gram, &sc.grad);
+                    for a in 0..nq {
+                        u[a * nq..(a + 1) * nq].copy_from_slice(&gram[a * n..a * n + nq]);
+                    }
+                    for k in 0..nf {
+                        w[k * nq..(k + 1) * nq]
+                            .copy_from_slice(&gram[(nq + k) * n..(nq + k) * n + nq]);
+                    }
+                    let max_diag = (0..nq).fold(0.0f64, |m, i| m.max(u[i * nq + i]));
+                    // The same tiny regularisation the solver uses; more only if a frame's
+                    // coordinates are themselves undetermined (then they absorb nothing along
+                    // that direction).
+                    let mut ridge = 1e-14 * max_diag + 1e-300;
+                    let chol = loop {
+                        l.copy_from_slice(&u);
+                        for i in 0..nq {
+                            l[i * nq + i] += ridge;
+                        }
+                        if let Some(chol) = Cholesky::factor(&mut l, nq) {
+                            break chol;
+                        }
+                        ridge *= 100.0;
+                    };
+                    y.copy_from_slice(&w);
+                    for k in 0..nf {
+                        chol.solve(&mut y[k * nq..(k + 1) * nq]);
+                    }
+                    yg.copy_from_slice(&grad[..nq]);
+                    chol.solve(&mut yg);
+                    let mut psi = DVector::zeros(nf);
+                    let mut a = DMatrix::from_fn(nf, nf, |k, c| gram[(nq + c) * n + nq + k]);
+                    for k in 0..nf {
+                        let wk = &w[k * nq..(k + 1) * nq];
+                        psi[k] = grad[nq + k] - dot(wk, &yg);
+                        for c in 0..nf {
+                            a[(k, c)] -= dot(wk, &y[c * nq..(c + 1) * nq]);
+                        }
+                    }
+                    normal += &a;
+                    scores.push(psi);
+                    frame_normals.push(a);
+                }
+                (normal, scores, frame_normals, cost)
+            },
+        )
+        .collect();
+    let mut normal = DMatrix::zeros(nf, nf);
     let mut scores = Vec::with_capacity(frames);
     let mut frame_normals = Vec::with_capacity(frames);
-    let mut l = vec![0.0; nq * nq];
-    let mut y = vec![0.0; nq * nf];
-    let mut yg = vec![0.0; nq];
-    for f in 0..frames {
-        let u = &b.u[f * nq * nq..(f + 1) * nq * nq];
-        let max_diag = (0..nq).fold(0.0f64, |m, i| m.max(u[i * nq + i]));
-        // The same tiny regularisation the solver uses; more only if a frame's coordinates
-        // are themselves undetermined (then they absorb nothing along that direction).
-        let mut ridge = 1e-14 * max_diag + 1e-300;
-        let chol = loop {
-            l.copy_from_slice(u);
-            for i in 0..nq {
-                l[i * nq + i] += ridge;
-            }
-            if let Some(chol) = Cholesky::factor(&mut l, nq) {
-                break chol;
-            }
-            ridge *= 100.0;
-        };
-        let w = &b.w[f * nq * nf..(f + 1) * nq * nf];
-        y.copy_from_slice(w);
-        for k in 0..nf {
-            chol.solve(&mut y[k * nq..(k + 1) * nq]);
-        }
-        yg.copy_from_slice(&b.g[f * nq..(f + 1) * nq]);
-        chol.solve(&mut yg);
-        let mut psi = DVector::zeros(nf);
-        let mut a = DMatrix::from_column_slice(nf, nf, &b.v_frame[f * nf * nf..(f + 1) * nf * nf]);
-        for k in 0..nf {
-            let wk = &w[k * nq..(k + 1) * nq];
-            psi[k] = b.gs_frame[f * nf + k] - dot(wk, &yg);
-            for c in 0..nf {
-                let d = dot(wk, &y[c * nq..(c + 1) * nq]);
-                normal[(k, c)] -= d;
-                a[(k, c)] -= d;
-            }
-        }
-        scores.push(psi);
-        frame_normals.push(a);
+    let mut cost = 0.0;
+    for (part_normal, part_scores, part_normals, part_cost) in parts {
+        normal += part_normal;
+        scores.extend(part_scores);
+        frame_normals.extend(part_normals);
+        cost += part_cost;
     }
     normal = (&normal + normal.transpose()) * 0.5;
     let observations = prob
@@ -107,7 +141,7 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
         normal,
         scores,
         frame_normals,
-        cost: b.cost,
+        cost,
         observations,
         n_q: nq,
     }

@@ -1,0 +1,229 @@
+//! The performance goals of `jointfit bench` (issue 17): OpenSim's IK solver on the same model
+//! and trial, 1- against 2-thread wall time of a long calibration, the uncertainty step's
+//! share, and the peak memory of a long calibration (measured in a child process).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use jointfit::calibrate::joint::{solve_joint, JointOptions};
+use jointfit::calibrate::uncertainty::{analyze, UncertaintyOptions};
+use jointfit::calibrate::{params_for_groups, Problem};
+use jointfit::model::lower_limb::{lower_limb, Side};
+use jointfit::model::Model;
+use jointfit::solver::NoObserver;
+use jointfit::trial::Trial;
+use jointfit_experiments::synth;
+use serde::Serialize;
+
+/// OpenSim 4.6's IK on the subject model and trial (best of `repeat`), through
+/// `scripts/osim_check.py ik` and `$JOINTFIT_PYTHON`; `None` when either is missing.
+#[derive(Serialize, Clone, Copy)]
+pub struct OpenSimIk {
+    /// `InverseKinematicsSolver`: assemble on the first frame, track each next one (ms).
+    pub solver_ms: f64,
+    /// `InverseKinematicsTool.run()`, file reading and writing included (ms).
+    pub tool_ms: f64,
+}
+
+fn script() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/osim_check.py")
+}
+
+/// Why OpenSim cannot be timed here, or its timings.
+pub fn opensim_ik(model: &Model, trc: &Path, repeat: usize) -> Result<OpenSimIk, String> {
+    let python = std::env::var_os("JOINTFIT_PYTHON")
+        .map(PathBuf::from)
+        .ok_or("JOINTFIT_PYTHON is not set")?;
+    let script = script();
+    if !script.exists() {
+        return Err(format!("{} not found", script.display()));
+    }
+    let dir = std::env::temp_dir().join(format!("jointfit-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let osim = dir.join("subject.osim");
+    jointfit_io::osim::write_osim(&osim, model, &model.nominal_params())
+        .map_err(|e| format!("exporting the model: {e}"))?;
+    let weights: serde_json::Map<String, serde_json::Value> = model
+        .markers()
+        .iter()
+        .map(|m| (m.name.clone(), serde_json::json!(m.weight)))
+        .collect();
+    let request = serde_json::json!({"model": osim, "trc": trc, "out_dir": dir,
+        "weights": weights, "accuracy": 1e-8, "repeat": repeat});
+    let result = (|| {
+        let mut child = Command::new(&python)
+            .arg(&script)
+            .arg("ik")
+            .current_dir(&dir)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|e| format!("cannot run {}: {e}", python.display()))?;
+        {
+            use std::io::Write;
+            let mut stdin = child.stdin.take().ok_or("no stdin")?;
+            stdin
+                .write_all(request.to_string().as_bytes())
+                .map_err(|e| e.to_string())?;
+        }
+        let out = child.wait_with_output().map_err(|e| e.to_string())?;
+        if !out.status.success() {
+            let err = String::from_utf8_lossy(&out.stderr);
+            return Err(format!(
+                "osim_check.py failed: {}",
+                err.lines().last().unwrap_or("")
+            ));
+        }
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let line = stdout
+            .lines()
+            .find_map(|l| l.strip_prefix("@@"))
+            .ok_or("osim_check.py printed no result")?;
+        let v: serde_json::Value = serde_json::from_str(line).map_err(|e| e.to_string())?;
+        let ms = |key: &str| v[key].as_f64().map(|s| s * 1e3).ok_or(format!("no {key}"));
+        Ok(OpenSimIk {
+            solver_ms: ms("solver_seconds")?,
+            tool_ms: ms("seconds")?,
+        })
+    })();
+    let _ = std::fs::remove_dir_all(&dir);
+    result
+}
+
+/// A long synthetic trial: the built-in right leg's 150-frame motion repeated to `frames`,
+/// markers from parameters moved off nominal, with the paper's skin noise (seeded).
+pub fn long_trial(frames: usize) -> Result<(Model, Vec<f64>, Trial)> {
+    let model = Model::compile(&lower_limb(Side::Right))?;
+    let cycle = synth::coordinates(&model, synth::Motion::All, 150)?;
+    let coords: Vec<Vec<f64>> = (0..frames).map(|f| cycle[f % 150].clone()).collect();
+    let p_true: Vec<f64> = model
+        .parameters()
+        .iter()
+        .enumerate()
+        .map(|(k, x)| x.nominal + 0.1 * (x.upper - x.lower) * (k as f64 * 1.7).sin())
+        .collect();
+    let (trial, _) = synth::markers(
+        &model,
+        &p_true,
+        &coords,
+        100.0,
+        Some(&synth::SkinNoise::default()),
+    );
+    Ok((model, p_true, trial))
+}
+
+/// Wall time of `f` on a pool of `threads` threads (s), best of `runs`.
+fn on_threads(threads: usize, runs: usize, f: impl Fn() + Send + Sync) -> Result<f64> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()?;
+    let mut best = f64::INFINITY;
+    for _ in 0..runs {
+        let t = Instant::now();
+        pool.install(&f);
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    Ok(best)
+}
+
+/// Figures of a long calibration (all 27 parameters, joint method, default options).
+#[derive(Serialize, Default)]
+pub struct LongFit {
+    pub frames: usize,
+    pub fit_1_thread_s: f64,
+    pub fit_2_threads_s: f64,
+    /// 2-thread over 1-thread wall time (goal ≤ 0.65).
+    pub two_over_one: f64,
+    pub uncertainty_s: f64,
+    /// Uncertainty (white, Newey–West, jackknife) over the fit's 2-thread time (goal ≤ 0.1).
+    pub uncertainty_over_fit: f64,
+    pub iterations: usize,
+}
+
+pub fn long_fit(frames: usize) -> Result<LongFit> {
+    let (model, _, trial) = long_trial(frames)?;
+    let p = model.nominal_params();
+    let all = params_for_groups(&model, &["all"])?;
+    let prob = Problem::new(&model, p.clone(), &all, &[&trial])?;
+    let s0 = prob.to_scaled(&p);
+    let q0 = prob.initial_coords(&p);
+    let opts = JointOptions::default();
+    let fit = solve_joint(&prob, &s0, q0.clone(), &opts, &mut NoObserver);
+    let run = || {
+        solve_joint(&prob, &s0, q0.clone(), &opts, &mut NoObserver);
+    };
+    let one = on_threads(1, 1, run)?;
+    let two = on_threads(2, 1, run)?;
+    let t = Instant::now();
+    analyze(&prob, &fit, &UncertaintyOptions::default());
+    let unc = t.elapsed().as_secs_f64();
+    Ok(LongFit {
+        frames,
+        fit_1_thread_s: one,
+        fit_2_threads_s: two,
+        two_over_one: two / one,
+        uncertainty_s: unc,
+        uncertainty_over_fit: unc / two,
+        iterations: fit.iterations,
+    })
+}
+
+/// Child side of [`peak_rss`]: one calibration of `frames` frames; prints its peak RSS.
+pub fn rss_child(frames: usize) -> Result<()> {
+    let (model, _, trial) = long_trial(frames)?;
+    let p = model.nominal_params();
+    let all = params_for_groups(&model, &["all"])?;
+    let prob = Problem::new(&model, p.clone(), &all, &[&trial])?;
+    drop(trial);
+    let q0 = prob.initial_coords(&p);
+    let fit = solve_joint(
+        &prob,
+        &prob.to_scaled(&p),
+        q0,
+        &JointOptions::default(),
+        &mut NoObserver,
+    );
+    println!(
+        "@@{} {} {}",
+        peak_kb().context("reading /proc/self/status")?,
+        fit.iterations,
+        fit.cost
+    );
+    Ok(())
+}
+
+/// This process's peak resident set (kB), from `VmHWM` in `/proc/self/status` (Linux).
+fn peak_kb() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+}
+
+/// Peak RSS (MB) of a calibration of `frames` synthetic frames, run as a child process
+/// (`jointfit bench --rss-child FRAMES`), and its iterations.
+pub fn peak_rss(frames: usize) -> Result<(f64, usize)> {
+    let exe = std::env::current_exe()?;
+    let out = Command::new(exe)
+        .args(["bench", "--rss-child", &frames.to_string()])
+        .output()?;
+    if !out.status.success() {
+        bail!(
+            "bench child failed: {}",
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+    }
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let line = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("@@"))
+        .context("bench child printed no result")?;
+    let mut parts = line.split_whitespace();
+    let kb: f64 = parts.next().context("no RSS")?.parse()?;
+    let iterations: usize = parts.next().context("no iterations")?.parse()?;
+    Ok((kb / 1024.0, iterations))
+}

@@ -1,0 +1,178 @@
+//! One calibration of a job, values in and values out: the free parameters by group, the
+//! outer solve, the uncertainty of the optimum (`jointfit::calibrate::uncertainty`).
+//!
+//! The calibration is [`jointfit::workflow::calibrate`] with the command line's settings
+//! (one start, uncertainty from the optimum), so the fitted parameters equal `jointfit
+//! calibrate`'s bit for bit; this module only converts to SI rows and warning lines.
+
+use jointfit::calibrate::params_for_groups;
+use jointfit::calibrate::uncertainty::Identifiability;
+use jointfit::model::spec::ModelSpec;
+use jointfit::model::{Model, Unit, MM_PER_M};
+use jointfit::trial::Trial;
+use jointfit::workflow::{self, uncertainty_options, FitSettings, NoObserver, WorkflowError};
+use serde::{Deserialize, Serialize};
+
+/// The outer optimizer (as `jointfit calibrate --method`).
+pub use jointfit::workflow::Method;
+
+/// Settings of one calibration (the command line's defaults).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FitOptions {
+    /// Parameter groups to fit (`hip`, `knee`, `ankle`, `all`).
+    pub joints: Vec<String>,
+    pub method: Method,
+    /// Seed of the particle swarm and of the bootstrap.
+    pub seed: u64,
+    /// Length parameters whose 95 % half-width exceeds this are flagged (mm).
+    pub threshold_mm: f64,
+    /// Angle parameters whose 95 % half-width exceeds this are flagged (deg).
+    pub threshold_deg: f64,
+    /// Moving-block bootstrap replicates of the intervals (0: none).
+    pub bootstrap: usize,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            joints: vec!["all".into()],
+            method: Method::Joint,
+            seed: 1,
+            threshold_mm: 5.0,
+            threshold_deg: 5.0,
+            bootstrap: 0,
+        }
+    }
+}
+
+/// One free parameter of a calibration, SI units (m or rad).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ParamRow {
+    pub name: String,
+    pub group: String,
+    /// `m` or `rad`.
+    pub unit: String,
+    pub start: f64,
+    pub fitted: f64,
+    /// Standard error; `None` when the trials do not determine the parameter.
+    pub se: Option<f64>,
+    /// 95 % interval `[low, high]`.
+    pub ci95: Option<[f64; 2]>,
+    pub identifiability: Option<Identifiability>,
+}
+
+/// The result of [`calibrate`]: the fitted model and what a results table needs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Calibration {
+    /// The fitted model description (its nominal parameters are the fitted values).
+    pub model: ModelSpec,
+    pub method: Method,
+    pub frames: usize,
+    pub skipped_frames: usize,
+    /// The free parameters, in model order.
+    pub parameters: Vec<ParamRow>,
+    /// RMS marker distance over all present samples at the start and at the optimum (m).
+    pub rms_before: f64,
+    pub rms_after: f64,
+    /// Objective `e_inner` (m²) at the start and at the optimum.
+    pub cost_before: f64,
+    pub cost_after: f64,
+    pub iterations: usize,
+    pub evaluations: usize,
+    pub converged: bool,
+    /// Reading and fitting warnings, one line each.
+    pub warnings: Vec<String>,
+}
+
+/// Fits the `opts.joints` parameters of `model` to `trials`, starting from `start`.
+pub fn calibrate(
+    model: &Model,
+    start: Vec<f64>,
+    trials: &[&Trial],
+    opts: &FitOptions,
+) -> Result<Calibration, WorkflowError> {
+    let groups: Vec<&str> = opts.joints.iter().map(String::as_str).collect();
+    let free = params_for_groups(model, &groups)?;
+    let settings = FitSettings {
+        method: opts.method,
+        seed: opts.seed,
+        uncertainty: Some(uncertainty_options(
+            opts.threshold_mm,
+            opts.threshold_deg,
+            opts.bootstrap,
+            opts.seed,
+        )),
+        ..FitSettings::default()
+    };
+    let cal = workflow::calibrate(model, &start, trials, &free, &settings, &mut NoObserver)?;
+    let u = cal
+        .uncertainty
+        .as_ref()
+        .expect("the settings ask for the uncertainty");
+    let fit = &cal.fit;
+    let mut warnings = Vec::new();
+    for pu in u.flagged() {
+        let hw = pu
+            .half_width
+            .map_or("unbounded".to_string(), |h| format!("±{h:.1} {}", pu.unit));
+        warnings.push(format!(
+            "{} {} by these trials ({hw}){}",
+            pu.name,
+            if pu.status == Identifiability::Undetermined {
+                "not determined"
+            } else {
+                "poorly determined"
+            },
+            pu.reason
+                .as_deref()
+                .map_or(String::new(), |r| format!(": {r}"))
+        ));
+    }
+    if !fit.converged() {
+        warnings.push(format!(
+            "the outer solver stopped before converging ({})",
+            fit.termination
+        ));
+    }
+    let parameters = cal
+        .free
+        .iter()
+        .map(|id| id.0)
+        .zip(&u.params)
+        .map(|(i, pu)| {
+            let par = &model.parameters()[i];
+            // The uncertainty rows are in display units (mm, deg): back to SI.
+            let (unit, to_si) = match par.unit {
+                Unit::Metre => ("m", 1e-3),
+                Unit::Radian => ("rad", std::f64::consts::PI / 180.0),
+            };
+            ParamRow {
+                name: par.name.clone(),
+                group: par.group.clone(),
+                unit: unit.into(),
+                start: start[i],
+                fitted: fit.p[i],
+                se: pu.se.map(|v| v * to_si),
+                ci95: pu.ci.map(|[lo, hi]| [lo * to_si, hi * to_si]),
+                identifiability: Some(pu.status),
+            }
+        })
+        .collect();
+    let mut fitted = model.spec_with_nominal(&fit.p);
+    fitted.name = format!("{} (fitted)", model.spec().name);
+    Ok(Calibration {
+        model: fitted,
+        method: opts.method,
+        frames: cal.frames,
+        skipped_frames: cal.skipped_frames,
+        parameters,
+        rms_before: cal.rms_before_mm / MM_PER_M,
+        rms_after: cal.rms_after_mm / MM_PER_M,
+        cost_before: cal.cost_before,
+        cost_after: fit.cost,
+        iterations: fit.iterations,
+        evaluations: fit.evaluations,
+        converged: fit.converged(),
+        warnings,
+    })
+}

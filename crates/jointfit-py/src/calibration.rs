@@ -1,0 +1,235 @@
+//! `calibrate` and `jointfit.Calibration`: the two-level fit of joint parameters.
+
+use jointfit_io::batch::{
+    run_job, Calibration, FitOptions, Job, ModelInput, ReadOptions, TrialInput,
+};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyTuple};
+
+use crate::model::PyModel;
+use crate::trial::{parse_up, PyTrial};
+use crate::{err, msg, warn_all};
+
+/// The result of `calibrate`: the fitted model, the fitted parameters with their 95 %
+/// intervals, the marker RMS before and after, warnings. SI units (m, rad) throughout.
+#[pyclass(name = "Calibration", module = "jointfit", frozen)]
+pub struct PyCalibration {
+    pub(crate) cal: Calibration,
+}
+
+#[pymethods]
+impl PyCalibration {
+    /// The fitted model (its parameters are the fitted values; fixed ones unchanged).
+    #[getter]
+    fn model(&self) -> PyResult<PyModel> {
+        PyModel::from_spec(&self.cal.model)
+    }
+    /// Fitted values of the free parameters: dict name → value (m or rad).
+    #[getter]
+    fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for p in &self.cal.parameters {
+            d.set_item(&p.name, p.fitted)?;
+        }
+        Ok(d)
+    }
+    /// Starting values of the free parameters: dict name → value (m or rad).
+    #[getter]
+    fn start<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for p in &self.cal.parameters {
+            d.set_item(&p.name, p.start)?;
+        }
+        Ok(d)
+    }
+    /// 95 % intervals of the free parameters: dict name → (low, high), or None where the
+    /// trials do not determine the parameter.
+    #[getter]
+    fn intervals<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for p in &self.cal.parameters {
+            d.set_item(&p.name, p.ci95.map(|[lo, hi]| (lo, hi)))?;
+        }
+        Ok(d)
+    }
+    /// Standard errors of the free parameters: dict name → value or None.
+    #[getter]
+    fn standard_errors<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for p in &self.cal.parameters {
+            d.set_item(&p.name, p.se)?;
+        }
+        Ok(d)
+    }
+    /// RMS marker distance over all present samples at the start (m).
+    #[getter]
+    fn rms_before(&self) -> f64 {
+        self.cal.rms_before
+    }
+    /// RMS marker distance over all present samples at the optimum (m).
+    #[getter]
+    fn rms_after(&self) -> f64 {
+        self.cal.rms_after
+    }
+    /// Frames fitted (over all trials) and frames skipped for missing markers.
+    #[getter]
+    fn frames(&self) -> (usize, usize) {
+        (self.cal.frames, self.cal.skipped_frames)
+    }
+    /// Whether the outer solver met its convergence test.
+    #[getter]
+    fn converged(&self) -> bool {
+        self.cal.converged
+    }
+    /// Outer iterations.
+    #[getter]
+    fn iterations(&self) -> usize {
+        self.cal.iterations
+    }
+    /// Reading and fitting warnings (filtering moves, poorly determined parameters).
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.cal.warnings.clone()
+    }
+    /// Everything as plain Python values (the row of `jointfit batch`'s results.json,
+    /// plus the fitted model as TOML text).
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let json = py.import("json")?;
+        let d = json.call_method1("loads", (self.to_json()?,))?;
+        d.set_item("model", self.cal.model.to_toml())?;
+        Ok(d)
+    }
+    /// The calibration as JSON text (floats round-trip exactly).
+    fn to_json(&self) -> PyResult<String> {
+        serde_json::to_string(&self.cal).map_err(|e| msg(e.to_string()))
+    }
+    fn __repr__(&self) -> String {
+        format!(
+            "Calibration({} parameters, RMS {:.2} → {:.2} mm{})",
+            self.cal.parameters.len(),
+            self.cal.rms_before * 1e3,
+            self.cal.rms_after * 1e3,
+            if self.cal.converged {
+                ""
+            } else {
+                ", not converged"
+            }
+        )
+    }
+    fn __eq__(&self, other: &Self) -> bool {
+        self.cal == other.cal
+    }
+    /// Pickles as JSON (exact), so results come back from Dask workers unchanged.
+    fn __reduce__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyTuple>)> {
+        let ctor = py
+            .import("jointfit._jointfit")?
+            .getattr("_calibration_from_json")?;
+        Ok((ctor, PyTuple::new(py, [self.to_json()?])?))
+    }
+}
+
+/// Rebuilds a Calibration from `Calibration.to_json()` (used by pickling).
+#[pyfunction]
+#[pyo3(name = "_calibration_from_json")]
+pub fn calibration_from_json(text: &str) -> PyResult<PyCalibration> {
+    let cal = serde_json::from_str(text).map_err(|e| msg(format!("not a calibration: {e}")))?;
+    Ok(PyCalibration { cal })
+}
+
+fn joints_arg(joints: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<String>> {
+    let Some(j) = joints else {
+        return Ok(vec!["all".into()]);
+    };
+    if let Ok(s) = j.extract::<String>() {
+        return Ok(s.split(',').map(|g| g.trim().to_string()).collect());
+    }
+    j.extract::<Vec<String>>()
+        .map_err(|_| msg("joints must be a list of group names (hip, knee, ankle, all) or one comma-separated string"))
+}
+
+/// Fits joint parameters to one or more trials (two-level optimization, Reinbolt et al.
+/// 2005): the parameters of the `joints` groups ("hip", "knee", "ankle", "all"; None: all)
+/// minimize the summed squared marker distances over every frame, each frame's coordinates
+/// at their own optimum. Starts from the model's parameters. `trials` are Trial objects or
+/// paths (read with `up` and `filter`, as on the command line); `method` is "joint" (sparse
+/// Levenberg–Marquardt), "gradient" (two-level Gauss–Newton) or "pso" (particle swarm, then
+/// joint polish, seeded by `seed`). The fitted parameters equal `jointfit calibrate`'s for
+/// the same inputs, bit for bit. Releases the GIL while it runs.
+#[pyfunction]
+#[pyo3(signature = (model, trials, joints=None, method="joint", up=None, filter=None, seed=1, bootstrap=0, threshold_mm=5.0, threshold_deg=5.0))]
+#[allow(clippy::too_many_arguments)]
+pub fn calibrate(
+    py: Python<'_>,
+    model: &Bound<'_, PyAny>,
+    trials: &Bound<'_, PyAny>,
+    joints: Option<&Bound<'_, PyAny>>,
+    method: &str,
+    up: Option<&str>,
+    filter: Option<f64>,
+    seed: u64,
+    bootstrap: usize,
+    threshold_mm: f64,
+    threshold_deg: f64,
+) -> PyResult<PyCalibration> {
+    let model = if let Ok(m) = model.cast::<PyModel>() {
+        ModelInput::Spec(Box::new(m.get().model.spec().clone()))
+    } else {
+        let name: std::path::PathBuf = model.extract().map_err(|_| {
+            msg("a model must be a jointfit.Model, a model file path or a built-in name")
+        })?;
+        ModelInput::Named(name.to_string_lossy().into_owned())
+    };
+    // One trial alone is accepted as well as a list.
+    let items: Vec<Bound<'_, PyAny>> =
+        if trials.cast::<PyTrial>().is_ok() || trials.extract::<std::path::PathBuf>().is_ok() {
+            vec![trials.clone()]
+        } else {
+            trials
+                .cast::<PyList>()
+                .map(|l| l.iter().collect())
+                .or_else(|_| {
+                    trials
+                        .try_iter()
+                        .and_then(|it| it.collect::<PyResult<Vec<_>>>())
+                })
+                .map_err(|_| msg("trials must be a list of jointfit.Trial objects or paths"))?
+        };
+    let mut inputs = Vec::with_capacity(items.len());
+    for t in &items {
+        if let Ok(tr) = t.cast::<PyTrial>() {
+            let tr = tr.get();
+            inputs.push(TrialInput::Data {
+                name: tr.name.clone(),
+                trial: Box::new(tr.trial.clone()),
+            });
+        } else {
+            let path: std::path::PathBuf = t
+                .extract()
+                .map_err(|_| msg("trials must be jointfit.Trial objects or paths"))?;
+            inputs.push(TrialInput::Path(path));
+        }
+    }
+    let job = Job {
+        id: "calibrate".into(),
+        model,
+        trials: inputs,
+        read: ReadOptions {
+            up: parse_up(up)?,
+            filter_hz: filter,
+        },
+        fit: FitOptions {
+            joints: joints_arg(joints)?,
+            method: method.parse().map_err(msg)?,
+            seed,
+            threshold_mm,
+            threshold_deg,
+            bootstrap,
+        },
+    };
+    let cal = py.detach(|| run_job(&job)).map_err(|e| err(&e))?;
+    warn_all(py, &cal.warnings)?;
+    Ok(PyCalibration { cal })
+}
