@@ -12,16 +12,14 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use jointfit::calibrate::joint::{solve_joint, JointOptions};
-use jointfit::calibrate::pso::{solve_pso, PsoOptions};
-use jointfit::calibrate::varpro::{solve_varpro, VarProOptions};
-use jointfit::calibrate::{params_for_groups, Problem};
-use jointfit::ik::{extrapolate, solve_frame, solve_trial, IkOptions, IkWorkspace, MarkerMap};
+use jointfit::calibrate::params_for_groups;
+use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::landmarks::{personalize, MarkerSet, PersonalizeOptions};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
 use jointfit::trial::Trial;
+use jointfit::workflow::{self, FitSettings, Method, NoObserver};
 use jointfit_experiments::synth;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -163,7 +161,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
     };
 
     // Forward kinematics at the solved poses.
-    let reference = solve_trial(&model, &p, &trial, &map, &opts)?;
+    let reference = workflow::ik_trial(&model, &p, &trial, &opts)?.fit;
     let poses: Vec<&Vec<f64>> = reference
         .coords
         .iter()
@@ -186,7 +184,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
     // IK: the whole trial from scratch, and warm-started frames alone.
     let n = trial.n_frames() as f64;
     fig.ik_trial_us_per_frame = median_time(21, || {
-        solve_trial(&model, &p, &trial, &map, &opts).expect("validated above");
+        workflow::ik_trial(&model, &p, &trial, &opts).expect("validated above");
     }) / n
         * 1e6;
     let first = reference
@@ -194,25 +192,18 @@ pub fn run(args: BenchArgs) -> Result<()> {
         .iter()
         .position(|q| q[0].is_finite())
         .context("no frame of the trial could be solved")?;
-    let mut ws = IkWorkspace::new(&model);
-    let mut targets = Vec::new();
     let warm_frames = (first + 1..trial.n_frames()).count().max(1) as f64;
     let mut iterations = 0usize;
     let warm = median_time(21, || {
-        iterations = 0;
-        // As solve_trial does: start from the linear extrapolation of the last two.
-        let mut before = reference.coords[first].clone();
-        let mut q = before.clone();
-        for f in first + 1..trial.n_frames() {
-            map.targets(&trial, f, &mut targets);
-            let mut next: Vec<f64> = if f > first + 1 {
-                extrapolate(&q, &before)
-            } else {
-                q.clone()
-            };
-            iterations += solve_frame(&model, &p, &targets, &mut next, &opts, &mut ws).iterations;
-            before = std::mem::replace(&mut q, next);
-        }
+        iterations = workflow::ik_warm_started(
+            &model,
+            &p,
+            &trial,
+            &map,
+            first,
+            &reference.coords[first],
+            &opts,
+        );
     });
     fig.ik_warm_us_per_frame = warm / warm_frames * 1e6;
     fig.ik_warm_frames_per_second = warm_frames / warm;
@@ -229,7 +220,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         let t = median_time(5, || {
             pool.install(|| {
                 (0..copies).into_par_iter().for_each(|_| {
-                    solve_trial(&model, &p, &trial, &map, &opts).expect("validated above");
+                    workflow::ik_trial(&model, &p, &trial, &opts).expect("validated above");
                 })
             })
         });
@@ -240,27 +231,24 @@ pub fn run(args: BenchArgs) -> Result<()> {
     fig.ik_parallel_frames_per_second = batch(fig.threads);
     fig.ik_parallel_speedup = fig.ik_parallel_frames_per_second / one;
 
-    // Calibration of all 27 parameters from the nominal model.
+    // Calibration of all 27 parameters from the nominal model (the whole workflow: seeded
+    // inner solutions, the solver, the marker errors before and after).
     let all = params_for_groups(&model, &["all"])?;
-    let prob = Problem::new(&model, p.clone(), &all, &[&trial])?;
-    let s0 = prob.to_scaled(&p);
-    let q0 = prob.initial_coords(&p);
-    fig.joint_27_ms = median_time(5, || {
-        solve_joint(&prob, &s0, q0.clone(), &JointOptions::default());
-    }) * 1e3;
-    fig.gradient_27_ms = median_time(3, || {
-        solve_varpro(&prob, &s0, q0.clone(), &VarProOptions::default());
-    }) * 1e3;
+    jointfit::calibrate::Problem::new(&model, p.clone(), &all, &[&trial])?;
+    let fit = |method: Method, free: &[jointfit::model::ParamId], trial: &Trial| {
+        let settings = FitSettings {
+            method,
+            ..FitSettings::default()
+        };
+        workflow::calibrate(&model, &p, &[trial], free, &settings, &mut NoObserver)
+            .expect("validated above");
+    };
+    fig.joint_27_ms = median_time(5, || fit(Method::Joint, &all, &trial)) * 1e3;
+    fig.gradient_27_ms = median_time(3, || fit(Method::Gradient, &all, &trial)) * 1e3;
     if args.pso {
         let hip = params_for_groups(&model, &["hip"])?;
         let short = trial.slice_frames(0, 50.min(trial.n_frames()));
-        let hip_prob = Problem::new(&model, p.clone(), &hip, &[&short])?;
-        let hq0 = hip_prob.initial_coords(&p);
-        fig.pso_hip_50_ms = Some(
-            median_time(1, || {
-                solve_pso(&hip_prob, &hq0, &PsoOptions::default(), |_, _| {});
-            }) * 1e3,
-        );
+        fig.pso_hip_50_ms = Some(median_time(1, || fit(Method::Pso, &hip, &short)) * 1e3);
     }
 
     let mut opensim_note = String::from("OpenSim: not available (synthetic workload)");

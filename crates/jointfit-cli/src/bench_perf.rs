@@ -12,6 +12,7 @@ use jointfit::calibrate::uncertainty::{analyze, UncertaintyOptions};
 use jointfit::calibrate::{params_for_groups, Problem};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
+use jointfit::solver::NoObserver;
 use jointfit::trial::Trial;
 use jointfit_experiments::synth;
 use serde::Serialize;
@@ -150,9 +151,9 @@ pub fn long_fit(frames: usize) -> Result<LongFit> {
     let s0 = prob.to_scaled(&p);
     let q0 = prob.initial_coords(&p);
     let opts = JointOptions::default();
-    let fit = solve_joint(&prob, &s0, q0.clone(), &opts);
+    let fit = solve_joint(&prob, &s0, q0.clone(), &opts, &mut NoObserver);
     let run = || {
-        solve_joint(&prob, &s0, q0.clone(), &opts);
+        solve_joint(&prob, &s0, q0.clone(), &opts, &mut NoObserver);
     };
     let one = on_threads(1, 1, run)?;
     let two = on_threads(2, 1, run)?;
@@ -178,7 +179,13 @@ pub fn rss_child(frames: usize) -> Result<()> {
     let prob = Problem::new(&model, p.clone(), &all, &[&trial])?;
     drop(trial);
     let q0 = prob.initial_coords(&p);
-    let fit = solve_joint(&prob, &prob.to_scaled(&p), q0, &JointOptions::default());
+    let fit = solve_joint(
+        &prob,
+        &prob.to_scaled(&p),
+        q0,
+        &JointOptions::default(),
+        &mut NoObserver,
+    );
     println!(
         "@@{} {} {}",
         peak_kb().context("reading /proc/self/status")?,

@@ -1,35 +1,40 @@
-//! `jointfit calibrate <SUBJECT.toml> <TRIAL>... --joints <LIST> --method <M> -o <FITTED.toml>`.
+//! `jointfit calibrate <SUBJECT.toml> <TRIAL>... --joints <LIST> --method <M> -o <FITTED.toml>`:
+//! reads the files, runs [`jointfit::workflow::calibrate`], prints and writes the results.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use jointfit::calibrate::joint::{solve_joint_observed, JointOptions};
-use jointfit::calibrate::pso::{solve_pso, PsoOptions};
-use jointfit::calibrate::uncertainty::{
-    analyze, unidentifiable_subset, Identifiability, Uncertainty, UncertaintyOptions,
-};
-use jointfit::calibrate::varpro::{solve_varpro_observed, VarProOptions};
-use jointfit::calibrate::{params_for_groups, Fit, Problem};
-use jointfit::kinematics::{forward_kinematics, KinData, Want};
-use jointfit::model::ParamId;
-use jointfit::model::{Model, Unit};
+use jointfit::calibrate::params_for_groups;
+use jointfit::calibrate::uncertainty::{Identifiability, Uncertainty};
 use jointfit::trial::Trial;
+use jointfit::workflow::{
+    self, uncertainty_options, Calibration, FitSettings, Method, Observer, Termination,
+};
 use serde::Serialize;
 
-use crate::common::{load_trial, Up, MM};
+use crate::common::{load_trial, Up};
 
-/// The outer optimizer.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Method {
+/// The outer optimizer (the command line's names for [`jointfit::workflow::Method`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum MethodArg {
     /// Joint sparse Levenberg–Marquardt over all frames and parameters (fast default).
     Joint,
     /// Two-level Gauss-Newton on the reduced (variable-projection) Jacobian.
     Gradient,
     /// Particle swarm (global), then polished by the joint solver.
     Pso,
+}
+
+impl From<MethodArg> for Method {
+    fn from(m: MethodArg) -> Method {
+        match m {
+            MethodArg::Joint => Method::Joint,
+            MethodArg::Gradient => Method::Gradient,
+            MethodArg::Pso => Method::Pso,
+        }
+    }
 }
 
 #[derive(Args)]
@@ -43,7 +48,7 @@ pub struct CalibrateArgs {
     #[arg(long, default_value = "all", value_delimiter = ',')]
     pub joints: Vec<String>,
     #[arg(long, value_enum, default_value = "joint")]
-    pub method: Method,
+    pub method: MethodArg,
     /// Fitted model (TOML). It may be the subject model file itself only with --force.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -102,488 +107,88 @@ pub struct CalibrateArgs {
     pub prior_sd: Vec<String>,
 }
 
+/// `calibrate --json`: the calibration and the wall time.
 #[derive(Serialize)]
-pub struct ParamReport {
-    pub name: String,
-    pub group: String,
-    pub unit: &'static str,
-    pub start: f64,
-    pub fitted: f64,
-    pub change: f64,
-    /// Standard error (same unit), from `uncertainty_method`; `None`: not determined.
-    pub se: Option<f64>,
-    /// 95 % interval (same unit).
-    pub ci95: Option<[f64; 2]>,
-    /// `determined`, `poor` or `undetermined`.
-    pub identifiability: Option<Identifiability>,
-    pub uncertainty_method: Option<jointfit::calibrate::uncertainty::SeMethod>,
-    /// Prior SD and mean (same unit), when the fit used a prior on this parameter.
-    pub prior_sd: Option<f64>,
-    pub prior_mean: Option<f64>,
-    /// Share of the posterior information that came from the trial (0–1), and in words.
-    pub data_share: Option<f64>,
-    pub source: Option<jointfit::calibrate::prior::Source>,
-}
-
-#[derive(Serialize)]
-pub struct Report {
-    pub method: Method,
-    pub frames: usize,
-    pub skipped_frames: usize,
-    pub free_parameters: usize,
-    pub parameters: Vec<ParamReport>,
-    pub rms_before_mm: f64,
-    pub rms_after_mm: f64,
-    pub marker_rms_before_mm: Vec<(String, f64)>,
-    pub marker_rms_after_mm: Vec<(String, f64)>,
-    pub cost_before: f64,
-    pub cost_after: f64,
-    pub iterations: usize,
-    pub evaluations: usize,
-    pub converged: bool,
+pub struct Report<'a> {
+    #[serde(flatten)]
+    pub calibration: &'a Calibration,
     pub seconds: f64,
-    /// The objective after every outer iteration, per optimizer stage (for the HTML report).
-    pub convergence: Vec<ConvergenceStage>,
-    /// Uncertainty and identifiability of the free parameters (see `jointfit::calibrate::uncertainty`).
-    pub uncertainty: Option<Uncertainty>,
-    /// Parameters held at their starting values by `--fix-unidentifiable`.
-    pub fixed_unidentifiable: Vec<String>,
-    /// Several starts (`--starts N`): the optima they reached.
-    pub multistart: Option<MultiStart>,
-    /// Marker noise SD (mm) that weighed the prior; `None`: no prior (unregularized fit).
-    pub prior_noise_mm: Option<f64>,
-    /// Whether that noise was estimated from the residuals (else given).
-    pub prior_noise_estimated: bool,
-    /// Anatomical plausibility of the fitted joints (`jointfit::plausibility`).
-    pub plausibility: Vec<jointfit::plausibility::Check>,
 }
 
-/// One optimizer stage (e.g. the particle swarm, then its polish).
-#[derive(Debug, Clone, Serialize)]
-pub struct ConvergenceStage {
-    pub stage: String,
-    /// `e_inner` (mm²) at the start of the stage, then after each of its iterations.
-    pub objective_mm2: Vec<f64>,
+/// Progress of the optimizer stages on stderr (see `progress`).
+pub struct ProgressObserver {
+    bars: crate::progress::StageProgress,
+    stage: String,
+    budget: Option<usize>,
 }
 
-/// Per-model-marker RMS distance (m) for parameters `p` and per-frame coordinates.
-fn per_marker_rms(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
-    let model = prob.model;
-    let mut kin = KinData::new(model);
-    let mut sums = vec![(0.0, 0usize); model.n_markers()];
-    for (targets, q) in prob.frames.iter().zip(qs) {
-        forward_kinematics(model, p, q, Want::POSITIONS, &mut kin);
-        for j in 0..model.n_markers() {
-            if !targets[j].x.is_nan() {
-                sums[j].0 += (targets[j] - kin.markers[j]).norm_squared();
-                sums[j].1 += 1;
-            }
+impl ProgressObserver {
+    pub fn new() -> ProgressObserver {
+        ProgressObserver {
+            bars: crate::progress::StageProgress::new("iterations"),
+            stage: String::new(),
+            budget: None,
         }
     }
-    sums.iter()
-        .map(|(s, n)| {
-            if *n == 0 {
-                f64::NAN
-            } else {
-                (s / *n as f64).sqrt()
-            }
-        })
-        .collect()
-}
 
-/// Runs one calibration on trials already in memory (no uncertainty analysis).
-#[allow(dead_code)] // library-style entry point for subcommands that need no intervals
-pub fn calibrate(
-    model: &Model,
-    start: Vec<f64>,
-    trials: &[&Trial],
-    groups: &[&str],
-    method: Method,
-    seed: u64,
-) -> Result<(Fit, Report)> {
-    let free = params_for_groups(model, groups)?;
-    calibrate_params(model, start, trials, &free, method, seed, 1, None)
-}
-
-/// [`calibrate`] with the free parameters given by id. With priors in the model file the fit
-/// is the maximum a posteriori one, weighted by marker noise `noise` (m), or, when `None`, by
-/// the noise estimated from the residuals: first the starting residual RMS, then (one
-/// refinement, polished by the joint solver) the fit's residual σ.
-#[allow(clippy::too_many_arguments)]
-pub fn calibrate_params(
-    model: &Model,
-    start: Vec<f64>,
-    trials: &[&Trial],
-    free: &[ParamId],
-    method: Method,
-    seed: u64,
-    starts: usize,
-    noise: Option<f64>,
-) -> Result<(Fit, Report)> {
-    let mut prob = Problem::new(model, start.clone(), free, trials)?;
-    let clock = Instant::now();
-    let q0 = prob.initial_coords(&start);
-    let s0 = prob.to_scaled(&start);
-    let mut ws = jointfit::ik::IkWorkspace::new(model);
-    let mut q_before = q0.clone();
-    let data_before = prob.inner(&start, &mut q_before, &mut ws);
-    let observations = jointfit::calibrate::uncertainty::reduced_system(&prob, &start, &q_before)
-        .observations
-        .max(1);
-    prob = prob.with_model_prior(noise.unwrap_or((data_before / observations as f64).sqrt()));
-    if noise.is_none() && prob.prior.is_some() {
-        // σ from the residuals of a preliminary MAP fit, inflated for their correlation in
-        // time (see `prior::correlation_inflation`); the reported fit then uses that σ.
-        let pre = solve_joint_observed(&prob, &s0, q0.clone(), &JointOptions::default(), |_, _| {});
-        let red = jointfit::calibrate::uncertainty::reduced_system(&prob, &pre.p, &pre.coords);
-        let plain = Problem::new(model, start.clone(), free, trials)?;
-        let u = analyze(&plain, &pre, &UncertaintyOptions::default());
-        let kappa = jointfit::calibrate::prior::correlation_inflation(&u);
-        let sigma = (red.sigma2() * kappa).sqrt();
-        if sigma.is_finite() && sigma > 0.0 {
-            if let Some(pr) = prob.prior.as_mut() {
-                pr.noise = sigma;
-            }
-        }
+    pub fn finish(&mut self) {
+        self.bars.finish();
     }
-    let cost_before = data_before + prob.prior_cost(&start);
-    // Progress on stderr (see `progress`) and the objective per stage for the report.
-    let mut bars = crate::progress::StageProgress::new("iterations");
-    let mut convergence: Vec<ConvergenceStage> = Vec::new();
-    let mut step = |stage: &str, iteration: usize, expected: Option<usize>, cost: f64| {
-        let mm2 = cost * MM * MM;
+}
+
+impl Observer for ProgressObserver {
+    fn stage_started(&mut self, stage: &str, budget: Option<usize>) {
+        self.stage = stage.to_string();
+        self.budget = budget;
+    }
+    fn iteration(&mut self, iteration: usize, objective: f64) {
+        let mm2 = objective * jointfit::model::MM_PER_M * jointfit::model::MM_PER_M;
         let msg = format!("objective {mm2:.1} mm²");
-        bars.step(stage, iteration as u64, expected.map(|n| n as u64), &msg);
-        match convergence.last_mut() {
-            Some(c) if c.stage == stage => c.objective_mm2.push(mm2),
-            _ => convergence.push(ConvergenceStage {
-                stage: stage.to_string(),
-                objective_mm2: vec![mm2],
-            }),
-        }
-    };
-    let fit = match method {
-        Method::Joint => {
-            let stage = "joint Levenberg-Marquardt";
-            step(stage, 0, None, cost_before);
-            let opts = JointOptions::default();
-            solve_joint_observed(&prob, &s0, q0, &opts, |i, c| step(stage, i, None, c))
-        }
-        Method::Gradient => {
-            let stage = "two-level Gauss-Newton";
-            step(stage, 0, None, cost_before);
-            let opts = VarProOptions::default();
-            solve_varpro_observed(&prob, &s0, q0, &opts, |i, c| step(stage, i, None, c))
-        }
-        Method::Pso => {
-            let opts = PsoOptions {
-                seed,
-                ..PsoOptions::default()
-            };
-            // The swarm usually runs to its budget: a bar with an ETA.
-            let max = Some(opts.max_iterations);
-            let swarm = solve_pso(&prob, &q0, &opts, |i, c| step("particle swarm", i, max, c));
-            let stage = "joint Levenberg-Marquardt polish";
-            step(stage, 0, None, swarm.cost);
-            let mut polished = solve_joint_observed(
-                &prob,
-                &swarm.s,
-                swarm.coords.clone(),
-                &JointOptions::default(),
-                |i, c| step(stage, i, None, c),
-            );
-            polished.iterations += swarm.iterations;
-            polished.evaluations += swarm.evaluations;
-            polished
-        }
-    };
-    bars.finish();
-    let (fit, multistart) = if starts > 1 && method != Method::Pso {
-        let (best, summary) = multi_start(&prob, &start, fit, starts, seed, method);
-        (best, Some(summary))
-    } else {
-        (fit, None)
-    };
-    let seconds = clock.elapsed().as_secs_f64();
-    let names = |v: Vec<f64>| -> Vec<(String, f64)> {
-        model
-            .markers()
-            .iter()
-            .zip(v)
-            .map(|(m, r)| (m.name.clone(), r * MM))
-            .collect()
-    };
-    let parameters = prob
-        .free
-        .iter()
-        .map(|&i| {
-            let par = &model.parameters()[i];
-            let (unit, k) = match par.unit {
-                Unit::Metre => ("mm", MM),
-                Unit::Radian => ("deg", 180.0 / std::f64::consts::PI),
-            };
-            let prior_sd = prob.prior.as_ref().and(par.prior_sd);
-            ParamReport {
-                name: par.name.clone(),
-                group: par.group.clone(),
-                unit,
-                start: start[i] * k,
-                fitted: fit.p[i] * k,
-                change: (fit.p[i] - start[i]) * k,
-                se: None,
-                ci95: None,
-                identifiability: None,
-                uncertainty_method: None,
-                prior_sd: prior_sd.map(|s| s * k),
-                prior_mean: prior_sd.map(|_| par.prior_mean * k),
-                data_share: None,
-                source: None,
-            }
-        })
-        .collect();
-    let report = Report {
-        method,
-        frames: prob.frames.len(),
-        skipped_frames: prob.skipped.len(),
-        free_parameters: prob.n_free(),
-        parameters,
-        rms_before_mm: prob.marker_rms(&start, &q_before) * MM,
-        rms_after_mm: prob.marker_rms(&fit.p, &fit.coords) * MM,
-        marker_rms_before_mm: names(per_marker_rms(&prob, &start, &q_before)),
-        marker_rms_after_mm: names(per_marker_rms(&prob, &fit.p, &fit.coords)),
-        cost_before,
-        cost_after: fit.cost,
-        iterations: fit.iterations,
-        evaluations: fit.evaluations,
-        converged: fit.converged,
-        seconds,
-        convergence,
-        uncertainty: None,
-        fixed_unidentifiable: Vec::new(),
-        multistart,
-        prior_noise_mm: prob.prior.as_ref().map(|p| p.noise * MM),
-        prior_noise_estimated: noise.is_none(),
-        plausibility: jointfit::plausibility::check(model, &fit.p),
-    };
-    Ok((fit, report))
-}
-
-/// What several starts found (`--starts N`).
-#[derive(Debug, Clone, Serialize)]
-pub struct MultiStart {
-    pub starts: usize,
-    /// Final objective of every start (mm²); start 0 is the given start.
-    pub objective_mm2: Vec<f64>,
-    /// Starts whose objective is within 1e-9 (relative) of the best.
-    pub reached_best: usize,
-    /// Per free parameter: the range (max − min) of its fitted value over the starts
-    /// (mm or deg).
-    pub spread: Vec<(String, f64)>,
-}
-
-/// Refits from `starts − 1` further starting points, the start moved by up to ±20 mm and
-/// ±10° on every free parameter (uniform, seeded by `seed`), and keeps the lowest
-/// objective. The noisy problem can have local minima (Reinbolt et al. 2005 used a global
-/// swarm for that reason); the spread of the optima tells how much it matters here.
-fn multi_start(
-    prob: &Problem,
-    start: &[f64],
-    first: Fit,
-    starts: usize,
-    seed: u64,
-    method: Method,
-) -> (Fit, MultiStart) {
-    let mut fits = vec![first];
-    for k in 1..starts {
-        let restart = jointfit_experiments::protocol::FitSettings::default();
-        let p0 = jointfit_experiments::synth::restart_point(
-            prob.model,
-            start,
-            &prob.free,
-            restart.restart_mm,
-            restart.restart_deg,
-            seed,
-            k,
+        let stage = self.stage.clone();
+        self.bars.step(
+            &stage,
+            iteration as u64,
+            self.budget.map(|n| n as u64),
+            &msg,
         );
-        let q0 = prob.initial_coords(&p0);
-        let s0 = prob.to_scaled(&p0);
-        fits.push(match method {
-            Method::Gradient => {
-                solve_varpro_observed(prob, &s0, q0, &VarProOptions::default(), |_, _| {})
-            }
-            _ => solve_joint_observed(prob, &s0, q0, &JointOptions::default(), |_, _| {}),
-        });
-    }
-    let best = (0..fits.len())
-        .min_by(|&a, &b| fits[a].cost.total_cmp(&fits[b].cost))
-        .expect("at least one start");
-    let best_cost = fits[best].cost;
-    let spread = prob
-        .free
-        .iter()
-        .map(|&i| {
-            let par = &prob.model.parameters()[i];
-            let k = match par.unit {
-                Unit::Metre => MM,
-                Unit::Radian => 180.0 / std::f64::consts::PI,
-            };
-            let (lo, hi) = fits
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), f| {
-                    (lo.min(f.p[i]), hi.max(f.p[i]))
-                });
-            (par.name.clone(), (hi - lo) * k)
-        })
-        .collect();
-    let summary = MultiStart {
-        starts,
-        objective_mm2: fits.iter().map(|f| f.cost * MM * MM).collect(),
-        reached_best: fits
-            .iter()
-            .filter(|f| f.cost - best_cost <= 1e-9 * best_cost)
-            .count(),
-        spread,
-    };
-    (fits.swap_remove(best), summary)
-}
-
-/// Uncertainty settings from the command line.
-pub fn uncertainty_options(
-    threshold_mm: f64,
-    threshold_deg: f64,
-    bootstrap: usize,
-    seed: u64,
-) -> UncertaintyOptions {
-    UncertaintyOptions {
-        threshold_m: threshold_mm / MM,
-        threshold_rad: threshold_deg.to_radians(),
-        bootstrap_replicates: bootstrap,
-        seed,
-        ..UncertaintyOptions::default()
     }
 }
 
-/// Adds the uncertainty of `fit` (free parameters `free`, same trials and start) to `report`.
-pub fn attach_uncertainty(
-    model: &Model,
-    start: &[f64],
-    trials: &[&Trial],
-    free: &[ParamId],
-    fit: &Fit,
-    opts: &UncertaintyOptions,
-    report: &mut Report,
-) -> Result<()> {
-    let mut prob = Problem::new(model, start.to_vec(), free, trials)?;
-    if let Some(noise_mm) = report.prior_noise_mm {
-        prob = prob.with_model_prior(noise_mm / MM);
+/// The settings of a run from the command line.
+pub fn fit_settings(args: &CalibrateArgs) -> FitSettings {
+    FitSettings {
+        method: args.method.into(),
+        seed: args.seed,
+        starts: args.starts as usize,
+        uncertainty: Some(uncertainty_options(
+            args.threshold_mm,
+            args.threshold_deg,
+            args.bootstrap,
+            args.seed,
+        )),
+        fix_unidentifiable: args.fix_unidentifiable,
+        priors: args.prior != crate::prior_args::PriorArg::None,
+        marker_noise: args
+            .marker_noise_mm
+            .map(|mm| mm * jointfit::model::M_PER_MM),
+        ..FitSettings::default()
     }
-    let u = analyze(&prob, fit, opts);
-    if prob.prior.is_some() {
-        let red = jointfit::calibrate::uncertainty::reduced_system(&prob, &fit.p, &fit.coords);
-        let share = jointfit::calibrate::prior::data_share(&prob, &red.normal);
-        for (row, (&sh, &i)) in report
-            .parameters
-            .iter_mut()
-            .zip(share.iter().zip(&prob.free))
-        {
-            if model.parameters()[i].prior_sd.is_some() && sh.is_finite() {
-                row.data_share = Some(sh);
-                row.source = Some(jointfit::calibrate::prior::Source::of(sh));
-            }
-        }
-    }
-    for (row, pu) in report.parameters.iter_mut().zip(&u.params) {
-        row.se = pu.se;
-        row.ci95 = pu.ci;
-        row.identifiability = Some(pu.status);
-        row.uncertainty_method = Some(pu.method);
-    }
-    report.uncertainty = Some(u);
-    Ok(())
 }
 
-/// Calibrates, analyses the uncertainty and, with `fix_unidentifiable`, refits with the
-/// parameters the trials cannot determine held at their starting values.
-#[allow(clippy::too_many_arguments)]
-pub fn calibrate_with_uncertainty(
-    model: &Model,
-    start: Vec<f64>,
-    trials: &[&Trial],
-    groups: &[&str],
-    method: Method,
-    seed: u64,
-    opts: &UncertaintyOptions,
-    fix_unidentifiable: bool,
-    starts: usize,
-    noise: Option<f64>,
-) -> Result<(Fit, Report)> {
-    let mut free = params_for_groups(model, groups)?;
-    let (mut fit, mut report) = calibrate_params(
-        model,
-        start.clone(),
-        trials,
-        &free,
-        method,
-        seed,
-        starts,
-        noise,
-    )?;
-    let mut fixed = Vec::new();
-    // Subset selection plans on the reduced normal matrix of the current fit; a refit moves
-    // the optimum a little, so the selection is repeated (at most three rounds).
-    for _ in 0..if fix_unidentifiable { 3 } else { 0 } {
-        let mut prob = Problem::new(model, start.clone(), &free, trials)?;
-        if let Some(noise_mm) = report.prior_noise_mm {
-            prob = prob.with_model_prior(noise_mm / MM);
-        }
-        let drop = unidentifiable_subset(&prob, &fit, opts);
-        if drop.is_empty() {
-            break;
-        }
-        if drop.len() == free.len() {
-            bail!(
-                "no parameter of {} can be determined from these trials within the thresholds; \
-                 nothing left to fit",
-                groups.join(",")
-            );
-        }
-        fixed.extend(
-            drop.iter()
-                .map(|&k| model.parameters()[free[k].0].name.clone()),
-        );
-        free = free
-            .iter()
-            .enumerate()
-            .filter(|(k, _)| !drop.contains(k))
-            .map(|(_, id)| *id)
-            .collect();
-        (fit, report) = calibrate_params(
-            model,
-            start.clone(),
-            trials,
-            &free,
-            method,
-            seed,
-            starts,
-            noise,
-        )?;
-    }
-    attach_uncertainty(model, &start, trials, &free, &fit, opts, &mut report)?;
-    report.fixed_unidentifiable = fixed;
-    Ok((fit, report))
-}
-
-pub fn print_report(report: &Report) {
+pub fn print_report(report: &Calibration, seconds: f64) {
     println!(
-        "{:?}: {} free parameters, {} frames ({} skipped), {} iterations, {} evaluations, {:.3} s{}",
+        "{}: {} free parameters, {} frames ({} skipped), {} iterations, {} evaluations, {:.3} s{}",
         report.method,
         report.free_parameters,
         report.frames,
         report.skipped_frames,
         report.iterations,
         report.evaluations,
-        report.seconds,
-        if report.converged { "" } else { " (not converged)" }
+        seconds,
+        match report.termination {
+            Termination::Converged => String::new(),
+            t => format!(" (not converged: {t})"),
+        }
     );
     if let Some(ms) = &report.multistart {
         let lo = ms
@@ -597,8 +202,13 @@ pub fn print_report(report: &Report) {
             .copied()
             .fold(f64::NEG_INFINITY, f64::max);
         println!(
-            "{} starts: {} reached the best objective (to 1e-9); objectives {:.3} to {:.3} mm²",
-            ms.starts, ms.reached_best, lo, hi
+            "{} starts: {} reached the best objective (to 1e-9); objectives {:.3} to {:.3} mm²; \
+             kept start {}",
+            ms.starts,
+            ms.reached_best,
+            lo,
+            hi,
+            report.best_start + 1
         );
         let mut wide: Vec<&(String, f64)> = ms.spread.iter().filter(|(_, r)| *r > 0.1).collect();
         wide.sort_by(|a, b| b.1.total_cmp(&a.1));
@@ -684,7 +294,7 @@ pub fn print_report(report: &Report) {
 }
 
 /// With a prior: which parameters the trial determined, and the weighting noise.
-fn print_prior_summary(report: &Report, noise_mm: f64) {
+fn print_prior_summary(report: &Calibration, noise_mm: f64) {
     println!(
         "maximum a posteriori fit: priors from the model file, marker noise σ = {noise_mm:.2} \
          mm ({}); intervals include the prior",
@@ -779,27 +389,17 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     crate::prior_args::apply(&mut fit_spec, args.prior, &args.prior_sd)?;
     if let Some(mm) = args.marker_noise_mm {
         if !(mm.is_finite() && mm > 0.0) {
-            bail!("--marker-noise-mm must be a positive number of millimetres, got {mm}");
+            anyhow::bail!("--marker-noise-mm must be a positive number of millimetres, got {mm}");
         }
     }
-    let model = Model::compile(&fit_spec)?;
-    let mut start = model.nominal_params();
-    if let Some(seed) = &args.seed_from {
-        let earlier = jointfit_io::model_file::load_model(seed)?;
-        for (i, par) in model.parameters().iter().enumerate() {
-            match earlier.param_id(&par.name) {
-                Some(id) => {
-                    start[i] = earlier.parameters()[id.0]
-                        .nominal
-                        .clamp(par.lower, par.upper)
-                }
-                None => bail!(
-                    "{seed}: has no parameter {:?} of the subject model",
-                    par.name
-                ),
-            }
+    let model = jointfit::model::Model::compile(&fit_spec)?;
+    let start = match &args.seed_from {
+        Some(seed) => {
+            let earlier = jointfit_io::model_file::load_model(seed)?;
+            workflow::transfer_params(&model, &earlier, seed)?
         }
-    }
+        None => model.nominal_params(),
+    };
     let trials: Vec<Trial> = args
         .trials
         .iter()
@@ -810,51 +410,107 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     }
     let refs: Vec<&Trial> = trials.iter().collect();
     let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
-    let opts = uncertainty_options(
-        args.threshold_mm,
-        args.threshold_deg,
-        args.bootstrap,
-        args.seed,
-    );
-    let (fit, report) = calibrate_with_uncertainty(
+    let free = params_for_groups(&model, &groups)?;
+    let clock = Instant::now();
+    let mut observer = ProgressObserver::new();
+    let cal = workflow::calibrate(
         &model,
-        start.clone(),
+        &start,
         &refs,
-        &groups,
-        args.method,
-        args.seed,
-        &opts,
-        args.fix_unidentifiable,
-        args.starts as usize,
-        args.marker_noise_mm.map(|mm| mm / MM),
+        &free,
+        &fit_settings(&args),
+        &mut observer,
     )?;
-    if !report.converged && !args.accept_unconverged {
+    observer.finish();
+    let seconds = clock.elapsed().as_secs_f64();
+    if !cal.converged && !args.accept_unconverged {
         if args.json {
+            let report = Report {
+                calibration: &cal,
+                seconds,
+            };
             println!("{}", serde_json::to_string_pretty(&report)?);
         } else {
-            print_report(&report);
+            print_report(&cal, seconds);
         }
-        return Err(crate::output::Unconverged("the calibration".into()).into());
+        return Err(
+            crate::output::Unconverged(format!("the calibration ({})", cal.termination)).into(),
+        );
     }
     // The fitted model keeps the input file's priors (overrides apply to this run only).
-    let mut fitted = input_model.spec_with_nominal(&fit.p);
+    let mut fitted = input_model.spec_with_nominal(&cal.fit.p);
     fitted.name = format!("{} (fitted)", spec.name);
     jointfit_io::model_file::save_spec(&args.output, &fitted)
         .with_context(|| format!("writing {}", args.output.display()))?;
     let html = match &args.report {
         Some(dir) => Some(crate::report_cmd::write_calibration_report(
-            dir, &args, &spec.name, &model, &start, &refs, &fit, &report,
+            dir,
+            &spec.name,
+            baseline_label(&args),
+            &model,
+            &named_trials(&args.trials, &refs),
+            &cal,
+            &provenance(&args),
+            seconds,
         )?),
         None => None,
     };
     if args.json {
+        let report = Report {
+            calibration: &cal,
+            seconds,
+        };
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        print_report(&report);
+        print_report(&cal, seconds);
         println!("wrote {}", args.output.display());
         if let Some(path) = html {
             println!("wrote {}", path.display());
         }
     }
     Ok(())
+}
+
+/// What the report compares the fit with.
+fn baseline_label(args: &CalibrateArgs) -> &'static str {
+    if args.seed_from.is_some() {
+        "start (earlier fit)"
+    } else if Path::new(&args.model).is_file() {
+        "landmark model"
+    } else {
+        "nominal model"
+    }
+}
+
+fn named_trials<'t>(paths: &[PathBuf], trials: &[&'t Trial]) -> Vec<(String, &'t Trial)> {
+    paths
+        .iter()
+        .map(|p| crate::report_cmd::display_name(p))
+        .zip(trials.iter().copied())
+        .collect()
+}
+
+/// The files and options of this run, for the report's settings table.
+fn provenance(args: &CalibrateArgs) -> jointfit_report::calibration::Provenance {
+    let mut inputs = vec![
+        ("subject model".to_string(), args.model.clone()),
+        (
+            "start parameters".to_string(),
+            args.seed_from
+                .clone()
+                .map(|s| format!("from {s}"))
+                .unwrap_or_else(|| "the subject model's values".into()),
+        ),
+        (
+            "fitted model".to_string(),
+            args.output.display().to_string(),
+        ),
+        ("parameter groups".to_string(), args.joints.join(", ")),
+    ];
+    inputs.extend(crate::report_cmd::trial_settings(
+        &args.trials,
+        args.up,
+        args.filter,
+    ));
+    crate::report_cmd::provenance(inputs)
 }

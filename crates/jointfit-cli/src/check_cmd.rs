@@ -11,12 +11,13 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
-use jointfit::calibrate::uncertainty::{predict, CoordRange, Identifiability, Uncertainty};
-use jointfit::calibrate::{params_for_groups, Problem};
+use jointfit::calibrate::params_for_groups;
+use jointfit::calibrate::uncertainty::{Identifiability, UncertaintyOptions};
+use jointfit::model::Unit;
+use jointfit::workflow;
 use serde::Serialize;
 
-use crate::calibrate_cmd::uncertainty_options;
-use crate::common::{load_trial, Up, MM};
+use crate::common::{load_trial, Up};
 
 #[derive(Args)]
 pub struct CheckArgs {
@@ -48,21 +49,12 @@ pub struct CheckArgs {
     pub json: bool,
 }
 
+/// `check --json`: the trial and what [`workflow::check`] found.
 #[derive(Serialize)]
 pub struct CheckReport {
     pub trial: String,
-    pub frames: usize,
-    pub skipped_frames: usize,
-    /// RMS marker distance of IK with the nominal model (mm).
-    pub ik_rms_mm: f64,
-    /// Range of motion per coordinate (deg or mm) from IK with the nominal model.
-    pub ranges: Vec<CoordRange>,
-    /// Predicted uncertainty of the free parameters at their nominal values.
-    pub prediction: Uncertainty,
-    /// Names of the parameters the trial is predicted to determine within the thresholds.
-    pub determined: Vec<String>,
-    /// Names of the parameters it is predicted not to determine.
-    pub not_determined: Vec<String>,
+    #[serde(flatten)]
+    pub check: workflow::CheckReport,
 }
 
 pub fn run(args: CheckArgs) -> Result<()> {
@@ -70,27 +62,13 @@ pub fn run(args: CheckArgs) -> Result<()> {
     let trial = load_trial(&args.trial, args.up, args.filter)?;
     let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
     let free = params_for_groups(&model, &groups)?;
-    let nominal = model.nominal_params();
-    let prob = Problem::new(&model, nominal.clone(), &free, &[&trial])?;
-    let qs = prob.initial_coords(&nominal);
-    let opts = jointfit::calibrate::uncertainty::UncertaintyOptions {
-        assumed_sigma_m: args.noise_mm.map(|v| v / MM),
-        ..uncertainty_options(args.threshold_mm, args.threshold_deg, 0, 1)
+    let opts = UncertaintyOptions {
+        assumed_sigma_m: args.noise_mm.map(|v| Unit::Metre.from_display(v)),
+        ..workflow::uncertainty_options(args.threshold_mm, args.threshold_deg, 0, 1)
     };
-    let prediction = predict(&prob, &nominal, &qs, &opts);
-    let (determined, not_determined): (Vec<_>, Vec<_>) = prediction
-        .params
-        .iter()
-        .partition(|p| p.status == Identifiability::Determined);
     let report = CheckReport {
         trial: args.trial.display().to_string(),
-        frames: prob.frames.len(),
-        skipped_frames: prob.skipped.len(),
-        ik_rms_mm: prob.marker_rms(&nominal, &qs) * MM,
-        ranges: prediction.ranges.clone(),
-        determined: determined.iter().map(|p| p.name.clone()).collect(),
-        not_determined: not_determined.iter().map(|p| p.name.clone()).collect(),
-        prediction,
+        check: workflow::check(&model, &model.nominal_params(), &[&trial], &free, &opts)?,
     };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
@@ -100,10 +78,11 @@ pub fn run(args: CheckArgs) -> Result<()> {
     Ok(())
 }
 
-fn print_check(r: &CheckReport) {
+fn print_check(report: &CheckReport) {
+    let r = &report.check;
     println!(
         "{}: {} frames ({} skipped), IK with the nominal model: RMS {:.2} mm",
-        r.trial, r.frames, r.skipped_frames, r.ik_rms_mm
+        report.trial, r.frames, r.skipped_frames, r.ik_rms_mm
     );
     println!("\nrange of motion (IK, nominal model)");
     let mut t = crate::table::Table::new(&["joint", "coordinate", "unit", "min", "max", "range"]);

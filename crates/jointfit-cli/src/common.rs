@@ -1,11 +1,11 @@
-//! Shared pieces of the subcommands: reading trials, units, per-marker summaries.
+//! Shared pieces of the subcommands: the up-axis option and reading trials with warnings.
 
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::ValueEnum;
-use jointfit::signal::{filter_trial, LowPass};
-use jointfit::trial::{up_axis_rotation, Trial, UpAxis};
+use jointfit::trial::{Trial, UpAxis};
+use jointfit_io::trial_file::{LoadOptions, TrialFileError};
 
 /// Which lab axis points up in the input file.
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -26,37 +26,30 @@ impl From<Up> for UpAxis {
     }
 }
 
-/// Reads a motion file, rotates it to Y-up and low-pass filters it when asked; prints the
-/// reader's notes (assumed units, short data, extra rows, …) and warns when filtering moves a
-/// marker by more than 2 cm, on stderr.
+/// Reads a motion file, checks it is plausible, rotates it to Y up and low-pass filters it
+/// when asked ([`jointfit_io::trial_file::prepare_trial`]), printing its warnings on stderr.
 pub fn load_trial(path: &Path, up: Up, filter_hz: Option<f64>) -> Result<Trial> {
-    let (mut trial, notes) = jointfit_io::trial_file::read_trial_noted(path)?;
+    let (trial, notes) = jointfit_io::trial_file::read_trial_noted(path)?;
     crate::validate::check_trial(path, &trial)?;
     for note in notes {
         eprintln!("jointfit: warning: {}: {note}", path.display());
     }
-    trial.rotate(&up_axis_rotation(up.into()));
-    if let Some(hz) = filter_hz {
-        let lp = LowPass {
-            cutoff_hz: hz,
-            ..LowPass::default()
-        };
-        let (filtered, report) = filter_trial(&trial, &lp)
-            .with_context(|| format!("{}: --filter {hz} Hz", path.display()))?;
-        for m in report.moved_more_than(0.02) {
-            eprintln!(
-                "jointfit: warning: {}: filtering moved marker {} by {:.1} mm",
-                path.display(),
-                m.label,
-                m.max_displacement_m * 1e3
-            );
+    let options = LoadOptions {
+        up: up.into(),
+        filter_hz,
+    };
+    let (trial, warnings) = match jointfit_io::trial_file::prepare_trial(trial, path, &options) {
+        Ok(ok) => ok,
+        Err(TrialFileError::Filter { path, hz, source }) => {
+            return Err(anyhow::Error::new(source).context(format!("{path}: --filter {hz} Hz")))
         }
-        trial = filtered;
+        Err(e) => return Err(e.into()),
+    };
+    for w in warnings {
+        eprintln!("jointfit: warning: {w}");
     }
     Ok(trial)
 }
-
-pub const MM: f64 = 1e3;
 
 /// Runs the data checks of `trial` against `model` ([`jointfit::checks`]): warnings go to
 /// stderr, one line each; an error (e.g. wrong units) stops the command. Returns the findings.

@@ -10,7 +10,10 @@ use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::{Model, Unit};
 use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion, SkinNoise};
 
-use crate::calibrate_cmd::{calibrate_with_uncertainty, print_report, Method};
+use jointfit::calibrate::params_for_groups;
+use jointfit::workflow::{self, FitSettings};
+
+use crate::calibrate_cmd::{print_report, MethodArg, ProgressObserver};
 
 #[derive(Args)]
 pub struct DemoArgs {
@@ -24,7 +27,7 @@ pub struct DemoArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     #[arg(long, value_enum, default_value = "joint")]
-    pub method: Method,
+    pub method: MethodArg,
 }
 
 pub fn run(args: DemoArgs) -> Result<()> {
@@ -51,19 +54,25 @@ pub fn run(args: DemoArgs) -> Result<()> {
         noise_rms * 1e3,
         args.seed
     );
-    let (fit, report) = calibrate_with_uncertainty(
+    let settings = FitSettings {
+        method: args.method.into(),
+        seed: args.seed,
+        uncertainty: Some(jointfit::calibrate::uncertainty::UncertaintyOptions::default()),
+        ..FitSettings::default()
+    };
+    let clock = std::time::Instant::now();
+    let mut observer = ProgressObserver::new();
+    let report = workflow::calibrate(
         &model,
-        model.nominal_params(),
+        &model.nominal_params(),
         &[&trial],
-        &["all"],
-        args.method,
-        args.seed,
-        &jointfit::calibrate::uncertainty::UncertaintyOptions::default(),
-        false,
-        1,
-        None,
+        &params_for_groups(&model, &["all"])?,
+        &settings,
+        &mut observer,
     )?;
-    print_report(&report);
+    observer.finish();
+    print_report(&report, clock.elapsed().as_secs_f64());
+    let fit = &report.fit;
     let mut t = crate::table::Table::new(&[
         "parameter",
         "unit",
@@ -76,10 +85,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
     let mut inside = 0usize;
     let (mut pos, mut ori) = (Vec::new(), Vec::new());
     for (i, par) in model.parameters().iter().enumerate() {
-        let k = match par.unit {
-            Unit::Metre => 1e3,
-            Unit::Radian => 180.0 / std::f64::consts::PI,
-        };
+        let k = par.unit.display_scale();
         let err = (fit.p[i] - truth[i]) * k;
         match par.unit {
             Unit::Metre => pos.push(err),
@@ -87,7 +93,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         }
         t.row(vec![
             par.name.clone(),
-            if par.unit == Unit::Metre { "mm" } else { "deg" }.to_string(),
+            par.unit.to_string(),
             format!("{:.2}", truth[i] * k),
             format!("{:.2}", par.nominal * k),
             format!("{:.2}", fit.p[i] * k),

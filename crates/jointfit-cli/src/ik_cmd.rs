@@ -7,12 +7,12 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use jointfit::ik::{solve_trial, unsolved_ranges, IkOptions, MarkerMap, TrialFit};
 use jointfit::model::custom::MotionType;
-use jointfit::model::Model;
+use jointfit::model::{Model, MM_PER_M};
 use jointfit::trial::Trial;
 use jointfit_io::sto::{write_sto, Table};
 use serde::Serialize;
 
-use crate::common::{load_trial, Up, MM};
+use crate::common::{load_trial, Up};
 
 #[derive(Args)]
 pub struct IkArgs {
@@ -223,13 +223,13 @@ fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f64) -> Summ
             .count(),
         rejected,
         checks: Vec::new(),
-        mean_frame_rms_mm: rms.iter().sum::<f64>() / rms.len().max(1) as f64 * MM,
-        max_frame_rms_mm: rms.iter().cloned().fold(0.0, f64::max) * MM,
+        mean_frame_rms_mm: rms.iter().sum::<f64>() / rms.len().max(1) as f64 * MM_PER_M,
+        max_frame_rms_mm: rms.iter().cloned().fold(0.0, f64::max) * MM_PER_M,
         marker_rms_mm: model
             .markers()
             .iter()
             .enumerate()
-            .map(|(j, m)| (m.name.clone(), fit.marker_rms(j) * MM))
+            .map(|(j, m)| (m.name.clone(), fit.marker_rms(j) * MM_PER_M))
             .collect(),
         solve_seconds: seconds,
         frames_per_second: fit.frames.len() as f64 / seconds.max(1e-12),
@@ -327,7 +327,7 @@ fn errors_csv(model: &Model, trial: &Trial, fit: &TrialFit) -> String {
         if v.is_nan() {
             String::new()
         } else {
-            format!("{:.4}", v * MM)
+            format!("{:.4}", v * MM_PER_M)
         }
     };
     for f in 0..fit.frames.len() {

@@ -2,7 +2,7 @@
 
 use anyhow::Result;
 use clap::Subcommand;
-use jointfit::model::{CoordKind, JointKind, Model, Unit};
+use jointfit::model::{CoordKind, JointKind, Model};
 use serde::Serialize;
 
 use crate::table::Table;
@@ -160,10 +160,7 @@ impl Summary {
                 .parameters()
                 .iter()
                 .map(|p| {
-                    let (unit, k) = match p.unit {
-                        Unit::Radian => ("deg", 180.0 / std::f64::consts::PI),
-                        Unit::Metre => ("mm", 1000.0),
-                    };
+                    let (unit, k) = (p.unit.display_suffix(), p.unit.display_scale());
                     ParamRow {
                         group: p.group.clone(),
                         segment: seg_name(p.uses[0].segment),

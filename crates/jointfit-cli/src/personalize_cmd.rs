@@ -10,7 +10,6 @@ use jointfit::landmarks::{
     personalize_with, HipCentreMethod, MarkerSet, PersonalizeOptions, Personalized, PRESET_NAMES,
 };
 use jointfit::model::lower_limb::Side;
-use jointfit::model::Unit;
 use serde::Serialize;
 
 use crate::common::{load_trial, Up};
@@ -277,13 +276,7 @@ impl Summary {
             .spec
             .parameters
             .iter()
-            .map(|p| {
-                let k = match p.unit {
-                    Unit::Radian => 180.0 / std::f64::consts::PI,
-                    Unit::Metre => 1e3,
-                };
-                (p.name.clone(), p.nominal * k)
-            })
+            .map(|p| (p.name.clone(), p.unit.to_display(p.nominal)))
             .collect();
         let static_pose = r
             .spec
@@ -337,11 +330,8 @@ impl Summary {
                 .parameters
                 .iter()
                 .filter_map(|p| {
-                    let k = match p.unit {
-                        Unit::Radian => 180.0 / std::f64::consts::PI,
-                        Unit::Metre => 1e3,
-                    };
-                    p.prior_sd.map(|sd| (p.name.clone(), sd * k))
+                    p.prior_sd
+                        .map(|sd| (p.name.clone(), sd * p.unit.display_scale()))
                 })
                 .collect(),
         }

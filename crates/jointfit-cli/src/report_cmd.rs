@@ -6,14 +6,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use jointfit::calibrate::Fit;
 use jointfit::ik::IkOptions;
 use jointfit::model::Model;
 use jointfit::trial::Trial;
+use jointfit::workflow::Calibration;
 use jointfit_report::analyze::{analyze_with_progress, parameter_rows};
-use jointfit_report::{Convergence, ReportInput};
+use jointfit_report::ReportInput;
 
-use crate::calibrate_cmd::{CalibrateArgs, Report};
 use crate::common::{load_trial, Up};
 use crate::progress::Progress;
 
@@ -123,13 +122,13 @@ fn load_trials(paths: &[PathBuf], up: Up, filter: Option<f64>) -> Result<Vec<(St
         .collect()
 }
 
-fn display_name(p: &Path) -> String {
+pub fn display_name(p: &Path) -> String {
     p.file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| p.display().to_string())
 }
 
-fn trial_settings(trials: &[PathBuf], up: Up, filter: Option<f64>) -> Vec<(String, String)> {
+pub fn trial_settings(trials: &[PathBuf], up: Up, filter: Option<f64>) -> Vec<(String, String)> {
     vec![
         (
             "trials".to_string(),
@@ -186,120 +185,44 @@ pub fn command_line() -> String {
         .join(" ")
 }
 
+/// The provenance of a report made by this process: its command line, `inputs`, the
+/// jointfit version and the date.
+pub fn provenance(inputs: Vec<(String, String)>) -> jointfit_report::calibration::Provenance {
+    jointfit_report::calibration::Provenance {
+        command_line: command_line(),
+        inputs,
+        version: env!("CARGO_PKG_VERSION").to_string(),
+        date: jointfit_report::utc_now(),
+    }
+}
+
 /// Writes the report of a finished calibration; returns the path of `index.html`.
 #[allow(clippy::too_many_arguments)]
 pub fn write_calibration_report(
     dir: &Path,
-    args: &CalibrateArgs,
     model_name: &str,
+    baseline_label: &str,
     model: &Model,
-    start: &[f64],
-    trials: &[&Trial],
-    fit: &Fit,
-    report: &Report,
+    trials: &[(String, &Trial)],
+    cal: &Calibration,
+    provenance: &jointfit_report::calibration::Provenance,
+    seconds: f64,
 ) -> Result<PathBuf> {
-    let baseline_label = if args.seed_from.is_some() {
-        "start (earlier fit)"
-    } else if Path::new(&args.model).is_file() {
-        "landmark model"
-    } else {
-        "nominal model"
-    };
-    let mut input = ReportInput {
-        title: format!("{model_name} (fitted)"),
-        baseline_label: baseline_label.into(),
-        fitted_label: "fitted model".into(),
-        ..ReportInput::default()
-    };
-    let named: Vec<(String, &Trial)> = args
-        .trials
-        .iter()
-        .map(|p| display_name(p))
-        .zip(trials.iter().copied())
-        .collect();
     let mut bar = Progress::new("report: inverse kinematics", None).unit("passes");
-    analyze_with_progress(
-        &mut input,
+    let input = jointfit_report::calibration::calibration_input(
+        &format!("{model_name} (fitted)"),
+        baseline_label,
         model,
-        &fit.p,
-        Some(start),
-        &named,
-        &IkOptions::default(),
+        cal,
+        trials,
+        provenance,
+        seconds,
         &mut |done, total| {
             bar.set_total(Some(total as u64));
             bar.set(done as u64, "");
         },
     )?;
     bar.finish("");
-    let free: Vec<usize> = report
-        .parameters
-        .iter()
-        .filter_map(|p| model.param_id(&p.name).map(|id| id.0))
-        .collect();
-    input.parameters = parameter_rows(model, &fit.p, Some(start), Some(&free));
-    // The 95 % intervals of the uncertainty analysis (mm/deg, as the report's table).
-    for p in &report.parameters {
-        if let (Some(se), Some([lower, upper])) = (p.se, p.ci95) {
-            input.set_interval(
-                &p.name,
-                jointfit_report::Interval {
-                    se,
-                    lower,
-                    upper,
-                    level: 0.95,
-                },
-            );
-        }
-    }
-    let method = format!("{:?}", report.method).to_lowercase();
-    input.convergence = Some(Convergence {
-        method: method.clone(),
-        stages: report
-            .convergence
-            .iter()
-            .map(|c| (c.stage.clone(), c.objective_mm2.clone()))
-            .collect(),
-        iterations: report.iterations,
-        evaluations: report.evaluations,
-        converged: report.converged,
-        seconds: report.seconds,
-    });
-    if report.skipped_frames > 0 {
-        input.notes.push(format!(
-            "{} frames were left out of the calibration because their markers left a coordinate undetermined.",
-            report.skipped_frames
-        ));
-    }
-    let mut settings = vec![
-        ("subject model".to_string(), args.model.clone()),
-        (
-            "start parameters".to_string(),
-            args.seed_from
-                .clone()
-                .map(|s| format!("from {s}"))
-                .unwrap_or_else(|| "the subject model's values".into()),
-        ),
-        (
-            "fitted model".to_string(),
-            args.output.display().to_string(),
-        ),
-        ("parameter groups".to_string(), args.joints.join(", ")),
-        ("method".to_string(), method.clone()),
-        (
-            "random seed".to_string(),
-            if report.method == crate::calibrate_cmd::Method::Pso {
-                args.seed.to_string()
-            } else {
-                format!("{} (not used by the {method} method)", args.seed)
-            },
-        ),
-        (
-            "frames fitted".to_string(),
-            format!("{} ({} skipped)", report.frames, report.skipped_frames),
-        ),
-    ];
-    settings.extend(trial_settings(&args.trials, args.up, args.filter));
-    input.settings = with_provenance(settings);
     jointfit_report::write_report(dir, &input)
         .with_context(|| format!("writing the report to {}", dir.display()))
 }

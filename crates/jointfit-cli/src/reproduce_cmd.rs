@@ -27,14 +27,15 @@ use jointfit::landmarks::{personalize, MarkerSet, PersonalizeOptions};
 use jointfit::model::lower_limb::Side;
 use jointfit::model::Model;
 use jointfit::trial::Trial;
-use jointfit_experiments::protocol::{experimental, FitSettings, OuterMethod};
+use jointfit::workflow::FitSettings;
+use jointfit_experiments::protocol::experimental;
 use jointfit_experiments::report::{
     run_synthetic_column_observed, ColumnSpec, ExperimentalColumn, Report, SyntheticColumn, Table2,
 };
 use jointfit_experiments::synth::{coordinates_scaled, gait_coordinates, Motion};
 use jointfit_io::atomic::write_atomic;
 
-use crate::calibrate_cmd::Method;
+use crate::calibrate_cmd::MethodArg;
 use crate::common::{load_trial, Up};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -60,7 +61,7 @@ pub struct ReproduceArgs {
     /// Outer optimizer. The paper used a particle swarm (single joints) and a gradient method
     /// (full leg); the joint solver reaches the same optima in a fraction of the time.
     #[arg(long, value_enum, default_value = "joint")]
-    pub method: Method,
+    pub method: MethodArg,
     /// Starts per fit: the given start plus this many minus one starts moved from it by up to
     /// 20 mm / 10° (seeded); the lowest cost wins. Ignored by --method pso.
     #[arg(long, default_value_t = 5, allow_negative_numbers = true, value_parser = crate::validate::runs)]
@@ -273,14 +274,6 @@ fn bounds_note(model: &Model, method: &str, p: &[f64]) -> Option<String> {
     })
 }
 
-fn outer(m: Method) -> OuterMethod {
-    match m {
-        Method::Joint => OuterMethod::Joint,
-        Method::Gradient => OuterMethod::Gradient,
-        Method::Pso => OuterMethod::Pso,
-    }
-}
-
 /// `git describe` of the source tree this binary was built from, when it is still there.
 fn git_describe() -> Option<String> {
     let out = std::process::Command::new("git")
@@ -363,7 +356,7 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
     }
     let data = data_dir(&args.data);
     let settings = FitSettings {
-        method: outer(args.method),
+        method: args.method.into(),
         starts: args.starts,
         ..FitSettings::default()
     };
@@ -566,7 +559,12 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
         "table": format!("{:?}", args.table).to_lowercase(),
         "data": if needs_data { Some(data.display().to_string()) } else { None },
         "synthetic_only": args.synthetic_only,
-        "fit": settings,
+        "fit": {
+            "method": settings.method,
+            "restart_deg": settings.restart_deg,
+            "restart_mm": settings.restart_mm,
+            "starts": settings.starts,
+        },
         "seeds": args.seeds,
         "first_seed": args.first_seed,
         "subject": args.subject,

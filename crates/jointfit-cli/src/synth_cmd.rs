@@ -11,8 +11,9 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
+use jointfit::workflow::perturb;
 use jointfit_experiments::synth::{
-    coordinates_scaled, gait_coordinates, perturb, synthesize, Motion, Noise, SkinNoise, WhiteNoise,
+    coordinates_scaled, gait_coordinates, synthesize, Motion, Noise, SkinNoise, WhiteNoise,
 };
 use jointfit_io::trc::{write_trc, TrcUnits, TrcWriteOptions};
 

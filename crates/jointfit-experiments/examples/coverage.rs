@@ -24,6 +24,7 @@ use jointfit::calibrate::uncertainty::{analyze, Identifiability, UncertaintyOpti
 use jointfit::calibrate::{params_for_groups, Problem};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::{Model, Unit};
+use jointfit::solver::NoObserver;
 use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion, SkinNoise};
 
 struct Args {
@@ -115,6 +116,7 @@ fn main() {
             &prob.to_scaled(&start),
             prob.initial_coords(&start),
             &JointOptions::default(),
+            &mut NoObserver,
         );
         let opts = UncertaintyOptions {
             bootstrap_replicates: args.replicates,
@@ -127,10 +129,7 @@ fn main() {
         bw_sum += u.hac_bandwidth.unwrap_or(0.0);
         for (k, p) in u.params.iter().enumerate() {
             let i = prob.free[k];
-            let f = match model.parameters()[i].unit {
-                Unit::Metre => 1e3,
-                Unit::Radian => 180.0 / std::f64::consts::PI,
-            };
+            let f = model.parameters()[i].unit.display_scale();
             let threshold = match model.parameters()[i].unit {
                 Unit::Metre => u.threshold_mm,
                 Unit::Radian => u.threshold_deg,

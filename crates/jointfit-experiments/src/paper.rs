@@ -339,7 +339,7 @@ pub const TABLE2: [PaperParamRow; 27] = [
 mod tests {
     use super::*;
     use jointfit::model::lower_limb::{lower_limb, Side};
-    use jointfit::model::{Model, Unit};
+    use jointfit::model::Model;
 
     /// The built-in model's nominal values are the paper's anatomical-landmark column, and
     /// Table 2's rows name the model's parameters in the model's order.
@@ -349,10 +349,7 @@ mod tests {
         assert_eq!(model.n_p(), TABLE2.len());
         for (par, row) in model.parameters().iter().zip(TABLE2) {
             assert_eq!(par.name, row.0);
-            let k = match par.unit {
-                Unit::Metre => 1e3,
-                Unit::Radian => 180.0 / std::f64::consts::PI,
-            };
+            let k = par.unit.display_scale();
             assert!((par.nominal * k - row.4).abs() < 0.006, "{}", row.0);
         }
     }

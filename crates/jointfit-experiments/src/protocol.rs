@@ -1,7 +1,7 @@
 //! The paper's protocol, run on trials in memory (no files, no printing).
 //!
-//! * [`fit`]: the outer level on a chosen parameter subset, from one or several starts; the
-//!   best (lowest `e_inner`) wins. Reinbolt et al. 2005 used a particle swarm for the single
+//! * [`fit`]: the outer level on a chosen parameter subset, from one or several starts
+//!   ([`jointfit::workflow::calibrate`]); the best (lowest `e_inner`) wins. Reinbolt et al. 2005 used a particle swarm for the single
 //!   joints and a gradient method for the full leg, ~41 h per noisy single-joint problem; we
 //!   default to the joint sparse Levenberg–Marquardt ([`jointfit::calibrate::joint`]), which
 //!   shares the two-level formulation's optima and takes well under a second.
@@ -16,60 +16,14 @@
 
 use std::time::Instant;
 
-use jointfit::calibrate::joint::{solve_joint, JointOptions};
-use jointfit::calibrate::pso::{solve_pso, PsoOptions};
-use jointfit::calibrate::varpro::{solve_varpro, VarProOptions};
 use jointfit::calibrate::{params_for_groups, CalibError, Problem};
 use jointfit::ik::IkWorkspace;
 use jointfit::model::{Model, Unit};
 use jointfit::trial::Trial;
+use jointfit::workflow::{self, FitSettings, NoObserver, WorkflowError};
 use serde::Serialize;
 
-use crate::synth::{perturb, restart_point, synthesize, Noise, NoiseStats};
-
-/// The outer optimizer.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum OuterMethod {
-    /// Joint sparse Levenberg–Marquardt over every frame's coordinates and the parameters.
-    Joint,
-    /// Two-level Gauss-Newton with the envelope-theorem gradient (variable projection).
-    Gradient,
-    /// Particle swarm (Schutte et al. 2005), polished by the joint solver.
-    Pso,
-}
-
-impl OuterMethod {
-    pub fn name(self) -> &'static str {
-        match self {
-            OuterMethod::Joint => "joint",
-            OuterMethod::Gradient => "gradient",
-            OuterMethod::Pso => "pso",
-        }
-    }
-}
-
-/// How every fit of an experiment is run.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct FitSettings {
-    pub method: OuterMethod,
-    /// Number of starts (≥ 1). Start 0 is the given start; the others perturb it by up to
-    /// `restart_mm` / `restart_deg` (seeded). Ignored by the particle swarm.
-    pub starts: usize,
-    pub restart_mm: f64,
-    pub restart_deg: f64,
-}
-
-impl Default for FitSettings {
-    fn default() -> Self {
-        FitSettings {
-            method: OuterMethod::Joint,
-            starts: 1,
-            restart_mm: 20.0,
-            restart_deg: 10.0,
-        }
-    }
-}
+use crate::synth::{synthesize, Noise, NoiseStats};
 
 /// The outcome of [`fit`]. SI units.
 #[derive(Debug, Clone)]
@@ -86,7 +40,8 @@ pub struct FitOutcome {
     pub seconds: f64,
 }
 
-/// Fits the parameters of `groups` to `trials` from `start` (see [`FitSettings`]).
+/// Fits the parameters of `groups` to `trials` from `start` with [`workflow::calibrate`]
+/// (no uncertainty analysis), the random choices seeded by `seed`.
 pub fn fit(
     model: &Model,
     start: &[f64],
@@ -94,66 +49,25 @@ pub fn fit(
     trials: &[&Trial],
     settings: &FitSettings,
     seed: u64,
-) -> Result<FitOutcome, CalibError> {
+) -> Result<FitOutcome, WorkflowError> {
     let clock = Instant::now();
     let free = params_for_groups(model, groups)?;
-    let prob = Problem::new(model, start.to_vec(), &free, trials)?;
-    let starts = if settings.method == OuterMethod::Pso {
-        1
-    } else {
-        settings.starts.max(1)
+    let settings = FitSettings {
+        seed,
+        uncertainty: None,
+        fix_unidentifiable: false,
+        ..settings.clone()
     };
-    let mut best: Option<jointfit::calibrate::Fit> = None;
-    let mut iterations = 0;
-    for k in 0..starts {
-        let p0 = if k == 0 {
-            start.to_vec()
-        } else {
-            restart_point(
-                model,
-                start,
-                &prob.free,
-                settings.restart_mm,
-                settings.restart_deg,
-                seed,
-                k,
-            )
-        };
-        let q0 = prob.initial_coords(&p0);
-        let s0 = prob.to_scaled(&p0);
-        let f = match settings.method {
-            OuterMethod::Joint => solve_joint(&prob, &s0, q0, &JointOptions::default()),
-            OuterMethod::Gradient => solve_varpro(&prob, &s0, q0, &VarProOptions::default()),
-            OuterMethod::Pso => {
-                let opts = PsoOptions {
-                    seed,
-                    ..PsoOptions::default()
-                };
-                let swarm = solve_pso(&prob, &q0, &opts, |_, _| {});
-                let mut polished = solve_joint(
-                    &prob,
-                    &swarm.s,
-                    swarm.coords.clone(),
-                    &JointOptions::default(),
-                );
-                polished.iterations += swarm.iterations;
-                polished
-            }
-        };
-        iterations += f.iterations;
-        if best.as_ref().is_none_or(|b| f.cost < b.cost) {
-            best = Some(f);
-        }
-    }
-    let best = best.expect("at least one start");
+    let cal = workflow::calibrate(model, start, trials, &free, &settings, &mut NoObserver)?;
+    let prob = Problem::new(model, start.to_vec(), &free, trials)?;
     Ok(FitOutcome {
-        marker_rms: prob.marker_rms(&best.p, &best.coords),
-        frames: prob.frames.len(),
-        converged: best.converged,
-        iterations,
-        cost: best.cost,
-        p: best.p,
-        coords: best.coords,
+        marker_rms: prob.marker_rms(&cal.fit.p, &cal.fit.coords),
+        frames: cal.frames,
+        converged: cal.converged,
+        iterations: cal.total_iterations(),
+        cost: cal.fit.cost,
+        p: cal.fit.p,
+        coords: cal.fit.coords,
         seconds: clock.elapsed().as_secs_f64(),
     })
 }
@@ -181,7 +95,7 @@ pub fn param_errors(
         let d = a[i] - b[i];
         match model.parameters()[i].unit {
             Unit::Radian => ori.push(d.to_degrees()),
-            Unit::Metre => pos.push(d * 1e3),
+            Unit::Metre => pos.push(d * jointfit::model::MM_PER_M),
         }
     }
     let rms = |v: &[f64]| {
@@ -231,14 +145,14 @@ pub fn synthetic_case(
     noise: &Noise,
     settings: &FitSettings,
     seed: u64,
-) -> Result<SyntheticResult, CalibError> {
+) -> Result<SyntheticResult, WorkflowError> {
     let (trial, stats): (Trial, NoiseStats) =
         synthesize(model, truth, setup.coords, setup.rate, noise);
     let free: Vec<usize> = params_for_groups(model, setup.groups)?
         .iter()
         .map(|id| id.0)
         .collect();
-    let start = perturb(
+    let start = workflow::perturb(
         model,
         truth,
         &free,
@@ -292,7 +206,7 @@ pub fn experimental(
     trials: &[&Trial],
     settings: &FitSettings,
     seed: u64,
-) -> Result<ExperimentalResult, CalibError> {
+) -> Result<ExperimentalResult, WorkflowError> {
     let (cost_landmark, landmark) = inner_only(model, &model.nominal_params(), trials)?;
     let out = fit(model, start, groups, trials, settings, seed)?;
     Ok(ExperimentalResult {

@@ -138,10 +138,7 @@ impl Table2 {
 }
 
 fn unit_of(u: Unit) -> (&'static str, f64) {
-    match u {
-        Unit::Metre => ("mm", 1e3),
-        Unit::Radian => ("deg", 180.0 / std::f64::consts::PI),
-    }
+    (u.display_suffix(), u.display_scale())
 }
 
 /// Everything one `reproduce` run produced, with what produced it.
@@ -515,10 +512,10 @@ pub fn run_synthetic_column(
     spec: &ColumnSpec,
     perturb_mm: f64,
     perturb_deg: f64,
-    settings: &crate::protocol::FitSettings,
+    settings: &jointfit::workflow::FitSettings,
     first_seed: u64,
     seeds: usize,
-) -> Result<SyntheticColumn, jointfit::calibrate::CalibError> {
+) -> Result<SyntheticColumn, jointfit::workflow::WorkflowError> {
     run_synthetic_column_observed(
         model,
         truth,
@@ -541,11 +538,11 @@ pub fn run_synthetic_column_observed(
     spec: &ColumnSpec,
     perturb_mm: f64,
     perturb_deg: f64,
-    settings: &crate::protocol::FitSettings,
+    settings: &jointfit::workflow::FitSettings,
     first_seed: u64,
     seeds: usize,
     case_done: &mut dyn FnMut(usize),
-) -> Result<SyntheticColumn, jointfit::calibrate::CalibError> {
+) -> Result<SyntheticColumn, jointfit::workflow::WorkflowError> {
     use crate::protocol::{synthetic_case, SyntheticSetup};
     use crate::synth::Noise;
     let groups: Vec<&str> = spec.groups.iter().map(|g| g.as_str()).collect();

@@ -332,50 +332,6 @@ pub fn gait_coordinates(
     Ok((coords, dropped))
 }
 
-/// Start `k` (≥ 1) of a multi-start fit: [`perturb`] of `start` with a seed derived from the
-/// run's `seed` and `k`, so every start of every run is reproducible and distinct.
-pub fn restart_point(
-    model: &Model,
-    start: &[f64],
-    free: &[usize],
-    mm: f64,
-    deg: f64,
-    seed: u64,
-    k: usize,
-) -> Vec<f64> {
-    let k_seed = seed.wrapping_mul(1_000_003).wrapping_add(k as u64);
-    perturb(model, start, free, mm, deg, k_seed)
-}
-
-/// Parameters `base` with the `free` ones (indices) moved by independent uniform amounts,
-/// up to `mm` millimetres for positions and `deg` degrees for orientations, clamped into the
-/// bounds; seeded. The paper's "perturbed start".
-pub fn perturb(
-    model: &Model,
-    base: &[f64],
-    free: &[usize],
-    mm: f64,
-    deg: f64,
-    seed: u64,
-) -> Vec<f64> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut p = base.to_vec();
-    for &i in free {
-        let par = &model.parameters()[i];
-        let span = match par.unit {
-            jointfit::model::Unit::Metre => mm * 1e-3,
-            jointfit::model::Unit::Radian => deg.to_radians(),
-        };
-        let d = if span > 0.0 {
-            rng.gen_range(-span..=span)
-        } else {
-            0.0
-        };
-        p[i] = (p[i] + d).clamp(par.lower, par.upper);
-    }
-    p
-}
-
 /// Parameters moved from nominal by up to `fraction` of each half-range, seeded.
 pub fn perturbed_params(model: &Model, fraction: f64, seed: u64) -> Vec<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);

@@ -2,7 +2,8 @@
 
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
-use jointfit_experiments::protocol::{synthetic_case, FitSettings, SyntheticSetup};
+use jointfit::workflow::FitSettings;
+use jointfit_experiments::protocol::{synthetic_case, SyntheticSetup};
 use jointfit_experiments::synth::{coordinates, synthesize, Motion, Noise};
 
 fn model() -> Model {

@@ -447,3 +447,35 @@ pub fn write_sto(path: &Path, table: &Table) -> Result<(), StoWriteError> {
         source,
     })
 }
+
+/// The coordinates table OpenSim's inverse kinematics writes (`.mot`): a `time` column, then
+/// one column per model coordinate, rotations in degrees and translations in metres
+/// (`inDegrees=yes`). `coords` holds one row of `n_q` values (rad, m) per frame of `trial`.
+pub fn coordinates_table(
+    model: &jointfit::model::Model,
+    trial: &jointfit::trial::Trial,
+    coords: &[Vec<f64>],
+) -> Table {
+    use jointfit::model::CoordKind;
+    let names: Vec<&str> = model
+        .coordinates()
+        .iter()
+        .map(|c| c.name.as_str())
+        .collect();
+    let mut table = Table::new("Coordinates", &names, true);
+    for (f, q) in coords.iter().enumerate() {
+        let mut row = vec![trial.time(f)];
+        row.extend(
+            model
+                .coordinates()
+                .iter()
+                .zip(q)
+                .map(|(c, v)| match c.kind {
+                    CoordKind::Rotational => v.to_degrees(),
+                    CoordKind::Translational => *v,
+                }),
+        );
+        table.rows.push(row);
+    }
+    table
+}

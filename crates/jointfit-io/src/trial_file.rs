@@ -15,6 +15,13 @@ pub enum TrialFileError {
     UnknownType(String),
     #[error("{path}: {message}")]
     Other { path: String, message: String },
+    #[error("{path}: filtering at {hz} Hz: {source}")]
+    Filter {
+        path: String,
+        hz: f64,
+        #[source]
+        source: jointfit::signal::SignalError,
+    },
 }
 
 /// Reads a motion file, choosing the reader by extension (case-insensitive).
@@ -93,4 +100,82 @@ fn strip_subject_prefix(trial: Trial) -> Result<Trial, jointfit::trial::TrialErr
         trial.first_frame(),
         trial.positions().to_vec(),
     )
+}
+
+/// How [`load_trial`] prepares a motion file.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoadOptions {
+    /// Which lab axis points up in the file; the trial is rotated to Y up.
+    pub up: jointfit::trial::UpAxis,
+    /// Low-pass cutoff (Hz) of the zero-phase Butterworth filter; `None`: unfiltered.
+    pub filter_hz: Option<f64>,
+}
+
+impl Default for LoadOptions {
+    fn default() -> Self {
+        LoadOptions {
+            up: jointfit::trial::UpAxis::Y,
+            filter_hz: None,
+        }
+    }
+}
+
+/// Filtering moved a marker by more than 2 cm somewhere in the trial.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FilterWarning {
+    pub path: String,
+    pub marker: String,
+    /// Largest displacement by the filter (m).
+    pub moved_m: f64,
+}
+
+impl std::fmt::Display for FilterWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}: filtering moved marker {} by {:.1} mm",
+            self.path,
+            self.marker,
+            self.moved_m * jointfit::model::MM_PER_M
+        )
+    }
+}
+
+/// Reads a motion file ([`read_trial`]) and prepares it ([`prepare_trial`]).
+pub fn load_trial(
+    path: &Path,
+    options: &LoadOptions,
+) -> Result<(Trial, Vec<FilterWarning>), TrialFileError> {
+    prepare_trial(read_trial(path)?, path, options)
+}
+
+/// Rotates a trial read from `path` to Y up and low-pass filters it when asked; returns it
+/// with a warning for every marker the filter moved by more than 2 cm.
+pub fn prepare_trial(
+    mut trial: Trial,
+    path: &Path,
+    options: &LoadOptions,
+) -> Result<(Trial, Vec<FilterWarning>), TrialFileError> {
+    trial.rotate(&jointfit::trial::up_axis_rotation(options.up));
+    let mut warnings = Vec::new();
+    if let Some(hz) = options.filter_hz {
+        let lp = jointfit::signal::LowPass {
+            cutoff_hz: hz,
+            ..jointfit::signal::LowPass::default()
+        };
+        let (filtered, report) = jointfit::signal::filter_trial(&trial, &lp).map_err(|source| {
+            TrialFileError::Filter {
+                path: path.display().to_string(),
+                hz,
+                source,
+            }
+        })?;
+        warnings.extend(report.moved_more_than(0.02).map(|m| FilterWarning {
+            path: path.display().to_string(),
+            marker: m.label.clone(),
+            moved_m: m.max_displacement_m,
+        }));
+        trial = filtered;
+    }
+    Ok((trial, warnings))
 }

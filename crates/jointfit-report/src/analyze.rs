@@ -4,13 +4,13 @@
 //! model's coordinates over time, and the parameter table.
 
 use jointfit::ik::{rms, solve_trial, IkOptions, MarkerMap, TrialFit};
-use jointfit::model::{CoordKind, Model, Unit};
+use jointfit::model::{CoordKind, Model};
 use jointfit::trial::Trial;
 
 use crate::data::{CoordSeries, MarkerRms, ParamRow, ReportInput, TrialSeries};
 use crate::ReportError;
 
-const MM: f64 = 1e3;
+use jointfit::model::MM_PER_M as MM;
 
 /// Inverse kinematics of every trial with the fitted (and baseline) parameters; sets
 /// `trials`, `markers`, `overall_rms_mm` and `notes` of `input`.
@@ -145,10 +145,7 @@ pub fn parameter_rows(
         .iter()
         .enumerate()
         .map(|(i, par)| {
-            let (unit, k) = match par.unit {
-                Unit::Metre => ("mm", MM),
-                Unit::Radian => ("deg", 180.0 / std::f64::consts::PI),
-            };
+            let (unit, k) = (par.unit.display_suffix(), par.unit.display_scale());
             ParamRow {
                 name: par.name.clone(),
                 group: par.group.clone(),

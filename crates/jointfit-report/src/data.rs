@@ -120,4 +120,8 @@ pub struct Convergence {
     pub evaluations: usize,
     pub converged: bool,
     pub seconds: f64,
+    /// With several starts: (the start shown, 0-based; how many starts ran).
+    pub start: Option<(usize, usize)>,
+    /// How the optimizer stopped (`converged`, `stalled`, `iteration limit`); empty: unknown.
+    pub termination: String,
 }

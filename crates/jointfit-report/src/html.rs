@@ -634,16 +634,22 @@ fn convergence(h: &mut String, input: &ReportInput) {
     let _ = write!(
         h,
         "<p class=\"lead\">Objective e<sub>inner</sub> = Σ‖m − x‖² over all frames and markers \
-         (mm², log scale) after each outer iteration of the {} method: {} iterations, {} \
+         (mm², log scale) after each outer iteration of the {} method{}: {} iterations, {} \
          objective evaluations, {} s{}.</p><figure id=\"fig-convergence\">",
         escape(&c.method),
+        match c.start {
+            Some((best, n)) => format!(", start {} of {n} (the lowest objective)", best + 1),
+            None => String::new(),
+        },
         c.iterations,
         c.evaluations,
         fmt(c.seconds, 2),
         if c.converged {
-            ", converged"
+            ", converged".to_string()
+        } else if c.termination.is_empty() {
+            ", stopped before converging".to_string()
         } else {
-            ", stopped before converging"
+            format!(", stopped before converging ({})", escape(&c.termination))
         }
     );
     // Left: the objective. Right: its excess over the best value reached, which shows the

@@ -10,6 +10,7 @@
 //!   network, every piece of text from files escaped; also well-formed XML).
 
 pub mod analyze;
+pub mod calibration;
 pub mod check;
 pub mod data;
 pub mod html;

@@ -68,6 +68,7 @@ fn build() -> Built {
         evaluations: 70,
         converged: true,
         seconds: 1.25,
+        ..Convergence::default()
     });
     input.settings = vec![
         (

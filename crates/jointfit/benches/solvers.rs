@@ -11,6 +11,7 @@ use jointfit::ik::{solve_trial, IkOptions, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
+use jointfit::solver::NoObserver;
 use jointfit::trial::Trial;
 use nalgebra::Vector3;
 
@@ -67,17 +68,33 @@ fn benches(c: &mut Criterion) {
     let s0 = prob.to_scaled(&nominal);
     let q0 = prob.initial_coords(&nominal);
     g.bench_function("joint_27_params_150_frames", |b| {
-        b.iter(|| solve_joint(&prob, &s0, q0.clone(), &JointOptions::default()))
+        b.iter(|| {
+            solve_joint(
+                &prob,
+                &s0,
+                q0.clone(),
+                &JointOptions::default(),
+                &mut NoObserver,
+            )
+        })
     });
     g.bench_function("gradient_27_params_150_frames", |b| {
-        b.iter(|| solve_varpro(&prob, &s0, q0.clone(), &VarProOptions::default()))
+        b.iter(|| {
+            solve_varpro(
+                &prob,
+                &s0,
+                q0.clone(),
+                &VarProOptions::default(),
+                &mut NoObserver,
+            )
+        })
     });
     let short = gait.slice_frames(0, 50);
     let hip = params_for_groups(&model, &["hip"]).unwrap();
     let hip_prob = Problem::new(&model, nominal.clone(), &hip, &[&short]).unwrap();
     let hq0 = hip_prob.initial_coords(&nominal);
     g.bench_function("pso_hip_50_frames", |b| {
-        b.iter(|| solve_pso(&hip_prob, &hq0, &PsoOptions::default(), |_, _| {}))
+        b.iter(|| solve_pso(&hip_prob, &hq0, &PsoOptions::default(), &mut NoObserver))
     });
     g.finish();
 }

@@ -18,6 +18,8 @@ pub mod linalg;
 pub mod model;
 pub mod plausibility;
 pub mod signal;
+pub mod solver;
 #[doc(hidden)]
 pub mod testing;
 pub mod trial;
+pub mod workflow;

@@ -1,9 +1,44 @@
 //! Small dense linear algebra on column-major slices, allocation-free for the hot loops.
+//!
+//! [`Cholesky`] is the public face: a factor exists only when the factorisation succeeded,
+//! so a failed one cannot be used by mistake. The raw routines stay inside the crate for
+//! the Schur solver, which keeps its per-frame factors between calls.
+
+/// The Cholesky factor `L` (`A = L Lᵀ`) of a symmetric positive-definite `n × n` matrix,
+/// held in the caller's column-major buffer (allocation-free).
+#[derive(Debug)]
+pub struct Cholesky<'a> {
+    l: &'a [f64],
+    n: usize,
+}
+
+impl<'a> Cholesky<'a> {
+    /// Factors `a` (column-major `n × n`, only the lower triangle read) in place; `None`
+    /// when a pivot is not positive (then `a` is partly overwritten and no factor exists).
+    pub fn factor(a: &'a mut [f64], n: usize) -> Option<Cholesky<'a>> {
+        cholesky_in_place(a, n).then_some(Cholesky { l: a, n })
+    }
+
+    /// Solves `A x = b` in place (`b` becomes `x`).
+    pub fn solve(&self, b: &mut [f64]) {
+        cholesky_solve(self.l, self.n, b);
+    }
+
+    /// Solves `L y = b` in place.
+    pub fn forward(&self, b: &mut [f64]) {
+        forward_solve(self.l, self.n, b);
+    }
+
+    /// Solves `Lᵀ x = y` in place.
+    pub fn backward(&self, b: &mut [f64]) {
+        backward_solve(self.l, self.n, b);
+    }
+}
 
 /// In-place Cholesky factorisation `A = L Lᵀ` of a symmetric positive-definite `n × n`
 /// matrix stored column-major in `a` (only the lower triangle is read; `L` overwrites it).
 /// Returns false (leaving `a` partly overwritten) when a pivot is not positive.
-pub fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
+pub(crate) fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
     debug_assert_eq!(a.len(), n * n);
     for j in 0..n {
         let mut d = a[j * n + j];
@@ -28,13 +63,13 @@ pub fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
 }
 
 /// Solves `L Lᵀ x = b` in place (`b` becomes `x`) with the factor from [`cholesky_in_place`].
-pub fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
+pub(crate) fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
     forward_solve(l, n, b);
     backward_solve(l, n, b);
 }
 
 /// Solves `L y = b` in place (forward substitution with the lower factor).
-pub fn forward_solve(l: &[f64], n: usize, b: &mut [f64]) {
+pub(crate) fn forward_solve(l: &[f64], n: usize, b: &mut [f64]) {
     for i in 0..n {
         let mut s = b[i];
         for k in 0..i {
@@ -45,7 +80,7 @@ pub fn forward_solve(l: &[f64], n: usize, b: &mut [f64]) {
 }
 
 /// Solves `Lᵀ x = y` in place (backward substitution with the lower factor).
-pub fn backward_solve(l: &[f64], n: usize, b: &mut [f64]) {
+pub(crate) fn backward_solve(l: &[f64], n: usize, b: &mut [f64]) {
     for i in (0..n).rev() {
         let mut s = b[i];
         for k in i + 1..n {
@@ -67,9 +102,14 @@ mod tests {
         let a = &m * m.transpose() + DMatrix::identity(n, n);
         let b: Vec<f64> = (0..n).map(|i| i as f64 - 2.5).collect();
         let mut l = a.as_slice().to_vec();
-        assert!(cholesky_in_place(&mut l, n));
+        let chol = Cholesky::factor(&mut l, n).expect("positive definite");
         let mut x = b.clone();
-        cholesky_solve(&l, n, &mut x);
+        chol.solve(&mut x);
+        // Forward then backward substitution is the same solve.
+        let mut y = b.clone();
+        chol.forward(&mut y);
+        chol.backward(&mut y);
+        assert_eq!(x, y);
         let reference = a
             .clone()
             .cholesky()
@@ -83,6 +123,6 @@ mod tests {
     #[test]
     fn rejects_indefinite() {
         let mut a = vec![1.0, 2.0, 2.0, 1.0];
-        assert!(!cholesky_in_place(&mut a, 2));
+        assert!(Cholesky::factor(&mut a, 2).is_none());
     }
 }

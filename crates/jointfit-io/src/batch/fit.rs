@@ -1,47 +1,20 @@
 //! One calibration of a job, values in and values out: the free parameters by group, the
 //! outer solve, the uncertainty of the optimum (`jointfit::calibrate::uncertainty`).
 //!
-//! The solvers are called in the order `jointfit calibrate` calls them (start = the model's
-//! nominal parameters, inner coordinates seeded by IK at the start, one start, uncertainty
-//! from the optimum), so the fitted parameters equal the command line's bit for bit. This is
-//! the interim orchestration until `jointfit::workflow::calibrate` (issue 18) lands; then
-//! [`calibrate`] becomes a call to it.
+//! The calibration is [`jointfit::workflow::calibrate`] with the command line's settings
+//! (one start, uncertainty from the optimum), so the fitted parameters equal `jointfit
+//! calibrate`'s bit for bit; this module only converts to SI rows and warning lines.
 
-use jointfit::calibrate::joint::{solve_joint_observed, JointOptions};
-use jointfit::calibrate::pso::{solve_pso, PsoOptions};
-use jointfit::calibrate::uncertainty::{analyze, Identifiability, UncertaintyOptions};
-use jointfit::calibrate::varpro::{solve_varpro_observed, VarProOptions};
-use jointfit::calibrate::{params_for_groups, CalibError, Problem};
+use jointfit::calibrate::params_for_groups;
+use jointfit::calibrate::uncertainty::Identifiability;
 use jointfit::model::spec::ModelSpec;
-use jointfit::model::{Model, Unit};
+use jointfit::model::{Model, Unit, MM_PER_M};
 use jointfit::trial::Trial;
+use jointfit::workflow::{self, uncertainty_options, FitSettings, NoObserver, WorkflowError};
 use serde::{Deserialize, Serialize};
 
 /// The outer optimizer (as `jointfit calibrate --method`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Method {
-    /// Joint sparse Levenberg–Marquardt over all frames and parameters.
-    Joint,
-    /// Two-level Gauss–Newton on the reduced (variable-projection) Jacobian.
-    Gradient,
-    /// Particle swarm (global), then polished by the joint solver.
-    Pso,
-}
-
-impl std::str::FromStr for Method {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "joint" => Ok(Method::Joint),
-            "gradient" => Ok(Method::Gradient),
-            "pso" => Ok(Method::Pso),
-            _ => Err(format!(
-                "unknown method {s:?} (expected joint, gradient or pso)"
-            )),
-        }
-    }
-}
+pub use jointfit::workflow::Method;
 
 /// Settings of one calibration (the command line's defaults).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -117,46 +90,26 @@ pub fn calibrate(
     start: Vec<f64>,
     trials: &[&Trial],
     opts: &FitOptions,
-) -> Result<Calibration, CalibError> {
+) -> Result<Calibration, WorkflowError> {
     let groups: Vec<&str> = opts.joints.iter().map(String::as_str).collect();
     let free = params_for_groups(model, &groups)?;
-    let prob = Problem::new(model, start.clone(), &free, trials)?;
-    let q0 = prob.initial_coords(&start);
-    let s0 = prob.to_scaled(&start);
-    let mut ws = jointfit::ik::IkWorkspace::new(model);
-    let mut q_before = q0.clone();
-    let cost_before = prob.inner(&start, &mut q_before, &mut ws);
-    let fit = match opts.method {
-        Method::Joint => solve_joint_observed(&prob, &s0, q0, &JointOptions::default(), |_, _| {}),
-        Method::Gradient => {
-            solve_varpro_observed(&prob, &s0, q0, &VarProOptions::default(), |_, _| {})
-        }
-        Method::Pso => {
-            let pso = PsoOptions {
-                seed: opts.seed,
-                ..PsoOptions::default()
-            };
-            let swarm = solve_pso(&prob, &q0, &pso, |_, _| {});
-            let mut polished = solve_joint_observed(
-                &prob,
-                &swarm.s,
-                swarm.coords.clone(),
-                &JointOptions::default(),
-                |_, _| {},
-            );
-            polished.iterations += swarm.iterations;
-            polished.evaluations += swarm.evaluations;
-            polished
-        }
-    };
-    let uopts = UncertaintyOptions {
-        threshold_m: opts.threshold_mm / 1e3,
-        threshold_rad: opts.threshold_deg.to_radians(),
-        bootstrap_replicates: opts.bootstrap,
+    let settings = FitSettings {
+        method: opts.method,
         seed: opts.seed,
-        ..UncertaintyOptions::default()
+        uncertainty: Some(uncertainty_options(
+            opts.threshold_mm,
+            opts.threshold_deg,
+            opts.bootstrap,
+            opts.seed,
+        )),
+        ..FitSettings::default()
     };
-    let u = analyze(&prob, &fit, &uopts);
+    let cal = workflow::calibrate(model, &start, trials, &free, &settings, &mut NoObserver)?;
+    let u = cal
+        .uncertainty
+        .as_ref()
+        .expect("the settings ask for the uncertainty");
+    let fit = &cal.fit;
     let mut warnings = Vec::new();
     for pu in u.flagged() {
         let hw = pu
@@ -175,14 +128,18 @@ pub fn calibrate(
                 .map_or(String::new(), |r| format!(": {r}"))
         ));
     }
-    if !fit.converged {
-        warnings.push("the outer solver stopped before converging".into());
+    if !fit.converged() {
+        warnings.push(format!(
+            "the outer solver stopped before converging ({})",
+            fit.termination
+        ));
     }
-    let parameters = prob
+    let parameters = cal
         .free
         .iter()
+        .map(|id| id.0)
         .zip(&u.params)
-        .map(|(&i, pu)| {
+        .map(|(i, pu)| {
             let par = &model.parameters()[i];
             // The uncertainty rows are in display units (mm, deg): back to SI.
             let (unit, to_si) = match par.unit {
@@ -206,16 +163,16 @@ pub fn calibrate(
     Ok(Calibration {
         model: fitted,
         method: opts.method,
-        frames: prob.frames.len(),
-        skipped_frames: prob.skipped.len(),
+        frames: cal.frames,
+        skipped_frames: cal.skipped_frames,
         parameters,
-        rms_before: prob.marker_rms(&start, &q_before),
-        rms_after: prob.marker_rms(&fit.p, &fit.coords),
-        cost_before,
+        rms_before: cal.rms_before_mm / MM_PER_M,
+        rms_after: cal.rms_after_mm / MM_PER_M,
+        cost_before: cal.cost_before,
         cost_after: fit.cost,
         iterations: fit.iterations,
         evaluations: fit.evaluations,
-        converged: fit.converged,
+        converged: fit.converged(),
         warnings,
     })
 }

@@ -85,7 +85,7 @@ pub enum JobError {
         source: SignalError,
     },
     #[error(transparent)]
-    Calibrate(#[from] jointfit::calibrate::CalibError),
+    Calibrate(#[from] jointfit::workflow::WorkflowError),
     #[error("job has no trials")]
     NoTrials,
 }

@@ -7,6 +7,7 @@
 
 use super::schur::{active_bounds, assemble, back_substitute, cost_at, solve, Blocks};
 use super::{Fit, Problem};
+use crate::solver::{Observer, Termination};
 
 /// Settings of the joint solver.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -30,19 +31,18 @@ impl Default for JointOptions {
 const COST_TOLERANCE: f64 = 1e-14;
 
 /// Minimises the objective from scaled parameters `s0` and coordinates `q0` (one per frame).
-pub fn solve_joint(prob: &Problem, s0: &[f64], q0: Vec<Vec<f64>>, opts: &JointOptions) -> Fit {
-    solve_joint_observed(prob, s0, q0, opts, |_, _| {})
-}
-
-/// [`solve_joint`] that calls `observe(iteration, cost)` after every outer iteration (the
-/// same values as [`Fit::history`]; for progress reporting). The observer cannot change the
-/// result.
-pub fn solve_joint_observed(
+/// `observer.iteration(iteration, cost)` is called after every outer iteration (the same
+/// values as [`Fit::history`]); it cannot change the result.
+///
+/// Ends [`Termination::Converged`] on a step below `tolerance` or a relative decrease below
+/// 1e-14, [`Termination::Stalled`] when no damping up to 1e16 gives a step that does not
+/// raise the objective, [`Termination::IterationLimit`] after `max_iterations`.
+pub fn solve_joint(
     prob: &Problem,
     s0: &[f64],
     q0: Vec<Vec<f64>>,
     opts: &JointOptions,
-    mut observe: impl FnMut(usize, f64),
+    observer: &mut dyn Observer,
 ) -> Fit {
     let nq = prob.model.n_q();
     let nf = prob.n_free();
@@ -58,7 +58,7 @@ pub fn solve_joint_observed(
     let mut history = Vec::new();
     let mut evaluations = 0;
     let mut iterations = 0;
-    let mut converged = false;
+    let mut termination = Termination::IterationLimit;
     let mut p = prob.to_params(&s);
     assemble(prob, &p, &qs, &mut blocks);
     evaluations += 1;
@@ -115,11 +115,15 @@ pub fn solve_joint_observed(
             nu *= 2.0;
         }
         history.push(cost);
-        observe(iterations, cost);
+        observer.iteration(iterations, cost);
+        if !accepted {
+            termination = Termination::Stalled;
+            break;
+        }
         // Converged on a negligible step, or when the objective no longer moves at working
         // precision (the last digits of a linearly converging tail change nothing).
-        if !accepted || step < opts.tolerance || decrease <= COST_TOLERANCE * cost {
-            converged = true;
+        if step < opts.tolerance || decrease <= COST_TOLERANCE * cost {
+            termination = Termination::Converged;
             break;
         }
         assemble(prob, &p, &qs, &mut blocks);
@@ -134,6 +138,6 @@ pub fn solve_joint_observed(
         iterations,
         evaluations,
         history,
-        converged,
+        termination,
     }
 }

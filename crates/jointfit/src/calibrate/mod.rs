@@ -41,6 +41,7 @@ use crate::ik::{
     is_gross, solve_frame, undetermined_coordinate, FrameStatus, IkOptions, IkWorkspace, MarkerMap,
 };
 use crate::model::{Model, ParamId};
+pub use crate::solver::Termination;
 use crate::trial::Trial;
 
 #[derive(Debug, Error, PartialEq)]
@@ -266,5 +267,13 @@ pub struct Fit {
     pub evaluations: usize,
     /// Best objective after each outer iteration.
     pub history: Vec<f64>,
-    pub converged: bool,
+    /// Why the solver stopped.
+    pub termination: Termination,
+}
+
+impl Fit {
+    /// Whether the solver's convergence test passed (not stalled, not out of iterations).
+    pub fn converged(&self) -> bool {
+        self.termination.converged()
+    }
 }

@@ -15,6 +15,7 @@ use rayon::prelude::*;
 
 use super::{Fit, Problem};
 use crate::ik::IkWorkspace;
+use crate::solver::{Observer, Termination};
 
 /// Settings of the particle swarm.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -64,12 +65,15 @@ struct Particle {
 }
 
 /// Runs the swarm; `q0` are starting coordinates for every particle's first evaluation.
-/// `observe(iteration, best_cost)` is called after every iteration (progress reporting).
+/// `observer.iteration(iteration, best_cost)` is called after every iteration (progress
+/// reporting; it cannot change the result). Ends [`Termination::Converged`] when the best
+/// value improved by less than `stall_tolerance` (relative) over `stall_iterations`
+/// iterations (the swarm's convergence test), else [`Termination::IterationLimit`].
 pub fn solve_pso(
     prob: &Problem,
     q0: &[Vec<f64>],
     opts: &PsoOptions,
-    mut observe: impl FnMut(usize, f64),
+    observer: &mut dyn Observer,
 ) -> Fit {
     // A particle's cost only has to rank it against the others: coordinates to 1e-8 rad/m
     // leave the objective exact to ~1e-16 relative (the error in e_inner is quadratic in
@@ -130,7 +134,7 @@ pub fn solve_pso(
     let mut window_start = g_cost;
     let mut window_len = 0;
     let mut iterations = 0;
-    let mut converged = false;
+    let mut termination = Termination::IterationLimit;
     while iterations < opts.max_iterations {
         iterations += 1;
         for pt in swarm.iter_mut() {
@@ -163,11 +167,11 @@ pub fn solve_pso(
             }
         }
         history.push(g_cost);
-        observe(iterations, g_cost);
+        observer.iteration(iterations, g_cost);
         window_len += 1;
         if window_len >= opts.stall_iterations {
             if window_start - g_cost <= opts.stall_tolerance * window_start.abs() {
-                converged = true;
+                termination = Termination::Converged;
                 break;
             }
             window_start = g_cost;
@@ -183,6 +187,6 @@ pub fn solve_pso(
         iterations,
         evaluations,
         history,
-        converged,
+        termination,
     }
 }

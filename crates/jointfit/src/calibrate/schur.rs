@@ -23,7 +23,7 @@ use rayon::prelude::*;
 use super::kernel::{dot, frame_gram, FrameScratch, ScratchPool};
 use super::Problem;
 use crate::kinematics::{forward_kinematics, Want};
-use crate::linalg::{cholesky_in_place, cholesky_solve};
+use crate::linalg::{cholesky_in_place, cholesky_solve, Cholesky};
 
 /// Frames per parallel work item (fixed: it sets the order of every floating-point sum).
 pub(crate) const CHUNK: usize = 32;
@@ -334,11 +334,11 @@ pub(crate) fn solve(
     for k in 0..nf {
         s[k * nf + k] += 1e-14 * max_diag + 1e-300;
     }
-    if !cholesky_in_place(&mut s, nf) {
+    let Some(chol) = Cholesky::factor(&mut s, nf) else {
         return false;
-    }
+    };
     ds.copy_from_slice(&rhs);
-    cholesky_solve(&s, nf, ds);
+    chol.solve(ds);
     b.lambda = lambda;
     true
 }

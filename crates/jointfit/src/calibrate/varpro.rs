@@ -9,6 +9,7 @@
 use super::schur::{active_bounds, assemble, back_substitute, solve, Blocks};
 use super::{Fit, Problem};
 use crate::ik::IkWorkspace;
+use crate::solver::{Observer, Termination};
 
 /// Settings of the two-level gradient solver.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -36,19 +37,18 @@ pub fn gradient(prob: &Problem, s: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
 }
 
 /// Minimises `e_inner` from scaled parameters `s0` with inner solutions warm-started at `q0`.
-pub fn solve_varpro(prob: &Problem, s0: &[f64], q0: Vec<Vec<f64>>, opts: &VarProOptions) -> Fit {
-    solve_varpro_observed(prob, s0, q0, opts, |_, _| {})
-}
-
-/// [`solve_varpro`] that calls `observe(iteration, cost)` after every outer iteration (the
-/// same values as [`Fit::history`]; for progress reporting). The observer cannot change the
-/// result.
-pub fn solve_varpro_observed(
+/// `observer.iteration(iteration, cost)` is called after every outer iteration (the same
+/// values as [`Fit::history`]); it cannot change the result.
+///
+/// Ends [`Termination::Converged`] on a parameter step below `tolerance`,
+/// [`Termination::Stalled`] when no damping up to 1e16 lowers `e_inner`,
+/// [`Termination::IterationLimit`] after `max_iterations`.
+pub fn solve_varpro(
     prob: &Problem,
     s0: &[f64],
     q0: Vec<Vec<f64>>,
     opts: &VarProOptions,
-    mut observe: impl FnMut(usize, f64),
+    observer: &mut dyn Observer,
 ) -> Fit {
     let nq = prob.model.n_q();
     let nf = prob.n_free();
@@ -65,7 +65,7 @@ pub fn solve_varpro_observed(
     let mut lambda = 1e-4;
     let mut history = Vec::new();
     let mut iterations = 0;
-    let mut converged = false;
+    let mut termination = Termination::IterationLimit;
     while iterations < opts.max_iterations {
         iterations += 1;
         assemble(prob, &p, &qs, &mut blocks);
@@ -108,9 +108,13 @@ pub fn solve_varpro_observed(
             lambda *= 10.0;
         }
         history.push(cost);
-        observe(iterations, cost);
-        if !accepted || step < opts.tolerance {
-            converged = true;
+        observer.iteration(iterations, cost);
+        if !accepted {
+            termination = Termination::Stalled;
+            break;
+        }
+        if step < opts.tolerance {
+            termination = Termination::Converged;
             break;
         }
     }
@@ -122,6 +126,6 @@ pub fn solve_varpro_observed(
         iterations,
         evaluations,
         history,
-        converged,
+        termination,
     }
 }

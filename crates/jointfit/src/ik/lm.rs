@@ -7,8 +7,9 @@ use super::normal::Moments;
 use super::solvable::Solvability;
 use super::{FrameFit, FrameStatus, IkOptions};
 use crate::kinematics::{forward_kinematics, KinData, Want};
-use crate::linalg::{cholesky_in_place, cholesky_solve};
+use crate::linalg::Cholesky;
 use crate::model::Model;
+use crate::solver::Termination;
 
 /// Scratch space for one thread: reuse it across frames.
 #[derive(Debug, Clone)]
@@ -141,7 +142,7 @@ pub(super) fn frame_weights(
 }
 
 /// Levenberg–Marquardt over the coordinates listed in `active` (others fixed), with the
-/// weights already in `ws.weights`. Returns (cost, iterations, converged).
+/// weights already in `ws.weights`. Returns (cost, iterations, how it ended).
 pub(super) fn lm(
     model: &Model,
     p: &[f64],
@@ -150,7 +151,7 @@ pub(super) fn lm(
     active: &[usize],
     opts: &IkOptions,
     ws: &mut IkWorkspace,
-) -> (f64, usize, bool) {
+) -> (f64, usize, Termination) {
     let n = active.len();
     ws.moments.set_active(active);
     forward_kinematics(model, p, q, Want::AXES, &mut ws.cur);
@@ -168,15 +169,15 @@ pub(super) fn lm(
             for i in 0..n {
                 ws.l[i * n + i] += lambda * ws.a[i * n + i] + 1e-14 * max_diag + 1e-300;
             }
-            if !cholesky_in_place(&mut ws.l[..n * n], n) {
+            let Some(chol) = Cholesky::factor(&mut ws.l[..n * n], n) else {
                 lambda *= 10.0;
                 if lambda > 1e10 {
-                    return (cost, iterations, true);
+                    return (cost, iterations, Termination::Stalled);
                 }
                 continue;
-            }
+            };
             ws.delta[..n].copy_from_slice(&ws.g[..n]);
-            cholesky_solve(&ws.l[..n * n], n, &mut ws.delta[..n]);
+            chol.solve(&mut ws.delta[..n]);
             let step_max = ws.delta[..n].iter().fold(0.0f64, |m, d| m.max(d.abs()));
             ws.q_trial.copy_from_slice(q);
             for (i, &c) in active.iter().enumerate() {
@@ -190,21 +191,21 @@ pub(super) fn lm(
                 cost = trial_cost;
                 lambda = (lambda / 10.0).max(1e-12);
                 if step_max < opts.step_tolerance {
-                    return (cost, iterations, true);
+                    return (cost, iterations, Termination::Converged);
                 }
                 break;
             }
             if step_max < opts.step_tolerance {
                 // Even a negligible step does not lower the cost: minimum to working precision.
-                return (cost, iterations, true);
+                return (cost, iterations, Termination::Converged);
             }
             lambda *= 10.0;
             if lambda > 1e10 {
-                return (cost, iterations, true);
+                return (cost, iterations, Termination::Stalled);
             }
         }
     }
-    (cost, iterations, false)
+    (cost, iterations, Termination::IterationLimit)
 }
 
 /// Solves one frame in place: `q` is the starting point on entry, the solution on exit.
@@ -246,7 +247,7 @@ pub fn solve_frame(
         active.clear();
         active.extend((0..model.n_q()).filter(|c| !held.contains(c)));
         q.copy_from_slice(&ws.start);
-        let (cost, its, converged) = lm(model, p, targets, q, &active, opts, ws);
+        let (cost, its, end) = lm(model, p, targets, q, &active, opts, ws);
         ws.active = active;
         iterations += its;
         if !cost.is_finite() || q.iter().any(|v| !v.is_finite()) {
@@ -268,10 +269,10 @@ pub fn solve_frame(
                 return FrameFit {
                     cost,
                     iterations,
-                    status: if converged {
-                        FrameStatus::Converged
-                    } else {
-                        FrameStatus::MaxIterations
+                    status: match end {
+                        Termination::Converged => FrameStatus::Converged,
+                        Termination::Stalled => FrameStatus::Stalled,
+                        Termination::IterationLimit => FrameStatus::MaxIterations,
                     },
                     held,
                     rejected,

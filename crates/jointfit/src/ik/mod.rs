@@ -99,6 +99,9 @@ pub enum FrameStatus {
     Converged,
     /// The iteration budget ran out (the result is the best point found).
     MaxIterations,
+    /// No step lowered the cost even at damping 1e10 (the result is the best point found;
+    /// not a verified minimum).
+    Stalled,
     /// The present markers leave `coordinate` undetermined (the first found; see
     /// [`solvable`]): not solved.
     Undetermined {
@@ -126,7 +129,7 @@ impl FrameFit {
     pub fn solved(&self) -> bool {
         matches!(
             self.status,
-            FrameStatus::Converged | FrameStatus::MaxIterations
+            FrameStatus::Converged | FrameStatus::MaxIterations | FrameStatus::Stalled
         )
     }
 }

@@ -49,7 +49,8 @@ pub fn seed_frame(
                 continue;
             }
         }
-        // Translations start at the centroid offset; rotations from a grid.
+        // Translations start at their default values (the cost is quadratic in them, so the
+        // first iterations carry them to the markers, however far); rotations from a grid.
         let rot: Vec<usize> = active
             .iter()
             .copied()

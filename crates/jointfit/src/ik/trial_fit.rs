@@ -147,7 +147,7 @@ pub fn unsolved_ranges(fit: &TrialFit) -> Vec<UnsolvedRange> {
     let mut out: Vec<UnsolvedRange> = Vec::new();
     for (f, frame) in fit.frames.iter().enumerate() {
         let reason = match &frame.status {
-            FrameStatus::Converged | FrameStatus::MaxIterations => continue,
+            FrameStatus::Converged | FrameStatus::MaxIterations | FrameStatus::Stalled => continue,
             FrameStatus::Undetermined { coordinate } => format!("{coordinate} undetermined"),
             FrameStatus::Diverged => "diverged".to_string(),
         };

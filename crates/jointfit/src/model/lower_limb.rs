@@ -75,7 +75,7 @@ pub fn builtin(name: &str) -> Result<ModelSpec, ModelError> {
     }
 }
 
-const MM: f64 = 1e-3;
+use super::spec::M_PER_MM;
 const DEG: f64 = PI / 180.0;
 
 /// How a parameter enters its offset scalar.
@@ -320,7 +320,7 @@ fn param_spec(row: &ParamRow) -> ParameterSpec {
     let (unit, k) = if is_angle {
         (Unit::Radian, DEG)
     } else {
-        (Unit::Metre, MM)
+        (Unit::Metre, M_PER_MM)
     };
     ParameterSpec {
         name: name.to_string(),

@@ -17,7 +17,7 @@ pub use compiled::{
 };
 pub(crate) use compiled::{Motion, Source};
 pub(crate) use plan::Item;
-pub use spec::{ModelSpec, Unit};
+pub use spec::{ModelSpec, Unit, MM_PER_M, M_PER_MM};
 
 use thiserror::Error;
 

@@ -7,6 +7,7 @@ use jointfit::calibrate::{params_for_groups, Problem};
 use jointfit::ik::IkWorkspace;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::{Model, Unit};
+use jointfit::solver::{NoObserver, Observer, Termination};
 use jointfit::trial::Trial;
 use jointfit_testkit::synth::{synthetic_trial, Noise};
 use rand::{Rng, SeedableRng};
@@ -87,8 +88,14 @@ fn noiseless_recovery_joint_and_varpro() {
         let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
         let s0 = prob.to_scaled(&base);
         let q0 = prob.initial_coords(&base);
-        let joint = solve_joint(&prob, &s0, q0.clone(), &JointOptions::default());
-        let varpro = solve_varpro(&prob, &s0, q0, &VarProOptions::default());
+        let joint = solve_joint(
+            &prob,
+            &s0,
+            q0.clone(),
+            &JointOptions::default(),
+            &mut NoObserver,
+        );
+        let varpro = solve_varpro(&prob, &s0, q0, &VarProOptions::default(), &mut NoObserver);
         for (name, fit) in [("joint", &joint), ("varpro", &varpro)] {
             let (mm, deg) = errors(&model, &prob.free, &fit.p, &p_true);
             assert!(
@@ -97,7 +104,7 @@ fn noiseless_recovery_joint_and_varpro() {
                 fit.iterations,
                 fit.cost
             );
-            assert!(fit.converged, "{groups:?} {name}");
+            assert_eq!(fit.termination, Termination::Converged, "{groups:?} {name}");
         }
     }
 }
@@ -116,8 +123,14 @@ fn joint_and_two_level_reach_the_same_noisy_optimum() {
         let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
         let s0 = prob.to_scaled(&base);
         let q0 = prob.initial_coords(&base);
-        let joint = solve_joint(&prob, &s0, q0.clone(), &JointOptions::default());
-        let varpro = solve_varpro(&prob, &s0, q0, &VarProOptions::default());
+        let joint = solve_joint(
+            &prob,
+            &s0,
+            q0.clone(),
+            &JointOptions::default(),
+            &mut NoObserver,
+        );
+        let varpro = solve_varpro(&prob, &s0, q0, &VarProOptions::default(), &mut NoObserver);
         let ds = joint
             .s
             .iter()
@@ -198,8 +211,8 @@ fn pso_then_local_polish_recovers_the_hip() {
         seed: 42,
         ..PsoOptions::default()
     };
-    let swarm = solve_pso(&prob, &q0, &opts, |_, _| {});
-    let again = solve_pso(&prob, &q0, &opts, |_, _| {});
+    let swarm = solve_pso(&prob, &q0, &opts, &mut NoObserver);
+    let again = solve_pso(&prob, &q0, &opts, &mut NoObserver);
     assert_eq!(swarm.s, again.s, "seeded swarm is reproducible");
     let (mm, _) = errors(&model, &prob.free, &swarm.p, &p_true);
     assert!(mm < 5.0, "swarm within 5 mm before polishing: {mm}");
@@ -208,15 +221,24 @@ fn pso_then_local_polish_recovers_the_hip() {
         &swarm.s,
         swarm.coords.clone(),
         &JointOptions::default(),
+        &mut NoObserver,
     );
     let (mm, _) = errors(&model, &prob.free, &polished.p, &p_true);
     assert!(mm <= 1e-6, "polished error {mm:e} mm");
 }
 
+/// Records what a solver reports.
+#[derive(Default)]
+struct Seen(Vec<(usize, f64)>);
+
+impl Observer for Seen {
+    fn iteration(&mut self, iteration: usize, objective: f64) {
+        self.0.push((iteration, objective));
+    }
+}
+
 #[test]
 fn observers_see_the_history_and_do_not_change_the_result() {
-    use jointfit::calibrate::joint::solve_joint_observed;
-    use jointfit::calibrate::varpro::solve_varpro_observed;
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
     let p_true = perturbed(&model, 3);
     let trial = synthetic(&model, &p_true, 30, 0.005, 4);
@@ -225,24 +247,73 @@ fn observers_see_the_history_and_do_not_change_the_result() {
     let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
     let s0 = prob.to_scaled(&base);
     let q0 = prob.initial_coords(&base);
-    let mut seen = Vec::new();
-    let joint = solve_joint_observed(&prob, &s0, q0.clone(), &JointOptions::default(), |i, c| {
-        seen.push((i, c))
-    });
-    let plain = solve_joint(&prob, &s0, q0.clone(), &JointOptions::default());
+    let mut seen = Seen::default();
+    let joint = solve_joint(&prob, &s0, q0.clone(), &JointOptions::default(), &mut seen);
+    let plain = solve_joint(
+        &prob,
+        &s0,
+        q0.clone(),
+        &JointOptions::default(),
+        &mut NoObserver,
+    );
     assert_eq!(joint.p, plain.p);
-    assert_eq!(seen.len(), joint.iterations);
-    assert!(seen.iter().enumerate().all(|(k, (i, _))| *i == k + 1));
-    assert_eq!(seen.iter().map(|s| s.1).collect::<Vec<_>>(), joint.history);
-    let mut seen = Vec::new();
-    let varpro =
-        solve_varpro_observed(&prob, &s0, q0.clone(), &VarProOptions::default(), |i, c| {
-            seen.push((i, c))
-        });
-    let plain = solve_varpro(&prob, &s0, q0, &VarProOptions::default());
+    assert_eq!(seen.0.len(), joint.iterations);
+    assert!(seen.0.iter().enumerate().all(|(k, (i, _))| *i == k + 1));
+    assert_eq!(
+        seen.0.iter().map(|s| s.1).collect::<Vec<_>>(),
+        joint.history
+    );
+    let mut seen = Seen::default();
+    let varpro = solve_varpro(&prob, &s0, q0.clone(), &VarProOptions::default(), &mut seen);
+    let plain = solve_varpro(&prob, &s0, q0, &VarProOptions::default(), &mut NoObserver);
     assert_eq!(varpro.p, plain.p);
-    assert_eq!(seen.iter().map(|s| s.1).collect::<Vec<_>>(), varpro.history);
+    assert_eq!(
+        seen.0.iter().map(|s| s.1).collect::<Vec<_>>(),
+        varpro.history
+    );
     assert!(varpro.history.windows(2).all(|w| w[1] <= w[0]));
+}
+
+/// A solver stopped by its budget says so instead of claiming convergence; the same solve
+/// with its full budget converges.
+#[test]
+fn termination_tells_iteration_limit_from_convergence() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p_true = perturbed(&model, 3);
+    let trial = synthetic(&model, &p_true, 30, 0.005, 4);
+    let free = params_for_groups(&model, &["knee"]).unwrap();
+    let base = model.nominal_params();
+    let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
+    let s0 = prob.to_scaled(&base);
+    let q0 = prob.initial_coords(&base);
+    let short = JointOptions {
+        max_iterations: 2,
+        ..JointOptions::default()
+    };
+    let cut = solve_joint(&prob, &s0, q0.clone(), &short, &mut NoObserver);
+    assert_eq!(cut.termination, Termination::IterationLimit);
+    assert!(!cut.converged());
+    let full = solve_joint(
+        &prob,
+        &s0,
+        q0.clone(),
+        &JointOptions::default(),
+        &mut NoObserver,
+    );
+    assert_eq!(full.termination, Termination::Converged);
+    assert!(full.cost < cut.cost);
+    let short = VarProOptions {
+        max_iterations: 1,
+        ..VarProOptions::default()
+    };
+    let cut = solve_varpro(&prob, &s0, q0.clone(), &short, &mut NoObserver);
+    assert_eq!(cut.termination, Termination::IterationLimit);
+    let opts = PsoOptions {
+        max_iterations: 3,
+        ..PsoOptions::default()
+    };
+    let swarm = solve_pso(&prob, &q0, &opts, &mut NoObserver);
+    assert_eq!(swarm.termination, Termination::IterationLimit);
 }
 
 /// The paper's protocol on noiseless data for the other single joints and the full leg: the
@@ -266,12 +337,13 @@ fn pso_then_local_polish_recovers_knee_ankle_and_full_leg() {
             seed: 42,
             ..PsoOptions::default()
         };
-        let swarm = solve_pso(&prob, &q0, &opts, |_, _| {});
+        let swarm = solve_pso(&prob, &q0, &opts, &mut NoObserver);
         let polished = solve_joint(
             &prob,
             &swarm.s,
             swarm.coords.clone(),
             &JointOptions::default(),
+            &mut NoObserver,
         );
         let (mm, deg) = errors(&model, &prob.free, &polished.p, &p_true);
         assert!(
@@ -308,7 +380,7 @@ fn thread_count_never_changes_the_joint_fit_or_its_reduced_system() {
     };
     let run = |threads| {
         on_threads(threads, || {
-            let fit = solve_joint(&prob, &s0, q0.clone(), &opts);
+            let fit = solve_joint(&prob, &s0, q0.clone(), &opts, &mut NoObserver);
             let red = jointfit::calibrate::uncertainty::reduced_system(&prob, &fit.p, &fit.coords);
             let grad = gradient(&prob, &fit.s, &fit.coords);
             (fit, red, grad)

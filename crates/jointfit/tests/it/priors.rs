@@ -77,9 +77,27 @@ fn joint_and_two_level_reach_the_same_map_optimum() {
     let unreg = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
     let s0 = prob.to_scaled(&base);
     let q0 = prob.initial_coords(&base);
-    let joint = solve_joint(&prob, &s0, q0.clone(), &JointOptions::default());
-    let varpro = solve_varpro(&prob, &s0, q0.clone(), &VarProOptions::default());
-    let plain = solve_joint(&unreg, &s0, q0, &JointOptions::default());
+    let joint = solve_joint(
+        &prob,
+        &s0,
+        q0.clone(),
+        &JointOptions::default(),
+        &mut jointfit::solver::NoObserver,
+    );
+    let varpro = solve_varpro(
+        &prob,
+        &s0,
+        q0.clone(),
+        &VarProOptions::default(),
+        &mut jointfit::solver::NoObserver,
+    );
+    let plain = solve_joint(
+        &unreg,
+        &s0,
+        q0,
+        &JointOptions::default(),
+        &mut jointfit::solver::NoObserver,
+    );
     let ds = joint
         .s
         .iter()
@@ -134,7 +152,13 @@ fn a_tight_prior_holds_the_mean_and_an_infinite_one_changes_nothing() {
         .sd
         .iter_mut()
         .for_each(|s| *s = 4e-7);
-    let held = solve_joint(&prob, &s0, q0.clone(), &JointOptions::default());
+    let held = solve_joint(
+        &prob,
+        &s0,
+        q0.clone(),
+        &JointOptions::default(),
+        &mut jointfit::solver::NoObserver,
+    );
     for &i in &prob.free {
         let d = (held.p[i] - model.parameters()[i].prior_mean).abs();
         assert!(d < 1e-5, "{}: {d:e}", model.parameters()[i].name);
@@ -146,7 +170,13 @@ fn a_tight_prior_holds_the_mean_and_an_infinite_one_changes_nothing() {
         .sd
         .iter_mut()
         .for_each(|s| *s = f64::INFINITY);
-    let free_fit = solve_joint(&prob, &s0, q0, &JointOptions::default());
+    let free_fit = solve_joint(
+        &prob,
+        &s0,
+        q0,
+        &JointOptions::default(),
+        &mut jointfit::solver::NoObserver,
+    );
     for &i in &prob.free {
         let d = (free_fit.p[i] - p_true[i]).abs();
         assert!(d < 1e-9, "{}: {d:e}", model.parameters()[i].name);
@@ -177,8 +207,20 @@ fn the_prior_reduces_errors_when_truth_follows_it() {
         let map = plain.clone().with_model_prior(0.004);
         let s0 = plain.to_scaled(&base);
         let q0 = plain.initial_coords(&base);
-        let f_map = solve_joint(&map, &s0, q0.clone(), &JointOptions::default());
-        let f_plain = solve_joint(&plain, &s0, q0, &JointOptions::default());
+        let f_map = solve_joint(
+            &map,
+            &s0,
+            q0.clone(),
+            &JointOptions::default(),
+            &mut jointfit::solver::NoObserver,
+        );
+        let f_plain = solve_joint(
+            &plain,
+            &s0,
+            q0,
+            &JointOptions::default(),
+            &mut jointfit::solver::NoObserver,
+        );
         for (i, p) in model.parameters().iter().enumerate() {
             let sd = p.prior_sd.unwrap();
             with += ((f_map.p[i] - p_true[i]) / sd).powi(2);

@@ -12,6 +12,7 @@ use jointfit::kinematics::fd::{jacobian_p, jacobian_q};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::{Model, Unit};
+use jointfit::solver::NoObserver;
 use jointfit::trial::Trial;
 use jointfit_testkit::synth;
 use nalgebra::DMatrix;
@@ -105,7 +106,13 @@ fn fit_from_nominal<'m>(model: &'m Model, trial: &Trial, groups: &[&str]) -> (Pr
     let start = model.nominal_params();
     let prob = Problem::new(model, start.clone(), &free, &[trial]).unwrap();
     let q0 = prob.initial_coords(&start);
-    let fit = solve_joint(&prob, &prob.to_scaled(&start), q0, &JointOptions::default());
+    let fit = solve_joint(
+        &prob,
+        &prob.to_scaled(&start),
+        q0,
+        &JointOptions::default(),
+        &mut NoObserver,
+    );
     (prob, fit)
 }
 

@@ -225,8 +225,9 @@ pub(super) fn block_bootstrap(
             sub.frames = idx.iter().map(|&i| prob.frames[i].clone()).collect();
             sub.origin = idx.iter().map(|&i| prob.origin[i]).collect();
             let q0 = idx.iter().map(|&i| fit.coords[i].clone()).collect();
-            let f = solve_joint(&sub, &fit.s, q0, &opts);
-            (f.s, f.converged)
+            let f = solve_joint(&sub, &fit.s, q0, &opts, &mut crate::solver::NoObserver);
+            let converged = f.converged();
+            (f.s, converged)
         })
         .collect();
     let nf = fit.s.len();

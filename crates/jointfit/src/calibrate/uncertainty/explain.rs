@@ -164,10 +164,7 @@ pub(super) fn weak_directions(
         comps.sort_by(|&a, &b| v[b].abs().total_cmp(&v[a].abs()));
         let over = (0..nf).any(|k| {
             let par = &model.parameters()[prob.free[k]];
-            let t = match par.unit {
-                Unit::Metre => opts.threshold_m * 1e3,
-                Unit::Radian => opts.threshold_rad.to_degrees(),
-            };
+            let t = par.unit.to_display(opts.threshold(par.unit));
             hw * v[k].abs() * scale[k] > t
         });
         if !over {

@@ -143,6 +143,16 @@ pub struct UncertaintyOptions {
     pub threshold_rad: f64,
 }
 
+impl UncertaintyOptions {
+    /// The flag threshold of a parameter of `unit` (SI: m or rad).
+    pub fn threshold(&self, unit: Unit) -> f64 {
+        match unit {
+            Unit::Metre => self.threshold_m,
+            Unit::Radian => self.threshold_rad,
+        }
+    }
+}
+
 impl Default for UncertaintyOptions {
     fn default() -> Self {
         UncertaintyOptions {
@@ -288,10 +298,7 @@ impl Uncertainty {
 
 /// Display factor and unit of a parameter or coordinate.
 pub(super) fn display(unit: Unit) -> (f64, &'static str) {
-    match unit {
-        Unit::Metre => (1e3, "mm"),
-        Unit::Radian => (180.0 / std::f64::consts::PI, "deg"),
-    }
+    (unit.display_scale(), unit.display_suffix())
 }
 
 /// Uncertainty of the fitted free parameters of `fit` (a solution of `prob`).
@@ -335,9 +342,9 @@ fn build(
     let scale: Vec<f64> = (0..nf)
         .map(|k| prob.half_range(k) * display(model.parameters()[prob.free[k]].unit).0)
         .collect();
-    let threshold = |k: usize| match model.parameters()[prob.free[k]].unit {
-        Unit::Metre => opts.threshold_m * 1e3,
-        Unit::Radian => opts.threshold_rad.to_degrees(),
+    let threshold = |k: usize| {
+        let unit = model.parameters()[prob.free[k]].unit;
+        unit.to_display(opts.threshold(unit))
     };
     let corr: Vec<Vec<Option<f64>>> = (0..nf)
         .map(|a| {

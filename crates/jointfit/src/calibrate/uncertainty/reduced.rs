@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use super::super::kernel::{frame_gram, FrameScratch};
 use super::super::schur::CHUNK;
 use super::super::Problem;
-use crate::linalg::{cholesky_in_place, cholesky_solve};
+use crate::linalg::Cholesky;
 
 /// The reduced normal equations at one point `(p, q_1 … q_N)`.
 #[derive(Debug, Clone)]
@@ -82,22 +82,22 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
                     // coordinates are themselves undetermined (then they absorb nothing along
                     // that direction).
                     let mut ridge = 1e-14 * max_diag + 1e-300;
-                    loop {
+                    let chol = loop {
                         l.copy_from_slice(&u);
                         for i in 0..nq {
                             l[i * nq + i] += ridge;
                         }
-                        if cholesky_in_place(&mut l, nq) {
-                            break;
+                        if let Some(chol) = Cholesky::factor(&mut l, nq) {
+                            break chol;
                         }
                         ridge *= 100.0;
-                    }
+                    };
                     y.copy_from_slice(&w);
                     for k in 0..nf {
-                        cholesky_solve(&l, nq, &mut y[k * nq..(k + 1) * nq]);
+                        chol.solve(&mut y[k * nq..(k + 1) * nq]);
                     }
                     yg.copy_from_slice(&grad[..nq]);
-                    cholesky_solve(&l, nq, &mut yg);
+                    chol.solve(&mut yg);
                     let mut psi = DVector::zeros(nf);
                     let mut a = DMatrix::from_fn(nf, nf, |k, c| gram[(nq + c) * n + nq + k]);
                     for k in 0..nf {

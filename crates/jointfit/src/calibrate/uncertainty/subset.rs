@@ -5,7 +5,6 @@ use nalgebra::{DMatrix, DVector};
 use super::super::{Fit, Problem};
 use super::estimators::{conservative, continuity, covariances, critical};
 use super::{reduced_system, Reduced, UncertaintyOptions};
-use crate::model::Unit;
 
 /// Subset selection: which free parameters (indices into `prob.free`) to hold fixed so that
 /// the others are determined within the thresholds.
@@ -20,10 +19,7 @@ pub fn unidentifiable_subset(prob: &Problem, fit: &Fit, opts: &UncertaintyOption
     let red = reduced_system(prob, &fit.p, &fit.coords);
     let same = continuity(prob);
     let crit = critical(opts.level, opts);
-    let threshold = |k: usize| match prob.model.parameters()[prob.free[k]].unit {
-        Unit::Metre => opts.threshold_m,
-        Unit::Radian => opts.threshold_rad,
-    };
+    let threshold = |k: usize| opts.threshold(prob.model.parameters()[prob.free[k]].unit);
     let mut keep: Vec<usize> = (0..prob.n_free()).collect();
     let mut removed = Vec::new();
     while !keep.is_empty() {

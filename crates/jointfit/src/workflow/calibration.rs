@@ -1,0 +1,537 @@
+//! [`calibrate`]: one calibration from start to parameter table (see the module docs).
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+
+use super::{FitSettings, Method, Observer, Termination, WorkflowError};
+use crate::calibrate::joint::{solve_joint, JointOptions};
+use crate::calibrate::pso::{solve_pso, PsoOptions};
+use crate::calibrate::uncertainty::{
+    analyze, unidentifiable_subset, Identifiability, SeMethod, Uncertainty,
+};
+use crate::calibrate::varpro::{solve_varpro, VarProOptions};
+use crate::calibrate::{Fit, Problem};
+use crate::ik::IkWorkspace;
+use crate::kinematics::{forward_kinematics, KinData, Want};
+use crate::model::{Model, ParamId, Unit, MM_PER_M};
+use crate::trial::Trial;
+
+/// One free parameter of a calibration, in its shown unit (mm or deg).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ParamRow {
+    pub name: String,
+    pub group: String,
+    /// `mm` or `deg` ([`Unit::display_suffix`]).
+    pub unit: &'static str,
+    pub start: f64,
+    pub fitted: f64,
+    pub change: f64,
+    /// Standard error (same unit), from `uncertainty_method`; `None`: not determined.
+    pub se: Option<f64>,
+    /// 95 % interval (same unit).
+    pub ci95: Option<[f64; 2]>,
+    /// `determined`, `poor` or `undetermined`.
+    pub identifiability: Option<Identifiability>,
+    pub uncertainty_method: Option<SeMethod>,
+    /// Prior SD and mean (same unit), when the fit used a prior on this parameter.
+    pub prior_sd: Option<f64>,
+    pub prior_mean: Option<f64>,
+    /// Share of the posterior information that came from the trial (0–1), and in words.
+    pub data_share: Option<f64>,
+    pub source: Option<crate::calibrate::prior::Source>,
+}
+
+/// One optimizer stage (e.g. the particle swarm, then its polish).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ConvergenceStage {
+    pub stage: String,
+    /// `e_inner` (mm²) at the start of the stage, then after each of its iterations.
+    pub objective_mm2: Vec<f64>,
+}
+
+/// One start of a (multi-start) fit.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StartRun {
+    /// 0 is the given start.
+    pub start: usize,
+    /// Final objective (mm²).
+    pub objective_mm2: f64,
+    pub iterations: usize,
+    pub evaluations: usize,
+    pub termination: Termination,
+    /// The objective per stage of this start.
+    pub convergence: Vec<ConvergenceStage>,
+}
+
+/// What several starts found (`starts > 1`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MultiStart {
+    pub starts: usize,
+    /// Final objective of every start (mm²); start 0 is the given start.
+    pub objective_mm2: Vec<f64>,
+    /// Starts whose objective is within 1e-9 (relative) of the best.
+    pub reached_best: usize,
+    /// Per free parameter: the range (max − min) of its fitted value over the starts
+    /// (mm or deg).
+    pub spread: Vec<(String, f64)>,
+}
+
+/// The result of [`calibrate`]. Lengths in mm, angles in degrees, objectives in mm² unless
+/// the name says otherwise; the serialized field names are those of `jointfit calibrate
+/// --json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Calibration {
+    pub method: Method,
+    /// The seed of the run ([`FitSettings::seed`]).
+    pub seed: u64,
+    pub frames: usize,
+    pub skipped_frames: usize,
+    pub free_parameters: usize,
+    pub parameters: Vec<ParamRow>,
+    pub rms_before_mm: f64,
+    pub rms_after_mm: f64,
+    pub marker_rms_before_mm: Vec<(String, f64)>,
+    pub marker_rms_after_mm: Vec<(String, f64)>,
+    /// `e_inner` at the start and at the fit (m²).
+    pub cost_before: f64,
+    pub cost_after: f64,
+    /// Of the best start (the particle swarm: swarm and polish together).
+    pub iterations: usize,
+    pub evaluations: usize,
+    /// `termination == Converged`.
+    pub converged: bool,
+    /// How the best start's last stage ended.
+    pub termination: Termination,
+    /// The objective after every outer iteration, per stage, of the best start.
+    pub convergence: Vec<ConvergenceStage>,
+    /// Which start won (0: the given start).
+    pub best_start: usize,
+    /// Every start, in order.
+    pub start_runs: Vec<StartRun>,
+    /// Uncertainty and identifiability of the free parameters.
+    pub uncertainty: Option<Uncertainty>,
+    /// Parameters held at their starting values by `fix_unidentifiable`.
+    pub fixed_unidentifiable: Vec<String>,
+    /// Several starts: the optima they reached.
+    pub multistart: Option<MultiStart>,
+    /// Marker noise SD (mm) that weighed the prior; `None`: no prior (unregularized fit).
+    pub prior_noise_mm: Option<f64>,
+    /// Whether that noise was estimated from the residuals (else given).
+    pub prior_noise_estimated: bool,
+    /// Anatomical plausibility of the fitted joints ([`crate::plausibility`]).
+    pub plausibility: Vec<crate::plausibility::Check>,
+    /// The fitted solution (SI), the start and the free parameters finally fitted.
+    #[serde(skip)]
+    pub fit: Fit,
+    #[serde(skip)]
+    pub start: Vec<f64>,
+    #[serde(skip)]
+    pub free: Vec<ParamId>,
+}
+
+impl Calibration {
+    /// Outer iterations summed over every start.
+    pub fn total_iterations(&self) -> usize {
+        self.start_runs.iter().map(|r| r.iterations).sum()
+    }
+}
+
+/// e_inner (m²) in mm².
+fn mm2(cost: f64) -> f64 {
+    cost * MM_PER_M * MM_PER_M
+}
+
+/// Forwards to the caller's observer and records the objective per stage.
+struct Recorder<'o> {
+    inner: &'o mut dyn Observer,
+    stages: Vec<ConvergenceStage>,
+}
+
+impl Recorder<'_> {
+    /// Starts stage `stage` (shown to the observer as `label`); `first` is its starting
+    /// objective when known (recorded as iteration 0).
+    fn begin(&mut self, stage: &str, label: &str, budget: Option<usize>, first: Option<f64>) {
+        self.inner.stage_started(label, budget);
+        self.stages.push(ConvergenceStage {
+            stage: stage.to_string(),
+            objective_mm2: Vec::new(),
+        });
+        if let Some(c) = first {
+            self.iteration(0, c);
+        }
+    }
+}
+
+impl Observer for Recorder<'_> {
+    fn iteration(&mut self, iteration: usize, objective: f64) {
+        if let Some(s) = self.stages.last_mut() {
+            s.objective_mm2.push(mm2(objective));
+        }
+        self.inner.iteration(iteration, objective);
+    }
+    fn stage_ended(&mut self, termination: Termination) {
+        self.inner.stage_ended(termination);
+    }
+}
+
+/// One start: the method's solver(s) from parameters `p0` and coordinates `q0`, where the
+/// objective is `cost0`.
+fn run_start(
+    prob: &Problem,
+    p0: &[f64],
+    q0: Vec<Vec<f64>>,
+    cost0: f64,
+    settings: &FitSettings,
+    label: &dyn Fn(&str) -> String,
+    rec: &mut Recorder,
+) -> Fit {
+    let s0 = prob.to_scaled(p0);
+    let cost0 = Some(cost0);
+    let fit = match settings.method {
+        Method::Joint => {
+            let stage = "joint Levenberg-Marquardt";
+            rec.begin(stage, &label(stage), None, cost0);
+            solve_joint(prob, &s0, q0, &JointOptions::default(), rec)
+        }
+        Method::Gradient => {
+            let stage = "two-level Gauss-Newton";
+            rec.begin(stage, &label(stage), None, cost0);
+            solve_varpro(prob, &s0, q0, &VarProOptions::default(), rec)
+        }
+        Method::Pso => {
+            let opts = PsoOptions {
+                seed: settings.seed,
+                ..PsoOptions::default()
+            };
+            // The swarm usually runs to its budget.
+            let stage = "particle swarm";
+            rec.begin(stage, &label(stage), Some(opts.max_iterations), None);
+            let swarm = solve_pso(prob, &q0, &opts, rec);
+            rec.stage_ended(swarm.termination);
+            let stage = "joint Levenberg-Marquardt polish";
+            rec.begin(stage, &label(stage), None, Some(swarm.cost));
+            let mut polished = solve_joint(
+                prob,
+                &swarm.s,
+                swarm.coords.clone(),
+                &JointOptions::default(),
+                rec,
+            );
+            polished.iterations += swarm.iterations;
+            polished.evaluations += swarm.evaluations;
+            polished
+        }
+    };
+    rec.stage_ended(fit.termination);
+    fit
+}
+
+/// Per-model-marker RMS distance (m) for parameters `p` and per-frame coordinates.
+fn per_marker_rms(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
+    let model = prob.model;
+    let mut kin = KinData::new(model);
+    let mut sums = vec![(0.0, 0usize); model.n_markers()];
+    for (targets, q) in prob.frames.iter().zip(qs) {
+        forward_kinematics(model, p, q, Want::POSITIONS, &mut kin);
+        for j in 0..model.n_markers() {
+            if !targets[j].x.is_nan() {
+                sums[j].0 += (targets[j] - kin.markers[j]).norm_squared();
+                sums[j].1 += 1;
+            }
+        }
+    }
+    sums.iter()
+        .map(|(s, n)| {
+            if *n == 0 {
+                f64::NAN
+            } else {
+                (s / *n as f64).sqrt()
+            }
+        })
+        .collect()
+}
+
+/// Fits the free parameters `free` of `model` to `trials` from `start` (every start of
+/// `settings`), without the uncertainty analysis.
+fn fit_free(
+    model: &Model,
+    start: &[f64],
+    trials: &[&Trial],
+    free: &[ParamId],
+    settings: &FitSettings,
+    noise: Option<f64>,
+    observer: &mut dyn Observer,
+) -> Result<Calibration, WorkflowError> {
+    let (prob, sigma) = super::map::map_problem(model, start, trials, free, settings, noise)?;
+    let mut ws = IkWorkspace::new(model);
+    let mut q_before = Vec::new();
+    let mut cost_before = f64::NAN;
+    let starts = settings.effective_starts();
+    let mut fits = Vec::with_capacity(starts);
+    let mut runs = Vec::with_capacity(starts);
+    for k in 0..starts {
+        observer.progress(k, starts);
+        let p0 = if k == 0 {
+            start.to_vec()
+        } else {
+            restart_point(
+                model,
+                start,
+                &prob.free,
+                settings.restart_mm,
+                settings.restart_deg,
+                settings.seed,
+                k,
+            )
+        };
+        // The solver starts from the seeded inner solutions; the objective there is one
+        // more inner pass (which only polishes them).
+        let q0 = prob.initial_coords(&p0);
+        let mut q = q0.clone();
+        let cost0 = prob.inner(&p0, &mut q, &mut ws) + prob.prior_cost(&p0);
+        if k == 0 {
+            (q_before, cost_before) = (q, cost0);
+        }
+        let label = |stage: &str| {
+            if starts == 1 {
+                stage.to_string()
+            } else {
+                format!("start {} of {starts}: {stage}", k + 1)
+            }
+        };
+        let mut rec = Recorder {
+            inner: &mut *observer,
+            stages: Vec::new(),
+        };
+        let fit = run_start(&prob, &p0, q0, cost0, settings, &label, &mut rec);
+        runs.push(StartRun {
+            start: k,
+            objective_mm2: mm2(fit.cost),
+            iterations: fit.iterations,
+            evaluations: fit.evaluations,
+            termination: fit.termination,
+            convergence: rec.stages,
+        });
+        fits.push(fit);
+    }
+    observer.progress(starts, starts);
+    // The first of equal minima wins.
+    let best = (0..fits.len())
+        .min_by(|&a, &b| fits[a].cost.total_cmp(&fits[b].cost))
+        .expect("at least one start");
+    let multistart = (starts > 1).then(|| multi_start_summary(&prob, &fits, best));
+    let fit = fits.swap_remove(best);
+    let names = |v: Vec<f64>| -> Vec<(String, f64)> {
+        model
+            .markers()
+            .iter()
+            .zip(v)
+            .map(|(m, r)| (m.name.clone(), r * MM_PER_M))
+            .collect()
+    };
+    let parameters = prob
+        .free
+        .iter()
+        .map(|&i| {
+            let par = &model.parameters()[i];
+            let k = par.unit.display_scale();
+            let prior_sd = prob.prior.as_ref().and(par.prior_sd);
+            ParamRow {
+                name: par.name.clone(),
+                group: par.group.clone(),
+                unit: par.unit.display_suffix(),
+                start: start[i] * k,
+                fitted: fit.p[i] * k,
+                change: (fit.p[i] - start[i]) * k,
+                se: None,
+                ci95: None,
+                identifiability: None,
+                uncertainty_method: None,
+                prior_sd: prior_sd.map(|s| s * k),
+                prior_mean: prior_sd.map(|_| par.prior_mean * k),
+                data_share: None,
+                source: None,
+            }
+        })
+        .collect();
+    Ok(Calibration {
+        method: settings.method,
+        seed: settings.seed,
+        frames: prob.frames.len(),
+        skipped_frames: prob.skipped.len(),
+        free_parameters: prob.n_free(),
+        parameters,
+        rms_before_mm: prob.marker_rms(start, &q_before) * MM_PER_M,
+        rms_after_mm: prob.marker_rms(&fit.p, &fit.coords) * MM_PER_M,
+        marker_rms_before_mm: names(per_marker_rms(&prob, start, &q_before)),
+        marker_rms_after_mm: names(per_marker_rms(&prob, &fit.p, &fit.coords)),
+        cost_before,
+        cost_after: fit.cost,
+        iterations: fit.iterations,
+        evaluations: fit.evaluations,
+        converged: fit.converged(),
+        termination: fit.termination,
+        convergence: runs[best].convergence.clone(),
+        best_start: best,
+        start_runs: runs,
+        uncertainty: None,
+        fixed_unidentifiable: Vec::new(),
+        multistart,
+        prior_noise_mm: sigma.map(|s| s * MM_PER_M),
+        prior_noise_estimated: noise.is_none(),
+        plausibility: crate::plausibility::check(model, &fit.p),
+        fit,
+        start: start.to_vec(),
+        free: free.to_vec(),
+    })
+}
+
+/// The optima of several starts: objectives, how many reached the best, spread per parameter.
+fn multi_start_summary(prob: &Problem, fits: &[Fit], best: usize) -> MultiStart {
+    let best_cost = fits[best].cost;
+    let spread = prob
+        .free
+        .iter()
+        .map(|&i| {
+            let par = &prob.model.parameters()[i];
+            let (lo, hi) = fits
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), f| {
+                    (lo.min(f.p[i]), hi.max(f.p[i]))
+                });
+            (par.name.clone(), (hi - lo) * par.unit.display_scale())
+        })
+        .collect();
+    MultiStart {
+        starts: fits.len(),
+        objective_mm2: fits.iter().map(|f| mm2(f.cost)).collect(),
+        reached_best: fits
+            .iter()
+            .filter(|f| f.cost - best_cost <= 1e-9 * best_cost)
+            .count(),
+        spread,
+    }
+}
+
+/// Calibrates the parameters `free` of `model` on `trials` from `start` (a full parameter
+/// vector; the others stay at their `start` values) as `settings` say: every start, the
+/// best kept, then (with `settings.uncertainty`) the uncertainty analysis and, with
+/// `fix_unidentifiable`, up to three rounds of holding the parameters the trials cannot
+/// determine at their start and refitting the rest (subset selection plans on the reduced
+/// normal matrix of the current fit; a refit moves the optimum a little, so it is repeated).
+pub fn calibrate(
+    model: &Model,
+    start: &[f64],
+    trials: &[&Trial],
+    free: &[ParamId],
+    settings: &FitSettings,
+    observer: &mut dyn Observer,
+) -> Result<Calibration, WorkflowError> {
+    let mut free = free.to_vec();
+    let noise = settings.marker_noise;
+    let mut cal = fit_free(model, start, trials, &free, settings, noise, observer)?;
+    // Refits and the analysis weigh the prior by the noise of the first fit.
+    let noise_used = cal.prior_noise_mm.map(|mm| mm / MM_PER_M);
+    let estimated = cal.prior_noise_estimated;
+    let Some(opts) = &settings.uncertainty else {
+        return Ok(cal);
+    };
+    let mut fixed = Vec::new();
+    for _ in 0..if settings.fix_unidentifiable { 3 } else { 0 } {
+        let (prob, _) = super::map::map_problem(model, start, trials, &free, settings, noise_used)?;
+        let drop = unidentifiable_subset(&prob, &cal.fit, opts);
+        if drop.is_empty() {
+            break;
+        }
+        if drop.len() == free.len() {
+            let mut groups: Vec<&str> = Vec::new();
+            for id in &free {
+                let g = model.parameters()[id.0].group.as_str();
+                if !groups.contains(&g) {
+                    groups.push(g);
+                }
+            }
+            return Err(WorkflowError::NothingIdentifiable {
+                groups: groups.join(","),
+            });
+        }
+        fixed.extend(
+            drop.iter()
+                .map(|&k| model.parameters()[free[k].0].name.clone()),
+        );
+        free = free
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| !drop.contains(k))
+            .map(|(_, id)| *id)
+            .collect();
+        cal = fit_free(model, start, trials, &free, settings, noise_used, observer)?;
+        cal.prior_noise_estimated = estimated;
+    }
+    let (prob, _) = super::map::map_problem(model, start, trials, &free, settings, noise_used)?;
+    let u = analyze(&prob, &cal.fit, opts);
+    if prob.prior.is_some() {
+        let red = crate::calibrate::uncertainty::reduced_system(&prob, &cal.fit.p, &cal.fit.coords);
+        let share = crate::calibrate::prior::data_share(&prob, &red.normal);
+        for (row, (&sh, &i)) in cal.parameters.iter_mut().zip(share.iter().zip(&prob.free)) {
+            if model.parameters()[i].prior_sd.is_some() && sh.is_finite() {
+                row.data_share = Some(sh);
+                row.source = Some(crate::calibrate::prior::Source::of(sh));
+            }
+        }
+    }
+    for (row, pu) in cal.parameters.iter_mut().zip(&u.params) {
+        row.se = pu.se;
+        row.ci95 = pu.ci;
+        row.identifiability = Some(pu.status);
+        row.uncertainty_method = Some(pu.method);
+    }
+    cal.uncertainty = Some(u);
+    cal.fixed_unidentifiable = fixed;
+    Ok(cal)
+}
+
+/// Start `k` (≥ 1) of a multi-start fit: [`perturb`] of `start` with a seed derived from the
+/// run's `seed` and `k`, so every start of every run is reproducible and distinct.
+pub fn restart_point(
+    model: &Model,
+    start: &[f64],
+    free: &[usize],
+    mm: f64,
+    deg: f64,
+    seed: u64,
+    k: usize,
+) -> Vec<f64> {
+    let k_seed = seed.wrapping_mul(1_000_003).wrapping_add(k as u64);
+    perturb(model, start, free, mm, deg, k_seed)
+}
+
+/// Parameters `base` with the `free` ones (indices) moved by independent uniform amounts,
+/// up to `mm` millimetres for positions and `deg` degrees for orientations, clamped into the
+/// bounds; seeded (ChaCha8). The paper's "perturbed start".
+pub fn perturb(
+    model: &Model,
+    base: &[f64],
+    free: &[usize],
+    mm: f64,
+    deg: f64,
+    seed: u64,
+) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut p = base.to_vec();
+    for &i in free {
+        let par = &model.parameters()[i];
+        let span = match par.unit {
+            Unit::Metre => mm * crate::model::M_PER_MM,
+            Unit::Radian => deg.to_radians(),
+        };
+        let d = if span > 0.0 {
+            rng.gen_range(-span..=span)
+        } else {
+            0.0
+        };
+        p[i] = (p[i] + d).clamp(par.lower, par.upper);
+    }
+    p
+}

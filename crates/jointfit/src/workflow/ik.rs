@@ -1,0 +1,142 @@
+//! [`ik_trial`]: inverse kinematics over a trial; [`ik_warm_started`]: the warm-started
+//! frame loop alone; [`transfer_params`]: parameters carried between models by name.
+
+use super::WorkflowError;
+use crate::ik::{
+    extrapolate, solve_frame, solve_trial, IkOptions, IkWorkspace, MarkerMap, TrialFit,
+};
+use crate::model::Model;
+use crate::trial::Trial;
+
+/// The result of [`ik_trial`].
+#[derive(Debug, Clone)]
+pub struct IkRun {
+    pub fit: TrialFit,
+    /// Model markers the trial lacks altogether: missing in every frame.
+    pub absent: Vec<String>,
+}
+
+/// Inverse kinematics of every frame of `trial` with `model` at parameters `p`: each frame
+/// warm-started from the extrapolation of the two before (the first, and the first after a
+/// frame that could not be solved, seeded; see [`crate::ik::solve_trial`]). Markers of the
+/// model the trial lacks count as missing in every frame (listed in [`IkRun::absent`]);
+/// frames whose segments keep too few markers are not solved. Errors when the trial shares
+/// no marker with the model, or no frame can be solved.
+pub fn ik_trial(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+    opts: &IkOptions,
+) -> Result<IkRun, WorkflowError> {
+    let (map, absent) = MarkerMap::allowing_absent(model, trial.labels());
+    if absent.len() == model.n_markers() {
+        // Nothing in common: the strict matcher's error lists both sides.
+        MarkerMap::by_name(model, trial.labels())?;
+    }
+    let fit = solve_trial(model, p, trial, &map, opts)?;
+    if !fit.frames.iter().any(|f| f.solved()) {
+        let detail = match crate::ik::unsolved_ranges(&fit).first() {
+            Some(r) => format!(" (first frame: {})", r.reason),
+            None => String::new(),
+        };
+        return Err(WorkflowError::NoFrameSolved { detail });
+    }
+    Ok(IkRun { fit, absent })
+}
+
+/// Solves frames `first + 1 ..` of `trial` in order, each from the linear extrapolation of
+/// the two solutions before it (the second from the first), starting from `q_first`, the
+/// solution of frame `first`: the warm-started inner loop of [`ik_trial`] without seeding.
+/// Returns the iterations summed over the frames.
+pub fn ik_warm_started(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+    map: &MarkerMap,
+    first: usize,
+    q_first: &[f64],
+    opts: &IkOptions,
+) -> usize {
+    let mut ws = IkWorkspace::new(model);
+    let mut targets = Vec::with_capacity(model.n_markers());
+    let mut iterations = 0;
+    let mut before = q_first.to_vec();
+    let mut q = before.clone();
+    for f in first + 1..trial.n_frames() {
+        map.targets(trial, f, &mut targets);
+        let mut next: Vec<f64> = if f > first + 1 {
+            extrapolate(&q, &before)
+        } else {
+            q.clone()
+        };
+        iterations += solve_frame(model, p, &targets, &mut next, opts, &mut ws).iterations;
+        before = std::mem::replace(&mut q, next);
+    }
+    iterations
+}
+
+/// The parameter vector of `target` with every value taken, by name, from `source`'s
+/// nominal values and clamped into `target`'s bounds (a start from an earlier fit).
+/// `source_name` names `source` in the error when it lacks a parameter of `target`.
+pub fn transfer_params(
+    target: &Model,
+    source: &Model,
+    source_name: &str,
+) -> Result<Vec<f64>, WorkflowError> {
+    target
+        .parameters()
+        .iter()
+        .map(|par| match source.param_id(&par.name) {
+            Some(id) => Ok(source.parameters()[id.0]
+                .nominal
+                .clamp(par.lower, par.upper)),
+            None => Err(WorkflowError::MissingParameter {
+                source_model: source_name.to_string(),
+                name: par.name.clone(),
+            }),
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::lower_limb::{lower_limb, Side};
+
+    #[test]
+    fn transfer_takes_values_by_name_and_clamps() {
+        let target = Model::compile(&lower_limb(Side::Right)).unwrap();
+        let mut spec = lower_limb(Side::Right);
+        // Move one parameter inside its bounds and one beyond them.
+        let (a, b) = (0, 1);
+        let lo_b = target.parameters()[b].lower;
+        spec.parameters[a].nominal +=
+            0.25 * (target.parameters()[a].upper - spec.parameters[a].nominal);
+        spec.parameters[b].nominal = lo_b - 1.0;
+        spec.parameters[b].lower = lo_b - 2.0;
+        let source = Model::compile(&spec).unwrap();
+        let p = transfer_params(&target, &source, "earlier.toml").unwrap();
+        assert_eq!(p[a], source.parameters()[a].nominal);
+        assert_ne!(p[a], target.parameters()[a].nominal);
+        assert_eq!(p[b], lo_b);
+        for (v, par) in p.iter().zip(target.parameters()).skip(2) {
+            assert_eq!(*v, par.nominal);
+        }
+        // A source without one of the target's parameters is an error naming both.
+        // The same leg with one parameter renamed (everywhere it is used).
+        let text = toml::to_string(&lower_limb(Side::Right)).unwrap();
+        let renamed: crate::model::ModelSpec =
+            toml::from_str(&text.replace("hip_thigh_anterior", "extra_offset")).unwrap();
+        let wider = Model::compile(&renamed).unwrap();
+        match transfer_params(&wider, &source, "x.toml") {
+            Err(e) => {
+                let msg = e.to_string();
+                assert!(
+                    msg.contains("x.toml") && msg.contains("extra_offset"),
+                    "{msg}"
+                );
+            }
+            Ok(_) => panic!("missing parameter accepted"),
+        }
+    }
+}

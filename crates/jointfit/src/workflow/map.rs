@@ -1,0 +1,65 @@
+//! The maximum a posteriori problem of a calibration ([`crate::calibrate::prior`]): the
+//! marker term weighed against the parameter priors of the model file by the marker noise σ,
+//! given ([`FitSettings::marker_noise`]) or estimated from the residuals.
+//!
+//! Estimation: σ² starts as the residual variance at the start, then one preliminary MAP fit
+//! (joint solver) gives the residual variance of the reduced system, inflated by the
+//! time-correlation factor κ of [`crate::calibrate::prior::correlation_inflation`] (the ratio
+//! of the robust to the white variance; without it thousands of correlated samples would
+//! count as independent and swamp any prior).
+
+use super::{FitSettings, NoObserver, WorkflowError};
+use crate::calibrate::joint::{solve_joint, JointOptions};
+use crate::calibrate::uncertainty::{analyze, reduced_system, UncertaintyOptions};
+use crate::calibrate::Problem;
+use crate::ik::IkWorkspace;
+use crate::model::{Model, ParamId};
+use crate::trial::Trial;
+
+/// The problem of `free` on `trials` from `start`, with the model's priors when
+/// `settings.priors` is set and the model has any, weighed by `noise` (m) when given, else by
+/// the σ estimated as the module docs say. Returns the problem and the σ used (`None`: no
+/// prior, the paper's unregularized fit).
+pub fn map_problem<'m>(
+    model: &'m Model,
+    start: &[f64],
+    trials: &[&Trial],
+    free: &[ParamId],
+    settings: &FitSettings,
+    noise: Option<f64>,
+) -> Result<(Problem<'m>, Option<f64>), WorkflowError> {
+    let prob = Problem::new(model, start.to_vec(), free, trials)?;
+    let has_prior = free
+        .iter()
+        .any(|id| model.parameters()[id.0].prior_sd.is_some());
+    if !settings.priors || !has_prior {
+        return Ok((prob, None));
+    }
+    if let Some(sigma) = noise {
+        let prob = prob.with_model_prior(sigma);
+        let used = prob.prior.as_ref().map(|p| p.noise);
+        return Ok((prob, used));
+    }
+    let q0 = prob.initial_coords(start);
+    let mut q = q0.clone();
+    let mut ws = IkWorkspace::new(model);
+    let data = prob.inner(start, &mut q, &mut ws);
+    let observations = reduced_system(&prob, start, &q).observations.max(1);
+    let mut prob = prob.with_model_prior((data / observations as f64).sqrt());
+    if prob.prior.is_some() {
+        let s0 = prob.to_scaled(start);
+        let pre = solve_joint(&prob, &s0, q0, &JointOptions::default(), &mut NoObserver);
+        let red = reduced_system(&prob, &pre.p, &pre.coords);
+        let plain = Problem::new(model, start.to_vec(), free, trials)?;
+        let u = analyze(&plain, &pre, &UncertaintyOptions::default());
+        let kappa = crate::calibrate::prior::correlation_inflation(&u);
+        let sigma = (red.sigma2() * kappa).sqrt();
+        if sigma.is_finite() && sigma > 0.0 {
+            if let Some(pr) = prob.prior.as_mut() {
+                pr.noise = sigma;
+            }
+        }
+    }
+    let used = prob.prior.as_ref().map(|p| p.noise);
+    Ok((prob, used))
+}

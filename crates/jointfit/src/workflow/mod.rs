@@ -1,0 +1,214 @@
+//! The jobs of the program, on models and trials already in memory: calibrate a model
+//! ([`calibrate`]), predict what a trial can determine ([`check`]), inverse kinematics of a
+//! trial ([`ik_trial`]), carry parameters from one model to another ([`transfer_params`]).
+//!
+//! This is the one place that drives the solvers of [`crate::calibrate`] and [`crate::ik`]:
+//! the command line, the experiments and any other front end (a Python binding, a batch
+//! runner) call these functions and keep only file input/output and printing. Nothing here
+//! reads files or prints; progress goes to an [`Observer`] (pass `&mut NoObserver` for
+//! none), timing is left to the caller.
+//!
+//! A calibration (Reinbolt et al. 2005, J Biomech 38:621–626,
+//! doi:10.1016/j.jbiomech.2004.03.031) minimises `e_inner(p) = Σ_i min_{q_i} Σ_j w_ij
+//! ‖m_ij − x_j(p, q_i)‖²` over the free parameters `p` with one of three outer methods
+//! ([`Method`]); with `starts > 1` it is repeated from seeded starts moved by up to
+//! `restart_mm` / `restart_deg` ([`restart_point`]) and the lowest objective wins; an
+//! uncertainty analysis ([`crate::calibrate::uncertainty`]) may follow, and with
+//! `fix_unidentifiable` the parameters the trials cannot determine are held at their start
+//! and the rest refitted.
+
+mod calibration;
+mod check;
+mod ik;
+pub mod map;
+
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use crate::calibrate::uncertainty::UncertaintyOptions;
+use crate::calibrate::CalibError;
+
+pub use crate::solver::{NoObserver, Observer, Termination};
+pub use calibration::{
+    calibrate, perturb, restart_point, Calibration, ConvergenceStage, MultiStart, ParamRow,
+    StartRun,
+};
+pub use check::{check, CheckReport};
+pub use ik::{ik_trial, ik_warm_started, transfer_params, IkRun};
+
+/// Errors of the workflow.
+#[derive(Debug, Error, PartialEq)]
+pub enum WorkflowError {
+    #[error(transparent)]
+    Calib(#[from] CalibError),
+    #[error(transparent)]
+    Ik(#[from] crate::ik::IkError),
+    #[error(
+        "no parameter of {groups} can be determined from these trials within the thresholds; \
+         nothing left to fit"
+    )]
+    NothingIdentifiable { groups: String },
+    #[error("no frame could be solved{detail}")]
+    NoFrameSolved { detail: String },
+    #[error("{source_model}: has no parameter {name:?} of the subject model")]
+    MissingParameter { source_model: String, name: String },
+}
+
+/// The outer optimizer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Joint sparse Levenberg–Marquardt over every frame's coordinates and the parameters
+    /// ([`crate::calibrate::joint`]); the fast default.
+    Joint,
+    /// Two-level Gauss-Newton on the reduced (variable-projection) Jacobian
+    /// ([`crate::calibrate::varpro`]).
+    Gradient,
+    /// Particle swarm (Schutte et al. 2005, [`crate::calibrate::pso`]), then polished by the
+    /// joint solver.
+    Pso,
+}
+
+impl Method {
+    /// Every method, in the order of the command line's choices.
+    pub const ALL: [Method; 3] = [Method::Joint, Method::Gradient, Method::Pso];
+
+    /// The lower-case name (`joint`, `gradient`, `pso`), as on the command line and in JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Joint => "joint",
+            Method::Gradient => "gradient",
+            Method::Pso => "pso",
+        }
+    }
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Method {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Method, String> {
+        Method::ALL
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| format!("unknown method {s:?}; choose joint, gradient or pso"))
+    }
+}
+
+/// How a calibration is run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitSettings {
+    pub method: Method,
+    /// Seed of every random choice: the particle swarm, the extra starts and (when the
+    /// uncertainty options do not set their own) the bootstrap.
+    pub seed: u64,
+    /// Number of starts (≥ 1). Start 0 is the given start; start `k` moves every free
+    /// parameter by up to `restart_mm` / `restart_deg` ([`restart_point`]). The particle
+    /// swarm, global by itself, always uses one.
+    pub starts: usize,
+    pub restart_mm: f64,
+    pub restart_deg: f64,
+    /// Uncertainty and identifiability of the fitted parameters; `None`: not analysed.
+    pub uncertainty: Option<UncertaintyOptions>,
+    /// Refit with the parameters the trials cannot determine (within the thresholds of
+    /// `uncertainty`) held at their starting values; needs `uncertainty`.
+    pub fix_unidentifiable: bool,
+    /// Use the parameter priors of the model file (`prior_sd`/`prior_mean`, written by
+    /// `personalize`): a maximum a posteriori fit ([`map::map_problem`]). `false`, or a model
+    /// without priors: the paper's unregularized least squares.
+    pub priors: bool,
+    /// Marker noise σ (m) that weighs the priors against the markers; `None`: estimated from
+    /// the residuals ([`map`]).
+    pub marker_noise: Option<f64>,
+}
+
+impl Default for FitSettings {
+    fn default() -> Self {
+        FitSettings {
+            method: Method::Joint,
+            seed: 1,
+            starts: 1,
+            restart_mm: 20.0,
+            restart_deg: 10.0,
+            uncertainty: None,
+            fix_unidentifiable: false,
+            priors: true,
+            marker_noise: None,
+        }
+    }
+}
+
+impl FitSettings {
+    /// Starts actually run: `starts` (at least one), one for the particle swarm.
+    pub fn effective_starts(&self) -> usize {
+        if self.method == Method::Pso {
+            1
+        } else {
+            self.starts.max(1)
+        }
+    }
+}
+
+/// Uncertainty options from the command line's units: flag thresholds in mm and degrees,
+/// `bootstrap` moving-block replicates, `seed` of the bootstrap.
+pub fn uncertainty_options(
+    threshold_mm: f64,
+    threshold_deg: f64,
+    bootstrap: usize,
+    seed: u64,
+) -> UncertaintyOptions {
+    UncertaintyOptions {
+        threshold_m: crate::model::Unit::Metre.from_display(threshold_mm),
+        threshold_rad: crate::model::Unit::Radian.from_display(threshold_deg),
+        bootstrap_replicates: bootstrap,
+        seed,
+        ..UncertaintyOptions::default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn method_names_round_trip() {
+        for m in Method::ALL {
+            assert_eq!(m.name().parse::<Method>(), Ok(m));
+            assert_eq!(
+                serde_json::to_string(&m).unwrap(),
+                format!("\"{}\"", m.name())
+            );
+        }
+        assert!("newton".parse::<Method>().is_err());
+    }
+
+    #[test]
+    fn swarm_runs_one_start() {
+        let s = FitSettings {
+            method: Method::Pso,
+            starts: 5,
+            ..FitSettings::default()
+        };
+        assert_eq!(s.effective_starts(), 1);
+        let s = FitSettings {
+            starts: 0,
+            ..FitSettings::default()
+        };
+        assert_eq!(s.effective_starts(), 1);
+    }
+
+    #[test]
+    fn thresholds_convert_to_si() {
+        let o = uncertainty_options(5.0, 2.0, 7, 3);
+        assert!((o.threshold_m - 0.005).abs() < 1e-18);
+        assert!((o.threshold_rad - 2f64.to_radians()).abs() < 1e-18);
+        assert_eq!((o.bootstrap_replicates, o.seed), (7, 3));
+    }
+}
+
+#[cfg(test)]
+mod synthetic_tests;
