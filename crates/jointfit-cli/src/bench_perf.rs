@@ -43,8 +43,11 @@ pub fn opensim_ik(model: &Model, trc: &Path, repeat: usize) -> Result<OpenSimIk,
     let dir = std::env::temp_dir().join(format!("jointfit-bench-{}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let osim = dir.join("subject.osim");
-    jointfit_io::osim::write_osim(&osim, model, &model.nominal_params())
+    // A scratch file for the OpenSim subprocess, written now: the command's staged outputs
+    // appear only when the command ends, and this folder is gone by then.
+    let text = jointfit_io::osim::to_osim(model, &model.nominal_params())
         .map_err(|e| format!("exporting the model: {e}"))?;
+    std::fs::write(&osim, text).map_err(|e| format!("{}: {e}", osim.display()))?;
     let weights: serde_json::Map<String, serde_json::Value> = model
         .markers()
         .iter()

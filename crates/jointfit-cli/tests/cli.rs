@@ -134,6 +134,35 @@ fn bench_runs_without_data() {
     assert!(long["two_over_one"].as_f64().unwrap().is_finite(), "{out}");
 }
 
+/// With the shared data and OpenSim, `bench` times OpenSim's IK solver on the exported
+/// landmark model and exits 0 (the exported model is a scratch file for the subprocess, not a
+/// staged output that would appear only after OpenSim needed it).
+#[test]
+fn bench_times_opensim_on_the_shared_trial() {
+    let (Some(data), Some(_python)) = (jointfit::testing::data_dir(), jointfit::testing::python())
+    else {
+        return;
+    };
+    let data = data.to_str().unwrap().to_string();
+    let (ok, out, err) = jointfit(&[
+        "bench",
+        "--data",
+        &data,
+        "--json",
+        "--long-frames",
+        "0",
+        "--rss-frames",
+        "0",
+    ]);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).expect("valid JSON");
+    let ratio = v["opensim_ik_over_jointfit_ik"].as_f64();
+    assert!(
+        ratio.is_some_and(|r| r.is_finite() && r > 0.0),
+        "no OpenSim figure: {out}\n{err}"
+    );
+}
+
 /// `--starts 3`: three optima reported, and the fit kept is the best of them.
 #[test]
 fn calibrate_multi_start_keeps_the_best() {
