@@ -423,16 +423,20 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     )?;
     observer.finish();
     let seconds = clock.elapsed().as_secs_f64();
-    if !cal.converged && !args.accept_unconverged {
+    let print = |cal: &Calibration| -> Result<()> {
         if args.json {
             let report = Report {
-                calibration: &cal,
+                calibration: cal,
                 seconds,
             };
             println!("{}", serde_json::to_string_pretty(&report)?);
         } else {
-            print_report(&cal, seconds);
+            print_report(cal, seconds);
         }
+        Ok(())
+    };
+    if !cal.converged && !args.accept_unconverged {
+        print(&cal)?;
         return Err(
             crate::output::Unconverged(format!("the calibration ({})", cal.termination)).into(),
         );
@@ -455,14 +459,8 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         )?),
         None => None,
     };
-    if args.json {
-        let report = Report {
-            calibration: &cal,
-            seconds,
-        };
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        print_report(&cal, seconds);
+    print(&cal)?;
+    if !args.json {
         println!("wrote {}", args.output.display());
         if let Some(path) = html {
             println!("wrote {}", path.display());

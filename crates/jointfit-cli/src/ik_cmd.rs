@@ -5,10 +5,11 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use jointfit::ik::{solve_trial, unsolved_ranges, IkOptions, MarkerMap, TrialFit};
+use jointfit::ik::{unsolved_ranges, IkOptions, TrialFit};
 use jointfit::model::custom::MotionType;
 use jointfit::model::{Model, MM_PER_M};
 use jointfit::trial::Trial;
+use jointfit::workflow::{self, WorkflowError};
 use jointfit_io::sto::{write_sto, Table};
 use serde::Serialize;
 
@@ -95,21 +96,6 @@ pub fn run(args: IkArgs) -> Result<()> {
     files.check()?;
     let model = jointfit_io::model_file::load_model(&args.model)?;
     let trial = load_trial(&args.trial, args.up, args.filter)?;
-    // Markers the file lacks altogether are missing in every frame; frames whose present
-    // markers leave a coordinate undetermined are reported as unsolved, as for gaps.
-    let (map, absent) = MarkerMap::allowing_absent(&model, trial.labels());
-    if absent.len() == model.n_markers() {
-        // Nothing in common: the strict matcher's error lists both sides.
-        MarkerMap::by_name(&model, trial.labels())
-            .with_context(|| args.trial.display().to_string())?;
-    }
-    if !absent.is_empty() {
-        eprintln!(
-            "jointfit: warning: {}: lacks model markers {}; they count as missing in every frame",
-            args.trial.display(),
-            absent.join(", ")
-        );
-    }
     let findings = crate::common::run_checks(&model, &trial, &args.trial)?;
     let start = Instant::now();
     let opts = IkOptions {
@@ -121,18 +107,24 @@ pub fn run(args: IkArgs) -> Result<()> {
         },
         ..IkOptions::default()
     };
-    let fit = solve_trial(&model, &model.nominal_params(), &trial, &map, &opts)?;
+    // Markers the file lacks altogether are missing in every frame; frames whose present
+    // markers leave a coordinate undetermined are reported as unsolved, as for gaps.
+    let run = match workflow::ik_trial(&model, &model.nominal_params(), &trial, &opts) {
+        Ok(run) => run,
+        Err(e @ WorkflowError::NoFrameSolved { .. }) => {
+            bail!("{}: {e}; nothing written", args.trial.display())
+        }
+        Err(e) => return Err(e).with_context(|| args.trial.display().to_string()),
+    };
     let seconds = start.elapsed().as_secs_f64();
-    if !fit.frames.iter().any(|f| f.solved()) {
-        let why = match unsolved_ranges(&fit).first() {
-            Some(r) => format!(" (first frame: {})", r.reason),
-            None => String::new(),
-        };
-        bail!(
-            "{}: no frame could be solved{why}; nothing written",
-            args.trial.display()
+    if !run.absent.is_empty() {
+        eprintln!(
+            "jointfit: warning: {}: lacks model markers {}; they count as missing in every frame",
+            args.trial.display(),
+            run.absent.join(", ")
         );
     }
+    let fit = run.fit;
     write_sto(&args.output, &angles_table(&model, &trial, &fit))
         .with_context(|| format!("writing {}", args.output.display()))?;
     if let Some(path) = &args.errors {

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use jointfit::ik::{solve_trial, IkOptions, MarkerMap};
+use jointfit::ik::IkOptions;
 use jointfit::landmarks::PRESET_NAMES;
 use jointfit::landmarks::{
     personalize as landmarks, HipCentreMethod, MarkerSet, PersonalizeOptions,
@@ -231,40 +231,27 @@ pub fn ik(
 ) -> PyResult<PyIkResult> {
     let model = model_arg(model)?;
     let trial = trial_arg(py, trial, up, filter)?;
-    let (map, absent) = MarkerMap::allowing_absent(&model, trial.trial.labels());
-    if absent.len() == model.n_markers() {
-        if let Err(e) = MarkerMap::by_name(&model, trial.trial.labels()) {
-            return Err(msg(format!(
+    let p = model.nominal_params();
+    let run = py
+        .detach(|| jointfit::workflow::ik_trial(&model, &p, &trial.trial, &IkOptions::default()))
+        .map_err(|e| {
+            msg(format!(
                 "{}: {}",
                 trial.name,
                 jointfit_io::batch::message(&e)
-            )));
-        }
-    }
-    if !absent.is_empty() {
+            ))
+        })?;
+    if !run.absent.is_empty() {
         warn_all(
             py,
             &[format!(
                 "{}: lacks model markers {}; they count as missing in every frame",
                 trial.name,
-                absent.join(", ")
+                run.absent.join(", ")
             )],
         )?;
     }
-    let p = model.nominal_params();
-    let fit = py
-        .detach(|| solve_trial(&model, &p, &trial.trial, &map, &IkOptions::default()))
-        .map_err(|e| err(&e))?;
-    if !fit.frames.iter().any(|f| f.solved()) {
-        let why = match jointfit::ik::unsolved_ranges(&fit).first() {
-            Some(r) => format!(" (first frame: {})", r.reason),
-            None => String::new(),
-        };
-        return Err(msg(format!(
-            "{}: no frame could be solved{why}",
-            trial.name
-        )));
-    }
+    let fit = run.fit;
     let (nf, nq, nm) = (fit.frames.len(), model.n_q(), model.n_markers());
     Ok(PyIkResult {
         coordinate_names: model.coordinates().iter().map(|c| c.name.clone()).collect(),
