@@ -7,10 +7,9 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use jointfit::calibrate::params_for_groups;
-use jointfit::calibrate::uncertainty::{Identifiability, Uncertainty};
 use jointfit::trial::Trial;
 use jointfit::workflow::{
-    self, uncertainty_options, Calibration, FitSettings, Method, Observer, Termination,
+    self, uncertainty_options, Calibration, FitSettings, Method, Observer,
 };
 use serde::Serialize;
 
@@ -105,6 +104,13 @@ pub struct CalibrateArgs {
     /// VALUE in mm or deg; e.g. knee=5mm,knee=3deg,hip_pelvis_lateral=8mm.
     #[arg(long, value_delimiter = ',', value_name = "NAME=VALUE")]
     pub prior_sd: Vec<String>,
+    /// Also fit each tracking marker's position in its segment (with a prior around the
+    /// static-trial position); the fitted model carries the refined markers.
+    #[arg(long)]
+    pub refine_markers: bool,
+    /// Prior SD (mm per axis) of a refined marker position (with --refine-markers).
+    #[arg(long, value_name = "MM", default_value_t = 10.0, allow_negative_numbers = true, value_parser = crate::validate::positive)]
+    pub marker_prior_sd_mm: f64,
 }
 
 /// `calibrate --json`: the calibration and the wall time.
@@ -112,6 +118,16 @@ pub struct CalibrateArgs {
 pub struct Report<'a> {
     #[serde(flatten)]
     pub calibration: &'a Calibration,
+    /// `--refine-markers`: how far each marker moved, and which marker offsets trade off
+    /// with which joint parameters.
+    #[serde(skip_serializing_if = "<[_]>::is_empty")]
+    pub refined_markers: &'a [workflow::refine::RefinedMarker],
+    #[serde(skip_serializing_if = "<[_]>::is_empty")]
+    pub marker_trade_offs: &'a [workflow::refine::TradeOff],
+    /// With a prior: the short summary the text output prints (which joints the trial
+    /// determined, which the prior held, which trial would determine them).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub information_summary: Vec<String>,
     pub seconds: f64,
 }
 
@@ -171,204 +187,15 @@ pub fn fit_settings(args: &CalibrateArgs) -> FitSettings {
         marker_noise: args
             .marker_noise_mm
             .map(|mm| mm * jointfit::model::M_PER_MM),
+        refine_markers: args
+            .refine_markers
+            .then(|| args.marker_prior_sd_mm * jointfit::model::M_PER_MM),
         ..FitSettings::default()
     }
 }
 
-pub fn print_report(report: &Calibration, seconds: f64) {
-    println!(
-        "{}: {} free parameters, {} frames ({} skipped), {} iterations, {} evaluations, {:.3} s{}",
-        report.method,
-        report.free_parameters,
-        report.frames,
-        report.skipped_frames,
-        report.iterations,
-        report.evaluations,
-        seconds,
-        match report.termination {
-            Termination::Converged => String::new(),
-            t => format!(" (not converged: {t})"),
-        }
-    );
-    if let Some(ms) = &report.multistart {
-        let lo = ms
-            .objective_mm2
-            .iter()
-            .copied()
-            .fold(f64::INFINITY, f64::min);
-        let hi = ms
-            .objective_mm2
-            .iter()
-            .copied()
-            .fold(f64::NEG_INFINITY, f64::max);
-        println!(
-            "{} starts: {} reached the best objective (to 1e-9); objectives {:.3} to {:.3} mm²; \
-             kept start {}",
-            ms.starts,
-            ms.reached_best,
-            lo,
-            hi,
-            report.best_start + 1
-        );
-        let mut wide: Vec<&(String, f64)> = ms.spread.iter().filter(|(_, r)| *r > 0.1).collect();
-        wide.sort_by(|a, b| b.1.total_cmp(&a.1));
-        if !wide.is_empty() {
-            let list: Vec<String> = wide
-                .iter()
-                .take(6)
-                .map(|(n, r)| format!("{n} {r:.1}"))
-                .collect();
-            println!(
-                "  largest spread of the optima over the starts (mm or deg): {}",
-                list.join(", ")
-            );
-        }
-    }
-    let mut t = crate::table::Table::new(&[
-        "group",
-        "parameter",
-        "unit",
-        "start",
-        "fitted",
-        "change",
-        "±95%",
-        "95% CI",
-        "determined",
-    ]);
-    for p in &report.parameters {
-        let hw = p.ci95.map(|c| 0.5 * (c[1] - c[0]));
-        t.row(vec![
-            p.group.clone(),
-            p.name.clone(),
-            p.unit.to_string(),
-            format!("{:.2}", p.start),
-            format!("{:.2}", p.fitted),
-            format!("{:.2}", p.change),
-            match (hw, &p.identifiability) {
-                (Some(h), _) => format!("{h:.2}"),
-                (None, Some(_)) => "∞".to_string(),
-                (None, None) => "-".to_string(),
-            },
-            p.ci95
-                .map_or("-".to_string(), |c| format!("[{:.2}, {:.2}]", c[0], c[1])),
-            match p.identifiability {
-                Some(Identifiability::Determined) => "yes".to_string(),
-                Some(Identifiability::Poor) => "POOR".to_string(),
-                Some(Identifiability::Undetermined) => "NO".to_string(),
-                None => "-".to_string(),
-            },
-        ]);
-    }
-    print!("{}", t.render());
-    match (&report.uncertainty, report.prior_noise_mm) {
-        (Some(u), None) => print_uncertainty_notes(u, &report.fixed_unidentifiable),
-        (_, Some(noise)) => print_prior_summary(report, noise),
-        (None, None) => {}
-    }
-    for c in report.plausibility.iter().filter(|c| !c.ok) {
-        eprintln!(
-            "jointfit: warning: implausible {}: {:.1} {u} > {:.1} {u} ({:.1} {u} outside; {})",
-            c.check,
-            c.value,
-            c.limit,
-            c.excess(),
-            c.parameters.join(", "),
-            u = c.unit
-        );
-    }
-    println!(
-        "RMS marker distance: {:.2} mm before, {:.2} mm after ({:.0}% lower)",
-        report.rms_before_mm,
-        report.rms_after_mm,
-        100.0 * (1.0 - report.rms_after_mm / report.rms_before_mm)
-    );
-    let mut t = crate::table::Table::new(&["marker", "before mm", "after mm"]);
-    for ((name, b), (_, a)) in report
-        .marker_rms_before_mm
-        .iter()
-        .zip(&report.marker_rms_after_mm)
-    {
-        t.row(vec![name.clone(), format!("{b:.2}"), format!("{a:.2}")]);
-    }
-    print!("{}", t.render());
-}
-
-/// With a prior: which parameters the trial determined, and the weighting noise.
-fn print_prior_summary(report: &Calibration, noise_mm: f64) {
-    println!(
-        "maximum a posteriori fit: priors from the model file, marker noise σ = {noise_mm:.2} \
-         mm ({}); intervals include the prior",
-        if report.prior_noise_estimated {
-            "estimated from the residuals"
-        } else {
-            "given"
-        }
-    );
-    let rows: Vec<(String, String, Option<jointfit::calibrate::prior::Source>)> = report
-        .parameters
-        .iter()
-        .map(|p| (p.group.clone(), p.name.clone(), p.source))
-        .collect();
-    for line in crate::prior_args::summary(&rows) {
-        println!("  {line}");
-    }
-}
-
-/// How the intervals were made, the warnings for flagged parameters, the weak combinations.
-pub fn print_uncertainty_notes(u: &Uncertainty, fixed: &[String]) {
-    let mut methods: Vec<String> = Vec::new();
-    for p in &u.params {
-        let m = format!("{:?}", p.method).to_lowercase();
-        if !methods.contains(&m) {
-            methods.push(m);
-        }
-    }
-    println!(
-        "95% intervals: the widest of white-noise (σ = {:.2} mm, {} dof), Newey-West HAC (bandwidth {}){}{}; widest came from: {}",
-        u.sigma_mm,
-        u.dof,
-        u.hac_bandwidth.map_or("-".into(), |b| format!("{b:.1} frames")),
-        u.jackknife_blocks
-            .map_or(String::new(), |k| format!(", {k}-block jackknife (t, {} dof)", k - 1)),
-        u.bootstrap.as_ref().map_or(String::new(), |b| format!(
-            ", block bootstrap ({} replicates of {}-frame blocks, seed {})",
-            b.replicates, b.block_length, b.seed
-        )),
-        methods.join(", ")
-    );
-    for p in u.flagged() {
-        let hw = p
-            .half_width
-            .map_or("unbounded".to_string(), |h| format!("±{h:.1} {}", p.unit));
-        eprintln!(
-            "jointfit: warning: {} {} by this trial ({hw} > {} {}): {}",
-            p.name,
-            if p.status == Identifiability::Undetermined {
-                "not determined"
-            } else {
-                "poorly determined"
-            },
-            if p.unit == "mm" {
-                u.threshold_mm
-            } else {
-                u.threshold_deg
-            },
-            p.unit,
-            p.reason.as_deref().unwrap_or("")
-        );
-    }
-    for w in &u.weak_directions {
-        println!("weak combination: {}", w.description);
-    }
-    if !fixed.is_empty() {
-        println!(
-            "held at their starting values (--fix-unidentifiable): {}",
-            fixed.join(", ")
-        );
-    } else if u.flagged().next().is_some() {
-        println!("(rerun with --fix-unidentifiable to hold the flagged parameters at their starting values)");
-    }
-}
+use crate::calibrate_text::information_summary;
+pub use crate::calibrate_text::print_report;
 
 pub fn run(args: CalibrateArgs) -> Result<()> {
     let mut files = crate::output::Files::new().model("model", &args.model);
@@ -413,7 +240,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let free = params_for_groups(&model, &groups)?;
     let clock = Instant::now();
     let mut observer = ProgressObserver::new();
-    let cal = workflow::calibrate(
+    let refined = workflow::refine::calibrate_refined(
         &model,
         &start,
         &refs,
@@ -422,27 +249,34 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         &mut observer,
     )?;
     observer.finish();
+    let cal = &refined.calibration;
     let seconds = clock.elapsed().as_secs_f64();
     let print = |cal: &Calibration| -> Result<()> {
         if args.json {
             let report = Report {
                 calibration: cal,
+                refined_markers: &refined.markers,
+                marker_trade_offs: &refined.trade_offs,
+                information_summary: information_summary(cal),
                 seconds,
             };
             println!("{}", serde_json::to_string_pretty(&report)?);
         } else {
             print_report(cal, seconds);
+            crate::prior_args::print_refinement(&refined.markers, &refined.trade_offs);
         }
         Ok(())
     };
     if !cal.converged && !args.accept_unconverged {
-        print(&cal)?;
+        print(cal)?;
         return Err(
             crate::output::Unconverged(format!("the calibration ({})", cal.termination)).into(),
         );
     }
     // The fitted model keeps the input file's priors (overrides apply to this run only).
-    let mut fitted = input_model.spec_with_nominal(&cal.fit.p);
+    // Refined markers (if any) replace the input's.
+    let mut fitted = input_model.spec_with_nominal(&cal.fit.p[..input_model.n_p()]);
+    fitted.markers = refined.fitted.markers.clone();
     fitted.name = format!("{} (fitted)", spec.name);
     jointfit_io::model_file::save_spec(&args.output, &fitted)
         .with_context(|| format!("writing {}", args.output.display()))?;
@@ -451,15 +285,15 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             dir,
             &spec.name,
             baseline_label(&args),
-            &model,
+            &refined.model,
             &named_trials(&args.trials, &refs),
-            &cal,
+            cal,
             &provenance(&args),
             seconds,
         )?),
         None => None,
     };
-    print(&cal)?;
+    print(cal)?;
     if !args.json {
         println!("wrote {}", args.output.display());
         if let Some(path) = html {

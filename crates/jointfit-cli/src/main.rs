@@ -12,6 +12,7 @@ mod batch_cmd;
 mod bench_cmd;
 mod bench_perf;
 mod calibrate_cmd;
+mod calibrate_text;
 mod check_cmd;
 mod common;
 mod data_cmd;

@@ -88,42 +88,9 @@ fn groups(spec: &ModelSpec) -> Vec<String> {
     g
 }
 
-/// One line per source class: which parameters (grouped by joint) the trial determined,
-/// which it partly determined, and which the prior held.
+/// One line per source class ([`jointfit::calibrate::prior::information_summary`]).
 pub fn summary(rows: &[(String, String, Option<Source>)]) -> Vec<String> {
-    let mut out = Vec::new();
-    for src in [
-        Source::DeterminedByTrial,
-        Source::Partly,
-        Source::HeldByPrior,
-    ] {
-        let mut by_group: Vec<(String, Vec<String>)> = Vec::new();
-        for (group, name, s) in rows {
-            if *s != Some(src) {
-                continue;
-            }
-            match by_group.iter_mut().find(|(g, _)| g == group) {
-                Some((_, v)) => v.push(name.clone()),
-                None => by_group.push((group.clone(), vec![name.clone()])),
-            }
-        }
-        if by_group.is_empty() {
-            continue;
-        }
-        let total = |g: &str| rows.iter().filter(|r| r.0 == g).count();
-        let parts: Vec<String> = by_group
-            .iter()
-            .map(|(g, v)| {
-                if v.len() == total(g) {
-                    format!("{g} (all {})", v.len())
-                } else {
-                    format!("{g}: {}", v.join(", "))
-                }
-            })
-            .collect();
-        out.push(format!("{}: {}", src.words(), parts.join("; ")));
-    }
-    out
+    jointfit::calibrate::prior::information_summary(rows)
 }
 
 #[cfg(test)]
@@ -169,5 +136,43 @@ mod tests {
         }
         apply(&mut spec, PriorArg::None, &[]).unwrap();
         assert!(spec.parameters.iter().all(|p| p.prior_sd.is_none()));
+    }
+}
+
+/// `--refine-markers`: the markers that moved most and the strongest trade-offs.
+pub fn print_refinement(
+    markers: &[jointfit::workflow::refine::RefinedMarker],
+    trade_offs: &[jointfit::workflow::refine::TradeOff],
+) {
+    if markers.is_empty() {
+        return;
+    }
+    let mut by_shift: Vec<_> = markers.iter().collect();
+    by_shift.sort_by(|a, b| b.shift_mm.total_cmp(&a.shift_mm));
+    let list: Vec<String> = by_shift
+        .iter()
+        .take(6)
+        .map(|m| format!("{} {:.1} mm", m.name, m.shift_mm))
+        .collect();
+    println!(
+        "refined {} marker positions; moved most: {}",
+        markers.len(),
+        list.join(", ")
+    );
+    if !trade_offs.is_empty() {
+        let list: Vec<String> = trade_offs
+            .iter()
+            .take(6)
+            .map(|t| {
+                format!(
+                    "{} ~ {} (r = {:+.2})",
+                    t.marker_parameter, t.joint_parameter, t.correlation
+                )
+            })
+            .collect();
+        println!(
+            "marker offsets that trade off with joint parameters: {}",
+            list.join(", ")
+        );
     }
 }

@@ -25,6 +25,8 @@ pub struct ReportInput {
     pub settings: Vec<(String, String)>,
     /// Notes shown above the figures (warnings, e.g. frames that could not be solved).
     pub notes: Vec<String>,
+    /// Where the information came from and the anatomical checks (a calibration).
+    pub trust: Option<crate::trust::Trust>,
 }
 
 impl ReportInput {

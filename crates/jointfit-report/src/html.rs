@@ -114,6 +114,11 @@ pub fn render(input: &ReportInput) -> String {
     section(&mut h, "parameters", "Joint parameters");
     parameters(&mut h, input);
     h.push_str("</section>");
+    if let Some(t) = input.trust.as_ref().filter(|t| !t.is_empty()) {
+        section(&mut h, "trust", "How far to trust the fit");
+        crate::trust::render(&mut h, t);
+        h.push_str("</section>");
+    }
     section(&mut h, "convergence", "Convergence of the outer optimizer");
     convergence(&mut h, input);
     h.push_str("</section>");

@@ -8,6 +8,7 @@
 //! * [`svg`]: hand-written line and bar charts (nice ticks, log axes, gaps, legends).
 //! * [`html`]: the page (inline CSS, system fonts, no scripts, nothing fetched from the
 //!   network, every piece of text from files escaped; also well-formed XML).
+//! * [`trust`]: where each parameter's information came from and the anatomical checks.
 
 pub mod analyze;
 pub mod calibration;
@@ -15,6 +16,7 @@ pub mod check;
 pub mod data;
 pub mod html;
 pub mod svg;
+pub mod trust;
 
 use std::path::{Path, PathBuf};
 

@@ -21,6 +21,7 @@ use nalgebra::Vector3;
 
 use crate::landmarks::priors::{landmark_prior, PriorEntry};
 use crate::landmarks::HipCentreMethod;
+use crate::model::refine::marker_home;
 use crate::model::Model;
 
 /// One plausibility check.
@@ -59,14 +60,14 @@ fn sd_of(model: &Model, i: usize) -> f64 {
     })
 }
 
-/// Half the inter-ASIS distance (m) from the pelvis markers on the pelvis z axis, if any.
+/// Half the inter-ASIS distance (m) from the pelvis markers on the pelvis z axis, if any
+/// (at their static-trial positions when the markers are refined, [`marker_home`]).
 pub fn half_pelvis_width(model: &Model) -> Option<f64> {
     let pelvis = model.segments().iter().position(|s| s.name == "pelvis")?;
-    let zs: Vec<f64> = model
-        .markers()
-        .iter()
-        .filter(|m| m.segment.0 == pelvis && m.local.x.abs() < 1e-6 && m.local.y.abs() < 1e-6)
-        .map(|m| m.local.z.abs())
+    let zs: Vec<f64> = (0..model.n_markers())
+        .map(|j| marker_home(model, j))
+        .filter(|(seg, x)| seg.0 == pelvis && x.x.abs() < 1e-6 && x.y.abs() < 1e-6)
+        .map(|(_, x)| x.z.abs())
         .collect();
     (zs.len() == 2).then(|| 0.5 * (zs[0] + zs[1]))
 }

@@ -103,6 +103,20 @@ fn map_fit_holds_the_hip_closer_and_reports_where_information_came_from() {
     };
     assert!(map["plausibility"].as_array().unwrap().len() >= 5);
     assert!(bad(&map) < bad(&plain), "{} vs {}", bad(&map), bad(&plain));
+    // The held-out criterion (a): the MAP hip centre stays medial to 0.9 × half the
+    // inter-ASIS width (the unregularized one does not on this trial).
+    let lateral_ok = |r: &serde_json::Value| {
+        r["plausibility"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["check"].as_str().unwrap().starts_with("hip centre lateral"))
+            .unwrap()["ok"]
+            .as_bool()
+            .unwrap()
+    };
+    assert!(lateral_ok(&map), "{}", map["plausibility"]);
+    assert!(!lateral_ok(&plain));
     // The fitted model keeps the prior mean of the input (the landmark value).
     let fitted = std::fs::read_to_string(&map_out).unwrap();
     assert!(fitted.contains("prior_mean"), "{fitted}");

@@ -145,6 +145,67 @@ impl Source {
     }
 }
 
+/// One line per source class: which parameters (grouped by joint) the trial determined,
+/// which it partly determined, and which the prior held.
+pub fn information_summary(rows: &[(String, String, Option<Source>)]) -> Vec<String> {
+    let mut out = Vec::new();
+    for src in [
+        Source::DeterminedByTrial,
+        Source::Partly,
+        Source::HeldByPrior,
+    ] {
+        let mut by_group: Vec<(String, Vec<String>)> = Vec::new();
+        for (group, name, s) in rows {
+            if *s != Some(src) {
+                continue;
+            }
+            match by_group.iter_mut().find(|(g, _)| g == group) {
+                Some((_, v)) => v.push(name.clone()),
+                None => by_group.push((group.clone(), vec![name.clone()])),
+            }
+        }
+        if by_group.is_empty() {
+            continue;
+        }
+        let total = |g: &str| rows.iter().filter(|r| r.0 == g).count();
+        let parts: Vec<String> = by_group
+            .iter()
+            .map(|(g, v)| {
+                if v.len() == total(g) {
+                    format!("{g} (all {})", v.len())
+                } else {
+                    format!("{g}: {}", v.join(", "))
+                }
+            })
+            .collect();
+        out.push(format!("{}: {}", src.words(), parts.join("; ")));
+        if src == Source::HeldByPrior {
+            let hints: Vec<&str> = by_group.iter().filter_map(|(g, _)| trial_hint(g)).collect();
+            if !hints.is_empty() {
+                out.push(format!("to determine them: {}", hints.join("; ")));
+            }
+        }
+    }
+    out
+}
+
+/// Which trial would determine a group's parameters (what its joint must do that gait does
+/// little of).
+fn trial_hint(group: &str) -> Option<&'static str> {
+    match group {
+        "hip" => Some(
+            "hip: a functional hip trial (flexion, abduction and circumduction of 30° or more, \
+             e.g. the star-arc motion; Camomilla et al. 2006)",
+        ),
+        "knee" => Some("knee: a trial with deep knee flexion (a squat or a sit-to-stand)"),
+        "ankle" => Some(
+            "ankle: a trial with large inversion-eversion as well as dorsi-plantar flexion \
+             (foot circles or heel raises on an inclined board)",
+        ),
+        _ => None,
+    }
+}
+
 /// Per free parameter, the share of its posterior information that came from the data:
 /// `1 − var_post/var_prior = 1 − d_k [S⁻¹]_kk`, with `S` the reduced normal matrix including
 /// the prior's diagonal `d` ([`Problem::prior_information`]); 1 for a parameter without a
@@ -167,15 +228,21 @@ pub fn data_share(prob: &Problem, normal: &nalgebra::DMatrix<f64>) -> Vec<f64> {
 }
 
 /// How much time-correlated residuals (skin artefact, marker misplacement) overstate the
-/// information of the marker term: the geometric mean over the free parameters of
-/// `(se_robust / se_white)²`, with `se_robust` the larger of the HAC and jackknife standard
+/// information of the marker term: `κ = tr(H⁻¹J)/n_f`, approximated by the arithmetic mean
+/// over the free parameters of `(se_robust / se_white)²` (the diagonal of `H⁻¹J` in the
+/// parameters' own scale), with `se_robust` the larger of the HAC and jackknife standard
 /// errors of an analysis *without* the prior ([`super::uncertainty::analyze`]); at least 1.
 ///
 /// Weighting the marker term by `1/(κσ²)` instead of `1/σ²` is the "magnitude adjustment"
 /// of a misspecified (here: independence) likelihood (Pauli, Racugno & Ventura 2011,
-/// Statistica Sinica 21:149–164; Ribatet et al. 2012): the posterior's curvature then
-/// matches the robust sandwich covariance on average. Without it, thousands of correlated
-/// marker samples would count as independent and swamp any prior.
+/// Statistica Sinica 21:149–164; Ribatet, Cooley & Davison 2012, Statistica Sinica
+/// 22:813–845): dividing the log-likelihood by `tr(H⁻¹J)/n_f` gives the likelihood-ratio
+/// statistic its nominal mean `n_f`. `κ` is also the number of correlated frames that carry
+/// the information of one independent frame (the trial's frames over its effective number
+/// of independent frames). The arithmetic mean is the one that theory gives; a geometric
+/// mean would let the many parameters whose residual correlation is mild dilute the few (hip
+/// centre) that soak up most of the correlated artefact. Without `κ`, thousands of
+/// correlated marker samples would count as independent and swamp any prior.
 pub fn correlation_inflation(u: &super::uncertainty::Uncertainty) -> f64 {
     let mut sum = 0.0;
     let mut n = 0usize;
@@ -187,7 +254,7 @@ pub fn correlation_inflation(u: &super::uncertainty::Uncertainty) -> f64 {
         };
         if let Some(w) = p.se_white {
             if w > 0.0 && robust.is_finite() && robust > 0.0 {
-                sum += 2.0 * (robust / w).ln();
+                sum += (robust / w).powi(2);
                 n += 1;
             }
         }
@@ -195,6 +262,6 @@ pub fn correlation_inflation(u: &super::uncertainty::Uncertainty) -> f64 {
     if n == 0 {
         1.0
     } else {
-        (sum / n as f64).exp().max(1.0)
+        (sum / n as f64).max(1.0)
     }
 }

@@ -37,10 +37,31 @@ pub fn hip_regression_sd(method: HipCentreMethod) -> PriorEntry {
     }
 }
 
+/// Medio-lateral SD of a regression hip centre in the pelvis frame (m).
+///
+/// The lateral coordinate is the best-predicted one: pelvic width alone predicts it (Bell et
+/// al. 1989: 14 % of the inter-ASIS distance medial to the ASIS; Harrington et al. 2007:
+/// pelvic width is its main predictor); regressions refitted on CT of ≈ 158 pelvises predict
+/// each coordinate to 3.6–4.8 mm RMS at bone level (a CT regression report, studylib.net
+/// doc 10720131; Hara et al. 2016, Sci Rep 6:37707, and Bakke et al. 2023, J Biomech
+/// 147:111418, report refitted regressions below 1 cm 3-D on 157–159 CT pelvises). Skin-marker ASIS add the error of the marker midline
+/// (≈ 3.5 mm for 5 mm per ASIS) and 0.36 × the width error (≈ 2.5 mm): √(4.7² + 3.5² + 2.5²)
+/// ≈ 6.4 mm, rounded up to 7 mm. Anterior and superior keep the larger regression SD, where
+/// the skin over the ASIS (9.7 ± 7.0 mm, Mantovani et al. 2016) and pelvic depth add error.
+pub fn hip_lateral_sd() -> PriorEntry {
+    PriorEntry {
+        sd: 7.0 * MM,
+        source: "hip centre medio-lateral position: predicted by pelvic width to 3.6–4.8 mm \
+                 RMS per axis at bone level (CT regressions, ≈ 158 pelvises), plus the ASIS markers' \
+                 midline and width error ⇒ √(4.7² + 3.5² + 2.5²) ≈ 7 mm",
+    }
+}
+
 /// The prior SD of a lower-limb template parameter estimated by the landmark method.
 pub fn landmark_prior(name: &str, hip: HipCentreMethod) -> Option<PriorEntry> {
     let e = |sd: f64, source: &'static str| Some(PriorEntry { sd, source });
     match name {
+        "hip_pelvis_lateral" => Some(hip_lateral_sd()),
         n if n.starts_with("hip_") => Some(hip_regression_sd(hip)),
         "knee_thigh_frontal"
         | "knee_thigh_transverse"

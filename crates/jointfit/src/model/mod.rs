@@ -8,6 +8,7 @@ pub mod custom;
 pub mod functions;
 pub mod lower_limb;
 pub(crate) mod plan;
+pub mod refine;
 pub mod spec;
 mod validate;
 

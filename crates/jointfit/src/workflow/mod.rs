@@ -21,6 +21,7 @@ mod calibration;
 mod check;
 mod ik;
 pub mod map;
+pub mod refine;
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -52,6 +53,13 @@ pub enum WorkflowError {
     NoFrameSolved { detail: String },
     #[error("{source_model}: has no parameter {name:?} of the subject model")]
     MissingParameter { source_model: String, name: String },
+    #[error(
+        "marker refinement needs the parameter priors: without one, a marker position trades \
+         off exactly with the joint its segment hangs from (drop --prior none)"
+    )]
+    RefineNeedsPriors,
+    #[error("marker refinement: {0}")]
+    Refine(String),
 }
 
 /// The outer optimizer.
@@ -124,6 +132,11 @@ pub struct FitSettings {
     /// Marker noise σ (m) that weighs the priors against the markers; `None`: estimated from
     /// the residuals ([`map`]).
     pub marker_noise: Option<f64>,
+    /// Refine the tracking markers' positions in their segments with this prior SD (m) per
+    /// axis ([`crate::model::refine`]); honoured by [`refine::calibrate_refined`], which
+    /// returns the refined model ([`calibrate`] fits the markers as the model gives them).
+    /// `None`: markers as given.
+    pub refine_markers: Option<f64>,
 }
 
 impl Default for FitSettings {
@@ -138,6 +151,7 @@ impl Default for FitSettings {
             fix_unidentifiable: false,
             priors: true,
             marker_noise: None,
+            refine_markers: None,
         }
     }
 }
@@ -210,5 +224,7 @@ mod tests {
     }
 }
 
+#[cfg(test)]
+mod refine_tests;
 #[cfg(test)]
 mod synthetic_tests;

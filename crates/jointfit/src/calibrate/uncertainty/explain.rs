@@ -61,13 +61,20 @@ pub(super) fn suggestion(coord: &str) -> String {
     }
 }
 
-/// Reason text for flagged free parameter `k` (model index `i`).
+/// Residual SD (mm) above which a wide interval is blamed on the residuals: optical
+/// marker measurement alone leaves well under 1 mm (Chiari et al. 2005, Gait Posture
+/// 21:197–211); more is soft-tissue artefact, misplacement or model error.
+const NOISY_SIGMA_MM: f64 = 1.0;
+
+/// Reason text for flagged free parameter `k` (model index `i`); `sigma_mm` is the marker
+/// residual SD.
 pub(super) fn reason(
     model: &Model,
     i: usize,
     at_bound: bool,
     ranges: &[CoordRange],
     partner: Option<(&str, f64)>,
+    sigma_mm: f64,
 ) -> String {
     let par = &model.parameters()[i];
     let mut parts = Vec::new();
@@ -113,8 +120,22 @@ pub(super) fn reason(
                 .iter()
                 .map(|r| format!("{} {:.0}°", r.name, r.range))
                 .collect();
+            // Say which of the two causes of a wide interval applies: residuals above what
+            // optical measurement alone leaves (≈ 1 mm), or a motion that shows the
+            // parameter only in combination with others (true also on noiseless data).
+            let why = if sigma_mm > NOISY_SIGMA_MM {
+                format!(
+                    "the marker residuals (σ = {sigma_mm:.1} mm) are large for what this \
+                     trial shows of it"
+                )
+            } else {
+                "this motion shows it only together with other parameters (see the weak \
+                 combinations)"
+                    .to_string()
+            };
             parts.push(format!(
-                "{jname} moved enough ({}), but the marker noise is large for what this trial shows of it; a longer trial or more trials of this joint would help",
+                "{jname} moved enough ({}), but {why}; a longer trial or more trials of this \
+                 joint would help",
                 moved.join(", ")
             ));
         }

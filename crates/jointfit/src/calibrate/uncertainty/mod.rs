@@ -389,7 +389,8 @@ fn build(
                     .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
                     .filter(|(_, r)| r.abs() >= 0.9)
                     .map(|(b, r)| (model.parameters()[prob.free[b]].name.as_str(), r));
-                let mut text = reason(model, i, at_bound, &ranges, partner);
+                let sigma_mm = opts.assumed_sigma_m.map_or(red.sigma2(), |s| s * s).sqrt() * 1e3;
+                let mut text = reason(model, i, at_bound, &ranges, partner, sigma_mm);
                 // `scale[k]` is the bounds' half-width in display units.
                 if half_width.is_some_and(|h| h > scale[k]) {
                     text.push_str(&format!(

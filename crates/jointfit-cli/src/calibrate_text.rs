@@ -1,0 +1,254 @@
+//! The text output of `calibrate` (and `demo`): the parameter table, the summary of where
+//! the information came from (with a prior) or the identifiability notes (without), the
+//! anatomical checks and the marker errors.
+
+use jointfit::calibrate::uncertainty::{Identifiability, Uncertainty};
+use jointfit::workflow::{Calibration, Termination};
+
+pub fn print_report(report: &Calibration, seconds: f64) {
+    println!(
+        "{}: {} free parameters, {} frames ({} skipped), {} iterations, {} evaluations, {:.3} s{}",
+        report.method,
+        report.free_parameters,
+        report.frames,
+        report.skipped_frames,
+        report.iterations,
+        report.evaluations,
+        seconds,
+        match report.termination {
+            Termination::Converged => String::new(),
+            t => format!(" (not converged: {t})"),
+        }
+    );
+    if let Some(ms) = &report.multistart {
+        let lo = ms
+            .objective_mm2
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
+        let hi = ms
+            .objective_mm2
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
+        println!(
+            "{} starts: {} reached the best objective (to 1e-9); objectives {:.3} to {:.3} mm²; \
+             kept start {}",
+            ms.starts,
+            ms.reached_best,
+            lo,
+            hi,
+            report.best_start + 1
+        );
+        let mut wide: Vec<&(String, f64)> = ms.spread.iter().filter(|(_, r)| *r > 0.1).collect();
+        wide.sort_by(|a, b| b.1.total_cmp(&a.1));
+        if !wide.is_empty() {
+            let list: Vec<String> = wide
+                .iter()
+                .take(6)
+                .map(|(n, r)| format!("{n} {r:.1}"))
+                .collect();
+            println!(
+                "  largest spread of the optima over the starts (mm or deg): {}",
+                list.join(", ")
+            );
+        }
+    }
+    // One vocabulary: with a prior, the last column says where the information came from
+    // (the summary's "determined by the trial" / "partly" / "held by the prior"); without
+    // one, whether the interval is within the thresholds (the paper's identifiability).
+    let with_prior = report.prior_noise_mm.is_some();
+    let mut t = crate::table::Table::new(&[
+        "group",
+        "parameter",
+        "unit",
+        "start",
+        "fitted",
+        "change",
+        "±95%",
+        "95% CI",
+        if with_prior {
+            "information from"
+        } else {
+            "determined"
+        },
+    ]);
+    for p in &report.parameters {
+        let hw = p.ci95.map(|c| 0.5 * (c[1] - c[0]));
+        t.row(vec![
+            p.group.clone(),
+            p.name.clone(),
+            p.unit.to_string(),
+            format!("{:.2}", p.start),
+            format!("{:.2}", p.fitted),
+            format!("{:.2}", p.change),
+            match (hw, &p.identifiability) {
+                (Some(h), _) => format!("{h:.2}"),
+                (None, Some(_)) => "∞".to_string(),
+                (None, None) => "-".to_string(),
+            },
+            p.ci95
+                .map_or("-".to_string(), |c| format!("[{:.2}, {:.2}]", c[0], c[1])),
+            match (with_prior, p.source, p.identifiability) {
+                (true, Some(src), _) => source_short(src).to_string(),
+                (_, _, ident) => ident_short(ident).to_string(),
+            },
+        ]);
+    }
+    print!("{}", t.render());
+    print_notes(report);
+}
+
+/// The data-share class in the table's words.
+fn source_short(s: jointfit::calibrate::prior::Source) -> &'static str {
+    use jointfit::calibrate::prior::Source;
+    match s {
+        Source::DeterminedByTrial => "trial",
+        Source::Partly => "trial + prior",
+        Source::HeldByPrior => "prior",
+    }
+}
+
+/// The identifiability class (no prior) in the table's words.
+fn ident_short(i: Option<Identifiability>) -> &'static str {
+    match i {
+        Some(Identifiability::Determined) => "yes",
+        Some(Identifiability::Poor) => "POOR",
+        Some(Identifiability::Undetermined) => "NO",
+        None => "-",
+    }
+}
+
+/// What follows the table: the uncertainty notes or the prior's summary, plausibility, RMS.
+fn print_notes(report: &Calibration) {
+    match (&report.uncertainty, report.prior_noise_mm) {
+        (Some(u), None) => print_uncertainty_notes(u, &report.fixed_unidentifiable),
+        (_, Some(noise)) => print_prior_summary(report, noise),
+        (None, None) => {}
+    }
+    let bad: Vec<String> = report
+        .plausibility
+        .iter()
+        .filter(|c| !c.ok)
+        .map(|c| {
+            format!(
+                "{}: {:.1} {u} > {:.1} {u} ({:.1} {u} outside; {})",
+                c.check,
+                c.value,
+                c.limit,
+                c.excess(),
+                c.parameters.join(", "),
+                u = c.unit
+            )
+        })
+        .collect();
+    if !bad.is_empty() {
+        eprintln!(
+            "jointfit: warning: {} of {} anatomical checks failed: {}",
+            bad.len(),
+            report.plausibility.len(),
+            bad.join("; ")
+        );
+    }
+    println!(
+        "RMS marker distance: {:.2} mm before, {:.2} mm after ({:.0}% lower)",
+        report.rms_before_mm,
+        report.rms_after_mm,
+        100.0 * (1.0 - report.rms_after_mm / report.rms_before_mm)
+    );
+    let mut t = crate::table::Table::new(&["marker", "before mm", "after mm"]);
+    for ((name, b), (_, a)) in report
+        .marker_rms_before_mm
+        .iter()
+        .zip(&report.marker_rms_after_mm)
+    {
+        t.row(vec![name.clone(), format!("{b:.2}"), format!("{a:.2}")]);
+    }
+    print!("{}", t.render());
+}
+
+/// With a prior: which parameters the trial determined, and the weighting noise.
+fn print_prior_summary(report: &Calibration, noise_mm: f64) {
+    println!(
+        "maximum a posteriori fit: priors from the model file, marker noise σ = {noise_mm:.2} \
+         mm ({}); intervals include the prior",
+        if report.prior_noise_estimated {
+            "estimated from the residuals"
+        } else {
+            "given"
+        }
+    );
+    for line in information_summary(report) {
+        println!("  {line}");
+    }
+}
+
+/// The short summary of where the information came from (empty without a prior).
+pub fn information_summary(report: &Calibration) -> Vec<String> {
+    if report.prior_noise_mm.is_none() {
+        return Vec::new();
+    }
+    let rows: Vec<(String, String, Option<jointfit::calibrate::prior::Source>)> = report
+        .parameters
+        .iter()
+        .map(|p| (p.group.clone(), p.name.clone(), p.source))
+        .collect();
+    crate::prior_args::summary(&rows)
+}
+
+/// How the intervals were made, the warnings for flagged parameters, the weak combinations.
+fn print_uncertainty_notes(u: &Uncertainty, fixed: &[String]) {
+    let mut methods: Vec<String> = Vec::new();
+    for p in &u.params {
+        let m = format!("{:?}", p.method).to_lowercase();
+        if !methods.contains(&m) {
+            methods.push(m);
+        }
+    }
+    println!(
+        "95% intervals: the widest of white-noise (σ = {:.2} mm, {} dof), Newey-West HAC (bandwidth {}){}{}; widest came from: {}",
+        u.sigma_mm,
+        u.dof,
+        u.hac_bandwidth.map_or("-".into(), |b| format!("{b:.1} frames")),
+        u.jackknife_blocks
+            .map_or(String::new(), |k| format!(", {k}-block jackknife (t, {} dof)", k - 1)),
+        u.bootstrap.as_ref().map_or(String::new(), |b| format!(
+            ", block bootstrap ({} replicates of {}-frame blocks, seed {})",
+            b.replicates, b.block_length, b.seed
+        )),
+        methods.join(", ")
+    );
+    for p in u.flagged() {
+        let hw = p
+            .half_width
+            .map_or("unbounded".to_string(), |h| format!("±{h:.1} {}", p.unit));
+        eprintln!(
+            "jointfit: warning: {} {} by this trial ({hw} > {} {}): {}",
+            p.name,
+            if p.status == Identifiability::Undetermined {
+                "not determined"
+            } else {
+                "poorly determined"
+            },
+            if p.unit == "mm" {
+                u.threshold_mm
+            } else {
+                u.threshold_deg
+            },
+            p.unit,
+            p.reason.as_deref().unwrap_or("")
+        );
+    }
+    for w in &u.weak_directions {
+        println!("weak combination: {}", w.description);
+    }
+    if !fixed.is_empty() {
+        println!(
+            "held at their starting values (--fix-unidentifiable): {}",
+            fixed.join(", ")
+        );
+    } else if u.flagged().next().is_some() {
+        println!("(rerun with --fix-unidentifiable to hold the flagged parameters at their starting values)");
+    }
+}
+
