@@ -50,7 +50,7 @@ for name, static, preset, trials in SUBJECTS:
         for prior in ["model", "none"]:
             out = os.path.join(W, f"{name}-{side}-{t}-{prior}.toml")
             rep = json.loads(run(["calibrate", model, path, "--filter", "6", "--prior", prior,
-                                  "--json", "-o", out] + EXTRA))
+                                  "--json", "-o", out] + (EXTRA if prior == "model" else [])))
             p = {r["name"]: r for r in rep["parameters"]}
             d = [p[f"hip_pelvis_{a}"]["change"] for a in ("anterior", "superior", "lateral")]
             shift = math.sqrt(sum(x * x for x in d))

@@ -150,3 +150,97 @@ fn bad_prior_overrides_are_one_line_errors() {
         assert_eq!(err.trim().lines().count(), 1, "{err}");
     }
 }
+
+/// `--refine-markers` on real gait: the markers move (JSON names how far and which offsets
+/// trade off with which joint parameters), the fitted TOML and its .osim export carry the
+/// refined positions in the original segments, and the markers fit better.
+#[test]
+fn refined_markers_are_reported_and_carried_by_the_fitted_model() {
+    let (Some(stat), Some(walk)) = (
+        data_file("opencap_expert1/static1.trc"),
+        data_file("opencap_expert1/walking1.trc"),
+    ) else {
+        return;
+    };
+    let dir = scratch("priors-refine");
+    let model = tmp(&dir, "oc.toml");
+    let (ok, _, err) = jointfit(&[
+        "personalize",
+        "--static",
+        stat.to_str().unwrap(),
+        "--markers",
+        "opencap",
+        "--side",
+        "right",
+        "-o",
+        &model,
+    ]);
+    assert!(ok, "{err}");
+    let fit = |extra: &[&str], name: &str| {
+        let out = tmp(&dir, name);
+        let mut args = vec![
+            "calibrate",
+            &model,
+            walk.to_str().unwrap(),
+            "--filter",
+            "6",
+            "--json",
+            "-o",
+            &out,
+        ];
+        args.extend_from_slice(extra);
+        let (ok, stdout, stderr) = jointfit(&args);
+        assert!(ok, "{stderr}");
+        let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+        (v, out)
+    };
+    let (plain, _) = fit(&[], "plain.toml");
+    let (refined, out) = fit(&["--refine-markers", "--marker-prior-sd-mm", "10"], "ref.toml");
+    let moved = refined["refined_markers"].as_array().unwrap();
+    assert!(moved.len() >= 10, "{moved:?}");
+    assert!(moved.iter().any(|m| m["shift_mm"].as_f64().unwrap() > 1.0));
+    let trade = refined["marker_trade_offs"].as_array().unwrap();
+    assert!(!trade.is_empty());
+    assert!(trade[0]["marker_parameter"]
+        .as_str()
+        .unwrap()
+        .starts_with("marker_"));
+    assert!(plain.get("refined_markers").is_none());
+    let rms = |r: &serde_json::Value| r["rms_after_mm"].as_f64().unwrap();
+    assert!(rms(&refined) < rms(&plain), "{} vs {}", rms(&refined), rms(&plain));
+    // The fitted model: same structure as the input, markers at the refined positions.
+    let input = jointfit_io::model_file::load_spec(&model).unwrap();
+    let fitted = jointfit_io::model_file::load_spec(&out).unwrap();
+    assert_eq!(fitted.segments.len(), input.segments.len());
+    assert_eq!(fitted.parameters.len(), input.parameters.len());
+    let biggest = moved
+        .iter()
+        .max_by(|a, b| {
+            a["shift_mm"]
+                .as_f64()
+                .unwrap()
+                .total_cmp(&b["shift_mm"].as_f64().unwrap())
+        })
+        .unwrap();
+    let name = biggest["name"].as_str().unwrap();
+    let m = fitted.markers.iter().find(|m| m.name == name).unwrap();
+    let m0 = input.markers.iter().find(|m| m.name == name).unwrap();
+    assert_eq!(m.segment, m0.segment);
+    for k in 0..3 {
+        let want = biggest["fitted_mm"][k].as_f64().unwrap();
+        assert!((m.position[k] * 1e3 - want).abs() < 1e-6, "{name} {k}");
+    }
+    // The .osim export carries the refined position.
+    let osim = dir.join("ref.osim");
+    let (ok, _, err) = jointfit(&["export", "osim", &out, "-o", osim.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    let text = std::fs::read_to_string(&osim).unwrap();
+    let at = text.find(&format!("<Marker name=\"{name}\">")).unwrap();
+    let block = &text[at..at + text[at..].find("</Marker>").unwrap()];
+    let loc = block.split("<location>").nth(1).unwrap();
+    let loc = &loc[..loc.find("</location>").unwrap()];
+    let xyz: Vec<f64> = loc.split_whitespace().map(|v| v.parse().unwrap()).collect();
+    for k in 0..3 {
+        assert!((xyz[k] - m.position[k]).abs() < 1e-9, "{loc} vs {:?}", m.position);
+    }
+}

@@ -4,8 +4,9 @@
 //! segment the static trial got slightly wrong) leaves a residual that a calibration
 //! otherwise explains by moving a joint. Refinement makes each refined marker's position in
 //! its segment three more parameters with a prior `N(static position, s²)` (`s` ≈ 1 cm, as
-//! in AddBiomechanics, Werling et al. 2023, PLoS ONE 18:e0295152, and the NMSM pipeline,
-//! Hammond et al. 2025), so the fit can put the residual where it belongs.
+//! in AddBiomechanics, Werling et al. 2023, PLoS ONE 18:e0295152, and in the NMSM
+//! Pipeline's joint model personalization), so the fit can put the residual where it
+//! belongs.
 //!
 //! The positions enter forward kinematics linearly in the segment frame,
 //! `x_j = world_from_segment(q, p) · (c_j)`, which is exactly what a translation offset of a
