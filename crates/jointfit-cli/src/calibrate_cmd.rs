@@ -8,9 +8,7 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use jointfit::calibrate::params_for_groups;
 use jointfit::trial::Trial;
-use jointfit::workflow::{
-    self, uncertainty_options, Calibration, FitSettings, Method, Observer,
-};
+use jointfit::workflow::{self, uncertainty_options, Calibration, FitSettings, Method, Observer};
 use serde::Serialize;
 
 use crate::common::{load_trial, Up};

@@ -251,4 +251,3 @@ fn print_uncertainty_notes(u: &Uncertainty, fixed: &[String]) {
         println!("(rerun with --fix-unidentifiable to hold the flagged parameters at their starting values)");
     }
 }
-

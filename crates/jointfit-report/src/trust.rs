@@ -171,7 +171,11 @@ mod tests {
             noise_mm: Some(8.5),
             noise_estimated: true,
             summary: vec!["held by the prior: hip (all 6)".into()],
-            shares: vec![("hip_pelvis_lateral".into(), 0.12, "held by the prior".into())],
+            shares: vec![(
+                "hip_pelvis_lateral".into(),
+                0.12,
+                "held by the prior".into(),
+            )],
             checks: vec![TrustCheck {
                 check: "hip centre lateral offset (≤ 0.9 × half the inter-ASIS width)".into(),
                 parameters: vec!["hip_pelvis_lateral".into()],

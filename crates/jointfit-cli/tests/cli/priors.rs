@@ -110,7 +110,12 @@ fn map_fit_holds_the_hip_closer_and_reports_where_information_came_from() {
             .as_array()
             .unwrap()
             .iter()
-            .find(|c| c["check"].as_str().unwrap().starts_with("hip centre lateral"))
+            .find(|c| {
+                c["check"]
+                    .as_str()
+                    .unwrap()
+                    .starts_with("hip centre lateral")
+            })
             .unwrap()["ok"]
             .as_bool()
             .unwrap()
@@ -195,7 +200,10 @@ fn refined_markers_are_reported_and_carried_by_the_fitted_model() {
         (v, out)
     };
     let (plain, _) = fit(&[], "plain.toml");
-    let (refined, out) = fit(&["--refine-markers", "--marker-prior-sd-mm", "10"], "ref.toml");
+    let (refined, out) = fit(
+        &["--refine-markers", "--marker-prior-sd-mm", "10"],
+        "ref.toml",
+    );
     let moved = refined["refined_markers"].as_array().unwrap();
     assert!(moved.len() >= 10, "{moved:?}");
     assert!(moved.iter().any(|m| m["shift_mm"].as_f64().unwrap() > 1.0));
@@ -207,7 +215,12 @@ fn refined_markers_are_reported_and_carried_by_the_fitted_model() {
         .starts_with("marker_"));
     assert!(plain.get("refined_markers").is_none());
     let rms = |r: &serde_json::Value| r["rms_after_mm"].as_f64().unwrap();
-    assert!(rms(&refined) < rms(&plain), "{} vs {}", rms(&refined), rms(&plain));
+    assert!(
+        rms(&refined) < rms(&plain),
+        "{} vs {}",
+        rms(&refined),
+        rms(&plain)
+    );
     // The fitted model: same structure as the input, markers at the refined positions.
     let input = jointfit_io::model_file::load_spec(&model).unwrap();
     let fitted = jointfit_io::model_file::load_spec(&out).unwrap();
@@ -241,6 +254,10 @@ fn refined_markers_are_reported_and_carried_by_the_fitted_model() {
     let loc = &loc[..loc.find("</location>").unwrap()];
     let xyz: Vec<f64> = loc.split_whitespace().map(|v| v.parse().unwrap()).collect();
     for k in 0..3 {
-        assert!((xyz[k] - m.position[k]).abs() < 1e-9, "{loc} vs {:?}", m.position);
+        assert!(
+            (xyz[k] - m.position[k]).abs() < 1e-9,
+            "{loc} vs {:?}",
+            m.position
+        );
     }
 }

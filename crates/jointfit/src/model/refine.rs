@@ -144,8 +144,7 @@ pub fn fold_marker_parameters(spec: &ModelSpec) -> ModelSpec {
         .retain(|j| !j.child.starts_with(MARKER_FRAME_PREFIX));
     out.segments
         .retain(|s| !s.name.starts_with(MARKER_FRAME_PREFIX));
-    out.parameters
-        .retain(|p| !removed_params.contains(&p.name));
+    out.parameters.retain(|p| !removed_params.contains(&p.name));
     out
 }
 
@@ -199,7 +198,9 @@ mod tests {
         assert_eq!(aug.n_p(), orig.n_p() + 3 * names.len());
         assert_eq!(aug.n_q(), orig.n_q());
         // Same marker positions at the nominal parameters in any pose.
-        let q: Vec<f64> = (0..orig.n_q()).map(|i| 0.1 * (i as f64 + 1.0).sin()).collect();
+        let q: Vec<f64> = (0..orig.n_q())
+            .map(|i| 0.1 * (i as f64 + 1.0).sin())
+            .collect();
         let (mut k0, mut k1) = (KinData::new(&orig), KinData::new(&aug));
         forward_kinematics(&orig, &orig.nominal_params(), &q, Want::POSITIONS, &mut k0);
         forward_kinematics(&aug, &aug.nominal_params(), &q, Want::POSITIONS, &mut k1);

@@ -143,15 +143,18 @@ fn identifiability_names_marker_offsets_that_trade_off_with_joints() {
         uncertainty: Some(crate::calibrate::uncertainty::UncertaintyOptions::default()),
         ..FitSettings::default()
     };
-    let r = calibrate_refined(&model, &start, &[&trial], &free, &settings, &mut NoObserver)
-        .unwrap();
+    let r =
+        calibrate_refined(&model, &start, &[&trial], &free, &settings, &mut NoObserver).unwrap();
     assert!(!r.trade_offs.is_empty());
     for t in &r.trade_offs {
         assert!(t.marker_parameter.starts_with("marker_"), "{t:?}");
         assert!(model.param_id(&t.joint_parameter).is_some(), "{t:?}");
         assert!(t.correlation.abs() >= 0.5 && t.correlation.abs() <= 1.0);
     }
-    eprintln!("strongest trade-offs: {:?}", &r.trade_offs[..r.trade_offs.len().min(5)]);
+    eprintln!(
+        "strongest trade-offs: {:?}",
+        &r.trade_offs[..r.trade_offs.len().min(5)]
+    );
     // Rows for the marker parameters are in the calibration, group `markers`.
     assert!(r
         .calibration
