@@ -187,7 +187,7 @@ pub fn fit_settings(args: &CalibrateArgs) -> FitSettings {
             .map(|mm| mm * jointfit::model::M_PER_MM),
         refine_markers: args
             .refine_markers
-            .then(|| args.marker_prior_sd_mm * jointfit::model::M_PER_MM),
+            .then_some(args.marker_prior_sd_mm * jointfit::model::M_PER_MM),
         ..FitSettings::default()
     }
 }

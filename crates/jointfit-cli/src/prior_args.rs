@@ -93,6 +93,44 @@ pub fn summary(rows: &[(String, String, Option<Source>)]) -> Vec<String> {
     jointfit::calibrate::prior::information_summary(rows)
 }
 
+/// `--refine-markers`: the markers that moved most and the strongest trade-offs.
+pub fn print_refinement(
+    markers: &[jointfit::workflow::refine::RefinedMarker],
+    trade_offs: &[jointfit::workflow::refine::TradeOff],
+) {
+    if markers.is_empty() {
+        return;
+    }
+    let mut by_shift: Vec<_> = markers.iter().collect();
+    by_shift.sort_by(|a, b| b.shift_mm.total_cmp(&a.shift_mm));
+    let list: Vec<String> = by_shift
+        .iter()
+        .take(6)
+        .map(|m| format!("{} {:.1} mm", m.name, m.shift_mm))
+        .collect();
+    println!(
+        "refined {} marker positions; moved most: {}",
+        markers.len(),
+        list.join(", ")
+    );
+    if !trade_offs.is_empty() {
+        let list: Vec<String> = trade_offs
+            .iter()
+            .take(6)
+            .map(|t| {
+                format!(
+                    "{} ~ {} (r = {:+.2})",
+                    t.marker_parameter, t.joint_parameter, t.correlation
+                )
+            })
+            .collect();
+        println!(
+            "marker offsets that trade off with joint parameters: {}",
+            list.join(", ")
+        );
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -136,43 +174,5 @@ mod tests {
         }
         apply(&mut spec, PriorArg::None, &[]).unwrap();
         assert!(spec.parameters.iter().all(|p| p.prior_sd.is_none()));
-    }
-}
-
-/// `--refine-markers`: the markers that moved most and the strongest trade-offs.
-pub fn print_refinement(
-    markers: &[jointfit::workflow::refine::RefinedMarker],
-    trade_offs: &[jointfit::workflow::refine::TradeOff],
-) {
-    if markers.is_empty() {
-        return;
-    }
-    let mut by_shift: Vec<_> = markers.iter().collect();
-    by_shift.sort_by(|a, b| b.shift_mm.total_cmp(&a.shift_mm));
-    let list: Vec<String> = by_shift
-        .iter()
-        .take(6)
-        .map(|m| format!("{} {:.1} mm", m.name, m.shift_mm))
-        .collect();
-    println!(
-        "refined {} marker positions; moved most: {}",
-        markers.len(),
-        list.join(", ")
-    );
-    if !trade_offs.is_empty() {
-        let list: Vec<String> = trade_offs
-            .iter()
-            .take(6)
-            .map(|t| {
-                format!(
-                    "{} ~ {} (r = {:+.2})",
-                    t.marker_parameter, t.joint_parameter, t.correlation
-                )
-            })
-            .collect();
-        println!(
-            "marker offsets that trade off with joint parameters: {}",
-            list.join(", ")
-        );
     }
 }

@@ -253,11 +253,7 @@ fn refined_markers_are_reported_and_carried_by_the_fitted_model() {
     let loc = block.split("<location>").nth(1).unwrap();
     let loc = &loc[..loc.find("</location>").unwrap()];
     let xyz: Vec<f64> = loc.split_whitespace().map(|v| v.parse().unwrap()).collect();
-    for k in 0..3 {
-        assert!(
-            (xyz[k] - m.position[k]).abs() < 1e-9,
-            "{loc} vs {:?}",
-            m.position
-        );
+    for (v, want) in xyz.iter().zip(m.position) {
+        assert!((v - want).abs() < 1e-9, "{loc} vs {:?}", m.position);
     }
 }

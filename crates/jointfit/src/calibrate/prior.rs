@@ -173,6 +173,9 @@ pub fn information_summary(rows: &[(String, String, Option<Source>)]) -> Vec<Str
             .map(|(g, v)| {
                 if v.len() == total(g) {
                     format!("{g} (all {})", v.len())
+                } else if v.len() > 8 {
+                    // Long groups (refined marker offsets) by count only.
+                    format!("{g} ({} of {})", v.len(), total(g))
                 } else {
                     format!("{g}: {}", v.join(", "))
                 }

@@ -40,12 +40,12 @@ fn truth(spec: &ModelSpec, model: &Model, seed: u64, misplaced: usize) -> (Model
         if chosen.contains(&j) {
             let u: [f64; 3] = [(); 3].map(|_| rng.gen_range(-1.0..1.0));
             let norm = (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt().max(1e-9);
-            for k in 0..3 {
-                d[k] += 0.020 * u[k] / norm;
+            for (dk, uk) in d.iter_mut().zip(u) {
+                *dk += 0.020 * uk / norm;
             }
         }
-        for k in 0..3 {
-            m.position[k] += d[k];
+        for (x, dk) in m.position.iter_mut().zip(d) {
+            *x += dk;
         }
     }
     let idx: Vec<usize> = (0..model.n_p()).collect();
