@@ -31,7 +31,7 @@ use crate::calibrate::CalibError;
 pub use crate::solver::{NoObserver, Observer, Termination};
 pub use calibration::{
     calibrate, perturb, restart_point, Calibration, ConvergenceStage, MultiStart, ParamRow,
-    StartRun,
+    StartRun, UNCERTAINTY_STAGE,
 };
 pub use check::{check, CheckReport};
 pub use ik::{ik_trial, ik_warm_started, transfer_params, IkRun};
@@ -124,6 +124,10 @@ pub struct FitSettings {
     /// Marker noise σ (m) that weighs the priors against the markers; `None`: estimated from
     /// the residuals ([`map`]).
     pub marker_noise: Option<f64>,
+    /// Iteration limit of the outer solver (the joint or two-level solve and the polish
+    /// after the swarm; the swarm keeps its own budget); `None`: the solver's default (200).
+    /// A fit that reaches it ends [`Termination::IterationLimit`].
+    pub max_iterations: Option<usize>,
 }
 
 impl Default for FitSettings {
@@ -138,6 +142,7 @@ impl Default for FitSettings {
             fix_unidentifiable: false,
             priors: true,
             marker_noise: None,
+            max_iterations: None,
         }
     }
 }
