@@ -2,7 +2,27 @@
 //! inputs (byte for byte), failures stay per job, a rerun skips finished jobs, one-line
 //! manifest errors.
 
+use std::path::Path;
+
 use super::jointfit;
+
+/// `jointfit calibrate ARGS` (model, trials and options) writes the same model file, byte
+/// for byte, as job `id` of the batch whose output folder is `dir/out`.
+fn calibrate_equals_batch(dir: &Path, id: &str, args: &[&str]) {
+    let fitted = dir.join(format!("cli_{id}.toml"));
+    let mut all = vec!["calibrate"];
+    all.extend(args);
+    // The batch keeps unconverged fits (flagged).
+    all.extend(["-o", fitted.to_str().unwrap(), "--accept-unconverged"]);
+    let (ok, _, err) = jointfit(&all);
+    assert!(ok, "{id}: {err}");
+    let cli = std::fs::read_to_string(&fitted).unwrap();
+    let batch = std::fs::read_to_string(dir.join(format!("out/models/{id}.toml"))).unwrap();
+    assert_eq!(
+        cli, batch,
+        "job {id}: batch and calibrate fitted differently"
+    );
+}
 
 #[test]
 fn batch_equals_calibrate_keeps_failures_and_resumes() {
@@ -89,20 +109,9 @@ method = "gradient"
         ),
     ];
     for (id, inputs, joints, method) in &cases {
-        let fitted = p(&format!("cli_{id}.toml"));
-        let mut args = vec!["calibrate"];
-        args.extend(inputs.iter().map(|s| s as &str));
-        args.extend(["--joints", joints, "--method", method, "-o", &fitted]);
-        args.push("--accept-unconverged"); // the batch keeps unconverged fits (flagged)
-        let (ok, _, err) = jointfit(&args);
-        assert!(ok, "{err}");
-        let cli = std::fs::read_to_string(&fitted).unwrap();
-        let batch =
-            std::fs::read_to_string(dir.path().join(format!("out/models/{id}.toml"))).unwrap();
-        assert_eq!(
-            cli, batch,
-            "job {id}: batch and calibrate fitted differently"
-        );
+        let mut args = inputs.clone();
+        args.extend(["--joints", joints, "--method", method]);
+        calibrate_equals_batch(dir.path(), id, &args);
     }
     let csv = std::fs::read_to_string(dir.path().join("out/results.csv")).unwrap();
     let rows: Vec<&str> = csv.lines().collect();
@@ -220,21 +229,11 @@ fn batch_options_equal_calibrate_options() {
     std::fs::write(p("jobs.toml"), manifest).unwrap();
     let (ok, _, err) = jointfit(&["batch", &p("jobs.toml"), "-o", &p("out"), "--jobs", "1"]);
     assert!(ok, "{err}");
+    let t = p("t.trc");
     for (id, _, opts) in &jobs {
-        let fitted = p(&format!("cli_{id}.toml"));
-        let t = p("t.trc");
-        let mut args = vec!["calibrate", "lower-limb-right", t.as_str()];
+        let mut args = vec!["lower-limb-right", t.as_str()];
         args.extend(opts.iter().copied());
-        args.extend(["-o", &fitted, "--accept-unconverged"]);
-        let (ok, _, err) = jointfit(&args);
-        assert!(ok, "{id}: {err}");
-        let cli = std::fs::read_to_string(&fitted).unwrap();
-        let batch =
-            std::fs::read_to_string(dir.path().join(format!("out/models/{id}.toml"))).unwrap();
-        assert_eq!(
-            cli, batch,
-            "job {id}: batch and calibrate fitted differently"
-        );
+        calibrate_equals_batch(dir.path(), id, &args);
     }
     // The iteration limit reached the solver: that job is flagged as not converged.
     let csv = std::fs::read_to_string(p("out/results.csv")).unwrap();

@@ -197,50 +197,24 @@ fn every_long_loop_has_a_cap() {
 #[test]
 fn the_bootstrap_reports_progress_on_stderr() {
     let (_dir, p) = perturbed_trial("progress");
-    let out = run(
-        &[
-            "calibrate",
-            "lower-limb-right",
-            &p("t.trc"),
-            "--joints",
-            "knee",
-            "--bootstrap",
-            "4",
-            "--json",
-            "-o",
-            &p("f.toml"),
-        ],
-        &[("JOINTFIT_PROGRESS", "log")],
-    );
+    let (t, f) = (p("t.trc"), p("f.toml"));
+    let fit = |extra: &str, mode: &str| {
+        let mut args = vec!["calibrate", "lower-limb-right", &t, "--joints", "knee"];
+        args.extend(["--bootstrap", "4", extra, "-o", &f]);
+        run(&args, &[("JOINTFIT_PROGRESS", mode)])
+    };
+    let out = fit("--json", "log");
     let err = text(&out.stderr);
     assert!(out.status.success(), "{err}");
-    assert!(
-        err.contains("jointfit: uncertainty analysis (4 bootstrap refits): started"),
-        "{err}"
-    );
-    assert!(
-        err.contains("jointfit: uncertainty analysis (4 bootstrap refits): done"),
-        "{err}"
-    );
+    for end in ["started", "done"] {
+        let line = format!("jointfit: uncertainty analysis (4 bootstrap refits): {end}");
+        assert!(err.contains(&line), "{line:?} not in {err}");
+    }
     // stdout stays clean JSON, and the bootstrap ran.
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
     assert_eq!(v["uncertainty"]["bootstrap"]["replicates"], 4, "{v}");
     // Quiet: no progress at all.
-    let out = run(
-        &[
-            "calibrate",
-            "lower-limb-right",
-            &p("t.trc"),
-            "--joints",
-            "knee",
-            "--bootstrap",
-            "4",
-            "-o",
-            &p("f.toml"),
-            "--force",
-        ],
-        &[("JOINTFIT_PROGRESS", "quiet")],
-    );
+    let out = fit("--force", "quiet");
     assert!(out.status.success());
     assert!(!text(&out.stderr).contains("uncertainty analysis"));
 }
