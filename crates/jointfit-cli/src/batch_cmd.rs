@@ -232,8 +232,35 @@ fn read_manifest(path: &Path) -> Result<Vec<Job>> {
         .collect()
 }
 
+/// Refuses a batch whose outputs (the results table, each job's saved result and fitted
+/// model) would replace one of its inputs (the manifest, a model or trial file) or each other.
+fn check_files(args: &BatchArgs, jobs: &[Job]) -> Result<()> {
+    let mut files = crate::output::Files::new().input("manifest", &args.manifest);
+    for job in jobs {
+        if let ModelInput::Named(m) = &job.model {
+            files = files.model(&format!("model of job {:?}", job.id), m);
+        }
+        for t in &job.trials {
+            if let TrialInput::Path(p) = t {
+                files = files.input(&format!("trial of job {:?}", job.id), p);
+            }
+        }
+    }
+    for name in ["results.csv", "results.json"] {
+        files = files.output_in_dir(name, &args.output, name);
+    }
+    let (saved, models) = (args.output.join("jobs"), args.output.join("models"));
+    for job in jobs {
+        files = files
+            .output_in_dir("saved result", &saved, &format!("{}.json", job.id))
+            .output_in_dir("fitted model", &models, &format!("{}.toml", job.id));
+    }
+    files.check()
+}
+
 pub fn run(args: BatchArgs) -> Result<()> {
     let jobs = read_manifest(&args.manifest)?;
+    check_files(&args, &jobs)?;
     let threads = if args.jobs == 0 {
         std::thread::available_parallelism().map_or(1, |n| n.get())
     } else {

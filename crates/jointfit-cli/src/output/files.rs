@@ -9,7 +9,7 @@ use anyhow::{bail, Result};
 /// How a file is known: device and inode when it exists, else its canonical directory and
 /// name (or, when the directory does not exist either, the absolute path with `.` and `..`
 /// resolved by spelling).
-#[derive(Debug, PartialEq, Eq)]
+#[derive(Debug, PartialEq, Eq, Hash)]
 enum Identity {
     Inode(u64, u64),
     Path(PathBuf),
@@ -156,9 +156,14 @@ impl Files {
             .iter()
             .map(|e| (e, identity(&e.path)))
             .collect();
+        // By identity in hash maps: a batch may name many thousands of files.
+        let mut inputs = std::collections::HashMap::new();
+        for (i, iid) in &ins {
+            inputs.entry(iid).or_insert(*i);
+        }
         for (o, oid) in &outs {
-            for (i, iid) in &ins {
-                if oid == iid && !(o.in_place_ok && self.force) {
+            if let Some(i) = inputs.get(oid) {
+                if !(o.in_place_ok && self.force) {
                     let hint = if o.in_place_ok {
                         " (add --force to update it in place)"
                     } else {
@@ -174,17 +179,17 @@ impl Files {
                 }
             }
         }
-        for (k, (a, aid)) in outs.iter().enumerate() {
-            for (b, bid) in &outs[k + 1..] {
-                if aid == bid {
-                    bail!(
-                        "{} ({}) and {} ({}) are the same file; each output needs its own",
-                        a.path.display(),
-                        a.what,
-                        b.path.display(),
-                        b.what
-                    );
-                }
+        let mut seen: std::collections::HashMap<&Identity, &Entry> =
+            std::collections::HashMap::new();
+        for (b, bid) in &outs {
+            if let Some(a) = seen.insert(bid, b) {
+                bail!(
+                    "{} ({}) and {} ({}) are the same file; each output needs its own",
+                    a.path.display(),
+                    a.what,
+                    b.path.display(),
+                    b.what
+                );
             }
         }
         for o in &self.outputs {

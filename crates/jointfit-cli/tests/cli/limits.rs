@@ -254,3 +254,35 @@ fn trc_headers_declaring_billions_are_one_line_errors() {
         }
     }
 }
+
+/// Held-out variant of issue 16's "inputs destroyed": a batch whose job model is the fitted
+/// model file the batch would write (`out/models/a.toml`), or whose trial is its results
+/// table, is refused before any work, and every file stays as it was.
+#[test]
+fn batch_outputs_never_replace_its_inputs() {
+    let (dir, p) = perturbed_trial("batch-inputs");
+    std::fs::create_dir_all(dir.join("out/models")).unwrap();
+    std::fs::copy(p("truth.toml"), p("out/models/a.toml")).unwrap();
+    std::fs::copy(p("t.trc"), p("out/results.csv")).unwrap();
+    for (model, trial, spelled) in [
+        ("out/models/a.toml", "t.trc", "./sub/../out"),
+        ("lower-limb-right", "out/results.csv", "out"),
+    ] {
+        std::fs::create_dir_all(dir.join("sub")).unwrap();
+        std::fs::write(
+            p("jobs.toml"),
+            format!("[[job]]\nid = \"a\"\nmodel = \"{model}\"\ntrials = [\"{trial}\"]\n"),
+        )
+        .unwrap();
+        let before = jointfit_testkit::snapshot(&dir);
+        let out = run(&["batch", &p("jobs.toml"), "-o", &p(spelled)], &[]);
+        let err = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(err.contains("refusing to overwrite an input"), "{err}");
+        assert!(
+            jointfit_testkit::snapshot(&dir) == before,
+            "{model} {trial}: files changed"
+        );
+    }
+}
