@@ -38,8 +38,9 @@ use jointfit_io::batch::{
 use serde::Deserialize;
 
 #[derive(Args)]
+#[command(after_help = MANIFEST_HELP)]
 pub struct BatchArgs {
-    /// Manifest (TOML): one [[job]] table per calibration (see `jointfit batch --help`).
+    /// Manifest (TOML): one [[job]] table per calibration (keys below).
     pub manifest: PathBuf,
     /// Output folder: results.csv, results.json, jobs/<id>.json, models/<id>.toml.
     /// Jobs already finished there (same inputs and settings) are skipped.
@@ -52,6 +53,16 @@ pub struct BatchArgs {
     #[arg(long)]
     pub json: bool,
 }
+
+/// The manifest's keys, shown after the options in `jointfit batch --help`.
+const MANIFEST_HELP: &str =
+    "Manifest keys (paths relative to the manifest's folder; [defaults] may give any \
+but id, model and trials):
+  [[job]] id = \"S01\", model = \"S01/subject.toml\" or a built-in name, trials = [\"a.c3d\", ...]
+  up (\"y\", \"z\", \"-z\"), filter (Hz), joints, method, seed, starts, bootstrap, threshold_mm,
+  threshold_deg, fix_unidentifiable, prior (\"model\", \"none\"), marker_noise_mm, max_iter:
+  as the calibrate options of the same names, with the same limits.
+At most 100000 jobs. Exit status 4 when some jobs failed (their errors are in results.csv).";
 
 /// Most jobs in one manifest.
 pub const MAX_JOBS: usize = 100_000;
