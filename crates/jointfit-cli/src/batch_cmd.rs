@@ -16,8 +16,13 @@
 //! model = "S01/subject.toml" # or a built-in model name
 //! trials = ["S01/walk1.c3d", "S01/walk2.c3d"]
 //! method = "joint"           # joint | gradient | pso
-//! filter = 6.0               # Hz; seed, bootstrap, threshold_mm, threshold_deg as for calibrate
-//! ```
+//! filter = 6.0               # Hz
+//! starts = 3                 # and seed, bootstrap, threshold_mm, threshold_deg,
+//! prior = "none"             # fix_unidentifiable, marker_noise_mm, max_iter: as the
+//! ```                        # calibrate options of the same names, with their limits
+//!
+//! A job's fitted model equals `jointfit calibrate`'s with the same options (and
+//! `--accept-unconverged`: the batch keeps an unconverged fit, with a warning).
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -33,20 +38,34 @@ use jointfit_io::batch::{
 use serde::Deserialize;
 
 #[derive(Args)]
+#[command(after_help = MANIFEST_HELP)]
 pub struct BatchArgs {
-    /// Manifest (TOML): one [[job]] table per calibration (see `jointfit batch --help`).
+    /// Manifest (TOML): one [[job]] table per calibration (keys below).
     pub manifest: PathBuf,
     /// Output folder: results.csv, results.json, jobs/<id>.json, models/<id>.toml.
     /// Jobs already finished there (same inputs and settings) are skipped.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Worker threads (0: one per core).
-    #[arg(long, default_value_t = 0)]
-    pub jobs: usize,
+    /// Worker threads (0: one per core; at most 1024).
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u16).range(0..=1024))]
+    pub jobs: u16,
     /// Print the results table as JSON on stdout.
     #[arg(long)]
     pub json: bool,
 }
+
+/// The manifest's keys, shown after the options in `jointfit batch --help`.
+const MANIFEST_HELP: &str =
+    "Manifest keys (paths relative to the manifest's folder; [defaults] may give any \
+but id, model and trials):
+  [[job]] id = \"S01\", model = \"S01/subject.toml\" or a built-in name, trials = [\"a.c3d\", ...]
+  up (\"y\", \"z\", \"-z\"), filter (Hz), joints, method, seed, starts, bootstrap, threshold_mm,
+  threshold_deg, fix_unidentifiable, prior (\"model\", \"none\"), marker_noise_mm, max_iter:
+  as the calibrate options of the same names, with the same limits.
+At most 100000 jobs. Exit status 4 when some jobs failed (their errors are in results.csv).";
+
+/// Most jobs in one manifest.
+pub const MAX_JOBS: usize = 100_000;
 
 /// Settings a job may give and `[defaults]` may provide.
 #[derive(Deserialize, Default, Clone)]
@@ -60,6 +79,24 @@ struct Settings {
     bootstrap: Option<usize>,
     threshold_mm: Option<f64>,
     threshold_deg: Option<f64>,
+    starts: Option<usize>,
+    fix_unidentifiable: Option<bool>,
+    prior: Option<String>,
+    marker_noise_mm: Option<f64>,
+    max_iter: Option<usize>,
+}
+
+/// `value` of manifest key `key` within `lo..=hi` (the command line's limits).
+fn bounded<T: PartialOrd + std::fmt::Display + Copy>(
+    key: &str,
+    value: T,
+    lo: T,
+    hi: T,
+) -> Result<T> {
+    if !(lo..=hi).contains(&value) {
+        bail!("{key} must be from {lo} to {hi} (got {value})");
+    }
+    Ok(value)
 }
 
 #[derive(Deserialize)]
@@ -108,7 +145,7 @@ fn to_job(entry: JobEntry, defaults: &Settings, base: &Path) -> Result<Job> {
         rel(&entry.model).display().to_string()
     };
     let method = s.method.clone().or(defaults.method.clone());
-    Ok(Job {
+    let job = Job {
         id: entry.id.clone(),
         model: ModelInput::Named(model),
         trials: entry
@@ -121,7 +158,15 @@ fn to_job(entry: JobEntry, defaults: &Settings, base: &Path) -> Result<Job> {
                 Some(u) => parse_up(u)?,
                 None => None,
             },
-            filter_hz: s.filter.or(defaults.filter),
+            filter_hz: match s.filter.or(defaults.filter) {
+                Some(hz) => Some(bounded(
+                    "filter",
+                    hz,
+                    crate::validate::MIN_FILTER_HZ,
+                    crate::validate::MAX_RATE_HZ,
+                )?),
+                None => None,
+            },
         },
         fit: FitOptions {
             joints: s
@@ -143,8 +188,27 @@ fn to_job(entry: JobEntry, defaults: &Settings, base: &Path) -> Result<Job> {
                 .threshold_deg
                 .or(defaults.threshold_deg)
                 .unwrap_or(d.threshold_deg),
+            starts: s.starts.or(defaults.starts).unwrap_or(d.starts),
+            fix_unidentifiable: s
+                .fix_unidentifiable
+                .or(defaults.fix_unidentifiable)
+                .unwrap_or(d.fix_unidentifiable),
+            priors: match s
+                .prior
+                .as_ref()
+                .or(defaults.prior.as_ref())
+                .map(String::as_str)
+            {
+                None | Some("model") => true,
+                Some("none") => false,
+                Some(other) => bail!("prior must be \"model\" or \"none\", not {other:?}"),
+            },
+            marker_noise_mm: s.marker_noise_mm.or(defaults.marker_noise_mm),
+            max_iterations: s.max_iter.or(defaults.max_iter),
         },
-    })
+    };
+    job.fit.check().map_err(anyhow::Error::msg)?;
+    Ok(job)
 }
 
 /// Reads a manifest into jobs (paths resolved against its folder).
@@ -160,6 +224,13 @@ fn read_manifest(path: &Path) -> Result<Vec<Job>> {
     if manifest.job.is_empty() {
         bail!("{}: no [[job]] tables", path.display());
     }
+    if manifest.job.len() > MAX_JOBS {
+        bail!(
+            "{}: {} jobs; a manifest holds at most {MAX_JOBS} (split it)",
+            path.display(),
+            manifest.job.len()
+        );
+    }
     let base = path.parent().unwrap_or(Path::new("."));
     manifest
         .job
@@ -172,12 +243,39 @@ fn read_manifest(path: &Path) -> Result<Vec<Job>> {
         .collect()
 }
 
+/// Refuses a batch whose outputs (the results table, each job's saved result and fitted
+/// model) would replace one of its inputs (the manifest, a model or trial file) or each other.
+fn check_files(args: &BatchArgs, jobs: &[Job]) -> Result<()> {
+    let mut files = crate::output::Files::new().input("manifest", &args.manifest);
+    for job in jobs {
+        if let ModelInput::Named(m) = &job.model {
+            files = files.model(&format!("model of job {:?}", job.id), m);
+        }
+        for t in &job.trials {
+            if let TrialInput::Path(p) = t {
+                files = files.input(&format!("trial of job {:?}", job.id), p);
+            }
+        }
+    }
+    for name in ["results.csv", "results.json"] {
+        files = files.output_in_dir(name, &args.output, name);
+    }
+    let (saved, models) = (args.output.join("jobs"), args.output.join("models"));
+    for job in jobs {
+        files = files
+            .output_in_dir("saved result", &saved, &format!("{}.json", job.id))
+            .output_in_dir("fitted model", &models, &format!("{}.toml", job.id));
+    }
+    files.check()
+}
+
 pub fn run(args: BatchArgs) -> Result<()> {
     let jobs = read_manifest(&args.manifest)?;
+    check_files(&args, &jobs)?;
     let threads = if args.jobs == 0 {
         std::thread::available_parallelism().map_or(1, |n| n.get())
     } else {
-        args.jobs
+        usize::from(args.jobs)
     };
     let clock = Instant::now();
     let done = AtomicUsize::new(0);

@@ -55,6 +55,10 @@ pub struct CalibrateArgs {
     /// Keep a fit that did not converge and exit 0 (otherwise: exit status 3, nothing written).
     #[arg(long)]
     pub accept_unconverged: bool,
+    /// Outer iteration limit (1 to 10000; default: the solver's, 200). A fit that reaches it
+    /// has not converged (see --accept-unconverged).
+    #[arg(long, value_name = "N", value_parser = crate::validate::iterations)]
+    pub max_iter: Option<usize>,
     /// Start from the parameters of an earlier fit (same model structure).
     #[arg(long)]
     pub seed_from: Option<String>,
@@ -96,7 +100,7 @@ pub struct CalibrateArgs {
     pub prior: crate::prior_args::PriorArg,
     /// Marker noise SD (mm) that weighs the prior against the markers (default: estimated
     /// from the residuals of the fit).
-    #[arg(long, value_name = "MM")]
+    #[arg(long, value_name = "MM", allow_negative_numbers = true, value_parser = crate::validate::noise_mm)]
     pub marker_noise_mm: Option<f64>,
     /// Override prior SDs: NAME=VALUE, NAME a group (hip, knee, ankle, all) or parameter,
     /// VALUE in mm or deg; e.g. knee=5mm,knee=3deg,hip_pelvis_lateral=8mm.
@@ -154,6 +158,10 @@ impl Observer for ProgressObserver {
     fn stage_started(&mut self, stage: &str, budget: Option<usize>) {
         self.stage = stage.to_string();
         self.budget = budget;
+        if budget.is_some() && stage.starts_with(jointfit::workflow::UNCERTAINTY_STAGE) {
+            // Bootstrap refits, not counted one by one (they run in parallel): say it began.
+            self.bars.announce(stage);
+        }
     }
     fn iteration(&mut self, iteration: usize, objective: f64) {
         let mm2 = objective * jointfit::model::MM_PER_M * jointfit::model::MM_PER_M;
@@ -188,6 +196,7 @@ pub fn fit_settings(args: &CalibrateArgs) -> FitSettings {
         refine_markers: args
             .refine_markers
             .then_some(args.marker_prior_sd_mm * jointfit::model::M_PER_MM),
+        max_iterations: args.max_iter,
         ..FitSettings::default()
     }
 }

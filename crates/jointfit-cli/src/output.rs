@@ -17,13 +17,14 @@
 //! - **Errors.** [`one_line`]: the causes joined on one line, each said once, long tokens
 //!   elided and huge numbers shown in scientific notation.
 
-use std::fs;
 use std::io::{self, Write};
-use std::path::{Component, Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 use std::sync::Mutex;
 
 use anyhow::{bail, Result};
+
+mod files;
+pub use files::Files;
 
 /// Exit status of a fit that did not converge (see the module docs).
 pub const EXIT_UNCONVERGED: u8 = 3;
@@ -165,205 +166,6 @@ pub fn install_signal_handlers() {
     }
 }
 
-/// How a file is known: device and inode when it exists, else its canonical directory and
-/// name (or, when the directory does not exist either, the absolute path with `.` and `..`
-/// resolved by spelling).
-#[derive(Debug, PartialEq, Eq)]
-enum Identity {
-    Inode(u64, u64),
-    Path(PathBuf),
-}
-
-fn identity(p: &Path) -> Identity {
-    #[cfg(unix)]
-    if let Ok(md) = fs::metadata(p) {
-        use std::os::unix::fs::MetadataExt;
-        return Identity::Inode(md.dev(), md.ino());
-    }
-    let canonical = match (p.parent(), p.file_name()) {
-        (Some(dir), Some(name)) => {
-            let dir = if dir.as_os_str().is_empty() {
-                Path::new(".")
-            } else {
-                dir
-            };
-            fs::canonicalize(dir).ok().map(|d| d.join(name))
-        }
-        _ => None,
-    };
-    // `t.trc/` and similar spellings: the file the directory and name lead to.
-    #[cfg(unix)]
-    if let Some(md) = canonical.as_ref().and_then(|c| fs::metadata(c).ok()) {
-        use std::os::unix::fs::MetadataExt;
-        return Identity::Inode(md.dev(), md.ino());
-    }
-    Identity::Path(canonical.unwrap_or_else(|| lexical_absolute(p)))
-}
-
-fn lexical_absolute(p: &Path) -> PathBuf {
-    let base = std::env::current_dir().unwrap_or_default();
-    let mut out = PathBuf::new();
-    for c in base.join(p).components() {
-        match c {
-            Component::ParentDir => {
-                out.pop();
-            }
-            Component::CurDir => {}
-            other => out.push(other),
-        }
-    }
-    out
-}
-
-struct Entry {
-    what: String,
-    path: PathBuf,
-    /// Outputs only: may replace an input when the command's `--force` is given.
-    in_place_ok: bool,
-    /// Outputs only: the command creates the file's directory when it is missing.
-    creates_dir: bool,
-}
-
-/// The inputs and outputs of one command, checked before any work (see the module docs).
-#[derive(Default)]
-pub struct Files {
-    inputs: Vec<Entry>,
-    outputs: Vec<Entry>,
-    force: bool,
-}
-
-impl Files {
-    pub fn new() -> Files {
-        Files::default()
-    }
-
-    /// An input file (`what` names it in messages, e.g. `"trial"`).
-    pub fn input(mut self, what: &str, path: impl AsRef<Path>) -> Files {
-        self.inputs.push(Entry {
-            what: what.to_string(),
-            path: path.as_ref().to_path_buf(),
-            in_place_ok: false,
-            creates_dir: false,
-        });
-        self
-    }
-
-    /// A model argument: an input when it names an existing file (not a built-in name).
-    pub fn model(self, what: &str, name_or_path: &str) -> Files {
-        if Path::new(name_or_path).is_file() {
-            self.input(what, name_or_path)
-        } else {
-            self
-        }
-    }
-
-    /// An output file, which must not be an input or another output; its directory must
-    /// exist.
-    pub fn output(mut self, what: &str, path: impl AsRef<Path>) -> Files {
-        self.outputs.push(Entry {
-            what: what.to_string(),
-            path: path.as_ref().to_path_buf(),
-            in_place_ok: false,
-            creates_dir: false,
-        });
-        self
-    }
-
-    /// An output file `dir/name` whose directory the command creates when missing.
-    pub fn output_in_dir(mut self, what: &str, dir: &Path, name: &str) -> Files {
-        self.outputs.push(Entry {
-            what: what.to_string(),
-            path: dir.join(name),
-            in_place_ok: false,
-            creates_dir: true,
-        });
-        self
-    }
-
-    /// An output that may replace an input when `force` is set (an in-place update).
-    pub fn output_in_place(mut self, what: &str, path: impl AsRef<Path>, force: bool) -> Files {
-        self.outputs.push(Entry {
-            what: what.to_string(),
-            path: path.as_ref().to_path_buf(),
-            in_place_ok: true,
-            creates_dir: false,
-        });
-        self.force |= force;
-        self
-    }
-
-    /// Refuses outputs that are directories, lack a file name, coincide with an input
-    /// (unless allowed) or with each other, or lie in a directory that does not exist.
-    pub fn check(self) -> Result<()> {
-        for o in &self.outputs {
-            let shown = o.path.display();
-            if o.path.file_name().is_none() {
-                bail!("{shown}: {} does not name a file", o.what);
-            }
-            if o.path.is_dir() {
-                bail!("{shown}: {} is a directory, not a file", o.what);
-            }
-        }
-        let ins: Vec<(&Entry, Identity)> = self
-            .inputs
-            .iter()
-            .filter(|e| e.path.exists())
-            .map(|e| (e, identity(&e.path)))
-            .collect();
-        let outs: Vec<(&Entry, Identity)> = self
-            .outputs
-            .iter()
-            .map(|e| (e, identity(&e.path)))
-            .collect();
-        for (o, oid) in &outs {
-            for (i, iid) in &ins {
-                if oid == iid && !(o.in_place_ok && self.force) {
-                    let hint = if o.in_place_ok {
-                        " (add --force to update it in place)"
-                    } else {
-                        ""
-                    };
-                    bail!(
-                        "{}: {} is the same file as {} {}; refusing to overwrite an input{hint}",
-                        o.path.display(),
-                        o.what,
-                        i.what,
-                        i.path.display()
-                    );
-                }
-            }
-        }
-        for (k, (a, aid)) in outs.iter().enumerate() {
-            for (b, bid) in &outs[k + 1..] {
-                if aid == bid {
-                    bail!(
-                        "{} ({}) and {} ({}) are the same file; each output needs its own",
-                        a.path.display(),
-                        a.what,
-                        b.path.display(),
-                        b.what
-                    );
-                }
-            }
-        }
-        for o in &self.outputs {
-            let dir = match o.path.parent() {
-                Some(d) if !d.as_os_str().is_empty() => d,
-                _ => Path::new("."),
-            };
-            if !o.creates_dir && !dir.is_dir() {
-                bail!(
-                    "{}: {} cannot be written: directory {} does not exist",
-                    o.path.display(),
-                    o.what,
-                    dir.display()
-                );
-            }
-        }
-        Ok(())
-    }
-}
-
 pub use jointfit_io::message::tidy;
 
 /// The error and its causes on one line (see [`jointfit_io::message::one_line`], which the
@@ -482,6 +284,7 @@ pub fn finish(
 mod tests {
     use super::*;
     use jointfit_io::message::MAX_MESSAGE_CHARS;
+    use std::fs;
 
     #[test]
     fn an_unconverged_fit_is_status_3_and_discards_the_batch() {
@@ -523,47 +326,5 @@ mod tests {
         assert!(t.contains("[4926 characters]"), "{t}");
         let many = "word ".repeat(1000);
         assert!(tidy(&many).chars().count() <= MAX_MESSAGE_CHARS + 1);
-    }
-
-    #[test]
-    fn identity_sees_through_spellings_and_links() {
-        let dir = jointfit_testkit::scratch("ident");
-        fs::create_dir_all(dir.join("sub")).unwrap();
-        let a = dir.join("a.trc");
-        fs::write(&a, b"x").unwrap();
-        let spelled = dir.join("sub/../a.trc");
-        assert_eq!(identity(&a), identity(&spelled));
-        #[cfg(unix)]
-        {
-            let link = dir.join("link.trc");
-            let _ = fs::remove_file(&link);
-            std::os::unix::fs::symlink(&a, &link).unwrap();
-            assert_eq!(identity(&a), identity(&link));
-            let hard = dir.join("hard.trc");
-            let _ = fs::remove_file(&hard);
-            fs::hard_link(&a, &hard).unwrap();
-            assert_eq!(identity(&a), identity(&hard));
-        }
-        let new1 = dir.join("new.trc");
-        let new2 = dir.join("sub/./../new.trc");
-        assert_eq!(identity(&new1), identity(&new2));
-        assert_ne!(identity(&new1), identity(&a));
-        let err = Files::new()
-            .input("trial", &a)
-            .output("output", &spelled)
-            .check()
-            .unwrap_err()
-            .to_string();
-        assert!(err.contains("refusing to overwrite an input"), "{err}");
-        assert!(Files::new()
-            .output("output", &new1)
-            .output("--truth", &new2)
-            .check()
-            .is_err());
-        assert!(Files::new()
-            .input("model", &a)
-            .output_in_place("output", &a, true)
-            .check()
-            .is_ok());
     }
 }

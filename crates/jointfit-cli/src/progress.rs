@@ -352,6 +352,24 @@ impl StageProgress {
         self.last_message = message.to_string();
     }
 
+    /// Starts `stage`, which has no steps to count, with a line at once (unless quiet), so
+    /// that a long step without iterations is not silent; the next stage or
+    /// [`StageProgress::finish`] writes its end and duration.
+    pub fn announce(&mut self, stage: &str) {
+        self.finish();
+        let mut p = Progress::new(stage, None);
+        if p.mode != Mode::Quiet {
+            eprintln!("jointfit: {stage}: started");
+            p.printed = true;
+            // A terminal gets a summary line at the end, no bar to redraw.
+            if p.mode == Mode::Bar {
+                p.mode = Mode::Log;
+            }
+        }
+        self.current = Some((stage.to_string(), p));
+        self.last_message = String::new();
+    }
+
     /// Finishes the current stage, if any.
     pub fn finish(&mut self) {
         if let Some((_, mut p)) = self.current.take() {

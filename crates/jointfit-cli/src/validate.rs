@@ -15,6 +15,7 @@
 //! - synthetic motions: `--amplitude` at most [`MAX_AMPLITUDE`], noise and perturbations at
 //!   most [`MAX_NOISE_MM`] mm or 180°, `--skin-omega` at most [`MAX_OMEGA`] rad/s.
 //! - bootstrap replicates: at most [`MAX_BOOTSTRAP`] (each is a refit).
+//! - outer iterations of a calibration (`--max-iter`): 1 to [`MAX_ITERATIONS`].
 //! - digits after the decimal point: at most [`MAX_DECIMALS`] (f64 has 17 significant digits).
 //! - marker coordinates: within ±[`MAX_POSITION_M`] m; rates at most [`MAX_RATE_HZ`].
 
@@ -30,7 +31,9 @@ pub const MAX_FRAMES: usize = 100_000;
 /// Most starts, seeds or stride of `reproduce`.
 pub const MAX_RUNS: usize = 1_000;
 /// Most block-bootstrap replicates.
-pub const MAX_BOOTSTRAP: usize = 2_000;
+pub const MAX_BOOTSTRAP: usize = jointfit_io::batch::fit::MAX_BOOTSTRAP;
+/// Most outer iterations of a calibration (`--max-iter`).
+pub const MAX_ITERATIONS: usize = jointfit_io::batch::fit::MAX_ITERATIONS;
 /// Most digits after the decimal point in written files.
 pub const MAX_DECIMALS: usize = 12;
 /// Largest plausible marker coordinate (m): a gait laboratory is tens of metres at most.
@@ -42,7 +45,7 @@ pub const MAX_AMPLITUDE: f64 = 10.0;
 /// Largest skin-artifact angular frequency (rad/s).
 pub const MAX_OMEGA: f64 = 10_000.0;
 /// Largest noise, artifact or perturbation amplitude (mm).
-pub const MAX_NOISE_MM: f64 = 1_000.0;
+pub const MAX_NOISE_MM: f64 = jointfit_io::batch::fit::MAX_NOISE_MM;
 
 fn number(s: &str) -> Result<f64, String> {
     let v: f64 = s
@@ -162,6 +165,11 @@ pub fn rate_hz(s: &str) -> Result<f64, String> {
 /// Bootstrap replicates: 0 (none) to [`MAX_BOOTSTRAP`].
 pub fn bootstrap(s: &str) -> Result<usize, String> {
     count(s, 0, MAX_BOOTSTRAP)
+}
+
+/// An outer iteration limit: 1 to [`MAX_ITERATIONS`].
+pub fn iterations(s: &str) -> Result<usize, String> {
+    count(s, 1, MAX_ITERATIONS)
 }
 
 /// Digits after the decimal point: 0 to [`MAX_DECIMALS`].

@@ -1,5 +1,6 @@
 //! The `jointfit` binary end to end: exit codes, one-line errors, JSON that parses.
 
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 #[path = "cli/batch.rs"]
@@ -14,6 +15,8 @@ mod fuzz;
 mod ident;
 #[path = "cli/ik.rs"]
 mod ik;
+#[path = "cli/limits.rs"]
+mod limits;
 #[path = "cli/osim.rs"]
 mod osim;
 #[path = "cli/personalize.rs"]
@@ -26,6 +29,34 @@ mod reliability;
 mod report;
 #[path = "cli/synth.rs"]
 mod synth;
+
+/// `jointfit personalize --static STAT --markers PRESET --side right -o OUT`, which must
+/// succeed.
+fn personalize(stat: &Path, preset: &str, out: &Path) {
+    let (ok, _, err) = jointfit(&[
+        "personalize",
+        "--static",
+        stat.to_str().unwrap(),
+        "--markers",
+        preset,
+        "--side",
+        "right",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+}
+
+/// OpenCap's expert subject, the shared setup of the tests on real gait: `dir/name`
+/// personalized (opencap preset, right leg) from `static1.trc`, and the path of
+/// `walking1.trc`; `None` (the test is skipped) without the data.
+fn opencap_subject(dir: &Path, name: &str) -> Option<(PathBuf, PathBuf)> {
+    let stat = jointfit_testkit::data_file("opencap_expert1/static1.trc")?;
+    let walk = jointfit_testkit::data_file("opencap_expert1/walking1.trc")?;
+    let subject = dir.join(name);
+    personalize(&stat, "opencap", &subject);
+    Some((subject, walk))
+}
 
 fn jointfit(args: &[&str]) -> (bool, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_jointfit"))

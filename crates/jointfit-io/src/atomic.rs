@@ -106,14 +106,7 @@ fn sync_dir(dir: &Path) {
 mod tests {
     use super::*;
 
-    fn entries(dir: &Path) -> Vec<String> {
-        let mut v: Vec<String> = fs::read_dir(dir)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .collect();
-        v.sort();
-        v
-    }
+    use jointfit_testkit::entries;
 
     #[test]
     fn writes_and_replaces_without_leftovers() {

@@ -75,7 +75,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use jointfit::model::spec::{JointSpec, OffsetSpec, ScalarSpec};
+use jointfit::model::spec::JointSpec;
 use jointfit::model::{JointKind, Model};
 use nalgebra::Vector3;
 use thiserror::Error;
@@ -84,13 +84,16 @@ use crate::atomic::write_atomic;
 use crate::text::format_shortest;
 use crate::xml::escape;
 
+mod axes;
+mod names;
+
+use axes::{eval_offset, spatial_axes, Offset};
+use names::{check_names, comment_safe, sanitize};
+
 /// Placeholder mass of every body (kg).
 pub const PLACEHOLDER_MASS: f64 = 1.0;
 /// Placeholder principal moment of inertia of every body about its origin (kg·m²).
 pub const PLACEHOLDER_INERTIA: f64 = 0.01;
-
-/// Cross-product norm below which OpenSim calls two `CustomJoint` axes collinear.
-const COLLINEAR_TOL: f64 = 1e-5;
 
 /// Why a model could not be exported.
 #[derive(Debug, Error)]
@@ -279,131 +282,6 @@ fn joint_spec(model: &Model, ji: usize) -> &JointSpec {
         .expect("every compiled joint comes from a spec joint of the same name")
 }
 
-/// An offset's translation (m) and X-Y-Z body-fixed angles (rad) for parameters `p`.
-struct Offset {
-    translation: [f64; 3],
-    orientation: [f64; 3],
-}
-
-fn eval_offset(
-    model: &Model,
-    p: &[f64],
-    offset: &OffsetSpec,
-    joint: &str,
-) -> Result<Offset, OsimError> {
-    let mut v = [0.0; 6];
-    for (out, s) in v.iter_mut().zip(offset.scalars()) {
-        *out = match s {
-            ScalarSpec::Fixed(x) => *x,
-            _ => {
-                let (name, scale) = s.as_param().expect("non-fixed scalar is a parameter");
-                let id = model
-                    .param_id(name)
-                    .ok_or_else(|| OsimError::UnknownParameter {
-                        joint: joint.to_string(),
-                        param: name.to_string(),
-                    })?;
-                scale * p[id.0]
-            }
-        };
-    }
-    Ok(Offset {
-        translation: [v[0], v[1], v[2]],
-        orientation: [v[3], v[4], v[5]],
-    })
-}
-
-/// A transform axis: unit direction and the coordinate driving it (`None`: constant 0).
-type Axis<'a> = (Vector3<f64>, Option<&'a str>);
-
-/// The six transform axes (rotation1..3, translation1..3) with the coordinate driving each.
-fn spatial_axes<'a>(
-    kind: &JointKind,
-    coords: &[&'a str],
-    joint: &str,
-) -> Result<[Axis<'a>; 6], OsimError> {
-    let (x, y, z) = (Vector3::x(), Vector3::y(), Vector3::z());
-    let fixed_xyz = [(x, None), (y, None), (z, None)];
-    let one = |a: Vector3<f64>, c: &'a str| {
-        let (u, v) = complete_basis(&a);
-        [(a, Some(c)), (u, None), (v, None)]
-    };
-    let (rot, trans): ([Axis; 3], _) = match kind {
-        JointKind::Free { rotation_axes: a } => (
-            [
-                (a[0], Some(coords[3])),
-                (a[1], Some(coords[4])),
-                (a[2], Some(coords[5])),
-            ],
-            [
-                (x, Some(coords[0])),
-                (y, Some(coords[1])),
-                (z, Some(coords[2])),
-            ],
-        ),
-        JointKind::Gimbal { axes: a } => (
-            [
-                (a[0], Some(coords[0])),
-                (a[1], Some(coords[1])),
-                (a[2], Some(coords[2])),
-            ],
-            fixed_xyz,
-        ),
-        JointKind::Universal { axes: a } => {
-            let n = a[0].cross(&a[1]);
-            if n.norm() < COLLINEAR_TOL {
-                return Err(OsimError::ParallelAxes {
-                    joint: joint.to_string(),
-                    what: "rotation",
-                    first: 1,
-                    second: 2,
-                });
-            }
-            (
-                [
-                    (a[0], Some(coords[0])),
-                    (a[1], Some(coords[1])),
-                    (n.normalize(), None),
-                ],
-                fixed_xyz,
-            )
-        }
-        JointKind::Pin { axis } => (one(*axis, coords[0]), fixed_xyz),
-        JointKind::Slider { axis } => (fixed_xyz, one(*axis, coords[0])),
-        JointKind::Weld => unreachable!("a weld joint is a WeldJoint"),
-        JointKind::Custom { .. } => {
-            return Err(OsimError::CustomJoint {
-                joint: joint.to_string(),
-            })
-        }
-    };
-    for (what, set) in [("rotation", &rot), ("translation", &trans)] {
-        for i in 0..3 {
-            for k in i + 1..3 {
-                if set[i].0.cross(&set[k].0).norm() < COLLINEAR_TOL {
-                    return Err(OsimError::ParallelAxes {
-                        joint: joint.to_string(),
-                        what,
-                        first: i + 1,
-                        second: k + 1,
-                    });
-                }
-            }
-        }
-    }
-    Ok([rot[0], rot[1], rot[2], trans[0], trans[1], trans[2]])
-}
-
-/// Two unit vectors that make `a` (a unit vector) part of a right-handed orthonormal basis.
-fn complete_basis(a: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
-    // The principal axis least aligned with `a` is far from parallel to it.
-    let k = a.iamin();
-    let e = Vector3::ith(k, 1.0);
-    let u = a.cross(&e).normalize();
-    let v = a.cross(&u);
-    (u, v)
-}
-
 fn transform_axis(x: &mut String, k: usize, axis: &Vector3<f64>, coord: Option<&str>) {
     let name = if k < 3 {
         format!("rotation{}", k + 1)
@@ -495,82 +373,6 @@ fn header_comment(x: &mut String, model: &Model, p: &[f64]) {
     let _ = writeln!(x, "<!--\n{}-->", comment_safe(&c));
 }
 
-/// Checks every name that becomes an OpenSim component name or path step.
-fn check_names(model: &Model) -> Result<(), OsimError> {
-    let lists: [(&'static str, Vec<&str>); 4] = [
-        (
-            "segment",
-            model.segments().iter().map(|s| s.name.as_str()).collect(),
-        ),
-        (
-            "joint",
-            model.joints().iter().map(|s| s.name.as_str()).collect(),
-        ),
-        (
-            "coordinate",
-            model
-                .coordinates()
-                .iter()
-                .map(|s| s.name.as_str())
-                .collect(),
-        ),
-        (
-            "marker",
-            model.markers().iter().map(|s| s.name.as_str()).collect(),
-        ),
-    ];
-    for (kind, names) in lists {
-        for name in names {
-            if !valid_name(name) {
-                return Err(OsimError::BadName {
-                    kind,
-                    name: name.to_string(),
-                });
-            }
-        }
-    }
-    Ok(())
-}
-
-fn invalid_char(c: char) -> bool {
-    matches!(c, '\\' | '/' | '*' | '+') || c.is_whitespace() || c.is_control()
-}
-
-fn valid_name(name: &str) -> bool {
-    !name.is_empty() && name != "." && name != ".." && !name.chars().any(invalid_char)
-}
-
-fn sanitize(name: &str) -> String {
-    let s: String = name
-        .chars()
-        .map(|c| if invalid_char(c) { '_' } else { c })
-        .collect();
-    if valid_name(&s) {
-        s
-    } else {
-        "jointfit_model".to_string()
-    }
-}
-
-/// Text that may sit inside `<!-- … -->`: no `--` and no control characters but newlines.
-fn comment_safe(s: &str) -> String {
-    let mut out = String::with_capacity(s.len());
-    for c in s.chars() {
-        if c == '-' && out.ends_with('-') {
-            out.push(' ');
-        }
-        if c.is_control() && c != '\n' {
-            out.push(' ');
-        } else {
-            out.push(c);
-        }
-    }
-    if out.ends_with('-') {
-        out.push(' ');
-    }
-    out
-}
-
 /// A number as OpenSim reads it back exactly (no `-0`).
 fn num(v: f64) -> String {
     format_shortest(if v == 0.0 { 0.0 } else { v })
@@ -582,6 +384,8 @@ fn vec3(v: &Vector3<f64>) -> String {
 
 #[cfg(test)]
 mod tests {
+    use super::axes::complete_basis;
+    use super::names::valid_name;
     use super::*;
 
     #[test]

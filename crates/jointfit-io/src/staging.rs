@@ -285,14 +285,7 @@ mod tests {
     use super::*;
     use crate::atomic::write_atomic;
 
-    fn entries(dir: &Path) -> Vec<String> {
-        let mut v: Vec<String> = fs::read_dir(dir)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .collect();
-        v.sort();
-        v
-    }
+    use jointfit_testkit::entries;
 
     /// One test for everything that opens a batch: a batch is process-wide, so tests that
     /// open one must not run in parallel.

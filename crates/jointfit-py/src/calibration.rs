@@ -156,10 +156,13 @@ fn joints_arg(joints: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<String>> {
 /// at their own optimum. Starts from the model's parameters. `trials` are Trial objects or
 /// paths (read with `up` and `filter`, as on the command line); `method` is "joint" (sparse
 /// Levenberg–Marquardt), "gradient" (two-level Gauss–Newton) or "pso" (particle swarm, then
-/// joint polish, seeded by `seed`). The fitted parameters equal `jointfit calibrate`'s for
-/// the same inputs, bit for bit. Releases the GIL while it runs.
+/// joint polish, seeded by `seed`). The other options are those of `jointfit calibrate`:
+/// `starts`, `fix_unidentifiable`, `prior` ("model" or "none"), `marker_noise_mm`,
+/// `max_iter`, `bootstrap`, `threshold_mm`, `threshold_deg`. The fitted parameters equal
+/// `jointfit calibrate`'s for the same inputs and options, bit for bit (an unconverged fit
+/// is kept with a warning, as `--accept-unconverged`). Releases the GIL while it runs.
 #[pyfunction]
-#[pyo3(signature = (model, trials, joints=None, method="joint", up=None, filter=None, seed=1, bootstrap=0, threshold_mm=5.0, threshold_deg=5.0))]
+#[pyo3(signature = (model, trials, joints=None, method="joint", up=None, filter=None, seed=1, bootstrap=0, threshold_mm=5.0, threshold_deg=5.0, starts=1, fix_unidentifiable=false, prior="model", marker_noise_mm=None, max_iter=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -173,6 +176,11 @@ pub fn calibrate(
     bootstrap: usize,
     threshold_mm: f64,
     threshold_deg: f64,
+    starts: usize,
+    fix_unidentifiable: bool,
+    prior: &str,
+    marker_noise_mm: Option<f64>,
+    max_iter: Option<usize>,
 ) -> PyResult<PyCalibration> {
     let model = if let Ok(m) = model.cast::<PyModel>() {
         ModelInput::Spec(Box::new(m.get().model.spec().clone()))
@@ -227,8 +235,22 @@ pub fn calibrate(
             threshold_mm,
             threshold_deg,
             bootstrap,
+            starts,
+            fix_unidentifiable,
+            priors: match prior {
+                "model" => true,
+                "none" => false,
+                other => {
+                    return Err(msg(format!(
+                        "prior must be \"model\" or \"none\", not {other:?}"
+                    )))
+                }
+            },
+            marker_noise_mm,
+            max_iterations: max_iter,
         },
     };
+    job.fit.check().map_err(msg)?;
     let cal = py.detach(|| run_job(&job)).map_err(|e| err(&e))?;
     warn_all(py, &cal.warnings)?;
     Ok(PyCalibration { cal })

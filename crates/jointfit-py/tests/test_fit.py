@@ -72,6 +72,49 @@ def test_calibrate_equals_cli_bit_for_bit(opencap, run_cli, joints, method, filt
     assert set(cal.intervals) == set(cal.parameters)
 
 
+# Every calibrate option a user expects, through `calibrate` and through `Job`/`batch`,
+# against `jointfit calibrate` with the same options (the subject model has priors).
+@pytest.mark.parametrize(
+    "kwargs,flags",
+    [
+        (dict(starts=3, seed=7), ["--starts", "3", "--seed", "7"]),
+        (dict(prior="none", fix_unidentifiable=True),
+         ["--prior", "none", "--fix-unidentifiable"]),
+        (dict(marker_noise_mm=3.0, bootstrap=3, seed=5, threshold_mm=4.0),
+         ["--marker-noise-mm", "3", "--bootstrap", "3", "--seed", "5", "--threshold-mm", "4"]),
+        (dict(max_iter=2, method="gradient"), ["--max-iter", "2", "--method", "gradient"]),
+    ],
+)
+def test_calibrate_options_equal_cli(opencap, run_cli, kwargs, flags):
+    d, out, subject = opencap
+    trial = d / "walking1.trc"
+    fitted = out / f"fitted_{'_'.join(flags).replace('-', '')}.toml"
+    code, _, err = run_cli("calibrate", subject, trial, "--joints", "knee", "--filter", "6",
+                           *flags, "-o", fitted, "--accept-unconverged")
+    assert code == 0, err
+    cli = jf.Model.load(fitted)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cal = jf.calibrate(jf.Model.load(subject), [str(trial)], joints=["knee"], filter=6.0,
+                           **kwargs)
+        job = jf.Job(model=str(subject), trials=[str(trial)], joints=["knee"], filter=6.0,
+                     **kwargs)
+        [batched] = jf.batch([job], progress=False)
+    _same_parameters(cal.model, cli)
+    _same_parameters(batched.model, cli)
+    if "max_iter" in kwargs:
+        assert not cal.converged
+
+
+def test_option_limits_are_the_cli_ones():
+    for bad, needle in [(dict(starts=0), "starts"), (dict(starts=1001), "1000"),
+                        (dict(bootstrap=2001), "2000"), (dict(max_iter=0), "max_iter"),
+                        (dict(marker_noise_mm=float("nan")), "marker_noise_mm"),
+                        (dict(prior="flat"), "prior")]:
+        with pytest.raises(jf.JointfitError, match=needle):
+            jf.calibrate("lower-limb-right", [], **bad)
+
+
 def test_calibrate_c3d_from_another_lab_equals_cli(data_dir, run_cli, tmp_path):
     """Vicon C3D (Z down-up convention of that lab: up = -z), plugin-gait markers."""
     d = data_dir / "biobuddy_functional_vicon"

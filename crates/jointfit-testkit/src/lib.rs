@@ -17,4 +17,4 @@ pub mod script;
 pub mod synth;
 
 pub use env::{data_dir, data_file, in_ci, python};
-pub use scratch::{scratch, ScratchDir};
+pub use scratch::{entries, scratch, snapshot, ScratchDir};

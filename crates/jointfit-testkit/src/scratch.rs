@@ -61,6 +61,49 @@ impl Drop for ScratchDir {
     }
 }
 
+/// The names of the entries of `dir` (not recursive), sorted: what a test compares to tell
+/// that a run left no temporary or partial file.
+///
+/// # Panics
+/// When the directory cannot be read.
+pub fn entries(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("cannot list {}: {e}", dir.display()))
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+/// Every entry under `root`, recursively, with its bytes, sorted by path relative to
+/// `root`: directories end in `/` and symlinks in `@` (both with no bytes). Two snapshots
+/// are equal exactly when no file was added, removed or changed.
+///
+/// # Panics
+/// When a directory or file cannot be read.
+pub fn snapshot(root: &Path) -> Vec<(String, Vec<u8>)> {
+    fn walk(root: &Path, dir: &Path, out: &mut Vec<(String, Vec<u8>)>) {
+        for e in std::fs::read_dir(dir).unwrap() {
+            let e = e.unwrap();
+            let path = e.path();
+            let rel = path.strip_prefix(root).unwrap().display().to_string();
+            let ft = e.file_type().unwrap();
+            if ft.is_dir() {
+                out.push((format!("{rel}/"), Vec::new()));
+                walk(root, &path, out);
+            } else if ft.is_symlink() {
+                out.push((format!("{rel}@"), Vec::new()));
+            } else {
+                out.push((rel, std::fs::read(&path).unwrap()));
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(root, root, &mut out);
+    out.sort();
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -91,6 +134,18 @@ mod tests {
         assert!(r.is_err());
         let p = rx.recv().unwrap();
         assert!(!p.exists(), "{} survived the panic", p.display());
+    }
+
+    #[test]
+    fn entries_and_snapshots_list_what_is_there() {
+        let d = scratch("list");
+        std::fs::create_dir(d.join("sub")).unwrap();
+        std::fs::write(d.join("sub/b.txt"), "b").unwrap();
+        std::fs::write(d.join("a.txt"), "a").unwrap();
+        assert_eq!(entries(&d), ["a.txt", "sub"]);
+        let names: Vec<String> = snapshot(&d).into_iter().map(|(n, _)| n).collect();
+        assert_eq!(names, ["a.txt", "sub/", "sub/b.txt"]);
+        assert_eq!(snapshot(&d)[2].1, b"b");
     }
 
     #[test]

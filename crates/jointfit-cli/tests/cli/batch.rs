@@ -2,7 +2,27 @@
 //! inputs (byte for byte), failures stay per job, a rerun skips finished jobs, one-line
 //! manifest errors.
 
+use std::path::Path;
+
 use super::jointfit;
+
+/// `jointfit calibrate ARGS` (model, trials and options) writes the same model file, byte
+/// for byte, as job `id` of the batch whose output folder is `dir/out`.
+fn calibrate_equals_batch(dir: &Path, id: &str, args: &[&str]) {
+    let fitted = dir.join(format!("cli_{id}.toml"));
+    let mut all = vec!["calibrate"];
+    all.extend(args);
+    // The batch keeps unconverged fits (flagged).
+    all.extend(["-o", fitted.to_str().unwrap(), "--accept-unconverged"]);
+    let (ok, _, err) = jointfit(&all);
+    assert!(ok, "{id}: {err}");
+    let cli = std::fs::read_to_string(&fitted).unwrap();
+    let batch = std::fs::read_to_string(dir.join(format!("out/models/{id}.toml"))).unwrap();
+    assert_eq!(
+        cli, batch,
+        "job {id}: batch and calibrate fitted differently"
+    );
+}
 
 #[test]
 fn batch_equals_calibrate_keeps_failures_and_resumes() {
@@ -89,20 +109,9 @@ method = "gradient"
         ),
     ];
     for (id, inputs, joints, method) in &cases {
-        let fitted = p(&format!("cli_{id}.toml"));
-        let mut args = vec!["calibrate"];
-        args.extend(inputs.iter().map(|s| s as &str));
-        args.extend(["--joints", joints, "--method", method, "-o", &fitted]);
-        args.push("--accept-unconverged"); // the batch keeps unconverged fits (flagged)
-        let (ok, _, err) = jointfit(&args);
-        assert!(ok, "{err}");
-        let cli = std::fs::read_to_string(&fitted).unwrap();
-        let batch =
-            std::fs::read_to_string(dir.path().join(format!("out/models/{id}.toml"))).unwrap();
-        assert_eq!(
-            cli, batch,
-            "job {id}: batch and calibrate fitted differently"
-        );
+        let mut args = inputs.clone();
+        args.extend(["--joints", joints, "--method", method]);
+        calibrate_equals_batch(dir.path(), id, &args);
     }
     let csv = std::fs::read_to_string(dir.path().join("out/results.csv")).unwrap();
     let rows: Vec<&str> = csv.lines().collect();
@@ -157,4 +166,77 @@ fn bad_manifest_is_a_one_line_error() {
     ]);
     assert!(!ok);
     assert!(err.contains("missing.trc"), "{err}");
+}
+
+/// Every calibrate option a manifest can give yields the same fitted model file as
+/// `jointfit calibrate` with the same options (byte for byte).
+#[test]
+fn batch_options_equal_calibrate_options() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let (ok, _, err) = jointfit(&[
+        "synth",
+        "lower-limb-right",
+        "--motion",
+        "all",
+        "--frames",
+        "40",
+        "--noise",
+        "skin",
+        "--perturb-mm",
+        "10",
+        "-o",
+        &p("t.trc"),
+        "--truth",
+        &p("truth.toml"),
+    ]);
+    assert!(ok, "{err}");
+    // (The built-in model has no priors: `prior` and `marker_noise_mm` only have to reach
+    // the same settings as on the command line.)
+    let jobs: [(&str, &str, Vec<&str>); 3] = [
+        (
+            "starts",
+            "joints = [\"knee\"]\nstarts = 3\nseed = 7\nfilter = 4.0\n",
+            vec!["--joints", "knee", "--starts", "3", "--seed", "7", "--filter", "4"],
+        ),
+        (
+            "fix",
+            "joints = [\"ankle\"]\nfix_unidentifiable = true\nprior = \"none\"\nmarker_noise_mm = 2.0\nbootstrap = 3\n",
+            vec![
+                "--joints",
+                "ankle",
+                "--fix-unidentifiable",
+                "--prior",
+                "none",
+                "--marker-noise-mm",
+                "2",
+                "--bootstrap",
+                "3",
+            ],
+        ),
+        (
+            "limit",
+            "joints = [\"hip\"]\nmax_iter = 2\nmethod = \"gradient\"\n",
+            vec!["--joints", "hip", "--max-iter", "2", "--method", "gradient"],
+        ),
+    ];
+    let mut manifest = String::new();
+    for (id, settings, _) in &jobs {
+        manifest.push_str(&format!(
+            "[[job]]\nid = \"{id}\"\nmodel = \"lower-limb-right\"\ntrials = [\"t.trc\"]\n{settings}\n"
+        ));
+    }
+    std::fs::write(p("jobs.toml"), manifest).unwrap();
+    let (ok, _, err) = jointfit(&["batch", &p("jobs.toml"), "-o", &p("out"), "--jobs", "1"]);
+    assert!(ok, "{err}");
+    let t = p("t.trc");
+    for (id, _, opts) in &jobs {
+        let mut args = vec!["lower-limb-right", t.as_str()];
+        args.extend(opts.iter().copied());
+        calibrate_equals_batch(dir.path(), id, &args);
+    }
+    // The iteration limit reached the solver: that job is flagged as not converged.
+    let csv = std::fs::read_to_string(p("out/results.csv")).unwrap();
+    let limit = csv.lines().find(|l| l.starts_with("limit,")).unwrap();
+    assert!(limit.contains("before converging"), "{limit}");
 }

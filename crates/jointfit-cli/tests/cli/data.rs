@@ -97,26 +97,10 @@ fn convert_errors_name_the_problem() {
 /// the undetermined coordinate named when they cannot.
 #[test]
 fn ik_on_a_trial_lacking_model_markers() {
-    let (Some(stat), Some(walk)) = (
-        data_file("opencap_expert1/static1.trc"),
-        data_file("opencap_expert1/walking1.trc"),
-    ) else {
+    let dir = scratch("data-cli");
+    let Some((subject, walk)) = super::opencap_subject(&dir, "absent-subject.toml") else {
         return;
     };
-    let dir = scratch("data-cli");
-    let subject = dir.join("absent-subject.toml");
-    let (ok, _, err) = jointfit(&[
-        "personalize",
-        "--static",
-        stat.to_str().unwrap(),
-        "--markers",
-        "opencap",
-        "--side",
-        "right",
-        "-o",
-        subject.to_str().unwrap(),
-    ]);
-    assert!(ok, "{err}");
     let model = jointfit_io::model_file::load_model(subject.to_str().unwrap()).unwrap();
     let keep = |drop: &[&str]| -> String {
         model

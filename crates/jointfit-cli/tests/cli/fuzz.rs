@@ -383,13 +383,7 @@ fn fuzz_the_command_line() {
         models: &models,
         out: &out,
     };
-    let snapshot = |dir: &Path| {
-        let mut v = Vec::new();
-        super::reliability::walk_dir(dir, &mut v);
-        v.sort();
-        v
-    };
-    let inputs_before = snapshot(&input);
+    let inputs_before = jointfit_testkit::snapshot(&input);
     let clock = Instant::now();
     let mut counts = Counts::default();
     for _ in 0..runs {
@@ -435,11 +429,11 @@ fn fuzz_the_command_line() {
             "killed by a signal: jointfit {args:?}: {err}"
         );
         assert!(
-            snapshot(&input) == inputs_before,
+            jointfit_testkit::snapshot(&input) == inputs_before,
             "input changed: jointfit {args:?}: {err}"
         );
-        let left = snapshot(&out);
-        let inputs_now = snapshot(&input);
+        let left = jointfit_testkit::snapshot(&out);
+        let inputs_now = jointfit_testkit::snapshot(&input);
         let temps: Vec<&String> = left
             .iter()
             .chain(inputs_now.iter())

@@ -11,21 +11,6 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-fn personalize(stat: &Path, preset: &str, out: &Path) {
-    let (ok, _, err) = jointfit(&[
-        "personalize",
-        "--static",
-        s(stat),
-        "--markers",
-        preset,
-        "--side",
-        "right",
-        "-o",
-        s(out),
-    ]);
-    assert!(ok, "{err}");
-}
-
 fn ik(subject: &Path, trial: &Path, mot: &Path, extra: &[&str]) -> Value {
     let mut args = vec!["ik", s(subject), s(trial), "-o", s(mot), "--json"];
     args.extend_from_slice(extra);
@@ -84,7 +69,7 @@ fn jam_overground_with_a_two_marker_foot_is_solved() {
     let tmp = scratch("ik-cli-jam");
     let dir = tmp.path();
     let subject = dir.join("jam.toml");
-    personalize(&stat, "jam", &subject);
+    super::personalize(&stat, "jam", &subject);
     let v = ik(&subject, &walk, &dir.join("walk.mot"), &[]);
     assert_eq!(v["frames"], 515);
     assert_eq!(v["solved_frames"], 515);
@@ -99,16 +84,11 @@ fn jam_overground_with_a_two_marker_foot_is_solved() {
 /// dropping one marker changes, the rest to solver precision).
 #[test]
 fn walking1_with_a_wild_sample_recovers() {
-    let (Some(stat), Some(walk)) = (
-        data_file("opencap_expert1/static1.trc"),
-        data_file("opencap_expert1/walking1.trc"),
-    ) else {
-        return;
-    };
     let tmp = scratch("ik-cli-wild");
     let dir = tmp.path();
-    let subject = dir.join("subject.toml");
-    personalize(&stat, "opencap", &subject);
+    let Some((subject, walk)) = super::opencap_subject(dir, "subject.toml") else {
+        return;
+    };
     let absurd = dir.join("walking1_1e21.trc");
     edit_trc(&walk, &absurd, |frame, label, cells| {
         if frame == 41 && label == "r_knee" {
@@ -158,16 +138,11 @@ fn walking1_with_a_wild_sample_recovers() {
 /// frame is solved and the foot angles stay at frame 49's values.
 #[test]
 fn unsolved_frames_are_ranges_and_can_be_held() {
-    let (Some(stat), Some(walk)) = (
-        data_file("opencap_expert1/static1.trc"),
-        data_file("opencap_expert1/walking1.trc"),
-    ) else {
-        return;
-    };
     let tmp = scratch("ik-cli-gap");
     let dir = tmp.path();
-    let subject = dir.join("subject.toml");
-    personalize(&stat, "opencap", &subject);
+    let Some((subject, walk)) = super::opencap_subject(dir, "subject.toml") else {
+        return;
+    };
     let gap = dir.join("walking1_gap.trc");
     edit_trc(&walk, &gap, |frame, label, cells| {
         if (50..=59).contains(&frame) && ["r_calc", "r_5meta", "r_toe"].contains(&label) {

@@ -1,7 +1,7 @@
 //! `calibrate` with the model file's priors (the default) against `--prior none`, on the
 //! shared OpenCap walking trial.
 
-use jointfit_testkit::{data_file, scratch, ScratchDir};
+use jointfit_testkit::{scratch, ScratchDir};
 
 use super::jointfit;
 
@@ -22,26 +22,11 @@ fn hip_shift(rep: &serde_json::Value) -> f64 {
 
 #[test]
 fn map_fit_holds_the_hip_closer_and_reports_where_information_came_from() {
-    let (Some(stat), Some(walk)) = (
-        data_file("opencap_expert1/static1.trc"),
-        data_file("opencap_expert1/walking1.trc"),
-    ) else {
+    let dir = scratch("priors");
+    let Some((model, walk)) = super::opencap_subject(&dir, "oc.toml") else {
         return;
     };
-    let dir = scratch("priors");
-    let model = tmp(&dir, "oc.toml");
-    let (ok, _, err) = jointfit(&[
-        "personalize",
-        "--static",
-        stat.to_str().unwrap(),
-        "--markers",
-        "opencap",
-        "--side",
-        "right",
-        "-o",
-        &model,
-    ]);
-    assert!(ok, "{err}");
+    let model = model.to_str().unwrap().to_string();
     let fit = |prior: &str, json: bool| {
         let out = tmp(&dir, &format!("fit-{prior}.toml"));
         let mut args = vec![

@@ -3,7 +3,6 @@
 //! with each cause once, CSV is quoted. The oracle is the file system (bytes before and after,
 //! directory listings) and, for the CSV, Python's `csv` module.
 
-use std::path::Path;
 use std::process::{Command, Output, Stdio};
 
 use jointfit_testkit::ScratchDir;
@@ -42,33 +41,7 @@ impl Scratch {
 
     /// Every entry of the directory (recursively), with its bytes (directories: empty).
     pub fn snapshot(&self) -> Vec<(String, Vec<u8>)> {
-        let mut out = Vec::new();
-        walk_dir(&self.dir, &mut out);
-        out.sort();
-        out
-    }
-}
-
-/// Every entry under `root` (recursively) with its bytes; directories end in `/`, symlinks
-/// in `@`.
-pub fn walk_dir(root: &Path, out: &mut Vec<(String, Vec<u8>)>) {
-    walk(root, root, out);
-}
-
-fn walk(root: &Path, dir: &Path, out: &mut Vec<(String, Vec<u8>)>) {
-    for e in std::fs::read_dir(dir).unwrap() {
-        let e = e.unwrap();
-        let path = e.path();
-        let rel = path.strip_prefix(root).unwrap().display().to_string();
-        let ft = e.file_type().unwrap();
-        if ft.is_dir() {
-            out.push((format!("{rel}/"), Vec::new()));
-            walk(root, &path, out);
-        } else if ft.is_symlink() {
-            out.push((format!("{rel}@"), Vec::new()));
-        } else {
-            out.push((rel, std::fs::read(&path).unwrap()));
-        }
+        jointfit_testkit::snapshot(&self.dir)
     }
 }
 

@@ -1,7 +1,7 @@
 //! `jointfit synth` and `jointfit reproduce`: the known synthetic truth is the oracle.
 
 use jointfit::model::{Model, Unit};
-use jointfit_testkit::{data_dir, data_file};
+use jointfit_testkit::data_dir;
 
 use super::jointfit;
 use jointfit_testkit::ScratchDir;
@@ -269,26 +269,10 @@ fn reproduce_names_missing_data() {
 /// noise; calibrating the subject on it recovers the (perturbed) truth.
 #[test]
 fn synth_gait_from_a_real_trial() {
-    let (Some(st), Some(walk)) = (
-        data_file("opencap_expert1/static1.trc"),
-        data_file("opencap_expert1/walking1.trc"),
-    ) else {
+    let dir = tmp("gait");
+    let Some((subject, walk)) = super::opencap_subject(&dir, "subject.toml") else {
         return;
     };
-    let dir = tmp("gait");
-    let subject = dir.join("subject.toml");
-    let (ok, _, err) = jointfit(&[
-        "personalize",
-        "--static",
-        s(&st),
-        "--markers",
-        "opencap",
-        "--side",
-        "right",
-        "-o",
-        s(&subject),
-    ]);
-    assert!(ok, "{err}");
     let (trc, truth, fitted) = (dir.join("g.trc"), dir.join("t.toml"), dir.join("f.toml"));
     let motion = format!("gait:{}", s(&walk));
     let (ok, out, err) = jointfit(&[

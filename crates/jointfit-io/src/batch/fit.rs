@@ -2,8 +2,8 @@
 //! outer solve, the uncertainty of the optimum (`jointfit::calibrate::uncertainty`).
 //!
 //! The calibration is [`jointfit::workflow::calibrate`] with the command line's settings
-//! (one start, uncertainty from the optimum), so the fitted parameters equal `jointfit
-//! calibrate`'s bit for bit; this module only converts to SI rows and warning lines.
+//! ([`FitOptions::settings`]), so the fitted parameters equal `jointfit calibrate`'s bit for
+//! bit for the same options; this module only converts to SI rows and warning lines.
 
 use jointfit::calibrate::params_for_groups;
 use jointfit::calibrate::uncertainty::Identifiability;
@@ -16,13 +16,14 @@ use serde::{Deserialize, Serialize};
 /// The outer optimizer (as `jointfit calibrate --method`).
 pub use jointfit::workflow::Method;
 
-/// Settings of one calibration (the command line's defaults).
+/// Settings of one calibration: the options of `jointfit calibrate`, with its defaults.
+/// Fields added after the first release default when absent from a saved result.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FitOptions {
     /// Parameter groups to fit (`hip`, `knee`, `ankle`, `all`).
     pub joints: Vec<String>,
     pub method: Method,
-    /// Seed of the particle swarm and of the bootstrap.
+    /// Seed of the particle swarm, of the extra starts and of the bootstrap.
     pub seed: u64,
     /// Length parameters whose 95 % half-width exceeds this are flagged (mm).
     pub threshold_mm: f64,
@@ -30,6 +31,29 @@ pub struct FitOptions {
     pub threshold_deg: f64,
     /// Moving-block bootstrap replicates of the intervals (0: none).
     pub bootstrap: usize,
+    /// Starts of the fit (`--starts`: the given one and seeded moves; the best is kept).
+    #[serde(default = "one")]
+    pub starts: usize,
+    /// Refit with the undetermined parameters held (`--fix-unidentifiable`).
+    #[serde(default)]
+    pub fix_unidentifiable: bool,
+    /// Use the model file's parameter priors (`--prior model`; `false`: `--prior none`).
+    #[serde(default = "yes")]
+    pub priors: bool,
+    /// Marker noise SD (mm) weighing the priors (`--marker-noise-mm`; `None`: estimated).
+    #[serde(default)]
+    pub marker_noise_mm: Option<f64>,
+    /// Outer iteration limit (`--max-iter`; `None`: the solver's default).
+    #[serde(default)]
+    pub max_iterations: Option<usize>,
+}
+
+fn one() -> usize {
+    1
+}
+
+fn yes() -> bool {
+    true
 }
 
 impl Default for FitOptions {
@@ -41,6 +65,79 @@ impl Default for FitOptions {
             threshold_mm: 5.0,
             threshold_deg: 5.0,
             bootstrap: 0,
+            starts: 1,
+            fix_unidentifiable: false,
+            priors: true,
+            marker_noise_mm: None,
+            max_iterations: None,
+        }
+    }
+}
+
+/// Most starts of one fit (each is a full fit).
+pub const MAX_STARTS: usize = 1_000;
+/// Most block-bootstrap replicates (each is a refit).
+pub const MAX_BOOTSTRAP: usize = 2_000;
+/// Most outer iterations of one fit.
+pub const MAX_ITERATIONS: usize = 10_000;
+/// Largest marker noise SD (mm).
+pub const MAX_NOISE_MM: f64 = 1_000.0;
+
+impl FitOptions {
+    /// The options are within their documented limits (the command line's): `starts` 1 to
+    /// [`MAX_STARTS`], `bootstrap` at most [`MAX_BOOTSTRAP`], `max_iterations` 1 to
+    /// [`MAX_ITERATIONS`], thresholds finite and positive, `marker_noise_mm` finite, positive
+    /// and at most [`MAX_NOISE_MM`]. The error is one line naming the option.
+    pub fn check(&self) -> Result<(), String> {
+        let count = |name: &str, v: usize, lo: usize, hi: usize| {
+            if (lo..=hi).contains(&v) {
+                Ok(())
+            } else {
+                Err(format!("{name} must be from {lo} to {hi} (got {v})"))
+            }
+        };
+        let positive = |name: &str, v: f64, hi: f64| {
+            if v.is_finite() && v > 0.0 && v <= hi {
+                Ok(())
+            } else {
+                Err(format!(
+                    "{name} must be a finite number greater than 0 and at most {hi} (got {v})"
+                ))
+            }
+        };
+        count("starts", self.starts, 1, MAX_STARTS)?;
+        count("bootstrap", self.bootstrap, 0, MAX_BOOTSTRAP)?;
+        if let Some(n) = self.max_iterations {
+            count("max_iter", n, 1, MAX_ITERATIONS)?;
+        }
+        positive("threshold_mm", self.threshold_mm, f64::MAX)?;
+        positive("threshold_deg", self.threshold_deg, f64::MAX)?;
+        if let Some(mm) = self.marker_noise_mm {
+            positive("marker_noise_mm", mm, MAX_NOISE_MM)?;
+        }
+        Ok(())
+    }
+
+    /// The workflow's settings for these options: the same as `jointfit calibrate` builds
+    /// from the same command-line options, so the results are equal bit for bit.
+    pub fn settings(&self) -> FitSettings {
+        FitSettings {
+            method: self.method,
+            seed: self.seed,
+            starts: self.starts,
+            uncertainty: Some(uncertainty_options(
+                self.threshold_mm,
+                self.threshold_deg,
+                self.bootstrap,
+                self.seed,
+            )),
+            fix_unidentifiable: self.fix_unidentifiable,
+            priors: self.priors,
+            marker_noise: self
+                .marker_noise_mm
+                .map(|mm| mm * jointfit::model::M_PER_MM),
+            max_iterations: self.max_iterations,
+            ..FitSettings::default()
         }
     }
 }
@@ -93,17 +190,7 @@ pub fn calibrate(
 ) -> Result<Calibration, WorkflowError> {
     let groups: Vec<&str> = opts.joints.iter().map(String::as_str).collect();
     let free = params_for_groups(model, &groups)?;
-    let settings = FitSettings {
-        method: opts.method,
-        seed: opts.seed,
-        uncertainty: Some(uncertainty_options(
-            opts.threshold_mm,
-            opts.threshold_deg,
-            opts.bootstrap,
-            opts.seed,
-        )),
-        ..FitSettings::default()
-    };
+    let settings = opts.settings();
     let cal = workflow::calibrate(model, &start, trials, &free, &settings, &mut NoObserver)?;
     let u = cal
         .uncertainty

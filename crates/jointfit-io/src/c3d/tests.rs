@@ -430,3 +430,46 @@ fn to_trial_makes_labels_unique() {
     let t = c.to_trial().unwrap();
     assert_eq!(t.labels(), ["A", "A_2", "POINT3"]);
 }
+
+/// Frame counts declared in a header or a parameter are checked against the bytes present
+/// before anything is allocated: 4e9 frames in TRIAL:ACTUAL_END_FIELD (and a header that
+/// says 65535) read the count that fits the file, with a warning, or are a one-line error
+/// when the data are cut inside a frame. Never an allocation of the declared size.
+#[test]
+fn billions_of_declared_frames_allocate_nothing() {
+    let base = Spec {
+        frames: 5,
+        actual_end: Some(4_000_000_000),
+        ..Spec::default()
+    };
+    // The header agrees with the data; the parameter's 4e9 does not fit and is ignored.
+    let c = parse_c3d(&write(&base)).unwrap();
+    assert_eq!(c.points.n_frames, 5);
+    // The header says 65535 too: POINT:FRAMES (5) fits the data and is read, with a warning.
+    let s = Spec {
+        header_last: Some(65535),
+        ..base
+    };
+    let bytes = write(&s);
+    let c = parse_c3d(&bytes).unwrap();
+    assert_eq!(c.points.n_frames, 5);
+    assert!(
+        c.warnings.iter().any(|w| w.contains("65535")),
+        "{:?}",
+        c.warnings
+    );
+    // Cut inside a frame (not at a block boundary): a one-line error naming both counts.
+    let cut = &bytes[..bytes.len() - 512 + 7];
+    let e = parse_c3d(cut).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            C3dError::Truncated {
+                declared: 65535,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert_eq!(e.to_string().lines().count(), 1);
+}

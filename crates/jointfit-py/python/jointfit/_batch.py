@@ -57,6 +57,11 @@ class Job:
     bootstrap: int = 0
     threshold_mm: float = 5.0
     threshold_deg: float = 5.0
+    starts: int = 1
+    fix_unidentifiable: bool = False
+    prior: str = "model"
+    marker_noise_mm: Optional[float] = None
+    max_iter: Optional[int] = None
     name: Optional[str] = None
 
     def run(self) -> Calibration:
@@ -75,6 +80,11 @@ class Job:
             bootstrap=self.bootstrap,
             threshold_mm=self.threshold_mm,
             threshold_deg=self.threshold_deg,
+            starts=self.starts,
+            fix_unidentifiable=self.fix_unidentifiable,
+            prior=self.prior,
+            marker_noise_mm=self.marker_noise_mm,
+            max_iter=self.max_iter,
         )
 
 

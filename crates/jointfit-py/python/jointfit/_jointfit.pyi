@@ -141,6 +141,11 @@ def calibrate(
     bootstrap: int = 0,
     threshold_mm: float = 5.0,
     threshold_deg: float = 5.0,
+    starts: int = 1,
+    fix_unidentifiable: bool = False,
+    prior: str = "model",
+    marker_noise_mm: Optional[float] = None,
+    max_iter: Optional[int] = None,
 ) -> Calibration: ...
 def synthesize(
     model: Optional[_ModelArg] = None,

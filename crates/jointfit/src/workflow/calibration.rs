@@ -188,16 +188,28 @@ fn run_start(
 ) -> Fit {
     let s0 = prob.to_scaled(p0);
     let cost0 = Some(cost0);
+    let joint = JointOptions {
+        max_iterations: settings
+            .max_iterations
+            .unwrap_or(JointOptions::default().max_iterations),
+        ..JointOptions::default()
+    };
+    let varpro = VarProOptions {
+        max_iterations: settings
+            .max_iterations
+            .unwrap_or(VarProOptions::default().max_iterations),
+        ..VarProOptions::default()
+    };
     let fit = match settings.method {
         Method::Joint => {
             let stage = "joint Levenberg-Marquardt";
             rec.begin(stage, &label(stage), None, cost0);
-            solve_joint(prob, &s0, q0, &JointOptions::default(), rec)
+            solve_joint(prob, &s0, q0, &joint, rec)
         }
         Method::Gradient => {
             let stage = "two-level Gauss-Newton";
             rec.begin(stage, &label(stage), None, cost0);
-            solve_varpro(prob, &s0, q0, &VarProOptions::default(), rec)
+            solve_varpro(prob, &s0, q0, &varpro, rec)
         }
         Method::Pso => {
             let opts = PsoOptions {
@@ -211,13 +223,7 @@ fn run_start(
             rec.stage_ended(swarm.termination);
             let stage = "joint Levenberg-Marquardt polish";
             rec.begin(stage, &label(stage), None, Some(swarm.cost));
-            let mut polished = solve_joint(
-                prob,
-                &swarm.s,
-                swarm.coords.clone(),
-                &JointOptions::default(),
-                rec,
-            );
+            let mut polished = solve_joint(prob, &swarm.s, swarm.coords.clone(), &joint, rec);
             polished.iterations += swarm.iterations;
             polished.evaluations += swarm.evaluations;
             polished
@@ -470,7 +476,18 @@ pub fn calibrate(
         cal.prior_noise_estimated = estimated;
     }
     let (prob, _) = super::map::map_problem(model, start, trials, &free, settings, noise_used)?;
+    // A stage of its own: with the bootstrap it refits the model once per replicate (its
+    // budget: the replicates).
+    let (stage, budget) = match opts.bootstrap_replicates {
+        n if n > 1 => (
+            format!("{UNCERTAINTY_STAGE} ({n} bootstrap refits)"),
+            Some(n),
+        ),
+        _ => (UNCERTAINTY_STAGE.to_string(), None),
+    };
+    observer.stage_started(&stage, budget);
     let u = analyze(&prob, &cal.fit, opts);
+    observer.stage_ended(Termination::Converged);
     if prob.prior.is_some() {
         let red = crate::calibrate::uncertainty::reduced_system(&prob, &cal.fit.p, &cal.fit.coords);
         let share = crate::calibrate::prior::data_share(&prob, &red.normal);
@@ -491,6 +508,10 @@ pub fn calibrate(
     cal.fixed_unidentifiable = fixed;
     Ok(cal)
 }
+
+/// The name of the uncertainty analysis stage reported to the [`Observer`] by [`calibrate`]
+/// (followed by the bootstrap replicates, when there are any).
+pub const UNCERTAINTY_STAGE: &str = "uncertainty analysis";
 
 /// Start `k` (≥ 1) of a multi-start fit: [`perturb`] of `start` with a seed derived from the
 /// run's `seed` and `k`, so every start of every run is reproducible and distinct.

@@ -32,7 +32,7 @@ use crate::calibrate::CalibError;
 pub use crate::solver::{NoObserver, Observer, Termination};
 pub use calibration::{
     calibrate, perturb, restart_point, Calibration, ConvergenceStage, MultiStart, ParamRow,
-    StartRun,
+    StartRun, UNCERTAINTY_STAGE,
 };
 pub use check::{check, CheckReport};
 pub use ik::{ik_trial, ik_warm_started, transfer_params, IkRun};
@@ -137,6 +137,10 @@ pub struct FitSettings {
     /// returns the refined model ([`calibrate`] fits the markers as the model gives them).
     /// `None`: markers as given.
     pub refine_markers: Option<f64>,
+    /// Iteration limit of the outer solver (the joint or two-level solve and the polish
+    /// after the swarm; the swarm keeps its own budget); `None`: the solver's default (200).
+    /// A fit that reaches it ends [`Termination::IterationLimit`].
+    pub max_iterations: Option<usize>,
 }
 
 impl Default for FitSettings {
@@ -152,6 +156,7 @@ impl Default for FitSettings {
             priors: true,
             marker_noise: None,
             refine_markers: None,
+            max_iterations: None,
         }
     }
 }
