@@ -44,6 +44,10 @@ pub struct BenchArgs {
     /// Frames of the synthetic calibration whose peak memory is measured (0: skip).
     #[arg(long, default_value_t = 20_000)]
     rss_frames: usize,
+    /// Frames of the trial (the workload repeated) whose `ik` run is timed for the share of
+    /// file reading and writing (0: skip).
+    #[arg(long, default_value_t = 100_000)]
+    io_frames: usize,
     /// Internal: run one calibration of this many frames and print its peak RSS.
     #[arg(long, hide = true)]
     rss_child: Option<usize>,
@@ -76,6 +80,8 @@ struct Figures {
     rss_frames: usize,
     /// Peak RSS of the `rss_frames` calibration (MB; goal ≤ 150 at 20 k frames).
     peak_rss_mb: Option<f64>,
+    /// Reading and writing in an `ik` run on the workload repeated to `io_frames` frames.
+    ik_io: Option<bench_perf::IkIo>,
 }
 
 /// Median wall time (s) of `runs` calls of `f`.
@@ -271,6 +277,10 @@ pub fn run(args: BenchArgs) -> Result<()> {
         fig.peak_rss_mb = Some(bench_perf::peak_rss(args.rss_frames)?.0);
     }
 
+    if args.io_frames > 0 {
+        fig.ik_io = Some(bench_perf::ik_io(&model, &trial, args.io_frames, 3)?);
+    }
+
     if args.json {
         println!("{}", serde_json::to_string_pretty(&fig)?);
         return Ok(());
@@ -329,6 +339,12 @@ pub fn run(args: BenchArgs) -> Result<()> {
         println!(
             "peak RSS, calibrate 27 on {} synthetic frames: {:.0} MB (goal ≤ 150 at 20 k)",
             fig.rss_frames, mb
+        );
+    }
+    if let Some(io) = &fig.ik_io {
+        println!(
+            "ik on {} frames: read {:.3} s, solve {:.3} s, write {:.3} s (I/O share {:.2}, goal < 0.33)",
+            io.frames, io.read_s, io.ik_s, io.write_s, io.io_share
         );
     }
     Ok(())

@@ -1,19 +1,22 @@
 //! The performance goals of `jointfit bench` (issue 17): OpenSim's IK solver on the same model
 //! and trial, 1- against 2-thread wall time of a long calibration, the uncertainty step's
-//! share, and the peak memory of a long calibration (measured in a child process).
+//! share, the peak memory of a long calibration (measured in a child process) and the share of
+//! file reading and writing in an `ik` run. Every calibration here is
+//! [`jointfit::workflow::calibrate`] with the default settings of `jointfit calibrate`, the
+//! code path that command runs; the uncertainty step is timed from the end of the solver stage
+//! (an [`Observer`] hook) to the end of the call.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use jointfit::calibrate::joint::{solve_joint, JointOptions};
-use jointfit::calibrate::uncertainty::{analyze, UncertaintyOptions};
-use jointfit::calibrate::{params_for_groups, Problem};
+use jointfit::calibrate::params_for_groups;
+use jointfit::calibrate::uncertainty::UncertaintyOptions;
 use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::Model;
-use jointfit::solver::NoObserver;
+use jointfit::model::{Model, ParamId};
 use jointfit::trial::Trial;
+use jointfit::workflow::{self, Calibration, FitSettings, NoObserver, Observer, Termination};
 use jointfit_experiments::synth;
 use serde::Serialize;
 
@@ -132,7 +135,7 @@ fn on_threads(threads: usize, runs: usize, f: impl Fn() + Send + Sync) -> Result
     Ok(best)
 }
 
-/// Figures of a long calibration (all 27 parameters, joint method, default options).
+/// Figures of a long calibration (all 27 parameters, default settings of `calibrate`).
 #[derive(Serialize, Default)]
 pub struct LongFit {
     pub frames: usize,
@@ -146,23 +149,57 @@ pub struct LongFit {
     pub iterations: usize,
 }
 
+/// Records when the last solver stage ended.
+#[derive(Default)]
+struct StageClock {
+    ended: Option<Instant>,
+}
+
+impl Observer for StageClock {
+    fn stage_ended(&mut self, _termination: Termination) {
+        self.ended = Some(Instant::now());
+    }
+}
+
+/// All 27 parameters of the built-in leg on `trial` with `settings`, through the workflow.
+fn calibrate_all(
+    model: &Model,
+    trial: &Trial,
+    free: &[ParamId],
+    settings: &FitSettings,
+    observer: &mut dyn Observer,
+) -> Result<Calibration> {
+    let p = model.nominal_params();
+    Ok(workflow::calibrate(
+        model,
+        &p,
+        &[trial],
+        free,
+        settings,
+        observer,
+    )?)
+}
+
 pub fn long_fit(frames: usize) -> Result<LongFit> {
     let (model, _, trial) = long_trial(frames)?;
-    let p = model.nominal_params();
     let all = params_for_groups(&model, &["all"])?;
-    let prob = Problem::new(&model, p.clone(), &all, &[&trial])?;
-    let s0 = prob.to_scaled(&p);
-    let q0 = prob.initial_coords(&p);
-    let opts = JointOptions::default();
-    let fit = solve_joint(&prob, &s0, q0.clone(), &opts, &mut NoObserver);
+    let settings = FitSettings::default();
+    let cal = calibrate_all(&model, &trial, &all, &settings, &mut NoObserver)?;
     let run = || {
-        solve_joint(&prob, &s0, q0.clone(), &opts, &mut NoObserver);
+        calibrate_all(&model, &trial, &all, &settings, &mut NoObserver).expect("ran above");
     };
     let one = on_threads(1, 1, run)?;
     let two = on_threads(2, 1, run)?;
-    let t = Instant::now();
-    analyze(&prob, &fit, &UncertaintyOptions::default());
-    let unc = t.elapsed().as_secs_f64();
+    let with_uncertainty = FitSettings {
+        uncertainty: Some(UncertaintyOptions::default()),
+        ..settings.clone()
+    };
+    let mut clock = StageClock::default();
+    calibrate_all(&model, &trial, &all, &with_uncertainty, &mut clock)?;
+    let end = Instant::now();
+    let unc = clock
+        .ended
+        .map_or(0.0, |t| end.duration_since(t).as_secs_f64());
     Ok(LongFit {
         frames,
         fit_1_thread_s: one,
@@ -170,30 +207,26 @@ pub fn long_fit(frames: usize) -> Result<LongFit> {
         two_over_one: two / one,
         uncertainty_s: unc,
         uncertainty_over_fit: unc / two,
-        iterations: fit.iterations,
+        iterations: cal.iterations,
     })
 }
 
 /// Child side of [`peak_rss`]: one calibration of `frames` frames; prints its peak RSS.
 pub fn rss_child(frames: usize) -> Result<()> {
     let (model, _, trial) = long_trial(frames)?;
-    let p = model.nominal_params();
     let all = params_for_groups(&model, &["all"])?;
-    let prob = Problem::new(&model, p.clone(), &all, &[&trial])?;
-    drop(trial);
-    let q0 = prob.initial_coords(&p);
-    let fit = solve_joint(
-        &prob,
-        &prob.to_scaled(&p),
-        q0,
-        &JointOptions::default(),
+    let cal = calibrate_all(
+        &model,
+        &trial,
+        &all,
+        &FitSettings::default(),
         &mut NoObserver,
-    );
+    )?;
     println!(
         "@@{} {} {}",
         peak_kb().context("reading /proc/self/status")?,
-        fit.iterations,
-        fit.cost
+        cal.iterations,
+        cal.cost_after
     );
     Ok(())
 }
@@ -229,4 +262,66 @@ pub fn peak_rss(frames: usize) -> Result<(f64, usize)> {
     let kb: f64 = parts.next().context("no RSS")?.parse()?;
     let iterations: usize = parts.next().context("no iterations")?.parse()?;
     Ok((kb / 1024.0, iterations))
+}
+
+/// Wall times (s) of an `ik` run on a long trial: reading the TRC file, the inverse
+/// kinematics, writing the `.mot` file.
+#[derive(Serialize, Default)]
+pub struct IkIo {
+    pub frames: usize,
+    pub read_s: f64,
+    pub ik_s: f64,
+    pub write_s: f64,
+    /// (read + write) over the whole run (goal: well under a third).
+    pub io_share: f64,
+}
+
+/// `trial` repeated to `frames` frames, written as a TRC file in a scratch folder, then read,
+/// solved and written as `jointfit ik` does (best of `runs`).
+pub fn ik_io(model: &Model, trial: &Trial, frames: usize, runs: usize) -> Result<IkIo> {
+    let n = trial.n_frames().max(1);
+    let positions: Vec<_> = (0..frames)
+        .flat_map(|f| trial.frame(f % n).iter().copied())
+        .collect();
+    let long = Trial::new(trial.labels().to_vec(), trial.rate(), 1, positions)?;
+    let dir = std::env::temp_dir().join(format!("jointfit-bench-io-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let result = (|| -> Result<IkIo> {
+        let trc = dir.join("long.trc");
+        let mot = dir.join("long.mot");
+        // Plain writes: the command's atomic writes are staged until it exits, after this
+        // folder is gone. The `.mot` is formatted and synced to disk as `write_sto` does.
+        let text = jointfit_io::trc::format_trc(&long, "long.trc", &Default::default())?;
+        std::fs::write(&trc, text)?;
+        let mut best = IkIo {
+            frames,
+            read_s: f64::INFINITY,
+            ik_s: f64::INFINITY,
+            write_s: f64::INFINITY,
+            io_share: 0.0,
+        };
+        let p = model.nominal_params();
+        for _ in 0..runs {
+            let t = Instant::now();
+            let read = crate::common::load_trial(&trc, crate::common::Up::Y, None)?;
+            let t_read = t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let run = workflow::ik_trial(model, &p, &read, &Default::default())?;
+            let t_ik = t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let table = crate::ik_cmd::angles_table(model, &read, &run.fit);
+            let text = jointfit_io::sto::format_sto(&table)?;
+            let mut file = std::fs::File::create(&mot)?;
+            std::io::Write::write_all(&mut file, text.as_bytes())?;
+            file.sync_all()?;
+            let t_write = t.elapsed().as_secs_f64();
+            best.read_s = best.read_s.min(t_read);
+            best.ik_s = best.ik_s.min(t_ik);
+            best.write_s = best.write_s.min(t_write);
+        }
+        best.io_share = (best.read_s + best.write_s) / (best.read_s + best.ik_s + best.write_s);
+        Ok(best)
+    })();
+    let _ = std::fs::remove_dir_all(&dir);
+    result
 }

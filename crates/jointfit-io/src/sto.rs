@@ -48,7 +48,7 @@ use std::path::Path;
 use thiserror::Error;
 
 use crate::atomic::write_atomic;
-use crate::text::{decode, format_shortest, numbered_lines, parse_number};
+use crate::text::{decode, numbered_lines, parse_number, push_shortest};
 
 /// A table of numbers against time, as OpenSim stores it.
 #[derive(Debug, Clone, PartialEq)]
@@ -431,7 +431,7 @@ pub fn format_sto(table: &Table) -> Result<String, StoWriteError> {
             if v.is_nan() {
                 out.push_str("NaN");
             } else {
-                out.push_str(&format_shortest(v));
+                push_shortest(&mut out, v);
             }
         }
         out.push('\n');

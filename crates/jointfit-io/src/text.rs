@@ -39,19 +39,75 @@ pub(crate) fn numbered_lines(text: &str) -> Vec<(usize, &str)> {
 /// Parses one numeric cell (surrounding blanks allowed). Accepts decimal and exponent
 /// notation and `nan`/`inf` in any letter case, with an optional sign.
 pub(crate) fn parse_number(cell: &str) -> Option<f64> {
-    cell.trim().parse::<f64>().ok()
+    let s = cell.trim();
+    plain_decimal(s).or_else(|| s.parse::<f64>().ok())
+}
+
+/// Exact powers of ten as `f64` (every one up to 10²² is representable).
+const POW10: [f64; 23] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+    1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+];
+
+/// The fast path of decimal parsing (Clinger 1990, "How to read floating point numbers
+/// accurately", PLDI): `[sign] digits [. digits]` whose digits form an integer `m < 2⁵³` with
+/// at most 22 after the point is `±m / 10^k` with both operands exact, so one IEEE division
+/// gives the correctly rounded value, the same bits as the standard parser. `None` for
+/// anything else (exponents, longer mantissas, words), which the standard parser then reads.
+fn plain_decimal(s: &str) -> Option<f64> {
+    let b = s.as_bytes();
+    let (neg, digits) = match b.first()? {
+        b'-' => (true, &b[1..]),
+        b'+' => (false, &b[1..]),
+        _ => (false, b),
+    };
+    const LIMIT: u64 = 1 << 53;
+    let mut m: u64 = 0;
+    let mut any = false;
+    let mut point = false;
+    let mut after = 0usize;
+    for &c in digits {
+        match c {
+            b'0'..=b'9' => {
+                m = m * 10 + u64::from(c - b'0');
+                if m >= LIMIT {
+                    return None;
+                }
+                any = true;
+                if point {
+                    after += 1;
+                }
+            }
+            b'.' if !point => point = true,
+            _ => return None,
+        }
+    }
+    if !any || after >= POW10.len() {
+        return None;
+    }
+    let v = m as f64 / POW10[after];
+    Some(if neg { -v } else { v })
 }
 
 /// Formats a finite number so that parsing the text gives back exactly the same `f64`, in
 /// plain notation where that is readable and exponent notation for very small or large
 /// magnitudes.
 pub(crate) fn format_shortest(v: f64) -> String {
+    let mut out = String::new();
+    push_shortest(&mut out, v);
+    out
+}
+
+/// [`format_shortest`] appended to `out` (no intermediate string).
+pub(crate) fn push_shortest(out: &mut String, v: f64) {
+    use std::fmt::Write;
     let a = v.abs();
-    if v == 0.0 || (1e-5..1e16).contains(&a) {
-        format!("{v}")
+    // Writing to a String cannot fail.
+    let _ = if v == 0.0 || (1e-5..1e16).contains(&a) {
+        write!(out, "{v}")
     } else {
-        format!("{v:e}")
-    }
+        write!(out, "{v:e}")
+    };
 }
 
 #[cfg(test)]
@@ -68,6 +124,58 @@ mod tests {
             vec![(1, "a"), (2, ""), (3, "b")]
         );
         assert!(numbered_lines("").is_empty());
+    }
+
+    /// The fast path gives the standard parser's bits on plain decimals of every length
+    /// (seeded pseudo-random digits, signs, points), and leaves the rest to it.
+    #[test]
+    fn plain_decimals_match_the_standard_parser() {
+        let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        for _ in 0..200_000 {
+            let r = next();
+            let len = 1 + (r % 19) as usize;
+            let mut t = String::new();
+            match (r >> 8) % 3 {
+                0 => t.push('-'),
+                1 => t.push('+'),
+                _ => {}
+            }
+            let dot = (r >> 16) as usize % (len + 2);
+            for i in 0..len {
+                if i == dot {
+                    t.push('.');
+                }
+                t.push(char::from(b'0' + (next() % 10) as u8));
+            }
+            let expected = t.parse::<f64>().unwrap();
+            assert_eq!(
+                parse_number(&t).map(f64::to_bits),
+                Some(expected.to_bits()),
+                "{t}"
+            );
+        }
+        for t in [
+            "1e3",
+            "-2.5E-2",
+            "inf",
+            "-nan",
+            "12345678901234567890.5",
+            "1.2.3",
+            ".",
+            "-",
+        ] {
+            assert_eq!(
+                parse_number(t).map(|v| v.to_bits()),
+                t.parse::<f64>().ok().map(|v| v.to_bits()),
+                "{t}"
+            );
+        }
     }
 
     #[test]

@@ -1,5 +1,6 @@
 //! Writing TRC text (see the parent module for the layout).
 
+use std::fmt::Write;
 use std::path::Path;
 
 use jointfit::trial::Trial;
@@ -106,18 +107,21 @@ pub fn format_trc(
     for f in 0..nf {
         let frame = first.saturating_add(f as i64);
         let time = f as f64 / rate;
-        out.push_str(&format!("{frame}\t{time:.time_decimals$}"));
+        // Writing to a String cannot fail.
+        let _ = write!(out, "{frame}\t{time:.time_decimals$}");
         for p in trial.frame(f) {
-            let cells = p.map(|v| format!("{:.d$}", v * per_metre));
             let present = p.iter().all(|v| v.is_finite());
-            // A sample printed as 0 0 0 would read back as a gap: write it as one.
-            let zero = cells.iter().all(|c| c.parse::<f64>() == Ok(0.0));
-            if present && !zero {
-                for c in cells.iter() {
-                    out.push('\t');
-                    out.push_str(c);
-                }
-            } else {
+            let start = out.len();
+            for v in p.iter() {
+                let _ = write!(out, "\t{:.d$}", v * per_metre);
+            }
+            // A sample printed as 0 0 0 (only zeros, points and signs) would read back as a
+            // gap: write it as one.
+            let zero = out.as_bytes()[start..]
+                .iter()
+                .all(|c| matches!(c, b'\t' | b'0' | b'.' | b'-'));
+            if !present || zero {
+                out.truncate(start);
                 out.push_str("\t\t\t");
             }
         }

@@ -6,11 +6,13 @@
 //! `h = J̃ᵀr̃`, whose blocks are `U_i`, `W_i`, `V_i`, `g_i`, `g_s,i` of [`super::schur`].
 //!
 //! Each column of `J̃` is nonzero only on the rows of the markers its coordinate or parameter
-//! moves (a marker moves with its segment's ancestors' joints). With the columns reordered by
-//! their first nonzero row, the nonzero entries of every row lie in a prefix of the columns, so
-//! `[r̃ | J̃]ᵀ[r̃ | J̃]` is a sum over runs of rows (one run per segment when the markers are listed
-//! parent segment first) of small dense products, each done by `matrixmultiply`'s `dgemm`
-//! (its kernels chosen at run time for the processor's vector units). The same operations run
+//! moves (a marker moves with its segment's ancestors' joints), so each entry of `G` and `h`
+//! is a dot product over the rows from the later of its two columns' first nonzero rows on
+//! (with the markers listed parent segment first, exactly the rows where both can be
+//! nonzero): no multiplications by the structural zeros, no copies or reordering of the
+//! columns, and a working set (the `J̃` columns and `G`) that stays in the first-level cache.
+//! The dot products keep four partial sums (vectorized), added in a fixed order: the same
+//! operations run
 //! in the same order whatever the thread count.
 
 use std::ops::{Deref, DerefMut};
@@ -29,9 +31,6 @@ pub(crate) struct FrameScratch {
     rw: Vec<f64>,
     /// Per column, its first nonzero row.
     range: Vec<usize>,
-    perm: Vec<usize>,
-    packed: Vec<f64>,
-    xrow: Vec<f64>,
     /// `G` (n × n, column-major).
     pub gram: Vec<f64>,
     /// `h = [g; g_s]` (n).
@@ -53,9 +52,6 @@ impl FrameScratch {
             jw: vec![0.0; n * nrows],
             rw: vec![0.0; nrows],
             range: vec![0; n],
-            perm: Vec::with_capacity(n),
-            packed: Vec::with_capacity((n + 1) * (n + 1)),
-            xrow: Vec::with_capacity((n + 1) * nrows),
             gram: vec![0.0; n * n],
             grad: vec![0.0; n],
             buf: Vec::new(),
@@ -198,70 +194,24 @@ fn frame_gram_impl(
         }
         sc.range[a] = col.iter().position(|&x| x != 0.0).unwrap_or(nr);
     }
-    // Columns in order of their first nonzero row: every row's nonzero entries then lie in
-    // a prefix of the reordered columns (exactly so when the markers are listed parent
-    // segment first; otherwise the prefix holds a few zeros, which change nothing). The
-    // residual goes first, so column 0 of `X = [r̃ | J̃ reordered]` is always active.
-    let perm = &mut sc.perm;
-    perm.clear();
-    perm.extend(0..n);
-    perm.sort_unstable_by_key(|&a| (sc.range[a], a));
-    let m = n + 1;
-    let x = &mut sc.xrow;
-    x.clear();
-    x.extend_from_slice(&sc.rw[..nr]);
-    for &a in perm.iter() {
-        x.extend_from_slice(&sc.jw[a * nr..(a + 1) * nr]);
-    }
-    // XᵀX (m × m, column-major) summed over runs of rows with the same active prefix:
-    // each run is one small dense product (matrixmultiply's dgemm).
-    let g = &mut sc.packed;
-    g.clear();
-    g.resize(m * m, 0.0);
-    let mut active = 0;
-    let mut r0 = 0;
-    while r0 < nr {
-        while active < n && sc.range[perm[active]] <= r0 {
-            active += 1;
-        }
-        let next = if active < n {
-            sc.range[perm[active]].clamp(r0 + 1, nr)
-        } else {
-            nr
-        };
-        let k = active + 1;
-        let rows = next - r0;
-        // SAFETY: A = Xᵀ restricted to (k × rows) reads x[c·nr + r0 + r] for c < k ≤ m,
-        // r < rows ≤ nr − r0: inside x (m·nr). C (k × k, stride m) lies inside g (m·m).
-        unsafe {
-            matrixmultiply::dgemm(
-                k,
-                rows,
-                k,
-                1.0,
-                x.as_ptr().add(r0),
-                nr as isize,
-                1,
-                x.as_ptr().add(r0),
-                1,
-                nr as isize,
-                1.0,
-                g.as_mut_ptr(),
-                1,
-                m as isize,
-            );
-        }
-        r0 = next;
-    }
+    // G and h by dot products of columns, each over the rows from the later of the two
+    // columns' first nonzero rows on (the rows before hold a zero in one of them): the
+    // lower triangle column by column, mirrored.
+    let (jw, range, rw) = (&sc.jw, &sc.range, &sc.rw[..nr]);
     let gram = &mut sc.gram;
-    for a in 0..n {
-        let pa = perm[a];
-        sc.grad[pa] = g[a + 1];
-        for c in 0..=a {
-            let pc = perm[c];
-            let value = g[(c + 1) * m + a + 1];
-            gram[pc * n + pa] = value;
-            gram[pa * n + pc] = value;
+    for b in 0..n {
+        let rb = range[b];
+        let cb = &jw[b * nr..(b + 1) * nr];
+        sc.grad[b] = dot(&rw[rb..], &cb[rb..]);
+        gram[b * n + b] = dot(&cb[rb..], &cb[rb..]);
+        for a in b + 1..n {
+            let from = rb.max(range[a]);
+            gram[b * n + a] = dot(&cb[from..], &jw[a * nr + from..(a + 1) * nr]);
+        }
+    }
+    for b in 0..n {
+        for a in b + 1..n {
+            gram[a * n + b] = gram[b * n + a];
         }
     }
     cost
@@ -286,4 +236,81 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
         }
     }
     (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibrate::params_for_groups;
+    use crate::model::lower_limb::{lower_limb, Side};
+    use crate::model::Model;
+    use crate::trial::Trial;
+    use nalgebra::DMatrix;
+
+    /// The kernel's `G` and `h` against the dense products `J̃ᵀJ̃`, `J̃ᵀr̃` formed with nalgebra
+    /// from the kinematics' Jacobians, with a missing marker and unequal weights.
+    #[test]
+    fn gram_matches_dense_products() {
+        let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+        let p = model.nominal_params();
+        let mut q = model.default_coords();
+        for (i, v) in q.iter_mut().enumerate() {
+            *v += 0.2 * (i as f64 + 1.0).sin();
+        }
+        let mut kin = KinData::new(&model);
+        forward_kinematics(&model, &p, &q, Want::POSITIONS, &mut kin);
+        let mut targets: Vec<Vector3<f64>> = kin
+            .markers
+            .iter()
+            .enumerate()
+            .map(|(j, x)| x + Vector3::new(0.01, -0.02, 0.015) * ((j as f64) * 0.7).cos())
+            .collect();
+        targets[3] = Vector3::from_element(f64::NAN);
+        let labels = model.markers().iter().map(|m| m.name.clone()).collect();
+        let flat: Vec<Vector3<f64>> = targets.clone();
+        let trial = Trial::new(labels, 100.0, 1, flat).unwrap();
+        let all = params_for_groups(&model, &["all"]).unwrap();
+        let prob = Problem::new(&model, p.clone(), &all, &[&trial]).unwrap();
+        let half: Vec<f64> = (0..prob.n_free()).map(|k| prob.half_range(k)).collect();
+        let mut sc = FrameScratch::new(&prob);
+        let cost = frame_gram(&prob, &p, &q, &targets, &half, &mut sc);
+
+        forward_kinematics(&model, &p, &q, Want::BOTH, &mut kin);
+        let (nq, nf) = (model.n_q(), prob.n_free());
+        let n = nq + nf;
+        let rows = 3 * model.n_markers();
+        let mut j = DMatrix::zeros(rows, n);
+        let mut r = DMatrix::zeros(rows, 1);
+        let mut expected_cost = 0.0;
+        for (m, mk) in model.markers().iter().enumerate() {
+            if targets[m].x.is_nan() {
+                continue;
+            }
+            let sw = mk.weight.sqrt();
+            let d = targets[m] - kin.markers[m];
+            expected_cost += mk.weight * d.norm_squared();
+            for axis in 0..3 {
+                let row = 3 * m + axis;
+                r[row] = sw * d[axis];
+                for a in 0..nq {
+                    j[(row, a)] = sw * kin.jq()[(row, a)];
+                }
+                for k in 0..nf {
+                    j[(row, nq + k)] = sw * half[k] * kin.jp()[(row, prob.free[k])];
+                }
+            }
+        }
+        let g = j.transpose() * &j;
+        let h = j.transpose() * &r;
+        assert!((cost - expected_cost).abs() <= 1e-12 * expected_cost);
+        let scale = g.amax();
+        for a in 0..n {
+            assert!((sc.grad[a] - h[a]).abs() <= 1e-12 * h.amax(), "h[{a}]");
+            for b in 0..n {
+                let got = sc.gram[b * n + a];
+                assert!((got - g[(a, b)]).abs() <= 1e-12 * scale, "G[{a},{b}]");
+                assert_eq!(got, sc.gram[a * n + b], "symmetric");
+            }
+        }
+    }
 }
