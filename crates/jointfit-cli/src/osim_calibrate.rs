@@ -140,7 +140,9 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             .with_context(|| format!("writing {}", args.output.display()))?;
     } else {
         // The fitted model keeps the default priors (overrides apply to this run only).
-        let mut fitted = jointfit::model::Model::compile(&spec)?.spec_with_nominal(fit.params());
+        let mut fit = fit.clone();
+        fit.spec = spec.clone();
+        let mut fitted = fit.fitted_spec();
         fitted.name = format!("{} (fitted)", spec.name);
         jointfit_io::model_file::save_spec(&args.output, &fitted)
             .with_context(|| format!("writing {}", args.output.display()))?;

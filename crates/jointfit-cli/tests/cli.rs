@@ -16,6 +16,8 @@ mod ident;
 mod ik;
 #[path = "cli/osim.rs"]
 mod osim;
+#[path = "cli/osim_personalize.rs"]
+mod osim_personalize;
 #[path = "cli/personalize.rs"]
 mod personalize;
 #[path = "cli/priors.rs"]

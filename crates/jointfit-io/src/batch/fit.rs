@@ -93,7 +93,14 @@ pub fn calibrate(
 ) -> Result<Calibration, WorkflowError> {
     let groups: Vec<&str> = opts.joints.iter().map(String::as_str).collect();
     let free = params_for_groups(model, &groups)?;
-    let settings = FitSettings {
+    let settings = settings(opts);
+    let cal = workflow::calibrate(model, &start, trials, &free, &settings, &mut NoObserver)?;
+    Ok(summarize(model, &start, &cal, opts.method))
+}
+
+/// The workflow settings of `opts` (those of `jointfit calibrate` with the same options).
+pub fn settings(opts: &FitOptions) -> FitSettings {
+    FitSettings {
         method: opts.method,
         seed: opts.seed,
         uncertainty: Some(uncertainty_options(
@@ -103,8 +110,17 @@ pub fn calibrate(
             opts.seed,
         )),
         ..FitSettings::default()
-    };
-    let cal = workflow::calibrate(model, &start, trials, &free, &settings, &mut NoObserver)?;
+    }
+}
+
+/// SI rows, warnings and the fitted description of a finished calibration of `model` from
+/// `start` (every parameter).
+pub fn summarize(
+    model: &Model,
+    start: &[f64],
+    cal: &workflow::Calibration,
+    method: Method,
+) -> Calibration {
     let u = cal
         .uncertainty
         .as_ref()
@@ -160,9 +176,9 @@ pub fn calibrate(
         .collect();
     let mut fitted = model.spec_with_nominal(&fit.p);
     fitted.name = format!("{} (fitted)", model.spec().name);
-    Ok(Calibration {
+    Calibration {
         model: fitted,
-        method: opts.method,
+        method,
         frames: cal.frames,
         skipped_frames: cal.skipped_frames,
         parameters,
@@ -174,5 +190,5 @@ pub fn calibrate(
         evaluations: fit.evaluations,
         converged: fit.converged(),
         warnings,
-    })
+    }
 }

@@ -52,7 +52,10 @@ pub fn selection_spec(
 /// A finished personalization.
 #[derive(Debug, Clone)]
 pub struct OsimFit {
-    /// The compiled parameterized model (its nominal values are the file's).
+    /// The parameterized description as given (every marker, no coordinate locked).
+    pub spec: ModelSpec,
+    /// The compiled model of the fit (without the absent markers, with the undetermined
+    /// coordinates locked); its nominal values are the file's.
     pub model: Model,
     /// The calibration and the parameters held as redundant.
     pub result: HeldCalibration,
@@ -70,9 +73,17 @@ impl OsimFit {
         &self.result.calibration.fit.p
     }
 
-    /// The fitted model description (nominal = fitted; priors centred on the file's values).
+    /// The given description at the fitted values (nominal = fitted; priors stay centred on
+    /// the file's values, as [`Model::spec_with_nominal`] writes them).
     pub fn fitted_spec(&self) -> ModelSpec {
-        self.model.spec_with_nominal(self.params())
+        let mut spec = self.spec.clone();
+        for (ps, &v) in spec.parameters.iter_mut().zip(self.params()) {
+            if ps.prior_sd.is_some() && ps.prior_mean.is_none() {
+                ps.prior_mean = Some(ps.nominal);
+            }
+            ps.nominal = v;
+        }
+        spec
     }
 
     /// The user's file with only the fitted offsets replaced.
@@ -92,6 +103,7 @@ pub fn personalize(
     settings: &FitSettings,
     observer: &mut dyn Observer,
 ) -> Result<OsimFit, OsimFitError> {
+    let given = spec.clone();
     let mut spec = spec.clone();
     let absent_markers: Vec<String> = spec
         .markers
@@ -108,6 +120,7 @@ pub fn personalize(
     let free: Vec<ParamId> = (0..model.n_p()).map(ParamId).collect();
     let result = calibrate_holding_redundant(&model, &start, trials, &free, settings, observer)?;
     Ok(OsimFit {
+        spec: given,
         model,
         result,
         absent_markers,
