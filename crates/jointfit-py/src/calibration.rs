@@ -239,7 +239,7 @@ pub fn calibrate(
     if let Some(osim) = osim {
         let cal = py
             .detach(|| calibrate_osim(&osim, &inputs, &read, &fit, &params.unwrap_or_default()))
-            .map_err(|e| msg(e))?;
+            .map_err(msg)?;
         warn_all(py, &cal.warnings)?;
         return Ok(PyCalibration {
             cal,
@@ -315,7 +315,7 @@ fn calibrate_osim(
             )
         });
     }
-    warnings.extend(cal.warnings.drain(..));
+    warnings.append(&mut cal.warnings);
     cal.warnings = warnings;
     Ok(cal)
 }

@@ -213,7 +213,8 @@ mod tests {
         d3[3] = s2[(3, 3)] * 1e10;
         let (kept3, held3) = split(&s2, &d3, &free, |id| format!("p{}", id.0));
         assert_eq!(kept3.len(), 3);
-        assert_eq!(held3[1].parameter, "p3");
+        assert_eq!(held3[0].parameter, "p3");
+        assert!(held3[0].with.is_empty());
         assert_eq!(kept2.len(), 4);
         assert_eq!(held2.len(), 1);
     }
