@@ -85,7 +85,8 @@ def model_summary(model):
             "parent": m.getParentFrame().getName(),
             "location": vec(m.get_location()),
         })
-    return {"bodies": bodies, "joints": joints, "coordinates": coords, "markers": markers}
+    return {"bodies": bodies, "joints": joints, "coordinates": coords, "markers": markers,
+            "forces": model.getForceSet().getSize(), "muscles": model.getMuscles().getSize()}
 
 
 def set_pose(model, state, names, values):

@@ -41,9 +41,14 @@ pub struct CalibrateArgs {
     /// Motion files (.trc or .c3d); parameters are shared across them.
     #[arg(required = true)]
     pub trials: Vec<PathBuf>,
-    /// Parameter groups to fit: comma-separated hip, knee, ankle, or all.
+    /// Parameter groups to fit: comma-separated hip, knee, ankle, or all. With an .osim
+    /// model: the joints whose parent and child offset frames to personalize (hip_r,knee_r).
     #[arg(long, default_value = "all", value_delimiter = ',')]
     pub joints: Vec<String>,
+    /// .osim model only: offset scalars to personalize, JOINT[.parent|.child[.translation|
+    /// .orientation[.x|.y|.z]]], e.g. hip_r.parent.translation,knee_r.child.orientation.z.
+    #[arg(long, value_delimiter = ',', value_name = "SELECTION")]
+    pub params: Vec<String>,
     #[arg(long, value_enum, default_value = "joint")]
     pub method: MethodArg,
     /// Fitted model (TOML). It may be the subject model file itself only with --force.
@@ -205,6 +210,15 @@ use crate::calibrate_text::information_summary;
 pub use crate::calibrate_text::print_report;
 
 pub fn run(args: CalibrateArgs) -> Result<()> {
+    if jointfit_io::model_file::is_osim(Path::new(&args.model)) {
+        return crate::osim_calibrate::run(args);
+    }
+    if !args.params.is_empty() {
+        anyhow::bail!(
+            "--params selects offset frames of an .osim model; {} is not one (use --joints)",
+            args.model
+        );
+    }
     let mut files = crate::output::Files::new().model("model", &args.model);
     for t in &args.trials {
         files = files.input("trial", t);

@@ -20,6 +20,7 @@ mod demo_cmd;
 mod export_cmd;
 mod ik_cmd;
 mod model_cmd;
+mod osim_calibrate;
 mod personalize_cmd;
 mod prior_args;
 mod progress;

@@ -19,6 +19,8 @@ mod ik;
 mod limits;
 #[path = "cli/osim.rs"]
 mod osim;
+#[path = "cli/osim_personalize.rs"]
+mod osim_personalize;
 #[path = "cli/personalize.rs"]
 mod personalize;
 #[path = "cli/priors.rs"]

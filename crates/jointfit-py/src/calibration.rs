@@ -15,6 +15,8 @@ use crate::{err, msg, warn_all};
 #[pyclass(name = "Calibration", module = "jointfit", frozen)]
 pub struct PyCalibration {
     pub(crate) cal: Calibration,
+    /// The `.osim` the model came from (its fitted model saves back into it).
+    pub(crate) osim: Option<std::sync::Arc<jointfit_io::osim_read::OsimModel>>,
 }
 
 #[pymethods]
@@ -22,7 +24,7 @@ impl PyCalibration {
     /// The fitted model (its parameters are the fitted values; fixed ones unchanged).
     #[getter]
     fn model(&self) -> PyResult<PyModel> {
-        PyModel::from_spec(&self.cal.model)
+        PyModel::with_osim(&self.cal.model, self.osim.clone())
     }
     /// Fitted values of the free parameters: dict name → value (m or rad).
     #[getter]
@@ -136,7 +138,7 @@ impl PyCalibration {
 #[pyo3(name = "_calibration_from_json")]
 pub fn calibration_from_json(text: &str) -> PyResult<PyCalibration> {
     let cal = serde_json::from_str(text).map_err(|e| msg(format!("not a calibration: {e}")))?;
-    Ok(PyCalibration { cal })
+    Ok(PyCalibration { cal, osim: None })
 }
 
 fn joints_arg(joints: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<String>> {
@@ -162,7 +164,7 @@ fn joints_arg(joints: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<String>> {
 /// `jointfit calibrate`'s for the same inputs and options, bit for bit (an unconverged fit
 /// is kept with a warning, as `--accept-unconverged`). Releases the GIL while it runs.
 #[pyfunction]
-#[pyo3(signature = (model, trials, joints=None, method="joint", up=None, filter=None, seed=1, bootstrap=0, threshold_mm=5.0, threshold_deg=5.0, starts=1, fix_unidentifiable=false, prior="model", marker_noise_mm=None, max_iter=None))]
+#[pyo3(signature = (model, trials, joints=None, method="joint", up=None, filter=None, seed=1, bootstrap=0, threshold_mm=5.0, threshold_deg=5.0, starts=1, fix_unidentifiable=false, prior="model", marker_noise_mm=None, max_iter=None, params=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -181,7 +183,17 @@ pub fn calibrate(
     prior: &str,
     marker_noise_mm: Option<f64>,
     max_iter: Option<usize>,
+    params: Option<Vec<String>>,
 ) -> PyResult<PyCalibration> {
+    let osim = model
+        .cast::<PyModel>()
+        .ok()
+        .and_then(|m| m.get().osim.clone());
+    if osim.is_none() && params.is_some() {
+        return Err(msg(
+            "params selects offset frames of a model loaded from an .osim file",
+        ));
+    }
     let model = if let Ok(m) = model.cast::<PyModel>() {
         ModelInput::Spec(Box::new(m.get().model.spec().clone()))
     } else {
@@ -220,38 +232,112 @@ pub fn calibrate(
             inputs.push(TrialInput::Path(path));
         }
     }
+    let fit = FitOptions {
+        joints: joints_arg(joints)?,
+        method: method.parse().map_err(msg)?,
+        seed,
+        threshold_mm,
+        threshold_deg,
+        bootstrap,
+        starts,
+        fix_unidentifiable,
+        priors: match prior {
+            "model" => true,
+            "none" => false,
+            other => {
+                return Err(msg(format!(
+                    "prior must be \"model\" or \"none\", not {other:?}"
+                )))
+            }
+        },
+        marker_noise_mm,
+        max_iterations: max_iter,
+    };
+    fit.check().map_err(msg)?;
+    let read = ReadOptions {
+        up: parse_up(up)?,
+        filter_hz: filter,
+    };
+    if let Some(osim) = osim {
+        let cal = py
+            .detach(|| calibrate_osim(&osim, &inputs, &read, &fit, &params.unwrap_or_default()))
+            .map_err(msg)?;
+        warn_all(py, &cal.warnings)?;
+        return Ok(PyCalibration {
+            cal,
+            osim: Some(osim),
+        });
+    }
     let job = Job {
         id: "calibrate".into(),
         model,
         trials: inputs,
-        read: ReadOptions {
-            up: parse_up(up)?,
-            filter_hz: filter,
-        },
-        fit: FitOptions {
-            joints: joints_arg(joints)?,
-            method: method.parse().map_err(msg)?,
-            seed,
-            threshold_mm,
-            threshold_deg,
-            bootstrap,
-            starts,
-            fix_unidentifiable,
-            priors: match prior {
-                "model" => true,
-                "none" => false,
-                other => {
-                    return Err(msg(format!(
-                        "prior must be \"model\" or \"none\", not {other:?}"
-                    )))
-                }
-            },
-            marker_noise_mm,
-            max_iterations: max_iter,
-        },
+        read,
+        fit,
     };
-    job.fit.check().map_err(msg)?;
     let cal = py.detach(|| run_job(&job)).map_err(|e| err(&e))?;
     warn_all(py, &cal.warnings)?;
-    Ok(PyCalibration { cal })
+    Ok(PyCalibration { cal, osim: None })
+}
+
+/// The `.osim` personalization ([`jointfit_io::osim_read::workflow`]) with the settings of
+/// `jointfit calibrate MODEL.osim` (the same function, so the same result): `fit.joints`
+/// names joints ("all", the default, names none), `params` the finer selection.
+fn calibrate_osim(
+    osim: &jointfit_io::osim_read::OsimModel,
+    inputs: &[TrialInput],
+    read: &ReadOptions,
+    fit: &FitOptions,
+    params: &[String],
+) -> Result<Calibration, String> {
+    use jointfit_io::osim_read::workflow::{personalize, selection_spec};
+    let mut warnings = Vec::new();
+    let mut trials = Vec::new();
+    for t in inputs {
+        let (trial, w) = match t {
+            TrialInput::Path(p) => jointfit_io::batch::read_trial(p, read),
+            TrialInput::Data { name, trial } => {
+                jointfit_io::batch::prepare_trial((**trial).clone(), name, None, read.filter_hz)
+            }
+        }
+        .map_err(|e| jointfit_io::batch::message(&e))?;
+        warnings.extend(w);
+        trials.push(trial);
+    }
+    let joints: Vec<String> = fit.joints.iter().filter(|j| *j != "all").cloned().collect();
+    let spec = selection_spec(osim, &joints, params).map_err(|e| e.to_string())?;
+    let refs: Vec<&jointfit::trial::Trial> = trials.iter().collect();
+    let settings = fit.settings();
+    let done = personalize(
+        &spec,
+        None,
+        &refs,
+        &settings,
+        &mut jointfit::workflow::NoObserver,
+    )
+    .map_err(|e| jointfit_io::batch::message(&e))?;
+    let mut cal = jointfit_io::batch::fit::summarize(
+        &done.model,
+        &done.model.nominal_params(),
+        &done.result.calibration,
+        fit.method,
+    );
+    cal.model = done.fitted_spec();
+    for r in &done.result.held_redundant {
+        warnings.push(if r.with.is_empty() {
+            format!(
+                "{} held at its start value: the joint's coordinates absorb it",
+                r.parameter
+            )
+        } else {
+            format!(
+                "{} held at its start value: redundant with {}",
+                r.parameter,
+                r.with.join(", ")
+            )
+        });
+    }
+    warnings.append(&mut cal.warnings);
+    cal.warnings = warnings;
+    Ok(cal)
 }

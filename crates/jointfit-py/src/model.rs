@@ -2,6 +2,7 @@
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;
@@ -12,12 +13,15 @@ use crate::{err, msg};
 
 /// A kinematic leg model: segments, joints, markers and its joint parameters (SI units).
 ///
-/// `Model.load(path_or_builtin)` reads a model TOML file or a built-in model
-/// ("lower-limb-right", "lower-limb-left"); `save(path)` writes TOML (.toml) or an OpenSim
-/// 4 model (.osim).
+/// `Model.load(path_or_builtin)` reads a model TOML file, an OpenSim 4 model (.osim) or a
+/// built-in model ("lower-limb-right", "lower-limb-left"); `save(path)` writes TOML (.toml)
+/// or an OpenSim 4 model (.osim: for a model read from an .osim, that file with only its
+/// personalized offset values replaced; otherwise a new kinematic model).
 #[pyclass(name = "Model", module = "jointfit", frozen)]
 pub struct PyModel {
     pub(crate) model: Model,
+    /// The `.osim` file this model came from (write-back target of `save`).
+    pub(crate) osim: Option<Arc<jointfit_io::osim_read::OsimModel>>,
 }
 
 impl PyModel {
@@ -28,27 +32,36 @@ impl PyModel {
                 source,
             })
         })?;
-        Ok(PyModel { model })
+        Ok(PyModel { model, osim: None })
+    }
+
+    /// `spec` compiled, keeping the `.osim` it came from.
+    pub(crate) fn with_osim(
+        spec: &ModelSpec,
+        osim: Option<Arc<jointfit_io::osim_read::OsimModel>>,
+    ) -> PyResult<Self> {
+        let mut m = PyModel::from_spec(spec)?;
+        m.osim = osim;
+        Ok(m)
     }
 }
 
 #[pymethods]
 impl PyModel {
-    /// Reads a model: a TOML file or a built-in name (see `jointfit.BUILTIN_MODELS`).
+    /// Reads a model: a TOML file, an OpenSim 4 model (.osim; personalize its joints with
+    /// `jointfit.calibrate(model, trials, joints=["hip_r", ...])`) or a built-in name (see
+    /// `jointfit.BUILTIN_MODELS`).
     #[staticmethod]
-    fn load(path_or_builtin: PathBuf) -> PyResult<Self> {
+    fn load(py: Python<'_>, path_or_builtin: PathBuf) -> PyResult<Self> {
         let text = path_or_builtin.to_string_lossy().into_owned();
-        if path_or_builtin
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("osim"))
-        {
-            return Err(msg(format!(
-                "{text}: reading OpenSim models is not supported yet (load the TOML model; \
-                 save(\"….osim\") exports one)"
-            )));
+        if jointfit_io::model_file::is_osim(&path_or_builtin) {
+            let osim = py
+                .detach(|| jointfit_io::osim_read::read_osim(&path_or_builtin))
+                .map_err(|e| err(&e))?;
+            return PyModel::with_osim(&osim.spec.clone(), Some(Arc::new(osim)));
         }
         let model = jointfit_io::model_file::load_model(&text).map_err(|e| err(&e))?;
-        Ok(PyModel { model })
+        Ok(PyModel { model, osim: None })
     }
 
     /// Builds a model from the text of a model TOML file.
@@ -74,6 +87,19 @@ impl PyModel {
             Some("toml") => py
                 .detach(|| jointfit_io::model_file::save_spec(&path, self.model.spec()))
                 .map_err(|e| msg(format!("writing {}: {e}", path.display()))),
+            Some("osim") if self.osim.is_some() => {
+                let osim = self.osim.as_deref().expect("checked");
+                py.detach(|| {
+                    let text = jointfit_io::osim_read::personalize::fitted_text(
+                        osim,
+                        self.model.spec(),
+                        &self.model.nominal_params(),
+                    )
+                    .map_err(|e| msg(format!("writing {}: {e}", path.display())))?;
+                    jointfit_io::atomic::write_atomic(&path, text.as_bytes())
+                        .map_err(|e| msg(format!("writing {}: {e}", path.display())))
+                })
+            }
             Some("osim") => py
                 .detach(|| {
                     jointfit_io::osim::write_osim(&path, &self.model, &self.model.nominal_params())
@@ -172,7 +198,7 @@ impl PyModel {
                 }
             }
         }
-        PyModel::from_spec(&self.model.spec_with_nominal(&p))
+        PyModel::with_osim(&self.model.spec_with_nominal(&p), self.osim.clone())
     }
 
     fn __repr__(&self) -> String {

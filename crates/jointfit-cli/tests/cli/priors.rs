@@ -147,8 +147,8 @@ fn bad_prior_overrides_are_one_line_errors() {
 #[test]
 fn refined_markers_are_reported_and_carried_by_the_fitted_model() {
     let (Some(stat), Some(walk)) = (
-        data_file("opencap_expert1/static1.trc"),
-        data_file("opencap_expert1/walking1.trc"),
+        jointfit_testkit::data_file("opencap_expert1/static1.trc"),
+        jointfit_testkit::data_file("opencap_expert1/walking1.trc"),
     ) else {
         return;
     };

@@ -192,6 +192,17 @@ pub fn calibrate(
     let free = params_for_groups(model, &groups)?;
     let settings = opts.settings();
     let cal = workflow::calibrate(model, &start, trials, &free, &settings, &mut NoObserver)?;
+    Ok(summarize(model, &start, &cal, opts.method))
+}
+
+/// SI rows, warnings and the fitted description of a finished calibration of `model` from
+/// `start` (every parameter).
+pub fn summarize(
+    model: &Model,
+    start: &[f64],
+    cal: &workflow::Calibration,
+    method: Method,
+) -> Calibration {
     let u = cal
         .uncertainty
         .as_ref()
@@ -247,9 +258,9 @@ pub fn calibrate(
         .collect();
     let mut fitted = model.spec_with_nominal(&fit.p);
     fitted.name = format!("{} (fitted)", model.spec().name);
-    Ok(Calibration {
+    Calibration {
         model: fitted,
-        method: opts.method,
+        method,
         frames: cal.frames,
         skipped_frames: cal.skipped_frames,
         parameters,
@@ -261,5 +272,5 @@ pub fn calibrate(
         evaluations: fit.evaluations,
         converged: fit.converged(),
         warnings,
-    })
+    }
 }

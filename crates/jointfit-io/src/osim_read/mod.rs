@@ -17,6 +17,7 @@
 mod functions;
 mod joints;
 pub mod personalize;
+pub mod workflow;
 mod write;
 mod xml;
 

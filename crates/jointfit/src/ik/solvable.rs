@@ -40,7 +40,9 @@ const CACHE_SIZE: usize = 64;
 /// Cached solvability verdicts for one parameter vector.
 #[derive(Debug, Clone)]
 pub(super) struct Solvability {
-    p: Vec<f64>,
+    /// The parameters `kin` was evaluated at (`None`: not yet; an empty vector is a
+    /// model without parameters, not a missing evaluation).
+    p: Option<Vec<f64>>,
     kin: KinData,
     moments: Moments,
     /// `(present mask, undetermined coordinates)`.
@@ -55,7 +57,7 @@ impl Solvability {
     pub(super) fn new(model: &Model) -> Self {
         let n = model.n_q();
         Solvability {
-            p: Vec::new(),
+            p: None,
             kin: KinData::new(model),
             moments: Moments::new(model),
             cache: Vec::new(),
@@ -75,9 +77,8 @@ impl Solvability {
         weights: &[f64],
         opts: &IkOptions,
     ) -> &[usize] {
-        if self.p != p {
-            self.p.clear();
-            self.p.extend_from_slice(p);
+        if self.p.as_deref() != Some(p) {
+            self.p = Some(p.to_vec());
             self.cache.clear();
             let q = generic_configuration(model);
             forward_kinematics(model, p, &q, Want::AXES, &mut self.kin);

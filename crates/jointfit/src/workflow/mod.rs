@@ -21,6 +21,7 @@ mod calibration;
 mod check;
 mod ik;
 pub mod map;
+pub mod redundant;
 pub mod refine;
 
 use serde::{Deserialize, Serialize};
@@ -36,6 +37,9 @@ pub use calibration::{
 };
 pub use check::{check, CheckReport};
 pub use ik::{ik_trial, ik_warm_started, transfer_params, IkRun};
+pub use redundant::{
+    calibrate_holding_redundant, redundant_parameters, HeldCalibration, Redundancy,
+};
 
 /// Errors of the workflow.
 #[derive(Debug, Error, PartialEq)]

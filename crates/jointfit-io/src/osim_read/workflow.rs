@@ -1,0 +1,206 @@
+//! The personalization of a user's OpenSim model, as one job for every front end (the
+//! command line's `calibrate MODEL.osim`, Python's `jointfit.calibrate` on a loaded `.osim`):
+//! selection → parameterized model ([`super::personalize::parameterize`]) → calibration
+//! with the redundant offset directions held
+//! ([`jointfit::workflow::calibrate_holding_redundant`]) → the user's file with the fitted
+//! offsets written back ([`super::personalize::fitted_text`]).
+//!
+//! Every selected offset scalar is free, except those the trials cannot tell from others
+//! (held at the file's value and listed). The default prior of each offset scalar
+//! (`docs/priors.md`) applies when `settings.priors` is set: the maximum a posteriori fit;
+//! without it, Reinbolt et al.'s (2005) unregularized least squares.
+
+use jointfit::model::spec::ModelSpec;
+use jointfit::model::{Model, ModelError, ParamId};
+use jointfit::trial::Trial;
+use jointfit::workflow::{
+    calibrate_holding_redundant, FitSettings, HeldCalibration, Observer, WorkflowError,
+};
+use thiserror::Error;
+
+use super::personalize::{fitted_text, parameterize, SelectionError};
+use super::{OsimModel, WriteBackError};
+
+#[derive(Debug, Error)]
+pub enum OsimFitError {
+    #[error(transparent)]
+    Selection(#[from] SelectionError),
+    #[error("the personalized model is invalid: {0}")]
+    Model(#[from] ModelError),
+    #[error(transparent)]
+    Workflow(#[from] WorkflowError),
+    #[error("writing the fitted offsets back: {0}")]
+    WriteBack(#[from] WriteBackError),
+}
+
+/// The selected offsets as parameters: `joints` (whole joints) and `params` (the finer
+/// selection, [`super::personalize`]'s syntax) together, in that order.
+pub fn selection_spec(
+    osim: &OsimModel,
+    joints: &[String],
+    params: &[String],
+) -> Result<ModelSpec, SelectionError> {
+    let items: Vec<&str> = joints
+        .iter()
+        .chain(params)
+        .map(|s| s.trim())
+        .filter(|s| !s.is_empty())
+        .collect();
+    parameterize(osim, &items)
+}
+
+/// A finished personalization.
+#[derive(Debug, Clone)]
+pub struct OsimFit {
+    /// The parameterized description as given (every marker, no coordinate locked).
+    pub spec: ModelSpec,
+    /// The compiled model of the fit (without the absent markers, with the undetermined
+    /// coordinates locked); its nominal values are the file's.
+    pub model: Model,
+    /// The calibration and the parameters held as redundant.
+    pub result: HeldCalibration,
+    /// Markers of the model some trial lacks: left out of the fit (OpenSim's IK likewise
+    /// uses only the markers a trial has).
+    pub absent_markers: Vec<String>,
+    /// Coordinates the trials' markers cannot determine (e.g. `mtp_angle_r` without toe
+    /// markers), held at their default values for the fit ([`lock_undetermined`]).
+    pub held_coordinates: Vec<String>,
+}
+
+impl OsimFit {
+    /// Every parameter's fitted value (held and fixed ones at their start), SI.
+    pub fn params(&self) -> &[f64] {
+        &self.result.calibration.fit.p
+    }
+
+    /// The given description at the fitted values (nominal = fitted; priors stay centred on
+    /// the file's values, as [`Model::spec_with_nominal`] writes them).
+    pub fn fitted_spec(&self) -> ModelSpec {
+        let mut spec = self.spec.clone();
+        for (ps, &v) in spec.parameters.iter_mut().zip(self.params()) {
+            if ps.prior_sd.is_some() && ps.prior_mean.is_none() {
+                ps.prior_mean = Some(ps.nominal);
+            }
+            ps.nominal = v;
+        }
+        spec
+    }
+
+    /// The user's file with only the fitted offsets replaced.
+    pub fn osim_text(&self, osim: &OsimModel) -> Result<String, WriteBackError> {
+        fitted_text(osim, self.model.spec(), self.params())
+    }
+}
+
+/// Personalizes every parameter of `spec` (made by [`selection_spec`] or
+/// [`parameterize`], maybe with edited priors) on `trials`, from `start` (default: the file's
+/// values), as `settings` say. Model markers that any trial lacks are left out of the fit
+/// (listed in [`OsimFit::absent_markers`]); they stay in the written file.
+pub fn personalize(
+    spec: &ModelSpec,
+    start: Option<Vec<f64>>,
+    trials: &[&Trial],
+    settings: &FitSettings,
+    observer: &mut dyn Observer,
+) -> Result<OsimFit, OsimFitError> {
+    let given = spec.clone();
+    let mut spec = spec.clone();
+    let absent_markers: Vec<String> = spec
+        .markers
+        .iter()
+        .filter(|m| !trials.iter().all(|t| t.labels().contains(&m.name)))
+        .map(|m| m.name.clone())
+        .collect();
+    if absent_markers.len() < spec.markers.len() {
+        spec.markers.retain(|m| !absent_markers.contains(&m.name));
+    }
+    let held_coordinates = lock_undetermined(&mut spec, trials)?;
+    let model = Model::compile(&spec)?;
+    let start = start.unwrap_or_else(|| model.nominal_params());
+    let free: Vec<ParamId> = (0..model.n_p()).map(ParamId).collect();
+    let result = calibrate_holding_redundant(&model, &start, trials, &free, settings, observer)?;
+    Ok(OsimFit {
+        spec: given,
+        model,
+        result,
+        absent_markers,
+        held_coordinates,
+    })
+}
+
+/// Locks, at their default values, the coordinates of `spec` that the markers of the
+/// trials leave undetermined ([`jointfit::ik::undetermined_coordinate`]: the structural rank
+/// test of the marker Jacobian at the frame of each trial with the most markers present), one
+/// at a time until every such frame is solvable; returns their names. OpenSim's inverse
+/// kinematics leaves such a coordinate where it starts; the calibration's frames need every
+/// coordinate determined. Coordinates of non-custom joints are never locked (the core can
+/// lock only custom-joint coordinates; every joint read from an `.osim` is custom).
+pub fn lock_undetermined(
+    spec: &mut ModelSpec,
+    trials: &[&Trial],
+) -> Result<Vec<String>, ModelError> {
+    use jointfit::ik::{undetermined_coordinate, IkOptions, IkWorkspace, MarkerMap};
+    use jointfit::model::spec::{CoordinateSpec, JointKindSpec};
+    let mut locked = Vec::new();
+    let opts = IkOptions::default();
+    let mut targets = Vec::new();
+    for _ in 0..64 {
+        let model = Model::compile(spec)?;
+        let p = model.nominal_params();
+        let mut ws = IkWorkspace::new(&model);
+        let mut found = None;
+        for trial in trials {
+            let (map, _) = MarkerMap::allowing_absent(&model, trial.labels());
+            let best = (0..trial.n_frames()).max_by_key(|&f| {
+                map.targets(trial, f, &mut targets);
+                targets.iter().filter(|t| !t.x.is_nan()).count()
+            });
+            let Some(f) = best else { continue };
+            map.targets(trial, f, &mut targets);
+            if let Some(c) = undetermined_coordinate(&model, &p, &targets, &opts, &mut ws) {
+                found = Some(model.coordinates()[c].name.clone());
+                break;
+            }
+        }
+        let Some(name) = found else { break };
+        let mut done = false;
+        for joint in &mut spec.joints {
+            if !matches!(joint.kind, JointKindSpec::Custom { .. }) {
+                continue;
+            }
+            for c in &mut joint.coordinates {
+                if c.name() != name {
+                    continue;
+                }
+                *c = match c.clone() {
+                    CoordinateSpec::Name(name) => CoordinateSpec::Full {
+                        name,
+                        range: None,
+                        default: 0.0,
+                        locked: true,
+                        clamped: false,
+                    },
+                    CoordinateSpec::Full {
+                        name,
+                        range,
+                        default,
+                        clamped,
+                        ..
+                    } => CoordinateSpec::Full {
+                        name,
+                        range,
+                        default,
+                        locked: true,
+                        clamped,
+                    },
+                };
+                done = true;
+            }
+        }
+        if !done {
+            break;
+        }
+        locked.push(name);
+    }
+    Ok(locked)
+}
