@@ -44,7 +44,9 @@ pub struct CalibrateArgs {
     /// Motion files (.trc or .c3d); parameters are shared across them.
     #[arg(required = true)]
     pub trials: Vec<PathBuf>,
-    /// Parameter groups to fit: comma-separated hip, knee, ankle, or all.
+    /// Parameter groups to fit: comma-separated hip, knee, ankle, or all. On a bilateral
+    /// model (`lower-limb`, `personalize --side both`) `hip` frees both hips, `hip_r` or
+    /// `hip_l` one side (likewise knee, ankle).
     #[arg(long, default_value = "all", value_delimiter = ',')]
     pub joints: Vec<String>,
     #[arg(long, value_enum, default_value = "joint")]

@@ -20,6 +20,7 @@ mod export_cmd;
 mod ik_cmd;
 mod model_cmd;
 mod personalize_cmd;
+mod personalize_summary;
 mod prior_args;
 mod progress;
 mod report_cmd;

@@ -54,6 +54,7 @@
 //!
 //! [`lower_limb`]: crate::model::lower_limb::lower_limb
 
+pub mod bilateral;
 mod frames;
 pub mod functional;
 pub mod markerset;
@@ -64,6 +65,7 @@ pub mod window;
 use nalgebra::Vector3;
 use thiserror::Error;
 
+pub use bilateral::{personalize_sides, BothLegs, Outcome, PersonalizedModel, Sides};
 pub use frames::SegmentFrames;
 pub use markerset::{LegMarkers, MarkerSet, PelvisMarkers, PRESET_NAMES, TRACKED_SEGMENTS};
 pub use window::StaticWindow;
