@@ -21,7 +21,8 @@ pub struct PersonalizeArgs {
     /// Static standing trial (.trc or .c3d).
     #[arg(long = "static", value_name = "FILE")]
     static_trial: PathBuf,
-    /// Marker set: a TOML file or a preset (gait2392, opencap, jam, plugin-gait).
+    /// Marker set: a TOML file or a preset (gait2392, opencap, jam, plugin-gait, plugin-gait-basic,
+    /// plugin-gait-sacr, rajagopal; docs/markersets.md).
     #[arg(long, value_name = "MAP.toml|PRESET")]
     markers: String,
     /// Which legs to model: both (one model, pelvis shared, 54 parameters; falls back to the

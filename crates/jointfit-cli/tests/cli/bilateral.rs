@@ -294,3 +294,105 @@ fn calibrate_recovers_both_legs_from_a_synthetic_trial() {
         }
     }
 }
+
+/// Every preset personalizes both legs of a real shared static trial. Where no shared trial
+/// carries a preset's exact labels, a trial with the same placement is read with its labels
+/// renamed (stated per case).
+#[test]
+fn every_preset_personalizes_both_legs_of_a_shared_trial() {
+    use jointfit::trial::{up_axis_rotation, UpAxis};
+    let jam_as_rajagopal: &[(&str, &str)] = &[
+        ("R.Mkn", "R.MKnee"),
+        ("L.Mkn", "L.MKnee"),
+        ("R.Man", "R.MAnkle"),
+        ("L.Man", "L.MAnkle"),
+        ("R.MT0", "R.Toe"),
+        ("L.MT0", "L.Toe"),
+    ];
+    let cases: [(&str, &str, UpAxis, &[(&str, &str)]); 8] = [
+        ("opencap_expert1/static1.trc", "opencap", UpAxis::Y, &[]),
+        (
+            "opensim_gait2392_subject01/subject01_static.trc",
+            "gait2392",
+            UpAxis::Y,
+            &[],
+        ),
+        (
+            "opensim_hamner_subject02/subject02_static.trc",
+            "gait2392",
+            UpAxis::Y,
+            &[],
+        ),
+        ("opensim_jam_healthy/static1.trc", "jam", UpAxis::Y, &[]),
+        (
+            "biobuddy_functional_vicon/Test_func_anat.c3d",
+            "plugin-gait",
+            UpAxis::NegZ,
+            &[],
+        ),
+        (
+            "biobuddy_functional_vicon/Test_func_anat.c3d",
+            "plugin-gait-basic",
+            UpAxis::NegZ,
+            &[],
+        ),
+        // Renamed: no shared trial has a SACR marker together with medial knee markers.
+        (
+            "biobuddy_functional_vicon/Test_func_anat.c3d",
+            "plugin-gait-sacr",
+            UpAxis::NegZ,
+            &[("S1", "SACR")],
+        ),
+        // Renamed: the JAM static trial is the Rajagopal placement with other medial labels.
+        (
+            "opensim_jam_healthy/static1.trc",
+            "rajagopal",
+            UpAxis::Y,
+            jam_as_rajagopal,
+        ),
+    ];
+    let mut covered: Vec<&str> = Vec::new();
+    for (rel, preset, up, renames) in cases {
+        let Some(path) = data_file(rel) else { return };
+        let mut t = if rel.ends_with(".c3d") {
+            jointfit_io::c3d::read_c3d(&path)
+                .unwrap()
+                .to_trial()
+                .unwrap()
+        } else {
+            jointfit_io::trc::read_trc(&path).unwrap()
+        };
+        t.rotate(&up_axis_rotation(up));
+        if !renames.is_empty() {
+            let labels = t
+                .labels()
+                .iter()
+                .map(|l| {
+                    renames
+                        .iter()
+                        .find(|(from, _)| from == l)
+                        .map_or(l.clone(), |(_, to)| to.to_string())
+                })
+                .collect();
+            t = Trial::new(labels, t.rate(), t.first_frame(), t.positions().to_vec()).unwrap();
+        }
+        let set = MarkerSet::preset(preset).unwrap();
+        let model = both(&t, &set).unwrap_or_else(|e| panic!("{rel} {preset}: {e}"));
+        let PersonalizedModel::Both(b) = model else {
+            panic!("{rel} {preset}: one leg")
+        };
+        assert_eq!(b.spec.parameters.len(), 54, "{rel} {preset}");
+        for (_, leg) in [(Side::Right, &b.right), (Side::Left, &b.left)] {
+            assert!(leg.report.static_fk_error < 1e-9, "{rel} {preset}");
+            let pw = leg.report.pelvis_width;
+            assert!((0.15..0.40).contains(&pw), "{rel} {preset}: PW {pw}");
+        }
+        covered.push(preset);
+    }
+    for name in jointfit::landmarks::PRESET_NAMES {
+        assert!(
+            covered.contains(&name),
+            "preset {name} has no shared-trial check"
+        );
+    }
+}
