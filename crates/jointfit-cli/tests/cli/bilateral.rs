@@ -295,6 +295,14 @@ fn calibrate_recovers_both_legs_from_a_synthetic_trial() {
     }
 }
 
+/// A shared trial, a preset, the trial's up axis and label renames.
+type Case<'a> = (
+    &'a str,
+    &'a str,
+    jointfit::trial::UpAxis,
+    &'a [(&'a str, &'a str)],
+);
+
 /// Every preset personalizes both legs of a real shared static trial. Where no shared trial
 /// carries a preset's exact labels, a trial with the same placement is read with its labels
 /// renamed (stated per case).
@@ -309,7 +317,7 @@ fn every_preset_personalizes_both_legs_of_a_shared_trial() {
         ("R.MT0", "R.Toe"),
         ("L.MT0", "L.Toe"),
     ];
-    let cases: [(&str, &str, UpAxis, &[(&str, &str)]); 8] = [
+    let cases: [Case; 8] = [
         ("opencap_expert1/static1.trc", "opencap", UpAxis::Y, &[]),
         (
             "opensim_gait2392_subject01/subject01_static.trc",
