@@ -41,8 +41,10 @@ pub struct CalibrateArgs {
     /// Motion files (.trc or .c3d); parameters are shared across them.
     #[arg(required = true)]
     pub trials: Vec<PathBuf>,
-    /// Parameter groups to fit: comma-separated hip, knee, ankle, or all. With an .osim
-    /// model: the joints whose parent and child offset frames to personalize (hip_r,knee_r).
+    /// Parameter groups to fit: comma-separated hip, knee, ankle, or all. On a bilateral
+    /// model (`lower-limb`, `personalize --side both`) `hip` frees both hips, `hip_r` or
+    /// `hip_l` one side (likewise knee, ankle). With an .osim model: the joints whose parent
+    /// and child offset frames to personalize (hip_r,knee_r).
     #[arg(long, default_value = "all", value_delimiter = ',')]
     pub joints: Vec<String>,
     /// .osim model only: offset scalars to personalize, JOINT[.parent|.child[.translation|

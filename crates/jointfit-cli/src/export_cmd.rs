@@ -16,7 +16,7 @@ pub enum ExportCommand {
 
 #[derive(Args)]
 pub struct OsimArgs {
-    /// Subject model (TOML file or built-in name: lower-limb-right, lower-limb-left).
+    /// Subject model (TOML file or built-in name: lower-limb, lower-limb-right, lower-limb-left).
     pub model: String,
     /// Output .osim file, written atomically.
     #[arg(short, long, value_name = "OUT.osim")]

@@ -22,6 +22,7 @@ mod ik_cmd;
 mod model_cmd;
 mod osim_calibrate;
 mod personalize_cmd;
+mod personalize_summary;
 mod prior_args;
 mod progress;
 mod report_cmd;

@@ -11,7 +11,7 @@ use crate::table::Table;
 pub enum ModelCommand {
     /// Print segments, joints, coordinates, parameters and markers of a model.
     Show {
-        /// A model TOML file or a built-in model: lower-limb-right, lower-limb-left.
+        /// A model TOML file or a built-in model: lower-limb, lower-limb-right, lower-limb-left.
         model: String,
         /// Print JSON instead of tables.
         #[arg(long)]

@@ -5,12 +5,14 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
-use jointfit::landmarks::functional::{FunctionalReport, FunctionalTrials};
+use jointfit::landmarks::functional::FunctionalTrials;
 use jointfit::landmarks::{
-    personalize_with, HipCentreMethod, MarkerSet, PersonalizeOptions, Personalized, PRESET_NAMES,
+    personalize_sides, HipCentreMethod, MarkerSet, PersonalizeOptions, PersonalizedModel, Sides,
+    PRESET_NAMES,
 };
 use jointfit::model::lower_limb::Side;
-use serde::Serialize;
+
+use crate::personalize_summary::{BothSummary, HjcComparison, Summary};
 
 use crate::common::{load_trial, Up};
 
@@ -19,11 +21,13 @@ pub struct PersonalizeArgs {
     /// Static standing trial (.trc or .c3d).
     #[arg(long = "static", value_name = "FILE")]
     static_trial: PathBuf,
-    /// Marker set: a TOML file or a preset (gait2392, opencap, jam, plugin-gait).
+    /// Marker set: a TOML file or a preset (gait2392, opencap, jam, plugin-gait, plugin-gait-basic,
+    /// plugin-gait-sacr, rajagopal; docs/markersets.md).
     #[arg(long, value_name = "MAP.toml|PRESET")]
     markers: String,
-    /// Which leg to model.
-    #[arg(long, value_enum)]
+    /// Which legs to model: both (one model, pelvis shared, 54 parameters; falls back to the
+    /// one leg whose markers the trial carries, with a warning) or one (27 parameters).
+    #[arg(long, value_enum, default_value = "both")]
     side: SideArg,
     /// The laboratory's vertical axis; the trial is rotated to the model's Y-up frame.
     #[arg(long, value_enum, default_value = "y")]
@@ -59,6 +63,7 @@ pub struct PersonalizeArgs {
 
 #[derive(Clone, Copy, ValueEnum)]
 enum SideArg {
+    Both,
     Right,
     Left,
 }
@@ -95,9 +100,10 @@ pub fn run(args: PersonalizeArgs) -> Result<()> {
     let trial = load_trial(&args.static_trial, args.up, None)?;
     let scale: Vec<_> = jointfit::checks::check_scale(&trial).into_iter().collect();
     crate::common::report_findings(&scale, &args.static_trial)?;
-    let side = match args.side {
-        SideArg::Right => Side::Right,
-        SideArg::Left => Side::Left,
+    let sides = match args.side {
+        SideArg::Both => Sides::Both,
+        SideArg::Right => Sides::One(Side::Right),
+        SideArg::Left => Sides::One(Side::Left),
     };
     let name = args.name.clone().unwrap_or_else(|| {
         args.output
@@ -121,7 +127,7 @@ pub fn run(args: PersonalizeArgs) -> Result<()> {
         knee: knee_trial.as_ref(),
         ..FunctionalTrials::default()
     };
-    let mut result = personalize_with(&trial, &set, side, &opts, &func).with_context(|| {
+    let outcome = personalize_sides(&trial, &set, sides, &opts, &func).with_context(|| {
         let up = args
             .up
             .to_possible_value()
@@ -138,319 +144,67 @@ pub fn run(args: PersonalizeArgs) -> Result<()> {
         };
         format!("{static_name} (read with --up={up}){with}: cannot personalize")
     })?;
-    result.spec.description = format!("{}; from {static_name}", result.spec.description);
+    if let Some(w) = &outcome.warning {
+        eprintln!("warning: {static_name}: {w}");
+    }
+    let mut model = outcome.model;
+    let spec = model.spec_mut();
+    spec.description = format!("{}; from {static_name}", spec.description);
 
-    let mut compare = Vec::new();
+    // Each --compare-hjc label against the hip centre of the leg nearest to it.
+    let mut compare: Vec<Vec<HjcComparison>> = model.legs().iter().map(|_| Vec::new()).collect();
     for label in &args.compare_hjc {
         let c = trial
             .index_of(label)
             .with_context(|| format!("{static_name}: --compare-hjc"))?;
-        let w = &result.report.window;
-        let pts: Vec<_> = (w.first..w.end()).filter_map(|f| trial.get(f, c)).collect();
-        if pts.is_empty() {
-            bail!("{static_name}: marker {label:?} is missing throughout the static window");
+        let mut best: Option<(usize, HjcComparison)> = None;
+        for (k, (side, r)) in model.legs().into_iter().enumerate() {
+            let w = &r.report.window;
+            let pts: Vec<_> = (w.first..w.end()).filter_map(|f| trial.get(f, c)).collect();
+            if pts.is_empty() {
+                bail!("{static_name}: marker {label:?} is missing throughout the static window");
+            }
+            let mean = pts.iter().sum::<nalgebra::Vector3<f64>>() / pts.len() as f64;
+            let d = r.frames.pelvis.rot.transpose() * (mean - r.report.hip_centre);
+            let row = HjcComparison {
+                marker: label.clone(),
+                distance_mm: d.norm() * 1e3,
+                delta_mm: [d.x * 1e3, d.y * 1e3, side.sign() * d.z * 1e3],
+            };
+            if best
+                .as_ref()
+                .is_none_or(|(_, b)| row.distance_mm < b.distance_mm)
+            {
+                best = Some((k, row));
+            }
         }
-        let mean = pts.iter().sum::<nalgebra::Vector3<f64>>() / pts.len() as f64;
-        let d = result.frames.pelvis.rot.transpose() * (mean - result.report.hip_centre);
-        let lateral = if side == Side::Right { d.z } else { -d.z };
-        compare.push(HjcComparison {
-            marker: label.clone(),
-            distance_mm: d.norm() * 1e3,
-            delta_mm: [d.x * 1e3, d.y * 1e3, lateral * 1e3],
-        });
+        if let Some((k, row)) = best {
+            compare[k].push(row);
+        }
     }
 
-    jointfit_io::atomic::write_atomic(&args.output, result.spec.to_toml().as_bytes())
+    jointfit_io::atomic::write_atomic(&args.output, model.spec().to_toml().as_bytes())
         .with_context(|| format!("{}: cannot write", args.output.display()))?;
-    let summary = Summary::of(&result, &set, side, &static_name, &args.output, compare);
+    let mut legs: Vec<Summary> = model
+        .legs()
+        .into_iter()
+        .zip(compare)
+        .map(|((side, r), c)| Summary::of(r, &set, side, &static_name, &args.output, c))
+        .collect();
+    let (json, text) = match &model {
+        PersonalizedModel::Both(b) => {
+            let s = BothSummary::of(b, &static_name, &args.output, legs);
+            (serde_json::to_string_pretty(&s)?, s.render())
+        }
+        PersonalizedModel::One(..) => {
+            let s = legs.remove(0);
+            (serde_json::to_string_pretty(&s)?, s.render())
+        }
+    };
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        println!("{json}");
     } else {
-        print!("{}", summary.render());
+        print!("{text}");
     }
     Ok(())
-}
-
-/// Another hip-centre estimate minus ours, in our pelvis frame (anterior, superior, lateral).
-#[derive(Serialize)]
-struct HjcComparison {
-    marker: String,
-    distance_mm: f64,
-    delta_mm: [f64; 3],
-}
-
-#[derive(Serialize)]
-struct SegmentRow {
-    segment: String,
-    markers: Vec<String>,
-    rms_mm: f64,
-    max_mm: f64,
-}
-
-/// Everything printed, in mm and degrees.
-#[derive(Serialize)]
-struct Summary {
-    static_trial: String,
-    output: String,
-    marker_set: String,
-    side: &'static str,
-    window_first_frame: usize,
-    window_frames: usize,
-    window_seconds: f64,
-    complete_frames: usize,
-    total_frames: usize,
-    window_motion_rms_mm: f64,
-    hip_method: &'static str,
-    pelvis_width_mm: f64,
-    pelvis_depth_mm: f64,
-    knee_width_mm: f64,
-    ankle_width_mm: f64,
-    thigh_length_mm: f64,
-    shank_length_mm: f64,
-    /// Nominal parameters, in the model's order (mm or deg).
-    parameters: Vec<(String, f64)>,
-    /// Coordinates of the static pose (deg, or m for pelvis translations).
-    static_pose: Vec<(String, f64)>,
-    segments: Vec<SegmentRow>,
-    static_fk_error_mm: f64,
-    hjc_comparison: Vec<HjcComparison>,
-    /// Functional hip centre / knee axis against the landmark estimates.
-    functional: Option<FunctionalSummary>,
-    /// Prior SD per parameter (mm or deg), in the model's order.
-    prior_sd: Vec<(String, f64)>,
-}
-
-/// Functional methods' results (mm, deg), in the static trial's frame.
-#[derive(Serialize)]
-struct FunctionalSummary {
-    /// SCoRE hip centre minus the regression's (pelvis frame: anterior, superior, lateral).
-    hip_minus_landmark_mm: Option<[f64; 3]>,
-    hip_shift_mm: Option<f64>,
-    /// Bootstrap SD of the hip centre per static-frame axis.
-    hip_sd_mm: Option<[f64; 3]>,
-    hip_rms_gap_mm: Option<f64>,
-    hip_range_deg: Option<f64>,
-    /// Angle between the SARA axis and the epicondylar axis.
-    knee_axis_angle_deg: Option<f64>,
-    knee_axis_sd_deg: Option<f64>,
-    knee_point_shift_mm: Option<f64>,
-    knee_rms_gap_mm: Option<f64>,
-    knee_range_deg: Option<f64>,
-}
-
-impl FunctionalSummary {
-    fn of(f: &FunctionalReport, r: &Personalized, side: Side) -> Self {
-        let lat = if side == Side::Right { 1.0 } else { -1.0 };
-        let h = f.hip.as_ref();
-        let k = f.knee.as_ref();
-        FunctionalSummary {
-            hip_minus_landmark_mm: h.map(|h| {
-                let d = r.frames.pelvis.rot.transpose() * (h.centre - f.landmark_hip_centre);
-                [d.x * 1e3, d.y * 1e3, lat * d.z * 1e3]
-            }),
-            hip_shift_mm: f.hip_shift().map(|d| d * 1e3),
-            hip_sd_mm: h.map(|h| [h.sd.x * 1e3, h.sd.y * 1e3, h.sd.z * 1e3]),
-            hip_rms_gap_mm: h.map(|h| h.rms_gap * 1e3),
-            hip_range_deg: h.map(|h| h.range_of_motion.to_degrees()),
-            knee_axis_angle_deg: f.knee_angle().map(f64::to_degrees),
-            knee_axis_sd_deg: k.map(|k| k.angle_rms.to_degrees()),
-            knee_point_shift_mm: k.map(|k| (k.point - f.landmark_knee_centre).norm() * 1e3),
-            knee_rms_gap_mm: k.map(|k| k.rms_gap * 1e3),
-            knee_range_deg: k.map(|k| k.range_of_motion.to_degrees()),
-        }
-    }
-}
-
-impl Summary {
-    fn of(
-        r: &Personalized,
-        set: &MarkerSet,
-        side: Side,
-        static_trial: &str,
-        output: &Path,
-        hjc_comparison: Vec<HjcComparison>,
-    ) -> Summary {
-        let rep = &r.report;
-        let w = &rep.window;
-        let parameters = r
-            .spec
-            .parameters
-            .iter()
-            .map(|p| (p.name.clone(), p.unit.to_display(p.nominal)))
-            .collect();
-        let static_pose = r
-            .spec
-            .joints
-            .iter()
-            .flat_map(|j| j.coordinates.iter().map(|c| c.name().to_string()))
-            .zip(&r.static_q)
-            .map(|(n, &q)| {
-                let is_translation = n.starts_with("pelvis_t");
-                (n, if is_translation { q } else { q.to_degrees() })
-            })
-            .collect();
-        Summary {
-            static_trial: static_trial.into(),
-            output: output.display().to_string(),
-            marker_set: set.name.clone(),
-            side: if side == Side::Right { "right" } else { "left" },
-            window_first_frame: w.first,
-            window_frames: w.len,
-            window_seconds: w.seconds(),
-            complete_frames: w.complete_frames,
-            total_frames: w.total_frames,
-            window_motion_rms_mm: w.motion_rms * 1e3,
-            hip_method: rep.hip_method.citation(),
-            pelvis_width_mm: rep.pelvis_width * 1e3,
-            pelvis_depth_mm: rep.pelvis_depth * 1e3,
-            knee_width_mm: rep.knee_width * 1e3,
-            ankle_width_mm: rep.ankle_width * 1e3,
-            thigh_length_mm: rep.thigh_length * 1e3,
-            shank_length_mm: rep.shank_length * 1e3,
-            parameters,
-            static_pose,
-            segments: rep
-                .segments
-                .iter()
-                .map(|s| SegmentRow {
-                    segment: s.segment.clone(),
-                    markers: s.markers.clone(),
-                    rms_mm: s.rms * 1e3,
-                    max_mm: s.max * 1e3,
-                })
-                .collect(),
-            static_fk_error_mm: rep.static_fk_error * 1e3,
-            hjc_comparison,
-            functional: rep
-                .functional
-                .as_ref()
-                .map(|f| FunctionalSummary::of(f, r, side)),
-            prior_sd: r
-                .spec
-                .parameters
-                .iter()
-                .filter_map(|p| {
-                    p.prior_sd
-                        .map(|sd| (p.name.clone(), sd * p.unit.display_scale()))
-                })
-                .collect(),
-        }
-    }
-
-    fn param(&self, name: &str) -> f64 {
-        self.parameters
-            .iter()
-            .find(|(n, _)| n == name)
-            .map_or(f64::NAN, |p| p.1)
-    }
-
-    fn render(&self) -> String {
-        let p = |n: &str| self.param(n);
-        let mut out = format!(
-            "personalized {} leg from {} (marker set {})\n",
-            self.side, self.static_trial, self.marker_set
-        );
-        out += &format!(
-            "window: frames {}-{} of {} ({:.2} s, {} complete), marker motion RMS {:.2} mm\n",
-            self.window_first_frame,
-            self.window_first_frame + self.window_frames - 1,
-            self.total_frames,
-            self.window_seconds,
-            self.complete_frames,
-            self.window_motion_rms_mm
-        );
-        out += &format!(
-            "pelvis width {:.1} mm, depth {:.1} mm; knee width {:.1} mm; ankle width {:.1} mm; \
-             thigh {:.1} mm; shank {:.1} mm\n",
-            self.pelvis_width_mm,
-            self.pelvis_depth_mm,
-            self.knee_width_mm,
-            self.ankle_width_mm,
-            self.thigh_length_mm,
-            self.shank_length_mm
-        );
-        out += &format!(
-            "hip centre ({}) in pelvis: anterior {:.1}, superior {:.1}, lateral {:.1} mm\n",
-            self.hip_method,
-            p("hip_pelvis_anterior"),
-            p("hip_pelvis_superior"),
-            p("hip_pelvis_lateral")
-        );
-        out += &format!(
-            "knee axis: thigh frontal {:.1} deg, superior {:.1} mm; shank frontal {:.1}, \
-             transverse {:.1} deg\n",
-            p("knee_thigh_frontal"),
-            p("knee_thigh_superior"),
-            p("knee_shank_frontal"),
-            p("knee_shank_transverse")
-        );
-        out += &format!(
-            "talocrural axis: shank frontal {:.1} deg, superior {:.1} mm\n",
-            p("talocrural_shank_frontal"),
-            p("talocrural_shank_superior")
-        );
-        out += &format!(
-            "subtalar axis: talus transverse {:.1} deg, offset {:.1} mm; in foot {:.1}/{:.1} \
-             deg at ({:.1}, {:.1}, {:.1}) mm\n",
-            p("subtalar_talus_transverse"),
-            p("subtalar_talus_superior"),
-            p("subtalar_foot_transverse"),
-            p("subtalar_foot_sagittal"),
-            p("subtalar_foot_anterior"),
-            p("subtalar_foot_superior"),
-            p("subtalar_foot_lateral")
-        );
-        let seg: Vec<String> = self
-            .segments
-            .iter()
-            .map(|s| format!("{} {:.2}/{:.2}", s.segment, s.rms_mm, s.max_mm))
-            .collect();
-        out += &format!(
-            "rigid-fit residual over the window (RMS/max mm): {}\n",
-            seg.join(", ")
-        );
-        for c in &self.hjc_comparison {
-            out += &format!(
-                "{} is {:.1} mm from our hip centre (anterior {:+.1}, superior {:+.1}, lateral \
-                 {:+.1} mm)\n",
-                c.marker, c.distance_mm, c.delta_mm[0], c.delta_mm[1], c.delta_mm[2]
-            );
-        }
-        if let Some(f) = &self.functional {
-            if let (Some(d), Some(s), Some(sd)) =
-                (f.hip_minus_landmark_mm, f.hip_shift_mm, f.hip_sd_mm)
-            {
-                out += &format!(
-                    "functional hip centre (SCoRE): {s:.1} mm from the regression (anterior \
-                     {:+.1}, superior {:+.1}, lateral {:+.1} mm); bootstrap SD {:.1}/{:.1}/{:.1} \
-                     mm; centre gap RMS {:.1} mm over {:.0} deg of motion\n",
-                    d[0],
-                    d[1],
-                    d[2],
-                    sd[0],
-                    sd[1],
-                    sd[2],
-                    f.hip_rms_gap_mm.unwrap_or(f64::NAN),
-                    f.hip_range_deg.unwrap_or(f64::NAN)
-                );
-            }
-            if let Some(a) = f.knee_axis_angle_deg {
-                out += &format!(
-                    "functional knee axis (SARA): {a:.1} deg from the epicondylar axis \
-                     (bootstrap {:.1} deg), point {:.1} mm from mid-epicondyles; gap RMS {:.1} \
-                     mm over {:.0} deg of motion\n",
-                    f.knee_axis_sd_deg.unwrap_or(f64::NAN),
-                    f.knee_point_shift_mm.unwrap_or(f64::NAN),
-                    f.knee_rms_gap_mm.unwrap_or(f64::NAN),
-                    f.knee_range_deg.unwrap_or(f64::NAN)
-                );
-            }
-        }
-        out += &format!(
-            "static pose reproduced to {:.1e} mm; all 27 parameters: jointfit model show {}\n",
-            self.static_fk_error_mm, self.output
-        );
-        out += &format!("wrote {}\n", self.output);
-        out
-    }
 }

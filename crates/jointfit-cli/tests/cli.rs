@@ -5,6 +5,8 @@ use std::process::Command;
 
 #[path = "cli/batch.rs"]
 mod batch;
+#[path = "cli/bilateral.rs"]
+mod bilateral;
 #[path = "cli/data.rs"]
 mod data;
 #[path = "cli/functional.rs"]

@@ -18,6 +18,8 @@
 //!   ([`gait_coordinates`]), replayed through any subject model.
 //!
 //! The pelvis sways slightly (tilt ±1.7°, rotation ±2.9°, once over the trial) at 0.95 m.
+//! On a bilateral model (coordinates suffixed `_r`/`_l`) the right leg follows the motion at
+//! phase `t` and the left leg the same motion half a trial later, at `(t + 0.5) mod 1`.
 //!
 //! ## Noise ([`Noise`], applied by [`synthesize`])
 //! * **none**.
@@ -130,11 +132,22 @@ pub fn coordinates_scaled(
     let mut out = Vec::with_capacity(frames);
     for f in 0..frames {
         let mut q = model.default_coords();
-        for (name, v) in pose(motion, f as f64 / frames as f64, amplitude) {
-            let id = model
-                .coord_id(name)
-                .ok_or_else(|| SynthError::MissingCoordinate(name.to_string(), "synthetic"))?;
-            q[id.0] = v;
+        let t = f as f64 / frames as f64;
+        let left = pose(motion, (t + 0.5).fract(), amplitude);
+        for ((name, v), (_, v_left)) in pose(motion, t, amplitude).into_iter().zip(left) {
+            if let Some(id) = model.coord_id(name) {
+                q[id.0] = v;
+                continue;
+            }
+            // A bilateral model: the right leg at phase t, the left half a trial later.
+            let sided = [("_r", v), ("_l", v_left)]
+                .map(|(s, v)| model.coord_id(&format!("{name}{s}")).map(|id| (id, v)));
+            if sided.iter().all(Option::is_none) {
+                return Err(SynthError::MissingCoordinate(name.to_string(), "synthetic"));
+            }
+            for (id, v) in sided.into_iter().flatten() {
+                q[id.0] = v;
+            }
         }
         out.push(q);
     }

@@ -107,7 +107,7 @@ mod tests {
         let e = load_model("no-such-model").unwrap_err().to_string();
         assert_eq!(
             e,
-            "\"no-such-model\" is neither a model file nor a built-in model (lower-limb-right, lower-limb-left)"
+            "\"no-such-model\" is neither a model file nor a built-in model (lower-limb, lower-limb-right, lower-limb-left)"
         );
         let dir = jointfit_testkit::scratch("mf");
         let bad = dir.join("bad.toml");

@@ -4,11 +4,11 @@
 use std::path::Path;
 
 use jointfit::ik::IkOptions;
+use jointfit::landmarks::functional::FunctionalTrials;
 use jointfit::landmarks::PRESET_NAMES;
 use jointfit::landmarks::{
-    personalize as landmarks, HipCentreMethod, MarkerSet, PersonalizeOptions,
+    personalize_sides, HipCentreMethod, MarkerSet, PersonalizeOptions, Sides,
 };
-use jointfit::model::lower_limb::Side;
 use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion, SkinNoise};
 use numpy::ndarray::{Array1, Array2};
 use numpy::{IntoPyArray, PyArray1, PyArray2};
@@ -96,11 +96,13 @@ fn marker_set(arg: &str) -> PyResult<MarkerSet> {
 /// epicondyles and malleoli, tracking markers from the averaged static pose).
 ///
 /// `static` is a Trial or a path (read with `up`); `markers` a marker-set preset
-/// (gait2392, opencap, jam, plugin-gait) or a marker-set TOML file; `side` "right" or
-/// "left"; `hip` "bell" (Bell et al. 1990) or "harrington" (Harrington et al. 2007);
+/// (see `jointfit.MARKER_SET_PRESETS`) or a marker-set TOML file; `side` "both" (the default,
+/// as on the command line: both legs and the pelvis in one 54-parameter model; a trial with
+/// only one leg's markers gives that leg's model and a `UserWarning`), "right" or "left";
+/// `hip` "bell" (Bell et al. 1990) or "harrington" (Harrington et al. 2007);
 /// `window` the averaged window (s).
 #[pyfunction]
-#[pyo3(signature = (r#static, markers, side="right", up=None, hip="bell", window=1.0, name=None))]
+#[pyo3(signature = (r#static, markers, side="both", up=None, hip="bell", window=1.0, name=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn personalize(
     py: Python<'_>,
@@ -114,15 +116,7 @@ pub fn personalize(
 ) -> PyResult<PyModel> {
     let set = marker_set(markers)?;
     let trial = trial_arg(py, r#static, up, None)?;
-    let side = match side {
-        "right" => Side::Right,
-        "left" => Side::Left,
-        other => {
-            return Err(msg(format!(
-                "side must be \"right\" or \"left\", not {other:?}"
-            )))
-        }
-    };
+    let sides: Sides = side.parse().map_err(|e| err(&e))?;
     let hip_centre = match hip {
         "bell" => HipCentreMethod::Bell,
         "harrington" => HipCentreMethod::Harrington,
@@ -141,8 +135,16 @@ pub fn personalize(
         name: name.unwrap_or(default_name),
         ..PersonalizeOptions::default()
     };
-    let result = py.detach(|| landmarks(&trial.trial, &set, side, &opts));
-    let mut result = result.map_err(|e| {
+    let result = py.detach(|| {
+        personalize_sides(
+            &trial.trial,
+            &set,
+            sides,
+            &opts,
+            &FunctionalTrials::default(),
+        )
+    });
+    let result = result.map_err(|e| {
         msg(format!(
             "{} (read with --up={}): cannot personalize: {}",
             trial.name,
@@ -150,8 +152,13 @@ pub fn personalize(
             jointfit_io::batch::message(&e)
         ))
     })?;
-    result.spec.description = format!("{}; from {}", result.spec.description, trial.name);
-    PyModel::from_spec(&result.spec)
+    if let Some(w) = &result.warning {
+        warn_all(py, &[format!("{}: {w}", trial.name)])?;
+    }
+    let mut model = result.model;
+    let spec = model.spec_mut();
+    spec.description = format!("{}; from {}", spec.description, trial.name);
+    PyModel::from_spec(spec)
 }
 
 /// Inverse kinematics of one trial (`ik`): per-frame coordinates and marker errors.

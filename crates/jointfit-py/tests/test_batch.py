@@ -13,7 +13,7 @@ def subject(data_dir, tmp_path_factory):
     """OpenCap's expert subject as a model file, for jobs that go by path."""
     d = data_dir / "opencap_expert1"
     path = tmp_path_factory.mktemp("batch") / "subject.toml"
-    jf.personalize(d / "static1.trc", markers="opencap").save(path)
+    jf.personalize(d / "static1.trc", markers="opencap", side="right").save(path)
     return path, d / "walking1.trc"
 
 

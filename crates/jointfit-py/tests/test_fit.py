@@ -37,8 +37,34 @@ def test_personalize_equals_cli(opencap):
     _same_parameters(ours, cli)
     assert ours.marker_names == cli.marker_names
     # A Trial object gives the same model as its path.
-    again = jf.personalize(jf.Trial.read(d / "static1.trc"), markers="opencap", name="subject")
+    again = jf.personalize(jf.Trial.read(d / "static1.trc"), markers="opencap", side="right",
+                           name="subject")
     _same_parameters(again, cli)
+
+
+def test_personalize_default_is_both_legs_as_on_the_cli(opencap, run_cli):
+    """Without a side, Python and the command line build the same bilateral model; each leg
+    equals its one-sided personalization."""
+    d, out, _ = opencap
+    both = out / "both.toml"
+    code, _, err = run_cli("personalize", "--static", d / "static1.trc", "--markers", "opencap",
+                           "-o", both)
+    assert code == 0, err
+    ours = jf.personalize(d / "static1.trc", markers="opencap", name="both")
+    _same_parameters(ours, jf.Model.load(both))
+    assert len(ours.parameters) == 54
+    for side, s in (("right", "_r"), ("left", "_l")):
+        one = jf.personalize(d / "static1.trc", markers="opencap", side=side).parameters
+        for name, v in one.items():
+            assert ours.parameters[name + s] == v, name
+
+
+def test_personalize_one_leg_trial_falls_back_with_a_warning(data_dir):
+    trial = jf.Trial.read(data_dir / "opencap_expert1" / "static1.trc")
+    keep = [n for n in trial.labels if not n.startswith("L_")]
+    with pytest.warns(UserWarning, match="none of the left leg's markers"):
+        model = jf.personalize(trial.select(keep), markers="opencap")
+    assert len(model.parameters) == 27
 
 
 @pytest.mark.parametrize(
@@ -122,7 +148,8 @@ def test_calibrate_c3d_from_another_lab_equals_cli(data_dir, run_cli, tmp_path):
     code, _, err = run_cli("personalize", "--static", d / "Test_func_anat.c3d", "--markers",
                            "plugin-gait", "--side", "right", "--up=-z", "-o", subject)
     assert code == 0, err
-    model = jf.personalize(d / "Test_func_anat.c3d", markers="plugin-gait", up="-z", name="bb")
+    model = jf.personalize(d / "Test_func_anat.c3d", markers="plugin-gait", side="right", up="-z",
+                           name="bb")
     _same_parameters(model, jf.Model.load(subject))
     code, _, err = run_cli("calibrate", subject, d / "Test_func_rknee.c3d", "--up=-z",
                            "--joints", "knee", "-o", fitted)
@@ -222,5 +249,5 @@ def test_argument_errors():
         jf.Trial.read("x.trc", up="x")
     with pytest.raises(jf.JointfitError, match="a trial must be a jointfit.Trial or a path"):
         jf.ik("lower-limb-right", 3)
-    with pytest.raises(jf.JointfitError, match='side must be "right" or "left"'):
-        jf.personalize(t, markers="opencap", side="both")
+    with pytest.raises(jf.JointfitError, match='side must be "both", "right" or "left"'):
+        jf.personalize(t, markers="opencap", side="middle")

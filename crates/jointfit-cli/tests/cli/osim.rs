@@ -227,6 +227,13 @@ fn opensim_ik_on_exported_left_leg_matches_jointfit_ik() {
     compare_ik("left", "walking1.trc", 3);
 }
 
+/// Both legs and the pelvis (`personalize --side both`, 54 parameters, 18 coordinates) on
+/// walking2, where both thigh clusters sit as in the static trial.
+#[test]
+fn opensim_ik_on_exported_bilateral_model_matches_jointfit_ik() {
+    compare_ik("both", "walking2.trc", 1);
+}
+
 /// 1302 frames of squats (large hip and knee flexion), once: every frame must agree too.
 #[test]
 fn opensim_ik_on_squats_matches_jointfit_ik() {

@@ -317,7 +317,10 @@ fn cli_personalize_writes_a_model_that_loads() {
     ]);
     assert!(!ok);
     assert!(
-        stderr.contains("\"vicon\" is neither a marker-set file nor a preset (gait2392, opencap, jam, plugin-gait)"),
+        stderr.contains(
+            "\"vicon\" is neither a marker-set file nor a preset (gait2392, opencap, jam, \
+             plugin-gait, plugin-gait-basic, plugin-gait-sacr, rajagopal)"
+        ),
         "{stderr}"
     );
     let map = dir.join("lab.toml");

@@ -163,7 +163,7 @@ fn bad_ids_and_messages() {
     j.model = ModelInput::Named("no-such-model".into());
     assert_eq!(
         message(&run_job(&j).unwrap_err()),
-        "\"no-such-model\" is neither a model file nor a built-in model (lower-limb-right, lower-limb-left)"
+        "\"no-such-model\" is neither a model file nor a built-in model (lower-limb, lower-limb-right, lower-limb-left)"
     );
     j.model = ModelInput::Named("lower-limb-right".into());
     j.trials = vec![TrialInput::Path("/no/such/walk.c3d".into())];

@@ -121,7 +121,7 @@ _ModelArg = Union[Model, _Path]
 def personalize(
     static: _TrialArg,
     markers: str,
-    side: str = "right",
+    side: str = "both",
     up: Optional[str] = None,
     hip: str = "bell",
     window: float = 1.0,

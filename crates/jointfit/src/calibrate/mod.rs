@@ -58,14 +58,21 @@ pub enum CalibError {
     ParamLength { got: usize, expected: usize },
 }
 
-/// Parameters selected by group names (`hip`, `knee`, `ankle`, or `all`).
+/// Parameters selected by group names (`hip`, `knee`, `ankle`, or `all`). On a bilateral
+/// model, whose groups carry the side suffix (`hip_r`, `hip_l`), a name without the suffix
+/// selects both sides' groups: `hip` is `hip_r` and `hip_l`.
 pub fn params_for_groups(model: &Model, groups: &[&str]) -> Result<Vec<ParamId>, CalibError> {
     let mut out: Vec<ParamId> = Vec::new();
     for g in groups {
         let ids = if *g == "all" {
             (0..model.n_p()).map(ParamId).collect()
         } else {
-            let ids = model.params_in_group(g);
+            let mut ids = model.params_in_group(g);
+            if ids.is_empty() {
+                for s in ["_r", "_l"] {
+                    ids.extend(model.params_in_group(&format!("{g}{s}")));
+                }
+            }
             if ids.is_empty() {
                 return Err(CalibError::UnknownGroup {
                     group: g.to_string(),

@@ -19,7 +19,7 @@
 //! medial_malleolus = "RANKM"
 //! heel = "RHEE"
 //! forefoot = ["RTOE"]        # toe marker or metatarsal heads: their mean sets the foot's x
-//! thigh = ["RTHI", "RTHIB", "RTHID", "RKNE"]   # tracking markers, at least 3 per segment
+//! thigh = ["RTHI", "RTHIB", "RTHID", "RKNE"]   # tracking markers: pelvis ≥ 3, leg segments ≥ 2
 //! shank = ["RTIB", "RTIBF", "RTIBD", "RANK"]
 //! foot = ["RHEE", "RTOE", "RNAV", "RTOE5"]
 //! ```
@@ -35,13 +35,30 @@ use super::LandmarkError;
 use crate::model::lower_limb::Side;
 
 /// Names of the built-in marker sets.
-pub const PRESET_NAMES: [&str; 4] = ["gait2392", "opencap", "jam", "plugin-gait"];
+pub const PRESET_NAMES: [&str; 7] = [
+    "gait2392",
+    "opencap",
+    "jam",
+    "plugin-gait",
+    "plugin-gait-basic",
+    "plugin-gait-sacr",
+    "rajagopal",
+];
 
-const PRESETS: [(&str, &str); 4] = [
+const PRESETS: [(&str, &str); 7] = [
     ("gait2392", include_str!("presets/gait2392.toml")),
     ("opencap", include_str!("presets/opencap.toml")),
     ("jam", include_str!("presets/jam.toml")),
     ("plugin-gait", include_str!("presets/plugin-gait.toml")),
+    (
+        "plugin-gait-basic",
+        include_str!("presets/plugin-gait-basic.toml"),
+    ),
+    (
+        "plugin-gait-sacr",
+        include_str!("presets/plugin-gait-sacr.toml"),
+    ),
+    ("rajagopal", include_str!("presets/rajagopal.toml")),
 ];
 
 /// A laboratory's marker labels mapped to anatomical roles (see the module docs).
@@ -234,10 +251,15 @@ impl MarkerSet {
                 if distinct.len() != list.len() {
                     return Err(bad(format!("{sn} {seg} tracking lists a marker twice")));
                 }
-                if list.len() < 3 {
+                let need = min_tracking(seg);
+                if list.len() < need {
+                    let why = if seg == "pelvis" {
+                        "the pelvis, the root of the chain, needs at least 3"
+                    } else {
+                        "a leg segment needs at least 2 (the joint above fixes the rest)"
+                    };
                     return Err(bad(format!(
-                        "{sn} {seg} has {} tracking marker(s) {:?}; a rigid segment needs at \
-                         least 3",
+                        "{sn} {seg} has {} tracking marker(s) {:?}; {why}",
                         list.len(),
                         list
                     )));
@@ -276,6 +298,18 @@ impl MarkerSet {
     }
 }
 
+/// The fewest tracking markers a segment may list: 3 on the pelvis (the root, whose markers
+/// alone seed its six coordinates), 2 on a leg segment (the joint to its parent fixes the
+/// rotation about the line through two markers, as Plug-in Gait's thigh, shank and foot rely
+/// on).
+pub fn min_tracking(segment: &str) -> usize {
+    if segment == "pelvis" {
+        3
+    } else {
+        2
+    }
+}
+
 pub(crate) fn side_name(side: Side) -> &'static str {
     match side {
         Side::Right => "right",
@@ -292,9 +326,10 @@ mod tests {
         for name in PRESET_NAMES {
             let set = MarkerSet::preset(name).unwrap();
             assert_eq!(set.name, name);
+            // Every preset covers both legs.
             for side in [Side::Right, Side::Left] {
                 let roles = set.roles(side).unwrap();
-                assert!(roles.len() >= 20, "{name}: {}", roles.len());
+                assert!(roles.len() >= 18, "{name} {side:?}: {}", roles.len());
             }
             let again = MarkerSet::from_toml(&set.to_toml(), "round trip").unwrap();
             assert_eq!(again, set);
@@ -306,7 +341,8 @@ mod tests {
         let e = MarkerSet::preset("vicon").unwrap_err().to_string();
         assert_eq!(
             e,
-            "unknown marker-set preset \"vicon\"; presets: gait2392, opencap, jam, plugin-gait"
+            "unknown marker-set preset \"vicon\"; presets: gait2392, opencap, jam, plugin-gait, \
+             plugin-gait-basic, plugin-gait-sacr, rajagopal"
         );
     }
 
@@ -320,8 +356,11 @@ mod tests {
 
     #[test]
     fn structural_errors_name_the_problem() {
-        let e = edit(|s| s.right.as_mut().unwrap().thigh.truncate(2));
-        assert!(e.contains("right thigh has 2 tracking marker(s)"), "{e}");
+        let e = edit(|s| s.right.as_mut().unwrap().thigh.truncate(1));
+        assert!(e.contains("right thigh has 1 tracking marker(s)"), "{e}");
+        assert!(e.contains("a leg segment needs at least 2"), "{e}");
+        let e = edit(|s| s.pelvis.tracking.truncate(2));
+        assert!(e.contains("pelvis has 2 tracking marker(s)"), "{e}");
         let e = edit(|s| s.pelvis.left_psis = None);
         assert!(e.contains("both right_psis and left_psis"), "{e}");
         let e = edit(|s| {

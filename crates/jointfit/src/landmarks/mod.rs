@@ -54,6 +54,7 @@
 //!
 //! [`lower_limb`]: crate::model::lower_limb::lower_limb
 
+pub mod bilateral;
 mod frames;
 pub mod functional;
 pub mod markerset;
@@ -64,6 +65,7 @@ pub mod window;
 use nalgebra::Vector3;
 use thiserror::Error;
 
+pub use bilateral::{personalize_sides, BothLegs, Outcome, PersonalizedModel, Sides};
 pub use frames::SegmentFrames;
 pub use markerset::{LegMarkers, MarkerSet, PelvisMarkers, PRESET_NAMES, TRACKED_SEGMENTS};
 pub use window::StaticWindow;
@@ -351,7 +353,10 @@ pub fn personalize_with(
     for seg in TRACKED_SEGMENTS {
         let list = set.tracking(side, seg)?;
         let pts: Vec<_> = list.iter().map(|l| at(l)).collect();
-        frames::check_spread(seg, list, &pts, opts.min_marker_spread)?;
+        // Two markers always lie on one line; the joint fixes the rotation about it.
+        if list.len() >= 3 {
+            frames::check_spread(seg, list, &pts, opts.min_marker_spread)?;
+        }
     }
     let mut an = frames::anatomy(&lm, side, opts)?;
     let cluster = |seg: &str| -> Result<functional::Cluster, LandmarkError> {

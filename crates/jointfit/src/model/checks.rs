@@ -171,7 +171,7 @@ mod tests {
 
     #[test]
     fn builtin_models_pass() {
-        for name in ["lower-limb-right", "lower-limb-left"] {
+        for name in crate::model::lower_limb::BUILTIN_NAMES {
             check_spec(&builtin(name).unwrap()).unwrap();
         }
     }

@@ -1,7 +1,7 @@
 //! Forward kinematics and the analytic Jacobians against independent oracles.
 
 use jointfit::kinematics::{fd, forward_kinematics, KinData, Want};
-use jointfit::model::lower_limb::{lower_limb, Side};
+use jointfit::model::lower_limb::{bilateral, lower_limb, Side};
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::{CoordKind, Model};
 use nalgebra::{DMatrix, Matrix3, Vector3};
@@ -103,6 +103,12 @@ proptest! {
     #[test]
     fn left_leg_jacobians_match_finite_differences(u in units(12 + 27)) {
         check_jacobians(&lower_limb(Side::Left), &u)?;
+    }
+
+    /// Both legs and the shared pelvis (`lower-limb`, 18 coordinates, 54 parameters).
+    #[test]
+    fn bilateral_jacobians_match_finite_differences(u in units(18 + 54)) {
+        check_jacobians(&bilateral(), &u)?;
     }
 
     /// A universal joint (x then y) moves markers exactly like two pins (x, then y) with a

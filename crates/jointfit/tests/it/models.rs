@@ -36,7 +36,8 @@ fn builtins_by_name() {
     let e = builtin("arm").unwrap_err();
     assert_eq!(
         e.to_string(),
-        "unknown built-in model \"arm\"; built-in models: lower-limb-right, lower-limb-left"
+        "unknown built-in model \"arm\"; built-in models: lower-limb, lower-limb-right, \
+         lower-limb-left"
     );
 }
 

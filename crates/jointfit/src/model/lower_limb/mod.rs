@@ -1,4 +1,5 @@
-//! The paper's sample model: one leg, 12 coordinates, 27 joint parameters.
+//! The paper's sample model: one leg, 12 coordinates, 27 joint parameters; and both legs
+//! with the pelvis, 18 coordinates and 54 parameters ([`bilateral`]).
 //!
 //! Reinbolt et al. 2005 (J Biomech 38:621–626), Figs. 1–3 and Table 2; `docs/architecture.md`
 //! §6.
@@ -29,10 +30,17 @@
 
 use std::f64::consts::PI;
 
+mod bilateral;
+mod params;
+
+pub use bilateral::{bilateral, join_legs, PELVIS_JOINT, PELVIS_SEGMENT, SIDE_SUFFIXES};
+
+use params::{nominal, par, param_spec, PARAMS};
+
 use super::compiled::offset_rotation;
 use super::spec::{
     AxisSpec, CoordinateSpec, JointKindSpec, JointSpec, MarkerSpec, ModelSpec, OffsetSpec,
-    ParameterSpec, ScalarSpec, SegmentSpec, Unit,
+    ScalarSpec, SegmentSpec,
 };
 use super::ModelError;
 
@@ -51,6 +59,20 @@ impl Side {
             Side::Left => -1.0,
         }
     }
+    /// Suffix of this leg's names in the bilateral model: `_r` or `_l`.
+    pub fn suffix(self) -> &'static str {
+        match self {
+            Side::Right => "_r",
+            Side::Left => "_l",
+        }
+    }
+    /// `right` or `left`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Side::Right => "right",
+            Side::Left => "left",
+        }
+    }
     /// Marker-name prefix: `R` or `L`.
     pub fn prefix(self) -> &'static str {
         match self {
@@ -60,12 +82,13 @@ impl Side {
     }
 }
 
-/// Names of the built-in models.
-pub const BUILTIN_NAMES: [&str; 2] = ["lower-limb-right", "lower-limb-left"];
+/// Names of the built-in models: both legs ([`bilateral`]), then each leg alone.
+pub const BUILTIN_NAMES: [&str; 3] = ["lower-limb", "lower-limb-right", "lower-limb-left"];
 
 /// A built-in model description by name.
 pub fn builtin(name: &str) -> Result<ModelSpec, ModelError> {
     match name {
+        "lower-limb" => Ok(bilateral()),
         "lower-limb-right" => Ok(lower_limb(Side::Right)),
         "lower-limb-left" => Ok(lower_limb(Side::Left)),
         _ => Err(ModelError::UnknownBuiltin {
@@ -75,286 +98,7 @@ pub fn builtin(name: &str) -> Result<ModelSpec, ModelError> {
     }
 }
 
-use super::spec::M_PER_MM;
 const DEG: f64 = PI / 180.0;
-
-/// How a parameter enters its offset scalar.
-#[derive(Clone, Copy)]
-enum Mirror {
-    /// Same on both sides (anterior, superior, sagittal angles).
-    Keep,
-    /// Negated on the left (lateral positions, frontal and transverse angles).
-    Flip,
-}
-
-/// (name, group, value in mm or deg, half-width of the bounds in mm or deg, mirror, doc)
-type ParamRow = (&'static str, &'static str, f64, f64, Mirror, &'static str);
-
-/// The 27 parameters in the paper's Table 2 order (positions in mm, angles in deg).
-/// Half-widths follow Reinbolt's bounds: hip centre in a cube of side 0.75·PW (PW ≈ 240 mm),
-/// knee positions in a cube of side ≈ knee width, ankle positions in a cube of side ≈
-/// inter-malleolar distance, every axis within ±30°.
-const PARAMS: [ParamRow; 27] = [
-    (
-        "hip_pelvis_anterior",
-        "hip",
-        -59.31,
-        90.0,
-        Mirror::Keep,
-        "hip centre in pelvis, anterior",
-    ),
-    (
-        "hip_pelvis_superior",
-        "hip",
-        -91.67,
-        90.0,
-        Mirror::Keep,
-        "hip centre in pelvis, superior",
-    ),
-    (
-        "hip_pelvis_lateral",
-        "hip",
-        86.28,
-        90.0,
-        Mirror::Flip,
-        "hip centre in pelvis, lateral",
-    ),
-    (
-        "hip_thigh_anterior",
-        "hip",
-        0.0,
-        90.0,
-        Mirror::Keep,
-        "hip centre in thigh, anterior",
-    ),
-    (
-        "hip_thigh_superior",
-        "hip",
-        0.0,
-        90.0,
-        Mirror::Keep,
-        "hip centre in thigh, superior",
-    ),
-    (
-        "hip_thigh_lateral",
-        "hip",
-        0.0,
-        90.0,
-        Mirror::Flip,
-        "hip centre in thigh, lateral",
-    ),
-    (
-        "knee_thigh_frontal",
-        "knee",
-        0.0,
-        30.0,
-        Mirror::Flip,
-        "knee axis in thigh, frontal-plane angle",
-    ),
-    (
-        "knee_thigh_transverse",
-        "knee",
-        0.0,
-        30.0,
-        Mirror::Flip,
-        "knee axis in thigh, transverse-plane angle",
-    ),
-    (
-        "knee_shank_frontal",
-        "knee",
-        -4.07,
-        30.0,
-        Mirror::Flip,
-        "knee axis in shank, frontal-plane angle",
-    ),
-    (
-        "knee_shank_transverse",
-        "knee",
-        1.54,
-        30.0,
-        Mirror::Flip,
-        "knee axis in shank, transverse-plane angle",
-    ),
-    (
-        "knee_thigh_anterior",
-        "knee",
-        0.0,
-        50.0,
-        Mirror::Keep,
-        "knee axis point in thigh, anterior",
-    ),
-    (
-        "knee_thigh_superior",
-        "knee",
-        -392.11,
-        50.0,
-        Mirror::Keep,
-        "knee axis point in thigh, superior",
-    ),
-    (
-        "knee_shank_anterior",
-        "knee",
-        0.0,
-        50.0,
-        Mirror::Keep,
-        "knee axis point in shank, anterior",
-    ),
-    (
-        "knee_shank_superior",
-        "knee",
-        0.0,
-        50.0,
-        Mirror::Keep,
-        "knee axis point in shank, superior",
-    ),
-    (
-        "knee_shank_lateral",
-        "knee",
-        0.0,
-        50.0,
-        Mirror::Flip,
-        "knee axis point in shank, lateral",
-    ),
-    (
-        "talocrural_shank_frontal",
-        "ankle",
-        8.81,
-        30.0,
-        Mirror::Flip,
-        "talocrural axis in shank, frontal-plane angle",
-    ),
-    (
-        "talocrural_shank_transverse",
-        "ankle",
-        0.0,
-        30.0,
-        Mirror::Flip,
-        "talocrural axis in shank, transverse-plane angle",
-    ),
-    (
-        "talocrural_shank_anterior",
-        "ankle",
-        0.0,
-        35.0,
-        Mirror::Keep,
-        "talocrural axis point in shank, anterior",
-    ),
-    (
-        "talocrural_shank_superior",
-        "ankle",
-        -411.32,
-        35.0,
-        Mirror::Keep,
-        "talocrural axis point in shank, superior",
-    ),
-    (
-        "talocrural_shank_lateral",
-        "ankle",
-        0.0,
-        35.0,
-        Mirror::Flip,
-        "talocrural axis point in shank, lateral",
-    ),
-    (
-        "subtalar_talus_transverse",
-        "ankle",
-        26.89,
-        30.0,
-        Mirror::Flip,
-        "subtalar axis in talus, medial angle (transverse plane)",
-    ),
-    (
-        "subtalar_foot_transverse",
-        "ankle",
-        23.0,
-        30.0,
-        Mirror::Flip,
-        "subtalar axis in foot, medial deviation (transverse plane)",
-    ),
-    (
-        "subtalar_foot_sagittal",
-        "ankle",
-        42.0,
-        30.0,
-        Mirror::Keep,
-        "subtalar axis in foot, elevation (sagittal plane)",
-    ),
-    (
-        "subtalar_talus_superior",
-        "ankle",
-        -12.4,
-        35.0,
-        Mirror::Keep,
-        "subtalar axis offset from the talocrural axis along their common perpendicular",
-    ),
-    (
-        "subtalar_foot_anterior",
-        "ankle",
-        91.14,
-        35.0,
-        Mirror::Keep,
-        "subtalar axis point in foot, anterior",
-    ),
-    (
-        "subtalar_foot_superior",
-        "ankle",
-        39.01,
-        35.0,
-        Mirror::Keep,
-        "subtalar axis point in foot, superior",
-    ),
-    (
-        "subtalar_foot_lateral",
-        "ankle",
-        11.17,
-        35.0,
-        Mirror::Flip,
-        "subtalar axis point in foot, lateral",
-    ),
-];
-
-fn param_spec(row: &ParamRow) -> ParameterSpec {
-    let (name, group, value, half, _, doc) = *row;
-    let is_angle =
-        name.ends_with("frontal") || name.ends_with("transverse") || name.ends_with("sagittal");
-    let (unit, k) = if is_angle {
-        (Unit::Radian, DEG)
-    } else {
-        (Unit::Metre, M_PER_MM)
-    };
-    ParameterSpec {
-        name: name.to_string(),
-        group: group.to_string(),
-        unit,
-        nominal: value * k,
-        lower: (value - half) * k,
-        upper: (value + half) * k,
-        description: doc.to_string(),
-        prior_sd: None,
-        prior_mean: None,
-    }
-}
-
-fn nominal(name: &str) -> f64 {
-    let row = PARAMS
-        .iter()
-        .find(|r| r.0 == name)
-        .expect("known parameter");
-    param_spec(row).nominal
-}
-
-/// The scalar that reads parameter `name` on `side`.
-fn par(name: &str, side: Side) -> ScalarSpec {
-    let row = PARAMS
-        .iter()
-        .find(|r| r.0 == name)
-        .expect("known parameter");
-    let scale = match row.4 {
-        Mirror::Keep => 1.0,
-        Mirror::Flip => side.sign(),
-    };
-    ScalarSpec::param(name, scale)
-}
 
 fn coord(name: &str, lo_deg: f64, hi_deg: f64) -> CoordinateSpec {
     CoordinateSpec::Full {

@@ -1,0 +1,406 @@
+//! Both legs and the pelvis in one model: `personalize --side both` (the default) on the
+//! shared static trials against the one-sided personalizations, the one-leg fallback, and a
+//! seeded synthetic both-leg trial whose perturbed parameters `calibrate` recovers.
+
+use jointfit::kinematics::{forward_kinematics, KinData, Want};
+use jointfit::landmarks::functional::FunctionalTrials;
+use jointfit::landmarks::{
+    personalize, personalize_sides, LandmarkError, MarkerSet, PersonalizeOptions,
+    PersonalizedModel, Sides,
+};
+use jointfit::model::lower_limb::{Side, SIDE_SUFFIXES};
+use jointfit::model::Model;
+use jointfit::trial::Trial;
+use jointfit_testkit::data_file;
+
+use super::jointfit;
+
+fn read(rel: &str) -> Option<Trial> {
+    Some(jointfit_io::trc::read_trc(&data_file(rel)?).unwrap())
+}
+
+fn both(trial: &Trial, set: &MarkerSet) -> Result<PersonalizedModel, LandmarkError> {
+    let out = personalize_sides(
+        trial,
+        set,
+        Sides::Both,
+        &PersonalizeOptions::default(),
+        &FunctionalTrials::default(),
+    )?;
+    assert!(out.warning.is_none(), "{:?}", out.warning);
+    Ok(out.model)
+}
+
+/// Each leg of the bilateral model has exactly the one-sided personalization's parameters
+/// (nominal, bounds, prior), and the joined static pose puts the right leg and the pelvis
+/// where the one-sided right model does, the left leg within the subject's sway.
+#[test]
+fn both_legs_equal_the_one_sided_personalizations() {
+    for (rel, preset) in [
+        ("opencap_expert1/static1.trc", "opencap"),
+        ("opensim_hamner_subject02/subject02_static.trc", "gait2392"),
+    ] {
+        let Some(trial) = read(rel) else { return };
+        let set = MarkerSet::preset(preset).unwrap();
+        let PersonalizedModel::Both(b) = both(&trial, &set).unwrap() else {
+            panic!("{rel}: not bilateral")
+        };
+        assert_eq!(b.spec.parameters.len(), 54, "{rel}");
+        let model = Model::compile(&b.spec).unwrap();
+        assert_eq!(model.n_q(), 18);
+        let mut kin = KinData::new(&model);
+        forward_kinematics(
+            &model,
+            &model.nominal_params(),
+            &b.static_q,
+            Want::POSITIONS,
+            &mut kin,
+        );
+        assert!(b.pelvis_gap < 1e-3, "{rel}: pelvis gap {}", b.pelvis_gap);
+        for (side, s) in SIDE_SUFFIXES {
+            let one = personalize(&trial, &set, side, &PersonalizeOptions::default()).unwrap();
+            for p in &one.spec.parameters {
+                let q = b
+                    .spec
+                    .parameters
+                    .iter()
+                    .find(|q| q.name == format!("{}{s}", p.name))
+                    .unwrap();
+                assert_eq!(q.nominal, p.nominal, "{rel} {}", q.name);
+                assert_eq!((q.lower, q.upper), (p.lower, p.upper), "{rel} {}", q.name);
+                assert_eq!(q.prior_sd, p.prior_sd, "{rel} {}", q.name);
+                assert_eq!(q.group, format!("{}{s}", p.group));
+            }
+            let m1 = Model::compile(&one.spec).unwrap();
+            let mut k1 = KinData::new(&m1);
+            forward_kinematics(
+                &m1,
+                &m1.nominal_params(),
+                &one.static_q,
+                Want::POSITIONS,
+                &mut k1,
+            );
+            // The right leg and pelvis come from the right leg's window: exact; the left leg
+            // hangs from that pelvis: off by the sway between the windows.
+            let tol = if side == Side::Right { 1e-12 } else { 1e-3 };
+            for (m, x) in m1.markers().iter().zip(&k1.markers) {
+                let j = model.marker_index(&m.name).unwrap();
+                let d = (kin.markers[j] - x).norm();
+                assert!(d < tol, "{rel} {side:?} {}: {d:e} m", m.name);
+            }
+        }
+    }
+}
+
+/// A static trial with one leg's markers only gives that leg's one-sided model and a warning;
+/// a leg missing only some markers is an error naming them.
+#[test]
+fn one_leg_trial_falls_back_with_a_warning() {
+    let Some(trial) = read("opencap_expert1/static1.trc") else {
+        return;
+    };
+    let set = MarkerSet::preset("opencap").unwrap();
+    let right_only: Vec<&str> = trial
+        .labels()
+        .iter()
+        .map(String::as_str)
+        .filter(|l| !l.starts_with("L_"))
+        .collect();
+    let t = trial.select(&right_only).unwrap();
+    let opts = PersonalizeOptions::default();
+    let out =
+        personalize_sides(&t, &set, Sides::Both, &opts, &FunctionalTrials::default()).unwrap();
+    let w = out.warning.unwrap();
+    assert!(
+        w.starts_with("the static trial has none of the left leg's markers (L_knee, L_mknee"),
+        "{w}"
+    );
+    assert!(w.ends_with("personalized the right leg only"), "{w}");
+    let PersonalizedModel::One(Side::Right, p) = out.model else {
+        panic!("not the right leg")
+    };
+    let one = personalize(&trial, &set, Side::Right, &opts).unwrap();
+    assert_eq!(p.spec.parameters, one.spec.parameters);
+
+    let no_toe: Vec<&str> = trial
+        .labels()
+        .iter()
+        .map(String::as_str)
+        .filter(|l| *l != "L_toe")
+        .collect();
+    let e = both(&trial.select(&no_toe).unwrap(), &set).unwrap_err();
+    assert!(
+        matches!(&e, LandmarkError::MissingMarkers { side: "left", missing, .. }
+            if missing.iter().all(|m| m.contains("\"L_toe\""))),
+        "{e}"
+    );
+}
+
+#[test]
+fn cli_default_is_both_legs_and_warns_on_one_leg() {
+    let Some(trial) = read("opencap_expert1/static1.trc") else {
+        return;
+    };
+    let path = data_file("opencap_expert1/static1.trc").unwrap();
+    let dir = jointfit_testkit::scratch("bilateral");
+    let out = dir.join("both.toml");
+    let (ok, stdout, stderr) = jointfit(&[
+        "personalize",
+        "--static",
+        path.to_str().unwrap(),
+        "--markers",
+        "opencap",
+        "--json",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    assert!(stderr.is_empty(), "{stderr}");
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(v["side"], "both");
+    assert_eq!(v["parameters"].as_array().unwrap().len(), 54);
+    assert_eq!(v["legs"].as_array().unwrap().len(), 2);
+    let (ok, shown, _) = jointfit(&["model", "show", out.to_str().unwrap(), "--json"]);
+    assert!(ok);
+    let m: serde_json::Value = serde_json::from_str(&shown).unwrap();
+    assert_eq!(m["coordinates"].as_array().unwrap().len(), 18);
+
+    // The right leg's markers only: the right leg's model and one warning line.
+    let right_only: Vec<&str> = trial
+        .labels()
+        .iter()
+        .map(String::as_str)
+        .filter(|l| !l.starts_with("L_"))
+        .collect();
+    let trc = dir.join("right_only.trc");
+    jointfit_io::trc::write_trc(
+        &trc,
+        &trial.select(&right_only).unwrap(),
+        &Default::default(),
+    )
+    .unwrap();
+    let one = dir.join("one.toml");
+    let (ok, stdout, stderr) = jointfit(&[
+        "personalize",
+        "--static",
+        trc.to_str().unwrap(),
+        "--markers",
+        "opencap",
+        "-o",
+        one.to_str().unwrap(),
+    ]);
+    assert!(ok, "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.starts_with("warning: "), "{stderr}");
+    assert!(
+        stderr.contains("personalized the right leg only"),
+        "{stderr}"
+    );
+    assert!(stdout.contains("personalized right leg from"), "{stdout}");
+}
+
+/// `synth lower-limb` moves both legs; `calibrate` recovers all 54 perturbed parameters from
+/// the noiseless trial, and `--joints hip` frees both hips (12 parameters), `hip_l` one.
+#[test]
+fn calibrate_recovers_both_legs_from_a_synthetic_trial() {
+    let dir = jointfit_testkit::scratch("bilateral-synth");
+    let (trc, truth, fitted) = (
+        dir.join("both.trc"),
+        dir.join("truth.toml"),
+        dir.join("fitted.toml"),
+    );
+    let s = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    let (ok, _, stderr) = jointfit(&[
+        "synth",
+        "lower-limb",
+        "--motion",
+        "all",
+        "--frames",
+        "60",
+        "--perturb-mm",
+        "10",
+        "--perturb-deg",
+        "5",
+        "--seed",
+        "11",
+        "-o",
+        &s(&trc),
+        "--truth",
+        &s(&truth),
+    ]);
+    assert!(ok, "{stderr}");
+    let (ok, stdout, stderr) = jointfit(&[
+        "calibrate",
+        "lower-limb",
+        &s(&trc),
+        "--json",
+        "-o",
+        &s(&fitted),
+    ]);
+    assert!(ok, "{stderr}");
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(v["free_parameters"], 54);
+    let load = |p: &std::path::Path| {
+        let text = std::fs::read_to_string(p).unwrap();
+        jointfit::model::spec::ModelSpec::from_toml(&text).unwrap()
+    };
+    let (t, f) = (load(&truth), load(&fitted));
+    let nominal = jointfit::model::lower_limb::builtin("lower-limb").unwrap();
+    let mut moved = 0;
+    for ((pt, pf), pn) in t
+        .parameters
+        .iter()
+        .zip(&f.parameters)
+        .zip(&nominal.parameters)
+    {
+        assert_eq!(pt.name, pf.name);
+        if (pt.nominal - pn.nominal).abs() > 1e-4 {
+            moved += 1;
+        }
+        assert!(
+            (pt.nominal - pf.nominal).abs() < 1e-6,
+            "{}: truth {} fitted {}",
+            pt.name,
+            pt.nominal,
+            pf.nominal
+        );
+    }
+    assert!(moved > 40, "only {moved} parameters were perturbed");
+
+    for (joints, free) in [("hip", 12), ("hip_l", 6), ("knee_r,ankle", 33)] {
+        let (ok, stdout, stderr) = jointfit(&[
+            "calibrate",
+            "lower-limb",
+            &s(&trc),
+            "--joints",
+            joints,
+            "--json",
+            "-o",
+            &s(&dir.join("part.toml")),
+        ]);
+        assert!(ok, "{joints}: {stderr}");
+        let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+        assert_eq!(v["free_parameters"], free, "{joints}");
+        let names: Vec<&str> = v["parameters"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| p["name"].as_str().unwrap())
+            .collect();
+        if joints == "hip_l" {
+            assert!(names
+                .iter()
+                .all(|n| n.starts_with("hip_") && n.ends_with("_l")));
+        }
+    }
+}
+
+/// A shared trial, a preset, the trial's up axis and label renames.
+type Case<'a> = (
+    &'a str,
+    &'a str,
+    jointfit::trial::UpAxis,
+    &'a [(&'a str, &'a str)],
+);
+
+/// Every preset personalizes both legs of a real shared static trial. Where no shared trial
+/// carries a preset's exact labels, a trial with the same placement is read with its labels
+/// renamed (stated per case).
+#[test]
+fn every_preset_personalizes_both_legs_of_a_shared_trial() {
+    use jointfit::trial::{up_axis_rotation, UpAxis};
+    let jam_as_rajagopal: &[(&str, &str)] = &[
+        ("R.Mkn", "R.MKnee"),
+        ("L.Mkn", "L.MKnee"),
+        ("R.Man", "R.MAnkle"),
+        ("L.Man", "L.MAnkle"),
+        ("R.MT0", "R.Toe"),
+        ("L.MT0", "L.Toe"),
+    ];
+    let cases: [Case; 8] = [
+        ("opencap_expert1/static1.trc", "opencap", UpAxis::Y, &[]),
+        (
+            "opensim_gait2392_subject01/subject01_static.trc",
+            "gait2392",
+            UpAxis::Y,
+            &[],
+        ),
+        (
+            "opensim_hamner_subject02/subject02_static.trc",
+            "gait2392",
+            UpAxis::Y,
+            &[],
+        ),
+        ("opensim_jam_healthy/static1.trc", "jam", UpAxis::Y, &[]),
+        (
+            "biobuddy_functional_vicon/Test_func_anat.c3d",
+            "plugin-gait",
+            UpAxis::NegZ,
+            &[],
+        ),
+        (
+            "biobuddy_functional_vicon/Test_func_anat.c3d",
+            "plugin-gait-basic",
+            UpAxis::NegZ,
+            &[],
+        ),
+        // Renamed: no shared trial has a SACR marker together with medial knee markers.
+        (
+            "biobuddy_functional_vicon/Test_func_anat.c3d",
+            "plugin-gait-sacr",
+            UpAxis::NegZ,
+            &[("S1", "SACR")],
+        ),
+        // Renamed: the JAM static trial is the Rajagopal placement with other medial labels.
+        (
+            "opensim_jam_healthy/static1.trc",
+            "rajagopal",
+            UpAxis::Y,
+            jam_as_rajagopal,
+        ),
+    ];
+    let mut covered: Vec<&str> = Vec::new();
+    for (rel, preset, up, renames) in cases {
+        let Some(path) = data_file(rel) else { return };
+        let mut t = if rel.ends_with(".c3d") {
+            jointfit_io::c3d::read_c3d(&path)
+                .unwrap()
+                .to_trial()
+                .unwrap()
+        } else {
+            jointfit_io::trc::read_trc(&path).unwrap()
+        };
+        t.rotate(&up_axis_rotation(up));
+        if !renames.is_empty() {
+            let labels = t
+                .labels()
+                .iter()
+                .map(|l| {
+                    renames
+                        .iter()
+                        .find(|(from, _)| from == l)
+                        .map_or(l.clone(), |(_, to)| to.to_string())
+                })
+                .collect();
+            t = Trial::new(labels, t.rate(), t.first_frame(), t.positions().to_vec()).unwrap();
+        }
+        let set = MarkerSet::preset(preset).unwrap();
+        let model = both(&t, &set).unwrap_or_else(|e| panic!("{rel} {preset}: {e}"));
+        let PersonalizedModel::Both(b) = model else {
+            panic!("{rel} {preset}: one leg")
+        };
+        assert_eq!(b.spec.parameters.len(), 54, "{rel} {preset}");
+        for (_, leg) in [(Side::Right, &b.right), (Side::Left, &b.left)] {
+            assert!(leg.report.static_fk_error < 1e-9, "{rel} {preset}");
+            let pw = leg.report.pelvis_width;
+            assert!((0.15..0.40).contains(&pw), "{rel} {preset}: PW {pw}");
+        }
+        covered.push(preset);
+    }
+    for name in jointfit::landmarks::PRESET_NAMES {
+        assert!(
+            covered.contains(&name),
+            "preset {name} has no shared-trial check"
+        );
+    }
+}
