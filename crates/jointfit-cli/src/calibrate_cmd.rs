@@ -14,7 +14,7 @@ use jointfit::workflow::{
 };
 use serde::Serialize;
 
-use crate::common::{load_trial, Up};
+use crate::common::load_for_model;
 
 /// The outer optimizer (the command line's names for [`jointfit::workflow::Method`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -71,8 +71,8 @@ pub struct CalibrateArgs {
     /// keep the best and report the spread of the optima (joint and gradient methods).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=1000))]
     pub starts: u64,
-    #[arg(long, value_enum, default_value = "y")]
-    pub up: Up,
+    #[command(flatten)]
+    pub read: crate::common::TrialArgs,
     /// Print a JSON report on stdout.
     #[arg(long)]
     pub json: bool,
@@ -403,7 +403,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let trials: Vec<Trial> = args
         .trials
         .iter()
-        .map(|t| load_trial(t, args.up, args.filter))
+        .map(|t| Ok(load_for_model(t, &args.read, &model, args.filter)?.trial))
         .collect::<Result<_>>()?;
     for (trial, path) in trials.iter().zip(&args.trials) {
         crate::common::run_checks(&model, trial, path)?;
@@ -454,7 +454,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             &model,
             &named_trials(&args.trials, &refs),
             &cal,
-            &provenance(&args),
+            &provenance(&args, model.spec().lab_up),
             seconds,
         )?),
         None => None,
@@ -489,7 +489,10 @@ fn named_trials<'t>(paths: &[PathBuf], trials: &[&'t Trial]) -> Vec<(String, &'t
 }
 
 /// The files and options of this run, for the report's settings table.
-fn provenance(args: &CalibrateArgs) -> jointfit_report::calibration::Provenance {
+fn provenance(
+    args: &CalibrateArgs,
+    lab_up: Option<jointfit::trial::UpAxis>,
+) -> jointfit_report::calibration::Provenance {
     let mut inputs = vec![
         ("subject model".to_string(), args.model.clone()),
         (
@@ -507,7 +510,8 @@ fn provenance(args: &CalibrateArgs) -> jointfit_report::calibration::Provenance 
     ];
     inputs.extend(crate::report_cmd::trial_settings(
         &args.trials,
-        args.up,
+        &args.read,
+        lab_up,
         args.filter,
     ));
     crate::report_cmd::provenance(inputs)

@@ -17,7 +17,7 @@ use jointfit::model::Unit;
 use jointfit::workflow;
 use serde::Serialize;
 
-use crate::common::{load_trial, Up};
+use crate::common::load_for_model;
 
 #[derive(Args)]
 pub struct CheckArgs {
@@ -28,8 +28,8 @@ pub struct CheckArgs {
     /// Parameter groups a calibration would fit: comma-separated hip, knee, ankle, or all.
     #[arg(long, default_value = "all", value_delimiter = ',')]
     pub joints: Vec<String>,
-    #[arg(long, value_enum, default_value = "y")]
-    pub up: Up,
+    #[command(flatten)]
+    pub read: crate::common::TrialArgs,
     /// Low-pass filter cutoff in Hz.
     #[arg(long, allow_negative_numbers = true, value_parser = crate::validate::cutoff_hz)]
     pub filter: Option<f64>,
@@ -59,7 +59,7 @@ pub struct CheckReport {
 
 pub fn run(args: CheckArgs) -> Result<()> {
     let model = jointfit_io::model_file::load_model(&args.model)?;
-    let trial = load_trial(&args.trial, args.up, args.filter)?;
+    let trial = load_for_model(&args.trial, &args.read, &model, args.filter)?.trial;
     let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
     let free = params_for_groups(&model, &groups)?;
     let opts = UncertaintyOptions {

@@ -13,7 +13,7 @@ use jointfit::workflow::{self, WorkflowError};
 use jointfit_io::sto::{write_sto, Table};
 use serde::Serialize;
 
-use crate::common::{load_trial, Up};
+use crate::common::load_for_model;
 
 #[derive(Args)]
 pub struct IkArgs {
@@ -30,9 +30,8 @@ pub struct IkArgs {
     /// Low-pass filter cutoff in Hz (zero-phase Butterworth, effective order 4).
     #[arg(long, allow_negative_numbers = true, value_parser = crate::validate::cutoff_hz)]
     pub filter: Option<f64>,
-    /// Which axis of the file points up.
-    #[arg(long, value_enum, default_value = "y")]
-    pub up: Up,
+    #[command(flatten)]
+    pub read: crate::common::TrialArgs,
     /// Solve frames whose markers leave some coordinates undetermined by holding those at
     /// the previous frame's values (instead of leaving the frame out).
     #[arg(long)]
@@ -95,7 +94,8 @@ pub fn run(args: IkArgs) -> Result<()> {
     }
     files.check()?;
     let model = jointfit_io::model_file::load_model(&args.model)?;
-    let trial = load_trial(&args.trial, args.up, args.filter)?;
+    let loaded = load_for_model(&args.trial, &args.read, &model, args.filter)?;
+    let trial = loaded.trial;
     let findings = crate::common::run_checks(&model, &trial, &args.trial)?;
     let start = Instant::now();
     let opts = IkOptions {

@@ -26,8 +26,10 @@ pub struct PersonalizeArgs {
     #[arg(long, value_enum)]
     side: SideArg,
     /// The laboratory's vertical axis; the trial is rotated to the model's Y-up frame.
-    #[arg(long, value_enum, default_value = "y")]
-    up: Up,
+    /// Default: detected from the static trial's marker layout (head and pelvis above the
+    /// feet), else y. Recorded in the model as `lab_up` for every later command.
+    #[arg(long, value_enum)]
+    up: Option<Up>,
     /// Hip-centre regression.
     #[arg(long, value_enum, default_value = "bell")]
     hip: HipArg,
@@ -85,6 +87,29 @@ fn load_marker_set(arg: &str) -> Result<MarkerSet> {
     )
 }
 
+/// `--up`, else the vertical detected from the static trial's marker layout
+/// ([`jointfit::vertical::detect_up`], said on stderr), else y (with a warning).
+fn static_up(args: &PersonalizeArgs) -> Result<Up> {
+    if let Some(up) = args.up {
+        return Ok(up);
+    }
+    let (raw, _) = jointfit_io::trial_file::read_trial_noted(&args.static_trial)?;
+    let path = args.static_trial.display();
+    Ok(match jointfit::vertical::detect_up(&raw) {
+        Some(d) => {
+            eprintln!("jointfit: {path}: up axis detected from the marker layout: {}", d.describe());
+            Up::from(d.up)
+        }
+        None => {
+            eprintln!(
+                "jointfit: warning: {path}: cannot tell the up axis from the marker labels; \
+                 assuming y (pass --up)"
+            );
+            Up::Y
+        }
+    })
+}
+
 pub fn run(args: PersonalizeArgs) -> Result<()> {
     crate::output::Files::new()
         .input("static trial", &args.static_trial)
@@ -92,7 +117,8 @@ pub fn run(args: PersonalizeArgs) -> Result<()> {
         .output("output", &args.output)
         .check()?;
     let set = load_marker_set(&args.markers)?;
-    let trial = load_trial(&args.static_trial, args.up, None)?;
+    let up = static_up(&args)?;
+    let trial = load_trial(&args.static_trial, up, None)?;
     let scale: Vec<_> = jointfit::checks::check_scale(&trial).into_iter().collect();
     crate::common::report_findings(&scale, &args.static_trial)?;
     let side = match args.side {
@@ -114,7 +140,7 @@ pub fn run(args: PersonalizeArgs) -> Result<()> {
         ..PersonalizeOptions::default()
     };
     let static_name = args.static_trial.display().to_string();
-    let load = |p: &Option<PathBuf>| p.as_ref().map(|p| load_trial(p, args.up, None)).transpose();
+    let load = |p: &Option<PathBuf>| p.as_ref().map(|p| load_trial(p, up, None)).transpose();
     let (hip_trial, knee_trial) = (load(&args.functional_hip)?, load(&args.functional_knee)?);
     let func = FunctionalTrials {
         hip: hip_trial.as_ref(),
@@ -122,8 +148,7 @@ pub fn run(args: PersonalizeArgs) -> Result<()> {
         ..FunctionalTrials::default()
     };
     let mut result = personalize_with(&trial, &set, side, &opts, &func).with_context(|| {
-        let up = args
-            .up
+        let up = up
             .to_possible_value()
             .map_or("?".into(), |v| v.get_name().to_string());
         let functional: Vec<String> = [&args.functional_hip, &args.functional_knee]
@@ -139,6 +164,7 @@ pub fn run(args: PersonalizeArgs) -> Result<()> {
         format!("{static_name} (read with --up={up}){with}: cannot personalize")
     })?;
     result.spec.description = format!("{}; from {static_name}", result.spec.description);
+    result.spec.lab_up = Some(up.into());
 
     let mut compare = Vec::new();
     for label in &args.compare_hjc {

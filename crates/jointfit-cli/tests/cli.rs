@@ -24,6 +24,8 @@ mod priors;
 mod reliability;
 #[path = "cli/report.rs"]
 mod report;
+#[path = "cli/up.rs"]
+mod up;
 #[path = "cli/synth.rs"]
 mod synth;
 

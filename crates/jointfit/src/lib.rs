@@ -22,4 +22,5 @@ pub mod solver;
 #[doc(hidden)]
 pub mod testing;
 pub mod trial;
+pub mod vertical;
 pub mod workflow;
