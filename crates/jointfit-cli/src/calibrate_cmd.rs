@@ -14,7 +14,7 @@ use jointfit::workflow::{
 };
 use serde::Serialize;
 
-use crate::common::load_for_model;
+use crate::common::{load_checked, TrialJson};
 
 /// The outer optimizer (the command line's names for [`jointfit::workflow::Method`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -113,6 +113,8 @@ pub struct Report<'a> {
     #[serde(flatten)]
     pub calibration: &'a Calibration,
     pub seconds: f64,
+    /// Each trial as read: vertical, reader notes, repairs and data checks.
+    pub trials_read: &'a [TrialJson],
 }
 
 /// Progress of the optimizer stages on stderr (see `progress`).
@@ -400,14 +402,13 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         }
         None => model.nominal_params(),
     };
-    let trials: Vec<Trial> = args
+    let (trials, read): (Vec<Trial>, Vec<TrialJson>) = args
         .trials
         .iter()
-        .map(|t| Ok(load_for_model(t, &args.read, &model, args.filter)?.trial))
-        .collect::<Result<_>>()?;
-    for (trial, path) in trials.iter().zip(&args.trials) {
-        crate::common::run_checks(&model, trial, path)?;
-    }
+        .map(|t| load_checked(t, &args.read, &model, args.filter).map(|(t, j, _)| (t, j)))
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .unzip();
     let refs: Vec<&Trial> = trials.iter().collect();
     let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
     let free = params_for_groups(&model, &groups)?;
@@ -428,6 +429,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             let report = Report {
                 calibration: cal,
                 seconds,
+                trials_read: &read,
             };
             println!("{}", serde_json::to_string_pretty(&report)?);
         } else {
@@ -456,6 +458,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             &cal,
             &provenance(&args, model.spec().lab_up),
             seconds,
+            &read,
         )?),
         None => None,
     };

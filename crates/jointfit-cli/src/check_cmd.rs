@@ -17,7 +17,7 @@ use jointfit::model::Unit;
 use jointfit::workflow;
 use serde::Serialize;
 
-use crate::common::load_for_model;
+use crate::common::{load_checked, TrialJson};
 
 #[derive(Args)]
 pub struct CheckArgs {
@@ -53,13 +53,15 @@ pub struct CheckArgs {
 #[derive(Serialize)]
 pub struct CheckReport {
     pub trial: String,
+    /// The trial as read: vertical, reader notes, repairs and data checks.
+    pub read: TrialJson,
     #[serde(flatten)]
     pub check: workflow::CheckReport,
 }
 
 pub fn run(args: CheckArgs) -> Result<()> {
     let model = jointfit_io::model_file::load_model(&args.model)?;
-    let trial = load_for_model(&args.trial, &args.read, &model, args.filter)?.trial;
+    let (trial, read, _) = load_checked(&args.trial, &args.read, &model, args.filter)?;
     let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
     let free = params_for_groups(&model, &groups)?;
     let opts = UncertaintyOptions {
@@ -68,6 +70,7 @@ pub fn run(args: CheckArgs) -> Result<()> {
     };
     let report = CheckReport {
         trial: args.trial.display().to_string(),
+        read,
         check: workflow::check(&model, &model.nominal_params(), &[&trial], &free, &opts)?,
     };
     if args.json {

@@ -97,7 +97,10 @@ fn static_up(args: &PersonalizeArgs) -> Result<Up> {
     let path = args.static_trial.display();
     Ok(match jointfit::vertical::detect_up(&raw) {
         Some(d) => {
-            eprintln!("jointfit: {path}: up axis detected from the marker layout: {}", d.describe());
+            eprintln!(
+                "jointfit: {path}: up axis detected from the marker layout: {}",
+                d.describe()
+            );
             Up::from(d.up)
         }
         None => {

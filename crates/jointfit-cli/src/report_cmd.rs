@@ -13,7 +13,7 @@ use jointfit::workflow::Calibration;
 use jointfit_report::analyze::{analyze_with_progress, parameter_rows};
 use jointfit_report::ReportInput;
 
-use crate::common::{load_for_model, TrialArgs};
+use crate::common::{load_checked, TrialArgs, TrialJson};
 use crate::progress::Progress;
 
 #[derive(Args)]
@@ -54,7 +54,7 @@ pub fn run(args: ReportArgs) -> Result<()> {
         Some(path) => Some(params_by_name(&model, &args.model, path)?),
         None => None,
     };
-    let trials = load_trials(&args.trials, &args.read, &model, args.filter)?;
+    let (trials, read) = load_trials(&args.trials, &args.read, &model, args.filter)?;
     let mut input = ReportInput {
         title: spec.name.clone(),
         baseline_label: "landmark model".into(),
@@ -91,6 +91,7 @@ pub fn run(args: ReportArgs) -> Result<()> {
         args.filter,
     ));
     input.settings = with_provenance(settings);
+    input.data_checks = read.iter().map(TrialJson::to_report).collect();
     let path = jointfit_report::write_report(&args.output, &input)
         .with_context(|| format!("writing the report to {}", args.output.display()))?;
     println!(
@@ -119,19 +120,24 @@ fn params_by_name(model: &Model, model_path: &str, path: &str) -> Result<Vec<f64
         .collect()
 }
 
+/// A trial and its display name.
+type NamedTrial = (String, Trial);
+
 fn load_trials(
     paths: &[PathBuf],
     read: &TrialArgs,
     model: &jointfit::model::Model,
     filter: Option<f64>,
-) -> Result<Vec<(String, Trial)>> {
-    paths
+) -> Result<(Vec<NamedTrial>, Vec<TrialJson>)> {
+    Ok(paths
         .iter()
         .map(|p| {
-            let trial = load_for_model(p, read, model, filter)?.trial;
-            Ok((display_name(p), trial))
+            let (trial, json, _) = load_checked(p, read, model, filter)?;
+            Ok(((display_name(p), trial), json))
         })
-        .collect()
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .unzip())
 }
 
 pub fn display_name(p: &Path) -> String {
@@ -229,6 +235,7 @@ pub fn write_calibration_report(
     cal: &Calibration,
     provenance: &jointfit_report::calibration::Provenance,
     seconds: f64,
+    data_checks: &[crate::common::TrialJson],
 ) -> Result<PathBuf> {
     let mut bar = Progress::new("report: inverse kinematics", None).unit("passes");
     let input = jointfit_report::calibration::calibration_input(
@@ -245,6 +252,8 @@ pub fn write_calibration_report(
         },
     )?;
     bar.finish("");
+    let mut input = input;
+    input.data_checks = data_checks.iter().map(|t| t.to_report()).collect();
     jointfit_report::write_report(dir, &input)
         .with_context(|| format!("writing the report to {}", dir.display()))
 }

@@ -22,12 +22,14 @@ mod personalize;
 mod priors;
 #[path = "cli/reliability.rs"]
 mod reliability;
+#[path = "cli/repair.rs"]
+mod repair;
 #[path = "cli/report.rs"]
 mod report;
-#[path = "cli/up.rs"]
-mod up;
 #[path = "cli/synth.rs"]
 mod synth;
+#[path = "cli/up.rs"]
+mod up;
 
 fn jointfit(args: &[&str]) -> (bool, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_jointfit"))

@@ -25,6 +25,9 @@ pub struct ReportInput {
     pub settings: Vec<(String, String)>,
     /// Notes shown above the figures (warnings, e.g. frames that could not be solved).
     pub notes: Vec<String>,
+    /// Per trial: how it was read, repairs and data-check findings (section "Data checks",
+    /// [`crate::data_checks`]; omitted when empty).
+    pub data_checks: Vec<crate::data_checks::TrialChecks>,
 }
 
 impl ReportInput {

@@ -15,7 +15,10 @@
 //!   - **jump**: a marker moves faster than [`JUMP_SPEED`] between consecutive frames;
 //!   - **gaps**: frames in which a model marker is missing, with the longest run.
 //!
-//! Nothing here changes the data; the findings are for the user (and the report).
+//! Nothing here changes the data; the findings are for the user (and the report). A finding
+//! that a repair of [`crate::repair`] addresses carries the option that applies it
+//! ([`Finding::fix`]): `--swap-labels A,B@F` for a swap, `--fill-gaps N` for gaps of at most
+//! half a second, `--exclude-marker` for a cluster whose distance changed.
 
 use nalgebra::Vector3;
 
@@ -68,6 +71,8 @@ pub struct Finding {
     pub kind: CheckKind,
     pub severity: Severity,
     pub message: String,
+    /// The command-line option that repairs it ([`crate::repair`]), if one does.
+    pub fix: Option<String>,
 }
 
 /// The median over frames of the largest distance between two present markers (m); `None`
@@ -122,6 +127,7 @@ pub fn check_scale(trial: &Trial) -> Option<Finding> {
             "the markers span {span:.3} m (a person spans about 0.3–2.5 m): this looks like \
              {hint} (TRC: the Units value on line 3; C3D: the POINT:UNITS parameter)"
         ),
+        fix: None,
     })
 }
 
@@ -174,6 +180,11 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                             r * 1e3,
                             seg = model.segments()[model.markers()[a].segment.0].name
                         ),
+                        fix: Some(format!(
+                            "--exclude-marker {} or --exclude-marker {} (the one that moved)",
+                            name(a),
+                            name(b)
+                        )),
                     });
                 }
             }
@@ -208,6 +219,12 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                     count > 0 && plain > 0.02 * count as f64 && crossed < 0.3 * plain
                 };
                 for (start, end) in runs((0..n).map(swapped)) {
+                    let (from, to) = (first + start as i64, first + end as i64);
+                    let frames = if end + 1 == n {
+                        format!("{from}")
+                    } else {
+                        format!("{from}-{to}")
+                    };
                     out.push(Finding {
                         kind: CheckKind::Swap,
                         severity: Severity::Warning,
@@ -220,6 +237,7 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                             first + end as i64,
                             model.segments()[model.markers()[a].segment.0].name
                         ),
+                        fix: Some(format!("--swap-labels {},{}@{frames}", name(a), name(b))),
                     });
                 }
             }
@@ -248,6 +266,7 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                     jumps.len(),
                     first + f as i64
                 ),
+                fix: None,
             });
         }
         let gaps = runs((0..n).map(|f| pos(f, j).is_none()));
@@ -264,6 +283,8 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                     first + s as i64,
                     first + e as i64
                 ),
+                fix: (((e - s + 1) as f64) <= 0.5 * trial.rate())
+                    .then(|| format!("--fill-gaps {}", e - s + 1)),
             });
         }
     }

@@ -17,6 +17,7 @@ pub mod landmarks;
 pub mod linalg;
 pub mod model;
 pub mod plausibility;
+pub mod repair;
 pub mod signal;
 pub mod solver;
 #[doc(hidden)]

@@ -102,7 +102,11 @@ const CONTAINS: &[(&str, f64)] = &[
 
 /// The height (fraction of stature) a marker label stands for, if it names a known landmark.
 pub fn label_height(label: &str) -> Option<f64> {
-    let label = label.rsplit(':').next().unwrap_or(label).to_ascii_lowercase();
+    let label = label
+        .rsplit(':')
+        .next()
+        .unwrap_or(label)
+        .to_ascii_lowercase();
     // Model outputs stored as points (Plug-in Gait's LKneeAngles, RHipMoment, ...).
     if ["angle", "moment", "power", "force"]
         .iter()

@@ -41,7 +41,11 @@ fn negative_z_lab_needs_up_only_once() {
     let subject = dir.join("subject.toml");
     let toml = personalize(&stat, "plugin-gait", &subject);
     assert!(toml.contains("lab_up = \"-z\""), "{toml}");
-    let (given, forgot, wrong) = (dir.join("given.mot"), dir.join("forgot.mot"), dir.join("y.mot"));
+    let (given, forgot, wrong) = (
+        dir.join("given.mot"),
+        dir.join("forgot.mot"),
+        dir.join("y.mot"),
+    );
     let run = |mot: &Path, extra: &[&str]| {
         let mut args = vec!["ik", s(&subject), s(&trial), "-o", s(mot)];
         args.extend_from_slice(extra);
@@ -71,7 +75,10 @@ fn negative_z_lab_needs_up_only_once() {
 fn y_up_labs_record_y() {
     for (rel, preset) in [
         ("opencap_expert1/static1.trc", "opencap"),
-        ("opensim_gait2392_subject01/subject01_static.trc", "gait2392"),
+        (
+            "opensim_gait2392_subject01/subject01_static.trc",
+            "gait2392",
+        ),
         ("opensim_jam_healthy/static1.trc", "jam"),
     ] {
         let Some(stat) = data_file(rel) else {

@@ -17,9 +17,15 @@ const KNOWN: &[(&str, UpAxis)] = &[
     ("opensim_hamner_subject02/subject02_running.trc", UpAxis::Y),
     ("opensim_jam_healthy/static1.trc", UpAxis::Y),
     ("opensim_jam_healthy/overground_17.trc", UpAxis::Y),
-    ("biobuddy_functional_vicon/anatomical_posture.c3d", UpAxis::NegZ),
+    (
+        "biobuddy_functional_vicon/anatomical_posture.c3d",
+        UpAxis::NegZ,
+    ),
     ("biobuddy_functional_vicon/Test_func_anat.c3d", UpAxis::NegZ),
-    ("biobuddy_functional_vicon/Test_func_rknee.c3d", UpAxis::NegZ),
+    (
+        "biobuddy_functional_vicon/Test_func_rknee.c3d",
+        UpAxis::NegZ,
+    ),
     ("biobuddy_functional_vicon/Test_func_lhip.c3d", UpAxis::NegZ),
     ("c3d_reader/ezc3d/Qualisys.c3d", UpAxis::Z),
     ("c3d_reader/ezc3d/Vicon.c3d", UpAxis::Z),

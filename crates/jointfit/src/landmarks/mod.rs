@@ -54,7 +54,7 @@
 //!
 //! [`lower_limb`]: crate::model::lower_limb::lower_limb
 
-mod frames;
+pub(crate) mod frames;
 pub mod functional;
 pub mod markerset;
 pub(crate) mod nominal;
