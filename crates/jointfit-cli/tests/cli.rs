@@ -14,6 +14,8 @@ mod fuzz;
 mod ident;
 #[path = "cli/ik.rs"]
 mod ik;
+#[path = "cli/markers.rs"]
+mod markers;
 #[path = "cli/osim.rs"]
 mod osim;
 #[path = "cli/personalize.rs"]

@@ -110,6 +110,39 @@ impl PyTrial {
         })
     }
 
+    /// A repaired copy and what was done (one sentence each): `exclude` leaves markers out,
+    /// `swap` exchanges labels ("A,B", "A,B@F" from file frame F on, "A,B@F-L"), `fill_gaps`
+    /// fills gaps of at most that many frames (rigid-body fill from the segment's other
+    /// markers when `model` names the segments, else cubic spline). See `jointfit::repair`.
+    #[pyo3(signature = (exclude=Vec::new(), swap=Vec::new(), fill_gaps=0, model=None))]
+    fn repair(
+        &self,
+        exclude: Vec<String>,
+        swap: Vec<String>,
+        fill_gaps: usize,
+        model: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<(Self, Vec<String>)> {
+        let model = model.map(crate::solve::model_arg).transpose()?;
+        let opts = jointfit::repair::RepairOptions {
+            exclude,
+            swaps: swap
+                .iter()
+                .map(|s| jointfit::repair::Swap::parse(s))
+                .collect::<Result<_, _>>()
+                .map_err(|e| err(&e))?,
+            fill_gaps,
+        };
+        let (trial, actions) = jointfit::repair::repair(&self.trial, model.as_ref(), &opts)
+            .map_err(|e| msg(format!("{}: {e}", self.name)))?;
+        Ok((
+            PyTrial {
+                trial,
+                name: self.name.clone(),
+            },
+            actions.iter().map(|a| a.to_string()).collect(),
+        ))
+    }
+
     /// Marker labels, one per marker column.
     #[getter]
     fn labels(&self) -> Vec<String> {

@@ -59,6 +59,7 @@ pub mod functional;
 pub mod markerset;
 pub(crate) mod nominal;
 pub mod priors;
+pub mod suggest;
 pub mod window;
 
 use nalgebra::Vector3;
