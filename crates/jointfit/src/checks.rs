@@ -154,20 +154,49 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
     let reference =
         |a: usize, b: usize| (model.markers()[a].local - model.markers()[b].local).norm();
 
-    // Clusters.
+    // Per segment, the distance of every marker pair in every frame (NaN when one is
+    // missing), computed once for the cluster and swap checks: `d[(f * m + i) * m + k]`.
     for markers in &segments {
-        for (i, &a) in markers.iter().enumerate() {
-            for &b in &markers[i + 1..] {
-                let mut d: Vec<f64> = (0..n)
-                    .filter_map(|f| Some((pos(f, a)? - pos(f, b)?).norm()))
+        let m = markers.len();
+        if m < 2 {
+            continue;
+        }
+        let mut d = vec![f64::NAN; n * m * m];
+        let mut at: Vec<Option<Vector3<f64>>> = vec![None; m];
+        for f in 0..n {
+            for (i, &j) in markers.iter().enumerate() {
+                at[i] = pos(f, j);
+            }
+            for i in 0..m {
+                for k in i + 1..m {
+                    if let (Some(p), Some(q)) = (at[i], at[k]) {
+                        let v = (p - q).norm();
+                        d[(f * m + i) * m + k] = v;
+                        d[(f * m + k) * m + i] = v;
+                    }
+                }
+            }
+        }
+        let r: Vec<f64> = (0..m * m)
+            .map(|x| reference(markers[x / m], markers[x % m]))
+            .collect();
+        let seg = &model.segments()[model.markers()[markers[0]].segment.0].name;
+
+        // Clusters.
+        for i in 0..m {
+            for k in i + 1..m {
+                let (a, b) = (markers[i], markers[k]);
+                let mut v: Vec<f64> = (0..n)
+                    .map(|f| d[(f * m + i) * m + k])
+                    .filter(|x| x.is_finite())
                     .collect();
-                if d.is_empty() {
+                if v.is_empty() {
                     continue;
                 }
-                d.sort_by(f64::total_cmp);
-                let median = d[d.len() / 2];
-                let r = reference(a, b);
-                if (median - r).abs() > CLUSTER_TOLERANCE {
+                v.sort_by(f64::total_cmp);
+                let median = v[v.len() / 2];
+                let rr = r[i * m + k];
+                if (median - rr).abs() > CLUSTER_TOLERANCE {
                     out.push(Finding {
                         kind: CheckKind::Cluster,
                         severity: Severity::Warning,
@@ -177,8 +206,7 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                             name(a),
                             name(b),
                             median * 1e3,
-                            r * 1e3,
-                            seg = model.segments()[model.markers()[a].segment.0].name
+                            rr * 1e3,
                         ),
                         fix: Some(format!(
                             "--exclude-marker {} or --exclude-marker {} (the one that moved)",
@@ -189,29 +217,25 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                 }
             }
         }
-    }
 
-    // Swaps: runs of frames where exchanging two labels fits the other markers far better.
-    for markers in &segments {
-        for (i, &a) in markers.iter().enumerate() {
-            for &b in &markers[i + 1..] {
-                let others: Vec<usize> = markers
-                    .iter()
-                    .copied()
-                    .filter(|&c| c != a && c != b)
-                    .collect();
-                if others.is_empty() {
-                    continue;
-                }
+        // Swaps: runs of frames where exchanging two labels fits the other markers far better.
+        if m < 3 {
+            continue;
+        }
+        for i in 0..m {
+            for k in i + 1..m {
+                let (a, b) = (markers[i], markers[k]);
                 let swapped = |f: usize| -> bool {
-                    let (Some(pa), Some(pb)) = (pos(f, a), pos(f, b)) else {
+                    if !d[(f * m + i) * m + k].is_finite() {
                         return false;
-                    };
+                    }
                     let (mut plain, mut crossed, mut count) = (0.0, 0.0, 0usize);
-                    for &c in &others {
-                        let Some(pc) = pos(f, c) else { continue };
-                        let (dac, dbc) = ((pa - pc).norm(), (pb - pc).norm());
-                        let (rac, rbc) = (reference(a, c), reference(b, c));
+                    for c in (0..m).filter(|&c| c != i && c != k) {
+                        let (dac, dbc) = (d[(f * m + i) * m + c], d[(f * m + k) * m + c]);
+                        if !dac.is_finite() {
+                            continue;
+                        }
+                        let (rac, rbc) = (r[i * m + c], r[k * m + c]);
                         plain += (dac - rac).abs() + (dbc - rbc).abs();
                         crossed += (dbc - rac).abs() + (dac - rbc).abs();
                         count += 1;
@@ -230,12 +254,11 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                         severity: Severity::Warning,
                         message: format!(
                             "{} and {} look swapped in frames {}–{}: exchanged, they fit the \
-                             subject model's distances to the other {} markers",
+                             subject model's distances to the other {seg} markers",
                             name(a),
                             name(b),
-                            first + start as i64,
-                            first + end as i64,
-                            model.segments()[model.markers()[a].segment.0].name
+                            from,
+                            to,
                         ),
                         fix: Some(format!("--swap-labels {},{}@{frames}", name(a), name(b))),
                     });

@@ -7,7 +7,7 @@
 //!   file frames `F..=L` (default: the whole trial), the fix for the runs of frames that
 //!   [`crate::checks`] reports as swapped.
 //! * **Fill** (`--fill-gaps N`): every gap of at most `N` frames with a sample on at least one
-//!   side is filled.
+//!   side is filled (with a subject model, in its markers only: the others are not fitted).
 //!   - *Rigid-body fill*, when the marker's segment (from the subject model) has at least three
 //!     other markers present both in the gap frame `f` and in a reference frame `r` (the last
 //!     frame before the gap and the first after it, where the marker itself is present): the
@@ -303,6 +303,10 @@ fn fill_gaps(t: &mut Trial, model: Option<&Model>, max_len: usize, actions: &mut
     let original = t.clone();
     let nf = t.n_frames();
     for j in 0..t.n_markers() {
+        // With a model, only its markers are filled (the others are not fitted).
+        if model.is_some() && segment_of[j].is_none() {
+            continue;
+        }
         let mates: Vec<usize> = match segment_of[j] {
             Some(s) => (0..t.n_markers())
                 .filter(|&k| k != j && segment_of[k] == Some(s))
