@@ -96,13 +96,8 @@ fn static_up(args: &PersonalizeArgs) -> Result<Up> {
     let (raw, _) = jointfit_io::trial_file::read_trial_noted(&args.static_trial)?;
     let path = args.static_trial.display();
     Ok(match jointfit::vertical::detect_up(&raw) {
-        Some(d) => {
-            eprintln!(
-                "jointfit: {path}: up axis detected from the marker layout: {}",
-                d.describe()
-            );
-            Up::from(d.up)
-        }
+        // Recorded in the model as `lab_up`; said in the error context if personalize fails.
+        Some(d) => Up::from(d.up),
         None => {
             eprintln!(
                 "jointfit: warning: {path}: cannot tell the up axis from the marker labels; \
