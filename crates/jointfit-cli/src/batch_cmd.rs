@@ -119,12 +119,10 @@ struct Manifest {
 }
 
 fn parse_up(s: &str) -> Result<Option<UpAxis>> {
-    Ok(match s {
-        "y" => None,
-        "z" => Some(UpAxis::Z),
-        "-z" => Some(UpAxis::NegZ),
-        other => bail!("up must be \"y\", \"z\" or \"-z\", not {other:?}"),
-    })
+    match UpAxis::parse(s) {
+        Some(up) => Ok(Some(up)),
+        None => bail!("up must be \"y\", \"-y\", \"z\", \"-z\", \"x\" or \"-x\", not {s:?}"),
+    }
 }
 
 fn to_job(entry: JobEntry, defaults: &Settings, base: &Path) -> Result<Job> {

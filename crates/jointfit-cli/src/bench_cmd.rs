@@ -62,6 +62,10 @@ struct Figures {
     fk_dq_us: f64,
     fk_dq_dp_us: f64,
     ik_trial_us_per_frame: f64,
+    /// The data checks (`jointfit::checks::check_trial`) and the whole-trial IK, per frame:
+    /// what `jointfit ik` spends after reading the file.
+    ik_checked_us_per_frame: f64,
+    ik_checked_frames_per_second: f64,
     ik_warm_us_per_frame: f64,
     ik_iterations_per_frame: f64,
     ik_warm_frames_per_second: f64,
@@ -193,6 +197,13 @@ pub fn run(args: BenchArgs) -> Result<()> {
         workflow::ik_trial(&model, &p, &trial, &opts).expect("validated above");
     }) / n
         * 1e6;
+    let checked = median_time(21, || {
+        let (map, _) = jointfit::ik::MarkerMap::allowing_absent(&model, trial.labels());
+        std::hint::black_box(jointfit::checks::check_trial(&model, &trial, &map));
+        workflow::ik_trial(&model, &p, &trial, &opts).expect("validated above");
+    }) / n;
+    fig.ik_checked_us_per_frame = checked * 1e6;
+    fig.ik_checked_frames_per_second = 1.0 / checked;
     let first = reference
         .coords
         .iter()
@@ -295,6 +306,10 @@ pub fn run(args: BenchArgs) -> Result<()> {
     println!(
         "IK, whole trial (seeded)    {:8.2} µs/frame",
         fig.ik_trial_us_per_frame
+    );
+    println!(
+        "  + data checks             {:8.2} µs/frame  ({:.0} frames/s)",
+        fig.ik_checked_us_per_frame, fig.ik_checked_frames_per_second
     );
     println!(
         "IK, warm-started frame      {:8.2} µs/frame  ({:.0} frames/s, {:.2} iterations/frame)",

@@ -11,7 +11,7 @@ use jointfit::trial::Trial;
 use jointfit::workflow::{self, uncertainty_options, Calibration, FitSettings, Method, Observer};
 use serde::Serialize;
 
-use crate::common::{load_trial, Up};
+use crate::common::{load_checked, TrialJson};
 
 /// The outer optimizer (the command line's names for [`jointfit::workflow::Method`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -79,8 +79,8 @@ pub struct CalibrateArgs {
     /// keep the best and report the spread of the optima (joint and gradient methods).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=1000))]
     pub starts: u64,
-    #[arg(long, value_enum, default_value = "y")]
-    pub up: Up,
+    #[command(flatten)]
+    pub read: crate::common::TrialArgs,
     /// Print a JSON report on stdout.
     #[arg(long)]
     pub json: bool,
@@ -138,6 +138,8 @@ pub struct Report<'a> {
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub information_summary: Vec<String>,
     pub seconds: f64,
+    /// Each trial as read: vertical, reader notes, repairs and data checks.
+    pub trials_read: &'a [TrialJson],
 }
 
 /// Progress of the optimizer stages on stderr (see `progress`).
@@ -250,14 +252,13 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         }
         None => model.nominal_params(),
     };
-    let trials: Vec<Trial> = args
+    let (trials, read): (Vec<Trial>, Vec<TrialJson>) = args
         .trials
         .iter()
-        .map(|t| load_trial(t, args.up, args.filter))
-        .collect::<Result<_>>()?;
-    for (trial, path) in trials.iter().zip(&args.trials) {
-        crate::common::run_checks(&model, trial, path)?;
-    }
+        .map(|t| load_checked(t, &args.read, &model, args.filter).map(|(t, j, _)| (t, j)))
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .unzip();
     let refs: Vec<&Trial> = trials.iter().collect();
     let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
     let free = params_for_groups(&model, &groups)?;
@@ -282,6 +283,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
                 marker_trade_offs: &refined.trade_offs,
                 information_summary: information_summary(cal),
                 seconds,
+                trials_read: &read,
             };
             println!("{}", serde_json::to_string_pretty(&report)?);
         } else {
@@ -311,8 +313,9 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             &refined.model,
             &named_trials(&args.trials, &refs),
             cal,
-            &provenance(&args),
+            &provenance(&args, model.spec().lab_up),
             seconds,
+            &read,
         )?),
         None => None,
     };
@@ -346,7 +349,10 @@ fn named_trials<'t>(paths: &[PathBuf], trials: &[&'t Trial]) -> Vec<(String, &'t
 }
 
 /// The files and options of this run, for the report's settings table.
-fn provenance(args: &CalibrateArgs) -> jointfit_report::calibration::Provenance {
+fn provenance(
+    args: &CalibrateArgs,
+    lab_up: Option<jointfit::trial::UpAxis>,
+) -> jointfit_report::calibration::Provenance {
     let mut inputs = vec![
         ("subject model".to_string(), args.model.clone()),
         (
@@ -364,7 +370,8 @@ fn provenance(args: &CalibrateArgs) -> jointfit_report::calibration::Provenance 
     ];
     inputs.extend(crate::report_cmd::trial_settings(
         &args.trials,
-        args.up,
+        &args.read,
+        lab_up,
         args.filter,
     ));
     crate::report_cmd::provenance(inputs)

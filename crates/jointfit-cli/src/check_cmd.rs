@@ -17,7 +17,7 @@ use jointfit::model::Unit;
 use jointfit::workflow;
 use serde::Serialize;
 
-use crate::common::{load_trial, Up};
+use crate::common::{load_checked, TrialJson};
 
 #[derive(Args)]
 pub struct CheckArgs {
@@ -28,8 +28,8 @@ pub struct CheckArgs {
     /// Parameter groups a calibration would fit: comma-separated hip, knee, ankle, or all.
     #[arg(long, default_value = "all", value_delimiter = ',')]
     pub joints: Vec<String>,
-    #[arg(long, value_enum, default_value = "y")]
-    pub up: Up,
+    #[command(flatten)]
+    pub read: crate::common::TrialArgs,
     /// Low-pass filter cutoff in Hz.
     #[arg(long, allow_negative_numbers = true, value_parser = crate::validate::cutoff_hz)]
     pub filter: Option<f64>,
@@ -53,13 +53,15 @@ pub struct CheckArgs {
 #[derive(Serialize)]
 pub struct CheckReport {
     pub trial: String,
+    /// The trial as read: vertical, reader notes, repairs and data checks.
+    pub read: TrialJson,
     #[serde(flatten)]
     pub check: workflow::CheckReport,
 }
 
 pub fn run(args: CheckArgs) -> Result<()> {
     let model = jointfit_io::model_file::load_model(&args.model)?;
-    let trial = load_trial(&args.trial, args.up, args.filter)?;
+    let (trial, read, _) = load_checked(&args.trial, &args.read, &model, args.filter)?;
     let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
     let free = params_for_groups(&model, &groups)?;
     let opts = UncertaintyOptions {
@@ -68,6 +70,7 @@ pub fn run(args: CheckArgs) -> Result<()> {
     };
     let report = CheckReport {
         trial: args.trial.display().to_string(),
+        read,
         check: workflow::check(&model, &model.nominal_params(), &[&trial], &free, &opts)?,
     };
     if args.json {

@@ -1,8 +1,13 @@
 //! Shared pieces of the subcommands: the up-axis option and reading trials with warnings.
+//!
+//! Commands that read trials for a subject model (`ik`, `calibrate`, `check`, `report`) take
+//! the same trial options ([`TrialArgs`], flattened into their arguments) and read through
+//! [`load_for_model`]: the vertical is `--up`, else the model's `lab_up`, else `y`; a trial
+//! whose marker layout says another axis is up is reported as rotated.
 
 use std::path::Path;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::ValueEnum;
 use jointfit::trial::{Trial, UpAxis};
 use jointfit_io::trial_file::{LoadOptions, TrialFileError};
@@ -11,17 +16,38 @@ use jointfit_io::trial_file::{LoadOptions, TrialFileError};
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum Up {
     Y,
+    #[value(name = "-y")]
+    NegY,
     Z,
     #[value(name = "-z")]
     NegZ,
+    X,
+    #[value(name = "-x")]
+    NegX,
+}
+
+impl From<UpAxis> for Up {
+    fn from(u: UpAxis) -> Up {
+        match u {
+            UpAxis::Y => Up::Y,
+            UpAxis::NegY => Up::NegY,
+            UpAxis::Z => Up::Z,
+            UpAxis::NegZ => Up::NegZ,
+            UpAxis::X => Up::X,
+            UpAxis::NegX => Up::NegX,
+        }
+    }
 }
 
 impl From<Up> for UpAxis {
     fn from(u: Up) -> UpAxis {
         match u {
             Up::Y => UpAxis::Y,
+            Up::NegY => UpAxis::NegY,
             Up::Z => UpAxis::Z,
             Up::NegZ => UpAxis::NegZ,
+            Up::X => UpAxis::X,
+            Up::NegX => UpAxis::NegX,
         }
     }
 }
@@ -34,10 +60,110 @@ pub fn load_trial(path: &Path, up: Up, filter_hz: Option<f64>) -> Result<Trial> 
     for note in notes {
         eprintln!("jointfit: warning: {}: {note}", path.display());
     }
-    let options = LoadOptions {
-        up: up.into(),
-        filter_hz,
+    prepare(trial, path, up.into(), filter_hz)
+}
+
+/// The trial options of the commands that read trials for a subject model.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct TrialArgs {
+    /// Which axis of the file points up (default: the subject model's `lab_up`, recorded by
+    /// `personalize`; else y).
+    #[arg(long, value_enum)]
+    pub up: Option<Up>,
+    /// Leave this marker out (e.g. one re-attached between the static and this trial).
+    /// Repeatable.
+    #[arg(long = "exclude-marker", value_name = "NAME")]
+    pub exclude_marker: Vec<String>,
+    /// Exchange two labels, in the whole trial or from file frame F on (`A,B@F`) or in frames
+    /// F–L (`A,B@F-L`), as the data checks suggest. Repeatable.
+    #[arg(long = "swap-labels", value_name = "A,B[@F[-L]]")]
+    pub swap_labels: Vec<String>,
+    /// Fill gaps of at most N frames: rigid-body fill from the segment's other markers, cubic
+    /// spline where the segment has too few (`jointfit::repair`).
+    #[arg(long = "fill-gaps", value_name = "N", default_value_t = 0)]
+    pub fill_gaps: usize,
+}
+
+impl TrialArgs {
+    /// The repairs asked for ([`jointfit::repair::RepairOptions`]).
+    pub fn repairs(&self) -> Result<jointfit::repair::RepairOptions> {
+        Ok(jointfit::repair::RepairOptions {
+            exclude: self.exclude_marker.clone(),
+            swaps: self
+                .swap_labels
+                .iter()
+                .map(|s| jointfit::repair::Swap::parse(s))
+                .collect::<Result<_, _>>()?,
+            fill_gaps: self.fill_gaps,
+        })
+    }
+}
+
+/// A trial read for a subject model, with what the reading noticed.
+pub struct Loaded {
+    pub trial: Trial,
+    /// The lab's vertical the trial was rotated from.
+    pub up: UpAxis,
+    /// Where `up` came from: `--up`, `model` or `default`.
+    pub up_source: &'static str,
+    /// The file reader's notes (short data, assumed units, extra rows) and the vertical's
+    /// warnings, one sentence each (also printed on stderr).
+    pub notes: Vec<String>,
+    /// What [`jointfit::repair::repair`] did, one sentence each (also printed on stderr).
+    pub repairs: Vec<String>,
+}
+
+/// Reads `path` for `model` ([`TrialArgs`]; module docs): the vertical from `--up`, the
+/// model's `lab_up` or `y`, a warning when the markers say another axis is up, then filtering.
+pub fn load_for_model(
+    path: &Path,
+    args: &TrialArgs,
+    model: &jointfit::model::Model,
+    filter_hz: Option<f64>,
+) -> Result<Loaded> {
+    let (trial, mut notes) = jointfit_io::trial_file::read_trial_noted(path)?;
+    crate::validate::check_trial(path, &trial)?;
+    let (up, up_source) = match (args.up, model.spec().lab_up) {
+        (Some(u), _) => (u.into(), "--up"),
+        (None, Some(u)) => (u, "model"),
+        (None, None) => (UpAxis::Y, "default"),
     };
+    let given = match up_source {
+        "--up" => format!("--up {up}"),
+        "model" => format!("up {up} from the subject model's lab_up"),
+        _ => format!("up {up} (the default)"),
+    };
+    notes.extend(jointfit::vertical::rotation_warning(&trial, up, &given));
+    for note in &notes {
+        eprintln!("jointfit: warning: {}: {note}", path.display());
+    }
+    let options = args.repairs()?;
+    let mut trial = prepare(trial, path, up, None)?;
+    let mut repairs = Vec::new();
+    if !options.is_empty() {
+        let (fixed, actions) = jointfit::repair::repair(&trial, Some(model), &options)
+            .with_context(|| path.display().to_string())?;
+        for a in &actions {
+            eprintln!("jointfit: {}: repair: {a}", path.display());
+        }
+        repairs = actions.iter().map(|a| a.to_string()).collect();
+        trial = fixed;
+    }
+    if filter_hz.is_some() {
+        trial = prepare(trial, path, UpAxis::Y, filter_hz)?;
+    }
+    Ok(Loaded {
+        trial,
+        up,
+        up_source,
+        notes,
+        repairs,
+    })
+}
+
+/// Rotates from `up` to Y up and filters, printing the filter's warnings.
+fn prepare(trial: Trial, path: &Path, up: UpAxis, filter_hz: Option<f64>) -> Result<Trial> {
+    let options = LoadOptions { up, filter_hz };
     let (trial, warnings) = match jointfit_io::trial_file::prepare_trial(trial, path, &options) {
         Ok(ok) => ok,
         Err(TrialFileError::Filter { path, hz, source }) => {
@@ -64,12 +190,17 @@ pub fn run_checks(
     Ok(findings)
 }
 
-/// Prints warnings on stderr and fails on the first error.
+/// Prints warnings on stderr (with the option that repairs each, if any) and fails on the
+/// first error.
 pub fn report_findings(findings: &[jointfit::checks::Finding], path: &Path) -> Result<()> {
     use jointfit::checks::Severity;
     for f in findings.iter().filter(|f| f.severity == Severity::Warning) {
+        let fix = f
+            .fix
+            .as_ref()
+            .map_or(String::new(), |x| format!(" (to repair: {x})"));
         eprintln!(
-            "jointfit: check: {}: {}: {}",
+            "jointfit: check: {}: {}: {}{fix}",
             path.display(),
             f.kind.as_str(),
             f.message
@@ -79,4 +210,95 @@ pub fn report_findings(findings: &[jointfit::checks::Finding], path: &Path) -> R
         anyhow::bail!("{}: {}", path.display(), f.message);
     }
     Ok(())
+}
+
+/// One data-check finding in `--json` output.
+#[derive(serde::Serialize, Debug, Clone)]
+pub struct CheckJson {
+    pub kind: &'static str,
+    pub severity: &'static str,
+    pub message: String,
+    /// The option that repairs it, if one does.
+    pub fix: Option<String>,
+}
+
+impl From<&jointfit::checks::Finding> for CheckJson {
+    fn from(f: &jointfit::checks::Finding) -> Self {
+        CheckJson {
+            kind: f.kind.as_str(),
+            severity: match f.severity {
+                jointfit::checks::Severity::Warning => "warning",
+                jointfit::checks::Severity::Error => "error",
+            },
+            message: f.message.clone(),
+            fix: f.fix.clone(),
+        }
+    }
+}
+
+/// What reading one trial noticed and did, for `--json` output: the vertical and where it
+/// came from, the reader's notes, the repairs and the data checks.
+#[derive(serde::Serialize, Debug, Clone)]
+pub struct TrialJson {
+    pub path: String,
+    pub up: &'static str,
+    /// `--up`, `model` (the subject model's `lab_up`) or `default`.
+    pub up_from: &'static str,
+    pub reader_notes: Vec<String>,
+    pub repairs: Vec<String>,
+    pub checks: Vec<CheckJson>,
+}
+
+impl TrialJson {
+    pub fn new(path: &Path, loaded: &Loaded, findings: &[jointfit::checks::Finding]) -> Self {
+        TrialJson {
+            path: path.display().to_string(),
+            up: loaded.up.name(),
+            up_from: loaded.up_source,
+            reader_notes: loaded.notes.clone(),
+            repairs: loaded.repairs.clone(),
+            checks: findings.iter().map(CheckJson::from).collect(),
+        }
+    }
+}
+
+impl TrialJson {
+    /// The same, for the HTML report's "Data checks" section.
+    pub fn to_report(&self) -> jointfit_report::data_checks::TrialChecks {
+        use jointfit_report::data_checks::{CheckRow, TrialChecks};
+        let up_from = match self.up_from {
+            "--up" => "--up",
+            "model" => "the subject model's lab_up",
+            _ => "the default",
+        };
+        TrialChecks {
+            trial: crate::report_cmd::display_name(Path::new(&self.path)),
+            up: format!("{} ({up_from})", self.up),
+            notes: self.reader_notes.clone(),
+            repairs: self.repairs.clone(),
+            findings: self
+                .checks
+                .iter()
+                .map(|c| CheckRow {
+                    kind: c.kind.to_string(),
+                    severity: c.severity.to_string(),
+                    message: c.message.clone(),
+                    fix: c.fix.clone(),
+                })
+                .collect(),
+        }
+    }
+}
+
+/// Reads a trial for `model` ([`load_for_model`]) and runs the data checks ([`run_checks`]).
+pub fn load_checked(
+    path: &Path,
+    args: &TrialArgs,
+    model: &jointfit::model::Model,
+    filter_hz: Option<f64>,
+) -> Result<(Trial, TrialJson, Vec<jointfit::checks::Finding>)> {
+    let loaded = load_for_model(path, args, model, filter_hz)?;
+    let findings = run_checks(model, &loaded.trial, path)?;
+    let json = TrialJson::new(path, &loaded, &findings);
+    Ok((loaded.trial, json, findings))
 }

@@ -13,7 +13,7 @@ use jointfit::workflow::{self, WorkflowError};
 use jointfit_io::sto::{write_sto, Table};
 use serde::Serialize;
 
-use crate::common::{load_trial, Up};
+use crate::common::{load_checked, CheckJson, TrialJson};
 
 #[derive(Args)]
 pub struct IkArgs {
@@ -30,9 +30,8 @@ pub struct IkArgs {
     /// Low-pass filter cutoff in Hz (zero-phase Butterworth, effective order 4).
     #[arg(long, allow_negative_numbers = true, value_parser = crate::validate::cutoff_hz)]
     pub filter: Option<f64>,
-    /// Which axis of the file points up.
-    #[arg(long, value_enum, default_value = "y")]
-    pub up: Up,
+    #[command(flatten)]
+    pub read: crate::common::TrialArgs,
     /// Solve frames whose markers leave some coordinates undetermined by holding those at
     /// the previous frame's values (instead of leaving the frame out).
     #[arg(long)]
@@ -56,8 +55,11 @@ struct Summary {
     held_frames: usize,
     /// Marker samples rejected as gross errors.
     rejected: Vec<RejectedJson>,
-    /// Data-check findings (warnings; errors stop the command).
+    /// Data-check findings (warnings; errors stop the command), with the option that
+    /// repairs each.
     checks: Vec<CheckJson>,
+    /// The trial as read: vertical, reader notes, repairs (and the checks again).
+    trial: Option<TrialJson>,
     mean_frame_rms_mm: f64,
     max_frame_rms_mm: f64,
     marker_rms_mm: Vec<(String, f64)>,
@@ -71,12 +73,6 @@ struct UnsolvedJson {
     last_frame: i64,
     frames: usize,
     reason: String,
-}
-
-#[derive(Serialize)]
-struct CheckJson {
-    kind: &'static str,
-    message: String,
 }
 
 #[derive(Serialize)]
@@ -95,8 +91,7 @@ pub fn run(args: IkArgs) -> Result<()> {
     }
     files.check()?;
     let model = jointfit_io::model_file::load_model(&args.model)?;
-    let trial = load_trial(&args.trial, args.up, args.filter)?;
-    let findings = crate::common::run_checks(&model, &trial, &args.trial)?;
+    let (trial, trial_json, findings) = load_checked(&args.trial, &args.read, &model, args.filter)?;
     let start = Instant::now();
     let opts = IkOptions {
         hold_undetermined: args.hold_undetermined,
@@ -138,13 +133,8 @@ pub fn run(args: IkArgs) -> Result<()> {
             args.trial.display()
         );
     }
-    summary.checks = findings
-        .iter()
-        .map(|f| CheckJson {
-            kind: f.kind.as_str(),
-            message: f.message.clone(),
-        })
-        .collect();
+    summary.checks = findings.iter().map(CheckJson::from).collect();
+    summary.trial = Some(trial_json);
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
@@ -215,6 +205,7 @@ fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f64) -> Summ
             .count(),
         rejected,
         checks: Vec::new(),
+        trial: None,
         mean_frame_rms_mm: rms.iter().sum::<f64>() / rms.len().max(1) as f64 * MM_PER_M,
         max_frame_rms_mm: rms.iter().cloned().fold(0.0, f64::max) * MM_PER_M,
         marker_rms_mm: model

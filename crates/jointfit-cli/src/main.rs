@@ -19,6 +19,7 @@ mod data_cmd;
 mod demo_cmd;
 mod export_cmd;
 mod ik_cmd;
+mod markers_cmd;
 mod model_cmd;
 mod osim_calibrate;
 mod personalize_cmd;
@@ -49,6 +50,11 @@ enum Command {
     Model {
         #[command(subcommand)]
         command: model_cmd::ModelCommand,
+    },
+    /// Marker sets: propose one from a static trial (`markers suggest`).
+    Markers {
+        #[command(subcommand)]
+        command: markers_cmd::MarkersCommand,
     },
     /// Summarize a motion file: format, rate, frames, units, markers with gaps.
     Inspect(data_cmd::InspectArgs),
@@ -98,6 +104,7 @@ fn main() -> ExitCode {
     let batch = jointfit_io::staging::Batch::begin().ok();
     let result = match cli.command {
         Command::Model { command } => model_cmd::run(command),
+        Command::Markers { command } => markers_cmd::run(command),
         Command::Inspect(args) => data_cmd::inspect(args),
         Command::Convert(args) => data_cmd::convert(args),
         Command::Ik(args) => ik_cmd::run(args),

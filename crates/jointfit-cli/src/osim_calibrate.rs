@@ -13,7 +13,7 @@ use jointfit_io::osim_read::{read_osim, workflow as osim_workflow};
 use serde::Serialize;
 
 use crate::calibrate_cmd::{fit_settings, print_report, CalibrateArgs, ProgressObserver};
-use crate::common::load_trial;
+use crate::common::load_checked;
 
 /// `calibrate MODEL.osim --json`: the calibration, the held redundant parameters, the wall
 /// time of the fit.
@@ -85,14 +85,13 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         }
         None => None,
     };
-    let trials: Vec<Trial> = args
+    let (trials, read): (Vec<Trial>, Vec<crate::common::TrialJson>) = args
         .trials
         .iter()
-        .map(|t| load_trial(t, args.up, args.filter))
-        .collect::<Result<_>>()?;
-    for (trial, path) in trials.iter().zip(&args.trials) {
-        crate::common::run_checks(&model, trial, path)?;
-    }
+        .map(|t| load_checked(t, &args.read, &model, args.filter).map(|(t, j, _)| (t, j)))
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .unzip();
     let refs: Vec<&Trial> = trials.iter().collect();
     let clock = Instant::now();
     let mut observer = ProgressObserver::new();
@@ -173,7 +172,8 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             ];
             inputs.extend(crate::report_cmd::trial_settings(
                 &args.trials,
-                args.up,
+                &args.read,
+                model.spec().lab_up,
                 args.filter,
             ));
             Some(crate::report_cmd::write_calibration_report(
@@ -185,6 +185,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
                 cal,
                 &crate::report_cmd::provenance(inputs),
                 seconds,
+                &read,
             )?)
         }
         None => None,

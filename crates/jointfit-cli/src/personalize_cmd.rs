@@ -30,8 +30,10 @@ pub struct PersonalizeArgs {
     #[arg(long, value_enum, default_value = "both")]
     side: SideArg,
     /// The laboratory's vertical axis; the trial is rotated to the model's Y-up frame.
-    #[arg(long, value_enum, default_value = "y")]
-    up: Up,
+    /// Default: detected from the static trial's marker layout (head and pelvis above the
+    /// feet), else y. Recorded in the model as `lab_up` for every later command.
+    #[arg(long, value_enum)]
+    up: Option<Up>,
     /// Hip-centre regression.
     #[arg(long, value_enum, default_value = "bell")]
     hip: HipArg,
@@ -90,6 +92,27 @@ fn load_marker_set(arg: &str) -> Result<MarkerSet> {
     )
 }
 
+/// `--up`, else the vertical detected from the static trial's marker layout
+/// ([`jointfit::vertical::detect_up`], said on stderr), else y (with a warning).
+fn static_up(args: &PersonalizeArgs) -> Result<Up> {
+    if let Some(up) = args.up {
+        return Ok(up);
+    }
+    let (raw, _) = jointfit_io::trial_file::read_trial_noted(&args.static_trial)?;
+    let path = args.static_trial.display();
+    Ok(match jointfit::vertical::detect_up(&raw) {
+        // Recorded in the model as `lab_up`; said in the error context if personalize fails.
+        Some(d) => Up::from(d.up),
+        None => {
+            eprintln!(
+                "jointfit: warning: {path}: cannot tell the up axis from the marker labels; \
+                 assuming y (pass --up)"
+            );
+            Up::Y
+        }
+    })
+}
+
 pub fn run(args: PersonalizeArgs) -> Result<()> {
     crate::output::Files::new()
         .input("static trial", &args.static_trial)
@@ -97,7 +120,8 @@ pub fn run(args: PersonalizeArgs) -> Result<()> {
         .output("output", &args.output)
         .check()?;
     let set = load_marker_set(&args.markers)?;
-    let trial = load_trial(&args.static_trial, args.up, None)?;
+    let up = static_up(&args)?;
+    let trial = load_trial(&args.static_trial, up, None)?;
     let scale: Vec<_> = jointfit::checks::check_scale(&trial).into_iter().collect();
     crate::common::report_findings(&scale, &args.static_trial)?;
     let sides = match args.side {
@@ -120,7 +144,7 @@ pub fn run(args: PersonalizeArgs) -> Result<()> {
         ..PersonalizeOptions::default()
     };
     let static_name = args.static_trial.display().to_string();
-    let load = |p: &Option<PathBuf>| p.as_ref().map(|p| load_trial(p, args.up, None)).transpose();
+    let load = |p: &Option<PathBuf>| p.as_ref().map(|p| load_trial(p, up, None)).transpose();
     let (hip_trial, knee_trial) = (load(&args.functional_hip)?, load(&args.functional_knee)?);
     let func = FunctionalTrials {
         hip: hip_trial.as_ref(),
@@ -128,8 +152,7 @@ pub fn run(args: PersonalizeArgs) -> Result<()> {
         ..FunctionalTrials::default()
     };
     let outcome = personalize_sides(&trial, &set, sides, &opts, &func).with_context(|| {
-        let up = args
-            .up
+        let up = up
             .to_possible_value()
             .map_or("?".into(), |v| v.get_name().to_string());
         let functional: Vec<String> = [&args.functional_hip, &args.functional_knee]
@@ -150,6 +173,7 @@ pub fn run(args: PersonalizeArgs) -> Result<()> {
     let mut model = outcome.model;
     let spec = model.spec_mut();
     spec.description = format!("{}; from {static_name}", spec.description);
+    spec.lab_up = Some(up.into());
 
     // Each --compare-hjc label against the hip centre of the leg nearest to it.
     let mut compare: Vec<Vec<HjcComparison>> = model.legs().iter().map(|_| Vec::new()).collect();

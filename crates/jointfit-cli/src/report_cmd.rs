@@ -13,7 +13,7 @@ use jointfit::workflow::Calibration;
 use jointfit_report::analyze::{analyze_with_progress, parameter_rows};
 use jointfit_report::ReportInput;
 
-use crate::common::{load_trial, Up};
+use crate::common::{load_checked, TrialArgs, TrialJson};
 use crate::progress::Progress;
 
 #[derive(Args)]
@@ -26,9 +26,8 @@ pub struct ReportArgs {
     /// The model before calibration (e.g. from `jointfit personalize`), for comparison.
     #[arg(long, value_name = "SUBJECT.toml")]
     pub landmark: Option<String>,
-    /// Which axis of the motion files points up.
-    #[arg(long, value_enum, default_value = "y")]
-    pub up: Up,
+    #[command(flatten)]
+    pub read: crate::common::TrialArgs,
     /// Low-pass filter cutoff in Hz (use the one the calibration used).
     #[arg(long, allow_negative_numbers = true, value_parser = crate::validate::cutoff_hz)]
     pub filter: Option<f64>,
@@ -55,7 +54,7 @@ pub fn run(args: ReportArgs) -> Result<()> {
         Some(path) => Some(params_by_name(&model, &args.model, path)?),
         None => None,
     };
-    let trials = load_trials(&args.trials, args.up, args.filter)?;
+    let (trials, read) = load_trials(&args.trials, &args.read, &model, args.filter)?;
     let mut input = ReportInput {
         title: spec.name.clone(),
         baseline_label: "landmark model".into(),
@@ -85,8 +84,14 @@ pub fn run(args: ReportArgs) -> Result<()> {
             args.landmark.clone().unwrap_or_else(|| "not given".into()),
         ),
     ];
-    settings.extend(trial_settings(&args.trials, args.up, args.filter));
+    settings.extend(trial_settings(
+        &args.trials,
+        &args.read,
+        model.spec().lab_up,
+        args.filter,
+    ));
     input.settings = with_provenance(settings);
+    input.data_checks = read.iter().map(TrialJson::to_report).collect();
     let path = jointfit_report::write_report(&args.output, &input)
         .with_context(|| format!("writing the report to {}", args.output.display()))?;
     println!(
@@ -115,11 +120,24 @@ fn params_by_name(model: &Model, model_path: &str, path: &str) -> Result<Vec<f64
         .collect()
 }
 
-fn load_trials(paths: &[PathBuf], up: Up, filter: Option<f64>) -> Result<Vec<(String, Trial)>> {
-    paths
+/// A trial and its display name.
+type NamedTrial = (String, Trial);
+
+fn load_trials(
+    paths: &[PathBuf],
+    read: &TrialArgs,
+    model: &jointfit::model::Model,
+    filter: Option<f64>,
+) -> Result<(Vec<NamedTrial>, Vec<TrialJson>)> {
+    Ok(paths
         .iter()
-        .map(|p| Ok((display_name(p), load_trial(p, up, filter)?)))
-        .collect()
+        .map(|p| {
+            let (trial, json, _) = load_checked(p, read, model, filter)?;
+            Ok(((display_name(p), trial), json))
+        })
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .unzip())
 }
 
 pub fn display_name(p: &Path) -> String {
@@ -128,7 +146,17 @@ pub fn display_name(p: &Path) -> String {
         .unwrap_or_else(|| p.display().to_string())
 }
 
-pub fn trial_settings(trials: &[PathBuf], up: Up, filter: Option<f64>) -> Vec<(String, String)> {
+pub fn trial_settings(
+    trials: &[PathBuf],
+    read: &TrialArgs,
+    lab_up: Option<jointfit::trial::UpAxis>,
+    filter: Option<f64>,
+) -> Vec<(String, String)> {
+    let up = match (read.up, lab_up) {
+        (Some(u), _) => format!("{} (--up)", jointfit::trial::UpAxis::from(u)),
+        (None, Some(u)) => format!("{u} (the subject model's lab_up)"),
+        (None, None) => "y".to_string(),
+    };
     vec![
         (
             "trials".to_string(),
@@ -138,7 +166,7 @@ pub fn trial_settings(trials: &[PathBuf], up: Up, filter: Option<f64>) -> Vec<(S
                 .collect::<Vec<_>>()
                 .join(", "),
         ),
-        ("up axis".to_string(), format!("{up:?}").to_lowercase()),
+        ("up axis".to_string(), up),
         (
             "filter".to_string(),
             match filter {
@@ -207,6 +235,7 @@ pub fn write_calibration_report(
     cal: &Calibration,
     provenance: &jointfit_report::calibration::Provenance,
     seconds: f64,
+    data_checks: &[crate::common::TrialJson],
 ) -> Result<PathBuf> {
     let mut bar = Progress::new("report: inverse kinematics", None).unit("passes");
     let input = jointfit_report::calibration::calibration_input(
@@ -223,6 +252,8 @@ pub fn write_calibration_report(
         },
     )?;
     bar.finish("");
+    let mut input = input;
+    input.data_checks = data_checks.iter().map(|t| t.to_report()).collect();
     jointfit_report::write_report(dir, &input)
         .with_context(|| format!("writing the report to {}", dir.display()))
 }

@@ -19,6 +19,8 @@ mod ident;
 mod ik;
 #[path = "cli/limits.rs"]
 mod limits;
+#[path = "cli/markers.rs"]
+mod markers;
 #[path = "cli/osim.rs"]
 mod osim;
 #[path = "cli/osim_personalize.rs"]
@@ -29,10 +31,14 @@ mod personalize;
 mod priors;
 #[path = "cli/reliability.rs"]
 mod reliability;
+#[path = "cli/repair.rs"]
+mod repair;
 #[path = "cli/report.rs"]
 mod report;
 #[path = "cli/synth.rs"]
 mod synth;
+#[path = "cli/up.rs"]
+mod up;
 
 /// `jointfit personalize --static STAT --markers PRESET --side right -o OUT`, which must
 /// succeed.

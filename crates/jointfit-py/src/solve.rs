@@ -18,12 +18,14 @@ use crate::model::PyModel;
 use crate::trial::{parse_up, PyTrial};
 use crate::{err, msg, warn_all};
 
-/// A trial argument: a `Trial`, or a path read with `up` (and `filter`).
+/// A trial argument: a `Trial`, or a path read with `up` (else `model_up`, the subject
+/// model's `lab_up`; else y) and `filter`.
 pub(crate) fn trial_arg(
     py: Python<'_>,
     trial: &Bound<'_, PyAny>,
     up: Option<&str>,
     filter: Option<f64>,
+    model_up: Option<jointfit::trial::UpAxis>,
 ) -> PyResult<PyTrial> {
     if let Ok(t) = trial.cast::<PyTrial>() {
         let t = t.get().clone();
@@ -51,7 +53,7 @@ pub(crate) fn trial_arg(
         ))
     })?;
     let read = jointfit_io::batch::ReadOptions {
-        up: parse_up(up)?,
+        up: parse_up(up)?.or(model_up),
         filter_hz: filter,
     };
     let (t, warnings) = py
@@ -115,7 +117,18 @@ pub fn personalize(
     name: Option<String>,
 ) -> PyResult<PyModel> {
     let set = marker_set(markers)?;
-    let trial = trial_arg(py, r#static, up, None)?;
+    // The vertical: `up`, else detected from a static file's marker layout.
+    let lab_up = match parse_up(up)? {
+        Some(u) => Some(u),
+        None => match r#static.extract::<std::path::PathBuf>() {
+            Ok(path) => jointfit_io::trial_file::read_trial(&path)
+                .ok()
+                .and_then(|raw| jointfit::vertical::detect_up(&raw))
+                .map(|d| d.up),
+            Err(_) => None,
+        },
+    };
+    let trial = trial_arg(py, r#static, up, None, lab_up)?;
     let sides: Sides = side.parse().map_err(|e| err(&e))?;
     let hip_centre = match hip {
         "bell" => HipCentreMethod::Bell,
@@ -148,7 +161,7 @@ pub fn personalize(
         msg(format!(
             "{} (read with --up={}): cannot personalize: {}",
             trial.name,
-            up.unwrap_or("y"),
+            lab_up.map_or("y", |u| u.name()),
             jointfit_io::batch::message(&e)
         ))
     })?;
@@ -158,6 +171,7 @@ pub fn personalize(
     let mut model = result.model;
     let spec = model.spec_mut();
     spec.description = format!("{}; from {}", spec.description, trial.name);
+    spec.lab_up = lab_up;
     PyModel::from_spec(spec)
 }
 
@@ -237,7 +251,7 @@ pub fn ik(
     filter: Option<f64>,
 ) -> PyResult<PyIkResult> {
     let model = model_arg(model)?;
-    let trial = trial_arg(py, trial, up, filter)?;
+    let trial = trial_arg(py, trial, up, filter, model.spec().lab_up)?;
     let p = model.nominal_params();
     let run = py
         .detach(|| jointfit::workflow::ik_trial(&model, &p, &trial.trial, &IkOptions::default()))

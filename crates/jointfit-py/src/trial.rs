@@ -15,12 +15,12 @@ use crate::{err, msg, warn_all};
 /// The `up` argument: which laboratory axis points up (`None` or `"y"`: no rotation).
 pub(crate) fn parse_up(up: Option<&str>) -> PyResult<Option<UpAxis>> {
     match up {
-        None | Some("y") | Some("Y") => Ok(None),
-        Some("z") | Some("Z") => Ok(Some(UpAxis::Z)),
-        Some("-z") | Some("-Z") => Ok(Some(UpAxis::NegZ)),
-        Some(other) => Err(msg(format!(
-            "up must be \"y\", \"z\" or \"-z\", not {other:?}"
-        ))),
+        None => Ok(None),
+        Some(s) => UpAxis::parse(s).map(Some).ok_or_else(|| {
+            msg(format!(
+                "up must be \"y\", \"-y\", \"z\", \"-z\", \"x\" or \"-x\", not {s:?}"
+            ))
+        }),
     }
 }
 
@@ -40,19 +40,27 @@ pub struct PyTrial {
 #[pymethods]
 impl PyTrial {
     /// Reads a motion file (.c3d or .trc) in metres, rotated so that the model's y axis is
-    /// up. `up` names the laboratory's vertical axis ("y", "z" or "-z"; None: "y").
+    /// up. `up` names the laboratory's vertical axis ("y", "-y", "z", "-z", "x", "-x");
+    /// None: the `lab_up` of `model` (a Model, model file or built-in name: the axis
+    /// `personalize` detected or was given), else "y". A trial whose marker layout puts
+    /// another axis up is reported as a UserWarning.
     /// `filter` low-pass filters the markers (zero-phase Butterworth, Hz); filtering that
     /// moves a marker by more than 2 cm is reported as a UserWarning.
     #[staticmethod]
-    #[pyo3(signature = (path, up=None, filter=None))]
+    #[pyo3(signature = (path, up=None, filter=None, model=None))]
     fn read(
         py: Python<'_>,
         path: PathBuf,
         up: Option<&str>,
         filter: Option<f64>,
+        model: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
+        let model_up = match model {
+            Some(m) => crate::solve::model_arg(m)?.spec().lab_up,
+            None => None,
+        };
         let read = ReadOptions {
-            up: parse_up(up)?,
+            up: parse_up(up)?.or(model_up),
             filter_hz: filter,
         };
         let (trial, warnings) = py
@@ -100,6 +108,39 @@ impl PyTrial {
             trial,
             name: name.unwrap_or_else(|| "<arrays>".into()),
         })
+    }
+
+    /// A repaired copy and what was done (one sentence each): `exclude` leaves markers out,
+    /// `swap` exchanges labels ("A,B", "A,B@F" from file frame F on, "A,B@F-L"), `fill_gaps`
+    /// fills gaps of at most that many frames (rigid-body fill from the segment's other
+    /// markers when `model` names the segments, else cubic spline). See `jointfit::repair`.
+    #[pyo3(signature = (exclude=Vec::new(), swap=Vec::new(), fill_gaps=0, model=None))]
+    fn repair(
+        &self,
+        exclude: Vec<String>,
+        swap: Vec<String>,
+        fill_gaps: usize,
+        model: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<(Self, Vec<String>)> {
+        let model = model.map(crate::solve::model_arg).transpose()?;
+        let opts = jointfit::repair::RepairOptions {
+            exclude,
+            swaps: swap
+                .iter()
+                .map(|s| jointfit::repair::Swap::parse(s))
+                .collect::<Result<_, _>>()
+                .map_err(|e| err(&e))?,
+            fill_gaps,
+        };
+        let (trial, actions) = jointfit::repair::repair(&self.trial, model.as_ref(), &opts)
+            .map_err(|e| msg(format!("{}: {e}", self.name)))?;
+        Ok((
+            PyTrial {
+                trial,
+                name: self.name.clone(),
+            },
+            actions.iter().map(|a| a.to_string()).collect(),
+        ))
     }
 
     /// Marker labels, one per marker column.

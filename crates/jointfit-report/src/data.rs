@@ -27,6 +27,9 @@ pub struct ReportInput {
     pub notes: Vec<String>,
     /// Where the information came from and the anatomical checks (a calibration).
     pub trust: Option<crate::trust::Trust>,
+    /// Per trial: how it was read, repairs and data-check findings (section "Data checks",
+    /// [`crate::data_checks`]; omitted when empty).
+    pub data_checks: Vec<crate::data_checks::TrialChecks>,
 }
 
 impl ReportInput {

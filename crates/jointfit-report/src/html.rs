@@ -102,6 +102,11 @@ pub fn render(input: &ReportInput) -> String {
             escape(name)
         );
     };
+    if !input.data_checks.is_empty() {
+        section(&mut h, "data-checks", "Data checks");
+        crate::data_checks::render(&mut h, &input.data_checks);
+        h.push_str("</section>");
+    }
     section(&mut h, "frame-error", "Marker error over the trial");
     frame_error(&mut h, input);
     h.push_str("</section>");

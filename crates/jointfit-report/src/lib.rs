@@ -14,6 +14,7 @@ pub mod analyze;
 pub mod calibration;
 pub mod check;
 pub mod data;
+pub mod data_checks;
 pub mod html;
 pub mod svg;
 pub mod trust;

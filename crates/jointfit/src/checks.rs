@@ -15,7 +15,10 @@
 //!   - **jump**: a marker moves faster than [`JUMP_SPEED`] between consecutive frames;
 //!   - **gaps**: frames in which a model marker is missing, with the longest run.
 //!
-//! Nothing here changes the data; the findings are for the user (and the report).
+//! Nothing here changes the data; the findings are for the user (and the report). A finding
+//! that a repair of [`crate::repair`] addresses carries the option that applies it
+//! ([`Finding::fix`]): `--swap-labels A,B@F` for a swap, `--fill-gaps N` for gaps of at most
+//! half a second, `--exclude-marker` for a cluster whose distance changed.
 
 use nalgebra::Vector3;
 
@@ -68,6 +71,8 @@ pub struct Finding {
     pub kind: CheckKind,
     pub severity: Severity,
     pub message: String,
+    /// The command-line option that repairs it ([`crate::repair`]), if one does.
+    pub fix: Option<String>,
 }
 
 /// The median over frames of the largest distance between two present markers (m); `None`
@@ -122,6 +127,7 @@ pub fn check_scale(trial: &Trial) -> Option<Finding> {
             "the markers span {span:.3} m (a person spans about 0.3–2.5 m): this looks like \
              {hint} (TRC: the Units value on line 3; C3D: the POINT:UNITS parameter)"
         ),
+        fix: None,
     })
 }
 
@@ -148,20 +154,49 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
     let reference =
         |a: usize, b: usize| (model.markers()[a].local - model.markers()[b].local).norm();
 
-    // Clusters.
+    // Per segment, the distance of every marker pair in every frame (NaN when one is
+    // missing), computed once for the cluster and swap checks: `d[(f * m + i) * m + k]`.
     for markers in &segments {
-        for (i, &a) in markers.iter().enumerate() {
-            for &b in &markers[i + 1..] {
-                let mut d: Vec<f64> = (0..n)
-                    .filter_map(|f| Some((pos(f, a)? - pos(f, b)?).norm()))
+        let m = markers.len();
+        if m < 2 {
+            continue;
+        }
+        let mut d = vec![f64::NAN; n * m * m];
+        let mut at: Vec<Option<Vector3<f64>>> = vec![None; m];
+        for f in 0..n {
+            for (i, &j) in markers.iter().enumerate() {
+                at[i] = pos(f, j);
+            }
+            for i in 0..m {
+                for k in i + 1..m {
+                    if let (Some(p), Some(q)) = (at[i], at[k]) {
+                        let v = (p - q).norm();
+                        d[(f * m + i) * m + k] = v;
+                        d[(f * m + k) * m + i] = v;
+                    }
+                }
+            }
+        }
+        let r: Vec<f64> = (0..m * m)
+            .map(|x| reference(markers[x / m], markers[x % m]))
+            .collect();
+        let seg = &model.segments()[model.markers()[markers[0]].segment.0].name;
+
+        // Clusters.
+        for i in 0..m {
+            for k in i + 1..m {
+                let (a, b) = (markers[i], markers[k]);
+                let mut v: Vec<f64> = (0..n)
+                    .map(|f| d[(f * m + i) * m + k])
+                    .filter(|x| x.is_finite())
                     .collect();
-                if d.is_empty() {
+                if v.is_empty() {
                     continue;
                 }
-                d.sort_by(f64::total_cmp);
-                let median = d[d.len() / 2];
-                let r = reference(a, b);
-                if (median - r).abs() > CLUSTER_TOLERANCE {
+                v.sort_by(f64::total_cmp);
+                let median = v[v.len() / 2];
+                let rr = r[i * m + k];
+                if (median - rr).abs() > CLUSTER_TOLERANCE {
                     out.push(Finding {
                         kind: CheckKind::Cluster,
                         severity: Severity::Warning,
@@ -171,36 +206,36 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                             name(a),
                             name(b),
                             median * 1e3,
-                            r * 1e3,
-                            seg = model.segments()[model.markers()[a].segment.0].name
+                            rr * 1e3,
                         ),
+                        fix: Some(format!(
+                            "--exclude-marker {} or --exclude-marker {} (the one that moved)",
+                            name(a),
+                            name(b)
+                        )),
                     });
                 }
             }
         }
-    }
 
-    // Swaps: runs of frames where exchanging two labels fits the other markers far better.
-    for markers in &segments {
-        for (i, &a) in markers.iter().enumerate() {
-            for &b in &markers[i + 1..] {
-                let others: Vec<usize> = markers
-                    .iter()
-                    .copied()
-                    .filter(|&c| c != a && c != b)
-                    .collect();
-                if others.is_empty() {
-                    continue;
-                }
+        // Swaps: runs of frames where exchanging two labels fits the other markers far better.
+        if m < 3 {
+            continue;
+        }
+        for i in 0..m {
+            for k in i + 1..m {
+                let (a, b) = (markers[i], markers[k]);
                 let swapped = |f: usize| -> bool {
-                    let (Some(pa), Some(pb)) = (pos(f, a), pos(f, b)) else {
+                    if !d[(f * m + i) * m + k].is_finite() {
                         return false;
-                    };
+                    }
                     let (mut plain, mut crossed, mut count) = (0.0, 0.0, 0usize);
-                    for &c in &others {
-                        let Some(pc) = pos(f, c) else { continue };
-                        let (dac, dbc) = ((pa - pc).norm(), (pb - pc).norm());
-                        let (rac, rbc) = (reference(a, c), reference(b, c));
+                    for c in (0..m).filter(|&c| c != i && c != k) {
+                        let (dac, dbc) = (d[(f * m + i) * m + c], d[(f * m + k) * m + c]);
+                        if !dac.is_finite() {
+                            continue;
+                        }
+                        let (rac, rbc) = (r[i * m + c], r[k * m + c]);
                         plain += (dac - rac).abs() + (dbc - rbc).abs();
                         crossed += (dbc - rac).abs() + (dac - rbc).abs();
                         count += 1;
@@ -208,18 +243,24 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                     count > 0 && plain > 0.02 * count as f64 && crossed < 0.3 * plain
                 };
                 for (start, end) in runs((0..n).map(swapped)) {
+                    let (from, to) = (first + start as i64, first + end as i64);
+                    let frames = if end + 1 == n {
+                        format!("{from}")
+                    } else {
+                        format!("{from}-{to}")
+                    };
                     out.push(Finding {
                         kind: CheckKind::Swap,
                         severity: Severity::Warning,
                         message: format!(
                             "{} and {} look swapped in frames {}–{}: exchanged, they fit the \
-                             subject model's distances to the other {} markers",
+                             subject model's distances to the other {seg} markers",
                             name(a),
                             name(b),
-                            first + start as i64,
-                            first + end as i64,
-                            model.segments()[model.markers()[a].segment.0].name
+                            from,
+                            to,
                         ),
+                        fix: Some(format!("--swap-labels {},{}@{frames}", name(a), name(b))),
                     });
                 }
             }
@@ -248,6 +289,7 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                     jumps.len(),
                     first + f as i64
                 ),
+                fix: None,
             });
         }
         let gaps = runs((0..n).map(|f| pos(f, j).is_none()));
@@ -264,6 +306,8 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                     first + s as i64,
                     first + e as i64
                 ),
+                fix: (((e - s + 1) as f64) <= 0.5 * trial.rate())
+                    .then(|| format!("--fill-gaps {}", e - s + 1)),
             });
         }
     }

@@ -17,9 +17,11 @@ pub mod landmarks;
 pub mod linalg;
 pub mod model;
 pub mod plausibility;
+pub mod repair;
 pub mod signal;
 pub mod solver;
 #[doc(hidden)]
 pub mod testing;
 pub mod trial;
+pub mod vertical;
 pub mod workflow;

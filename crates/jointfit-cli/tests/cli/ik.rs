@@ -11,7 +11,7 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-fn ik(subject: &Path, trial: &Path, mot: &Path, extra: &[&str]) -> Value {
+pub(crate) fn ik(subject: &Path, trial: &Path, mot: &Path, extra: &[&str]) -> Value {
     let mut args = vec!["ik", s(subject), s(trial), "-o", s(mot), "--json"];
     args.extend_from_slice(extra);
     let (ok, out, err) = jointfit(&args);
@@ -21,7 +21,7 @@ fn ik(subject: &Path, trial: &Path, mot: &Path, extra: &[&str]) -> Value {
 
 /// Copies a TRC, applying `edit(file frame number, label, cells of that marker)` to every
 /// marker of every data row (cells: X, Y, Z as text).
-fn edit_trc(src: &Path, dst: &Path, edit: impl Fn(i64, &str, &mut [String])) {
+pub(crate) fn edit_trc(src: &Path, dst: &Path, edit: impl Fn(i64, &str, &mut [String])) {
     let text = std::fs::read_to_string(src).unwrap();
     let lines: Vec<&str> = text.split('\n').collect();
     let labels: Vec<String> = lines[3]

@@ -114,6 +114,11 @@ fn calibrate_report_and_report_command_on_a_real_walking_trial() {
     let json: serde_json::Value = serde_json::from_str(&out).expect("stdout is JSON");
     assert!(err.is_empty(), "{err}");
     let root = checked_page(&rep.join("index.html"));
+    // How the trial was read and what the data checks found: in the JSON and on the page.
+    assert_eq!(json["trials_read"][0]["up_from"], "model");
+    assert!(json["trials_read"][0]["checks"].is_array());
+    let page = std::fs::read_to_string(rep.join("index.html")).unwrap();
+    assert!(page.contains("id=\"sec-data-checks\""));
     let (before, after) = summary_rms(&root);
     // The report's own inverse kinematics agrees with the calibration's numbers.
     let rms_before = json["rms_before_mm"].as_f64().unwrap();

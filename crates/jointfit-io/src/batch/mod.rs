@@ -52,7 +52,8 @@ pub enum TrialInput {
 /// How trial files are read.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ReadOptions {
-    /// The laboratory's vertical axis (`Y`: no rotation).
+    /// The laboratory's vertical axis; `None`: the subject model's `lab_up` when a job reads
+    /// its trials ([`run_job`]), else `Y` (no rotation).
     pub up: Option<UpAxis>,
     /// Low-pass cutoff (Hz) of the zero-phase Butterworth filter; `None`: unfiltered.
     pub filter_hz: Option<f64>,
@@ -136,7 +137,12 @@ pub fn prepare_trial(
 /// Reads a motion file (rotated to Y-up, filtered as asked) and its warnings.
 pub fn read_trial(path: &Path, read: &ReadOptions) -> Result<(Trial, Vec<String>), JobError> {
     let trial = crate::trial_file::read_trial(path)?;
-    prepare_trial(trial, &path.display().to_string(), read.up, read.filter_hz)
+    let name = path.display().to_string();
+    let up = read.up.unwrap_or(UpAxis::Y);
+    let rotated = jointfit::vertical::rotation_warning(&trial, up, &format!("up {up}"));
+    let (trial, mut warnings) = prepare_trial(trial, &name, Some(up), read.filter_hz)?;
+    warnings.extend(rotated.map(|w| format!("{name}: {w}")));
+    Ok((trial, warnings))
 }
 
 fn load_model(input: &ModelInput) -> Result<Model, JobError> {
@@ -157,9 +163,14 @@ pub fn run_job(job: &Job) -> Result<Calibration, JobError> {
     }
     let mut warnings = Vec::new();
     let mut trials = Vec::with_capacity(job.trials.len());
+    // The vertical: the job's, else the subject model's (`lab_up`, from personalize).
+    let read = ReadOptions {
+        up: job.read.up.or(model.spec().lab_up),
+        ..job.read
+    };
     for t in &job.trials {
         let (trial, w) = match t {
-            TrialInput::Path(p) => read_trial(p, &job.read)?,
+            TrialInput::Path(p) => read_trial(p, &read)?,
             TrialInput::Data { name, trial } => {
                 prepare_trial((**trial).clone(), name, None, job.read.filter_hz)?
             }

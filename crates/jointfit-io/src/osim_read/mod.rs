@@ -414,6 +414,7 @@ fn parse(doc: &Document, path: &Path) -> Result<Parsed, Fail> {
         parameters: vec![],
         markers,
         couplers,
+        lab_up: None,
     };
     Ok((spec, offsets, marker_sites))
 }

@@ -9,3 +9,4 @@ mod sto;
 mod trc_field;
 mod trc_files;
 mod trc_format;
+mod vertical;

@@ -19,7 +19,19 @@ class Trial:
     """Marker trajectories of one trial, in the model's Y-up frame."""
 
     @staticmethod
-    def read(path: _Path, up: Optional[str] = None, filter: Optional[float] = None) -> Trial: ...
+    def read(
+        path: _Path,
+        up: Optional[str] = None,
+        filter: Optional[float] = None,
+        model: Optional[Union[Model, _Path]] = None,
+    ) -> Trial: ...
+    def repair(
+        self,
+        exclude: Sequence[str] = ...,
+        swap: Sequence[str] = ...,
+        fill_gaps: int = 0,
+        model: Optional[Union[Model, _Path]] = None,
+    ) -> Tuple[Trial, List[str]]: ...
     @staticmethod
     def from_arrays(
         labels: Sequence[str],

@@ -55,11 +55,12 @@
 //! [`lower_limb`]: crate::model::lower_limb::lower_limb
 
 pub mod bilateral;
-mod frames;
+pub(crate) mod frames;
 pub mod functional;
 pub mod markerset;
 pub(crate) mod nominal;
 pub mod priors;
+pub mod suggest;
 pub mod window;
 
 use nalgebra::Vector3;

@@ -65,6 +65,12 @@ pub struct ModelSpec {
     /// Coordinates that follow others (OpenSim's `CoordinateCouplerConstraint`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub couplers: Vec<CouplerSpec>,
+    /// The vertical axis of the laboratory whose static trial built this subject model
+    /// (`"y"`, `"-y"`, `"z"`, `"-z"`, `"x"`, `"-x"`; written by `personalize`, detected from
+    /// the marker layout by [`crate::vertical::detect_up`] or given by `--up`). Trials read for
+    /// this model are rotated from this axis to Y up unless told otherwise. Absent: `y`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lab_up: Option<crate::trial::UpAxis>,
 }
 
 /// `dependent = function(independent)`: the dependent coordinate leaves the coordinate vector

@@ -61,6 +61,7 @@ pub fn join_legs(right: &ModelSpec, left: &ModelSpec) -> Result<ModelSpec, Model
         parameters: Vec::new(),
         markers: Vec::new(),
         couplers: Vec::new(),
+        lab_up: right.lab_up,
     };
     for (side, spec) in [(Side::Right, right), (Side::Left, left)] {
         let s = side.suffix();

@@ -376,5 +376,6 @@ pub fn lower_limb(side: Side) -> ModelSpec {
         parameters: PARAMS.iter().map(param_spec).collect(),
         markers,
         couplers: vec![],
+        lab_up: None,
     }
 }

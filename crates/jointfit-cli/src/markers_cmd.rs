@@ -1,0 +1,111 @@
+//! `jointfit markers suggest STATIC [-o FILE.toml] [--up AXIS]`: a marker set proposed from a
+//! static trial's labels and positions ([`jointfit::landmarks::suggest`]), for the user to
+//! check; tried at once with `personalize` on the same trial.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::Subcommand;
+use jointfit::landmarks::{personalize, PersonalizeOptions};
+use jointfit::model::lower_limb::Side;
+
+use crate::common::{load_trial, Up};
+
+#[derive(Subcommand)]
+pub enum MarkersCommand {
+    /// Propose a marker-set TOML from a static trial: which markers sit on which segment,
+    /// which are the epicondyles and malleoli (check it before use).
+    Suggest {
+        /// Static standing trial (.trc or .c3d).
+        r#static: PathBuf,
+        /// Write the marker set here (TOML, atomically) instead of printing it.
+        #[arg(short, long, value_name = "FILE.toml")]
+        output: Option<PathBuf>,
+        /// The laboratory's vertical axis (default: detected from the marker layout).
+        #[arg(long, value_enum)]
+        up: Option<Up>,
+        /// Name written into the set (default: the output file's stem, else "suggested").
+        #[arg(long)]
+        name: Option<String>,
+    },
+}
+
+pub fn run(cmd: MarkersCommand) -> Result<()> {
+    let MarkersCommand::Suggest {
+        r#static,
+        output,
+        up,
+        name,
+    } = cmd;
+    let mut files = crate::output::Files::new().input("static trial", &r#static);
+    if let Some(o) = &output {
+        files = files.output("output", o);
+    }
+    files.check()?;
+    let path = r#static.display().to_string();
+    let up = match up {
+        Some(u) => u,
+        None => {
+            let (raw, _) = jointfit_io::trial_file::read_trial_noted(&r#static)?;
+            match jointfit::vertical::detect_up(&raw) {
+                Some(d) => {
+                    eprintln!("jointfit: {path}: up axis detected: {}", d.describe());
+                    Up::from(d.up)
+                }
+                None => {
+                    eprintln!(
+                        "jointfit: warning: {path}: cannot tell the up axis from the labels; \
+                         assuming y (pass --up)"
+                    );
+                    Up::Y
+                }
+            }
+        }
+    };
+    let trial = load_trial(&r#static, up, None)?;
+    let name = name.unwrap_or_else(|| {
+        output
+            .as_ref()
+            .and_then(|o| o.file_stem())
+            .map_or("suggested".into(), |s| s.to_string_lossy().into_owned())
+    });
+    let suggestion = jointfit::landmarks::suggest::suggest(&trial, &name)
+        .with_context(|| format!("{path}: cannot suggest a marker set"))?;
+    let mut text = format!(
+        "# Suggested by `jointfit markers suggest` from {path} (up axis {}).\n\
+         # Check every role before use: see docs/markersets.md.\n",
+        jointfit::trial::UpAxis::from(up)
+    );
+    for note in &suggestion.notes {
+        text.push_str(&format!("# note: {note}\n"));
+        eprintln!("jointfit: {path}: {note}");
+    }
+    text.push_str(&suggestion.set.to_toml());
+    // Try it: personalize each leg the set describes.
+    for (side, present) in [
+        (Side::Right, suggestion.set.right.is_some()),
+        (Side::Left, suggestion.set.left.is_some()),
+    ] {
+        if present {
+            if let Err(e) = personalize(
+                &trial,
+                &suggestion.set,
+                side,
+                &PersonalizeOptions::default(),
+            ) {
+                eprintln!(
+                    "jointfit: warning: {path}: personalize with this set fails for the {side:?} leg: {e}"
+                );
+            }
+        }
+    }
+    match &output {
+        Some(o) => {
+            jointfit_io::atomic::write_atomic(o, text.as_bytes())
+                .with_context(|| format!("{}: cannot write", o.display()))?;
+            eprintln!("jointfit: wrote {}", o.display());
+        }
+        None => print!("{text}"),
+    }
+    Ok(())
+}

@@ -1,0 +1,101 @@
+//! `jointfit markers suggest`: on the static trial of every lab in the shared data, the
+//! proposed marker set is accepted by `personalize` for both legs, and names the landmarks
+//! the lab's own preset names.
+
+use jointfit_testkit::{data_file, scratch};
+
+use super::jointfit;
+
+#[test]
+fn suggested_sets_personalize_on_every_lab() {
+    // (static trial, expected right-leg epicondyles and malleoli: lateral, medial)
+    let labs = [
+        (
+            "opencap_expert1/static1.trc",
+            ["r_knee", "r_mknee", "r_ankle", "r_mankle"],
+        ),
+        (
+            "opensim_gait2392_subject01/subject01_static.trc",
+            ["R.Knee.Lat", "R.Knee.Med", "R.Ankle.Lat", "R.Ankle.Med"],
+        ),
+        (
+            "opensim_hamner_subject02/subject02_static.trc",
+            ["R.Knee.Lat", "R.Knee.Med", "R.Ankle.Lat", "R.Ankle.Med"],
+        ),
+        (
+            "opensim_jam_healthy/static1.trc",
+            ["R.Knee", "R.Mkn", "R.Ankle", "R.Man"],
+        ),
+        (
+            "biobuddy_functional_vicon/anatomical_posture.c3d",
+            ["RKNE", "RKNEM", "RANK", "RANKM"],
+        ),
+        (
+            "biobuddy_functional_vicon/Test_func_anat.c3d",
+            ["RKNE", "RKNEM", "RANK", "RANKM"],
+        ),
+        (
+            "c3d_reader/ezc3d/Qualisys.c3d",
+            ["R_FLE", "R_FME", "R_FAL", "R_TAM"],
+        ),
+    ];
+    for (rel, [lat_knee, med_knee, lat_ank, med_ank]) in labs {
+        let Some(stat) = data_file(rel) else {
+            println!("skipped: no data");
+            return;
+        };
+        let dir = scratch("markers-suggest");
+        let set = dir.join("set.toml");
+        let (ok, _, err) = jointfit(&[
+            "markers",
+            "suggest",
+            stat.to_str().unwrap(),
+            "-o",
+            set.to_str().unwrap(),
+        ]);
+        assert!(ok, "{rel}: {err}");
+        assert!(!err.contains("fails"), "{rel}: {err}");
+        let text = std::fs::read_to_string(&set).unwrap();
+        for (role, label) in [
+            ("lateral_epicondyle", lat_knee),
+            ("medial_epicondyle", med_knee),
+            ("lateral_malleolus", lat_ank),
+            ("medial_malleolus", med_ank),
+        ] {
+            assert!(
+                text.contains(&format!("{role} = \"{label}\"")),
+                "{rel}: {role}\n{text}"
+            );
+        }
+        for side in ["right", "left"] {
+            let (ok, _, err) = jointfit(&[
+                "personalize",
+                "--static",
+                stat.to_str().unwrap(),
+                "--markers",
+                set.to_str().unwrap(),
+                "--side",
+                side,
+                "-o",
+                dir.join(format!("{side}.toml")).to_str().unwrap(),
+            ]);
+            assert!(ok, "{rel} {side}: {err}\n{text}");
+        }
+    }
+}
+
+#[test]
+fn a_trial_without_pelvis_labels_is_one_line() {
+    let Some(trial) = data_file("c3d_reader/ezc3d/Vicon.c3d") else {
+        println!("skipped: no data");
+        return;
+    };
+    let (ok, _, err) = jointfit(&["markers", "suggest", trial.to_str().unwrap()]);
+    assert!(!ok);
+    assert!(err.contains("cannot suggest a marker set"), "{err}");
+    assert_eq!(
+        err.lines().filter(|l| l.contains("error")).count(),
+        1,
+        "{err}"
+    );
+}

@@ -1,0 +1,93 @@
+//! The up axis once: `personalize` detects the lab's vertical from the static trial and
+//! records it in the subject model (`lab_up`); later commands apply it without `--up`.
+
+use std::path::Path;
+
+use jointfit_testkit::{data_file, scratch};
+
+use super::jointfit;
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// personalize without `--up`: the model records the detected axis.
+fn personalize(stat: &Path, preset: &str, out: &Path) -> String {
+    let (ok, _, err) = jointfit(&[
+        "personalize",
+        "--static",
+        s(stat),
+        "--markers",
+        preset,
+        "--side",
+        "right",
+        "-o",
+        s(out),
+    ]);
+    assert!(ok, "{err}");
+    std::fs::read_to_string(out).unwrap()
+}
+
+#[test]
+fn negative_z_lab_needs_up_only_once() {
+    let (Some(stat), Some(trial)) = (
+        data_file("biobuddy_functional_vicon/Test_func_anat.c3d"),
+        data_file("biobuddy_functional_vicon/Test_func_rknee.c3d"),
+    ) else {
+        println!("skipped: no data");
+        return;
+    };
+    let dir = scratch("up_once");
+    let subject = dir.join("subject.toml");
+    let toml = personalize(&stat, "plugin-gait", &subject);
+    assert!(toml.contains("lab_up = \"-z\""), "{toml}");
+    let (given, forgot, wrong) = (
+        dir.join("given.mot"),
+        dir.join("forgot.mot"),
+        dir.join("y.mot"),
+    );
+    let run = |mot: &Path, extra: &[&str]| {
+        let mut args = vec!["ik", s(&subject), s(&trial), "-o", s(mot)];
+        args.extend_from_slice(extra);
+        let (ok, _, err) = jointfit(&args);
+        assert!(ok, "{err}");
+        err
+    };
+    let err_given = run(&given, &["--up=-z"]);
+    let err_forgot = run(&forgot, &[]);
+    assert_eq!(
+        std::fs::read(&given).unwrap(),
+        std::fs::read(&forgot).unwrap(),
+        "forgetting --up gives the same .mot as giving it"
+    );
+    assert!(!err_given.contains("looks rotated"), "{err_given}");
+    assert!(!err_forgot.contains("looks rotated"), "{err_forgot}");
+    // Overriding with the wrong axis is still possible, and said.
+    let err_wrong = run(&wrong, &["--up", "y"]);
+    assert!(
+        err_wrong.contains("looks rotated relative to the subject")
+            && err_wrong.contains("pass --up -z"),
+        "{err_wrong}"
+    );
+}
+
+#[test]
+fn y_up_labs_record_y() {
+    for (rel, preset) in [
+        ("opencap_expert1/static1.trc", "opencap"),
+        (
+            "opensim_gait2392_subject01/subject01_static.trc",
+            "gait2392",
+        ),
+        ("opensim_jam_healthy/static1.trc", "jam"),
+    ] {
+        let Some(stat) = data_file(rel) else {
+            println!("skipped: no data");
+            return;
+        };
+        let dir = scratch("up_y");
+        let out = dir.join("subject.toml");
+        let toml = personalize(&stat, preset, &out);
+        assert!(toml.contains("lab_up = \"y\""), "{rel}: {toml}");
+    }
+}
