@@ -71,6 +71,10 @@ pub struct CalibrateArgs {
     /// keep the best and report the spread of the optima (joint and gradient methods).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=1000))]
     pub starts: u64,
+    /// Extra starts of the default's global phase (joint method, one start): each runs a few
+    /// iterations and the two most promising are finished (0: one local fit from the start).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u64).range(0..=1000))]
+    pub probes: u64,
     #[arg(long, value_enum, default_value = "y")]
     pub up: Up,
     /// Print a JSON report on stdout.
@@ -160,6 +164,7 @@ pub fn fit_settings(args: &CalibrateArgs) -> FitSettings {
         method: args.method.into(),
         seed: args.seed,
         starts: args.starts as usize,
+        probes: args.probes as usize,
         uncertainty: Some(uncertainty_options(
             args.threshold_mm,
             args.threshold_deg,
@@ -223,6 +228,23 @@ pub fn print_report(report: &Calibration, seconds: f64) {
                 list.join(", ")
             );
         }
+    }
+    if let Some(g) = &report.global {
+        let list: Vec<String> = g
+            .finished
+            .iter()
+            .zip(&g.finished_objective_mm2)
+            .map(|(k, c)| format!("start {k} {c:.3}"))
+            .collect();
+        println!(
+            "global phase: {} starts probed ({} iterations each), finished: {} mm²",
+            g.starts,
+            g.probe_iterations,
+            list.join(", ")
+        );
+    }
+    if let Some(w) = &report.global_warning {
+        eprintln!("jointfit: warning: {w}");
     }
     let mut t = crate::table::Table::new(&[
         "group",

@@ -115,6 +115,12 @@ pub struct Calibration {
     pub fixed_unidentifiable: Vec<String>,
     /// Several starts: the optima they reached.
     pub multistart: Option<MultiStart>,
+    /// The default's global phase: short probes from several starts, the best finished
+    /// ([`super::global`]); `None` when not run (`probes` 0, several full starts, the swarm).
+    pub global: Option<super::global::GlobalSearch>,
+    /// Set when the fit is not known to be the global optimum (the finished starts of the
+    /// global phase, or the full starts, ended at different optima).
+    pub global_warning: Option<String>,
     /// Marker noise SD (mm) that weighed the prior; `None`: no prior (unregularized fit).
     pub prior_noise_mm: Option<f64>,
     /// Whether that noise was estimated from the residuals (else given).
@@ -138,7 +144,7 @@ impl Calibration {
 }
 
 /// e_inner (m²) in mm².
-fn mm2(cost: f64) -> f64 {
+pub(super) fn mm2(cost: f64) -> f64 {
     cost * MM_PER_M * MM_PER_M
 }
 
@@ -264,63 +270,35 @@ fn fit_free(
     observer: &mut dyn Observer,
 ) -> Result<Calibration, WorkflowError> {
     let (prob, sigma) = super::map::map_problem(model, start, trials, free, settings, noise)?;
-    let mut ws = IkWorkspace::new(model);
-    let mut q_before = Vec::new();
-    let mut cost_before = f64::NAN;
-    let starts = settings.effective_starts();
-    let mut fits = Vec::with_capacity(starts);
-    let mut runs = Vec::with_capacity(starts);
-    for k in 0..starts {
-        observer.progress(k, starts);
-        let p0 = if k == 0 {
-            start.to_vec()
-        } else {
-            restart_point(
-                model,
-                start,
-                &prob.free,
-                settings.restart_mm,
-                settings.restart_deg,
-                settings.seed,
-                k,
-            )
-        };
-        // The solver starts from the seeded inner solutions; the objective there is one
-        // more inner pass (which only polishes them).
-        let q0 = prob.initial_coords(&p0);
-        let mut q = q0.clone();
-        let cost0 = prob.inner(&p0, &mut q, &mut ws) + prob.prior_cost(&p0);
-        if k == 0 {
-            (q_before, cost_before) = (q, cost0);
-        }
-        let label = |stage: &str| {
-            if starts == 1 {
-                stage.to_string()
-            } else {
-                format!("start {} of {starts}: {stage}", k + 1)
-            }
-        };
-        let mut rec = Recorder {
-            inner: &mut *observer,
-            stages: Vec::new(),
-        };
-        let fit = run_start(&prob, &p0, q0, cost0, settings, &label, &mut rec);
-        runs.push(StartRun {
-            start: k,
-            objective_mm2: mm2(fit.cost),
-            iterations: fit.iterations,
-            evaluations: fit.evaluations,
-            termination: fit.termination,
-            convergence: rec.stages,
-        });
-        fits.push(fit);
-    }
-    observer.progress(starts, starts);
+    let (fits, runs, global, q_before, cost_before) = if settings.effective_probes() > 0 {
+        let out = super::global::run(&prob, start, settings, observer);
+        (
+            out.fits,
+            out.runs,
+            Some(out.summary),
+            out.q_before,
+            out.cost_before,
+        )
+    } else {
+        let (fits, runs, q, c) = full_starts(&prob, start, settings, observer);
+        (fits, runs, None, q, c)
+    };
+    let mut fits = fits;
     // The first of equal minima wins.
     let best = (0..fits.len())
         .min_by(|&a, &b| fits[a].cost.total_cmp(&fits[b].cost))
         .expect("at least one start");
-    let multistart = (starts > 1).then(|| multi_start_summary(&prob, &fits, best));
+    let multistart =
+        (global.is_none() && fits.len() > 1).then(|| multi_start_summary(&prob, &fits, best));
+    let global_warning = match (&global, &multistart) {
+        (Some(g), _) => super::global::warning(g),
+        (None, Some(ms)) if ms.reached_best < 2 => Some(format!(
+            "the fit is not known to be the global optimum: only 1 of {} starts reached \
+             the lowest objective",
+            ms.starts
+        )),
+        _ => None,
+    };
     let fit = fits.swap_remove(best);
     let names = |v: Vec<f64>| -> Vec<(String, f64)> {
         model
@@ -378,6 +356,8 @@ fn fit_free(
         uncertainty: None,
         fixed_unidentifiable: Vec::new(),
         multistart,
+        global,
+        global_warning,
         prior_noise_mm: sigma.map(|s| s * MM_PER_M),
         prior_noise_estimated: noise.is_none(),
         plausibility: crate::plausibility::check(model, &fit.p),
@@ -385,6 +365,70 @@ fn fit_free(
         start: start.to_vec(),
         free: free.to_vec(),
     })
+}
+
+/// Every start of `settings` run to convergence, in order (`starts` ≥ 1: the given start,
+/// then [`restart_point`]s); with the given start's inner solutions and objective.
+fn full_starts(
+    prob: &Problem,
+    start: &[f64],
+    settings: &FitSettings,
+    observer: &mut dyn Observer,
+) -> (Vec<Fit>, Vec<StartRun>, Vec<Vec<f64>>, f64) {
+    let model = prob.model;
+    let mut ws = IkWorkspace::new(model);
+    let mut q_before = Vec::new();
+    let mut cost_before = f64::NAN;
+    let starts = settings.effective_starts();
+    let mut fits = Vec::with_capacity(starts);
+    let mut runs = Vec::with_capacity(starts);
+    for k in 0..starts {
+        observer.progress(k, starts);
+        let p0 = if k == 0 {
+            start.to_vec()
+        } else {
+            restart_point(
+                model,
+                start,
+                &prob.free,
+                settings.restart_mm,
+                settings.restart_deg,
+                settings.seed,
+                k,
+            )
+        };
+        // The solver starts from the seeded inner solutions; the objective there is one
+        // more inner pass (which only polishes them; it includes the prior term).
+        let q0 = prob.initial_coords(&p0);
+        let mut q = q0.clone();
+        let cost0 = prob.inner(&p0, &mut q, &mut ws);
+        if k == 0 {
+            (q_before, cost_before) = (q, cost0);
+        }
+        let label = |stage: &str| {
+            if starts == 1 {
+                stage.to_string()
+            } else {
+                format!("start {} of {starts}: {stage}", k + 1)
+            }
+        };
+        let mut rec = Recorder {
+            inner: &mut *observer,
+            stages: Vec::new(),
+        };
+        let fit = run_start(prob, &p0, q0, cost0, settings, &label, &mut rec);
+        runs.push(StartRun {
+            start: k,
+            objective_mm2: mm2(fit.cost),
+            iterations: fit.iterations,
+            evaluations: fit.evaluations,
+            termination: fit.termination,
+            convergence: rec.stages,
+        });
+        fits.push(fit);
+    }
+    observer.progress(starts, starts);
+    (fits, runs, q_before, cost_before)
 }
 
 /// The optima of several starts: objectives, how many reached the best, spread per parameter.

@@ -19,6 +19,7 @@
 
 mod calibration;
 mod check;
+pub mod global;
 mod ik;
 pub mod map;
 
@@ -112,6 +113,13 @@ pub struct FitSettings {
     pub starts: usize,
     pub restart_mm: f64,
     pub restart_deg: f64,
+    /// Extra starts of the global phase of a single-start joint fit ([`global`]): each runs
+    /// `probe_iterations` iterations, the most promising are finished. 0: one local fit from
+    /// the given start (the paper's protocol).
+    pub probes: usize,
+    pub probe_iterations: usize,
+    /// The probes run on every k-th frame, k the smallest that leaves at most this many.
+    pub probe_frames: usize,
     /// Uncertainty and identifiability of the fitted parameters; `None`: not analysed.
     pub uncertainty: Option<UncertaintyOptions>,
     /// Refit with the parameters the trials cannot determine (within the thresholds of
@@ -134,6 +142,9 @@ impl Default for FitSettings {
             starts: 1,
             restart_mm: 20.0,
             restart_deg: 10.0,
+            probes: 5,
+            probe_iterations: 6,
+            probe_frames: 25,
             uncertainty: None,
             fix_unidentifiable: false,
             priors: true,
@@ -149,6 +160,16 @@ impl FitSettings {
             1
         } else {
             self.starts.max(1)
+        }
+    }
+
+    /// Extra starts of the global phase actually run: `probes` for a single-start joint fit,
+    /// else none (several full starts are their own global phase; the swarm is global).
+    pub fn effective_probes(&self) -> usize {
+        if self.method == Method::Joint && self.starts <= 1 {
+            self.probes
+        } else {
+            0
         }
     }
 }
