@@ -105,3 +105,42 @@ fn global_phase_is_deterministic_whatever_the_threads() {
         "the seed draws the starts"
     );
 }
+
+/// Issue 12 item 6: the swarm on the noiseless ankle case (`--motion ankle --noise none`,
+/// seed 7316, the ankle reset to nominal, `--method pso --seed 7316`) reaches the truth
+/// (objective 0) with no ankle parameter left at a bound.
+#[test]
+fn swarm_finds_the_noiseless_ankle() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let all: Vec<usize> = (0..model.n_p()).collect();
+    let nominal = model.nominal_params();
+    let seed = 7316;
+    let truth = perturb(&model, &nominal, &all, 30.0, 15.0, seed);
+    let coords = coordinates_scaled(&model, Motion::Ankle, 50, 1.0).unwrap();
+    let (trial, _) = synthesize(&model, &truth, &coords, 10.0, &Noise::none());
+    let free = params_for_groups(&model, &["ankle"]).unwrap();
+    let mut start = truth.clone();
+    for id in &free {
+        start[id.0] = nominal[id.0];
+    }
+    let settings = FitSettings {
+        method: jointfit::workflow::Method::Pso,
+        seed,
+        ..FitSettings::default()
+    };
+    let cal = calibrate(&model, &start, &[&trial], &free, &settings, &mut NoObserver).unwrap();
+    assert!(cal.converged);
+    assert!(cal.rms_after_mm < 1e-4, "{}", cal.rms_after_mm);
+    for id in &free {
+        let par = &model.parameters()[id.0];
+        let v = cal.fit.p[id.0];
+        let margin = 1e-3 * (par.upper - par.lower);
+        assert!(
+            v > par.lower + margin && v < par.upper - margin,
+            "{}",
+            par.name
+        );
+        assert!((v - truth[id.0]).abs() < 1e-6, "{}", par.name);
+    }
+    assert_eq!(cal.convergence[0].stage, "particle swarm");
+}
