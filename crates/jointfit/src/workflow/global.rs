@@ -39,7 +39,8 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::calibration::{mm2, restart_point, ConvergenceStage, StartRun};
+use super::calibration::{mm2, ConvergenceStage, StartRun};
+use super::starts::restart_point;
 use super::{FitSettings, Observer};
 use crate::calibrate::joint::{solve_joint, JointOptions};
 use crate::calibrate::{Fit, Problem};

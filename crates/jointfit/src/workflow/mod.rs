@@ -22,6 +22,7 @@ mod check;
 pub mod global;
 mod ik;
 pub mod map;
+mod starts;
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -30,12 +31,10 @@ use crate::calibrate::uncertainty::UncertaintyOptions;
 use crate::calibrate::CalibError;
 
 pub use crate::solver::{NoObserver, Observer, Termination};
-pub use calibration::{
-    calibrate, perturb, restart_point, Calibration, ConvergenceStage, MultiStart, ParamRow,
-    StartRun,
-};
+pub use calibration::{calibrate, Calibration, ConvergenceStage, MultiStart, ParamRow, StartRun};
 pub use check::{check, CheckReport};
 pub use ik::{ik_trial, ik_warm_started, transfer_params, IkRun};
+pub use starts::{perturb, restart_point};
 
 /// Errors of the workflow.
 #[derive(Debug, Error, PartialEq)]
