@@ -81,6 +81,10 @@ pub struct CalibrateArgs {
     pub starts: u64,
     #[command(flatten)]
     pub read: crate::common::TrialArgs,
+    /// Extra starts of the default's global phase (joint method, one start): each runs a few
+    /// iterations and the two most promising are finished (0: one local fit from the start).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u64).range(0..=1000))]
+    pub probes: u64,
     /// Print a JSON report on stdout.
     #[arg(long)]
     pub json: bool,
@@ -191,6 +195,7 @@ pub fn fit_settings(args: &CalibrateArgs) -> FitSettings {
         method: args.method.into(),
         seed: args.seed,
         starts: args.starts as usize,
+        probes: args.probes as usize,
         uncertainty: Some(uncertainty_options(
             args.threshold_mm,
             args.threshold_deg,

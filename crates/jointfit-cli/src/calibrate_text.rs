@@ -54,6 +54,23 @@ pub fn print_report(report: &Calibration, seconds: f64) {
             );
         }
     }
+    if let Some(g) = &report.global {
+        let list: Vec<String> = g
+            .finished
+            .iter()
+            .zip(&g.finished_objective_mm2)
+            .map(|(k, c)| format!("start {k} {c:.3}"))
+            .collect();
+        println!(
+            "global phase: {} starts probed ({} iterations each), finished: {} mm²",
+            g.starts,
+            g.probe_iterations,
+            list.join(", ")
+        );
+    }
+    if let Some(w) = &report.global_warning {
+        eprintln!("jointfit: warning: {w}");
+    }
     // One vocabulary: with a prior, the last column says where the information came from
     // (the summary's "determined by the trial" / "partly" / "held by the prior"); without
     // one, whether the interval is within the thresholds (the paper's identifiability).

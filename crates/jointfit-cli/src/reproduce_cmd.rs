@@ -205,9 +205,11 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
         bail!("--rate must be finite and positive (got {})", args.rate);
     }
     let data = data_dir(&args.data);
+    // The paper's protocol: local fits from the perturbed starts, no global phase.
     let settings = FitSettings {
         method: args.method.into(),
         starts: args.starts,
+        probes: 0,
         ..FitSettings::default()
     };
     let needs_data = args.table == Which::Table2 || !args.synthetic_only;

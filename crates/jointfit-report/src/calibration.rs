@@ -202,7 +202,18 @@ mod tests {
         let c = input.convergence.as_ref().unwrap();
         assert_eq!(c.start, Some((cal.best_start, 3)));
         assert_eq!(c.iterations, cal.start_runs[cal.best_start].iterations);
+        // The default's global phase draws its probe starts from the seed.
         let (_, cal, _) = knee_fit(&FitSettings::default());
+        assert!(
+            seed_use(&cal).contains("extra starts"),
+            "{}",
+            seed_use(&cal)
+        );
+        let local = FitSettings {
+            probes: 0,
+            ..FitSettings::default()
+        };
+        let (_, cal, _) = knee_fit(&local);
         assert!(seed_use(&cal).contains("not used"), "{}", seed_use(&cal));
     }
 }

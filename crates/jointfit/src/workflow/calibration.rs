@@ -1,9 +1,8 @@
 //! [`calibrate`]: one calibration from start to parameter table (see the module docs).
 
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
+use super::starts::{full_starts, multi_start_summary};
 use super::{FitSettings, Method, Observer, Termination, WorkflowError};
 use crate::calibrate::joint::{solve_joint, JointOptions};
 use crate::calibrate::pso::{solve_pso, PsoOptions};
@@ -12,9 +11,8 @@ use crate::calibrate::uncertainty::{
 };
 use crate::calibrate::varpro::{solve_varpro, VarProOptions};
 use crate::calibrate::{Fit, Problem};
-use crate::ik::IkWorkspace;
 use crate::kinematics::{forward_kinematics, KinData, Want};
-use crate::model::{Model, ParamId, Unit, MM_PER_M};
+use crate::model::{Model, ParamId, MM_PER_M};
 use crate::trial::Trial;
 
 /// One free parameter of a calibration, in its shown unit (mm or deg).
@@ -115,6 +113,12 @@ pub struct Calibration {
     pub fixed_unidentifiable: Vec<String>,
     /// Several starts: the optima they reached.
     pub multistart: Option<MultiStart>,
+    /// The default's global phase: short probes from several starts, the best finished
+    /// ([`super::global`]); `None` when not run (`probes` 0, several full starts, the swarm).
+    pub global: Option<super::global::GlobalSearch>,
+    /// Set when the fit is not known to be the global optimum (the finished starts of the
+    /// global phase, or the full starts, ended at different optima).
+    pub global_warning: Option<String>,
     /// Marker noise SD (mm) that weighed the prior; `None`: no prior (unregularized fit).
     pub prior_noise_mm: Option<f64>,
     /// Whether that noise was estimated from the residuals (else given).
@@ -138,14 +142,14 @@ impl Calibration {
 }
 
 /// e_inner (m²) in mm².
-fn mm2(cost: f64) -> f64 {
+pub(super) fn mm2(cost: f64) -> f64 {
     cost * MM_PER_M * MM_PER_M
 }
 
 /// Forwards to the caller's observer and records the objective per stage.
-struct Recorder<'o> {
-    inner: &'o mut dyn Observer,
-    stages: Vec<ConvergenceStage>,
+pub(super) struct Recorder<'o> {
+    pub(super) inner: &'o mut dyn Observer,
+    pub(super) stages: Vec<ConvergenceStage>,
 }
 
 impl Recorder<'_> {
@@ -177,7 +181,7 @@ impl Observer for Recorder<'_> {
 
 /// One start: the method's solver(s) from parameters `p0` and coordinates `q0`, where the
 /// objective is `cost0`.
-fn run_start(
+pub(super) fn run_start(
     prob: &Problem,
     p0: &[f64],
     q0: Vec<Vec<f64>>,
@@ -270,63 +274,35 @@ fn fit_free(
     observer: &mut dyn Observer,
 ) -> Result<Calibration, WorkflowError> {
     let (prob, sigma) = super::map::map_problem(model, start, trials, free, settings, noise)?;
-    let mut ws = IkWorkspace::new(model);
-    let mut q_before = Vec::new();
-    let mut cost_before = f64::NAN;
-    let starts = settings.effective_starts();
-    let mut fits = Vec::with_capacity(starts);
-    let mut runs = Vec::with_capacity(starts);
-    for k in 0..starts {
-        observer.progress(k, starts);
-        let p0 = if k == 0 {
-            start.to_vec()
-        } else {
-            restart_point(
-                model,
-                start,
-                &prob.free,
-                settings.restart_mm,
-                settings.restart_deg,
-                settings.seed,
-                k,
-            )
-        };
-        // The solver starts from the seeded inner solutions; the objective there is one
-        // more inner pass (which only polishes them).
-        let q0 = prob.initial_coords(&p0);
-        let mut q = q0.clone();
-        let cost0 = prob.inner(&p0, &mut q, &mut ws) + prob.prior_cost(&p0);
-        if k == 0 {
-            (q_before, cost_before) = (q, cost0);
-        }
-        let label = |stage: &str| {
-            if starts == 1 {
-                stage.to_string()
-            } else {
-                format!("start {} of {starts}: {stage}", k + 1)
-            }
-        };
-        let mut rec = Recorder {
-            inner: &mut *observer,
-            stages: Vec::new(),
-        };
-        let fit = run_start(&prob, &p0, q0, cost0, settings, &label, &mut rec);
-        runs.push(StartRun {
-            start: k,
-            objective_mm2: mm2(fit.cost),
-            iterations: fit.iterations,
-            evaluations: fit.evaluations,
-            termination: fit.termination,
-            convergence: rec.stages,
-        });
-        fits.push(fit);
-    }
-    observer.progress(starts, starts);
+    let (fits, runs, global, q_before, cost_before) = if settings.effective_probes() > 0 {
+        let out = super::global::run(&prob, start, settings, observer);
+        (
+            out.fits,
+            out.runs,
+            Some(out.summary),
+            out.q_before,
+            out.cost_before,
+        )
+    } else {
+        let (fits, runs, q, c) = full_starts(&prob, start, settings, observer);
+        (fits, runs, None, q, c)
+    };
+    let mut fits = fits;
     // The first of equal minima wins.
     let best = (0..fits.len())
         .min_by(|&a, &b| fits[a].cost.total_cmp(&fits[b].cost))
         .expect("at least one start");
-    let multistart = (starts > 1).then(|| multi_start_summary(&prob, &fits, best));
+    let multistart =
+        (global.is_none() && fits.len() > 1).then(|| multi_start_summary(&prob, &fits, best));
+    let global_warning = match (&global, &multistart) {
+        (Some(g), _) => super::global::warning(g),
+        (None, Some(ms)) if ms.reached_best < 2 => Some(format!(
+            "the fit is not known to be the global optimum: only 1 of {} starts reached \
+             the lowest objective",
+            ms.starts
+        )),
+        _ => None,
+    };
     let fit = fits.swap_remove(best);
     let names = |v: Vec<f64>| -> Vec<(String, f64)> {
         model
@@ -384,6 +360,8 @@ fn fit_free(
         uncertainty: None,
         fixed_unidentifiable: Vec::new(),
         multistart,
+        global,
+        global_warning,
         prior_noise_mm: sigma.map(|s| s * MM_PER_M),
         prior_noise_estimated: noise.is_none(),
         plausibility: crate::plausibility::check(model, &fit.p),
@@ -391,33 +369,6 @@ fn fit_free(
         start: start.to_vec(),
         free: free.to_vec(),
     })
-}
-
-/// The optima of several starts: objectives, how many reached the best, spread per parameter.
-fn multi_start_summary(prob: &Problem, fits: &[Fit], best: usize) -> MultiStart {
-    let best_cost = fits[best].cost;
-    let spread = prob
-        .free
-        .iter()
-        .map(|&i| {
-            let par = &prob.model.parameters()[i];
-            let (lo, hi) = fits
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), f| {
-                    (lo.min(f.p[i]), hi.max(f.p[i]))
-                });
-            (par.name.clone(), (hi - lo) * par.unit.display_scale())
-        })
-        .collect();
-    MultiStart {
-        starts: fits.len(),
-        objective_mm2: fits.iter().map(|f| mm2(f.cost)).collect(),
-        reached_best: fits
-            .iter()
-            .filter(|f| f.cost - best_cost <= 1e-9 * best_cost)
-            .count(),
-        spread,
-    }
 }
 
 /// Calibrates the parameters `free` of `model` on `trials` from `start` (a full parameter
@@ -512,47 +463,3 @@ pub fn calibrate(
 /// The name of the uncertainty analysis stage reported to the [`Observer`] by [`calibrate`]
 /// (followed by the bootstrap replicates, when there are any).
 pub const UNCERTAINTY_STAGE: &str = "uncertainty analysis";
-
-/// Start `k` (≥ 1) of a multi-start fit: [`perturb`] of `start` with a seed derived from the
-/// run's `seed` and `k`, so every start of every run is reproducible and distinct.
-pub fn restart_point(
-    model: &Model,
-    start: &[f64],
-    free: &[usize],
-    mm: f64,
-    deg: f64,
-    seed: u64,
-    k: usize,
-) -> Vec<f64> {
-    let k_seed = seed.wrapping_mul(1_000_003).wrapping_add(k as u64);
-    perturb(model, start, free, mm, deg, k_seed)
-}
-
-/// Parameters `base` with the `free` ones (indices) moved by independent uniform amounts,
-/// up to `mm` millimetres for positions and `deg` degrees for orientations, clamped into the
-/// bounds; seeded (ChaCha8). The paper's "perturbed start".
-pub fn perturb(
-    model: &Model,
-    base: &[f64],
-    free: &[usize],
-    mm: f64,
-    deg: f64,
-    seed: u64,
-) -> Vec<f64> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut p = base.to_vec();
-    for &i in free {
-        let par = &model.parameters()[i];
-        let span = match par.unit {
-            Unit::Metre => mm * crate::model::M_PER_MM,
-            Unit::Radian => deg.to_radians(),
-        };
-        let d = if span > 0.0 {
-            rng.gen_range(-span..=span)
-        } else {
-            0.0
-        };
-        p[i] = (p[i] + d).clamp(par.lower, par.upper);
-    }
-    p
-}

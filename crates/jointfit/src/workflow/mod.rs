@@ -19,10 +19,12 @@
 
 mod calibration;
 mod check;
+pub mod global;
 mod ik;
 pub mod map;
 pub mod redundant;
 pub mod refine;
+mod starts;
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -32,14 +34,14 @@ use crate::calibrate::CalibError;
 
 pub use crate::solver::{NoObserver, Observer, Termination};
 pub use calibration::{
-    calibrate, perturb, restart_point, Calibration, ConvergenceStage, MultiStart, ParamRow,
-    StartRun, UNCERTAINTY_STAGE,
+    calibrate, Calibration, ConvergenceStage, MultiStart, ParamRow, StartRun, UNCERTAINTY_STAGE,
 };
 pub use check::{check, CheckReport};
 pub use ik::{ik_trial, ik_warm_started, transfer_params, IkRun};
 pub use redundant::{
     calibrate_holding_redundant, redundant_parameters, HeldCalibration, Redundancy,
 };
+pub use starts::{perturb, restart_point};
 
 /// Errors of the workflow.
 #[derive(Debug, Error, PartialEq)]
@@ -124,6 +126,13 @@ pub struct FitSettings {
     pub starts: usize,
     pub restart_mm: f64,
     pub restart_deg: f64,
+    /// Extra starts of the global phase of a single-start joint fit ([`global`]): each runs
+    /// `probe_iterations` iterations, the most promising are finished. 0: one local fit from
+    /// the given start (the paper's protocol).
+    pub probes: usize,
+    pub probe_iterations: usize,
+    /// The probes run on every k-th frame, k the smallest that leaves at most this many.
+    pub probe_frames: usize,
     /// Uncertainty and identifiability of the fitted parameters; `None`: not analysed.
     pub uncertainty: Option<UncertaintyOptions>,
     /// Refit with the parameters the trials cannot determine (within the thresholds of
@@ -155,6 +164,9 @@ impl Default for FitSettings {
             starts: 1,
             restart_mm: 20.0,
             restart_deg: 10.0,
+            probes: 5,
+            probe_iterations: 6,
+            probe_frames: 25,
             uncertainty: None,
             fix_unidentifiable: false,
             priors: true,
@@ -172,6 +184,16 @@ impl FitSettings {
             1
         } else {
             self.starts.max(1)
+        }
+    }
+
+    /// Extra starts of the global phase actually run: `probes` for a single-start joint fit,
+    /// else none (several full starts are their own global phase; the swarm is global).
+    pub fn effective_probes(&self) -> usize {
+        if self.method == Method::Joint && self.starts <= 1 {
+            self.probes
+        } else {
+            0
         }
     }
 }

@@ -1,0 +1,146 @@
+//! The default calibration reaches the global optimum on the cases of issue 12 item 6
+//! (`jointfit synth lower-limb-right --motion all|ankle --noise skin --perturb-mm 30
+//! --perturb-deg 15 --seed S`), with the objective at the true parameters as the oracle:
+//! the global optimum of a noisy trial lies at or below it.
+
+use jointfit::calibrate::{params_for_groups, Problem};
+use jointfit::ik::IkWorkspace;
+use jointfit::model::lower_limb::{lower_limb, Side};
+use jointfit::model::Model;
+use jointfit::trial::Trial;
+use jointfit::workflow::{calibrate, perturb, Calibration, FitSettings, NoObserver};
+use jointfit_experiments::synth::{coordinates_scaled, synthesize, Motion, Noise};
+
+/// The synthetic case of `seed` and the objective at its true parameters.
+fn case(model: &Model, motion: Motion, seed: u64) -> (Trial, f64) {
+    let all: Vec<usize> = (0..model.n_p()).collect();
+    let nominal = model.nominal_params();
+    let truth = perturb(model, &nominal, &all, 30.0, 15.0, seed);
+    let coords = coordinates_scaled(model, motion, 50, 1.0).unwrap();
+    let (trial, _) = synthesize(model, &truth, &coords, 10.0, &Noise::skin(seed));
+    let free = params_for_groups(model, &["all"]).unwrap();
+    let prob = Problem::new(model, nominal, &free, &[&trial]).unwrap();
+    let mut q = prob.initial_coords(&truth);
+    let at_truth = prob.inner(&truth, &mut q, &mut IkWorkspace::new(model));
+    (trial, at_truth)
+}
+
+fn fit(model: &Model, trial: &Trial, settings: &FitSettings) -> Calibration {
+    let free = params_for_groups(model, &["all"]).unwrap();
+    calibrate(
+        model,
+        &model.nominal_params(),
+        &[trial],
+        &free,
+        settings,
+        &mut NoObserver,
+    )
+    .unwrap()
+}
+
+#[test]
+fn default_reaches_the_objective_at_the_truth() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let local = FitSettings {
+        probes: 0,
+        ..FitSettings::default()
+    };
+    for (motion, seed) in [
+        (Motion::All, 7401),
+        (Motion::All, 7420),
+        (Motion::All, 7425),
+        (Motion::Ankle, 7401),
+    ] {
+        let (trial, at_truth) = case(&model, motion, seed);
+        let cal = fit(&model, &trial, &FitSettings::default());
+        assert!(
+            cal.cost_after <= 1.005 * at_truth,
+            "{motion:?} {seed}: {} above the truth's {at_truth}",
+            cal.cost_after
+        );
+        let g = cal.global.as_ref().expect("the default probes");
+        assert_eq!(g.starts, FitSettings::default().probes + 1);
+        assert_eq!(cal.global_warning.is_some(), !g.agree);
+        // The paper's single local fit is the baseline the global phase must not lose to.
+        let one = fit(&model, &trial, &local);
+        assert!(one.global.is_none());
+        assert!(cal.cost_after <= one.cost_after * (1.0 + 1e-9));
+        if motion == Motion::All && seed != 7425 {
+            // The cases where one start stops in a local minimum (3–5 % above the truth).
+            assert!(
+                one.cost_after > 1.02 * at_truth,
+                "{seed}: {}",
+                one.cost_after
+            );
+        }
+    }
+}
+
+#[test]
+fn global_phase_is_deterministic_whatever_the_threads() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let (trial, _) = case(&model, Motion::All, 7420);
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| fit(&model, &trial, &FitSettings::default()))
+    };
+    let (a, b) = (run(1), run(2));
+    assert_eq!(a.fit.p, b.fit.p);
+    assert_eq!(a.cost_after, b.cost_after);
+    assert_eq!(a.global, b.global);
+    let other = fit(
+        &model,
+        &trial,
+        &FitSettings {
+            seed: 2,
+            ..FitSettings::default()
+        },
+    );
+    assert_ne!(
+        other.global.unwrap().probe_objective_mm2,
+        a.global.unwrap().probe_objective_mm2,
+        "the seed draws the starts"
+    );
+}
+
+/// Issue 12 item 6: the swarm on the noiseless ankle case (`--motion ankle --noise none`,
+/// seed 7316, the ankle reset to nominal, `--method pso --seed 7316`) reaches the truth
+/// (objective 0) with no ankle parameter left at a bound.
+#[test]
+fn swarm_finds_the_noiseless_ankle() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let all: Vec<usize> = (0..model.n_p()).collect();
+    let nominal = model.nominal_params();
+    let seed = 7316;
+    let truth = perturb(&model, &nominal, &all, 30.0, 15.0, seed);
+    let coords = coordinates_scaled(&model, Motion::Ankle, 50, 1.0).unwrap();
+    let (trial, _) = synthesize(&model, &truth, &coords, 10.0, &Noise::none());
+    let free = params_for_groups(&model, &["ankle"]).unwrap();
+    let mut start = truth.clone();
+    for id in &free {
+        start[id.0] = nominal[id.0];
+    }
+    let settings = FitSettings {
+        method: jointfit::workflow::Method::Pso,
+        seed,
+        ..FitSettings::default()
+    };
+    let cal = calibrate(&model, &start, &[&trial], &free, &settings, &mut NoObserver).unwrap();
+    assert!(cal.converged);
+    assert!(cal.rms_after_mm < 1e-4, "{}", cal.rms_after_mm);
+    for id in &free {
+        let par = &model.parameters()[id.0];
+        let v = cal.fit.p[id.0];
+        let margin = 1e-3 * (par.upper - par.lower);
+        assert!(
+            v > par.lower + margin && v < par.upper - margin,
+            "{}",
+            par.name
+        );
+        assert!((v - truth[id.0]).abs() < 1e-6, "{}", par.name);
+    }
+    assert_eq!(cal.convergence[0].stage, "particle swarm");
+}

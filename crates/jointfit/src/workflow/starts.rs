@@ -1,0 +1,147 @@
+//! Several starts: seeded start points ([`restart_point`], [`perturb`]), every start run to
+//! convergence ([`full_starts`], `FitSettings::starts` > 1) and the summary of the optima
+//! they reached ([`multi_start_summary`]).
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use super::calibration::{mm2, run_start, MultiStart, Recorder, StartRun};
+use super::{FitSettings, Observer};
+use crate::calibrate::{Fit, Problem};
+use crate::ik::IkWorkspace;
+use crate::model::{Model, Unit};
+
+/// Every start of `settings` run to convergence, in order (`starts` ≥ 1: the given start,
+/// then [`restart_point`]s); with the given start's inner solutions and objective.
+pub(super) fn full_starts(
+    prob: &Problem,
+    start: &[f64],
+    settings: &FitSettings,
+    observer: &mut dyn Observer,
+) -> (Vec<Fit>, Vec<StartRun>, Vec<Vec<f64>>, f64) {
+    let model = prob.model;
+    let mut ws = IkWorkspace::new(model);
+    let mut q_before = Vec::new();
+    let mut cost_before = f64::NAN;
+    let starts = settings.effective_starts();
+    let mut fits = Vec::with_capacity(starts);
+    let mut runs = Vec::with_capacity(starts);
+    for k in 0..starts {
+        observer.progress(k, starts);
+        let p0 = if k == 0 {
+            start.to_vec()
+        } else {
+            restart_point(
+                model,
+                start,
+                &prob.free,
+                settings.restart_mm,
+                settings.restart_deg,
+                settings.seed,
+                k,
+            )
+        };
+        // The solver starts from the seeded inner solutions; the objective there is one
+        // more inner pass (which only polishes them; it includes the prior term).
+        let q0 = prob.initial_coords(&p0);
+        let mut q = q0.clone();
+        let cost0 = prob.inner(&p0, &mut q, &mut ws);
+        if k == 0 {
+            (q_before, cost_before) = (q, cost0);
+        }
+        let label = |stage: &str| {
+            if starts == 1 {
+                stage.to_string()
+            } else {
+                format!("start {} of {starts}: {stage}", k + 1)
+            }
+        };
+        let mut rec = Recorder {
+            inner: &mut *observer,
+            stages: Vec::new(),
+        };
+        let fit = run_start(prob, &p0, q0, cost0, settings, &label, &mut rec);
+        runs.push(StartRun {
+            start: k,
+            objective_mm2: mm2(fit.cost),
+            iterations: fit.iterations,
+            evaluations: fit.evaluations,
+            termination: fit.termination,
+            convergence: rec.stages,
+        });
+        fits.push(fit);
+    }
+    observer.progress(starts, starts);
+    (fits, runs, q_before, cost_before)
+}
+
+/// The optima of several starts: objectives, how many reached the best, spread per parameter.
+pub(super) fn multi_start_summary(prob: &Problem, fits: &[Fit], best: usize) -> MultiStart {
+    let best_cost = fits[best].cost;
+    let spread = prob
+        .free
+        .iter()
+        .map(|&i| {
+            let par = &prob.model.parameters()[i];
+            let (lo, hi) = fits
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), f| {
+                    (lo.min(f.p[i]), hi.max(f.p[i]))
+                });
+            (par.name.clone(), (hi - lo) * par.unit.display_scale())
+        })
+        .collect();
+    MultiStart {
+        starts: fits.len(),
+        objective_mm2: fits.iter().map(|f| mm2(f.cost)).collect(),
+        reached_best: fits
+            .iter()
+            .filter(|f| f.cost - best_cost <= 1e-9 * best_cost)
+            .count(),
+        spread,
+    }
+}
+
+/// Start `k` (≥ 1) of a multi-start fit: [`perturb`] of `start` with a seed derived from the
+/// run's `seed` and `k`, so every start of every run is reproducible and distinct.
+pub fn restart_point(
+    model: &Model,
+    start: &[f64],
+    free: &[usize],
+    mm: f64,
+    deg: f64,
+    seed: u64,
+    k: usize,
+) -> Vec<f64> {
+    let k_seed = seed.wrapping_mul(1_000_003).wrapping_add(k as u64);
+    perturb(model, start, free, mm, deg, k_seed)
+}
+
+/// Parameters `base` with the `free` ones (indices) moved by independent uniform amounts,
+/// up to `mm` millimetres for positions and `deg` degrees for orientations, clamped into the
+/// bounds; seeded (ChaCha8). The paper's "perturbed start".
+pub fn perturb(
+    model: &Model,
+    base: &[f64],
+    free: &[usize],
+    mm: f64,
+    deg: f64,
+    seed: u64,
+) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut p = base.to_vec();
+    for &i in free {
+        let par = &model.parameters()[i];
+        let span = match par.unit {
+            Unit::Metre => mm * crate::model::M_PER_MM,
+            Unit::Radian => deg.to_radians(),
+        };
+        let d = if span > 0.0 {
+            rng.gen_range(-span..=span)
+        } else {
+            0.0
+        };
+        p[i] = (p[i] + d).clamp(par.lower, par.upper);
+    }
+    p
+}
