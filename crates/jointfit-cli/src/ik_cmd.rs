@@ -92,6 +92,17 @@ pub fn run(args: IkArgs) -> Result<()> {
     files.check()?;
     let model = jointfit_io::model_file::load_model(&args.model)?;
     let (trial, trial_json, findings) = load_checked(&args.trial, &args.read, &model, args.filter)?;
+    // Coordinates no marker of the trial determines (a toe joint without toe markers) stay
+    // at their defaults, as in OpenSim's IK, and are said so.
+    let (held_model, held) = workflow::hold_undetermined(&model, &[&trial])?;
+    let model = held_model.unwrap_or(model);
+    if !held.is_empty() {
+        eprintln!(
+            "jointfit: warning: {}: no marker determines {}; held at the model's default values",
+            args.trial.display(),
+            held.join(", ")
+        );
+    }
     let start = Instant::now();
     let opts = IkOptions {
         hold_undetermined: args.hold_undetermined,

@@ -252,6 +252,19 @@ pub fn ik(
 ) -> PyResult<PyIkResult> {
     let model = model_arg(model)?;
     let trial = trial_arg(py, trial, up, filter, model.spec().lab_up)?;
+    let (held_model, held) = jointfit::workflow::hold_undetermined(&model, &[&trial.trial])
+        .map_err(|e| msg(e.to_string()))?;
+    if !held.is_empty() {
+        warn_all(
+            py,
+            &[format!(
+                "{}: no marker determines {}; held at the model's default values",
+                trial.name,
+                held.join(", ")
+            )],
+        )?;
+    }
+    let model = held_model.unwrap_or(model);
     let p = model.nominal_params();
     let run = py
         .detach(|| jointfit::workflow::ik_trial(&model, &p, &trial.trial, &IkOptions::default()))

@@ -63,7 +63,7 @@ pub struct OsimFit {
     /// uses only the markers a trial has).
     pub absent_markers: Vec<String>,
     /// Coordinates the trials' markers cannot determine (e.g. `mtp_angle_r` without toe
-    /// markers), held at their default values for the fit ([`lock_undetermined`]).
+    /// markers), held at their default values for the fit ([`jointfit::workflow::lock_undetermined`]).
     pub held_coordinates: Vec<String>,
 }
 
@@ -114,7 +114,7 @@ pub fn personalize(
     if absent_markers.len() < spec.markers.len() {
         spec.markers.retain(|m| !absent_markers.contains(&m.name));
     }
-    let held_coordinates = lock_undetermined(&mut spec, trials)?;
+    let held_coordinates = jointfit::workflow::lock_undetermined(&mut spec, trials)?;
     let model = Model::compile(&spec)?;
     let start = start.unwrap_or_else(|| model.nominal_params());
     let free: Vec<ParamId> = (0..model.n_p()).map(ParamId).collect();
@@ -126,81 +126,4 @@ pub fn personalize(
         absent_markers,
         held_coordinates,
     })
-}
-
-/// Locks, at their default values, the coordinates of `spec` that the markers of the
-/// trials leave undetermined ([`jointfit::ik::undetermined_coordinate`]: the structural rank
-/// test of the marker Jacobian at the frame of each trial with the most markers present), one
-/// at a time until every such frame is solvable; returns their names. OpenSim's inverse
-/// kinematics leaves such a coordinate where it starts; the calibration's frames need every
-/// coordinate determined. Coordinates of non-custom joints are never locked (the core can
-/// lock only custom-joint coordinates; every joint read from an `.osim` is custom).
-pub fn lock_undetermined(
-    spec: &mut ModelSpec,
-    trials: &[&Trial],
-) -> Result<Vec<String>, ModelError> {
-    use jointfit::ik::{undetermined_coordinate, IkOptions, IkWorkspace, MarkerMap};
-    use jointfit::model::spec::{CoordinateSpec, JointKindSpec};
-    let mut locked = Vec::new();
-    let opts = IkOptions::default();
-    let mut targets = Vec::new();
-    for _ in 0..64 {
-        let model = Model::compile(spec)?;
-        let p = model.nominal_params();
-        let mut ws = IkWorkspace::new(&model);
-        let mut found = None;
-        for trial in trials {
-            let (map, _) = MarkerMap::allowing_absent(&model, trial.labels());
-            let best = (0..trial.n_frames()).max_by_key(|&f| {
-                map.targets(trial, f, &mut targets);
-                targets.iter().filter(|t| !t.x.is_nan()).count()
-            });
-            let Some(f) = best else { continue };
-            map.targets(trial, f, &mut targets);
-            if let Some(c) = undetermined_coordinate(&model, &p, &targets, &opts, &mut ws) {
-                found = Some(model.coordinates()[c].name.clone());
-                break;
-            }
-        }
-        let Some(name) = found else { break };
-        let mut done = false;
-        for joint in &mut spec.joints {
-            if !matches!(joint.kind, JointKindSpec::Custom { .. }) {
-                continue;
-            }
-            for c in &mut joint.coordinates {
-                if c.name() != name {
-                    continue;
-                }
-                *c = match c.clone() {
-                    CoordinateSpec::Name(name) => CoordinateSpec::Full {
-                        name,
-                        range: None,
-                        default: 0.0,
-                        locked: true,
-                        clamped: false,
-                    },
-                    CoordinateSpec::Full {
-                        name,
-                        range,
-                        default,
-                        clamped,
-                        ..
-                    } => CoordinateSpec::Full {
-                        name,
-                        range,
-                        default,
-                        locked: true,
-                        clamped,
-                    },
-                };
-                done = true;
-            }
-        }
-        if !done {
-            break;
-        }
-        locked.push(name);
-    }
-    Ok(locked)
 }

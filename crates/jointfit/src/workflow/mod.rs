@@ -20,6 +20,7 @@
 mod calibration;
 mod check;
 pub mod global;
+mod hold;
 mod ik;
 pub mod map;
 pub mod redundant;
@@ -37,6 +38,7 @@ pub use calibration::{
     calibrate, Calibration, ConvergenceStage, MultiStart, ParamRow, StartRun, UNCERTAINTY_STAGE,
 };
 pub use check::{check, CheckReport};
+pub use hold::{hold_undetermined, lock_undetermined};
 pub use ik::{ik_trial, ik_warm_started, transfer_params, IkRun};
 pub use redundant::{
     calibrate_holding_redundant, redundant_parameters, HeldCalibration, Redundancy,

@@ -1,0 +1,104 @@
+//! `jointfit ik` on the user's own OpenSim model, judged by OpenSim: on OpenCap's scaled
+//! full-body model (muscles, arms) with its walking trial, OpenSim evaluates jointfit's .mot
+//! and runs its own InverseKinematicsTool (every marker weight 1, accuracy 1e-9); no frame of
+//! jointfit may fit worse than OpenSim's by more than 0.01 mm RMS. Coordinates no marker of
+//! the trial determines (the toes: the trial carries no toe markers) are held at their
+//! defaults, and `ik` says so.
+
+use jointfit_testkit::script::osim_check;
+use serde_json::{json, Value};
+
+use super::jointfit;
+
+/// Per frame: RMS (mm) over the markers OpenSim reports a distance for.
+fn frame_rms_mm(answer: &Value) -> Vec<f64> {
+    answer["errors"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|row| {
+            let d: Vec<f64> = row
+                .as_array()
+                .unwrap()
+                .iter()
+                .filter_map(Value::as_f64)
+                .collect();
+            1e3 * (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt()
+        })
+        .collect()
+}
+
+fn compare(model_rel: &str, trial_rel: &str) {
+    let (Some(model), Some(trial)) = (
+        jointfit_testkit::data_file(model_rel),
+        jointfit_testkit::data_file(trial_rel),
+    ) else {
+        return;
+    };
+    let Some(python) = jointfit_testkit::python() else {
+        return;
+    };
+    let dir = jointfit_testkit::scratch("osim-ik-own-model");
+    let mot = dir.join("jointfit.mot");
+    let (ok, out, err) = jointfit(&[
+        "ik",
+        model.to_str().unwrap(),
+        trial.to_str().unwrap(),
+        "-o",
+        mot.to_str().unwrap(),
+        "--keep-outliers",
+        "--json",
+    ]);
+    assert!(ok, "{model_rel}: {err}");
+    assert!(
+        err.contains("no marker determines mtp_angle_r"),
+        "{model_rel}: the held toe joint is announced: {err}"
+    );
+    let ours: Value = serde_json::from_str(&out).unwrap();
+    let n = ours["frames"].as_u64().unwrap();
+    assert_eq!(ours["solved_frames"].as_u64().unwrap(), n, "{model_rel}");
+    // OpenSim's IK uses the markers the trial and the model share, weight 1 each.
+    let loaded = jointfit_io::model_file::load_model(model.to_str().unwrap()).unwrap();
+    let labels = jointfit_io::trial_file::read_trial(&trial).unwrap();
+    let weights: serde_json::Map<String, Value> = loaded
+        .markers()
+        .iter()
+        .filter(|m| labels.labels().contains(&m.name))
+        .map(|m| (m.name.clone(), json!(1.0)))
+        .collect();
+    let theirs = osim_check(
+        &python,
+        "ik",
+        &json!({"model": model, "trc": trial, "out_dir": dir.path(), "weights": weights,
+                "accuracy": 1e-9, "repeat": 1}),
+        Some(dir.path()),
+    );
+    let mine = osim_check(
+        &python,
+        "mot",
+        &json!({"model": model, "mot": mot, "trc": trial}),
+        Some(dir.path()),
+    );
+    let (os, jf) = (frame_rms_mm(&theirs), frame_rms_mm(&mine));
+    assert_eq!(os.len(), jf.len(), "{model_rel}: same frames");
+    let mut worst = f64::NEG_INFINITY;
+    for (f, (a, b)) in jf.iter().zip(&os).enumerate() {
+        worst = worst.max(a - b);
+        assert!(
+            *a <= b + 0.01,
+            "{model_rel} frame {f}: jointfit {a:.4} mm RMS, OpenSim {b:.4} mm"
+        );
+    }
+    eprintln!(
+        "{model_rel}: {} frames, jointfit − OpenSim RMS at most {worst:.4} mm",
+        jf.len()
+    );
+}
+
+#[test]
+fn ik_on_opencap_hand_scaled_osim_no_frame_worse_than_opensim() {
+    compare(
+        "opencap_expert1/hand_scaled.osim",
+        "opencap_expert1/walking1.trc",
+    );
+}
