@@ -55,8 +55,15 @@ pub const HIP_LATERAL_FRACTION: f64 = 0.9;
 
 fn sd_of(model: &Model, i: usize) -> f64 {
     let p = &model.parameters()[i];
+    // A bilateral model's names carry the leg's suffix; the published accuracies do not.
+    let base = ["_r", "_l"]
+        .iter()
+        .find_map(|s| p.name.strip_suffix(s))
+        .unwrap_or(&p.name);
     p.prior_sd.unwrap_or_else(|| {
-        landmark_prior(&p.name, HipCentreMethod::Bell).map_or(f64::NAN, |e: PriorEntry| e.sd)
+        landmark_prior(&p.name, HipCentreMethod::Bell)
+            .or_else(|| landmark_prior(base, HipCentreMethod::Bell))
+            .map_or(f64::NAN, |e: PriorEntry| e.sd)
     })
 }
 
@@ -77,9 +84,20 @@ fn pin_axis(rx: f64, ry: f64) -> Vector3<f64> {
     Vector3::new(ry.sin(), -rx.sin() * ry.cos(), rx.cos() * ry.cos())
 }
 
-/// Runs every check that the model's parameters allow on the parameter vector `p`.
+/// Runs every check that the model's parameters allow on the parameter vector `p`: for a
+/// one-sided model on its parameters, for the bilateral model on each leg's (names suffixed
+/// `_r` and `_l`; the check says which leg).
 pub fn check(model: &Model, p: &[f64]) -> Vec<Check> {
-    let id = |n: &str| model.param_id(n).map(|x| x.0);
+    let mut out = Vec::new();
+    for (suffix, leg) in [("", ""), ("_r", " (right)"), ("_l", " (left)")] {
+        out.extend(check_leg(model, p, suffix, leg));
+    }
+    out
+}
+
+/// The checks of one leg: parameter names end in `suffix`, check names in `leg`.
+fn check_leg(model: &Model, p: &[f64], suffix: &str, leg: &str) -> Vec<Check> {
+    let id = |n: &str| model.param_id(&format!("{n}{suffix}")).map(|x| x.0);
     let mean = |i: usize| model.parameters()[i].prior_mean;
     let mut out = Vec::new();
     let hip: Option<Vec<usize>> = [
@@ -98,7 +116,9 @@ pub fn check(model: &Model, p: &[f64]) -> Vec<Check> {
         if let Some(half) = half_pelvis_width(model) {
             let limit = HIP_LATERAL_FRACTION * half;
             out.push(Check {
-                check: "hip centre lateral offset (≤ 0.9 × half the inter-ASIS width)".into(),
+                check: format!(
+                    "hip centre lateral offset (≤ 0.9 × half the inter-ASIS width){leg}"
+                ),
                 parameters: vec![names[2].clone()],
                 value: p[h[2]] * 1e3,
                 limit: limit * 1e3,
@@ -114,7 +134,7 @@ pub fn check(model: &Model, p: &[f64]) -> Vec<Check> {
         let sd = h.iter().map(|&i| sd_of(model, i)).fold(0.0, f64::max);
         let limit = RADIUS_95_3D * sd;
         out.push(Check {
-            check: "hip centre distance from the landmark/functional estimate".into(),
+            check: format!("hip centre distance from the landmark/functional estimate{leg}"),
             parameters: names,
             value: d * 1e3,
             limit: limit * 1e3,
@@ -161,8 +181,8 @@ pub fn check(model: &Model, p: &[f64]) -> Vec<Check> {
         let sd = sd_of(model, ia).max(sd_of(model, ib));
         let limit = RADIUS_95_2D * sd;
         out.push(Check {
-            check: format!("{what}: angle from the landmark/functional axis"),
-            parameters: vec![a.to_string(), b.to_string()],
+            check: format!("{what}{leg}: angle from the landmark/functional axis"),
+            parameters: vec![format!("{a}{suffix}"), format!("{b}{suffix}")],
             value: angle.to_degrees(),
             limit: limit.to_degrees(),
             unit: "deg",
@@ -217,5 +237,37 @@ mod tests {
             .find(|c| c.check.starts_with("knee axis in thigh"))
             .unwrap();
         assert!(!knee.ok && (knee.value - 15.0).abs() < 1e-6, "{knee:?}");
+    }
+
+    #[test]
+    fn bilateral_model_is_checked_per_leg() {
+        let spec = crate::model::lower_limb::builtin("lower-limb").unwrap();
+        let m = Model::compile(&spec).unwrap();
+        let one = check(&model(), &model().nominal_params()).len();
+        let both = check(&m, &m.nominal_params());
+        // Every one-sided check, once per leg, each naming its leg and suffixed parameters.
+        assert_eq!(both.len(), 2 * one, "{both:?}");
+        assert!(both.iter().all(|c| c.ok));
+        for (leg, suffix) in [("(right)", "_r"), ("(left)", "_l")] {
+            let mine: Vec<&Check> = both.iter().filter(|c| c.check.contains(leg)).collect();
+            assert_eq!(mine.len(), one);
+            assert!(mine
+                .iter()
+                .all(|c| c.parameters.iter().all(|n| n.ends_with(suffix))));
+        }
+        // Moving one leg's knee axis fails that leg's check only.
+        let f = m.param_id("knee_thigh_frontal_l").unwrap().0;
+        let mut p = m.nominal_params();
+        p[f] += 0.5;
+        let failed: Vec<String> = check(&m, &p)
+            .into_iter()
+            .filter(|c| !c.ok)
+            .map(|c| c.check)
+            .collect();
+        assert_eq!(failed.len(), 1, "{failed:?}");
+        assert!(
+            failed[0].contains("knee axis in thigh (left)"),
+            "{failed:?}"
+        );
     }
 }
