@@ -329,10 +329,17 @@ pub fn gait_coordinates(
     model: &Model,
     p: &[f64],
     trial: &Trial,
-) -> Result<(Vec<Vec<f64>>, Vec<usize>), jointfit::ik::IkError> {
-    let map = jointfit::ik::MarkerMap::by_name(model, trial.labels())?;
-    let fit =
-        jointfit::ik::solve_trial(model, p, trial, &map, &jointfit::ik::IkOptions::default())?;
+) -> Result<(Vec<Vec<f64>>, Vec<usize>), jointfit::workflow::WorkflowError> {
+    use jointfit::workflow::{ik_trial, WorkflowError};
+    // Every marker of the model must be in the trial (the replay needs all of them).
+    jointfit::ik::MarkerMap::by_name(model, trial.labels())?;
+    let fit = match ik_trial(model, p, trial, &jointfit::ik::IkOptions::default()) {
+        Ok(run) => run.fit,
+        Err(WorkflowError::NoFrameSolved { .. }) => {
+            return Ok((Vec::new(), (0..trial.n_frames()).collect()))
+        }
+        Err(e) => return Err(e),
+    };
     let mut coords = Vec::with_capacity(fit.coords.len());
     let mut dropped = Vec::new();
     for (f, (q, frame)) in fit.coords.into_iter().zip(&fit.frames).enumerate() {
