@@ -147,8 +147,16 @@ pub fn run(
     observer: &mut dyn Observer,
 ) -> Outcome {
     let n = settings.probes + 1;
+    // The user's iteration limit (`FitSettings::max_iterations`) bounds the probes and the
+    // finishing solves alike.
+    let finish = JointOptions {
+        max_iterations: settings
+            .max_iterations
+            .unwrap_or(JointOptions::default().max_iterations),
+        ..JointOptions::default()
+    };
     let short = JointOptions {
-        max_iterations: settings.probe_iterations.max(1),
+        max_iterations: settings.probe_iterations.max(1).min(finish.max_iterations),
         ..JointOptions::default()
     };
     let stride = prob.frames.len().div_ceil(settings.probe_frames.max(1));
@@ -223,7 +231,7 @@ pub fn run(
             } else {
                 prob.initial_coords(&f.p)
             };
-            let fit = solve_joint(prob, &f.s, q0, &JointOptions::default(), &mut h);
+            let fit = solve_joint(prob, &f.s, q0, &finish, &mut h);
             (fit, h.0)
         })
         .collect();
