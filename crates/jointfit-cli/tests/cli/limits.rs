@@ -113,7 +113,11 @@ fn an_unconverged_fit_exits_3_and_writes_nothing_unless_accepted() {
     assert_eq!(v["termination"], "iteration_limit");
     // The kept start's whole path: one probe iteration of the global phase (the limit bounds
     // the probes too) and one finishing iteration.
-    assert!(v["iterations"].as_u64().unwrap() <= 2, "{}", v["iterations"]);
+    assert!(
+        v["iterations"].as_u64().unwrap() <= 2,
+        "{}",
+        v["iterations"]
+    );
     assert!(!Path::new(&fitted).exists());
 
     // Accepted: exit 0, the model and the report are written.
