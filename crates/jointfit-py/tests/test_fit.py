@@ -245,8 +245,8 @@ def test_argument_errors():
     t, _ = jf.synthesize(frames=10, noise_mm=0)
     with pytest.raises(jf.JointfitError, match='unknown method "newton"'):
         jf.calibrate("lower-limb-right", [t], method="newton")
-    with pytest.raises(jf.JointfitError, match='up must be "y", "z" or "-z"'):
-        jf.Trial.read("x.trc", up="x")
+    with pytest.raises(jf.JointfitError, match='up must be "y", "-y", "z", "-z", "x" or "-x"'):
+        jf.Trial.read("x.trc", up="w")
     with pytest.raises(jf.JointfitError, match="a trial must be a jointfit.Trial or a path"):
         jf.ik("lower-limb-right", 3)
     with pytest.raises(jf.JointfitError, match='side must be "both", "right" or "left"'):
