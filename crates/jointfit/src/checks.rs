@@ -80,26 +80,29 @@ pub struct Finding {
 pub fn marker_span(trial: &Trial) -> Option<f64> {
     let n = trial.n_frames();
     let step = n.div_ceil(200).max(1);
-    let mut spans: Vec<f64> = (0..n)
-        .step_by(step)
-        .filter_map(|f| {
-            let present: Vec<&Vector3<f64>> =
-                trial.frame(f).iter().filter(|p| p.x.is_finite()).collect();
-            let mut best: Option<f64> = None;
-            for (i, a) in present.iter().enumerate() {
-                for b in &present[i + 1..] {
-                    let d = (*a - *b).norm();
-                    best = Some(best.map_or(d, |m: f64| m.max(d)));
-                }
+    let mut present: Vec<Vector3<f64>> = Vec::with_capacity(trial.n_markers());
+    let mut spans: Vec<f64> = Vec::with_capacity(n.div_ceil(step));
+    for f in (0..n).step_by(step) {
+        present.clear();
+        present.extend(trial.frame(f).iter().filter(|p| p.x.is_finite()));
+        // The largest squared distance; its square root is the largest distance (the norm
+        // is the square root of the squared norm, and the root is monotonic).
+        let mut best: Option<f64> = None;
+        for (i, a) in present.iter().enumerate() {
+            for b in &present[i + 1..] {
+                let d2 = (a - b).norm_squared();
+                best = Some(best.map_or(d2, |m: f64| m.max(d2)));
             }
-            best
-        })
-        .collect();
+        }
+        if let Some(d2) = best {
+            spans.push(d2.sqrt());
+        }
+    }
     if spans.is_empty() {
         return None;
     }
-    spans.sort_by(f64::total_cmp);
-    Some(spans[spans.len() / 2])
+    let mid = spans.len() / 2;
+    Some(*spans.select_nth_unstable_by(mid, f64::total_cmp).1)
 }
 
 /// The units check (see the module docs): an error when the markers' span is outside
@@ -183,18 +186,21 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
         let seg = &model.segments()[model.markers()[markers[0]].segment.0].name;
 
         // Clusters.
+        let mut v: Vec<f64> = Vec::with_capacity(n);
         for i in 0..m {
             for k in i + 1..m {
                 let (a, b) = (markers[i], markers[k]);
-                let mut v: Vec<f64> = (0..n)
-                    .map(|f| d[(f * m + i) * m + k])
-                    .filter(|x| x.is_finite())
-                    .collect();
+                v.clear();
+                v.extend(
+                    (0..n)
+                        .map(|f| d[(f * m + i) * m + k])
+                        .filter(|x| x.is_finite()),
+                );
                 if v.is_empty() {
                     continue;
                 }
-                v.sort_by(f64::total_cmp);
-                let median = v[v.len() / 2];
+                let mid = v.len() / 2;
+                let median = *v.select_nth_unstable_by(mid, f64::total_cmp).1;
                 let rr = r[i * m + k];
                 if (median - rr).abs() > CLUSTER_TOLERANCE {
                     out.push(Finding {
@@ -273,20 +279,27 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
         if col(j).is_none() {
             continue;
         }
-        let jumps: Vec<usize> = (1..n)
-            .filter(|&f| match (pos(f - 1, j), pos(f, j)) {
-                (Some(p0), Some(p1)) => (p1 - p0).norm() > max_step,
-                _ => false,
-            })
-            .collect();
-        if let Some(&f) = jumps.first() {
+        // One pass: the number of jumps and the first.
+        let (mut count, mut first_jump) = (0usize, None);
+        let mut prev = if n > 0 { pos(0, j) } else { None };
+        for f in 1..n {
+            let here = pos(f, j);
+            if let (Some(p0), Some(p1)) = (prev, here) {
+                if (p1 - p0).norm() > max_step {
+                    count += 1;
+                    first_jump.get_or_insert(f);
+                }
+            }
+            prev = here;
+        }
+        if let Some(f) = first_jump {
             out.push(Finding {
                 kind: CheckKind::Jump,
                 severity: Severity::Warning,
                 message: format!(
                     "{} jumps faster than {JUMP_SPEED} m/s in {} frames (first: frame {})",
                     name(j),
-                    jumps.len(),
+                    count,
                     first + f as i64
                 ),
                 fix: None,
