@@ -9,7 +9,7 @@
 use std::fmt::Write;
 use std::path::Path;
 
-use jointfit::checks::check_trial;
+use jointfit::checks::{check_trial, marker_span};
 use jointfit::ik::MarkerMap;
 use jointfit::landmarks::{personalize, MarkerSet, PersonalizeOptions};
 use jointfit::model::lower_limb::Side;
@@ -105,4 +105,40 @@ fn findings_on_real_trials_match_the_snapshot() {
         assert_eq!(got, want, "line {} of the findings", i + 1);
     }
     assert_eq!(out.lines().count(), want.lines().count(), "number of lines");
+}
+
+/// The span of the units check, all pairs in every looked-at frame, sorted for the median.
+fn span_reference(trial: &Trial) -> Option<f64> {
+    let n = trial.n_frames();
+    let step = n.div_ceil(200).max(1);
+    let mut spans: Vec<f64> = (0..n)
+        .step_by(step)
+        .filter_map(|f| {
+            let present: Vec<&Vector3<f64>> =
+                trial.frame(f).iter().filter(|p| p.x.is_finite()).collect();
+            let mut best: Option<f64> = None;
+            for (i, a) in present.iter().enumerate() {
+                for b in &present[i + 1..] {
+                    let d = (*a - *b).norm();
+                    best = Some(best.map_or(d, |m: f64| m.max(d)));
+                }
+            }
+            best
+        })
+        .collect();
+    spans.sort_by(f64::total_cmp);
+    spans.get(spans.len() / 2).copied()
+}
+
+#[test]
+fn the_span_is_the_all_pairs_span_bit_for_bit() {
+    let Some(dir) = jointfit_testkit::data_file("opencap_expert1") else {
+        return;
+    };
+    for name in ["static1", "walking1", "DJ1", "squats1"] {
+        let trial = load(&dir.join(format!("{name}.trc")));
+        let (got, want) = (marker_span(&trial), span_reference(&trial));
+        assert_eq!(got.map(f64::to_bits), want.map(f64::to_bits), "{name}");
+        assert!(got.is_some());
+    }
 }

@@ -80,16 +80,37 @@ pub struct Finding {
 pub fn marker_span(trial: &Trial) -> Option<f64> {
     let n = trial.n_frames();
     let step = n.div_ceil(200).max(1);
-    let mut present: Vec<Vector3<f64>> = Vec::with_capacity(trial.n_markers());
+    // Present markers with their distance from the frame's centroid, farthest first.
+    let mut present: Vec<(f64, Vector3<f64>)> = Vec::with_capacity(trial.n_markers());
     let mut spans: Vec<f64> = Vec::with_capacity(n.div_ceil(step));
     for f in (0..n).step_by(step) {
         present.clear();
-        present.extend(trial.frame(f).iter().filter(|p| p.x.is_finite()));
+        present.extend(
+            trial
+                .frame(f)
+                .iter()
+                .filter(|p| p.x.is_finite())
+                .map(|p| (0.0, *p)),
+        );
+        let centroid =
+            present.iter().map(|(_, p)| p).sum::<Vector3<f64>>() / present.len().max(1) as f64;
+        for (r, p) in present.iter_mut() {
+            *r = (*p - centroid).norm();
+        }
+        present.sort_by(|a, b| b.0.total_cmp(&a.0));
         // The largest squared distance; its square root is the largest distance (the norm
-        // is the square root of the squared norm, and the root is monotonic).
+        // is the square root of the squared norm, and the root is monotonic). A pair whose
+        // bound ‖a − c‖ + ‖b − c‖ (triangle inequality) is clearly below the best so far
+        // cannot be the largest and is skipped; the margin covers rounding in the bound.
         let mut best: Option<f64> = None;
-        for (i, a) in present.iter().enumerate() {
-            for b in &present[i + 1..] {
+        for (i, (ra, a)) in present.iter().enumerate() {
+            for (rb, b) in &present[i + 1..] {
+                if let Some(m) = best {
+                    let bound = ra + rb;
+                    if bound * bound * (1.0 + 1e-9) < m {
+                        break;
+                    }
+                }
                 let d2 = (a - b).norm_squared();
                 best = Some(best.map_or(d2, |m: f64| m.max(d2)));
             }
