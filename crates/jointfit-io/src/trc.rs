@@ -49,6 +49,9 @@
 //!   ([`TrcErrorKind::TimeMismatch`]): the trial's rate would be wrong. [`read_trc_file`]/
 //!   [`parse_trc_file`] accept it with a [`TrcNote::TimeDisagreesWithRate`] and return the
 //!   times as written in [`TrcFile::times`].
+//! * Otherwise the trial keeps the Time column as its time stamps ([`Trial::time`]; OpenSim
+//!   copies them into its results), unless they do not strictly increase: then times are
+//!   frame index / `DataRate` and a [`TrcNote::TimeNotIncreasing`] says so.
 //! * A data row with too few cells, or with a non-blank cell beyond the last marker, is an
 //!   error naming the line and the marker.
 //!
@@ -148,6 +151,11 @@ pub enum TrcNote {
         expected: f64,
         found: f64,
     },
+    #[error(
+        "line {line}: frame {frame} has time {found} s, not after the previous row's; the \
+         trial's times are frame / DataRate"
+    )]
+    TimeNotIncreasing { line: usize, frame: i64, found: f64 },
     #[error("line {line}: labels are not in every third cell; they were taken in order")]
     LabelsNotAligned { line: usize },
     #[error("line {line}: {count} labels had surrounding blanks, which were removed")]
