@@ -58,11 +58,12 @@
 //! # Writing
 //!
 //! [`format_trc`]/[`write_trc`] write the layout above with `\n` line ends: rate written so it
-//! reads back exactly, `Frame#` counting from [`Trial::first_frame`], `Time` = frame index /
-//! rate, coordinates in the chosen unit with a fixed number of decimals, and missing samples as
-//! empty cells. Reading the file back gives the trial rounded to the written precision, and a
-//! second write gives the same bytes. A sample that rounds to `0 0 0` at the chosen precision is
-//! written as a gap, because that is how it would read back.
+//! reads back exactly, `Frame#` counting from [`Trial::first_frame`], `Time` =
+//! [`Trial::time`] (the source's time stamps, else frame index / rate), coordinates in the
+//! chosen unit with a fixed number of decimals, and missing samples as empty cells. Reading
+//! the file back gives the trial rounded to the written precision, and a second write gives
+//! the same bytes. A sample that rounds to `0 0 0` at the chosen precision is written as a
+//! gap, because that is how it would read back.
 
 use std::path::Path;
 
