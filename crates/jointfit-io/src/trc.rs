@@ -49,17 +49,21 @@
 //!   ([`TrcErrorKind::TimeMismatch`]): the trial's rate would be wrong. [`read_trc_file`]/
 //!   [`parse_trc_file`] accept it with a [`TrcNote::TimeDisagreesWithRate`] and return the
 //!   times as written in [`TrcFile::times`].
+//! * Otherwise the trial keeps the Time column as its time stamps ([`Trial::time`]; OpenSim
+//!   copies them into its results), unless they do not strictly increase: then times are
+//!   frame index / `DataRate` and a [`TrcNote::TimeNotIncreasing`] says so.
 //! * A data row with too few cells, or with a non-blank cell beyond the last marker, is an
 //!   error naming the line and the marker.
 //!
 //! # Writing
 //!
 //! [`format_trc`]/[`write_trc`] write the layout above with `\n` line ends: rate written so it
-//! reads back exactly, `Frame#` counting from [`Trial::first_frame`], `Time` = frame index /
-//! rate, coordinates in the chosen unit with a fixed number of decimals, and missing samples as
-//! empty cells. Reading the file back gives the trial rounded to the written precision, and a
-//! second write gives the same bytes. A sample that rounds to `0 0 0` at the chosen precision is
-//! written as a gap, because that is how it would read back.
+//! reads back exactly, `Frame#` counting from [`Trial::first_frame`], `Time` =
+//! [`Trial::time`] (the source's time stamps, else frame index / rate), coordinates in the
+//! chosen unit with a fixed number of decimals, and missing samples as empty cells. Reading
+//! the file back gives the trial rounded to the written precision, and a second write gives
+//! the same bytes. A sample that rounds to `0 0 0` at the chosen precision is written as a
+//! gap, because that is how it would read back.
 
 use std::path::Path;
 
@@ -148,6 +152,11 @@ pub enum TrcNote {
         expected: f64,
         found: f64,
     },
+    #[error(
+        "line {line}: frame {frame} has time {found} s, not after the previous row's; the \
+         trial's times are frame / DataRate"
+    )]
+    TimeNotIncreasing { line: usize, frame: i64, found: f64 },
     #[error("line {line}: labels are not in every third cell; they were taken in order")]
     LabelsNotAligned { line: usize },
     #[error("line {line}: {count} labels had surrounding blanks, which were removed")]

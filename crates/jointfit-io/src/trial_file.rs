@@ -99,7 +99,8 @@ fn strip_subject_prefix(trial: Trial) -> Result<Trial, jointfit::trial::TrialErr
         trial.rate(),
         trial.first_frame(),
         trial.positions().to_vec(),
-    )
+    )?
+    .with_times(trial.times().map(<[f64]>::to_vec))
 }
 
 /// How [`load_trial`] prepares a motion file.

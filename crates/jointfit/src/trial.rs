@@ -24,6 +24,10 @@ pub enum TrialError {
     BadRate(f64),
     #[error("marker {name:?} not found; the trial has: {available}")]
     UnknownMarker { name: String, available: String },
+    #[error("{times} time stamps for {frames} frames")]
+    TimesLength { times: usize, frames: usize },
+    #[error("time stamp of frame {frame} is {time} s; time stamps must be finite and increase")]
+    BadTimes { frame: usize, time: f64 },
 }
 
 /// Marker trajectories of one trial.
@@ -39,6 +43,9 @@ pub struct Trial {
     /// Positions, frame-major: `positions[frame * n_markers + marker]`, metres, lab frame;
     /// NaN in every coordinate where the sample is missing.
     positions: Vec<Vector3<f64>>,
+    /// The source file's own time stamps (s), one per frame, finite and strictly increasing
+    /// (a TRC's Time column); `None`: frame `i` is at `i / rate` (C3D, synthetic trials).
+    times: Option<Vec<f64>>,
 }
 
 impl Trial {
@@ -76,7 +83,33 @@ impl Trial {
             rate,
             first_frame,
             positions,
+            times: None,
         })
+    }
+
+    /// The same trial with the source file's time stamps (`None`: `i / rate`). They must be
+    /// one per frame, finite and strictly increasing.
+    pub fn with_times(mut self, times: Option<Vec<f64>>) -> Result<Self, TrialError> {
+        if let Some(t) = &times {
+            if t.len() != self.n_frames() {
+                return Err(TrialError::TimesLength {
+                    times: t.len(),
+                    frames: self.n_frames(),
+                });
+            }
+            for (i, &v) in t.iter().enumerate() {
+                if !v.is_finite() || (i > 0 && v <= t[i - 1]) {
+                    return Err(TrialError::BadTimes { frame: i, time: v });
+                }
+            }
+        }
+        self.times = times;
+        Ok(self)
+    }
+
+    /// The source file's time stamps, when it had them (see [`Trial::time`]).
+    pub fn times(&self) -> Option<&[f64]> {
+        self.times.as_deref()
     }
 
     pub fn labels(&self) -> &[String] {
@@ -98,9 +131,14 @@ impl Trial {
             self.positions.len() / self.labels.len()
         }
     }
-    /// Time of frame `i` in seconds, counted from the file's first frame.
+    /// Time of frame `i` in seconds: the source file's own time stamp when it had one (a
+    /// TRC's Time column, which OpenSim copies into its results), else `i / rate`, counted
+    /// from the trial's first frame.
     pub fn time(&self, frame: usize) -> f64 {
-        frame as f64 / self.rate
+        match &self.times {
+            Some(t) => t[frame],
+            None => frame as f64 / self.rate,
+        }
     }
 
     /// Column index of a marker by label.
@@ -169,7 +207,8 @@ impl Trial {
             self.rate,
             self.first_frame,
             positions,
-        )
+        )?
+        .with_times(self.times.clone())
     }
 
     /// A new trial with frames `start..end` (clamped to the trial).
@@ -182,6 +221,7 @@ impl Trial {
             rate: self.rate,
             first_frame: self.first_frame + start as i64,
             positions: self.positions[start * n..end * n].to_vec(),
+            times: self.times.as_ref().map(|t| t[start..end].to_vec()),
         }
     }
 

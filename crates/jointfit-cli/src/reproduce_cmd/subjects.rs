@@ -88,6 +88,11 @@ pub(super) fn every_kth(trial: Trial, k: usize) -> Result<Trial> {
         trial.rate() / k as f64,
         trial.first_frame(),
         positions,
+    )?
+    .with_times(
+        trial
+            .times()
+            .map(|t| t.iter().step_by(k).copied().collect()),
     )?)
 }
 

@@ -270,3 +270,32 @@ fn a_cut_c3d_is_announced_by_every_command() {
     ]);
     assert!(said(&err), "personalize (ok {ok}): {err}");
 }
+
+/// Issue 14: the `.mot` time column is the TRC's own Time column, as OpenSim's IK writes it
+/// (subject01_walk1 prints 0.017 s steps at 60 Hz, 0.05 s off frame / rate by the end), so
+/// that force-plate files pair with it by time. Both columns are read from the files' text.
+#[test]
+fn mot_times_are_the_trc_time_column() {
+    let (Some(model), Some(trc)) = (
+        data_file("opensim_gait2392_subject01/subject01_simbody.osim"),
+        data_file("opensim_gait2392_subject01/subject01_walk1.trc"),
+    ) else {
+        return;
+    };
+    let text = std::fs::read_to_string(&trc).unwrap();
+    let trc_times: Vec<f64> = text
+        .lines()
+        .skip(5)
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| l.split('\t').nth(1).unwrap().trim().parse().unwrap())
+        .collect();
+    assert_eq!(trc_times.len(), 151);
+    let dir = scratch("ik-mot-times");
+    let mot = dir.join("walk1.mot");
+    ik(&model, &trc, &mot, &["--keep-outliers"]);
+    let mot_times: Vec<f64> = mot_rows(&mot).iter().map(|r| r[0]).collect();
+    assert_eq!(mot_times.len(), trc_times.len());
+    for (f, (m, t)) in mot_times.iter().zip(&trc_times).enumerate() {
+        assert!((m - t).abs() < 1e-9, "frame {f}: .mot {m} s, TRC {t} s");
+    }
+}

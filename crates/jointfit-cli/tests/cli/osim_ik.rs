@@ -1,9 +1,10 @@
 //! `jointfit ik` on the user's own OpenSim model, judged by OpenSim: on OpenCap's scaled
-//! full-body model (muscles, arms) with its walking trial, OpenSim evaluates jointfit's .mot
-//! and runs its own InverseKinematicsTool (every marker weight 1, accuracy 1e-9); no frame of
-//! jointfit may fit worse than OpenSim's by more than 0.01 mm RMS. Coordinates no marker of
-//! the trial determines (the toes: the trial carries no toe markers) are held at their
-//! defaults, and `ik` says so.
+//! full-body model (muscles, arms) with its walking trial, and on OpenSim's gait2392 subject01
+//! with its walking trial, OpenSim evaluates jointfit's .mot and runs its own
+//! InverseKinematicsTool (every marker weight 1, accuracy 1e-9); no frame of jointfit may fit
+//! worse than OpenSim's by more than 0.01 mm RMS. Coordinates no marker of the trial
+//! determines (the toes: no marker of the trial is on them) are held at their defaults, and
+//! `ik` says so.
 
 use jointfit_testkit::script::osim_check;
 use serde_json::{json, Value};
@@ -100,5 +101,17 @@ fn ik_on_opencap_hand_scaled_osim_no_frame_worse_than_opensim() {
     compare(
         "opencap_expert1/hand_scaled.osim",
         "opencap_expert1/walking1.trc",
+    );
+}
+
+/// OpenSim's gait2392 subject01 with its walking trial (its toe markers sit on the calcaneus
+/// body, so the toes are held here too). OpenSim evaluates a `.mot` by looking its frames up
+/// by time, so this needs the `.mot` to carry the TRC's own Time column (issue 14; at 60 Hz
+/// it is printed in 0.017 s steps).
+#[test]
+fn ik_on_gait2392_subject01_no_frame_worse_than_opensim() {
+    compare(
+        "opensim_gait2392_subject01/subject01_simbody.osim",
+        "opensim_gait2392_subject01/subject01_walk1.trc",
     );
 }

@@ -80,8 +80,20 @@ pub(super) fn parse(text: &str) -> Result<TrcFile, TrcErrorKind> {
             rows,
         });
     }
+    // The Time column becomes the trial's time stamps when it agrees with DataRate and
+    // strictly increases (OpenSim copies it into its results).
+    let mut keep_times = true;
     if let Some(note) = data.check_times(header.data_rate) {
         notes.push(note);
+        keep_times = false;
+    } else if let Some(i) = (1..data.times.len()).find(|&i| data.times[i] <= data.times[i - 1]) {
+        let (line, frame, _) = data.time_cells[i];
+        notes.push(TrcNote::TimeNotIncreasing {
+            line,
+            frame,
+            found: data.times[i],
+        });
+        keep_times = false;
     }
     notes.extend(
         std::mem::take(&mut data.zero).into_note(|count, first_line, marker| {
@@ -108,13 +120,16 @@ pub(super) fn parse(text: &str) -> Result<TrcFile, TrcErrorKind> {
         ..
     } = data;
     let first_frame = first_frame.or(header.orig_data_start_frame).unwrap_or(1);
-    let trial = Trial::new(labels, header.data_rate, first_frame, positions).map_err(|e| {
-        // Labels and rate were validated above; keep a precise message if that ever changes.
-        TrcErrorKind::BadRate {
-            line: 3,
-            value: e.to_string(),
-        }
-    })?;
+    let stamps = keep_times.then(|| times.clone());
+    let trial = Trial::new(labels, header.data_rate, first_frame, positions)
+        .and_then(|t| t.with_times(stamps))
+        .map_err(|e| {
+            // Labels and rate were validated above; keep a precise message if that ever changes.
+            TrcErrorKind::BadRate {
+                line: 3,
+                value: e.to_string(),
+            }
+        })?;
     Ok(TrcFile {
         trial,
         header,

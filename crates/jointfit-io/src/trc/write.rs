@@ -106,7 +106,7 @@ pub fn format_trc(
     out.push_str("\n\n");
     for f in 0..nf {
         let frame = first.saturating_add(f as i64);
-        let time = f as f64 / rate;
+        let time = trial.time(f);
         // Writing to a String cannot fail.
         let _ = write!(out, "{frame}\t{time:.time_decimals$}");
         for p in trial.frame(f) {

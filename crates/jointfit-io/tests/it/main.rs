@@ -9,4 +9,5 @@ mod sto;
 mod trc_field;
 mod trc_files;
 mod trc_format;
+mod trc_times;
 mod vertical;

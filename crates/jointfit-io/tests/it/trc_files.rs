@@ -281,6 +281,7 @@ fn note_kind(n: &TrcNote) -> &'static str {
     match n {
         TrcNote::MoreRowsThanHeader { .. } => "MoreRowsThanHeader",
         TrcNote::TimeDisagreesWithRate { .. } => "TimeDisagreesWithRate",
+        TrcNote::TimeNotIncreasing { .. } => "TimeNotIncreasing",
         TrcNote::LabelsNotAligned { .. } => "LabelsNotAligned",
         TrcNote::TrimmedLabels { .. } => "TrimmedLabels",
         TrcNote::ZeroSamples { .. } => "ZeroSamples",
