@@ -218,17 +218,9 @@ pub fn fit_settings(args: &CalibrateArgs) -> FitSettings {
 use crate::calibrate_text::information_summary;
 pub use crate::calibrate_text::print_report;
 
-pub fn run(args: CalibrateArgs) -> Result<()> {
-    if jointfit_io::model_file::is_osim(Path::new(&args.model)) {
-        return crate::osim_calibrate::run(args);
-    }
-    if !args.params.is_empty() {
-        anyhow::bail!(
-            "--params selects offset frames of an .osim model; {} is not one (use --joints)",
-            args.model
-        );
-    }
-    let mut files = crate::output::Files::new().model("model", &args.model);
+/// Refuses outputs that are inputs (`files` holds the model already): the trials,
+/// `--seed-from`, the fitted model (in place only with `--force`) and the report.
+pub fn check_files(args: &CalibrateArgs, mut files: crate::output::Files) -> Result<()> {
     for t in &args.trials {
         files = files.input("trial", t);
     }
@@ -240,15 +232,38 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         files = files.output_in_dir("--report", dir, "index.html");
     }
     files.check()?;
-    let spec = jointfit_io::model_file::load_spec(&args.model)?;
-    let input_model = jointfit_io::model_file::load_model(&args.model)?;
-    let mut fit_spec = input_model.spec().clone();
-    crate::prior_args::apply(&mut fit_spec, args.prior, &args.prior_sd)?;
+    Ok(())
+}
+
+/// `--marker-noise-mm`, when given, is a positive finite number.
+pub fn check_marker_noise(args: &CalibrateArgs) -> Result<()> {
     if let Some(mm) = args.marker_noise_mm {
         if !(mm.is_finite() && mm > 0.0) {
             anyhow::bail!("--marker-noise-mm must be a positive number of millimetres, got {mm}");
         }
     }
+    Ok(())
+}
+
+pub fn run(args: CalibrateArgs) -> Result<()> {
+    if jointfit_io::model_file::is_osim(Path::new(&args.model)) {
+        return crate::osim_calibrate::run(args);
+    }
+    if !args.params.is_empty() {
+        anyhow::bail!(
+            "--params selects offset frames of an .osim model; {} is not one (use --joints)",
+            args.model
+        );
+    }
+    check_files(
+        &args,
+        crate::output::Files::new().model("model", &args.model),
+    )?;
+    let spec = jointfit_io::model_file::load_spec(&args.model)?;
+    let input_model = jointfit_io::model_file::load_model(&args.model)?;
+    let mut fit_spec = input_model.spec().clone();
+    crate::prior_args::apply(&mut fit_spec, args.prior, &args.prior_sd)?;
+    check_marker_noise(&args)?;
     let model = jointfit::model::Model::compile(&fit_spec)?;
     let start = match &args.seed_from {
         Some(seed) => {

@@ -12,7 +12,9 @@ use jointfit::workflow::{self, Calibration, HeldCalibration, Redundancy};
 use jointfit_io::osim_read::{read_osim, workflow as osim_workflow};
 use serde::Serialize;
 
-use crate::calibrate_cmd::{fit_settings, print_report, CalibrateArgs, ProgressObserver};
+use crate::calibrate_cmd::{
+    check_files, check_marker_noise, fit_settings, print_report, CalibrateArgs, ProgressObserver,
+};
 use crate::common::load_checked;
 
 /// `calibrate MODEL.osim --json`: the calibration, the held redundant parameters, the wall
@@ -55,28 +57,16 @@ fn print_held(held: &[Redundancy]) {
 }
 
 pub fn run(args: CalibrateArgs) -> Result<()> {
-    let mut files = crate::output::Files::new().input("model", Path::new(&args.model));
-    for t in &args.trials {
-        files = files.input("trial", t);
-    }
-    if let Some(s) = &args.seed_from {
-        files = files.model("--seed-from", s);
-    }
-    files = files.output_in_place("output", &args.output, args.force);
-    if let Some(dir) = &args.report {
-        files = files.output_in_dir("--report", dir, "index.html");
-    }
-    files.check()?;
+    check_files(
+        &args,
+        crate::output::Files::new().input("model", Path::new(&args.model)),
+    )?;
     let osim = read_osim(Path::new(&args.model))?;
     let spec = osim_workflow::selection_spec(&osim, &joint_items(&args), &args.params)
         .map_err(|e| anyhow::anyhow!("{}: {e}", args.model))?;
     let mut fit_spec = spec.clone();
     crate::prior_args::apply(&mut fit_spec, args.prior, &args.prior_sd)?;
-    if let Some(mm) = args.marker_noise_mm {
-        if !(mm.is_finite() && mm > 0.0) {
-            anyhow::bail!("--marker-noise-mm must be a positive number of millimetres, got {mm}");
-        }
-    }
+    check_marker_noise(&args)?;
     let model = jointfit::model::Model::compile(&fit_spec)?;
     let start = match &args.seed_from {
         Some(seed) => {
