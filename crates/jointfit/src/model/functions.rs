@@ -14,7 +14,9 @@
 //!   Mathematical Computations*, 1977, routine `spline`): its end conditions match the third
 //!   derivatives of the cubics through the first and last four points (none for three
 //!   points, a straight line for two); beyond the data it continues along the end tangents.
-//! * `NaturalCubicSpline`, and `GCVSpline` of odd degree `2m − 1` (which OpenSim fits with
+//! * `NaturalCubicSpline`: in OpenSim 4 (`NaturalCubicSpline::calcCoefficients`) the very same
+//!   FMM spline as `SimmSpline`, not a natural spline; jointfit follows OpenSim.
+//! * `GCVSpline` of odd degree `2m − 1` (which OpenSim fits with
 //!   Woltring's GCVSPL at zero smoothing, i.e. interpolates): the *natural* interpolating
 //!   spline of that degree, `C^{2m−2}` at the knots, with derivatives `m … 2m − 2` zero at
 //!   both ends; beyond the data it is the degree `m − 1` Taylor polynomial of the end
@@ -182,13 +184,11 @@ impl Function {
                     right_at_knots: false,
                 })
             }
-            FunctionSpec::SimmSpline { x, y } => {
+            // OpenSim's NaturalCubicSpline is, despite its name, the same FMM spline
+            // (its end conditions fit cubics through the end points, not zero curvature).
+            FunctionSpec::SimmSpline { x, y } | FunctionSpec::NaturalCubicSpline { x, y } => {
                 check_points(x, y, 2)?;
                 Function::Pieces(fmm_spline(x, y))
-            }
-            FunctionSpec::NaturalCubicSpline { x, y } => {
-                check_points(x, y, 2)?;
-                Function::Pieces(natural_spline(x, y, 2)?)
             }
             FunctionSpec::GcvSpline { degree, x, y } => {
                 if degree % 2 == 0 || *degree > 7 {
@@ -464,6 +464,19 @@ mod tests {
         let d2 = |u: f64| (d1(u + 1e-5) - d1(u - 1e-5)) / 2e-5;
         let d3 = |u: f64| (d2(u + 1e-3) - d2(u - 1e-3)) / 2e-3;
         assert!(d3(-0.5).abs() < 1e-3, "{}", d3(-0.5));
+    }
+
+    /// OpenSim's NaturalCubicSpline is the FMM spline (checked against OpenSim 4.6 through a
+    /// CustomJoint in jointfit-io's `osim_joint_types` test).
+    #[test]
+    fn natural_cubic_spline_is_opensims_fmm_spline() {
+        let (x, y) = pts();
+        let a = Function::new(&FunctionSpec::SimmSpline {
+            x: x.clone(),
+            y: y.clone(),
+        });
+        let b = Function::new(&FunctionSpec::NaturalCubicSpline { x, y });
+        assert_eq!(a.unwrap(), b.unwrap());
     }
 
     #[test]
