@@ -24,7 +24,11 @@ Usage: osim_check.py MODE < request.json
 
 The answer is one line "@@" + JSON on stdout (OpenSim logs to the same stream). Marker
 distances use the trial markers as OpenSim reads them (TimeSeriesTableVec3, converted to
-metres from the file's Units); a marker missing in a frame gives null.
+metres from the file's Units); a marker missing in a frame gives null. A sample of exactly
+(0, 0, 0) is missing too, as jointfit reads it (a gap, the convention of C3D and of many TRC
+exporters). OpenSim itself takes (0, 0, 0) in a TRC as a position (only blank or NaN fields are
+missing), so `ik` runs OpenSim's IK on a copy of the trial with those samples set to NaN
+(`gaps_as_nan`): both programs then fit the same observations.
 """
 import json
 import math
@@ -162,9 +166,31 @@ def read_trc(path):
         for j in range(len(labels)):
             p = row[j]
             xyz = [p.get(0) * scale, p.get(1) * scale, p.get(2) * scale]
-            pts.append(None if any(math.isnan(c) for c in xyz) else xyz)
+            missing = any(math.isnan(c) for c in xyz) or all(c == 0.0 for c in xyz)
+            pts.append(None if missing else xyz)
         frames.append(pts)
     return times, labels, frames
+
+
+def gaps_as_nan(path, out_dir):
+    """The trial with every (0, 0, 0) sample set to NaN, which OpenSim's IK skips (a marker
+    with no data in a frame gets no task there). Returns the path to use: `path` itself when
+    no sample is (0, 0, 0), else a copy written to `out_dir`."""
+    t = osim.TimeSeriesTableVec3(path)
+    nan = osim.Vec3(math.nan, math.nan, math.nan)
+    changed = 0
+    for i in range(t.getNumRows()):
+        row = t.updRowAtIndex(i)
+        for j in range(t.getNumColumns()):
+            p = row[j]
+            if p.get(0) == 0.0 and p.get(1) == 0.0 and p.get(2) == 0.0:
+                row[j] = nan
+                changed += 1
+    if changed == 0:
+        return path
+    out = os.path.join(out_dir, "trial_gaps_as_nan.trc")
+    osim.TRCFileAdapter.write(t, out)
+    return out
 
 
 def frame_index(times, t):
@@ -216,9 +242,10 @@ def table_rows(model, table, in_degrees):
 def ik(req):
     model, state = load(req["model"])
     trc = read_trc(req["trc"])
+    trc_path = gaps_as_nan(req["trc"], req["out_dir"])
     tool = osim.InverseKinematicsTool()
     tool.setModel(model)
-    tool.setMarkerDataFileName(req["trc"])
+    tool.setMarkerDataFileName(trc_path)
     tool.set_accuracy(req["accuracy"])
     tool.setStartTime(trc[0][0])
     tool.setEndTime(trc[0][-1])
@@ -247,7 +274,8 @@ def ik(req):
     model2, state2 = load(req["model"])
     _, names, rows = table_rows(model2, table, deg)
     solver_seconds, solver_last = min(
-        (solver_loop(req, trc[0]) for _ in range(req.get("repeat", 1))), key=lambda r: r[0])
+        (solver_loop(req, trc_path, trc[0]) for _ in range(req.get("repeat", 1))),
+        key=lambda r: r[0])
     answer({
         "seconds": seconds,
         "solver_seconds": solver_seconds,
@@ -260,17 +288,18 @@ def ik(req):
         "markers": [model2.getMarkerSet().get(i).getName()
                     for i in range(model2.getMarkerSet().getSize())],
         "mot": mot,
+        "trc_used": trc_path,
     })
 
 
-def solver_loop(req, times):
+def solver_loop(req, trc_path, times):
     """The solver inside the tool, timed alone: InverseKinematicsSolver.assemble on the first
     frame, track on each next one (no file output). Returns (seconds, last frame's q by name)."""
     model, state = load(req["model"])
     weights = osim.SetMarkerWeights()
     for name, w in req["weights"].items():
         weights.cloneAndAppend(osim.MarkerWeight(name, w))
-    markers = osim.MarkersReference(req["trc"], weights)
+    markers = osim.MarkersReference(trc_path, weights)
     solver = osim.InverseKinematicsSolver(
         model, markers, osim.SimTKArrayCoordinateReference(), math.inf)
     solver.setAccuracy(req["accuracy"])
