@@ -315,7 +315,8 @@ pub(crate) struct BothSummary {
     output: String,
     marker_set: String,
     side: &'static str,
-    /// Largest distance of a pelvis marker between the two legs' static windows.
+    /// Largest distance of a pelvis marker between the two legs' static windows (0: both
+    /// legs share one window, the usual case).
     pelvis_gap_mm: f64,
     /// Nominal parameters of the bilateral model (names suffixed _r/_l), mm or deg.
     parameters: Vec<(String, f64)>,
@@ -353,10 +354,18 @@ impl BothSummary {
             .iter()
             .map(|l| l.static_fk_error_mm)
             .fold(0.0, f64::max);
+        let pelvis = if self.pelvis_gap_mm == 0.0 {
+            "both legs share one pelvis (one static window)".to_string()
+        } else {
+            format!(
+                "no frame holds every marker of both legs: each leg used its own window, and \
+                 pelvis markers moved {:.2} mm between them",
+                self.pelvis_gap_mm
+            )
+        };
         out += &format!(
-            "pelvis markers moved {:.2} mm between the two legs' windows; static poses \
-             reproduced to {fk:.1e} mm; all {} parameters: jointfit model show {}\n",
-            self.pelvis_gap_mm,
+            "{pelvis}; static poses reproduced to {fk:.1e} mm; all {} parameters: jointfit \
+             model show {}\n",
             self.parameters.len(),
             self.output
         );

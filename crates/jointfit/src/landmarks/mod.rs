@@ -291,6 +291,20 @@ pub fn personalize_with(
     opts: &PersonalizeOptions,
     func: &functional::FunctionalTrials,
 ) -> Result<Personalized, LandmarkError> {
+    personalize_in(trial, set, side, opts, func, None)
+}
+
+/// [`personalize_with`] averaging the landmarks over `window` (every marker of the leg must be
+/// present in all its frames) instead of the leg's own stillest window: how
+/// [`personalize_sides`] gives both legs one pelvis.
+pub fn personalize_in(
+    trial: &Trial,
+    set: &MarkerSet,
+    side: Side,
+    opts: &PersonalizeOptions,
+    func: &functional::FunctionalTrials,
+    window: Option<&StaticWindow>,
+) -> Result<Personalized, LandmarkError> {
     check_options(opts)?;
     set.validate()?;
     let side_name = markerset::side_name(side);
@@ -322,7 +336,10 @@ pub fn personalize_with(
     }
     let names: Vec<String> = labels.iter().map(|(l, _)| l.clone()).collect();
     let wanted = (opts.window_seconds * trial.rate()).round().max(1.0) as usize;
-    let win = window::select_window(trial, &columns, &names, wanted)?;
+    let win = match window {
+        Some(w) => window::check_window(trial, &columns, &names, w)?,
+        None => window::select_window(trial, &columns, &names, wanted)?,
+    };
     let means = window::window_means(trial, &columns, &win);
     let idx = |label: &str| {
         names

@@ -134,15 +134,58 @@ pub(crate) fn select_window(
         motion_rms: 0.0,
     };
     // The reported motion, two-pass (the prefix sums above only rank the windows).
-    let means = window_means(trial, columns, &w);
+    w.motion_rms = motion_rms(trial, columns, &w);
+    Ok(w)
+}
+
+/// RMS distance of a marker from its mean over the window (every sample present).
+fn motion_rms(trial: &Trial, columns: &[usize], w: &StaticWindow) -> f64 {
+    let means = window_means(trial, columns, w);
     let mut sum2 = 0.0;
     for f in w.first..w.end() {
         for (k, &c) in columns.iter().enumerate() {
             sum2 += (trial.get(f, c).expect("complete frame") - means[k]).norm_squared();
         }
     }
-    w.motion_rms = (sum2 / (len * columns.len()) as f64).sqrt();
-    Ok(w)
+    (sum2 / (w.len * columns.len()) as f64).sqrt()
+}
+
+/// A window chosen elsewhere (the common window of both legs) for these columns: every
+/// sample must be present; the counts and the motion are recomputed for these columns.
+pub(crate) fn check_window(
+    trial: &Trial,
+    columns: &[usize],
+    names: &[String],
+    w: &StaticWindow,
+) -> Result<StaticWindow, LandmarkError> {
+    let nf = trial.n_frames();
+    if w.len == 0 || w.end() > nf {
+        return Err(LandmarkError::Internal(format!(
+            "static window {}–{} outside the trial's {nf} frames",
+            w.first,
+            w.end()
+        )));
+    }
+    for f in w.first..w.end() {
+        for (&c, name) in columns.iter().zip(names) {
+            if trial.get(f, c).is_none() {
+                return Err(LandmarkError::Internal(format!(
+                    "marker {name:?} is missing in frame {f} of the static window"
+                )));
+            }
+        }
+    }
+    let mut out = StaticWindow {
+        complete_frames: (0..nf)
+            .filter(|&f| columns.iter().all(|&c| trial.get(f, c).is_some()))
+            .count(),
+        total_frames: nf,
+        rate: trial.rate(),
+        motion_rms: 0.0,
+        ..w.clone()
+    };
+    out.motion_rms = motion_rms(trial, columns, &out);
+    Ok(out)
 }
 
 /// Mean position of each column over the window (every sample present by construction).
@@ -201,6 +244,29 @@ mod tests {
         let w = select_window(&t, &[0, 1], &names, 10).unwrap();
         assert_eq!((w.first, w.len), (3, 4));
         assert!((w.motion_rms - (0.75f64 / 2.0).sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_given_window_is_checked_and_its_motion_recomputed() {
+        let s = Some;
+        let t = trial(&[
+            [s(0.0), s(5.0)],
+            [s(1.0), None],
+            [s(1.0), s(5.0)],
+            [s(3.0), s(5.0)],
+        ]);
+        let names = vec!["a".to_string(), "b".to_string()];
+        let both = select_window(&t, &[0, 1], &names, 2).unwrap();
+        assert_eq!(both.first, 2);
+        // Marker a alone over the window chosen for a and b: |3 − 1| / 2 from the mean.
+        let a = check_window(&t, &[0], &names[..1], &both).unwrap();
+        assert_eq!((a.first, a.len, a.complete_frames), (2, 2, 4));
+        assert!((a.motion_rms - 1.0).abs() < 1e-12);
+        let gap = StaticWindow { first: 0, ..both };
+        let e = check_window(&t, &[0, 1], &names, &gap)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("\"b\" is missing in frame 1"), "{e}");
     }
 
     #[test]
