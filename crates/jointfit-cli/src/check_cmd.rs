@@ -7,7 +7,7 @@
 //! `jointfit::calibrate::uncertainty`) predicts each parameter's 95 % interval. The residual
 //! variance at the nominal model includes its misfit, so the prediction is conservative.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use clap::Args;
@@ -25,7 +25,8 @@ pub struct CheckArgs {
     pub model: String,
     /// Motion file (.trc or .c3d).
     pub trial: PathBuf,
-    /// Parameter groups a calibration would fit: comma-separated hip, knee, ankle, or all.
+    /// Parameter groups a calibration would fit: comma-separated hip, knee, ankle, or all;
+    /// with an .osim model, the joints whose offset frames it would personalize (`hip_r,knee_r`).
     #[arg(long, default_value = "all", value_delimiter = ',')]
     pub joints: Vec<String>,
     #[command(flatten)]
@@ -60,10 +61,15 @@ pub struct CheckReport {
 }
 
 pub fn run(args: CheckArgs) -> Result<()> {
-    let model = jointfit_io::model_file::load_model(&args.model)?;
+    let model = load(&args)?;
     let (trial, read, _) = load_checked(&args.trial, &args.read, &model, args.filter)?;
-    let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
-    let free = params_for_groups(&model, &groups)?;
+    let model = crate::common::model_for_trials(model, &[&trial], "the check")?;
+    let free = if jointfit_io::model_file::is_osim(Path::new(&args.model)) {
+        (0..model.n_p()).map(jointfit::model::ParamId).collect()
+    } else {
+        let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
+        params_for_groups(&model, &groups)?
+    };
     let opts = UncertaintyOptions {
         assumed_sigma_m: args.noise_mm.map(|v| Unit::Metre.from_display(v)),
         ..workflow::uncertainty_options(args.threshold_mm, args.threshold_deg, 0, 1)
@@ -79,6 +85,25 @@ pub fn run(args: CheckArgs) -> Result<()> {
         print_check(&report);
     }
     Ok(())
+}
+
+/// The model; for an `.osim`, the offset frames of the joints `--joints` names become its
+/// parameters, as `calibrate MODEL.osim --joints …` would fit them.
+fn load(args: &CheckArgs) -> Result<jointfit::model::Model> {
+    let path = Path::new(&args.model);
+    if !jointfit_io::model_file::is_osim(path) {
+        return Ok(jointfit_io::model_file::load_model(&args.model)?);
+    }
+    let osim = jointfit_io::osim_read::read_osim(path)?;
+    let joints: Vec<String> = args
+        .joints
+        .iter()
+        .filter(|j| *j != "all")
+        .cloned()
+        .collect();
+    let spec = jointfit_io::osim_read::workflow::selection_spec(&osim, &joints, &[])
+        .map_err(|e| anyhow::anyhow!("{}: {e}", args.model))?;
+    Ok(jointfit::model::Model::compile(&spec)?)
 }
 
 fn print_check(report: &CheckReport) {

@@ -302,3 +302,39 @@ pub fn load_checked(
     let json = TrialJson::new(path, &loaded, &findings);
     Ok((loaded.trial, json, findings))
 }
+
+/// The model as `ik` and `calibrate` use it on these trials: model markers no trial has are
+/// left out (a user's OpenSim model often carries more markers than a trial, e.g. the
+/// static-only medial knee and ankle markers), and coordinates no remaining marker determines
+/// (toes without toe markers) are held at their defaults. Both are said on stderr.
+pub fn model_for_trials(
+    model: jointfit::model::Model,
+    trials: &[&Trial],
+    what: &str,
+) -> Result<jointfit::model::Model> {
+    let absent: Vec<String> = model
+        .markers()
+        .iter()
+        .filter(|m| trials.iter().all(|t| !t.labels().contains(&m.name)))
+        .map(|m| m.name.clone())
+        .collect();
+    let model = if absent.is_empty() {
+        model
+    } else {
+        eprintln!(
+            "jointfit: warning: the trials lack model markers {}; left out of {what}",
+            absent.join(", ")
+        );
+        let mut spec = model.spec().clone();
+        spec.markers.retain(|m| !absent.contains(&m.name));
+        jointfit::model::Model::compile(&spec)?
+    };
+    let (held_model, held) = jointfit::workflow::hold_undetermined(&model, trials)?;
+    if !held.is_empty() {
+        eprintln!(
+            "jointfit: warning: no marker determines {}; held at the model's default values",
+            held.join(", ")
+        );
+    }
+    Ok(held_model.unwrap_or(model))
+}

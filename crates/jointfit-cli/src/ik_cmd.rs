@@ -92,6 +92,19 @@ pub fn run(args: IkArgs) -> Result<()> {
     files.check()?;
     let model = jointfit_io::model_file::load_model(&args.model)?;
     let (trial, trial_json, findings) = load_checked(&args.trial, &args.read, &model, args.filter)?;
+    if !model
+        .markers()
+        .iter()
+        .any(|m| trial.labels().contains(&m.name))
+    {
+        bail!(
+            "{}: no marker of the trial is a marker of the model {} ({} model markers); nothing \
+             written",
+            args.trial.display(),
+            args.model,
+            model.markers().len()
+        );
+    }
     // Coordinates no marker of the trial determines (a toe joint without toe markers) stay
     // at their defaults, as in OpenSim's IK, and are said so.
     let (held_model, held) = workflow::hold_undetermined(&model, &[&trial])?;

@@ -49,12 +49,14 @@ pub fn run(args: ReportArgs) -> Result<()> {
         .check()?;
     let spec = jointfit_io::model_file::load_spec(&args.model)?;
     let model = jointfit_io::model_file::load_model(&args.model)?;
+    let (trials, read) = load_trials(&args.trials, &args.read, &model, args.filter)?;
+    let refs: Vec<&Trial> = trials.iter().map(|(_, t)| t).collect();
+    let model = crate::common::model_for_trials(model, &refs, "the report")?;
     let fitted = model.nominal_params();
     let baseline = match &args.landmark {
         Some(path) => Some(params_by_name(&model, &args.model, path)?),
         None => None,
     };
-    let (trials, read) = load_trials(&args.trials, &args.read, &model, args.filter)?;
     let mut input = ReportInput {
         title: spec.name.clone(),
         baseline_label: "landmark model".into(),

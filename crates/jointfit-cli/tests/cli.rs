@@ -23,6 +23,8 @@ mod limits;
 mod markers;
 #[path = "cli/osim.rs"]
 mod osim;
+#[path = "cli/osim_commands.rs"]
+mod osim_commands;
 #[path = "cli/osim_ik.rs"]
 mod osim_ik;
 #[path = "cli/osim_personalize.rs"]

@@ -150,10 +150,10 @@ const BODIES: [(&str, &str); 12] = [
 fn model_text() -> String {
     let mut bodies = String::new();
     for (b, _) in BODIES {
-        write!(
+        writeln!(
             bodies,
             "<Body name=\"{b}\"><mass>2</mass><mass_center>0.01 -0.02 0.005</mass_center>\
-             <inertia>0.1 0.12 0.09 0 0 0</inertia></Body>\n"
+             <inertia>0.1 0.12 0.09 0 0 0</inertia></Body>"
         )
         .unwrap();
     }
@@ -338,10 +338,10 @@ fn model_text() -> String {
             .iter()
             .enumerate()
         {
-            write!(
+            writeln!(
                 markers,
                 "<Marker name=\"{b}_m{k}\"><socket_parent_frame>/bodyset/{b}</socket_parent_frame>\
-                 <location>{} {} {}</location><fixed>false</fixed></Marker>\n",
+                 <location>{} {} {}</location><fixed>false</fixed></Marker>",
                 loc[0], loc[1], loc[2]
             )
             .unwrap();
