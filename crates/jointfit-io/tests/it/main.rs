@@ -4,6 +4,7 @@
 
 mod oracle;
 mod osim;
+mod osim_joint_model;
 mod osim_joint_types;
 mod osim_read;
 mod sto;
