@@ -17,8 +17,11 @@
 //! `--noise-mm`, `--replicates` (block bootstrap; ~0.3 s per replicate at 100 frames),
 //! `--blocks` (jackknife blocks), `--bandwidth` (HAC, frames), `--joints hip|knee|ankle|all`
 //! (the free parameters), `--perturb MM,DEG` (truth = nominal moved by up to MM / DEG, as
-//! `jointfit synth --perturb-mm --perturb-deg`, instead of 40 % of each half-range). Figures for the defaults are
-//! in `docs/identifiability.md`.
+//! `jointfit synth --perturb-mm --perturb-deg`, instead of 40 % of each half-range), `--dump
+//! FILE.csv` (one row per seed and parameter: error, each estimator's standard error, the
+//! critical values, bandwidth, label, and the objective of the fit and at the truth, for
+//! offline checks of other estimators and labels). Figures: `docs/global.md` (coverage) and
+//! `docs/identifiability.md`.
 
 use std::time::Instant;
 
