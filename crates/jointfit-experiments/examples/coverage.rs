@@ -135,7 +135,7 @@ fn main() {
         let mut f = std::io::BufWriter::new(std::fs::File::create(path).expect("--dump file"));
         writeln!(
             f,
-            "seed,name,group,unit,err,se_white,se_hac,se_jack,se_boot,z,t_jack,half_width,method,status,at_bound,bandwidth,frames,n_free,cost_fit,cost_truth,threshold"
+            "seed,name,group,unit,err,se_white,se_hac,se_jack,se_boot,z,t_jack,half_width,method,status,at_bound,bandwidth,frames,n_free,cost_fit,cost_truth,threshold,z_hac"
         )
         .expect("write");
         f
@@ -213,7 +213,7 @@ fn main() {
                 let o = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6e}"));
                 writeln!(
                     f,
-                    "{seed},{},{},{},{err:.6e},{},{},{},{},{},{},{},{:?},{:?},{},{},{},{},{:.9e},{:.9e},{threshold}",
+                    "{seed},{},{},{},{err:.6e},{},{},{},{},{},{},{},{:?},{:?},{},{},{},{},{:.9e},{:.9e},{threshold},{}",
                     p.name,
                     p.group,
                     p.unit,
@@ -231,7 +231,8 @@ fn main() {
                     u.frames,
                     free.len(),
                     cal.cost_after,
-                    cost_truth
+                    cost_truth,
+                    o(u.z_hac)
                 )
                 .expect("write");
             }
