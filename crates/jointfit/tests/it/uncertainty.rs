@@ -376,9 +376,12 @@ fn uncertainty_block_bootstrap_is_seeded_and_agrees_with_the_sandwich() {
             "{}: bootstrap {boot} vs HAC {hac}",
             p.name
         );
-        let largest = [p.se_white, p.se_hac, p.se_bootstrap]
+        // White and bootstrap with z, HAC with its fixed-b value, the jackknife with t.
+        assert!(a.z_hac.unwrap() > a.z);
+        let largest = [p.se_white, p.se_bootstrap]
             .iter()
             .map(|v| v.unwrap() * a.z)
+            .chain(p.se_hac.map(|h| h * a.z_hac.unwrap()))
             .chain(p.se_jackknife.map(|j| j * a.t_jackknife.unwrap()))
             .fold(0.0f64, f64::max);
         assert!((p.half_width.unwrap() - largest).abs() <= 1e-12 * largest);

@@ -8,6 +8,7 @@ use rayon::prelude::*;
 
 use super::super::joint::{solve_joint, JointOptions};
 use super::super::{Fit, Problem};
+use super::critical::fixed_b_bartlett;
 use super::{BootstrapInfo, Reduced, SeMethod, UncertaintyOptions, NULL_RATIO};
 
 /// Symmetric pseudo-inverse and, per index, whether it touches a null direction.
@@ -276,75 +277,14 @@ pub(super) fn block_jackknife(
     c * ((blocks - 1) as f64 / blocks as f64)
 }
 
-/// Inverse of the standard normal CDF (Acklam's rational approximation, |error| < 1.2e-9).
-pub fn normal_quantile(p: f64) -> f64 {
-    const A: [f64; 6] = [
-        -3.969683028665376e1,
-        2.209460984245205e2,
-        -2.759285104469687e2,
-        1.38357751867269e2,
-        -3.066479806614716e1,
-        2.506628277459239,
-    ];
-    const B: [f64; 5] = [
-        -5.447609879822406e1,
-        1.615858368580409e2,
-        -1.556989798598866e2,
-        6.680131188771972e1,
-        -1.328068155288572e1,
-    ];
-    const C: [f64; 6] = [
-        -7.784894002430293e-3,
-        -3.223964580411365e-1,
-        -2.400758277161838,
-        -2.549732539343734,
-        4.374664141464968,
-        2.938163982698783,
-    ];
-    const D: [f64; 4] = [
-        7.784695709041462e-3,
-        3.224671290700398e-1,
-        2.445134137142996,
-        3.754408661907416,
-    ];
-    let tail = |q: f64| {
-        let t = (-2.0 * q.ln()).sqrt();
-        (((((C[0] * t + C[1]) * t + C[2]) * t + C[3]) * t + C[4]) * t + C[5])
-            / ((((D[0] * t + D[1]) * t + D[2]) * t + D[3]) * t + 1.0)
-    };
-    if p <= 0.0 {
-        f64::NEG_INFINITY
-    } else if p >= 1.0 {
-        f64::INFINITY
-    } else if p < 0.02425 {
-        tail(p)
-    } else if p > 1.0 - 0.02425 {
-        -tail(1.0 - p)
-    } else {
-        let q = p - 0.5;
-        let r = q * q;
-        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
-            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
-    }
-}
-
-/// Quantile of Student's t with `nu` degrees of freedom from the normal one (Cornish–Fisher
-/// expansion, Abramowitz & Stegun 26.7.5; relative error < 1e-4 for `nu ≥ 5` at 0.975).
-pub fn t_quantile(p: f64, nu: f64) -> f64 {
-    let z = normal_quantile(p);
-    let (z3, z5, z7, z9) = (z.powi(3), z.powi(5), z.powi(7), z.powi(9));
-    z + (z3 + z) / (4.0 * nu)
-        + (5.0 * z5 + 16.0 * z3 + 3.0 * z) / (96.0 * nu * nu)
-        + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * nu.powi(3))
-        + (79.0 * z9 + 776.0 * z7 + 1482.0 * z5 - 1920.0 * z3 - 945.0 * z) / (92160.0 * nu.powi(4))
-}
-
 /// The covariance estimates (scaled units) of one analysis, before conversion.
 pub(super) struct Covariances {
     pub(super) white: DMatrix<f64>,
     pub(super) null: Vec<bool>,
     pub(super) hac: Option<DMatrix<f64>>,
     pub(super) bandwidth: Option<f64>,
+    /// Critical value of the HAC interval: fixed-b (Bartlett) for the bandwidth used.
+    pub(super) hac_critical: f64,
     pub(super) boot: Option<(DMatrix<f64>, BootstrapInfo)>,
     pub(super) jack: Option<DMatrix<f64>>,
     pub(super) factor: f64,
@@ -412,6 +352,12 @@ pub(super) fn covariances(
     } else {
         (None, None)
     };
+    // Fixed-b ratio: the bandwidth over the mean length of the runs of consecutive frames.
+    let runs = 1 + same.iter().filter(|c| !**c).count();
+    let hac_critical = fixed_b_bartlett(
+        opts.level,
+        bandwidth.map_or(0.0, |b| b * runs as f64 / n.max(1) as f64),
+    );
     let boot = match boot {
         Some((prob, fit)) if opts.bootstrap_replicates > 1 && factor.is_finite() => {
             let block = opts
@@ -438,6 +384,7 @@ pub(super) fn covariances(
         null,
         hac,
         bandwidth,
+        hac_critical,
         boot,
         jack,
         factor,
@@ -445,19 +392,12 @@ pub(super) fn covariances(
     }
 }
 
-/// Critical values: `z` for white, HAC and bootstrap; Student's t with `K − 1` degrees of
-/// freedom for the `K`-block jackknife.
-pub(super) fn critical(level: f64, opts: &UncertaintyOptions) -> (f64, f64) {
-    let p = 0.5 + 0.5 * level;
-    let k = opts.jackknife_blocks.max(2) as f64;
-    (normal_quantile(p), t_quantile(p, k - 1.0))
-}
-
 /// One estimator's `(se, half-width, method)`.
 pub(super) type Estimate = (f64, f64, SeMethod);
 
 /// Per estimator `(se, half-width, method)` of the quadratic form `f(C)` (a variance in
-/// scaled units), and the most conservative one (largest half-width).
+/// scaled units), and the most conservative one (largest half-width). `crit`: `z` (white,
+/// bootstrap) and Student's t (jackknife); the HAC interval takes `cov.hac_critical`.
 pub(super) fn conservative(
     cov: &Covariances,
     crit: (f64, f64),
@@ -465,7 +405,7 @@ pub(super) fn conservative(
 ) -> (Vec<Estimate>, Option<Estimate>) {
     let mut all = vec![(f(&cov.white).max(0.0).sqrt(), crit.0, SeMethod::White)];
     if let Some(h) = &cov.hac {
-        all.push((f(h).max(0.0).sqrt(), crit.0, SeMethod::Hac));
+        all.push((f(h).max(0.0).sqrt(), cov.hac_critical, SeMethod::Hac));
     }
     if let Some((b, _)) = &cov.boot {
         all.push((f(b).max(0.0).sqrt(), crit.0, SeMethod::Bootstrap));
@@ -487,21 +427,6 @@ pub(super) fn conservative(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn t_quantile_matches_tables() {
-        // Student t 0.975 quantiles: 9 dof 2.262157, 19 dof 2.093024, 4 dof 2.776445.
-        assert!((t_quantile(0.975, 9.0) - 2.262157).abs() < 2e-4);
-        assert!((t_quantile(0.975, 19.0) - 2.093024).abs() < 1e-5);
-        assert!((t_quantile(0.975, 4.0) - 2.776445).abs() < 5e-3);
-    }
-
-    #[test]
-    fn normal_quantile_matches_known_values() {
-        assert!((normal_quantile(0.975) - 1.959963984540054).abs() < 1e-8);
-        assert!((normal_quantile(0.5)).abs() < 1e-12);
-        assert!((normal_quantile(0.005) + 2.5758293035489).abs() < 1e-8);
-    }
 
     #[test]
     fn long_run_equals_the_direct_sum() {

@@ -29,6 +29,9 @@
 //!   one trial. The bandwidth `b` is Andrews' (1991) AR(1) plug-in rule on the standardised
 //!   influence series `S⁻¹ψ_i`, capped at `N/5` (with wider windows the Bartlett estimate
 //!   shrinks towards zero, because the scores sum to zero at the optimum), unless given.
+//!   At such a bandwidth (b/N up to 0.2) the estimate stays random and biased low, so its
+//!   interval takes the fixed-b critical value of Kiefer & Vogelsang (2005) instead of `z`
+//!   (2.57 instead of 1.96 at b/N = 0.2; see the private `critical` module).
 //! * **moving-block bootstrap** (Künsch 1989), opt-in: blocks of consecutive frames are drawn
 //!   with replacement until the trial length is reached, and the joint solver refits from
 //!   the optimum; `C = c · cov(ŝ*)` over replicates. Seeded; replicates run in parallel but
@@ -48,7 +51,8 @@
 //! instead.
 //!
 //! Each parameter's reported interval is the **widest** of the available estimates (the
-//! white, HAC and bootstrap ones with the normal quantile, the jackknife with t), and the
+//! white and bootstrap ones with the normal quantile, HAC with its fixed-b critical value,
+//! the jackknife with t), and the
 //! report names the method that produced it. Monte Carlo check:
 //! `jointfit-experiments/examples/coverage.rs` (figures in `docs/identifiability.md`).
 //! Drift slower than a block (skin sinusoids with less than a cycle per trial) looks like
@@ -67,6 +71,7 @@
 //! [`unidentifiable_subset`] chooses the parameters to hold at their starting values so that
 //! the rest are determined (subset selection on `S`).
 
+mod critical;
 mod estimators;
 mod explain;
 mod reduced;
@@ -76,8 +81,9 @@ use serde::{Deserialize, Serialize};
 
 use super::{Fit, Problem};
 use crate::model::Unit;
-use estimators::{conservative, continuity, covariances, critical, Covariances};
-pub use estimators::{normal_quantile, t_quantile};
+use critical::critical;
+pub use critical::{fixed_b_bartlett, normal_quantile, t_quantile};
+use estimators::{conservative, continuity, covariances, Covariances};
 pub use explain::coordinate_ranges;
 use explain::{reason, weak_directions};
 pub use reduced::{reduced_system, Reduced};
@@ -252,8 +258,11 @@ pub struct BootstrapInfo {
 pub struct Uncertainty {
     /// Interval coverage, e.g. 0.95.
     pub level: f64,
-    /// Normal quantile: the critical value of the white, HAC and bootstrap intervals.
+    /// Normal quantile: the critical value of the white and bootstrap intervals.
     pub z: f64,
+    /// Critical value of the HAC interval: the fixed-b quantile for the Bartlett kernel at
+    /// the bandwidth used (Kiefer & Vogelsang 2005), when computed.
+    pub z_hac: Option<f64>,
     /// Student-t quantile with `K − 1` degrees of freedom: the jackknife's critical value.
     pub t_jackknife: Option<f64>,
     /// Blocks `K` of the delete-block jackknife, when computed.
@@ -430,6 +439,7 @@ fn build(
     Uncertainty {
         level: opts.level,
         z,
+        z_hac: cov.hac.as_ref().map(|_| cov.hac_critical),
         t_jackknife: cov.jack.as_ref().map(|_| crit.1),
         jackknife_blocks: cov.jack.as_ref().map(|_| opts.jackknife_blocks),
         frames: red.scores.len(),

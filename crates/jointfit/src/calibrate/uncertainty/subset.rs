@@ -3,7 +3,8 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::super::{Fit, Problem};
-use super::estimators::{conservative, continuity, covariances, critical};
+use super::critical::critical;
+use super::estimators::{conservative, continuity, covariances};
 use super::{reduced_system, Reduced, UncertaintyOptions};
 
 /// Subset selection: which free parameters (indices into `prob.free`) to hold fixed so that
