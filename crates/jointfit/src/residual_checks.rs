@@ -1,0 +1,236 @@
+//! A data check that needs a fit: markers that sit, in every frame, at the same wrong place
+//! of their segment (a cluster moved since the static trial, or labelled differently there).
+//!
+//! Distances inside a segment's cluster do not change when the whole cluster moves, so the
+//! distance checks of [`crate::checks`] cannot see it; inverse kinematics then absorbs part of
+//! the move into the coordinates and a calibration into the joint parameters. After inverse
+//! kinematics at the model's nominal parameters, the residual of marker `j` in frame `i`,
+//! expressed in the frame of the segment `s` the marker is fixed in,
+//!
+//! ```text
+//! r_ij = R_s(q_i)ᵀ (m_ij − x_j(q_i)),
+//! ```
+//!
+//! has over the frames a mean `μ_j` and a spread `σ_j = sqrt(mean_i ‖r_ij − μ_j‖²)`. Noise
+//! and skin motion give a mean comparable to the spread (it changes with the pose); a marker
+//! that sits elsewhere on its segment gives a large mean with a small spread: a systematic
+//! offset. A marker is *displaced* when `‖μ_j‖ ≥` [`MIN_OFFSET`] and
+//! `‖μ_j‖ ≥` [`MIN_RATIO`]` · σ_j`; when at least two markers of one segment and at least
+//! half of its present markers are displaced, the finding names the segment's cluster.
+//! The thresholds and the statistic on every shared motion trial are in
+//! `docs/moved_clusters.md`.
+//!
+//! The inverse kinematics is the robust one of [`crate::ik`] (gross errors rejected per
+//! frame; the residuals here are taken of every present marker, rejected or not) on at most
+//! [`MAX_FRAMES`] frames evenly spaced through the trial, which bounds the cost.
+
+use nalgebra::Vector3;
+
+use crate::checks::{CheckKind, Finding, Severity};
+use crate::ik::{solve_trial, IkOptions, MarkerMap};
+use crate::kinematics::{forward_kinematics, KinData, Want};
+use crate::model::Model;
+use crate::trial::Trial;
+
+/// Smallest mean residual (m) in the segment frame that counts as a displaced marker. The
+/// clean shared trials stay below 25 mm (`docs/moved_clusters.md`).
+pub const MIN_OFFSET: f64 = 0.03;
+/// Smallest ratio of the mean residual to its spread that counts as systematic.
+pub const MIN_RATIO: f64 = 2.0;
+/// Frames a marker must be present (and its frame solved) in for its statistic.
+pub const MIN_FRAMES: usize = 10;
+/// Frames looked at, at most (evenly spaced).
+pub const MAX_FRAMES: usize = 200;
+
+/// The residual statistic of one model marker over a trial.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MarkerOffset {
+    /// Model marker index.
+    pub marker: usize,
+    /// Mean residual `μ_j` in the marker's segment frame (m).
+    pub mean: Vector3<f64>,
+    /// RMS distance of the residuals from their mean, `σ_j` (m).
+    pub spread: f64,
+    /// Frames that entered.
+    pub frames: usize,
+}
+
+impl MarkerOffset {
+    /// `‖μ_j‖` (m).
+    pub fn size(&self) -> f64 {
+        self.mean.norm()
+    }
+    /// `‖μ_j‖ / σ_j` (infinite when the spread is zero).
+    pub fn ratio(&self) -> f64 {
+        if self.spread > 0.0 {
+            self.size() / self.spread
+        } else {
+            f64::INFINITY
+        }
+    }
+    /// Whether the offset is large and systematic (see the module docs).
+    pub fn displaced(&self) -> bool {
+        self.frames >= MIN_FRAMES && self.size() >= MIN_OFFSET && self.ratio() >= MIN_RATIO
+    }
+}
+
+/// The statistic of every model marker the trial has (in at least [`MIN_FRAMES`] solved
+/// frames), after inverse kinematics at parameters `p` with `opts`. Empty when the IK
+/// cannot run (wrong parameter length).
+pub fn marker_offsets(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+    map: &MarkerMap,
+    opts: &IkOptions,
+) -> Vec<MarkerOffset> {
+    let n = trial.n_frames();
+    let step = n.div_ceil(MAX_FRAMES).max(1);
+    let picked: Vec<usize> = (0..n).step_by(step).collect();
+    let mut positions = Vec::with_capacity(picked.len() * trial.n_markers());
+    for &f in &picked {
+        positions.extend_from_slice(trial.frame(f));
+    }
+    let Ok(sub) = Trial::new(
+        trial.labels().to_vec(),
+        trial.rate() / step as f64,
+        trial.first_frame(),
+        positions,
+    ) else {
+        return Vec::new();
+    };
+    let Ok(fit) = solve_trial(model, p, &sub, map, opts) else {
+        return Vec::new();
+    };
+    let nm = model.n_markers();
+    let mut residuals: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); nm];
+    let mut kin = KinData::new(model);
+    for (f, frame) in fit.frames.iter().enumerate() {
+        if !frame.solved() {
+            continue;
+        }
+        forward_kinematics(model, p, &fit.coords[f], Want::POSITIONS, &mut kin);
+        let row = sub.frame(f);
+        for (j, marker) in model.markers().iter().enumerate() {
+            let Some(c) = map.columns[j] else { continue };
+            let m = row[c];
+            if !m.x.is_finite() {
+                continue;
+            }
+            let rot = kin.segment_poses[marker.segment.0].rot;
+            residuals[j].push(rot.transpose() * (m - kin.markers[j]));
+        }
+    }
+    residuals
+        .into_iter()
+        .enumerate()
+        .filter(|(_, r)| r.len() >= MIN_FRAMES)
+        .map(|(j, r)| {
+            let mean = r.iter().sum::<Vector3<f64>>() / r.len() as f64;
+            let var = r.iter().map(|x| (x - mean).norm_squared()).sum::<f64>() / r.len() as f64;
+            MarkerOffset {
+                marker: j,
+                mean,
+                spread: var.sqrt(),
+                frames: r.len(),
+            }
+        })
+        .collect()
+}
+
+/// The displaced markers of `offsets` as findings: one per segment whose cluster moved (at
+/// least two displaced markers, at least half of the segment's markers in `offsets`), one
+/// per other displaced marker. `reference` names what the marker positions come from
+/// (e.g. "the subject model (static trial)").
+pub fn offset_findings(model: &Model, offsets: &[MarkerOffset], reference: &str) -> Vec<Finding> {
+    let mut out = Vec::new();
+    for (s, seg) in model.segments().iter().enumerate() {
+        let here: Vec<&MarkerOffset> = offsets
+            .iter()
+            .filter(|o| model.markers()[o.marker].segment.0 == s)
+            .collect();
+        let moved: Vec<&MarkerOffset> = here.iter().copied().filter(|o| o.displaced()).collect();
+        if moved.is_empty() {
+            continue;
+        }
+        let name = |o: &MarkerOffset| model.markers()[o.marker].name.clone();
+        let frames = moved.iter().map(|o| o.frames).max().unwrap_or(0);
+        if moved.len() >= 2 && 2 * moved.len() >= here.len() {
+            let names: Vec<String> = moved.iter().map(|o| name(o)).collect();
+            let mean_mm = moved.iter().map(|o| o.size()).sum::<f64>() / moved.len() as f64 * 1e3;
+            let spread_mm = moved.iter().map(|o| o.spread).sum::<f64>() / moved.len() as f64 * 1e3;
+            out.push(Finding {
+                kind: CheckKind::Offset,
+                severity: Severity::Warning,
+                message: format!(
+                    "the {} cluster ({}) sits {mean_mm:.0} mm from its place in {reference} in \
+                     every frame (spread {spread_mm:.0} mm over {frames} frames): it moved, or \
+                     the labels differ from the static trial's; fitted as it is, the offset \
+                     bends the joint parameters",
+                    seg.name,
+                    names.join(", "),
+                ),
+                fix: Some(format!(
+                    "calibrate --refine-markers, or --exclude-marker for each of {}, or re-run \
+                     personalize with a static trial of this session",
+                    names.join(", ")
+                )),
+            });
+        } else {
+            for o in moved {
+                out.push(Finding {
+                    kind: CheckKind::Offset,
+                    severity: Severity::Warning,
+                    message: format!(
+                        "{}: {} sits {:.0} mm from its place in {reference} in every frame \
+                         (spread {:.0} mm over {} frames): it moved or was re-attached",
+                        seg.name,
+                        name(o),
+                        o.size() * 1e3,
+                        o.spread * 1e3,
+                        o.frames,
+                    ),
+                    fix: Some(format!(
+                        "--exclude-marker {}, or calibrate --refine-markers",
+                        name(o)
+                    )),
+                });
+            }
+        }
+    }
+    out
+}
+
+/// The check of the module docs for `trial` against `model` at its nominal parameters, with
+/// the default inverse-kinematics options.
+pub fn check_offsets(
+    model: &Model,
+    trial: &Trial,
+    map: &MarkerMap,
+    reference: &str,
+) -> Vec<Finding> {
+    let offsets = marker_offsets(
+        model,
+        &model.nominal_params(),
+        trial,
+        map,
+        &IkOptions::default(),
+    );
+    offset_findings(model, &offsets, reference)
+}
+
+/// What a model's marker positions come from, for messages: "the model (NAME.osim)" for a
+/// model read from an OpenSim file (its description says so), else "the subject model
+/// (static trial)" (`personalize` places the markers where the static trial has them).
+pub fn reference_name(model: &Model) -> String {
+    match model.description().strip_prefix(OSIM_DESCRIPTION) {
+        Some(path) => {
+            let file = path.rsplit(['/', '\\']).next().unwrap_or(path);
+            format!("the model ({file})")
+        }
+        None => "the subject model (static trial)".to_string(),
+    }
+}
+
+/// How the OpenSim reader describes a model it read (`jointfit_io::osim_read`).
+pub const OSIM_DESCRIPTION: &str = "OpenSim model read from ";
