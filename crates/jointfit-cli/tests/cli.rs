@@ -21,6 +21,8 @@ mod ik;
 mod limits;
 #[path = "cli/markers.rs"]
 mod markers;
+#[path = "cli/offsets.rs"]
+mod offsets;
 #[path = "cli/osim.rs"]
 mod osim;
 #[path = "cli/osim_ik.rs"]
