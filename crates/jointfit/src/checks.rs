@@ -288,7 +288,7 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                         severity: Severity::Warning,
                         message: format!(
                             "{} and {} look swapped in frames {}–{}: exchanged, they fit the \
-                             model's distances to the other {seg} markers",
+                             subject model's distances to the other {seg} markers",
                             name(a),
                             name(b),
                             from,
