@@ -156,3 +156,49 @@ fn moved_clusters_on_every_shared_trial() {
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }
+
+/// What a user sees: `ik --json` on walking1 with the left leg carries the finding with its
+/// remedies, and the text output names it on stderr.
+#[test]
+fn ik_reports_the_moved_left_thigh_cluster() {
+    let (Some(stat), Some(walk)) = (
+        data_file("opencap_expert1/static1.trc"),
+        data_file("opencap_expert1/walking1.trc"),
+    ) else {
+        println!("skipped: no data");
+        return;
+    };
+    let dir = scratch("offsets-ik");
+    let subject = dir.join("left.toml");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let (ok, _, err) = jointfit(&[
+        "personalize",
+        "--static",
+        &s(&stat),
+        "--markers",
+        "opencap",
+        "--side",
+        "left",
+        "-o",
+        &s(&subject),
+    ]);
+    assert!(ok, "{err}");
+    let json = super::ik::ik(&subject, &walk, &dir.join("w.mot"), &[]);
+    let offsets: Vec<&serde_json::Value> = json["checks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|c| c["kind"] == "offset")
+        .collect();
+    assert_eq!(offsets.len(), 1, "{json}");
+    let msg = offsets[0]["message"].as_str().unwrap();
+    assert!(msg.starts_with("the thigh cluster (L_thigh1"), "{msg}");
+    assert!(msg.contains("the subject model (static trial)"), "{msg}");
+    let fix = offsets[0]["fix"].as_str().unwrap();
+    for remedy in ["--refine-markers", "--exclude-marker", "personalize"] {
+        assert!(fix.contains(remedy), "{fix}");
+    }
+    let (ok, _, err) = jointfit(&["ik", &s(&subject), &s(&walk), "-o", &s(&dir.join("t.mot"))]);
+    assert!(ok, "{err}");
+    assert!(err.contains("offset: the thigh cluster (L_thigh1"), "{err}");
+}
