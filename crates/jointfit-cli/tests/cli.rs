@@ -13,6 +13,8 @@ mod data;
 mod functional;
 #[path = "cli/fuzz.rs"]
 mod fuzz;
+#[path = "cli/held_out.rs"]
+mod held_out;
 #[path = "cli/ident.rs"]
 mod ident;
 #[path = "cli/ik.rs"]
