@@ -33,7 +33,7 @@ use crate::model::Model;
 use crate::trial::Trial;
 
 /// Smallest mean residual (m) in the segment frame that counts as a displaced marker. The
-/// clean shared trials stay below 25 mm (`docs/moved_clusters.md`).
+/// clean shared trials stay below 22 mm (`docs/moved_clusters.md`).
 pub const MIN_OFFSET: f64 = 0.03;
 /// Smallest ratio of the mean residual to its spread that counts as systematic.
 pub const MIN_RATIO: f64 = 2.0;
