@@ -22,12 +22,13 @@
 //!
 //! The inverse kinematics is the robust one of [`crate::ik`] (gross errors rejected per
 //! frame; the residuals here are taken of every present marker, rejected or not) on at most
-//! [`MAX_FRAMES`] frames evenly spaced through the trial, which bounds the cost.
+//! [`MAX_FRAMES`] consecutive frames from the middle of the trial, which bounds the cost (on
+//! a short trial it is one more IK of the trial: one seeding, then warm-started frames).
 
 use nalgebra::Vector3;
 
 use crate::checks::{CheckKind, Finding, Severity};
-use crate::ik::{solve_trial, IkOptions, MarkerMap};
+use crate::ik::{solve_trial, IkOptions, MarkerMap, TrialFit};
 use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::Model;
 use crate::trial::Trial;
@@ -39,7 +40,8 @@ pub const MIN_OFFSET: f64 = 0.03;
 pub const MIN_RATIO: f64 = 2.0;
 /// Frames a marker must be present (and its frame solved) in for its statistic.
 pub const MIN_FRAMES: usize = 10;
-/// Frames looked at, at most (evenly spaced).
+/// Frames looked at, at most (consecutive, from the middle of a longer trial: 2 s at 100 Hz,
+/// a gait cycle).
 pub const MAX_FRAMES: usize = 200;
 
 /// The residual statistic of one model marker over a trial.
@@ -75,8 +77,8 @@ impl MarkerOffset {
 }
 
 /// The statistic of every model marker the trial has (in at least [`MIN_FRAMES`] solved
-/// frames), after inverse kinematics at parameters `p` with `opts`. Empty when the IK
-/// cannot run (wrong parameter length).
+/// frames), after inverse kinematics at parameters `p` with `opts` of the frames
+/// [`frames_looked_at`] picks. Empty when the IK cannot run (wrong parameter length).
 pub fn marker_offsets(
     model: &Model,
     p: &[f64],
@@ -84,33 +86,31 @@ pub fn marker_offsets(
     map: &MarkerMap,
     opts: &IkOptions,
 ) -> Vec<MarkerOffset> {
-    let n = trial.n_frames();
-    let step = n.div_ceil(MAX_FRAMES).max(1);
-    let picked: Vec<usize> = (0..n).step_by(step).collect();
-    let mut positions = Vec::with_capacity(picked.len() * trial.n_markers());
-    for &f in &picked {
-        positions.extend_from_slice(trial.frame(f));
+    let (start, end) = frames_looked_at(trial.n_frames());
+    let sub = trial.slice_frames(start, end);
+    match solve_trial(model, p, &sub, map, opts) {
+        Ok(fit) => offsets_of_fit(model, p, &sub, map, &fit),
+        Err(_) => Vec::new(),
     }
-    let Ok(sub) = Trial::new(
-        trial.labels().to_vec(),
-        trial.rate() / step as f64,
-        trial.first_frame(),
-        positions,
-    ) else {
-        return Vec::new();
-    };
-    let Ok(fit) = solve_trial(model, p, &sub, map, opts) else {
-        return Vec::new();
-    };
-    let nm = model.n_markers();
-    let mut residuals: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); nm];
+}
+
+/// The statistic from an inverse kinematics `fit` of `trial` already at hand (every solved
+/// frame enters): what [`marker_offsets`] computes after its own IK.
+pub fn offsets_of_fit(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+    map: &MarkerMap,
+    fit: &TrialFit,
+) -> Vec<MarkerOffset> {
+    let mut residuals: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); model.n_markers()];
     let mut kin = KinData::new(model);
     for (f, frame) in fit.frames.iter().enumerate() {
         if !frame.solved() {
             continue;
         }
         forward_kinematics(model, p, &fit.coords[f], Want::POSITIONS, &mut kin);
-        let row = sub.frame(f);
+        let row = trial.frame(f);
         for (j, marker) in model.markers().iter().enumerate() {
             let Some(c) = map.columns[j] else { continue };
             let m = row[c];
@@ -136,6 +136,19 @@ pub fn marker_offsets(
             }
         })
         .collect()
+}
+
+/// The frames [`marker_offsets`] looks at, `start..end`: the whole trial up to
+/// [`MAX_FRAMES`] frames, else the [`MAX_FRAMES`] consecutive frames in its middle.
+/// Consecutive, so that they are warm-started frame to frame as `ik` does (a stride through a
+/// fast motion starts frames far from their solution, and more runs cost a seeding each,
+/// which costs more than the frames).
+pub fn frames_looked_at(n: usize) -> (usize, usize) {
+    if n <= MAX_FRAMES {
+        return (0, n);
+    }
+    let start = (n - MAX_FRAMES) / 2;
+    (start, start + MAX_FRAMES)
 }
 
 /// The displaced markers of `offsets` as findings: one per segment whose cluster moved (at
