@@ -202,3 +202,29 @@ fn ik_reports_the_moved_left_thigh_cluster() {
     assert!(ok, "{err}");
     assert!(err.contains("offset: the thigh cluster (L_thigh1"), "{err}");
 }
+
+/// With an `.osim` as the model, the distance checks name the model file, not a static trial
+/// (gait2392's scaled subject01 model on its walk: the torso markers' distances differ).
+#[test]
+fn checks_against_an_osim_name_the_model() {
+    let (Some(osim), Some(walk)) = (
+        data_file("opensim_gait2392_subject01/subject01_simbody.osim"),
+        data_file("opensim_gait2392_subject01/subject01_walk1.trc"),
+    ) else {
+        println!("skipped: no data");
+        return;
+    };
+    let dir = scratch("offsets-osim");
+    let json = super::ik::ik(&osim, &walk, &dir.join("w.mot"), &[]);
+    let checks = json["trial"]["checks"].as_array().unwrap();
+    let clusters: Vec<&str> = checks
+        .iter()
+        .filter(|c| c["kind"] == "cluster")
+        .map(|c| c["message"].as_str().unwrap())
+        .collect();
+    assert!(!clusters.is_empty(), "{json}");
+    for m in &clusters {
+        assert!(m.contains("in the model (subject01_simbody.osim)"), "{m}");
+        assert!(!m.contains("static trial"), "{m}");
+    }
+}

@@ -19,8 +19,8 @@ fn trial_with(moved: &[&str], by: [f64; 3]) -> (Model, Trial) {
     let mut shifted = spec.clone();
     for m in &mut shifted.markers {
         if moved.contains(&m.name.as_str()) {
-            for k in 0..3 {
-                m.position[k] += by[k];
+            for (x, d) in m.position.iter_mut().zip(by) {
+                *x += d;
             }
         }
     }
