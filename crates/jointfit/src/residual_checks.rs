@@ -170,6 +170,28 @@ pub fn offset_findings(model: &Model, offsets: &[MarkerOffset], reference: &str)
         let frames = moved.iter().map(|o| o.frames).max().unwrap_or(0);
         if moved.len() >= 2 && 2 * moved.len() >= here.len() {
             let names: Vec<String> = moved.iter().map(|o| name(o)).collect();
+            // Markers of the segment off by half the threshold or more, but less steadily:
+            // the IK, pulled by the moved ones, may hide how far these moved too.
+            let also: Vec<String> = here
+                .iter()
+                .filter(|o| !o.displaced() && o.size() >= MIN_OFFSET / 2.0)
+                .map(|o| format!("{} ({:.0} mm)", name(o), o.size() * 1e3))
+                .collect();
+            let also_text = if also.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; {} {} off too, less steadily",
+                    also.join(", "),
+                    if also.len() == 1 { "is" } else { "are" }
+                )
+            };
+            let mut excluded = names.clone();
+            excluded.extend(
+                here.iter()
+                    .filter(|o| !o.displaced() && o.size() >= MIN_OFFSET / 2.0)
+                    .map(|o| name(o)),
+            );
             let mean_mm = moved.iter().map(|o| o.size()).sum::<f64>() / moved.len() as f64 * 1e3;
             let spread_mm = moved.iter().map(|o| o.spread).sum::<f64>() / moved.len() as f64 * 1e3;
             out.push(Finding {
@@ -177,16 +199,16 @@ pub fn offset_findings(model: &Model, offsets: &[MarkerOffset], reference: &str)
                 severity: Severity::Warning,
                 message: format!(
                     "the {} cluster ({}) sits {mean_mm:.0} mm from its place in {reference} in \
-                     every frame (spread {spread_mm:.0} mm over {frames} frames): it moved, or \
-                     the labels differ from the static trial's; fitted as it is, the offset \
-                     bends the joint parameters",
+                     every frame (spread {spread_mm:.0} mm over {frames} frames){also_text}: it \
+                     moved, or the labels differ from the static trial's; fitted as it is, the \
+                     offset bends the joint parameters",
                     seg.name,
                     names.join(", "),
                 ),
                 fix: Some(format!(
                     "calibrate --refine-markers, or --exclude-marker for each of {}, or re-run \
                      personalize with a static trial of this session",
-                    names.join(", ")
+                    excluded.join(", ")
                 )),
             });
         } else {

@@ -201,6 +201,33 @@ fn ik_reports_the_moved_left_thigh_cluster() {
     let (ok, _, err) = jointfit(&["ik", &s(&subject), &s(&walk), "-o", &s(&dir.join("t.mot"))]);
     assert!(ok, "{err}");
     assert!(err.contains("offset: the thigh cluster (L_thigh1"), "{err}");
+    // The remedy as offered: every marker it names left out; the offset is gone, every frame
+    // is still solved, and the fit is far better (the moved markers no longer pull it).
+    let names = fix
+        .split("--exclude-marker for each of ")
+        .nth(1)
+        .and_then(|t| t.split(", or ").next())
+        .unwrap();
+    let mut extra: Vec<&str> = Vec::new();
+    for name in names.split(", ") {
+        extra.extend(["--exclude-marker", name]);
+    }
+    assert_eq!(extra.len(), 8, "{fix}");
+    let fixed = super::ik::ik(&subject, &walk, &dir.join("x.mot"), &extra);
+    assert!(
+        fixed["checks"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|c| c["kind"] != "offset"),
+        "{fixed}"
+    );
+    assert_eq!(fixed["solved_frames"], json["solved_frames"]);
+    let (before, after) = (
+        json["mean_frame_rms_mm"].as_f64().unwrap(),
+        fixed["mean_frame_rms_mm"].as_f64().unwrap(),
+    );
+    assert!(after < 0.5 * before, "{before} -> {after}");
 }
 
 /// With an `.osim` as the model, the distance checks name the model file, not a static trial
