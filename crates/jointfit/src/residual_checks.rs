@@ -30,6 +30,7 @@ use nalgebra::Vector3;
 use crate::checks::{CheckKind, Finding, Severity};
 use crate::ik::{solve_trial, IkOptions, MarkerMap, TrialFit};
 use crate::kinematics::{forward_kinematics, KinData, Want};
+use crate::model::refine::BOUND_IN_SD;
 use crate::model::Model;
 use crate::trial::Trial;
 
@@ -206,8 +207,9 @@ pub fn offset_findings(model: &Model, offsets: &[MarkerOffset], reference: &str)
                     names.join(", "),
                 ),
                 fix: Some(format!(
-                    "calibrate --refine-markers, or --exclude-marker for each of {}, or re-run \
-                     personalize with a static trial of this session",
+                    "{}, or --exclude-marker for each of {} (ik, check), or re-run personalize \
+                     with a static trial of this session",
+                    refine_option(&moved),
                     excluded.join(", ")
                 )),
             });
@@ -226,14 +228,30 @@ pub fn offset_findings(model: &Model, offsets: &[MarkerOffset], reference: &str)
                         o.frames,
                     ),
                     fix: Some(format!(
-                        "--exclude-marker {}, or calibrate --refine-markers",
-                        name(o)
+                        "--exclude-marker {} (ik, check), or {}",
+                        name(o),
+                        refine_option(&[o])
                     )),
                 });
             }
         }
     }
     out
+}
+
+/// `calibrate --refine-markers`, with a prior SD large enough for the refinement to reach
+/// the largest of these offsets: the refined positions are bounded to
+/// [`BOUND_IN_SD`] prior SDs per axis around the static positions, and the default SD
+/// (10 mm) reaches 50 mm. On walking1's left thigh (offsets up to 142 mm) the default leaves
+/// the knee axis implausible; 25 or 40 mm brings the RMS from 57 to 3.5 mm.
+fn refine_option(moved: &[&MarkerOffset]) -> String {
+    let largest_mm = moved.iter().map(|o| o.size()).fold(0.0, f64::max) * 1e3;
+    let sd = (largest_mm / BOUND_IN_SD / 5.0).ceil() * 5.0;
+    if sd > 10.0 {
+        format!("calibrate --refine-markers --marker-prior-sd-mm {sd:.0}")
+    } else {
+        "calibrate --refine-markers".to_string()
+    }
 }
 
 /// The check of the module docs for `trial` against `model` at its nominal parameters, with
