@@ -13,6 +13,8 @@ mod data;
 mod functional;
 #[path = "cli/fuzz.rs"]
 mod fuzz;
+#[path = "cli/held_out.rs"]
+mod held_out;
 #[path = "cli/ident.rs"]
 mod ident;
 #[path = "cli/ik.rs"]
@@ -21,6 +23,8 @@ mod ik;
 mod limits;
 #[path = "cli/markers.rs"]
 mod markers;
+#[path = "cli/offsets.rs"]
+mod offsets;
 #[path = "cli/osim.rs"]
 mod osim;
 #[path = "cli/osim_commands.rs"]

@@ -9,7 +9,7 @@
 use std::fmt::Write;
 use std::path::Path;
 
-use jointfit::checks::{check_trial, marker_span};
+use jointfit::checks::{check_trial, marker_span, CheckKind};
 use jointfit::ik::MarkerMap;
 use jointfit::landmarks::{personalize, MarkerSet, PersonalizeOptions};
 use jointfit::model::lower_limb::Side;
@@ -29,7 +29,12 @@ fn load(path: &Path) -> Trial {
 fn render(name: &str, model: &Model, trial: &Trial, out: &mut String) {
     let (map, _) = MarkerMap::allowing_absent(model, trial.labels());
     writeln!(out, "== {name}").unwrap();
-    for f in check_trial(model, trial, &map) {
+    // The moved-marker check (`jointfit::residual_checks`, after IK) is not part of the
+    // snapshot: it is tested in jointfit-cli's `offsets` test.
+    for f in check_trial(model, trial, &map)
+        .into_iter()
+        .filter(|f| f.kind != CheckKind::Offset)
+    {
         writeln!(
             out,
             "{:?} {:?} {} | {:?}",

@@ -10,7 +10,7 @@ use crate::svg::escape;
 /// One data-check finding, as shown.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct CheckRow {
-    /// `scale`, `cluster`, `swap`, `jump`, `gaps`.
+    /// `scale`, `cluster`, `swap`, `jump`, `gaps`, `offset`.
     pub kind: String,
     /// `warning` or `error`.
     pub severity: String,
@@ -37,9 +37,11 @@ pub struct TrialChecks {
 pub fn render(h: &mut String, trials: &[TrialChecks]) {
     h.push_str(
         "<p class=\"caption\">What the files said and what the checks found before the fit: \
-         segment clusters whose distances differ from the static trial, labels that look \
-         swapped, marker jumps and gaps. Each repair named here is an option of \
-         <code>ik</code>, <code>calibrate</code> and <code>check</code>.</p>",
+         segment clusters whose distances differ from the model's (the static trial's, or the \
+         .osim file's markers), clusters or markers that sit at the same wrong place of their \
+         segment in every frame after inverse kinematics (a cluster moved since the static \
+         trial), labels that look swapped, marker jumps and gaps. Each repair named here is an \
+         option of <code>ik</code>, <code>calibrate</code> and <code>check</code>.</p>",
     );
     for t in trials {
         let _ = write!(
@@ -109,5 +111,29 @@ mod tests {
         assert!(h.contains("short &amp; sweet"));
         assert!(h.contains("<code>--swap-labels A,B@750</code>"));
         assert!(h.contains("repair: excluded marker A"));
+    }
+
+    #[test]
+    fn shows_a_moved_cluster() {
+        let mut h = String::new();
+        render(
+            &mut h,
+            &[TrialChecks {
+                trial: "walking1.trc".into(),
+                up: "y (the default)".into(),
+                findings: vec![CheckRow {
+                    kind: "offset".into(),
+                    severity: "warning".into(),
+                    message: "the thigh cluster (L_thigh1, L_thigh2) sits 117 mm from its place"
+                        .into(),
+                    fix: Some("calibrate --refine-markers".into()),
+                }],
+                ..TrialChecks::default()
+            }],
+        );
+        assert!(h.contains("<td>offset</td>"));
+        assert!(h.contains("the thigh cluster (L_thigh1, L_thigh2) sits 117 mm"));
+        assert!(h.contains("<code>calibrate --refine-markers</code>"));
+        assert!(h.contains("same wrong place of their segment"));
     }
 }

@@ -13,7 +13,9 @@
 //!     distances to the segment's other markers far better than the labels as written;
 //!     reported as runs of frames;
 //!   - **jump**: a marker moves faster than [`JUMP_SPEED`] between consecutive frames;
-//!   - **gaps**: frames in which a model marker is missing, with the longest run.
+//!   - **gaps**: frames in which a model marker is missing, with the longest run;
+//!   - **offset**: after inverse kinematics, markers that sit at the same wrong place of their
+//!     segment in every frame, e.g. a whole cluster moved ([`crate::residual_checks`]).
 //!
 //! Nothing here changes the data; the findings are for the user (and the report). A finding
 //! that a repair of [`crate::repair`] addresses carries the option that applies it
@@ -51,6 +53,9 @@ pub enum CheckKind {
     Swap,
     Jump,
     Gaps,
+    /// Markers that sit at the same wrong place of their segment in every frame
+    /// ([`crate::residual_checks`]).
+    Offset,
 }
 
 impl CheckKind {
@@ -61,6 +66,7 @@ impl CheckKind {
             CheckKind::Swap => "swap",
             CheckKind::Jump => "jump",
             CheckKind::Gaps => "gaps",
+            CheckKind::Offset => "offset",
         }
     }
 }
@@ -159,6 +165,7 @@ pub fn check_scale(trial: &Trial) -> Option<Finding> {
 /// by `map`). Frame numbers in messages are the file's.
 pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding> {
     let mut out: Vec<Finding> = check_scale(trial).into_iter().collect();
+    let reference = crate::residual_checks::reference_name(model);
     let first = trial.first_frame();
     let n = trial.n_frames();
     let col = |j: usize| map.columns[j];
@@ -175,7 +182,7 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
             segments[m.segment.0].push(j);
         }
     }
-    let reference =
+    let model_distance =
         |a: usize, b: usize| (model.markers()[a].local - model.markers()[b].local).norm();
 
     // Per segment, the distance of every marker pair in every frame (NaN when one is
@@ -202,7 +209,7 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
             }
         }
         let r: Vec<f64> = (0..m * m)
-            .map(|x| reference(markers[x / m], markers[x % m]))
+            .map(|x| model_distance(markers[x / m], markers[x % m]))
             .collect();
         let seg = &model.segments()[model.markers()[markers[0]].segment.0].name;
 
@@ -229,7 +236,7 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                         severity: Severity::Warning,
                         message: format!(
                             "{seg}: {} to {} is {:.1} mm in this trial (median) but {:.1} mm in \
-                             the subject model (static trial): a marker moved or was re-attached",
+                             {reference}: a marker moved or was re-attached",
                             name(a),
                             name(b),
                             median * 1e3,
@@ -345,6 +352,9 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
             });
         }
     }
+    out.extend(crate::residual_checks::check_offsets(
+        model, trial, map, &reference,
+    ));
     out
 }
 

@@ -18,6 +18,7 @@ pub mod linalg;
 pub mod model;
 pub mod plausibility;
 pub mod repair;
+pub mod residual_checks;
 pub mod signal;
 pub mod solver;
 #[doc(hidden)]

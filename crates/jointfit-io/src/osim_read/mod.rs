@@ -408,7 +408,11 @@ fn parse(doc: &Document, path: &Path) -> Result<Parsed, Fail> {
             "" => stem,
             n => n.to_string(),
         },
-        description: format!("OpenSim model read from {}", path.display()),
+        description: format!(
+            "{}{}",
+            jointfit::residual_checks::OSIM_DESCRIPTION,
+            path.display()
+        ),
         segments,
         joints: joint_specs,
         parameters: vec![],

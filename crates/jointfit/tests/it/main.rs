@@ -8,4 +8,5 @@ mod kinematics;
 mod landmarks;
 mod models;
 mod priors;
+mod residual_checks;
 mod uncertainty;

@@ -1,0 +1,289 @@
+//! A data check that needs a fit: markers that sit, in every frame, at the same wrong place
+//! of their segment (a cluster moved since the static trial, or labelled differently there).
+//!
+//! Distances inside a segment's cluster do not change when the whole cluster moves, so the
+//! distance checks of [`crate::checks`] cannot see it; inverse kinematics then absorbs part of
+//! the move into the coordinates and a calibration into the joint parameters. After inverse
+//! kinematics at the model's nominal parameters, the residual of marker `j` in frame `i`,
+//! expressed in the frame of the segment `s` the marker is fixed in,
+//!
+//! ```text
+//! r_ij = R_s(q_i)ᵀ (m_ij − x_j(q_i)),
+//! ```
+//!
+//! has over the frames a mean `μ_j` and a spread `σ_j = sqrt(mean_i ‖r_ij − μ_j‖²)`. Noise
+//! and skin motion give a mean comparable to the spread (it changes with the pose); a marker
+//! that sits elsewhere on its segment gives a large mean with a small spread: a systematic
+//! offset. A marker is *displaced* when `‖μ_j‖ ≥` [`MIN_OFFSET`] and
+//! `‖μ_j‖ ≥` [`MIN_RATIO`]` · σ_j`; when at least two markers of one segment and at least
+//! half of its present markers are displaced, the finding names the segment's cluster.
+//! The thresholds and the statistic on every shared motion trial are in
+//! `docs/moved_clusters.md`.
+//!
+//! The inverse kinematics is the robust one of [`crate::ik`] (gross errors rejected per
+//! frame; the residuals here are taken of every present marker, rejected or not) on at most
+//! [`MAX_FRAMES`] consecutive frames from the middle of the trial, which bounds the cost (on
+//! a short trial it is one more IK of the trial: one seeding, then warm-started frames).
+
+use nalgebra::Vector3;
+
+use crate::checks::{CheckKind, Finding, Severity};
+use crate::ik::{solve_trial, IkOptions, MarkerMap, TrialFit};
+use crate::kinematics::{forward_kinematics, KinData, Want};
+use crate::model::refine::BOUND_IN_SD;
+use crate::model::Model;
+use crate::trial::Trial;
+
+/// Smallest mean residual (m) in the segment frame that counts as a displaced marker. The
+/// clean shared trials stay below 22 mm (`docs/moved_clusters.md`).
+pub const MIN_OFFSET: f64 = 0.03;
+/// Smallest ratio of the mean residual to its spread that counts as systematic.
+pub const MIN_RATIO: f64 = 2.0;
+/// Frames a marker must be present (and its frame solved) in for its statistic.
+pub const MIN_FRAMES: usize = 10;
+/// Frames looked at, at most (consecutive, from the middle of a longer trial: 2 s at 100 Hz,
+/// a gait cycle).
+pub const MAX_FRAMES: usize = 200;
+
+/// The residual statistic of one model marker over a trial.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MarkerOffset {
+    /// Model marker index.
+    pub marker: usize,
+    /// Mean residual `μ_j` in the marker's segment frame (m).
+    pub mean: Vector3<f64>,
+    /// RMS distance of the residuals from their mean, `σ_j` (m).
+    pub spread: f64,
+    /// Frames that entered.
+    pub frames: usize,
+}
+
+impl MarkerOffset {
+    /// `‖μ_j‖` (m).
+    pub fn size(&self) -> f64 {
+        self.mean.norm()
+    }
+    /// `‖μ_j‖ / σ_j` (infinite when the spread is zero).
+    pub fn ratio(&self) -> f64 {
+        if self.spread > 0.0 {
+            self.size() / self.spread
+        } else {
+            f64::INFINITY
+        }
+    }
+    /// Whether the offset is large and systematic (see the module docs).
+    pub fn displaced(&self) -> bool {
+        self.frames >= MIN_FRAMES && self.size() >= MIN_OFFSET && self.ratio() >= MIN_RATIO
+    }
+}
+
+/// The statistic of every model marker the trial has (in at least [`MIN_FRAMES`] solved
+/// frames), after inverse kinematics at parameters `p` with `opts` of the frames
+/// [`frames_looked_at`] picks. Empty when the IK cannot run (wrong parameter length).
+pub fn marker_offsets(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+    map: &MarkerMap,
+    opts: &IkOptions,
+) -> Vec<MarkerOffset> {
+    let (start, end) = frames_looked_at(trial.n_frames());
+    let sub = trial.slice_frames(start, end);
+    match solve_trial(model, p, &sub, map, opts) {
+        Ok(fit) => offsets_of_fit(model, p, &sub, map, &fit),
+        Err(_) => Vec::new(),
+    }
+}
+
+/// The statistic from an inverse kinematics `fit` of `trial` already at hand (every solved
+/// frame enters): what [`marker_offsets`] computes after its own IK.
+pub fn offsets_of_fit(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+    map: &MarkerMap,
+    fit: &TrialFit,
+) -> Vec<MarkerOffset> {
+    let mut residuals: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); model.n_markers()];
+    let mut kin = KinData::new(model);
+    for (f, frame) in fit.frames.iter().enumerate() {
+        if !frame.solved() {
+            continue;
+        }
+        forward_kinematics(model, p, &fit.coords[f], Want::POSITIONS, &mut kin);
+        let row = trial.frame(f);
+        for (j, marker) in model.markers().iter().enumerate() {
+            let Some(c) = map.columns[j] else { continue };
+            let m = row[c];
+            if !m.x.is_finite() {
+                continue;
+            }
+            let rot = kin.segment_poses[marker.segment.0].rot;
+            residuals[j].push(rot.transpose() * (m - kin.markers[j]));
+        }
+    }
+    residuals
+        .into_iter()
+        .enumerate()
+        .filter(|(_, r)| r.len() >= MIN_FRAMES)
+        .map(|(j, r)| {
+            let mean = r.iter().sum::<Vector3<f64>>() / r.len() as f64;
+            let var = r.iter().map(|x| (x - mean).norm_squared()).sum::<f64>() / r.len() as f64;
+            MarkerOffset {
+                marker: j,
+                mean,
+                spread: var.sqrt(),
+                frames: r.len(),
+            }
+        })
+        .collect()
+}
+
+/// The frames [`marker_offsets`] looks at, `start..end`: the whole trial up to
+/// [`MAX_FRAMES`] frames, else the [`MAX_FRAMES`] consecutive frames in its middle.
+/// Consecutive, so that they are warm-started frame to frame as `ik` does (a stride through a
+/// fast motion starts frames far from their solution, and more runs cost a seeding each,
+/// which costs more than the frames).
+pub fn frames_looked_at(n: usize) -> (usize, usize) {
+    if n <= MAX_FRAMES {
+        return (0, n);
+    }
+    let start = (n - MAX_FRAMES) / 2;
+    (start, start + MAX_FRAMES)
+}
+
+/// The displaced markers of `offsets` as findings: one per segment whose cluster moved (at
+/// least two displaced markers, at least half of the segment's markers in `offsets`), one
+/// per other displaced marker. `reference` names what the marker positions come from
+/// (e.g. "the subject model (static trial)").
+pub fn offset_findings(model: &Model, offsets: &[MarkerOffset], reference: &str) -> Vec<Finding> {
+    let mut out = Vec::new();
+    for (s, seg) in model.segments().iter().enumerate() {
+        let here: Vec<&MarkerOffset> = offsets
+            .iter()
+            .filter(|o| model.markers()[o.marker].segment.0 == s)
+            .collect();
+        let moved: Vec<&MarkerOffset> = here.iter().copied().filter(|o| o.displaced()).collect();
+        if moved.is_empty() {
+            continue;
+        }
+        let name = |o: &MarkerOffset| model.markers()[o.marker].name.clone();
+        let frames = moved.iter().map(|o| o.frames).max().unwrap_or(0);
+        if moved.len() >= 2 && 2 * moved.len() >= here.len() {
+            let names: Vec<String> = moved.iter().map(|o| name(o)).collect();
+            // Markers of the segment off by half the threshold or more, but less steadily:
+            // the IK, pulled by the moved ones, may hide how far these moved too.
+            let also: Vec<String> = here
+                .iter()
+                .filter(|o| !o.displaced() && o.size() >= MIN_OFFSET / 2.0)
+                .map(|o| format!("{} ({:.0} mm)", name(o), o.size() * 1e3))
+                .collect();
+            let also_text = if also.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; {} {} off too, less steadily",
+                    also.join(", "),
+                    if also.len() == 1 { "is" } else { "are" }
+                )
+            };
+            let mut excluded = names.clone();
+            excluded.extend(
+                here.iter()
+                    .filter(|o| !o.displaced() && o.size() >= MIN_OFFSET / 2.0)
+                    .map(|o| name(o)),
+            );
+            let mean_mm = moved.iter().map(|o| o.size()).sum::<f64>() / moved.len() as f64 * 1e3;
+            let spread_mm = moved.iter().map(|o| o.spread).sum::<f64>() / moved.len() as f64 * 1e3;
+            out.push(Finding {
+                kind: CheckKind::Offset,
+                severity: Severity::Warning,
+                message: format!(
+                    "the {} cluster ({}) sits {mean_mm:.0} mm from its place in {reference} in \
+                     every frame (spread {spread_mm:.0} mm over {frames} frames){also_text}: it \
+                     moved, or the labels differ from the static trial's; fitted as it is, the \
+                     offset bends the joint parameters",
+                    seg.name,
+                    names.join(", "),
+                ),
+                fix: Some(format!(
+                    "{}, or --exclude-marker for each of {} (ik, check), or re-run personalize \
+                     with a static trial of this session",
+                    refine_option(&moved),
+                    excluded.join(", ")
+                )),
+            });
+        } else {
+            for o in moved {
+                out.push(Finding {
+                    kind: CheckKind::Offset,
+                    severity: Severity::Warning,
+                    message: format!(
+                        "{}: {} sits {:.0} mm from its place in {reference} in every frame \
+                         (spread {:.0} mm over {} frames): it moved or was re-attached",
+                        seg.name,
+                        name(o),
+                        o.size() * 1e3,
+                        o.spread * 1e3,
+                        o.frames,
+                    ),
+                    fix: Some(format!(
+                        "--exclude-marker {} (ik, check), or {}",
+                        name(o),
+                        refine_option(&[o])
+                    )),
+                });
+            }
+        }
+    }
+    out
+}
+
+/// `calibrate --refine-markers`, with a prior SD large enough for the refinement to reach
+/// the largest of these offsets: the refined positions are bounded to
+/// [`BOUND_IN_SD`] prior SDs per axis around the static positions, and the default SD
+/// (10 mm) reaches 50 mm. On walking1's left thigh (offsets up to 142 mm) the default leaves
+/// the knee axis implausible; 25 or 40 mm brings the RMS from 57 to 3.5 mm.
+fn refine_option(moved: &[&MarkerOffset]) -> String {
+    let largest_mm = moved.iter().map(|o| o.size()).fold(0.0, f64::max) * 1e3;
+    let sd = (largest_mm / BOUND_IN_SD / 5.0).ceil() * 5.0;
+    if sd > 10.0 {
+        format!("calibrate --refine-markers --marker-prior-sd-mm {sd:.0}")
+    } else {
+        "calibrate --refine-markers".to_string()
+    }
+}
+
+/// The check of the module docs for `trial` against `model` at its nominal parameters, with
+/// the default inverse-kinematics options.
+pub fn check_offsets(
+    model: &Model,
+    trial: &Trial,
+    map: &MarkerMap,
+    reference: &str,
+) -> Vec<Finding> {
+    let offsets = marker_offsets(
+        model,
+        &model.nominal_params(),
+        trial,
+        map,
+        &IkOptions::default(),
+    );
+    offset_findings(model, &offsets, reference)
+}
+
+/// What a model's marker positions come from, for messages: "the model (NAME.osim)" for a
+/// model read from an OpenSim file (its description says so), else "the subject model
+/// (static trial)" (`personalize` places the markers where the static trial has them).
+pub fn reference_name(model: &Model) -> String {
+    match model.description().strip_prefix(OSIM_DESCRIPTION) {
+        Some(path) => {
+            let file = path.rsplit(['/', '\\']).next().unwrap_or(path);
+            format!("the model ({file})")
+        }
+        None => "the subject model (static trial)".to_string(),
+    }
+}
+
+/// How the OpenSim reader describes a model it read (`jointfit_io::osim_read`).
+pub const OSIM_DESCRIPTION: &str = "OpenSim model read from ";
