@@ -12,7 +12,9 @@
 //! **Memory.** Only `U_i`, `W_i`, `g_i` are kept per frame (`n_q² + n_q·n_f + n_q` numbers),
 //! and only for as many frames as fit in [`CACHE_BYTES`]; the blocks of the other frames are
 //! recomputed from the kinematics when a pass needs them. The working set therefore does not
-//! grow with the trial beyond the coordinates themselves.
+//! grow with the trial beyond the coordinates themselves. When every frame's blocks and its
+//! damped factor `L_i` (`n_q²` more) fit in [`CACHE_BYTES`], [`solve`] also keeps the factors
+//! for [`back_substitute`], which otherwise factors `U_i*` again.
 //!
 //! **Threads.** Every pass runs over fixed chunks of [`CHUNK`] frames in parallel (rayon);
 //! each chunk sums its frames in order and the chunk sums are added in chunk order, so the
@@ -31,10 +33,6 @@ pub(crate) const CHUNK: usize = 32;
 /// Memory for cached per-frame blocks (bytes); frames beyond it are recomputed.
 pub(crate) const CACHE_BYTES: usize = 48 << 20;
 
-/// Memory for the damped factors `L_i` that [`solve`] leaves for [`back_substitute`]
-/// (bytes); frames beyond it are factored again there (the same numbers).
-pub(crate) const FACTOR_BYTES: usize = 16 << 20;
-
 pub(crate) struct Blocks {
     pub nq: usize,
     pub nf: usize,
@@ -43,8 +41,8 @@ pub(crate) struct Blocks {
     cached: usize,
     /// Per cached frame: `U_i` (n_q × n_q, column-major), `W_i` (n_q × n_f), `g_i` (n_q).
     store: Vec<f64>,
-    /// Frames (a prefix, a multiple of [`CHUNK`] unless all, within `cached`) whose damped
-    /// factor `L_i` (n_q × n_q) of the last [`solve`] is in `factors`.
+    /// Frames (all or none) whose damped factor `L_i` (n_q × n_q) of the last [`solve`] is
+    /// in `factors`.
     factored: usize,
     factors: Vec<f64>,
     /// Whether `factors` hold the factors of the last successful [`solve`].
@@ -83,11 +81,12 @@ impl Blocks {
         } else {
             fit / CHUNK * CHUNK
         };
-        let fit = (FACTOR_BYTES / (8 * (nq * nq).max(1))).min(bytes / (8 * per.max(1)));
-        let factored = if fit >= cached {
-            cached
+        // The damped factors too when every frame's blocks and factor fit in the budget
+        // (short trials); long trials factor again in `back_substitute` (the same numbers).
+        let factored = if cached == frames && frames * (per + nq * nq) * 8 <= bytes {
+            frames
         } else {
-            fit / CHUNK * CHUNK
+            0
         };
         Blocks {
             nq,
