@@ -12,7 +12,9 @@
 //! **Memory.** Only `U_i`, `W_i`, `g_i` are kept per frame (`n_q² + n_q·n_f + n_q` numbers),
 //! and only for as many frames as fit in [`CACHE_BYTES`]; the blocks of the other frames are
 //! recomputed from the kinematics when a pass needs them. The working set therefore does not
-//! grow with the trial beyond the coordinates themselves.
+//! grow with the trial beyond the coordinates themselves. When every frame's blocks and its
+//! damped factor `L_i` (`n_q²` more) fit in [`CACHE_BYTES`], [`solve`] also keeps the factors
+//! for [`back_substitute`], which otherwise factors `U_i*` again.
 //!
 //! **Threads.** Every pass runs over fixed chunks of [`CHUNK`] frames in parallel (rayon);
 //! each chunk sums its frames in order and the chunk sums are added in chunk order, so the
@@ -39,6 +41,12 @@ pub(crate) struct Blocks {
     cached: usize,
     /// Per cached frame: `U_i` (n_q × n_q, column-major), `W_i` (n_q × n_f), `g_i` (n_q).
     store: Vec<f64>,
+    /// Frames (all or none) whose damped factor `L_i` (n_q × n_q) of the last [`solve`] is
+    /// in `factors`.
+    factored: usize,
+    factors: Vec<f64>,
+    /// Whether `factors` hold the factors of the last successful [`solve`].
+    factors_valid: bool,
     /// `V` (n_f × n_f, column-major).
     pub v: Vec<f64>,
     /// `g_s` (n_f).
@@ -73,12 +81,22 @@ impl Blocks {
         } else {
             fit / CHUNK * CHUNK
         };
+        // The damped factors too when every frame's blocks and factor fit in the budget
+        // (short trials); long trials factor again in `back_substitute` (the same numbers).
+        let factored = if cached == frames && frames * (per + nq * nq) * 8 <= bytes {
+            frames
+        } else {
+            0
+        };
         Blocks {
             nq,
             nf,
             frames,
             cached,
             store: vec![0.0; cached * per],
+            factored,
+            factors: vec![0.0; factored * nq * nq],
+            factors_valid: false,
             v: vec![0.0; nf * nf],
             gs: vec![0.0; nf],
             cost: 0.0,
@@ -142,6 +160,7 @@ pub(crate) fn assemble(prob: &Problem, p: &[f64], qs: &[Vec<f64>], b: &mut Block
     let n = nq + nf;
     let per = b.per();
     b.p = p.to_vec();
+    b.factors_valid = false;
     let chunks = b.chunks();
     let mut slots: Vec<Option<&mut [f64]>> = b.store.chunks_mut(CHUNK * per).map(Some).collect();
     slots.resize_with(chunks, || None);
@@ -235,13 +254,21 @@ pub(crate) fn solve(
     ds: &mut [f64],
 ) -> bool {
     let (nq, nf) = (b.nq, b.nf);
+    b.factors_valid = false;
+    let mut factors = std::mem::take(&mut b.factors);
+    let mut slots: Vec<Option<&mut [f64]>> = factors
+        .chunks_mut((CHUNK * nq * nq).max(1))
+        .map(Some)
+        .collect();
+    slots.resize_with(b.chunks(), || None);
     let blocks = &*b;
     let m = nf + 1;
-    let parts: Vec<Option<Vec<f64>>> = (0..blocks.chunks())
+    let parts: Vec<Option<Vec<f64>>> = slots
         .into_par_iter()
+        .enumerate()
         .map_init(
             || blocks.pool.take(prob),
-            |sc, c| {
+            |sc, (c, mut slot)| {
                 let range = blocks.chunk_frames(c);
                 let mut l = std::mem::take(&mut sc.fac);
                 // The chunk's Z_i = L_i⁻¹ [W_i | g_i] stacked: (frames·n_q) × (n_f + 1),
@@ -267,6 +294,9 @@ pub(crate) fn solve(
                         row[nf] = g[a];
                     }
                     forward_solve_rows(&l, nq, m, zf);
+                    if let Some(slot) = slot.as_deref_mut() {
+                        slot[i * nq * nq..(i + 1) * nq * nq].copy_from_slice(&l[..nq * nq]);
+                    }
                 }
                 // With U* = L Lᵀ: Wᵀ U*⁻¹ W = ZᵀZ and Wᵀ U*⁻¹ g = Zᵀy, so the chunk's share of
                 // both is one product [Z | y]ᵀ[Z | y] ((n_f + 1) × (n_f + 1), column-major).
@@ -298,6 +328,7 @@ pub(crate) fn solve(
             },
         )
         .collect();
+    b.factors = factors;
     let mut s = b.v.clone();
     for k in 0..nf {
         s[k * nf + k] *= 1.0 + lambda;
@@ -340,6 +371,7 @@ pub(crate) fn solve(
     ds.copy_from_slice(&rhs);
     chol.solve(ds);
     b.lambda = lambda;
+    b.factors_valid = true;
     true
 }
 
@@ -369,9 +401,15 @@ pub(crate) fn back_substitute(
                     let blk = b.frame(prob, qs, f, sc);
                     let (u, rest) = blk.split_at(nq * nq);
                     let (w, g) = rest.split_at(nq * nf);
-                    // Positive definite: the same factorisation succeeded in `solve`.
-                    let ok = factor_damped(u, nq, b.lambda, &mut l);
-                    debug_assert!(ok);
+                    // Positive definite: the same factorisation succeeded in `solve`, which
+                    // kept it when there was room.
+                    if b.factors_valid && f < b.factored {
+                        l.clear();
+                        l.extend_from_slice(&b.factors[f * nq * nq..(f + 1) * nq * nq]);
+                    } else {
+                        let ok = factor_damped(u, nq, b.lambda, &mut l);
+                        debug_assert!(ok);
+                    }
                     d.copy_from_slice(g);
                     for k in 0..nf {
                         let dk = ds[k];

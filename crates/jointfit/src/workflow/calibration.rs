@@ -273,9 +273,10 @@ fn fit_free(
     noise: Option<f64>,
     observer: &mut dyn Observer,
 ) -> Result<Calibration, WorkflowError> {
-    let (prob, sigma) = super::map::map_problem(model, start, trials, free, settings, noise)?;
+    let (prob, sigma, pre) =
+        super::map::map_problem_with(model, start, trials, free, settings, noise)?;
     let (fits, runs, global, q_before, cost_before) = if settings.effective_probes() > 0 {
-        let out = super::global::run(&prob, start, settings, observer);
+        let out = super::global::run(&prob, start, settings, pre.as_ref(), observer);
         (
             out.fits,
             out.runs,

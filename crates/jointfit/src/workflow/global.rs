@@ -40,6 +40,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::calibration::{mm2, ConvergenceStage, StartRun};
+use super::map::Preliminary;
 use super::starts::restart_point;
 use super::{FitSettings, Observer};
 use crate::calibrate::joint::{solve_joint, JointOptions};
@@ -144,6 +145,7 @@ pub fn run(
     prob: &Problem,
     start: &[f64],
     settings: &FitSettings,
+    pre: Option<&Preliminary>,
     observer: &mut dyn Observer,
 ) -> Outcome {
     let n = settings.probes + 1;
@@ -213,9 +215,20 @@ pub fn run(
         .collect();
     let probe_objective_mm2 = probes.iter().map(|p| mm2(p.0.cost)).collect();
     // The given start on every frame: the objective before the fit.
-    let q_before_start = prob.initial_coords(start);
-    let mut q_before = q_before_start.clone();
-    let cost_before = prob.inner(start, &mut q_before, &mut IkWorkspace::new(prob.model));
+    // (The σ estimate computed both at the same start on the same frames.)
+    let (q_before_start, q_before, cost_before) = match pre {
+        Some(pre) => (
+            pre.q_seed.clone(),
+            pre.q_inner.clone(),
+            pre.data_cost + prob.prior_cost(start),
+        ),
+        None => {
+            let q_seed = prob.initial_coords(start);
+            let mut q = q_seed.clone();
+            let cost = prob.inner(start, &mut q, &mut IkWorkspace::new(prob.model));
+            (q_seed, q, cost)
+        }
+    };
     let continued: Vec<(Fit, Vec<f64>)> = order
         .par_iter()
         .map(|&k| {
@@ -224,6 +237,7 @@ pub fn run(
             if stride == 1 && f.termination != Termination::IterationLimit {
                 return (f.clone(), Vec::new());
             }
+
             let q0 = if stride == 1 {
                 f.coords.clone()
             } else if k == 0 {

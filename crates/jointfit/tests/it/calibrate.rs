@@ -1,6 +1,6 @@
 //! Outer level: parameter recovery from synthetic truth, and the solvers against each other.
 
-use jointfit::calibrate::joint::{solve_joint, JointOptions};
+use jointfit::calibrate::joint::{solve_joint, solve_joint_to, JointOptions, RESOLUTION_SE};
 use jointfit::calibrate::pso::{solve_pso, PsoOptions};
 use jointfit::calibrate::varpro::{gradient, solve_varpro, VarProOptions};
 use jointfit::calibrate::{params_for_groups, Problem};
@@ -88,11 +88,13 @@ fn noiseless_recovery_joint_and_varpro() {
         let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
         let s0 = prob.to_scaled(&base);
         let q0 = prob.initial_coords(&base);
-        let joint = solve_joint(
+        // The solvers to working precision (the statistical stopping rule off).
+        let joint = solve_joint_to(
             &prob,
             &s0,
             q0.clone(),
             &JointOptions::default(),
+            0.0,
             &mut NoObserver,
         );
         let varpro = solve_varpro(&prob, &s0, q0, &VarProOptions::default(), &mut NoObserver);
@@ -123,11 +125,13 @@ fn joint_and_two_level_reach_the_same_noisy_optimum() {
         let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
         let s0 = prob.to_scaled(&base);
         let q0 = prob.initial_coords(&base);
-        let joint = solve_joint(
+        // The solvers to working precision (the statistical stopping rule off).
+        let joint = solve_joint_to(
             &prob,
             &s0,
             q0.clone(),
             &JointOptions::default(),
+            0.0,
             &mut NoObserver,
         );
         let varpro = solve_varpro(&prob, &s0, q0, &VarProOptions::default(), &mut NoObserver);
@@ -404,4 +408,46 @@ fn thread_count_never_changes_the_joint_fit_or_its_reduced_system() {
         assert_eq!(bits(a.as_slice()), bits(b.as_slice()));
     }
     assert_eq!(bits(&grad_one), bits(&grad_two));
+}
+
+/// Largest distance of `a` from `b` (scaled parameters) in the standard errors of the fit `b`
+/// (white σ² and the reduced normal matrix, as [`jointfit::calibrate::uncertainty`]).
+fn distance_in_se(
+    prob: &Problem,
+    a: &jointfit::calibrate::Fit,
+    b: &jointfit::calibrate::Fit,
+) -> f64 {
+    let red = jointfit::calibrate::uncertainty::reduced_system(prob, &b.p, &b.coords);
+    let cov = red.normal.clone().try_inverse().expect("invertible") * red.sigma2();
+    (0..prob.n_free())
+        .map(|k| (a.s[k] - b.s[k]).abs() / cov[(k, k)].sqrt())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn statistical_stop_is_within_a_thousandth_of_a_standard_error() {
+    // Oracle: the same solve run to working precision (the classical tolerances alone).
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p_true = perturbed(&model, 5);
+    let trial = synthetic(&model, &p_true, 50, 0.01, 9);
+    let free = params_for_groups(&model, &["all"]).unwrap();
+    let base = model.nominal_params();
+    for prior in [None, Some(0.004)] {
+        let mut prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
+        if let Some(sigma) = prior {
+            prob = prob.with_model_prior(sigma);
+        }
+        let s0 = prob.to_scaled(&base);
+        let q0 = prob.initial_coords(&base);
+        let opts = JointOptions::default();
+        let quick = solve_joint(&prob, &s0, q0.clone(), &opts, &mut NoObserver);
+        let exact = solve_joint_to(&prob, &s0, q0, &opts, 0.0, &mut NoObserver);
+        assert_eq!(quick.termination, Termination::Converged);
+        assert!(quick.iterations <= exact.iterations);
+        let d = distance_in_se(&prob, &quick, &exact);
+        assert!(
+            d <= RESOLUTION_SE,
+            "prior {prior:?}: {d:e} SE from the optimum"
+        );
+    }
 }
