@@ -1,5 +1,5 @@
-//! [`ik_trial`]: inverse kinematics over a trial; [`ik_warm_started`]: the warm-started
-//! frame loop alone; [`transfer_params`]: parameters carried between models by name.
+//! [`ik_trial`]: inverse kinematics over a trial; [`ik_checked`]: the same with the data
+//! checks alongside; [`ik_warm_started`]: the warm-started frame loop alone; [`transfer_params`]: parameters carried between models by name.
 
 use super::WorkflowError;
 use crate::ik::{
@@ -42,6 +42,26 @@ pub fn ik_trial(
         return Err(WorkflowError::NoFrameSolved { detail });
     }
     Ok(IkRun { fit, absent })
+}
+
+/// [`ik_trial`] together with the data checks of the same trial
+/// ([`crate::checks::check_trial`], markers matched as [`ik_trial`] matches them), the two
+/// run concurrently (`rayon::join`). Each is deterministic and neither reads the other's
+/// result, so this returns exactly what running one after the other returns.
+pub fn ik_checked(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+    opts: &IkOptions,
+) -> (Result<IkRun, WorkflowError>, Vec<crate::checks::Finding>) {
+    let (findings, run) = rayon::join(
+        || {
+            let (map, _) = MarkerMap::allowing_absent(model, trial.labels());
+            crate::checks::check_trial(model, trial, &map)
+        },
+        || ik_trial(model, p, trial, opts),
+    );
+    (run, findings)
 }
 
 /// Solves frames `first + 1 ..` of `trial` in order, each from the linear extrapolation of
