@@ -31,6 +31,7 @@
 //! solved again from its neighbours' solutions and a fresh seed, and reported not solved when
 //! it stays implausible ([`repair`]).
 
+mod frames;
 mod lm;
 mod markers;
 mod normal;
@@ -41,6 +42,7 @@ mod trial_fit;
 
 use thiserror::Error;
 
+pub use frames::warm_started_coords;
 pub use lm::{is_gross, solve_frame, undetermined_coordinate, IkWorkspace};
 pub use markers::MarkerMap;
 pub use seed::seed_frame;

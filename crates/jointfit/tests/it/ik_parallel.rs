@@ -2,7 +2,9 @@
 //! noiseless data across chunk boundaries, and wrong local minima re-solved from the
 //! neighbours (`jointfit::ik::repair`).
 
-use jointfit::ik::{chunk_ranges, solve_trial, FrameStatus, IkOptions, MarkerMap, TrialFit};
+use jointfit::ik::{
+    chunk_ranges, solve_trial, warm_started_coords, FrameStatus, IkOptions, MarkerMap, TrialFit,
+};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
 use jointfit_testkit::synth;
@@ -96,6 +98,43 @@ fn exact_across_chunk_boundaries() {
         assert_eq!(fit.frames[f].status, FrameStatus::Converged, "frame {f}");
         for (a, b) in fit.coords[f].iter().zip(q) {
             assert!((a - b).abs() < 1e-7, "frame {f}: {a} vs {b}");
+        }
+    }
+}
+
+/// The calibration's starting coordinates: two noiseless trials back to back (each seeded at
+/// its first frame), 400 frames in 6 chunks: exact, and the same bits on one and three
+/// threads.
+#[test]
+fn warm_started_coords_are_exact_and_thread_independent() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p = model.nominal_params();
+    let (a, truth_a) = synthetic_trial(&model, &p, 250, 0.0);
+    let (b, truth_b) = synthetic_trial(&model, &p, 150, 3.0);
+    let mut frames = Vec::new();
+    for t in [&a, &b] {
+        let map = MarkerMap::by_name(&model, t.labels()).unwrap();
+        for f in 0..t.n_frames() {
+            let mut targets = Vec::new();
+            map.targets(t, f, &mut targets);
+            frames.push(targets);
+        }
+    }
+    let opts = IkOptions::default();
+    let run = || warm_started_coords(&model, &p, &frames, |f| f == 250, &opts);
+    let pool = |k: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(k)
+            .build()
+            .unwrap()
+    };
+    let one = pool(1).install(run);
+    let three = pool(3).install(run);
+    let flat = |q: &Vec<Vec<f64>>| q.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
+    assert_eq!(flat(&one), flat(&three));
+    for (f, truth) in truth_a.iter().chain(&truth_b).enumerate() {
+        for (x, y) in one[f].iter().zip(truth) {
+            assert!((x - y).abs() < 1e-7, "frame {f}: {x} vs {y}");
         }
     }
 }
