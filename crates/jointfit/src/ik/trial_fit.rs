@@ -106,14 +106,18 @@ pub fn solve_trial(
     Ok(out)
 }
 
-/// Fewest frames in a chunk: the first frame of a chunk is seeded, which costs about as much
-/// as 25 warm-started frames, so shorter chunks would spend more on seeding than threads win.
-pub const MIN_CHUNK_FRAMES: usize = 64;
+/// Fewest frames in a chunk. The first frame of a chunk is seeded, which costs about as much
+/// as 25 warm-started frames (+16 % CPU on a 143-frame trial cut in two), and with only two
+/// or three chunks one descheduled thread on a shared machine holds up the whole trial
+/// (measured: 143 frames in two chunks took 22 µs/frame instead of 12 at load 4.6 on two
+/// cores). Trials shorter than two chunks are solved as one; from 4096 frames on there are
+/// enough chunks for work stealing to balance the load, and the seeds cost under 5 %.
+pub const MIN_CHUNK_FRAMES: usize = 512;
 /// Most chunks in a trial (enough to balance the load on a few cores).
 pub const MAX_CHUNKS: usize = 32;
 
 /// The chunks of consecutive frames [`solve_trial`] solves independently: `k =
-/// clamp(⌊n / 64⌋, 1, 32)` chunks of nearly equal length (chunk `i` is `i·n/k .. (i+1)·n/k`).
+/// clamp(⌊n / 512⌋, 1, 32)` chunks of nearly equal length (chunk `i` is `i·n/k .. (i+1)·n/k`).
 /// With `hold` (holding undetermined coordinates at the previous frame's values, which
 /// needs the previous frame) the trial is one chunk.
 pub fn chunk_ranges(n: usize, hold: bool) -> Vec<Range<usize>> {

@@ -54,12 +54,14 @@ pub fn ik_checked(
     trial: &Trial,
     opts: &IkOptions,
 ) -> (Result<IkRun, WorkflowError>, Vec<crate::checks::Finding>) {
-    let (findings, run) = rayon::join(
+    // The calling thread takes the IK (the longer part); the checks go to another thread
+    // when one is free, else run here afterwards.
+    let (run, findings) = rayon::join(
+        || ik_trial(model, p, trial, opts),
         || {
             let (map, _) = MarkerMap::allowing_absent(model, trial.labels());
             crate::checks::check_trial(model, trial, &map)
         },
-        || ik_trial(model, p, trial, opts),
     );
     (run, findings)
 }

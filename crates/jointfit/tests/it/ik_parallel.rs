@@ -30,7 +30,7 @@ fn bits(fit: &TrialFit) -> Vec<u64> {
 
 #[test]
 fn chunks_cover_the_trial_in_order_whatever_the_threads() {
-    for n in [0, 1, 63, 64, 143, 1000, 10_000, 1_000_000] {
+    for n in [0, 1, 143, 1023, 1024, 5000, 10_000, 1_000_000] {
         let chunks = chunk_ranges(n, false);
         assert_eq!(chunks.first().map_or(0, |c| c.start), 0, "{n}");
         assert_eq!(chunks.last().map_or(0, |c| c.end), n, "{n}");
@@ -38,14 +38,16 @@ fn chunks_cover_the_trial_in_order_whatever_the_threads() {
             assert_eq!(w[0].end, w[1].start, "{n}");
         }
         assert!(chunks.len() <= 32);
-        if n >= 128 {
-            assert!(chunks.iter().all(|c| c.len() >= 64), "{n}");
+        if n >= 1024 {
+            assert!(chunks.iter().all(|c| c.len() >= 512), "{n}");
+        } else {
+            assert!(chunks.len() <= 1, "{n}");
         }
         assert_eq!(chunk_ranges(n, true).len(), 1);
     }
 }
 
-/// Noisy markers (white, 2 mm), 700 frames: 10 chunks. One thread and three threads give
+/// Noisy markers (white, 2 mm), 1600 frames: 3 chunks. One thread and three threads give
 /// identical bits; the chunked result equals the single-chunk one (holding undetermined
 /// coordinates solves the trial as one chunk and changes nothing else here) to 1e-7, ten
 /// times the step tolerance.
@@ -56,7 +58,7 @@ fn same_bits_on_one_and_three_threads() {
     let s = synth::synthetic_trial(
         &model,
         &p,
-        700,
+        1600,
         100.0,
         |f| motion(&model, f, 0.4),
         synth::Noise::White { sd: 0.002 },
@@ -78,7 +80,7 @@ fn same_bits_on_one_and_three_threads() {
     };
     let serial = solve_trial(&model, &p, &s.trial, &map, &serial_opts).unwrap();
     assert!(one.frames.iter().all(|f| f.solved()));
-    for f in 0..700 {
+    for f in 0..1600 {
         for (a, b) in one.coords[f].iter().zip(&serial.coords[f]) {
             assert!((a - b).abs() < 1e-7, "frame {f}: {a} vs {b}");
         }
@@ -90,10 +92,10 @@ fn same_bits_on_one_and_three_threads() {
 fn exact_across_chunk_boundaries() {
     let model = Model::compile(&lower_limb(Side::Left)).unwrap();
     let p = model.nominal_params();
-    let (trial, truth) = synthetic_trial(&model, &p, 300, 2.0);
+    let (trial, truth) = synthetic_trial(&model, &p, 1100, 2.0);
     let map = MarkerMap::by_name(&model, trial.labels()).unwrap();
     let fit = solve_trial(&model, &p, &trial, &map, &IkOptions::default()).unwrap();
-    assert_eq!(chunk_ranges(300, false).len(), 4);
+    assert_eq!(chunk_ranges(1100, false).len(), 2);
     for (f, q) in truth.iter().enumerate() {
         assert_eq!(fit.frames[f].status, FrameStatus::Converged, "frame {f}");
         for (a, b) in fit.coords[f].iter().zip(q) {
@@ -103,14 +105,14 @@ fn exact_across_chunk_boundaries() {
 }
 
 /// The calibration's starting coordinates: two noiseless trials back to back (each seeded at
-/// its first frame), 400 frames in 6 chunks: exact, and the same bits on one and three
+/// its first frame), 1100 frames in 2 chunks: exact, and the same bits on one and three
 /// threads.
 #[test]
 fn warm_started_coords_are_exact_and_thread_independent() {
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
     let p = model.nominal_params();
-    let (a, truth_a) = synthetic_trial(&model, &p, 250, 0.0);
-    let (b, truth_b) = synthetic_trial(&model, &p, 150, 3.0);
+    let (a, truth_a) = synthetic_trial(&model, &p, 700, 0.0);
+    let (b, truth_b) = synthetic_trial(&model, &p, 400, 3.0);
     let mut frames = Vec::new();
     for t in [&a, &b] {
         let map = MarkerMap::by_name(&model, t.labels()).unwrap();
@@ -121,7 +123,7 @@ fn warm_started_coords_are_exact_and_thread_independent() {
         }
     }
     let opts = IkOptions::default();
-    let run = || warm_started_coords(&model, &p, &frames, |f| f == 250, &opts);
+    let run = || warm_started_coords(&model, &p, &frames, |f| f == 700, &opts);
     let pool = |k: usize| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(k)
