@@ -106,7 +106,9 @@ impl Repair<'_> {
             &mut self.ws,
         );
         let l = loss(self.model, &attempt, self.opts);
-        if !attempt.solved() || !(l < current * (1.0 - 1e-9)) {
+        // NaN losses never win.
+        let better = l < current * (1.0 - 1e-9);
+        if !attempt.solved() || !better {
             return false;
         }
         attempt.iterations += fit.frames[f].iterations;
@@ -206,7 +208,9 @@ pub(super) fn repair_absurd(
     }
     for f in suspects {
         let rms = solved_rms(fit, f);
-        if fit.frames[f].solved() && !(rms <= implausible_above) {
+        // A NaN RMS (no marker left) is implausible too.
+        let plausible = rms <= implausible_above;
+        if fit.frames[f].solved() && !plausible {
             fit.frames[f].status = FrameStatus::Implausible { rms, median: m };
             fit.coords[f] = vec![f64::NAN; model.n_q()];
             fit.errors[f] = vec![f64::NAN; model.n_markers()];
