@@ -73,6 +73,7 @@ use thiserror::Error;
 use crate::text::decode;
 
 mod read;
+mod rows;
 mod write;
 
 pub use write::{format_trc, write_trc, TrcWriteError, TrcWriteOptions};
@@ -348,7 +349,9 @@ pub fn read_trc_file(path: &Path) -> Result<TrcFile, TrcError> {
         file: name.clone(),
         kind: TrcErrorKind::Io(e),
     })?;
-    parse_trc_file(&decode(&bytes), &name)
+    // Valid UTF-8 (nearly every file) is used in place, without a copy.
+    let text = String::from_utf8(bytes).unwrap_or_else(|e| decode(e.as_bytes()));
+    parse_trc_file(&text, &name)
 }
 
 /// Parses TRC text with its header, times and notes; `name` is used in error messages.

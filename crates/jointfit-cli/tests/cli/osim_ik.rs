@@ -199,3 +199,14 @@ fn trc_frames(text: &str, first: usize, n: usize) -> String {
     }
     out
 }
+/// OpenCap's unscaled generic model on the same trial: it matches the subject's markers
+/// poorly (about 100 mm RMS), and warm-started frames used to fall into wrong local minima
+/// (frame 20 at 683 mm where OpenSim finds 98 mm). Absurd frames are re-solved from their
+/// neighbours and a fresh seed (issue 14; `jointfit::ik::repair`).
+#[test]
+fn ik_on_opencap_generic_osim_no_frame_worse_than_opensim() {
+    compare(
+        "opencap_expert1/generic.osim",
+        "opencap_expert1/walking1.trc",
+    );
+}

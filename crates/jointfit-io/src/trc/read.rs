@@ -1,8 +1,8 @@
 //! Reading TRC text (see the parent module for the format and the policy on odd files).
 
 use jointfit::trial::Trial;
-use nalgebra::Vector3;
 
+use super::rows::{read_rows, Rows};
 use super::{TrcErrorKind, TrcFile, TrcHeader, TrcNote, TrcUnits, HEADER_KEYS};
 use crate::text::{numbered_lines, parse_number};
 
@@ -60,13 +60,7 @@ pub(super) fn parse(text: &str) -> Result<TrcFile, TrcErrorKind> {
     }
 
     let scale = header.units.to_metres();
-    let mut data = Rows::new(&labels, scale);
-    for &(line_no, line) in &lines[5..] {
-        if line.trim().is_empty() {
-            continue;
-        }
-        data.push(line_no, line)?;
-    }
+    let mut data = read_rows(&lines[5..], &labels, scale)?;
     let rows = data.times.len();
     if rows < header.num_frames {
         return Err(TrcErrorKind::MissingFrames {
@@ -287,187 +281,4 @@ fn parse_labels(
         }
     }
     Ok(labels)
-}
-
-/// Counts samples of one kind and remembers the first.
-#[derive(Default)]
-struct Tally {
-    count: usize,
-    first: Option<(usize, String)>,
-}
-
-impl Tally {
-    fn add(&mut self, line: usize, marker: &str) {
-        self.count += 1;
-        if self.first.is_none() {
-            self.first = Some((line, marker.to_string()));
-        }
-    }
-    fn into_note(self, make: impl FnOnce(usize, usize, String) -> TrcNote) -> Option<TrcNote> {
-        self.first
-            .map(|(line, marker)| make(self.count, line, marker))
-    }
-}
-
-/// Accumulates data rows.
-struct Rows<'a> {
-    labels: &'a [String],
-    scale: f64,
-    positions: Vec<Vector3<f64>>,
-    times: Vec<f64>,
-    /// (line, frame number, printed precision of the time) of each row, for the time check.
-    time_cells: Vec<(usize, i64, f64)>,
-    first_frame: Option<i64>,
-    last_frame: Option<i64>,
-    zero: Tally,
-    partial: Tally,
-}
-
-impl<'a> Rows<'a> {
-    fn new(labels: &'a [String], scale: f64) -> Self {
-        Rows {
-            labels,
-            scale,
-            positions: Vec::new(),
-            times: Vec::new(),
-            time_cells: Vec::new(),
-            first_frame: None,
-            last_frame: None,
-            zero: Tally::default(),
-            partial: Tally::default(),
-        }
-    }
-
-    fn push(&mut self, line_no: usize, line: &str) -> Result<(), TrcErrorKind> {
-        let n = self.labels.len();
-        let cells: Vec<&str> = line.split('\t').collect();
-        let frame_text = cells[0].trim();
-        let frame = parse_frame_number(frame_text).ok_or_else(|| TrcErrorKind::BadFrameNumber {
-            line: line_no,
-            value: frame_text.to_string(),
-        })?;
-        if let Some(prev) = self.last_frame {
-            if prev.checked_add(1) != Some(frame) {
-                return Err(TrcErrorKind::FrameNumberJump {
-                    line: line_no,
-                    previous: prev,
-                    found: frame,
-                });
-            }
-        }
-        self.first_frame.get_or_insert(frame);
-        self.last_frame = Some(frame);
-        let time_text = cells.get(1).map_or("", |c| c.trim());
-        let time = parse_number(time_text)
-            .filter(|t| t.is_finite())
-            .ok_or_else(|| TrcErrorKind::BadTime {
-                line: line_no,
-                value: time_text.to_string(),
-            })?;
-        self.times.push(time);
-        self.time_cells
-            .push((line_no, frame, resolution(time_text)));
-
-        let expected = 2 + 3 * n;
-        if cells.len() < expected {
-            let k = (cells.len().max(2) - 2) / 3;
-            return Err(TrcErrorKind::TooFewValues {
-                line: line_no,
-                marker: self.labels.get(k).cloned().unwrap_or_default(),
-                expected,
-                found: cells.len(),
-            });
-        }
-        if let Some((i, c)) = cells
-            .iter()
-            .enumerate()
-            .skip(expected)
-            .find(|(_, c)| !c.trim().is_empty())
-        {
-            return Err(TrcErrorKind::ExtraValues {
-                line: line_no,
-                column: i + 1,
-                value: c.trim().to_string(),
-                last_marker: self.labels.last().cloned().unwrap_or_default(),
-            });
-        }
-        for (k, label) in self.labels.iter().enumerate() {
-            let mut xyz = [f64::NAN; 3];
-            let mut missing = 0;
-            for (j, v) in xyz.iter_mut().enumerate() {
-                let col = 2 + 3 * k + j;
-                let text = cells[col].trim();
-                if text.is_empty() {
-                    missing += 1;
-                    continue;
-                }
-                let x = parse_number(text).ok_or_else(|| TrcErrorKind::BadNumber {
-                    line: line_no,
-                    column: col + 1,
-                    marker: label.clone(),
-                    value: text.to_string(),
-                })?;
-                if x.is_finite() {
-                    *v = x * self.scale;
-                } else {
-                    missing += 1;
-                }
-            }
-            let p = if missing > 0 {
-                if missing < 3 {
-                    self.partial.add(line_no, label);
-                }
-                Vector3::repeat(f64::NAN)
-            } else if xyz == [0.0; 3] {
-                self.zero.add(line_no, label);
-                Vector3::repeat(f64::NAN)
-            } else {
-                Vector3::from(xyz)
-            };
-            self.positions.push(p);
-        }
-        Ok(())
-    }
-
-    /// Compares the Time column with `first time + i / rate`; a note for the first row off by
-    /// more than half a frame plus the printed precision.
-    fn check_times(&self, rate: f64) -> Option<TrcNote> {
-        let t0 = *self.times.first()?;
-        let res0 = self.time_cells.first()?.2;
-        for (i, (&t, &(line, frame, res))) in self.times.iter().zip(&self.time_cells).enumerate() {
-            let expected = t0 + i as f64 / rate;
-            // Both times are rounded to their printed precision; the first is taken to be
-            // printed like this row (a shortest-form writer prints it as a bare `0`).
-            let tol = 0.5 / rate + res.min(res0) / 2.0 + res / 2.0 + 1e-9 * expected.abs();
-            if (t - expected).abs() > tol {
-                return Some(TrcNote::TimeDisagreesWithRate {
-                    line,
-                    frame,
-                    expected,
-                    found: t,
-                });
-            }
-        }
-        None
-    }
-}
-
-/// Frame numbers are integers; some writers print them as `12.0`.
-fn parse_frame_number(s: &str) -> Option<i64> {
-    if let Ok(v) = s.parse::<i64>() {
-        return Some(v);
-    }
-    let v: f64 = s.parse().ok()?;
-    (v.is_finite() && v.fract() == 0.0 && v.abs() < 9e15).then_some(v as i64)
-}
-
-/// The value of one unit in the last printed digit of a number (`4.983` → 0.001).
-fn resolution(s: &str) -> f64 {
-    let s = s.trim();
-    let (mantissa, exp) = match s.find(['e', 'E']) {
-        Some(i) => (&s[..i], s[i + 1..].parse::<i32>().unwrap_or(0)),
-        None => (s, 0),
-    };
-    let decimals = mantissa.find('.').map_or(0, |i| mantissa.len() - i - 1) as i32;
-    10f64.powi(exp.saturating_sub(decimals))
 }

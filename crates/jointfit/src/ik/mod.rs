@@ -24,20 +24,31 @@
 //! is both large and large against the frame's other residuals ([`IkOptions::outlier_distance`];
 //! each rejection is reported). A frame whose result
 //! is not finite is not solved, and the next frame starts again from seeding.
+//!
+//! The frames of a trial are solved in fixed chunks of consecutive frames, in parallel
+//! ([`chunk_ranges`]; the first frame of each chunk is seeded), so the result does not depend
+//! on the number of threads. A frame whose fit is far worse than the trial's median is then
+//! solved again from its neighbours' solutions and a fresh seed, and reported not solved when
+//! it stays implausible ([`repair`]).
 
+mod frames;
 mod lm;
 mod markers;
 mod normal;
+pub mod repair;
 mod seed;
 pub mod solvable;
 mod trial_fit;
 
 use thiserror::Error;
 
+pub use frames::warm_started_coords;
 pub use lm::{is_gross, solve_frame, undetermined_coordinate, IkWorkspace};
 pub use markers::MarkerMap;
 pub use seed::seed_frame;
-pub use trial_fit::{extrapolate, rms, solve_trial, unsolved_ranges, TrialFit, UnsolvedRange};
+pub use trial_fit::{
+    chunk_ranges, extrapolate, rms, solve_trial, unsolved_ranges, TrialFit, UnsolvedRange,
+};
 
 /// Why IK could not start.
 #[derive(Debug, Error, PartialEq)]
@@ -109,6 +120,13 @@ pub enum FrameStatus {
     },
     /// The result was not finite: not solved.
     Diverged,
+    /// The fit stayed far worse than the trial's other frames from every start tried
+    /// ([`repair`]): RMS marker distance `rms` against the trial's median `median` (m). Not
+    /// solved: most likely a wrong local minimum or bad data.
+    Implausible {
+        rms: f64,
+        median: f64,
+    },
 }
 
 /// The outcome of one frame.

@@ -1,5 +1,5 @@
-//! [`ik_trial`]: inverse kinematics over a trial; [`ik_warm_started`]: the warm-started
-//! frame loop alone; [`transfer_params`]: parameters carried between models by name.
+//! [`ik_trial`]: inverse kinematics over a trial; [`ik_checked`]: the same with the data
+//! checks alongside; [`ik_warm_started`]: the warm-started frame loop alone; [`transfer_params`]: parameters carried between models by name.
 
 use super::WorkflowError;
 use crate::ik::{
@@ -42,6 +42,28 @@ pub fn ik_trial(
         return Err(WorkflowError::NoFrameSolved { detail });
     }
     Ok(IkRun { fit, absent })
+}
+
+/// [`ik_trial`] together with the data checks of the same trial
+/// ([`crate::checks::check_trial`], markers matched as [`ik_trial`] matches them), the two
+/// run concurrently (`rayon::join`). Each is deterministic and neither reads the other's
+/// result, so this returns exactly what running one after the other returns.
+pub fn ik_checked(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+    opts: &IkOptions,
+) -> (Result<IkRun, WorkflowError>, Vec<crate::checks::Finding>) {
+    // The calling thread takes the IK (the longer part); the checks go to another thread
+    // when one is free, else run here afterwards.
+    let (run, findings) = rayon::join(
+        || ik_trial(model, p, trial, opts),
+        || {
+            let (map, _) = MarkerMap::allowing_absent(model, trial.labels());
+            crate::checks::check_trial(model, trial, &map)
+        },
+    );
+    (run, findings)
 }
 
 /// Solves frames `first + 1 ..` of `trial` in order, each from the linear extrapolation of
@@ -102,6 +124,52 @@ pub fn transfer_params(
 mod tests {
     use super::*;
     use crate::model::lower_limb::{lower_limb, Side};
+
+    /// The checks alongside the IK give what each gives alone (a trial with a gap, so the
+    /// checks have something to say).
+    #[test]
+    fn ik_checked_equals_ik_then_checks() {
+        let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+        let p = model.nominal_params();
+        let coords: Vec<Vec<f64>> = (0..200)
+            .map(|f| {
+                let mut q = model.default_coords();
+                q[4] = 0.9;
+                q[6] = 0.4 * (f as f64 * 0.05).sin();
+                q[9] = 0.5 + 0.4 * (f as f64 * 0.05).cos();
+                q
+            })
+            .collect();
+        let mut kin = crate::kinematics::KinData::new(&model);
+        let mut positions = Vec::new();
+        for q in &coords {
+            crate::kinematics::forward_kinematics(
+                &model,
+                &p,
+                q,
+                crate::kinematics::Want::POSITIONS,
+                &mut kin,
+            );
+            positions.extend(kin.markers.iter().copied());
+        }
+        let n = model.n_markers();
+        for f in 50..60 {
+            positions[f * n + 3] = nalgebra::Vector3::repeat(f64::NAN);
+        }
+        let labels = model.markers().iter().map(|m| m.name.clone()).collect();
+        let trial = Trial::new(labels, 100.0, 1, positions).unwrap();
+        let opts = IkOptions::default();
+        let (run, findings) = ik_checked(&model, &p, &trial, &opts);
+        let run = run.unwrap();
+        let alone = ik_trial(&model, &p, &trial, &opts).unwrap();
+        let (map, _) = MarkerMap::allowing_absent(&model, trial.labels());
+        let checks = crate::checks::check_trial(&model, &trial, &map);
+        assert!(!checks.is_empty());
+        assert_eq!(format!("{findings:?}"), format!("{checks:?}"));
+        assert_eq!(run.fit.frames, alone.fit.frames);
+        let bits = |c: &Vec<Vec<f64>>| c.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&run.fit.coords), bits(&alone.fit.coords));
+    }
 
     #[test]
     fn transfer_takes_values_by_name_and_clamps() {

@@ -39,7 +39,7 @@ pub use calibration::{
 };
 pub use check::{check, CheckReport};
 pub use hold::{hold_undetermined, lock_undetermined};
-pub use ik::{ik_trial, ik_warm_started, transfer_params, IkRun};
+pub use ik::{ik_checked, ik_trial, ik_warm_started, transfer_params, IkRun};
 pub use redundant::{
     calibrate_holding_redundant, redundant_parameters, HeldCalibration, Redundancy,
 };

@@ -1,0 +1,372 @@
+//! The data rows of a TRC file (line 6 on): parsed in chunks of lines on every thread.
+
+use nalgebra::Vector3;
+
+use super::{TrcErrorKind, TrcNote};
+use crate::text::parse_number;
+
+/// Counts samples of one kind and remembers the first.
+#[derive(Default)]
+pub(super) struct Tally {
+    count: usize,
+    first: Option<(usize, String)>,
+}
+
+impl Tally {
+    fn add(&mut self, line: usize, marker: &str) {
+        self.count += 1;
+        if self.first.is_none() {
+            self.first = Some((line, marker.to_string()));
+        }
+    }
+    /// Adds the samples of `later`, counted after these.
+    fn append(&mut self, later: Tally) {
+        self.count += later.count;
+        if self.first.is_none() {
+            self.first = later.first;
+        }
+    }
+    pub(super) fn into_note(
+        self,
+        make: impl FnOnce(usize, usize, String) -> TrcNote,
+    ) -> Option<TrcNote> {
+        self.first
+            .map(|(line, marker)| make(self.count, line, marker))
+    }
+}
+
+/// Data lines per chunk parsed on one thread.
+const LINES_PER_CHUNK: usize = 2048;
+
+/// Parses the data lines in chunks of [`LINES_PER_CHUNK`] lines on every thread, then joins
+/// the chunks in order: the same rows, notes and first error (in line order, frame-number
+/// jumps between chunks included) as one pass over the lines.
+pub(super) fn read_rows<'a>(
+    lines: &[(usize, &str)],
+    labels: &'a [String],
+    scale: f64,
+) -> Result<Rows<'a>, TrcErrorKind> {
+    use rayon::prelude::*;
+    let chunks: Vec<(Rows<'a>, Option<TrcErrorKind>)> = lines
+        .par_chunks(LINES_PER_CHUNK)
+        .map(|chunk| {
+            let mut rows = Rows::new(labels, scale);
+            for &(line_no, line) in chunk {
+                if line.trim().is_empty() {
+                    continue;
+                }
+                if let Err(e) = rows.push(line_no, line) {
+                    return (rows, Some(e));
+                }
+            }
+            (rows, None)
+        })
+        .collect();
+    let mut all = Rows::new(labels, scale);
+    all.positions.reserve(lines.len() * labels.len());
+    all.times.reserve(lines.len());
+    all.time_cells.reserve(lines.len());
+    for (rows, error) in chunks {
+        if let (Some(previous), Some(found)) = (all.last_frame, rows.first_frame) {
+            if previous.checked_add(1) != Some(found) {
+                return Err(TrcErrorKind::FrameNumberJump {
+                    line: rows.first_line,
+                    previous,
+                    found,
+                });
+            }
+        }
+        if let Some(e) = error {
+            return Err(e);
+        }
+        all.append(rows);
+    }
+    Ok(all)
+}
+
+/// Accumulates data rows.
+pub(super) struct Rows<'a> {
+    pub(super) labels: &'a [String],
+    pub(super) scale: f64,
+    pub(super) positions: Vec<Vector3<f64>>,
+    pub(super) times: Vec<f64>,
+    /// (line, frame number, printed precision of the time) of each row, for the time check.
+    pub(super) time_cells: Vec<(usize, i64, f64)>,
+    pub(super) first_frame: Option<i64>,
+    /// The line of the first row.
+    pub(super) first_line: usize,
+    pub(super) last_frame: Option<i64>,
+    pub(super) zero: Tally,
+    pub(super) partial: Tally,
+}
+
+impl<'a> Rows<'a> {
+    fn new(labels: &'a [String], scale: f64) -> Self {
+        Rows {
+            labels,
+            scale,
+            positions: Vec::new(),
+            times: Vec::new(),
+            time_cells: Vec::new(),
+            first_frame: None,
+            first_line: 0,
+            last_frame: None,
+            zero: Tally::default(),
+            partial: Tally::default(),
+        }
+    }
+
+    fn push(&mut self, line_no: usize, line: &str) -> Result<(), TrcErrorKind> {
+        let n = self.labels.len();
+        let cells = split_tabs(line, 2 + 3 * n);
+        let frame_text = cells[0].trim();
+        let frame = parse_frame_number(frame_text).ok_or_else(|| TrcErrorKind::BadFrameNumber {
+            line: line_no,
+            value: frame_text.to_string(),
+        })?;
+        if let Some(prev) = self.last_frame {
+            if prev.checked_add(1) != Some(frame) {
+                return Err(TrcErrorKind::FrameNumberJump {
+                    line: line_no,
+                    previous: prev,
+                    found: frame,
+                });
+            }
+        }
+        if self.first_frame.is_none() {
+            self.first_frame = Some(frame);
+            self.first_line = line_no;
+        }
+        self.last_frame = Some(frame);
+        let time_text = cells.get(1).map_or("", |c| c.trim());
+        let time = parse_number(time_text)
+            .filter(|t| t.is_finite())
+            .ok_or_else(|| TrcErrorKind::BadTime {
+                line: line_no,
+                value: time_text.to_string(),
+            })?;
+        self.times.push(time);
+        self.time_cells
+            .push((line_no, frame, resolution(time_text)));
+
+        let expected = 2 + 3 * n;
+        if cells.len() < expected {
+            let k = (cells.len().max(2) - 2) / 3;
+            return Err(TrcErrorKind::TooFewValues {
+                line: line_no,
+                marker: self.labels.get(k).cloned().unwrap_or_default(),
+                expected,
+                found: cells.len(),
+            });
+        }
+        if let Some((i, c)) = cells
+            .iter()
+            .enumerate()
+            .skip(expected)
+            .find(|(_, c)| !c.trim().is_empty())
+        {
+            return Err(TrcErrorKind::ExtraValues {
+                line: line_no,
+                column: i + 1,
+                value: c.trim().to_string(),
+                last_marker: self.labels.last().cloned().unwrap_or_default(),
+            });
+        }
+        for (k, label) in self.labels.iter().enumerate() {
+            let mut xyz = [f64::NAN; 3];
+            let mut missing = 0;
+            for (j, v) in xyz.iter_mut().enumerate() {
+                let col = 2 + 3 * k + j;
+                let text = cells[col].trim();
+                if text.is_empty() {
+                    missing += 1;
+                    continue;
+                }
+                let x = parse_number(text).ok_or_else(|| TrcErrorKind::BadNumber {
+                    line: line_no,
+                    column: col + 1,
+                    marker: label.clone(),
+                    value: text.to_string(),
+                })?;
+                if x.is_finite() {
+                    *v = x * self.scale;
+                } else {
+                    missing += 1;
+                }
+            }
+            let p = if missing > 0 {
+                if missing < 3 {
+                    self.partial.add(line_no, label);
+                }
+                Vector3::repeat(f64::NAN)
+            } else if xyz == [0.0; 3] {
+                self.zero.add(line_no, label);
+                Vector3::repeat(f64::NAN)
+            } else {
+                Vector3::from(xyz)
+            };
+            self.positions.push(p);
+        }
+        Ok(())
+    }
+
+    /// Appends the rows of `next`, which follow these in the file.
+    fn append(&mut self, next: Rows<'a>) {
+        if self.first_frame.is_none() {
+            self.first_frame = next.first_frame;
+            self.first_line = next.first_line;
+        }
+        if next.last_frame.is_some() {
+            self.last_frame = next.last_frame;
+        }
+        self.positions.extend(next.positions);
+        self.times.extend(next.times);
+        self.time_cells.extend(next.time_cells);
+        self.zero.append(next.zero);
+        self.partial.append(next.partial);
+    }
+
+    /// Compares the Time column with `first time + i / rate`; a note for the first row off by
+    /// more than half a frame plus the printed precision.
+    pub(super) fn check_times(&self, rate: f64) -> Option<TrcNote> {
+        let t0 = *self.times.first()?;
+        let res0 = self.time_cells.first()?.2;
+        for (i, (&t, &(line, frame, res))) in self.times.iter().zip(&self.time_cells).enumerate() {
+            let expected = t0 + i as f64 / rate;
+            // Both times are rounded to their printed precision; the first is taken to be
+            // printed like this row (a shortest-form writer prints it as a bare `0`).
+            let tol = 0.5 / rate + res.min(res0) / 2.0 + res / 2.0 + 1e-9 * expected.abs();
+            if (t - expected).abs() > tol {
+                return Some(TrcNote::TimeDisagreesWithRate {
+                    line,
+                    frame,
+                    expected,
+                    found: t,
+                });
+            }
+        }
+        None
+    }
+}
+
+/// The tab-separated cells of `line` (as `line.split('\t')`), with room for `expected`. A
+/// byte loop: TRC cells are short, and a search call per cell costs more than the scan.
+fn split_tabs(line: &str, expected: usize) -> Vec<&str> {
+    let mut cells = Vec::with_capacity(expected + 1);
+    let mut start = 0;
+    for (i, &b) in line.as_bytes().iter().enumerate() {
+        if b == b'\t' {
+            // Tabs are ASCII, so both ends are character boundaries.
+            cells.push(&line[start..i]);
+            start = i + 1;
+        }
+    }
+    cells.push(&line[start..]);
+    cells
+}
+
+/// Frame numbers are integers; some writers print them as `12.0`.
+fn parse_frame_number(s: &str) -> Option<i64> {
+    if let Ok(v) = s.parse::<i64>() {
+        return Some(v);
+    }
+    let v: f64 = s.parse().ok()?;
+    (v.is_finite() && v.fract() == 0.0 && v.abs() < 9e15).then_some(v as i64)
+}
+
+/// The value of one unit in the last printed digit of a number (`4.983` → 0.001).
+fn resolution(s: &str) -> f64 {
+    let s = s.trim();
+    let (mantissa, exp) = match s.find(['e', 'E']) {
+        Some(i) => (&s[..i], s[i + 1..].parse::<i32>().unwrap_or(0)),
+        None => (s, 0),
+    };
+    let decimals = mantissa.find('.').map_or(0, |i| mantissa.len() - i - 1) as i32;
+    10f64.powi(exp.saturating_sub(decimals))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::LINES_PER_CHUNK;
+    use crate::trc::{parse_trc, TrcErrorKind};
+
+    /// A TRC text of `frames` rows of two markers (mm), values from a simple formula with
+    /// up to 17 significant digits, and the values as printed.
+    fn text(frames: usize) -> (String, Vec<String>) {
+        let mut out = format!(
+            "PathFileType\t4\t(X/Y/Z)\tt.trc\nDataRate\tCameraRate\tNumFrames\tNumMarkers\t\
+             Units\tOrigDataRate\tOrigDataStartFrame\tOrigNumFrames\n\
+             100\t100\t{frames}\t2\tmm\t100\t1\t{frames}\nFrame#\tTime\tA\t\t\tB\t\t\n\
+             \t\tX1\tY1\tZ1\tX2\tY2\tZ2\n"
+        );
+        let mut cells = Vec::new();
+        for f in 0..frames {
+            out.push_str(&format!("{}\t{}", f + 1, f as f64 / 100.0));
+            for k in 0..6 {
+                let v = ((f * 6 + k) as f64 * 0.7310585786300049).sin() * 1234.5;
+                let s = if k % 2 == 0 {
+                    format!("{v}")
+                } else {
+                    format!("{v:.5}")
+                };
+                out.push('\t');
+                out.push_str(&s);
+                cells.push(s);
+            }
+            out.push('\n');
+        }
+        (out, cells)
+    }
+
+    /// Chunks joined in order: every value has the bits of the standard parser's reading
+    /// (scaled to metres as one multiplication), over several chunks.
+    #[test]
+    fn chunked_rows_equal_the_standard_parse() {
+        let frames = 3 * LINES_PER_CHUNK + 17;
+        let (t, cells) = text(frames);
+        let trial = parse_trc(&t, "t.trc").unwrap();
+        assert_eq!(trial.n_frames(), frames);
+        let got: Vec<f64> = trial
+            .positions()
+            .iter()
+            .flat_map(|p| [p.x, p.y, p.z])
+            .collect();
+        for (g, c) in got.iter().zip(&cells) {
+            assert_eq!(
+                g.to_bits(),
+                (c.parse::<f64>().unwrap() * 1e-3).to_bits(),
+                "{c}"
+            );
+        }
+    }
+
+    /// Errors come in line order whichever chunk holds them: a frame-number jump at the first
+    /// row of a chunk is found before a bad number in a later chunk.
+    #[test]
+    fn first_error_in_line_order_across_chunks() {
+        let frames = 3 * LINES_PER_CHUNK;
+        let (t, _) = text(frames);
+        let mut lines: Vec<String> = t.lines().map(str::to_string).collect();
+        // Data rows start at line 6 (index 5); row i of the data is line 6 + i.
+        let jump_row = LINES_PER_CHUNK; // first row of the second chunk
+        lines[5 + jump_row] = lines[5 + jump_row].replacen(
+            &format!("{}\t", jump_row + 1),
+            &format!("{}\t", jump_row + 5),
+            1,
+        );
+        let bad_row = 2 * LINES_PER_CHUNK + 3;
+        lines[5 + bad_row] = lines[5 + bad_row].replacen("\t", "\tx", 2);
+        let err = parse_trc(&lines.join("\n"), "t.trc").unwrap_err();
+        match err.kind {
+            TrcErrorKind::FrameNumberJump {
+                line,
+                previous,
+                found,
+            } => {
+                assert_eq!(line, 6 + jump_row);
+                assert_eq!((previous, found), (jump_row as i64, jump_row as i64 + 5));
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+}
