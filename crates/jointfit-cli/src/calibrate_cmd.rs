@@ -280,6 +280,16 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         .into_iter()
         .unzip();
     let refs: Vec<&Trial> = trials.iter().collect();
+    for (path, trial) in args.trials.iter().zip(&refs) {
+        let (_, absent) = jointfit::ik::MarkerMap::allowing_absent(&model, trial.labels());
+        if !absent.is_empty() {
+            eprintln!(
+                "jointfit: warning: {}: lacks model markers {}; they count as missing in every frame",
+                path.display(),
+                absent.join(", ")
+            );
+        }
+    }
     let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
     let free = params_for_groups(&model, &groups)?;
     let clock = Instant::now();

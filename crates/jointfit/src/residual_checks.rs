@@ -207,7 +207,7 @@ pub fn offset_findings(model: &Model, offsets: &[MarkerOffset], reference: &str)
                     names.join(", "),
                 ),
                 fix: Some(format!(
-                    "{}, or --exclude-marker for each of {} (ik, check), or re-run personalize \
+                    "{}, or --exclude-marker for each of {}, or re-run personalize \
                      with a static trial of this session",
                     refine_option(&moved),
                     excluded.join(", ")
@@ -228,7 +228,7 @@ pub fn offset_findings(model: &Model, offsets: &[MarkerOffset], reference: &str)
                         o.frames,
                     ),
                     fix: Some(format!(
-                        "--exclude-marker {} (ik, check), or {}",
+                        "--exclude-marker {}, or {}",
                         name(o),
                         refine_option(&[o])
                     )),

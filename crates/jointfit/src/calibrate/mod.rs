@@ -146,7 +146,10 @@ impl<'m> Problem<'m> {
         let mut skipped = Vec::new();
         let mut targets = Vec::new();
         for (t, trial) in trials.iter().enumerate() {
-            let map = MarkerMap::by_name(model, trial.labels())?;
+            // A model marker the trial lacks altogether (excluded by the user, or never
+            // recorded in this session) is missing in every frame, as in IK; the per-frame
+            // test below still decides which frames its absence leaves undetermined.
+            let (map, _absent) = MarkerMap::allowing_absent(model, trial.labels());
             for f in 0..trial.n_frames() {
                 map.targets(trial, f, &mut targets);
                 for t in targets.iter_mut().filter(|t| !t.x.is_nan() && is_gross(t)) {
