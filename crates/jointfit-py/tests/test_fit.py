@@ -44,7 +44,8 @@ def test_personalize_equals_cli(opencap):
 
 def test_personalize_default_is_both_legs_as_on_the_cli(opencap, run_cli):
     """Without a side, Python and the command line build the same bilateral model; each leg
-    equals its one-sided personalization."""
+    matches its one-sided personalization up to the subject's sway between the one-sided
+    static window and the common one of both legs (0.5 mm or 0.01 rad, as on the CLI)."""
     d, out, _ = opencap
     both = out / "both.toml"
     code, _, err = run_cli("personalize", "--static", d / "static1.trc", "--markers", "opencap",
@@ -54,9 +55,10 @@ def test_personalize_default_is_both_legs_as_on_the_cli(opencap, run_cli):
     _same_parameters(ours, jf.Model.load(both))
     assert len(ours.parameters) == 54
     for side, s in (("right", "_r"), ("left", "_l")):
-        one = jf.personalize(d / "static1.trc", markers="opencap", side=side).parameters
-        for name, v in one.items():
-            assert ours.parameters[name + s] == v, name
+        one = jf.personalize(d / "static1.trc", markers="opencap", side=side)
+        for name, v in one.parameters.items():
+            tol = 5e-4 if one.units[name] == "m" else 1e-2
+            assert abs(ours.parameters[name + s] - v) <= tol, name
 
 
 def test_personalize_one_leg_trial_falls_back_with_a_warning(data_dir):
