@@ -3,10 +3,10 @@
 use jointfit::calibrate::joint::{solve_joint, solve_joint_to, JointOptions, RESOLUTION_SE};
 use jointfit::calibrate::pso::{solve_pso, PsoOptions};
 use jointfit::calibrate::varpro::{gradient, solve_varpro, VarProOptions};
-use jointfit::calibrate::{params_for_groups, Problem};
+use jointfit::calibrate::{params_for_groups, Fit, Problem};
 use jointfit::ik::IkWorkspace;
 use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::{Model, Unit};
+use jointfit::model::{Model, ParamId, Unit};
 use jointfit::solver::{NoObserver, Observer, Termination};
 use jointfit::trial::Trial;
 use jointfit_testkit::synth::{synthetic_trial, Noise};
@@ -73,6 +73,89 @@ fn errors(model: &Model, free: &[usize], a: &[f64], b: &[f64]) -> (f64, f64) {
     (mm, deg)
 }
 
+/// `p_true` with the free parameters moved back to their nominal values: the start of a
+/// fit whose fixed parameters are known.
+fn nominal_start(model: &Model, p_true: &[f64], free: &[ParamId]) -> Vec<f64> {
+    let mut base = p_true.to_vec();
+    for id in free {
+        base[id.0] = model.parameters()[id.0].nominal;
+    }
+    base
+}
+
+/// The joint solver (to working precision: the statistical stopping rule off) and the
+/// two-level solver, from the same start.
+pub(crate) fn joint_and_varpro(prob: &Problem, s0: &[f64], q0: Vec<Vec<f64>>) -> (Fit, Fit) {
+    let joint = solve_joint_to(
+        prob,
+        s0,
+        q0.clone(),
+        &JointOptions::default(),
+        0.0,
+        &mut NoObserver,
+    );
+    let varpro = solve_varpro(prob, s0, q0, &VarProOptions::default(), &mut NoObserver);
+    (joint, varpro)
+}
+
+/// Largest absolute difference of two vectors.
+pub(crate) fn max_difference(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+}
+
+/// The two solvers found the same optimum: scaled parameters within 1e-6, costs within
+/// 1e-9 relative.
+pub(crate) fn assert_same_optimum(joint: &Fit, varpro: &Fit, what: &str) {
+    let ds = max_difference(&joint.s, &varpro.s);
+    let dc = (joint.cost - varpro.cost).abs() / varpro.cost;
+    assert!(ds <= 1e-6, "{what}: scaled parameters differ by {ds:e}");
+    assert!(dc <= 1e-9, "{what}: costs differ by {dc:e} relative");
+}
+
+/// The fit is stationary: the outer gradient vanishes on interior parameters, relative to
+/// its size at the start `s0` (coordinates solved at `base`).
+pub(crate) fn assert_stationary(prob: &Problem, fit: &Fit, s0: &[f64], base: &[f64], what: &str) {
+    let g0 = gradient(prob, s0, &prob.initial_coords(base));
+    let g0_max = g0.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let g = gradient(prob, &fit.s, &fit.coords);
+    for (k, gk) in g.iter().enumerate() {
+        if fit.s[k].abs() < 1.0 - 1e-9 {
+            assert!(
+                gk.abs() <= 1e-6 * g0_max,
+                "{what}: gradient {k} = {gk:e} (start {g0_max:e})"
+            );
+        }
+    }
+}
+
+/// The analytic outer gradient at scaled parameters `s` equals central finite differences
+/// of the inner objective (step 1e-6, coordinates warm-started from `qs`).
+pub(crate) fn assert_gradient_matches_differences(
+    prob: &Problem,
+    s: &[f64],
+    qs: &[Vec<f64>],
+    ws: &mut IkWorkspace,
+) {
+    let g = gradient(prob, s, qs);
+    let h = 1e-6;
+    for k in 0..s.len() {
+        let mut e = |d: f64| {
+            let mut sk = s.to_vec();
+            sk[k] += d;
+            let mut q = qs.to_vec();
+            prob.inner(&prob.to_params(&sk), &mut q, ws)
+        };
+        let fd = (e(h) - e(-h)) / (2.0 * h);
+        assert!(
+            (fd - g[k]).abs() <= 1e-5 * g[k].abs().max(1e-4),
+            "parameter {k}: analytic {:e}, finite difference {fd:e}",
+            g[k]
+        );
+    }
+}
+
 #[test]
 fn noiseless_recovery_joint_and_varpro() {
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
@@ -81,23 +164,10 @@ fn noiseless_recovery_joint_and_varpro() {
     for groups in [&["hip"][..], &["knee"], &["ankle"], &["all"]] {
         let free = params_for_groups(&model, groups).unwrap();
         // Fixed parameters at their true values, free ones start at nominal.
-        let mut base = p_true.clone();
-        for id in &free {
-            base[id.0] = model.parameters()[id.0].nominal;
-        }
+        let base = nominal_start(&model, &p_true, &free);
         let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
         let s0 = prob.to_scaled(&base);
-        let q0 = prob.initial_coords(&base);
-        // The solvers to working precision (the statistical stopping rule off).
-        let joint = solve_joint_to(
-            &prob,
-            &s0,
-            q0.clone(),
-            &JointOptions::default(),
-            0.0,
-            &mut NoObserver,
-        );
-        let varpro = solve_varpro(&prob, &s0, q0, &VarProOptions::default(), &mut NoObserver);
+        let (joint, varpro) = joint_and_varpro(&prob, &s0, prob.initial_coords(&base));
         for (name, fit) in [("joint", &joint), ("varpro", &varpro)] {
             let (mm, deg) = errors(&model, &prob.free, &fit.p, &p_true);
             assert!(
@@ -118,31 +188,12 @@ fn joint_and_two_level_reach_the_same_noisy_optimum() {
     let trial = synthetic(&model, &p_true, 50, 0.01, 9);
     for groups in [&["knee"][..], &["all"]] {
         let free = params_for_groups(&model, groups).unwrap();
-        let mut base = p_true.clone();
-        for id in &free {
-            base[id.0] = model.parameters()[id.0].nominal;
-        }
+        let base = nominal_start(&model, &p_true, &free);
         let prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
         let s0 = prob.to_scaled(&base);
-        let q0 = prob.initial_coords(&base);
-        // The solvers to working precision (the statistical stopping rule off).
-        let joint = solve_joint_to(
-            &prob,
-            &s0,
-            q0.clone(),
-            &JointOptions::default(),
-            0.0,
-            &mut NoObserver,
-        );
-        let varpro = solve_varpro(&prob, &s0, q0, &VarProOptions::default(), &mut NoObserver);
-        let ds = joint
-            .s
-            .iter()
-            .zip(&varpro.s)
-            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-        let dc = (joint.cost - varpro.cost).abs() / varpro.cost;
-        assert!(ds <= 1e-6, "{groups:?}: scaled parameters differ by {ds:e}");
-        assert!(dc <= 1e-9, "{groups:?}: costs differ by {dc:e} relative");
+        let (joint, varpro) = joint_and_varpro(&prob, &s0, prob.initial_coords(&base));
+        let what = format!("{groups:?}");
+        assert_same_optimum(&joint, &varpro, &what);
         // The optimum fits the noisy data better than the truth does (the paper's observation).
         let mut ws = IkWorkspace::new(&model);
         let mut q_truth = prob.initial_coords(&p_true);
@@ -153,19 +204,8 @@ fn joint_and_two_level_reach_the_same_noisy_optimum() {
             joint.cost,
             truth_cost
         );
-        // And it is stationary: the gradient vanishes on interior parameters, relative to
-        // its size at the start.
-        let g0 = gradient(&prob, &s0, &prob.initial_coords(&base));
-        let g0_max = g0.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let g = gradient(&prob, &joint.s, &joint.coords);
-        for (k, gk) in g.iter().enumerate() {
-            if joint.s[k].abs() < 1.0 - 1e-9 {
-                assert!(
-                    gk.abs() <= 1e-6 * g0_max,
-                    "{groups:?}: gradient {k} = {gk:e} (start {g0_max:e})"
-                );
-            }
-        }
+        // And it is stationary.
+        assert_stationary(&prob, &joint, &s0, &base, &what);
     }
 }
 
@@ -180,22 +220,7 @@ fn outer_gradient_matches_finite_differences() {
     let mut ws = IkWorkspace::new(&model);
     let mut qs = prob.initial_coords(&model.nominal_params());
     prob.inner(&prob.to_params(&s), &mut qs, &mut ws);
-    let g = gradient(&prob, &s, &qs);
-    let h = 1e-6;
-    for k in 0..s.len() {
-        let mut e = |d: f64| {
-            let mut sk = s.clone();
-            sk[k] += d;
-            let mut q = qs.clone();
-            prob.inner(&prob.to_params(&sk), &mut q, &mut ws)
-        };
-        let fd = (e(h) - e(-h)) / (2.0 * h);
-        assert!(
-            (fd - g[k]).abs() <= 1e-5 * g[k].abs().max(1e-4),
-            "parameter {k}: {fd:e} vs {:e}",
-            g[k]
-        );
-    }
+    assert_gradient_matches_differences(&prob, &s, &qs, &mut ws);
 }
 
 #[test]

@@ -1,9 +1,11 @@
 //! The maximum a posteriori objective: its gradient, the solvers' agreement on it, and what
 //! the prior buys on synthetic truth drawn from it.
 
-use super::calibrate::{perturbed, synthetic};
+use super::calibrate::{
+    assert_gradient_matches_differences, assert_same_optimum, assert_stationary, joint_and_varpro,
+    max_difference, perturbed, synthetic,
+};
 use jointfit::calibrate::joint::{solve_joint, JointOptions};
-use jointfit::calibrate::varpro::{gradient, solve_varpro, VarProOptions};
 use jointfit::calibrate::{params_for_groups, Problem};
 use jointfit::ik::IkWorkspace;
 use jointfit::landmarks::priors::fill_landmark_priors;
@@ -46,22 +48,7 @@ fn map_gradient_matches_finite_differences() {
     let mut qs = prob.initial_coords(&p_true);
     prob.inner(&prob.to_params(&s), &mut qs, &mut ws);
     assert!(prob.prior_cost(&prob.to_params(&s)) > 0.0);
-    let g = gradient(&prob, &s, &qs);
-    let h = 1e-6;
-    for k in 0..s.len() {
-        let mut e = |d: f64| {
-            let mut sk = s.clone();
-            sk[k] += d;
-            let mut q = qs.clone();
-            prob.inner(&prob.to_params(&sk), &mut q, &mut ws)
-        };
-        let fd = (e(h) - e(-h)) / (2.0 * h);
-        assert!(
-            (fd - g[k]).abs() <= 1e-5 * g[k].abs().max(1e-4),
-            "parameter {k}: analytic {:e}, finite difference {fd:e}",
-            g[k]
-        );
-    }
+    assert_gradient_matches_differences(&prob, &s, &qs, &mut ws);
 }
 
 #[test]
@@ -77,22 +64,7 @@ fn joint_and_two_level_reach_the_same_map_optimum() {
     let unreg = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
     let s0 = prob.to_scaled(&base);
     let q0 = prob.initial_coords(&base);
-    // To working precision (the statistical stopping rule off).
-    let joint = jointfit::calibrate::joint::solve_joint_to(
-        &prob,
-        &s0,
-        q0.clone(),
-        &JointOptions::default(),
-        0.0,
-        &mut jointfit::solver::NoObserver,
-    );
-    let varpro = solve_varpro(
-        &prob,
-        &s0,
-        q0.clone(),
-        &VarProOptions::default(),
-        &mut jointfit::solver::NoObserver,
-    );
+    let (joint, varpro) = joint_and_varpro(&prob, &s0, q0.clone());
     let plain = solve_joint(
         &unreg,
         &s0,
@@ -100,28 +72,10 @@ fn joint_and_two_level_reach_the_same_map_optimum() {
         &JointOptions::default(),
         &mut jointfit::solver::NoObserver,
     );
-    let ds = joint
-        .s
-        .iter()
-        .zip(&varpro.s)
-        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-    let dc = (joint.cost - varpro.cost).abs() / varpro.cost;
-    assert!(ds <= 1e-6, "scaled parameters differ by {ds:e}");
-    assert!(dc <= 1e-9, "costs differ by {dc:e} relative");
+    assert_same_optimum(&joint, &varpro, "MAP");
     // The MAP optimum is stationary for the posterior and differs from the plain fit.
-    let g = gradient(&prob, &joint.s, &joint.coords);
-    let g0 = gradient(&prob, &s0, &prob.initial_coords(&base));
-    let g0_max = g0.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    for (k, gk) in g.iter().enumerate() {
-        if joint.s[k].abs() < 1.0 - 1e-9 {
-            assert!(gk.abs() <= 1e-6 * g0_max, "gradient {k} = {gk:e}");
-        }
-    }
-    let moved = joint
-        .s
-        .iter()
-        .zip(&plain.s)
-        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    assert_stationary(&prob, &joint, &s0, &base, "MAP");
+    let moved = max_difference(&joint.s, &plain.s);
     assert!(moved > 1e-3, "the prior changed nothing ({moved:e})");
     // Each minimizes its own objective: the plain fit has the smaller marker term, the MAP
     // fit the smaller posterior objective.
