@@ -109,7 +109,8 @@ fn load(args: &CheckArgs) -> Result<jointfit::model::Model> {
 fn print_check(report: &CheckReport) {
     let r = &report.check;
     println!(
-        "{}: {} frames ({} skipped), IK with the nominal model: RMS {:.2} mm",
+        "{}: {} frames ({} skipped), IK with the nominal model over every marker sample, \
+         as calibrate weighs them (no outlier rejection, unlike `ik`): RMS {:.2} mm",
         report.trial, r.frames, r.skipped_frames, r.ik_rms_mm
     );
     println!("\nrange of motion (IK, nominal model)");

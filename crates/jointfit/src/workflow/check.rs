@@ -21,7 +21,10 @@ use crate::trial::Trial;
 pub struct CheckReport {
     pub frames: usize,
     pub skipped_frames: usize,
-    /// RMS marker distance of IK at the given parameters (mm).
+    /// RMS marker distance of IK at the given parameters (mm), over every present marker
+    /// sample as the calibration weighs them: gross samples dropped, but no per-frame
+    /// outlier rejection (which `ik` applies), so it equals `calibrate`'s RMS before the fit
+    /// and can exceed `ik`'s RMS on the same trial.
     pub ik_rms_mm: f64,
     /// Range of motion per coordinate (deg or mm) from that IK.
     pub ranges: Vec<CoordRange>,
