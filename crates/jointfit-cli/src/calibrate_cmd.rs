@@ -245,6 +245,21 @@ pub fn check_marker_noise(args: &CalibrateArgs) -> Result<()> {
     Ok(())
 }
 
+/// Reads and checks every trial of `args` for `model` ([`load_checked`]): the trials and
+/// what their reading found, in the order given.
+pub fn load_trials(
+    args: &CalibrateArgs,
+    model: &jointfit::model::Model,
+) -> Result<(Vec<Trial>, Vec<TrialJson>)> {
+    Ok(args
+        .trials
+        .iter()
+        .map(|t| load_checked(t, &args.read, model, args.filter).map(|(t, j, _)| (t, j)))
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .unzip())
+}
+
 pub fn run(args: CalibrateArgs) -> Result<()> {
     if jointfit_io::model_file::is_osim(Path::new(&args.model)) {
         return crate::osim_calibrate::run(args);
@@ -272,23 +287,11 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         }
         None => model.nominal_params(),
     };
-    let (trials, read): (Vec<Trial>, Vec<TrialJson>) = args
-        .trials
-        .iter()
-        .map(|t| load_checked(t, &args.read, &model, args.filter).map(|(t, j, _)| (t, j)))
-        .collect::<Result<Vec<_>>>()?
-        .into_iter()
-        .unzip();
+    let (trials, read) = load_trials(&args, &model)?;
     let refs: Vec<&Trial> = trials.iter().collect();
     for (path, trial) in args.trials.iter().zip(&refs) {
         let (_, absent) = jointfit::ik::MarkerMap::allowing_absent(&model, trial.labels());
-        if !absent.is_empty() {
-            eprintln!(
-                "jointfit: warning: {}: lacks model markers {}; they count as missing in every frame",
-                path.display(),
-                absent.join(", ")
-            );
-        }
+        crate::common::warn_absent_markers(path, &absent);
     }
     let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
     let free = params_for_groups(&model, &groups)?;

@@ -290,6 +290,18 @@ impl TrialJson {
     }
 }
 
+/// Prints the one-line warning for model markers a trial lacks altogether (`absent`): the
+/// fits count them as missing in every frame.
+pub fn warn_absent_markers(path: &Path, absent: &[String]) {
+    if !absent.is_empty() {
+        eprintln!(
+            "jointfit: warning: {}: lacks model markers {}; they count as missing in every frame",
+            path.display(),
+            absent.join(", ")
+        );
+    }
+}
+
 /// Reads a trial for `model` ([`load_for_model`]) and runs the data checks ([`run_checks`]).
 pub fn load_checked(
     path: &Path,

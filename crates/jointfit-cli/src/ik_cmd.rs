@@ -136,13 +136,7 @@ pub fn run(args: IkArgs) -> Result<()> {
         Err(e) => return Err(e).with_context(|| args.trial.display().to_string()),
     };
     let seconds = start.elapsed().as_secs_f64();
-    if !run.absent.is_empty() {
-        eprintln!(
-            "jointfit: warning: {}: lacks model markers {}; they count as missing in every frame",
-            args.trial.display(),
-            run.absent.join(", ")
-        );
-    }
+    crate::common::warn_absent_markers(&args.trial, &run.absent);
     let fit = run.fit;
     write_sto(&args.output, &angles_table(&model, &trial, &fit))
         .with_context(|| format!("writing {}", args.output.display()))?;

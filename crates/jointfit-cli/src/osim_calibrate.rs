@@ -13,9 +13,9 @@ use jointfit_io::osim_read::{read_osim, workflow as osim_workflow};
 use serde::Serialize;
 
 use crate::calibrate_cmd::{
-    check_files, check_marker_noise, fit_settings, print_report, CalibrateArgs, ProgressObserver,
+    check_files, check_marker_noise, fit_settings, load_trials, print_report, CalibrateArgs,
+    ProgressObserver,
 };
-use crate::common::load_checked;
 
 /// `calibrate MODEL.osim --json`: the calibration, the held redundant parameters, the wall
 /// time of the fit.
@@ -75,13 +75,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         }
         None => None,
     };
-    let (trials, read): (Vec<Trial>, Vec<crate::common::TrialJson>) = args
-        .trials
-        .iter()
-        .map(|t| load_checked(t, &args.read, &model, args.filter).map(|(t, j, _)| (t, j)))
-        .collect::<Result<Vec<_>>>()?
-        .into_iter()
-        .unzip();
+    let (trials, read) = load_trials(&args, &model)?;
     let refs: Vec<&Trial> = trials.iter().collect();
     let clock = Instant::now();
     let mut observer = ProgressObserver::new();
