@@ -63,6 +63,28 @@ pub fn load_trial(path: &Path, up: Up, filter_hz: Option<f64>) -> Result<Trial> 
     prepare(trial, path, up.into(), filter_hz)
 }
 
+/// `up` when given, else the lab's vertical detected from `path`'s marker layout
+/// ([`jointfit::vertical::detect_up`]), else y with a warning on stderr. The second value
+/// describes a detection ("z (from 20 labelled markers, 3° off the axis)") for the caller
+/// to say once its work succeeded.
+pub fn up_or_detected(path: &Path, up: Option<Up>) -> Result<(Up, Option<String>)> {
+    if let Some(up) = up {
+        return Ok((up, None));
+    }
+    let (raw, _) = jointfit_io::trial_file::read_trial_noted(path)?;
+    Ok(match jointfit::vertical::detect_up(&raw) {
+        Some(d) => (Up::from(d.up), Some(d.describe())),
+        None => {
+            eprintln!(
+                "jointfit: warning: {}: cannot tell the up axis from the marker labels; \
+                 assuming y (pass --up)",
+                path.display()
+            );
+            (Up::Y, None)
+        }
+    })
+}
+
 /// The trial options of the commands that read trials for a subject model.
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct TrialArgs {

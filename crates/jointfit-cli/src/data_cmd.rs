@@ -29,9 +29,10 @@ pub struct ConvertArgs {
     /// Low-pass filter cutoff in Hz (zero-phase Butterworth, effective order 4)
     #[arg(long, allow_negative_numbers = true, value_parser = crate::validate::cutoff_hz)]
     filter: Option<f64>,
-    /// Which axis of the input points up; the output is Y-up (OpenSim's convention)
-    #[arg(long, alias = "rotate", value_enum, default_value = "y")]
-    up: Up,
+    /// Which axis of the input points up; the output is Y-up (OpenSim's convention).
+    /// Default: detected from the marker layout (head and pelvis above the feet), else y
+    #[arg(long, alias = "rotate", value_enum)]
+    up: Option<Up>,
     /// Units of the written file
     #[arg(long, value_enum, default_value = "mm")]
     units: UnitsArg,
@@ -177,7 +178,8 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
         .output("output", &args.output)
         .check()?;
     format_of(&args.input)?;
-    let mut trial = load_trial(&args.input, args.up, args.filter)?;
+    let (up, detected) = crate::common::up_or_detected(&args.input, args.up)?;
+    let mut trial = load_trial(&args.input, up, args.filter)?;
     if !args.markers.is_empty() {
         let names: Vec<&str> = args.markers.iter().map(String::as_str).collect();
         trial = trial
@@ -194,13 +196,14 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
     };
     write_trc(&args.output, &trial, &options)?;
     eprintln!(
-        "wrote {} ({} markers, {} frames at {} Hz{})",
+        "wrote {} ({} markers, {} frames at {} Hz{}{})",
         args.output.display(),
         trial.n_markers(),
         trial.n_frames(),
         trial.rate(),
         args.filter
-            .map_or(String::new(), |hz| format!(", low-pass {hz} Hz"))
+            .map_or(String::new(), |hz| format!(", low-pass {hz} Hz")),
+        detected.map_or(String::new(), |d| format!("; up axis detected: {d}"))
     );
     Ok(())
 }

@@ -43,25 +43,10 @@ pub fn run(cmd: MarkersCommand) -> Result<()> {
     }
     files.check()?;
     let path = r#static.display().to_string();
-    let up = match up {
-        Some(u) => u,
-        None => {
-            let (raw, _) = jointfit_io::trial_file::read_trial_noted(&r#static)?;
-            match jointfit::vertical::detect_up(&raw) {
-                Some(d) => {
-                    eprintln!("jointfit: {path}: up axis detected: {}", d.describe());
-                    Up::from(d.up)
-                }
-                None => {
-                    eprintln!(
-                        "jointfit: warning: {path}: cannot tell the up axis from the labels; \
-                         assuming y (pass --up)"
-                    );
-                    Up::Y
-                }
-            }
-        }
-    };
+    let (up, detected) = crate::common::up_or_detected(&r#static, up)?;
+    if let Some(d) = detected {
+        eprintln!("jointfit: {path}: up axis detected: {d}");
+    }
     let trial = load_trial(&r#static, up, None)?;
     let name = name.unwrap_or_else(|| {
         output

@@ -92,27 +92,6 @@ fn load_marker_set(arg: &str) -> Result<MarkerSet> {
     )
 }
 
-/// `--up`, else the vertical detected from the static trial's marker layout
-/// ([`jointfit::vertical::detect_up`], said on stderr), else y (with a warning).
-fn static_up(args: &PersonalizeArgs) -> Result<Up> {
-    if let Some(up) = args.up {
-        return Ok(up);
-    }
-    let (raw, _) = jointfit_io::trial_file::read_trial_noted(&args.static_trial)?;
-    let path = args.static_trial.display();
-    Ok(match jointfit::vertical::detect_up(&raw) {
-        // Recorded in the model as `lab_up`; said in the error context if personalize fails.
-        Some(d) => Up::from(d.up),
-        None => {
-            eprintln!(
-                "jointfit: warning: {path}: cannot tell the up axis from the marker labels; \
-                 assuming y (pass --up)"
-            );
-            Up::Y
-        }
-    })
-}
-
 pub fn run(args: PersonalizeArgs) -> Result<()> {
     crate::output::Files::new()
         .input("static trial", &args.static_trial)
@@ -120,7 +99,8 @@ pub fn run(args: PersonalizeArgs) -> Result<()> {
         .output("output", &args.output)
         .check()?;
     let set = load_marker_set(&args.markers)?;
-    let up = static_up(&args)?;
+    // Recorded in the model as `lab_up`; said in the error context if personalize fails.
+    let (up, _) = crate::common::up_or_detected(&args.static_trial, args.up)?;
     let trial = load_trial(&args.static_trial, up, None)?;
     let scale: Vec<_> = jointfit::checks::check_scale(&trial).into_iter().collect();
     crate::common::report_findings(&scale, &args.static_trial)?;

@@ -11,7 +11,11 @@
 //!     more than [`CLUSTER_TOLERANCE`]: a marker was re-attached or the cluster slipped;
 //!   - **swap**: in a frame, exchanging the labels of two markers of a segment fits the model's
 //!     distances to the segment's other markers far better than the labels as written;
-//!     reported as runs of frames;
+//!     reported as runs of frames. Only pairs the distances can tell apart are tested: the
+//!     two markers' model distances to the other markers must differ by at least
+//!     [`SWAP_MIN_ASYMMETRY`] on average (a pair placed symmetrically, e.g. both ASIS with
+//!     only a sacral marker besides them, is a mirror image that no distance tells from its
+//!     swap, and soft-tissue motion would be read as swaps);
 //!   - **jump**: a marker moves faster than [`JUMP_SPEED`] between consecutive frames;
 //!   - **gaps**: frames in which a model marker is missing, with the longest run;
 //!   - **offset**: after inverse kinematics, markers that sit at the same wrong place of their
@@ -30,6 +34,10 @@ use crate::trial::Trial;
 
 /// Distance change within a segment's cluster above which a pair is reported (m).
 pub const CLUSTER_TOLERANCE: f64 = 0.01;
+/// The least mean difference (m) between two markers' model distances to their segment's
+/// other markers for a swap of the two to be tested: a real swap then changes those
+/// distances by twice this at least, beyond the skin motion of a gait trial (≈ 10–15 mm).
+pub const SWAP_MIN_ASYMMETRY: f64 = 0.02;
 /// Marker speed above which a frame-to-frame displacement is a jump (m/s); the fastest body
 /// markers (the foot in sprinting) stay below 20 m/s.
 pub const JUMP_SPEED: f64 = 30.0;
@@ -263,7 +271,8 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                     if !d[(f * m + i) * m + k].is_finite() {
                         return false;
                     }
-                    let (mut plain, mut crossed, mut count) = (0.0, 0.0, 0usize);
+                    let (mut plain, mut crossed, mut asymmetry, mut count) =
+                        (0.0, 0.0, 0.0, 0usize);
                     for c in (0..m).filter(|&c| c != i && c != k) {
                         let (dac, dbc) = (d[(f * m + i) * m + c], d[(f * m + k) * m + c]);
                         if !dac.is_finite() {
@@ -272,9 +281,13 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                         let (rac, rbc) = (r[i * m + c], r[k * m + c]);
                         plain += (dac - rac).abs() + (dbc - rbc).abs();
                         crossed += (dbc - rac).abs() + (dac - rbc).abs();
+                        asymmetry += (rac - rbc).abs();
                         count += 1;
                     }
-                    count > 0 && plain > 0.02 * count as f64 && crossed < 0.3 * plain
+                    count > 0
+                        && asymmetry >= SWAP_MIN_ASYMMETRY * count as f64
+                        && plain > 0.02 * count as f64
+                        && crossed < 0.3 * plain
                 };
                 for (start, end) in runs((0..n).map(swapped)) {
                     let (from, to) = (first + start as i64, first + end as i64);

@@ -64,6 +64,29 @@ fn convert_c3d_to_y_up_trc() {
             }
         }
     }
+    // Without --up the vertical is detected from the marker layout, and said: this lab's is
+    // -z (the ASIS have a lower z than the heels).
+    let convert = |name: &str, up: &[&str]| {
+        let file = dir.join(name);
+        let mut args = vec![
+            "convert",
+            path.to_str().unwrap(),
+            file.to_str().unwrap(),
+            "--decimals",
+            "6",
+        ];
+        args.extend_from_slice(up);
+        let (ok, _, err) = jointfit(&args);
+        assert!(ok, "{err}");
+        (std::fs::read_to_string(&file).unwrap(), err)
+    };
+    let (a, _) = convert("rknee-minus-z.trc", &["--up=-z"]);
+    let (b, err) = convert("rknee-detected.trc", &[]);
+    assert!(err.contains("up axis detected: -z"), "{err}");
+    assert_eq!(
+        a.lines().skip(1).collect::<Vec<_>>(),
+        b.lines().skip(1).collect::<Vec<_>>()
+    );
 }
 
 /// Bad input: a non-zero exit and a one-line error naming the file or the marker.

@@ -99,3 +99,52 @@ fn a_trial_without_pelvis_labels_is_one_line() {
         "{err}"
     );
 }
+
+/// A lab that sends only a Plug-in Gait walk (BTK's Gait.c3d: Z up, every marker missing in
+/// 60 % of the frames, a sacral marker instead of PSIS, two tracking markers per thigh and
+/// shank): `markers suggest` reads the frames where the markers are, proposes a set that
+/// names the lab's epicondyles and malleoli, `personalize` accepts it for both legs from the
+/// walk's stillest stretch, and `check` reports no label swap (the pelvis has only the two
+/// ASIS and the sacrum: a mirror-symmetric pair that no distance tells from its swap).
+#[test]
+fn a_walk_without_a_static_trial_gets_a_marker_set_and_no_false_swaps() {
+    let Some(walk) = data_file("c3d_reader/btk/Gait.c3d") else {
+        println!("skipped: no data");
+        return;
+    };
+    let walk = walk.to_str().unwrap();
+    let dir = scratch("markers-walk");
+    let set = dir.join("set.toml");
+    let (ok, _, err) = jointfit(&["markers", "suggest", walk, "-o", set.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    assert!(err.contains("up axis detected: z"), "{err}");
+    let text = std::fs::read_to_string(&set).unwrap();
+    for line in [
+        "right_asis = \"RASI\"",
+        "sacrum = \"VSAC\"",
+        "lateral_epicondyle = \"RKNE\"",
+        "lateral_malleolus = \"LANK\"",
+        "heel = \"RHEE\"",
+    ] {
+        assert!(text.contains(line), "{line}\n{text}");
+    }
+    let subject = dir.join("subject.toml");
+    let (ok, _, err) = jointfit(&[
+        "personalize",
+        "--static",
+        walk,
+        "--markers",
+        set.to_str().unwrap(),
+        "--window",
+        "0.02",
+        "-o",
+        subject.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}\n{text}");
+    let (ok, out, err) = jointfit(&["check", subject.to_str().unwrap(), walk, "--json"]);
+    assert!(ok, "{err}");
+    let report: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let text = report.to_string();
+    assert!(text.contains("\"gaps\""), "the gaps are reported: {text}");
+    assert!(!text.contains("swapped"), "{text}");
+}

@@ -2,13 +2,14 @@
 //! user to check before `personalize --markers`.
 //!
 //! The trial must be Y-up (rotate it first, e.g. with the vertical of
-//! [`crate::vertical::detect_up`]). Each marker's position is its median over the frames in
-//! which it is present. Then:
+//! [`crate::vertical::detect_up`]). It is read in the frames where the most markers are
+//! present (of at most 400 evenly spaced ones); each marker's position is its median over
+//! those of them in which it is present. Then:
 //!
 //! 1. **Ignored**: virtual joint centres (`HJC`, `KJC`, `AJC`) and upper-body labels (head,
 //!    trunk, arms), markers more than 0.35 m from the pelvis centre sideways or above 0.9 of
 //!    the ASIS height (unless named as thigh markers, e.g. a trochanter), and markers missing
-//!    in more than half of the frames.
+//!    in more than half of the frames read.
 //! 2. **Pelvis**: ASIS (`ASIS`, `ASI`, `IAS`), PSIS (`PSIS`, `PSI`, `IPS`) and, without PSIS,
 //!    a sacral marker (`SACR`, `V.Sacral`, `S2`). Forward is from the PSIS (or sacrum) to the
 //!    ASIS, up is +y, right = forward × up (the model's z).
@@ -129,6 +130,39 @@ fn normalize(label: &str) -> (String, Option<f64>) {
     (lower, None)
 }
 
+/// The frames the suggestion reads: of at most 400 evenly spaced frames, those in which the
+/// most markers are present. A static trial usually has every marker in every frame; a trial
+/// whose markers are all visible in only part of it (a walk through the capture volume) is
+/// read where they are, instead of losing every marker that is missing in half of it.
+fn fullest_frames(trial: &Trial) -> Vec<usize> {
+    let n = trial.n_frames();
+    let step = n.div_ceil(400).max(1);
+    let count = |f: usize| {
+        (0..trial.labels().len())
+            .filter(|&j| trial.get(f, j).is_some())
+            .count()
+    };
+    let counts: Vec<(usize, usize)> = (0..n).step_by(step).map(|f| (f, count(f))).collect();
+    let most = counts.iter().map(|c| c.1).max().unwrap_or(0);
+    counts
+        .into_iter()
+        .filter(|c| c.1 == most)
+        .map(|c| c.0)
+        .collect()
+}
+
+/// ", ignored as missing in most frames: A, B" when any marker was, else "".
+fn ignored_note(missing: &[&str]) -> String {
+    if missing.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "; ignored as missing in most frames: {}",
+            missing.join(", ")
+        )
+    }
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -141,17 +175,15 @@ pub fn suggest(trial: &Trial, name: &str) -> Result<Suggestion, LandmarkError> {
         detail,
     };
     let mut notes = Vec::new();
-    let n = trial.n_frames();
-    let step = n.div_ceil(400).max(1);
+    let frames = fullest_frames(trial);
     let mut raw: Vec<(String, String, Option<f64>, Vector3<f64>)> = Vec::new();
+    let mut missing = Vec::new();
     for (j, label) in trial.labels().iter().enumerate() {
-        let present: Vec<Vector3<f64>> = (0..n)
-            .step_by(step)
-            .filter_map(|f| trial.get(f, j))
-            .collect();
+        let present: Vec<Vector3<f64>> = frames.iter().filter_map(|&f| trial.get(f, j)).collect();
         let (norm, side) = normalize(label);
-        if present.len() * 2 < n.div_ceil(step) || present.is_empty() {
+        if present.len() * 2 < frames.len() || present.is_empty() {
             notes.push(format!("ignored {label}: missing in most frames"));
+            missing.push(label.as_str());
             continue;
         }
         if has(&norm, IGNORE) {
@@ -177,8 +209,15 @@ pub fn suggest(trial: &Trial, name: &str) -> Result<Suggestion, LandmarkError> {
     let sacrum = find(&["sacr", "vsac", "v.sacral", "sacral", "s2"]);
     if asis.len() != 2 {
         return Err(fail(format!(
-            "found {} ASIS markers (labels like RASI, R.ASIS, L_IAS), need 2",
-            asis.len()
+            "found {} ASIS markers{} (labels like RASI, R.ASIS, L_IAS), need 2{}",
+            asis.len(),
+            if asis.is_empty() {
+                String::new()
+            } else {
+                let labels: Vec<&str> = asis.iter().map(|&i| raw[i].0.as_str()).collect();
+                format!(" ({})", labels.join(", "))
+            },
+            ignored_note(&missing)
         )));
     }
     let centre = (raw[asis[0]].3 + raw[asis[1]].3) / 2.0;
@@ -187,10 +226,10 @@ pub fn suggest(trial: &Trial, name: &str) -> Result<Suggestion, LandmarkError> {
     } else if let Some(&s) = sacrum.first() {
         raw[s].3
     } else {
-        return Err(fail(
-            "found neither two PSIS (RPSI, R.PSIS, L_IPS) nor a sacral marker (SACR, V.Sacral)"
-                .into(),
-        ));
+        return Err(fail(format!(
+            "found neither two PSIS (RPSI, R.PSIS, L_IPS) nor a sacral marker (SACR, V.Sacral){}",
+            ignored_note(&missing)
+        )));
     };
     let mut forward = centre - back;
     forward.y = 0.0;
@@ -442,9 +481,10 @@ fn leg(m: &[Marker], mine: &[usize], sign: f64) -> Result<(LegMarkers, Vec<Strin
         ("shank", &leg.shank),
         ("foot", &leg.foot),
     ] {
-        if l.len() < 3 {
+        let least = super::markerset::min_tracking(seg);
+        if l.len() < least {
             return Err(format!(
-                "{seg} has {} tracking markers ({}), needs 3",
+                "{seg} has {} tracking markers ({}), needs {least}",
                 l.len(),
                 l.join(", ")
             ));
