@@ -17,7 +17,8 @@
 //!     only a sacral marker besides them, is a mirror image that no distance tells from its
 //!     swap, and soft-tissue motion would be read as swaps);
 //!   - **jump**: a marker moves faster than [`JUMP_SPEED`] between consecutive frames;
-//!   - **gaps**: frames in which a model marker is missing, with the longest run;
+//!   - **gaps**: frames in which a model marker is missing, with the longest run (one finding
+//!     for the markers missing in exactly the same frames);
 //!   - **offset**: after inverse kinematics, markers that sit at the same wrong place of their
 //!     segment in every frame, e.g. a whole cluster moved ([`crate::residual_checks`]).
 //!
@@ -314,8 +315,11 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
         }
     }
 
-    // Jumps and gaps, per model marker.
+    // Jumps per model marker; gaps per model marker, one finding for the markers that are
+    // missing in exactly the same frames (a subject walking out of the capture volume).
     let max_step = JUMP_SPEED / trial.rate();
+    // (gap runs, marker names, index in `out` where the group's finding goes)
+    let mut gap_groups: Vec<(Vec<(usize, usize)>, Vec<String>, usize)> = Vec::new();
     for j in 0..model.n_markers() {
         if col(j).is_none() {
             continue;
@@ -348,22 +352,40 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
         }
         let gaps = runs((0..n).map(|f| pos(f, j).is_none()));
         if !gaps.is_empty() {
-            let missing: usize = gaps.iter().map(|(s, e)| e - s + 1).sum();
-            let (s, e) = *gaps.iter().max_by_key(|(s, e)| e - s).expect("non-empty");
-            out.push(Finding {
-                kind: CheckKind::Gaps,
-                severity: Severity::Warning,
-                message: format!(
-                    "{} is missing in {missing} of {n} frames ({} gaps; longest frames {}–{})",
-                    name(j),
-                    gaps.len(),
-                    first + s as i64,
-                    first + e as i64
-                ),
-                fix: (((e - s + 1) as f64) <= 0.5 * trial.rate())
-                    .then(|| format!("--fill-gaps {}", e - s + 1)),
-            });
+            match gap_groups.iter_mut().find(|(g, _, _)| *g == gaps) {
+                Some((_, names, _)) => names.push(name(j).to_string()),
+                None => {
+                    // A placeholder keeps the findings in marker order.
+                    gap_groups.push((gaps, vec![name(j).to_string()], out.len()));
+                    out.push(Finding {
+                        kind: CheckKind::Gaps,
+                        severity: Severity::Warning,
+                        message: String::new(),
+                        fix: None,
+                    });
+                }
+            }
         }
+    }
+    for (gaps, names, at) in gap_groups {
+        let missing: usize = gaps.iter().map(|(s, e)| e - s + 1).sum();
+        let (s, e) = *gaps.iter().max_by_key(|(s, e)| e - s).expect("non-empty");
+        let who = match names.len() {
+            1 => format!("{} is", names[0]),
+            k => format!("{k} markers ({}) are each", names.join(", ")),
+        };
+        out[at] = Finding {
+            kind: CheckKind::Gaps,
+            severity: Severity::Warning,
+            message: format!(
+                "{who} missing in {missing} of {n} frames ({} gaps; longest frames {}–{})",
+                gaps.len(),
+                first + s as i64,
+                first + e as i64
+            ),
+            fix: (((e - s + 1) as f64) <= 0.5 * trial.rate())
+                .then(|| format!("--fill-gaps {}", e - s + 1)),
+        };
     }
     out.extend(crate::residual_checks::check_offsets(
         model, trial, map, &reference,
