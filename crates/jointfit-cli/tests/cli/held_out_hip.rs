@@ -20,12 +20,15 @@ use jointfit::model::spec::ModelSpec;
 use jointfit::trial::Trial;
 use jointfit_io::model_file::load_spec;
 use jointfit_io::trial_file::read_trial;
+use jointfit_testkit::script::script_path;
 use jointfit_testkit::{data_file, scratch};
 use nalgebra::{Matrix3, Vector3};
 
 use super::jointfit;
 
-const PELVIS: [&str; 4] = ["r.ASIS", "L.ASIS", "r.PSIS", "L.PSIS"];
+/// Right ASIS, left ASIS, right PSIS, left PSIS of OpenCap and of OpenSim's Vicon walks.
+const OPENCAP_PELVIS: [&str; 4] = ["r.ASIS", "L.ASIS", "r.PSIS", "L.PSIS"];
+const VICON_PELVIS: [&str; 4] = ["RASI", "LASI", "RPSI", "LPSI"];
 
 /// Origin and axes (columns: anterior, superior, right) of the pelvis markers' frame.
 fn pelvis_frame(p: [Vector3<f64>; 4]) -> (Vector3<f64>, Matrix3<f64>) {
@@ -59,9 +62,15 @@ fn hip_centre(spec: &ModelSpec) -> Vector3<f64> {
 }
 
 /// Mean of the trial's `label` in the model's pelvis frame, (anterior, superior, lateral).
-fn lab_centre(spec: &ModelSpec, trial: &Trial, label: &str, lateral: f64) -> Vector3<f64> {
-    let (om, rm) = pelvis_frame(PELVIS.map(|n| marker(spec, n)));
-    let cols = PELVIS.map(|n| trial.index_of(n).unwrap());
+fn lab_centre(
+    spec: &ModelSpec,
+    trial: &Trial,
+    pelvis: [&str; 4],
+    label: &str,
+    lateral: f64,
+) -> Vector3<f64> {
+    let (om, rm) = pelvis_frame(pelvis.map(|n| marker(spec, n)));
+    let cols = pelvis.map(|n| trial.index_of(n).unwrap());
     let h = trial.index_of(label).unwrap();
     let mut sum = Vector3::zeros();
     let mut n = 0;
@@ -75,13 +84,84 @@ fn lab_centre(spec: &ModelSpec, trial: &Trial, label: &str, lateral: f64) -> Vec
         sum += om + rm * (rt.transpose() * (hjc - ot));
         n += 1;
     }
-    assert!(n > trial.n_frames() / 2, "{label}: present in {n} frames");
+    assert!(n >= 100, "{label}: present in {n} frames");
     let mean = sum / n as f64;
     Vector3::new(mean.x, mean.y, lateral * mean.z)
 }
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
+}
+
+/// Personalizes `side` (extra `personalize` arguments `how`), calibrates `walk` with the
+/// defaults and returns (fit → lab distance, landmark → lab distance, fitted lateral offset,
+/// its limit 0.9 × half the inter-ASIS distance, lab centre's lateral offset, RMS before,
+/// RMS after), lengths in m, RMS in mm.
+fn held_out(
+    dir: &Path,
+    walk: &Path,
+    how: &[&str],
+    side: &str,
+    pelvis: [&str; 4],
+    label: &str,
+) -> [f64; 7] {
+    let stem = walk.file_stem().unwrap().to_string_lossy();
+    let landmark = dir.join(format!("{stem}-{side}.toml"));
+    let fitted = dir.join(format!("{stem}-{side}-fit.toml"));
+    let mut args = vec!["personalize", "--side", side, "-o", s(&landmark)];
+    args.extend_from_slice(how);
+    let (ok, _, err) = jointfit(&args);
+    assert!(ok, "{stem} {side}: {err}");
+    let (ok, out, err) = jointfit(&[
+        "calibrate",
+        s(&landmark),
+        s(walk),
+        "--filter",
+        "6",
+        "--json",
+        "-o",
+        s(&fitted),
+    ]);
+    assert!(ok, "{stem} {side}: {err}");
+    let rep: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let start = load_spec(s(&landmark)).unwrap();
+    let fit = load_spec(s(&fitted)).unwrap();
+    let trial = read_trial(walk).unwrap();
+    let lateral = if side == "right" { 1.0 } else { -1.0 };
+    let lab = lab_centre(&fit, &trial, pelvis, label, lateral);
+    let d0 = (hip_centre(&start) - lab_centre(&start, &trial, pelvis, label, lateral)).norm();
+    let d1 = (hip_centre(&fit) - lab).norm();
+    let half_width = (marker(&fit, pelvis[0]) - marker(&fit, pelvis[1])).norm() / 2.0;
+    println!(
+        "{stem} {side}: landmark → {label} {:.1} mm, fit → {label} {:.1} mm",
+        d0 * 1e3,
+        d1 * 1e3
+    );
+    [
+        d1,
+        d0,
+        hip_centre(&fit).z,
+        0.9 * half_width,
+        lab.z,
+        rep["rms_before_mm"].as_f64().unwrap(),
+        rep["rms_after_mm"].as_f64().unwrap(),
+    ]
+}
+
+fn assert_b_c(what: &str, r: [f64; 7]) {
+    let [d1, d0, _, _, _, before, after] = r;
+    // (b) no further from the lab's centre than the landmark model's, + 5 mm.
+    assert!(
+        d1 <= d0 + 0.005,
+        "{what} (b): fit {:.1} mm from the lab's centre, landmark model {:.1} mm",
+        d1 * 1e3,
+        d0 * 1e3
+    );
+    // (c) the markers fit at least 15 % better than with the landmark model.
+    assert!(
+        after <= 0.85 * before,
+        "{what} (c): RMS {before:.2} → {after:.2} mm"
+    );
 }
 
 #[test]
@@ -94,66 +174,50 @@ fn default_calibration_passes_the_held_out_hip_check_on_opencap_walking2() {
         return;
     };
     let dir = scratch("held-out-hip");
-    let trial = read_trial(&walk).unwrap();
-    for (side, label, lateral) in [("right", "R_HJC", 1.0), ("left", "L_HJC", -1.0)] {
-        let landmark = dir.join(format!("{side}.toml"));
-        let fitted = dir.join(format!("{side}-fit.toml"));
-        let (ok, _, err) = jointfit(&[
-            "personalize",
-            "--static",
-            s(&stat),
-            "--markers",
-            "opencap",
-            "--side",
-            side,
-            "-o",
-            s(&landmark),
-        ]);
-        assert!(ok, "{side}: {err}");
-        let (ok, out, err) = jointfit(&[
-            "calibrate",
-            s(&landmark),
-            s(&walk),
-            "--filter",
-            "6",
-            "--json",
-            "-o",
-            s(&fitted),
-        ]);
-        assert!(ok, "{side}: {err}");
-        let rep: serde_json::Value = serde_json::from_str(&out).unwrap();
-        let start = load_spec(s(&landmark)).unwrap();
-        let fit = load_spec(s(&fitted)).unwrap();
-
+    let how = ["--static", s(&stat), "--markers", "opencap"];
+    for (side, label) in [("right", "R_HJC"), ("left", "L_HJC")] {
+        let r = held_out(&dir, &walk, &how, side, OPENCAP_PELVIS, label);
         // (a) medial to the ASIS.
-        let half_width = (marker(&fit, "r.ASIS") - marker(&fit, "L.ASIS")).norm() / 2.0;
-        let lat = hip_centre(&fit).z;
+        let [_, _, lat, limit, ..] = r;
         assert!(
-            lat <= 0.9 * half_width,
+            lat <= limit,
             "{side} (a): hip centre {:.1} mm lateral, limit {:.1} mm",
             lat * 1e3,
-            0.9 * half_width * 1e3
+            limit * 1e3
         );
-        // (b) no further from the lab's centre than the landmark model's, + 5 mm.
-        let d0 = (hip_centre(&start) - lab_centre(&start, &trial, label, lateral)).norm();
-        let d1 = (hip_centre(&fit) - lab_centre(&fit, &trial, label, lateral)).norm();
-        println!(
-            "{side}: landmark → {label} {:.1} mm, fit → {label} {:.1} mm",
-            d0 * 1e3,
-            d1 * 1e3
-        );
-        assert!(
-            d1 <= d0 + 0.005,
-            "{side} (b): fit {:.1} mm from {label}, landmark model {:.1} mm",
-            d1 * 1e3,
-            d0 * 1e3
-        );
-        // (c) the markers fit at least 15 % better than with the landmark model.
-        let before = rep["rms_before_mm"].as_f64().unwrap();
-        let after = rep["rms_after_mm"].as_f64().unwrap();
-        assert!(
-            after <= 0.85 * before,
-            "{side} (c): RMS {before:.2} → {after:.2} mm"
-        );
+        assert_b_c(side, r);
     }
+}
+
+/// OpenSim's Vicon walk (no static trial: the model comes from the walk's own stillest
+/// 0.02 s, `docs/frames_solved.md`). Its `RHJC` (a computed marker, present in the last
+/// third, rigid with the pelvis markers) lies ≈ 50 mm from the landmark estimate and at the
+/// ASIS's own lateral offset (inter-ASIS 198 mm), so (a)'s envelope, built from the same
+/// ASIS markers, does not hold for the lab's own centre: the test asserts that fact and
+/// (b), (c) for the fit.
+#[test]
+fn default_calibration_moves_toward_the_lab_hip_centre_on_opensim_walking2() {
+    let Some(walk) = data_file("c3d_reader/opensim/walking2.c3d") else {
+        println!("skipped: no data");
+        return;
+    };
+    let dir = scratch("held-out-hip-c3d");
+    let set = script_path("markersets/opensim_test_walks.toml");
+    let how = [
+        "--static",
+        s(&walk),
+        "--markers",
+        s(&set),
+        "--window",
+        "0.02",
+    ];
+    let r = held_out(&dir, &walk, &how, "right", VICON_PELVIS, "RHJC");
+    let [_, _, _, limit, lab, ..] = r;
+    assert!(
+        lab > 0.95 * limit,
+        "the lab's RHJC is {:.1} mm lateral, (a) limit {:.1} mm",
+        lab * 1e3,
+        limit * 1e3
+    );
+    assert_b_c("walking2.c3d right", r);
 }
