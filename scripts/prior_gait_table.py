@@ -4,7 +4,8 @@
 
 Usage: scripts/prior_gait_table.py JOINTFIT_BINARY DATA_DIR [WORK_DIR] [-- EXTRA CALIBRATE ARGS]
 (PRIOR_TABLE_ONLY=opencap,opensim-c3d limits the subjects; PRIOR_TABLE_HIP=bell|harrington
-chooses personalize's hip regression, default: personalize's own default.)
+chooses personalize's hip regression, default: personalize's own default;
+PRIOR_TABLE_SETTINGS=model,none,refine the settings.)
 Prints a markdown table per trial, side and setting: hip-centre displacement and lateral
 offset against the held-out limit (a) 0.9 x half the inter-ASIS width, (b) the distance of
 the landmark model's and of the fitted hip centre from the lab's own hip-centre marker (where
@@ -101,6 +102,8 @@ for name, static, preset, trials, pelvis, labels in SUBJECTS:
                 trc = read_trc(trc_path)
             short = os.path.basename(t)
             for setting, args in SETTINGS:
+                if os.environ.get("PRIOR_TABLE_SETTINGS", setting).find(setting) < 0:
+                    continue
                 out = os.path.join(W, f"{name}-{side}-{short}-{setting}.toml")
                 prior = "none" if setting == "none" else "model"
                 rep = run(["calibrate", model, path, "--filter", "6", "--prior", prior,

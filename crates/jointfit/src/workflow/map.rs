@@ -6,7 +6,8 @@
 //! (joint solver) gives the residual variance of the reduced system, inflated by the
 //! time-correlation factor κ of [`crate::calibrate::prior::correlation_inflation`] (the ratio
 //! of the robust to the white variance; without it thousands of correlated samples would
-//! count as independent and swamp any prior).
+//! count as independent and swamp any prior), and per parameter by its own excess over κ
+//! ([`crate::calibrate::prior::parameter_inflation`]).
 //!
 //! The preliminary fit stops at [`PRELIMINARY_RESOLUTION_SE`] = 0.01 standard errors from
 //! its optimum ([`crate::calibrate::joint`]'s statistical rule) instead of a thousandth: a
@@ -102,6 +103,11 @@ pub fn map_problem_with<'m>(
         if sigma.is_finite() && sigma > 0.0 {
             if let Some(pr) = prob.prior.as_mut() {
                 pr.noise = sigma;
+                let names: Vec<&str> = free
+                    .iter()
+                    .map(|id| model.parameters()[id.0].name.as_str())
+                    .collect();
+                pr.inflation = crate::calibrate::prior::parameter_inflation(&u, &names, kappa);
             }
         }
         preliminary = Some(Preliminary {
