@@ -119,3 +119,33 @@ pub fn map_problem_with<'m>(
     let used = prob.prior.as_ref().map(|p| p.noise);
     Ok((prob, used, preliminary))
 }
+
+/// Multiplies the prior weight of each named free parameter of `prob` by its factor (the
+/// per-parameter factors of an earlier fit of the same trials, [`inflation_of`]); nothing
+/// without a prior or with no factors.
+pub fn set_inflation(prob: &mut Problem<'_>, factors: &[(String, f64)]) {
+    let model = prob.model;
+    let free = prob.free.clone();
+    let Some(pr) = prob.prior.as_mut() else {
+        return;
+    };
+    for (k, &i) in free.iter().enumerate() {
+        let name = &model.parameters()[i].name;
+        if let Some((_, f)) = factors.iter().find(|(n, _)| n == name) {
+            pr.inflation[k] = *f;
+        }
+    }
+}
+
+/// The free parameters of `prob` whose prior weight carries a factor above 1, with it.
+pub fn inflation_of(prob: &Problem<'_>) -> Vec<(String, f64)> {
+    let Some(pr) = &prob.prior else {
+        return Vec::new();
+    };
+    prob.free
+        .iter()
+        .zip(&pr.inflation)
+        .filter(|(_, &f)| f > 1.0)
+        .map(|(&i, &f)| (prob.model.parameters()[i].name.clone(), f))
+        .collect()
+}
