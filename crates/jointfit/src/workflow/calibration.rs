@@ -266,15 +266,15 @@ fn per_marker_rms(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
 }
 
 /// Fits the free parameters `free` of `model` to `trials` from `start` (every start of
-/// `settings`), without the uncertainty analysis.
+/// `settings`), without the uncertainty analysis; the prior weighed by the given noise and
+/// per-parameter factors, or by estimated ones (`noise` `None`: [`super::map`]).
 fn fit_free(
     model: &Model,
     start: &[f64],
     trials: &[&Trial],
     free: &[ParamId],
     settings: &FitSettings,
-    noise: Option<f64>,
-    inflation: &[(String, f64)],
+    (noise, inflation): (Option<f64>, &[(String, f64)]),
     observer: &mut dyn Observer,
 ) -> Result<Calibration, WorkflowError> {
     let (mut prob, sigma, pre) =
@@ -394,7 +394,15 @@ pub fn calibrate(
 ) -> Result<Calibration, WorkflowError> {
     let mut free = free.to_vec();
     let noise = settings.marker_noise;
-    let mut cal = fit_free(model, start, trials, &free, settings, noise, &[], observer)?;
+    let mut cal = fit_free(
+        model,
+        start,
+        trials,
+        &free,
+        settings,
+        (noise, &[]),
+        observer,
+    )?;
     // Refits and the analysis weigh the prior by the noise (and per-parameter factors) of the
     // first fit.
     let noise_used = cal.prior_noise_mm.map(|mm| mm / MM_PER_M);
@@ -434,9 +442,8 @@ pub fn calibrate(
             .filter(|(k, _)| !drop.contains(k))
             .map(|(_, id)| *id)
             .collect();
-        cal = fit_free(
-            model, start, trials, &free, settings, noise_used, &inflation, observer,
-        )?;
+        let weights = (noise_used, inflation.as_slice());
+        cal = fit_free(model, start, trials, &free, settings, weights, observer)?;
         cal.prior_noise_estimated = estimated;
     }
     let (mut prob, _) = super::map::map_problem(model, start, trials, &free, settings, noise_used)?;
