@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """Held-out criterion (b) by proxy on biobuddy_functional_vicon (issue 12).
 
-The shared gait trials come without the lab's own hip-centre estimate, so (b) ("no further
-from the lab's hip centre than the landmark model was, + 5 mm") is checked against the
-functional (SCoRE) hip centre of the same subject: personalize with Bell, personalize with
+The Vicon functional trials come without a lab hip-centre estimate (the gait trials that have
+one are in prior_gait_table.py), so (b) ("no further from the lab's hip centre than the
+landmark model was, + 5 mm") is checked against the functional (SCoRE) hip centre of the same
+subject: personalize with Bell, personalize with
 --functional-hip, calibrate the Bell model on each functional trial and compare distances.
 
 Usage: scripts/prior_functional_check.py JOINTFIT_BINARY DATA_DIR [WORK_DIR] [-- EXTRA ARGS]

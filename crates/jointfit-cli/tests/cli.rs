@@ -15,6 +15,8 @@ mod functional;
 mod fuzz;
 #[path = "cli/held_out.rs"]
 mod held_out;
+#[path = "cli/held_out_hip.rs"]
+mod held_out_hip;
 #[path = "cli/ident.rs"]
 mod ident;
 #[path = "cli/ik.rs"]

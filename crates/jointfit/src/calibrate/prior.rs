@@ -30,6 +30,10 @@ pub struct Prior {
     pub sd: Vec<f64>,
     /// Marker noise σ (m): weight of the prior term relative to the marker term.
     pub noise: f64,
+    /// Per free parameter: how much more than the trial as a whole the time-correlated
+    /// residuals overstate this parameter's information (≥ 1; [`parameter_inflation`]); the
+    /// prior weight is multiplied by it. All 1 unless σ was estimated.
+    pub inflation: Vec<f64>,
 }
 
 impl Prior {
@@ -47,12 +51,14 @@ impl Prior {
                 .map(|p| p.prior_sd.unwrap_or(f64::INFINITY))
                 .collect(),
             noise,
+            inflation: vec![1.0; pars.len()],
         })
     }
 
-    /// Weight `σ²/s_k²` of parameter k's prior residual (0 without a prior).
+    /// Weight `a_k σ²/s_k²` of parameter k's prior residual (`a_k`: [`Prior::inflation`];
+    /// 0 without a prior).
     pub fn weight(&self, k: usize) -> f64 {
-        let w = (self.noise / self.sd[k]).powi(2);
+        let w = (self.noise / self.sd[k]).powi(2) * self.inflation[k];
         if w.is_finite() {
             w
         } else {
@@ -247,24 +253,52 @@ pub fn data_share(prob: &Problem, normal: &nalgebra::DMatrix<f64>) -> Vec<f64> {
 /// centre) that soak up most of the correlated artefact. Without `κ`, thousands of
 /// correlated marker samples would count as independent and swamp any prior.
 pub fn correlation_inflation(u: &super::uncertainty::Uncertainty) -> f64 {
-    let mut sum = 0.0;
-    let mut n = 0usize;
-    for p in &u.params {
-        let robust = match (p.se_hac, p.se_jackknife) {
-            (Some(a), Some(b)) => a.max(b),
-            (Some(a), None) | (None, Some(a)) => a,
-            (None, None) => continue,
-        };
-        if let Some(w) = p.se_white {
-            if w > 0.0 && robust.is_finite() && robust > 0.0 {
-                sum += (robust / w).powi(2);
-                n += 1;
-            }
-        }
-    }
-    if n == 0 {
+    let ratios: Vec<f64> = u.params.iter().filter_map(variance_ratio).collect();
+    if ratios.is_empty() {
         1.0
     } else {
-        (sum / n as f64).max(1.0)
+        (ratios.iter().sum::<f64>() / ratios.len() as f64).max(1.0)
     }
+}
+
+/// `(se_robust / se_white)²` of one parameter (the rule of [`correlation_inflation`]), or
+/// `None` when either is missing or not positive.
+fn variance_ratio(p: &super::uncertainty::ParamUncertainty) -> Option<f64> {
+    let robust = match (p.se_hac, p.se_jackknife) {
+        (Some(a), Some(b)) => a.max(b),
+        (Some(a), None) | (None, Some(a)) => a,
+        (None, None) => return None,
+    };
+    let w = p.se_white?;
+    (w > 0.0 && robust.is_finite() && robust > 0.0).then(|| (robust / w).powi(2))
+}
+
+/// Per parameter named in `names` (the free parameters, in order): `max(r_k/κ, 1)`, with
+/// `r_k = (se_robust/se_white)²` its own variance ratio in `u` and `κ` the trial's
+/// ([`correlation_inflation`]); 1 for a parameter `u` lacks.
+///
+/// The trial-wide `κ` is the magnitude adjustment of the independence likelihood; the
+/// adjustment that gives each parameter its own robust variance is the curvature adjustment
+/// (Chandler & Bate 2007, Biometrika 94:167–183: rescale the likelihood so that its
+/// curvature matches the sandwich (Godambe) information). Its diagonal part multiplies
+/// parameter k's data information by `κ/r_k`, which is the same as multiplying its prior
+/// weight by `r_k/κ`. Only factors above 1 are taken: where the correlated artefact
+/// concentrates on a parameter (the hip centre in squats, sit-to-stand and ankle circles:
+/// `r_k` 2–6 × `κ`, `docs/priors.md`) the trial counts for less there; elsewhere `κ` stays,
+/// so the noisy `r_k` of one parameter never weakens its prior below the trial's rule.
+pub fn parameter_inflation(
+    u: &super::uncertainty::Uncertainty,
+    names: &[&str],
+    kappa: f64,
+) -> Vec<f64> {
+    names
+        .iter()
+        .map(|n| {
+            u.params
+                .iter()
+                .find(|p| p.name == *n)
+                .and_then(variance_ratio)
+                .map_or(1.0, |r| (r / kappa).max(1.0))
+        })
+        .collect()
 }

@@ -123,6 +123,9 @@ pub struct Calibration {
     pub prior_noise_mm: Option<f64>,
     /// Whether that noise was estimated from the residuals (else given).
     pub prior_noise_estimated: bool,
+    /// The free parameters whose prior weight was multiplied by a factor above 1, with the
+    /// factor ([`crate::calibrate::prior::parameter_inflation`]); empty when σ was given.
+    pub prior_inflation: Vec<(String, f64)>,
     /// Anatomical plausibility of the fitted joints ([`crate::plausibility`]).
     pub plausibility: Vec<crate::plausibility::Check>,
     /// The fitted solution (SI), the start and the free parameters finally fitted.
@@ -263,18 +266,20 @@ fn per_marker_rms(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
 }
 
 /// Fits the free parameters `free` of `model` to `trials` from `start` (every start of
-/// `settings`), without the uncertainty analysis.
+/// `settings`), without the uncertainty analysis; the prior weighed by the given noise and
+/// per-parameter factors, or by estimated ones (`noise` `None`: [`super::map`]).
 fn fit_free(
     model: &Model,
     start: &[f64],
     trials: &[&Trial],
     free: &[ParamId],
     settings: &FitSettings,
-    noise: Option<f64>,
+    (noise, inflation): (Option<f64>, &[(String, f64)]),
     observer: &mut dyn Observer,
 ) -> Result<Calibration, WorkflowError> {
-    let (prob, sigma, pre) =
+    let (mut prob, sigma, pre) =
         super::map::map_problem_with(model, start, trials, free, settings, noise)?;
+    super::map::set_inflation(&mut prob, inflation);
     let (fits, runs, global, q_before, cost_before) = if settings.effective_probes() > 0 {
         let out = super::global::run(&prob, start, settings, pre.as_ref(), observer);
         (
@@ -365,6 +370,7 @@ fn fit_free(
         global_warning,
         prior_noise_mm: sigma.map(|s| s * MM_PER_M),
         prior_noise_estimated: noise.is_none(),
+        prior_inflation: super::map::inflation_of(&prob),
         plausibility: crate::plausibility::check(model, &fit.p),
         fit,
         start: start.to_vec(),
@@ -388,16 +394,28 @@ pub fn calibrate(
 ) -> Result<Calibration, WorkflowError> {
     let mut free = free.to_vec();
     let noise = settings.marker_noise;
-    let mut cal = fit_free(model, start, trials, &free, settings, noise, observer)?;
-    // Refits and the analysis weigh the prior by the noise of the first fit.
+    let mut cal = fit_free(
+        model,
+        start,
+        trials,
+        &free,
+        settings,
+        (noise, &[]),
+        observer,
+    )?;
+    // Refits and the analysis weigh the prior by the noise (and per-parameter factors) of the
+    // first fit.
     let noise_used = cal.prior_noise_mm.map(|mm| mm / MM_PER_M);
+    let inflation = cal.prior_inflation.clone();
     let estimated = cal.prior_noise_estimated;
     let Some(opts) = &settings.uncertainty else {
         return Ok(cal);
     };
     let mut fixed = Vec::new();
     for _ in 0..if settings.fix_unidentifiable { 3 } else { 0 } {
-        let (prob, _) = super::map::map_problem(model, start, trials, &free, settings, noise_used)?;
+        let (mut prob, _) =
+            super::map::map_problem(model, start, trials, &free, settings, noise_used)?;
+        super::map::set_inflation(&mut prob, &inflation);
         let drop = unidentifiable_subset(&prob, &cal.fit, opts);
         if drop.is_empty() {
             break;
@@ -424,10 +442,12 @@ pub fn calibrate(
             .filter(|(k, _)| !drop.contains(k))
             .map(|(_, id)| *id)
             .collect();
-        cal = fit_free(model, start, trials, &free, settings, noise_used, observer)?;
+        let weights = (noise_used, inflation.as_slice());
+        cal = fit_free(model, start, trials, &free, settings, weights, observer)?;
         cal.prior_noise_estimated = estimated;
     }
-    let (prob, _) = super::map::map_problem(model, start, trials, &free, settings, noise_used)?;
+    let (mut prob, _) = super::map::map_problem(model, start, trials, &free, settings, noise_used)?;
+    super::map::set_inflation(&mut prob, &inflation);
     // A stage of its own: with the bootstrap it refits the model once per replicate (its
     // budget: the replicates).
     let (stage, budget) = match opts.bootstrap_replicates {

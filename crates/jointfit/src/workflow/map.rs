@@ -6,7 +6,8 @@
 //! (joint solver) gives the residual variance of the reduced system, inflated by the
 //! time-correlation factor κ of [`crate::calibrate::prior::correlation_inflation`] (the ratio
 //! of the robust to the white variance; without it thousands of correlated samples would
-//! count as independent and swamp any prior).
+//! count as independent and swamp any prior), and per parameter by its own excess over κ
+//! ([`crate::calibrate::prior::parameter_inflation`]).
 //!
 //! The preliminary fit stops at [`PRELIMINARY_RESOLUTION_SE`] = 0.01 standard errors from
 //! its optimum ([`crate::calibrate::joint`]'s statistical rule) instead of a thousandth: a
@@ -102,6 +103,11 @@ pub fn map_problem_with<'m>(
         if sigma.is_finite() && sigma > 0.0 {
             if let Some(pr) = prob.prior.as_mut() {
                 pr.noise = sigma;
+                let names: Vec<&str> = free
+                    .iter()
+                    .map(|id| model.parameters()[id.0].name.as_str())
+                    .collect();
+                pr.inflation = crate::calibrate::prior::parameter_inflation(&u, &names, kappa);
             }
         }
         preliminary = Some(Preliminary {
@@ -112,4 +118,34 @@ pub fn map_problem_with<'m>(
     }
     let used = prob.prior.as_ref().map(|p| p.noise);
     Ok((prob, used, preliminary))
+}
+
+/// Multiplies the prior weight of each named free parameter of `prob` by its factor (the
+/// per-parameter factors of an earlier fit of the same trials, [`inflation_of`]); nothing
+/// without a prior or with no factors.
+pub fn set_inflation(prob: &mut Problem<'_>, factors: &[(String, f64)]) {
+    let model = prob.model;
+    let free = prob.free.clone();
+    let Some(pr) = prob.prior.as_mut() else {
+        return;
+    };
+    for (k, &i) in free.iter().enumerate() {
+        let name = &model.parameters()[i].name;
+        if let Some((_, f)) = factors.iter().find(|(n, _)| n == name) {
+            pr.inflation[k] = *f;
+        }
+    }
+}
+
+/// The free parameters of `prob` whose prior weight carries a factor above 1, with it.
+pub fn inflation_of(prob: &Problem<'_>) -> Vec<(String, f64)> {
+    let Some(pr) = &prob.prior else {
+        return Vec::new();
+    };
+    prob.free
+        .iter()
+        .zip(&pr.inflation)
+        .filter(|(_, &f)| f > 1.0)
+        .map(|(&i, &f)| (prob.model.parameters()[i].name.clone(), f))
+        .collect()
 }
