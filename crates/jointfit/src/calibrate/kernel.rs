@@ -210,9 +210,14 @@ fn frame_gram_impl(
         for (x, &(row, sw)) in col.iter_mut().zip(&sc.rows) {
             *x = sw * scale * src[row];
         }
-        // The first nonzero row and one past the last (`(0, 0)`: none).
+        // The first nonzero row, and the end of the last marker with a nonzero row (`(0, 0)`:
+        // none). Whole markers at the end: on a chain every column then reaches the last
+        // row, and the sums are those of a dot product to the end.
         let first = col.iter().position(|&x| x != 0.0).unwrap_or(nr);
-        let end = col.iter().rposition(|&x| x != 0.0).map_or(0, |i| i + 1);
+        let end = col
+            .iter()
+            .rposition(|&x| x != 0.0)
+            .map_or(0, |i| (i / 3 + 1) * 3);
         sc.range[a] = if first < end { (first, end) } else { (0, 0) };
     }
     // G and h by dot products of columns, each over the rows where both columns can be
