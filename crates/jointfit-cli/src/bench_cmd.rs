@@ -48,6 +48,10 @@ pub struct BenchArgs {
     /// file reading and writing (0: skip).
     #[arg(long, default_value_t = 100_000)]
     io_frames: usize,
+    /// Only the 27-parameter joint calibration of the workload, this many times: each wall
+    /// time and the fastest (for profilers and quick comparisons; 0: the full bench).
+    #[arg(long, default_value_t = 0)]
+    fit_only: usize,
     /// Internal: run one calibration of this many frames and print its peak RSS.
     #[arg(long, hide = true)]
     rss_child: Option<usize>,
@@ -155,6 +159,28 @@ fn workload(data: Option<PathBuf>) -> Result<(Model, Trial, String)> {
     ))
 }
 
+/// `--fit-only N`: the default 27-parameter calibration of the workload `n` times.
+fn fit_only(model: &Model, p: &[f64], trial: &Trial, source: &str, n: usize) -> Result<()> {
+    let all = params_for_groups(model, &["all"])?;
+    let settings = FitSettings::default();
+    println!("workload: {source} ({} frames)", trial.n_frames());
+    let mut best = f64::INFINITY;
+    for _ in 0..n {
+        let t = Instant::now();
+        let cal = workflow::calibrate(model, p, &[trial], &all, &settings, &mut NoObserver)?;
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        best = best.min(ms);
+        println!(
+            "calibrate 27, joint: {ms:.1} ms ({} iterations, all starts {}, cost {:.6} mm²)",
+            cal.iterations,
+            cal.total_iterations(),
+            cal.cost_after * 1e6
+        );
+    }
+    println!("fastest of {n}: {best:.1} ms");
+    Ok(())
+}
+
 pub fn run(args: BenchArgs) -> Result<()> {
     if let Some(frames) = args.rss_child {
         return bench_perf::rss_child(frames);
@@ -162,6 +188,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
     let trc = trial_path(args.data.clone());
     let (model, trial, source) = workload(args.data)?;
     let p = model.nominal_params();
+    if args.fit_only > 0 {
+        return fit_only(&model, &p, &trial, &source, args.fit_only);
+    }
     let map = MarkerMap::by_name(&model, trial.labels())?;
     let opts = IkOptions::default();
     let mut fig = Figures {

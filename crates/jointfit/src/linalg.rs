@@ -40,23 +40,27 @@ impl<'a> Cholesky<'a> {
 /// Returns false (leaving `a` partly overwritten) when a pivot is not positive.
 pub(crate) fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
     debug_assert_eq!(a.len(), n * n);
+    // Column j (rows j..n) takes away every earlier column k's share `L_jk · L_{j..n, k}`, k
+    // in order: each entry sees the same subtractions in the same order as a dot product
+    // along its row would give, but the inner loop runs down contiguous columns.
     for j in 0..n {
-        let mut d = a[j * n + j];
+        let (done, rest) = a.split_at_mut(j * n);
+        let col = &mut rest[j..n];
         for k in 0..j {
-            let l = a[k * n + j];
-            d -= l * l;
+            let lk = &done[k * n + j..(k + 1) * n];
+            let l = lk[0];
+            for (x, y) in col.iter_mut().zip(lk) {
+                *x -= y * l;
+            }
         }
+        let d = col[0];
         if d.is_nan() || d <= 0.0 || !d.is_finite() {
             return false;
         }
         let d = d.sqrt();
-        a[j * n + j] = d;
-        for i in j + 1..n {
-            let mut s = a[j * n + i];
-            for k in 0..j {
-                s -= a[k * n + i] * a[k * n + j];
-            }
-            a[j * n + i] = s / d;
+        col[0] = d;
+        for x in &mut col[1..] {
+            *x /= d;
         }
     }
     true
@@ -70,12 +74,14 @@ pub(crate) fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
 
 /// Solves `L y = b` in place (forward substitution with the lower factor).
 pub(crate) fn forward_solve(l: &[f64], n: usize, b: &mut [f64]) {
-    for i in 0..n {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= l[k * n + i] * b[k];
+    // Column by column: each b_i sees the subtractions of k = 0, 1, … in order, as a dot
+    // product along row i would give, with the inner loop down a contiguous column.
+    for k in 0..n {
+        let x = b[k] / l[k * n + k];
+        b[k] = x;
+        for (bi, lik) in b[k + 1..n].iter_mut().zip(&l[k * n + k + 1..(k + 1) * n]) {
+            *bi -= lik * x;
         }
-        b[i] = s / l[i * n + i];
     }
 }
 

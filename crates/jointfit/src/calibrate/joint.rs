@@ -82,7 +82,7 @@ fn noise_variance(prob: &Problem, data: f64, observations: usize) -> f64 {
 }
 
 /// Scalar residuals of the marker term: 3 per present marker of positive weight.
-fn observations(prob: &Problem) -> usize {
+pub(crate) fn observations(prob: &Problem) -> usize {
     let markers = prob.model.markers();
     prob.frames
         .iter()
@@ -187,10 +187,10 @@ pub fn solve_joint_to(
                 };
                 lambda = (lambda * (1.0 - (2.0 * rho - 1.0).powi(3)).max(1.0 / 3.0)).max(1e-12);
                 nu = 2.0;
-                decrease = cost - c;
                 if lambda_used <= RESOLUTION_MAX_DAMPING {
                     model_decrease = predicted;
                 }
+                decrease = cost - c;
                 s = s_try;
                 qs = q_try;
                 p = p_try;

@@ -6,11 +6,14 @@
 //! `h = J̃ᵀr̃`, whose blocks are `U_i`, `W_i`, `V_i`, `g_i`, `g_s,i` of [`super::schur`].
 //!
 //! Each column of `J̃` is nonzero only on the rows of the markers its coordinate or parameter
-//! moves (a marker moves with its segment's ancestors' joints), so each entry of `G` and `h`
-//! is a dot product over the rows from the later of its two columns' first nonzero rows on
-//! (with the markers listed parent segment first, exactly the rows where both can be
-//! nonzero): no multiplications by the structural zeros, no copies or reordering of the
-//! columns, and a working set (the `J̃` columns and `G`) that stays in the first-level cache.
+//! moves (a marker moves with its segment's ancestors' joints). The rows are laid out with
+//! the markers in depth-first order of their segments, so the markers a joint moves (its
+//! child segment's subtree) are consecutive rows, and each entry of `G` and `h` is a dot
+//! product over the rows between the later of its two columns' first nonzero rows and the
+//! earlier of their last (for a chain, every row from the later first one on; for a tree, e.g.
+//! a full-body OpenSim model, none at all between two legs or a leg and an arm): no
+//! multiplications by the structural zeros, no copies or reordering of the columns, and a
+//! working set (the `J̃` columns and `G`) that stays in the first-level cache.
 //! The dot products keep four partial sums (vectorized), added in a fixed order: the same
 //! operations run
 //! in the same order whatever the thread count.
@@ -29,8 +32,12 @@ pub(crate) struct FrameScratch {
     rows: Vec<(usize, f64)>,
     jw: Vec<f64>,
     rw: Vec<f64>,
-    /// Per column, its first nonzero row.
-    range: Vec<usize>,
+    /// Per column, its first nonzero row and one past its last.
+    range: Vec<(usize, usize)>,
+    /// The markers in depth-first order of their segments ([`depth_first_markers`]).
+    order: Vec<usize>,
+    /// Per marker, its weighted residual `√w (m − x)` (NaN: absent or weight 0).
+    res: Vec<Vector3<f64>>,
     /// `G` (n × n, column-major).
     pub gram: Vec<f64>,
     /// `h = [g; g_s]` (n).
@@ -51,7 +58,9 @@ impl FrameScratch {
             rows: Vec::with_capacity(nrows),
             jw: vec![0.0; n * nrows],
             rw: vec![0.0; nrows],
-            range: vec![0; n],
+            range: vec![(0, 0); n],
+            order: depth_first_markers(model),
+            res: vec![Vector3::zeros(); model.n_markers()],
             gram: vec![0.0; n * n],
             grad: vec![0.0; n],
             buf: Vec::new(),
@@ -161,17 +170,26 @@ fn frame_gram_impl(
     let n = nq + prob.n_free();
     let nrows = 3 * model.n_markers();
     forward_kinematics(model, p, q, Want::BOTH, &mut sc.kin);
-    // Rows: (model row 3j + axis, √w_j) of the present markers.
-    sc.rows.clear();
     let mut cost = 0.0;
     for (j, m) in model.markers().iter().enumerate() {
         let t = targets[j];
         if t.x.is_nan() || m.weight <= 0.0 {
+            sc.res[j].x = f64::NAN;
             continue;
         }
         let r = t - sc.kin.markers[j];
         cost += m.weight * r.norm_squared();
-        let sw = m.weight.sqrt();
+        sc.res[j] = r;
+    }
+    // Rows: (model row 3j + axis, √w_j) of the present markers, in depth-first order of
+    // their segments, so that the rows a coordinate or parameter moves are contiguous.
+    sc.rows.clear();
+    for &j in &sc.order {
+        let r = sc.res[j];
+        if r.x.is_nan() {
+            continue;
+        }
+        let sw = model.markers()[j].weight.sqrt();
         for axis in 0..3 {
             sc.rw[sc.rows.len()] = sw * r[axis];
             sc.rows.push((3 * j + axis, sw));
@@ -192,21 +210,33 @@ fn frame_gram_impl(
         for (x, &(row, sw)) in col.iter_mut().zip(&sc.rows) {
             *x = sw * scale * src[row];
         }
-        sc.range[a] = col.iter().position(|&x| x != 0.0).unwrap_or(nr);
+        // The first nonzero row, and the end of the last marker with a nonzero row (`(0, 0)`:
+        // none). Whole markers at the end: on a chain every column then reaches the last
+        // row, and the sums are those of a dot product to the end.
+        let first = col.iter().position(|&x| x != 0.0).unwrap_or(nr);
+        let end = col
+            .iter()
+            .rposition(|&x| x != 0.0)
+            .map_or(0, |i| (i / 3 + 1) * 3);
+        sc.range[a] = if first < end { (first, end) } else { (0, 0) };
     }
-    // G and h by dot products of columns, each over the rows from the later of the two
-    // columns' first nonzero rows on (the rows before hold a zero in one of them): the
-    // lower triangle column by column, mirrored.
+    // G and h by dot products of columns, each over the rows where both columns can be
+    // nonzero (the rows outside hold a zero in one of them): the lower triangle column by
+    // column, mirrored.
     let (jw, range, rw) = (&sc.jw, &sc.range, &sc.rw[..nr]);
     let gram = &mut sc.gram;
     for b in 0..n {
-        let rb = range[b];
+        let (rb, eb) = range[b];
         let cb = &jw[b * nr..(b + 1) * nr];
-        sc.grad[b] = dot(&rw[rb..], &cb[rb..]);
-        gram[b * n + b] = dot(&cb[rb..], &cb[rb..]);
+        sc.grad[b] = dot(&rw[rb..eb], &cb[rb..eb]);
+        gram[b * n + b] = dot(&cb[rb..eb], &cb[rb..eb]);
         for a in b + 1..n {
-            let from = rb.max(range[a]);
-            gram[b * n + a] = dot(&cb[from..], &jw[a * nr + from..(a + 1) * nr]);
+            let (lo, hi) = (rb.max(range[a].0), eb.min(range[a].1));
+            gram[b * n + a] = if lo < hi {
+                dot(&cb[lo..hi], &jw[a * nr + lo..a * nr + hi])
+            } else {
+                0.0
+            };
         }
     }
     for b in 0..n {
@@ -215,6 +245,32 @@ fn frame_gram_impl(
         }
     }
     cost
+}
+
+/// The markers of `model` ordered by the depth-first (preorder) position of their segments,
+/// ties in model order: the markers a joint moves (its child segment's subtree) are then
+/// consecutive.
+fn depth_first_markers(model: &crate::model::Model) -> Vec<usize> {
+    let segments = model.segments();
+    let mut children: Vec<Vec<usize>> = vec![Vec::new(); segments.len()];
+    let mut stack = Vec::new();
+    for (i, s) in segments.iter().enumerate().rev() {
+        match s.parent {
+            Some(parent) => children[parent.0].push(i),
+            None => stack.push(i),
+        }
+    }
+    // Children were pushed in reverse index order, so popping visits them in index order.
+    let mut position = vec![0; segments.len()];
+    let mut next = 0;
+    while let Some(i) = stack.pop() {
+        position[i] = next;
+        next += 1;
+        stack.extend(children[i].iter().copied());
+    }
+    let mut order: Vec<usize> = (0..model.n_markers()).collect();
+    order.sort_by_key(|&j| position[model.markers()[j].segment.0]);
+    order
 }
 
 /// `Σ a_i b_i` with four independent partial sums, added in a fixed order.

@@ -20,7 +20,7 @@
 
 use super::{FitSettings, NoObserver, WorkflowError};
 use crate::calibrate::joint::{solve_joint_to, JointOptions};
-use crate::calibrate::uncertainty::{analyze, reduced_system, UncertaintyOptions};
+use crate::calibrate::uncertainty::{analyze, UncertaintyOptions};
 use crate::calibrate::Problem;
 use crate::ik::IkWorkspace;
 use crate::model::{Model, ParamId};
@@ -82,7 +82,7 @@ pub fn map_problem_with<'m>(
     let mut q = q0.clone();
     let mut ws = IkWorkspace::new(model);
     let data = prob.inner(start, &mut q, &mut ws);
-    let observations = reduced_system(&prob, start, &q).observations.max(1);
+    let observations = crate::calibrate::joint::observations(&prob).max(1);
     let mut prob = prob.with_model_prior((data / observations as f64).sqrt());
     let mut preliminary = None;
     if prob.prior.is_some() {
@@ -95,11 +95,17 @@ pub fn map_problem_with<'m>(
             PRELIMINARY_RESOLUTION_SE,
             &mut NoObserver,
         );
-        let red = reduced_system(&prob, &pre.p, &pre.coords);
-        let plain = Problem::new(model, start.to_vec(), free, trials)?;
+        // The unregularized problem on the same frames (the prior changes only `S`, not the
+        // residuals or their degrees of freedom, so its σ² is the posterior's).
+        let mut plain = prob.clone();
+        plain.prior = None;
         let u = analyze(&plain, &pre, &UncertaintyOptions::default());
         let kappa = crate::calibrate::prior::correlation_inflation(&u);
-        let sigma = (red.sigma2() * kappa).sqrt();
+        let sigma2 = match u.dof {
+            0 => f64::INFINITY,
+            dof => (pre.cost - prob.prior_cost(&pre.p)) / dof as f64,
+        };
+        let sigma = (sigma2 * kappa).sqrt();
         if sigma.is_finite() && sigma > 0.0 {
             if let Some(pr) = prob.prior.as_mut() {
                 pr.noise = sigma;
