@@ -347,6 +347,10 @@ fn main() {
         );
     }
     if args.prior {
+        println!(
+            "(with --prior the white/HAC/jack columns apply each estimator's own critical value to \
+             the total variance; only `reported` uses the Welch–Satterthwaite value)"
+        );
         println!("reported coverage per information label, % (n):");
         println!(
             "{:<6} {:>24} {:>24} {:>24}",
