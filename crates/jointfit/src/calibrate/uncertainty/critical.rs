@@ -126,7 +126,8 @@ pub fn t_cdf(x: f64, nu: f64) -> f64 {
 }
 
 /// Quantile of Student's t with `nu` degrees of freedom (any `nu > 0`), `p > 0.5`: the root
-/// of [`t_cdf`] by bisection; the normal quantile beyond `1e7` degrees of freedom.
+/// of [`t_cdf`] by Newton steps on its density, kept inside a bisection bracket (a few
+/// evaluations); the normal quantile beyond `1e7` degrees of freedom.
 pub fn t_quantile_any(p: f64, nu: f64) -> f64 {
     let z = normal_quantile(p);
     if nu > 1e7 {
@@ -138,30 +139,45 @@ pub fn t_quantile_any(p: f64, nu: f64) -> f64 {
         lo = hi;
         hi *= 2.0;
     }
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if t_cdf(mid, nu) < p {
-            lo = mid;
+    let ln_norm =
+        ln_gamma(0.5 * (nu + 1.0)) - ln_gamma(0.5 * nu) - 0.5 * (nu * std::f64::consts::PI).ln();
+    let density = |x: f64| (ln_norm - 0.5 * (nu + 1.0) * (1.0 + x * x / nu).ln()).exp();
+    let mut x = if nu >= 3.0 {
+        t_quantile(p, nu).clamp(lo, hi)
+    } else {
+        0.5 * (lo + hi)
+    };
+    for _ in 0..100 {
+        let g = t_cdf(x, nu) - p;
+        if g < 0.0 {
+            lo = x;
         } else {
-            hi = mid;
+            hi = x;
         }
-        if hi - lo <= 1e-12 * hi {
-            break;
+        let step = x - g / density(x);
+        let next = if step > lo && step < hi {
+            step
+        } else {
+            0.5 * (lo + hi)
+        };
+        if (next - x).abs() <= 1e-12 * x.abs() || hi - lo <= 1e-12 * hi {
+            return next;
         }
+        x = next;
     }
-    0.5 * (lo + hi)
+    x
 }
 
 /// The degrees of freedom `ν` of the Student t whose `p` quantile is `cv` (infinite when `cv`
-/// is the normal quantile or below): the t that matches an interval's critical value, e.g.
-/// the fixed-b one, at its level.
+/// is the normal quantile or below), to 1e-6 relative: the t that matches an interval's
+/// critical value, e.g. the fixed-b one, at its level.
 pub fn dof_of_critical(p: f64, cv: f64) -> f64 {
     if cv <= normal_quantile(p) * (1.0 + 1e-12) {
         return f64::INFINITY;
     }
     // The quantile falls as ν grows; bisect on ln ν.
     let (mut lo, mut hi) = ((0.05f64).ln(), (1e7f64).ln());
-    for _ in 0..100 {
+    while hi - lo > 1e-6 {
         let mid = 0.5 * (lo + hi);
         if t_quantile_any(p, mid.exp()) > cv {
             lo = mid;

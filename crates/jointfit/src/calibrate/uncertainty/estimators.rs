@@ -382,6 +382,12 @@ pub(super) fn covariances(
     };
     let hac_critical = fixed_b_bartlett(opts.level, bandwidth.map_or(0.0, |b| b / run_length));
     let upper = 0.5 + 0.5 * opts.level;
+    // Only a prior's known part needs it ([`conservative`]).
+    let hac_dof = if prior.is_some() {
+        dof_of_critical(upper, hac_critical)
+    } else {
+        f64::INFINITY
+    };
     let boot = match boot {
         Some((prob, fit)) if opts.bootstrap_replicates > 1 && factor.is_finite() => {
             let block = opts
@@ -406,7 +412,8 @@ pub(super) fn covariances(
     Covariances {
         white,
         prior,
-        hac_dof: dof_of_critical(upper, hac_critical),
+        // Only a prior's known part needs it ([`conservative`]).
+        hac_dof,
         jack_dof: (opts.jackknife_blocks.max(2) - 1) as f64,
         upper,
         null,
