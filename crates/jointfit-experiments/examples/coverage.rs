@@ -20,20 +20,28 @@
 //! `jointfit synth --perturb-mm --perturb-deg`, instead of 40 % of each half-range), `--dump
 //! FILE.csv` (one row per seed and parameter: error, each estimator's standard error, the
 //! critical values, bandwidth, label, and the objective of the fit and at the truth, for
-//! offline checks of other estimators and labels). Figures: `docs/global.md` (coverage) and
-//! `docs/identifiability.md`.
+//! offline checks of other estimators and labels), `--prior` (the landmark priors of
+//! `personalize` on every parameter, the truth drawn from them: `N(nominal, sd²)` clipped to
+//! the bounds, and the default maximum a posteriori fit; coverage is then also tallied per
+//! information label: determined by the trial / partly / held by the prior). Figures:
+//! `docs/global.md` (coverage) and `docs/identifiability.md`.
 
 use std::time::Instant;
 
 use std::io::Write;
 
+use jointfit::calibrate::prior::Source;
 use jointfit::calibrate::uncertainty::{Identifiability, UncertaintyOptions};
 use jointfit::calibrate::{params_for_groups, Problem};
 use jointfit::ik::IkWorkspace;
+use jointfit::landmarks::priors::fill_landmark_priors;
+use jointfit::landmarks::HipCentreMethod;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::{Model, Unit};
 use jointfit::workflow::{calibrate, perturb, FitSettings, NoObserver};
 use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion, SkinNoise};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 
 struct Args {
     seeds: u64,
@@ -49,6 +57,8 @@ struct Args {
     joints: String,
     /// Per (seed, parameter) rows as CSV for offline analysis.
     dump: Option<String>,
+    /// Landmark priors on the parameters, truth drawn from them.
+    prior: bool,
 }
 
 fn parse() -> Result<Args, String> {
@@ -64,9 +74,14 @@ fn parse() -> Result<Args, String> {
         perturb: None,
         joints: "all".to_string(),
         dump: None,
+        prior: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
+        if flag == "--prior" {
+            a.prior = true;
+            continue;
+        }
         let v = it.next().ok_or(format!("{flag} needs a value"))?;
         let bad = |e: &dyn std::fmt::Display| format!("{flag} {v}: {e}");
         match flag.as_str() {
@@ -106,6 +121,8 @@ struct Tally {
     interior_hit: usize,
     determined: usize,
     determined_hit: usize,
+    /// Per information label (determined by the trial, partly, held by the prior): (n, covered).
+    source: [(usize, usize); 3],
     half_width: f64,
     sq_err: f64,
 }
@@ -118,7 +135,11 @@ fn main() {
             std::process::exit(2);
         }
     };
-    let model = Model::compile(&lower_limb(Side::Right)).expect("built-in model compiles");
+    let mut spec = lower_limb(Side::Right);
+    if args.prior {
+        fill_landmark_priors(&mut spec, HipCentreMethod::Bell);
+    }
+    let model = Model::compile(&spec).expect("built-in model compiles");
     let coords = coordinates(&model, args.motion, args.frames).expect("built-in motion");
     let free =
         params_for_groups(&model, &[args.joints.as_str()]).expect("--joints hip|knee|ankle|all");
@@ -135,15 +156,18 @@ fn main() {
         let mut f = std::io::BufWriter::new(std::fs::File::create(path).expect("--dump file"));
         writeln!(
             f,
-            "seed,name,group,unit,err,se_white,se_hac,se_jack,se_boot,z,t_jack,half_width,method,status,at_bound,bandwidth,frames,n_free,cost_fit,cost_truth,threshold,z_hac"
+            "seed,name,group,unit,err,se_white,se_hac,se_jack,se_boot,z,t_jack,half_width,method,status,at_bound,bandwidth,frames,n_free,cost_fit,cost_truth,threshold,z_hac,data_share,source"
         )
         .expect("write");
         f
     });
     for seed in args.first_seed..args.first_seed + args.seeds {
-        let truth = match args.perturb {
-            Some((mm, deg)) => perturb(&model, &model.nominal_params(), &every, mm, deg, seed),
-            None => perturbed_params(&model, 0.4, seed),
+        let truth = match (args.prior, args.perturb) {
+            (true, _) => from_prior(&model, seed),
+            (false, Some((mm, deg))) => {
+                perturb(&model, &model.nominal_params(), &every, mm, deg, seed)
+            }
+            (false, None) => perturbed_params(&model, 0.4, seed),
         };
         let noise = SkinNoise {
             max_amplitude: args.noise_mm / 1e3,
@@ -208,12 +232,22 @@ fn main() {
                 t.determined += 1;
                 t.determined_hit += covers;
             }
+            let row = &cal.parameters[k];
+            if let Some(src) = row.source {
+                let c = match src {
+                    Source::DeterminedByTrial => 0,
+                    Source::Partly => 1,
+                    Source::HeldByPrior => 2,
+                };
+                t.source[c].0 += 1;
+                t.source[c].1 += covers;
+            }
             t.half_width += p.half_width.unwrap_or(0.0);
             if let Some(f) = dump.as_mut() {
                 let o = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6e}"));
                 writeln!(
                     f,
-                    "{seed},{},{},{},{err:.6e},{},{},{},{},{},{},{},{:?},{:?},{},{},{},{},{:.9e},{:.9e},{threshold},{}",
+                    "{seed},{},{},{},{err:.6e},{},{},{},{},{},{},{},{:?},{:?},{},{},{},{},{:.9e},{:.9e},{threshold},{},{},{}",
                     p.name,
                     p.group,
                     p.unit,
@@ -232,7 +266,9 @@ fn main() {
                     free.len(),
                     cal.cost_after,
                     cost_truth,
-                    o(u.z_hac)
+                    o(u.z_hac),
+                    o(row.data_share),
+                    row.source.map_or("", |s| s.words())
                 )
                 .expect("write");
             }
@@ -310,6 +346,29 @@ fn main() {
             (t.sq_err / t.n.max(1) as f64).sqrt()
         );
     }
+    if args.prior {
+        println!(
+            "(with --prior the white/HAC/jack columns apply each estimator's own critical value to \
+             the total variance; only `reported` uses the Welch–Satterthwaite value)"
+        );
+        println!("reported coverage per information label, % (n):");
+        println!(
+            "{:<6} {:>24} {:>24} {:>24}",
+            "group", "determined by the trial", "partly", "held by the prior"
+        );
+        for (g, t) in groups.iter().zip(&by_group) {
+            let cell = |(n, h): (usize, usize)| {
+                format!("{:.1}% ({n})", 100.0 * h as f64 / n.max(1) as f64)
+            };
+            println!(
+                "{:<6} {:>24} {:>24} {:>24}",
+                g,
+                cell(t.source[0]),
+                cell(t.source[1]),
+                cell(t.source[2])
+            );
+        }
+    }
     println!("(white/boot: z·se; HAC: fixed-b cv·se; jack: t(K−1)·se; reported: the widest; interior: reported, estimates not at a bound;");
     println!(" mean ±95% and RMS err mix mm and deg within a group, as the parameters do)");
     println!(
@@ -345,4 +404,22 @@ fn main() {
     );
     println!("errors above the threshold: {big_err}, of which flagged: {big_flagged}");
     println!("fits warned not known to be the global optimum: {global_warnings}");
+}
+
+/// True parameters drawn from the model's priors, `N(prior mean, sd²)` (Box–Muller, seeded),
+/// clipped to the bounds; parameters without a prior keep their nominal value.
+fn from_prior(model: &Model, seed: u64) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    model
+        .parameters()
+        .iter()
+        .map(|par| {
+            let (u1, u2): (f64, f64) = (rng.gen_range(f64::EPSILON..1.0), rng.gen());
+            let g = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+            match par.prior_sd {
+                Some(sd) => (par.prior_mean + sd * g).clamp(par.lower, par.upper),
+                None => par.nominal,
+            }
+        })
+        .collect()
 }

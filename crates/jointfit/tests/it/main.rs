@@ -8,6 +8,7 @@ mod ik_robust;
 mod kinematics;
 mod landmarks;
 mod models;
+mod posterior;
 mod priors;
 mod residual_checks;
 mod uncertainty;

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use super::super::joint::{solve_joint, JointOptions};
 use super::super::{Fit, Problem};
-use super::critical::fixed_b_bartlett;
+use super::critical::{dof_of_critical, fixed_b_bartlett, mixed_critical};
 use super::{BootstrapInfo, Reduced, SeMethod, UncertaintyOptions, NULL_RATIO};
 
 /// Symmetric pseudo-inverse and, per index, whether it touches a null direction.
@@ -139,8 +139,9 @@ pub(super) fn long_run_direct(scores: &[DVector<f64>], same: &[bool], b: f64) ->
     omega
 }
 
-/// Andrews (1991) AR(1) plug-in bandwidth for the Bartlett kernel, on standardised series.
-pub(super) fn andrews_bandwidth(series: &[DVector<f64>]) -> f64 {
+/// Andrews (1991) AR(1) plug-in bandwidth for the Bartlett kernel, on standardised series,
+/// at most `cap` frames.
+pub(super) fn andrews_bandwidth(series: &[DVector<f64>], cap: f64) -> f64 {
     let n = series.len();
     if n < 3 {
         return 1.0;
@@ -168,7 +169,7 @@ pub(super) fn andrews_bandwidth(series: &[DVector<f64>]) -> f64 {
     if den == 0.0 {
         return 1.0;
     }
-    (1.1447 * (num / den * n as f64).cbrt()).clamp(1.0, (n as f64 / 5.0).max(1.0))
+    (1.1447 * (num / den * n as f64).cbrt()).clamp(1.0, cap.max(1.0))
 }
 
 /// Whether frame i+1 of the problem continues frame i's trial without a gap.
@@ -279,7 +280,16 @@ pub(super) fn block_jackknife(
 
 /// The covariance estimates (scaled units) of one analysis, before conversion.
 pub(super) struct Covariances {
+    /// The data parts of the estimators (`white`, `hac`, `boot`, `jack`) exclude the prior's
+    /// part `prior` (`σ_p² S⁻¹ D S⁻¹`, none without a prior); the total is their sum.
     pub(super) white: DMatrix<f64>,
+    pub(super) prior: Option<DMatrix<f64>>,
+    /// Degrees of freedom of the Student t whose quantile is `hac_critical`, and of the
+    /// jackknife's t.
+    pub(super) hac_dof: f64,
+    pub(super) jack_dof: f64,
+    /// The upper quantile of the two-sided intervals, `(1 + level)/2`.
+    pub(super) upper: f64,
     pub(super) null: Vec<bool>,
     pub(super) hac: Option<DMatrix<f64>>,
     pub(super) bandwidth: Option<f64>,
@@ -311,7 +321,20 @@ pub(super) fn covariances(
     } else {
         1.0
     };
-    let white = &inv * sigma2;
+    // The prior's part of the variance: with the truth drawn from the prior, the prior term's
+    // score `D(μ − s)` has covariance `σ_p² D` (`D` = diag of the prior information), so the
+    // covariance is `S⁻¹ (Ω_data + σ_p² D) S⁻¹`: each estimator's own data part plus the
+    // known `σ_p² S⁻¹ D S⁻¹` (kept apart: it is not estimated, so its critical value is the
+    // normal one; see [`conservative`]). The white data part is `σ² S⁻¹ (S − D) S⁻¹`.
+    let prior_part = (red.prior_information.iter().any(|d| *d > 0.0)).then(|| {
+        let d = DMatrix::from_diagonal(&DVector::from_column_slice(&red.prior_information));
+        &inv * d * &inv
+    });
+    let white = match &prior_part {
+        Some(pd) => (&inv - pd) * sigma2,
+        None => &inv * sigma2,
+    };
+    let prior = prior_part.map(|pd| pd * red.prior_noise.powi(2));
     let factor = if opts.small_sample {
         if n > nf {
             n as f64 / (n - nf) as f64
@@ -329,6 +352,9 @@ pub(super) fn covariances(
             *s -= &mean;
         }
     }
+    // Fixed-b ratio: the bandwidth over the mean length of the runs of consecutive frames.
+    let runs = 1 + same.iter().filter(|c| !**c).count();
+    let run_length = n as f64 / runs as f64;
     // With no more frames than parameters the factor is infinite: no HAC or bootstrap.
     let (hac, bandwidth) = if opts.hac && n > 1 && factor.is_finite() {
         let b = opts.hac_bandwidth.unwrap_or_else(|| {
@@ -345,19 +371,23 @@ pub(super) fn covariances(
                     )
                 })
                 .collect();
-            andrews_bandwidth(&infl)
+            // Capped only by the trial: the fixed-b critical value below holds for any
+            // `b/N ≤ 1` (see the `critical` module for why no smaller cap).
+            andrews_bandwidth(&infl, run_length)
         });
         let omega = long_run(&scores, same, b);
         (Some(&inv * omega * &inv * (factor * rescale)), Some(b))
     } else {
         (None, None)
     };
-    // Fixed-b ratio: the bandwidth over the mean length of the runs of consecutive frames.
-    let runs = 1 + same.iter().filter(|c| !**c).count();
-    let hac_critical = fixed_b_bartlett(
-        opts.level,
-        bandwidth.map_or(0.0, |b| b * runs as f64 / n.max(1) as f64),
-    );
+    let hac_critical = fixed_b_bartlett(opts.level, bandwidth.map_or(0.0, |b| b / run_length));
+    let upper = 0.5 + 0.5 * opts.level;
+    // Only a prior's known part needs it ([`conservative`]).
+    let hac_dof = if prior.is_some() {
+        dof_of_critical(upper, hac_critical)
+    } else {
+        f64::INFINITY
+    };
     let boot = match boot {
         Some((prob, fit)) if opts.bootstrap_replicates > 1 && factor.is_finite() => {
             let block = opts
@@ -381,6 +411,11 @@ pub(super) fn covariances(
         .then(|| block_jackknife(red, &scores, opts.jackknife_blocks) * rescale);
     Covariances {
         white,
+        prior,
+        // Only a prior's known part needs it ([`conservative`]).
+        hac_dof,
+        jack_dof: (opts.jackknife_blocks.max(2) - 1) as f64,
+        upper,
         null,
         hac,
         bandwidth,
@@ -398,20 +433,37 @@ pub(super) type Estimate = (f64, f64, SeMethod);
 /// Per estimator `(se, half-width, method)` of the quadratic form `f(C)` (a variance in
 /// scaled units), and the most conservative one (largest half-width). `crit`: `z` (white,
 /// bootstrap) and Student's t (jackknife); the HAC interval takes `cov.hac_critical`.
+///
+/// With a prior the variance is the estimator's random data part `v_r` plus the known prior
+/// part `v_p`; the critical value of a studentized error whose variance is part estimated
+/// (`ν` degrees of freedom) and part known is Student's t with the Welch–Satterthwaite
+/// degrees of freedom `ν (v_r + v_p)²/v_r²` (the known part has infinitely many), from `ν`
+/// when the prior does not matter to `z` when it is all ([`mixed_critical`]).
 pub(super) fn conservative(
     cov: &Covariances,
     crit: (f64, f64),
     f: impl Fn(&DMatrix<f64>) -> f64,
 ) -> (Vec<Estimate>, Option<Estimate>) {
-    let mut all = vec![(f(&cov.white).max(0.0).sqrt(), crit.0, SeMethod::White)];
+    let p = cov.upper;
+    let vp = cov.prior.as_ref().map_or(0.0, |c| f(c).max(0.0));
+    let one = |c: &DMatrix<f64>, cv: f64, dof: f64, m: SeMethod| {
+        let vr = f(c).max(0.0);
+        let cv = if vp > 0.0 && dof.is_finite() {
+            mixed_critical(p, dof, vr, vp)
+        } else {
+            cv
+        };
+        ((vr + vp).sqrt(), cv, m)
+    };
+    let mut all = vec![one(&cov.white, crit.0, f64::INFINITY, SeMethod::White)];
     if let Some(h) = &cov.hac {
-        all.push((f(h).max(0.0).sqrt(), cov.hac_critical, SeMethod::Hac));
+        all.push(one(h, cov.hac_critical, cov.hac_dof, SeMethod::Hac));
     }
     if let Some((b, _)) = &cov.boot {
-        all.push((f(b).max(0.0).sqrt(), crit.0, SeMethod::Bootstrap));
+        all.push(one(b, crit.0, f64::INFINITY, SeMethod::Bootstrap));
     }
     if let Some(j) = &cov.jack {
-        all.push((f(j).max(0.0).sqrt(), crit.1, SeMethod::Jackknife));
+        all.push(one(j, crit.1, cov.jack_dof, SeMethod::Jackknife));
     }
     let out: Vec<Estimate> = all.iter().map(|(s, c, m)| (*s, s * c, *m)).collect();
     // An estimator that cannot be evaluated (e.g. fewer frames than parameters makes the

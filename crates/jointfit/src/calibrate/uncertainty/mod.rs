@@ -27,11 +27,11 @@
 //!   vanishes, every `q_i` being an inner optimum) gives `C = c · S⁻¹ Ω S⁻¹` with the Bartlett
 //!   long-run covariance `Ω = Σ_|l|<b (1 − |l|/b) Σ_i ψ_i ψ_{i+l}ᵀ`, pairs taken only within
 //!   one trial. The bandwidth `b` is Andrews' (1991) AR(1) plug-in rule on the standardised
-//!   influence series `S⁻¹ψ_i`, capped at `N/5` (with wider windows the Bartlett estimate
-//!   shrinks towards zero, because the scores sum to zero at the optimum), unless given.
-//!   At such a bandwidth (b/N up to 0.2) the estimate stays random and biased low, so its
-//!   interval takes the fixed-b critical value of Kiefer & Vogelsang (2005) instead of `z`
-//!   (2.57 instead of 1.96 at b/N = 0.2; see the private `critical` module).
+//!   influence series `S⁻¹ψ_i`, capped only by the trial length, unless given. At such a
+//!   bandwidth (b/N up to 1) the estimate stays random and biased low (the scores sum to
+//!   zero at the optimum), so its interval takes the fixed-b critical value of Kiefer &
+//!   Vogelsang (2005) instead of `z` (2.57 at b/N = 0.2, 4.81 at b/N = 1; see the private
+//!   `critical` module, which also says why the bandwidth is not capped lower).
 //! * **moving-block bootstrap** (Künsch 1989), opt-in: blocks of consecutive frames are drawn
 //!   with replacement until the trial length is reached, and the joint solver refits from
 //!   the optimum; `C = c · cov(ŝ*)` over replicates. Seeded; replicates run in parallel but
@@ -355,6 +355,11 @@ fn build(
         let unit = model.parameters()[prob.free[k]].unit;
         unit.to_display(opts.threshold(unit))
     };
+    // The white covariance with the prior's part: the posterior's under independent noise.
+    let white = match &cov.prior {
+        Some(pr) => &cov.white + pr,
+        None => cov.white.clone(),
+    };
     let corr: Vec<Vec<Option<f64>>> = (0..nf)
         .map(|a| {
             (0..nf)
@@ -362,8 +367,8 @@ fn build(
                     if cov.null[a] || cov.null[b] {
                         None
                     } else {
-                        let d = (cov.white[(a, a)] * cov.white[(b, b)]).sqrt();
-                        Some(if d > 0.0 { cov.white[(a, b)] / d } else { 0.0 })
+                        let d = (white[(a, a)] * white[(b, b)]).sqrt();
+                        Some(if d > 0.0 { white[(a, b)] / d } else { 0.0 })
                     }
                 })
                 .collect()

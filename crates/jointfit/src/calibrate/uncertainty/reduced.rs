@@ -24,6 +24,10 @@ pub struct Reduced {
     pub observations: usize,
     /// Coordinates per frame `n_q`.
     pub n_q: usize,
+    /// Per free parameter, the prior's information `d_k = σ_p²h_k²/s_k²` (the diagonal it
+    /// adds to `normal`; zeros without a prior) and the prior's marker noise `σ_p` (m).
+    pub prior_information: Vec<f64>,
+    pub prior_noise: f64,
 }
 
 impl Reduced {
@@ -127,7 +131,8 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
     }
     normal = (&normal + normal.transpose()) * 0.5;
     // The prior's information (zero without a prior): `S` is then the posterior's.
-    for (k, d) in prob.prior_information().into_iter().enumerate() {
+    let prior_information = prob.prior_information();
+    for (k, d) in prior_information.iter().enumerate() {
         normal[(k, k)] += d;
     }
     let observations = prob
@@ -149,6 +154,8 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
         cost,
         observations,
         n_q: nq,
+        prior_information,
+        prior_noise: prob.prior.as_ref().map_or(0.0, |p| p.noise),
     }
 }
 

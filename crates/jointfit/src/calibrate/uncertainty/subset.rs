@@ -37,6 +37,8 @@ pub fn unidentifiable_subset(prob: &Problem, fit: &Fit, opts: &UncertaintyOption
             cost: red.cost,
             observations: red.observations,
             n_q: red.n_q,
+            prior_information: keep.iter().map(|&k| red.prior_information[k]).collect(),
+            prior_noise: red.prior_noise,
         };
         let cov = covariances(&sub, &same, None, opts, false);
         let flagged: Vec<usize> = (0..m)

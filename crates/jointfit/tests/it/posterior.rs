@@ -1,0 +1,81 @@
+//! Intervals of a maximum a posteriori fit (`calibrate::uncertainty` with a prior) against
+//! the prior the model file states: a parameter the trial cannot see must get the prior's own
+//! interval, `± z·sd·√(1 − data share)`, however the marker noise that weighs the prior
+//! compares with the residuals; and a parameter the trial determines must not be held to it.
+
+use jointfit::calibrate::joint::{solve_joint, JointOptions};
+use jointfit::calibrate::prior::data_share;
+use jointfit::calibrate::uncertainty::{analyze, reduced_system, UncertaintyOptions};
+use jointfit::calibrate::{params_for_groups, Problem};
+use jointfit::landmarks::priors::fill_landmark_priors;
+use jointfit::landmarks::HipCentreMethod;
+use jointfit::model::lower_limb::{lower_limb, Side};
+use jointfit::model::Model;
+use jointfit::solver::NoObserver;
+use jointfit_testkit::synth;
+
+#[test]
+fn posterior_interval_of_a_parameter_the_trial_cannot_see_is_the_priors() {
+    let mut spec = lower_limb(Side::Right);
+    fill_landmark_priors(&mut spec, HipCentreMethod::Bell);
+    let model = Model::compile(&spec).unwrap();
+    let truth = model.nominal_params();
+    // Only the hip moves: the knee and ankle axes are invisible to the markers.
+    let w = std::f64::consts::TAU;
+    let motion = |f: usize| {
+        let t = f as f64 / 120.0;
+        let mut q = model.default_coords();
+        let mut set = |name: &str, v: f64| q[model.coord_id(name).unwrap().0] = v;
+        set("pelvis_ty", 0.95);
+        set("hip_flexion", 0.35 + 0.5 * (3.5 * w * t).sin());
+        set("hip_adduction", 0.3 * (3.5 * w * t).cos());
+        set("hip_rotation", 0.2 * (1.75 * w * t).sin());
+        set("knee_flexion", 0.3);
+        q
+    };
+    let noise = synth::Noise::Skin { amplitude: 0.005 };
+    let trial = synth::synthetic_trial(&model, &truth, 120, 50.0, motion, noise, 23).trial;
+    let free = params_for_groups(&model, &["hip", "knee", "ankle"]).unwrap();
+    // The prior weighed by a noise 3× the residuals' (as the correlation factor κ does).
+    let prob = Problem::new(&model, truth.clone(), &free, &[&trial])
+        .unwrap()
+        .with_model_prior(0.01);
+    let fit = solve_joint(
+        &prob,
+        &prob.to_scaled(&truth),
+        prob.initial_coords(&truth),
+        &JointOptions::default(),
+        &mut NoObserver,
+    );
+    let u = analyze(&prob, &fit, &UncertaintyOptions::default());
+    assert!(u.sigma_mm < 5.0, "residual σ {} mm", u.sigma_mm);
+    let share = data_share(&prob, &reduced_system(&prob, &fit.p, &fit.coords).normal);
+    let (mut unseen, mut seen) = (0, 0);
+    for (k, p) in u.params.iter().enumerate() {
+        let par = &model.parameters()[free[k].0];
+        let prior_hw = u.z * par.unit.to_display(par.prior_sd.unwrap());
+        let hw = p.half_width.unwrap();
+        if share[k] < 0.6 {
+            // What the trial sees of it is a combination it pins down (an offset in the
+            // thigh against the same offset in the shank, a joint that does not move), so
+            // the posterior along the rest is the prior's: variance `(1 − share)·sd²`, the
+            // Gaussian identity behind the share, and a normal critical value.
+            unseen += 1;
+            let expected = (1.0 - share[k]).sqrt();
+            assert!(
+                (hw / prior_hw - expected).abs() < 0.03,
+                "{}: ±{hw:.3} against the prior's ±{prior_hw:.3} × {expected:.3}",
+                p.name
+            );
+        }
+        if share[k] > 0.9 {
+            seen += 1;
+            assert!(
+                hw < 0.7 * prior_hw,
+                "{}: ±{hw:.3} vs ±{prior_hw:.3}",
+                p.name
+            );
+        }
+    }
+    assert!(unseen >= 15 && seen >= 5, "unseen {unseen}, seen {seen}");
+}
