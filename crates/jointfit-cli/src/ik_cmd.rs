@@ -13,7 +13,7 @@ use jointfit::workflow::{self, WorkflowError};
 use jointfit_io::sto::{write_sto, Table};
 use serde::Serialize;
 
-use crate::common::{load_checked, CheckJson, TrialJson};
+use crate::common::{load_for_model, report_findings, CheckJson, TrialJson};
 
 #[derive(Args)]
 pub struct IkArgs {
@@ -91,7 +91,13 @@ pub fn run(args: IkArgs) -> Result<()> {
     }
     files.check()?;
     let model = jointfit_io::model_file::load_model(&args.model)?;
-    let (trial, trial_json, findings) = load_checked(&args.trial, &args.read, &model, args.filter)?;
+    // The data checks that need no IK first (an error stops the command before the IK); the
+    // moved-cluster check after the IK, from its fit when it is the IK the check would run.
+    let loaded = load_for_model(&args.trial, &args.read, &model, args.filter)?;
+    let trial = &loaded.trial;
+    let (map, _) = jointfit::ik::MarkerMap::allowing_absent(&model, trial.labels());
+    let mut findings = jointfit::checks::check_trial_before_ik(&model, trial, &map);
+    report_findings(&findings, &args.trial)?;
     if !model
         .markers()
         .iter()
@@ -107,8 +113,9 @@ pub fn run(args: IkArgs) -> Result<()> {
     }
     // Coordinates no marker of the trial determines (a toe joint without toe markers) stay
     // at their defaults, as in OpenSim's IK, and are said so.
-    let (held_model, held) = workflow::hold_undetermined(&model, &[&trial])?;
-    let model = held_model.unwrap_or(model);
+    let (held_model, held) = workflow::hold_undetermined(&model, &[trial])?;
+    let checked_model = &model;
+    let model = held_model.as_ref().unwrap_or(checked_model);
     if !held.is_empty() {
         eprintln!(
             "jointfit: warning: {}: no marker determines {}; held at the model's default values",
@@ -128,7 +135,8 @@ pub fn run(args: IkArgs) -> Result<()> {
     };
     // Markers the file lacks altogether are missing in every frame; frames whose present
     // markers leave a coordinate undetermined are reported as unsolved, as for gaps.
-    let run = match workflow::ik_trial(&model, &model.nominal_params(), &trial, &opts) {
+    let p = model.nominal_params();
+    let run = match workflow::ik_trial(model, &p, trial, &opts) {
         Ok(run) => run,
         Err(e @ WorkflowError::NoFrameSolved { .. }) => {
             bail!("{}: {e}; nothing written", args.trial.display())
@@ -138,13 +146,31 @@ pub fn run(args: IkArgs) -> Result<()> {
     let seconds = start.elapsed().as_secs_f64();
     crate::common::warn_absent_markers(&args.trial, &run.absent);
     let fit = run.fit;
-    write_sto(&args.output, &angles_table(&model, &trial, &fit))
+    let reference = jointfit::residual_checks::reference_name(checked_model);
+    let offsets = if held.is_empty() {
+        jointfit::residual_checks::check_offsets_after_ik(
+            checked_model,
+            trial,
+            &map,
+            &reference,
+            &p,
+            &opts,
+            &fit,
+        )
+    } else {
+        // The IK ran on the model with coordinates held: not the check's.
+        jointfit::residual_checks::check_offsets(checked_model, trial, &map, &reference)
+    };
+    report_findings(&offsets, &args.trial)?;
+    findings.extend(offsets);
+    let trial_json = TrialJson::new(&args.trial, &loaded, &findings);
+    write_sto(&args.output, &angles_table(model, trial, &fit))
         .with_context(|| format!("writing {}", args.output.display()))?;
     if let Some(path) = &args.errors {
-        jointfit_io::atomic::write_atomic(path, errors_csv(&model, &trial, &fit).as_bytes())
+        jointfit_io::atomic::write_atomic(path, errors_csv(model, trial, &fit).as_bytes())
             .with_context(|| format!("writing {}", path.display()))?;
     }
-    let mut summary = summarize(&model, &trial, &fit, seconds);
+    let mut summary = summarize(model, trial, &fit, seconds);
     if !(summary.mean_frame_rms_mm.is_finite() && summary.max_frame_rms_mm.is_finite()) {
         bail!(
             "{}: inverse kinematics gave non-finite marker errors; nothing written",

@@ -173,6 +173,21 @@ pub fn check_scale(trial: &Trial) -> Option<Finding> {
 /// Every check of the module docs for `trial` against the subject `model` (markers matched
 /// by `map`). Frame numbers in messages are the file's.
 pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding> {
+    let mut out = check_trial_before_ik(model, trial, map);
+    out.extend(crate::residual_checks::check_offsets(
+        model,
+        trial,
+        map,
+        &crate::residual_checks::reference_name(model),
+    ));
+    out
+}
+
+/// The checks of [`check_trial`] that need no inverse kinematics (all but the moved-cluster
+/// check of [`crate::residual_checks`], which [`check_trial`] appends last): a front end that
+/// runs the IK anyway appends [`crate::residual_checks::check_offsets_after_ik`] to these and
+/// gets what [`check_trial`] gives without a second IK (`workflow::ik_checked`).
+pub fn check_trial_before_ik(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding> {
     let mut out: Vec<Finding> = check_scale(trial).into_iter().collect();
     let reference = crate::residual_checks::reference_name(model);
     let first = trial.first_frame();
@@ -387,9 +402,6 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
                 .then(|| format!("--fill-gaps {}", e - s + 1)),
         };
     }
-    out.extend(crate::residual_checks::check_offsets(
-        model, trial, map, &reference,
-    ));
     out
 }
 

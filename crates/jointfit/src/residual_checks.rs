@@ -23,7 +23,9 @@
 //! The inverse kinematics is the robust one of [`crate::ik`] (gross errors rejected per
 //! frame; the residuals here are taken of every present marker, rejected or not) on at most
 //! [`MAX_FRAMES`] consecutive frames from the middle of the trial, which bounds the cost (on
-//! a short trial it is one more IK of the trial: one seeding, then warm-started frames).
+//! a short trial it is one more IK of the trial: one seeding, then warm-started frames). A
+//! front end that runs that same IK anyway (`workflow::ik_checked`, the `ik` command) reads
+//! the statistic from its fit instead ([`offsets_from_ik`], [`check_offsets_after_ik`]).
 
 use nalgebra::Vector3;
 
@@ -104,13 +106,30 @@ pub fn offsets_of_fit(
     map: &MarkerMap,
     fit: &TrialFit,
 ) -> Vec<MarkerOffset> {
-    let mut residuals: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); model.n_markers()];
-    let mut kin = KinData::new(model);
-    for (f, frame) in fit.frames.iter().enumerate() {
-        if !frame.solved() {
-            continue;
+    offsets_over(model, p, trial, map, fit, 0..fit.frames.len())
+}
+
+/// The statistic over frames `frames` of `fit` (an IK of `trial`). The residuals of each
+/// frame are computed in parallel chunks and summed in frame order, so the result is the
+/// same on any number of threads.
+fn offsets_over(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+    map: &MarkerMap,
+    fit: &TrialFit,
+    frames: std::ops::Range<usize>,
+) -> Vec<MarkerOffset> {
+    use rayon::prelude::*;
+    let nm = model.n_markers();
+    // Per frame, the residual of every model marker (NaN where missing or not solved).
+    let frame_residuals = |f: usize, kin: &mut KinData, out: &mut Vec<Vector3<f64>>| {
+        let start = out.len();
+        out.resize(start + nm, Vector3::repeat(f64::NAN));
+        if !fit.frames[f].solved() {
+            return;
         }
-        forward_kinematics(model, p, &fit.coords[f], Want::POSITIONS, &mut kin);
+        forward_kinematics(model, p, &fit.coords[f], Want::POSITIONS, kin);
         let row = trial.frame(f);
         for (j, marker) in model.markers().iter().enumerate() {
             let Some(c) = map.columns[j] else { continue };
@@ -119,7 +138,28 @@ pub fn offsets_of_fit(
                 continue;
             }
             let rot = kin.segment_poses[marker.segment.0].rot;
-            residuals[j].push(rot.transpose() * (m - kin.markers[j]));
+            out[start + j] = rot.transpose() * (m - kin.markers[j]);
+        }
+    };
+    let chunk = OFFSET_CHUNK_FRAMES;
+    let starts: Vec<usize> = frames.clone().step_by(chunk).collect();
+    let pieces: Vec<Vec<Vector3<f64>>> = starts
+        .into_par_iter()
+        .map(|s| {
+            let mut kin = KinData::new(model);
+            let mut out = Vec::with_capacity(chunk * nm);
+            for f in s..(s + chunk).min(frames.end) {
+                frame_residuals(f, &mut kin, &mut out);
+            }
+            out
+        })
+        .collect();
+    let mut residuals: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); nm];
+    for r in pieces.iter().flat_map(|piece| piece.chunks(nm)) {
+        for (j, x) in r.iter().enumerate() {
+            if !x.x.is_nan() {
+                residuals[j].push(*x);
+            }
         }
     }
     residuals
@@ -137,6 +177,56 @@ pub fn offsets_of_fit(
             }
         })
         .collect()
+}
+
+/// Frames per parallel chunk of [`offsets_of_fit`] (a forward kinematics each).
+const OFFSET_CHUNK_FRAMES: usize = 64;
+
+/// The statistic of [`marker_offsets`] taken from the inverse kinematics `fit` of the whole
+/// of `trial` at parameters `p` with options `opts`, when that is the same inverse
+/// kinematics [`marker_offsets`] would run itself: `p` the model's nominal parameters and
+/// `opts` the default ones. It then reads the frames [`frames_looked_at`] picks from `fit`
+/// instead of solving them again. On a trial of at most [`MAX_FRAMES`] frames the two IKs
+/// are one and the same computation, so the statistic is identical bit for bit; on a
+/// longer one the frames of the window were warm-started from the frames before it rather
+/// than seeded at its start, which moves each solution by about the solver's tolerance
+/// (`IkOptions::step_tolerance`, 1e-8), far below the millimetres the findings print
+/// (checked on every shared trial by jointfit-cli's `offsets` test). `None` when the IK
+/// differs (other parameters or options): call [`marker_offsets`] then.
+pub fn offsets_from_ik(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+    map: &MarkerMap,
+    opts: &IkOptions,
+    fit: &TrialFit,
+) -> Option<Vec<MarkerOffset>> {
+    let same = p == model.nominal_params().as_slice()
+        && *opts == IkOptions::default()
+        && fit.frames.len() == trial.n_frames();
+    if !same {
+        return None;
+    }
+    let (start, end) = frames_looked_at(trial.n_frames());
+    Some(offsets_over(model, p, trial, map, fit, start..end))
+}
+
+/// The findings of [`check_offsets`], taken from the inverse kinematics `fit` of the whole
+/// trial ([`offsets_from_ik`]) when it is the one the check would run, else from the check's
+/// own inverse kinematics.
+pub fn check_offsets_after_ik(
+    model: &Model,
+    trial: &Trial,
+    map: &MarkerMap,
+    reference: &str,
+    p: &[f64],
+    opts: &IkOptions,
+    fit: &TrialFit,
+) -> Vec<Finding> {
+    match offsets_from_ik(model, p, trial, map, opts, fit) {
+        Some(offsets) => offset_findings(model, &offsets, reference),
+        None => check_offsets(model, trial, map, reference),
+    }
 }
 
 /// The frames [`marker_offsets`] looks at, `start..end`: the whole trial up to

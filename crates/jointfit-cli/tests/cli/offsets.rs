@@ -4,13 +4,14 @@
 //! session, gait2392 subject01, Hamner running, the JAM walk, the biobuddy Vicon trials) is
 //! not. Prints the statistic (the largest mean residual in a segment frame, and its ratio to
 //! the spread) per trial and side: the table of `docs/moved_clusters.md`
-//! (`cargo test --release -p jointfit-cli --test cli offsets -- --nocapture`).
+//! (`cargo test --release -p jointfit-cli --test cli offsets -- --nocapture`). The findings
+//! `ik` gives from its own whole-trial IK (`workflow::ik_checked`) are the same on every trial.
 
 use std::path::Path;
 
 use jointfit::checks::CheckKind;
 use jointfit::ik::{IkOptions, MarkerMap};
-use jointfit::residual_checks::{marker_offsets, offset_findings, reference_name};
+use jointfit::residual_checks::{marker_offsets, offset_findings, offsets_from_ik, reference_name};
 use jointfit_io::trial_file::{load_trial, LoadOptions};
 use jointfit_testkit::{data_file, scratch};
 
@@ -133,6 +134,27 @@ fn moved_clusters_on_every_shared_trial() {
                 );
                 for f in &findings {
                     println!("    {}", f.message);
+                }
+                // `ik` takes the statistic from its own whole-trial IK instead of a second
+                // one (`workflow::ik_checked`): the same findings, the statistic within 1e-6 m.
+                let opts = IkOptions::default();
+                let (run, all) = jointfit::workflow::ik_checked(&model, &p, &trial, &opts);
+                let reused =
+                    offsets_from_ik(&model, &p, &trial, &map, &opts, &run.unwrap().fit).unwrap();
+                let moved_by = reused
+                    .iter()
+                    .zip(&offsets)
+                    .map(|(a, b)| (a.mean - b.mean).norm().max((a.spread - b.spread).abs()))
+                    .fold(0.0, f64::max);
+                let from_ik: Vec<_> = all.iter().filter(|f| f.kind == CheckKind::Offset).collect();
+                if format!("{from_ik:?}") != format!("{:?}", findings.iter().collect::<Vec<_>>())
+                    || reused.len() != offsets.len()
+                    || moved_by > 1e-6
+                {
+                    failures.push(format!(
+                        "{name} {side}: from the IK's fit {from_ik:?} (statistic moved by \
+                         {moved_by:e} m)"
+                    ));
                 }
                 let expect = side == "left" && moved.contains(&name);
                 let relocated = side == "right" && RELOCATED.contains(&name);

@@ -510,3 +510,30 @@ proptest! {
         prop_assert_eq!(format_sto(&back).unwrap(), text);
     }
 }
+
+/// The rows are formatted in parallel chunks of 4096: a table of 10 000 rows (three chunks,
+/// the last one short) reads back bit for bit, in order, and the text is line for line what
+/// formatting each row alone gives.
+#[test]
+fn long_tables_are_formatted_in_order() {
+    let mut table = Table::new("Coordinates", &["a", "b"], true);
+    for i in 0..10_000 {
+        table
+            .rows
+            .push(vec![i as f64 / 100.0, awkward(i, 1), awkward(i, 2)]);
+    }
+    let text = format_sto(&table).unwrap();
+    let back = parse_sto(&text, "long.mot").unwrap();
+    assert_rows_identical(&back.rows, &table.rows, "10 000 rows");
+    let lines: Vec<&str> = text.lines().collect();
+    let header = lines.iter().position(|l| *l == "endheader").unwrap() + 2;
+    for (k, row) in [0usize, 4095, 4096, 8191, 8192, 9999]
+        .iter()
+        .map(|&k| (k, &table.rows[k]))
+    {
+        let mut one = Table::new("Coordinates", &["a", "b"], true);
+        one.rows.push(row.clone());
+        let alone = format_sto(&one).unwrap();
+        assert_eq!(lines[header + k], alone.lines().last().unwrap(), "row {k}");
+    }
+}

@@ -45,24 +45,31 @@ pub fn ik_trial(
 }
 
 /// [`ik_trial`] together with the data checks of the same trial
-/// ([`crate::checks::check_trial`], markers matched as [`ik_trial`] matches them), the two
-/// run concurrently (`rayon::join`). Each is deterministic and neither reads the other's
-/// result, so this returns exactly what running one after the other returns.
+/// ([`crate::checks::check_trial`], markers matched as [`ik_trial`] matches them), with the
+/// same findings in the same order. The checks that need no inverse kinematics run
+/// concurrently with it (`rayon::join`); the moved-cluster check then reads the IK's own fit
+/// ([`crate::residual_checks::check_offsets_after_ik`]) when that is the IK it would run
+/// (nominal parameters, default options), instead of solving the frames a second time.
 pub fn ik_checked(
     model: &Model,
     p: &[f64],
     trial: &Trial,
     opts: &IkOptions,
 ) -> (Result<IkRun, WorkflowError>, Vec<crate::checks::Finding>) {
+    let (map, _) = MarkerMap::allowing_absent(model, trial.labels());
     // The calling thread takes the IK (the longer part); the checks go to another thread
     // when one is free, else run here afterwards.
-    let (run, findings) = rayon::join(
+    let (run, mut findings) = rayon::join(
         || ik_trial(model, p, trial, opts),
-        || {
-            let (map, _) = MarkerMap::allowing_absent(model, trial.labels());
-            crate::checks::check_trial(model, trial, &map)
-        },
+        || crate::checks::check_trial_before_ik(model, trial, &map),
     );
+    let reference = crate::residual_checks::reference_name(model);
+    findings.extend(match &run {
+        Ok(run) => crate::residual_checks::check_offsets_after_ik(
+            model, trial, &map, &reference, p, opts, &run.fit,
+        ),
+        Err(_) => crate::residual_checks::check_offsets(model, trial, &map, &reference),
+    });
     (run, findings)
 }
 

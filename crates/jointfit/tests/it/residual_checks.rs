@@ -5,7 +5,9 @@ use jointfit::checks::{check_trial, CheckKind};
 use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
-use jointfit::residual_checks::{marker_offsets, offset_findings, reference_name};
+use jointfit::residual_checks::{
+    frames_looked_at, marker_offsets, offset_findings, offsets_from_ik, reference_name,
+};
 use jointfit::trial::Trial;
 use jointfit_testkit::synth::{self, Noise};
 
@@ -14,6 +16,11 @@ use super::ik::motion;
 /// The right-leg model, and a 150-frame trial with skin noise (≤ 8 mm per axis, seed 11) of
 /// the same model with the markers named in `moved` shifted by `by` (m, thigh frame).
 fn trial_with(moved: &[&str], by: [f64; 3]) -> (Model, Trial) {
+    trial_of(moved, by, 150)
+}
+
+/// [`trial_with`] with `frames` frames.
+fn trial_of(moved: &[&str], by: [f64; 3], frames: usize) -> (Model, Trial) {
     let spec = lower_limb(Side::Right);
     let model = Model::compile(&spec).unwrap();
     let mut shifted = spec.clone();
@@ -29,7 +36,7 @@ fn trial_with(moved: &[&str], by: [f64; 3]) -> (Model, Trial) {
     let s = synth::synthetic_trial(
         &truth,
         &p,
-        150,
+        frames,
         100.0,
         |f| motion(&truth, f, 0.3),
         Noise::Skin { amplitude: 0.008 },
@@ -121,4 +128,50 @@ fn an_osim_model_is_the_reference() {
         "{f:?}"
     );
     assert_eq!(reference_name(&plain), "the subject model (static trial)");
+}
+
+/// `workflow::ik_checked` takes the moved-cluster statistic from its own IK instead of a
+/// second one, and gives the findings `check_trial` gives: bit for bit on a trial of at most
+/// 200 frames (the two IKs are the same computation); on a 700-frame trial (the check looks
+/// at the middle 200 frames, warm-started from the frames before them in the whole-trial
+/// IK, seeded in the check's own) the statistic agrees to 1e-6 m and the findings are the
+/// same. With other parameters than the nominal ones the check runs its own IK.
+#[test]
+fn ik_checked_reuses_the_fit_with_the_same_findings() {
+    let opts = IkOptions::default();
+    for frames in [150, 700] {
+        let (model, trial) = trial_of(&["RTHI", "RTHA", "RTHP"], [0.08, -0.04, 0.0], frames);
+        let map = MarkerMap::by_name(&model, trial.labels()).unwrap();
+        let p = model.nominal_params();
+        let (run, findings) = jointfit::workflow::ik_checked(&model, &p, &trial, &opts);
+        let run = run.unwrap();
+        let alone = check_trial(&model, &trial, &map);
+        assert!(alone.iter().any(|f| f.kind == CheckKind::Offset));
+        assert_eq!(
+            format!("{findings:?}"),
+            format!("{alone:?}"),
+            "{frames} frames"
+        );
+        let reused = offsets_from_ik(&model, &p, &trial, &map, &opts, &run.fit).unwrap();
+        let own = marker_offsets(&model, &p, &trial, &map, &opts);
+        assert_eq!(reused.len(), own.len());
+        let (start, end) = frames_looked_at(frames);
+        assert_eq!(end - start, frames.min(200));
+        for (a, b) in reused.iter().zip(&own) {
+            assert_eq!((a.marker, a.frames), (b.marker, b.frames));
+            let (dm, ds) = ((a.mean - b.mean).norm(), (a.spread - b.spread).abs());
+            if frames <= 200 {
+                assert_eq!((dm, ds), (0.0, 0.0), "{a:?} {b:?}");
+            } else {
+                assert!(dm < 1e-6 && ds < 1e-6, "{a:?} {b:?}");
+            }
+        }
+        // Another parameter vector: not the check's IK, so no reuse, same findings.
+        let mut q = p.clone();
+        q[0] += 0.01;
+        let fit = jointfit::ik::solve_trial(&model, &q, &trial, &map, &opts).unwrap();
+        assert!(offsets_from_ik(&model, &q, &trial, &map, &opts, &fit).is_none());
+        let (_, other) = jointfit::workflow::ik_checked(&model, &q, &trial, &opts);
+        assert_eq!(format!("{other:?}"), format!("{alone:?}"));
+    }
 }
