@@ -35,6 +35,7 @@ pub mod uncertainty;
 pub mod varpro;
 
 use nalgebra::Vector3;
+use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::ik::{
@@ -93,6 +94,9 @@ pub fn params_for_groups(model: &Model, groups: &[&str]) -> Result<Vec<ParamId>,
     }
     Ok(out)
 }
+
+/// Frames per parallel work item of [`Problem::inner`] (fixed: it sets the order of the sum).
+pub const INNER_CHUNK: usize = 256;
 
 /// One calibration problem: model, free parameters, the frames to fit.
 #[derive(Debug, Clone)]
@@ -212,31 +216,51 @@ impl<'m> Problem<'m> {
     /// Solves every frame's inner problem at `p`, warm-starting from `qs` (updated in place).
     /// Returns `e_inner(p)`, the summed weighted squared marker error (m²), plus the prior
     /// term [`Problem::prior_cost`] when a prior is attached.
+    ///
+    /// The frames are solved in fixed chunks of [`INNER_CHUNK`] in parallel (each frame's
+    /// solve depends only on its own targets and start); each chunk sums its frames in order
+    /// and the chunk sums are added in chunk order, so the result is the same bit for bit on
+    /// any number of threads. `ws` serves a problem of a single chunk (no thread is started).
     pub fn inner(&self, p: &[f64], qs: &mut [Vec<f64>], ws: &mut IkWorkspace) -> f64 {
-        let mut total = 0.0;
-        for (f, targets) in self.frames.iter().enumerate() {
-            let fit = solve_frame(self.model, p, targets, &mut qs[f], &self.ik, ws);
-            debug_assert!(fit.status != FrameStatus::Converged || fit.cost.is_finite());
-            total += fit.cost;
-        }
+        let solve_chunk = |c: usize, qs: &mut [Vec<f64>], ws: &mut IkWorkspace| {
+            let mut total = 0.0;
+            let targets = &self.frames[c * INNER_CHUNK..];
+            for (q, targets) in qs.iter_mut().zip(targets) {
+                let fit = solve_frame(self.model, p, targets, q, &self.ik, ws);
+                debug_assert!(fit.status != FrameStatus::Converged || fit.cost.is_finite());
+                total += fit.cost;
+            }
+            total
+        };
+        let total: f64 = if qs.len() <= INNER_CHUNK {
+            solve_chunk(0, qs, ws)
+        } else {
+            let parts: Vec<f64> = qs
+                .par_chunks_mut(INNER_CHUNK)
+                .enumerate()
+                .map_init(
+                    || IkWorkspace::new(self.model),
+                    |ws, (c, qs)| solve_chunk(c, qs, ws),
+                )
+                .collect();
+            parts.iter().sum()
+        };
         total + self.prior_cost(p)
     }
 
-    /// Starting coordinates for every frame at `p`: seeded IK, warm-started within each trial.
+    /// Starting coordinates for every frame at `p`: seeded IK, warm-started within each trial
+    /// from the frame before, in the fixed parallel chunks of [`crate::ik::chunk_ranges`]
+    /// (each chunk's first frame seeded too), so the result does not depend on the number of
+    /// threads ([`crate::ik::warm_started_coords`]).
     pub fn initial_coords(&self, p: &[f64]) -> Vec<Vec<f64>> {
-        let mut ws = IkWorkspace::new(self.model);
-        let mut out: Vec<Vec<f64>> = Vec::with_capacity(self.frames.len());
-        for (f, targets) in self.frames.iter().enumerate() {
-            let same_trial = f > 0 && self.origin[f - 1].0 == self.origin[f].0;
-            let mut q = if same_trial {
-                out[f - 1].clone()
-            } else {
-                crate::ik::seed_frame(self.model, p, targets, &self.ik, &mut ws)
-            };
-            solve_frame(self.model, p, targets, &mut q, &self.ik, &mut ws);
-            out.push(q);
-        }
-        out
+        let origin = &self.origin;
+        crate::ik::warm_started_coords(
+            self.model,
+            p,
+            &self.frames,
+            |f| f == 0 || origin[f - 1].0 != origin[f].0,
+            &self.ik,
+        )
     }
 
     /// RMS marker distance over every present marker sample for `p` and coordinates `qs` (m).

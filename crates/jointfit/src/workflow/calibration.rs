@@ -276,7 +276,7 @@ fn fit_free(
     let (prob, sigma, pre) =
         super::map::map_problem_with(model, start, trials, free, settings, noise)?;
     let (fits, runs, global, q_before, cost_before) = if settings.effective_probes() > 0 {
-        let out = super::global::run(&prob, start, settings, pre.as_ref(), observer);
+        let out = super::global::run(&prob, start, settings, pre, observer);
         (
             out.fits,
             out.runs,
