@@ -31,19 +31,21 @@ mod kernel;
 pub mod prior;
 pub mod pso;
 mod schur;
+mod targets;
 pub mod uncertainty;
 pub mod varpro;
 
-use nalgebra::Vector3;
 use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::ik::{
-    is_gross, solve_frame, undetermined_coordinate, FrameStatus, IkOptions, IkWorkspace, MarkerMap,
+    chunk_ranges, seed_frame, solve_frame, undetermined_coordinate, FrameStatus, IkOptions,
+    IkWorkspace, MarkerMap,
 };
 use crate::model::{Model, ParamId};
 pub use crate::solver::Termination;
 use crate::trial::Trial;
+pub use targets::Targets;
 
 #[derive(Debug, Error, PartialEq)]
 pub enum CalibError {
@@ -98,7 +100,8 @@ pub fn params_for_groups(model: &Model, groups: &[&str]) -> Result<Vec<ParamId>,
 /// Frames per parallel work item of [`Problem::inner`] (fixed: it sets the order of the sum).
 pub const INNER_CHUNK: usize = 256;
 
-/// One calibration problem: model, free parameters, the frames to fit.
+/// One calibration problem: model, free parameters, the frames to fit (their targets read
+/// from the trials in place, which therefore live as long as the problem).
 #[derive(Debug, Clone)]
 pub struct Problem<'m> {
     pub model: &'m Model,
@@ -106,8 +109,9 @@ pub struct Problem<'m> {
     pub free: Vec<usize>,
     /// Full parameter vector; fixed parameters keep these values.
     pub base: Vec<f64>,
-    /// Per fitted frame: target positions per model marker (NaN when missing).
-    pub frames: Vec<Vec<Vector3<f64>>>,
+    /// Per fitted frame: target positions per model marker (NaN when missing), gathered from
+    /// the trials on demand ([`Targets::fill`]).
+    pub frames: Targets<'m>,
     /// Per fitted frame: (trial index, frame index in that trial).
     pub origin: Vec<(usize, usize)>,
     /// Frames left out because their markers left a coordinate undetermined: (trial, frame).
@@ -124,7 +128,7 @@ impl<'m> Problem<'m> {
         model: &'m Model,
         base: Vec<f64>,
         free: &[ParamId],
-        trials: &[&Trial],
+        trials: &[&'m Trial],
     ) -> Result<Self, CalibError> {
         if base.len() != model.n_p() {
             return Err(CalibError::ParamLength {
@@ -145,7 +149,7 @@ impl<'m> Problem<'m> {
             ..IkOptions::default()
         };
         let mut ws = IkWorkspace::new(model);
-        let mut frames = Vec::new();
+        let mut frames = Targets::new(model.n_markers());
         let mut origin = Vec::new();
         let mut skipped = Vec::new();
         let mut targets = Vec::new();
@@ -154,13 +158,12 @@ impl<'m> Problem<'m> {
             // recorded in this session) is missing in every frame, as in IK; the per-frame
             // test below still decides which frames its absence leaves undetermined.
             let (map, _absent) = MarkerMap::allowing_absent(model, trial.labels());
+            let source = frames.add_trial(trial, map.columns);
             for f in 0..trial.n_frames() {
-                map.targets(trial, f, &mut targets);
-                for t in targets.iter_mut().filter(|t| !t.x.is_nan() && is_gross(t)) {
-                    *t = Vector3::from_element(f64::NAN);
-                }
-                if undetermined_coordinate(model, &base, &targets, &ik, &mut ws).is_none() {
-                    frames.push(targets.clone());
+                // Gross samples read as missing ([`Targets`]).
+                let targets = frames.fill_from(source, f, &mut targets);
+                if undetermined_coordinate(model, &base, targets, &ik, &mut ws).is_none() {
+                    frames.push(source, f);
                     origin.push((t, f));
                 } else {
                     skipped.push((t, f));
@@ -224,8 +227,9 @@ impl<'m> Problem<'m> {
     pub fn inner(&self, p: &[f64], qs: &mut [Vec<f64>], ws: &mut IkWorkspace) -> f64 {
         let solve_chunk = |c: usize, qs: &mut [Vec<f64>], ws: &mut IkWorkspace| {
             let mut total = 0.0;
-            let targets = &self.frames[c * INNER_CHUNK..];
-            for (q, targets) in qs.iter_mut().zip(targets) {
+            let mut buf = Vec::with_capacity(self.frames.n_markers());
+            for (i, q) in qs.iter_mut().enumerate() {
+                let targets = self.frames.fill(c * INNER_CHUNK + i, &mut buf);
                 let fit = solve_frame(self.model, p, targets, q, &self.ik, ws);
                 debug_assert!(fit.status != FrameStatus::Converged || fit.cost.is_finite());
                 total += fit.cost;
@@ -249,18 +253,31 @@ impl<'m> Problem<'m> {
     }
 
     /// Starting coordinates for every frame at `p`: seeded IK, warm-started within each trial
-    /// from the frame before, in the fixed parallel chunks of [`crate::ik::chunk_ranges`]
-    /// (each chunk's first frame seeded too), so the result does not depend on the number of
-    /// threads ([`crate::ik::warm_started_coords`]).
+    /// from the frame before, in the fixed parallel chunks of [`chunk_ranges`] (each chunk's
+    /// first frame seeded too), so the result does not depend on the number of threads. The
+    /// loop of [`crate::ik::warm_started_coords`], on targets gathered from the trials.
     pub fn initial_coords(&self, p: &[f64]) -> Vec<Vec<f64>> {
         let origin = &self.origin;
-        crate::ik::warm_started_coords(
-            self.model,
-            p,
-            &self.frames,
-            |f| f == 0 || origin[f - 1].0 != origin[f].0,
-            &self.ik,
-        )
+        let pieces: Vec<Vec<Vec<f64>>> = chunk_ranges(self.frames.len(), false)
+            .into_par_iter()
+            .map(|range| {
+                let mut ws = IkWorkspace::new(self.model);
+                let mut buf = Vec::with_capacity(self.frames.n_markers());
+                let mut out: Vec<Vec<f64>> = Vec::with_capacity(range.len());
+                let first = range.start;
+                for f in range {
+                    let targets = self.frames.fill(f, &mut buf);
+                    let mut q = match out.last() {
+                        Some(prev) if f > first && origin[f - 1].0 == origin[f].0 => prev.clone(),
+                        _ => seed_frame(self.model, p, targets, &self.ik, &mut ws),
+                    };
+                    solve_frame(self.model, p, targets, &mut q, &self.ik, &mut ws);
+                    out.push(q);
+                }
+                out
+            })
+            .collect();
+        pieces.into_iter().flatten().collect()
     }
 
     /// RMS marker distance over every present marker sample for `p` and coordinates `qs` (m).

@@ -141,7 +141,7 @@ fn subsample<'m>(prob: &Problem<'m>, stride: usize) -> Problem<'m> {
         model: prob.model,
         free: prob.free.clone(),
         base: prob.base.clone(),
-        frames: prob.frames.iter().step_by(stride).cloned().collect(),
+        frames: prob.frames.select((0..prob.frames.len()).step_by(stride)),
         origin: prob.origin.iter().step_by(stride).copied().collect(),
         skipped: prob.skipped.clone(),
         ik: prob.ik,
