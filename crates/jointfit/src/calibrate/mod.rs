@@ -337,3 +337,56 @@ impl Fit {
         self.termination.converged()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinematics::{forward_kinematics, KinData, Want};
+    use crate::model::lower_limb::{lower_limb, Side};
+    use nalgebra::Vector3;
+
+    /// The chunked passes give the same bits on 1, 2 and 3 threads, and the starting
+    /// coordinates are those of the IK's own chunked warm start on the copied targets.
+    #[test]
+    fn inner_and_initial_coords_do_not_depend_on_the_thread_count() {
+        let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+        let p = model.nominal_params();
+        let mut kin = KinData::new(&model);
+        let frames = 2100;
+        let mut positions = Vec::new();
+        for f in 0..frames {
+            let mut q = model.default_coords();
+            for (i, v) in q.iter_mut().enumerate() {
+                *v += 0.3 * (0.01 * f as f64 + i as f64).sin();
+            }
+            forward_kinematics(&model, &p, &q, Want::POSITIONS, &mut kin);
+            for (j, x) in kin.markers.iter().enumerate() {
+                positions.push(x + Vector3::repeat(0.002 * ((f * 7 + j) as f64).sin()));
+            }
+        }
+        let labels = model.markers().iter().map(|m| m.name.clone()).collect();
+        let trial = Trial::new(labels, 100.0, 1, positions).unwrap();
+        let free = params_for_groups(&model, &["all"]).unwrap();
+        let prob = Problem::new(&model, p.clone(), &free, &[&trial]).unwrap();
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let mut q = prob.initial_coords(&p);
+                let q0 = q.clone();
+                let cost = prob.inner(&p, &mut q, &mut IkWorkspace::new(&model));
+                (q0, q, cost.to_bits())
+            })
+        };
+        let one = run(1);
+        assert_eq!(one.0.len(), frames);
+        assert!(f64::from_bits(one.2) > 0.0);
+        assert_eq!(one, run(2));
+        assert_eq!(one, run(3));
+        let copied: Vec<Vec<Vector3<f64>>> = prob.frames.iter().collect();
+        let ik = crate::ik::warm_started_coords(&model, &p, &copied, |f| f == 0, &prob.ik);
+        assert_eq!(one.0, ik);
+    }
+}

@@ -128,3 +128,87 @@ impl<'t> Targets<'t> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ik::MarkerMap;
+    use crate::model::lower_limb::{lower_limb, Side};
+    use crate::model::Model;
+
+    /// What `Problem::new` copied before the targets were read in place: the model-ordered
+    /// targets of [`MarkerMap::targets`] with gross samples set missing.
+    fn copied(map: &MarkerMap, trial: &Trial, f: usize) -> Vec<Vector3<f64>> {
+        let mut out = Vec::new();
+        map.targets(trial, f, &mut out);
+        for t in out.iter_mut().filter(|t| !t.x.is_nan() && is_gross(t)) {
+            *t = Vector3::from_element(f64::NAN);
+        }
+        out
+    }
+
+    fn same(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> bool {
+        a.len() == b.len()
+            && a.iter()
+                .zip(b)
+                .all(|(x, y)| (0..3).all(|k| x[k] == y[k] || (x[k].is_nan() && y[k].is_nan())))
+    }
+
+    #[test]
+    fn reads_what_the_copy_held_with_absent_gross_and_missing_samples() {
+        let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+        // The trial lacks the model's second marker, has an extra column and lists the
+        // others in reverse order.
+        let mut labels: Vec<String> = model
+            .markers()
+            .iter()
+            .skip(2)
+            .map(|m| m.name.clone())
+            .rev()
+            .collect();
+        labels.insert(1, "EXTRA".into());
+        labels.push(model.markers()[0].name.clone());
+        let n = labels.len();
+        let frames = 6;
+        let mut positions: Vec<Vector3<f64>> = (0..frames * n)
+            .map(|i| Vector3::new(0.001 * i as f64, 1.0 - 0.002 * i as f64, 0.3))
+            .collect();
+        positions[n + 3] = Vector3::new(1e9, 0.0, 0.0); // gross
+        positions[2 * n + 4] = Vector3::from_element(f64::NAN); // a gap
+        let trial = Trial::new(labels, 100.0, 1, positions).unwrap();
+        let clean = Trial::new(
+            trial.labels().to_vec(),
+            100.0,
+            1,
+            (0..frames * n)
+                .map(|i| Vector3::repeat(0.01 * i as f64))
+                .collect(),
+        )
+        .unwrap();
+        let mut targets = Targets::new(model.n_markers());
+        for t in [&trial, &clean] {
+            let (map, absent) = MarkerMap::allowing_absent(&model, t.labels());
+            assert_eq!(absent, vec![model.markers()[1].name.clone()]);
+            let s = targets.add_trial(t, map.columns);
+            for f in (0..frames).rev() {
+                targets.push(s, f);
+            }
+        }
+        assert!(targets.sources[0].gross && !targets.sources[1].gross);
+        let (map, _) = MarkerMap::allowing_absent(&model, trial.labels());
+        let mut buf = Vec::new();
+        for (i, (t, f)) in [&trial, &clean]
+            .iter()
+            .flat_map(|t| (0..frames).rev().map(move |f| (*t, f)))
+            .enumerate()
+        {
+            let want = copied(&map, t, f);
+            assert!(same(targets.fill(i, &mut buf), &want), "frame {i}");
+            assert!(same(&targets.get(i), &want));
+        }
+        let picked = targets.select([7, 1]);
+        assert_eq!(picked.len(), 2);
+        assert!(same(&picked.get(0), &copied(&map, &clean, 4)));
+        assert!(same(&picked.get(1), &copied(&map, &trial, 4)));
+    }
+}

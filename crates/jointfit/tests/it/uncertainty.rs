@@ -101,7 +101,7 @@ fn perturbed(model: &Model, seed: u64) -> Vec<f64> {
         .collect()
 }
 
-fn fit_from_nominal<'m>(model: &'m Model, trial: &Trial, groups: &[&str]) -> (Problem<'m>, Fit) {
+fn fit_from_nominal<'m>(model: &'m Model, trial: &'m Trial, groups: &[&str]) -> (Problem<'m>, Fit) {
     let free = params_for_groups(model, groups).unwrap();
     let start = model.nominal_params();
     let prob = Problem::new(model, start.clone(), &free, &[trial]).unwrap();
