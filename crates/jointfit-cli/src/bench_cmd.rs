@@ -55,6 +55,11 @@ pub struct BenchArgs {
     /// Internal: run one calibration of this many frames and print its peak RSS.
     #[arg(long, hide = true)]
     rss_child: Option<usize>,
+    /// With `--rss-child`: cap the outer iterations (probes and finishing solves alike, as
+    /// `calibrate --max-iterations`), to measure the memory of a very long trial in less time;
+    /// the peak is reached in the first iterations.
+    #[arg(long, requires = "rss_child")]
+    rss_max_iterations: Option<usize>,
 }
 
 #[derive(Serialize, Default)]
@@ -183,7 +188,7 @@ fn fit_only(model: &Model, p: &[f64], trial: &Trial, source: &str, n: usize) -> 
 
 pub fn run(args: BenchArgs) -> Result<()> {
     if let Some(frames) = args.rss_child {
-        return bench_perf::rss_child(frames);
+        return bench_perf::rss_child(frames, args.rss_max_iterations);
     }
     let trc = trial_path(args.data.clone());
     let (model, trial, source) = workload(args.data)?;

@@ -230,19 +230,22 @@ pub fn long_fit(frames: usize) -> Result<LongFit> {
     })
 }
 
-/// Child side of [`peak_rss`]: one calibration of `frames` frames; prints its peak RSS.
-pub fn rss_child(frames: usize) -> Result<()> {
+/// Child side of [`peak_rss`]: one calibration of `frames` frames (default settings of
+/// `calibrate`, the outer iterations capped at `max_iterations` when given); prints its peak
+/// RSS (kB), iterations, objective (m²) and the calibration's wall time (s, the synthetic
+/// trial's generation excluded).
+pub fn rss_child(frames: usize, max_iterations: Option<usize>) -> Result<()> {
     let (model, _, trial) = long_trial(frames)?;
     let all = params_for_groups(&model, &["all"])?;
-    let cal = calibrate_all(
-        &model,
-        &trial,
-        &all,
-        &FitSettings::default(),
-        &mut NoObserver,
-    )?;
+    let settings = FitSettings {
+        max_iterations,
+        ..FitSettings::default()
+    };
+    let t = Instant::now();
+    let cal = calibrate_all(&model, &trial, &all, &settings, &mut NoObserver)?;
+    let seconds = t.elapsed().as_secs_f64();
     println!(
-        "@@{} {} {}",
+        "@@{} {} {} {seconds:.1}",
         peak_kb().context("reading /proc/self/status")?,
         cal.iterations,
         cal.cost_after

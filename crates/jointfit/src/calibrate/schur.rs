@@ -20,6 +20,7 @@
 //! each chunk sums its frames in order and the chunk sums are added in chunk order, so the
 //! results are the same bit for bit whatever the number of threads.
 
+use nalgebra::Vector3;
 use rayon::prelude::*;
 
 use super::kernel::{dot, frame_gram, FrameScratch, ScratchPool};
@@ -119,19 +120,22 @@ impl Blocks {
         c * CHUNK..((c + 1) * CHUNK).min(self.frames)
     }
 
-    /// Frame f's `[U | W | g]`: from the cache, or recomputed at the assembly point.
+    /// Frame f's `[U | W | g]`: from the cache, or recomputed at the assembly point (`tb`:
+    /// room for the frame's targets).
     fn frame<'a>(
         &'a self,
         prob: &Problem,
         qs: &[Vec<f64>],
         f: usize,
         sc: &'a mut FrameScratch,
+        tb: &mut Vec<Vector3<f64>>,
     ) -> &'a [f64] {
         let per = self.per();
         if f < self.cached {
             return &self.store[f * per..(f + 1) * per];
         }
-        frame_gram(prob, &self.p, &qs[f], &prob.frames[f], &self.half, sc);
+        let targets = prob.frames.fill(f, tb);
+        frame_gram(prob, &self.p, &qs[f], targets, &self.half, sc);
         let mut out = std::mem::take(&mut sc.buf);
         out.resize(per, 0.0);
         split(&sc.gram, self.nq, self.nf, &sc.grad, &mut out);
@@ -170,14 +174,15 @@ pub(crate) fn assemble(prob: &Problem, p: &[f64], qs: &[Vec<f64>], b: &mut Block
         .into_par_iter()
         .enumerate()
         .map_init(
-            || pool.take(prob),
-            |sc, (c, mut slot)| {
+            || (pool.take(prob), Vec::new()),
+            |(sc, tb), (c, mut slot)| {
                 let mut v = vec![0.0; nf * nf];
                 let mut gs = vec![0.0; nf];
                 let mut cost = 0.0;
                 let start = c * CHUNK;
                 for f in start..(start + CHUNK).min(qs.len()) {
-                    cost += frame_gram(prob, p, &qs[f], &prob.frames[f], half, sc);
+                    let targets = prob.frames.fill(f, tb);
+                    cost += frame_gram(prob, p, &qs[f], targets, half, sc);
                     for l in 0..nf {
                         let src = &sc.gram[(nq + l) * n + nq..(nq + l + 1) * n];
                         for (x, y) in v[l * nf..(l + 1) * nf].iter_mut().zip(src) {
@@ -267,8 +272,8 @@ pub(crate) fn solve(
         .into_par_iter()
         .enumerate()
         .map_init(
-            || blocks.pool.take(prob),
-            |sc, (c, mut slot)| {
+            || (blocks.pool.take(prob), Vec::new()),
+            |(sc, tb), (c, mut slot)| {
                 let range = blocks.chunk_frames(c);
                 let mut l = std::mem::take(&mut sc.fac);
                 // The chunk's Z_i = L_i⁻¹ [W_i | g_i] stacked: (frames·n_q) × (n_f + 1),
@@ -277,7 +282,7 @@ pub(crate) fn solve(
                 z.clear();
                 z.resize(range.len() * nq * m, 0.0);
                 for (i, f) in range.clone().enumerate() {
-                    let blk = blocks.frame(prob, qs, f, sc);
+                    let blk = blocks.frame(prob, qs, f, sc, tb);
                     let (u, rest) = blk.split_at(nq * nq);
                     let (w, g) = rest.split_at(nq * nf);
                     if !factor_damped(u, nq, lambda, &mut l) {
@@ -392,13 +397,13 @@ pub(crate) fn back_substitute(
         .par_chunks_mut(CHUNK)
         .enumerate()
         .map_init(
-            || b.pool.take(prob),
-            |sc, (c, dq)| {
+            || (b.pool.take(prob), Vec::new()),
+            |(sc, tb), (c, dq)| {
                 let mut l = std::mem::take(&mut sc.fac);
                 let mut wd = std::mem::take(&mut sc.vec);
                 let mut pred = 0.0;
                 for (f, d) in b.chunk_frames(c).zip(dq.iter_mut()) {
-                    let blk = b.frame(prob, qs, f, sc);
+                    let blk = b.frame(prob, qs, f, sc, tb);
                     let (u, rest) = blk.split_at(nq * nq);
                     let (w, g) = rest.split_at(nq * nf);
                     // Positive definite: the same factorisation succeeded in `solve`, which
@@ -455,11 +460,12 @@ pub(crate) fn cost_at(prob: &Problem, b: &Blocks, p: &[f64], qs: &[Vec<f64>]) ->
         .par_chunks(CHUNK)
         .enumerate()
         .map_init(
-            || b.pool.take(prob),
-            |sc, (c, qs)| {
+            || (b.pool.take(prob), Vec::new()),
+            |(sc, tb), (c, qs)| {
                 let kin = &mut sc.kin;
                 let mut total = 0.0;
-                for (q, targets) in qs.iter().zip(&prob.frames[c * CHUNK..]) {
+                for (i, q) in qs.iter().enumerate() {
+                    let targets = prob.frames.fill(c * CHUNK + i, tb);
                     forward_kinematics(prob.model, p, q, Want::POSITIONS, kin);
                     for (j, m) in prob.model.markers().iter().enumerate() {
                         if !targets[j].x.is_nan() && m.weight > 0.0 {

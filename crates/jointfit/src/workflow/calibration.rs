@@ -281,7 +281,7 @@ fn fit_free(
         super::map::map_problem_with(model, start, trials, free, settings, noise)?;
     super::map::set_inflation(&mut prob, inflation);
     let (fits, runs, global, q_before, cost_before) = if settings.effective_probes() > 0 {
-        let out = super::global::run(&prob, start, settings, pre.as_ref(), observer);
+        let out = super::global::run(&prob, start, settings, pre, observer);
         (
             out.fits,
             out.runs,

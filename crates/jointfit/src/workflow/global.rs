@@ -127,17 +127,33 @@ pub struct Outcome {
 
 /// Every `stride`-th frame of `prob`, the prior reweighed so that the posterior keeps its
 /// balance (the marker term shrinks by about `stride`, so σ² shrinks with it).
+/// Only the kept frames are copied (never the whole problem's: on a long trial that copy
+/// would be the largest allocation of the calibration).
 fn subsample<'m>(prob: &Problem<'m>, stride: usize) -> Problem<'m> {
-    let mut sub = prob.clone();
-    if stride > 1 {
-        sub.frames = prob.frames.iter().step_by(stride).cloned().collect();
-        sub.origin = prob.origin.iter().step_by(stride).copied().collect();
-        if let Some(pr) = sub.prior.as_mut() {
-            pr.noise /= (stride as f64).sqrt();
-        }
+    if stride <= 1 {
+        return prob.clone();
     }
-    sub
+    let mut prior = prob.prior.clone();
+    if let Some(pr) = prior.as_mut() {
+        pr.noise /= (stride as f64).sqrt();
+    }
+    Problem {
+        model: prob.model,
+        free: prob.free.clone(),
+        base: prob.base.clone(),
+        frames: prob.frames.select((0..prob.frames.len()).step_by(stride)),
+        origin: prob.origin.iter().step_by(stride).copied().collect(),
+        skipped: prob.skipped.clone(),
+        ik: prob.ik,
+        prior,
+    }
 }
+
+/// From this many frames on the finishing solves run one after the other, each on every
+/// thread (its per-frame passes are parallel), instead of side by side: two solves at once
+/// would hold two sets of per-frame coordinates and two block caches, and with this many
+/// frames one solve keeps the threads busy. The result is the same either way.
+pub const SEQUENTIAL_FINISH_FRAMES: usize = 4096;
 
 /// Runs the global phase on `prob` from `start` with `settings.probes` extra starts (the
 /// module docs); progress goes to `observer` in start order.
@@ -145,7 +161,7 @@ pub fn run(
     prob: &Problem,
     start: &[f64],
     settings: &FitSettings,
-    pre: Option<&Preliminary>,
+    pre: Option<Preliminary>,
     observer: &mut dyn Observer,
 ) -> Outcome {
     let n = settings.probes + 1;
@@ -218,8 +234,8 @@ pub fn run(
     // (The σ estimate computed both at the same start on the same frames.)
     let (q_before_start, q_before, cost_before) = match pre {
         Some(pre) => (
-            pre.q_seed.clone(),
-            pre.q_inner.clone(),
+            pre.q_seed,
+            pre.q_inner,
             pre.data_cost + prob.prior_cost(start),
         ),
         None => {
@@ -229,26 +245,32 @@ pub fn run(
             (q_seed, q, cost)
         }
     };
-    let continued: Vec<(Fit, Vec<f64>)> = order
-        .par_iter()
-        .map(|&k| {
-            let f = &probes[k].0;
-            let mut h = History::default();
-            if stride == 1 && f.termination != Termination::IterationLimit {
-                return (f.clone(), Vec::new());
-            }
-
-            let q0 = if stride == 1 {
-                f.coords.clone()
-            } else if k == 0 {
-                q_before_start.clone()
-            } else {
-                prob.initial_coords(&f.p)
-            };
-            let fit = solve_joint(prob, &f.s, q0, &finish, &mut h);
-            (fit, h.0)
-        })
-        .collect();
+    // The given start's seeded coordinates go to its finishing solve (moved, not copied).
+    let q_before_start = std::sync::Mutex::new(Some(q_before_start));
+    let finish_one = |k: usize| {
+        let f = &probes[k].0;
+        let mut h = History::default();
+        if stride == 1 && f.termination != Termination::IterationLimit {
+            return (f.clone(), Vec::new());
+        }
+        let seeded = (stride > 1 && k == 0)
+            .then(|| q_before_start.lock().ok()?.take())
+            .flatten();
+        let q0 = if stride == 1 {
+            f.coords.clone()
+        } else if let Some(q) = seeded {
+            q
+        } else {
+            prob.initial_coords(&f.p)
+        };
+        let fit = solve_joint(prob, &f.s, q0, &finish, &mut h);
+        (fit, h.0)
+    };
+    let continued: Vec<(Fit, Vec<f64>)> = if prob.frames.len() >= SEQUENTIAL_FINISH_FRAMES {
+        order.iter().map(|&k| finish_one(k)).collect()
+    } else {
+        order.par_iter().map(|&k| finish_one(k)).collect()
+    };
     for (&k, (fit, hist)) in order.iter().zip(&continued) {
         observer.stage_started(&format!("start {}: joint Levenberg-Marquardt", k + 1), None);
         for (i, &c) in hist.iter().enumerate() {

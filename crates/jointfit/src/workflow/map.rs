@@ -47,7 +47,7 @@ pub struct Preliminary {
 pub fn map_problem<'m>(
     model: &'m Model,
     start: &[f64],
-    trials: &[&Trial],
+    trials: &[&'m Trial],
     free: &[ParamId],
     settings: &FitSettings,
     noise: Option<f64>,
@@ -61,7 +61,7 @@ pub fn map_problem<'m>(
 pub fn map_problem_with<'m>(
     model: &'m Model,
     start: &[f64],
-    trials: &[&Trial],
+    trials: &[&'m Trial],
     free: &[ParamId],
     settings: &FitSettings,
     noise: Option<f64>,

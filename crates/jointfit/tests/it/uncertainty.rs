@@ -101,7 +101,7 @@ fn perturbed(model: &Model, seed: u64) -> Vec<f64> {
         .collect()
 }
 
-fn fit_from_nominal<'m>(model: &'m Model, trial: &Trial, groups: &[&str]) -> (Problem<'m>, Fit) {
+fn fit_from_nominal<'m>(model: &'m Model, trial: &'m Trial, groups: &[&str]) -> (Problem<'m>, Fit) {
     let free = params_for_groups(model, groups).unwrap();
     let start = model.nominal_params();
     let prob = Problem::new(model, start.clone(), &free, &[trial]).unwrap();
@@ -153,7 +153,7 @@ fn check_against_dense_fd(model: &Model, prob: &Problem, p: &[f64], qs: &[Vec<f6
         forward_kinematics(model, p, &qs[f], Want::POSITIONS, &mut kin);
         for a in 0..rows {
             let (mk, axis) = (a / 3, a % 3);
-            r[f * rows + a] = prob.frames[f][mk][axis] - kin.markers[mk][axis];
+            r[f * rows + a] = prob.frames.get(f)[mk][axis] - kin.markers[mk][axis];
             for c in 0..nq {
                 j[(f * rows + a, f * nq + c)] = jq[(a, c)];
             }

@@ -224,7 +224,7 @@ pub(super) fn block_bootstrap(
             }
             idx.truncate(n);
             let mut sub = prob.clone();
-            sub.frames = idx.iter().map(|&i| prob.frames[i].clone()).collect();
+            sub.frames = prob.frames.select(idx.iter().copied());
             sub.origin = idx.iter().map(|&i| prob.origin[i]).collect();
             let q0 = idx.iter().map(|&i| fit.coords[i].clone()).collect();
             let f = solve_joint(&sub, &fit.s, q0, &opts, &mut crate::solver::NoObserver);

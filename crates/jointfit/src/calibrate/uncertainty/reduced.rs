@@ -59,8 +59,8 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
     let parts: Vec<Chunk> = (0..frames.div_ceil(CHUNK))
         .into_par_iter()
         .map_init(
-            || FrameScratch::new(prob),
-            |sc, c| {
+            || (FrameScratch::new(prob), Vec::new()),
+            |(sc, tb), c| {
                 let mut normal = DMatrix::zeros(nf, nf);
                 let mut scores = Vec::with_capacity(CHUNK);
                 let mut frame_normals = Vec::with_capacity(CHUNK);
@@ -71,8 +71,9 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
                 let mut y = vec![0.0; nq * nf];
                 let mut yg = vec![0.0; nq];
                 let range = c * CHUNK..((c + 1) * CHUNK).min(frames);
-                for (q, targets) in qs[range.clone()].iter().zip(&prob.frames[range]) {
-                    cost += frame_gram(prob, p, q, targets, &half, sc);
+                for f in range {
+                    let targets = prob.frames.fill(f, tb);
+                    cost += frame_gram(prob, p, &qs[f], targets, &half, sc);
                     let (gram, grad) = (&sc.gram, &sc.grad);
                     for a in 0..nq {
                         u[a * nq..(a + 1) * nq].copy_from_slice(&gram[a * n..a * n + nq]);
