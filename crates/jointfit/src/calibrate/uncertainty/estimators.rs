@@ -334,7 +334,19 @@ pub(super) fn covariances(
         Some(pd) => (&inv - pd) * sigma2,
         None => &inv * sigma2,
     };
-    let prior = prior_part.map(|pd| pd * red.prior_noise.powi(2));
+    // The prior term's score `D(μ − s)` has covariance `σ_p² D A` when its weight carries
+    // the factors `A` ([`Reduced::prior_inflation`]; `A = I` unless σ was estimated).
+    let prior = prior_part.as_ref().map(|_| {
+        let da: Vec<f64> = red
+            .prior_information
+            .iter()
+            .zip(&red.prior_inflation)
+            .map(|(d, a)| d * a)
+            .collect();
+        &inv * DMatrix::from_diagonal(&DVector::from_column_slice(&da))
+            * &inv
+            * red.prior_noise.powi(2)
+    });
     let factor = if opts.small_sample {
         if n > nf {
             n as f64 / (n - nf) as f64

@@ -28,6 +28,10 @@ pub struct Reduced {
     /// adds to `normal`; zeros without a prior) and the prior's marker noise `σ_p` (m).
     pub prior_information: Vec<f64>,
     pub prior_noise: f64,
+    /// Per free parameter, the factor `a_k ≥ 1` the prior weight carries
+    /// ([`crate::calibrate::prior::Prior::inflation`]; ones without a prior): with the truth
+    /// drawn from the prior, the prior term's score has variance `σ_p² a_k d_k`.
+    pub prior_inflation: Vec<f64>,
 }
 
 impl Reduced {
@@ -157,6 +161,10 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
         n_q: nq,
         prior_information,
         prior_noise: prob.prior.as_ref().map_or(0.0, |p| p.noise),
+        prior_inflation: prob
+            .prior
+            .as_ref()
+            .map_or_else(|| vec![1.0; nf], |p| p.inflation.clone()),
     }
 }
 

@@ -39,6 +39,7 @@ pub fn unidentifiable_subset(prob: &Problem, fit: &Fit, opts: &UncertaintyOption
             n_q: red.n_q,
             prior_information: keep.iter().map(|&k| red.prior_information[k]).collect(),
             prior_noise: red.prior_noise,
+            prior_inflation: keep.iter().map(|&k| red.prior_inflation[k]).collect(),
         };
         let cov = covariances(&sub, &same, None, opts, false);
         let flagged: Vec<usize> = (0..m)
