@@ -334,7 +334,8 @@ pub fn check_trial_before_ik(model: &Model, trial: &Trial, map: &MarkerMap) -> V
     // missing in exactly the same frames (a subject walking out of the capture volume).
     let max_step = JUMP_SPEED / trial.rate();
     // (gap runs, marker names, index in `out` where the group's finding goes)
-    let mut gap_groups: Vec<(Vec<(usize, usize)>, Vec<String>, usize)> = Vec::new();
+    type GapGroup = (Vec<(usize, usize)>, Vec<String>, usize);
+    let mut gap_groups: Vec<GapGroup> = Vec::new();
     for j in 0..model.n_markers() {
         if col(j).is_none() {
             continue;

@@ -463,3 +463,42 @@ fn uncertainty_robust_errors_match_the_scatter_of_fits_under_skin_noise() {
         "reported errors vs empirical scatter: {rep}"
     );
 }
+
+/// Long trials keep the frames' shares of `S` summed over groups of consecutive frames (at
+/// most `MAX_GROUPS` matrices, not one per frame): the groups partition the frames in order
+/// and their shares add up to `S` (no prior), on one thread as on two.
+#[test]
+fn uncertainty_group_normals_partition_a_long_trial() {
+    use jointfit::calibrate::uncertainty::{group_size, MAX_GROUPS};
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p_true = perturbed(&model, 31);
+    for (frames, size) in [(300, 1), (9000, 3)] {
+        assert_eq!(group_size(frames), size);
+        let trial = synthetic(&model, &p_true, ALL, frames, Noise::Skin, 0.004, 5);
+        let free = params_for_groups(&model, &["all"]).unwrap();
+        let prob = Problem::new(&model, p_true.clone(), &free, &[&trial]).unwrap();
+        let qs = prob.initial_coords(&p_true);
+        let run = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| reduced_system(&prob, &p_true, &qs))
+        };
+        let (one, two) = (run(1), run(2));
+        assert_eq!(one.group_size, size);
+        assert_eq!(one.group_normals.len(), frames.div_ceil(size));
+        assert!(one.group_normals.len() <= MAX_GROUPS);
+        assert_eq!(one.group_normals, two.group_normals);
+        let sum = one
+            .group_normals
+            .iter()
+            .fold(DMatrix::zeros(free.len(), free.len()), |a, g| a + g);
+        let scale = one.normal.abs().max();
+        let diff = (&sum - &one.normal).abs().max();
+        assert!(
+            diff <= 1e-12 * scale,
+            "{frames} frames: {diff:e} of {scale:e}"
+        );
+    }
+}

@@ -249,7 +249,9 @@ pub(super) fn block_bootstrap(
 /// block k moves the optimum by `δ_k = (S − A_k)⁻¹ B_k` (one Gauss–Newton step, `A_k`, `B_k`
 /// the block's share of `S` and of the scores), and `C = (K−1)/K Σ_k (δ_k − δ̄)(δ_k − δ̄)ᵀ`.
 /// Correlation within a block is kept whole; the removal of the block's own influence makes
-/// it conservative where the fit absorbs part of the noise (few frames per parameter).
+/// it conservative where the fit absorbs part of the noise (few frames per parameter). The
+/// blocks are whole groups of [`Reduced::group_normals`] (single frames up to
+/// [`super::reduced::MAX_GROUPS`] frames).
 pub(super) fn block_jackknife(
     red: &Reduced,
     scores: &[DVector<f64>],
@@ -258,12 +260,16 @@ pub(super) fn block_jackknife(
     let n = scores.len();
     let nf = red.normal.nrows();
     let mut deltas = Vec::with_capacity(blocks);
+    let groups = red.group_normals.len();
+    let gs = red.group_size;
     for k in 0..blocks {
-        let (a, b) = (k * n / blocks, (k + 1) * n / blocks);
+        let (ga, gb) = (k * groups / blocks, (k + 1) * groups / blocks);
         let mut s = red.normal.clone();
         let mut g = DVector::zeros(nf);
-        for (ai, si) in red.frame_normals[a..b].iter().zip(&scores[a..b]) {
+        for ai in &red.group_normals[ga..gb] {
             s -= ai;
+        }
+        for si in &scores[(ga * gs).min(n)..(gb * gs).min(n)] {
             g += si;
         }
         let (inv, _, _) = pseudo_inverse(&((&s + s.transpose()) * 0.5));

@@ -86,7 +86,7 @@ pub use critical::{fixed_b_bartlett, normal_quantile, t_quantile};
 use estimators::{conservative, continuity, covariances, Covariances};
 pub use explain::coordinate_ranges;
 use explain::{reason, weak_directions};
-pub use reduced::{reduced_system, Reduced};
+pub use reduced::{group_size, reduced_system, Reduced, MAX_GROUPS};
 pub use subset::unidentifiable_subset;
 
 /// Eigenvalues of `S` below this fraction of the largest count as zero (not determined).

@@ -16,8 +16,14 @@ pub struct Reduced {
     pub normal: DMatrix<f64>,
     /// Per fitted frame, the profile score `ψ_i` (n_f, m² per scaled unit).
     pub scores: Vec<DVector<f64>>,
-    /// Per fitted frame, its share `A_i = J_red,iᵀ W J_red,i` of `S` (n_f × n_f).
-    pub frame_normals: Vec<DMatrix<f64>>,
+    /// Per group of [`Reduced::group_size`] consecutive fitted frames (the last may be
+    /// shorter), the group's share `Σ_i A_i` of `S`, `A_i = J_red,iᵀ W J_red,i` (n_f × n_f):
+    /// the block jackknife removes whole groups. One frame per group up to
+    /// [`MAX_GROUPS`] frames; longer trials keep at most that many matrices (5.8 kB each for
+    /// 27 parameters) instead of one per frame.
+    pub group_normals: Vec<DMatrix<f64>>,
+    /// Frames per entry of [`Reduced::group_normals`] ([`group_size`]).
+    pub group_size: usize,
     /// Weighted squared residual sum `e` (m²).
     pub cost: f64,
     /// Scalar residuals `m`: 3 per present, weighted marker sample.
@@ -49,6 +55,15 @@ impl Reduced {
     }
 }
 
+/// The most entries [`Reduced::group_normals`] holds.
+pub const MAX_GROUPS: usize = 4096;
+
+/// Frames per group of [`Reduced::group_normals`] for a trial of `frames` frames: 1 up to
+/// [`MAX_GROUPS`] frames, else the fewest that keep the groups within it.
+pub fn group_size(frames: usize) -> usize {
+    frames.div_ceil(MAX_GROUPS).max(1)
+}
+
 /// Builds `S` and the per-frame scores at parameters `p` and coordinates `qs` (one per frame
 /// of `prob`). Frames are processed in fixed chunks in parallel and their sums added in
 /// chunk order (the same result whatever the thread count); no per-frame Jacobian blocks are
@@ -59,7 +74,14 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
     let n = nq + nf;
     let frames = prob.frames.len();
     let half: Vec<f64> = (0..nf).map(|k| prob.half_range(k)).collect();
-    type Chunk = (DMatrix<f64>, Vec<DVector<f64>>, Vec<DMatrix<f64>>, f64);
+    let gs = group_size(frames);
+    // (normal, scores, (group, its sum over the chunk's frames) in frame order, cost)
+    type Chunk = (
+        DMatrix<f64>,
+        Vec<DVector<f64>>,
+        Vec<(usize, DMatrix<f64>)>,
+        f64,
+    );
     let parts: Vec<Chunk> = (0..frames.div_ceil(CHUNK))
         .into_par_iter()
         .map_init(
@@ -67,7 +89,7 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
             |(sc, tb), c| {
                 let mut normal = DMatrix::zeros(nf, nf);
                 let mut scores = Vec::with_capacity(CHUNK);
-                let mut frame_normals = Vec::with_capacity(CHUNK);
+                let mut group_normals: Vec<(usize, DMatrix<f64>)> = Vec::new();
                 let mut cost = 0.0;
                 let mut u = vec![0.0; nq * nq];
                 let mut w = vec![0.0; nq * nf];
@@ -118,20 +140,30 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
                     }
                     normal += &a;
                     scores.push(psi);
-                    frame_normals.push(a);
+                    match group_normals.last_mut() {
+                        Some((g, sum)) if *g == f / gs => *sum += a,
+                        _ => group_normals.push((f / gs, a)),
+                    }
                 }
-                (normal, scores, frame_normals, cost)
+                (normal, scores, group_normals, cost)
             },
         )
         .collect();
     let mut normal = DMatrix::zeros(nf, nf);
     let mut scores = Vec::with_capacity(frames);
-    let mut frame_normals = Vec::with_capacity(frames);
+    let mut group_normals: Vec<DMatrix<f64>> = Vec::with_capacity(frames.div_ceil(gs));
     let mut cost = 0.0;
-    for (part_normal, part_scores, part_normals, part_cost) in parts {
+    for (part_normal, part_scores, part_groups, part_cost) in parts {
         normal += part_normal;
         scores.extend(part_scores);
-        frame_normals.extend(part_normals);
+        for (g, sum) in part_groups {
+            // A group split between two chunks is summed in chunk order.
+            if g < group_normals.len() {
+                group_normals[g] += sum;
+            } else {
+                group_normals.push(sum);
+            }
+        }
         cost += part_cost;
     }
     normal = (&normal + normal.transpose()) * 0.5;
@@ -154,7 +186,8 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
     Reduced {
         normal,
         scores,
-        frame_normals,
+        group_normals,
+        group_size: gs,
         // The marker term only: σ² is a marker-noise variance.
         cost,
         observations,

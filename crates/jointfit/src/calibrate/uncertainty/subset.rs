@@ -29,11 +29,12 @@ pub fn unidentifiable_subset(prob: &Problem, fit: &Fit, opts: &UncertaintyOption
         let sub = Reduced {
             normal: DMatrix::from_fn(m, m, |a, b| red.normal[(keep[a], keep[b])]),
             scores: red.scores.iter().map(pick).collect(),
-            frame_normals: red
-                .frame_normals
+            group_normals: red
+                .group_normals
                 .iter()
                 .map(|a| DMatrix::from_fn(m, m, |x, y| a[(keep[x], keep[y])]))
                 .collect(),
+            group_size: red.group_size,
             cost: red.cost,
             observations: red.observations,
             n_q: red.n_q,
