@@ -75,6 +75,7 @@ mod critical;
 mod estimators;
 mod explain;
 mod reduced;
+mod resampling;
 mod subset;
 
 use serde::{Deserialize, Serialize};
