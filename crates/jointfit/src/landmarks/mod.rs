@@ -55,6 +55,7 @@
 //! [`lower_limb`]: crate::model::lower_limb::lower_limb
 
 pub mod bilateral;
+mod error;
 pub(crate) mod frames;
 pub mod functional;
 pub mod markerset;
@@ -64,9 +65,9 @@ pub mod suggest;
 pub mod window;
 
 use nalgebra::Vector3;
-use thiserror::Error;
 
 pub use bilateral::{personalize_sides, BothLegs, Outcome, PersonalizedModel, Sides};
+pub use error::LandmarkError;
 pub use frames::SegmentFrames;
 pub use markerset::{LegMarkers, MarkerSet, PelvisMarkers, PRESET_NAMES, TRACKED_SEGMENTS};
 pub use window::StaticWindow;
@@ -74,69 +75,8 @@ pub use window::StaticWindow;
 use crate::kinematics::{forward_kinematics, KinData, Pose, Want};
 use crate::model::lower_limb::{lower_limb, Side};
 use crate::model::spec::{MarkerSpec, ModelSpec};
-use crate::model::{Model, ModelError};
+use crate::model::Model;
 use crate::trial::Trial;
-
-/// Why a static trial or a marker set was refused. Messages name the markers involved.
-#[derive(Debug, Error, PartialEq)]
-pub enum LandmarkError {
-    #[error("marker set {source_name}: {detail}")]
-    MarkerSetSyntax { source_name: String, detail: String },
-    #[error("unknown marker-set preset {name:?}; presets: {available}")]
-    UnknownPreset { name: String, available: String },
-    #[error("marker set {set:?}: {detail}")]
-    InvalidMarkerSet { set: String, detail: String },
-    #[error("marker set {set:?} has no [{side}] leg")]
-    NoSuchLeg { set: String, side: &'static str },
-    #[error(
-        "the static trial lacks {} marker(s) that marker set {set:?} expects for the {side} \
-         leg: {}; the trial has: {available}",
-        missing.len(),
-        missing.join(", ")
-    )]
-    MissingMarkers {
-        set: String,
-        side: &'static str,
-        /// `role "label"` for each missing label.
-        missing: Vec<String>,
-        available: String,
-    },
-    #[error(
-        "no frame of the static trial ({frames} frames) has every needed marker; never \
-         present: {never_present:?}; with gaps: {partly_present:?}"
-    )]
-    NoCompleteFrame {
-        frames: usize,
-        never_present: Vec<String>,
-        partly_present: Vec<String>,
-    },
-    #[error(
-        "{segment} tracking markers {markers:?} lie within {spread_mm:.1} mm of one line \
-         (at least {min_mm:.1} mm needed): their rigid fit cannot find the rotation about \
-         that line; add a marker off the line or list another one"
-    )]
-    Collinear {
-        segment: String,
-        markers: Vec<String>,
-        spread_mm: f64,
-        min_mm: f64,
-    },
-    #[error("{segment} frame: {detail}")]
-    Degenerate { segment: String, detail: String },
-    #[error("{0}")]
-    Implausible(String),
-    #[error("invalid option: {0}")]
-    InvalidOption(String),
-    #[error("the personalized model does not compile: {0}")]
-    Model(ModelError),
-    #[error("functional {joint} trial: {error}")]
-    Functional {
-        joint: &'static str,
-        error: functional::FunctionalError,
-    },
-    #[error("internal error (a bug): {0}")]
-    Internal(String),
-}
 
 /// Which regression places the hip centre in the pelvis frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
