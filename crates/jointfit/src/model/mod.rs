@@ -10,6 +10,7 @@ pub mod lower_limb;
 pub(crate) mod plan;
 pub mod refine;
 pub mod spec;
+mod splines;
 mod validate;
 
 pub use compiled::{
