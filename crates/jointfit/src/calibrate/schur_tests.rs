@@ -1,0 +1,135 @@
+//! Unit tests of `schur.rs`.
+
+use super::*;
+use crate::calibrate::params_for_groups;
+use crate::kinematics::KinData;
+use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::Model;
+use crate::trial::Trial;
+use nalgebra::{DMatrix, DVector, Vector3};
+
+/// A moving leg's markers at parameters away from nominal, with a deterministic wobble.
+fn problem_trial(model: &Model, frames: usize) -> Trial {
+    let p: Vec<f64> = model
+        .parameters()
+        .iter()
+        .enumerate()
+        .map(|(k, x)| x.nominal + 0.15 * (x.upper - x.lower) * (k as f64).sin())
+        .collect();
+    let mut kin = KinData::new(model);
+    let mut positions = Vec::new();
+    for f in 0..frames {
+        let t = f as f64 / frames as f64;
+        let mut q = model.default_coords();
+        for (i, v) in q.iter_mut().enumerate() {
+            *v += 0.3 * (6.0 * t + i as f64).sin();
+        }
+        forward_kinematics(model, &p, &q, Want::POSITIONS, &mut kin);
+        for (j, x) in kin.markers.iter().enumerate() {
+            let e = |k: usize| 0.003 * ((f * 7 + j * 3 + k) as f64 * 1.3).sin();
+            positions.push(x + Vector3::new(e(0), e(1), e(2)));
+        }
+    }
+    let labels = model.markers().iter().map(|m| m.name.clone()).collect();
+    Trial::new(labels, 100.0, 1, positions).unwrap()
+}
+
+/// One damped step with a given cache budget: `(δs, δq, predicted decrease)`.
+fn step(prob: &Problem, budget: usize, lambda: f64) -> (Vec<f64>, Vec<Vec<f64>>, f64) {
+    let p = prob.model.nominal_params();
+    let qs = prob.initial_coords(&p);
+    let mut b = Blocks::with_budget(prob, budget);
+    assemble(prob, &p, &qs, &mut b);
+    let mut ds = vec![0.0; b.nf];
+    let fixed = vec![false; b.nf];
+    assert!(solve(prob, &qs, &mut b, lambda, &fixed, &mut ds));
+    let mut dq = vec![vec![0.0; b.nq]; qs.len()];
+    let pred = back_substitute(prob, &qs, &b, &ds, &mut dq);
+    (ds, dq, pred)
+}
+
+#[test]
+fn recomputed_blocks_give_the_cached_step_bit_for_bit() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let trial = problem_trial(&model, 100);
+    let free = params_for_groups(&model, &["all"]).unwrap();
+    let prob = Problem::new(&model, model.nominal_params(), &free, &[&trial]).unwrap();
+    let (nq, nf) = (model.n_q(), prob.n_free());
+    let one_chunk = 8 * CHUNK * (nq * nq + nq * nf + nq);
+    let full = step(&prob, usize::MAX, 1e-3);
+    for budget in [0, one_chunk, 2 * one_chunk + 100] {
+        let other = step(&prob, budget, 1e-3);
+        assert_eq!(full, other, "budget {budget}");
+    }
+}
+
+#[test]
+fn schur_step_solves_the_dense_damped_system() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let trial = problem_trial(&model, 40);
+    let free = params_for_groups(&model, &["all"]).unwrap();
+    let prob = Problem::new(&model, model.nominal_params(), &free, &[&trial]).unwrap();
+    let lambda = 1e-2;
+    let (ds, dq, pred) = step(&prob, usize::MAX, lambda);
+    // The dense block-arrow system from the same blocks.
+    let p = model.nominal_params();
+    let qs = prob.initial_coords(&p);
+    let mut b = Blocks::new(&prob);
+    assemble(&prob, &p, &qs, &mut b);
+    let (nq, nf, frames) = (b.nq, b.nf, qs.len());
+    let dim = frames * nq + nf;
+    let mut h = DMatrix::zeros(dim, dim);
+    let mut rhs = DVector::zeros(dim);
+    let per = b.per();
+    for f in 0..frames {
+        let blk = &b.store[f * per..(f + 1) * per];
+        let (u, rest) = blk.split_at(nq * nq);
+        let (w, g) = rest.split_at(nq * nf);
+        let o = f * nq;
+        for a in 0..nq {
+            for c in 0..nq {
+                h[(o + a, o + c)] = u[c * nq + a];
+            }
+            h[(o + a, o + a)] *= 1.0 + lambda;
+            rhs[o + a] = g[a];
+            for k in 0..nf {
+                h[(o + a, frames * nq + k)] = w[k * nq + a];
+                h[(frames * nq + k, o + a)] = w[k * nq + a];
+            }
+        }
+    }
+    for k in 0..nf {
+        for c in 0..nf {
+            h[(frames * nq + k, frames * nq + c)] = b.v[c * nf + k];
+        }
+        h[(frames * nq + k, frames * nq + k)] *= 1.0 + lambda;
+        rhs[frames * nq + k] = b.gs[k];
+    }
+    let x = h.clone().cholesky().expect("positive definite").solve(&rhs);
+    let scale = x.amax();
+    for k in 0..nf {
+        let e = (ds[k] - x[frames * nq + k]).abs();
+        assert!(
+            e <= 1e-7 * scale,
+            "δs[{k}]: {} vs {}",
+            ds[k],
+            x[frames * nq + k]
+        );
+    }
+    for f in 0..frames {
+        for a in 0..nq {
+            let e = (dq[f][a] - x[f * nq + a]).abs();
+            assert!(e <= 1e-7 * scale, "δq[{f}][{a}]");
+        }
+    }
+    // Predicted decrease 2 hᵀx − xᵀ H₀ x with the undamped H₀.
+    let mut h0 = h.clone();
+    for i in 0..dim {
+        h0[(i, i)] /= 1.0 + lambda;
+    }
+    let expected = 2.0 * rhs.dot(&x) - x.dot(&(&h0 * &x));
+    assert!(
+        (pred - expected).abs() <= 1e-7 * expected.abs(),
+        "{pred} vs {expected}"
+    );
+}
