@@ -53,6 +53,12 @@ mod up;
 /// `jointfit personalize --static STAT --markers PRESET --side right -o OUT`, which must
 /// succeed.
 fn personalize(stat: &Path, preset: &str, out: &Path) {
+    personalize_side(stat, preset, "right", out);
+}
+
+/// `jointfit personalize --static STAT --markers PRESET --side SIDE -o OUT`, which must
+/// succeed.
+fn personalize_side(stat: &Path, preset: &str, side: &str, out: &Path) {
     let (ok, _, err) = jointfit(&[
         "personalize",
         "--static",
@@ -60,11 +66,11 @@ fn personalize(stat: &Path, preset: &str, out: &Path) {
         "--markers",
         preset,
         "--side",
-        "right",
+        side,
         "-o",
         out.to_str().unwrap(),
     ]);
-    assert!(ok, "{err}");
+    assert!(ok, "{} {side}: {err}", stat.display());
 }
 
 /// OpenCap's expert subject, the shared setup of the tests on real gait: `dir/name`

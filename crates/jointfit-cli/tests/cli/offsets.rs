@@ -95,18 +95,7 @@ fn moved_clusters_on_every_shared_trial() {
         let lab = Path::new(stat_rel).parent().unwrap();
         for side in ["right", "left"] {
             let subject = dir.join(format!("{}_{side}.toml", lab.display()));
-            let (ok, _, err) = jointfit(&[
-                "personalize",
-                "--static",
-                stat.to_str().unwrap(),
-                "--markers",
-                preset,
-                "--side",
-                side,
-                "-o",
-                subject.to_str().unwrap(),
-            ]);
-            assert!(ok, "{stat_rel} {side}: {err}");
+            super::personalize_side(&stat, preset, side, &subject);
             let model = jointfit_io::model_file::load_model(subject.to_str().unwrap()).unwrap();
             let up = model.spec().lab_up.unwrap_or(jointfit::trial::UpAxis::Y);
             for &name in trials {
@@ -193,18 +182,7 @@ fn ik_reports_the_moved_left_thigh_cluster() {
     let dir = scratch("offsets-ik");
     let subject = dir.join("left.toml");
     let s = |p: &Path| p.to_str().unwrap().to_string();
-    let (ok, _, err) = jointfit(&[
-        "personalize",
-        "--static",
-        &s(&stat),
-        "--markers",
-        "opencap",
-        "--side",
-        "left",
-        "-o",
-        &s(&subject),
-    ]);
-    assert!(ok, "{err}");
+    super::personalize_side(&stat, "opencap", "left", &subject);
     let json = super::ik::ik(&subject, &walk, &dir.join("w.mot"), &[]);
     let offsets: Vec<&serde_json::Value> = json["checks"]
         .as_array()
