@@ -30,7 +30,6 @@ use crate::kinematics::{forward_kinematics, KinData, Want};
 pub(crate) struct FrameScratch {
     pub kin: KinData,
     rows: Vec<(usize, f64)>,
-    jw: Vec<f64>,
     rw: Vec<f64>,
     /// Per column, its first nonzero row and one past its last.
     range: Vec<(usize, usize)>,
@@ -38,6 +37,16 @@ pub(crate) struct FrameScratch {
     order: Vec<usize>,
     /// Per marker, its weighted residual `√w (m − x)` (NaN: absent or weight 0).
     res: Vec<Vector3<f64>>,
+    /// The column order of `xt`: by first row, then last row descending, then index, for
+    /// the ranges of the last frame (`pos`: its inverse).
+    perm: Vec<usize>,
+    pos: Vec<usize>,
+    /// The ranges `perm` was sorted for.
+    perm_key: Vec<(usize, usize)>,
+    /// The weighted Jacobian row-major in the order `perm`, the weighted residual in column
+    /// n (rows × `np`, `np` = n + 1 rounded up to a multiple of 4).
+    xt: Vec<f64>,
+    np: usize,
     /// `G` (n × n, column-major).
     pub gram: Vec<f64>,
     /// `h = [g; g_s]` (n).
@@ -56,10 +65,14 @@ impl FrameScratch {
         FrameScratch {
             kin: KinData::new(model),
             rows: Vec::with_capacity(nrows),
-            jw: vec![0.0; n * nrows],
             rw: vec![0.0; nrows],
             range: vec![(0, 0); n],
             order: depth_first_markers(model),
+            perm: (0..n).collect(),
+            pos: (0..n).collect(),
+            perm_key: Vec::new(),
+            xt: vec![0.0; nrows * (n + 1).div_ceil(4) * 4],
+            np: (n + 1).div_ceil(4) * 4,
             res: vec![Vector3::zeros(); model.n_markers()],
             gram: vec![0.0; n * n],
             grad: vec![0.0; n],
@@ -196,8 +209,10 @@ fn frame_gram_impl(
         }
     }
     let nr = sc.rows.len();
+    let np = sc.np;
     let jq = sc.kin.jq().as_slice();
     let jp = sc.kin.jp().as_slice();
+    let xt = &mut sc.xt[..nr * np];
     for a in 0..n {
         let (src, scale) = if a < nq {
             (&jq[a * nrows..(a + 1) * nrows], 1.0)
@@ -206,45 +221,163 @@ fn frame_gram_impl(
             let pi = prob.free[k];
             (&jp[pi * nrows..(pi + 1) * nrows], half[k])
         };
-        let col = &mut sc.jw[a * nr..(a + 1) * nr];
-        for (x, &(row, sw)) in col.iter_mut().zip(&sc.rows) {
-            *x = sw * scale * src[row];
+        // Column a of J̃ into its place in `xt`, with its first nonzero row and the end of
+        // the last marker with a nonzero row (`(0, 0)`: none). Whole markers at the end: on a
+        // chain every column then reaches the last row, and the sums are those of a dot
+        // product to the end.
+        let k = sc.pos[a];
+        let (mut first, mut last) = (usize::MAX, 0);
+        for (i, &(row, sw)) in sc.rows.iter().enumerate() {
+            let x = sw * scale * src[row];
+            xt[i * np + k] = x;
+            if x != 0.0 {
+                first = first.min(i);
+                last = i;
+            }
         }
-        // The first nonzero row, and the end of the last marker with a nonzero row (`(0, 0)`:
-        // none). Whole markers at the end: on a chain every column then reaches the last
-        // row, and the sums are those of a dot product to the end.
-        let first = col.iter().position(|&x| x != 0.0).unwrap_or(nr);
-        let end = col
-            .iter()
-            .rposition(|&x| x != 0.0)
-            .map_or(0, |i| (i / 3 + 1) * 3);
+        let end = if first == usize::MAX {
+            0
+        } else {
+            (last / 3 + 1) * 3
+        };
         sc.range[a] = if first < end { (first, end) } else { (0, 0) };
     }
-    // G and h by dot products of columns, each over the rows where both columns can be
-    // nonzero (the rows outside hold a zero in one of them): the lower triangle column by
-    // column, mirrored.
-    let (jw, range, rw) = (&sc.jw, &sc.range, &sc.rw[..nr]);
-    let gram = &mut sc.gram;
-    for b in 0..n {
-        let (rb, eb) = range[b];
-        let cb = &jw[b * nr..(b + 1) * nr];
-        sc.grad[b] = dot(&rw[rb..eb], &cb[rb..eb]);
-        gram[b * n + b] = dot(&cb[rb..eb], &cb[rb..eb]);
-        for a in b + 1..n {
-            let (lo, hi) = (rb.max(range[a].0), eb.min(range[a].1));
-            gram[b * n + a] = if lo < hi {
-                dot(&cb[lo..hi], &jw[a * nr + lo..a * nr + hi])
-            } else {
-                0.0
-            };
-        }
+    // The weighted residual as column n.
+    for (i, &x) in sc.rw[..nr].iter().enumerate() {
+        xt[i * np + n] = x;
     }
-    for b in 0..n {
-        for a in b + 1..n {
-            gram[a * n + b] = gram[b * n + a];
+    let xt = &sc.xt[..nr * np];
+    gram_tiles(n, np, &sc.perm, &sc.range, xt, &mut sc.gram, &mut sc.grad);
+    // The next frame's column order, when the ranges changed (the order does not change the
+    // sums, only how many of them run as tiles).
+    if sc.perm_key != sc.range {
+        sc.perm_key.clone_from(&sc.range);
+        let range = &sc.range;
+        sc.perm
+            .sort_by_key(|&a| (range[a].0, std::cmp::Reverse(range[a].1), a));
+        for (k, &a) in sc.perm.iter().enumerate() {
+            sc.pos[a] = k;
         }
     }
     cost
+}
+
+/// `G` (both triangles) and `h` from the row-major copy `xt` of `J̃` (columns in the order
+/// `perm`, the weighted residual in column n). Entry `(a, b)` of `G`, `a` not after `b` in
+/// that order, is the dot product of the two columns over the rows where both can be
+/// nonzero, `[max first, min end)`. When `a`'s range contains `b`'s (always on a chain, where
+/// the columns are ordered by first row), that is `b`'s own range, the same for four
+/// consecutive `a`: one [`tile`]; otherwise [`dot_rows`]. Entry `b` of `h` is the residual's
+/// product with column b over b's range: a tile for four columns with the same range. The
+/// sums are those of [`dot`] over the same rows either way, bit for bit, whatever `perm`.
+#[inline(always)]
+fn gram_tiles(
+    n: usize,
+    np: usize,
+    perm: &[usize],
+    range: &[(usize, usize)],
+    xt: &[f64],
+    gram: &mut [f64],
+    grad: &mut [f64],
+) {
+    for pb in 0..n {
+        let b = perm[pb];
+        let (sb, eb) = range[b];
+        let mut t = 0;
+        while t <= pb {
+            let lanes = (pb + 1 - t).min(4);
+            let contains = perm[t..t + lanes].iter().all(|&a| {
+                let (sa, ea) = range[a];
+                sa <= sb && ea >= eb
+            });
+            if contains {
+                let v = tile(xt, np, t, pb, sb, eb);
+                for (l, &a) in perm[t..t + lanes].iter().enumerate() {
+                    gram[b * n + a] = v[l];
+                    gram[a * n + b] = v[l];
+                }
+            } else {
+                for (l, &a) in perm[t..t + lanes].iter().enumerate() {
+                    let (lo, hi) = (sb.max(range[a].0), eb.min(range[a].1));
+                    let v = if lo < hi {
+                        dot_rows(xt, np, t + l, pb, lo, hi)
+                    } else {
+                        0.0
+                    };
+                    gram[b * n + a] = v;
+                    gram[a * n + b] = v;
+                }
+            }
+            t += 4;
+        }
+    }
+    let mut t = 0;
+    while t < n {
+        let lanes = (n - t).min(4);
+        let r0 = range[perm[t]];
+        if perm[t..t + lanes].iter().all(|&a| range[a] == r0) {
+            let v = tile(xt, np, t, n, r0.0, r0.1);
+            for (l, &a) in perm[t..t + lanes].iter().enumerate() {
+                grad[a] = v[l];
+            }
+        } else {
+            for (l, &a) in perm[t..t + lanes].iter().enumerate() {
+                let (lo, hi) = range[a];
+                grad[a] = dot_rows(xt, np, t + l, n, lo, hi);
+            }
+        }
+        t += 4;
+    }
+}
+
+/// The dot products of columns `t..t + 4` of `xt` (row-major, `np` wide) with its column `b`
+/// over rows `lo..hi`, each summed as [`dot`] sums: four partial sums over the rows
+/// `lo + 4k + i`, added `(s0 + s1) + (s2 + s3)`, then the last `(hi − lo) mod 4` rows in
+/// order. The four columns are the lanes, so the four partial sums are independent chains.
+#[inline(always)]
+fn tile(xt: &[f64], np: usize, t: usize, b: usize, lo: usize, hi: usize) -> [f64; 4] {
+    let mut acc = [[0.0f64; 4]; 4];
+    let full = lo + (hi - lo) / 4 * 4;
+    for quad in xt[lo * np..full * np].chunks_exact(4 * np) {
+        for (p, acc) in acc.iter_mut().enumerate() {
+            let row = &quad[p * np..(p + 1) * np];
+            let y = row[b];
+            let x: &[f64; 4] = row[t..t + 4].try_into().expect("four lanes");
+            for l in 0..4 {
+                acc[l] += x[l] * y;
+            }
+        }
+    }
+    let mut tail = [0.0f64; 4];
+    for row in xt[full * np..hi * np].chunks_exact(np) {
+        let y = row[b];
+        let x: &[f64; 4] = row[t..t + 4].try_into().expect("four lanes");
+        for l in 0..4 {
+            tail[l] += x[l] * y;
+        }
+    }
+    let mut out = [0.0; 4];
+    for l in 0..4 {
+        out[l] = ((acc[0][l] + acc[1][l]) + (acc[2][l] + acc[3][l])) + tail[l];
+    }
+    out
+}
+
+/// [`dot`] of columns `a` and `b` of `xt` (row-major, `np` wide) over rows `lo..hi`: the same
+/// sums in the same order.
+fn dot_rows(xt: &[f64], np: usize, a: usize, b: usize, lo: usize, hi: usize) -> f64 {
+    let mut acc = [0.0f64; 4];
+    let full = lo + (hi - lo) / 4 * 4;
+    for quad in xt[lo * np..full * np].chunks_exact(4 * np) {
+        for (p, acc) in acc.iter_mut().enumerate() {
+            *acc += quad[p * np + a] * quad[p * np + b];
+        }
+    }
+    let mut tail = 0.0;
+    for row in xt[full * np..hi * np].chunks_exact(np) {
+        tail += row[a] * row[b];
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 /// The markers of `model` ordered by the depth-first (preorder) position of their segments,
@@ -295,78 +428,5 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::calibrate::params_for_groups;
-    use crate::model::lower_limb::{lower_limb, Side};
-    use crate::model::Model;
-    use crate::trial::Trial;
-    use nalgebra::DMatrix;
-
-    /// The kernel's `G` and `h` against the dense products `J̃ᵀJ̃`, `J̃ᵀr̃` formed with nalgebra
-    /// from the kinematics' Jacobians, with a missing marker and unequal weights.
-    #[test]
-    fn gram_matches_dense_products() {
-        let model = Model::compile(&lower_limb(Side::Right)).unwrap();
-        let p = model.nominal_params();
-        let mut q = model.default_coords();
-        for (i, v) in q.iter_mut().enumerate() {
-            *v += 0.2 * (i as f64 + 1.0).sin();
-        }
-        let mut kin = KinData::new(&model);
-        forward_kinematics(&model, &p, &q, Want::POSITIONS, &mut kin);
-        let mut targets: Vec<Vector3<f64>> = kin
-            .markers
-            .iter()
-            .enumerate()
-            .map(|(j, x)| x + Vector3::new(0.01, -0.02, 0.015) * ((j as f64) * 0.7).cos())
-            .collect();
-        targets[3] = Vector3::from_element(f64::NAN);
-        let labels = model.markers().iter().map(|m| m.name.clone()).collect();
-        let flat: Vec<Vector3<f64>> = targets.clone();
-        let trial = Trial::new(labels, 100.0, 1, flat).unwrap();
-        let all = params_for_groups(&model, &["all"]).unwrap();
-        let prob = Problem::new(&model, p.clone(), &all, &[&trial]).unwrap();
-        let half: Vec<f64> = (0..prob.n_free()).map(|k| prob.half_range(k)).collect();
-        let mut sc = FrameScratch::new(&prob);
-        let cost = frame_gram(&prob, &p, &q, &targets, &half, &mut sc);
-
-        forward_kinematics(&model, &p, &q, Want::BOTH, &mut kin);
-        let (nq, nf) = (model.n_q(), prob.n_free());
-        let n = nq + nf;
-        let rows = 3 * model.n_markers();
-        let mut j = DMatrix::zeros(rows, n);
-        let mut r = DMatrix::zeros(rows, 1);
-        let mut expected_cost = 0.0;
-        for (m, mk) in model.markers().iter().enumerate() {
-            if targets[m].x.is_nan() {
-                continue;
-            }
-            let sw = mk.weight.sqrt();
-            let d = targets[m] - kin.markers[m];
-            expected_cost += mk.weight * d.norm_squared();
-            for axis in 0..3 {
-                let row = 3 * m + axis;
-                r[row] = sw * d[axis];
-                for a in 0..nq {
-                    j[(row, a)] = sw * kin.jq()[(row, a)];
-                }
-                for k in 0..nf {
-                    j[(row, nq + k)] = sw * half[k] * kin.jp()[(row, prob.free[k])];
-                }
-            }
-        }
-        let g = j.transpose() * &j;
-        let h = j.transpose() * &r;
-        assert!((cost - expected_cost).abs() <= 1e-12 * expected_cost);
-        let scale = g.amax();
-        for a in 0..n {
-            assert!((sc.grad[a] - h[a]).abs() <= 1e-12 * h.amax(), "h[{a}]");
-            for b in 0..n {
-                let got = sc.gram[b * n + a];
-                assert!((got - g[(a, b)]).abs() <= 1e-12 * scale, "G[{a},{b}]");
-                assert_eq!(got, sc.gram[a * n + b], "symmetric");
-            }
-        }
-    }
-}
+#[path = "kernel_tests.rs"]
+mod tests;
