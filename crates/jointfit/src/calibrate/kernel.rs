@@ -230,10 +230,10 @@ fn frame_gram_impl(
         for (i, &(row, sw)) in sc.rows.iter().enumerate() {
             let x = sw * scale * src[row];
             xt[i * np + k] = x;
-            if x != 0.0 {
-                first = first.min(i);
-                last = i;
-            }
+            // x ≠ 0 (NaN included), without branches.
+            let nonzero = x.to_bits() << 1 != 0;
+            first = first.min(if nonzero { i } else { usize::MAX });
+            last = if nonzero { i } else { last };
         }
         let end = if first == usize::MAX {
             0
@@ -336,31 +336,37 @@ fn gram_tiles(
 /// order. The four columns are the lanes, so the four partial sums are independent chains.
 #[inline(always)]
 fn tile(xt: &[f64], np: usize, t: usize, b: usize, lo: usize, hi: usize) -> [f64; 4] {
+    assert!(t + 4 <= np && b < np && lo <= hi && hi * np <= xt.len());
     let mut acc = [[0.0f64; 4]; 4];
     let full = lo + (hi - lo) / 4 * 4;
-    for quad in xt[lo * np..full * np].chunks_exact(4 * np) {
-        for (p, acc) in acc.iter_mut().enumerate() {
-            let row = &quad[p * np..(p + 1) * np];
-            let y = row[b];
-            let x: &[f64; 4] = row[t..t + 4].try_into().expect("four lanes");
-            for l in 0..4 {
-                acc[l] += x[l] * y;
+    // SAFETY: every row read, `lo..hi`, lies within `xt` (asserted above), and within a row
+    // the reads are columns `t..t + 4` and `b`, all below `np`.
+    unsafe {
+        let mut row = xt.as_ptr().add(lo * np);
+        for _ in 0..(full - lo) / 4 {
+            for (p, acc) in acc.iter_mut().enumerate() {
+                let r = row.add(p * np);
+                let y = *r.add(b);
+                for (l, a) in acc.iter_mut().enumerate() {
+                    *a += *r.add(t + l) * y;
+                }
             }
+            row = row.add(4 * np);
         }
-    }
-    let mut tail = [0.0f64; 4];
-    for row in xt[full * np..hi * np].chunks_exact(np) {
-        let y = row[b];
-        let x: &[f64; 4] = row[t..t + 4].try_into().expect("four lanes");
+        let mut out = [0.0; 4];
+        let mut tail = [0.0f64; 4];
+        for _ in full..hi {
+            let y = *row.add(b);
+            for (l, a) in tail.iter_mut().enumerate() {
+                *a += *row.add(t + l) * y;
+            }
+            row = row.add(np);
+        }
         for l in 0..4 {
-            tail[l] += x[l] * y;
+            out[l] = ((acc[0][l] + acc[1][l]) + (acc[2][l] + acc[3][l])) + tail[l];
         }
+        out
     }
-    let mut out = [0.0; 4];
-    for l in 0..4 {
-        out[l] = ((acc[0][l] + acc[1][l]) + (acc[2][l] + acc[3][l])) + tail[l];
-    }
-    out
 }
 
 /// [`dot`] of columns `a` and `b` of `xt` (row-major, `np` wide) over rows `lo..hi`: the same
