@@ -158,6 +158,8 @@ pub(super) fn lm(
     let mut cost = cost_of(&ws.cur.markers, targets, &ws.weights);
     let mut lambda = 1e-6;
     let mut iterations = 0;
+    // Largest component of the last accepted step (for the contraction estimate).
+    let mut last_step = f64::INFINITY;
     while iterations < opts.max_iterations {
         iterations += 1;
         ws.moments
@@ -170,6 +172,7 @@ pub(super) fn lm(
                 ws.l[i * n + i] += lambda * ws.a[i * n + i] + 1e-14 * max_diag + 1e-300;
             }
             let Some(chol) = Cholesky::factor(&mut ws.l[..n * n], n) else {
+                last_step = f64::INFINITY;
                 lambda *= 10.0;
                 if lambda > 1e10 {
                     return (cost, iterations, Termination::Stalled);
@@ -190,15 +193,21 @@ pub(super) fn lm(
                 std::mem::swap(&mut ws.cur, &mut ws.trial);
                 cost = trial_cost;
                 lambda = (lambda / 10.0).max(1e-12);
-                if step_max < opts.step_tolerance {
+                if step_max < opts.step_tolerance
+                    || remaining_error(step_max, last_step) < opts.step_tolerance
+                {
                     return (cost, iterations, Termination::Converged);
                 }
+                last_step = step_max;
                 break;
             }
             if step_max < opts.step_tolerance {
                 // Even a negligible step does not lower the cost: minimum to working precision.
                 return (cost, iterations, Termination::Converged);
             }
+            // A damped step is shorter than the iteration's own: no contraction estimate
+            // across it.
+            last_step = f64::INFINITY;
             lambda *= 10.0;
             if lambda > 1e10 {
                 return (cost, iterations, Termination::Stalled);
@@ -206,6 +215,26 @@ pub(super) fn lm(
         }
     }
     (cost, iterations, Termination::IterationLimit)
+}
+
+/// Largest contraction ratio of two successive steps for which [`remaining_error`] trusts
+/// the estimate: above it the iteration is not yet contracting steadily.
+const MAX_CONTRACTION: f64 = 0.5;
+
+/// The distance still to go after an accepted step of size `step` that followed one of size
+/// `last` (largest components), estimated from their ratio `ρ = step / last`: where the
+/// iteration contracts linearly with rate `ρ`, the steps still to come sum to at most
+/// `step · ρ / (1 − ρ)` (a geometric series; the a-posteriori bound of a contraction, e.g.
+/// Kelley, *Iterative Methods for Linear and Nonlinear Equations*, SIAM 1995, §4.2), and
+/// where it converges faster the bound holds all the more. Infinite (no estimate) before two
+/// steps or when `ρ > MAX_CONTRACTION`.
+fn remaining_error(step: f64, last: f64) -> f64 {
+    let rho = step / last;
+    if last.is_finite() && rho <= MAX_CONTRACTION {
+        step * rho / (1.0 - rho)
+    } else {
+        f64::INFINITY
+    }
 }
 
 /// Solves one frame in place: `q` is the starting point on entry, the solution on exit.

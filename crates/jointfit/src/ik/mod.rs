@@ -31,6 +31,7 @@
 //! solved again from its neighbours' solutions and a fresh seed, and reported not solved when
 //! it stays implausible ([`repair`]).
 
+mod composite;
 mod frames;
 mod lm;
 mod markers;
@@ -66,11 +67,13 @@ pub enum IkError {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct IkOptions {
     pub max_iterations: usize,
-    /// Stop when the largest accepted step component is below this (rad or m). Gauss-Newton
-    /// on noisy markers converges linearly (each step a fixed fraction of the last, about
-    /// 0.1 on gait data), so the remaining error is about a tenth of this. The default,
-    /// 1e-8, is far below what any marker data determines (1e-8 rad = 6e-7 deg, 1e-8 m =
-    /// 1e-5 mm).
+    /// Stop when the distance still to go, estimated from the last two accepted steps, is
+    /// below this (rad or m, largest component), or when an accepted step itself is.
+    /// Gauss-Newton on noisy markers converges linearly (each step a fixed fraction `ρ` of
+    /// the last, about 0.1 on gait data), so after a step `s` the steps still to come sum to
+    /// about `s ρ / (1 − ρ)`; that estimate is used while `ρ ≤ 0.5` (see
+    /// `lm::remaining_error`). The default, 1e-8, is far below what any marker data
+    /// determines (1e-8 rad = 6e-7 deg, 1e-8 m = 1e-5 mm).
     pub step_tolerance: f64,
     /// A rotational coordinate is undetermined when 1 mm of noise on the present markers
     /// moves it by more than this standard deviation (rad; see [`solvable`]).

@@ -2,6 +2,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
+use super::composite::{Composite, SegmentPlan};
 use crate::kinematics::KinData;
 use crate::model::Model;
 
@@ -27,6 +28,8 @@ pub(super) struct Moments {
     active_index: Vec<usize>,
     /// Twists of one segment's columns: `(ω, v)`.
     twists: Vec<(Vector3<f64>, Vector3<f64>)>,
+    /// The composite form, used when the model allows it ([`super::composite`]).
+    composite: Option<Composite>,
 }
 
 /// The coordinates that move one marker-carrying segment.
@@ -66,11 +69,36 @@ impl Moments {
                 steps,
             });
         }
+        let plan: Vec<SegmentPlan> = segments
+            .iter()
+            .map(|seg| {
+                let steps = seg
+                    .steps
+                    .iter()
+                    .map(|&(local, step, scale, rot)| (seg.cols[local], step, scale, rot))
+                    .collect();
+                (seg.markers.clone(), steps)
+            })
+            .collect();
         Moments {
             segments,
             active_index: vec![usize::MAX; model.n_q()],
             twists: vec![(Vector3::zeros(), Vector3::zeros()); widest],
+            composite: Composite::new(model.n_q(), &plan),
         }
+    }
+
+    /// Whether the composite form is in use.
+    #[cfg(test)]
+    pub(super) fn is_composite(&self) -> bool {
+        self.composite.is_some()
+    }
+
+    /// Falls back to the per-segment form (for tests of both).
+    #[cfg(test)]
+    pub(super) fn per_segment(mut self) -> Self {
+        self.composite = None;
+        self
     }
 
     pub(super) fn set_active(&mut self, active: &[usize]) {
@@ -90,6 +118,10 @@ impl Moments {
         a: &mut [f64],
         g: &mut [f64],
     ) {
+        if let Some(composite) = &mut self.composite {
+            composite.normal_equations(kin, targets, weights, &self.active_index, n, a, g);
+            return;
+        }
         a[..n * n].fill(0.0);
         g[..n].fill(0.0);
         for seg in &self.segments {
@@ -201,36 +233,42 @@ mod tests {
                 .filter(|c| case % 2 == 0 || c % 3 != 1)
                 .collect();
             let n = active.len();
-            let mut moments = Moments::new(&model);
-            moments.set_active(&active);
-            let (mut a, mut g) = (vec![0.0; n * n], vec![0.0; n]);
-            moments.normal_equations(&kin, &targets, &weights, n, &mut a, &mut g);
-            let jq = kin.jq();
-            let scale = jq.norm_squared();
-            for (ai, &ca) in active.iter().enumerate() {
-                let mut g_ref = 0.0;
-                for (j, &w) in weights.iter().enumerate() {
-                    let r = targets[j] - kin.markers[j];
-                    for k in 0..3 {
-                        g_ref += w * jq[(3 * j + k, ca)] * r[k];
-                    }
+            for composite in [true, false] {
+                let mut moments = Moments::new(&model);
+                assert!(moments.is_composite(), "the leg allows the composite form");
+                if !composite {
+                    moments = moments.per_segment();
                 }
-                assert!(
-                    (g[ai] - g_ref).abs() <= 1e-12 * scale,
-                    "g[{ai}] case {case}"
-                );
-                for (bi, &cb) in active.iter().enumerate() {
-                    let mut a_ref = 0.0;
+                moments.set_active(&active);
+                let (mut a, mut g) = (vec![0.0; n * n], vec![0.0; n]);
+                moments.normal_equations(&kin, &targets, &weights, n, &mut a, &mut g);
+                let jq = kin.jq();
+                let scale = jq.norm_squared();
+                for (ai, &ca) in active.iter().enumerate() {
+                    let mut g_ref = 0.0;
                     for (j, &w) in weights.iter().enumerate() {
+                        let r = targets[j] - kin.markers[j];
                         for k in 0..3 {
-                            a_ref += w * jq[(3 * j + k, ca)] * jq[(3 * j + k, cb)];
+                            g_ref += w * jq[(3 * j + k, ca)] * r[k];
                         }
                     }
-                    let got = a[bi * n + ai];
                     assert!(
-                        (got - a_ref).abs() <= 1e-12 * scale,
-                        "A[{ai},{bi}] case {case}: {got} vs {a_ref}"
+                        (g[ai] - g_ref).abs() <= 1e-12 * scale,
+                        "g[{ai}] case {case}"
                     );
+                    for (bi, &cb) in active.iter().enumerate() {
+                        let mut a_ref = 0.0;
+                        for (j, &w) in weights.iter().enumerate() {
+                            for k in 0..3 {
+                                a_ref += w * jq[(3 * j + k, ca)] * jq[(3 * j + k, cb)];
+                            }
+                        }
+                        let got = a[bi * n + ai];
+                        assert!(
+                            (got - a_ref).abs() <= 1e-12 * scale,
+                            "A[{ai},{bi}] case {case} composite {composite}: {got} vs {a_ref}"
+                        );
+                    }
                 }
             }
         }
