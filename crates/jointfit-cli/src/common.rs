@@ -140,11 +140,11 @@ pub struct Loaded {
 pub enum Columns {
     /// Every marker (commands that show or check the whole file).
     All,
-    /// The model's markers and those the vertical's detection looks at
-    /// ([`jointfit::vertical::label_height`]): the IK and the calibration use no others, and
-    /// a TRC file's other columns are then not parsed (`docs/io.md`). Every marker when
-    /// repairs are asked for (`--exclude-marker`, `--swap-labels`, `--fill-gaps` name or
-    /// report markers of the whole file).
+    /// The model's markers: the IK and the calibration use no others, and a TRC file's other
+    /// columns are then not parsed (`docs/io.md`). The data checks and the vertical's
+    /// warning then look at these markers only. Every marker when repairs are asked for
+    /// (`--exclude-marker`, `--swap-labels`, `--fill-gaps` name or report markers of the
+    /// whole file).
     ForModel,
 }
 
@@ -161,8 +161,7 @@ pub fn load_for_model(
     let options = args.repairs()?;
     let names: std::collections::HashSet<&str> =
         model.markers().iter().map(|m| m.name.as_str()).collect();
-    let keep =
-        |label: &str| names.contains(label) || jointfit::vertical::label_height(label).is_some();
+    let keep = |label: &str| names.contains(label);
     let select: Option<jointfit_io::trc::Select> =
         (columns == Columns::ForModel && options.is_empty()).then_some(&keep);
     let (trial, mut notes) = jointfit_io::trial_file::read_trial_selected(path, select)?;
