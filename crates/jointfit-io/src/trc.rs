@@ -55,6 +55,15 @@
 //! * A data row with too few cells, or with a non-blank cell beyond the last marker, is an
 //!   error naming the line and the marker.
 //!
+//! # Reading some markers only
+//!
+//! [`read_trc_selected`]/[`parse_trc_selected`] parse the coordinates of the markers a
+//! filter accepts and step over the other markers' cells (the commands that fit a model read
+//! its markers this way). Everything else is checked as in a full read, and the kept values
+//! are the same bits. Data rows are read by a one-pass byte parser for the common case
+//! (`trc/fast.rs`) and by the general, fully checked path (`trc/rows.rs`) for any row it
+//! does not handle; both give the same values (`docs/io.md`).
+//!
 //! # Writing
 //!
 //! [`format_trc`]/[`write_trc`] write the layout above with `\n` line ends: rate written so it
