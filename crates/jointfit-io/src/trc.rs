@@ -362,6 +362,7 @@ pub fn read_trc_file(path: &Path) -> Result<TrcFile, TrcError> {
 
 /// Reads a TRC file like [`read_trc_file`], parsing the coordinates of only the markers
 /// `select` accepts (all when `None`); the trial holds those markers, in file order.
+/// A selection that accepts no marker of the file reads them all.
 ///
 /// The header, the labels and every row's frame number, time and number of cells are checked
 /// as in a full read, and the kept markers' values are the same bits; the cells of the other

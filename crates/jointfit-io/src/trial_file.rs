@@ -94,6 +94,10 @@ pub fn read_trial_selected(
         .map(String::as_str)
         .filter(|l| keep(l))
         .collect();
+    if names.is_empty() {
+        // As for TRC files: a selection that keeps no marker keeps them all.
+        return Ok((trial, notes));
+    }
     let trial = trial.select(&names).map_err(|e| TrialFileError::Other {
         path: path.display().to_string(),
         message: e.to_string(),

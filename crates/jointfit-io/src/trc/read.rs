@@ -61,7 +61,12 @@ pub(super) fn parse(text: &str, select: Option<Select>) -> Result<TrcFile, TrcEr
     }
 
     let scale = header.units.to_metres();
-    let keep: Vec<bool> = labels.iter().map(|l| select.is_none_or(|s| s(l))).collect();
+    let mut keep: Vec<bool> = labels.iter().map(|l| select.is_none_or(|s| s(l))).collect();
+    // A selection that keeps no marker reads them all: a trial has at least one marker, and
+    // the caller then says which of its markers the file lacks.
+    if !keep.contains(&true) {
+        keep.fill(true);
+    }
     let mut data = read_rows(&lines[5..], &labels, &keep, scale)?;
     let rows = data.times.len();
     if rows < header.num_frames {

@@ -187,6 +187,9 @@ fn selective_reads_still_check_the_row() {
         ),
         "{e}"
     );
+    // A selection that keeps no marker reads them all.
+    let none = parse_trc_selected(&bad_in_b.replace('x', "4"), "t.trc", Some(&|_: &str| false));
+    assert_eq!(none.unwrap().trial.n_markers(), 3);
     // A skipped marker's cells may be anything; the row must still hold them.
     let short_in_b = small("1\t2\t3\t4");
     let e = parse_trc_selected(&short_in_b, "t.trc", Some(&skip_b)).unwrap_err();
