@@ -299,7 +299,9 @@ pub struct IkIo {
 }
 
 /// `trial` repeated to `frames` frames, written as a TRC file in a scratch folder, then read,
-/// solved and written as `jointfit ik` does (best of `runs`).
+/// solved and written as `jointfit ik` does (best of `runs`): read with
+/// [`crate::common::load_for_model`] (the model's markers, checks, rotation), the `.mot`
+/// formatted by `format_sto` and synced to disk.
 pub fn ik_io(model: &Model, trial: &Trial, frames: usize, runs: usize) -> Result<IkIo> {
     let n = trial.n_frames().max(1);
     let positions: Vec<_> = (0..frames)
@@ -325,7 +327,15 @@ pub fn ik_io(model: &Model, trial: &Trial, frames: usize, runs: usize) -> Result
         let p = model.nominal_params();
         for _ in 0..runs {
             let t = Instant::now();
-            let read = crate::common::load_trial(&trc, crate::common::Up::Y, None)?;
+            // As `jointfit ik` reads it: the model's markers only (`common::Columns`).
+            let read = crate::common::load_for_model(
+                &trc,
+                &Default::default(),
+                model,
+                None,
+                crate::common::Columns::ForModel,
+            )?
+            .trial;
             let t_read = t.elapsed().as_secs_f64();
             let t = Instant::now();
             let run = workflow::ik_trial(model, &p, &read, &Default::default())?;

@@ -11,7 +11,7 @@ use jointfit::trial::Trial;
 use jointfit::workflow::{self, uncertainty_options, Calibration, FitSettings, Method, Observer};
 use serde::Serialize;
 
-use crate::common::{load_checked, TrialJson};
+use crate::common::{load_checked, Columns, TrialJson};
 
 /// The outer optimizer (the command line's names for [`jointfit::workflow::Method`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -254,7 +254,10 @@ pub fn load_trials(
     Ok(args
         .trials
         .iter()
-        .map(|t| load_checked(t, &args.read, model, args.filter).map(|(t, j, _)| (t, j)))
+        .map(|t| {
+            load_checked(t, &args.read, model, args.filter, Columns::ForModel)
+                .map(|(t, j, _)| (t, j))
+        })
         .collect::<Result<Vec<_>>>()?
         .into_iter()
         .unzip())

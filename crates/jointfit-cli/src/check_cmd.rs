@@ -17,7 +17,7 @@ use jointfit::model::Unit;
 use jointfit::workflow;
 use serde::Serialize;
 
-use crate::common::{load_checked, TrialJson};
+use crate::common::{load_checked, Columns, TrialJson};
 
 #[derive(Args)]
 pub struct CheckArgs {
@@ -62,7 +62,8 @@ pub struct CheckReport {
 
 pub fn run(args: CheckArgs) -> Result<()> {
     let model = load(&args)?;
-    let (trial, read, _) = load_checked(&args.trial, &args.read, &model, args.filter)?;
+    let (trial, read, _) =
+        load_checked(&args.trial, &args.read, &model, args.filter, Columns::All)?;
     let model = crate::common::model_for_trials(model, &[&trial], "the check")?;
     let free = if jointfit_io::model_file::is_osim(Path::new(&args.model)) {
         (0..model.n_p()).map(jointfit::model::ParamId).collect()

@@ -135,15 +135,36 @@ pub struct Loaded {
     pub repairs: Vec<String>,
 }
 
+/// Which markers of a trial a command reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Columns {
+    /// Every marker (commands that show or check the whole file).
+    All,
+    /// The model's markers: the IK and the calibration use no others, and a TRC file's other
+    /// columns are then not parsed (`docs/io.md`). The data checks and the vertical's
+    /// warning then look at these markers only. Every marker when repairs are asked for
+    /// (`--exclude-marker`, `--swap-labels`, `--fill-gaps` name or report markers of the
+    /// whole file).
+    ForModel,
+}
+
 /// Reads `path` for `model` ([`TrialArgs`]; module docs): the vertical from `--up`, the
 /// model's `lab_up` or `y`, a warning when the markers say another axis is up, then filtering.
+/// `columns` says which markers are read ([`Columns`]).
 pub fn load_for_model(
     path: &Path,
     args: &TrialArgs,
     model: &jointfit::model::Model,
     filter_hz: Option<f64>,
+    columns: Columns,
 ) -> Result<Loaded> {
-    let (trial, mut notes) = jointfit_io::trial_file::read_trial_noted(path)?;
+    let options = args.repairs()?;
+    let names: std::collections::HashSet<&str> =
+        model.markers().iter().map(|m| m.name.as_str()).collect();
+    let keep = |label: &str| names.contains(label);
+    let select: Option<jointfit_io::trc::Select> =
+        (columns == Columns::ForModel && options.is_empty()).then_some(&keep);
+    let (trial, mut notes) = jointfit_io::trial_file::read_trial_selected(path, select)?;
     crate::validate::check_trial(path, &trial)?;
     let (up, up_source) = match (args.up, model.spec().lab_up) {
         (Some(u), _) => (u.into(), "--up"),
@@ -159,7 +180,6 @@ pub fn load_for_model(
     for note in &notes {
         eprintln!("jointfit: warning: {}: {note}", path.display());
     }
-    let options = args.repairs()?;
     let mut trial = prepare(trial, path, up, None)?;
     let mut repairs = Vec::new();
     if !options.is_empty() {
@@ -330,8 +350,9 @@ pub fn load_checked(
     args: &TrialArgs,
     model: &jointfit::model::Model,
     filter_hz: Option<f64>,
+    columns: Columns,
 ) -> Result<(Trial, TrialJson, Vec<jointfit::checks::Finding>)> {
-    let loaded = load_for_model(path, args, model, filter_hz)?;
+    let loaded = load_for_model(path, args, model, filter_hz, columns)?;
     let findings = run_checks(model, &loaded.trial, path)?;
     let json = TrialJson::new(path, &loaded, &findings);
     Ok((loaded.trial, json, findings))

@@ -13,7 +13,7 @@ use jointfit::workflow::{self, WorkflowError};
 use jointfit_io::sto::{write_sto, Table};
 use serde::Serialize;
 
-use crate::common::{load_for_model, report_findings, CheckJson, TrialJson};
+use crate::common::{load_for_model, report_findings, CheckJson, Columns, TrialJson};
 
 #[derive(Args)]
 pub struct IkArgs {
@@ -93,7 +93,13 @@ pub fn run(args: IkArgs) -> Result<()> {
     let model = jointfit_io::model_file::load_model(&args.model)?;
     // The data checks that need no IK first (an error stops the command before the IK); the
     // moved-cluster check after the IK, from its fit when it is the IK the check would run.
-    let loaded = load_for_model(&args.trial, &args.read, &model, args.filter)?;
+    let loaded = load_for_model(
+        &args.trial,
+        &args.read,
+        &model,
+        args.filter,
+        Columns::ForModel,
+    )?;
     let trial = &loaded.trial;
     let (map, _) = jointfit::ik::MarkerMap::allowing_absent(&model, trial.labels());
     let mut findings = jointfit::checks::check_trial_before_ik(&model, trial, &map);

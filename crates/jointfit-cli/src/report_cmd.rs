@@ -13,7 +13,7 @@ use jointfit::workflow::Calibration;
 use jointfit_report::analyze::{analyze_with_progress, parameter_rows};
 use jointfit_report::ReportInput;
 
-use crate::common::{load_checked, TrialArgs, TrialJson};
+use crate::common::{load_checked, Columns, TrialArgs, TrialJson};
 use crate::progress::Progress;
 
 #[derive(Args)]
@@ -134,7 +134,7 @@ fn load_trials(
     Ok(paths
         .iter()
         .map(|p| {
-            let (trial, json, _) = load_checked(p, read, model, filter)?;
+            let (trial, json, _) = load_checked(p, read, model, filter, Columns::All)?;
             Ok(((display_name(p), trial), json))
         })
         .collect::<Result<Vec<_>>>()?

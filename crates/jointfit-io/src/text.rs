@@ -44,7 +44,7 @@ pub(crate) fn parse_number(cell: &str) -> Option<f64> {
 }
 
 /// Exact powers of ten as `f64` (every one up to 10²² is representable).
-const POW10: [f64; 23] = [
+pub(crate) const POW10: [f64; 23] = [
     1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
     1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
 ];
@@ -99,15 +99,101 @@ pub(crate) fn format_shortest(v: f64) -> String {
 }
 
 /// [`format_shortest`] appended to `out` (no intermediate string).
+///
+/// The digits come from `zmij` (Schubfach: the shortest digit string that reads back as the
+/// same `f64`, the one nearest the exact value when several are as short), laid out as Rust's
+/// `{}` and `{:e}` lay out the shortest digits of their own algorithm (Grisu with Dragon4
+/// fallback). The two differ only when the exact value lies halfway between two shortest
+/// candidates (zmij rounds the tie to even, the standard library up): the exact value then
+/// has at most 18 significant digits, which only integers and short binary fractions have
+/// (`m·2^q` with `q < 0` has exactly `-q` decimals), and those are left to the standard
+/// library. The same text, several times faster (`docs/io.md`; the unit test compares both
+/// on millions of values).
 pub(crate) fn push_shortest(out: &mut String, v: f64) {
     use std::fmt::Write;
-    let a = v.abs();
-    // Writing to a String cannot fail.
-    let _ = if v == 0.0 || (1e-5..1e16).contains(&a) {
-        write!(out, "{v}")
-    } else {
-        write!(out, "{v:e}")
+    let plain = (1e-5..1e16).contains(&v.abs());
+    if !v.is_finite() || v == 0.0 || short_exact_decimal(v) {
+        // Writing to a String cannot fail.
+        let _ = if plain || v == 0.0 || !v.is_finite() {
+            write!(out, "{v}")
+        } else {
+            write!(out, "{v:e}")
+        };
+        return;
+    }
+    let mut buf = zmij::Buffer::new();
+    let text = buf.format_finite(v);
+    let (neg, text) = match text.strip_prefix('-') {
+        Some(t) => (true, t),
+        None => (false, text),
     };
+    let (mantissa, exp) = match text.find(['e', 'E']) {
+        Some(i) => (&text[..i], text[i + 1..].parse::<i32>().unwrap_or(0)),
+        None => (text, 0),
+    };
+    // The digits without the point, and where the point sits: value = 0.DIGITS × 10^point.
+    let mut digits = [0u8; 24];
+    let mut n = 0;
+    let mut point = mantissa.find('.').unwrap_or(mantissa.len()) as i32 + exp;
+    for &c in mantissa.as_bytes() {
+        if c == b'.' {
+            continue;
+        }
+        if n == 0 && c == b'0' {
+            point -= 1;
+            continue;
+        }
+        digits[n] = c;
+        n += 1;
+    }
+    while n > 1 && digits[n - 1] == b'0' {
+        n -= 1;
+    }
+    // Nonzero finite values have 1 to 17 significant digits.
+    let digits = std::str::from_utf8(&digits[..n]).unwrap_or("0");
+    if neg {
+        out.push('-');
+    }
+    if plain {
+        let n = n as i32;
+        if point <= 0 {
+            out.push_str("0.");
+            (0..-point).for_each(|_| out.push('0'));
+            out.push_str(digits);
+        } else if point >= n {
+            out.push_str(digits);
+            (0..point - n).for_each(|_| out.push('0'));
+        } else {
+            out.push_str(&digits[..point as usize]);
+            out.push('.');
+            out.push_str(&digits[point as usize..]);
+        }
+    } else {
+        out.push_str(&digits[..1]);
+        if n > 1 {
+            out.push('.');
+            out.push_str(&digits[1..]);
+        }
+        // Exponent notation is rare in these files; the standard formatter is fine for it.
+        let _ = write!(out, "e{}", point - 1);
+    }
+}
+
+/// Whether the exact decimal expansion of finite nonzero `v` may have at most 18 significant
+/// digits (then a shortest-digits tie is possible). `v = m·2^q` (odd `m`) with `q < 0` has
+/// exactly `-q` decimals, the last nonzero, so `L + 1 - q` significant digits where `10^L ≤
+/// |v|`; `L ≥ ⌊e·log₁₀2⌋` for `|v| ≥ 2^e` (78913 / 2¹⁸ just below log₁₀2). Integers count as
+/// short; subnormals (over 700 digits) do not.
+fn short_exact_decimal(v: f64) -> bool {
+    let bits = v.to_bits();
+    let field = ((bits >> 52) & 0x7ff) as i32;
+    if field == 0 {
+        return false;
+    }
+    let m = bits & ((1 << 52) - 1) | 1 << 52;
+    let q = field - 1075 + m.trailing_zeros() as i32;
+    let low_l = ((field - 1023) * 78913) >> 18;
+    q >= 0 || low_l + 1 - q <= 18
 }
 
 #[cfg(test)]
@@ -211,6 +297,75 @@ mod tests {
         }
         assert_eq!(format_shortest(0.5), "0.5");
         assert_eq!(format_shortest(1e-300), "1e-300");
+    }
+
+    /// The old formatting, by the standard library alone: the oracle of `push_shortest`.
+    fn std_shortest(v: f64) -> String {
+        let a = v.abs();
+        if v == 0.0 || (1e-5..1e16).contains(&a) || !v.is_finite() {
+            format!("{v}")
+        } else {
+            format!("{v:e}")
+        }
+    }
+
+    /// Same text as the standard library's shortest formatting: random bit patterns (every
+    /// magnitude), random decimals of the sizes joint angles and times have, edge cases.
+    #[test]
+    fn shortest_matches_the_standard_formatting() {
+        let mut x: u64 = 0x2545_F491_4F6C_DD1D;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        let check = |v: f64| {
+            assert_eq!(
+                format_shortest(v),
+                std_shortest(v),
+                "{:e} ({:#x})",
+                v,
+                v.to_bits()
+            );
+        };
+        for _ in 0..1_000_000 {
+            check(f64::from_bits(next()));
+            let r = next();
+            let scale = [1e-6, 1e-3, 1.0, 57.29577951308232, 1e3, 1e15][(r % 6) as usize];
+            check(((r >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * scale);
+            // Short decimals (times, rounded angles).
+            check((r % 2_000_001) as f64 / 1000.0 - 1000.0);
+        }
+        for v in [
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            0.1,
+            1e-5,
+            -1e-5,
+            9.999_999_999_999_999e-6,
+            1e16,
+            9.999e15,
+            1e15,
+            123.456,
+            5e-324,
+            f64::MIN_POSITIVE,
+            f64::MAX,
+            f64::MIN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            1e21,
+            1e22,
+            1e23,
+            0.3,
+            2.0f64.powi(53),
+            100.0,
+        ] {
+            check(v);
+        }
     }
 
     #[test]

@@ -55,6 +55,15 @@
 //! * A data row with too few cells, or with a non-blank cell beyond the last marker, is an
 //!   error naming the line and the marker.
 //!
+//! # Reading some markers only
+//!
+//! [`read_trc_selected`]/[`parse_trc_selected`] parse the coordinates of the markers a
+//! filter accepts and step over the other markers' cells (the commands that fit a model read
+//! its markers this way). Everything else is checked as in a full read, and the kept values
+//! are the same bits. Data rows are read by a one-pass byte parser for the common case
+//! (`trc/fast.rs`) and by the general, fully checked path (`trc/rows.rs`) for any row it
+//! does not handle; both give the same values (`docs/io.md`).
+//!
 //! # Writing
 //!
 //! [`format_trc`]/[`write_trc`] write the layout above with `\n` line ends: rate written so it
@@ -72,6 +81,7 @@ use thiserror::Error;
 
 use crate::text::decode;
 
+mod fast;
 mod read;
 mod rows;
 mod write;
@@ -342,8 +352,24 @@ pub(crate) fn strict(file: TrcFile, name: &str) -> Result<Trial, TrcError> {
     Ok(file.trial)
 }
 
+/// Which markers a selective read keeps: called once per label of line 4.
+pub type Select<'s> = &'s dyn Fn(&str) -> bool;
+
 /// Reads a TRC file with its header, times and notes.
 pub fn read_trc_file(path: &Path) -> Result<TrcFile, TrcError> {
+    read_trc_selected(path, None)
+}
+
+/// Reads a TRC file like [`read_trc_file`], parsing the coordinates of only the markers
+/// `select` accepts (all when `None`); the trial holds those markers, in file order.
+/// A selection that accepts no marker of the file reads them all.
+///
+/// The header, the labels and every row's frame number, time and number of cells are checked
+/// as in a full read, and the kept markers' values are the same bits; the cells of the other
+/// markers are stepped over unread, so a bad number there is not an error, and the notes on
+/// zero and partial samples count the kept markers only. Commands that fit a model read its
+/// markers this way: most of a full-body file's columns are markers the model does not have.
+pub fn read_trc_selected(path: &Path, select: Option<Select>) -> Result<TrcFile, TrcError> {
     let name = path.display().to_string();
     let bytes = std::fs::read(path).map_err(|e| TrcError {
         file: name.clone(),
@@ -351,12 +377,21 @@ pub fn read_trc_file(path: &Path) -> Result<TrcFile, TrcError> {
     })?;
     // Valid UTF-8 (nearly every file) is used in place, without a copy.
     let text = String::from_utf8(bytes).unwrap_or_else(|e| decode(e.as_bytes()));
-    parse_trc_file(&text, &name)
+    parse_trc_selected(&text, &name, select)
 }
 
 /// Parses TRC text with its header, times and notes; `name` is used in error messages.
 pub fn parse_trc_file(text: &str, name: &str) -> Result<TrcFile, TrcError> {
-    read::parse(text).map_err(|kind| TrcError {
+    parse_trc_selected(text, name, None)
+}
+
+/// Parses TRC text keeping only the markers `select` accepts (see [`read_trc_selected`]).
+pub fn parse_trc_selected(
+    text: &str,
+    name: &str,
+    select: Option<Select>,
+) -> Result<TrcFile, TrcError> {
+    read::parse(text, select).map_err(|kind| TrcError {
         file: name.to_string(),
         kind,
     })

@@ -64,6 +64,47 @@ pub fn read_trial_noted(path: &Path) -> Result<(Trial, Vec<String>), TrialFileEr
     }
 }
 
+/// Reads a motion file like [`read_trial_noted`], keeping only the markers `select` accepts
+/// (all when `None`), in file order. A TRC file's other columns are not parsed
+/// ([`crate::trc::read_trc_selected`]: most of the reading time of a full-body file whose
+/// model uses a third of its markers); a C3D file is read whole and its other markers dropped.
+pub fn read_trial_selected(
+    path: &Path,
+    select: Option<crate::trc::Select>,
+) -> Result<(Trial, Vec<String>), TrialFileError> {
+    let Some(keep) = select else {
+        return read_trial_noted(path);
+    };
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    if ext.as_deref() == Some("trc") {
+        let file = crate::trc::read_trc_selected(path, Some(keep))?;
+        let notes = file.notes.iter().map(|n| n.to_string()).collect();
+        return Ok((
+            crate::trc::strict(file, &path.display().to_string())?,
+            notes,
+        ));
+    }
+    let (trial, notes) = read_trial_noted(path)?;
+    let names: Vec<&str> = trial
+        .labels()
+        .iter()
+        .map(String::as_str)
+        .filter(|l| keep(l))
+        .collect();
+    if names.is_empty() {
+        // As for TRC files: a selection that keeps no marker keeps them all.
+        return Ok((trial, notes));
+    }
+    let trial = trial.select(&names).map_err(|e| TrialFileError::Other {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    })?;
+    Ok((trial, notes))
+}
+
 fn read_c3d(path: &Path) -> Result<Trial, TrialFileError> {
     c3d_trial(path, &crate::c3d::read_c3d(path)?)
 }

@@ -3,10 +3,11 @@
 use jointfit::trial::Trial;
 
 use super::rows::{read_rows, Rows};
-use super::{TrcErrorKind, TrcFile, TrcHeader, TrcNote, TrcUnits, HEADER_KEYS};
+use super::{Select, TrcErrorKind, TrcFile, TrcHeader, TrcNote, TrcUnits, HEADER_KEYS};
 use crate::text::{numbered_lines, parse_number};
 
-pub(super) fn parse(text: &str) -> Result<TrcFile, TrcErrorKind> {
+/// Parses TRC text; only the markers `select` accepts (all when `None`) are read and kept.
+pub(super) fn parse(text: &str, select: Option<Select>) -> Result<TrcFile, TrcErrorKind> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     if text.trim().is_empty() {
         return Err(TrcErrorKind::Empty);
@@ -60,7 +61,13 @@ pub(super) fn parse(text: &str) -> Result<TrcFile, TrcErrorKind> {
     }
 
     let scale = header.units.to_metres();
-    let mut data = read_rows(&lines[5..], &labels, scale)?;
+    let mut keep: Vec<bool> = labels.iter().map(|l| select.is_none_or(|s| s(l))).collect();
+    // A selection that keeps no marker reads them all: a trial has at least one marker, and
+    // the caller then says which of its markers the file lacks.
+    if !keep.contains(&true) {
+        keep.fill(true);
+    }
+    let mut data = read_rows(&lines[5..], &labels, &keep, scale)?;
     let rows = data.times.len();
     if rows < header.num_frames {
         return Err(TrcErrorKind::MissingFrames {
@@ -114,6 +121,11 @@ pub(super) fn parse(text: &str) -> Result<TrcFile, TrcErrorKind> {
         ..
     } = data;
     let first_frame = first_frame.or(header.orig_data_start_frame).unwrap_or(1);
+    let labels: Vec<String> = labels
+        .into_iter()
+        .zip(&keep)
+        .filter_map(|(l, &k)| k.then_some(l))
+        .collect();
     let stamps = keep_times.then(|| times.clone());
     let trial = Trial::new(labels, header.data_rate, first_frame, positions)
         .and_then(|t| t.with_times(stamps))

@@ -44,13 +44,15 @@ const LINES_PER_CHUNK: usize = 2048;
 pub(super) fn read_rows<'a>(
     lines: &[(usize, &str)],
     labels: &'a [String],
+    keep: &'a [bool],
     scale: f64,
 ) -> Result<Rows<'a>, TrcErrorKind> {
     use rayon::prelude::*;
     let chunks: Vec<(Rows<'a>, Option<TrcErrorKind>)> = lines
         .par_chunks(LINES_PER_CHUNK)
         .map(|chunk| {
-            let mut rows = Rows::new(labels, scale);
+            let mut rows = Rows::new(labels, keep, scale);
+            rows.positions.reserve(chunk.len() * rows.kept);
             for &(line_no, line) in chunk {
                 if line.trim().is_empty() {
                     continue;
@@ -62,8 +64,8 @@ pub(super) fn read_rows<'a>(
             (rows, None)
         })
         .collect();
-    let mut all = Rows::new(labels, scale);
-    all.positions.reserve(lines.len() * labels.len());
+    let mut all = Rows::new(labels, keep, scale);
+    all.positions.reserve(lines.len() * all.kept);
     all.times.reserve(lines.len());
     all.time_cells.reserve(lines.len());
     for (rows, error) in chunks {
@@ -86,8 +88,16 @@ pub(super) fn read_rows<'a>(
 
 /// Accumulates data rows.
 pub(super) struct Rows<'a> {
+    /// Every marker's label, in file order.
     pub(super) labels: &'a [String],
+    /// Whether each marker's columns are read (its positions kept).
+    pub(super) keep: &'a [bool],
+    /// How many markers are kept.
+    pub(super) kept: usize,
+    /// `keep` as runs of kept and skipped markers (`fast::runs`).
+    runs: Vec<(bool, usize)>,
     pub(super) scale: f64,
+    /// Positions of the kept markers, row by row.
     pub(super) positions: Vec<Vector3<f64>>,
     pub(super) times: Vec<f64>,
     /// (line, frame number, printed precision of the time) of each row, for the time check.
@@ -101,9 +111,12 @@ pub(super) struct Rows<'a> {
 }
 
 impl<'a> Rows<'a> {
-    fn new(labels: &'a [String], scale: f64) -> Self {
+    fn new(labels: &'a [String], keep: &'a [bool], scale: f64) -> Self {
         Rows {
             labels,
+            keep,
+            kept: keep.iter().filter(|&&k| k).count(),
+            runs: super::fast::runs(keep),
             scale,
             positions: Vec::new(),
             times: Vec::new(),
@@ -116,7 +129,36 @@ impl<'a> Rows<'a> {
         }
     }
 
+    /// Reads one data row: by the fast path when it can (`fast.rs`), else by [`Rows::push_checked`].
     fn push(&mut self, line_no: usize, line: &str) -> Result<(), TrcErrorKind> {
+        let before = self.positions.len();
+        let Some(row) = super::fast::row(line, &self.runs, self.scale, &mut self.positions) else {
+            self.positions.truncate(before);
+            return self.push_checked(line_no, line);
+        };
+        if let Some(prev) = self.last_frame {
+            if prev.checked_add(1) != Some(row.frame) {
+                self.positions.truncate(before);
+                return Err(TrcErrorKind::FrameNumberJump {
+                    line: line_no,
+                    previous: prev,
+                    found: row.frame,
+                });
+            }
+        }
+        if self.first_frame.is_none() {
+            self.first_frame = Some(row.frame);
+            self.first_line = line_no;
+        }
+        self.last_frame = Some(row.frame);
+        self.times.push(row.time);
+        self.time_cells
+            .push((line_no, row.frame, 10f64.powi(-row.time_decimals)));
+        Ok(())
+    }
+
+    /// Reads one data row with every check and message (the general path).
+    fn push_checked(&mut self, line_no: usize, line: &str) -> Result<(), TrcErrorKind> {
         let n = self.labels.len();
         let cells = split_tabs(line, 2 + 3 * n);
         let frame_text = cells[0].trim();
@@ -173,6 +215,9 @@ impl<'a> Rows<'a> {
             });
         }
         for (k, label) in self.labels.iter().enumerate() {
+            if !self.keep[k] {
+                continue;
+            }
             let mut xyz = [f64::NAN; 3];
             let mut missing = 0;
             for (j, v) in xyz.iter_mut().enumerate() {

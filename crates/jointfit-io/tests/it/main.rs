@@ -8,6 +8,7 @@ mod osim_joint_model;
 mod osim_joint_types;
 mod osim_read;
 mod sto;
+mod trc_fast;
 mod trc_field;
 mod trc_files;
 mod trc_format;
