@@ -156,7 +156,7 @@ fn main() {
         let mut f = std::io::BufWriter::new(std::fs::File::create(path).expect("--dump file"));
         writeln!(
             f,
-            "seed,name,group,unit,err,se_white,se_hac,se_jack,se_boot,z,t_jack,half_width,method,status,at_bound,bandwidth,frames,n_free,cost_fit,cost_truth,threshold,z_hac,data_share,source"
+            "seed,name,group,unit,err,se_white,se_hac,se_jack,se_boot,z,t_jack,half_width,method,status,at_bound,bandwidth,frames,n_free,cost_fit,cost_truth,threshold,z_hac,data_share,source,status_half_width,correlation_factor"
         )
         .expect("write");
         f
@@ -247,7 +247,7 @@ fn main() {
                 let o = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6e}"));
                 writeln!(
                     f,
-                    "{seed},{},{},{},{err:.6e},{},{},{},{},{},{},{},{:?},{:?},{},{},{},{},{:.9e},{:.9e},{threshold},{},{},{}",
+                    "{seed},{},{},{},{err:.6e},{},{},{},{},{},{},{},{:?},{:?},{},{},{},{},{:.9e},{:.9e},{threshold},{},{},{},{},{:.6e}",
                     p.name,
                     p.group,
                     p.unit,
@@ -268,7 +268,9 @@ fn main() {
                     cost_truth,
                     o(u.z_hac),
                     o(row.data_share),
-                    row.source.map_or("", |s| s.words())
+                    row.source.map_or("", |s| s.words()),
+                    o(p.status_half_width),
+                    u.correlation_factor
                 )
                 .expect("write");
             }
