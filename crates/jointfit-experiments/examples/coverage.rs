@@ -19,8 +19,9 @@
 //! (the free parameters), `--perturb MM,DEG` (truth = nominal moved by up to MM / DEG, as
 //! `jointfit synth --perturb-mm --perturb-deg`, instead of 40 % of each half-range), `--dump
 //! FILE.csv` (one row per seed and parameter: error, each estimator's standard error, the
-//! critical values, bandwidth, label, and the objective of the fit and at the truth, for
-//! offline checks of other estimators and labels), `--prior` (the landmark priors of
+//! critical values, bandwidth, label, the status half-width and correlation factor the label is
+//! judged by, and the objective of the fit and at the truth, for offline checks of other
+//! estimators and labels), `--prior` (the landmark priors of
 //! `personalize` on every parameter, the truth drawn from them: `N(nominal, sd²)` clipped to
 //! the bounds, and the default maximum a posteriori fit; coverage is then also tallied per
 //! information label: determined by the trial / partly / held by the prior). Figures:

@@ -120,13 +120,10 @@ pub enum SeMethod {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Identifiability {
-    /// The trial alone pins it within the threshold: its Fisher half-width with the pooled
-    /// residual noise and the trial's time-correlation factor
-    /// ([`ParamUncertainty::status_half_width`]) is within it, it is not at a bound, and no
-    /// prior holds it.
+    /// The trial alone pins it within the threshold ([`ParamUncertainty::status_half_width`]),
+    /// not at a bound, not held by a prior.
     Determined,
-    /// Not determined: that half-width above the threshold, the fit stopped at a bound, or
-    /// (with a prior) the estimate is held by the prior.
+    /// That half-width above the threshold, at a bound, or held by the prior.
     Poor,
     /// No information in the trial at all (null direction of `S`).
     Undetermined,
@@ -299,10 +296,9 @@ pub struct Uncertainty {
     pub small_sample_factor: f64,
     /// Bartlett bandwidth of the HAC estimator (frames), when computed.
     pub hac_bandwidth: Option<f64>,
-    /// The trial's time-correlation factor `κ` (≥ 1): the mean over the free parameters of
-    /// their robust-to-white variance ratios, the inflation the status rule applies to the
-    /// white (Fisher) variances (the private `status` module).
-    #[serde(default = "one")]
+    /// The trial's time-correlation factor `κ` (≥ 1) that the status rule applies to the
+    /// Fisher variances: the mean robust-to-white variance ratio (private `status` module).
+    #[serde(default = "status::one")]
     pub correlation_factor: f64,
     pub bootstrap: Option<BootstrapInfo>,
     /// Flag thresholds (mm, deg).
@@ -318,10 +314,6 @@ pub struct Uncertainty {
     pub weak_directions: Vec<WeakDirection>,
     /// Range of motion of every coordinate over the frames.
     pub ranges: Vec<CoordRange>,
-}
-
-fn one() -> f64 {
-    1.0
 }
 
 impl Uncertainty {

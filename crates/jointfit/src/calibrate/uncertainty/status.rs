@@ -69,6 +69,11 @@ pub(super) fn score_correlation(cov: &Covariances, red: &Reduced, sigma2: f64) -
     }
 }
 
+/// The correlation factor of an analysis read without one (serde's default): none, 1.
+pub(super) fn one() -> f64 {
+    1.0
+}
+
 /// Per free parameter, the data-alone Fisher variance `σ² [S_d⁻¹]_kk` (scaled units), `S_d`
 /// the reduced normal matrix without the prior's diagonal; `None` on a null direction of
 /// `S_d` (the trial alone does not determine the parameter).
