@@ -236,11 +236,17 @@ fn print_uncertainty_notes(u: &Uncertainty, fixed: &[String]) {
         methods.join(", ")
     );
     for p in u.flagged() {
-        let hw = p
-            .half_width
-            .map_or("unbounded".to_string(), |h| format!("±{h:.1} {}", p.unit));
+        // The status is judged by what the trial alone determines (pooled noise and time
+        // correlation, `ParamUncertainty::status_half_width`), the interval is the robust one.
+        let hw = match (p.status_half_width, p.half_width) {
+            (Some(s), Some(h)) => {
+                format!("trial alone ±{s:.1} {u}, interval ±{h:.1} {u}", u = p.unit)
+            }
+            (None, Some(h)) => format!("trial alone unbounded, interval ±{h:.1} {}", p.unit),
+            (_, None) => "unbounded".to_string(),
+        };
         eprintln!(
-            "jointfit: warning: {} {} by this trial ({hw} > {} {}): {}",
+            "jointfit: warning: {} {} by this trial ({hw}; threshold {} {}): {}",
             p.name,
             if p.status == Identifiability::Undetermined {
                 "not determined"

@@ -19,8 +19,9 @@
 //! (the free parameters), `--perturb MM,DEG` (truth = nominal moved by up to MM / DEG, as
 //! `jointfit synth --perturb-mm --perturb-deg`, instead of 40 % of each half-range), `--dump
 //! FILE.csv` (one row per seed and parameter: error, each estimator's standard error, the
-//! critical values, bandwidth, label, and the objective of the fit and at the truth, for
-//! offline checks of other estimators and labels), `--prior` (the landmark priors of
+//! critical values, bandwidth, label, the status half-width and correlation factor the label is
+//! judged by, and the objective of the fit and at the truth, for offline checks of other
+//! estimators and labels), `--prior` (the landmark priors of
 //! `personalize` on every parameter, the truth drawn from them: `N(nominal, sd²)` clipped to
 //! the bounds, and the default maximum a posteriori fit; coverage is then also tallied per
 //! information label: determined by the trial / partly / held by the prior). Figures:
@@ -156,7 +157,7 @@ fn main() {
         let mut f = std::io::BufWriter::new(std::fs::File::create(path).expect("--dump file"));
         writeln!(
             f,
-            "seed,name,group,unit,err,se_white,se_hac,se_jack,se_boot,z,t_jack,half_width,method,status,at_bound,bandwidth,frames,n_free,cost_fit,cost_truth,threshold,z_hac,data_share,source"
+            "seed,name,group,unit,err,se_white,se_hac,se_jack,se_boot,z,t_jack,half_width,method,status,at_bound,bandwidth,frames,n_free,cost_fit,cost_truth,threshold,z_hac,data_share,source,status_half_width,correlation_factor"
         )
         .expect("write");
         f
@@ -247,7 +248,7 @@ fn main() {
                 let o = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6e}"));
                 writeln!(
                     f,
-                    "{seed},{},{},{},{err:.6e},{},{},{},{},{},{},{},{:?},{:?},{},{},{},{},{:.9e},{:.9e},{threshold},{},{},{}",
+                    "{seed},{},{},{},{err:.6e},{},{},{},{},{},{},{},{:?},{:?},{},{},{},{},{:.9e},{:.9e},{threshold},{},{},{},{},{:.6e}",
                     p.name,
                     p.group,
                     p.unit,
@@ -268,7 +269,9 @@ fn main() {
                     cost_truth,
                     o(u.z_hac),
                     o(row.data_share),
-                    row.source.map_or("", |s| s.words())
+                    row.source.map_or("", |s| s.words()),
+                    o(p.status_half_width),
+                    u.correlation_factor
                 )
                 .expect("write");
             }

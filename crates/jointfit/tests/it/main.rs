@@ -11,4 +11,5 @@ mod models;
 mod posterior;
 mod priors;
 mod residual_checks;
+mod status;
 mod uncertainty;

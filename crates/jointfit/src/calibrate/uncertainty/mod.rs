@@ -61,10 +61,16 @@
 //!
 //! # Identifiability
 //!
-//! Parameters are converted to physical units with `∂p/∂s = (hi − lo)/2`. A parameter whose
-//! interval half-width (critical value × standard error) exceeds a threshold (default 5 mm / 5°) is *poorly determined*;
-//! one with weight on a numerically null direction of `S` (eigenvalue below `1e-10·λ_max`) is
-//! *not determined* at all. The eigenvectors of `S` with the smallest eigenvalues name the
+//! Parameters are converted to physical units with `∂p/∂s = (hi − lo)/2`. A parameter is
+//! *determined* when the trial alone pins it within a threshold (default 5 mm / 5°): its
+//! Fisher half-width `z·√(κ σ² [S_d⁻¹]_kk)`, with the pooled residual variance `σ²` and the
+//! trial's time-correlation factor `κ` (the mean robust-to-white variance ratio over the free
+//! parameters), is within it, it is not at a bound, and no prior holds it; else it is *poorly
+//! determined*. The status is judged from these pooled quantities, not from the parameter's own
+//! robust interval, because a label chosen on that noisy interval selects the trials in which
+//! it came out too narrow (the private `status` module; `docs/global.md`). One with weight on a
+//! numerically null direction of `S` (eigenvalue below `1e-10·λ_max`) is *not determined* at
+//! all. The eigenvectors of `S` with the smallest eigenvalues name the
 //! worst-determined combinations; their dominant components (squared weight ≥ 0.1) are put
 //! into words from the parameters' descriptions, and each flagged parameter gets a reason
 //! built from the range of motion of its joint's coordinates in the trial.
@@ -76,6 +82,7 @@ mod estimators;
 mod explain;
 mod reduced;
 mod resampling;
+mod status;
 mod subset;
 
 use serde::{Deserialize, Serialize};
@@ -109,13 +116,14 @@ pub enum SeMethod {
     Undetermined,
 }
 
-/// How well the trial determines a parameter.
+/// How well the trial determines a parameter (the rule: the private `status` module).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Identifiability {
-    /// Interval half-width within the threshold.
+    /// The trial alone pins it within the threshold ([`ParamUncertainty::status_half_width`]),
+    /// not at a bound, not held by a prior.
     Determined,
-    /// Half-width above the threshold, or the fit stopped at a bound.
+    /// That half-width above the threshold, at a bound, or held by the prior.
     Poor,
     /// No information in the trial at all (null direction of `S`).
     Undetermined,
@@ -203,6 +211,13 @@ pub struct ParamUncertainty {
     pub se_jackknife: Option<f64>,
     /// The value sits at a bound of the search box (the linear interval is then doubtful).
     pub at_bound: bool,
+    /// The half-width the status is judged by: what the trial alone determines,
+    /// `z·√(κ σ² [S_d⁻¹]_kk)` (Fisher information without the prior, pooled residual noise
+    /// σ, the trial's time-correlation factor [`Uncertainty::correlation_factor`]); `None`
+    /// when the trial alone does not determine the parameter. Not an interval: the interval
+    /// is `half_width`.
+    #[serde(default)]
+    pub status_half_width: Option<f64>,
     pub status: Identifiability,
     /// Why a flagged parameter is poorly determined and which motion would determine it.
     pub reason: Option<String>,
@@ -281,6 +296,10 @@ pub struct Uncertainty {
     pub small_sample_factor: f64,
     /// Bartlett bandwidth of the HAC estimator (frames), when computed.
     pub hac_bandwidth: Option<f64>,
+    /// The trial's time-correlation factor `κ` (≥ 1) that the status rule applies to the
+    /// Fisher variances: the mean robust-to-white variance ratio (private `status` module).
+    #[serde(default = "status::one")]
+    pub correlation_factor: f64,
     pub bootstrap: Option<BootstrapInfo>,
     /// Flag thresholds (mm, deg).
     pub threshold_mm: f64,
@@ -361,6 +380,11 @@ fn build(
         Some(pr) => &cov.white + pr,
         None => cov.white.clone(),
     };
+    // The status rule (the `status` module): the trial alone, pooled noise and correlation.
+    let sigma2 = opts.assumed_sigma_m.map_or(red.sigma2(), |s| s * s);
+    let kappa = status::score_correlation(cov, red, sigma2);
+    let alone = status::data_alone_variance(red, sigma2);
+    let share = crate::calibrate::prior::data_share(prob, &red.normal);
     let corr: Vec<Vec<Option<f64>>> = (0..nf)
         .map(|a| {
             (0..nf)
@@ -392,10 +416,18 @@ fn build(
                 Some((v, h, m)) if !cov.null[k] => (Some(v * scale[k]), Some(h * scale[k]), m),
                 _ => (None, None, SeMethod::Undetermined),
             };
-            let status = match half_width {
-                None => Identifiability::Undetermined,
-                Some(h) if h > threshold(k) || at_bound => Identifiability::Poor,
-                Some(_) => Identifiability::Determined,
+            let status_half_width = alone[k]
+                .map(|v| z * (kappa * v).sqrt() * scale[k])
+                .filter(|h| h.is_finite());
+            let held = share[k].is_finite()
+                && crate::calibrate::prior::Source::of(share[k])
+                    == crate::calibrate::prior::Source::HeldByPrior;
+            let status = match (half_width, status_half_width) {
+                (None, _) => Identifiability::Undetermined,
+                (Some(_), Some(h)) if h <= threshold(k) && !at_bound && !held => {
+                    Identifiability::Determined
+                }
+                _ => Identifiability::Poor,
             };
             let reason = (status != Identifiability::Determined).then(|| {
                 let partner = (0..nf)
@@ -435,13 +467,13 @@ fn build(
                 se_bootstrap: of(SeMethod::Bootstrap),
                 se_jackknife: of(SeMethod::Jackknife),
                 at_bound,
+                status_half_width,
                 status,
                 reason,
             }
         })
         .collect();
     let weak_directions = weak_directions(prob, cov, &scale, crit, opts);
-    let sigma2 = opts.assumed_sigma_m.map_or(red.sigma2(), |s| s * s);
     Uncertainty {
         level: opts.level,
         z,
@@ -455,6 +487,7 @@ fn build(
         sigma_assumed: opts.assumed_sigma_m.is_some(),
         small_sample_factor: cov.factor,
         hac_bandwidth: cov.bandwidth,
+        correlation_factor: kappa,
         bootstrap: cov.boot.as_ref().map(|(_, b)| b.clone()),
         threshold_mm: opts.threshold_m * 1e3,
         threshold_deg: opts.threshold_rad.to_degrees(),

@@ -4,11 +4,13 @@ use nalgebra::{DMatrix, DVector};
 
 use super::super::{Fit, Problem};
 use super::critical::critical;
-use super::estimators::{conservative, continuity, covariances};
+use super::estimators::{continuity, covariances};
+use super::status::{data_alone_variance, score_correlation};
 use super::{reduced_system, Reduced, UncertaintyOptions};
 
 /// Subset selection: which free parameters (indices into `prob.free`) to hold fixed so that
-/// the others are determined within the thresholds.
+/// the others are determined within the thresholds, by the status rule of the analysis (the
+/// private `status` module; its correlation factor `κ` is taken once, from the whole fit).
 ///
 /// Greedy, on the reduced normal matrix at the fit: the reduced matrix of a subset is the
 /// sub-block `S[keep, keep]` (the coordinates are projected out column by column) and the
@@ -19,7 +21,9 @@ use super::{reduced_system, Reduced, UncertaintyOptions};
 pub fn unidentifiable_subset(prob: &Problem, fit: &Fit, opts: &UncertaintyOptions) -> Vec<usize> {
     let red = reduced_system(prob, &fit.p, &fit.coords);
     let same = continuity(prob);
-    let crit = critical(opts.level, opts);
+    let z = critical(opts.level, opts).0;
+    let sigma2 = opts.assumed_sigma_m.map_or(red.sigma2(), |s| s * s);
+    let kappa = score_correlation(&covariances(&red, &same, None, opts, false), &red, sigma2);
     let threshold = |k: usize| opts.threshold(prob.model.parameters()[prob.free[k]].unit);
     let mut keep: Vec<usize> = (0..prob.n_free()).collect();
     let mut removed = Vec::new();
@@ -43,10 +47,11 @@ pub fn unidentifiable_subset(prob: &Problem, fit: &Fit, opts: &UncertaintyOption
             prior_inflation: keep.iter().map(|&k| red.prior_inflation[k]).collect(),
         };
         let cov = covariances(&sub, &same, None, opts, false);
+        let alone = data_alone_variance(&sub, sigma2);
         let flagged: Vec<usize> = (0..m)
             .filter(|&a| {
-                let hw = conservative(&cov, crit, |c| c[(a, a)]).1.map(|b| b.1);
-                cov.null[a] || hw.is_none_or(|h| h * prob.half_range(keep[a]) > threshold(keep[a]))
+                let hw = alone[a].map(|v| z * (kappa * v).sqrt() * prob.half_range(keep[a]));
+                cov.null[a] || hw.is_none_or(|h| h.is_nan() || h > threshold(keep[a]))
             })
             .collect();
         if flagged.is_empty() {

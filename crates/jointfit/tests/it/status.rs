@@ -1,0 +1,105 @@
+//! The identifiability status rule (`calibrate::uncertainty`, private `status` module; issue
+//! 12): recomputed from the analysis' public fields by an independent path, and the
+//! prior's part kept out of it.
+
+use jointfit::calibrate::prior::{correlation_inflation, data_share, Source};
+use jointfit::calibrate::uncertainty::{
+    analyze, reduced_system, Identifiability, UncertaintyOptions,
+};
+use jointfit::landmarks::priors::fill_landmark_priors;
+use jointfit::landmarks::HipCentreMethod;
+use jointfit::model::lower_limb::{lower_limb, Side};
+use jointfit::model::Model;
+
+use super::uncertainty::{fit_from_nominal, perturbed, synthetic, Motion, Noise, ALL};
+
+#[test]
+fn status_is_the_fisher_half_width_with_the_trials_mean_correlation_factor() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p_true = perturbed(&model, 5);
+    let trial = synthetic(&model, &p_true, ALL, 100, Noise::Skin, 0.01, 6);
+    let (prob, fit) = fit_from_nominal(&model, &trial, &["all"]);
+    let u = analyze(&prob, &fit, &UncertaintyOptions::default());
+    // κ: the prior module's mean of (se_robust/se_white)², from the printed standard errors.
+    let kappa = correlation_inflation(&u);
+    assert!(
+        kappa > 1.5,
+        "skin artefact is correlated in time: κ {kappa}"
+    );
+    assert!(
+        (u.correlation_factor / kappa - 1.0).abs() < 1e-9,
+        "{} vs {kappa}",
+        u.correlation_factor
+    );
+    let (mut determined, mut poor) = (0, 0);
+    for p in &u.params {
+        // Without a prior the data-alone Fisher error is the white one.
+        let expected = u.z * kappa.sqrt() * p.se_white.unwrap();
+        let h = p.status_half_width.unwrap();
+        assert!(
+            (h / expected - 1.0).abs() < 1e-9,
+            "{}: {h} vs {expected}",
+            p.name
+        );
+        let threshold = if p.unit == "mm" {
+            u.threshold_mm
+        } else {
+            u.threshold_deg
+        };
+        let want = if h <= threshold && !p.at_bound {
+            determined += 1;
+            Identifiability::Determined
+        } else {
+            poor += 1;
+            Identifiability::Poor
+        };
+        assert_eq!(p.status, want, "{}", p.name);
+    }
+    // Both outcomes occur on this trial (knee angles determined, ankle positions not).
+    assert!(
+        determined > 0 && poor > 0,
+        "{determined} determined, {poor} poor"
+    );
+}
+
+#[test]
+fn a_parameter_held_by_a_tight_prior_is_not_determined_by_the_trial() {
+    // A knee motion tells nothing about the hip centre; a 0.5 mm prior on
+    // hip_thigh_superior makes its interval narrow, but the trial did not determine it.
+    let mut spec = lower_limb(Side::Right);
+    fill_landmark_priors(&mut spec, HipCentreMethod::Bell);
+    let tight = "hip_thigh_superior";
+    for p in &mut spec.parameters {
+        if p.name == tight {
+            p.prior_sd = Some(0.0005);
+        }
+    }
+    let model = Model::compile(&spec).unwrap();
+    let p_true = perturbed(&model, 41);
+    let knee_only = Motion {
+        hip: 0.0,
+        knee: 1.0,
+        ankle: 0.0,
+    };
+    let trial = synthetic(&model, &p_true, knee_only, 60, Noise::Skin, 0.005, 7);
+    let (prob, fit) = fit_from_nominal(&model, &trial, &["hip", "knee"]);
+    let prob = prob.with_model_prior(0.005);
+    let u = analyze(&prob, &fit, &UncertaintyOptions::default());
+    let share = data_share(&prob, &reduced_system(&prob, &fit.p, &fit.coords).normal);
+    let k = u.params.iter().position(|p| p.name == tight).unwrap();
+    let p = &u.params[k];
+    assert!(p.half_width.unwrap() < u.threshold_mm, "{:?}", p.half_width);
+    assert_eq!(
+        Source::of(share[k]),
+        Source::HeldByPrior,
+        "share {}",
+        share[k]
+    );
+    assert_eq!(p.status, Identifiability::Poor);
+    // Never "determined" where the information label says "held by the prior".
+    for (p, s) in u.params.iter().zip(&share) {
+        if Source::of(*s) == Source::HeldByPrior {
+            assert_ne!(p.status, Identifiability::Determined, "{}", p.name);
+        }
+    }
+}
