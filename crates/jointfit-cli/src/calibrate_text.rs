@@ -179,7 +179,15 @@ fn print_notes(report: &Calibration) {
         .iter()
         .zip(&report.marker_rms_after_mm)
     {
-        t.row(vec![name.clone(), format!("{b:.2}"), format!("{a:.2}")]);
+        // A marker with no sample in any solved frame (e.g. absent from the trial) has no RMS.
+        let cell = |v: &f64| {
+            if v.is_finite() {
+                format!("{v:.2}")
+            } else {
+                "no data".to_string()
+            }
+        };
+        t.row(vec![name.clone(), cell(b), cell(a)]);
     }
     print!("{}", t.render());
 }

@@ -258,6 +258,15 @@ fn ik_reports_the_moved_left_thigh_cluster() {
         a < b && a < 0.5 * before,
         "calibrate RMS {b} -> {a} (ik before {before})"
     );
+    // In text, the excluded markers' rows say they have no data instead of printing NaN.
+    let text_args: Vec<&str> = args.iter().copied().filter(|a| *a != "--json").collect();
+    let (ok, out, err) = jointfit(&text_args);
+    assert!(ok, "{err}");
+    let row = out
+        .lines()
+        .find(|l| l.starts_with("L_thigh1 "))
+        .unwrap_or_else(|| panic!("no L_thigh1 row in {out}"));
+    assert!(row.contains("no data") && !row.contains("NaN"), "{row}");
 }
 
 /// With an `.osim` as the model, the distance checks name the model file, not a static trial
