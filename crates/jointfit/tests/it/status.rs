@@ -11,7 +11,7 @@ use jointfit::landmarks::HipCentreMethod;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
 
-use super::uncertainty::{fit_from_nominal, perturbed, synthetic, Motion, Noise, ALL};
+use super::uncertainty::{fit_from_nominal, knee_only_trial, perturbed, synthetic, Noise, ALL};
 
 #[test]
 fn status_is_the_fisher_half_width_with_the_trials_mean_correlation_factor() {
@@ -75,13 +75,7 @@ fn a_parameter_held_by_a_tight_prior_is_not_determined_by_the_trial() {
         }
     }
     let model = Model::compile(&spec).unwrap();
-    let p_true = perturbed(&model, 41);
-    let knee_only = Motion {
-        hip: 0.0,
-        knee: 1.0,
-        ankle: 0.0,
-    };
-    let trial = synthetic(&model, &p_true, knee_only, 60, Noise::Skin, 0.005, 7);
+    let (trial, _) = knee_only_trial(&model);
     let (prob, fit) = fit_from_nominal(&model, &trial, &["hip", "knee"]);
     let prob = prob.with_model_prior(0.005);
     let u = analyze(&prob, &fit, &UncertaintyOptions::default());

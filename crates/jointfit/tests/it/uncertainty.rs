@@ -101,6 +101,20 @@ pub(crate) fn perturbed(model: &Model, seed: u64) -> Vec<f64> {
         .collect()
 }
 
+/// 60 frames of knee flexion alone (hip and ankle still) at parameters perturbed with seed
+/// 41, with 5 mm skin noise (seed 7): a trial that cannot determine the hip. Returns the
+/// trial and the true parameters.
+pub(crate) fn knee_only_trial(model: &Model) -> (Trial, Vec<f64>) {
+    let p_true = perturbed(model, 41);
+    let knee_only = Motion {
+        hip: 0.0,
+        knee: 1.0,
+        ankle: 0.0,
+    };
+    let trial = synthetic(model, &p_true, knee_only, 60, Noise::Skin, 0.005, 7);
+    (trial, p_true)
+}
+
 pub(crate) fn fit_from_nominal<'m>(
     model: &'m Model,
     trial: &'m Trial,
@@ -300,13 +314,7 @@ fn uncertainty_skin_noise_intervals_cover_the_truth() {
 #[test]
 fn uncertainty_knee_only_trial_flags_the_hip_and_says_why() {
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
-    let p_true = perturbed(&model, 41);
-    let knee_only = Motion {
-        hip: 0.0,
-        knee: 1.0,
-        ankle: 0.0,
-    };
-    let trial = synthetic(&model, &p_true, knee_only, 60, Noise::Skin, 0.005, 7);
+    let (trial, p_true) = knee_only_trial(&model);
     let (prob, fit) = fit_from_nominal(&model, &trial, &["hip", "knee"]);
     let opts = UncertaintyOptions::default();
     let u = analyze(&prob, &fit, &opts);
