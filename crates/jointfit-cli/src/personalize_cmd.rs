@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use clap::{Args, ValueEnum};
+use clap::{ArgGroup, Args, ValueEnum};
 use jointfit::landmarks::functional::FunctionalTrials;
 use jointfit::landmarks::{
     personalize_sides, HipCentreMethod, MarkerSet, PersonalizeOptions, PersonalizedModel, Sides,
@@ -17,10 +17,14 @@ use crate::personalize_summary::{BothSummary, HjcComparison, Summary};
 use crate::common::{load_trial, Up};
 
 #[derive(Args)]
+#[command(group(ArgGroup::new("static_input").required(true).args(["static_file", "static_trial"])))]
 pub struct PersonalizeArgs {
     /// Static standing trial (.trc or .c3d).
+    #[arg(value_name = "STATIC")]
+    static_file: Option<PathBuf>,
+    /// The static trial as an option (the same as the positional STATIC; give one of them).
     #[arg(long = "static", value_name = "FILE")]
-    static_trial: PathBuf,
+    static_trial: Option<PathBuf>,
     /// Marker set: a TOML file or a preset (gait2392, opencap, jam, plugin-gait, plugin-gait-basic,
     /// plugin-gait-sacr, rajagopal; docs/markersets.md).
     #[arg(long, value_name = "MAP.toml|PRESET")]
@@ -92,18 +96,22 @@ fn load_marker_set(arg: &str) -> Result<MarkerSet> {
     )
 }
 
-pub fn run(args: PersonalizeArgs) -> Result<()> {
+pub fn run(mut args: PersonalizeArgs) -> Result<()> {
+    // clap's group guarantees exactly one of the two spellings.
+    let Some(static_trial) = args.static_file.take().or(args.static_trial.take()) else {
+        bail!("personalize: no static trial (give it as STATIC or --static FILE)");
+    };
     crate::output::Files::new()
-        .input("static trial", &args.static_trial)
+        .input("static trial", &static_trial)
         .model("marker set", &args.markers)
         .output("output", &args.output)
         .check()?;
     let set = load_marker_set(&args.markers)?;
     // Recorded in the model as `lab_up`; said in the error context if personalize fails.
-    let (up, _) = crate::common::up_or_detected(&args.static_trial, args.up)?;
-    let trial = load_trial(&args.static_trial, up, None)?;
+    let (up, _) = crate::common::up_or_detected(&static_trial, args.up)?;
+    let trial = load_trial(&static_trial, up, None)?;
     let scale: Vec<_> = jointfit::checks::check_scale(&trial).into_iter().collect();
-    crate::common::report_findings(&scale, &args.static_trial)?;
+    crate::common::report_findings(&scale, &static_trial)?;
     let sides = match args.side {
         SideArg::Both => Sides::Both,
         SideArg::Right => Sides::One(Side::Right),
@@ -123,7 +131,7 @@ pub fn run(args: PersonalizeArgs) -> Result<()> {
         name,
         ..PersonalizeOptions::default()
     };
-    let static_name = args.static_trial.display().to_string();
+    let static_name = static_trial.display().to_string();
     let load = |p: &Option<PathBuf>| p.as_ref().map(|p| load_trial(p, up, None)).transpose();
     let (hip_trial, knee_trial) = (load(&args.functional_hip)?, load(&args.functional_knee)?);
     let func = FunctionalTrials {

@@ -369,3 +369,53 @@ fn cli_personalize_c3d() {
     assert!(ok, "{stderr}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The static trial may be given as the positional argument, like every other command's
+/// trial, or as `--static`: the same model either way; both at once, or neither, is a
+/// command-line error (exit 2) before anything is read.
+#[test]
+fn cli_personalize_takes_the_static_trial_as_positional_or_option() {
+    let (ok, _, stderr) = jointfit(&[
+        "personalize",
+        "a.trc",
+        "--static",
+        "b.trc",
+        "--markers",
+        "opencap",
+        "-o",
+        "never.toml",
+    ]);
+    assert!(!ok);
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("cannot be used with"), "{stderr}");
+    let (ok, _, stderr) = jointfit(&["personalize", "--markers", "opencap", "-o", "never.toml"]);
+    assert!(!ok);
+    assert!(stderr.contains("<STATIC|--static <FILE>>"), "{stderr}");
+    assert!(!Path::new("never.toml").exists());
+
+    let Some(path) = data_file("opencap_expert1/static1.trc") else {
+        return;
+    };
+    let dir = jointfit_testkit::scratch("pers-positional");
+    let written = |how: &str, args: &[&str]| {
+        let out = dir.join(format!("{how}.toml"));
+        let mut all = vec!["personalize"];
+        all.extend_from_slice(args);
+        all.extend([
+            "--markers",
+            "opencap",
+            "--name",
+            "s",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        let (ok, stdout, stderr) = jointfit(&all);
+        assert!(ok, "{how}: {stderr}");
+        assert!(stdout.contains("wrote "), "{how}: {stdout}");
+        std::fs::read(&out).unwrap()
+    };
+    let positional = written("positional", &[path.to_str().unwrap()]);
+    let option = written("option", &["--static", path.to_str().unwrap()]);
+    assert_eq!(positional, option);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
