@@ -1,7 +1,8 @@
 //! Fills a [`ReportInput`] from a model, its fitted and baseline parameters and the trials:
 //! inverse kinematics of every trial with each parameter vector ([`jointfit::ik::solve_trial`],
 //! warm-started frame to frame), per-frame and per-marker RMS marker distances, the fitted
-//! model's coordinates over time, and the parameter table.
+//! model's coordinates over time, and the parameter table. Model markers a trial lacks count
+//! as missing in every frame of it (noted on the page), as they do in the fit.
 
 use jointfit::ik::{rms, solve_trial, IkOptions, MarkerMap, TrialFit};
 use jointfit::model::{CoordKind, Model};
@@ -44,10 +45,30 @@ pub fn analyze_with_progress(
     let mut fitted_err: Vec<Vec<f64>> = vec![Vec::new(); model.n_markers()];
     let mut base_err: Vec<Vec<f64>> = vec![Vec::new(); model.n_markers()];
     for (name, trial) in trials {
-        let map = MarkerMap::by_name(model, trial.labels()).map_err(|e| ReportError::Trial {
-            trial: name.clone(),
-            message: e.to_string(),
-        })?;
+        // Model markers the trial lacks count as missing in every frame, as in the fit
+        // (`calibrate` on a trial without the static-only markers), and are said in a note.
+        let (map, absent) = MarkerMap::allowing_absent(model, trial.labels());
+        if absent.len() == model.n_markers() {
+            return Err(ReportError::Trial {
+                trial: name.clone(),
+                message: format!(
+                    "no label of the trial names a model marker (the model's are {})",
+                    model
+                        .markers()
+                        .iter()
+                        .map(|m| m.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            });
+        }
+        if !absent.is_empty() {
+            input.notes.push(format!(
+                "{name}: the trial lacks model markers {}; they count as missing in every \
+                 frame.",
+                absent.join(", ")
+            ));
+        }
         let solve = |p: &[f64]| {
             solve_trial(model, p, trial, &map, ik).map_err(|e| ReportError::Trial {
                 trial: name.clone(),

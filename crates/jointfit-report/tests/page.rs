@@ -364,3 +364,74 @@ fn parameters_at_a_bound_are_called_out() {
     assert_eq!(rows.len(), 1);
     assert!(rows[0].all_text().starts_with(name.as_str()));
 }
+
+/// A trial without one of the model's markers (the static-only markers of a subject model,
+/// say) is shown as the fit used it: that marker missing in every frame, said in a note, its
+/// bar "n/a"; the other markers' errors are those of the trial without the marker, solved
+/// directly. A trial with none of the model's markers is a one-line error.
+#[test]
+fn a_trial_lacking_a_model_marker_is_reported_with_a_note() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let truth = perturbed_params(&model, 0.3, 7);
+    let coords = coordinates(&model, Motion::All, 40).unwrap();
+    let (trial, _) = markers(&model, &truth, &coords, 50.0, Some(&SkinNoise::default()));
+    let dropped = model.markers()[5].name.clone();
+    let kept: Vec<&str> = trial
+        .labels()
+        .iter()
+        .map(|l| l.as_str())
+        .filter(|l| *l != dropped)
+        .collect();
+    let partial = trial.select(&kept).unwrap();
+    let mut input = ReportInput::default();
+    let trials = [("partial.trc".to_string(), &partial)];
+    analyze(
+        &mut input,
+        &model,
+        &truth,
+        None,
+        &trials,
+        &IkOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(input.notes.len(), 1, "{:?}", input.notes);
+    assert!(
+        input.notes[0].starts_with(&format!(
+            "partial.trc: the trial lacks model markers {dropped}; they count as missing"
+        )),
+        "{:?}",
+        input.notes
+    );
+    assert!(input.markers[5].fitted_mm.is_nan());
+    // Oracle: the same errors from the library's IK with the marker absent from the map.
+    let (map, absent) = jointfit::ik::MarkerMap::allowing_absent(&model, partial.labels());
+    assert_eq!(absent, [dropped.clone()]);
+    let fit =
+        jointfit::ik::solve_trial(&model, &truth, &partial, &map, &IkOptions::default()).unwrap();
+    for j in (0..model.n_markers()).filter(|&j| j != 5) {
+        let direct = jointfit::ik::rms(fit.errors.iter().map(|e| e[j])) * 1e3;
+        assert_eq!(input.markers[j].fitted_mm, direct, "marker {j}");
+    }
+    input.parameters = parameter_rows(&model, &truth, None, None);
+    let root = parse(&html::render(&input)).unwrap();
+    let bars = root.by_id("fig-marker-rms").unwrap().all_text();
+    assert!(bars.contains("n/a"), "{bars}");
+    assert!(root.all_text().contains("lacks model markers"));
+
+    let none = trial.select(&[]).unwrap();
+    let err = analyze(
+        &mut ReportInput::default(),
+        &model,
+        &truth,
+        None,
+        &[("empty.trc".to_string(), &none)],
+        &IkOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.starts_with("empty.trc: no label of the trial names a model marker"),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1);
+}
