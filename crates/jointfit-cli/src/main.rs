@@ -38,53 +38,68 @@ use clap::{Parser, Subcommand};
 /// Patient-specific joint parameters of leg models from motion capture
 /// (two-level optimization, Reinbolt et al. 2005).
 #[derive(Parser)]
-#[command(name = "jointfit", version, about, long_about = None)]
+#[command(name = "jointfit", version, long_about = None, after_help = WORKFLOW)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
 }
 
+/// The usual order of the commands, shown under `jointfit --help`.
+const WORKFLOW: &str = "\
+A subject, from a static trial and motion trials (.c3d or .trc):
+  jointfit inspect static.c3d                             labels, rate, units, gaps
+  jointfit markers suggest static.c3d -o lab.toml         or a preset: --markers plugin-gait
+  jointfit personalize static.c3d --markers lab.toml -o subject.toml
+  jointfit check subject.toml walk.c3d                    which parameters the trial determines
+  jointfit calibrate subject.toml walk.c3d -o fitted.toml --report report
+  jointfit ik fitted.toml walk.c3d -o walk.mot            joint angles for OpenSim
+  jointfit export osim fitted.toml -o fitted.osim
+Without any data: jointfit demo. Each command's options: jointfit COMMAND --help.
+Exit status: 0 success, 1 error, 2 bad command line, 3 calibrate did not converge,
+4 some batch jobs failed.";
+
+/// Subcommands, listed by `--help` in this order (the order of a workflow).
 #[derive(Subcommand)]
 enum Command {
-    /// Inspect kinematic models.
-    Model {
-        #[command(subcommand)]
-        command: model_cmd::ModelCommand,
-    },
+    /// Synthesize a noisy trial from the built-in leg, calibrate it, show what was recovered.
+    Demo(demo_cmd::DemoArgs),
+    /// Summarize a motion file: format, rate, frames, units, markers with gaps.
+    Inspect(data_cmd::InspectArgs),
+    /// Convert a motion file (C3D or TRC) to a Y-up TRC, optionally low-pass filtered.
+    Convert(data_cmd::ConvertArgs),
     /// Marker sets: propose one from a static trial (`markers suggest`).
     Markers {
         #[command(subcommand)]
         command: markers_cmd::MarkersCommand,
     },
-    /// Summarize a motion file: format, rate, frames, units, markers with gaps.
-    Inspect(data_cmd::InspectArgs),
-    /// Convert a motion file (C3D or TRC) to a Y-up TRC, optionally low-pass filtered.
-    Convert(data_cmd::ConvertArgs),
-    /// Inverse kinematics of a trial with a subject model (the inner level).
-    Ik(ik_cmd::IkArgs),
-    /// Fit joint parameters to one or more trials (two-level optimization).
-    Calibrate(calibrate_cmd::CalibrateArgs),
-    /// Many calibrations from a manifest on all cores; resumable; results table CSV + JSON.
-    Batch(batch_cmd::BatchArgs),
-    /// Before a fit: each joint's range of motion and which parameters the trial can determine.
-    Check(check_cmd::CheckArgs),
-    /// Synthesize a noisy trial from the built-in leg, calibrate it, show what was recovered.
-    Demo(demo_cmd::DemoArgs),
     /// Build a subject's leg model from a static trial (anatomical-landmark method).
     Personalize(personalize_cmd::PersonalizeArgs),
+    /// Before a fit: each joint's range of motion and which parameters the trial can determine.
+    Check(check_cmd::CheckArgs),
+    /// Fit joint parameters to one or more trials (two-level optimization).
+    Calibrate(calibrate_cmd::CalibrateArgs),
+    /// Inverse kinematics of a trial with a subject model (the inner level).
+    Ik(ik_cmd::IkArgs),
     /// Write an HTML report (figures, parameter table) of a fitted model on trials.
     Report(report_cmd::ReportArgs),
-    /// Time the core (FK, IK on a real gait trial, calibration) on this machine.
-    Bench(bench_cmd::BenchArgs),
     /// Export a model to other programs' formats (OpenSim .osim).
     Export {
         #[command(subcommand)]
         command: export_cmd::ExportCommand,
     },
+    /// Many calibrations from a manifest on all cores; resumable; results table CSV + JSON.
+    Batch(batch_cmd::BatchArgs),
     /// Synthetic markers from a subject model along a motion, with noise, and the true model.
     Synth(synth_cmd::SynthArgs),
     /// Reproduce the paper's Table 1 or Table 2 (Markdown, JSON and CSV into a directory).
     Reproduce(reproduce_cmd::ReproduceArgs),
+    /// Inspect kinematic models (`model show`: segments, joints, parameters, markers).
+    Model {
+        #[command(subcommand)]
+        command: model_cmd::ModelCommand,
+    },
+    /// Time the core (FK, IK on a real gait trial, calibration) on this machine.
+    Bench(bench_cmd::BenchArgs),
 }
 
 fn main() -> ExitCode {
@@ -120,4 +135,28 @@ fn main() -> ExitCode {
         Command::Reproduce(args) => reproduce_cmd::run(args),
     };
     output::finish(result, batch)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every command line of the workflow shown under `--help` parses (a renamed option would
+    /// otherwise leave the help teaching a command that fails).
+    #[test]
+    fn the_help_workflow_commands_parse() {
+        let lines: Vec<&str> = WORKFLOW
+            .lines()
+            .filter_map(|l| l.strip_prefix("  "))
+            .map(|l| l.split("   ").next().unwrap_or(l).trim())
+            .collect();
+        assert_eq!(lines.len(), 7);
+        for line in lines {
+            let words: Vec<&str> = line.split_whitespace().collect();
+            assert_eq!(words[0], "jointfit");
+            if let Err(e) = Cli::try_parse_from(&words) {
+                panic!("{line}: {e}");
+            }
+        }
+    }
 }
