@@ -27,6 +27,8 @@ pub use data::{Convergence, CoordSeries, Interval, MarkerRms, ParamRow, ReportIn
 pub enum ReportError {
     #[error("{trial}: {message}")]
     Trial { trial: String, message: String },
+    #[error("{path}: exists and is not a directory (a report is written to DIR/index.html)")]
+    NotADirectory { path: String },
     #[error("{path}: {source}")]
     Io {
         path: String,
@@ -41,6 +43,11 @@ pub fn write_report(dir: &Path, input: &ReportInput) -> Result<PathBuf, ReportEr
         let path = path.display().to_string();
         move |source| ReportError::Io { path, source }
     };
+    if dir.exists() && !dir.is_dir() {
+        return Err(ReportError::NotADirectory {
+            path: dir.display().to_string(),
+        });
+    }
     jointfit_io::staging::create_dir_all(dir).map_err(io(dir))?;
     let path = dir.join("index.html");
     jointfit_io::atomic::write_atomic(&path, html::render(input).as_bytes()).map_err(io(&path))?;

@@ -220,7 +220,13 @@ fn written_atomically_into_a_new_directory() {
     let blocker = dir.join("file");
     std::fs::write(&blocker, b"x").unwrap();
     let err = write_report(&blocker, &input).unwrap_err().to_string();
-    assert!(err.contains("file"), "{err}");
+    assert_eq!(
+        err,
+        format!(
+            "{}: exists and is not a directory (a report is written to DIR/index.html)",
+            blocker.display()
+        )
+    );
 }
 
 fn chromium() -> Option<PathBuf> {
