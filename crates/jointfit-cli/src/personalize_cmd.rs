@@ -96,6 +96,41 @@ fn load_marker_set(arg: &str) -> Result<MarkerSet> {
     )
 }
 
+/// What to try when the static trial lacks labels of the chosen marker set: the presets
+/// other than `chosen` whose every label (for one of the legs asked) the trial has, else
+/// `markers suggest`. Said before the error's details, which may be cut short.
+fn preset_hint(labels: &[String], chosen: &str, sides: Sides, static_name: &str) -> String {
+    let legs: &[Side] = match sides {
+        Sides::Both => &[Side::Right, Side::Left],
+        Sides::One(Side::Right) => &[Side::Right],
+        Sides::One(Side::Left) => &[Side::Left],
+    };
+    let fits: Vec<&str> = PRESET_NAMES
+        .into_iter()
+        .filter(|name| *name != chosen)
+        .filter(|name| {
+            let Ok(set) = MarkerSet::preset(name) else {
+                return false;
+            };
+            legs.iter().any(|&side| {
+                set.roles(side)
+                    .is_ok_and(|roles| roles.iter().all(|(_, l)| labels.contains(l)))
+            })
+        })
+        .collect();
+    match fits.first() {
+        Some(first) => format!(
+            " (the trial's labels fit the preset{} {}: --markers {first})",
+            if fits.len() > 1 { "s" } else { "" },
+            fits.join(", ")
+        ),
+        None => format!(
+            " (no preset fits its labels; `jointfit markers suggest {static_name}` proposes a \
+             marker set from them)"
+        ),
+    }
+}
+
 pub fn run(mut args: PersonalizeArgs) -> Result<()> {
     // clap's group guarantees exactly one of the two spellings.
     let Some(static_trial) = args.static_file.take().or(args.static_trial.take()) else {
@@ -139,7 +174,15 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
         knee: knee_trial.as_ref(),
         ..FunctionalTrials::default()
     };
-    let outcome = personalize_sides(&trial, &set, sides, &opts, &func).with_context(|| {
+    let outcome = personalize_sides(&trial, &set, sides, &opts, &func);
+    // A static trial without the set's labels: name the presets that fit them instead.
+    let hint = match &outcome {
+        Err(jointfit::landmarks::LandmarkError::MissingMarkers { .. }) => {
+            preset_hint(trial.labels(), &args.markers, sides, &static_name)
+        }
+        _ => String::new(),
+    };
+    let outcome = outcome.with_context(|| {
         let up = up
             .to_possible_value()
             .map_or("?".into(), |v| v.get_name().to_string());
@@ -153,7 +196,7 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
         } else {
             format!(" with functional trial(s) {}", functional.join(", "))
         };
-        format!("{static_name} (read with --up={up}){with}: cannot personalize")
+        format!("{static_name} (read with --up={up}){with}: cannot personalize{hint}")
     })?;
     if let Some(w) = &outcome.warning {
         eprintln!("warning: {static_name}: {w}");

@@ -296,7 +296,8 @@ fn cli_personalize_writes_a_model_that_loads() {
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(
         stderr.contains(
-            "cannot personalize: the static trial lacks 18 marker(s) that marker set \
+            "cannot personalize (the trial's labels fit the preset opencap: --markers opencap): \
+             the static trial lacks 18 marker(s) that marker set \
              \"gait2392\" expects for the left leg: right ASIS and pelvis tracking \"R.ASIS\""
         ),
         "{stderr}"
@@ -417,5 +418,49 @@ fn cli_personalize_takes_the_static_trial_as_positional_or_option() {
     let positional = written("positional", &[path.to_str().unwrap()]);
     let option = written("option", &["--static", path.to_str().unwrap()]);
     assert_eq!(positional, option);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A static trial without the chosen set's labels: the one-line error names the presets
+/// whose every label the trial has (checked against the trial's own labels), else points to
+/// `markers suggest`; nothing is written.
+#[test]
+fn cli_personalize_names_the_preset_that_fits() {
+    let (Some(gait), Some(walk)) = (
+        data_file("opensim_gait2392_subject01/subject01_static.trc"),
+        data_file("opensim_gait2392_subject01/subject01_walk1.trc"),
+    ) else {
+        return;
+    };
+    let dir = jointfit_testkit::scratch("pers-hint");
+    let out = dir.join("never.toml");
+    let run = |trial: &Path, preset: &str| {
+        let (ok, _, stderr) = jointfit(&[
+            "personalize",
+            trial.to_str().unwrap(),
+            "--markers",
+            preset,
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(!ok);
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert!(!out.exists());
+        stderr
+    };
+    let err = run(&gait, "opencap");
+    assert!(
+        err.contains(
+            "cannot personalize (the trial's labels fit the preset gait2392: --markers gait2392): \
+             the static trial lacks 19 marker(s) that marker set \"opencap\""
+        ),
+        "{err}"
+    );
+    // The walk lacks the epicondyles and malleoli every preset needs.
+    let err = run(&walk, "gait2392");
+    assert!(
+        err.contains("cannot personalize (no preset fits its labels; `jointfit markers suggest "),
+        "{err}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
