@@ -159,4 +159,44 @@ mod tests {
             }
         }
     }
+
+    /// Every `jointfit …` command line of the README (indented code, `\` continuations
+    /// joined, `# comments` and `[optional]` parts dropped) parses with today's options.
+    #[test]
+    fn the_readme_commands_parse() {
+        let readme = include_str!("../../../README.md");
+        let mut commands: Vec<String> = Vec::new();
+        let mut pending = String::new();
+        for line in readme.lines() {
+            let Some(code) = line.strip_prefix("    ") else {
+                continue;
+            };
+            let code = code.split(" # ").next().unwrap_or(code).trim();
+            if pending.is_empty() && !code.starts_with("jointfit ") {
+                continue;
+            }
+            match code.strip_suffix('\\') {
+                Some(head) => pending.push_str(head),
+                None => {
+                    pending.push_str(code);
+                    commands.push(std::mem::take(&mut pending));
+                }
+            }
+        }
+        assert!(commands.len() >= 15, "{commands:?}");
+        for command in &commands {
+            let mut words = Vec::new();
+            let mut optional = 0;
+            for w in command.split_whitespace() {
+                optional += w.matches('[').count();
+                if optional == 0 {
+                    words.push(w);
+                }
+                optional -= w.matches(']').count();
+            }
+            if let Err(e) = Cli::try_parse_from(&words) {
+                panic!("README: {command}: {e}");
+            }
+        }
+    }
 }

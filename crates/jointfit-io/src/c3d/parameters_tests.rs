@@ -1,4 +1,4 @@
-//! Unit tests of `parameters.rs`.
+//! Unit tests of `parameters.rs` and its byte parser `parameters/section.rs`.
 
 use super::*;
 
