@@ -37,17 +37,24 @@ pub enum ReportError {
     },
 }
 
+/// Refuses a report directory that is an existing file; front ends call it before a long
+/// computation whose report goes there ([`write_report`] calls it too).
+pub fn check_dir(dir: &Path) -> Result<(), ReportError> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(ReportError::NotADirectory {
+            path: dir.display().to_string(),
+        });
+    }
+    Ok(())
+}
+
 /// Writes `dir/index.html` (creating `dir` if needed) atomically; returns the file's path.
 pub fn write_report(dir: &Path, input: &ReportInput) -> Result<PathBuf, ReportError> {
     let io = |path: &Path| {
         let path = path.display().to_string();
         move |source| ReportError::Io { path, source }
     };
-    if dir.exists() && !dir.is_dir() {
-        return Err(ReportError::NotADirectory {
-            path: dir.display().to_string(),
-        });
-    }
+    check_dir(dir)?;
     jointfit_io::staging::create_dir_all(dir).map_err(io(dir))?;
     let path = dir.join("index.html");
     jointfit_io::atomic::write_atomic(&path, html::render(input).as_bytes()).map_err(io(&path))?;

@@ -227,6 +227,15 @@ fn written_atomically_into_a_new_directory() {
             blocker.display()
         )
     );
+    // The same check alone, as a front end makes it before a long fit.
+    assert_eq!(
+        jointfit_report::check_dir(&blocker)
+            .unwrap_err()
+            .to_string(),
+        err
+    );
+    jointfit_report::check_dir(&dir.join("not-yet")).unwrap();
+    jointfit_report::check_dir(&dir).unwrap();
 }
 
 fn chromium() -> Option<PathBuf> {
@@ -411,7 +420,7 @@ fn a_trial_lacking_a_model_marker_is_reported_with_a_note() {
     assert!(input.markers[5].fitted_mm.is_nan());
     // Oracle: the same errors from the library's IK with the marker absent from the map.
     let (map, absent) = jointfit::ik::MarkerMap::allowing_absent(&model, partial.labels());
-    assert_eq!(absent, [dropped.clone()]);
+    assert_eq!(absent, std::slice::from_ref(&dropped));
     let fit =
         jointfit::ik::solve_trial(&model, &truth, &partial, &map, &IkOptions::default()).unwrap();
     for j in (0..model.n_markers()).filter(|&j| j != 5) {
