@@ -144,6 +144,17 @@ impl Files {
             if o.path.is_dir() {
                 bail!("{shown}: {} is a directory, not a file", o.what);
             }
+            // Refused before any work: a long fit must not end on this error.
+            if let (true, Some(dir)) = (o.creates_dir, o.path.parent()) {
+                if dir.exists() && !dir.is_dir() {
+                    bail!(
+                        "{}: {} exists and is not a directory ({} is written into it)",
+                        dir.display(),
+                        o.what,
+                        o.path.file_name().unwrap_or_default().to_string_lossy()
+                    );
+                }
+            }
         }
         let ins: Vec<(&Entry, Identity)> = self
             .inputs

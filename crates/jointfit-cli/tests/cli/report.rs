@@ -231,6 +231,57 @@ fn calibrate_report_and_report_command_on_a_real_walking_trial() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// `calibrate --report FILE` where FILE is an existing file is refused before the fit (a long
+/// fit must not end on this error): one line naming it, nothing written, the file untouched.
+#[test]
+fn calibrate_refuses_a_report_directory_that_is_a_file_before_fitting() {
+    let Some(stat) = data_file("opencap_expert1/static1.trc") else {
+        return;
+    };
+    let walk = data_file("opencap_expert1/walking1.trc").unwrap();
+    let dir = scratch("report-file");
+    let subj = dir.join("subj.toml");
+    let (ok, _, err) = run(
+        &[
+            "personalize",
+            s(&stat),
+            "--markers",
+            "opencap",
+            "--side",
+            "right",
+            "-o",
+            s(&subj),
+        ],
+        &[],
+    );
+    assert!(ok, "{err}");
+    let taken = dir.join("notes.txt");
+    std::fs::write(&taken, "mine").unwrap();
+    let fitted = dir.join("fitted.toml");
+    let (ok, out, err) = run(
+        &[
+            "calibrate",
+            s(&subj),
+            s(&walk),
+            "-o",
+            s(&fitted),
+            "--report",
+            s(&taken),
+        ],
+        &[],
+    );
+    assert!(!ok);
+    assert!(out.is_empty(), "{out}");
+    let line = err.trim();
+    assert_eq!(line.lines().count(), 1, "{err}");
+    assert!(
+        line.contains("notes.txt: --report exists and is not a directory"),
+        "{err}"
+    );
+    assert!(!fitted.exists());
+    assert_eq!(std::fs::read_to_string(&taken).unwrap(), "mine");
+}
+
 #[test]
 fn progress_lines_go_to_stderr_when_asked() {
     let args = ["demo", "--frames", "20", "--noise-mm", "2"];
