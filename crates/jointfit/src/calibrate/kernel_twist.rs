@@ -96,16 +96,20 @@ pub(crate) struct TwistPlan {
     groups: Vec<Vec<usize>>,
     /// Per column: its group (`usize::MAX`: moves no marker).
     col_group: Vec<usize>,
-    /// Columns rounded up to a multiple of 4 (the row stride of `xs`, `mask`, `c`).
+    /// Columns rounded up to a multiple of 4 (the column stride of `mask` and `c`).
     np: usize,
     /// `mask[b·np + a]`: 1 where entry `(a, b)` of `G` is formed in column `b`, as
     /// `ξ_a·(K_S ξ_b)` with `S` the group of `b`: `a`'s segment set contains `S`, and `a ≤ b`
     /// when both have the set `S` (each pair once); 0 elsewhere.
     mask: Vec<f64>,
+    /// Per column b: the groups of four rows `a` (of `mask`, `c`) where its mask is not all
+    /// 0; outside them column b of `c` stays 0.
+    quads: Vec<std::ops::Range<usize>>,
     seg_mom: Vec<Mom>,
     grp_mom: Vec<Mom>,
-    /// The twists `ξ = (ω, v)` of the columns, component-major (6 rows of `np`).
-    xs: Vec<f64>,
+    /// The twists `ξ = (ω, v)` of the columns by groups of four columns, each group
+    /// component-major: component k of column a at `(a / 4)·24 + 4k + a mod 4`.
+    xs: Vec<[[f64; 4]; 6]>,
     /// Per column: `K ξ`, split as `(Θω + c×v, Mv + ω×c)`.
     y: Vec<[f64; 6]>,
     /// `c[b·np + a] = mask · ξ_a·y_b` (n columns of `np`).
@@ -189,6 +193,18 @@ impl TwistPlan {
                 }
             }
         }
+        let quads = mask
+            .chunks_exact(np)
+            .map(|m| {
+                let nonzero: Vec<usize> = (0..np / 4)
+                    .filter(|&t| m[4 * t..4 * t + 4].iter().any(|&x| x != 0.0))
+                    .collect();
+                match (nonzero.first(), nonzero.last()) {
+                    (Some(&lo), Some(&hi)) => lo..hi + 1,
+                    _ => 0..0,
+                }
+            })
+            .collect();
         let n_groups = groups.len();
         Some(TwistPlan {
             n_q,
@@ -198,9 +214,10 @@ impl TwistPlan {
             groups,
             col_group,
             np,
+            quads,
             mask,
             grp_mom: vec![Mom::zero(); n_groups],
-            xs: vec![0.0; 6 * np],
+            xs: vec![[[0.0; 4]; 6]; np / 4],
             y: vec![[0.0; 6]; n],
             c: vec![0.0; n * np],
         })
@@ -282,7 +299,7 @@ impl TwistPlan {
                 grad[a] = 0.0;
                 self.y[a] = [0.0; 6];
                 for k in 0..6 {
-                    self.xs[k * np + a] = 0.0;
+                    self.xs[a / 4][k][a % 4] = 0.0;
                 }
                 continue;
             }
@@ -310,39 +327,53 @@ impl TwistPlan {
             ) + k.c.cross(&v);
             let yv = k.mass * v + w.cross(&k.c);
             for (i, x) in [w.x, w.y, w.z, v.x, v.y, v.z].into_iter().enumerate() {
-                self.xs[i * np + a] = x;
+                self.xs[a / 4][i][a % 4] = x;
             }
             self.y[a] = [yw.x, yw.y, yw.z, yv.x, yv.y, yv.z];
         }
-        // Column b of C: ξ_a·y_b for every a at once (the twists component-major), masked
-        // to the entries that column b forms.
-        let xs = &self.xs[..6 * np];
-        let (x0, rest) = xs.split_at(np);
-        let (x1, rest) = rest.split_at(np);
-        let (x2, rest) = rest.split_at(np);
-        let (x3, rest) = rest.split_at(np);
-        let (x4, x5) = rest.split_at(np);
-        for ((y, cb), mb) in self
+        // Column b of C: ξ_a·y_b for every a at once, four columns a per lane group (the
+        // twists component-major), masked to the entries that column b forms.
+        for (((y, cb), mb), quads) in self
             .y
             .iter()
             .zip(self.c.chunks_exact_mut(np))
             .zip(self.mask.chunks_exact(np))
+            .zip(&self.quads)
         {
-            for a in 0..np {
-                cb[a] = mb[a]
-                    * ((x0[a] * y[0] + x1[a] * y[1] + x2[a] * y[2])
-                        + (x3[a] * y[3] + x4[a] * y[4] + x5[a] * y[5]));
+            let lanes = cb[4 * quads.start..4 * quads.end]
+                .chunks_exact_mut(4)
+                .zip(mb[4 * quads.start..4 * quads.end].chunks_exact(4))
+                .zip(&self.xs[quads.clone()]);
+            // Locals, so that the compiler sees no store into `c` alias `y` or `mask` (and
+            // vectorizes the four lanes).
+            let y = *y;
+            for ((out, m), x) in lanes {
+                let m: [f64; 4] = m.try_into().expect("4 lanes");
+                let mut o = [0.0; 4];
+                for l in 0..4 {
+                    o[l] = m[l]
+                        * ((x[0][l] * y[0] + x[1][l] * y[1] + x[2][l] * y[2])
+                            + (x[3][l] * y[3] + x[4][l] * y[4] + x[5][l] * y[5]));
+                }
+                out.copy_from_slice(&o);
             }
         }
         // G = C + Cᵀ off the diagonal (of each pair, one of the two is formed, the other an
         // exact 0), C on it.
-        let c = &self.c;
+        assert!(self.c.len() >= n * np && gram.len() >= n * n && n <= np);
+        let c = self.c.as_ptr();
+        let g = gram.as_mut_ptr();
         for b in 0..n {
-            let col = &mut gram[b * n..(b + 1) * n];
-            for (a, x) in col.iter_mut().enumerate() {
-                *x = c[b * np + a] + c[a * np + b];
+            // SAFETY: every index is below n·np into `c` and below n·n into `gram` (a, b < n
+            // ≤ np, asserted above).
+            unsafe {
+                *g.add(b * n + b) = *c.add(b * np + b);
+                for a in b + 1..n {
+                    let v = *c.add(b * np + a) + *c.add(a * np + b);
+                    *g.add(b * n + a) = v;
+                    *g.add(a * n + b) = v;
+                }
             }
-            col[b] = c[b * np + b];
         }
     }
 }
