@@ -27,10 +27,12 @@
 //! composite moments: the sum of its segments' moments, as in Featherstone's composite
 //! rigid-body algorithm (*Rigid Body Dynamics Algorithms*, Springer 2008, §6.2). The same
 //! algebra forms the inverse kinematics' normal equations ([`crate::ik`], `composite.rs`);
-//! here the columns also include the joint parameters (steps like the coordinates'), and the
-//! products are grouped by segment set: with `Y_S = K_S Ξ_S` (6 × |cols(S)|) formed once,
-//! each entry `G[a, cols(S)] = ξ_aᵀ Y_S` costs 6 multiply-adds, instead of the 3 per marker
-//! row of the explicit product, and neither Jacobian matrix is filled.
+//! here the columns also include the joint parameters (steps like the coordinates'). With
+//! `y_b = K_S ξ_b` formed once per column (`S` its own set), each entry `G[a, b] = ξ_a·y_b`
+//! (`a` the column whose set contains `b`'s) costs 6 multiply-adds, instead of 3 per marker row
+//! of the explicit product, and neither Jacobian matrix is filled. The entries are formed
+//! column by column, four rows `a` at a time under a fixed 0/1 mask that keeps each pair once,
+//! then mirrored (`docs/performance.md`).
 //!
 //! The reference point `P` is the weighted centroid of the frame's present markers, so that
 //! the moments stay of the size of the marker cloud (no cancellation between large terms).
@@ -102,13 +104,13 @@ pub(crate) struct TwistPlan {
     /// `ξ_a·(K_S ξ_b)` with `S` the group of `b`: `a`'s segment set contains `S`, and `a ≤ b`
     /// when both have the set `S` (each pair once); 0 elsewhere.
     mask: Vec<f64>,
-    /// Per column b: the groups of four rows `a` (of `mask`, `c`) where its mask is not all
-    /// 0; outside them column b of `c` stays 0.
+    /// Per column b: the groups of four rows `a` (of `mask`, `c`) from the first to the last
+    /// where its mask is not all 0; outside them column b of `c` stays 0.
     quads: Vec<std::ops::Range<usize>>,
     seg_mom: Vec<Mom>,
     grp_mom: Vec<Mom>,
     /// The twists `ξ = (ω, v)` of the columns by groups of four columns, each group
-    /// component-major: component k of column a at `(a / 4)·24 + 4k + a mod 4`.
+    /// component-major: component k of column a at `xs[a / 4][k][a mod 4]`.
     xs: Vec<[[f64; 4]; 6]>,
     /// Per column: `K ξ`, split as `(Θω + c×v, Mv + ω×c)`.
     y: Vec<[f64; 6]>,
