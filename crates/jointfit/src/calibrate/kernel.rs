@@ -23,12 +23,15 @@ use std::sync::Mutex;
 
 use nalgebra::Vector3;
 
+use super::kernel_twist::TwistPlan;
 use super::Problem;
-use crate::kinematics::{forward_kinematics, KinData, Want};
+use crate::kinematics::{forward_kinematics, forward_kinematics_frames, KinData, Want};
 
 /// Per-thread workspace of the kernel; holds the last frame's Gram matrix and gradient.
 pub(crate) struct FrameScratch {
     pub kin: KinData,
+    /// The twist kernel's plan ([`super::kernel_twist`]); `None`: the tiled kernel below.
+    twist: Option<TwistPlan>,
     rows: Vec<(usize, f64)>,
     rw: Vec<f64>,
     /// Per column, its first nonzero row and one past its last.
@@ -59,11 +62,26 @@ pub(crate) struct FrameScratch {
 
 impl FrameScratch {
     pub fn new(prob: &Problem) -> Self {
+        let mut sc = Self::tiled(prob);
+        sc.twist = TwistPlan::new(prob);
+        sc
+    }
+
+    /// Whether this workspace takes the twist kernel.
+    #[cfg(test)]
+    pub fn is_twist(&self) -> bool {
+        self.twist.is_some()
+    }
+
+    /// A workspace of the tiled kernel, whatever the problem (the twist kernel's fallback,
+    /// and its oracle in tests).
+    pub fn tiled(prob: &Problem) -> Self {
         let model = prob.model;
         let n = model.n_q() + prob.n_free();
         let nrows = 3 * model.n_markers();
         FrameScratch {
             kin: KinData::new(model),
+            twist: None,
             rows: Vec::with_capacity(nrows),
             rw: vec![0.0; nrows],
             range: vec![(0, 0); n],
@@ -178,6 +196,11 @@ fn frame_gram_impl(
     half: &[f64],
     sc: &mut FrameScratch,
 ) -> f64 {
+    if let Some(plan) = &mut sc.twist {
+        forward_kinematics_frames(prob.model, p, q, &mut sc.kin);
+        plan.gram(prob, &sc.kin, targets, half, &mut sc.gram, &mut sc.grad);
+        return frame_cost(prob, &sc.kin, targets);
+    }
     let model = prob.model;
     let nq = model.n_q();
     let n = nq + prob.n_free();
@@ -257,6 +280,18 @@ fn frame_gram_impl(
             .sort_by_key(|&a| (range[a].0, std::cmp::Reverse(range[a].1), a));
         for (k, &a) in sc.perm.iter().enumerate() {
             sc.pos[a] = k;
+        }
+    }
+    cost
+}
+
+/// The frame's objective `Σ w_j ‖m_j − x_j‖²` over its present markers, in model order.
+fn frame_cost(prob: &Problem, kin: &KinData, targets: &[Vector3<f64>]) -> f64 {
+    let mut cost = 0.0;
+    for (j, m) in prob.model.markers().iter().enumerate() {
+        let t = targets[j];
+        if !t.x.is_nan() && m.weight > 0.0 {
+            cost += m.weight * (t - kin.markers[j]).norm_squared();
         }
     }
     cost

@@ -32,7 +32,7 @@ fn gram_matches_dense_products() {
     let all = params_for_groups(&model, &["all"]).unwrap();
     let prob = Problem::new(&model, p.clone(), &all, &[&trial]).unwrap();
     let half: Vec<f64> = (0..prob.n_free()).map(|k| prob.half_range(k)).collect();
-    let mut sc = FrameScratch::new(&prob);
+    let mut sc = FrameScratch::tiled(&prob);
     let cost = frame_gram(&prob, &p, &q, &targets, &half, &mut sc);
 
     forward_kinematics(&model, &p, &q, Want::BOTH, &mut kin);
@@ -182,7 +182,7 @@ fn tiles_sum_exactly_as_plain_dot_products() {
         let trial = Trial::new(labels, 100.0, 1, flat).unwrap();
         let prob = Problem::new(&model, p.clone(), &all, &[&trial]).unwrap();
         let half: Vec<f64> = (0..prob.n_free()).map(|k| prob.half_range(k)).collect();
-        let mut sc = FrameScratch::new(&prob);
+        let mut sc = FrameScratch::tiled(&prob);
         for (q, t) in frames.iter().chain(frames.iter().rev()) {
             frame_gram(&prob, &p, q, t, &half, &mut sc);
             let (gram, grad) = plain_gram(&prob, &p, q, t, &half);

@@ -28,6 +28,7 @@
 
 pub mod joint;
 mod kernel;
+mod kernel_twist;
 pub mod prior;
 pub mod pso;
 mod schur;

@@ -149,7 +149,8 @@ pub struct KinData {
 
 impl KinData {
     /// World axis `ω_k` and origin `o_k` of step `k` at the last evaluation (module docs);
-    /// valid for coordinate steps when the evaluation wanted axes.
+    /// valid for coordinate steps when the evaluation wanted axes, for parameter steps when
+    /// it wanted `dp` or was [`forward_kinematics_frames`].
     pub(crate) fn step_frame(&self, k: usize) -> (Vector3<f64>, Vector3<f64>) {
         (self.step_axis[k], self.step_origin[k])
     }
@@ -260,6 +261,26 @@ fn source_value(model: &Model, source: &Source, p: &[f64], q: &[f64]) -> f64 {
 /// # Panics
 /// When `p`, `q` or `data` do not match the model's sizes (a programming error).
 pub fn forward_kinematics(model: &Model, p: &[f64], q: &[f64], want: Want, data: &mut KinData) {
+    kinematics(model, p, q, want, want.dp, data);
+}
+
+/// Segment poses, marker positions and the world axis and origin of every variable step,
+/// coordinates' and parameters' alike ([`KinData::step_frame`]), without filling either
+/// Jacobian matrix: what the calibration's twist kernel (`calibrate::kernel_twist`) reads.
+pub(crate) fn forward_kinematics_frames(model: &Model, p: &[f64], q: &[f64], data: &mut KinData) {
+    kinematics(model, p, q, Want::AXES, true, data);
+}
+
+/// [`forward_kinematics`], with the parameter steps' world frames when `param_frames`.
+#[inline(always)]
+fn kinematics(
+    model: &Model,
+    p: &[f64],
+    q: &[f64],
+    want: Want,
+    param_frames: bool,
+    data: &mut KinData,
+) {
     assert_eq!(p.len(), model.n_p(), "parameter vector length");
     assert_eq!(q.len(), model.n_q(), "coordinate vector length");
     assert_eq!(
@@ -276,7 +297,7 @@ pub fn forward_kinematics(model: &Model, p: &[f64], q: &[f64], want: Want, data:
         for item in &model.plan.items[s] {
             match item {
                 Item::Block { id, steps } => {
-                    if want.dp {
+                    if param_frames {
                         for k in steps.clone() {
                             if matches!(model.steps[k].source, Source::Param { .. }) {
                                 let (axis, origin) = data.step_local[k];

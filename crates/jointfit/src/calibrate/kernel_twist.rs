@@ -1,0 +1,385 @@
+//! The frame Gram matrix from column twists and composite marker moments.
+//!
+//! Every column of the calibration's frame Jacobian, a coordinate or a (scaled) free
+//! parameter, moves the markers it reaches rigidly: its steps are rotations about, or
+//! translations along, world axes ([`crate::kinematics`]), so with the twist `ξ_a = (ω_a, v_a)`
+//! of column `a` about a reference point `P`,
+//!
+//! `∂x_j/∂θ_a = ω_a × (x_j − P) + v_a`, `ω_a = Σ_rot c_k ω_k`,
+//! `v_a = Σ_rot c_k ω_k × (P − o_k) + Σ_trans c_k ω_k`,
+//!
+//! for every marker `j` the column moves, *provided its steps are the same for all of them*
+//! (they all lie on the path from the root to each marker's segment). The entries of
+//! `G = J̃ᵀJ̃` and `h = J̃ᵀr̃` ([`super::kernel`]) are then
+//!
+//! `G_ab = Σ_{j moved by a and b} w_j J_a(x_j)·J_b(x_j) = ξ_aᵀ K_S ξ_b`,
+//! `h_a = ω_a·ρ₁(S_a) + v_a·ρ₀(S_a)`,
+//!
+//! where `S` is the set of marker-carrying segments both columns move and `K_S` the 6 × 6
+//! moments of its present markers. With `d_j = x_j − P`, `r_j = m_j − x_j` and sums over the
+//! markers of `S`: `M = Σ w_j`, `c = Σ w_j d_j`, `Θ = Σ w_j (‖d_j‖² I − d_j d_jᵀ)`,
+//! `ρ₀ = Σ w_j r_j`, `ρ₁ = Σ w_j d_j × r_j`, and
+//!
+//! `ξ_aᵀ K ξ_b = ω_a·(Θ ω_b + c × v_b) + v_a·(M v_b + ω_b × c)`.
+//!
+//! On a tree the segment sets of two columns are nested or disjoint (each column moves the
+//! subtree below its joint), so `S` is the set of the *deeper* column, and its moments are
+//! composite moments: the sum of its segments' moments, as in Featherstone's composite
+//! rigid-body algorithm (*Rigid Body Dynamics Algorithms*, Springer 2008, §6.2). The same
+//! algebra forms the inverse kinematics' normal equations ([`crate::ik`], `composite.rs`);
+//! here the columns also include the joint parameters (steps like the coordinates'). With
+//! `y_b = K_S ξ_b` formed once per column (`S` its own set), each entry `G[a, b] = ξ_a·y_b`
+//! (`a` the column whose set contains `b`'s) costs 6 multiply-adds, instead of 3 per marker row
+//! of the explicit product, and neither Jacobian matrix is filled. The entries are formed
+//! column by column, four rows `a` at a time under a fixed 0/1 mask that keeps each pair once,
+//! then mirrored (`docs/performance.md`).
+//!
+//! The reference point `P` is the weighted centroid of the frame's present markers, so that
+//! the moments stay of the size of the marker cloud (no cancellation between large terms).
+//!
+//! When some column's steps differ between the segments it moves (a coordinate that drives
+//! joints of two branches, or two joints of one chain through couplers), or two columns move
+//! overlapping but not nested sets, [`TwistPlan::new`] returns `None` and the tiled kernel of
+//! [`super::kernel`] serves the problem.
+//!
+//! Every frame runs the same operations in the same order: results do not depend on threads.
+
+use nalgebra::Vector3;
+
+use super::Problem;
+use crate::kinematics::KinData;
+
+/// One column's step contributions `(step, scale, rotation)`.
+type Steps = Vec<(usize, f64, bool)>;
+
+/// Moments of a set of markers about the reference point (module docs).
+#[derive(Debug, Clone, Copy)]
+struct Mom {
+    mass: f64,
+    c: Vector3<f64>,
+    /// `Θ` by its six entries `(xx, yy, zz, xy, xz, yz)` (symmetric).
+    theta: [f64; 6],
+    r0: Vector3<f64>,
+    r1: Vector3<f64>,
+}
+
+impl Mom {
+    fn zero() -> Self {
+        Mom {
+            mass: 0.0,
+            c: Vector3::zeros(),
+            theta: [0.0; 6],
+            r0: Vector3::zeros(),
+            r1: Vector3::zeros(),
+        }
+    }
+
+    fn add(&mut self, o: &Mom) {
+        self.mass += o.mass;
+        self.c += o.c;
+        for (t, o) in self.theta.iter_mut().zip(&o.theta) {
+            *t += o;
+        }
+        self.r0 += o.r0;
+        self.r1 += o.r1;
+    }
+}
+
+/// The twist kernel's plan for one problem, and its per-frame scratch.
+#[derive(Debug, Clone)]
+pub(crate) struct TwistPlan {
+    n_q: usize,
+    /// The markers of each marker-carrying segment.
+    segments: Vec<Vec<usize>>,
+    /// Per kernel column (coordinates, then free parameters): its step contributions.
+    col_steps: Vec<Steps>,
+    /// Per group (a distinct segment set of some column): its segments, indices into
+    /// `segments`.
+    groups: Vec<Vec<usize>>,
+    /// Per column: its group (`usize::MAX`: moves no marker).
+    col_group: Vec<usize>,
+    /// Columns rounded up to a multiple of 4 (the column stride of `mask` and `c`).
+    np: usize,
+    /// `mask[b·np + a]`: 1 where entry `(a, b)` of `G` is formed in column `b`, as
+    /// `ξ_a·(K_S ξ_b)` with `S` the group of `b`: `a`'s segment set contains `S`, and `a ≤ b`
+    /// when both have the set `S` (each pair once); 0 elsewhere.
+    mask: Vec<f64>,
+    /// Per column b: the groups of four rows `a` (of `mask`, `c`) from the first to the last
+    /// where its mask is not all 0; outside them column b of `c` stays 0.
+    quads: Vec<std::ops::Range<usize>>,
+    seg_mom: Vec<Mom>,
+    grp_mom: Vec<Mom>,
+    /// The twists `ξ = (ω, v)` of the columns by groups of four columns, each group
+    /// component-major: component k of column a at `xs[a / 4][k][a mod 4]`.
+    xs: Vec<[[f64; 4]; 6]>,
+    /// Per column: `K ξ`, split as `(Θω + c×v, Mv + ω×c)`.
+    y: Vec<[f64; 6]>,
+    /// `c[b·np + a] = mask · ξ_a·y_b` (n columns of `np`).
+    c: Vec<f64>,
+}
+
+impl TwistPlan {
+    /// The plan of `prob`'s frame Gram matrix, `None` when some column is not a single twist
+    /// on a nested segment set (module docs).
+    pub(crate) fn new(prob: &Problem) -> Option<Self> {
+        let model = prob.model;
+        let n_q = model.n_q();
+        let n = n_q + prob.n_free();
+        let mut free_col = vec![usize::MAX; model.n_p()];
+        for (k, &pi) in prob.free.iter().enumerate() {
+            free_col[pi] = n_q + k;
+        }
+        let mut segments = Vec::new();
+        let mut owners: Vec<Vec<usize>> = vec![Vec::new(); n];
+        let mut col_steps: Vec<Steps> = vec![Vec::new(); n];
+        for (s, markers) in model.plan.markers_by_segment.iter().enumerate() {
+            if markers.is_empty() {
+                continue;
+            }
+            let si = segments.len();
+            segments.push(markers.clone());
+            let mut steps: Vec<(usize, Steps)> = Vec::new();
+            let q = model.plan.cols_q[s].iter().map(|c| (c.col, c));
+            let p = model.plan.cols_p[s].iter().map(|c| (free_col[c.col], c));
+            for (col, c) in q.chain(p) {
+                if col == usize::MAX {
+                    continue;
+                }
+                let entry = (c.step, c.scale, c.rotation);
+                match steps.iter_mut().find(|(k, _)| *k == col) {
+                    Some((_, list)) => list.push(entry),
+                    None => steps.push((col, vec![entry])),
+                }
+            }
+            for (col, mine) in steps {
+                if owners[col].is_empty() {
+                    col_steps[col] = mine;
+                } else if col_steps[col] != mine {
+                    return None;
+                }
+                owners[col].push(si);
+            }
+        }
+        let mut groups: Vec<Vec<usize>> = Vec::new();
+        let mut col_group = vec![usize::MAX; n];
+        for c in 0..n {
+            if owners[c].is_empty() {
+                continue;
+            }
+            col_group[c] = match groups.iter().position(|g| *g == owners[c]) {
+                Some(g) => g,
+                None => {
+                    groups.push(owners[c].clone());
+                    groups.len() - 1
+                }
+            };
+        }
+        let np = n.div_ceil(4) * 4;
+        let mut mask = vec![0.0; n * np];
+        for b in 0..n {
+            let g = col_group[b];
+            if g == usize::MAX {
+                continue;
+            }
+            let set = &groups[g];
+            for a in 0..n {
+                let mine = &owners[a];
+                let common = set.iter().filter(|s| mine.contains(s)).count();
+                if common == set.len() {
+                    if col_group[a] != g || a <= b {
+                        mask[b * np + a] = 1.0;
+                    }
+                } else if common != 0 && common != mine.len() {
+                    // Overlapping, not nested.
+                    return None;
+                }
+            }
+        }
+        let quads = mask
+            .chunks_exact(np)
+            .map(|m| {
+                let nonzero: Vec<usize> = (0..np / 4)
+                    .filter(|&t| m[4 * t..4 * t + 4].iter().any(|&x| x != 0.0))
+                    .collect();
+                match (nonzero.first(), nonzero.last()) {
+                    (Some(&lo), Some(&hi)) => lo..hi + 1,
+                    _ => 0..0,
+                }
+            })
+            .collect();
+        let n_groups = groups.len();
+        Some(TwistPlan {
+            n_q,
+            seg_mom: vec![Mom::zero(); segments.len()],
+            segments,
+            col_steps,
+            groups,
+            col_group,
+            np,
+            quads,
+            mask,
+            grp_mom: vec![Mom::zero(); n_groups],
+            xs: vec![[[0.0; 4]; 6]; np / 4],
+            y: vec![[0.0; 6]; n],
+            c: vec![0.0; n * np],
+        })
+    }
+
+    /// Writes `G` (n × n, column-major) and `h` (n) of the frame whose kinematics (poses,
+    /// markers, every step's frame) `kin` holds, with targets `targets` (NaN: missing) and
+    /// free-parameter scales `half`. Inlined into the kernel's AVX2 entry point, where the
+    /// products over the columns run four lanes wide (the same operations in the same order).
+    #[inline(always)]
+    pub(crate) fn gram(
+        &mut self,
+        prob: &Problem,
+        kin: &KinData,
+        targets: &[Vector3<f64>],
+        half: &[f64],
+        gram: &mut [f64],
+        grad: &mut [f64],
+    ) {
+        let (n, np) = (self.y.len(), self.np);
+        let markers = prob.model.markers();
+        let weight = |j: usize| {
+            let w = markers[j].weight;
+            if targets[j].x.is_nan() || w <= 0.0 {
+                0.0
+            } else {
+                w
+            }
+        };
+        // The reference point: the weighted centroid of the present markers.
+        let mut mass = 0.0;
+        let mut centre = Vector3::zeros();
+        for seg in &self.segments {
+            for &j in seg {
+                let w = weight(j);
+                if w > 0.0 {
+                    mass += w;
+                    centre += w * kin.markers[j];
+                }
+            }
+        }
+        if mass == 0.0 {
+            gram[..n * n].fill(0.0);
+            grad[..n].fill(0.0);
+            return;
+        }
+        centre /= mass;
+        for (seg, mom) in self.segments.iter().zip(&mut self.seg_mom) {
+            *mom = Mom::zero();
+            for &j in seg {
+                let w = weight(j);
+                if w > 0.0 {
+                    let d = kin.markers[j] - centre;
+                    let r = targets[j] - kin.markers[j];
+                    mom.mass += w;
+                    mom.c += w * d;
+                    let wd = w * d;
+                    let t = &mut mom.theta;
+                    t[0] += wd.y * d.y + wd.z * d.z;
+                    t[1] += wd.x * d.x + wd.z * d.z;
+                    t[2] += wd.x * d.x + wd.y * d.y;
+                    t[3] -= wd.x * d.y;
+                    t[4] -= wd.x * d.z;
+                    t[5] -= wd.y * d.z;
+                    mom.r0 += w * r;
+                    mom.r1 += w * d.cross(&r);
+                }
+            }
+        }
+        for (set, mom) in self.groups.iter().zip(&mut self.grp_mom) {
+            *mom = Mom::zero();
+            for &s in set {
+                mom.add(&self.seg_mom[s]);
+            }
+        }
+        for (a, steps) in self.col_steps.iter().enumerate() {
+            let g = self.col_group[a];
+            if g == usize::MAX {
+                grad[a] = 0.0;
+                self.y[a] = [0.0; 6];
+                for k in 0..6 {
+                    self.xs[a / 4][k][a % 4] = 0.0;
+                }
+                continue;
+            }
+            let (mut w, mut v) = (Vector3::zeros(), Vector3::zeros());
+            for &(step, scale, rotation) in steps {
+                let (axis, origin) = kin.step_frame(step);
+                if rotation {
+                    w += scale * axis;
+                    v += scale * axis.cross(&(centre - origin));
+                } else {
+                    v += scale * axis;
+                }
+            }
+            if a >= self.n_q {
+                w *= half[a - self.n_q];
+                v *= half[a - self.n_q];
+            }
+            let k = &self.grp_mom[g];
+            grad[a] = w.dot(&k.r1) + v.dot(&k.r0);
+            let t = &k.theta;
+            let yw = Vector3::new(
+                t[0] * w.x + t[3] * w.y + t[4] * w.z,
+                t[3] * w.x + t[1] * w.y + t[5] * w.z,
+                t[4] * w.x + t[5] * w.y + t[2] * w.z,
+            ) + k.c.cross(&v);
+            let yv = k.mass * v + w.cross(&k.c);
+            for (i, x) in [w.x, w.y, w.z, v.x, v.y, v.z].into_iter().enumerate() {
+                self.xs[a / 4][i][a % 4] = x;
+            }
+            self.y[a] = [yw.x, yw.y, yw.z, yv.x, yv.y, yv.z];
+        }
+        // Column b of C: ξ_a·y_b for every a at once, four columns a per lane group (the
+        // twists component-major), masked to the entries that column b forms.
+        for (((y, cb), mb), quads) in self
+            .y
+            .iter()
+            .zip(self.c.chunks_exact_mut(np))
+            .zip(self.mask.chunks_exact(np))
+            .zip(&self.quads)
+        {
+            let lanes = cb[4 * quads.start..4 * quads.end]
+                .chunks_exact_mut(4)
+                .zip(mb[4 * quads.start..4 * quads.end].chunks_exact(4))
+                .zip(&self.xs[quads.clone()]);
+            // Locals, so that the compiler sees no store into `c` alias `y` or `mask` (and
+            // vectorizes the four lanes).
+            let y = *y;
+            for ((out, m), x) in lanes {
+                let m: [f64; 4] = m.try_into().expect("4 lanes");
+                let mut o = [0.0; 4];
+                for l in 0..4 {
+                    o[l] = m[l]
+                        * ((x[0][l] * y[0] + x[1][l] * y[1] + x[2][l] * y[2])
+                            + (x[3][l] * y[3] + x[4][l] * y[4] + x[5][l] * y[5]));
+                }
+                out.copy_from_slice(&o);
+            }
+        }
+        // G = C + Cᵀ off the diagonal (of each pair, one of the two is formed, the other an
+        // exact 0), C on it.
+        assert!(self.c.len() >= n * np && gram.len() >= n * n && n <= np);
+        let c = self.c.as_ptr();
+        let g = gram.as_mut_ptr();
+        for b in 0..n {
+            // SAFETY: every index is below n·np into `c` and below n·n into `gram` (a, b < n
+            // ≤ np, asserted above).
+            unsafe {
+                *g.add(b * n + b) = *c.add(b * np + b);
+                for a in b + 1..n {
+                    let v = *c.add(b * np + a) + *c.add(a * np + b);
+                    *g.add(b * n + a) = v;
+                    *g.add(a * n + b) = v;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+#[path = "kernel_twist_tests.rs"]
+mod tests;
