@@ -69,7 +69,7 @@
 //! it; else it is *poorly determined*. A determined parameter whose label hinges on `κ`'s
 //! noise reports an interval of at least that half-width ([`SeMethod::Pooled`]). The status is judged from these pooled quantities, not from the parameter's own
 //! robust interval, because a label chosen on that noisy interval selects the trials in which
-//! it came out too narrow (the private `status` module; `docs/global.md`). One with weight on a
+//! it came out too narrow (the private `status` module; `docs/identifiability.md`). One with weight on a
 //! numerically null direction of `S` (eigenvalue below `1e-10·λ_max`) is *not determined* at
 //! all. The eigenvectors of `S` with the smallest eigenvalues name the
 //! worst-determined combinations; their dominant components (squared weight ≥ 0.1) are put
