@@ -426,19 +426,11 @@ fn build(
             let status_half_width = alone[k]
                 .map(|v| z * (kappa * v).sqrt() * scale[k])
                 .filter(|h| h.is_finite());
-            let held = share[k].is_finite()
-                && crate::calibrate::prior::Source::of(share[k])
-                    == crate::calibrate::prior::Source::HeldByPrior;
-            let status = status::judge(
-                half_width.is_some(),
-                status_half_width,
-                threshold(k),
-                at_bound || held,
-            );
-            let (se, half_width, method) = status::floor(
+            let (status, (se, half_width, method)) = status::label(
                 (se, half_width, method),
-                (status, status_half_width),
+                status_half_width,
                 (z, cov.jack.as_ref().map(|_| crit.1), threshold(k)),
+                at_bound || status::held(share[k]),
             );
             let reason = (status != Identifiability::Determined).then(|| {
                 let partner = (0..nf)

@@ -61,6 +61,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use super::super::prior::Source;
 use super::super::Problem;
 use super::estimators::{continuity, covariances, pseudo_inverse, Covariances};
 use super::reduced::reduced_system;
@@ -133,37 +134,36 @@ pub(super) fn score_correlation(cov: &Covariances, red: &Reduced, sigma2: f64) -
     }
 }
 
-/// The status of a parameter with an interval or not (`finite`), status half-width `h`,
-/// threshold `T`, and `excluded` when at a bound or held by the prior (the module docs).
-pub(super) fn judge(
-    finite: bool,
-    h: Option<f64>,
-    threshold: f64,
-    excluded: bool,
-) -> Identifiability {
-    match h {
-        _ if !finite => Identifiability::Undetermined,
-        Some(h) if h <= threshold && !excluded => Identifiability::Determined,
-        _ => Identifiability::Poor,
-    }
-}
-
-/// A parameter's `(se, half-width, method)` with the floor of a marginally determined one
-/// ([`marginal`]): `(h/z, h, Pooled)` when its status half-width `h` exceeds the robust
-/// half-width; otherwise unchanged. `crit`: `(z, the jackknife's t, the threshold)`.
-pub(super) fn floor(
+/// A parameter's status and its `(se, half-width, method)` with the floor of a marginally
+/// determined one. `est`: the robust estimate (`None` half-width: not determined at all); `h`:
+/// the status half-width; `crit`: `(z, the jackknife's t, the threshold T)`; `excluded`: at a
+/// bound or held by the prior. Determined when `h ≤ T` and not excluded; then, when
+/// [`marginal`] and `h` exceeds the robust half-width, the interval is `(h/z, h, Pooled)`.
+pub(super) fn label(
     est: (Option<f64>, Option<f64>, SeMethod),
-    (status, h): (Identifiability, Option<f64>),
+    h: Option<f64>,
     (z, t, threshold): (f64, Option<f64>, f64),
-) -> (Option<f64>, Option<f64>, SeMethod) {
-    match (status, h, est.1) {
+    excluded: bool,
+) -> (Identifiability, (Option<f64>, Option<f64>, SeMethod)) {
+    let status = match (est.1, h) {
+        (None, _) => Identifiability::Undetermined,
+        (Some(_), Some(h)) if h <= threshold && !excluded => Identifiability::Determined,
+        _ => Identifiability::Poor,
+    };
+    let est = match (status, h, est.1) {
         (Identifiability::Determined, Some(h), Some(w))
             if w < h && marginal(h, z, t, threshold) =>
         {
             (Some(h / z), Some(h), SeMethod::Pooled)
         }
         _ => est,
-    }
+    };
+    (status, est)
+}
+
+/// Whether the prior holds a parameter of data share `share` (`< 0.3`; NaN: no prior).
+pub(super) fn held(share: f64) -> bool {
+    share.is_finite() && Source::of(share) == Source::HeldByPrior
 }
 
 /// Whether a determined parameter's label hinges on the noise of `κ`: with the jackknife's
