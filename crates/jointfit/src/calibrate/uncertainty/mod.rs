@@ -64,11 +64,12 @@
 //! Parameters are converted to physical units with `∂p/∂s = (hi − lo)/2`. A parameter is
 //! *determined* when the trial alone pins it within a threshold (default 5 mm / 5°): its
 //! Fisher half-width `z·√(κ σ² [S_d⁻¹]_kk)`, with the pooled residual variance `σ²` and the
-//! trial's time-correlation factor `κ` (the mean robust-to-white variance ratio over the free
-//! parameters), is within it, it is not at a bound, and no prior holds it; else it is *poorly
-//! determined*. The status is judged from these pooled quantities, not from the parameter's own
+//! trial's time-correlation factor `κ` (the mean robust-to-white variance ratio over every
+//! parameter of the model, free or not), is within it, it is not at a bound, and no prior holds
+//! it; else it is *poorly determined*. A determined parameter whose label hinges on `κ`'s
+//! noise reports an interval of at least that half-width ([`SeMethod::Pooled`]). The status is judged from these pooled quantities, not from the parameter's own
 //! robust interval, because a label chosen on that noisy interval selects the trials in which
-//! it came out too narrow (the private `status` module; `docs/global.md`). One with weight on a
+//! it came out too narrow (the private `status` module; `docs/identifiability.md`). One with weight on a
 //! numerically null direction of `S` (eigenvalue below `1e-10·λ_max`) is *not determined* at
 //! all. The eigenvectors of `S` with the smallest eigenvalues name the
 //! worst-determined combinations; their dominant components (squared weight ≥ 0.1) are put
@@ -112,6 +113,10 @@ pub enum SeMethod {
     Bootstrap,
     /// Delete-block jackknife over contiguous blocks of frames (linearised).
     Jackknife,
+    /// The trial-alone half-width the status was judged by,
+    /// [`ParamUncertainty::status_half_width`]: the floor of a marginally determined
+    /// parameter's interval (the private `status` module).
+    Pooled,
     /// The parameter lies on a null direction of `S`: no finite error.
     Undetermined,
 }
@@ -203,7 +208,8 @@ pub struct ParamUncertainty {
     pub half_width: Option<f64>,
     /// Interval `value ± half_width` at the report's level; `None` when not determined.
     pub ci: Option<[f64; 2]>,
-    /// Which estimator `se` and the interval come from (the most conservative one).
+    /// Which estimator `se` and the interval come from (the most conservative one; `Pooled`:
+    /// the floor of a marginally determined parameter, `se = status_half_width / z`).
     pub method: SeMethod,
     pub se_white: Option<f64>,
     pub se_hac: Option<f64>,
@@ -297,7 +303,8 @@ pub struct Uncertainty {
     /// Bartlett bandwidth of the HAC estimator (frames), when computed.
     pub hac_bandwidth: Option<f64>,
     /// The trial's time-correlation factor `κ` (≥ 1) that the status rule applies to the
-    /// Fisher variances: the mean robust-to-white variance ratio (private `status` module).
+    /// Fisher variances: the mean robust-to-white variance ratio over every parameter of the
+    /// model, free or not (private `status` module).
     #[serde(default = "status::one")]
     pub correlation_factor: f64,
     pub bootstrap: Option<BootstrapInfo>,
@@ -382,7 +389,7 @@ fn build(
     };
     // The status rule (the `status` module): the trial alone, pooled noise and correlation.
     let sigma2 = opts.assumed_sigma_m.map_or(red.sigma2(), |s| s * s);
-    let kappa = status::score_correlation(cov, red, sigma2);
+    let kappa = status::trial_correlation(prob, p, qs, cov, red, sigma2, opts);
     let alone = status::data_alone_variance(red, sigma2);
     let share = crate::calibrate::prior::data_share(prob, &red.normal);
     let corr: Vec<Vec<Option<f64>>> = (0..nf)
@@ -419,16 +426,12 @@ fn build(
             let status_half_width = alone[k]
                 .map(|v| z * (kappa * v).sqrt() * scale[k])
                 .filter(|h| h.is_finite());
-            let held = share[k].is_finite()
-                && crate::calibrate::prior::Source::of(share[k])
-                    == crate::calibrate::prior::Source::HeldByPrior;
-            let status = match (half_width, status_half_width) {
-                (None, _) => Identifiability::Undetermined,
-                (Some(_), Some(h)) if h <= threshold(k) && !at_bound && !held => {
-                    Identifiability::Determined
-                }
-                _ => Identifiability::Poor,
-            };
+            let (status, (se, half_width, method)) = status::label(
+                (se, half_width, method),
+                status_half_width,
+                (z, cov.jack.as_ref().map(|_| crit.1), threshold(k)),
+                at_bound || status::held(share[k]),
+            );
             let reason = (status != Identifiability::Determined).then(|| {
                 let partner = (0..nf)
                     .filter(|&b| b != k)
