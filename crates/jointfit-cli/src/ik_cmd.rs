@@ -111,7 +111,7 @@ pub fn run(args: IkArgs) -> Result<()> {
         },
         ..IkOptions::default()
     };
-    let solved = solve(&model, trial, &args.trial, &args.model, &opts)?;
+    let solved = solve(&model, trial, &args.trial, &args.model, &opts, false)?;
     let model = solved.held_model.as_ref().unwrap_or(&model);
     let seconds = solved.seconds;
     let findings = solved.findings;
@@ -183,15 +183,29 @@ pub struct Solved {
 /// the inverse kinematics with the other data checks alongside (`rayon::join`: the checks
 /// take the second core while the IK's chunks are not using it), then the moved-cluster check
 /// from the IK's fit. Warnings are printed on stderr in the order they always were: the
-/// checks', the held coordinates', the absent markers', the moved clusters'. `bench`'s
-/// `ik_io` times this same function.
+/// checks', the held coordinates', the absent markers', the moved clusters'; with `quiet`
+/// nothing is printed (errors still stop). `bench`'s `ik_io` times this same function.
 pub fn solve(
     model: &Model,
     trial: &Trial,
     path: &std::path::Path,
     model_name: &str,
     opts: &IkOptions,
+    quiet: bool,
 ) -> Result<Solved> {
+    let report_findings = |findings: &[jointfit::checks::Finding], path: &std::path::Path| {
+        if quiet {
+            match findings
+                .iter()
+                .find(|f| f.severity == jointfit::checks::Severity::Error)
+            {
+                Some(f) => bail!("{}: {}", path.display(), f.message),
+                None => Ok(()),
+            }
+        } else {
+            report_findings(findings, path)
+        }
+    };
     let (map, _) = jointfit::ik::MarkerMap::allowing_absent(model, trial.labels());
     if let Some(units) = jointfit::checks::check_scale(trial) {
         report_findings(&[units], path)?;
@@ -226,7 +240,7 @@ pub fn solve(
         || jointfit::checks::check_trial_before_ik(checked_model, trial, &map),
     );
     report_findings(&findings, path)?;
-    if !held.is_empty() {
+    if !held.is_empty() && !quiet {
         eprintln!(
             "jointfit: warning: {}: no marker determines {}; held at the model's default values",
             path.display(),
@@ -240,7 +254,9 @@ pub fn solve(
         }
         Err(e) => return Err(e).with_context(|| path.display().to_string()),
     };
-    crate::common::warn_absent_markers(path, &run.absent);
+    if !quiet {
+        crate::common::warn_absent_markers(path, &run.absent);
+    }
     let fit = run.fit;
     let reference = jointfit::residual_checks::reference_name(checked_model);
     let offsets = if held.is_empty() {

@@ -6,6 +6,8 @@
 //! CR; a final line end starts no empty line), and the blocks depend on the text alone,
 //! never on the number of threads.
 
+use super::TrcErrorKind;
+
 /// Bytes per block (at least; a block ends at a line end): about 600 rows of 51 markers,
 /// a few thousand rows of a few markers.
 pub(super) const BLOCK_BYTES: usize = 1 << 20;
@@ -87,6 +89,66 @@ pub(super) fn blocks(text: &str, sep: u8, block_bytes: usize) -> Vec<Block<'_>> 
             sep,
         })
         .collect()
+}
+
+/// A data row's error with its line number moved by `by` (from a block's numbering to the
+/// file's).
+pub(super) fn shift_error(e: TrcErrorKind, by: usize) -> TrcErrorKind {
+    use TrcErrorKind::*;
+    match e {
+        BadFrameNumber { line, value } => BadFrameNumber {
+            line: line + by,
+            value,
+        },
+        FrameNumberJump {
+            line,
+            previous,
+            found,
+        } => FrameNumberJump {
+            line: line + by,
+            previous,
+            found,
+        },
+        BadTime { line, value } => BadTime {
+            line: line + by,
+            value,
+        },
+        TooFewValues {
+            line,
+            marker,
+            expected,
+            found,
+        } => TooFewValues {
+            line: line + by,
+            marker,
+            expected,
+            found,
+        },
+        ExtraValues {
+            line,
+            column,
+            value,
+            last_marker,
+        } => ExtraValues {
+            line: line + by,
+            column,
+            value,
+            last_marker,
+        },
+        BadNumber {
+            line,
+            column,
+            marker,
+            value,
+        } => BadNumber {
+            line: line + by,
+            column,
+            marker,
+            value,
+        },
+        // The row parser reports no other error.
+        other => other,
+    }
 }
 
 #[cfg(test)]

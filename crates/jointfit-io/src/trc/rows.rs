@@ -86,72 +86,12 @@ pub(super) fn read_rows<'a>(
             }
         }
         if let Some(e) = error {
-            return Err(shift_error(e, before));
+            return Err(super::blocks::shift_error(e, before));
         }
         all.append(rows);
         before += lines;
     }
     Ok(all)
-}
-
-/// A data row's error with its line number moved by `by` (from a block's numbering to the
-/// file's).
-fn shift_error(e: TrcErrorKind, by: usize) -> TrcErrorKind {
-    use TrcErrorKind::*;
-    match e {
-        BadFrameNumber { line, value } => BadFrameNumber {
-            line: line + by,
-            value,
-        },
-        FrameNumberJump {
-            line,
-            previous,
-            found,
-        } => FrameNumberJump {
-            line: line + by,
-            previous,
-            found,
-        },
-        BadTime { line, value } => BadTime {
-            line: line + by,
-            value,
-        },
-        TooFewValues {
-            line,
-            marker,
-            expected,
-            found,
-        } => TooFewValues {
-            line: line + by,
-            marker,
-            expected,
-            found,
-        },
-        ExtraValues {
-            line,
-            column,
-            value,
-            last_marker,
-        } => ExtraValues {
-            line: line + by,
-            column,
-            value,
-            last_marker,
-        },
-        BadNumber {
-            line,
-            column,
-            marker,
-            value,
-        } => BadNumber {
-            line: line + by,
-            column,
-            marker,
-            value,
-        },
-        // The row parser reports no other error.
-        other => other,
-    }
 }
 
 /// Accumulates data rows.
