@@ -52,6 +52,13 @@ pub struct BenchArgs {
     /// time and the fastest (for profilers and quick comparisons; 0: the full bench).
     #[arg(long, default_value_t = 0)]
     fit_only: usize,
+    /// Only one part of the bench, `--repeat` times (for profilers; `bench_profile.rs`):
+    /// ik, checked, before, after, read or write.
+    #[arg(long, value_name = "PART")]
+    profile: Option<String>,
+    /// With `--profile`: how many times.
+    #[arg(long, default_value_t = 10, requires = "profile")]
+    repeat: usize,
     /// Internal: run one calibration of this many frames and print its peak RSS.
     #[arg(long, hide = true)]
     rss_child: Option<usize>,
@@ -76,6 +83,11 @@ struct Figures {
     /// what `jointfit ik` spends after reading the file.
     ik_checked_us_per_frame: f64,
     ik_checked_frames_per_second: f64,
+    /// The whole-trial IK and the IK with the data checks on a pool of one thread (the
+    /// figures above use every thread: the trial's chunks and the checks in parallel).
+    ik_trial_1_thread_us_per_frame: f64,
+    ik_checked_1_thread_us_per_frame: f64,
+    ik_checked_1_thread_frames_per_second: f64,
     ik_warm_us_per_frame: f64,
     ik_iterations_per_frame: f64,
     ik_warm_frames_per_second: f64,
@@ -86,8 +98,10 @@ struct Figures {
     gradient_27_ms: f64,
     pso_hip_50_ms: Option<f64>,
     opensim: Option<bench_perf::OpenSimIk>,
-    /// OpenSim's IK solver time over jointfit's whole-trial IK (goal ≥ 100).
+    /// OpenSim's IK solver time over jointfit's whole-trial IK on every thread (goal ≥ 100).
     opensim_ik_over_jointfit_ik: Option<f64>,
+    /// The same over jointfit's whole-trial IK on one thread.
+    opensim_ik_over_jointfit_ik_1_thread: Option<f64>,
     /// jointfit's 27-parameter fit over one OpenSim IK solve of the trial (goal ≤ 0.2).
     fit_over_opensim_ik: Option<f64>,
     long_fit: Option<bench_perf::LongFit>,
@@ -164,6 +178,18 @@ fn workload(data: Option<PathBuf>) -> Result<(Model, Trial, String)> {
     ))
 }
 
+/// The trial as `jointfit ik` holds it: `ik` reads only the model's markers (`docs/io.md`),
+/// so its data checks see only those.
+pub fn for_model(model: &Model, trial: &Trial) -> Result<Trial> {
+    let names: Vec<&str> = model
+        .markers()
+        .iter()
+        .map(|m| m.name.as_str())
+        .filter(|n| trial.labels().iter().any(|l| l == n))
+        .collect();
+    Ok(trial.select(&names)?)
+}
+
 /// `--fit-only N`: the default 27-parameter calibration of the workload `n` times.
 fn fit_only(model: &Model, p: &[f64], trial: &Trial, source: &str, n: usize) -> Result<()> {
     let all = params_for_groups(model, &["all"])?;
@@ -195,6 +221,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
     let p = model.nominal_params();
     if args.fit_only > 0 {
         return fit_only(&model, &p, &trial, &source, args.fit_only);
+    }
+    if let Some(part) = &args.profile {
+        return crate::bench_profile::run(&model, &trial, part, args.repeat, args.io_frames);
     }
     let map = MarkerMap::by_name(&model, trial.labels())?;
     let opts = IkOptions::default();
@@ -232,21 +261,28 @@ pub fn run(args: BenchArgs) -> Result<()> {
         workflow::ik_trial(&model, &p, &trial, &opts).expect("validated above");
     }) / n
         * 1e6;
-    // `jointfit ik` reads only the model's markers (`docs/io.md`), so its data checks see
-    // only those: the trial as `ik` would hold it.
-    let names: Vec<&str> = model
-        .markers()
-        .iter()
-        .map(|m| m.name.as_str())
-        .filter(|n| trial.labels().iter().any(|l| l == n))
-        .collect();
-    let for_model = trial.select(&names)?;
+    let for_model = for_model(&model, &trial)?;
     let checked = median_time(21, || {
         let (run, findings) = workflow::ik_checked(&model, &p, &for_model, &opts);
         std::hint::black_box((run.expect("validated above"), findings));
     }) / n;
     fig.ik_checked_us_per_frame = checked * 1e6;
     fig.ik_checked_frames_per_second = 1.0 / checked;
+    let one_thread = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+    fig.ik_trial_1_thread_us_per_frame = one_thread.install(|| {
+        median_time(21, || {
+            workflow::ik_trial(&model, &p, &trial, &opts).expect("validated above");
+        })
+    }) / n
+        * 1e6;
+    let checked_1 = one_thread.install(|| {
+        median_time(21, || {
+            let (run, findings) = workflow::ik_checked(&model, &p, &for_model, &opts);
+            std::hint::black_box((run.expect("validated above"), findings));
+        })
+    }) / n;
+    fig.ik_checked_1_thread_us_per_frame = checked_1 * 1e6;
+    fig.ik_checked_1_thread_frames_per_second = 1.0 / checked_1;
     let first = reference
         .coords
         .iter()
@@ -317,6 +353,8 @@ pub fn run(args: BenchArgs) -> Result<()> {
             Ok(os) => {
                 let ours_ms = fig.ik_trial_us_per_frame * fig.frames as f64 / 1e3;
                 fig.opensim_ik_over_jointfit_ik = Some(os.solver_ms / ours_ms);
+                let ours_1_ms = fig.ik_trial_1_thread_us_per_frame * fig.frames as f64 / 1e3;
+                fig.opensim_ik_over_jointfit_ik_1_thread = Some(os.solver_ms / ours_1_ms);
                 fig.fit_over_opensim_ik = Some(fig.joint_27_ms / os.solver_ms);
                 fig.opensim = Some(os);
             }
@@ -347,12 +385,15 @@ pub fn run(args: BenchArgs) -> Result<()> {
     println!("  + ∂x/∂q                   {:8.3} µs", fig.fk_dq_us);
     println!("  + ∂x/∂q + ∂x/∂p           {:8.3} µs", fig.fk_dq_dp_us);
     println!(
-        "IK, whole trial (seeded)    {:8.2} µs/frame",
-        fig.ik_trial_us_per_frame
+        "IK, whole trial (seeded)    {:8.2} µs/frame  on {} threads; {:.2} on 1",
+        fig.ik_trial_us_per_frame, fig.threads, fig.ik_trial_1_thread_us_per_frame
     );
     println!(
-        "  + data checks             {:8.2} µs/frame  ({:.0} frames/s)",
-        fig.ik_checked_us_per_frame, fig.ik_checked_frames_per_second
+        "  + data checks             {:8.2} µs/frame  ({:.0} frames/s; on 1 thread {:.2} µs/frame, {:.0} frames/s)",
+        fig.ik_checked_us_per_frame,
+        fig.ik_checked_frames_per_second,
+        fig.ik_checked_1_thread_us_per_frame,
+        fig.ik_checked_1_thread_frames_per_second
     );
     println!(
         "IK, warm-started frame      {:8.2} µs/frame  ({:.0} frames/s, {:.2} iterations/frame)",
@@ -370,14 +411,17 @@ pub fn run(args: BenchArgs) -> Result<()> {
     match (
         &fig.opensim,
         fig.opensim_ik_over_jointfit_ik,
+        fig.opensim_ik_over_jointfit_ik_1_thread,
         fig.fit_over_opensim_ik,
     ) {
-        (Some(os), Some(ik), Some(fit)) => {
+        (Some(os), Some(ik), Some(ik_1), Some(fit)) => {
             println!(
                 "OpenSim 4.6 IK solver       {:8.1} ms  (tool with files {:.1} ms)",
                 os.solver_ms, os.tool_ms
             );
-            println!("  OpenSim IK / jointfit IK  {ik:8.1}   (goal ≥ 100)");
+            println!(
+                "  OpenSim IK / jointfit IK  {ik:8.1}   (goal ≥ 100; {ik_1:.1} with jointfit on 1 thread)"
+            );
             println!("  jointfit fit / OpenSim IK {fit:8.3}   (goal ≤ 0.2)");
         }
         _ => println!("{opensim_note}"),

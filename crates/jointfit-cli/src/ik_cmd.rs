@@ -91,8 +91,9 @@ pub fn run(args: IkArgs) -> Result<()> {
     }
     files.check()?;
     let model = jointfit_io::model_file::load_model(&args.model)?;
-    // The data checks that need no IK first (an error stops the command before the IK); the
-    // moved-cluster check after the IK, from its fit when it is the IK the check would run.
+    // The data checks run in `solve`: the units check first (an error stops the command
+    // before the IK), the others alongside the IK, the moved-cluster check after it, from its
+    // fit when it is the IK the check would run.
     let loaded = load_for_model(
         &args.trial,
         &args.read,
@@ -101,35 +102,6 @@ pub fn run(args: IkArgs) -> Result<()> {
         Columns::ForModel,
     )?;
     let trial = &loaded.trial;
-    let (map, _) = jointfit::ik::MarkerMap::allowing_absent(&model, trial.labels());
-    let mut findings = jointfit::checks::check_trial_before_ik(&model, trial, &map);
-    report_findings(&findings, &args.trial)?;
-    if !model
-        .markers()
-        .iter()
-        .any(|m| trial.labels().contains(&m.name))
-    {
-        bail!(
-            "{}: no marker of the trial is a marker of the model {} ({} model markers); nothing \
-             written",
-            args.trial.display(),
-            args.model,
-            model.markers().len()
-        );
-    }
-    // Coordinates no marker of the trial determines (a toe joint without toe markers) stay
-    // at their defaults, as in OpenSim's IK, and are said so.
-    let (held_model, held) = workflow::hold_undetermined(&model, &[trial])?;
-    let checked_model = &model;
-    let model = held_model.as_ref().unwrap_or(checked_model);
-    if !held.is_empty() {
-        eprintln!(
-            "jointfit: warning: {}: no marker determines {}; held at the model's default values",
-            args.trial.display(),
-            held.join(", ")
-        );
-    }
-    let start = Instant::now();
     let opts = IkOptions {
         hold_undetermined: args.hold_undetermined,
         outlier_distance: if args.keep_outliers {
@@ -139,36 +111,11 @@ pub fn run(args: IkArgs) -> Result<()> {
         },
         ..IkOptions::default()
     };
-    // Markers the file lacks altogether are missing in every frame; frames whose present
-    // markers leave a coordinate undetermined are reported as unsolved, as for gaps.
-    let p = model.nominal_params();
-    let run = match workflow::ik_trial(model, &p, trial, &opts) {
-        Ok(run) => run,
-        Err(e @ WorkflowError::NoFrameSolved { .. }) => {
-            bail!("{}: {e}; nothing written", args.trial.display())
-        }
-        Err(e) => return Err(e).with_context(|| args.trial.display().to_string()),
-    };
-    let seconds = start.elapsed().as_secs_f64();
-    crate::common::warn_absent_markers(&args.trial, &run.absent);
-    let fit = run.fit;
-    let reference = jointfit::residual_checks::reference_name(checked_model);
-    let offsets = if held.is_empty() {
-        jointfit::residual_checks::check_offsets_after_ik(
-            checked_model,
-            trial,
-            &map,
-            &reference,
-            &p,
-            &opts,
-            &fit,
-        )
-    } else {
-        // The IK ran on the model with coordinates held: not the check's.
-        jointfit::residual_checks::check_offsets(checked_model, trial, &map, &reference)
-    };
-    report_findings(&offsets, &args.trial)?;
-    findings.extend(offsets);
+    let solved = solve(&model, trial, &args.trial, &args.model, &opts, false)?;
+    let model = solved.held_model.as_ref().unwrap_or(&model);
+    let seconds = solved.seconds;
+    let findings = solved.findings;
+    let fit = solved.fit;
     let trial_json = TrialJson::new(&args.trial, &loaded, &findings);
     write_sto(&args.output, &angles_table(model, trial, &fit))
         .with_context(|| format!("writing {}", args.output.display()))?;
@@ -216,6 +163,124 @@ pub fn run(args: IkArgs) -> Result<()> {
         println!("wrote {}", args.output.display());
     }
     Ok(())
+}
+
+/// What `ik` computes between reading the trial and writing its files ([`solve`]).
+pub struct Solved {
+    /// The model the IK ran on when some coordinates were held at their defaults (no marker
+    /// of the trial determines them); `None`: the model given.
+    pub held_model: Option<Model>,
+    pub fit: TrialFit,
+    /// The data-check findings (the checks before the IK, then the moved-cluster check),
+    /// already printed.
+    pub findings: Vec<jointfit::checks::Finding>,
+    /// Wall time of the IK itself (s).
+    pub seconds: f64,
+}
+
+/// The work of `jointfit ik` on a trial read from `path` (named in messages, with the model's
+/// name `model_name`): the units check (its error stops the command before the IK), then
+/// the inverse kinematics with the other data checks alongside (`rayon::join`: the checks
+/// take the second core while the IK's chunks are not using it), then the moved-cluster check
+/// from the IK's fit. Warnings are printed on stderr in the order they always were: the
+/// checks', the held coordinates', the absent markers', the moved clusters'; with `quiet`
+/// nothing is printed (errors still stop). `bench`'s `ik_io` times this same function.
+pub fn solve(
+    model: &Model,
+    trial: &Trial,
+    path: &std::path::Path,
+    model_name: &str,
+    opts: &IkOptions,
+    quiet: bool,
+) -> Result<Solved> {
+    let report_findings = |findings: &[jointfit::checks::Finding], path: &std::path::Path| {
+        if quiet {
+            match findings
+                .iter()
+                .find(|f| f.severity == jointfit::checks::Severity::Error)
+            {
+                Some(f) => bail!("{}: {}", path.display(), f.message),
+                None => Ok(()),
+            }
+        } else {
+            report_findings(findings, path)
+        }
+    };
+    let (map, _) = jointfit::ik::MarkerMap::allowing_absent(model, trial.labels());
+    if let Some(units) = jointfit::checks::check_scale(trial) {
+        report_findings(&[units], path)?;
+    }
+    if !model
+        .markers()
+        .iter()
+        .any(|m| trial.labels().contains(&m.name))
+    {
+        bail!(
+            "{}: no marker of the trial is a marker of the model {} ({} model markers); nothing \
+             written",
+            path.display(),
+            model_name,
+            model.markers().len()
+        );
+    }
+    // Coordinates no marker of the trial determines (a toe joint without toe markers) stay
+    // at their defaults, as in OpenSim's IK, and are said so.
+    let (held_model, held) = workflow::hold_undetermined(model, &[trial])?;
+    let checked_model = model;
+    let ik_model = held_model.as_ref().unwrap_or(checked_model);
+    // Markers the file lacks altogether are missing in every frame; frames whose present
+    // markers leave a coordinate undetermined are reported as unsolved, as for gaps.
+    let p = ik_model.nominal_params();
+    let ((run, seconds), mut findings) = rayon::join(
+        || {
+            let start = Instant::now();
+            let run = workflow::ik_trial(ik_model, &p, trial, opts);
+            (run, start.elapsed().as_secs_f64())
+        },
+        || jointfit::checks::check_trial_before_ik(checked_model, trial, &map),
+    );
+    report_findings(&findings, path)?;
+    if !held.is_empty() && !quiet {
+        eprintln!(
+            "jointfit: warning: {}: no marker determines {}; held at the model's default values",
+            path.display(),
+            held.join(", ")
+        );
+    }
+    let run = match run {
+        Ok(run) => run,
+        Err(e @ WorkflowError::NoFrameSolved { .. }) => {
+            bail!("{}: {e}; nothing written", path.display())
+        }
+        Err(e) => return Err(e).with_context(|| path.display().to_string()),
+    };
+    if !quiet {
+        crate::common::warn_absent_markers(path, &run.absent);
+    }
+    let fit = run.fit;
+    let reference = jointfit::residual_checks::reference_name(checked_model);
+    let offsets = if held.is_empty() {
+        jointfit::residual_checks::check_offsets_after_ik(
+            checked_model,
+            trial,
+            &map,
+            &reference,
+            &p,
+            opts,
+            &fit,
+        )
+    } else {
+        // The IK ran on the model with coordinates held: not the check's.
+        jointfit::residual_checks::check_offsets(checked_model, trial, &map, &reference)
+    };
+    report_findings(&offsets, path)?;
+    findings.extend(offsets);
+    Ok(Solved {
+        held_model,
+        fit,
+        findings,
+        seconds,
+    })
 }
 
 fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f64) -> Summary {

@@ -11,6 +11,7 @@ mod validate;
 mod batch_cmd;
 mod bench_cmd;
 mod bench_perf;
+mod bench_profile;
 mod calibrate_cmd;
 mod calibrate_text;
 mod check_cmd;

@@ -81,6 +81,7 @@ use thiserror::Error;
 
 use crate::text::decode;
 
+mod blocks;
 mod fast;
 mod read;
 mod rows;

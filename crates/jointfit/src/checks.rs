@@ -187,40 +187,128 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
 /// check of [`crate::residual_checks`], which [`check_trial`] appends last): a front end that
 /// runs the IK anyway appends [`crate::residual_checks::check_offsets_after_ik`] to these and
 /// gets what [`check_trial`] gives without a second IK (`workflow::ik_checked`).
+///
+/// The units check, each segment's cluster and swap checks and each marker's jump and gap
+/// scans are independent; they run as parallel tasks (rayon) and their findings are joined
+/// in the fixed order units, segments, markers, so the result is the same on any number of
+/// threads.
 pub fn check_trial_before_ik(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding> {
-    let mut out: Vec<Finding> = check_scale(trial).into_iter().collect();
+    use rayon::prelude::*;
     let reference = crate::residual_checks::reference_name(model);
-    let first = trial.first_frame();
-    let n = trial.n_frames();
-    let col = |j: usize| map.columns[j];
-    let pos = |f: usize, j: usize| -> Option<Vector3<f64>> {
-        col(j)
-            .map(|c| trial.frame(f)[c])
-            .filter(|p| p.x.is_finite())
-    };
-    let name = |j: usize| model.markers()[j].name.as_str();
     // Marker pairs of one segment with the model's distance.
     let mut segments: Vec<Vec<usize>> = vec![Vec::new(); model.segments().len()];
     for (j, m) in model.markers().iter().enumerate() {
-        if col(j).is_some() {
+        if map.columns[j].is_some() {
             segments[m.segment.0].push(j);
         }
     }
-    let model_distance =
-        |a: usize, b: usize| (model.markers()[a].local - model.markers()[b].local).norm();
-
-    // Per segment, the distance of every marker pair in every frame (NaN when one is
-    // missing), computed once for the cluster and swap checks: `d[(f * m + i) * m + k]`.
-    for markers in &segments {
-        let m = markers.len();
-        if m < 2 {
-            continue;
+    let ctx = Ctx { model, trial, map };
+    let (scale, (per_segment, per_marker)) = rayon::join(
+        || check_scale(trial),
+        || {
+            rayon::join(
+                || {
+                    segments
+                        .par_iter()
+                        .filter(|m| m.len() >= 2)
+                        .map(|markers| ctx.segment_findings(markers, &reference))
+                        .collect::<Vec<_>>()
+                },
+                || {
+                    (0..model.n_markers())
+                        .into_par_iter()
+                        .filter(|&j| map.columns[j].is_some())
+                        .map(|j| (j, ctx.jumps(j), ctx.gaps(j)))
+                        .collect::<Vec<_>>()
+                },
+            )
+        },
+    );
+    let mut out: Vec<Finding> = scale.into_iter().collect();
+    out.extend(per_segment.into_iter().flatten());
+    // Jumps per model marker; gaps per model marker, one finding for the markers that are
+    // missing in exactly the same frames (a subject walking out of the capture volume).
+    // (gap runs, marker names, index in `out` where the group's finding goes)
+    type GapGroup = (Vec<(usize, usize)>, Vec<String>, usize);
+    let mut gap_groups: Vec<GapGroup> = Vec::new();
+    for (j, jump, gaps) in per_marker {
+        out.extend(jump);
+        if !gaps.is_empty() {
+            let name = model.markers()[j].name.clone();
+            match gap_groups.iter_mut().find(|(g, _, _)| *g == gaps) {
+                Some((_, names, _)) => names.push(name),
+                None => {
+                    // A placeholder keeps the findings in marker order.
+                    gap_groups.push((gaps, vec![name], out.len()));
+                    out.push(Finding {
+                        kind: CheckKind::Gaps,
+                        severity: Severity::Warning,
+                        message: String::new(),
+                        fix: None,
+                    });
+                }
+            }
         }
+    }
+    let (first, n) = (trial.first_frame(), trial.n_frames());
+    for (gaps, names, at) in gap_groups {
+        let missing: usize = gaps.iter().map(|(s, e)| e - s + 1).sum();
+        let (s, e) = *gaps.iter().max_by_key(|(s, e)| e - s).expect("non-empty");
+        let who = match names.len() {
+            1 => format!("{} is", names[0]),
+            k => format!("{k} markers ({}) are each", names.join(", ")),
+        };
+        out[at] = Finding {
+            kind: CheckKind::Gaps,
+            severity: Severity::Warning,
+            message: format!(
+                "{who} missing in {missing} of {n} frames ({} gaps; longest frames {}–{})",
+                gaps.len(),
+                first + s as i64,
+                first + e as i64
+            ),
+            fix: (((e - s + 1) as f64) <= 0.5 * trial.rate())
+                .then(|| format!("--fill-gaps {}", e - s + 1)),
+        };
+    }
+    out
+}
+
+/// What the checks of one trial against one model read.
+#[derive(Clone, Copy)]
+struct Ctx<'a> {
+    model: &'a Model,
+    trial: &'a Trial,
+    map: &'a MarkerMap,
+}
+
+impl Ctx<'_> {
+    /// Model marker `j` in frame `f`, when present.
+    fn pos(&self, f: usize, j: usize) -> Option<Vector3<f64>> {
+        self.map.columns[j]
+            .map(|c| self.trial.frame(f)[c])
+            .filter(|p| p.x.is_finite())
+    }
+
+    fn name(&self, j: usize) -> &str {
+        self.model.markers()[j].name.as_str()
+    }
+
+    /// The cluster and swap findings of one segment's present model markers (at least two).
+    fn segment_findings(&self, markers: &[usize], reference: &str) -> Vec<Finding> {
+        let (model, n) = (self.model, self.trial.n_frames());
+        let first = self.trial.first_frame();
+        let mut out = Vec::new();
+        let model_distance =
+            |a: usize, b: usize| (model.markers()[a].local - model.markers()[b].local).norm();
+        // The distance of every marker pair in every frame (NaN when one is missing),
+        // computed once for the cluster and swap checks: `d[(f * m + i) * m + k]`.
+        let m = markers.len();
         let mut d = vec![f64::NAN; n * m * m];
         let mut at: Vec<Option<Vector3<f64>>> = vec![None; m];
         for f in 0..n {
             for (i, &j) in markers.iter().enumerate() {
-                at[i] = pos(f, j);
+                at[i] = self.pos(f, j);
             }
             for i in 0..m {
                 for k in i + 1..m {
@@ -261,15 +349,15 @@ pub fn check_trial_before_ik(model: &Model, trial: &Trial, map: &MarkerMap) -> V
                         message: format!(
                             "{seg}: {} to {} is {:.1} mm in this trial (median) but {:.1} mm in \
                              {reference}: a marker moved or was re-attached",
-                            name(a),
-                            name(b),
+                            self.name(a),
+                            self.name(b),
                             median * 1e3,
                             rr * 1e3,
                         ),
                         fix: Some(format!(
                             "--exclude-marker {} or --exclude-marker {} (the one that moved)",
-                            name(a),
-                            name(b)
+                            self.name(a),
+                            self.name(b)
                         )),
                     });
                 }
@@ -278,7 +366,7 @@ pub fn check_trial_before_ik(model: &Model, trial: &Trial, map: &MarkerMap) -> V
 
         // Swaps: runs of frames where exchanging two labels fits the other markers far better.
         if m < 3 {
-            continue;
+            return out;
         }
         for i in 0..m {
             for k in i + 1..m {
@@ -318,33 +406,31 @@ pub fn check_trial_before_ik(model: &Model, trial: &Trial, map: &MarkerMap) -> V
                         message: format!(
                             "{} and {} look swapped in frames {}–{}: exchanged, they fit the \
                              subject model's distances to the other {seg} markers",
-                            name(a),
-                            name(b),
+                            self.name(a),
+                            self.name(b),
                             from,
                             to,
                         ),
-                        fix: Some(format!("--swap-labels {},{}@{frames}", name(a), name(b))),
+                        fix: Some(format!(
+                            "--swap-labels {},{}@{frames}",
+                            self.name(a),
+                            self.name(b)
+                        )),
                     });
                 }
             }
         }
+        out
     }
 
-    // Jumps per model marker; gaps per model marker, one finding for the markers that are
-    // missing in exactly the same frames (a subject walking out of the capture volume).
-    let max_step = JUMP_SPEED / trial.rate();
-    // (gap runs, marker names, index in `out` where the group's finding goes)
-    type GapGroup = (Vec<(usize, usize)>, Vec<String>, usize);
-    let mut gap_groups: Vec<GapGroup> = Vec::new();
-    for j in 0..model.n_markers() {
-        if col(j).is_none() {
-            continue;
-        }
-        // One pass: the number of jumps and the first.
+    /// The jump finding of model marker `j` (one pass: the number of jumps and the first).
+    fn jumps(&self, j: usize) -> Option<Finding> {
+        let n = self.trial.n_frames();
+        let max_step = JUMP_SPEED / self.trial.rate();
         let (mut count, mut first_jump) = (0usize, None);
-        let mut prev = if n > 0 { pos(0, j) } else { None };
+        let mut prev = if n > 0 { self.pos(0, j) } else { None };
         for f in 1..n {
-            let here = pos(f, j);
+            let here = self.pos(f, j);
             if let (Some(p0), Some(p1)) = (prev, here) {
                 if (p1 - p0).norm() > max_step {
                     count += 1;
@@ -353,57 +439,23 @@ pub fn check_trial_before_ik(model: &Model, trial: &Trial, map: &MarkerMap) -> V
             }
             prev = here;
         }
-        if let Some(f) = first_jump {
-            out.push(Finding {
-                kind: CheckKind::Jump,
-                severity: Severity::Warning,
-                message: format!(
-                    "{} jumps faster than {JUMP_SPEED} m/s in {} frames (first: frame {})",
-                    name(j),
-                    count,
-                    first + f as i64
-                ),
-                fix: None,
-            });
-        }
-        let gaps = runs((0..n).map(|f| pos(f, j).is_none()));
-        if !gaps.is_empty() {
-            match gap_groups.iter_mut().find(|(g, _, _)| *g == gaps) {
-                Some((_, names, _)) => names.push(name(j).to_string()),
-                None => {
-                    // A placeholder keeps the findings in marker order.
-                    gap_groups.push((gaps, vec![name(j).to_string()], out.len()));
-                    out.push(Finding {
-                        kind: CheckKind::Gaps,
-                        severity: Severity::Warning,
-                        message: String::new(),
-                        fix: None,
-                    });
-                }
-            }
-        }
-    }
-    for (gaps, names, at) in gap_groups {
-        let missing: usize = gaps.iter().map(|(s, e)| e - s + 1).sum();
-        let (s, e) = *gaps.iter().max_by_key(|(s, e)| e - s).expect("non-empty");
-        let who = match names.len() {
-            1 => format!("{} is", names[0]),
-            k => format!("{k} markers ({}) are each", names.join(", ")),
-        };
-        out[at] = Finding {
-            kind: CheckKind::Gaps,
+        first_jump.map(|f| Finding {
+            kind: CheckKind::Jump,
             severity: Severity::Warning,
             message: format!(
-                "{who} missing in {missing} of {n} frames ({} gaps; longest frames {}–{})",
-                gaps.len(),
-                first + s as i64,
-                first + e as i64
+                "{} jumps faster than {JUMP_SPEED} m/s in {} frames (first: frame {})",
+                self.name(j),
+                count,
+                self.trial.first_frame() + f as i64
             ),
-            fix: (((e - s + 1) as f64) <= 0.5 * trial.rate())
-                .then(|| format!("--fill-gaps {}", e - s + 1)),
-        };
+            fix: None,
+        })
     }
-    out
+
+    /// The runs of frames in which model marker `j` is missing.
+    fn gaps(&self, j: usize) -> Vec<(usize, usize)> {
+        runs((0..self.trial.n_frames()).map(|f| self.pos(f, j).is_none()))
+    }
 }
 
 /// Runs of `true` as inclusive `(start, end)` indices.

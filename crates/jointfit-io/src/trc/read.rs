@@ -2,17 +2,31 @@
 
 use jointfit::trial::Trial;
 
+use super::blocks::{blocks, head, separator, BLOCK_BYTES};
 use super::rows::{read_rows, Rows};
 use super::{Select, TrcErrorKind, TrcFile, TrcHeader, TrcNote, TrcUnits, HEADER_KEYS};
-use crate::text::{numbered_lines, parse_number};
+use crate::text::parse_number;
 
 /// Parses TRC text; only the markers `select` accepts (all when `None`) are read and kept.
 pub(super) fn parse(text: &str, select: Option<Select>) -> Result<TrcFile, TrcErrorKind> {
+    parse_in_blocks(text, select, BLOCK_BYTES)
+}
+
+/// [`parse`] with the data rows cut into blocks of at least `block_bytes` bytes (`blocks.rs`):
+/// the result does not depend on it (tests compare one block with many).
+pub(super) fn parse_in_blocks(
+    text: &str,
+    select: Option<Select>,
+    block_bytes: usize,
+) -> Result<TrcFile, TrcErrorKind> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     if text.trim().is_empty() {
         return Err(TrcErrorKind::Empty);
     }
-    let lines = numbered_lines(text);
+    // The header's five lines; the data rows are cut into blocks of lines, numbered and parsed
+    // in parallel (`blocks.rs`, `rows.rs`).
+    let sep = separator(text);
+    let (lines, data) = head(text, sep, 5);
     let line_at = |i: usize, expected: &'static str| {
         lines
             .get(i)
@@ -67,7 +81,7 @@ pub(super) fn parse(text: &str, select: Option<Select>) -> Result<TrcFile, TrcEr
     if !keep.contains(&true) {
         keep.fill(true);
     }
-    let mut data = read_rows(&lines[5..], &labels, &keep, scale)?;
+    let mut data = read_rows(&blocks(data, sep, block_bytes), 6, &labels, &keep, scale)?;
     let rows = data.times.len();
     if rows < header.num_frames {
         return Err(TrcErrorKind::MissingFrames {

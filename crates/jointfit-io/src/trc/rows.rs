@@ -35,40 +35,47 @@ impl Tally {
     }
 }
 
-/// Data lines per chunk parsed on one thread.
-const LINES_PER_CHUNK: usize = 2048;
-
-/// Parses the data lines in chunks of [`LINES_PER_CHUNK`] lines on every thread, then joins
-/// the chunks in order: the same rows, notes and first error (in line order, frame-number
-/// jumps between chunks included) as one pass over the lines.
+/// Parses the blocks of data lines (`blocks.rs`; the first is line `first_line` of the file)
+/// on every thread, each with its lines numbered from 0, then joins them in order, adding
+/// the lines of the blocks before: the same rows, notes and first error (in line order,
+/// frame-number jumps between blocks included) as one pass over the lines. A block that
+/// stops at an error has counted its lines only that far, but no block after it is used.
 pub(super) fn read_rows<'a>(
-    lines: &[(usize, &str)],
+    blocks: &[super::blocks::Block<'_>],
+    first_line: usize,
     labels: &'a [String],
     keep: &'a [bool],
     scale: f64,
 ) -> Result<Rows<'a>, TrcErrorKind> {
     use rayon::prelude::*;
-    let chunks: Vec<(Rows<'a>, Option<TrcErrorKind>)> = lines
-        .par_chunks(LINES_PER_CHUNK)
-        .map(|chunk| {
+    let chunks: Vec<(Rows<'a>, Option<TrcErrorKind>, usize)> = blocks
+        .par_iter()
+        .map(|block| {
             let mut rows = Rows::new(labels, keep, scale);
-            rows.positions.reserve(chunk.len() * rows.kept);
-            for &(line_no, line) in chunk {
+            // About 9 bytes a cell: a first guess that saves most reallocations.
+            let guess = block.text.len() / (9 * (2 + 3 * labels.len())).max(1);
+            rows.positions.reserve(guess * rows.kept);
+            let mut lines = 0;
+            for (line_no, line) in block.lines() {
+                lines = line_no + 1;
                 if line.trim().is_empty() {
                     continue;
                 }
                 if let Err(e) = rows.push(line_no, line) {
-                    return (rows, Some(e));
+                    return (rows, Some(e), lines);
                 }
             }
-            (rows, None)
+            (rows, None, lines)
         })
         .collect();
+    let total: usize = chunks.iter().map(|(r, _, _)| r.times.len()).sum();
     let mut all = Rows::new(labels, keep, scale);
-    all.positions.reserve(lines.len() * all.kept);
-    all.times.reserve(lines.len());
-    all.time_cells.reserve(lines.len());
-    for (rows, error) in chunks {
+    all.positions.reserve(total * all.kept);
+    all.times.reserve(total);
+    all.time_cells.reserve(total);
+    let mut before = first_line;
+    for (mut rows, error, lines) in chunks {
+        rows.shift_lines(before);
         if let (Some(previous), Some(found)) = (all.last_frame, rows.first_frame) {
             if previous.checked_add(1) != Some(found) {
                 return Err(TrcErrorKind::FrameNumberJump {
@@ -79,9 +86,10 @@ pub(super) fn read_rows<'a>(
             }
         }
         if let Some(e) = error {
-            return Err(e);
+            return Err(super::blocks::shift_error(e, before));
         }
         all.append(rows);
+        before += lines;
     }
     Ok(all)
 }
@@ -255,6 +263,19 @@ impl<'a> Rows<'a> {
         Ok(())
     }
 
+    /// Moves every line number by `by` (from a block's numbering to the file's).
+    fn shift_lines(&mut self, by: usize) {
+        self.first_line += by;
+        for cell in &mut self.time_cells {
+            cell.0 += by;
+        }
+        for tally in [&mut self.zero, &mut self.partial] {
+            if let Some((line, _)) = &mut tally.first {
+                *line += by;
+            }
+        }
+    }
+
     /// Appends the rows of `next`, which follow these in the file.
     fn append(&mut self, next: Rows<'a>) {
         if self.first_frame.is_none() {
@@ -332,7 +353,7 @@ fn resolution(s: &str) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::LINES_PER_CHUNK;
+    use crate::trc::blocks::{blocks, head, separator, BLOCK_BYTES};
     use crate::trc::{parse_trc, TrcErrorKind};
 
     /// A TRC text of `frames` rows of two markers (mm), values from a simple formula with
@@ -363,12 +384,31 @@ mod tests {
         (out, cells)
     }
 
-    /// Chunks joined in order: every value has the bits of the standard parser's reading
-    /// (scaled to metres as one multiplication), over several chunks.
+    /// Rows enough for three blocks and a part (about 80 bytes a row).
+    const FRAMES: usize = 3 * BLOCK_BYTES / 80 + 17;
+
+    /// The data line numbers at which the blocks of `text` start.
+    fn block_starts(text: &str) -> Vec<usize> {
+        let sep = separator(text);
+        let (_, rest) = head(text, sep, 5);
+        let mut line = 6;
+        blocks(rest, sep, BLOCK_BYTES)
+            .iter()
+            .map(|b| {
+                let first = line;
+                line += b.lines().count();
+                first
+            })
+            .collect()
+    }
+
+    /// Blocks joined in order: every value has the bits of the standard parser's reading
+    /// (scaled to metres as one multiplication), over several blocks.
     #[test]
     fn chunked_rows_equal_the_standard_parse() {
-        let frames = 3 * LINES_PER_CHUNK + 17;
+        let frames = FRAMES;
         let (t, cells) = text(frames);
+        assert!(block_starts(&t).len() >= 4);
         let trial = parse_trc(&t, "t.trc").unwrap();
         assert_eq!(trial.n_frames(), frames);
         let got: Vec<f64> = trial
@@ -385,21 +425,22 @@ mod tests {
         }
     }
 
-    /// Errors come in line order whichever chunk holds them: a frame-number jump at the first
-    /// row of a chunk is found before a bad number in a later chunk.
+    /// Errors come in line order whichever block holds them: a frame-number jump at the first
+    /// row of a block is found before a bad number in a later block.
     #[test]
     fn first_error_in_line_order_across_chunks() {
-        let frames = 3 * LINES_PER_CHUNK;
+        let frames = FRAMES;
         let (t, _) = text(frames);
+        let starts = block_starts(&t);
         let mut lines: Vec<String> = t.lines().map(str::to_string).collect();
         // Data rows start at line 6 (index 5); row i of the data is line 6 + i.
-        let jump_row = LINES_PER_CHUNK; // first row of the second chunk
+        let jump_row = starts[1] - 6; // first row of the second block
         lines[5 + jump_row] = lines[5 + jump_row].replacen(
             &format!("{}\t", jump_row + 1),
             &format!("{}\t", jump_row + 5),
             1,
         );
-        let bad_row = 2 * LINES_PER_CHUNK + 3;
+        let bad_row = starts[2] - 6 + 3;
         lines[5 + bad_row] = lines[5 + bad_row].replacen("\t", "\tx", 2);
         let err = parse_trc(&lines.join("\n"), "t.trc").unwrap_err();
         match err.kind {

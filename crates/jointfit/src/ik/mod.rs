@@ -26,7 +26,7 @@
 //! is not finite is not solved, and the next frame starts again from seeding.
 //!
 //! The frames of a trial are solved in fixed chunks of consecutive frames, in parallel
-//! ([`chunk_ranges`]; the first frame of each chunk is seeded), so the result does not depend
+//! ([`trial_chunk_ranges`]: two from 128 frames on; the first frame of each chunk is seeded), so the result does not depend
 //! on the number of threads. A frame whose fit is far worse than the trial's median is then
 //! solved again from its neighbours' solutions and a fresh seed, and reported not solved when
 //! it stays implausible ([`repair`]).
@@ -48,7 +48,8 @@ pub use lm::{is_gross, solve_frame, undetermined_coordinate, IkWorkspace};
 pub use markers::MarkerMap;
 pub use seed::seed_frame;
 pub use trial_fit::{
-    chunk_ranges, extrapolate, rms, solve_trial, unsolved_ranges, TrialFit, UnsolvedRange,
+    chunk_ranges, extrapolate, rms, solve_trial, solve_trial_in_chunks, trial_chunk_ranges,
+    unsolved_ranges, TrialFit, UnsolvedRange, MIN_SPLIT_FRAMES,
 };
 
 /// Why IK could not start.

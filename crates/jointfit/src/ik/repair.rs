@@ -19,7 +19,7 @@
 //! `generic.osim` the warm-start chain after frame 20 stayed up to 9 mm RMS above OpenSim's
 //! minima for 50 frames): each neighbour is solved again from the improved solution and kept
 //! when its loss drops (by more than a relative 1e-9, so equal minima never alternate), and
-//! so on outwards. The first frame of each parallel chunk ([`super::chunk_ranges`]) was
+//! so on outwards. The first frame of each parallel chunk ([`super::trial_chunk_ranges`]) was
 //! seeded rather than warm-started, so it is also tried from the frame before it, and that
 //! frame from it, with the same propagation.
 //!

@@ -61,7 +61,7 @@ pub fn extrapolate(prev: &[f64], before: &[f64]) -> Vec<f64> {
 }
 
 /// Frames are solved in chunks of consecutive frames, each chunk on its own thread (see
-/// [`chunk_ranges`]).
+/// [`trial_chunk_ranges`]).
 ///
 /// Solves every frame of `trial` with warm starts (see the module docs): the first frame of
 /// each chunk (and the first after a frame that could not be solved) from [`seed_frame`],
@@ -80,17 +80,37 @@ pub fn solve_trial(
     map: &MarkerMap,
     opts: &IkOptions,
 ) -> Result<TrialFit, IkError> {
+    let chunks = trial_chunk_ranges(trial.n_frames(), opts.hold_undetermined);
+    solve_trial_in_chunks(model, p, trial, map, opts, &chunks)
+}
+
+/// [`solve_trial`] with the chunks given: `chunks` must cover `0..trial.n_frames()` in order
+/// (a chunk per thread; the first frame of each seeded). For tests and measurements (the
+/// trial solved as one chunk against the chunks [`solve_trial`] takes).
+pub fn solve_trial_in_chunks(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+    map: &MarkerMap,
+    opts: &IkOptions,
+    chunks: &[Range<usize>],
+) -> Result<TrialFit, IkError> {
     if p.len() != model.n_p() {
         return Err(IkError::ParamLength {
             got: p.len(),
             expected: model.n_p(),
         });
     }
-    let chunks = chunk_ranges(trial.n_frames(), opts.hold_undetermined);
+    assert!(
+        chunks.first().map_or(0, |c| c.start) == 0
+            && chunks.last().map_or(0, |c| c.end) == trial.n_frames()
+            && chunks.windows(2).all(|w| w[0].end == w[1].start),
+        "chunks must cover the trial in order"
+    );
     let boundaries: Vec<usize> = chunks.iter().skip(1).map(|c| c.start).collect();
     let pieces: Vec<TrialFit> = chunks
-        .into_par_iter()
-        .map(|range| solve_range(model, p, trial, map, opts, range))
+        .par_iter()
+        .map(|range| solve_range(model, p, trial, map, opts, range.clone()))
         .collect();
     let mut out = TrialFit {
         coords: Vec::with_capacity(trial.n_frames()),
@@ -106,26 +126,51 @@ pub fn solve_trial(
     Ok(out)
 }
 
-/// Fewest frames in a chunk. The first frame of a chunk is seeded, which costs about as much
-/// as 25 warm-started frames (+16 % CPU on a 143-frame trial cut in two), and with only two
-/// or three chunks one descheduled thread on a shared machine holds up the whole trial
-/// (measured: 143 frames in two chunks took 22 µs/frame instead of 12 at load 4.6 on two
-/// cores). Trials shorter than two chunks are solved as one; from 4096 frames on there are
-/// enough chunks for work stealing to balance the load, and the seeds cost under 5 %.
+/// Fewest frames in a chunk of a long trial (and of the calibration's starting coordinates,
+/// [`chunk_ranges`]): from 1024 frames on a trial is cut into `⌊n / 512⌋` chunks, so that
+/// the seeds cost under 5 % and, from 4096 frames on, there are enough chunks for work
+/// stealing to balance the load on a shared machine.
 pub const MIN_CHUNK_FRAMES: usize = 512;
 /// Most chunks in a trial (enough to balance the load on a few cores).
 pub const MAX_CHUNKS: usize = 32;
+/// From this many frames on [`solve_trial`] cuts a trial into at least two chunks, so that a
+/// short trial (a gait cycle or two) uses two cores. The second chunk's seed costs about as
+/// much as 10 warm-started frames (`seed.rs`: 1.26 M instructions against ≈ 0.13 M a frame
+/// on walking1): +6.5 % CPU on walking1's 143 frames, +7 % at 128 frames, while two idle
+/// cores solve it in ≈ 0.55 of the one-chunk time (measurements in `docs/frames_solved.md`).
+pub const MIN_SPLIT_FRAMES: usize = 128;
 
-/// The chunks of consecutive frames [`solve_trial`] solves independently: `k =
-/// clamp(⌊n / 512⌋, 1, 32)` chunks of nearly equal length (chunk `i` is `i·n/k .. (i+1)·n/k`).
-/// With `hold` (holding undetermined coordinates at the previous frame's values, which
-/// needs the previous frame) the trial is one chunk.
+/// The chunks of consecutive frames [`solve_trial`] solves independently: one below
+/// [`MIN_SPLIT_FRAMES`] frames, else `k = clamp(⌊n / 512⌋, 2, 32)` chunks of nearly equal
+/// length (chunk `i` is `i·n/k .. (i+1)·n/k`). With `hold` (holding undetermined coordinates
+/// at the previous frame's values, which needs the previous frame) the trial is one chunk.
+/// A function of the frame count alone, never of the thread count, so the result is the same
+/// on any number of threads.
+pub fn trial_chunk_ranges(n: usize, hold: bool) -> Vec<Range<usize>> {
+    let k = if hold || n < MIN_SPLIT_FRAMES {
+        1
+    } else {
+        (n / MIN_CHUNK_FRAMES).clamp(2, MAX_CHUNKS)
+    };
+    even_chunks(n, k)
+}
+
+/// The chunks of the calibration's starting coordinates ([`super::warm_started_coords`],
+/// `calibrate::Problem::initial_coords`): `k = clamp(⌊n / 512⌋, 1, 32)` chunks of nearly
+/// equal length, one with `hold`. Short trials stay one chunk here (unlike
+/// [`trial_chunk_ranges`]), so the calibration's starting point, and with it every
+/// calibration result, is what it was.
 pub fn chunk_ranges(n: usize, hold: bool) -> Vec<Range<usize>> {
     let k = if hold {
         1
     } else {
         (n / MIN_CHUNK_FRAMES).clamp(1, MAX_CHUNKS)
     };
+    even_chunks(n, k)
+}
+
+/// `0..n` cut into `k` chunks of nearly equal length (chunk `i` is `i·n/k .. (i+1)·n/k`).
+fn even_chunks(n: usize, k: usize) -> Vec<Range<usize>> {
     (0..k).map(|i| i * n / k..(i + 1) * n / k).collect()
 }
 
