@@ -21,6 +21,7 @@ use crate::common::{load_trial, Up};
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum NoiseKind {
+    /// No noise: every marker lies exactly where the true model puts it.
     None,
     /// Skin-movement artifact A·sin(ωt+φ) per marker-axis (Chèze et al. 1995).
     Skin,
@@ -38,6 +39,7 @@ pub struct SynthArgs {
     /// the subject model at its nominal parameters).
     #[arg(long, default_value = "all")]
     pub motion: String,
+    /// Noise added to the synthetic markers.
     #[arg(long, value_enum, default_value = "none")]
     pub noise: NoiseKind,
     /// Seed of the noise and of the perturbation.
