@@ -69,9 +69,10 @@ pub struct SynthArgs {
     /// True orientations = nominal moved by up to this many degrees (uniform, seeded).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = crate::validate::perturb_deg)]
     pub perturb_deg: f64,
-    /// Vertical axis of the gait trial's file.
-    #[arg(long, value_enum, default_value = "y")]
-    pub up: Up,
+    /// Vertical axis of the gait trial's file (default: the subject model's `lab_up`,
+    /// recorded by `personalize`; else y), as for every command that reads a subject's trials.
+    #[arg(long, value_enum)]
+    pub up: Option<Up>,
     /// Low-pass cutoff (Hz) applied to the gait trial before IK.
     #[arg(long, allow_negative_numbers = true, value_parser = crate::validate::cutoff_hz)]
     pub filter: Option<f64>,
@@ -161,7 +162,12 @@ pub fn run(args: SynthArgs) -> Result<()> {
     let (coords, rate, dropped) = match args.motion.strip_prefix("gait:") {
         Some(path) => {
             let path = PathBuf::from(path);
-            let trial = load_trial(&path, args.up, args.filter)?;
+            let up = match (args.up, spec.lab_up) {
+                (Some(u), _) => u,
+                (None, Some(u)) => Up::from(u),
+                (None, None) => Up::Y,
+            };
+            let trial = load_trial(&path, up, args.filter)?;
             let (coords, dropped) = gait_coordinates(&model, &model.nominal_params(), &trial)
                 .with_context(|| format!("{}: inverse kinematics", path.display()))?;
             if coords.is_empty() {

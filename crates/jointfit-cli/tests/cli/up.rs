@@ -62,6 +62,23 @@ fn negative_z_lab_needs_up_only_once() {
     );
     assert!(!err_given.contains("looks rotated"), "{err_given}");
     assert!(!err_forgot.contains("looks rotated"), "{err_forgot}");
+    // synth replays the trial's IK read the same way: without --up it takes the model's
+    // lab_up, as ik does (it took y before, and replayed a rotated motion).
+    let synth = |out: &Path, extra: &[&str]| {
+        let motion = format!("gait:{}", s(&trial));
+        let truth = out.with_extension("toml");
+        let mut args = vec!["synth", s(&subject), "--motion", &motion, "-o", s(out)];
+        args.extend_from_slice(&["--truth", s(&truth)]);
+        args.extend_from_slice(extra);
+        let (ok, _, err) = jointfit(&args);
+        assert!(ok, "{err}");
+        // Past the first line, which names the file.
+        let text = std::fs::read_to_string(out).unwrap();
+        text.split_once('\n').unwrap().1.to_string()
+    };
+    let (sg, sf, sy) = (dir.join("sg.trc"), dir.join("sf.trc"), dir.join("sy.trc"));
+    assert_eq!(synth(&sg, &["--up=-z"]), synth(&sf, &[]));
+    assert_ne!(synth(&sy, &["--up", "y"]), synth(&sf, &[]));
     // Overriding with the wrong axis is still possible, and said.
     let err_wrong = run(&wrong, &["--up", "y"]);
     assert!(
