@@ -195,7 +195,7 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
         decimals: args.decimals,
     };
     write_trc(&args.output, &trial, &options)?;
-    eprintln!(
+    println!(
         "wrote {} ({} markers, {} frames at {} Hz{}{})",
         args.output.display(),
         trial.n_markers(),

@@ -88,7 +88,7 @@ pub fn run(cmd: MarkersCommand) -> Result<()> {
         Some(o) => {
             jointfit_io::atomic::write_atomic(o, text.as_bytes())
                 .with_context(|| format!("{}: cannot write", o.display()))?;
-            eprintln!("jointfit: wrote {}", o.display());
+            println!("wrote {}", o.display());
         }
         None => print!("{text}"),
     }
