@@ -87,6 +87,7 @@ fn convert_c3d_to_y_up_trc() {
         out.contains("wrote ") && out.contains("up axis detected: -z"),
         "{out}"
     );
+    assert!(out.contains("read this file with --up y"), "{out}");
     assert_eq!(
         a.lines().skip(1).collect::<Vec<_>>(),
         b.lines().skip(1).collect::<Vec<_>>()
