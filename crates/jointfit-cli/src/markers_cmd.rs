@@ -70,7 +70,7 @@ pub fn run(cmd: MarkersCommand) -> Result<()> {
             let (moving, _) = jointfit_io::trial_file::read_trial_noted(m)?;
             let present = |l: &str| motion::has_samples(&moving, l);
             for note in motion::keep_tracked_in(&mut suggestion.set, &present) {
-                suggestion.notes.push(format!("{}: {note}", m.display()));
+                suggestion.notes.push(note);
             }
         }
         None => {
