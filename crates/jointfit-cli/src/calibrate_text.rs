@@ -55,18 +55,7 @@ pub fn print_report(report: &Calibration, seconds: f64) {
         }
     }
     if let Some(g) = &report.global {
-        let list: Vec<String> = g
-            .finished
-            .iter()
-            .zip(&g.finished_objective_mm2)
-            .map(|(k, c)| format!("start {k} {c:.3}"))
-            .collect();
-        println!(
-            "global phase: {} starts probed ({} iterations each), finished: {} mm²",
-            g.starts,
-            g.probe_iterations,
-            list.join(", ")
-        );
+        println!("{}", global_line(g));
     }
     if let Some(w) = &report.global_warning {
         eprintln!("jointfit: warning: {w}");
@@ -280,5 +269,72 @@ fn print_uncertainty_notes(u: &Uncertainty, fixed: &[String]) {
         );
     } else if u.flagged().next().is_some() {
         println!("(rerun with --fix-unidentifiable to hold the flagged parameters at their starting values)");
+    }
+}
+
+/// The global phase in words (`docs/global.md`): how many starts were tried and on what, which
+/// were finished on every frame, their objectives, and whether they agree.
+pub fn global_line(g: &jointfit::workflow::global::GlobalSearch) -> String {
+    let name = |k: usize| {
+        if k == 0 {
+            "the given start".to_string()
+        } else {
+            format!("start {k}")
+        }
+    };
+    let list: Vec<String> = g
+        .finished
+        .iter()
+        .zip(&g.finished_objective_mm2)
+        .map(|(&k, c)| format!("{} {c:.3} mm²", name(k)))
+        .collect();
+    let verdict = match (g.finished.len(), g.agree) {
+        (1, _) => "the runner-up's short run ended within 1e-4 of it, so only it was finished",
+        (_, true) => "they reached the same optimum",
+        (_, false) => "they ended at different optima",
+    };
+    format!(
+        "global search: {} starts (the given one and {} seeded random ones) each ran {} \
+         iterations on {} frames; finished on every frame: {}; {verdict}",
+        g.starts,
+        g.starts.saturating_sub(1),
+        g.probe_iterations,
+        g.probe_frames,
+        list.join(", "),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use jointfit::workflow::global::GlobalSearch;
+
+    /// The line names the starts, the frames and the finished starts by role, and says
+    /// whether they agree, in each of its three cases.
+    #[test]
+    fn global_line_reads_as_a_sentence() {
+        let mut g = GlobalSearch {
+            starts: 6,
+            probe_iterations: 6,
+            probe_frames: 25,
+            probe_objective_mm2: vec![1.0; 6],
+            finished: vec![0],
+            finished_objective_mm2: vec![59385.843],
+            agree: true,
+        };
+        assert_eq!(
+            super::global_line(&g),
+            "global search: 6 starts (the given one and 5 seeded random ones) each ran 6 \
+             iterations on 25 frames; finished on every frame: the given start 59385.843 mm²; \
+             the runner-up's short run ended within 1e-4 of it, so only it was finished"
+        );
+        g.finished = vec![3, 0];
+        g.finished_objective_mm2 = vec![100.0, 100.0];
+        let line = super::global_line(&g);
+        assert!(
+            line.contains("start 3 100.000 mm², the given start 100.000 mm²; they reached"),
+            "{line}"
+        );
+        g.agree = false;
+        assert!(super::global_line(&g).ends_with("different optima"));
     }
 }

@@ -137,13 +137,22 @@ fn print_check(report: &CheckReport) {
             "from the nominal model's residuals, which include its misfit: conservative"
         }
     );
-    let mut t = crate::table::Table::new(&["group", "parameter", "unit", "±95%", "determined"]);
+    let mut t = crate::table::Table::new(&[
+        "group",
+        "parameter",
+        "unit",
+        "±95%",
+        "trial alone ±",
+        "determined",
+    ]);
+    let width = |h: Option<f64>| h.map_or("∞".to_string(), |h| format!("{h:.2}"));
     for p in &u.params {
         t.row(vec![
             p.group.clone(),
             p.name.clone(),
             p.unit.clone(),
-            p.half_width.map_or("∞".to_string(), |h| format!("{h:.2}")),
+            width(p.half_width),
+            width(p.status_half_width),
             match p.status {
                 Identifiability::Determined => "yes",
                 Identifiability::Poor => "POOR",
@@ -153,6 +162,11 @@ fn print_check(report: &CheckReport) {
         ]);
     }
     print!("{}", t.render());
+    println!(
+        "(\"determined\" compares \"trial alone ±\" with the thresholds: the Fisher half-width \
+         of the trial's information alone, pooled noise and time correlation; \"±95%\" is the \
+         interval, the widest estimator's, and may be narrower or wider: docs/identifiability.md)"
+    );
     for p in u.flagged() {
         println!(
             "{}: {}",

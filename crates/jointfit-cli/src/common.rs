@@ -176,7 +176,10 @@ pub fn load_for_model(
         "model" => format!("up {up} from the subject model's lab_up"),
         _ => format!("up {up} (the default)"),
     };
-    notes.extend(jointfit::vertical::rotation_warning(&trial, up, &given));
+    notes.extend(
+        jointfit::vertical::rotation_warning(&trial, up, &given)
+            .map(|w| w + &converted_hint(path, &trial, up_source)),
+    );
     for note in &notes {
         eprintln!("jointfit: warning: {}: {note}", path.display());
     }
@@ -201,6 +204,23 @@ pub fn load_for_model(
         notes,
         repairs,
     })
+}
+
+/// The end of a rotation warning for a Y-up TRC read with a subject whose lab is not Y-up:
+/// most likely `jointfit convert` (or another tool) already rotated it to OpenSim's Y up, so
+/// the subject's `lab_up`, which describes the lab's raw files, does not apply to it.
+fn converted_hint(path: &Path, trial: &Trial, up_source: &str) -> String {
+    let is_trc = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("trc"));
+    let y_up = jointfit::vertical::detect_up(trial).is_some_and(|d| d.up == UpAxis::Y);
+    if up_source == "model" && is_trc && y_up {
+        " (a TRC written by `jointfit convert` is already Y-up, OpenSim's convention: read it \
+         with --up y, or give the command the lab's original file)"
+            .to_string()
+    } else {
+        String::new()
+    }
 }
 
 /// Rotates from `up` to Y up and filters, printing the filter's warnings.

@@ -195,7 +195,7 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
         decimals: args.decimals,
     };
     write_trc(&args.output, &trial, &options)?;
-    eprintln!(
+    println!(
         "wrote {} ({} markers, {} frames at {} Hz{}{})",
         args.output.display(),
         trial.n_markers(),
@@ -205,5 +205,14 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
             .map_or(String::new(), |hz| format!(", low-pass {hz} Hz")),
         detected.map_or(String::new(), |d| format!("; up axis detected: {d}"))
     );
+    let up = jointfit::trial::UpAxis::from(up);
+    if up != jointfit::trial::UpAxis::Y {
+        // A subject personalized from the lab's files records `lab_up` = this axis, which
+        // later commands apply to every trial: this file is no longer in that frame.
+        println!(
+            "rotated from {up} up to Y up (OpenSim's convention): a subject personalized from \
+             the lab's original files has lab_up {up}, so read this file with --up y"
+        );
+    }
     Ok(())
 }

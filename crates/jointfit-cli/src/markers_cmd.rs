@@ -1,4 +1,4 @@
-//! `jointfit markers suggest STATIC [-o FILE.toml] [--up AXIS]`: a marker set proposed from a
+//! `jointfit markers suggest STATIC [-o FILE.toml] [--up AXIS] [--motion TRIAL]`: a marker set proposed from a
 //! static trial's labels and positions ([`jointfit::landmarks::suggest`]), for the user to
 //! check; tried at once with `personalize` on the same trial.
 
@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Subcommand;
-use jointfit::landmarks::{personalize, PersonalizeOptions};
+use jointfit::landmarks::{motion, personalize, MarkerSet, PersonalizeOptions};
 use jointfit::model::lower_limb::Side;
 
 use crate::common::{load_trial, Up};
@@ -27,6 +27,11 @@ pub enum MarkersCommand {
         /// Name written into the set (default: the output file's stem, else "suggested").
         #[arg(long)]
         name: Option<String>,
+        /// A motion trial of the same session: tracking markers it lacks (static-only ones,
+        /// such as lateral knee and ankle markers taken off after the static trial) are left
+        /// out of the tracking lists; they stay landmarks.
+        #[arg(long, value_name = "TRIAL")]
+        motion: Option<PathBuf>,
     },
 }
 
@@ -36,8 +41,12 @@ pub fn run(cmd: MarkersCommand) -> Result<()> {
         output,
         up,
         name,
+        motion,
     } = cmd;
     let mut files = crate::output::Files::new().input("static trial", &r#static);
+    if let Some(m) = &motion {
+        files = files.input("--motion", m);
+    }
     if let Some(o) = &output {
         files = files.output("output", o);
     }
@@ -54,8 +63,22 @@ pub fn run(cmd: MarkersCommand) -> Result<()> {
             .and_then(|o| o.file_stem())
             .map_or("suggested".into(), |s| s.to_string_lossy().into_owned())
     });
-    let suggestion = jointfit::landmarks::suggest::suggest(&trial, &name)
+    let mut suggestion = jointfit::landmarks::suggest::suggest(&trial, &name)
         .with_context(|| format!("{path}: cannot suggest a marker set"))?;
+    match &motion {
+        Some(m) => {
+            let (moving, _) = jointfit_io::trial_file::read_trial_noted(m)?;
+            let present = |l: &str| motion::has_samples(&moving, l);
+            for note in motion::keep_tracked_in(&mut suggestion.set, &present) {
+                suggestion.notes.push(note);
+            }
+        }
+        None => {
+            if let Some(note) = static_only_hint(&suggestion.set) {
+                suggestion.notes.push(note);
+            }
+        }
+    }
     let mut text = format!(
         "# Suggested by `jointfit markers suggest` from {path} (up axis {}).\n\
          # Check every role before use: see docs/markersets.md.\n",
@@ -88,9 +111,35 @@ pub fn run(cmd: MarkersCommand) -> Result<()> {
         Some(o) => {
             jointfit_io::atomic::write_atomic(o, text.as_bytes())
                 .with_context(|| format!("{}: cannot write", o.display()))?;
-            eprintln!("jointfit: wrote {}", o.display());
+            println!("wrote {}", o.display());
         }
         None => print!("{text}"),
     }
     Ok(())
+}
+
+/// Without `--motion`: the landmarks that also track a segment (lateral knee and ankle
+/// markers), which laboratories often take off after the static trial.
+fn static_only_hint(set: &MarkerSet) -> Option<String> {
+    let mut both: Vec<&str> = Vec::new();
+    for leg in [&set.right, &set.left].into_iter().flatten() {
+        for l in [
+            &leg.lateral_epicondyle,
+            &leg.medial_epicondyle,
+            &leg.lateral_malleolus,
+            &leg.medial_malleolus,
+        ] {
+            if leg.thigh.contains(l) || leg.shank.contains(l) || leg.foot.contains(l) {
+                both.push(l);
+            }
+        }
+    }
+    (!both.is_empty()).then(|| {
+        format!(
+            "{} are landmarks that also track here; if the motion trials lack them (markers \
+             often taken off after the static trial), pass --motion TRIAL to leave out of the \
+             tracking lists what a motion trial lacks",
+            both.join(", ")
+        )
+    })
 }

@@ -69,6 +69,8 @@ pub struct ReproduceArgs {
     /// Noisy synthetic runs per column (seeds first-seed, first-seed+1, ...).
     #[arg(long, default_value_t = 10, allow_negative_numbers = true, value_parser = crate::validate::runs)]
     pub seeds: usize,
+    /// Seed of the first noisy run of each column; run k uses first-seed + k, so two
+    /// invocations with the same seeds give the same tables.
     #[arg(long, default_value_t = 1)]
     pub first_seed: u64,
     /// Subject model of the synthetic experiments (TOML file or built-in name).

@@ -21,6 +21,7 @@ use crate::common::{load_trial, Up};
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum NoiseKind {
+    /// No noise: every marker lies exactly where the true model puts it.
     None,
     /// Skin-movement artifact A·sin(ωt+φ) per marker-axis (Chèze et al. 1995).
     Skin,
@@ -38,6 +39,7 @@ pub struct SynthArgs {
     /// the subject model at its nominal parameters).
     #[arg(long, default_value = "all")]
     pub motion: String,
+    /// Noise added to the synthetic markers.
     #[arg(long, value_enum, default_value = "none")]
     pub noise: NoiseKind,
     /// Seed of the noise and of the perturbation.
@@ -67,9 +69,10 @@ pub struct SynthArgs {
     /// True orientations = nominal moved by up to this many degrees (uniform, seeded).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = crate::validate::perturb_deg)]
     pub perturb_deg: f64,
-    /// Vertical axis of the gait trial's file.
-    #[arg(long, value_enum, default_value = "y")]
-    pub up: Up,
+    /// Vertical axis of the gait trial's file (default: the subject model's `lab_up`,
+    /// recorded by `personalize`; else y), as for every command that reads a subject's trials.
+    #[arg(long, value_enum)]
+    pub up: Option<Up>,
     /// Low-pass cutoff (Hz) applied to the gait trial before IK.
     #[arg(long, allow_negative_numbers = true, value_parser = crate::validate::cutoff_hz)]
     pub filter: Option<f64>,
@@ -159,7 +162,12 @@ pub fn run(args: SynthArgs) -> Result<()> {
     let (coords, rate, dropped) = match args.motion.strip_prefix("gait:") {
         Some(path) => {
             let path = PathBuf::from(path);
-            let trial = load_trial(&path, args.up, args.filter)?;
+            let up = match (args.up, spec.lab_up) {
+                (Some(u), _) => u,
+                (None, Some(u)) => Up::from(u),
+                (None, None) => Up::Y,
+            };
+            let trial = load_trial(&path, up, args.filter)?;
             let (coords, dropped) = gait_coordinates(&model, &model.nominal_params(), &trial)
                 .with_context(|| format!("{}: inverse kinematics", path.display()))?;
             if coords.is_empty() {

@@ -76,13 +76,18 @@ fn convert_c3d_to_y_up_trc() {
             "6",
         ];
         args.extend_from_slice(up);
-        let (ok, _, err) = jointfit(&args);
+        let (ok, out, err) = jointfit(&args);
         assert!(ok, "{err}");
-        (std::fs::read_to_string(&file).unwrap(), err)
+        (std::fs::read_to_string(&file).unwrap(), out)
     };
     let (a, _) = convert("rknee-minus-z.trc", &["--up=-z"]);
-    let (b, err) = convert("rknee-detected.trc", &[]);
-    assert!(err.contains("up axis detected: -z"), "{err}");
+    let (b, out) = convert("rknee-detected.trc", &[]);
+    // "wrote" on stdout, like every other command's.
+    assert!(
+        out.contains("wrote ") && out.contains("up axis detected: -z"),
+        "{out}"
+    );
+    assert!(out.contains("read this file with --up y"), "{out}");
     assert_eq!(
         a.lines().skip(1).collect::<Vec<_>>(),
         b.lines().skip(1).collect::<Vec<_>>()

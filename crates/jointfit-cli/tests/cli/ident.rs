@@ -97,6 +97,27 @@ fn check_predicts_the_knee_only_trial_cannot_place_the_hip() {
     ]);
     assert!(ok);
     assert!(out.contains("circumduction"), "{out}");
+    // The table prints the half-width the status is judged by ("trial alone ±") beside the
+    // interval's, and says which decides: every "yes" is within the 5 mm / 5° threshold in
+    // that column, every "POOR" beyond it (the interval column alone looked contradictory).
+    assert!(
+        out.contains("trial alone ±") && out.contains("compares"),
+        "{out}"
+    );
+    let mut rows = 0;
+    for line in out.lines() {
+        let cols: Vec<&str> = line.split_whitespace().collect();
+        if cols.len() != 6 || !["yes", "POOR", "NO"].contains(&cols[5]) {
+            continue;
+        }
+        rows += 1;
+        let decides: f64 = cols[4].parse().unwrap_or(f64::INFINITY);
+        match cols[5] {
+            "yes" => assert!(decides <= 5.0, "{line}"),
+            _ => assert!(decides > 5.0, "{line}"),
+        }
+    }
+    assert!(rows >= 10, "{out}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

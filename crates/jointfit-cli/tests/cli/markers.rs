@@ -162,3 +162,79 @@ fn a_walk_without_a_static_trial_gets_a_marker_set_and_no_false_swaps() {
         "{gaps:?}"
     );
 }
+
+/// gait2392 subject01: the static trial has lateral knee and ankle markers the walk lacks.
+/// Without `--motion` the suggested set tracks with them and its comments say so; with
+/// `--motion WALK` they leave the tracking lists (staying landmarks), the subject
+/// personalized from that set is fitted to the walk by `ik` with no warning about absent
+/// markers, and "wrote" goes to stdout like every other command's.
+#[test]
+fn motion_trial_drops_static_only_tracking_markers() {
+    let (Some(stat), Some(walk)) = (
+        data_file("opensim_gait2392_subject01/subject01_static.trc"),
+        data_file("opensim_gait2392_subject01/subject01_walk1.trc"),
+    ) else {
+        println!("skipped: no data");
+        return;
+    };
+    let s = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    let dir = scratch("markers-motion");
+    let (plain, cut) = (dir.join("plain.toml"), dir.join("cut.toml"));
+    let (ok, out, err) = jointfit(&["markers", "suggest", &s(&stat), "-o", &s(&plain)]);
+    assert!(ok, "{err}");
+    assert!(
+        out.contains("wrote ") && !err.contains("wrote "),
+        "{out}\n{err}"
+    );
+    let text = std::fs::read_to_string(&plain).unwrap();
+    assert!(text.contains("pass --motion TRIAL"), "{text}");
+    // Every label of the legs' thigh and shank tracking lists.
+    let lists = |t: &str| -> String {
+        let set = jointfit::landmarks::MarkerSet::from_toml(t, "suggested").unwrap();
+        let mut all = Vec::new();
+        for leg in [&set.right, &set.left].into_iter().flatten() {
+            all.extend(leg.thigh.iter().chain(&leg.shank).cloned());
+        }
+        all.join(",")
+    };
+    assert!(lists(&text).contains("R.Knee.Lat"), "{text}");
+    let (ok, _, err) = jointfit(&[
+        "markers",
+        "suggest",
+        &s(&stat),
+        "--motion",
+        &s(&walk),
+        "-o",
+        &s(&cut),
+    ]);
+    assert!(ok, "{err}");
+    let text = std::fs::read_to_string(&cut).unwrap();
+    for lat in ["R.Knee.Lat", "R.Ankle.Lat", "L.Knee.Lat", "L.Ankle.Lat"] {
+        assert!(!lists(&text).contains(lat), "{lat}\n{text}");
+    }
+    assert!(
+        text.contains("lateral_epicondyle = \"R.Knee.Lat\""),
+        "{text}"
+    );
+    assert!(text.contains("not in the motion trial"), "{text}");
+    let subject = dir.join("subject.toml");
+    let (ok, _, err) = jointfit(&[
+        "personalize",
+        "--static",
+        &s(&stat),
+        "--markers",
+        &s(&cut),
+        "-o",
+        &s(&subject),
+    ]);
+    assert!(ok, "{err}\n{text}");
+    let (ok, _, err) = jointfit(&[
+        "ik",
+        &s(&subject),
+        &s(&walk),
+        "-o",
+        &s(&dir.join("walk.mot")),
+    ]);
+    assert!(ok, "{err}");
+    assert!(!err.contains(".Lat"), "{err}");
+}

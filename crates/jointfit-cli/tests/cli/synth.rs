@@ -354,3 +354,16 @@ fn reproduce_table2_with_data() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Every option and value the help lists has a description: `synth --noise none` and
+/// `reproduce --first-seed` had none.
+#[test]
+fn help_describes_noise_none_and_first_seed() {
+    let (ok, out, err) = jointfit(&["synth", "--help"]);
+    assert!(ok, "{err}");
+    assert!(out.contains("none:") && out.contains("No noise"), "{out}");
+    let (ok, out, err) = jointfit(&["reproduce", "--help"]);
+    assert!(ok, "{err}");
+    let at = out.find("--first-seed").unwrap();
+    assert!(out[at..].contains("Seed of the first noisy run"), "{out}");
+}

@@ -210,9 +210,19 @@ pub fn summarize(
     let fit = &cal.fit;
     let mut warnings = Vec::new();
     for pu in u.flagged() {
-        let hw = pu
-            .half_width
-            .map_or("unbounded".to_string(), |h| format!("±{h:.1} {}", pu.unit));
+        // The status is judged by the trial-alone half-width (`status_half_width`), not by
+        // the interval's: say both, the deciding one first, as `jointfit calibrate` does.
+        let hw = match (pu.status_half_width, pu.half_width) {
+            (Some(s), Some(h)) => format!(
+                "trial alone ±{s:.1} {u}, which decides; interval ±{h:.1} {u}",
+                u = pu.unit
+            ),
+            (None, Some(h)) => format!(
+                "trial alone unbounded, which decides; interval ±{h:.1} {}",
+                pu.unit
+            ),
+            (_, None) => "unbounded".to_string(),
+        };
         warnings.push(format!(
             "{} {} by these trials ({hw}){}",
             pu.name,

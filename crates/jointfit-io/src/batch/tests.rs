@@ -170,3 +170,43 @@ fn bad_ids_and_messages() {
     let m = message(&run_job(&j).unwrap_err());
     assert!(m.contains("/no/such/walk.c3d"), "{m}");
 }
+
+/// A knee-only trial with skin noise cannot place the hip: the warning (the text Python's
+/// `warnings` shows) names the half-width the status is judged by, the trial-alone one, and
+/// the interval's, so a "poorly determined" beside a narrow interval is not a riddle.
+#[test]
+fn poorly_determined_warning_names_the_deciding_half_width() {
+    use jointfit_experiments::synth::SkinNoise;
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let truth = perturbed_params(&model, 0.3, 4);
+    let coords = coordinates(&model, Motion::Knee, 100).unwrap();
+    let noise = SkinNoise {
+        seed: 4,
+        ..SkinNoise::default()
+    };
+    let (trial, _) = markers(&model, &truth, &coords, 50.0, Some(&noise));
+    let mut j = job("noisy", 4, "hip");
+    j.fit.joints = vec!["hip".into(), "knee".into()];
+    j.trials = vec![TrialInput::Data {
+        name: "noisy.trial".into(),
+        trial: Box::new(trial),
+    }];
+    let cal = run_job(&j).unwrap();
+    let flagged: Vec<&String> = cal
+        .warnings
+        .iter()
+        .filter(|w| w.contains("determined by these trials"))
+        .collect();
+    assert!(
+        flagged.iter().any(|w| w.starts_with("hip_")),
+        "{:?}",
+        cal.warnings
+    );
+    for w in flagged {
+        assert!(
+            (w.contains("trial alone ") && w.contains("which decides"))
+                || w.contains("(unbounded)"),
+            "{w}"
+        );
+    }
+}

@@ -54,7 +54,7 @@ pub enum CalibError {
     Ik(#[from] crate::ik::IkError),
     #[error("no parameter is free: choose at least one group or parameter")]
     NothingFree,
-    #[error("unknown parameter group {group:?}; the model has: {available}")]
+    #[error("unknown parameter group {group:?}; the groups are: {available}")]
     UnknownGroup { group: String, available: String },
     #[error("no frame has enough markers to fit (every frame lacked markers on some segment)")]
     NoFrames,
@@ -80,7 +80,7 @@ pub fn params_for_groups(model: &Model, groups: &[&str]) -> Result<Vec<ParamId>,
             if ids.is_empty() {
                 return Err(CalibError::UnknownGroup {
                     group: g.to_string(),
-                    available: model.groups().join(", "),
+                    available: group_choices(model),
                 });
             }
             ids
@@ -96,6 +96,28 @@ pub fn params_for_groups(model: &Model, groups: &[&str]) -> Result<Vec<ParamId>,
         return Err(CalibError::NothingFree);
     }
     Ok(out)
+}
+
+/// What [`params_for_groups`] accepts on `model`, for its error: `all`, the side-less names
+/// that select both sides (`hip`, `knee`, `ankle`), then the model's own groups.
+fn group_choices(model: &Model) -> String {
+    let groups = model.groups();
+    let mut names: Vec<String> = vec!["all".into()];
+    for g in &groups {
+        let bare = g
+            .strip_suffix("_r")
+            .or_else(|| g.strip_suffix("_l"))
+            .unwrap_or(g);
+        if !names.iter().any(|n| n == bare) {
+            names.push(bare.to_string());
+        }
+    }
+    for g in groups {
+        if !names.contains(&g) {
+            names.push(g);
+        }
+    }
+    names.join(", ")
 }
 
 /// Frames per parallel work item of [`Problem::inner`] (fixed: it sets the order of the sum).
@@ -345,6 +367,30 @@ mod tests {
     use crate::kinematics::{forward_kinematics, KinData, Want};
     use crate::model::lower_limb::{lower_limb, Side};
     use nalgebra::Vector3;
+
+    /// An unknown group name is answered with every name `params_for_groups` accepts: `all`,
+    /// the side-less names, then the model's groups; each listed name is accepted.
+    #[test]
+    fn unknown_group_lists_the_accepted_names() {
+        for spec in [
+            lower_limb(Side::Right),
+            crate::model::lower_limb::bilateral(),
+        ] {
+            let model = Model::compile(&spec).unwrap();
+            let e = params_for_groups(&model, &["knees"])
+                .unwrap_err()
+                .to_string();
+            let list = e.split("the groups are: ").nth(1).unwrap();
+            assert!(e.starts_with("unknown parameter group \"knees\""), "{e}");
+            assert!(list.starts_with("all, hip, knee, ankle"), "{e}");
+            for g in model.groups() {
+                assert!(list.split(", ").any(|n| n == g), "{g}: {e}");
+            }
+            for name in list.split(", ") {
+                assert!(params_for_groups(&model, &[name]).is_ok(), "{name}");
+            }
+        }
+    }
 
     /// The chunked passes give the same bits on 1, 2 and 3 threads, and the starting
     /// coordinates are those of the IK's own chunked warm start on the copied targets.

@@ -229,6 +229,9 @@ impl MarkerSet {
         if self.right.is_none() && self.left.is_none() {
             return Err(bad("it has neither a [right] nor a [left] leg".into()));
         }
+        // Which list holds each tracking label, over both legs (the pelvis list once): a
+        // label in two lists would define one model marker twice.
+        let mut owner: Vec<(String, &str)> = Vec::new();
         for side in [Side::Right, Side::Left] {
             let Ok(leg) = self.leg(side) else { continue };
             let sn = side_name(side);
@@ -242,8 +245,10 @@ impl MarkerSet {
                     "{sn} leg: the lateral and medial landmarks must be different markers"
                 )));
             }
-            let mut owner: Vec<(&str, &str)> = Vec::new();
             for seg in TRACKED_SEGMENTS {
+                if seg == "pelvis" && owner.iter().any(|(o, _)| o == "pelvis") {
+                    continue;
+                }
                 let list = self.tracking(side, seg)?;
                 let mut distinct: Vec<&str> = list.iter().map(String::as_str).collect();
                 distinct.sort_unstable();
@@ -264,14 +269,19 @@ impl MarkerSet {
                         list
                     )));
                 }
+                let here = if seg == "pelvis" {
+                    seg.to_string()
+                } else {
+                    format!("{sn} {seg}")
+                };
                 for l in list {
                     if let Some((other, _)) = owner.iter().find(|(_, m)| *m == l.as_str()) {
                         return Err(bad(format!(
-                            "marker {l:?} tracks both the {other} and the {seg} ({sn} leg); a \
-                             marker can track one segment only"
+                            "marker {l:?} is in the tracking lists of both the {other} and the \
+                             {here}; a marker can track one segment only"
                         )));
                     }
-                    owner.push((seg, l));
+                    owner.push((here.clone(), l));
                 }
             }
         }
@@ -370,7 +380,28 @@ mod tests {
         assert!(e.contains("or a sacrum marker"), "{e}");
         let e = edit(|s| s.left.as_mut().unwrap().foot.push("LANK".into()));
         assert!(
-            e.contains("marker \"LANK\" tracks both the shank and the foot (left leg)"),
+            e.contains(
+                "marker \"LANK\" is in the tracking lists of both the left shank and the \
+                 left foot"
+            ),
+            "{e}"
+        );
+        // One label in both legs' lists: refused when the set loads, naming both lists (it
+        // was refused only at model build, as a marker defined twice).
+        let e = edit(|s| {
+            let r = s.right.as_ref().unwrap().thigh[0].clone();
+            s.left.as_mut().unwrap().thigh.push(r);
+        });
+        assert!(
+            e.contains("is in the tracking lists of both the right thigh and the left thigh"),
+            "{e}"
+        );
+        let e = edit(|s| {
+            let p = s.pelvis.tracking[0].clone();
+            s.left.as_mut().unwrap().foot.push(p);
+        });
+        assert!(
+            e.contains("is in the tracking lists of both the pelvis and the left foot"),
             "{e}"
         );
         let e = edit(|s| s.right.as_mut().unwrap().forefoot.clear());

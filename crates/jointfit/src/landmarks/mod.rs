@@ -59,6 +59,7 @@ mod error;
 pub(crate) mod frames;
 pub mod functional;
 pub mod markerset;
+pub mod motion;
 pub(crate) mod nominal;
 pub mod priors;
 pub mod suggest;
