@@ -47,10 +47,8 @@
 use nalgebra::Vector3;
 
 use super::Problem;
+use crate::kinematics::twist::{column_twist, group_columns, weighted_centroid, Steps};
 use crate::kinematics::KinData;
-
-/// One column's step contributions `(step, scale, rotation)`.
-type Steps = Vec<(usize, f64, bool)>;
 
 /// Moments of a set of markers about the reference point (module docs).
 #[derive(Debug, Clone, Copy)]
@@ -160,20 +158,7 @@ impl TwistPlan {
                 owners[col].push(si);
             }
         }
-        let mut groups: Vec<Vec<usize>> = Vec::new();
-        let mut col_group = vec![usize::MAX; n];
-        for c in 0..n {
-            if owners[c].is_empty() {
-                continue;
-            }
-            col_group[c] = match groups.iter().position(|g| *g == owners[c]) {
-                Some(g) => g,
-                None => {
-                    groups.push(owners[c].clone());
-                    groups.len() - 1
-                }
-            };
-        }
+        let (groups, col_group) = group_columns(&owners);
         let np = n.div_ceil(4) * 4;
         let mut mask = vec![0.0; n * np];
         for b in 0..n {
@@ -250,23 +235,11 @@ impl TwistPlan {
             }
         };
         // The reference point: the weighted centroid of the present markers.
-        let mut mass = 0.0;
-        let mut centre = Vector3::zeros();
-        for seg in &self.segments {
-            for &j in seg {
-                let w = weight(j);
-                if w > 0.0 {
-                    mass += w;
-                    centre += w * kin.markers[j];
-                }
-            }
-        }
-        if mass == 0.0 {
+        let Some(centre) = weighted_centroid(&self.segments, kin, weight) else {
             gram[..n * n].fill(0.0);
             grad[..n].fill(0.0);
             return;
-        }
-        centre /= mass;
+        };
         for (seg, mom) in self.segments.iter().zip(&mut self.seg_mom) {
             *mom = Mom::zero();
             for &j in seg {
@@ -305,16 +278,7 @@ impl TwistPlan {
                 }
                 continue;
             }
-            let (mut w, mut v) = (Vector3::zeros(), Vector3::zeros());
-            for &(step, scale, rotation) in steps {
-                let (axis, origin) = kin.step_frame(step);
-                if rotation {
-                    w += scale * axis;
-                    v += scale * axis.cross(&(centre - origin));
-                } else {
-                    v += scale * axis;
-                }
-            }
+            let (mut w, mut v) = column_twist(kin, steps, &centre);
             if a >= self.n_q {
                 w *= half[a - self.n_q];
                 v *= half[a - self.n_q];

@@ -26,6 +26,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
+use crate::kinematics::twist::{column_twist, group_columns, weighted_centroid};
 use crate::kinematics::KinData;
 
 /// One marker-carrying segment for [`Composite::new`]: its markers and its column steps
@@ -107,20 +108,7 @@ impl Composite {
                 owners[c].push(s);
             }
         }
-        let mut groups: Vec<Vec<usize>> = Vec::new();
-        let mut col_group = vec![usize::MAX; n_q];
-        for c in 0..n_q {
-            if owners[c].is_empty() {
-                continue;
-            }
-            col_group[c] = match groups.iter().position(|g| *g == owners[c]) {
-                Some(g) => g,
-                None => {
-                    groups.push(owners[c].clone());
-                    groups.len() - 1
-                }
-            };
-        }
+        let (groups, col_group) = group_columns(&owners);
         let mut pairs = Vec::new();
         for a in 0..n_q {
             for b in 0..=a {
@@ -174,21 +162,9 @@ impl Composite {
         a[..n * n].fill(0.0);
         g[..n].fill(0.0);
         // The reference point: the weighted centroid of the present markers.
-        let mut mass = 0.0;
-        let mut centre = Vector3::zeros();
-        for markers in &self.segments {
-            for &j in markers {
-                let w = weights[j];
-                if w > 0.0 {
-                    mass += w;
-                    centre += w * kin.markers[j];
-                }
-            }
-        }
-        if mass == 0.0 {
+        let Some(centre) = weighted_centroid(&self.segments, kin, |j| weights[j]) else {
             return;
-        }
-        centre /= mass;
+        };
         for (markers, mom) in self.segments.iter().zip(&mut self.seg_mom) {
             *mom = Mom::zero();
             for &j in markers {
@@ -216,16 +192,7 @@ impl Composite {
             if ai == usize::MAX || steps.is_empty() {
                 continue;
             }
-            let (mut w, mut v) = (Vector3::zeros(), Vector3::zeros());
-            for &(step, scale, rotation) in steps {
-                let (axis, origin) = kin.step_frame(step);
-                if rotation {
-                    w += scale * axis;
-                    v += scale * axis.cross(&(centre - origin));
-                } else {
-                    v += scale * axis;
-                }
-            }
+            let (w, v) = column_twist(kin, steps, &centre);
             let k = &self.grp_mom[self.col_group[c]];
             g[ai] = w.dot(&k.r1) + v.dot(&k.r0);
             self.xi[c] = (w, v);

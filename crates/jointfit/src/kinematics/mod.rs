@@ -18,6 +18,7 @@
 //! [`fd`] holds the central finite-difference twins used as test oracles.
 
 pub mod fd;
+pub(crate) mod twist;
 
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
