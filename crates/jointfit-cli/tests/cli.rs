@@ -41,6 +41,8 @@ mod osim_personalize;
 mod personalize;
 #[path = "cli/priors.rs"]
 mod priors;
+#[path = "cli/refusals.rs"]
+mod refusals;
 #[path = "cli/reliability.rs"]
 mod reliability;
 #[path = "cli/repair.rs"]
