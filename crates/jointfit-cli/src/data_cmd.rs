@@ -148,7 +148,12 @@ pub fn inspect(args: InspectArgs) -> Result<()> {
         summary.first_frame,
         summary.rate_hz,
         summary.duration_s,
-        summary.units,
+        if summary.units.trim().is_empty() {
+            // A C3D without POINT:UNITS is read as millimetres (and a note says so).
+            "mm (assumed: none declared)"
+        } else {
+            summary.units.as_str()
+        },
         summary.markers.len()
     );
     if let Some(n) = summary.analog_channels {

@@ -177,3 +177,80 @@ fn ik_on_a_trial_lacking_model_markers() {
     );
     assert!(!mot.exists());
 }
+
+/// Field files (docs/field_check.md): a Vicon file that repeats 2760 parameters prints one
+/// warning per group, not one per parameter, and still converts with every frame; a C3D
+/// without POINT:UNITS says which units it was read in instead of "units ,".
+#[test]
+fn field_c3d_quirks_are_said_briefly() {
+    let Some(big) = data_file("c3d_reader/c3dorg/sample_33/bigparlove.c3d") else {
+        return;
+    };
+    let dir = scratch("data-field");
+    let out = dir.join("big.trc");
+    let (ok, _, err) = jointfit(&["convert", big.to_str().unwrap(), out.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    let repeats: Vec<&str> = err
+        .lines()
+        .filter(|l| l.contains("repeated param"))
+        .collect();
+    assert!(!repeats.is_empty(), "{err}");
+    assert!(!err.contains("appears twice"), "{err}");
+    assert!(
+        err.lines().count() < 20,
+        "{} lines: {err}",
+        err.lines().count()
+    );
+    let written = read_trial(&out).unwrap();
+    assert_eq!(written.n_frames(), read_trial(&big).unwrap().n_frames());
+    let Some(ps) = data_file("c3d_reader/c3dorg/sample_20/phasespace_sample.c3d") else {
+        return;
+    };
+    let (ok, text, err) = jointfit(&["inspect", ps.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    assert!(text.contains("units mm (assumed"), "{text}");
+    assert!(!text.contains("units ,"), "{text}");
+}
+
+/// Plug-in Gait's computed outputs (angles, forces, moments, powers), which the file lists in
+/// POINT:ANGLES/FORCES/MOMENTS/POWERS, are not markers: the trial leaves them out, as BTK and
+/// OpenSim's BTK-based reader do, and says so. Oracle: ezc3d reads 77 points in
+/// gait-pig.c3d, 10 + 6 + 6 + 6 of them named in those four lists (docs/field_check.md).
+#[test]
+fn c3d_model_outputs_are_not_markers() {
+    let Some(pig) = data_file("c3d_reader/c3dorg/sample_03/gait-pig.c3d") else {
+        return;
+    };
+    let c3d = jointfit_io::c3d::read_c3d(&pig).unwrap();
+    assert_eq!(c3d.points.n_points(), 77);
+    let trial = read_trial(&pig).unwrap();
+    assert_eq!(trial.n_markers(), 77 - 28);
+    let labels = trial.labels();
+    for gone in ["LHipAngles", "RHipPower", "LKneeMoment", "RAnkleForce"] {
+        assert!(!labels.iter().any(|l| l == gone), "{gone} is an output");
+    }
+    for kept in ["RKNE", "RASI", "SACR", "PELO"] {
+        assert!(labels.iter().any(|l| l == kept), "{kept} is a point");
+    }
+    // The kept points keep their samples (gaps included): RKNE in every frame, bit for bit.
+    let k = c3d
+        .points
+        .labels
+        .iter()
+        .position(|l| l == "A22:RKNE")
+        .unwrap();
+    let j = labels.iter().position(|l| l == "RKNE").unwrap();
+    let n = c3d.points.n_points();
+    for f in 0..trial.n_frames() {
+        let (a, b) = (trial.frame(f)[j], c3d.points.positions[f * n + k]);
+        let same = (0..3).all(|i| a[i].to_bits() == b[i].to_bits());
+        assert!(same, "frame {f}: {a:?} vs {b:?}");
+    }
+    let (ok, text, err) = jointfit(&["inspect", pig.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    assert!(text.contains("left out 28 points"), "{text}");
+    assert!(
+        !text.lines().any(|l| l.starts_with("LHipAngles")),
+        "not in the marker table: {text}"
+    );
+}

@@ -15,7 +15,7 @@
 //!   When the two scales differ in an integer file the reader refuses it
 //!   ([`C3dError::ScaleMismatch`]): the scale multiplies every coordinate and the file does not
 //!   say which is right. (In float files it only scales residuals: POINT:SCALE is used, with a
-//!   warning.)
+//!   warning only when the two disagree on the storage, i.e. on the sign.)
 //! - Point count: POINT:USED, else header word 2; but when they differ and only the header's
 //!   count fits the declared frames into the data section, the header's (sample kyowadengyo).
 //! - Analog words per frame: header word 3, unless ANALOG:USED × samples per frame differs and
@@ -49,6 +49,7 @@ pub mod floats;
 pub mod header;
 mod layout;
 pub mod parameters;
+pub mod point_types;
 #[cfg(test)]
 mod tests;
 
@@ -228,15 +229,20 @@ impl C3d {
         &self.points.descriptions
     }
 
-    /// The point data as a [`Trial`]. Labels are made unique and non-empty: an empty label
+    /// The markers as a [`Trial`]: every point except the computed outputs (angles, forces,
+    /// moments, powers; [`point_types`]). Labels are made unique and non-empty: an empty label
     /// becomes `POINT<k>` (1-based), a repeated one gets `_2`, `_3`, … appended.
     ///
     /// # Errors
     /// [`C3dError::Trial`] when the point rate is not positive (analog-only files).
     pub fn to_trial(&self) -> Result<Trial, C3dError> {
+        let outputs = point_types::output_points(&self.parameters, &self.points.labels);
+        let n = self.points.n_points();
+        let keep: Vec<usize> = (0..n).filter(|i| !outputs.contains(i)).collect();
         let mut seen = std::collections::HashSet::new();
-        let mut labels = Vec::with_capacity(self.points.labels.len());
-        for (i, l) in self.points.labels.iter().enumerate() {
+        let mut labels = Vec::with_capacity(keep.len());
+        for &i in &keep {
+            let l = &self.points.labels[i];
             let base = if l.is_empty() {
                 format!("POINT{}", i + 1)
             } else {
@@ -250,11 +256,20 @@ impl C3d {
             }
             labels.push(name);
         }
+        let positions = if keep.len() == n {
+            self.points.positions.clone()
+        } else {
+            self.points
+                .positions
+                .chunks(n.max(1))
+                .flat_map(|frame| keep.iter().map(move |&i| frame[i]))
+                .collect()
+        };
         Ok(Trial::new(
             labels,
             self.points.rate,
             self.points.first_frame,
-            self.points.positions.clone(),
+            positions,
         )?)
     }
 }
@@ -316,10 +331,15 @@ pub fn parse_c3d(bytes: &[u8]) -> Result<C3d, C3dError> {
                         parameter: s,
                     });
                 }
-                warnings.push(format!(
-                    "POINT:SCALE is {s} but the header says {}; used POINT:SCALE",
-                    header.scale
-                ));
+                // Both negative (float storage either way): the scale multiplies only the
+                // residuals, which the reader uses for their sign, so nothing read changes
+                // (every Vicon Nexus file has header −1, POINT:SCALE −0.01: no note).
+                if !(s < 0.0 && header.scale < 0.0) {
+                    warnings.push(format!(
+                        "POINT:SCALE is {s} but the header says {}; used POINT:SCALE",
+                        header.scale
+                    ));
+                }
             }
             s
         }
@@ -364,6 +384,10 @@ pub fn parse_c3d(bytes: &[u8]) -> Result<C3d, C3dError> {
         ));
     }
     labels.resize(n_points, String::new());
+    let outputs = point_types::output_points(&params, &labels);
+    if !outputs.is_empty() {
+        warnings.push(point_types::note(&outputs, &labels));
+    }
     let rate = get("POINT", "RATE")
         .and_then(Parameter::f64)
         .unwrap_or(f64::from(header.frame_rate));

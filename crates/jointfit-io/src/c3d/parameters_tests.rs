@@ -114,3 +114,33 @@ fn errors() {
         Err(SectionError::Processor(99))
     ));
 }
+
+/// A parameter repeated in a group keeps its first value; the repeats of one group are one
+/// warning (bigparlove.c3d repeats 2760 parameters: one line each buried every other message).
+#[test]
+fn repeated_parameters_are_one_warning_per_group() {
+    let rate = |v: f32| param_body(4, &[], &v.to_le_bytes(), "");
+    let mut recs = vec![record(-1, "POINT", &[0]), record(-2, "SUBJECTS", &[0])];
+    recs.push(record(1, "RATE", &rate(50.0)));
+    recs.push(record(1, "RATE", &rate(60.0)));
+    let names: Vec<String> = (0..8).map(|k| format!("P{k}")).collect();
+    for n in &names {
+        recs.push(record(2, n, &rate(1.0)));
+    }
+    for n in &names {
+        recs.push(record(2, n, &rate(2.0)));
+    }
+    let s = parse_section(&section(&recs), 0).unwrap();
+    assert_eq!(s.parameters.get("POINT", "RATE").unwrap().f64(), Some(50.0));
+    assert_eq!(s.parameters.get("SUBJECTS", "P7").unwrap().f64(), Some(1.0));
+    assert_eq!(s.warnings.len(), 2, "{:?}", s.warnings);
+    assert_eq!(
+        s.warnings[0],
+        "parameter section: parameter RATE appears twice in group id 1; kept the first"
+    );
+    assert_eq!(
+        s.warnings[1],
+        "parameter section: 8 repeated parameters in group id 2 (P0, P1, P2, P3, P4 and 3 \
+         more); kept the first of each"
+    );
+}

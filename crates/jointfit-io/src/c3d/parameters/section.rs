@@ -259,6 +259,25 @@ fn read_description(bytes: &[u8], at: usize) -> (String, usize) {
     (decode_text(&bytes[at + 1..end]), end)
 }
 
+/// The one warning about the parameters of group `id` that appear more than once (`names`,
+/// one entry per extra appearance, in file order): the first few named, the rest counted.
+fn repeated_warning(id: u8, names: &[String]) -> String {
+    const SHOWN: usize = 5;
+    if let [name] = names {
+        return format!(
+            "parameter section: parameter {name} appears twice in group id {id}; kept the first"
+        );
+    }
+    let mut list = names[..names.len().min(SHOWN)].join(", ");
+    if names.len() > SHOWN {
+        list.push_str(&format!(" and {} more", names.len() - SHOWN));
+    }
+    format!(
+        "parameter section: {} repeated parameters in group id {id} ({list}); kept the first of each",
+        names.len()
+    )
+}
+
 /// Puts parameters into their groups (groups may be declared after their parameters).
 fn assemble(records: Vec<Record>, warnings: &mut Vec<String>) -> Parameters {
     let mut by_id: BTreeMap<u8, Group> = BTreeMap::new();
@@ -284,6 +303,9 @@ fn assemble(records: Vec<Record>, warnings: &mut Vec<String>) -> Parameters {
             Record::Param { group, param } => params.push((group, param)),
         }
     }
+    // Repeated parameters, per group id in order of appearance: one warning per group (a
+    // Vicon file repeats thousands; one line each would bury every other message).
+    let mut repeated: BTreeMap<u8, Vec<String>> = BTreeMap::new();
     for (id, p) in params {
         let g = by_id.entry(id).or_insert_with(|| Group {
             id,
@@ -291,14 +313,16 @@ fn assemble(records: Vec<Record>, warnings: &mut Vec<String>) -> Parameters {
         });
         let key = p.name.to_ascii_uppercase();
         match g.params.entry(key) {
-            std::collections::btree_map::Entry::Occupied(e) => warnings.push(format!(
-                "parameter section: parameter {} appears twice in group id {id}; kept the first",
-                e.key()
-            )),
+            std::collections::btree_map::Entry::Occupied(e) => {
+                repeated.entry(id).or_default().push(e.key().clone())
+            }
             std::collections::btree_map::Entry::Vacant(e) => {
                 e.insert(p);
             }
         }
+    }
+    for (id, names) in repeated {
+        warnings.push(repeated_warning(id, &names));
     }
     let mut groups: BTreeMap<String, Group> = BTreeMap::new();
     for (id, mut g) in by_id {
