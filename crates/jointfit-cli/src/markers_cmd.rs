@@ -57,6 +57,26 @@ pub fn run(cmd: MarkersCommand) -> Result<()> {
         eprintln!("jointfit: {path}: up axis detected: {d}");
     }
     let trial = load_trial(&r#static, up, None)?;
+    let virtual_points = plug_in_gait_axes(trial.labels());
+    let trial =
+        if virtual_points.is_empty() {
+            trial
+        } else {
+            eprintln!(
+            "jointfit: {path}: left out {} points that are Plug-in Gait's segment axes (origin, \
+             anterior, lateral, proximal: {}{}), not skin markers",
+            virtual_points.len(),
+            virtual_points[..virtual_points.len().min(4)].join(", "),
+            if virtual_points.len() > 4 { ", …" } else { "" }
+        );
+            let kept: Vec<&str> = trial
+                .labels()
+                .iter()
+                .map(String::as_str)
+                .filter(|l| !virtual_points.iter().any(|v| v == l))
+                .collect();
+            trial.select(&kept)?
+        };
     let name = name.unwrap_or_else(|| {
         output
             .as_ref()
@@ -142,4 +162,58 @@ fn static_only_hint(set: &MarkerSet) -> Option<String> {
             both.join(", ")
         )
     })
+}
+
+/// The labels of Plug-in Gait's virtual segment axes: for each segment a computed origin,
+/// anterior, lateral and proximal point (`RFEO`, `RFEA`, `RFEL`, `RFEP` for the right femur;
+/// `PELO`… for the pelvis), written beside the markers as 3D points. A prefix (`RFE`, after
+/// any `Subject:` part) counts only when all four of its points are present, so a lab's own
+/// `RTIA`/`RTIP` tibia markers stay. Vicon, "Plug-in Gait Reference Guide" (output points).
+fn plug_in_gait_axes(labels: &[String]) -> Vec<String> {
+    let bare = |l: &str| l.rsplit(':').next().unwrap_or(l).to_string();
+    let has = |name: &str| labels.iter().any(|l| bare(l) == name);
+    let mut out = Vec::new();
+    for l in labels {
+        let b = bare(l);
+        if !(b.len() == 4 && b.is_ascii() && b.ends_with('O')) {
+            continue;
+        }
+        let stem = &b[..3];
+        let all = ["O", "A", "L", "P"]
+            .iter()
+            .all(|s| has(&format!("{stem}{s}")));
+        if all {
+            for s in ["O", "A", "L", "P"] {
+                let name = format!("{stem}{s}");
+                out.extend(labels.iter().filter(|x| bare(x) == name).cloned());
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::plug_in_gait_axes;
+
+    #[test]
+    fn segment_axes_only_as_complete_quadruples() {
+        let labels: Vec<String> = [
+            "A:RKNE", "A:RFEO", "A:RFEA", "A:RFEL", "A:RFEP", "A:RTIA", "A:RTIP", "A:PELO",
+            "A:PELA", "A:PELL", "A:PELP",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        assert_eq!(
+            plug_in_gait_axes(&labels),
+            ["A:RFEO", "A:RFEA", "A:RFEL", "A:RFEP", "A:PELO", "A:PELA", "A:PELL", "A:PELP"]
+        );
+        // jointfit's synthetic tibia markers RTIA/RTIP without RTIO/RTIL are markers.
+        let synth: Vec<String> = ["RTIB", "RTIA", "RTIP"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        assert!(plug_in_gait_axes(&synth).is_empty());
+    }
 }

@@ -238,3 +238,36 @@ fn motion_trial_drops_static_only_tracking_markers() {
     assert!(ok, "{err}");
     assert!(!err.contains(".Lat"), "{err}");
 }
+
+/// Plug-in Gait files carry computed outputs (angles, powers) and virtual segment axes
+/// (`RFEO`, `RTIP`, …) as 3D points. Before, `markers suggest` on c3d.org's gait-pig.c3d
+/// proposed `RHipPower` as the heel and `RFEO` as the medial epicondyle, and `personalize`
+/// accepted the set. Now neither kind is a candidate: the file has no medial knee marker, so
+/// the suggestion is refused in one line, naming the missing knee pair.
+#[test]
+fn plug_in_gait_outputs_are_never_landmarks() {
+    let Some(pig) = data_file("c3d_reader/c3dorg/sample_03/gait-pig.c3d") else {
+        return;
+    };
+    let dir = scratch("markers-pig");
+    let out = dir.join("pig.toml");
+    let (ok, _, err) = jointfit(&[
+        "markers",
+        "suggest",
+        pig.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!ok, "{err}");
+    assert!(!out.exists());
+    let errors: Vec<&str> = err
+        .lines()
+        .filter(|l| l.starts_with("jointfit: error:"))
+        .collect();
+    assert_eq!(errors.len(), 1, "{err}");
+    assert!(errors[0].contains("knee markers"), "{err}");
+    assert!(err.contains("segment axes"), "{err}");
+    for output in ["Power", "Angles", "RFEO", "RTIP"] {
+        assert!(!err.contains(&format!("chose {output}")), "{err}");
+    }
+}
