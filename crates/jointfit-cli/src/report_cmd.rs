@@ -51,7 +51,7 @@ pub fn run(args: ReportArgs) -> Result<()> {
     let model = jointfit_io::model_file::load_model(&args.model)?;
     let (trials, read) = load_trials(&args.trials, &args.read, &model, args.filter)?;
     let refs: Vec<&Trial> = trials.iter().map(|(_, t)| t).collect();
-    let model = crate::common::model_for_trials(model, &refs, "the report")?;
+    let model = model_for_report(model, &args.trials, &refs)?;
     let fitted = model.nominal_params();
     let baseline = match &args.landmark {
         Some(path) => Some(params_by_name(&model, &args.model, path)?),
@@ -107,6 +107,25 @@ pub fn run(args: ReportArgs) -> Result<()> {
     );
     println!("wrote {}", path.display());
     Ok(())
+}
+
+/// The model as the report shows it on these trials, as `calibrate --report` does: every
+/// model marker stays (one a trial lacks counts as missing in each of its frames, is said on
+/// stderr and in a note, and has "n/a" in the per-marker figure), and coordinates no marker
+/// determines are held at their defaults (said on stderr).
+fn model_for_report(model: Model, paths: &[PathBuf], trials: &[&Trial]) -> Result<Model> {
+    for (path, trial) in paths.iter().zip(trials) {
+        let (_, absent) = jointfit::ik::MarkerMap::allowing_absent(&model, trial.labels());
+        crate::common::warn_absent_markers(path, &absent);
+    }
+    let (held_model, held) = jointfit::workflow::hold_undetermined(&model, trials)?;
+    if !held.is_empty() {
+        eprintln!(
+            "jointfit: warning: no marker determines {}; held at the model's default values",
+            held.join(", ")
+        );
+    }
+    Ok(held_model.unwrap_or(model))
 }
 
 /// The parameters of the model in `path`, in the order of `model`'s parameter vector.

@@ -62,7 +62,12 @@ fn osim_commands_as_a_new_user_runs_them() {
     ] {
         let (ok, out, err) = jointfit(&["report", m, trial, "-o", &out_dir]);
         assert!(ok, "{m}: {err}");
-        assert!(err.contains("left out of the report"), "{err}");
+        // As in `calibrate --report`: the absent markers stay in the report ("n/a").
+        assert!(
+            err.contains("lacks model markers R.Knee.Lat")
+                && err.contains("they count as missing in every frame"),
+            "{err}"
+        );
         assert!(out.contains("RMS marker distance"), "{out}");
         assert!(std::path::Path::new(&out_dir).join("index.html").is_file());
     }

@@ -328,3 +328,106 @@ fn progress_lines_go_to_stderr_when_asked() {
         "{err}"
     );
 }
+
+/// The marker names and the number of "n/a" values of a page's per-marker figure.
+fn marker_figure(root: &Element) -> (Vec<String>, usize) {
+    let fig = root.by_id("fig-marker-rms").unwrap();
+    let texts: Vec<String> = fig
+        .descendants()
+        .into_iter()
+        .filter(|e| e.name == "text")
+        .map(|e| e.all_text())
+        .collect();
+    let na = texts.iter().filter(|t| t.trim() == "n/a").count();
+    (texts, na)
+}
+
+/// A model marker the trial lacks is shown the same way by `calibrate --report` and by
+/// `report`: listed in the per-marker figure with "n/a" for each model (no sample to measure),
+/// said in a note, never dropped. Oracle: the two pages agree, and the marker that is in the
+/// trial has numbers.
+#[test]
+fn a_marker_absent_from_the_trial_is_na_in_both_reports() {
+    let dir = scratch("report-absent");
+    let (t, m) = (dir.join("t.trc"), dir.join("m.toml"));
+    let (ok, _, err) = run(
+        &[
+            "synth",
+            "lower-limb-right",
+            "--motion",
+            "hip",
+            "--frames",
+            "30",
+            "-o",
+            s(&t),
+            "--truth",
+            s(&m),
+        ],
+        &[],
+    );
+    assert!(ok, "{err}");
+    // The trial without RTHA (the thigh keeps three markers).
+    let keep = "RASI,LASI,RPSI,LPSI,RTHI,RTHP,RKNE,RTIB,RTIA,RTIP,RANK,RHEE,RTOE,RMT5";
+    let sub = dir.join("sub.trc");
+    let (ok, _, err) = run(&["convert", s(&t), s(&sub), "--markers", keep], &[]);
+    assert!(ok, "{err}");
+    let (cal_dir, rep_dir) = (dir.join("cal"), dir.join("rep"));
+    let fitted = dir.join("f.toml");
+    let (ok, _, err) = run(
+        &[
+            "calibrate",
+            s(&m),
+            s(&sub),
+            "--joints",
+            "hip",
+            "-o",
+            s(&fitted),
+            "--report",
+            s(&cal_dir),
+        ],
+        &[],
+    );
+    assert!(ok, "{err}");
+    assert!(err.contains("lacks model markers RTHA"), "{err}");
+    let (ok, _, err) = run(
+        &[
+            "report",
+            s(&fitted),
+            s(&sub),
+            "--landmark",
+            s(&m),
+            "-o",
+            s(&rep_dir),
+        ],
+        &[],
+    );
+    assert!(ok, "{err}");
+    assert!(err.contains("lacks model markers RTHA"), "{err}");
+    assert!(!err.contains("left out of"), "{err}");
+    let mut pages = Vec::new();
+    for d in [&cal_dir, &rep_dir] {
+        let path = d.join("index.html");
+        let root = checked_page(&path);
+        let (texts, na) = marker_figure(&root);
+        assert!(
+            texts.iter().any(|x| x == "RTHA"),
+            "{}: {texts:?}",
+            path.display()
+        );
+        assert!(texts.iter().any(|x| x == "RTHP"), "{}", path.display());
+        // Two bars for RTHA (start/landmark and fitted), both n/a; no other n/a.
+        assert_eq!(na, 2, "{}: {texts:?}", path.display());
+        let page = std::fs::read_to_string(&path).unwrap();
+        assert!(
+            page.contains("lacks model markers RTHA"),
+            "{}: no note",
+            path.display()
+        );
+        let names: Vec<String> = texts
+            .into_iter()
+            .filter(|x| x.starts_with('R') || x.starts_with('L'))
+            .collect();
+        pages.push(names);
+    }
+    assert_eq!(pages[0], pages[1], "the two reports list the same markers");
+}
