@@ -36,6 +36,7 @@ WALK_SET = os.path.join(HERE, "markersets", "opensim_test_walks.toml")
 # `jointfit markers suggest` proposes from the trial), static trial or None: the trial itself)
 TRIALS = [
     ("c3d_reader/ezc3d/Qualisys.c3d", "suggest", None),
+    ("c3d_reader/btk/Gait.c3d", "suggest", None),
     ("c3d_reader/opensim/walking2.c3d", WALK_SET, None),
     ("c3d_reader/opensim/walking5.c3d", WALK_SET, None),
     ("trc_reader/opensim/dataWithBlanksForMissingMarkers.trc", WALK_SET, None),
