@@ -402,10 +402,19 @@ fn errors_are_specific() {
         parse_c3d(&write(&s)),
         Err(C3dError::ScaleMismatch { .. })
     ));
-    // Float data: only the residual scale differs; read with a warning.
+    // Float data both ways: only the residual scale differs (every Vicon Nexus file: header
+    // −1, POINT:SCALE −0.01); read without a note. Scales that disagree on the storage (the
+    // sign): read as POINT:SCALE says, with a warning.
     let s = Spec {
         scale: -0.1,
         header_scale: Some(-1.0),
+        ..Spec::default()
+    };
+    let c = parse_c3d(&write(&s)).unwrap();
+    assert!(!c.warnings.iter().any(|w| w.contains("POINT:SCALE")));
+    let s = Spec {
+        scale: -0.1,
+        header_scale: Some(1.0),
         ..Spec::default()
     };
     let c = parse_c3d(&write(&s)).unwrap();
