@@ -262,11 +262,7 @@ mod tests {
         }
         // Most files have LF line ends and are read by the streamed path (small ones in
         // blocks of 64 bytes only).
-        assert!(
-            streamed >= files.len(),
-            "{streamed} of {}",
-            files.len() * 4
-        );
+        assert!(streamed >= files.len(), "{streamed} of {}", files.len() * 4);
     }
 
     /// walking1 with seeded bad rows (a bad number, a frame-number jump, a short row, a value
