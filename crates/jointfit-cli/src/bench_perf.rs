@@ -326,7 +326,7 @@ pub fn ik_io(model: &Model, trial: &Trial, frames: usize, runs: usize) -> Result
         let trc = dir.join("long.trc");
         let mot = dir.join("long.mot");
         // Plain writes: the command's atomic writes are staged until it exits, after this
-        // folder is gone. The `.mot` is formatted and synced to disk as `write_sto` does.
+        // folder is gone. The `.mot` is written and synced to disk as `write_sto` does.
         let text = jointfit_io::trc::format_trc(&long, "long.trc", &Default::default())?;
         std::fs::write(&trc, text)?;
         let mut best = IkIo {
@@ -356,9 +356,8 @@ pub fn ik_io(model: &Model, trial: &Trial, frames: usize, runs: usize) -> Result
             let t_ik = t.elapsed().as_secs_f64();
             let t = Instant::now();
             let table = crate::ik_cmd::angles_table(run_model, &read, &solved.fit);
-            let text = jointfit_io::sto::format_sto(&table)?;
             let mut file = std::fs::File::create(&mot)?;
-            std::io::Write::write_all(&mut file, text.as_bytes())?;
+            jointfit_io::sto::write_sto_to(&mut file, &table, &mot)?;
             file.sync_all()?;
             let t_write = t.elapsed().as_secs_f64();
             best.read_s = best.read_s.min(t_read);

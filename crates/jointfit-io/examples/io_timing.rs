@@ -3,8 +3,9 @@
 //!
 //! `cargo run --release -p jointfit-io --example io_timing -- SOURCE.trc FRAMES RUNS [MARKERS]`
 //! repeats SOURCE to FRAMES frames, writes it as `bench_perf::ik_io` does, then reads it RUNS
-//! times (all columns, and only the first MARKERS labels when given) and formats a 13-column
-//! table of FRAMES rows; prints the minimum of each.
+//! times (all columns, and only the first MARKERS labels when given), formats a 13-column
+//! table of FRAMES rows and writes it to disk (joined then written, and chunk by chunk with
+//! `write_sto_to`, each synced); prints the minimum of each.
 
 use std::time::Instant;
 
@@ -74,6 +75,24 @@ fn main() {
     }
     let (t, c) = min_of(&|| jointfit_io::sto::format_sto(&table).unwrap().len());
     println!("format_sto        {t} ({c} bytes)");
+    // The `.mot` to disk: joined then written (before) against written chunk by chunk.
+    let mot = path.with_extension("mot");
+    let (t, _) = min_of(&|| {
+        let text = jointfit_io::sto::format_sto(&table).unwrap();
+        let mut f = std::fs::File::create(&mot).unwrap();
+        std::io::Write::write_all(&mut f, text.as_bytes()).unwrap();
+        f.sync_all().unwrap();
+        0
+    });
+    println!("format + write    {t}");
+    let (t, _) = min_of(&|| {
+        let mut f = std::fs::File::create(&mot).unwrap();
+        jointfit_io::sto::write_sto_to(&mut f, &table, &mot).unwrap();
+        f.sync_all().unwrap();
+        0
+    });
+    println!("write_sto_to      {t}");
+    let _ = std::fs::remove_file(&mot);
     if given.is_none() {
         let _ = std::fs::remove_file(&path);
     }

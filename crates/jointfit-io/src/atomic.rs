@@ -24,6 +24,15 @@ static COUNTER: AtomicU64 = AtomicU64::new(0);
 /// On success the destination holds exactly `bytes` (replacing any previous file). On
 /// failure the destination is untouched and no temporary file is left behind.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    write_atomic_with(path, |file| file.write_all(bytes))
+}
+
+/// Like [`write_atomic`], with the bytes written by `write` (for a text made of parts that
+/// need not be joined first); the file is synced, renamed or removed as there.
+pub fn write_atomic_with(
+    path: &Path,
+    write: impl FnOnce(&mut File) -> io::Result<()>,
+) -> io::Result<()> {
     let file_name = path.file_name().ok_or_else(|| {
         io::Error::new(
             io::ErrorKind::InvalidInput,
@@ -39,7 +48,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
     let (tmp_path, mut file) = create_temp(&dir, &base)?;
     let slot = staging::register(&tmp_path);
     let result = (|| {
-        file.write_all(bytes)?;
+        write(&mut file)?;
         file.sync_all()?;
         drop(file);
         if staging::defer(&tmp_path, path, slot) {

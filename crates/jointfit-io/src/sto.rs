@@ -47,8 +47,10 @@ use std::path::Path;
 
 use thiserror::Error;
 
-use crate::atomic::write_atomic;
-use crate::text::{decode, numbered_lines, parse_number, push_shortest};
+mod write;
+pub use write::{format_sto, write_sto, write_sto_to};
+
+use crate::text::{decode, numbered_lines, parse_number};
 
 /// A table of numbers against time, as OpenSim stores it.
 #[derive(Debug, Clone, PartialEq)]
@@ -331,139 +333,6 @@ pub enum StoWriteError {
         path: String,
         source: std::io::Error,
     },
-}
-
-fn check(table: &Table) -> Result<(), StoWriteError> {
-    if table.name.contains(['\n', '\r', '=']) || table.name.trim() != table.name {
-        return Err(StoWriteError::BadName(table.name.clone()));
-    }
-    match table.columns.first() {
-        Some(t) if t == "time" => {}
-        other => {
-            return Err(StoWriteError::NoTimeColumn {
-                found: other.cloned(),
-            })
-        }
-    }
-    for (i, label) in table.columns.iter().enumerate() {
-        let reason = if label.is_empty() {
-            Some("empty")
-        } else if label.contains(['\t', '\n', '\r']) {
-            Some("contains a tab or line break")
-        } else if label.trim() != label {
-            Some("leading or trailing blanks would be lost")
-        } else if table.columns[..i].contains(label) {
-            Some("duplicate")
-        } else {
-            None
-        };
-        if let Some(reason) = reason {
-            return Err(StoWriteError::BadLabel {
-                column: i + 1,
-                label: label.clone(),
-                reason,
-            });
-        }
-    }
-    for line in &table.extra_header {
-        let key = line.split('=').next().unwrap_or("").trim();
-        let reserved =
-            line.contains('=') && ["version", "nRows", "nColumns", "inDegrees"].contains(&key);
-        if line.contains(['\n', '\r'])
-            || line.trim().eq_ignore_ascii_case("endheader")
-            || reserved
-            || line.trim_end() != line
-        {
-            return Err(StoWriteError::BadHeaderLine(line.clone()));
-        }
-    }
-    let mut previous = f64::NEG_INFINITY;
-    for (r, row) in table.rows.iter().enumerate() {
-        if row.len() != table.columns.len() {
-            return Err(StoWriteError::RowLength {
-                row: r,
-                expected: table.columns.len(),
-                found: row.len(),
-            });
-        }
-        let t = row[0];
-        if !t.is_finite() || t <= previous {
-            return Err(StoWriteError::BadTime { row: r, time: t });
-        }
-        previous = t;
-        if let Some((c, &v)) = row.iter().enumerate().find(|(_, v)| v.is_infinite()) {
-            return Err(StoWriteError::Infinite {
-                row: r,
-                column: table.columns[c].clone(),
-                value: v,
-            });
-        }
-    }
-    Ok(())
-}
-
-/// Formats a table in the layout of the module docs.
-pub fn format_sto(table: &Table) -> Result<String, StoWriteError> {
-    check(table)?;
-    let mut out = String::new();
-    if !table.name.is_empty() {
-        out.push_str(&table.name);
-        out.push('\n');
-    }
-    out.push_str(&format!(
-        "version=1\nnRows={}\nnColumns={}\ninDegrees={}\n",
-        table.rows.len(),
-        table.columns.len(),
-        if table.in_degrees { "yes" } else { "no" }
-    ));
-    for line in &table.extra_header {
-        out.push_str(line);
-        out.push('\n');
-    }
-    out.push_str("endheader\n");
-    out.push_str(&table.columns.join("\t"));
-    out.push('\n');
-    // The rows in chunks formatted on every thread, joined in order: the same text as one
-    // pass (formatting the numbers is most of the writing time).
-    use rayon::prelude::*;
-    let chunks: Vec<String> = table
-        .rows
-        .par_chunks(ROWS_PER_CHUNK)
-        .map(|rows| {
-            let mut text = String::with_capacity(rows.len() * table.columns.len() * 12);
-            for row in rows {
-                for (i, &v) in row.iter().enumerate() {
-                    if i > 0 {
-                        text.push('\t');
-                    }
-                    if v.is_nan() {
-                        text.push_str("NaN");
-                    } else {
-                        push_shortest(&mut text, v);
-                    }
-                }
-                text.push('\n');
-            }
-            text
-        })
-        .collect();
-    out.reserve(chunks.iter().map(|c| c.len()).sum());
-    for c in &chunks {
-        out.push_str(c);
-    }
-    Ok(out)
-}
-
-/// Rows per chunk that [`format_sto`] formats on one thread.
-const ROWS_PER_CHUNK: usize = 4096;
-
-/// Writes a table as a `.mot`/`.sto` file, atomically (see [`write_atomic`]).
-pub fn write_sto(path: &Path, table: &Table) -> Result<(), StoWriteError> {
-    let text = format_sto(table)?;
-    write_atomic(path, text.as_bytes()).map_err(|source| StoWriteError::Io {
-        path: path.display().to_string(),
-        source,
-    })
 }
 
 /// The coordinates table OpenSim's inverse kinematics writes (`.mot`): a `time` column, then

@@ -85,6 +85,8 @@ mod blocks;
 mod fast;
 mod read;
 mod rows;
+#[cfg(any(unix, windows))]
+mod stream;
 mod write;
 
 pub use write::{format_trc, write_trc, TrcWriteError, TrcWriteOptions};
@@ -371,14 +373,37 @@ pub fn read_trc_file(path: &Path) -> Result<TrcFile, TrcError> {
 /// zero and partial samples count the kept markers only. Commands that fit a model read its
 /// markers this way: most of a full-body file's columns are markers the model does not have.
 pub fn read_trc_selected(path: &Path, select: Option<Select>) -> Result<TrcFile, TrcError> {
+    read_trc_in_blocks(path, select, blocks::BLOCK_BYTES)
+}
+
+/// [`read_trc_selected`] with blocks of `block` bytes: a file of two blocks or more is read
+/// block by block on every thread (`trc/stream.rs`), a smaller one (or one that path leaves)
+/// whole. The result does not depend on `block` (tests compare).
+pub(crate) fn read_trc_in_blocks(
+    path: &Path,
+    select: Option<Select>,
+    block: usize,
+) -> Result<TrcFile, TrcError> {
     let name = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| TrcError {
+    let fail = |kind| TrcError {
         file: name.clone(),
-        kind: TrcErrorKind::Io(e),
-    })?;
+        kind,
+    };
+    #[cfg(any(unix, windows))]
+    {
+        let file = std::fs::File::open(path).map_err(|e| fail(TrcErrorKind::Io(e)))?;
+        let len = file
+            .metadata()
+            .map_err(|e| fail(TrcErrorKind::Io(e)))?
+            .len();
+        if let Some(read) = stream::read(&file, len, select, block) {
+            return read.map_err(fail);
+        }
+    }
+    let bytes = std::fs::read(path).map_err(|e| fail(TrcErrorKind::Io(e)))?;
     // Valid UTF-8 (nearly every file) is used in place, without a copy.
     let text = String::from_utf8(bytes).unwrap_or_else(|e| decode(e.as_bytes()));
-    parse_trc_selected(&text, &name, select)
+    read::parse_in_blocks(&text, select, block).map_err(fail)
 }
 
 /// Parses TRC text with its header, times and notes; `name` is used in error messages.

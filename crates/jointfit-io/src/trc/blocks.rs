@@ -50,6 +50,11 @@ pub(super) struct Block<'a> {
 }
 
 impl<'a> Block<'a> {
+    /// A block of `text`'s whole lines, separated by `sep`.
+    pub(super) fn new(text: &'a str, sep: u8) -> Self {
+        Block { text, sep }
+    }
+
     /// The block's lines, numbered from 0.
     pub(super) fn lines(&self) -> impl Iterator<Item = (usize, &'a str)> + 'a {
         // A block ends with a separator unless it ends the text; the piece after a final
@@ -152,7 +157,7 @@ pub(super) fn shift_error(e: TrcErrorKind, by: usize) -> TrcErrorKind {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::super::read::parse_in_blocks;
     use super::*;
     use crate::text::numbered_lines;
@@ -278,7 +283,9 @@ mod tests {
     }
 
     /// A parse result as text: positions as bits, the rest as `Debug`.
-    fn describe(r: Result<crate::trc::TrcFile, crate::trc::TrcErrorKind>) -> String {
+    pub(in crate::trc) fn describe(
+        r: Result<crate::trc::TrcFile, crate::trc::TrcErrorKind>,
+    ) -> String {
         match r {
             Ok(f) => {
                 let bits: Vec<u64> = f

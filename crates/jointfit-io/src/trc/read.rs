@@ -3,7 +3,7 @@
 use jointfit::trial::Trial;
 
 use super::blocks::{blocks, head, separator, BLOCK_BYTES};
-use super::rows::{read_rows, Rows};
+use super::rows::{read_rows, Parsed, Stop};
 use super::{Select, TrcErrorKind, TrcFile, TrcHeader, TrcNote, TrcUnits, HEADER_KEYS};
 use crate::text::parse_number;
 
@@ -27,6 +27,38 @@ pub(super) fn parse_in_blocks(
     // in parallel (`blocks.rs`, `rows.rs`).
     let sep = separator(text);
     let (lines, data) = head(text, sep, 5);
+    let head = parse_head(&lines, select)?;
+    let rows = read_rows(
+        blocks(data, sep, block_bytes).as_slice(),
+        6,
+        &head.labels,
+        &head.keep,
+        head.scale,
+    )
+    .map_err(|stop| match stop {
+        Stop::Error(e) => e,
+        // Text in memory is already a `str`.
+        Stop::NotUtf8 => TrcErrorKind::Io(std::io::Error::other("not UTF-8")),
+    })?;
+    finish(head, rows)
+}
+
+/// What the five header lines say: the header, the labels, which markers are read, the
+/// unit's scale and the notes so far.
+pub(super) struct Head {
+    pub(super) header: TrcHeader,
+    pub(super) labels: Vec<String>,
+    pub(super) keep: Vec<bool>,
+    pub(super) scale: f64,
+    notes: Vec<TrcNote>,
+}
+
+/// Reads the header lines (`lines`: the first five of the text, numbered from 1; fewer when
+/// the text has fewer).
+pub(super) fn parse_head(
+    lines: &[(usize, &str)],
+    select: Option<Select>,
+) -> Result<Head, TrcErrorKind> {
     let line_at = |i: usize, expected: &'static str| {
         lines
             .get(i)
@@ -81,7 +113,25 @@ pub(super) fn parse_in_blocks(
     if !keep.contains(&true) {
         keep.fill(true);
     }
-    let mut data = read_rows(&blocks(data, sep, block_bytes), 6, &labels, &keep, scale)?;
+    Ok(Head {
+        header,
+        labels,
+        keep,
+        scale,
+        notes,
+    })
+}
+
+/// The file from its header and data rows: the row count against the header, the time
+/// checks, the notes and the trial.
+pub(super) fn finish(head: Head, mut data: Parsed) -> Result<TrcFile, TrcErrorKind> {
+    let Head {
+        header,
+        labels,
+        keep,
+        mut notes,
+        ..
+    } = head;
     let rows = data.times.len();
     if rows < header.num_frames {
         return Err(TrcErrorKind::MissingFrames {
@@ -128,7 +178,7 @@ pub(super) fn parse_in_blocks(
             }
         }),
     );
-    let Rows {
+    let Parsed {
         positions,
         times,
         first_frame,

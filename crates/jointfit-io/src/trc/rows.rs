@@ -2,6 +2,7 @@
 
 use nalgebra::Vector3;
 
+use super::blocks::Block;
 use super::{TrcErrorKind, TrcNote};
 use crate::text::parse_number;
 
@@ -35,63 +36,157 @@ impl Tally {
     }
 }
 
+/// Why the data rows were not read: an error of the file, or a block that is not UTF-8 (the
+/// caller then reads the whole text as `text::decode` does).
+pub(super) enum Stop {
+    Error(TrcErrorKind),
+    NotUtf8,
+}
+
+/// Where the blocks of data lines come from: a text in memory, or a file read block by block
+/// (`stream.rs`).
+pub(super) trait BlockSource: Sync {
+    /// How many blocks.
+    fn count(&self) -> usize;
+    /// Calls `f` with block `i`.
+    fn with_block<R>(&self, i: usize, f: impl FnOnce(Block<'_>) -> R) -> Result<R, Stop>;
+}
+
+impl BlockSource for [Block<'_>] {
+    fn count(&self) -> usize {
+        self.len()
+    }
+    fn with_block<R>(&self, i: usize, f: impl FnOnce(Block<'_>) -> R) -> Result<R, Stop> {
+        Ok(f(self[i]))
+    }
+}
+
+/// The rows of all blocks, joined: what `read.rs::finish` needs of them.
+pub(super) struct Parsed {
+    /// Positions of the kept markers, row by row.
+    pub(super) positions: Vec<Vector3<f64>>,
+    pub(super) times: Vec<f64>,
+    /// (line, frame number, printed precision of the time) of each row, for the time check.
+    pub(super) time_cells: Vec<(usize, i64, f64)>,
+    pub(super) first_frame: Option<i64>,
+    pub(super) zero: Tally,
+    pub(super) partial: Tally,
+}
+
 /// Parses the blocks of data lines (`blocks.rs`; the first is line `first_line` of the file)
 /// on every thread, each with its lines numbered from 0, then joins them in order, adding
 /// the lines of the blocks before: the same rows, notes and first error (in line order,
 /// frame-number jumps between blocks included) as one pass over the lines. A block that
 /// stops at an error has counted its lines only that far, but no block after it is used.
-pub(super) fn read_rows<'a>(
-    blocks: &[super::blocks::Block<'_>],
+pub(super) fn read_rows<S: BlockSource + ?Sized>(
+    source: &S,
     first_line: usize,
-    labels: &'a [String],
-    keep: &'a [bool],
+    labels: &[String],
+    keep: &[bool],
     scale: f64,
-) -> Result<Rows<'a>, TrcErrorKind> {
+) -> Result<Parsed, Stop> {
     use rayon::prelude::*;
-    let chunks: Vec<(Rows<'a>, Option<TrcErrorKind>, usize)> = blocks
-        .par_iter()
-        .map(|block| {
-            let mut rows = Rows::new(labels, keep, scale);
-            // About 9 bytes a cell: a first guess that saves most reallocations.
-            let guess = block.text.len() / (9 * (2 + 3 * labels.len())).max(1);
-            rows.positions.reserve(guess * rows.kept);
-            let mut lines = 0;
-            for (line_no, line) in block.lines() {
-                lines = line_no + 1;
-                if line.trim().is_empty() {
-                    continue;
+    type Chunk<'a> = (Rows<'a>, Option<TrcErrorKind>, usize);
+    let chunks: Vec<Result<Chunk<'_>, Stop>> = (0..source.count())
+        .into_par_iter()
+        .map(|i| {
+            source.with_block(i, |block| {
+                let mut rows = Rows::new(labels, keep, scale);
+                // About 9 bytes a cell: a first guess that saves most reallocations.
+                let guess = block.text.len() / (9 * (2 + 3 * labels.len())).max(1);
+                rows.positions.reserve(guess * rows.kept);
+                let mut lines = 0;
+                for (line_no, line) in block.lines() {
+                    lines = line_no + 1;
+                    if line.trim().is_empty() {
+                        continue;
+                    }
+                    if let Err(e) = rows.push(line_no, line) {
+                        return (rows, Some(e), lines);
+                    }
                 }
-                if let Err(e) = rows.push(line_no, line) {
-                    return (rows, Some(e), lines);
-                }
-            }
-            (rows, None, lines)
+                (rows, None, lines)
+            })
         })
         .collect();
-    let total: usize = chunks.iter().map(|(r, _, _)| r.times.len()).sum();
-    let mut all = Rows::new(labels, keep, scale);
-    all.positions.reserve(total * all.kept);
-    all.times.reserve(total);
-    all.time_cells.reserve(total);
+    // The blocks in order, up to the first error; their line numbers moved to the file's.
+    let mut used: Vec<Rows<'_>> = Vec::with_capacity(chunks.len());
+    let mut last_frame: Option<i64> = None;
     let mut before = first_line;
-    for (mut rows, error, lines) in chunks {
+    for chunk in chunks {
+        let (mut rows, error, lines) = chunk?;
         rows.shift_lines(before);
-        if let (Some(previous), Some(found)) = (all.last_frame, rows.first_frame) {
+        if let (Some(previous), Some(found)) = (last_frame, rows.first_frame) {
             if previous.checked_add(1) != Some(found) {
-                return Err(TrcErrorKind::FrameNumberJump {
+                return Err(Stop::Error(TrcErrorKind::FrameNumberJump {
                     line: rows.first_line,
                     previous,
                     found,
-                });
+                }));
             }
         }
         if let Some(e) = error {
-            return Err(super::blocks::shift_error(e, before));
+            return Err(Stop::Error(super::blocks::shift_error(e, before)));
         }
-        all.append(rows);
+        last_frame = rows.last_frame.or(last_frame);
         before += lines;
+        used.push(rows);
     }
-    Ok(all)
+    Ok(join(used))
+}
+
+impl From<TrcErrorKind> for Stop {
+    fn from(e: TrcErrorKind) -> Self {
+        Stop::Error(e)
+    }
+}
+
+/// The blocks' rows as one: the positions (most of the bytes) are copied into place on
+/// every thread, the rest in order.
+fn join(blocks: Vec<Rows<'_>>) -> Parsed {
+    use rayon::prelude::*;
+    let total: usize = blocks.iter().map(|r| r.positions.len()).sum();
+    let mut positions: Vec<Vector3<f64>> = Vec::with_capacity(total);
+    {
+        // Disjoint parts of the new vector's spare room, one per block, in order.
+        let mut room = &mut positions.spare_capacity_mut()[..total];
+        let mut parts = Vec::with_capacity(blocks.len());
+        for rows in &blocks {
+            let (part, rest) = room.split_at_mut(rows.positions.len());
+            parts.push(part);
+            room = rest;
+        }
+        parts
+            .into_par_iter()
+            .zip(blocks.par_iter())
+            .for_each(|(part, rows)| {
+                for (slot, p) in part.iter_mut().zip(&rows.positions) {
+                    slot.write(*p);
+                }
+            });
+    }
+    // SAFETY: the parts cover the first `total` slots exactly (their lengths sum to `total`)
+    // and every slot of every part was written above.
+    unsafe { positions.set_len(total) };
+    let rows: usize = blocks.iter().map(|r| r.times.len()).sum();
+    let mut out = Parsed {
+        positions,
+        times: Vec::with_capacity(rows),
+        time_cells: Vec::with_capacity(rows),
+        first_frame: None,
+        zero: Tally::default(),
+        partial: Tally::default(),
+    };
+    for b in blocks {
+        if out.first_frame.is_none() {
+            out.first_frame = b.first_frame;
+        }
+        out.times.extend(b.times);
+        out.time_cells.extend(b.time_cells);
+        out.zero.append(b.zero);
+        out.partial.append(b.partial);
+    }
+    out
 }
 
 /// Accumulates data rows.
@@ -275,23 +370,9 @@ impl<'a> Rows<'a> {
             }
         }
     }
+}
 
-    /// Appends the rows of `next`, which follow these in the file.
-    fn append(&mut self, next: Rows<'a>) {
-        if self.first_frame.is_none() {
-            self.first_frame = next.first_frame;
-            self.first_line = next.first_line;
-        }
-        if next.last_frame.is_some() {
-            self.last_frame = next.last_frame;
-        }
-        self.positions.extend(next.positions);
-        self.times.extend(next.times);
-        self.time_cells.extend(next.time_cells);
-        self.zero.append(next.zero);
-        self.partial.append(next.partial);
-    }
-
+impl Parsed {
     /// Compares the Time column with `first time + i / rate`; a note for the first row off by
     /// more than half a frame plus the printed precision.
     pub(super) fn check_times(&self, rate: f64) -> Option<TrcNote> {
