@@ -223,12 +223,15 @@ fn certified_root(
     active: &[usize],
     rot: &[usize],
     scored: &[(f64, usize)],
-    floor: (f64, f64),
+    floor: Floor,
     start: impl Fn(usize) -> Vec<f64>,
     ws: &mut IkWorkspace,
     opts: &IkOptions,
 ) -> Option<Vec<f64>> {
-    let (floor, scale) = floor;
+    let Floor {
+        misfit: floor,
+        scale,
+    } = floor;
     let tol = |x: f64| 1e-9 * x.abs() + 1e-12 * scale;
     let s0 = scored.first()?.0;
     let tied = scored
@@ -289,7 +292,7 @@ const CERTIFIED_TOLERANCE: f64 = 1e-6;
 /// `σ₁ ≥ σ₂ ≥ σ₃`, the best proper rotation gives `tr(R C) = σ₁ + σ₂ + sign(det C) σ₃`
 /// (Kabsch 1976; Umeyama, IEEE TPAMI 13(4), 1991, for the reflection case), so the minimum
 /// is `Σ w (‖x − x̄‖² + ‖m − m̄‖²) − 2 (σ₁ + σ₂ + sign(det C) σ₃)`.
-pub(super) fn procrustes_floor(pairs: &[(f64, Vector3<f64>, Vector3<f64>)]) -> (f64, f64) {
+pub(super) fn procrustes_floor(pairs: &[(f64, Vector3<f64>, Vector3<f64>)]) -> Floor {
     let mut c = nalgebra::Matrix3::zeros();
     let mut scale = 0.0;
     for (w, x, m) in pairs {
@@ -299,10 +302,19 @@ pub(super) fn procrustes_floor(pairs: &[(f64, Vector3<f64>, Vector3<f64>)]) -> (
     let mut sv = c.singular_values();
     sv.as_mut_slice().sort_by(|a, b| b.total_cmp(a));
     let sign = if c.determinant() < 0.0 { -1.0 } else { 1.0 };
-    (
-        (scale - 2.0 * (sv[0] + sv[1] + sign * sv[2])).max(0.0),
+    Floor {
+        misfit: (scale - 2.0 * (sv[0] + sv[1] + sign * sv[2])).max(0.0),
         scale,
-    )
+    }
+}
+
+/// The result of [`procrustes_floor`].
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Floor {
+    /// The least misfit.
+    pub misfit: f64,
+    /// `Σ w (‖x − x̄‖² + ‖m − m̄‖²)`, the sum the misfit is a difference within.
+    pub scale: f64,
 }
 
 /// Iterations every seeding start gets before the finalists are chosen.
@@ -335,7 +347,7 @@ fn rotation_scores<'a>(
     rot: &'a [usize],
     targets: &[Vector3<f64>],
     ws: &mut IkWorkspace,
-) -> Option<(impl Fn(&[f64]) -> f64 + 'a, (f64, f64))> {
+) -> Option<(impl Fn(&[f64]) -> f64 + 'a, Floor)> {
     let mut steps: Vec<(usize, f64, Unit<Vector3<f64>>)> = Vec::new();
     let markers: Vec<usize> = model.plan.markers_by_segment[root]
         .iter()

@@ -5,7 +5,7 @@ use nalgebra::{Rotation3, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::seed::{certified_count, procrustes_floor};
+use super::seed::{certified_count, procrustes_floor, Floor};
 use super::{seed_frame, seed_frame_by_scouting, IkOptions, IkWorkspace};
 use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::lower_limb::{lower_limb, Side};
@@ -125,7 +125,10 @@ fn procrustes_floor_is_the_least_misfit() {
                 .map(|(w, x, m)| w * (m - r * x).norm_squared())
                 .sum()
         };
-        let (floor, scale) = procrustes_floor(&pairs);
+        let Floor {
+            misfit: floor,
+            scale,
+        } = procrustes_floor(&pairs);
         let mut c = nalgebra::Matrix3::zeros();
         for (w, x, m) in &pairs {
             c += *w * m * x.transpose();
