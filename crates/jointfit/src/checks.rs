@@ -33,6 +33,8 @@ use crate::ik::MarkerMap;
 use crate::model::Model;
 use crate::trial::Trial;
 
+mod segment;
+
 /// Distance change within a segment's cluster above which a pair is reported (m).
 pub const CLUSTER_TOLERANCE: f64 = 0.01;
 /// The least mean difference (m) between two markers' model distances to their segment's
@@ -292,135 +294,6 @@ impl Ctx<'_> {
 
     fn name(&self, j: usize) -> &str {
         self.model.markers()[j].name.as_str()
-    }
-
-    /// The cluster and swap findings of one segment's present model markers (at least two).
-    fn segment_findings(&self, markers: &[usize], reference: &str) -> Vec<Finding> {
-        let (model, n) = (self.model, self.trial.n_frames());
-        let first = self.trial.first_frame();
-        let mut out = Vec::new();
-        let model_distance =
-            |a: usize, b: usize| (model.markers()[a].local - model.markers()[b].local).norm();
-        // The distance of every marker pair in every frame (NaN when one is missing),
-        // computed once for the cluster and swap checks: `d[(f * m + i) * m + k]`.
-        let m = markers.len();
-        let mut d = vec![f64::NAN; n * m * m];
-        let mut at: Vec<Option<Vector3<f64>>> = vec![None; m];
-        for f in 0..n {
-            for (i, &j) in markers.iter().enumerate() {
-                at[i] = self.pos(f, j);
-            }
-            for i in 0..m {
-                for k in i + 1..m {
-                    if let (Some(p), Some(q)) = (at[i], at[k]) {
-                        let v = (p - q).norm();
-                        d[(f * m + i) * m + k] = v;
-                        d[(f * m + k) * m + i] = v;
-                    }
-                }
-            }
-        }
-        let r: Vec<f64> = (0..m * m)
-            .map(|x| model_distance(markers[x / m], markers[x % m]))
-            .collect();
-        let seg = &model.segments()[model.markers()[markers[0]].segment.0].name;
-
-        // Clusters.
-        let mut v: Vec<f64> = Vec::with_capacity(n);
-        for i in 0..m {
-            for k in i + 1..m {
-                let (a, b) = (markers[i], markers[k]);
-                v.clear();
-                v.extend(
-                    (0..n)
-                        .map(|f| d[(f * m + i) * m + k])
-                        .filter(|x| x.is_finite()),
-                );
-                if v.is_empty() {
-                    continue;
-                }
-                let mid = v.len() / 2;
-                let median = *v.select_nth_unstable_by(mid, f64::total_cmp).1;
-                let rr = r[i * m + k];
-                if (median - rr).abs() > CLUSTER_TOLERANCE {
-                    out.push(Finding {
-                        kind: CheckKind::Cluster,
-                        severity: Severity::Warning,
-                        message: format!(
-                            "{seg}: {} to {} is {:.1} mm in this trial (median) but {:.1} mm in \
-                             {reference}: a marker moved or was re-attached",
-                            self.name(a),
-                            self.name(b),
-                            median * 1e3,
-                            rr * 1e3,
-                        ),
-                        fix: Some(format!(
-                            "--exclude-marker {} or --exclude-marker {} (the one that moved)",
-                            self.name(a),
-                            self.name(b)
-                        )),
-                    });
-                }
-            }
-        }
-
-        // Swaps: runs of frames where exchanging two labels fits the other markers far better.
-        if m < 3 {
-            return out;
-        }
-        for i in 0..m {
-            for k in i + 1..m {
-                let (a, b) = (markers[i], markers[k]);
-                let swapped = |f: usize| -> bool {
-                    if !d[(f * m + i) * m + k].is_finite() {
-                        return false;
-                    }
-                    let (mut plain, mut crossed, mut asymmetry, mut count) =
-                        (0.0, 0.0, 0.0, 0usize);
-                    for c in (0..m).filter(|&c| c != i && c != k) {
-                        let (dac, dbc) = (d[(f * m + i) * m + c], d[(f * m + k) * m + c]);
-                        if !dac.is_finite() {
-                            continue;
-                        }
-                        let (rac, rbc) = (r[i * m + c], r[k * m + c]);
-                        plain += (dac - rac).abs() + (dbc - rbc).abs();
-                        crossed += (dbc - rac).abs() + (dac - rbc).abs();
-                        asymmetry += (rac - rbc).abs();
-                        count += 1;
-                    }
-                    count > 0
-                        && asymmetry >= SWAP_MIN_ASYMMETRY * count as f64
-                        && plain > 0.02 * count as f64
-                        && crossed < 0.3 * plain
-                };
-                for (start, end) in runs((0..n).map(swapped)) {
-                    let (from, to) = (first + start as i64, first + end as i64);
-                    let frames = if end + 1 == n {
-                        format!("{from}")
-                    } else {
-                        format!("{from}-{to}")
-                    };
-                    out.push(Finding {
-                        kind: CheckKind::Swap,
-                        severity: Severity::Warning,
-                        message: format!(
-                            "{} and {} look swapped in frames {}–{}: exchanged, they fit the \
-                             subject model's distances to the other {seg} markers",
-                            self.name(a),
-                            self.name(b),
-                            from,
-                            to,
-                        ),
-                        fix: Some(format!(
-                            "--swap-labels {},{}@{frames}",
-                            self.name(a),
-                            self.name(b)
-                        )),
-                    });
-                }
-            }
-        }
-        out
     }
 
     /// The jump finding of model marker `j` (one pass: the number of jumps and the first).

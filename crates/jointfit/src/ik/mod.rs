@@ -38,6 +38,8 @@ mod markers;
 mod normal;
 pub mod repair;
 mod seed;
+#[cfg(test)]
+mod seed_tests;
 pub mod solvable;
 mod trial_fit;
 
@@ -46,10 +48,10 @@ use thiserror::Error;
 pub use frames::warm_started_coords;
 pub use lm::{is_gross, solve_frame, undetermined_coordinate, IkWorkspace};
 pub use markers::MarkerMap;
-pub use seed::seed_frame;
+pub use seed::{seed_frame, seed_frame_by_scouting};
 pub use trial_fit::{
-    chunk_ranges, extrapolate, rms, solve_trial, solve_trial_in_chunks, trial_chunk_ranges,
-    unsolved_ranges, TrialFit, UnsolvedRange, MIN_SPLIT_FRAMES,
+    chunk_ranges, extrapolate, rms, solve_trial, solve_trial_alongside, solve_trial_in_chunks,
+    trial_chunk_ranges, unsolved_ranges, TrialFit, UnsolvedRange, MIN_SPLIT_FRAMES,
 };
 
 /// Why IK could not start.

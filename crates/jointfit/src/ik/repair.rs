@@ -122,7 +122,8 @@ impl Repair<'_> {
 /// Re-solves the suspect frames of `fit`, carries every improvement to the neighbouring
 /// frames, and marks the frames that stay implausible (see the module docs). `boundaries`
 /// are the first frames of the chunks after the first: each is tried from the frame before
-/// it and the other way round.
+/// it and the other way round. `ws` is scratch space (any, e.g. a chunk's).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn repair_absurd(
     model: &Model,
     p: &[f64],
@@ -131,6 +132,7 @@ pub(super) fn repair_absurd(
     opts: &IkOptions,
     fit: &mut TrialFit,
     boundaries: &[usize],
+    ws: IkWorkspace,
 ) {
     let n = fit.frames.len();
     let solved_rms = |fit: &TrialFit, f: usize| {
@@ -165,7 +167,7 @@ pub(super) fn repair_absurd(
         trial,
         map,
         opts,
-        ws: IkWorkspace::new(model),
+        ws,
         targets: Vec::with_capacity(model.n_markers()),
     };
     let mut changed = std::collections::VecDeque::new();

@@ -84,6 +84,23 @@ pub fn solve_trial(
     solve_trial_in_chunks(model, p, trial, map, opts, &chunks)
 }
 
+/// [`solve_trial`] with other work, `also`, run alongside on the thread pool (the data checks
+/// of `workflow::ik_checked`). `also` is queued after the chunks, so that a free thread takes
+/// a chunk first and `also` (with the parallel tasks it spawns) fills the time of whichever
+/// thread finishes its chunk first, instead of delaying a chunk by its whole length. Neither
+/// result depends on the order the pool runs them in.
+pub fn solve_trial_alongside<R: Send>(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+    map: &MarkerMap,
+    opts: &IkOptions,
+    also: impl FnOnce() -> R + Send,
+) -> (Result<TrialFit, IkError>, R) {
+    let chunks = trial_chunk_ranges(trial.n_frames(), opts.hold_undetermined);
+    solve_chunks_alongside(model, p, trial, map, opts, &chunks, also)
+}
+
 /// [`solve_trial`] with the chunks given: `chunks` must cover `0..trial.n_frames()` in order
 /// (a chunk per thread; the first frame of each seeded). For tests and measurements (the
 /// trial solved as one chunk against the chunks [`solve_trial`] takes).
@@ -95,11 +112,25 @@ pub fn solve_trial_in_chunks(
     opts: &IkOptions,
     chunks: &[Range<usize>],
 ) -> Result<TrialFit, IkError> {
+    solve_chunks_alongside(model, p, trial, map, opts, chunks, || ()).0
+}
+
+/// [`solve_trial_in_chunks`] with `also` alongside (see [`solve_trial_alongside`]).
+fn solve_chunks_alongside<R: Send>(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+    map: &MarkerMap,
+    opts: &IkOptions,
+    chunks: &[Range<usize>],
+    also: impl FnOnce() -> R + Send,
+) -> (Result<TrialFit, IkError>, R) {
     if p.len() != model.n_p() {
-        return Err(IkError::ParamLength {
+        let err = IkError::ParamLength {
             got: p.len(),
             expected: model.n_p(),
-        });
+        };
+        return (Err(err), also());
     }
     assert!(
         chunks.first().map_or(0, |c| c.start) == 0
@@ -108,22 +139,36 @@ pub fn solve_trial_in_chunks(
         "chunks must cover the trial in order"
     );
     let boundaries: Vec<usize> = chunks.iter().skip(1).map(|c| c.start).collect();
-    let pieces: Vec<TrialFit> = chunks
-        .par_iter()
-        .map(|range| solve_range(model, p, trial, map, opts, range.clone()))
-        .collect();
+    let solve = |range: &Range<usize>| solve_range(model, p, trial, map, opts, range.clone());
+    // `rayon::join(a, b)` queues `b` and runs `a` here: the first chunk with `also` behind
+    // it is queued first (a free thread takes it), the other chunks run here; the first
+    // chunk's thread queues `also` before solving its chunk, for the first free thread.
+    let (rest, (first, also)) = rayon::join(
+        || {
+            let rest = chunks.get(1..).unwrap_or(&[]);
+            rest.par_iter().map(solve).collect::<Vec<_>>()
+        },
+        || rayon::join(|| chunks.first().map(solve), also),
+    );
+    let pieces = first.into_iter().chain(rest);
     let mut out = TrialFit {
         coords: Vec::with_capacity(trial.n_frames()),
         frames: Vec::with_capacity(trial.n_frames()),
         errors: Vec::with_capacity(trial.n_frames()),
     };
-    for piece in pieces {
+    // The repair pass reuses the first chunk's workspace (a fresh one costs as much as
+    // two frames; nothing a frame's solve reads survives from the one before, so the result
+    // is the same).
+    let mut ws = None;
+    for (piece, piece_ws) in pieces {
         out.coords.extend(piece.coords);
         out.frames.extend(piece.frames);
         out.errors.extend(piece.errors);
+        ws.get_or_insert(piece_ws);
     }
-    super::repair::repair_absurd(model, p, trial, map, opts, &mut out, &boundaries);
-    Ok(out)
+    let ws = ws.unwrap_or_else(|| IkWorkspace::new(model));
+    super::repair::repair_absurd(model, p, trial, map, opts, &mut out, &boundaries, ws);
+    (Ok(out), also)
 }
 
 /// Fewest frames in a chunk of a long trial (and of the calibration's starting coordinates,
@@ -135,9 +180,9 @@ pub const MIN_CHUNK_FRAMES: usize = 512;
 pub const MAX_CHUNKS: usize = 32;
 /// From this many frames on [`solve_trial`] cuts a trial into at least two chunks, so that a
 /// short trial (a gait cycle or two) uses two cores. The second chunk's seed costs about as
-/// much as 10 warm-started frames (`seed.rs`: 1.26 M instructions against ≈ 0.13 M a frame
-/// on walking1): +6.5 % CPU on walking1's 143 frames, +7 % at 128 frames, while two idle
-/// cores solve it in ≈ 0.55 of the one-chunk time (measurements in `docs/frames_solved.md`).
+/// much as 2 warm-started frames (`seed.rs`: 0.21 M instructions, 1.26 M before the
+/// certified root fit, against ≈ 0.12 M a frame on walking1), and two idle cores solve it
+/// in ≈ 0.55 of the one-chunk time (measurements in `docs/frames_solved.md`).
 pub const MIN_SPLIT_FRAMES: usize = 128;
 
 /// The chunks of consecutive frames [`solve_trial`] solves independently: one below
@@ -174,7 +219,8 @@ fn even_chunks(n: usize, k: usize) -> Vec<Range<usize>> {
     (0..k).map(|i| i * n / k..(i + 1) * n / k).collect()
 }
 
-/// Solves frames `range` of `trial` in order, warm-started, the first seeded.
+/// Solves frames `range` of `trial` in order, warm-started, the first seeded; returns the
+/// fit with the workspace it used.
 fn solve_range(
     model: &Model,
     p: &[f64],
@@ -182,7 +228,7 @@ fn solve_range(
     map: &MarkerMap,
     opts: &IkOptions,
     range: Range<usize>,
-) -> TrialFit {
+) -> (TrialFit, IkWorkspace) {
     let mut ws = IkWorkspace::new(model);
     let mut targets = Vec::with_capacity(model.n_markers());
     // The last two solutions when they belong to consecutive frames.
@@ -233,7 +279,7 @@ fn solve_range(
         }
         out.frames.push(fit);
     }
-    out
+    (out, ws)
 }
 
 /// Distances `‖m − x‖` of the model markers from their targets at the last solution in

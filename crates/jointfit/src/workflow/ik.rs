@@ -3,7 +3,7 @@
 
 use super::WorkflowError;
 use crate::ik::{
-    extrapolate, solve_frame, solve_trial, IkOptions, IkWorkspace, MarkerMap, TrialFit,
+    extrapolate, solve_frame, solve_trial_alongside, IkOptions, IkWorkspace, MarkerMap, TrialFit,
 };
 use crate::model::Model;
 use crate::trial::Trial;
@@ -28,26 +28,46 @@ pub fn ik_trial(
     trial: &Trial,
     opts: &IkOptions,
 ) -> Result<IkRun, WorkflowError> {
+    ik_trial_alongside(model, p, trial, opts, || ()).0
+}
+
+/// [`ik_trial`] with `also` run alongside on the thread pool
+/// ([`crate::ik::solve_trial_alongside`]; `also` runs in any case, first when the IK cannot
+/// start).
+fn ik_trial_alongside<R: Send>(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+    opts: &IkOptions,
+    also: impl FnOnce() -> R + Send,
+) -> (Result<IkRun, WorkflowError>, R) {
     let (map, absent) = MarkerMap::allowing_absent(model, trial.labels());
     if absent.len() == model.n_markers() {
         // Nothing in common: the strict matcher's error lists both sides.
-        MarkerMap::by_name(model, trial.labels())?;
+        if let Err(e) = MarkerMap::by_name(model, trial.labels()) {
+            return (Err(e.into()), also());
+        }
     }
-    let fit = solve_trial(model, p, trial, &map, opts)?;
-    if !fit.frames.iter().any(|f| f.solved()) {
-        let detail = match crate::ik::unsolved_ranges(&fit).first() {
-            Some(r) => format!(" (first frame: {})", r.reason),
-            None => String::new(),
-        };
-        return Err(WorkflowError::NoFrameSolved { detail });
-    }
-    Ok(IkRun { fit, absent })
+    let (fit, extra) = solve_trial_alongside(model, p, trial, &map, opts, also);
+    let run = fit.map_err(WorkflowError::from).and_then(|fit| {
+        if !fit.frames.iter().any(|f| f.solved()) {
+            let detail = match crate::ik::unsolved_ranges(&fit).first() {
+                Some(r) => format!(" (first frame: {})", r.reason),
+                None => String::new(),
+            };
+            return Err(WorkflowError::NoFrameSolved { detail });
+        }
+        Ok(IkRun { fit, absent })
+    });
+    (run, extra)
 }
 
 /// [`ik_trial`] together with the data checks of the same trial
 /// ([`crate::checks::check_trial`], markers matched as [`ik_trial`] matches them), with the
 /// same findings in the same order. The checks that need no inverse kinematics run
-/// concurrently with it (`rayon::join`); the moved-cluster check then reads the IK's own fit
+/// alongside it, queued behind the IK's chunks ([`crate::ik::solve_trial_alongside`]: on two
+/// threads each takes a chunk and the first to finish takes the checks, whose parallel
+/// parts the other joins when it finishes); the moved-cluster check then reads the IK's own fit
 /// ([`crate::residual_checks::check_offsets_after_ik`]) when that is the IK it would run
 /// (nominal parameters, default options), instead of solving the frames a second time.
 pub fn ik_checked(
@@ -57,12 +77,9 @@ pub fn ik_checked(
     opts: &IkOptions,
 ) -> (Result<IkRun, WorkflowError>, Vec<crate::checks::Finding>) {
     let (map, _) = MarkerMap::allowing_absent(model, trial.labels());
-    // The calling thread takes the IK (the longer part); the checks go to another thread
-    // when one is free, else run here afterwards.
-    let (run, mut findings) = rayon::join(
-        || ik_trial(model, p, trial, opts),
-        || crate::checks::check_trial_before_ik(model, trial, &map),
-    );
+    let (run, mut findings) = ik_trial_alongside(model, p, trial, opts, || {
+        crate::checks::check_trial_before_ik(model, trial, &map)
+    });
     let reference = crate::residual_checks::reference_name(model);
     findings.extend(match &run {
         Ok(run) => crate::residual_checks::check_offsets_after_ik(

@@ -1,0 +1,188 @@
+//! The cluster and swap checks of one segment's markers (see the module docs of
+//! [`crate::checks`]).
+
+use nalgebra::Vector3;
+
+use super::{runs, CheckKind, Ctx, Finding, Severity, CLUSTER_TOLERANCE, SWAP_MIN_ASYMMETRY};
+
+impl Ctx<'_> {
+    /// The cluster and swap findings of one segment's present model markers (at least two).
+    pub(super) fn segment_findings(&self, markers: &[usize], reference: &str) -> Vec<Finding> {
+        let (model, n) = (self.model, self.trial.n_frames());
+        let first = self.trial.first_frame();
+        let mut out = Vec::new();
+        let model_distance =
+            |a: usize, b: usize| (model.markers()[a].local - model.markers()[b].local).norm();
+        // The distance of every marker pair in every frame (NaN when one is missing),
+        // computed once for the cluster and swap checks: `d[(f * m + i) * m + k]`.
+        let m = markers.len();
+        let mut d = vec![f64::NAN; n * m * m];
+        let mut at: Vec<Option<Vector3<f64>>> = vec![None; m];
+        // Frames in which every marker of the segment is present.
+        let mut complete = vec![false; n];
+        for f in 0..n {
+            for (i, &j) in markers.iter().enumerate() {
+                at[i] = self.pos(f, j);
+            }
+            complete[f] = at.iter().all(Option::is_some);
+            for i in 0..m {
+                for k in i + 1..m {
+                    if let (Some(p), Some(q)) = (at[i], at[k]) {
+                        let v = (p - q).norm();
+                        d[(f * m + i) * m + k] = v;
+                        d[(f * m + k) * m + i] = v;
+                    }
+                }
+            }
+        }
+        let r: Vec<f64> = (0..m * m)
+            .map(|x| model_distance(markers[x / m], markers[x % m]))
+            .collect();
+        let seg = &model.segments()[model.markers()[markers[0]].segment.0].name;
+        // Per complete frame and marker, its distance misfit to the segment's other markers,
+        // `E_i = Σ_{c ≠ i} |d_ic − r_ic|` (for the swap test's bound below).
+        let mut misfit = vec![0.0; n * m];
+        for f in (0..n).filter(|&f| complete[f]) {
+            for i in 0..m {
+                misfit[f * m + i] = (0..m)
+                    .filter(|&c| c != i)
+                    .map(|c| (d[(f * m + i) * m + c] - r[i * m + c]).abs())
+                    .sum();
+            }
+        }
+
+        // Clusters.
+        let mut v: Vec<f64> = Vec::with_capacity(n);
+        for i in 0..m {
+            for k in i + 1..m {
+                let (a, b) = (markers[i], markers[k]);
+                v.clear();
+                v.extend(
+                    (0..n)
+                        .map(|f| d[(f * m + i) * m + k])
+                        .filter(|x| x.is_finite()),
+                );
+                if v.is_empty() {
+                    continue;
+                }
+                let mid = v.len() / 2;
+                let median = *v.select_nth_unstable_by(mid, f64::total_cmp).1;
+                let rr = r[i * m + k];
+                if (median - rr).abs() > CLUSTER_TOLERANCE {
+                    out.push(Finding {
+                        kind: CheckKind::Cluster,
+                        severity: Severity::Warning,
+                        message: format!(
+                            "{seg}: {} to {} is {:.1} mm in this trial (median) but {:.1} mm in \
+                             {reference}: a marker moved or was re-attached",
+                            self.name(a),
+                            self.name(b),
+                            median * 1e3,
+                            rr * 1e3,
+                        ),
+                        fix: Some(format!(
+                            "--exclude-marker {} or --exclude-marker {} (the one that moved)",
+                            self.name(a),
+                            self.name(b)
+                        )),
+                    });
+                }
+            }
+        }
+
+        // Swaps: runs of frames where exchanging two labels fits the other markers far better.
+        if m < 3 {
+            return out;
+        }
+        for i in 0..m {
+            for k in i + 1..m {
+                let (a, b) = (markers[i], markers[k]);
+                // The asymmetry test depends on the frame only through which markers are
+                // present: in a complete frame its sum runs over every other marker, in the
+                // same order as below, so it is taken once for all of them.
+                // In a complete frame the test below can hold only when the bound of the
+                // module docs' swap passes (see `swap_bound_passes`); the sums of the
+                // bound are taken once per pair and once per frame and marker instead of
+                // once per pair and frame. Its margin covers their rounding, so the test
+                // runs, as written, on every frame it could accept.
+                let complete_asymmetry = (0..m)
+                    .filter(|&c| c != i && c != k)
+                    .map(|c| (r[i * m + c] - r[k * m + c]).abs())
+                    .sum::<f64>();
+                let swapped = |f: usize| -> bool {
+                    if !d[(f * m + i) * m + k].is_finite() {
+                        return false;
+                    }
+                    if complete[f] {
+                        let eik = (d[(f * m + i) * m + k] - r[i * m + k]).abs();
+                        let plain = misfit[f * m + i] + misfit[f * m + k] - 2.0 * eik;
+                        if !swap_bound_passes(plain, complete_asymmetry, m - 2) {
+                            return false;
+                        }
+                    }
+                    let (mut plain, mut crossed, mut asymmetry, mut count) =
+                        (0.0, 0.0, 0.0, 0usize);
+                    for c in (0..m).filter(|&c| c != i && c != k) {
+                        let (dac, dbc) = (d[(f * m + i) * m + c], d[(f * m + k) * m + c]);
+                        if !dac.is_finite() {
+                            continue;
+                        }
+                        let (rac, rbc) = (r[i * m + c], r[k * m + c]);
+                        plain += (dac - rac).abs() + (dbc - rbc).abs();
+                        crossed += (dbc - rac).abs() + (dac - rbc).abs();
+                        asymmetry += (rac - rbc).abs();
+                        count += 1;
+                    }
+                    count > 0
+                        && asymmetry >= SWAP_MIN_ASYMMETRY * count as f64
+                        && plain > 0.02 * count as f64
+                        && crossed < 0.3 * plain
+                };
+                for (start, end) in runs((0..n).map(swapped)) {
+                    let (from, to) = (first + start as i64, first + end as i64);
+                    let frames = if end + 1 == n {
+                        format!("{from}")
+                    } else {
+                        format!("{from}-{to}")
+                    };
+                    out.push(Finding {
+                        kind: CheckKind::Swap,
+                        severity: Severity::Warning,
+                        message: format!(
+                            "{} and {} look swapped in frames {}–{}: exchanged, they fit the \
+                             subject model's distances to the other {seg} markers",
+                            self.name(a),
+                            self.name(b),
+                            from,
+                            to,
+                        ),
+                        fix: Some(format!(
+                            "--swap-labels {},{}@{frames}",
+                            self.name(a),
+                            self.name(b)
+                        )),
+                    });
+                }
+            }
+        }
+        out
+    }
+}
+
+/// A necessary condition of the swap test of [`Ctx::segment_findings`] in a frame where
+/// all the segment's markers are present: with `count` other markers `c`, `plain =
+/// Σ_c |d_ac − r_ac| + |d_bc − r_bc|` and `asymmetry = Σ_c |r_ac − r_bc|`. The test asks
+/// `asymmetry ≥ SWAP_MIN_ASYMMETRY · count`, `plain > 0.02 · count` and `crossed < 0.3 ·
+/// plain` with `crossed = Σ_c |d_bc − r_ac| + |d_ac − r_bc|`; by the triangle inequality
+/// `|d_bc − r_ac| ≥ |r_ac − r_bc| − |d_bc − r_bc|` (and likewise for `a`), so `crossed ≥
+/// 2 · asymmetry − plain`, and the last condition needs `asymmetry < 0.65 · plain`. `plain`
+/// may come from sums in another order than the test's: the margin (relative 1e-6, far
+/// above the rounding of a few dozen terms) keeps every frame the test could accept.
+fn swap_bound_passes(plain: f64, asymmetry: f64, count: usize) -> bool {
+    let slack = 1.0 + 1e-6;
+    let count = count as f64;
+    count > 0.0
+        && asymmetry * slack >= SWAP_MIN_ASYMMETRY * count
+        && plain * slack > 0.02 * count
+        && asymmetry < 0.65 * plain * slack
+}
