@@ -43,9 +43,11 @@ use crate::ik::{
     seed_frame, solve_frame, trial_chunk_ranges, undetermined_coordinate, FrameStatus, IkOptions,
     IkWorkspace, MarkerMap,
 };
+use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::{Model, ParamId};
 pub use crate::solver::Termination;
 use crate::trial::Trial;
+use nalgebra::Vector3;
 pub use targets::Targets;
 
 #[derive(Debug, Error, PartialEq)]
@@ -325,24 +327,60 @@ impl<'m> Problem<'m> {
 
     /// RMS marker distance over every present marker sample for `p` and coordinates `qs` (m).
     pub fn marker_rms(&self, p: &[f64], qs: &[Vec<f64>]) -> f64 {
-        let mut kin = crate::kinematics::KinData::new(self.model);
-        let errors = self.frames.iter().zip(qs).flat_map(|(targets, q)| {
-            crate::kinematics::forward_kinematics(
-                self.model,
-                p,
-                q,
-                crate::kinematics::Want::POSITIONS,
-                &mut kin,
-            );
-            targets
-                .iter()
-                .zip(kin.markers.clone())
-                .map(|(t, x)| (t - x).norm())
-                .collect::<Vec<_>>()
+        let (mut s, mut n) = (0.0, 0usize);
+        self.visit_marker_errors(p, qs, |_, e| {
+            let v = e.norm();
+            if !v.is_nan() {
+                s += v * v;
+                n += 1;
+            }
         });
-        crate::ik::rms(errors)
+        if n == 0 {
+            f64::NAN
+        } else {
+            (s / n as f64).sqrt()
+        }
+    }
+
+    /// Calls `visit(marker, target − model marker)` for every frame and model marker, in
+    /// frame order then marker order (NaN for a missing marker), at `p` and coordinates `qs`.
+    /// The forward kinematics run in parallel over blocks of [`ERROR_BLOCK`] frames and the
+    /// visits follow in order on the calling thread, so any sum the caller forms has the
+    /// same bits on any number of threads (and as a serial loop).
+    pub fn visit_marker_errors(
+        &self,
+        p: &[f64],
+        qs: &[Vec<f64>],
+        mut visit: impl FnMut(usize, &Vector3<f64>),
+    ) {
+        const TASK: usize = 16;
+        let nm = self.model.n_markers();
+        let mut errors: Vec<Vector3<f64>> = Vec::new();
+        for first in (0..qs.len()).step_by(ERROR_BLOCK) {
+            let last = (first + ERROR_BLOCK).min(qs.len());
+            errors.resize((last - first) * nm, Vector3::zeros());
+            errors.par_chunks_mut(TASK * nm).enumerate().for_each_init(
+                || (KinData::new(self.model), Vec::new()),
+                |(kin, buf), (t, out)| {
+                    for (i, e) in out.chunks_mut(nm).enumerate() {
+                        let f = first + t * TASK + i;
+                        let targets = self.frames.fill(f, buf);
+                        forward_kinematics(self.model, p, &qs[f], Want::POSITIONS, kin);
+                        for (j, e) in e.iter_mut().enumerate() {
+                            *e = targets[j] - kin.markers[j];
+                        }
+                    }
+                },
+            );
+            for (k, e) in errors.iter().enumerate() {
+                visit(k % nm, e);
+            }
+        }
     }
 }
+
+/// Frames per block of [`Problem::visit_marker_errors`] (bounds its memory on long trials).
+pub const ERROR_BLOCK: usize = 4096;
 
 /// The result of an outer solve.
 #[derive(Debug, Clone)]
