@@ -33,6 +33,13 @@
 //!
 //! Levenberg–Marquardt never raises the objective, so continuing a probe only lowers it; a
 //! start that converged within its probe needs no continuation.
+//!
+//! **Starting coordinates.** The given start's inner solutions on every frame are computed
+//! first (the σ estimate's, when there was one). Every probe starts its frames from those
+//! and solves each frame at its own parameters ([`Problem::inner`], parallel over frames),
+//! and so does the finishing solve of a probe that is not the given start, on every frame;
+//! the given start's finishing solve takes its seeded coordinates. No seeded IK chained over
+//! the frames runs on one core while the other waits (`docs/performance.md`).
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
