@@ -33,13 +33,6 @@
 //!
 //! Levenberg–Marquardt never raises the objective, so continuing a probe only lowers it; a
 //! start that converged within its probe needs no continuation.
-//!
-//! **Starting coordinates.** The given start's inner solutions on every frame are computed
-//! first (the σ estimate's, when there was one). Every probe starts its frames from those
-//! and solves each frame at its own parameters ([`Problem::inner`], parallel over frames),
-//! and so does the finishing solve of a probe that is not the given start, on every frame;
-//! the given start's finishing solve takes its seeded coordinates. No seeded IK chained over
-//! the frames runs on one core while the other waits (`docs/performance.md`).
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -187,22 +180,6 @@ pub fn run(
     let stride = prob.frames.len().div_ceil(settings.probe_frames.max(1));
     let coarse = subsample(prob, stride);
     observer.progress(0, n + 1);
-    // The given start on every frame: the objective before the fit, and the inner solutions
-    // every probe and finishing solve starts from (module docs).
-    // (The σ estimate computed both at the same start on the same frames.)
-    let (q_before_start, q_before, cost_before) = match pre {
-        Some(pre) => (
-            pre.q_seed,
-            pre.q_inner,
-            pre.data_cost + prob.prior_cost(start),
-        ),
-        None => {
-            let q_seed = prob.initial_coords(start);
-            let mut q = q_seed.clone();
-            let cost = prob.inner(start, &mut q, &mut IkWorkspace::new(prob.model));
-            (q_seed, q, cost)
-        }
-    };
     let probes: Vec<(Fit, Vec<f64>)> = (0..n)
         .into_par_iter()
         .map(|k| {
@@ -211,8 +188,7 @@ pub fn run(
             } else {
                 probe_point(prob, start, settings, k)
             };
-            let mut q0: Vec<Vec<f64>> = q_before.iter().step_by(stride).cloned().collect();
-            coarse.inner(&p0, &mut q0, &mut IkWorkspace::new(prob.model));
+            let q0 = coarse.initial_coords(&p0);
             let mut h = History::default();
             let fit = solve_joint(&coarse, &coarse.to_scaled(&p0), q0, &short, &mut h);
             (fit, h.0)
@@ -254,6 +230,21 @@ pub fn run(
         .chain(second.filter(|&k| apart(k)))
         .collect();
     let probe_objective_mm2 = probes.iter().map(|p| mm2(p.0.cost)).collect();
+    // The given start on every frame: the objective before the fit.
+    // (The σ estimate computed both at the same start on the same frames.)
+    let (q_before_start, q_before, cost_before) = match pre {
+        Some(pre) => (
+            pre.q_seed,
+            pre.q_inner,
+            pre.data_cost + prob.prior_cost(start),
+        ),
+        None => {
+            let q_seed = prob.initial_coords(start);
+            let mut q = q_seed.clone();
+            let cost = prob.inner(start, &mut q, &mut IkWorkspace::new(prob.model));
+            (q_seed, q, cost)
+        }
+    };
     // The given start's seeded coordinates go to its finishing solve (moved, not copied).
     let q_before_start = std::sync::Mutex::new(Some(q_before_start));
     let finish_one = |k: usize| {
@@ -270,9 +261,7 @@ pub fn run(
         } else if let Some(q) = seeded {
             q
         } else {
-            let mut q = q_before.clone();
-            prob.inner(&f.p, &mut q, &mut IkWorkspace::new(prob.model));
-            q
+            prob.initial_coords(&f.p)
         };
         let fit = solve_joint(prob, &f.s, q0, &finish, &mut h);
         (fit, h.0)
@@ -380,9 +369,9 @@ mod tests {
     use crate::model::Model;
 
     /// The whole global phase on a trial long enough for every parallel pass this module
-    /// and [`crate::calibrate::Problem`] run (probes on every 8th frame started from the given
-    /// start's inner solutions, two seeded chunks of starting coordinates, a finishing solve
-    /// of a probe that is not the given start): the same bits on 1, 2 and 3 threads.
+    /// and [`crate::calibrate::Problem`] run (probes on every 8th frame, two seeded chunks of
+    /// starting coordinates, inner passes in tasks, a finishing solve of a probe that is not
+    /// the given start): the same bits on 1, 2 and 3 threads.
     #[test]
     fn global_phase_gives_the_same_bits_on_any_thread_count() {
         let model = Model::compile(&lower_limb(Side::Right)).unwrap();
