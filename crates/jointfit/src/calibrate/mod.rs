@@ -40,12 +40,14 @@ use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::ik::{
-    chunk_ranges, seed_frame, solve_frame, undetermined_coordinate, FrameStatus, IkOptions,
+    seed_frame, solve_frame, trial_chunk_ranges, undetermined_coordinate, FrameStatus, IkOptions,
     IkWorkspace, MarkerMap,
 };
+use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::{Model, ParamId};
 pub use crate::solver::Termination;
 use crate::trial::Trial;
+use nalgebra::Vector3;
 pub use targets::Targets;
 
 #[derive(Debug, Error, PartialEq)]
@@ -120,8 +122,12 @@ fn group_choices(model: &Model) -> String {
     names.join(", ")
 }
 
-/// Frames per parallel work item of [`Problem::inner`] (fixed: it sets the order of the sum).
+/// Frames per partial sum of [`Problem::inner`] (fixed: it sets the order of the sum).
 pub const INNER_CHUNK: usize = 256;
+
+/// Frames per parallel task of [`Problem::inner`] (any value gives the same result; small
+/// enough that a 143-frame trial is split between the threads).
+pub const INNER_TASK: usize = 16;
 
 /// One calibration problem: model, free parameters, the frames to fit (their targets read
 /// from the trials in place, which therefore live as long as the problem).
@@ -243,42 +249,49 @@ impl<'m> Problem<'m> {
     /// Returns `e_inner(p)`, the summed weighted squared marker error (m²), plus the prior
     /// term [`Problem::prior_cost`] when a prior is attached.
     ///
-    /// The frames are solved in fixed chunks of [`INNER_CHUNK`] in parallel (each frame's
-    /// solve depends only on its own targets and start); each chunk sums its frames in order
-    /// and the chunk sums are added in chunk order, so the result is the same bit for bit on
-    /// any number of threads. `ws` serves a problem of a single chunk (no thread is started).
+    /// Each frame's solve depends only on its own targets and start, so the frames are solved
+    /// in parallel tasks of [`INNER_TASK`] frames (a trial of a few hundred frames keeps
+    /// every thread busy) and each frame's cost is kept; the costs are then summed as a fixed
+    /// tree, in frame order within chunks of [`INNER_CHUNK`] and the chunk sums in chunk
+    /// order, so the result is the same bit for bit on any number of threads. `ws` serves a
+    /// problem of a single task (no thread is started).
     pub fn inner(&self, p: &[f64], qs: &mut [Vec<f64>], ws: &mut IkWorkspace) -> f64 {
-        let solve_chunk = |c: usize, qs: &mut [Vec<f64>], ws: &mut IkWorkspace| {
-            let mut total = 0.0;
-            let mut buf = Vec::with_capacity(self.frames.n_markers());
-            for (i, q) in qs.iter_mut().enumerate() {
-                let targets = self.frames.fill(c * INNER_CHUNK + i, &mut buf);
-                let fit = solve_frame(self.model, p, targets, q, &self.ik, ws);
-                debug_assert!(fit.status != FrameStatus::Converged || fit.cost.is_finite());
-                total += fit.cost;
-            }
-            total
-        };
-        let total: f64 = if qs.len() <= INNER_CHUNK {
-            solve_chunk(0, qs, ws)
+        let solve_task =
+            |t: usize, qs: &mut [Vec<f64>], costs: &mut [f64], ws: &mut IkWorkspace| {
+                let mut buf = Vec::with_capacity(self.frames.n_markers());
+                for (i, (q, c)) in qs.iter_mut().zip(costs.iter_mut()).enumerate() {
+                    let targets = self.frames.fill(t * INNER_TASK + i, &mut buf);
+                    let fit = solve_frame(self.model, p, targets, q, &self.ik, ws);
+                    debug_assert!(fit.status != FrameStatus::Converged || fit.cost.is_finite());
+                    *c = fit.cost;
+                }
+            };
+        let mut costs = vec![0.0; qs.len()];
+        if qs.len() <= INNER_TASK {
+            solve_task(0, qs, &mut costs, ws);
         } else {
-            let parts: Vec<f64> = qs
-                .par_chunks_mut(INNER_CHUNK)
+            qs.par_chunks_mut(INNER_TASK)
+                .zip(costs.par_chunks_mut(INNER_TASK))
                 .enumerate()
-                .map_init(
+                .for_each_init(
                     || IkWorkspace::new(self.model),
-                    |ws, (c, qs)| solve_chunk(c, qs, ws),
-                )
-                .collect();
-            parts.iter().sum()
-        };
+                    |ws, (t, (qs, costs))| solve_task(t, qs, costs, ws),
+                );
+        }
+        let total: f64 = costs
+            .chunks(INNER_CHUNK)
+            .map(|chunk| chunk.iter().fold(0.0, |total, &c| total + c))
+            .sum();
         total + self.prior_cost(p)
     }
 
     /// Starting coordinates for every frame at `p`: seeded IK, warm-started within each trial
-    /// from the frame before, in the fixed parallel chunks of [`chunk_ranges`] (each chunk's
-    /// first frame seeded too), so the result does not depend on the number of threads. The
-    /// loop of [`crate::ik::warm_started_coords`], on targets gathered from the trials.
+    /// from the frame before, in the fixed parallel chunks of [`trial_chunk_ranges`] (each
+    /// chunk's first frame seeded too), so the result does not depend on the number of
+    /// threads. The loop of [`crate::ik::warm_started_coords`], on targets gathered from the
+    /// trials; like the `ik` command (and unlike that function's [`crate::ik::chunk_ranges`]),
+    /// a problem of 128 to 1023 frames is cut into two chunks, so that a gait trial's seeded
+    /// IK runs on two cores (`docs/performance.md`: the cost is one more seed).
     pub fn initial_coords(&self, p: &[f64]) -> Vec<Vec<f64>> {
         let origin = &self.origin;
         // The coordinates are allocated here, on the calling thread, and the chunks fill
@@ -288,7 +301,7 @@ impl<'m> Problem<'m> {
         let mut out = vec![vec![0.0; self.model.n_q()]; self.frames.len()];
         let mut pieces = Vec::new();
         let mut rest: &mut [Vec<f64>] = &mut out;
-        for range in chunk_ranges(self.frames.len(), false) {
+        for range in trial_chunk_ranges(self.frames.len(), false) {
             let (piece, tail) = std::mem::take(&mut rest).split_at_mut(range.len());
             pieces.push((range, piece));
             rest = tail;
@@ -314,24 +327,60 @@ impl<'m> Problem<'m> {
 
     /// RMS marker distance over every present marker sample for `p` and coordinates `qs` (m).
     pub fn marker_rms(&self, p: &[f64], qs: &[Vec<f64>]) -> f64 {
-        let mut kin = crate::kinematics::KinData::new(self.model);
-        let errors = self.frames.iter().zip(qs).flat_map(|(targets, q)| {
-            crate::kinematics::forward_kinematics(
-                self.model,
-                p,
-                q,
-                crate::kinematics::Want::POSITIONS,
-                &mut kin,
-            );
-            targets
-                .iter()
-                .zip(kin.markers.clone())
-                .map(|(t, x)| (t - x).norm())
-                .collect::<Vec<_>>()
+        let (mut s, mut n) = (0.0, 0usize);
+        self.visit_marker_errors(p, qs, |_, e| {
+            let v = e.norm();
+            if !v.is_nan() {
+                s += v * v;
+                n += 1;
+            }
         });
-        crate::ik::rms(errors)
+        if n == 0 {
+            f64::NAN
+        } else {
+            (s / n as f64).sqrt()
+        }
+    }
+
+    /// Calls `visit(marker, target − model marker)` for every frame and model marker, in
+    /// frame order then marker order (NaN for a missing marker), at `p` and coordinates `qs`.
+    /// The forward kinematics run in parallel over blocks of [`ERROR_BLOCK`] frames and the
+    /// visits follow in order on the calling thread, so any sum the caller forms has the
+    /// same bits on any number of threads (and as a serial loop).
+    pub fn visit_marker_errors(
+        &self,
+        p: &[f64],
+        qs: &[Vec<f64>],
+        mut visit: impl FnMut(usize, &Vector3<f64>),
+    ) {
+        const TASK: usize = 16;
+        let nm = self.model.n_markers();
+        let mut errors: Vec<Vector3<f64>> = Vec::new();
+        for first in (0..qs.len()).step_by(ERROR_BLOCK) {
+            let last = (first + ERROR_BLOCK).min(qs.len());
+            errors.resize((last - first) * nm, Vector3::zeros());
+            errors.par_chunks_mut(TASK * nm).enumerate().for_each_init(
+                || (KinData::new(self.model), Vec::new()),
+                |(kin, buf), (t, out)| {
+                    for (i, e) in out.chunks_mut(nm).enumerate() {
+                        let f = first + t * TASK + i;
+                        let targets = self.frames.fill(f, buf);
+                        forward_kinematics(self.model, p, &qs[f], Want::POSITIONS, kin);
+                        for (j, e) in e.iter_mut().enumerate() {
+                            *e = targets[j] - kin.markers[j];
+                        }
+                    }
+                },
+            );
+            for (k, e) in errors.iter().enumerate() {
+                visit(k % nm, e);
+            }
+        }
     }
 }
+
+/// Frames per block of [`Problem::visit_marker_errors`] (bounds its memory on long trials).
+pub const ERROR_BLOCK: usize = 4096;
 
 /// The result of an outer solve.
 #[derive(Debug, Clone)]
@@ -396,10 +445,16 @@ mod tests {
     /// coordinates are those of the IK's own chunked warm start on the copied targets.
     #[test]
     fn inner_and_initial_coords_do_not_depend_on_the_thread_count() {
+        // 2100 frames: four seeded chunks, nine partial sums; 150: two chunks, one sum.
+        for frames in [2100, 150] {
+            thread_count_case(frames);
+        }
+    }
+
+    fn thread_count_case(frames: usize) {
         let model = Model::compile(&lower_limb(Side::Right)).unwrap();
         let p = model.nominal_params();
         let mut kin = KinData::new(&model);
-        let frames = 2100;
         let mut positions = Vec::new();
         for f in 0..frames {
             let mut q = model.default_coords();
@@ -432,8 +487,29 @@ mod tests {
         assert!(f64::from_bits(one.2) > 0.0);
         assert_eq!(one, run(2));
         assert_eq!(one, run(3));
-        let copied: Vec<Vec<Vector3<f64>>> = prob.frames.iter().collect();
-        let ik = crate::ik::warm_started_coords(&model, &p, &copied, |f| f == 0, &prob.ik);
-        assert_eq!(one.0, ik);
+        // Oracle: the frames solved one after the other with one workspace, summed in frame
+        // order within each chunk of INNER_CHUNK frames (the sum of the serial code before
+        // the frames were split into tasks).
+        let mut ws = IkWorkspace::new(&model);
+        let mut q = one.0.clone();
+        let mut buf = Vec::new();
+        let mut sums = Vec::new();
+        for (f, q) in q.iter_mut().enumerate() {
+            if f % INNER_CHUNK == 0 {
+                sums.push(0.0);
+            }
+            let targets = prob.frames.fill(f, &mut buf);
+            *sums.last_mut().unwrap() +=
+                solve_frame(&model, &p, targets, q, &prob.ik, &mut ws).cost;
+        }
+        let serial: f64 = sums.iter().sum::<f64>() + prob.prior_cost(&p);
+        assert_eq!(serial.to_bits(), one.2);
+        assert_eq!(q, one.1);
+        if frames >= 1024 {
+            // Here the IK's chunks are the calibration's.
+            let copied: Vec<Vec<Vector3<f64>>> = prob.frames.iter().collect();
+            let ik = crate::ik::warm_started_coords(&model, &p, &copied, |f| f == 0, &prob.ik);
+            assert_eq!(one.0, ik);
+        }
     }
 }

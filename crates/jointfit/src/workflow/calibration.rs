@@ -11,7 +11,6 @@ use crate::calibrate::uncertainty::{
 };
 use crate::calibrate::varpro::{solve_varpro, VarProOptions};
 use crate::calibrate::{Fit, Problem};
-use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::{Model, ParamId, MM_PER_M};
 use crate::trial::Trial;
 
@@ -242,18 +241,13 @@ pub(super) fn run_start(
 
 /// Per-model-marker RMS distance (m) for parameters `p` and per-frame coordinates.
 fn per_marker_rms(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
-    let model = prob.model;
-    let mut kin = KinData::new(model);
-    let mut sums = vec![(0.0, 0usize); model.n_markers()];
-    for (targets, q) in prob.frames.iter().zip(qs) {
-        forward_kinematics(model, p, q, Want::POSITIONS, &mut kin);
-        for j in 0..model.n_markers() {
-            if !targets[j].x.is_nan() {
-                sums[j].0 += (targets[j] - kin.markers[j]).norm_squared();
-                sums[j].1 += 1;
-            }
+    let mut sums = vec![(0.0, 0usize); prob.model.n_markers()];
+    prob.visit_marker_errors(p, qs, |j, e| {
+        if !e.x.is_nan() {
+            sums[j].0 += e.norm_squared();
+            sums[j].1 += 1;
         }
-    }
+    });
     sums.iter()
         .map(|(s, n)| {
             if *n == 0 {

@@ -90,22 +90,26 @@ pub(super) fn block_jackknife(
 ) -> DMatrix<f64> {
     let n = scores.len();
     let nf = red.normal.nrows();
-    let mut deltas = Vec::with_capacity(blocks);
     let groups = red.group_normals.len();
     let gs = red.group_size;
-    for k in 0..blocks {
-        let (ga, gb) = (k * groups / blocks, (k + 1) * groups / blocks);
-        let mut s = red.normal.clone();
-        let mut g = DVector::zeros(nf);
-        for ai in &red.group_normals[ga..gb] {
-            s -= ai;
-        }
-        for si in &scores[(ga * gs).min(n)..(gb * gs).min(n)] {
-            g += si;
-        }
-        let (inv, _, _) = pseudo_inverse(&((&s + s.transpose()) * 0.5));
-        deltas.push(inv * g);
-    }
+    // Each block's removal is independent of the others': they run in parallel and are
+    // collected in block order (the same bits on any number of threads).
+    let deltas: Vec<DVector<f64>> = (0..blocks)
+        .into_par_iter()
+        .map(|k| {
+            let (ga, gb) = (k * groups / blocks, (k + 1) * groups / blocks);
+            let mut s = red.normal.clone();
+            let mut g = DVector::zeros(nf);
+            for ai in &red.group_normals[ga..gb] {
+                s -= ai;
+            }
+            for si in &scores[(ga * gs).min(n)..(gb * gs).min(n)] {
+                g += si;
+            }
+            let (inv, _, _) = pseudo_inverse(&((&s + s.transpose()) * 0.5));
+            inv * g
+        })
+        .collect();
     let mean = deltas.iter().fold(DVector::zeros(nf), |a, d| a + d) / blocks as f64;
     let mut c = DMatrix::zeros(nf, nf);
     for d in &deltas {
