@@ -45,10 +45,13 @@
 //! * Frame numbers must count up by one from the first row, which gives
 //!   [`Trial::first_frame`].
 //! * The `Time` column must agree with `DataRate` (within half a frame plus the precision the
-//!   times are printed with). [`read_trc`]/[`parse_trc`] refuse a file where it does not
-//!   ([`TrcErrorKind::TimeMismatch`]): the trial's rate would be wrong. [`read_trc_file`]/
-//!   [`parse_trc_file`] accept it with a [`TrcNote::TimeDisagreesWithRate`] and return the
-//!   times as written in [`TrcFile::times`].
+//!   times are printed with). When it does not, but is evenly spaced at another rate (a file
+//!   resampled without updating its header, e.g. OpenSim's own exports of walking2/5.c3d:
+//!   every 10th frame, DataRate still 250 Hz), the trial takes the Time column's rate, as
+//!   OpenSim's reader does, with a [`TrcNote::RateFromTimeColumn`]. Otherwise
+//!   [`read_trc`]/[`parse_trc`] refuse the file ([`TrcErrorKind::TimeMismatch`]): the trial's
+//!   rate would be wrong. [`read_trc_file`]/[`parse_trc_file`] accept it with a
+//!   [`TrcNote::TimeDisagreesWithRate`] and return the times as written in [`TrcFile::times`].
 //! * Otherwise the trial keeps the Time column as its time stamps ([`Trial::time`]; OpenSim
 //!   copies them into its results), unless they do not strictly increase: then times are
 //!   frame index / `DataRate` and a [`TrcNote::TimeNotIncreasing`] says so.
@@ -166,6 +169,11 @@ pub enum TrcNote {
         expected: f64,
         found: f64,
     },
+    #[error(
+        "DataRate is {header} Hz but the Time column is evenly spaced at {column} Hz (a \
+         resampled file?); the trial uses the Time column's times and rate, as OpenSim does"
+    )]
+    RateFromTimeColumn { header: f64, column: f64 },
     #[error(
         "line {line}: frame {frame} has time {found} s, not after the previous row's; the \
          trial's times are frame / DataRate"

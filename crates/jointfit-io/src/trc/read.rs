@@ -148,9 +148,31 @@ pub(super) fn finish(head: Head, mut data: Parsed) -> Result<TrcFile, TrcErrorKi
     // The Time column becomes the trial's time stamps when it agrees with DataRate and
     // strictly increases (OpenSim copies it into its results).
     let mut keep_times = true;
+    let mut rate = header.data_rate;
     if let Some(note) = data.check_times(header.data_rate) {
-        notes.push(note);
-        keep_times = false;
+        // A file resampled without updating its header (OpenSim's own exports of walking2/5
+        // keep every 10th frame and DataRate 250 Hz): when the Time column is evenly spaced
+        // at another rate, OpenSim uses the Time column, and so does the trial (its time
+        // stamps as written, its rate the column's).
+        // The last row may be off the grid: a file resampled by keeping every k-th frame
+        // and the original last frame (OpenSim's walking5 export: last step 8 ms, not 40).
+        let n = data.times.len().saturating_sub(1);
+        match column_rate(&data.times).filter(|&r| data.check_first_times(r, n).is_none()) {
+            Some(r) => {
+                // Equal rates: only the last row is off the grid, its time kept as written.
+                if (r - header.data_rate).abs() > 1e-9 * r {
+                    notes.push(TrcNote::RateFromTimeColumn {
+                        header: header.data_rate,
+                        column: r,
+                    });
+                }
+                rate = r;
+            }
+            None => {
+                notes.push(note);
+                keep_times = false;
+            }
+        }
     } else if let Some(i) = (1..data.times.len()).find(|&i| data.times[i] <= data.times[i - 1]) {
         let (line, frame, _) = data.time_cells[i];
         notes.push(TrcNote::TimeNotIncreasing {
@@ -191,7 +213,7 @@ pub(super) fn finish(head: Head, mut data: Parsed) -> Result<TrcFile, TrcErrorKi
         .filter_map(|(l, &k)| k.then_some(l))
         .collect();
     let stamps = keep_times.then(|| times.clone());
-    let trial = Trial::new(labels, header.data_rate, first_frame, positions)
+    let trial = Trial::new(labels, rate, first_frame, positions)
         .and_then(|t| t.with_times(stamps))
         .map_err(|e| {
             // Labels and rate were validated above; keep a precise message if that ever changes.
@@ -357,4 +379,25 @@ fn parse_labels(
         }
     }
     Ok(labels)
+}
+
+/// The rate of an evenly spaced Time column, one over its median step (rounded to a whole
+/// number of Hz when within 1e-6 of one: printed times lose digits; the median, because a
+/// resampled file may end on the original last frame, off the grid); `None` for fewer than
+/// two rows or times that do not increase.
+fn column_rate(times: &[f64]) -> Option<f64> {
+    if times.len() < 2 || times.windows(2).any(|w| w[1] <= w[0]) {
+        return None;
+    }
+    let mut steps: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).collect();
+    steps.sort_by(f64::total_cmp);
+    let r = 1.0 / steps[steps.len() / 2];
+    if !(r.is_finite() && r > 0.0) {
+        return None;
+    }
+    Some(if (r - r.round()).abs() <= 1e-6 * r {
+        r.round()
+    } else {
+        r
+    })
 }

@@ -376,9 +376,15 @@ impl Parsed {
     /// Compares the Time column with `first time + i / rate`; a note for the first row off by
     /// more than half a frame plus the printed precision.
     pub(super) fn check_times(&self, rate: f64) -> Option<TrcNote> {
+        self.check_first_times(rate, self.times.len())
+    }
+
+    /// [`Self::check_times`] on the first `n` rows only.
+    pub(super) fn check_first_times(&self, rate: f64, n: usize) -> Option<TrcNote> {
         let t0 = *self.times.first()?;
         let res0 = self.time_cells.first()?.2;
-        for (i, (&t, &(line, frame, res))) in self.times.iter().zip(&self.time_cells).enumerate() {
+        let rows = self.times.iter().zip(&self.time_cells).take(n);
+        for (i, (&t, &(line, frame, res))) in rows.enumerate() {
             let expected = t0 + i as f64 / rate;
             // Both times are rounded to their printed precision; the first is taken to be
             // printed like this row (a shortest-form writer prints it as a bare `0`).

@@ -170,22 +170,34 @@ fn unreadable_path_is_an_io_error_naming_it() {
 
 #[test]
 fn time_column_disagreeing_with_rate() {
-    let text = base()
+    // Evenly spaced at 10 Hz under DataRate 100: the Time column's rate is taken.
+    let resampled = base()
         .replace("\t0.01\t", "\t0.10\t")
         .replace("\t0.02\t", "\t0.20\t");
+    let t = parse_trc(&resampled, "case.trc").unwrap();
+    assert_eq!(t.rate(), 10.0);
+    let f = parse_trc_file(&resampled, "case.trc").unwrap();
+    assert!(matches!(
+        f.notes[..],
+        [TrcNote::RateFromTimeColumn { header, column }] if header == 100.0 && column == 10.0
+    ));
+    // Unevenly spaced: no rate fits, refused.
+    let text = base()
+        .replace("\t0.01\t", "\t0.02\t")
+        .replace("\t0.02\t1.5", "\t0.20\t1.5");
     let e = parse_trc(&text, "case.trc").unwrap_err();
     assert_eq!(error_kind(&e.kind), "TimeMismatch");
-    assert!(e.to_string().contains("line 8"), "{e}");
+    assert!(e.to_string().contains("line 9"), "{e}");
     let f = parse_trc_file(&text, "case.trc").unwrap();
     assert!(matches!(
         f.notes[..],
         [TrcNote::TimeDisagreesWithRate {
-            line: 8,
-            frame: 2,
+            line: 9,
+            frame: 3,
             ..
         }]
     ));
-    assert_eq!(f.times, [0.0, 0.1, 0.2]);
+    assert_eq!(f.times, [0.0, 0.02, 0.2]);
     // Coarsely printed times are within tolerance: 60 Hz written with 2 decimals.
     let coarse = base()
         .replace("100\t100\t3", "60\t60\t3")
