@@ -120,6 +120,16 @@ pub fn print_policy(
              (--keep-markers NAMES or --no-marker-policy to override)"
         );
     }
+    for b in envelope.iter().filter(|b| !b.active) {
+        if let Some(x) = b.unbounded_fit_mm {
+            println!(
+                "{}: the fit without the anatomical envelope ended at {x:.1} mm, lateral of the \
+                 bound {:.1} mm (hip centre medial to the ASIS); refitted with the bound, it \
+                 ends inside",
+                b.parameter, b.limit_mm
+            );
+        }
+    }
     for b in envelope.iter().filter(|b| b.active) {
         println!(
             "{}: {} (bound {:.1} mm = 0.9 × half the inter-ASIS width − 1 mm; --no-envelope \

@@ -15,6 +15,13 @@
 //! search inside the parameters' bounds) respects it. A parameter that ends on this bound is
 //! reported as held at the anatomical limit, not as determined by the trial.
 //!
+//! The bound is imposed only when the fit without it ends outside the envelope
+//! (`refine::calibrate_refined` then fits again with it): a fit that ends inside is the
+//! bounded problem's optimum as well. Bounding every fit would change results that never
+//! reach the bound, because the bounds set the parameters' scaling to `[−1, 1]`, which the
+//! HAC bandwidth rule and so the marker-noise estimate see: on opencap walking1 (right) a
+//! bound 5 mm beyond the fit moved σ from 10.11 to 12.28 mm and the hip centre by 12 mm.
+//!
 //! Applied only to a maximum a posteriori fit (`FitSettings::priors`) with
 //! `FitSettings::anatomical_envelope`: `--prior none` and `reproduce table1|table2` keep the
 //! paper's unregularized fit in Reinbolt's bounds. Nothing changes when the start (or the
@@ -50,6 +57,9 @@ pub struct EnvelopeBound {
     pub model_upper_mm: f64,
     /// Whether the fitted value sits on the bound (set after the fit, [`mark_active`]).
     pub active: bool,
+    /// Where the fit without the bound ended (mm) when it ended outside the envelope and the
+    /// fit was redone with the bound; `None` when it ended inside (the bound was not needed).
+    pub unbounded_fit_mm: Option<f64>,
 }
 
 /// Text of an active bound, as the outputs print it.
@@ -77,6 +87,7 @@ pub fn bounded_spec(model: &Model, start: &[f64]) -> Option<(ModelSpec, Vec<Enve
             limit_mm: limit * MM_PER_M,
             model_upper_mm: par.upper * MM_PER_M,
             active: false,
+            unbounded_fit_mm: None,
         });
         spec.parameters[id.0].upper = limit;
     }

@@ -62,7 +62,6 @@ fn policy_refines_the_marker_displaced_by_20_mm() {
     for seed in [31u64, 32, 33, 34, 35] {
         let (truth_spec, p_true, moved) = one_moved(&spec, &model, seed);
         let trial = synthetic(&Model::compile(&truth_spec).unwrap(), &p_true, 60, 0.0003);
-        let d = decide(&model, &start, &[&trial], &[]);
         let base = FitSettings {
             marker_noise: Some(0.001),
             ..FitSettings::default()

@@ -145,6 +145,12 @@ pub fn calibrate_refined(
                     .is_some_and(|id| p[id.0] * MM_PER_M > b.limit_mm)
             });
             if outside {
+                for b in bounds.iter_mut() {
+                    b.unbounded_fit_mm = aug
+                        .param_id(&b.parameter)
+                        .map(|id| p[id.0] * MM_PER_M)
+                        .filter(|&x| x > b.limit_mm);
+                }
                 aug = Model::compile(&bounded).map_err(|e| WorkflowError::Refine(e.to_string()))?;
                 calibration = calibrate(&aug, &aug_start, &used, &aug_free, settings, observer)?;
                 super::envelope::mark_active(&mut bounds, &aug, &calibration.fit.p);
