@@ -124,6 +124,18 @@ pub struct CalibrateArgs {
     /// Prior SD (mm per axis) of a refined marker position (with --refine-markers).
     #[arg(long, value_name = "MM", default_value_t = 10.0, allow_negative_numbers = true, value_parser = crate::validate::positive)]
     pub marker_prior_sd_mm: f64,
+    /// Markers the default marker policy leaves as they are (comma-separated). The policy
+    /// (with a prior) refines the position of a marker that sits differently in the motion
+    /// trial than in the static trial and leaves out one the IK rejects in many frames.
+    #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+    pub keep_markers: Vec<String>,
+    /// Turn the default marker policy off (markers as the static trial placed them).
+    #[arg(long)]
+    pub no_marker_policy: bool,
+    /// Do not bound the hip centre medial to the ASIS (the default with a prior bounds
+    /// hip_pelvis_lateral at 0.9 × half the inter-ASIS width less 1 mm).
+    #[arg(long)]
+    pub no_envelope: bool,
 }
 
 /// `calibrate --json`: the calibration and the wall time.
@@ -137,6 +149,10 @@ pub struct Report<'a> {
     pub refined_markers: &'a [workflow::refine::RefinedMarker],
     #[serde(skip_serializing_if = "<[_]>::is_empty")]
     pub marker_trade_offs: &'a [workflow::refine::TradeOff],
+    /// The default marker policy's decisions (refined or left-out markers, with why).
+    pub marker_decisions: &'a [workflow::marker_policy::MarkerDecision],
+    /// The anatomical envelope's bounds, `active` when the fit ended on one.
+    pub envelope: &'a [workflow::envelope::EnvelopeBound],
     /// With a prior: the short summary the text output prints (which joints the trial
     /// determined, which the prior held, which trial would determine them).
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -211,6 +227,9 @@ pub fn fit_settings(args: &CalibrateArgs) -> FitSettings {
             .refine_markers
             .then_some(args.marker_prior_sd_mm * jointfit::model::M_PER_MM),
         max_iterations: args.max_iter,
+        anatomical_envelope: !args.no_envelope,
+        marker_policy: !args.no_marker_policy,
+        keep_markers: args.keep_markers.clone(),
         ..FitSettings::default()
     }
 }
@@ -317,12 +336,15 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
                 calibration: cal,
                 refined_markers: &refined.markers,
                 marker_trade_offs: &refined.trade_offs,
+                marker_decisions: &refined.marker_decisions,
+                envelope: &refined.envelope,
                 information_summary: information_summary(cal),
                 seconds,
                 trials_read: &read,
             };
             println!("{}", serde_json::to_string_pretty(&report)?);
         } else {
+            crate::calibrate_text::print_policy(&refined.marker_decisions, &refined.envelope);
             print_report(cal, seconds);
             crate::prior_args::print_refinement(&refined.markers, &refined.trade_offs);
         }

@@ -105,6 +105,42 @@ pub fn print_report(report: &Calibration, seconds: f64) {
     print_notes(report);
 }
 
+/// The default marker policy's decisions and the anatomical envelope, one line each (before
+/// the report: the RMS it prints is over the markers the fit used).
+pub fn print_policy(
+    decisions: &[jointfit::workflow::marker_policy::MarkerDecision],
+    envelope: &[jointfit::workflow::envelope::EnvelopeBound],
+) {
+    for d in decisions {
+        println!("marker policy: {}", d.line());
+    }
+    if !decisions.is_empty() {
+        println!(
+            "marker policy: the marker RMS below is over the markers the fit used \
+             (--keep-markers NAMES or --no-marker-policy to override)"
+        );
+    }
+    for b in envelope.iter().filter(|b| !b.active) {
+        if let Some(x) = b.unbounded_fit_mm {
+            println!(
+                "{}: the fit without the anatomical envelope ended at {x:.1} mm, lateral of the \
+                 bound {:.1} mm (hip centre medial to the ASIS); refitted with the bound, it \
+                 ends inside",
+                b.parameter, b.limit_mm
+            );
+        }
+    }
+    for b in envelope.iter().filter(|b| b.active) {
+        println!(
+            "{}: {} (bound {:.1} mm = 0.9 × half the inter-ASIS width − 1 mm; --no-envelope \
+             to lift it)",
+            b.parameter,
+            jointfit::workflow::envelope::HELD_AT_LIMIT,
+            b.limit_mm
+        );
+    }
+}
+
 /// The data-share class in the table's words.
 fn source_short(s: jointfit::calibrate::prior::Source) -> &'static str {
     use jointfit::calibrate::prior::Source;
@@ -112,6 +148,7 @@ fn source_short(s: jointfit::calibrate::prior::Source) -> &'static str {
         Source::DeterminedByTrial => "trial",
         Source::Partly => "trial + prior",
         Source::HeldByPrior => "prior",
+        Source::HeldAtLimit => "anatomical limit",
     }
 }
 

@@ -238,7 +238,7 @@ fn main() {
                 let c = match src {
                     Source::DeterminedByTrial => 0,
                     Source::Partly => 1,
-                    Source::HeldByPrior => 2,
+                    Source::HeldByPrior | Source::HeldAtLimit => 2,
                 };
                 t.source[c].0 += 1;
                 t.source[c].1 += covers;

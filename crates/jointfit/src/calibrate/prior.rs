@@ -130,6 +130,9 @@ pub enum Source {
     Partly,
     /// < 30 %: the estimate is essentially the prior's (landmark/functional) value.
     HeldByPrior,
+    /// The estimate sits on a bound of the anatomical envelope (`workflow::envelope`): the
+    /// limit, not the trial, decided it.
+    HeldAtLimit,
 }
 
 impl Source {
@@ -147,6 +150,7 @@ impl Source {
             Source::DeterminedByTrial => "determined by the trial",
             Source::Partly => "partly determined",
             Source::HeldByPrior => "held by the prior",
+            Source::HeldAtLimit => "held at the anatomical limit (hip centre medial to the ASIS)",
         }
     }
 }
@@ -159,6 +163,7 @@ pub fn information_summary(rows: &[(String, String, Option<Source>)]) -> Vec<Str
         Source::DeterminedByTrial,
         Source::Partly,
         Source::HeldByPrior,
+        Source::HeldAtLimit,
     ] {
         let mut by_group: Vec<(String, Vec<String>)> = Vec::new();
         for (group, name, s) in rows {

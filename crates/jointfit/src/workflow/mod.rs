@@ -19,10 +19,13 @@
 
 mod calibration;
 mod check;
+pub mod envelope;
 pub mod global;
 mod hold;
 mod ik;
 pub mod map;
+pub mod marker_policy;
+pub mod marker_rigid;
 pub mod redundant;
 pub mod refine;
 mod starts;
@@ -156,6 +159,15 @@ pub struct FitSettings {
     /// after the swarm; the swarm keeps its own budget); `None`: the solver's default (200).
     /// A fit that reaches it ends [`Termination::IterationLimit`].
     pub max_iterations: Option<usize>,
+    /// With a prior: bound the hip centre medial to the ASIS ([`envelope`]), honoured by
+    /// [`refine::calibrate_refined`].
+    pub anatomical_envelope: bool,
+    /// With a prior: refine the markers the data checks find displaced since the static
+    /// trial, leave out broken ones ([`marker_policy`]), honoured by
+    /// [`refine::calibrate_refined`].
+    pub marker_policy: bool,
+    /// Markers the marker policy leaves as they are.
+    pub keep_markers: Vec<String>,
 }
 
 impl Default for FitSettings {
@@ -175,6 +187,9 @@ impl Default for FitSettings {
             marker_noise: None,
             refine_markers: None,
             max_iterations: None,
+            anatomical_envelope: true,
+            marker_policy: true,
+            keep_markers: Vec::new(),
         }
     }
 }
@@ -257,6 +272,8 @@ mod tests {
     }
 }
 
+#[cfg(test)]
+mod policy_tests;
 #[cfg(test)]
 mod refine_tests;
 #[cfg(test)]

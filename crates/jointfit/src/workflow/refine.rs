@@ -11,7 +11,10 @@
 
 use serde::Serialize;
 
+use super::envelope::{EnvelopeBound, HELD_AT_LIMIT};
+use super::marker_policy::{decide, refined, without_excluded, MarkerDecision};
 use super::{calibrate, Calibration, FitSettings, Observer, WorkflowError};
+use crate::calibrate::prior::Source;
 use crate::model::refine::{
     fold_marker_parameters, marker_param_name, tracking_markers, with_marker_parameters,
     MARKER_GROUP,
@@ -44,22 +47,37 @@ pub struct TradeOff {
 #[derive(Debug, Clone)]
 pub struct RefinedCalibration {
     /// The model that was fitted: the input plus the marker position parameters (original
-    /// parameter, coordinate and marker indices unchanged).
+    /// parameter, coordinate and marker indices unchanged) and the envelope's bounds.
     pub model: Model,
     /// The calibration of `model` (its rows include the marker parameters, group `markers`).
     pub calibration: Calibration,
-    /// The fitted description in the input's structure: fitted joint parameters (priors as
-    /// in the input) and the refined marker positions.
+    /// The fitted description in the input's structure: fitted joint parameters (priors and
+    /// bounds as in the input) and the refined marker positions.
     pub fitted: ModelSpec,
     pub markers: Vec<RefinedMarker>,
     /// Strongest first.
     pub trade_offs: Vec<TradeOff>,
+    /// The anatomical envelope's bounds ([`super::envelope`]), each marked active when the
+    /// fit ended on it.
+    pub envelope: Vec<EnvelopeBound>,
+    /// The marker policy's decisions ([`super::marker_policy`]).
+    pub marker_decisions: Vec<MarkerDecision>,
 }
 
-/// Calibrates `model` like [`calibrate`], refining the positions of the markers the trials
-/// measure when `settings.refine_markers` is set (prior SD in m); without it, a plain
-/// calibration in the same result type. Refinement needs the priors (`settings.priors`):
-/// without one, a marker position trades off exactly with the joint it hangs from.
+/// Calibrates `model` like [`calibrate`], and, for a maximum a posteriori fit (the settings
+/// ask for priors and a free parameter has one):
+///
+/// * with `settings.anatomical_envelope`, bounds the hip centre medial to the ASIS
+///   ([`super::envelope`]);
+/// * with `settings.marker_policy`, refines the markers displaced since the static trial and
+///   leaves broken ones out ([`super::marker_policy`]; `settings.keep_markers` are left as
+///   they are);
+/// * with `settings.refine_markers` (prior SD in m), refines every marker the trials measure
+///   (a displaced one with the larger of that SD and the policy's).
+///
+/// Without any of these, a plain calibration in the same result type. Refinement needs the
+/// priors (`settings.priors`): without one, a marker position trades off exactly with the
+/// joint it hangs from.
 pub fn calibrate_refined(
     model: &Model,
     start: &[f64],
@@ -68,36 +86,86 @@ pub fn calibrate_refined(
     settings: &FitSettings,
     observer: &mut dyn Observer,
 ) -> Result<RefinedCalibration, WorkflowError> {
-    let Some(sd) = settings.refine_markers else {
-        let calibration = calibrate(model, start, trials, free, settings, observer)?;
-        let fitted = model.spec_with_nominal(&calibration.fit.p);
-        return Ok(RefinedCalibration {
-            model: model.clone(),
-            calibration,
-            fitted,
-            markers: Vec::new(),
-            trade_offs: Vec::new(),
-        });
-    };
-    if !settings.priors {
+    if settings.refine_markers.is_some() && !settings.priors {
         return Err(WorkflowError::RefineNeedsPriors);
     }
-    let present: Vec<Vec<String>> = trials.iter().map(|t| t.labels().to_vec()).collect();
-    let spec = model.spec();
-    let names = tracking_markers(spec, &present);
-    let aug = Model::compile(&with_marker_parameters(spec, &names, sd))
-        .map_err(|e| WorkflowError::Refine(e.to_string()))?;
+    let map_fit = settings.priors
+        && free
+            .iter()
+            .any(|id| model.parameters()[id.0].prior_sd.is_some());
+    let decisions = match map_fit && settings.marker_policy {
+        true => decide(model, start, trials, &settings.keep_markers),
+        false => Vec::new(),
+    };
+    let used = without_excluded(trials, &decisions);
+    let used: Vec<&Trial> = used.iter().collect();
+    let mut to_refine: Vec<(&str, f64)> = refined(&decisions);
+    if let Some(sd) = settings.refine_markers {
+        let present: Vec<Vec<String>> = used.iter().map(|t| t.labels().to_vec()).collect();
+        let policy = to_refine;
+        to_refine = tracking_markers(model.spec(), &present)
+            .into_iter()
+            .map(|n| {
+                let own = policy.iter().find(|(m, _)| *m == n).map_or(0.0, |p| p.1);
+                (n, sd.max(own))
+            })
+            .collect();
+    }
+    // One call per prior SD, in the order of the markers (the parameters' order).
+    let mut spec = model.spec().clone();
+    let mut sds: Vec<f64> = to_refine.iter().map(|r| r.1).collect();
+    sds.sort_by(f64::total_cmp);
+    sds.dedup();
+    for sd in sds {
+        let names: Vec<&str> = to_refine
+            .iter()
+            .filter(|r| r.1 == sd)
+            .map(|r| r.0)
+            .collect();
+        spec = with_marker_parameters(&spec, &names, sd);
+    }
+    let mut aug = match to_refine.is_empty() {
+        true => model.clone(),
+        false => Model::compile(&spec).map_err(|e| WorkflowError::Refine(e.to_string()))?,
+    };
     let mut aug_start = aug.nominal_params();
     aug_start[..start.len()].copy_from_slice(start);
     let mut aug_free = free.to_vec();
     aug_free.extend(aug.params_in_group(MARKER_GROUP));
-    let calibration = calibrate(&aug, &aug_start, trials, &aug_free, settings, observer)?;
-    let p = &calibration.fit.p;
+    let mut calibration = calibrate(&aug, &aug_start, &used, &aug_free, settings, observer)?;
+    // The envelope: a fit inside it is the bounded problem's optimum too; one outside is
+    // refitted with the bound (`super::envelope`: bounding every fit would change the
+    // parameters' scaling, and with it the σ estimate, where the bound is never reached).
+    let mut envelope = Vec::new();
+    if map_fit && settings.anatomical_envelope {
+        if let Some((bounded, mut bounds)) = super::envelope::bounded_spec(&aug, &aug_start) {
+            let p = &calibration.fit.p;
+            let outside = bounds.iter().any(|b| {
+                aug.param_id(&b.parameter)
+                    .is_some_and(|id| p[id.0] * MM_PER_M > b.limit_mm)
+            });
+            if outside {
+                for b in bounds.iter_mut() {
+                    b.unbounded_fit_mm = aug
+                        .param_id(&b.parameter)
+                        .map(|id| p[id.0] * MM_PER_M)
+                        .filter(|&x| x > b.limit_mm);
+                }
+                aug = Model::compile(&bounded).map_err(|e| WorkflowError::Refine(e.to_string()))?;
+                calibration = calibrate(&aug, &aug_start, &used, &aug_free, settings, observer)?;
+                super::envelope::mark_active(&mut bounds, &aug, &calibration.fit.p);
+            }
+            envelope = bounds;
+        }
+    }
+    let p = calibration.fit.p.clone();
+    note_envelope(&mut calibration, &envelope);
     let mut fitted = model.spec_with_nominal(&p[..start.len()]);
-    fitted.markers = fold_marker_parameters(&aug.spec_with_nominal(p)).markers;
-    let markers = names
+    fitted.markers = fold_marker_parameters(&aug.spec_with_nominal(&p)).markers;
+    let spec = model.spec();
+    let markers = to_refine
         .iter()
-        .filter_map(|&n| {
+        .filter_map(|&(n, _)| {
             let before = spec.markers.iter().find(|m| m.name == n)?;
             let after = fitted.markers.iter().find(|m| m.name == n)?;
             let mm = |x: [f64; 3]| x.map(|v| v * MM_PER_M);
@@ -114,6 +182,7 @@ pub fn calibrate_refined(
             })
         })
         .collect();
+    let names: Vec<&str> = to_refine.iter().map(|r| r.0).collect();
     let trade_offs = trade_offs(&aug, &calibration, &names);
     Ok(RefinedCalibration {
         model: aug,
@@ -121,7 +190,25 @@ pub fn calibrate_refined(
         fitted,
         markers,
         trade_offs,
+        envelope,
+        marker_decisions: decisions,
     })
+}
+
+/// A parameter held on an active envelope bound: its information class says so (the limit,
+/// not the trial, decided it), and so does the plausibility check of the hip's lateral
+/// offset.
+fn note_envelope(cal: &mut Calibration, envelope: &[EnvelopeBound]) {
+    for b in envelope.iter().filter(|b| b.active) {
+        if let Some(row) = cal.parameters.iter_mut().find(|r| r.name == b.parameter) {
+            row.source = Some(Source::HeldAtLimit);
+        }
+        for c in cal.plausibility.iter_mut() {
+            if c.parameters.len() == 1 && c.parameters[0] == b.parameter {
+                c.check = format!("{} ({HELD_AT_LIMIT})", c.check);
+            }
+        }
+    }
 }
 
 /// Pairs (marker offset, joint parameter) with |posterior correlation| ≥ 0.5.
