@@ -170,8 +170,10 @@ pub enum TrcNote {
         found: f64,
     },
     #[error(
-        "DataRate is {header} Hz but the Time column is evenly spaced at {column} Hz (a \
-         resampled file?); the trial uses the Time column's times and rate, as OpenSim does"
+        "DataRate is {} Hz but the Time column is evenly spaced at {} Hz (a resampled \
+         file?); the trial uses the Time column's times and rate, as OpenSim does",
+        rate_text(*.header),
+        rate_text(*.column)
     )]
     RateFromTimeColumn { header: f64, column: f64 },
     #[error(
@@ -338,6 +340,16 @@ pub fn read_trc(path: &Path) -> Result<Trial, TrcError> {
 /// Parses TRC text (see [`read_trc`]); `name` is used in error messages.
 pub fn parse_trc(text: &str, name: &str) -> Result<Trial, TrcError> {
     strict(parse_trc_file(text, name)?, name)
+}
+
+/// A rate as short text: plain for everyday values, in exponent form outside 1e-3..1e6 Hz
+/// (a header may hold 1e300; a message must not print 300 digits).
+fn rate_text(v: f64) -> String {
+    if (1e-3..1e6).contains(&v.abs()) {
+        v.to_string()
+    } else {
+        format!("{v:e}")
+    }
 }
 
 pub(crate) fn strict(file: TrcFile, name: &str) -> Result<Trial, TrcError> {
