@@ -191,8 +191,55 @@ pub fn calibrate(
     let groups: Vec<&str> = opts.joints.iter().map(String::as_str).collect();
     let free = params_for_groups(model, &groups)?;
     let settings = opts.settings();
-    let cal = workflow::calibrate(model, &start, trials, &free, &settings, &mut NoObserver)?;
-    Ok(summarize(model, &start, &cal, opts.method))
+    // The command's calibration (`jointfit calibrate`): with a prior, the anatomical envelope
+    // and the marker policy ([`workflow::refine::calibrate_refined`]).
+    let refined = workflow::refine::calibrate_refined(
+        model,
+        &start,
+        trials,
+        &free,
+        &settings,
+        &mut NoObserver,
+    )?;
+    // The fitted model may carry marker parameters after the input's (start: their nominal).
+    let mut start_all = refined.model.nominal_params();
+    start_all[..start.len()].copy_from_slice(&start);
+    let mut out = summarize(
+        &refined.model,
+        &start_all,
+        &refined.calibration,
+        opts.method,
+    );
+    // The fitted description as the command writes it: the input's structure (its priors and
+    // bounds), the fitted joint parameters, the refined marker positions.
+    let mut fitted = model.spec_with_nominal(&refined.calibration.fit.p[..model.n_p()]);
+    fitted.markers = refined.fitted.markers.clone();
+    fitted.name = format!("{} (fitted)", model.spec().name);
+    out.model = fitted;
+    let mut notes: Vec<String> = refined
+        .marker_decisions
+        .iter()
+        .map(|d| format!("marker policy: {}", d.line()))
+        .collect();
+    for b in &refined.envelope {
+        if b.active {
+            notes.push(format!(
+                "{}: {} (bound {:.1} mm)",
+                b.parameter,
+                workflow::envelope::HELD_AT_LIMIT,
+                b.limit_mm
+            ));
+        } else if let Some(x) = b.unbounded_fit_mm {
+            notes.push(format!(
+                "{}: the fit without the anatomical envelope ended at {x:.1} mm, lateral of the \
+                 bound {:.1} mm; refitted with the bound, it ends inside",
+                b.parameter, b.limit_mm
+            ));
+        }
+    }
+    notes.append(&mut out.warnings);
+    out.warnings = notes;
+    Ok(out)
 }
 
 /// SI rows, warnings and the fitted description of a finished calibration of `model` from
