@@ -229,6 +229,24 @@ pub(super) mod tests {
         }
     }
 
+    /// `line` (a data row) made bad at random: a bad number, a jump of the frame number, a
+    /// short row, a value after the last marker, or a bad time.
+    pub(in crate::trc) fn bad_row(line: &str, rng: &mut impl rand::Rng) -> String {
+        let cells: Vec<&str> = line.split('\t').collect();
+        match rng.gen_range(0..5) {
+            0 => line.replacen('.', "x", 3),
+            1 => {
+                let frame = (cells[0].trim().parse::<i64>().unwrap() + 3).to_string();
+                let mut c = cells.clone();
+                c[0] = &frame;
+                c.join("\t")
+            }
+            2 => cells[..cells.len() / 2].join("\t"),
+            3 => format!("{line}\t\t7"),
+            _ => line.replacen(cells[1], "t", 1),
+        }
+    }
+
     /// Bad rows at random places of walking1 (a bad number, a jump of the frame number, a
     /// short row, a value after the last marker, a bad time), several at once: in blocks of
     /// 1 byte, 1 kB and one block the error is the same, the one on the first bad line.
@@ -249,19 +267,7 @@ pub(super) mod tests {
                 if lines[i].trim().is_empty() {
                     continue;
                 }
-                let cells: Vec<&str> = lines[i].split('\t').collect();
-                edited[i] = match rng.gen_range(0..5) {
-                    0 => lines[i].replacen('.', "x", 3),
-                    1 => {
-                        let frame = (cells[0].trim().parse::<i64>().unwrap() + 3).to_string();
-                        let mut c = cells.clone();
-                        c[0] = &frame;
-                        c.join("\t")
-                    }
-                    2 => cells[..cells.len() / 2].join("\t"),
-                    3 => format!("{}\t\t7", lines[i]),
-                    _ => lines[i].replacen(cells[1], "t", 1),
-                };
+                edited[i] = bad_row(lines[i], &mut rng);
                 bad.push(i + 1);
             }
             let edited = edited.join("\n");

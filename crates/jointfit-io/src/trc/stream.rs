@@ -295,19 +295,7 @@ mod tests {
             let mut edited: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
             for _ in 0..rng.gen_range(1..4) {
                 let i = rng.gen_range(5..lines.len());
-                let cells: Vec<&str> = lines[i].split('\t').collect();
-                edited[i] = match rng.gen_range(0..5) {
-                    0 => lines[i].replacen('.', "x", 3),
-                    1 => {
-                        let frame = (cells[0].trim().parse::<i64>().unwrap() + 3).to_string();
-                        let mut c = cells.clone();
-                        c[0] = &frame;
-                        c.join("\t")
-                    }
-                    2 => cells[..cells.len() / 2].join("\t"),
-                    3 => format!("{}\t\t7", lines[i]),
-                    _ => lines[i].replacen(cells[1], "t", 1),
-                };
+                edited[i] = crate::trc::blocks::tests::bad_row(lines[i], &mut rng);
             }
             variants.push(edited.join("\n").into_bytes());
         }
