@@ -5,4 +5,4 @@
 //! These live in the core crate (`jointfit::testing`, hidden from its docs) because the core's
 //! own unit tests need them too; this module is the name every other crate's tests use.
 
-pub use jointfit::testing::{data_dir, data_file, in_ci, python};
+pub use jointfit::testing::{data_dir, data_file, data_files, in_ci, python};

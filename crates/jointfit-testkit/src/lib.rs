@@ -16,5 +16,5 @@ pub mod scratch;
 pub mod script;
 pub mod synth;
 
-pub use env::{data_dir, data_file, in_ci, python};
+pub use env::{data_dir, data_file, data_files, in_ci, python};
 pub use scratch::{entries, scratch, snapshot, ScratchDir};

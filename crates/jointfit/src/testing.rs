@@ -48,6 +48,29 @@ pub fn data_file(relative: &str) -> Option<PathBuf> {
     Some(path)
 }
 
+/// Every file under the shared data directory whose extension is one of `exts` (compared
+/// without regard to case), sorted by path; `None` when the directory is absent outside CI.
+pub fn data_files(exts: &[&str]) -> Option<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    let mut stack = vec![data_dir()?];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).expect("the data directory is readable") {
+            let p = e.expect("the data directory is readable").path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p
+                .extension()
+                .and_then(|x| x.to_str())
+                .is_some_and(|x| exts.iter().any(|e| x.eq_ignore_ascii_case(e)))
+            {
+                out.push(p);
+            }
+        }
+    }
+    out.sort();
+    Some(out)
+}
+
 /// The Python interpreter with the oracle packages, or `None` (with a notice) outside CI.
 ///
 /// # Panics

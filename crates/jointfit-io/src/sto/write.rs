@@ -199,20 +199,9 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("out.mot");
         let mut tables = vec![long_table(3 * ROWS_PER_CHUNK + 5), long_table(1)];
-        if let Some(data) = jointfit_testkit::data_dir() {
-            let mut stack = vec![data];
-            while let Some(d) = stack.pop() {
-                for e in std::fs::read_dir(&d).unwrap() {
-                    let p = e.unwrap().path();
-                    let ext = p.extension().and_then(|x| x.to_str()).unwrap_or("");
-                    if p.is_dir() {
-                        stack.push(p);
-                    } else if ["mot", "sto"].contains(&ext) {
-                        if let Ok(t) = crate::sto::read_sto(&p) {
-                            tables.push(t);
-                        }
-                    }
-                }
+        for p in jointfit_testkit::data_files(&["mot", "sto"]).unwrap_or_default() {
+            if let Ok(t) = crate::sto::read_sto(&p) {
+                tables.push(t);
             }
         }
         let mut written = 0;

@@ -199,21 +199,9 @@ pub(super) mod tests {
     /// the same trial bit for bit, times, header and notes, or the same error.
     #[test]
     fn every_shared_trc_parses_the_same_in_any_blocks() {
-        let Some(dir) = jointfit_testkit::data_dir() else {
+        let Some(files) = jointfit_testkit::data_files(&["trc"]) else {
             return;
         };
-        let mut files = Vec::new();
-        let mut stack = vec![dir];
-        while let Some(d) = stack.pop() {
-            for e in std::fs::read_dir(&d).unwrap() {
-                let p = e.unwrap().path();
-                if p.is_dir() {
-                    stack.push(p);
-                } else if p.extension().is_some_and(|x| x.eq_ignore_ascii_case("trc")) {
-                    files.push(p);
-                }
-            }
-        }
         assert!(files.len() >= 20, "{files:?}");
         for path in files {
             let bytes = std::fs::read(&path).unwrap();

@@ -203,23 +203,7 @@ mod tests {
 
     /// Every TRC file of the shared data, whole: the path of each test below.
     fn shared_trc_files() -> Vec<std::path::PathBuf> {
-        let Some(dir) = jointfit_testkit::data_dir() else {
-            return Vec::new();
-        };
-        let mut files = Vec::new();
-        let mut stack = vec![dir];
-        while let Some(d) = stack.pop() {
-            for e in std::fs::read_dir(&d).unwrap() {
-                let p = e.unwrap().path();
-                if p.is_dir() {
-                    stack.push(p);
-                } else if p.extension().is_some_and(|x| x.eq_ignore_ascii_case("trc")) {
-                    files.push(p);
-                }
-            }
-        }
-        files.sort();
-        files
+        jointfit_testkit::data_files(&["trc"]).unwrap_or_default()
     }
 
     /// The file read block by block (blocks of `block` bytes), against its text parsed in

@@ -26,21 +26,7 @@ const TOL: f64 = 1e-9;
 
 /// Every `.osim` under the data directory (`None`: no data, skipped).
 pub(super) fn shared_models() -> Option<Vec<PathBuf>> {
-    let dir = jointfit_testkit::data_dir()?;
-    let mut out = Vec::new();
-    let mut stack = vec![dir];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else if p.extension().is_some_and(|x| x == "osim") {
-                out.push(p);
-            }
-        }
-    }
-    out.sort();
-    Some(out)
+    jointfit_testkit::data_files(&["osim"])
 }
 
 /// A random pose: each free coordinate within its range and within ±0.6 (rad or m·0.1)

@@ -1,28 +1,8 @@
 //! The TRC reader's fast path and selective reads (`read_trc_selected`) against an oracle
 //! written here: each cell split by tabs and parsed by `str::parse::<f64>`, times the unit.
 
-use std::path::{Path, PathBuf};
-
 use jointfit_io::trc::{parse_trc_file, parse_trc_selected, read_trc_file, TrcErrorKind};
-use jointfit_testkit::data_dir;
-
-/// Every `.trc` file under `dir`, sorted.
-fn trc_files(dir: &Path) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else if p.extension().is_some_and(|x| x.eq_ignore_ascii_case("trc")) {
-                out.push(p);
-            }
-        }
-    }
-    out.sort();
-    out
-}
+use jointfit_testkit::data_files;
 
 /// The positions the oracle reads from `text` (labels of line 4 in every third cell from
 /// the third): per data row, per marker, `Some([x, y, z])` in metres or `None` for a gap
@@ -57,8 +37,9 @@ fn oracle(text: &str, markers: usize, scale: f64) -> Vec<Vec<Option<[f64; 3]>>> 
 /// bit for bit, with the same times and frames.
 #[test]
 fn every_shared_trc_reads_bit_identically() {
-    let Some(dir) = data_dir() else { return };
-    let files = trc_files(&dir);
+    let Some(files) = data_files(&["trc"]) else {
+        return;
+    };
     assert!(files.len() >= 20, "{} TRC files", files.len());
     let mut read = 0;
     for path in &files {
