@@ -6,6 +6,7 @@ mod oracle;
 mod osim;
 mod osim_joint_model;
 mod osim_joint_types;
+mod osim_names;
 mod osim_read;
 mod sto;
 mod sto_edges;
