@@ -2,6 +2,7 @@
 
 use jointfit::calibrate::uncertainty::UncertaintyOptions;
 use jointfit::model::{Model, ModelSpec};
+use jointfit::workflow::Method;
 use jointfit_experiments::synth::Motion;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -32,6 +33,12 @@ pub struct Args {
     /// One thigh or shank marker (seeded) moved this far (mm, seeded direction) since the
     /// static trial: the trial is synthesized with it moved, the model keeps its place.
     pub misplace_mm: f64,
+    /// With `--default`: the marker policy and the anatomical envelope off (`--no-policy`,
+    /// `--no-envelope`).
+    pub no_policy: bool,
+    pub no_envelope: bool,
+    /// The solver (`joint`, `varpro`, `pso`).
+    pub method: Method,
 }
 
 pub fn parse() -> Result<Args, String> {
@@ -51,6 +58,9 @@ pub fn parse() -> Result<Args, String> {
         default: false,
         compare_none: false,
         misplace_mm: 0.0,
+        method: Method::Joint,
+        no_policy: false,
+        no_envelope: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
@@ -58,9 +68,18 @@ pub fn parse() -> Result<Args, String> {
             "--prior" => a.prior = true,
             "--default" => a.default = true,
             "--compare-none" => a.compare_none = true,
+            "--no-policy" => a.no_policy = true,
+            "--no-envelope" => a.no_envelope = true,
             _ => {}
         }
-        if ["--prior", "--default", "--compare-none"].contains(&flag.as_str()) {
+        let switches = [
+            "--prior",
+            "--default",
+            "--compare-none",
+            "--no-policy",
+            "--no-envelope",
+        ];
+        if switches.contains(&flag.as_str()) {
             continue;
         }
         let v = it.next().ok_or(format!("{flag} needs a value"))?;
@@ -76,6 +95,7 @@ pub fn parse() -> Result<Args, String> {
             "--first-seed" => a.first_seed = v.parse().map_err(|e| bad(&e))?,
             "--joints" => a.joints = v.clone(),
             "--dump" => a.dump = Some(v.clone()),
+            "--method" => a.method = v.parse().map_err(|e| bad(&e))?,
             "--misplace-mm" => a.misplace_mm = v.parse().map_err(|e| bad(&e))?,
             "--perturb" => {
                 let (mm, deg) = v.split_once(',').ok_or(format!("{flag} MM,DEG"))?;

@@ -29,7 +29,7 @@
 //! them, and `workflow::refine::calibrate_refined` with the default settings, marker policy
 //! and anatomical envelope included; the truth as without it; prints what the policy and the
 //! envelope did), `--misplace-mm MM` (one thigh or shank marker, seeded, moved MM since the
-//! static trial: the trial is synthesized with it moved), `--compare-none` (each trial also
+//! static trial: the trial is synthesized with it moved), `--no-policy`, `--no-envelope` (with `--default`), `--method joint|varpro|pso`, `--compare-none` (each trial also
 //! fitted with `--prior none`; prints both fits' RMS parameter errors per joint). Figures:
 //! `docs/global.md` (coverage) and `docs/identifiability.md`.
 
@@ -138,14 +138,17 @@ fn main() {
             ..UncertaintyOptions::default()
         };
         let settings = FitSettings {
+            method: args.method,
             seed,
             uncertainty: Some(opts),
+            marker_policy: !args.no_policy,
+            anatomical_envelope: !args.no_envelope,
             ..FitSettings::default()
         };
         let cal = if args.default {
             let r = calibrate_refined(&model, &start, &[&trial], &free, &settings, &mut NoObserver)
                 .expect("calibration");
-            policy.add(&r.marker_decisions, &r.envelope, moved.as_deref());
+            policy.add(seed, &r.marker_decisions, &r.envelope, moved.as_deref());
             r.calibration
         } else {
             calibrate(&model, &start, &[&trial], &free, &settings, &mut NoObserver)
@@ -154,6 +157,7 @@ fn main() {
         err_fit.add(&model, &free, &cal.fit.p, &truth);
         if args.compare_none {
             let none = FitSettings {
+                method: args.method,
                 seed,
                 priors: false,
                 ..FitSettings::default()

@@ -57,11 +57,14 @@ pub struct Policy {
     envelope_refits: usize,
     envelope_active: usize,
     names: BTreeMap<String, usize>,
+    /// `seed: decision` lines.
+    lines: Vec<String>,
 }
 
 impl Policy {
     pub fn add(
         &mut self,
+        seed: u64,
         decisions: &[MarkerDecision],
         envelope: &[EnvelopeBound],
         moved: Option<&str>,
@@ -75,6 +78,12 @@ impl Policy {
             }
             let right = moved == Some(d.marker.as_str()) && d.action == MarkerAction::Refine;
             self.false_decisions += !right as usize;
+            self.lines.push(format!(
+                "  seed {seed}: {} (offset {:.1} mm, spread {:.1} mm)",
+                d.line(),
+                d.offset_mm,
+                d.spread_mm
+            ));
             let key = format!("{} {:?}", d.marker, d.action).to_lowercase();
             *self.names.entry(key).or_default() += 1;
         }
@@ -100,6 +109,9 @@ impl Policy {
             self.false_decisions,
             if names.is_empty() { "none".to_string() } else { names.join(", ") }
         );
+        for l in &self.lines {
+            println!("{l}");
+        }
         if self.misplaced > 0 {
             println!(
                 "misplaced marker refined in {} of {} trials",
