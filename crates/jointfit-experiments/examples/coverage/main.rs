@@ -148,7 +148,18 @@ fn main() {
         let cal = if args.default {
             let r = calibrate_refined(&model, &start, &[&trial], &free, &settings, &mut NoObserver)
                 .expect("calibration");
-            policy.add(seed, &r.marker_decisions, &r.envelope, moved.as_deref());
+            let truth_mm = |name: &str| {
+                model
+                    .param_id(name)
+                    .map_or(f64::NAN, |id| truth[id.0] * 1e3)
+            };
+            policy.add(
+                seed,
+                &r.marker_decisions,
+                &r.envelope,
+                moved.as_deref(),
+                truth_mm,
+            );
             r.calibration
         } else {
             calibrate(&model, &start, &[&trial], &free, &settings, &mut NoObserver)

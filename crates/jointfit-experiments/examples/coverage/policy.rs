@@ -56,6 +56,8 @@ pub struct Policy {
     false_decisions: usize,
     envelope_refits: usize,
     envelope_active: usize,
+    /// Refits whose truth lies inside the envelope (the bound was not needed).
+    envelope_truth_inside: usize,
     names: BTreeMap<String, usize>,
     /// `seed: decision` lines.
     lines: Vec<String>,
@@ -68,6 +70,7 @@ impl Policy {
         decisions: &[MarkerDecision],
         envelope: &[EnvelopeBound],
         moved: Option<&str>,
+        truth_mm: impl Fn(&str) -> f64,
     ) {
         self.trials += 1;
         self.trials_acted += !decisions.is_empty() as usize;
@@ -94,7 +97,13 @@ impl Policy {
                 .any(|d| d.marker == m && d.action == MarkerAction::Refine)
                 as usize;
         }
-        self.envelope_refits += envelope.iter().any(|b| b.unbounded_fit_mm.is_some()) as usize;
+        let refit = envelope.iter().any(|b| b.unbounded_fit_mm.is_some());
+        self.envelope_refits += refit as usize;
+        self.envelope_truth_inside += (refit
+            && envelope
+                .iter()
+                .all(|b| truth_mm(&b.parameter) <= b.limit_mm))
+            as usize;
         self.envelope_active += envelope.iter().any(|b| b.active) as usize;
     }
 
@@ -119,8 +128,8 @@ impl Policy {
             );
         }
         println!(
-            "anatomical envelope: refitted with the bound in {} of {} trials, held on it in {}",
-            self.envelope_refits, self.trials, self.envelope_active
+            "anatomical envelope: refitted with the bound in {} of {} trials (truth inside the bound in {}), held on it in {}",
+            self.envelope_refits, self.trials, self.envelope_truth_inside, self.envelope_active
         );
     }
 }
