@@ -15,14 +15,14 @@
 //!   "moved" 30–39 mm in synthetic trials whose hip centre was off, none on the shared
 //!   trials); then the
 //!   displaced ones and every other marker of it off by `≥ 15 mm` (the moved ones pull the IK
-//!   and hide how far the others moved). A lone displaced marker is refined only by the
-//!   leave-one-out test of [`super::marker_rigid`] (thresholds [`RIGID_MIN_OFFSET`],
-//!   [`RIGID_MIN_RATIO`]), which does not see the joints: its residual after IK at the
-//!   landmark model also carries the landmark joints' error, and on synthetic trials with
-//!   the joints drawn from their landmark priors and no marker moved, the heel (the foot's
-//!   three markers allow no leave-one-out test) sat 30–35 mm off in 5 % of the trials
-//!   (`docs/priors.md`, "The policy and the envelope on synthetic trials"); it is never left
-//!   out either (a steady offset is not a broken marker). Only these markers get position parameters
+//!   and hide how far the others moved); and a lone displaced marker on a segment with more
+//!   than [`MIN_OTHERS`] markers in the trial. On a smaller segment a lone marker's residual
+//!   after IK at the landmark model is the landmark joints' error as much as its own: on
+//!   synthetic trials with the joints drawn from their landmark priors and no marker moved,
+//!   the heel (the foot's three markers) sat 30–35 mm off in 5 % of the trials
+//!   (`docs/priors.md`, "The policy and the envelope on synthetic trials"); there only the
+//!   leave-one-out test below could refine it, and it needs four markers. A displaced marker
+//!   is never left out (a steady offset is not a broken marker). Only these markers get position parameters
 //!   ([`crate::model::refine`]), with the prior SD that lets the refinement reach the offset
 //!   (`max(10 mm, ⌈‖μ‖_max / 5 / 5 mm⌉ · 5 mm)`, the bound being 5 SDs, as the offset
 //!   finding's own advice); the joints then stop absorbing the offset. Refining every marker
@@ -46,7 +46,7 @@ use crate::residual_checks::{frames_looked_at, offsets_of_fit, MarkerOffset, MIN
 use crate::residual_checks::{MIN_OFFSET, MIN_RATIO};
 use crate::trial::Trial;
 
-use super::marker_rigid::{rigid_displaced, RigidOffset};
+use super::marker_rigid::{rigid_displaced, RigidOffset, MIN_OTHERS};
 
 /// Smallest mean of the leave-one-out residual ([`super::marker_rigid`]) that refines a
 /// marker (m), and its smallest ratio to the spread (module docs).
@@ -153,6 +153,8 @@ pub fn decide(
             // off means the IK put the segment elsewhere, which only the joints' error
             // does (a moved pelvis cluster is the hip centre moving); no cluster there.
             let rooted = model.segments()[s].parent.is_none();
+            // Enough markers of the segment in the trial for the leave-one-out test.
+            let checkable = here.len() > MIN_OTHERS;
             let cluster = !rooted && moved.len() >= 2 && 2 * moved.len() >= here.len();
             let largest = moved.iter().map(|o| o.size()).fold(0.0, f64::max);
             for o in &here {
@@ -177,11 +179,12 @@ pub fn decide(
                     o.frames,
                     t + 1
                 );
-                // A lone displaced marker is left to the leave-one-out test below: its
-                // residual after IK at the landmark model also carries the landmark joints'
-                // error (module docs).
-                let refined = if o.displaced() && cluster {
-                    Some((prior_sd_for(largest), steady))
+                // A lone displaced marker on a segment too small for the leave-one-out test
+                // is not refined: its residual after IK at the landmark model is the landmark
+                // joints' error as much as its own (module docs).
+                let refined = if o.displaced() && (cluster || checkable) {
+                    let sd = prior_sd_for(if cluster { largest } else { o.size() });
+                    Some((sd, steady))
                 } else if cluster && o.size() >= MIN_OFFSET / 2.0 {
                     let reason = format!(
                         "its {} cluster moved; it sits {:.0} mm off (spread {:.0} mm) in trial {}",
