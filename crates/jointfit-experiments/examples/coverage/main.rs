@@ -24,12 +24,23 @@
 //! estimators and labels), `--prior` (the landmark priors of
 //! `personalize` on every parameter, the truth drawn from them: `N(nominal, sd²)` clipped to
 //! the bounds, and the default maximum a posteriori fit; coverage is then also tallied per
-//! information label: determined by the trial / partly / held by the prior). Figures:
+//! information label: determined by the trial / partly / held by the prior), `--default` (the
+//! command's default entry point: the landmark priors in the model as `personalize` writes
+//! them, and `workflow::refine::calibrate_refined` with the default settings, marker policy
+//! and anatomical envelope included; the truth as without it; prints what the policy and the
+//! envelope did), `--misplace-mm MM` (one thigh or shank marker, seeded, moved MM since the
+//! static trial: the trial is synthesized with it moved), `--no-policy`, `--no-envelope` (with `--default`), `--method joint|varpro|pso`, `--compare-none` (each trial also
+//! fitted with `--prior none`; prints both fits' RMS parameter errors per joint). Figures:
 //! `docs/global.md` (coverage) and `docs/identifiability.md`.
 
-use std::time::Instant;
+mod args;
+mod policy;
 
 use std::io::Write;
+use std::time::Instant;
+
+use args::{from_prior, misplaced, parse};
+use policy::{Errors, Policy, GROUPS};
 
 use jointfit::calibrate::prior::Source;
 use jointfit::calibrate::uncertainty::{Identifiability, UncertaintyOptions};
@@ -39,75 +50,9 @@ use jointfit::landmarks::priors::fill_landmark_priors;
 use jointfit::landmarks::HipCentreMethod;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::{Model, Unit};
+use jointfit::workflow::refine::calibrate_refined;
 use jointfit::workflow::{calibrate, perturb, FitSettings, NoObserver};
-use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion, SkinNoise};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
-
-struct Args {
-    seeds: u64,
-    frames: usize,
-    motion: Motion,
-    noise_mm: f64,
-    replicates: usize,
-    first_seed: u64,
-    bandwidth: Option<f64>,
-    blocks: usize,
-    /// `Some((mm, deg))`: truth = nominal moved by up to these (the hard cases of issue 12).
-    perturb: Option<(f64, f64)>,
-    joints: String,
-    /// Per (seed, parameter) rows as CSV for offline analysis.
-    dump: Option<String>,
-    /// Landmark priors on the parameters, truth drawn from them.
-    prior: bool,
-}
-
-fn parse() -> Result<Args, String> {
-    let mut a = Args {
-        seeds: 50,
-        frames: 100,
-        motion: Motion::All,
-        noise_mm: 10.0,
-        replicates: 0,
-        first_seed: 1,
-        bandwidth: None,
-        blocks: UncertaintyOptions::default().jackknife_blocks,
-        perturb: None,
-        joints: "all".to_string(),
-        dump: None,
-        prior: false,
-    };
-    let mut it = std::env::args().skip(1);
-    while let Some(flag) = it.next() {
-        if flag == "--prior" {
-            a.prior = true;
-            continue;
-        }
-        let v = it.next().ok_or(format!("{flag} needs a value"))?;
-        let bad = |e: &dyn std::fmt::Display| format!("{flag} {v}: {e}");
-        match flag.as_str() {
-            "--seeds" => a.seeds = v.parse().map_err(|e| bad(&e))?,
-            "--frames" => a.frames = v.parse().map_err(|e| bad(&e))?,
-            "--motion" => a.motion = v.parse().map_err(|e| bad(&e))?,
-            "--noise-mm" => a.noise_mm = v.parse().map_err(|e| bad(&e))?,
-            "--replicates" => a.replicates = v.parse().map_err(|e| bad(&e))?,
-            "--blocks" => a.blocks = v.parse().map_err(|e| bad(&e))?,
-            "--bandwidth" => a.bandwidth = Some(v.parse().map_err(|e| bad(&e))?),
-            "--first-seed" => a.first_seed = v.parse().map_err(|e| bad(&e))?,
-            "--joints" => a.joints = v.clone(),
-            "--dump" => a.dump = Some(v.clone()),
-            "--perturb" => {
-                let (mm, deg) = v.split_once(',').ok_or(format!("{flag} MM,DEG"))?;
-                a.perturb = Some((
-                    mm.parse().map_err(|e| bad(&e))?,
-                    deg.parse().map_err(|e| bad(&e))?,
-                ));
-            }
-            _ => return Err(format!("unknown option {flag}")),
-        }
-    }
-    Ok(a)
-}
+use jointfit_experiments::synth::{coordinates, markers, perturbed_params, SkinNoise};
 
 #[derive(Default, Clone)]
 struct Tally {
@@ -137,7 +82,7 @@ fn main() {
         }
     };
     let mut spec = lower_limb(Side::Right);
-    if args.prior {
+    if args.prior || args.default {
         fill_landmark_priors(&mut spec, HipCentreMethod::Bell);
     }
     let model = Model::compile(&spec).expect("built-in model compiles");
@@ -145,7 +90,9 @@ fn main() {
     let free =
         params_for_groups(&model, &[args.joints.as_str()]).expect("--joints hip|knee|ankle|all");
     let every: Vec<usize> = (0..model.n_p()).collect();
-    let groups = ["hip", "knee", "ankle"];
+    let groups = GROUPS;
+    let (mut err_fit, mut err_none, mut policy) =
+        (Errors::default(), Errors::default(), Policy::default());
     let mut by_group = vec![Tally::default(); groups.len()];
     let (mut flagged_err, mut flagged_n, mut ok_err, mut ok_n) = (0.0, 0usize, 0.0, 0usize);
     let (mut big_err, mut big_flagged) = (0usize, 0usize);
@@ -175,7 +122,9 @@ fn main() {
             seed: 10_000 + seed,
             ..SkinNoise::default()
         };
-        let (trial, _) = markers(&model, &truth, &coords, 50.0, Some(&noise));
+        let (true_spec, moved) = misplaced(&spec, args.misplace_mm, seed);
+        let true_model = Model::compile(&true_spec).expect("built-in model compiles");
+        let (trial, _) = markers(&true_model, &truth, &coords, 50.0, Some(&noise));
         // The fitted joints start at nominal; the others are held at the truth.
         let mut start = truth.clone();
         for id in &free {
@@ -189,12 +138,45 @@ fn main() {
             ..UncertaintyOptions::default()
         };
         let settings = FitSettings {
+            method: args.method,
             seed,
             uncertainty: Some(opts),
+            marker_policy: !args.no_policy,
+            anatomical_envelope: !args.no_envelope,
             ..FitSettings::default()
         };
-        let cal = calibrate(&model, &start, &[&trial], &free, &settings, &mut NoObserver)
-            .expect("calibration");
+        let cal = if args.default {
+            let r = calibrate_refined(&model, &start, &[&trial], &free, &settings, &mut NoObserver)
+                .expect("calibration");
+            let truth_mm = |name: &str| {
+                model
+                    .param_id(name)
+                    .map_or(f64::NAN, |id| truth[id.0] * 1e3)
+            };
+            policy.add(
+                seed,
+                &r.marker_decisions,
+                &r.envelope,
+                moved.as_deref(),
+                truth_mm,
+            );
+            r.calibration
+        } else {
+            calibrate(&model, &start, &[&trial], &free, &settings, &mut NoObserver)
+                .expect("calibration")
+        };
+        err_fit.add(&model, &free, &cal.fit.p, &truth);
+        if args.compare_none {
+            let none = FitSettings {
+                method: args.method,
+                seed,
+                priors: false,
+                ..FitSettings::default()
+            };
+            let fit = calibrate(&model, &start, &[&trial], &free, &none, &mut NoObserver)
+                .expect("calibration");
+            err_none.add(&model, &free, &fit.fit.p, &truth);
+        }
         let u = cal.uncertainty.expect("analysed");
         // The objective at the truth (inner problem solved there): a fit above it ended in
         // another minimum.
@@ -205,7 +187,8 @@ fn main() {
         };
         global_warnings += cal.global_warning.is_some() as usize;
         bw_sum += u.hac_bandwidth.unwrap_or(0.0);
-        for (k, p) in u.params.iter().enumerate() {
+        // With refined markers their parameters follow the joints' (group `markers`).
+        for (k, p) in u.params.iter().enumerate().take(free.len()) {
             let i = free[k].0;
             let f = model.parameters()[i].unit.display_scale();
             let threshold = match model.parameters()[i].unit {
@@ -407,22 +390,15 @@ fn main() {
     );
     println!("errors above the threshold: {big_err}, of which flagged: {big_flagged}");
     println!("fits warned not known to be the global optimum: {global_warnings}");
-}
-
-/// True parameters drawn from the model's priors, `N(prior mean, sd²)` (Box–Muller, seeded),
-/// clipped to the bounds; parameters without a prior keep their nominal value.
-fn from_prior(model: &Model, seed: u64) -> Vec<f64> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    model
-        .parameters()
-        .iter()
-        .map(|par| {
-            let (u1, u2): (f64, f64) = (rng.gen_range(f64::EPSILON..1.0), rng.gen());
-            let g = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
-            match par.prior_sd {
-                Some(sd) => (par.prior_mean + sd * g).clamp(par.lower, par.upper),
-                None => par.nominal,
-            }
-        })
-        .collect()
+    println!("RMS parameter error per joint (mm / deg):");
+    for (g, name) in groups.iter().enumerate() {
+        let none = match args.compare_none {
+            true => format!("; --prior none {}", err_none.cell(g)),
+            false => String::new(),
+        };
+        println!("  {name:<6} this fit {}{none}", err_fit.cell(g));
+    }
+    if args.default {
+        policy.print();
+    }
 }
