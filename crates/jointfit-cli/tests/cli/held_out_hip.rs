@@ -6,7 +6,7 @@
 //!
 //! The lab's estimate is OpenCap Expert1's `R_HJC`/`L_HJC`: a functional (pelvis–thigh
 //! common point) centre from the lab's own hip calibration trials, written into every trial as
-//! a virtual marker that moves with the four pelvis markers (`docs/priors.md`). The `opencap`
+//! a virtual marker that moves with the four pelvis markers (`docs/gait_table.md`). The `opencap`
 //! preset does not use it, so the landmark model is independent of it. Per frame it is put in
 //! the pelvis markers' frame (origin mid-ASIS, z from left to right ASIS, y normal to the
 //! ASIS–mid-PSIS plane) and carried into the model's pelvis frame by the same construction
