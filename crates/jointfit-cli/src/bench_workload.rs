@@ -9,7 +9,9 @@
 //!   read as `jointfit ik` reads it (`--up`, else the model's `lab_up`, else y).
 //! * `--model MODEL.osim --trial T`: a user's OpenSim model with the offset frames of one
 //!   leg's hip, knee and ankle as parameters (`calibrate MODEL.osim --joints hip_r,knee_r,
-//!   ankle_r`; `--side left` for `_l`).
+//!   ankle_r`; `--side left` for `_l`; a leg's only joint whose name has the word, such as
+//!   `walker_knee_r`, when there is no `knee_r`). Every selected offset scalar is free: the
+//!   bench's fit does not hold the redundant ones as `calibrate MODEL.osim` does.
 //! * Nothing: OpenCap's `opencap_expert1/{static1,walking1}.trc` with the `opencap` preset,
 //!   right leg, up y (the figures of `docs/performance.md`); without the shared data a
 //!   synthetic gait of the built-in leg stands in, and the source says so.
@@ -181,9 +183,23 @@ fn from_model(
         Side::Right => "r",
         Side::Left => "l",
     };
+    // hip_r, knee_r, ankle_r; or the one joint of the leg named after each (walker_knee_r).
     let joints: Vec<String> = ["hip", "knee", "ankle"]
         .iter()
-        .map(|j| format!("{j}_{suffix}"))
+        .map(|word| {
+            let plain = format!("{word}_{suffix}");
+            let named: Vec<&str> = osim
+                .spec
+                .joints
+                .iter()
+                .map(|j| j.name.as_str())
+                .filter(|n| n.ends_with(&format!("_{suffix}")) && n.contains(word))
+                .collect();
+            match named.as_slice() {
+                [one] if osim.spec.joints.iter().all(|j| j.name != plain) => one.to_string(),
+                _ => plain,
+            }
+        })
         .collect();
     let spec = jointfit_io::osim_read::workflow::selection_spec(&osim, &joints, &[])
         .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
