@@ -93,8 +93,9 @@ def run(args):
 
 
 def shown(args):
-    return "jointfit " + " ".join(a.replace(D, "$JOINTFIT_DATA").replace(W, "$W")
-                                  for a in args)
+    here = os.path.dirname(os.path.abspath(__file__))
+    return "jointfit " + " ".join(
+        a.replace(D, "$JOINTFIT_DATA").replace(W, "$W").replace(here, "scripts") for a in args)
 
 
 print("| subject | frames | markers | free p | OpenSim IK ms | jointfit IK ms (2 thr / 1) "
