@@ -57,7 +57,7 @@ pub struct SubjectArgs {
     pub markers: Option<String>,
     /// The leg to personalize (--static) or whose offsets to fit (--model MODEL.osim);
     /// default right.
-    #[arg(long, value_enum)]
+    #[arg(long, value_enum, requires = "subject")]
     pub side: Option<BenchSide>,
     /// The laboratory's vertical axis in the files (default: detected from the static trial;
     /// with --model the model's lab_up, else y).

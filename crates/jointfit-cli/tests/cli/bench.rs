@@ -252,6 +252,8 @@ fn bench_bad_inputs_are_one_line_errors() {
         s(&osim),
     );
     refused(&["bench", "--trial", s(&missing)], "--static");
+    // The default workload is the right leg: --side alone is refused, not ignored.
+    refused(&["bench", "--side", "left"], "--static");
     refused(
         &["bench", "--static", s(&missing), "--trial", s(&missing)],
         "--markers",
