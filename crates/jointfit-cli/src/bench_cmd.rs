@@ -4,8 +4,9 @@
 //! trial from scratch, and warm-started frames), IK throughput on several cores, and the
 //! 27-parameter calibration solvers. The real trial is OpenCap's `opencap_expert1/walking1`
 //! with the subject's landmark model (`personalize` on `static1`, preset `opencap`, right
-//! leg); without the shared data a synthetic gait of the built-in leg stands in, and the
-//! output says so. Timings are the median of repeated runs.
+//! leg), or any subject and trial given with `--static`/`--model` and `--trial`
+//! ([`crate::bench_workload`]); without the shared data a synthetic gait of the built-in leg
+//! stands in, and the output says so. Timings are the median of repeated runs.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -15,23 +16,23 @@ use clap::Args;
 use jointfit::calibrate::params_for_groups;
 use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
-use jointfit::landmarks::{personalize, MarkerSet, PersonalizeOptions};
-use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
 use jointfit::trial::Trial;
 use jointfit::workflow::{self, FitSettings, Method, NoObserver};
-use jointfit_experiments::synth;
 use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::bench_perf;
-use crate::common::{load_trial, Up};
 
 #[derive(Args)]
 pub struct BenchArgs {
-    /// Shared data directory (default: $JOINTFIT_DATA, else ../shared/data).
-    #[arg(long)]
+    /// Shared data directory of the default workload (default: $JOINTFIT_DATA, else
+    /// ../shared/data).
+    #[arg(long, conflicts_with = "subject")]
     data: Option<PathBuf>,
+    /// The subject and trial to time (default: OpenCap's expert walking1, `bench_workload`).
+    #[command(flatten)]
+    subject: crate::bench_workload::SubjectArgs,
     /// Also time the particle swarm (hip, 50 frames; several seconds).
     #[arg(long)]
     pso: bool,
@@ -71,9 +72,16 @@ pub struct BenchArgs {
 
 #[derive(Serialize, Default)]
 struct Figures {
+    /// The workload of every figure but `long_fit` and `peak_rss_mb` (and `ik_io`: this
+    /// trial repeated).
     source: String,
     markers: usize,
     frames: usize,
+    /// Free parameters of the workload's calibrations (27 for one leg of `personalize`).
+    parameters: usize,
+    /// What `long_fit` and `peak_rss_mb` time: the synthetic built-in leg, whatever the
+    /// workload.
+    synthetic_workload: &'static str,
     fk_us: f64,
     fk_dq_us: f64,
     fk_dq_dp_us: f64,
@@ -125,59 +133,6 @@ fn median_time(runs: usize, mut f: impl FnMut()) -> f64 {
     times[times.len() / 2]
 }
 
-/// The real trial's path, when the shared data are there.
-fn trial_path(data: Option<PathBuf>) -> Option<PathBuf> {
-    let dir = data
-        .or_else(|| std::env::var_os("JOINTFIT_DATA").map(PathBuf::from))
-        .unwrap_or_else(|| PathBuf::from("../shared/data"))
-        .join("opencap_expert1");
-    let trc = dir.join("walking1.trc");
-    (trc.exists() && dir.join("static1.trc").exists()).then_some(trc)
-}
-
-/// The subject model and gait trial to time, and where they came from.
-fn workload(data: Option<PathBuf>) -> Result<(Model, Trial, String)> {
-    let dir = data
-        .or_else(|| std::env::var_os("JOINTFIT_DATA").map(PathBuf::from))
-        .unwrap_or_else(|| PathBuf::from("../shared/data"))
-        .join("opencap_expert1");
-    if dir.join("walking1.trc").exists() && dir.join("static1.trc").exists() {
-        let stat = load_trial(&dir.join("static1.trc"), Up::Y, None)?;
-        let set = MarkerSet::preset("opencap")?;
-        let subject = personalize(&stat, &set, Side::Right, &PersonalizeOptions::default())
-            .context("personalizing opencap_expert1/static1.trc")?;
-        let model = Model::compile(&subject.spec)?;
-        let trial = load_trial(&dir.join("walking1.trc"), Up::Y, None)?;
-        return Ok((
-            model,
-            trial,
-            format!(
-                "{} with its landmark model",
-                dir.join("walking1.trc").display()
-            ),
-        ));
-    }
-    let model = Model::compile(&lower_limb(Side::Right))?;
-    let p = model.nominal_params();
-    let coords = synth::coordinates(&model, synth::Motion::All, 150)?;
-    let (trial, _) = synth::markers(
-        &model,
-        &p,
-        &coords,
-        100.0,
-        Some(&synth::SkinNoise::default()),
-    );
-    Ok((
-        model,
-        trial,
-        format!(
-            "synthetic 150-frame motion of lower-limb-right with skin noise \
-             (no shared data at {})",
-            dir.display()
-        ),
-    ))
-}
-
 /// The trial as `jointfit ik` holds it: `ik` reads only the model's markers (`docs/io.md`),
 /// so its data checks see only those.
 pub fn for_model(model: &Model, trial: &Trial) -> Result<Trial> {
@@ -216,8 +171,12 @@ pub fn run(args: BenchArgs) -> Result<()> {
     if let Some(frames) = args.rss_child {
         return bench_perf::rss_child(frames, args.rss_max_iterations);
     }
-    let trc = trial_path(args.data.clone());
-    let (model, trial, source) = workload(args.data)?;
+    let crate::bench_workload::Workload {
+        model,
+        trial,
+        source,
+        opensim,
+    } = crate::bench_workload::workload(&args.subject, args.data.clone())?;
     let p = model.nominal_params();
     if args.fit_only > 0 {
         return fit_only(&model, &p, &trial, &source, args.fit_only);
@@ -230,6 +189,8 @@ pub fn run(args: BenchArgs) -> Result<()> {
     let mut fig = Figures {
         source,
         markers: model.n_markers(),
+        parameters: model.n_p(),
+        synthetic_workload: bench_perf::SYNTHETIC_WORKLOAD,
         frames: trial.n_frames(),
         ..Figures::default()
     };
@@ -348,8 +309,8 @@ pub fn run(args: BenchArgs) -> Result<()> {
     }
 
     let mut opensim_note = String::from("OpenSim: not available (synthetic workload)");
-    if let Some(trc) = &trc {
-        match bench_perf::opensim_ik(&model, trc, 3) {
+    if let Some(input) = &opensim {
+        match bench_perf::opensim_ik(&model, &trial, input, 3) {
             Ok(os) => {
                 let ours_ms = fig.ik_trial_us_per_frame * fig.frames as f64 / 1e3;
                 fig.opensim_ik_over_jointfit_ik = Some(os.solver_ms / ours_ms);
@@ -378,9 +339,15 @@ pub fn run(args: BenchArgs) -> Result<()> {
         return Ok(());
     }
     println!(
-        "workload: {} ({} markers, {} frames)",
-        fig.source, fig.markers, fig.frames
+        "workload: {} ({} markers, {} frames, {} free parameters)",
+        fig.source, fig.markers, fig.frames, fig.parameters
     );
+    if fig.long_fit.is_some() || fig.peak_rss_mb.is_some() {
+        println!(
+            "  (the long calibration and peak RSS below: {}, not this workload)",
+            fig.synthetic_workload
+        );
+    }
     println!("forward kinematics          {:8.3} µs", fig.fk_us);
     println!("  + ∂x/∂q                   {:8.3} µs", fig.fk_dq_us);
     println!("  + ∂x/∂q + ∂x/∂p           {:8.3} µs", fig.fk_dq_dp_us);
@@ -445,7 +412,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
     }
     if let Some(io) = &fig.ik_io {
         println!(
-            "ik on {} frames: read {:.3} s, solve {:.3} s, write {:.3} s (I/O share {:.2}, goal < 0.33)",
+            "ik on {} frames (the trial repeated): read {:.3} s, solve {:.3} s, write {:.3} s (I/O share {:.2}, goal < 0.33)",
             io.frames, io.read_s, io.ik_s, io.write_s, io.io_share
         );
     }

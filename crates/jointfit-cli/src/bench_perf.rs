@@ -36,8 +36,16 @@ fn script() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/osim_check.py")
 }
 
-/// Why OpenSim cannot be timed here, or its timings.
-pub fn opensim_ik(model: &Model, trc: &Path, repeat: usize) -> Result<OpenSimIk, String> {
+/// Why OpenSim cannot be timed here, or its timings: its IK on `input`'s model and trial
+/// ([`crate::bench_workload::OpenSimInput`]): the user's `.osim`, else `model` exported; the
+/// trial file, else `trial` written to a temporary TRC (millimetres, 5 decimals, gaps as
+/// blank cells), removed with the scratch folder afterwards.
+pub fn opensim_ik(
+    model: &Model,
+    trial: &Trial,
+    input: &crate::bench_workload::OpenSimInput,
+    repeat: usize,
+) -> Result<OpenSimIk, String> {
     let python = std::env::var_os("JOINTFIT_PYTHON")
         .map(PathBuf::from)
         .ok_or("JOINTFIT_PYTHON is not set")?;
@@ -47,12 +55,44 @@ pub fn opensim_ik(model: &Model, trc: &Path, repeat: usize) -> Result<OpenSimIk,
     }
     let dir = std::env::temp_dir().join(format!("jointfit-bench-{}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let osim = dir.join("subject.osim");
-    // A scratch file for the OpenSim subprocess, written now: the command's staged outputs
+    let result = opensim_in(&python, &script, &dir, model, trial, input, repeat);
+    let _ = std::fs::remove_dir_all(&dir);
+    result
+}
+
+/// [`opensim_ik`] with its scratch folder `dir`.
+fn opensim_in(
+    python: &Path,
+    script: &Path,
+    dir: &Path,
+    model: &Model,
+    trial: &Trial,
+    input: &crate::bench_workload::OpenSimInput,
+    repeat: usize,
+) -> Result<OpenSimIk, String> {
+    // Scratch files for the OpenSim subprocess, written now: the command's staged outputs
     // appear only when the command ends, and this folder is gone by then.
-    let text = jointfit_io::osim::to_osim(model, &model.nominal_params())
-        .map_err(|e| format!("exporting the model: {e}"))?;
-    std::fs::write(&osim, text).map_err(|e| format!("{}: {e}", osim.display()))?;
+    let osim = match &input.osim {
+        Some(path) => path.clone(),
+        None => {
+            let osim = dir.join("subject.osim");
+            let text = jointfit_io::osim::to_osim(model, &model.nominal_params())
+                .map_err(|e| format!("exporting the model: {e}"))?;
+            std::fs::write(&osim, text).map_err(|e| format!("{}: {e}", osim.display()))?;
+            osim
+        }
+    };
+    let trc = match &input.trc {
+        Some(path) => path.clone(),
+        None => {
+            let trc = dir.join("trial.trc");
+            let text = jointfit_io::trc::format_trc(trial, "trial.trc", &Default::default())
+                .map_err(|e| format!("writing the trial as TRC: {e}"))?;
+            std::fs::write(&trc, gaps_as_nan(&text))
+                .map_err(|e| format!("{}: {e}", trc.display()))?;
+            trc
+        }
+    };
     let weights: serde_json::Map<String, serde_json::Value> = model
         .markers()
         .iter()
@@ -60,46 +100,67 @@ pub fn opensim_ik(model: &Model, trc: &Path, repeat: usize) -> Result<OpenSimIk,
         .collect();
     let request = serde_json::json!({"model": osim, "trc": trc, "out_dir": dir,
         "weights": weights, "accuracy": 1e-8, "repeat": repeat});
-    let result = (|| {
-        let mut child = Command::new(&python)
-            .arg(&script)
-            .arg("ik")
-            .current_dir(&dir)
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .map_err(|e| format!("cannot run {}: {e}", python.display()))?;
-        {
-            use std::io::Write;
-            let mut stdin = child.stdin.take().ok_or("no stdin")?;
-            stdin
-                .write_all(request.to_string().as_bytes())
-                .map_err(|e| e.to_string())?;
-        }
-        let out = child.wait_with_output().map_err(|e| e.to_string())?;
-        if !out.status.success() {
-            let err = String::from_utf8_lossy(&out.stderr);
-            return Err(format!(
-                "osim_check.py failed: {}",
-                err.lines().last().unwrap_or("")
-            ));
-        }
-        let stdout = String::from_utf8_lossy(&out.stdout);
-        let line = stdout
-            .lines()
-            .find_map(|l| l.strip_prefix("@@"))
-            .ok_or("osim_check.py printed no result")?;
-        let v: serde_json::Value = serde_json::from_str(line).map_err(|e| e.to_string())?;
-        let ms = |key: &str| v[key].as_f64().map(|s| s * 1e3).ok_or(format!("no {key}"));
-        Ok(OpenSimIk {
-            solver_ms: ms("solver_seconds")?,
-            tool_ms: ms("seconds")?,
-        })
-    })();
-    let _ = std::fs::remove_dir_all(&dir);
-    result
+    let mut child = Command::new(python)
+        .arg(script)
+        .arg("ik")
+        .current_dir(dir)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .map_err(|e| format!("cannot run {}: {e}", python.display()))?;
+    {
+        use std::io::Write;
+        let mut stdin = child.stdin.take().ok_or("no stdin")?;
+        stdin
+            .write_all(request.to_string().as_bytes())
+            .map_err(|e| e.to_string())?;
+    }
+    let out = child.wait_with_output().map_err(|e| e.to_string())?;
+    if !out.status.success() {
+        let err = String::from_utf8_lossy(&out.stderr);
+        return Err(format!(
+            "osim_check.py failed: {}",
+            err.lines().last().unwrap_or("")
+        ));
+    }
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let line = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("@@"))
+        .ok_or("osim_check.py printed no result")?;
+    let v: serde_json::Value = serde_json::from_str(line).map_err(|e| e.to_string())?;
+    let ms = |key: &str| v[key].as_f64().map(|s| s * 1e3).ok_or(format!("no {key}"));
+    Ok(OpenSimIk {
+        solver_ms: ms("solver_seconds")?,
+        tool_ms: ms("seconds")?,
+    })
 }
+
+/// TRC text with every blank cell of the data rows written `NaN`: OpenSim 4.6's TRC reader
+/// drops a row's last cell when it is blank (a gap of the last marker) and then refuses the
+/// row ("Unexpected number of columns"); it reads `NaN` as a gap. The header is the first
+/// five lines and a blank one.
+fn gaps_as_nan(text: &str) -> String {
+    let mut out = String::with_capacity(text.len() + text.len() / 8);
+    for (k, line) in text.lines().enumerate() {
+        if k < 6 || line.is_empty() {
+            out.push_str(line);
+        } else {
+            let cells: Vec<&str> = line
+                .split('\t')
+                .map(|c| if c.is_empty() { "NaN" } else { c })
+                .collect();
+            out.push_str(&cells.join("\t"));
+        }
+        out.push('\n');
+    }
+    out
+}
+
+/// What [`long_trial`] is, for the bench's output.
+pub const SYNTHETIC_WORKLOAD: &str =
+    "synthetic gait of the built-in lower-limb-right (150-frame cycle repeated, skin noise)";
 
 /// A long synthetic trial: the built-in right leg's 150-frame motion repeated to `frames`,
 /// markers from parameters moved off nominal, with the paper's skin noise (seeded).
@@ -338,10 +399,15 @@ pub fn ik_io(model: &Model, trial: &Trial, frames: usize, runs: usize) -> Result
         };
         for _ in 0..runs {
             let t = Instant::now();
-            // As `jointfit ik` reads it: the model's markers only (`common::Columns`).
+            // As `jointfit ik` reads it: the model's markers only (`common::Columns`). The
+            // trial was rotated to Y up already: read it so, whatever the model's `lab_up`.
+            let y_up = crate::common::TrialArgs {
+                up: Some(crate::common::Up::Y),
+                ..Default::default()
+            };
             let read = crate::common::load_for_model(
                 &trc,
-                &Default::default(),
+                &y_up,
                 model,
                 None,
                 crate::common::Columns::ForModel,

@@ -80,7 +80,8 @@ enum HipArg {
     Harrington,
 }
 
-fn load_marker_set(arg: &str) -> Result<MarkerSet> {
+/// The marker set of `--markers`: a TOML file or a preset (also `bench --markers`).
+pub(crate) fn load_marker_set(arg: &str) -> Result<MarkerSet> {
     let path = Path::new(arg);
     if path.exists() {
         let text = std::fs::read_to_string(path)

@@ -5,6 +5,8 @@ use std::process::Command;
 
 #[path = "cli/batch.rs"]
 mod batch;
+#[path = "cli/bench.rs"]
+mod bench;
 #[path = "cli/bilateral.rs"]
 mod bilateral;
 #[path = "cli/data.rs"]
