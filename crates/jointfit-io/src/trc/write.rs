@@ -116,13 +116,15 @@ pub fn format_trc(
                 let _ = write!(out, "\t{:.d$}", v * per_metre);
             }
             // A sample printed as 0 0 0 (only zeros, points and signs) would read back as a
-            // gap: write it as one.
+            // gap: write it as one. Gaps are written `NaN`, not as blank cells: OpenSim 4.6's
+            // reader drops a row's trailing blank cells and then refuses the file when the
+            // last marker has a gap ("Unexpected number of columns").
             let zero = out.as_bytes()[start..]
                 .iter()
                 .all(|c| matches!(c, b'\t' | b'0' | b'.' | b'-'));
             if !present || zero {
                 out.truncate(start);
-                out.push_str("\t\t\t");
+                out.push_str("\tNaN\tNaN\tNaN");
             }
         }
         out.push('\n');

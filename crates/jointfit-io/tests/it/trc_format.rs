@@ -282,8 +282,8 @@ fn writer_layout_and_errors() {
          \t\tX1\tY1\tZ1\tX2\tY2\tZ2\n\
          \n\
          1\t0.000000\t1.00000\t2.00000\t3.00000\t4.00000\t5.00000\t6.00000\n\
-         2\t0.010000\t1.00000\t2.00000\t3.00000\t\t\t\n\
-         3\t0.020000\t1.50000\t2.00000\t3.00000\t\t\t\n"
+         2\t0.010000\t1.00000\t2.00000\t3.00000\tNaN\tNaN\tNaN\n\
+         3\t0.020000\t1.50000\t2.00000\t3.00000\tNaN\tNaN\tNaN\n"
     )
     .replace("x.trc", "out.trc");
     assert_eq!(text, expected);
@@ -295,7 +295,7 @@ fn writer_layout_and_errors() {
         .unwrap()
         .contains("\t0.002\t0.003\t0.004\t"));
 
-    // A present sample that prints as 0 0 0 is written as the gap it would read back as.
+    // A present sample that prints as 0 0 0 is written as the gap it would read back as (`NaN`).
     let tiny = Trial::new(
         vec!["T".into()],
         50.0,
@@ -304,7 +304,7 @@ fn writer_layout_and_errors() {
     )
     .unwrap();
     let text = format_trc(&tiny, "x", &TrcWriteOptions::default()).unwrap();
-    assert!(text.ends_with("\n1\t0.000000\t\t\t\n"), "{text}");
+    assert!(text.ends_with("\n1\t0.000000\tNaN\tNaN\tNaN\n"), "{text}");
 
     let bad = |label: &str| {
         Trial::new(
@@ -428,11 +428,12 @@ fn opensim_reads_our_trc() {
         } else {
             Vector3::new(-0.2 * t, 1.0, -0.1)
         });
-        positions.push(Vector3::new(
-            0.5,
-            0.5 + (f as f64).sin() * 1e-3,
-            1e-7 * f as f64 + 0.01,
-        ));
+        // The last marker has gaps too: a row's last cells are then the gap's.
+        positions.push(if f % 5 == 2 {
+            nan
+        } else {
+            Vector3::new(0.5, 0.5 + (f as f64).sin() * 1e-3, 1e-7 * f as f64 + 0.01)
+        });
     }
     let trial = Trial::new(labels, 120.0, 11, positions).unwrap();
     let dir = tempfile::tempdir().unwrap();
@@ -470,5 +471,5 @@ fn opensim_reads_our_trc() {
             }
         }
     }
-    assert_eq!(gaps, 3 * 6);
+    assert_eq!(gaps, 3 * (6 + 8));
 }
