@@ -55,8 +55,8 @@ fn compare(model_rel: &str, trial_rel: &str, triple_tolerance_deg: Option<f64>) 
     }
 }
 
-/// The coordinates of every Euler triple of the model (`jointfit::ik::branch`: pelvis, hips,
-/// lumbar, shoulders) in jointfit's `.mot` against OpenSim's IK within `tol` degrees, every
+/// The coordinates of every Euler triple of the model (`jointfit::ik::branch`: e.g. pelvis, hips,
+/// lumbar) in jointfit's `.mot` against OpenSim's IK within `tol` degrees, every
 /// frame: the same branch of each rotation (the other branch differs by 180° in two angles).
 fn triples_agree(model: &Path, dir: &jointfit_testkit::scratch::ScratchDir, tol: f64) {
     let loaded = jointfit_io::model_file::load_model(model.to_str().unwrap()).unwrap();

@@ -14,8 +14,8 @@
 //! `R(e₁, π) R(e₂, θ) = R(e₂, −θ) R(e₁, π)`, and two half turns about perpendicular axes
 //! compose to a half turn about the axis perpendicular to both, `R(e₁, π) R(e₃, π) =
 //! R(e₂, π)`; hence `R(e₁, s₁ + π) R(e₂, π − s₂) R(e₃, s₃ + π) = R(e₁, s₁) R(e₂, s₂ − π)
-//! R(e₂, π) R(e₃, s₃) = R(e₁, s₁) R(e₂, s₂) R(e₃, s₃)` (e.g. Diebel, *Representing
-//! Attitude*, 2006, §5: every Euler-angle sequence has two solutions away from gimbal lock).
+//! R(e₂, π) R(e₃, s₃) = R(e₁, s₁) R(e₂, s₂) R(e₃, s₃)` (every Euler-angle sequence has two
+//! solutions away from gimbal lock; e.g. Diebel, *Representing Attitude*, 2006).
 //!
 //! The cost of inverse kinematics is the same on every branch, so a warm-started chain of
 //! frames keeps whichever branch its seed or an earlier frame happened to reach, and a
