@@ -23,6 +23,8 @@ mod held_out_hip;
 mod ident;
 #[path = "cli/ik.rs"]
 mod ik;
+#[path = "cli/ik_branch.rs"]
+mod ik_branch;
 #[path = "cli/ik_chunks.rs"]
 mod ik_chunks;
 #[path = "cli/limits.rs"]

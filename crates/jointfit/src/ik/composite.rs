@@ -76,6 +76,9 @@ pub(super) struct Composite {
     /// Every pair of columns that move a common segment, once (diagonal included):
     /// `(deep, other)`, `deep` the column whose segments are the common ones.
     pairs: Vec<(usize, usize)>,
+    /// The pairs of [`Self::pairs`] whose columns are both active ([`Self::set_active`]):
+    /// `(deep, other, deep·n + other, other·n + deep)` with active indices in the offsets.
+    active_pairs: Vec<(usize, usize, usize, usize)>,
     seg_mom: Vec<Mom>,
     grp_mom: Vec<Mom>,
     /// Per model column: twist `ξ = (ω, v)` and `K ξ` split as `(Θω + h×v, Mv + ω×h)`.
@@ -139,11 +142,26 @@ impl Composite {
             col_group,
             groups,
             pairs,
+            active_pairs: Vec::new(),
             seg_mom: vec![Mom::zero(); segments.len()],
             grp_mom: vec![Mom::zero(); n_groups],
             xi: vec![(Vector3::zeros(), Vector3::zeros()); n_q],
             y: vec![(Vector3::zeros(), Vector3::zeros()); n_q],
         })
+    }
+
+    /// Lists the pairs both of whose columns are active, with their places in the `n × n`
+    /// matrix (`active_index[c]`: the active index of column `c`, `usize::MAX`: not active),
+    /// once per active set instead of once per iteration.
+    pub(super) fn set_active(&mut self, active_index: &[usize], n: usize) {
+        self.active_pairs.clear();
+        for &(deep, other) in &self.pairs {
+            let (di, oi) = (active_index[deep], active_index[other]);
+            if di != usize::MAX && oi != usize::MAX {
+                self.active_pairs
+                    .push((deep, other, di * n + oi, oi * n + di));
+            }
+        }
     }
 
     /// Writes `JᵀWJ` (n × n, column-major, n = active count) into `a` and `JᵀW r` into `g`;
@@ -198,16 +216,13 @@ impl Composite {
             self.xi[c] = (w, v);
             self.y[c] = (k.theta * w + k.h.cross(&v), k.mass * v + w.cross(&k.h));
         }
-        for &(deep, other) in &self.pairs {
-            let (di, oi) = (active_index[deep], active_index[other]);
-            if di == usize::MAX || oi == usize::MAX {
-                continue;
-            }
+        let a = &mut a[..n * n];
+        for &(deep, other, lower, upper) in &self.active_pairs {
             let (w, v) = self.xi[other];
             let (yw, yv) = self.y[deep];
             let value = w.dot(&yw) + v.dot(&yv);
-            a[di * n + oi] = value;
-            a[oi * n + di] = value;
+            a[lower] = value;
+            a[upper] = value;
         }
     }
 }

@@ -29,8 +29,11 @@
 //! ([`trial_chunk_ranges`]: two from 128 frames on; the first frame of each chunk is seeded), so the result does not depend
 //! on the number of threads. A frame whose fit is far worse than the trial's median is then
 //! solved again from its neighbours' solutions and a fresh seed, and reported not solved when
-//! it stays implausible ([`repair`]).
+//! it stays implausible ([`repair`]). The coordinates are reported on the branch of each
+//! Euler-angle triple that lies inside the model's coordinate ranges, whole turns removed
+//! ([`branch`]; the fit itself does not clamp).
 
+pub mod branch;
 mod composite;
 mod frames;
 mod lm;

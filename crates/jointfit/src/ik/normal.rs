@@ -106,6 +106,9 @@ impl Moments {
         for (i, &c) in active.iter().enumerate() {
             self.active_index[c] = i;
         }
+        if let Some(composite) = &mut self.composite {
+            composite.set_active(&self.active_index, active.len());
+        }
     }
 
     /// Writes `JᵀWJ` (n × n, column-major, n = active count) into `a` and `JᵀW r` into `g`.

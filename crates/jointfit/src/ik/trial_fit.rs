@@ -67,7 +67,9 @@ pub fn extrapolate(prev: &[f64], before: &[f64]) -> Vec<f64> {
 /// each chunk (and the first after a frame that could not be solved) from [`seed_frame`],
 /// the second from the first, later ones from the linear extrapolation of the two before.
 /// Frames whose fit is absurd against the rest of the trial are then re-solved from their
-/// neighbours ([`super::repair`]).
+/// neighbours ([`super::repair`]). Each frame's coordinates are reported as the equivalent
+/// ones inside the model's coordinate ranges: the in-range branch of every Euler-angle
+/// triple, whole turns removed ([`super::branch`]).
 ///
 /// The chunks depend only on the number of frames (and on
 /// [`IkOptions::hold_undetermined`]), never on the number of threads, and each chunk is
@@ -168,6 +170,11 @@ fn solve_chunks_alongside<R: Send>(
     }
     let ws = ws.unwrap_or_else(|| IkWorkspace::new(model));
     super::repair::repair_absurd(model, p, trial, map, opts, &mut out, &boundaries, ws);
+    // Report every pose by its coordinates inside the model's ranges ([`super::branch`]).
+    let branches = super::branch::Branches::new(model);
+    for q in &mut out.coords {
+        branches.canonicalize(q);
+    }
     (Ok(out), also)
 }
 
