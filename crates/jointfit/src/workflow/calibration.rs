@@ -143,6 +143,29 @@ impl Calibration {
     }
 }
 
+impl FitSettings {
+    /// `jointfit calibrate`'s flag thresholds of a 95 % interval's half-width (mm, deg).
+    pub const COMMAND_THRESHOLD_MM: f64 = 5.0;
+    pub const COMMAND_THRESHOLD_DEG: f64 = 5.0;
+
+    /// What `jointfit calibrate` runs with no options (and `jointfit bench` times): the
+    /// default settings (joint method, global phase, priors, marker policy, envelope) plus the
+    /// uncertainty analysis with the command's thresholds, no bootstrap, seed 1. Entry point:
+    /// [`super::refine::calibrate_refined`].
+    pub fn command_default() -> FitSettings {
+        let seed = FitSettings::default().seed;
+        FitSettings {
+            uncertainty: Some(super::uncertainty_options(
+                FitSettings::COMMAND_THRESHOLD_MM,
+                FitSettings::COMMAND_THRESHOLD_DEG,
+                0,
+                seed,
+            )),
+            ..FitSettings::default()
+        }
+    }
+}
+
 /// e_inner (m²) in mm².
 pub(super) fn mm2(cost: f64) -> f64 {
     cost * MM_PER_M * MM_PER_M
