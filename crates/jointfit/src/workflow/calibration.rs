@@ -360,6 +360,22 @@ fn fit_free(
             }
         })
         .collect();
+    // Four passes of forward kinematics over the frames, two on each thread (each pass's
+    // sums in frame order, as alone).
+    let ((rms_before, rms_after), (per_marker_before, per_marker_after)) = rayon::join(
+        || {
+            rayon::join(
+                || prob.marker_rms(start, &q_before),
+                || prob.marker_rms(&fit.p, &fit.coords),
+            )
+        },
+        || {
+            rayon::join(
+                || per_marker_rms(&prob, start, &q_before),
+                || per_marker_rms(&prob, &fit.p, &fit.coords),
+            )
+        },
+    );
     Ok(Calibration {
         method: settings.method,
         seed: settings.seed,
@@ -367,10 +383,10 @@ fn fit_free(
         skipped_frames: prob.skipped.len(),
         free_parameters: prob.n_free(),
         parameters,
-        rms_before_mm: prob.marker_rms(start, &q_before) * MM_PER_M,
-        rms_after_mm: prob.marker_rms(&fit.p, &fit.coords) * MM_PER_M,
-        marker_rms_before_mm: names(per_marker_rms(&prob, start, &q_before)),
-        marker_rms_after_mm: names(per_marker_rms(&prob, &fit.p, &fit.coords)),
+        rms_before_mm: rms_before * MM_PER_M,
+        rms_after_mm: rms_after * MM_PER_M,
+        marker_rms_before_mm: names(per_marker_before),
+        marker_rms_after_mm: names(per_marker_after),
         cost_before,
         cost_after: fit.cost,
         iterations: fit.iterations,
@@ -475,11 +491,20 @@ pub fn calibrate(
         _ => (UNCERTAINTY_STAGE.to_string(), None),
     };
     observer.stage_started(&stage, budget);
-    let u = analyze(&prob, &cal.fit, opts);
+    // The data shares need the reduced normal matrix alone: formed beside the analysis (which
+    // forms its own) on the other thread; each result is the same whatever runs where.
+    let (u, share) = rayon::join(
+        || analyze(&prob, &cal.fit, opts),
+        || {
+            prob.prior.is_some().then(|| {
+                let fit = &cal.fit;
+                let red = crate::calibrate::uncertainty::reduced_system(&prob, &fit.p, &fit.coords);
+                crate::calibrate::prior::data_share(&prob, &red.normal)
+            })
+        },
+    );
     observer.stage_ended(Termination::Converged);
-    if prob.prior.is_some() {
-        let red = crate::calibrate::uncertainty::reduced_system(&prob, &cal.fit.p, &cal.fit.coords);
-        let share = crate::calibrate::prior::data_share(&prob, &red.normal);
+    if let Some(share) = share {
         for (row, (&sh, &i)) in cal.parameters.iter_mut().zip(share.iter().zip(&prob.free)) {
             if model.parameters()[i].prior_sd.is_some() && sh.is_finite() {
                 row.data_share = Some(sh);
