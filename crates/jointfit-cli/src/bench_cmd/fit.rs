@@ -36,13 +36,16 @@ pub fn command_fit(
     )?)
 }
 
+/// What ended, seconds since the start of the calibration, in order.
+type Marks = Vec<(&'static str, f64)>;
+
 /// Marks the phases of one calibration from the workflow's observer hooks: the global
 /// phase's `progress(0, n + 1)`, `progress(n, n + 1)` (probes done) and
 /// `progress(n + 1, n + 1)` (finishing solves done), and the uncertainty stage.
 struct PhaseClock {
     t0: Instant,
     /// (what ended, seconds since `t0`), in order.
-    marks: Vec<(&'static str, f64)>,
+    marks: Marks,
     in_uncertainty: bool,
 }
 
@@ -90,7 +93,8 @@ pub fn fit_only(model: &Model, p: &[f64], trial: &Trial, source: &str, n: usize)
         "timed: workflow::refine::calibrate_refined, FitSettings::command_default() \
          (= jointfit calibrate SUBJECT TRIAL -o OUT)"
     );
-    let mut best: Option<(f64, Vec<(&'static str, f64)>, f64)> = None;
+    // (total s, the phase marks, the policy's IK alone s) of the fastest run.
+    let mut best: Option<(f64, Marks, f64)> = None;
     for _ in 0..n {
         // The marker policy's own IK, timed alone (it runs first inside the calibration).
         let t = Instant::now();

@@ -141,7 +141,7 @@ fn short_trials_get_an_even_number_of_chunks() {
     for frames in 1..2000 {
         let len = super::chunk_len(frames);
         let chunks = frames.div_ceil(len);
-        assert!(len >= 1 && len <= CHUNK, "{frames}: {len}");
+        assert!((1..=CHUNK).contains(&len), "{frames}: {len}");
         if frames.div_ceil(CHUNK) < 16 {
             assert!(
                 chunks % 2 == 0 || frames == 1,
