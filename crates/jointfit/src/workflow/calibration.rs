@@ -200,28 +200,11 @@ fn fit_free(
     (noise, inflation): (Option<f64>, &[(String, f64)]),
     observer: &mut dyn Observer,
 ) -> Result<Calibration, WorkflowError> {
-    // The global phase's starts and their seeded inner solutions do not depend on the σ
-    // estimate (`global::probe_starts`): formed beside it, each on its own thread when free.
-    let probes = settings.effective_probes() > 0;
-    let (mapped, starts) = rayon::join(
-        || super::map::map_problem_with(model, start, trials, free, settings, noise),
-        || {
-            if !probes {
-                return None;
-            }
-            // The prior's presence, means and SDs as the σ estimate's problem has them.
-            let prob = Problem::new(model, start.to_vec(), free, trials).ok()?;
-            let prob = match settings.priors {
-                true => prob.with_model_prior(1.0),
-                false => prob,
-            };
-            Some(super::global::probe_starts(&prob, start, settings))
-        },
-    );
-    let (mut prob, sigma, pre) = mapped?;
+    let (mut prob, sigma, pre) =
+        super::map::map_problem_with(model, start, trials, free, settings, noise)?;
     super::map::set_inflation(&mut prob, inflation);
-    let (fits, runs, global, q_before, cost_before) = if probes {
-        let out = super::global::run(&prob, start, settings, pre, starts, observer);
+    let (fits, runs, global, q_before, cost_before) = if settings.effective_probes() > 0 {
+        let out = super::global::run(&prob, start, settings, pre, None, observer);
         (
             out.fits,
             out.runs,
