@@ -18,11 +18,13 @@ use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::Model;
 use jointfit::trial::Trial;
-use jointfit::workflow::{self, FitSettings, Method, NoObserver};
+use jointfit::workflow::{self, Method, NoObserver};
 use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::bench_perf;
+
+mod fit;
 
 #[derive(Args)]
 pub struct BenchArgs {
@@ -145,28 +147,6 @@ pub fn for_model(model: &Model, trial: &Trial) -> Result<Trial> {
     Ok(trial.select(&names)?)
 }
 
-/// `--fit-only N`: the default 27-parameter calibration of the workload `n` times.
-fn fit_only(model: &Model, p: &[f64], trial: &Trial, source: &str, n: usize) -> Result<()> {
-    let all = params_for_groups(model, &["all"])?;
-    let settings = FitSettings::default();
-    println!("workload: {source} ({} frames)", trial.n_frames());
-    let mut best = f64::INFINITY;
-    for _ in 0..n {
-        let t = Instant::now();
-        let cal = workflow::calibrate(model, p, &[trial], &all, &settings, &mut NoObserver)?;
-        let ms = t.elapsed().as_secs_f64() * 1e3;
-        best = best.min(ms);
-        println!(
-            "calibrate 27, joint: {ms:.1} ms ({} iterations, all starts {}, cost {:.6} mm²)",
-            cal.iterations,
-            cal.total_iterations(),
-            cal.cost_after * 1e6
-        );
-    }
-    println!("fastest of {n}: {best:.1} ms");
-    Ok(())
-}
-
 pub fn run(args: BenchArgs) -> Result<()> {
     if let Some(frames) = args.rss_child {
         return bench_perf::rss_child(frames, args.rss_max_iterations);
@@ -179,7 +159,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
     } = crate::bench_workload::workload(&args.subject, args.data.clone())?;
     let p = model.nominal_params();
     if args.fit_only > 0 {
-        return fit_only(&model, &p, &trial, &source, args.fit_only);
+        return fit::fit_only(&model, &p, &trial, &source, args.fit_only);
     }
     if let Some(part) = &args.profile {
         return crate::bench_profile::run(&model, &trial, part, args.repeat, args.io_frames);
@@ -288,16 +268,13 @@ pub fn run(args: BenchArgs) -> Result<()> {
     fig.ik_parallel_frames_per_second = batch(fig.threads);
     fig.ik_parallel_speedup = fig.ik_parallel_frames_per_second / one;
 
-    // Calibration of all 27 parameters from the nominal model (the whole workflow: seeded
-    // inner solutions, the solver, the marker errors before and after).
+    // Calibration of all 27 parameters from the subject model as `jointfit calibrate` runs
+    // it with no options (`fit::command_fit`: marker policy, σ estimate, global phase,
+    // envelope, uncertainty, trade-offs), with `--method` joint, gradient or pso.
     let all = params_for_groups(&model, &["all"])?;
     jointfit::calibrate::Problem::new(&model, p.clone(), &all, &[&trial])?;
     let fit = |method: Method, free: &[jointfit::model::ParamId], trial: &Trial| {
-        let settings = FitSettings {
-            method,
-            ..FitSettings::default()
-        };
-        workflow::calibrate(&model, &p, &[trial], free, &settings, &mut NoObserver)
+        fit::command_fit(&model, &p, trial, free, method, &mut NoObserver)
             .expect("validated above");
     };
     fig.joint_27_ms = median_time(5, || fit(Method::Joint, &all, &trial)) * 1e3;
@@ -370,7 +347,10 @@ pub fn run(args: BenchArgs) -> Result<()> {
         "IK, batch on {} threads      {:8.0} frames/s  (×{:.2} of one thread)",
         fig.threads, fig.ik_parallel_frames_per_second, fig.ik_parallel_speedup
     );
-    println!("calibrate 27, joint         {:8.1} ms", fig.joint_27_ms);
+    println!(
+        "calibrate 27, joint         {:8.1} ms  (the command's default)",
+        fig.joint_27_ms
+    );
     println!("calibrate 27, gradient      {:8.1} ms", fig.gradient_27_ms);
     if let Some(ms) = fig.pso_hip_50_ms {
         println!("calibrate hip, PSO, 50 fr.  {:8.1} ms", ms);

@@ -2,9 +2,11 @@
 //! and trial, 1- against 2-thread wall time of a long calibration, the uncertainty step's
 //! share, the peak memory of a long calibration (measured in a child process) and the share of
 //! file reading and writing in an `ik` run. Every calibration here is
-//! [`jointfit::workflow::calibrate`] with the default settings of `jointfit calibrate`, the
-//! code path that command runs; the uncertainty step is timed from the start to the end of
-//! its own stage (the [`Observer`] hooks the workflow calls around it).
+//! [`jointfit::workflow::calibrate`] with `FitSettings::default()` on the built-in leg, which
+//! has no priors: the command's calibration (`FitSettings::command_default`, whose marker
+//! policy and envelope need a prior) without its uncertainty step, which is timed by itself
+//! from the start to the end of its own stage (the [`Observer`] hooks the workflow calls
+//! around it).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};

@@ -92,10 +92,10 @@ pub struct CalibrateArgs {
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
     /// Flag length parameters whose 95 % interval half-width exceeds this (mm).
-    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true, value_parser = crate::validate::positive)]
+    #[arg(long, default_value_t = FitSettings::COMMAND_THRESHOLD_MM, allow_negative_numbers = true, value_parser = crate::validate::positive)]
     pub threshold_mm: f64,
     /// Flag angle parameters whose 95 % interval half-width exceeds this (deg).
-    #[arg(long, default_value_t = 5.0, allow_negative_numbers = true, value_parser = crate::validate::positive)]
+    #[arg(long, default_value_t = FitSettings::COMMAND_THRESHOLD_DEG, allow_negative_numbers = true, value_parser = crate::validate::positive)]
     pub threshold_deg: f64,
     /// Moving-block bootstrap replicates for the intervals (0: white, HAC and jackknife only;
     /// at most 2000, each is a refit).
@@ -205,7 +205,8 @@ impl Observer for ProgressObserver {
     }
 }
 
-/// The settings of a run from the command line.
+/// The settings of a run from the command line: with no options,
+/// [`FitSettings::command_default`] (the settings `jointfit bench` times).
 pub fn fit_settings(args: &CalibrateArgs) -> FitSettings {
     FitSettings {
         method: args.method.into(),
@@ -230,7 +231,7 @@ pub fn fit_settings(args: &CalibrateArgs) -> FitSettings {
         anatomical_envelope: !args.no_envelope,
         marker_policy: !args.no_marker_policy,
         keep_markers: args.keep_markers.clone(),
-        ..FitSettings::default()
+        ..FitSettings::command_default()
     }
 }
 
@@ -433,4 +434,26 @@ fn provenance(
         args.filter,
     ));
     crate::report_cmd::provenance(inputs)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Wrap {
+        #[command(flatten)]
+        args: CalibrateArgs,
+    }
+
+    /// `jointfit calibrate SUBJECT TRIAL -o OUT` runs [`FitSettings::command_default`], the
+    /// settings `jointfit bench` times (a changed option default would make the bench time
+    /// something else than the command).
+    #[test]
+    fn the_command_with_no_options_runs_the_command_default() {
+        let w =
+            Wrap::try_parse_from(["calibrate", "s.toml", "walk.trc", "-o", "fit.toml"]).unwrap();
+        assert_eq!(fit_settings(&w.args), FitSettings::command_default());
+    }
 }

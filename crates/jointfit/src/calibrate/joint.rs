@@ -32,6 +32,8 @@
 //! opencap_expert1 walking1 full-leg and `.osim` hip + knee fits the parameters moved by at
 //! most 2e-4 of their standard errors against running the classical tolerances out.
 
+use rayon::prelude::*;
+
 use super::schur::{active_bounds, assemble, back_substitute, cost_at, solve, Blocks};
 use super::{Fit, Problem};
 use crate::solver::{Observer, Termination};
@@ -53,6 +55,10 @@ impl Default for JointOptions {
         }
     }
 }
+
+/// Frames per parallel task of the solver's own element-wise passes (the trial point, the
+/// largest step): below this a pass runs on the calling thread.
+const PAR_FRAMES: usize = 1024;
 
 /// Relative decrease of the objective below which an accepted step ends the solve.
 const COST_TOLERANCE: f64 = 1e-14;
@@ -132,6 +138,10 @@ pub fn solve_joint_to(
     let mut qs = q0;
     let mut ds = vec![0.0; nf];
     let mut dq = vec![vec![0.0; nq]; frames];
+    // The trial point's coordinates, allocated once here on the calling thread and filled in
+    // parallel (each frame's sum alone: the same bits on any number of threads); swapped
+    // with `qs` when a step is accepted.
+    let mut q_try = qs.clone();
     let mut lambda = 1e-4;
     // Nielsen's damping update: the growth factor for a rejected step doubles each time.
     let mut nu = 2.0;
@@ -164,20 +174,28 @@ pub fn solve_joint_to(
                 .collect();
             let ds_eff: Vec<f64> = s_try.iter().zip(&s).map(|(a, b)| a - b).collect();
             let predicted = back_substitute(prob, &qs, &blocks, &ds_eff, &mut dq);
-            let q_try: Vec<Vec<f64>> = qs
-                .iter()
-                .zip(&dq)
-                .map(|(q, d)| q.iter().zip(d).map(|(a, b)| a + b).collect())
-                .collect();
+            q_try
+                .par_iter_mut()
+                .zip(qs.par_iter().zip(dq.par_iter()))
+                .with_min_len(PAR_FRAMES)
+                .for_each(|(t, (q, d))| {
+                    for ((t, a), b) in t.iter_mut().zip(q).zip(d) {
+                        *t = a + b;
+                    }
+                });
             let lambda_used = lambda;
             let p_try = prob.to_params(&s_try);
             let c = cost_at(prob, &blocks, &p_try, &q_try);
             evaluations += 1;
             if c <= cost {
-                step = ds_eff
-                    .iter()
-                    .chain(dq.iter().flatten())
-                    .fold(0.0f64, |m, v| m.max(v.abs()));
+                // The largest step (a maximum: the same in any order of evaluation).
+                let largest = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+                step = dq
+                    .par_iter()
+                    .with_min_len(PAR_FRAMES)
+                    .map(|d| largest(d))
+                    .reduce(|| 0.0, f64::max)
+                    .max(largest(&ds_eff));
                 // Gain ratio ρ = actual / predicted decrease: near 1 the quadratic model is
                 // good and the damping shrinks by up to 3; a poor model keeps it.
                 let rho = if predicted > 0.0 {
@@ -192,7 +210,7 @@ pub fn solve_joint_to(
                 }
                 decrease = cost - c;
                 s = s_try;
-                qs = q_try;
+                std::mem::swap(&mut qs, &mut q_try);
                 p = p_try;
                 cost = c;
                 accepted = true;

@@ -16,7 +16,7 @@
 //! damped factor `L_i` (`n_q²` more) fit in [`CACHE_BYTES`], [`solve`] also keeps the factors
 //! for [`back_substitute`], which otherwise factors `U_i*` again.
 //!
-//! **Threads.** Every pass runs over fixed chunks of [`CHUNK`] frames in parallel (rayon);
+//! **Threads.** Every pass runs over fixed chunks of [`chunk_len`] frames in parallel (rayon);
 //! each chunk sums its frames in order and the chunk sums are added in chunk order, so the
 //! results are the same bit for bit whatever the number of threads.
 
@@ -28,8 +28,26 @@ use super::Problem;
 use crate::kinematics::{forward_kinematics, Want};
 use crate::linalg::{cholesky_in_place, cholesky_solve, Cholesky};
 
-/// Frames per parallel work item (fixed: it sets the order of every floating-point sum).
+/// Frames per parallel work item of a long trial (the length sets the order of every
+/// floating-point sum, so it depends on the number of frames only, never on the threads).
 pub(crate) const CHUNK: usize = 32;
+
+/// Below this many chunks of [`CHUNK`] frames an odd count is made even ([`chunk_len`]).
+const EVEN_BELOW: usize = 16;
+
+/// Frames per parallel work item on a problem of `frames` frames: [`CHUNK`], except that a
+/// short trial whose chunks of [`CHUNK`] would be odd in number gets one chunk more, of equal
+/// lengths (two threads then split the passes evenly: 143 frames are 5 chunks of 32, which
+/// two threads split 3 : 2, 0.56 of the pass on the slower one, but 6 chunks of 24, 3 : 3).
+/// Long trials keep [`CHUNK`]: with many chunks the split is even anyway.
+pub(crate) fn chunk_len(frames: usize) -> usize {
+    let chunks = frames.div_ceil(CHUNK);
+    if chunks % 2 == 1 && chunks < EVEN_BELOW {
+        frames.div_ceil(chunks + 1).max(1)
+    } else {
+        CHUNK
+    }
+}
 
 /// Memory for cached per-frame blocks (bytes); frames beyond it are recomputed.
 pub(crate) const CACHE_BYTES: usize = 48 << 20;
@@ -38,7 +56,9 @@ pub(crate) struct Blocks {
     pub nq: usize,
     pub nf: usize,
     frames: usize,
-    /// Frames (a prefix, a multiple of [`CHUNK`] unless all) whose blocks are in `store`.
+    /// Frames per parallel work item ([`chunk_len`]).
+    chunk: usize,
+    /// Frames (a prefix, a multiple of `chunk` unless all) whose blocks are in `store`.
     cached: usize,
     /// Per cached frame: `U_i` (n_q × n_q, column-major), `W_i` (n_q × n_f), `g_i` (n_q).
     store: Vec<f64>,
@@ -77,10 +97,11 @@ impl Blocks {
         let frames = prob.frames.len();
         let per = nq * nq + nq * nf + nq;
         let fit = bytes / (8 * per.max(1));
+        let chunk = chunk_len(frames);
         let cached = if fit >= frames {
             frames
         } else {
-            fit / CHUNK * CHUNK
+            fit / chunk * chunk
         };
         // The damped factors too when every frame's blocks and factor fit in the budget
         // (short trials); long trials factor again in `back_substitute` (the same numbers).
@@ -93,6 +114,7 @@ impl Blocks {
             nq,
             nf,
             frames,
+            chunk,
             cached,
             store: vec![0.0; cached * per],
             factored,
@@ -113,11 +135,11 @@ impl Blocks {
     }
 
     fn chunks(&self) -> usize {
-        self.frames.div_ceil(CHUNK)
+        self.frames.div_ceil(self.chunk)
     }
 
     fn chunk_frames(&self, c: usize) -> std::ops::Range<usize> {
-        c * CHUNK..((c + 1) * CHUNK).min(self.frames)
+        c * self.chunk..((c + 1) * self.chunk).min(self.frames)
     }
 
     /// Frame f's `[U | W | g]`: from the cache, or recomputed at the assembly point (`tb`:
@@ -166,7 +188,8 @@ pub(crate) fn assemble(prob: &Problem, p: &[f64], qs: &[Vec<f64>], b: &mut Block
     b.p = p.to_vec();
     b.factors_valid = false;
     let chunks = b.chunks();
-    let mut slots: Vec<Option<&mut [f64]>> = b.store.chunks_mut(CHUNK * per).map(Some).collect();
+    let chunk = b.chunk;
+    let mut slots: Vec<Option<&mut [f64]>> = b.store.chunks_mut(chunk * per).map(Some).collect();
     slots.resize_with(chunks, || None);
     let half = &b.half;
     let pool = &b.pool;
@@ -179,8 +202,8 @@ pub(crate) fn assemble(prob: &Problem, p: &[f64], qs: &[Vec<f64>], b: &mut Block
                 let mut v = vec![0.0; nf * nf];
                 let mut gs = vec![0.0; nf];
                 let mut cost = 0.0;
-                let start = c * CHUNK;
-                for f in start..(start + CHUNK).min(qs.len()) {
+                let start = c * chunk;
+                for f in start..(start + chunk).min(qs.len()) {
                     let targets = prob.frames.fill(f, tb);
                     cost += frame_gram(prob, p, &qs[f], targets, half, sc);
                     for l in 0..nf {
@@ -262,7 +285,7 @@ pub(crate) fn solve(
     b.factors_valid = false;
     let mut factors = std::mem::take(&mut b.factors);
     let mut slots: Vec<Option<&mut [f64]>> = factors
-        .chunks_mut((CHUNK * nq * nq).max(1))
+        .chunks_mut((b.chunk * nq * nq).max(1))
         .map(Some)
         .collect();
     slots.resize_with(b.chunks(), || None);
@@ -394,7 +417,7 @@ pub(crate) fn back_substitute(
 ) -> f64 {
     let (nq, nf) = (b.nq, b.nf);
     let parts: Vec<f64> = dq
-        .par_chunks_mut(CHUNK)
+        .par_chunks_mut(b.chunk)
         .enumerate()
         .map_init(
             || (b.pool.take(prob), Vec::new()),
@@ -457,7 +480,7 @@ pub(crate) fn active_bounds(s: &[f64], gs: &[f64]) -> Vec<bool> {
 /// (`b`: the workspaces).
 pub(crate) fn cost_at(prob: &Problem, b: &Blocks, p: &[f64], qs: &[Vec<f64>]) -> f64 {
     let parts: Vec<f64> = qs
-        .par_chunks(CHUNK)
+        .par_chunks(b.chunk)
         .enumerate()
         .map_init(
             || (b.pool.take(prob), Vec::new()),
@@ -465,7 +488,7 @@ pub(crate) fn cost_at(prob: &Problem, b: &Blocks, p: &[f64], qs: &[Vec<f64>]) ->
                 let kin = &mut sc.kin;
                 let mut total = 0.0;
                 for (i, q) in qs.iter().enumerate() {
-                    let targets = prob.frames.fill(c * CHUNK + i, tb);
+                    let targets = prob.frames.fill(c * b.chunk + i, tb);
                     forward_kinematics(prob.model, p, q, Want::POSITIONS, kin);
                     for (j, m) in prob.model.markers().iter().enumerate() {
                         if !targets[j].x.is_nan() && m.weight > 0.0 {

@@ -133,3 +133,25 @@ fn schur_step_solves_the_dense_damped_system() {
         "{pred} vs {expected}"
     );
 }
+
+/// Short trials get an even number of chunks of nearly equal length; long ones keep
+/// [`CHUNK`]; the chunks always cover the trial.
+#[test]
+fn short_trials_get_an_even_number_of_chunks() {
+    for frames in 1..2000 {
+        let len = super::chunk_len(frames);
+        let chunks = frames.div_ceil(len);
+        assert!((1..=CHUNK).contains(&len), "{frames}: {len}");
+        if frames.div_ceil(CHUNK) < 16 {
+            assert!(
+                chunks % 2 == 0 || frames == 1,
+                "{frames}: {chunks} chunks of {len}"
+            );
+        } else {
+            assert_eq!(len, CHUNK, "{frames}");
+        }
+    }
+    assert_eq!(super::chunk_len(143), 24);
+    assert_eq!(super::chunk_len(25), 13);
+    assert_eq!(super::chunk_len(10_000), CHUNK);
+}

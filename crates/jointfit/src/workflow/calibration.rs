@@ -4,12 +4,9 @@ use serde::Serialize;
 
 use super::starts::{full_starts, multi_start_summary};
 use super::{FitSettings, Method, Observer, Termination, WorkflowError};
-use crate::calibrate::joint::{solve_joint, JointOptions};
-use crate::calibrate::pso::{solve_pso, PsoOptions};
 use crate::calibrate::uncertainty::{
     analyze, unidentifiable_subset, Identifiability, SeMethod, Uncertainty,
 };
-use crate::calibrate::varpro::{solve_varpro, VarProOptions};
 use crate::calibrate::{Fit, Problem};
 use crate::model::{Model, ParamId, MM_PER_M};
 use crate::trial::Trial;
@@ -143,100 +140,32 @@ impl Calibration {
     }
 }
 
+impl FitSettings {
+    /// `jointfit calibrate`'s flag thresholds of a 95 % interval's half-width (mm, deg).
+    pub const COMMAND_THRESHOLD_MM: f64 = 5.0;
+    pub const COMMAND_THRESHOLD_DEG: f64 = 5.0;
+
+    /// What `jointfit calibrate` runs with no options (and `jointfit bench` times): the
+    /// default settings (joint method, global phase, priors, marker policy, envelope) plus the
+    /// uncertainty analysis with the command's thresholds, no bootstrap, seed 1. Entry point:
+    /// [`super::refine::calibrate_refined`].
+    pub fn command_default() -> FitSettings {
+        let seed = FitSettings::default().seed;
+        FitSettings {
+            uncertainty: Some(super::uncertainty_options(
+                FitSettings::COMMAND_THRESHOLD_MM,
+                FitSettings::COMMAND_THRESHOLD_DEG,
+                0,
+                seed,
+            )),
+            ..FitSettings::default()
+        }
+    }
+}
+
 /// e_inner (m²) in mm².
 pub(super) fn mm2(cost: f64) -> f64 {
     cost * MM_PER_M * MM_PER_M
-}
-
-/// Forwards to the caller's observer and records the objective per stage.
-pub(super) struct Recorder<'o> {
-    pub(super) inner: &'o mut dyn Observer,
-    pub(super) stages: Vec<ConvergenceStage>,
-}
-
-impl Recorder<'_> {
-    /// Starts stage `stage` (shown to the observer as `label`); `first` is its starting
-    /// objective when known (recorded as iteration 0).
-    fn begin(&mut self, stage: &str, label: &str, budget: Option<usize>, first: Option<f64>) {
-        self.inner.stage_started(label, budget);
-        self.stages.push(ConvergenceStage {
-            stage: stage.to_string(),
-            objective_mm2: Vec::new(),
-        });
-        if let Some(c) = first {
-            self.iteration(0, c);
-        }
-    }
-}
-
-impl Observer for Recorder<'_> {
-    fn iteration(&mut self, iteration: usize, objective: f64) {
-        if let Some(s) = self.stages.last_mut() {
-            s.objective_mm2.push(mm2(objective));
-        }
-        self.inner.iteration(iteration, objective);
-    }
-    fn stage_ended(&mut self, termination: Termination) {
-        self.inner.stage_ended(termination);
-    }
-}
-
-/// One start: the method's solver(s) from parameters `p0` and coordinates `q0`, where the
-/// objective is `cost0`.
-pub(super) fn run_start(
-    prob: &Problem,
-    p0: &[f64],
-    q0: Vec<Vec<f64>>,
-    cost0: f64,
-    settings: &FitSettings,
-    label: &dyn Fn(&str) -> String,
-    rec: &mut Recorder,
-) -> Fit {
-    let s0 = prob.to_scaled(p0);
-    let cost0 = Some(cost0);
-    let joint = JointOptions {
-        max_iterations: settings
-            .max_iterations
-            .unwrap_or(JointOptions::default().max_iterations),
-        ..JointOptions::default()
-    };
-    let varpro = VarProOptions {
-        max_iterations: settings
-            .max_iterations
-            .unwrap_or(VarProOptions::default().max_iterations),
-        ..VarProOptions::default()
-    };
-    let fit = match settings.method {
-        Method::Joint => {
-            let stage = "joint Levenberg-Marquardt";
-            rec.begin(stage, &label(stage), None, cost0);
-            solve_joint(prob, &s0, q0, &joint, rec)
-        }
-        Method::Gradient => {
-            let stage = "two-level Gauss-Newton";
-            rec.begin(stage, &label(stage), None, cost0);
-            solve_varpro(prob, &s0, q0, &varpro, rec)
-        }
-        Method::Pso => {
-            let opts = PsoOptions {
-                seed: settings.seed,
-                ..PsoOptions::default()
-            };
-            // The swarm usually runs to its budget.
-            let stage = "particle swarm";
-            rec.begin(stage, &label(stage), Some(opts.max_iterations), None);
-            let swarm = solve_pso(prob, &q0, &opts, rec);
-            rec.stage_ended(swarm.termination);
-            let stage = "joint Levenberg-Marquardt polish";
-            rec.begin(stage, &label(stage), None, Some(swarm.cost));
-            let mut polished = solve_joint(prob, &swarm.s, swarm.coords.clone(), &joint, rec);
-            polished.iterations += swarm.iterations;
-            polished.evaluations += swarm.evaluations;
-            polished
-        }
-    };
-    rec.stage_ended(fit.termination);
-    fit
 }
 
 /// Per-model-marker RMS distance (m) for parameters `p` and per-frame coordinates.
@@ -275,7 +204,7 @@ fn fit_free(
         super::map::map_problem_with(model, start, trials, free, settings, noise)?;
     super::map::set_inflation(&mut prob, inflation);
     let (fits, runs, global, q_before, cost_before) = if settings.effective_probes() > 0 {
-        let out = super::global::run(&prob, start, settings, pre, observer);
+        let out = super::global::run(&prob, start, settings, pre, None, observer);
         (
             out.fits,
             out.runs,
@@ -337,6 +266,22 @@ fn fit_free(
             }
         })
         .collect();
+    // Four passes of forward kinematics over the frames, two on each thread (each pass's
+    // sums in frame order, as alone).
+    let ((rms_before, rms_after), (per_marker_before, per_marker_after)) = rayon::join(
+        || {
+            rayon::join(
+                || prob.marker_rms(start, &q_before),
+                || prob.marker_rms(&fit.p, &fit.coords),
+            )
+        },
+        || {
+            rayon::join(
+                || per_marker_rms(&prob, start, &q_before),
+                || per_marker_rms(&prob, &fit.p, &fit.coords),
+            )
+        },
+    );
     Ok(Calibration {
         method: settings.method,
         seed: settings.seed,
@@ -344,10 +289,10 @@ fn fit_free(
         skipped_frames: prob.skipped.len(),
         free_parameters: prob.n_free(),
         parameters,
-        rms_before_mm: prob.marker_rms(start, &q_before) * MM_PER_M,
-        rms_after_mm: prob.marker_rms(&fit.p, &fit.coords) * MM_PER_M,
-        marker_rms_before_mm: names(per_marker_rms(&prob, start, &q_before)),
-        marker_rms_after_mm: names(per_marker_rms(&prob, &fit.p, &fit.coords)),
+        rms_before_mm: rms_before * MM_PER_M,
+        rms_after_mm: rms_after * MM_PER_M,
+        marker_rms_before_mm: names(per_marker_before),
+        marker_rms_after_mm: names(per_marker_after),
         cost_before,
         cost_after: fit.cost,
         iterations: fit.iterations,
@@ -452,11 +397,20 @@ pub fn calibrate(
         _ => (UNCERTAINTY_STAGE.to_string(), None),
     };
     observer.stage_started(&stage, budget);
-    let u = analyze(&prob, &cal.fit, opts);
+    // The data shares need the reduced normal matrix alone: formed beside the analysis (which
+    // forms its own) on the other thread; each result is the same whatever runs where.
+    let (u, share) = rayon::join(
+        || analyze(&prob, &cal.fit, opts),
+        || {
+            prob.prior.is_some().then(|| {
+                let fit = &cal.fit;
+                let red = crate::calibrate::uncertainty::reduced_system(&prob, &fit.p, &fit.coords);
+                crate::calibrate::prior::data_share(&prob, &red.normal)
+            })
+        },
+    );
     observer.stage_ended(Termination::Converged);
-    if prob.prior.is_some() {
-        let red = crate::calibrate::uncertainty::reduced_system(&prob, &cal.fit.p, &cal.fit.coords);
-        let share = crate::calibrate::prior::data_share(&prob, &red.normal);
+    if let Some(share) = share {
         for (row, (&sh, &i)) in cal.parameters.iter_mut().zip(share.iter().zip(&prob.free)) {
             if model.parameters()[i].prior_sd.is_some() && sh.is_finite() {
                 row.data_share = Some(sh);

@@ -155,13 +155,46 @@ fn subsample<'m>(prob: &Problem<'m>, stride: usize) -> Problem<'m> {
 /// frames one solve keeps the threads busy. The result is the same either way.
 pub const SEQUENTIAL_FINISH_FRAMES: usize = 4096;
 
+/// Every start of the global phase (the given one first) and its seeded inner solutions on
+/// the probes' frames: what the probes begin from.
+pub type ProbeStarts = Vec<(Vec<f64>, Vec<Vec<f64>>)>;
+
+/// The probes' frames: every `stride`-th of `prob`'s, `stride` the smallest that leaves at
+/// most `settings.probe_frames`.
+fn probe_stride(prob: &Problem, settings: &FitSettings) -> usize {
+    prob.frames.len().div_ceil(settings.probe_frames.max(1))
+}
+
+/// The starts of the global phase on `prob` ([`probe_point`]) and their seeded inner
+/// solutions on the probes' frames, in start order. Neither depends on the marker noise σ
+/// that weighs the prior (only the prior's means and SDs choose the starts), so a caller may
+/// form them from a problem whose prior carries any σ (forming them beside the σ estimate
+/// was measured slower: `docs/performance.md`).
+pub fn probe_starts(prob: &Problem, start: &[f64], settings: &FitSettings) -> ProbeStarts {
+    let coarse = subsample(prob, probe_stride(prob, settings));
+    (0..settings.probes + 1)
+        .into_par_iter()
+        .map(|k| {
+            let p0 = if k == 0 {
+                start.to_vec()
+            } else {
+                probe_point(prob, start, settings, k)
+            };
+            let q0 = coarse.initial_coords(&p0);
+            (p0, q0)
+        })
+        .collect()
+}
+
 /// Runs the global phase on `prob` from `start` with `settings.probes` extra starts (the
-/// module docs); progress goes to `observer` in start order.
+/// module docs), from `starts` ([`probe_starts`] of the same problem, start and settings)
+/// when given; progress goes to `observer` in start order.
 pub fn run(
     prob: &Problem,
     start: &[f64],
     settings: &FitSettings,
     pre: Option<Preliminary>,
+    starts: Option<ProbeStarts>,
     observer: &mut dyn Observer,
 ) -> Outcome {
     let n = settings.probes + 1;
@@ -177,18 +210,15 @@ pub fn run(
         max_iterations: settings.probe_iterations.max(1).min(finish.max_iterations),
         ..JointOptions::default()
     };
-    let stride = prob.frames.len().div_ceil(settings.probe_frames.max(1));
+    let stride = probe_stride(prob, settings);
     let coarse = subsample(prob, stride);
     observer.progress(0, n + 1);
-    let probes: Vec<(Fit, Vec<f64>)> = (0..n)
+    let starts = starts
+        .filter(|s| s.len() == n)
+        .unwrap_or_else(|| probe_starts(prob, start, settings));
+    let probes: Vec<(Fit, Vec<f64>)> = starts
         .into_par_iter()
-        .map(|k| {
-            let p0 = if k == 0 {
-                start.to_vec()
-            } else {
-                probe_point(prob, start, settings, k)
-            };
-            let q0 = coarse.initial_coords(&p0);
+        .map(|(p0, q0)| {
             let mut h = History::default();
             let fit = solve_joint(&coarse, &coarse.to_scaled(&p0), q0, &short, &mut h);
             (fit, h.0)

@@ -5,8 +5,11 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::calibration::{mm2, run_start, MultiStart, Recorder, StartRun};
-use super::{FitSettings, Observer};
+use super::calibration::{mm2, ConvergenceStage, MultiStart, StartRun};
+use super::{FitSettings, Method, Observer, Termination};
+use crate::calibrate::joint::{solve_joint, JointOptions};
+use crate::calibrate::pso::{solve_pso, PsoOptions};
+use crate::calibrate::varpro::{solve_varpro, VarProOptions};
 use crate::calibrate::{Fit, Problem};
 use crate::ik::IkWorkspace;
 use crate::model::{Model, Unit};
@@ -144,4 +147,95 @@ pub fn perturb(
         p[i] = (p[i] + d).clamp(par.lower, par.upper);
     }
     p
+}
+
+/// Forwards to the caller's observer and records the objective per stage.
+pub(super) struct Recorder<'o> {
+    pub(super) inner: &'o mut dyn Observer,
+    pub(super) stages: Vec<ConvergenceStage>,
+}
+
+impl Recorder<'_> {
+    /// Starts stage `stage` (shown to the observer as `label`); `first` is its starting
+    /// objective when known (recorded as iteration 0).
+    fn begin(&mut self, stage: &str, label: &str, budget: Option<usize>, first: Option<f64>) {
+        self.inner.stage_started(label, budget);
+        self.stages.push(ConvergenceStage {
+            stage: stage.to_string(),
+            objective_mm2: Vec::new(),
+        });
+        if let Some(c) = first {
+            self.iteration(0, c);
+        }
+    }
+}
+
+impl Observer for Recorder<'_> {
+    fn iteration(&mut self, iteration: usize, objective: f64) {
+        if let Some(s) = self.stages.last_mut() {
+            s.objective_mm2.push(mm2(objective));
+        }
+        self.inner.iteration(iteration, objective);
+    }
+    fn stage_ended(&mut self, termination: Termination) {
+        self.inner.stage_ended(termination);
+    }
+}
+
+/// One start: the method's solver(s) from parameters `p0` and coordinates `q0`, where the
+/// objective is `cost0`.
+pub(super) fn run_start(
+    prob: &Problem,
+    p0: &[f64],
+    q0: Vec<Vec<f64>>,
+    cost0: f64,
+    settings: &FitSettings,
+    label: &dyn Fn(&str) -> String,
+    rec: &mut Recorder,
+) -> Fit {
+    let s0 = prob.to_scaled(p0);
+    let cost0 = Some(cost0);
+    let joint = JointOptions {
+        max_iterations: settings
+            .max_iterations
+            .unwrap_or(JointOptions::default().max_iterations),
+        ..JointOptions::default()
+    };
+    let varpro = VarProOptions {
+        max_iterations: settings
+            .max_iterations
+            .unwrap_or(VarProOptions::default().max_iterations),
+        ..VarProOptions::default()
+    };
+    let fit = match settings.method {
+        Method::Joint => {
+            let stage = "joint Levenberg-Marquardt";
+            rec.begin(stage, &label(stage), None, cost0);
+            solve_joint(prob, &s0, q0, &joint, rec)
+        }
+        Method::Gradient => {
+            let stage = "two-level Gauss-Newton";
+            rec.begin(stage, &label(stage), None, cost0);
+            solve_varpro(prob, &s0, q0, &varpro, rec)
+        }
+        Method::Pso => {
+            let opts = PsoOptions {
+                seed: settings.seed,
+                ..PsoOptions::default()
+            };
+            // The swarm usually runs to its budget.
+            let stage = "particle swarm";
+            rec.begin(stage, &label(stage), Some(opts.max_iterations), None);
+            let swarm = solve_pso(prob, &q0, &opts, rec);
+            rec.stage_ended(swarm.termination);
+            let stage = "joint Levenberg-Marquardt polish";
+            rec.begin(stage, &label(stage), None, Some(swarm.cost));
+            let mut polished = solve_joint(prob, &swarm.s, swarm.coords.clone(), &joint, rec);
+            polished.iterations += swarm.iterations;
+            polished.evaluations += swarm.evaluations;
+            polished
+        }
+    };
+    rec.stage_ended(fit.termination);
+    fit
 }
