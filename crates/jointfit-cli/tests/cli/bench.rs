@@ -21,11 +21,11 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-/// The "calibrate 27, joint: … cost X mm²)" line of `bench --fit-only`, without its time.
+/// The "calibrate 27, joint (command default): … cost X mm², …" line of `bench --fit-only`, without its time.
 fn fit_cost(out: &str) -> String {
     let line = out
         .lines()
-        .find(|l| l.starts_with("calibrate 27, joint:"))
+        .find(|l| l.starts_with("calibrate 27, joint"))
         .unwrap_or_else(|| panic!("no fit line: {out}"));
     line.split_once(" ms ").unwrap().1.to_string()
 }
