@@ -9,6 +9,11 @@
 
 use std::path::PathBuf;
 
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::model::Model;
+
 /// True when the environment variable `CI` is set to something other than empty, `0` or
 /// `false`: missing data or oracles are then failures, not skips.
 pub fn in_ci() -> bool {
@@ -86,4 +91,24 @@ pub fn python() -> Option<PathBuf> {
         "skipped: no Python oracle (set JOINTFIT_PYTHON to a venv with scipy, ezc3d, c3d, opensim)"
     );
     None
+}
+
+/// Synthetic truth drawn from the model's priors: each parameter `N(prior mean, sd²)`
+/// (Box–Muller on a ChaCha8 stream seeded with `seed`), clipped to its bounds; a parameter
+/// without a prior keeps its nominal value (two draws are spent on it all the same, so the
+/// stream does not depend on which parameters have priors).
+pub fn params_from_priors(model: &Model, seed: u64) -> Vec<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    model
+        .parameters()
+        .iter()
+        .map(|par| {
+            let (u1, u2): (f64, f64) = (rng.gen_range(f64::EPSILON..1.0), rng.gen());
+            let g = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+            match par.prior_sd {
+                Some(sd) => (par.prior_mean + sd * g).clamp(par.lower, par.upper),
+                None => par.nominal,
+            }
+        })
+        .collect()
 }

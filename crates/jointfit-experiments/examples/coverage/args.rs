@@ -1,7 +1,7 @@
 //! Command-line options of the coverage example, and the seeded truths it draws.
 
 use jointfit::calibrate::uncertainty::UncertaintyOptions;
-use jointfit::model::{Model, ModelSpec};
+use jointfit::model::ModelSpec;
 use jointfit::workflow::Method;
 use jointfit_experiments::synth::Motion;
 use rand::{Rng, SeedableRng};
@@ -108,24 +108,6 @@ pub fn parse() -> Result<Args, String> {
         }
     }
     Ok(a)
-}
-
-/// True parameters drawn from the model's priors, `N(prior mean, sd²)` (Box–Muller, seeded),
-/// clipped to the bounds; parameters without a prior keep their nominal value.
-pub fn from_prior(model: &Model, seed: u64) -> Vec<f64> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    model
-        .parameters()
-        .iter()
-        .map(|par| {
-            let (u1, u2): (f64, f64) = (rng.gen_range(f64::EPSILON..1.0), rng.gen());
-            let g = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
-            match par.prior_sd {
-                Some(sd) => (par.prior_mean + sd * g).clamp(par.lower, par.upper),
-                None => par.nominal,
-            }
-        })
-        .collect()
 }
 
 /// The model the trial of seed `seed` is synthesized from: `spec` with one thigh or shank

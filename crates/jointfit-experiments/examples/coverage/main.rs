@@ -39,7 +39,8 @@ mod policy;
 use std::io::Write;
 use std::time::Instant;
 
-use args::{from_prior, misplaced, parse};
+use args::{misplaced, parse};
+use jointfit::testing::params_from_priors;
 use policy::{Errors, Policy, GROUPS};
 
 use jointfit::calibrate::prior::Source;
@@ -111,7 +112,7 @@ fn main() {
     });
     for seed in args.first_seed..args.first_seed + args.seeds {
         let truth = match (args.prior, args.perturb) {
-            (true, _) => from_prior(&model, seed),
+            (true, _) => params_from_priors(&model, seed),
             (false, Some((mm, deg))) => {
                 perturb(&model, &model.nominal_params(), &every, mm, deg, seed)
             }

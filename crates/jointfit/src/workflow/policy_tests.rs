@@ -184,22 +184,6 @@ fn envelope_holds_a_hip_beyond_it_on_every_solver_and_says_so() {
     );
 }
 
-/// Every parameter drawn from its landmark prior, `N(mean, sd²)` clipped to the bounds
-/// (Box–Muller, seeded): the landmark model wrong by the landmark method's published error.
-fn from_priors(model: &Model, seed: u64) -> Vec<f64> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    model
-        .parameters()
-        .iter()
-        .map(|par| {
-            let (u1, u2): (f64, f64) = (rng.gen_range(f64::EPSILON..1.0), rng.gen());
-            let g = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
-            let sd = par.prior_sd.expect("landmark prior");
-            (par.prior_mean + sd * g).clamp(par.lower, par.upper)
-        })
-        .collect()
-}
-
 #[test]
 fn no_decision_on_clean_trials_with_the_joints_off_their_landmarks() {
     // No marker moved; the joints off the landmark model by prior-sized errors. A marker's
@@ -211,9 +195,11 @@ fn no_decision_on_clean_trials_with_the_joints_off_their_landmarks() {
     let spec = spec_with_priors();
     let model = Model::compile(&spec).unwrap();
     let start = model.nominal_params();
+    assert!(model.parameters().iter().all(|par| par.prior_sd.is_some()));
     let mut ik_says_displaced = Vec::new();
     for seed in 1..=40u64 {
-        let p = from_priors(&model, seed);
+        // The landmark model wrong by the landmark method's published error.
+        let p = crate::testing::params_from_priors(&model, seed);
         let trial = synthetic(&model, &p, 60, 0.0003);
         let (map, _) = MarkerMap::allowing_absent(&model, trial.labels());
         for o in marker_offsets(&model, &start, &trial, &map, &IkOptions::default()) {
