@@ -6,31 +6,12 @@ use rand_chacha::ChaCha8Rng;
 use super::envelope::HELD_AT_LIMIT;
 use super::marker_policy::{decide, MarkerAction};
 use super::refine::calibrate_refined;
+use super::refine_tests::{joint_error, spec_with_priors};
 use super::synthetic_tests::synthetic;
 use super::*;
 use crate::calibrate::params_for_groups;
 use crate::calibrate::prior::Source;
-use crate::landmarks::priors::fill_landmark_priors;
-use crate::landmarks::HipCentreMethod;
-use crate::model::lower_limb::{lower_limb, Side};
 use crate::model::{Model, ModelSpec};
-
-fn spec_with_priors() -> ModelSpec {
-    let mut spec = lower_limb(Side::Right);
-    fill_landmark_priors(&mut spec, HipCentreMethod::Bell);
-    spec
-}
-
-/// RMS error of the joint parameters (mm and degrees together).
-fn joint_error(model: &Model, fitted: &[f64], truth: &[f64]) -> f64 {
-    let e: f64 = model
-        .parameters()
-        .iter()
-        .enumerate()
-        .map(|(i, p)| p.unit.to_display(fitted[i] - truth[i]).powi(2))
-        .sum();
-    (e / model.n_p() as f64).sqrt()
-}
 
 /// The truth of seed `seed`: one thigh or shank marker (seeded) moved 20 mm in a seeded
 /// direction since the static trial, joint parameters moved up to 8 mm / 4° from the

@@ -12,7 +12,8 @@ use crate::landmarks::HipCentreMethod;
 use crate::model::lower_limb::{lower_limb, Side};
 use crate::model::{Model, ModelSpec};
 
-fn spec_with_priors() -> ModelSpec {
+/// The built-in right leg with the landmark priors `personalize` writes (Bell).
+pub(super) fn spec_with_priors() -> ModelSpec {
     let mut spec = lower_limb(Side::Right);
     fill_landmark_priors(&mut spec, HipCentreMethod::Bell);
     spec
@@ -54,7 +55,7 @@ fn truth(spec: &ModelSpec, model: &Model, seed: u64, misplaced: usize) -> (Model
 }
 
 /// RMS error of the joint parameters (mm and degrees together).
-fn joint_error(model: &Model, fitted: &[f64], truth: &[f64]) -> f64 {
+pub(super) fn joint_error(model: &Model, fitted: &[f64], truth: &[f64]) -> f64 {
     let e: f64 = model
         .parameters()
         .iter()
