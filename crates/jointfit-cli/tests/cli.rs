@@ -35,6 +35,8 @@ mod markers;
 mod offsets;
 #[path = "cli/osim.rs"]
 mod osim;
+#[path = "cli/osim_clamped.rs"]
+mod osim_clamped;
 #[path = "cli/osim_commands.rs"]
 mod osim_commands;
 #[path = "cli/osim_ik.rs"]

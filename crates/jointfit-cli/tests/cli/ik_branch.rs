@@ -5,10 +5,10 @@
 //! in frame 0 where the in-range branch is 71.6°, 29.0°, −48.7°). The `.mot` must hold, for
 //! every Euler triple of the model and every frame, the branch no farther outside the model's
 //! coordinate ranges than the other, and every periodic coordinate within half a turn of its
-//! range. OpenSim's own coordinates on this model are not the oracle here: OpenSim clamps
-//! every coordinate of `generic.osim` to its range (`clamped` true) and ends in another pose
-//! (pelvis tilt 21° where the unbounded fit finds −85°, 93 mm RMS either way); the agreement
-//! with OpenSim's coordinates is asserted on the hand-scaled model (`osim_ik`).
+//! range. Every coordinate of `generic.osim` is `clamped`, and jointfit's IK now keeps them in
+//! their ranges as OpenSim's does, so the branch rule has nothing left to move here; the
+//! agreement with OpenSim's coordinates is asserted in `osim_clamped` (this model) and
+//! `osim_ik` (the hand-scaled one).
 
 use std::f64::consts::PI;
 

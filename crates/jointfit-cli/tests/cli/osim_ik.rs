@@ -102,7 +102,7 @@ fn compare_files(
     dir: &jointfit_testkit::scratch::ScratchDir,
     python: &Path,
     announce: Option<&str>,
-) {
+) -> (Vec<f64>, Vec<f64>) {
     let mot = dir.join("jointfit.mot");
     let (ok, out, err) = jointfit(&[
         "ik",
@@ -159,6 +159,7 @@ fn compare_files(
         "{model_rel}: {} frames, jointfit − OpenSim RMS at most {worst:.4} mm",
         jf.len()
     );
+    (jf, os)
 }
 
 #[test]
@@ -245,12 +246,36 @@ fn trc_frames(text: &str, first: usize, n: usize) -> String {
 /// OpenCap's unscaled generic model on the same trial: it matches the subject's markers
 /// poorly (about 100 mm RMS), and warm-started frames used to fall into wrong local minima
 /// (frame 20 at 683 mm where OpenSim finds 98 mm). Absurd frames are re-solved from their
-/// neighbours and a fresh seed (issue 14; `jointfit::ik::repair`).
+/// neighbours and a fresh seed (issue 14; `jointfit::ik::repair`). Every coordinate of this
+/// model is `clamped`: the coordinates against OpenSim's are asserted in `osim_clamped`.
 #[test]
 fn ik_on_opencap_generic_osim_no_frame_worse_than_opensim() {
-    compare(
+    let (model_rel, trial_rel) = (
         "opencap_expert1/generic.osim",
         "opencap_expert1/walking1.trc",
-        None,
     );
+    let (Some(model), Some(trial)) = (
+        jointfit_testkit::data_file(model_rel),
+        jointfit_testkit::data_file(trial_rel),
+    ) else {
+        return;
+    };
+    let Some(python) = jointfit_testkit::python() else {
+        return;
+    };
+    let dir = jointfit_testkit::scratch("osim-ik-generic");
+    let (jf, os) = compare_files(
+        model_rel,
+        &model,
+        &trial,
+        &dir,
+        &python,
+        Some("no marker determines mtp_angle_r"),
+    );
+    let same: Vec<bool> = jf
+        .iter()
+        .zip(&os)
+        .map(|(a, b)| (a - b).abs() <= 0.01)
+        .collect();
+    super::osim_clamped::clamped_agree(&model, &trial, dir.path(), &same);
 }

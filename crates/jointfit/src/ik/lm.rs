@@ -26,6 +26,10 @@ pub struct IkWorkspace {
     pub(super) start: Vec<f64>,
     pub(super) moments: Moments,
     pub(super) solvability: Solvability,
+    /// Per coordinate, `[lower, upper]` for OpenSim-`clamped` coordinates, `[−∞, ∞]` else.
+    pub(super) bounds: Vec<[f64; 2]>,
+    /// Whether any coordinate is clamped.
+    pub(super) any_clamped: bool,
 }
 
 impl IkWorkspace {
@@ -44,6 +48,18 @@ impl IkWorkspace {
             start: vec![0.0; n],
             moments: Moments::new(model),
             solvability: Solvability::new(model),
+            bounds: model
+                .coordinates()
+                .iter()
+                .map(|c| {
+                    if c.clamped {
+                        c.range
+                    } else {
+                        [f64::NEG_INFINITY, f64::INFINITY]
+                    }
+                })
+                .collect(),
+            any_clamped: model.coordinates().iter().any(|c| c.clamped),
         }
     }
     /// Kinematics at the last solution (marker positions of the last accepted point).
@@ -153,6 +169,12 @@ pub(super) fn lm(
     ws: &mut IkWorkspace,
 ) -> (f64, usize, Termination) {
     let n = active.len();
+    let bounded = opts.clamp && ws.any_clamped;
+    if bounded {
+        for &c in active {
+            q[c] = q[c].clamp(ws.bounds[c][0], ws.bounds[c][1]);
+        }
+    }
     ws.moments.set_active(active);
     forward_kinematics(model, p, q, Want::AXES, &mut ws.cur);
     let mut cost = cost_of(&ws.cur.markers, targets, &ws.weights);
@@ -164,6 +186,9 @@ pub(super) fn lm(
         iterations += 1;
         ws.moments
             .normal_equations(&ws.cur, targets, &ws.weights, n, &mut ws.a, &mut ws.g);
+        if bounded {
+            hold_at_bounds(q, active, &ws.bounds, &mut ws.a, &mut ws.g);
+        }
         let max_diag = (0..n).fold(0.0f64, |m, i| m.max(ws.a[i * n + i]));
         // Try steps with growing damping until the cost drops.
         loop {
@@ -181,10 +206,19 @@ pub(super) fn lm(
             };
             ws.delta[..n].copy_from_slice(&ws.g[..n]);
             chol.solve(&mut ws.delta[..n]);
-            let step_max = ws.delta[..n].iter().fold(0.0f64, |m, d| m.max(d.abs()));
+            let mut step_max = ws.delta[..n].iter().fold(0.0f64, |m, d| m.max(d.abs()));
             ws.q_trial.copy_from_slice(q);
             for (i, &c) in active.iter().enumerate() {
                 ws.q_trial[c] += ws.delta[i];
+            }
+            if bounded {
+                // Projected step: the box's nearest point, and its length as the step.
+                step_max = 0.0;
+                for &c in active {
+                    let [lo, hi] = ws.bounds[c];
+                    ws.q_trial[c] = ws.q_trial[c].clamp(lo, hi);
+                    step_max = step_max.max((ws.q_trial[c] - q[c]).abs());
+                }
             }
             forward_kinematics(model, p, &ws.q_trial, Want::AXES, &mut ws.trial);
             let trial_cost = cost_of(&ws.trial.markers, targets, &ws.weights);
@@ -215,6 +249,28 @@ pub(super) fn lm(
         }
     }
     (cost, iterations, Termination::IterationLimit)
+}
+
+/// Projected Gauss-Newton for box bounds (Bertsekas, *SIAM J. Control Optim.* 20:221–246,
+/// 1982): a coordinate at a bound whose descent direction (`g = JᵀW r`, the step's right-hand
+/// side) points out of the box is held for this iteration: its row and column of the normal
+/// matrix are zeroed (the diagonal kept) and its `g` set to 0, so its step is exactly 0 and
+/// the other coordinates are solved with it fixed. The trial point is then projected into
+/// the box ([`lm`]).
+fn hold_at_bounds(q: &[f64], active: &[usize], bounds: &[[f64; 2]], a: &mut [f64], g: &mut [f64]) {
+    let n = active.len();
+    for (i, &c) in active.iter().enumerate() {
+        let [lo, hi] = bounds[c];
+        if (q[c] <= lo && g[i] < 0.0) || (q[c] >= hi && g[i] > 0.0) {
+            g[i] = 0.0;
+            for k in 0..n {
+                if k != i {
+                    a[i * n + k] = 0.0;
+                    a[k * n + i] = 0.0;
+                }
+            }
+        }
+    }
 }
 
 /// Largest contraction ratio of two successive steps for which [`remaining_error`] trusts

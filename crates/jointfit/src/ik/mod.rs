@@ -31,7 +31,8 @@
 //! solved again from its neighbours' solutions and a fresh seed, and reported not solved when
 //! it stays implausible ([`repair`]). The coordinates are reported on the branch of each
 //! Euler-angle triple that lies inside the model's coordinate ranges, whole turns removed
-//! ([`branch`]; the fit itself does not clamp).
+//! ([`branch`]). The fit keeps the coordinates a model marks `clamped` (OpenSim's flag)
+//! inside their ranges ([`IkOptions::clamp`]); the others are not bounded.
 
 pub mod branch;
 mod composite;
@@ -97,6 +98,10 @@ pub struct IkOptions {
     pub outlier_distance: f64,
     /// See [`IkOptions::outlier_distance`].
     pub outlier_ratio: f64,
+    /// Keep the coordinates the model marks `clamped` (OpenSim's `<clamped>true</clamped>`)
+    /// inside their ranges, as OpenSim's IK does: a projected Gauss-Newton step (see
+    /// `lm::hold_at_bounds`). No effect on models without clamped coordinates.
+    pub clamp: bool,
 }
 
 impl Default for IkOptions {
@@ -109,6 +114,7 @@ impl Default for IkOptions {
             hold_undetermined: false,
             outlier_distance: 0.05,
             outlier_ratio: 5.0,
+            clamp: true,
         }
     }
 }

@@ -102,9 +102,14 @@ impl Compiler<'_> {
                     CoordKind::Rotational => MotionType::Rotational,
                     CoordKind::Translational => MotionType::Translational,
                 });
-                let (range, default) = match cs {
-                    CoordinateSpec::Name(_) => (None, 0.0),
-                    CoordinateSpec::Full { range, default, .. } => (*range, *default),
+                let (range, default, clamped) = match cs {
+                    CoordinateSpec::Name(_) => (None, 0.0, false),
+                    CoordinateSpec::Full {
+                        range,
+                        default,
+                        clamped,
+                        ..
+                    } => (*range, *default, *clamped),
                 };
                 let range = range.unwrap_or(match ckind {
                     CoordKind::Rotational => [-std::f64::consts::PI, std::f64::consts::PI],
@@ -149,6 +154,7 @@ impl Compiler<'_> {
                     kind: ckind,
                     motion,
                     range,
+                    clamped,
                     default,
                 });
                 if !custom {

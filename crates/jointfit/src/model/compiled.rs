@@ -163,9 +163,13 @@ pub struct Coordinate {
     pub kind: CoordKind,
     /// OpenSim's motion type (the unit in `.mot` files; `kind` for built-in joint kinds).
     pub motion: super::custom::MotionType,
-    /// `[lower, upper]` limit in rad or m, `lower < upper`; informative only (IK does not
-    /// clamp). Default `[−π, π]` or `[−10, 10]` m.
+    /// `[lower, upper]` limit in rad or m, `lower < upper`; a bound of inverse kinematics
+    /// only when [`Coordinate::clamped`], else informative. Default `[−π, π]` or `[−10, 10]` m.
     pub range: [f64; 2],
+    /// OpenSim's `<clamped>`: the value must stay inside `range`. Inverse kinematics bounds
+    /// such coordinates to their range (`crate::ik`, as OpenSim's IK does); false for every
+    /// built-in model.
+    pub clamped: bool,
     /// Value in the default pose (rad or m); 0 unless the description says otherwise.
     pub default: f64,
 }

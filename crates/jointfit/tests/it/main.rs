@@ -3,6 +3,7 @@
 mod calibrate;
 mod checks;
 mod ik;
+mod ik_clamped;
 mod ik_parallel;
 mod ik_robust;
 mod kinematics;
