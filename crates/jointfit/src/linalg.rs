@@ -40,13 +40,29 @@ impl<'a> Cholesky<'a> {
 /// Returns false (leaving `a` partly overwritten) when a pivot is not positive.
 pub(crate) fn cholesky_in_place(a: &mut [f64], n: usize) -> bool {
     debug_assert_eq!(a.len(), n * n);
+    // The IK's usual sizes with the size a compile-time constant: the loops unroll and lose
+    // their bounds checks; the same operations in the same order, so the same bits.
+    match n {
+        6 => cholesky_fixed::<6>(a),
+        12 => cholesky_fixed::<12>(a),
+        18 => cholesky_fixed::<18>(a),
+        _ => cholesky_general(a, n),
+    }
+}
+
+fn cholesky_fixed<const N: usize>(a: &mut [f64]) -> bool {
+    cholesky_general(&mut a[..N * N], N)
+}
+
+// Entry (i, j), i ≥ j, as one dot product along rows i and j of the columns before j:
+// `a_ij − L_i0 L_j0 − L_i1 L_j1 − …` in that order, then divided by `L_jj`. This is the
+// same sequence of roundings as subtracting column k's share from column j for k in
+// order (the column form this replaced), so the factor is the same to the bit, with a
+// scalar inner loop that costs fewer instructions on the IK's small matrices (12 to 40
+// columns: 3.3 % of `bench --profile ik`, `docs/frames_solved.md`).
+#[inline(always)]
+fn cholesky_general(a: &mut [f64], n: usize) -> bool {
     let a = &mut a[..n * n];
-    // Entry (i, j), i ≥ j, as one dot product along rows i and j of the columns before j:
-    // `a_ij − L_i0 L_j0 − L_i1 L_j1 − …` in that order, then divided by `L_jj`. This is the
-    // same sequence of roundings as subtracting column k's share from column j for k in
-    // order (the column form this replaced), so the factor is the same to the bit, with a
-    // scalar inner loop that costs fewer instructions on the IK's small matrices (12 to 40
-    // columns: 3.3 % of `bench --profile ik`, `docs/frames_solved.md`).
     for j in 0..n {
         let mut d = a[j * n + j];
         for k in 0..j {
@@ -77,6 +93,16 @@ pub(crate) fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
 
 /// Solves `L y = b` in place (forward substitution with the lower factor).
 pub(crate) fn forward_solve(l: &[f64], n: usize, b: &mut [f64]) {
+    match n {
+        6 => forward_general(&l[..36], 6, &mut b[..6]),
+        12 => forward_general(&l[..144], 12, &mut b[..12]),
+        18 => forward_general(&l[..324], 18, &mut b[..18]),
+        _ => forward_general(l, n, b),
+    }
+}
+
+#[inline(always)]
+fn forward_general(l: &[f64], n: usize, b: &mut [f64]) {
     // Column by column: each b_i sees the subtractions of k = 0, 1, … in order, as a dot
     // product along row i would give, with the inner loop down a contiguous column.
     for k in 0..n {
@@ -90,6 +116,16 @@ pub(crate) fn forward_solve(l: &[f64], n: usize, b: &mut [f64]) {
 
 /// Solves `Lᵀ x = y` in place (backward substitution with the lower factor).
 pub(crate) fn backward_solve(l: &[f64], n: usize, b: &mut [f64]) {
+    match n {
+        6 => backward_general(&l[..36], 6, &mut b[..6]),
+        12 => backward_general(&l[..144], 12, &mut b[..12]),
+        18 => backward_general(&l[..324], 18, &mut b[..18]),
+        _ => backward_general(l, n, b),
+    }
+}
+
+#[inline(always)]
+fn backward_general(l: &[f64], n: usize, b: &mut [f64]) {
     for i in (0..n).rev() {
         let mut s = b[i];
         for k in i + 1..n {
