@@ -15,7 +15,11 @@
 //!     two markers' model distances to the other markers must differ by at least
 //!     [`SWAP_MIN_ASYMMETRY`] on average (a pair placed symmetrically, e.g. both ASIS with
 //!     only a sacral marker besides them, is a mirror image that no distance tells from its
-//!     swap, and soft-tissue motion would be read as swaps);
+//!     swap, and soft-tissue motion would be read as swaps). One swap corrupts the other
+//!     pairs' references, so in a frame where several pairs read as swaps they are taken
+//!     strongest first (smallest ratio of the exchanged to the written misfit), and a later
+//!     pair is kept only when it shares no marker with a kept one and still reads as a swap
+//!     against the markers no kept swap moved;
 //!   - **jump**: a marker moves faster than [`JUMP_SPEED`] between consecutive frames;
 //!   - **gaps**: frames in which a model marker is missing, with the longest run (one finding
 //!     for the markers missing in exactly the same frames);

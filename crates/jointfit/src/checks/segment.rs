@@ -94,75 +94,119 @@ impl Ctx<'_> {
         if m < 3 {
             return out;
         }
-        for i in 0..m {
-            for k in i + 1..m {
-                let (a, b) = (markers[i], markers[k]);
-                // The asymmetry test depends on the frame only through which markers are
-                // present: in a complete frame its sum runs over every other marker, in the
-                // same order as below, so it is taken once for all of them.
-                // In a complete frame the test below can hold only when the bound of the
-                // module docs' swap passes (see `swap_bound_passes`); the sums of the
-                // bound are taken once per pair and once per frame and marker instead of
-                // once per pair and frame. Its margin covers their rounding, so the test
-                // runs, as written, on every frame it could accept.
-                let complete_asymmetry = (0..m)
-                    .filter(|&c| c != i && c != k)
-                    .map(|c| (r[i * m + c] - r[k * m + c]).abs())
-                    .sum::<f64>();
-                let swapped = |f: usize| -> bool {
-                    if !d[(f * m + i) * m + k].is_finite() {
-                        return false;
-                    }
-                    if complete[f] {
-                        let eik = (d[(f * m + i) * m + k] - r[i * m + k]).abs();
-                        let plain = misfit[f * m + i] + misfit[f * m + k] - 2.0 * eik;
-                        if !swap_bound_passes(plain, complete_asymmetry, m - 2) {
-                            return false;
-                        }
-                    }
-                    let (mut plain, mut crossed, mut asymmetry, mut count) =
-                        (0.0, 0.0, 0.0, 0usize);
-                    for c in (0..m).filter(|&c| c != i && c != k) {
-                        let (dac, dbc) = (d[(f * m + i) * m + c], d[(f * m + k) * m + c]);
-                        if !dac.is_finite() {
-                            continue;
-                        }
-                        let (rac, rbc) = (r[i * m + c], r[k * m + c]);
-                        plain += (dac - rac).abs() + (dbc - rbc).abs();
-                        crossed += (dbc - rac).abs() + (dac - rbc).abs();
-                        asymmetry += (rac - rbc).abs();
-                        count += 1;
-                    }
-                    count > 0
-                        && asymmetry >= SWAP_MIN_ASYMMETRY * count as f64
-                        && plain > 0.02 * count as f64
-                        && crossed < 0.3 * plain
-                };
-                for (start, end) in runs((0..n).map(swapped)) {
-                    let (from, to) = (first + start as i64, first + end as i64);
-                    let frames = if end + 1 == n {
-                        format!("{from}")
-                    } else {
-                        format!("{from}-{to}")
-                    };
-                    out.push(Finding {
-                        kind: CheckKind::Swap,
-                        severity: Severity::Warning,
-                        message: format!(
-                            "{} and {} look swapped in frames {}–{}: exchanged, they fit the \
-                             subject model's distances to the other {seg} markers",
-                            self.name(a),
-                            self.name(b),
-                            from,
-                            to,
-                        ),
-                        fix: Some(format!(
-                            "--swap-labels {},{}@{frames}",
-                            self.name(a),
-                            self.name(b)
-                        )),
-                    });
+        // Every pair's test in every frame: `Some(crossed / plain)` when it reads as a swap.
+        let pairs: Vec<(usize, usize)> = (0..m)
+            .flat_map(|i| (i + 1..m).map(move |k| (i, k)))
+            .collect();
+        let test = |i: usize, k: usize, f: usize, excluded: &[bool]| -> Option<f64> {
+            if !d[(f * m + i) * m + k].is_finite() {
+                return None;
+            }
+            let (mut plain, mut crossed, mut asymmetry, mut count) = (0.0, 0.0, 0.0, 0usize);
+            for c in (0..m).filter(|&c| c != i && c != k && !excluded[c]) {
+                let (dac, dbc) = (d[(f * m + i) * m + c], d[(f * m + k) * m + c]);
+                if !dac.is_finite() {
+                    continue;
                 }
+                let (rac, rbc) = (r[i * m + c], r[k * m + c]);
+                plain += (dac - rac).abs() + (dbc - rbc).abs();
+                crossed += (dbc - rac).abs() + (dac - rbc).abs();
+                asymmetry += (rac - rbc).abs();
+                count += 1;
+            }
+            (count > 0
+                && asymmetry >= SWAP_MIN_ASYMMETRY * count as f64
+                && plain > 0.02 * count as f64
+                && crossed < 0.3 * plain)
+                .then_some(crossed / plain)
+        };
+        let none = vec![false; m];
+        let mut flagged: Vec<Vec<Option<f64>>> = Vec::with_capacity(pairs.len());
+        for &(i, k) in &pairs {
+            // The asymmetry test depends on the frame only through which markers are
+            // present: in a complete frame its sum runs over every other marker, in the
+            // same order as in `test`, so it is taken once for all of them.
+            // In a complete frame the test can hold only when the bound of the module
+            // docs' swap passes (see `swap_bound_passes`); the sums of the bound are taken
+            // once per pair and once per frame and marker instead of once per pair and
+            // frame. Its margin covers their rounding, so the test runs, as written, on
+            // every frame it could accept.
+            let complete_asymmetry = (0..m)
+                .filter(|&c| c != i && c != k)
+                .map(|c| (r[i * m + c] - r[k * m + c]).abs())
+                .sum::<f64>();
+            flagged.push(
+                (0..n)
+                    .map(|f| {
+                        if complete[f] && d[(f * m + i) * m + k].is_finite() {
+                            let eik = (d[(f * m + i) * m + k] - r[i * m + k]).abs();
+                            let plain = misfit[f * m + i] + misfit[f * m + k] - 2.0 * eik;
+                            if !swap_bound_passes(plain, complete_asymmetry, m - 2) {
+                                return None;
+                            }
+                        }
+                        test(i, k, f, &none)
+                    })
+                    .collect(),
+            );
+        }
+        // One swap corrupts the references of the others: with a and b exchanged, a pair
+        // (c, e) whose distances to a and b mirror each other also reads as a swap. In a
+        // frame where several pairs read as swaps, they are taken strongest first (smallest
+        // crossed/plain), and each later one is kept only when it shares no marker with a
+        // kept one and still reads as a swap against the markers no kept swap moved.
+        let mut excluded = vec![false; m];
+        let mut order: Vec<(f64, usize)> = Vec::new();
+        for f in 0..n {
+            order.clear();
+            order.extend(
+                flagged
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(p, v)| v[f].map(|x| (x, p))),
+            );
+            if order.len() < 2 {
+                continue;
+            }
+            order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            excluded.fill(false);
+            for &(_, p) in &order {
+                let (i, k) = pairs[p];
+                let keep = !excluded[i] && !excluded[k] && test(i, k, f, &excluded).is_some();
+                if keep {
+                    excluded[i] = true;
+                    excluded[k] = true;
+                } else {
+                    flagged[p][f] = None;
+                }
+            }
+        }
+        for (&(i, k), flags) in pairs.iter().zip(&flagged) {
+            let (a, b) = (markers[i], markers[k]);
+            for (start, end) in runs(flags.iter().map(Option::is_some)) {
+                let (from, to) = (first + start as i64, first + end as i64);
+                let frames = if end + 1 == n {
+                    format!("{from}")
+                } else {
+                    format!("{from}-{to}")
+                };
+                out.push(Finding {
+                    kind: CheckKind::Swap,
+                    severity: Severity::Warning,
+                    message: format!(
+                        "{} and {} look swapped in frames {}–{}: exchanged, they fit the \
+                         subject model's distances to the other {seg} markers",
+                        self.name(a),
+                        self.name(b),
+                        from,
+                        to,
+                    ),
+                    fix: Some(format!(
+                        "--swap-labels {},{}@{frames}",
+                        self.name(a),
+                        self.name(b)
+                    )),
+                });
             }
         }
         out
