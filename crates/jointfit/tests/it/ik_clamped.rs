@@ -114,14 +114,14 @@ fn clamped_coordinates_stop_at_their_bounds_and_the_rest_is_optimal() {
             b[c] -= h;
             (cost(&model, &p, &a, &targets) - cost(&model, &p, &b, &targets)) / (2.0 * h)
         };
-        for c in 0..model.n_q() {
+        for (c, name) in names.iter().enumerate() {
             let s = slope(c);
             if c == knee {
                 assert!(s < -1e-4, "knee: the cost falls outwards, slope {s}");
             } else if c == add && q[add] == -5.0 * DEG {
                 assert!(s > -1e-7, "adduction: the cost falls outwards, slope {s}");
             } else {
-                assert!(s.abs() < 1e-7, "{}: slope {s} at the optimum", names[c]);
+                assert!(s.abs() < 1e-7, "{name}: slope {s} at the optimum");
             }
         }
         // No feasible point nearby fits better.
