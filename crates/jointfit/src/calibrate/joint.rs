@@ -31,10 +31,29 @@
 //! tolerances below. On the shared
 //! opencap_expert1 walking1 full-leg and `.osim` hip + knee fits the parameters moved by at
 //! most 2e-4 of their standard errors against running the classical tolerances out.
+//!
+//! **The second-order term.** On large residuals (running) the Gauss–Newton model misses
+//! `Σ rᵢ∇²rᵢ` and the iterations crawl (ρ → 2 at the damping floor for tens of
+//! iterations). [`solve_joint_with`] can add a secant matrix `A` on the Schur-reduced
+//! parameters' system for the missing term, chosen against Gauss–Newton each iteration by
+//! which model predicted the last step better and limited to keep the model convex
+//! ([`secant`], after NL2SOL; Dennis, Gay & Welsch 1981). The coordinates are still
+//! eliminated exactly; a rejected augmented step is retried with Gauss–Newton's at the same
+//! damping before the damping grows. It is off in [`solve_joint`] and [`solve_joint_to`]:
+//! on identical inputs it saves iterations on long trials (Hamner running 119 → 77), but
+//! used everywhere it moves the σ estimate's preliminary fit and the truncated probes, and
+//! with them the command's result (`docs/performance.md`, "The joint solver on long
+//! trials").
 
 use rayon::prelude::*;
 
-use super::schur::{active_bounds, assemble, back_substitute, cost_at, solve, Blocks};
+use super::schur::{
+    active_bounds, assemble, back_substitute, cost_at, reduce, solve_reduced, Blocks,
+};
+use secant::Secant;
+
+#[path = "secant.rs"]
+mod secant;
 use super::{Fit, Problem};
 use crate::solver::{Observer, Termination};
 
@@ -70,6 +89,11 @@ pub const RESOLUTION_SE: f64 = 1e-3;
 /// Largest damping (relative to the diagonal) at which the statistical stopping rule trusts
 /// a step's predicted decrease as the Gauss–Newton one.
 const RESOLUTION_MAX_DAMPING: f64 = 1e-6;
+
+/// Largest damping (relative to the diagonal) at which the reduced system of a step also
+/// serves as the undamped one of the secant model ([`secant`]); above it the model's data
+/// come from a reduction at λ = 0 (one more pass over the frames).
+const SECANT_MAX_DAMPING: f64 = 1e-6;
 
 /// Marker noise variance σ² (m²) that the statistical stopping rule measures distances
 /// against: the white residual variance `e / (m − N·n_q − n_f)` of the marker term `data`
@@ -129,6 +153,21 @@ pub fn solve_joint_to(
     resolution: f64,
     observer: &mut dyn Observer,
 ) -> Fit {
+    solve_joint_with(prob, s0, q0, opts, resolution, false, observer)
+}
+
+/// [`solve_joint_to`] with the secant model of the second-order term ([`secant`], module
+/// docs) on (`use_secant`) or off (the plain Gauss–Newton Levenberg–Marquardt that
+/// [`solve_joint`] and [`solve_joint_to`] run, bit for bit as before the model existed).
+pub fn solve_joint_with(
+    prob: &Problem,
+    s0: &[f64],
+    q0: Vec<Vec<f64>>,
+    opts: &JointOptions,
+    resolution: f64,
+    use_secant: bool,
+    observer: &mut dyn Observer,
+) -> Fit {
     let observations = observations(prob);
     let nq = prob.model.n_q();
     let nf = prob.n_free();
@@ -155,6 +194,7 @@ pub fn solve_joint_to(
     assemble(prob, &p, &qs, &mut blocks);
     evaluations += 1;
     let mut cost = blocks.cost;
+    let mut secant = Secant::new(nf);
     while iterations < opts.max_iterations {
         iterations += 1;
         let fixed = active_bounds(&s, &blocks.gs);
@@ -162,8 +202,36 @@ pub fn solve_joint_to(
         let mut step = 0.0f64;
         let mut decrease = 0.0;
         let mut model_decrease = f64::INFINITY;
+        // The secant model's data at this point: the reduced system at the step's damping
+        // when that is small (then equal to the undamped one to 1e-6), else at λ = 0.
+        let data_lambda = if lambda <= SECANT_MAX_DAMPING {
+            lambda
+        } else {
+            0.0
+        };
+        let mut reduced_at = None;
+        // Gauss–Newton only for the rest of this iteration (an augmented step was rejected).
+        let mut plain = false;
+        if use_secant {
+            if reduce(prob, &qs, &mut blocks, data_lambda) {
+                secant.observe(&blocks.schur, &blocks.rhs);
+                reduced_at = Some(data_lambda);
+            } else {
+                secant.forget();
+            }
+        }
         while lambda < 1e16 {
-            if !solve(prob, &qs, &mut blocks, lambda, &fixed, &mut ds) {
+            if reduced_at != Some(lambda) {
+                reduced_at = None;
+                if !reduce(prob, &qs, &mut blocks, lambda) {
+                    lambda *= 10.0;
+                    continue;
+                }
+                reduced_at = Some(lambda);
+            }
+            let limited = secant.limited(&blocks.schur);
+            let extra = limited.as_deref().filter(|_| secant.augmented() && !plain);
+            if !solve_reduced(&blocks, extra, &fixed, &mut ds) {
                 lambda *= 10.0;
                 continue;
             }
@@ -173,7 +241,16 @@ pub fn solve_joint_to(
                 .map(|(a, d)| (a + d).clamp(-1.0, 1.0))
                 .collect();
             let ds_eff: Vec<f64> = s_try.iter().zip(&s).map(|(a, b)| a - b).collect();
-            let predicted = back_substitute(prob, &qs, &blocks, &ds_eff, &mut dq);
+            let gauss_newton = back_substitute(prob, &qs, &blocks, &ds_eff, &mut dq);
+            let augmented = match &limited {
+                Some(a) => gauss_newton - secant.curvature(a, &ds_eff),
+                None => gauss_newton,
+            };
+            // The model that chose the step predicts its decrease.
+            let predicted = match extra {
+                Some(_) => augmented,
+                None => gauss_newton,
+            };
             q_try
                 .par_iter_mut()
                 .zip(qs.par_iter().zip(dq.par_iter()))
@@ -209,12 +286,18 @@ pub fn solve_joint_to(
                     model_decrease = predicted;
                 }
                 decrease = cost - c;
+                secant.accepted(&ds_eff, decrease, gauss_newton, augmented);
                 s = s_try;
                 std::mem::swap(&mut qs, &mut q_try);
                 p = p_try;
                 cost = c;
                 accepted = true;
                 break;
+            }
+            if extra.is_some() {
+                // The augmented model failed: Gauss–Newton's step at the same damping first.
+                plain = true;
+                continue;
             }
             lambda *= nu;
             nu *= 2.0;

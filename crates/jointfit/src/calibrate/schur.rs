@@ -72,6 +72,10 @@ pub(crate) struct Blocks {
     pub v: Vec<f64>,
     /// `g_s` (n_f).
     pub gs: Vec<f64>,
+    /// The reduced matrix `S` of the last [`reduce`] (n_f × n_f, column-major).
+    pub schur: Vec<f64>,
+    /// The reduced right-hand side of the last [`reduce`] (n_f).
+    pub rhs: Vec<f64>,
     /// Objective at the assembly point (m²).
     pub cost: f64,
     /// Parameters of the assembly point (to recompute uncached frames).
@@ -122,6 +126,8 @@ impl Blocks {
             factors_valid: false,
             v: vec![0.0; nf * nf],
             gs: vec![0.0; nf],
+            schur: vec![0.0; nf * nf],
+            rhs: vec![0.0; nf],
             cost: 0.0,
             p: Vec::new(),
             half: (0..nf).map(|k| prob.half_range(k)).collect(),
@@ -281,6 +287,15 @@ pub(crate) fn solve(
     fixed: &[bool],
     ds: &mut [f64],
 ) -> bool {
+    reduce(prob, qs, b, lambda) && solve_reduced(b, None, fixed, ds)
+}
+
+/// The reduced system at damping `lambda`: `S = V* − Σ W_iᵀ U_i*⁻¹ W_i` into
+/// [`Blocks::schur`] and `g_s − Σ W_iᵀ U_i*⁻¹ g_i` into [`Blocks::rhs`] (at λ = 0 the
+/// Gauss–Newton reduced normal matrix and the reduced gradient, as a half negative gradient
+/// of the objective with the coordinates at their linearized optimum). False when a frame's
+/// `U_i*` is not positive definite. [`back_substitute`] then uses this damping.
+pub(crate) fn reduce(prob: &Problem, qs: &[Vec<f64>], b: &mut Blocks, lambda: f64) -> bool {
     let (nq, nf) = (b.nq, b.nf);
     b.factors_valid = false;
     let mut factors = std::mem::take(&mut b.factors);
@@ -379,6 +394,28 @@ pub(crate) fn solve(
             }
         }
     }
+    b.schur = s;
+    b.rhs = rhs;
+    b.lambda = lambda;
+    b.factors_valid = true;
+    true
+}
+
+/// Solves the system of the last [`reduce`], plus `extra` (n_f × n_f, column-major: a model
+/// term of the parameters' block: the joint solver's secant correction) when given, for `ds`; `fixed[k]` pins
+/// parameter k. False when the matrix is not positive definite.
+pub(crate) fn solve_reduced(
+    b: &Blocks,
+    extra: Option<&[f64]>,
+    fixed: &[bool],
+    ds: &mut [f64],
+) -> bool {
+    let nf = b.nf;
+    let mut s = b.schur.clone();
+    let mut rhs = b.rhs.clone();
+    if let Some(a) = extra {
+        add(&mut s, a);
+    }
     for k in 0..nf {
         if fixed[k] {
             for c in 0..nf {
@@ -398,8 +435,6 @@ pub(crate) fn solve(
     };
     ds.copy_from_slice(&rhs);
     chol.solve(ds);
-    b.lambda = lambda;
-    b.factors_valid = true;
     true
 }
 

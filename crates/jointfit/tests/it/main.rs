@@ -12,5 +12,6 @@ mod models;
 mod posterior;
 mod priors;
 mod residual_checks;
+mod secant;
 mod status;
 mod uncertainty;
