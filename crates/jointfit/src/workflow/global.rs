@@ -95,8 +95,9 @@ struct SigmaStage {
     at: Fit,
     history: Vec<f64>,
     reprobe: Option<(Fit, Vec<f64>)>,
-    /// The second start's probe continued on the re-weighed prior: (start, fit, objectives).
-    candidate: Option<(usize, Fit, Vec<f64>)>,
+    /// The second start's probe continued on the re-weighed prior: (start, fit, objectives,
+    /// and the objective of the best start's probe continued alike).
+    candidate: Option<(usize, Fit, Vec<f64>, f64)>,
 }
 
 /// The objective before the fit: the marker term alone (the prior term is added once σ is
@@ -317,6 +318,10 @@ pub fn run(
     // the prior weighed by the starting σ₀ to the preliminary resolution, σ and the
     // per-parameter factors are estimated there, and every finishing solve below runs on
     // the re-weighed prior (the best one from that σ₀-optimum).
+    let probe_apart = |k: usize| {
+        let (c1, c2) = (probes[best].0.cost, probes[k].0.cost);
+        c2 - c1 > SAME_BASIN * c1.abs()
+    };
     let mut sigma_stage: Option<SigmaStage> = None;
     if estimate {
         let k = best;
@@ -333,7 +338,8 @@ pub fn run(
         // σ₀-optimum's): the finishing solve begins near its optimum for a few coarse
         // iterations' cost.
         // The second start's probe is continued on the re-weighed prior too (beside it), so
-        // that the two are told apart on the same prior, as the probes were before.
+        // that the two are told apart on the prior of the finishing solves, as without the
+        // σ estimate.
         let (reprobe, candidate) = if stride > 1 {
             let coarse = subsample(prob, stride);
             let reprobe = || {
@@ -342,12 +348,19 @@ pub fn run(
                 let fit = solve_joint(&coarse, &at.s, q0, &short, &mut h);
                 (fit, h.0)
             };
+            // (Only when the probes on σ₀ put it apart: on the same prior weighed a little
+            // differently the two stay in one basin.)
             let candidate = || {
-                second.map(|j| {
-                    let f = &probes[j].0;
+                second.filter(|&j| probe_apart(j)).map(|j| {
+                    let on = |k: usize, h: &mut History| {
+                        let f = &probes[k].0;
+                        solve_joint(&coarse, &f.s, f.coords.clone(), &short, h)
+                    };
                     let mut h = History::default();
-                    let fit = solve_joint(&coarse, &f.s, f.coords.clone(), &short, &mut h);
-                    (j, fit, h.0)
+                    let fit = on(j, &mut h);
+                    // The best start's probe continued alike: like compared with like.
+                    let best_cost = on(best, &mut History::default()).cost;
+                    (j, fit, h.0, best_cost)
                 })
             };
             let (r, c) = rayon::join(reprobe, candidate);
@@ -367,8 +380,8 @@ pub fn run(
     // (Told apart by their probes on the re-weighed prior when σ was estimated.)
     let apart = |k: usize| {
         let (c1, c2) = match sigma_stage.as_ref().map(|st| (&st.reprobe, &st.candidate)) {
-            Some((Some(r), Some((j, c, _)))) if *j == k => (r.0.cost, c.cost),
-            _ => (probes[best].0.cost, probes[k].0.cost),
+            Some((_, Some((j, c, _, b)))) if *j == k => (*b, c.cost),
+            _ => return probe_apart(k),
         };
         c2 - c1 > SAME_BASIN * c1.abs()
     };
@@ -440,7 +453,7 @@ pub fn run(
             objective_mm2: hist.iter().map(|&c| mm2(c)).collect(),
         }];
         let mut fit = fit;
-        if let Some((_, c, hist)) = sigma_stage
+        if let Some((_, c, hist, _)) = sigma_stage
             .as_ref()
             .and_then(|st| st.candidate.as_ref())
             .filter(|c| c.0 == k)
