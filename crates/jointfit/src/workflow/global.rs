@@ -23,7 +23,9 @@
 //! When the marker noise σ is to be estimated ([`super::map`]'s module docs), the probes run
 //! on the prior weighed by the starting σ₀, and the best start's finishing solve first
 //! reaches the σ₀-optimum (to 0.1 SE), where σ is estimated; then one more probe from there
-//! on the re-weighed prior, and the finishing solves on every frame with it.
+//! on the re-weighed prior, and the finishing solves on every frame with it. A second start
+//! that the σ₀ probes put apart is told apart again on the re-weighed prior (its probe and
+//! the best start's continued alike there).
 //!
 //! When the given start is already in the best basin (a landmark model on real gait, as a
 //! rule), the cost is the probes alone: on opencap_expert1 walking1 (143 frames) every start
