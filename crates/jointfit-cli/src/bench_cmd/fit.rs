@@ -63,10 +63,12 @@ impl Observer for PhaseClock {
             .filter(|m| m.0.starts_with("policy"))
             .count();
         match (done, rounds) {
-            (0, 0) => self.mark("policy IK + σ estimate (preliminary fit)"),
+            (0, 0) => self.mark("policy IK, start's inner solutions, starting σ₀"),
             (0, _) => self.mark("fit, table, envelope check (→ bounded refit: σ estimate)"),
             (d, _) if d + 1 == total => self.mark("global phase: probes"),
-            (d, _) if d == total => self.mark("global phase: finishing solve(s)"),
+            (d, _) if d == total => {
+                self.mark("global phase: finishing solve(s) (σ₀-optimum, σ estimate, final)")
+            }
             _ => {}
         }
     }

@@ -200,11 +200,13 @@ fn fit_free(
     (noise, inflation): (Option<f64>, &[(String, f64)]),
     observer: &mut dyn Observer,
 ) -> Result<Calibration, WorkflowError> {
-    let (mut prob, sigma, pre) =
-        super::map::map_problem_with(model, start, trials, free, settings, noise)?;
+    // With the global phase the σ estimate is finished there (`super::map`'s module docs).
+    let global_phase = settings.effective_probes() > 0;
+    let (mut prob, _, pre) =
+        super::map::map_problem_with(model, start, trials, free, settings, noise, global_phase)?;
     super::map::set_inflation(&mut prob, inflation);
-    let (fits, runs, global, q_before, cost_before) = if settings.effective_probes() > 0 {
-        let out = super::global::run(&prob, start, settings, pre, None, observer);
+    let (fits, runs, global, q_before, cost_before) = if global_phase {
+        let out = super::global::run(&mut prob, start, settings, pre, None, observer);
         (
             out.fits,
             out.runs,
@@ -307,7 +309,7 @@ fn fit_free(
         multistart,
         global,
         global_warning,
-        prior_noise_mm: sigma.map(|s| s * MM_PER_M),
+        prior_noise_mm: prob.prior.as_ref().map(|p| p.noise * MM_PER_M),
         prior_noise_estimated: noise.is_none(),
         prior_inflation: super::map::inflation_of(&prob),
         plausibility: crate::plausibility::check(model, &fit.p),

@@ -20,6 +20,13 @@
 //! 3. keeps the lowest objective, and warns when the finished starts ended at different
 //!    optima: the fit is then not known to be the global optimum.
 //!
+//! When the marker noise σ is to be estimated ([`super::map`]'s module docs), the probes run
+//! on the prior weighed by the starting σ₀, and the best start's finishing solve first
+//! reaches the σ₀-optimum (to 0.1 SE), where σ is estimated; then one more probe from there
+//! on the re-weighed prior, and the finishing solves on every frame with it. A second start
+//! that the σ₀ probes put apart is told apart again on the re-weighed prior (its probe and
+//! the best start's continued alike there).
+//!
 //! When the given start is already in the best basin (a landmark model on real gait, as a
 //! rule), the cost is the probes alone: on opencap_expert1 walking1 (143 frames) every start
 //! was within 1e-6 of the others after the probes and only one was finished.
@@ -40,10 +47,10 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::calibration::{mm2, ConvergenceStage, StartRun};
-use super::map::Preliminary;
+use super::map::{Preliminary, SIGMA_POINT_RESOLUTION_SE};
 use super::starts::restart_point;
 use super::{FitSettings, Observer};
-use crate::calibrate::joint::{solve_joint, JointOptions};
+use crate::calibrate::joint::{solve_joint, solve_joint_to, JointOptions};
 use crate::calibrate::{Fit, Problem};
 use crate::ik::IkWorkspace;
 use crate::solver::Termination;
@@ -73,6 +80,33 @@ pub struct GlobalSearch {
     pub finished_objective_mm2: Vec<f64>,
     /// Whether every finished start reached the same optimum.
     pub agree: bool,
+}
+
+/// The stage of the best start's finishing solve on the prior weighed by the starting σ₀,
+/// at whose end σ is estimated (`super::map`).
+pub const SIGMA_STAGE: &str = "joint Levenberg-Marquardt at the starting σ (σ estimate)";
+
+/// The probe from the σ₀-optimum on the re-weighed prior, before the best start's
+/// finishing solve.
+pub const REPROBE_STAGE: &str = "probe at the estimated σ";
+
+/// The best start's σ estimate ([`run`]): the σ₀-optimum it was estimated at and the
+/// objectives on the way, and the probe at the estimated σ from there (with its objectives;
+/// `None` when the probes ran on every frame).
+struct SigmaStage {
+    at: Fit,
+    history: Vec<f64>,
+    reprobe: Option<(Fit, Vec<f64>)>,
+    /// The second start's probe continued on the re-weighed prior: (start, fit, objectives,
+    /// and the objective of the best start's probe continued alike).
+    candidate: Option<(usize, Fit, Vec<f64>, f64)>,
+}
+
+/// The objective before the fit: the marker term alone (the prior term is added once σ is
+/// final), or the whole objective.
+enum Before {
+    Data(f64),
+    Cost(f64),
 }
 
 /// Records the objective after each iteration (m²) of a solver run on another thread.
@@ -190,7 +224,7 @@ pub fn probe_starts(prob: &Problem, start: &[f64], settings: &FitSettings) -> Pr
 /// module docs), from `starts` ([`probe_starts`] of the same problem, start and settings)
 /// when given; progress goes to `observer` in start order.
 pub fn run(
-    prob: &Problem,
+    prob: &mut Problem,
     start: &[f64],
     settings: &FitSettings,
     pre: Option<Preliminary>,
@@ -247,52 +281,135 @@ pub fn run(
     // A second start is finished unless the probes put it in the best's basin: the given
     // start (so the result is never worse than one local fit from it), else the runner-up.
     let best = order[0];
-    let apart = |k: usize| {
-        let (c1, c2) = (probes[best].0.cost, probes[k].0.cost);
-        c2 - c1 > SAME_BASIN * c1.abs()
-    };
     let second = if best != 0 {
         Some(0)
     } else {
         order.get(1).copied()
     };
-    let order: Vec<usize> = std::iter::once(best)
-        .chain(second.filter(|&k| apart(k)))
-        .collect();
     let probe_objective_mm2 = probes.iter().map(|p| mm2(p.0.cost)).collect();
     // The given start on every frame: the objective before the fit.
-    // (The σ estimate computed both at the same start on the same frames.)
-    let (q_before_start, q_before, cost_before) = match pre {
-        Some(pre) => (
-            pre.q_seed,
-            pre.q_inner,
-            pre.data_cost + prob.prior_cost(start),
-        ),
+    // (The σ estimate computed both at the same start on the same frames; the prior term is
+    // added once σ is final.)
+    let estimate = pre.as_ref().is_some_and(|p| p.pending) && prob.prior.is_some();
+    let (q_before_start, q_before, before) = match pre {
+        Some(pre) => (pre.q_seed, pre.q_inner, Before::Data(pre.data_cost)),
         None => {
             let q_seed = prob.initial_coords(start);
             let mut q = q_seed.clone();
             let cost = prob.inner(start, &mut q, &mut IkWorkspace::new(prob.model));
-            (q_seed, q, cost)
+            (q_seed, q, Before::Cost(cost))
         }
     };
     // The given start's seeded coordinates go to its finishing solve (moved, not copied).
     let q_before_start = std::sync::Mutex::new(Some(q_before_start));
-    let finish_one = |k: usize| {
+    // Where start `k`'s finishing solve begins on every frame.
+    let coords_of = |prob: &Problem, k: usize| {
         let f = &probes[k].0;
-        let mut h = History::default();
-        if stride == 1 && f.termination != Termination::IterationLimit {
-            return (f.clone(), Vec::new());
-        }
         let seeded = (stride > 1 && k == 0)
             .then(|| q_before_start.lock().ok()?.take())
             .flatten();
-        let q0 = if stride == 1 {
+        if stride == 1 {
             f.coords.clone()
         } else if let Some(q) = seeded {
             q
         } else {
             prob.initial_coords(&f.p)
+        }
+    };
+    // σ still to be estimated (`super::map`'s module docs): the best start is finished on
+    // the prior weighed by the starting σ₀ to the preliminary resolution, σ and the
+    // per-parameter factors are estimated there, and every finishing solve below runs on
+    // the re-weighed prior (the best one from that σ₀-optimum).
+    let probe_apart = |k: usize| {
+        let (c1, c2) = (probes[best].0.cost, probes[k].0.cost);
+        c2 - c1 > SAME_BASIN * c1.abs()
+    };
+    let mut sigma_stage: Option<SigmaStage> = None;
+    if estimate {
+        let k = best;
+        let f = &probes[k].0;
+        let mut h = History::default();
+        let at = if stride == 1 && f.termination != Termination::IterationLimit {
+            f.clone()
+        } else {
+            let q0 = coords_of(prob, k);
+            solve_joint_to(prob, &f.s, q0, &finish, SIGMA_POINT_RESOLUTION_SE, &mut h)
         };
+        super::map::estimate_noise(prob, &at);
+        // A probe on the re-weighed prior from there (its frames' coordinates are the
+        // σ₀-optimum's): the finishing solve begins near its optimum for a few coarse
+        // iterations' cost.
+        // The second start's probe is continued on the re-weighed prior too (beside it), so
+        // that the two are told apart on the prior of the finishing solves, as without the
+        // σ estimate.
+        let (reprobe, candidate) = if stride > 1 {
+            let coarse = subsample(prob, stride);
+            let reprobe = || {
+                let q0: Vec<Vec<f64>> = at.coords.iter().step_by(stride).cloned().collect();
+                let mut h = History::default();
+                let fit = solve_joint(&coarse, &at.s, q0, &short, &mut h);
+                (fit, h.0)
+            };
+            // (Only when the probes on σ₀ put it apart: on the same prior weighed a little
+            // differently the two stay in one basin.)
+            let candidate = || {
+                second.filter(|&j| probe_apart(j)).map(|j| {
+                    let on = |k: usize, h: &mut History| {
+                        let f = &probes[k].0;
+                        solve_joint(&coarse, &f.s, f.coords.clone(), &short, h)
+                    };
+                    let mut h = History::default();
+                    let fit = on(j, &mut h);
+                    // The best start's probe continued alike: like compared with like.
+                    let best_cost = on(best, &mut History::default()).cost;
+                    (j, fit, h.0, best_cost)
+                })
+            };
+            let (r, c) = rayon::join(reprobe, candidate);
+            (Some(r), c)
+        } else {
+            (None, None)
+        };
+        sigma_stage = Some(SigmaStage {
+            at,
+            history: h.0,
+            reprobe,
+            candidate,
+        });
+    }
+    // A second start is finished unless the probes put it in the best's basin: the given
+    // start (so the result is never worse than one local fit from it), else the runner-up.
+    // (Told apart by their probes on the re-weighed prior when σ was estimated.)
+    let apart = |k: usize| {
+        let (c1, c2) = match sigma_stage.as_ref().map(|st| (&st.reprobe, &st.candidate)) {
+            Some((_, Some((j, c, _, b)))) if *j == k => (*b, c.cost),
+            _ => return probe_apart(k),
+        };
+        c2 - c1 > SAME_BASIN * c1.abs()
+    };
+    let order: Vec<usize> = std::iter::once(best)
+        .chain(second.filter(|&k| apart(k)))
+        .collect();
+    let prob: &Problem = prob;
+    let finish_one = |k: usize| {
+        let mut h = History::default();
+        if let Some(st) = sigma_stage.as_ref().filter(|_| k == order[0]) {
+            // From the probe's parameters, the σ₀-optimum's coordinates polished there by one
+            // inner pass (without it the first iteration lands far above the optimum: on
+            // walking1 732 mm² instead of 0.18 mm², and the solve takes 9 iterations, not 7).
+            let s0 = st.reprobe.as_ref().map_or(&st.at.s, |r| &r.0.s);
+            let mut q0 = st.at.coords.clone();
+            if let Some((r, _)) = &st.reprobe {
+                prob.inner(&r.p, &mut q0, &mut IkWorkspace::new(prob.model));
+            }
+            let fit = solve_joint(prob, s0, q0, &finish, &mut h);
+            return (fit, h.0);
+        }
+        let f = &probes[k].0;
+        if stride == 1 && f.termination != Termination::IterationLimit {
+            return (f.clone(), Vec::new());
+        }
+        let q0 = coords_of(prob, k);
         let fit = solve_joint(prob, &f.s, q0, &finish, &mut h);
         (fit, h.0)
     };
@@ -301,6 +418,27 @@ pub fn run(
     } else {
         order.par_iter().map(|&k| finish_one(k)).collect()
     };
+    let cost_before = match before {
+        Before::Data(data) => data + prob.prior_cost(start),
+        Before::Cost(cost) => cost,
+    };
+    if let Some(st) = &sigma_stage {
+        observer.stage_started(&format!("start {}: {SIGMA_STAGE}", order[0] + 1), None);
+        for (i, &c) in st.history.iter().enumerate() {
+            observer.iteration(i + 1, c);
+        }
+        observer.stage_ended(st.at.termination);
+        if let Some((fit, hist)) = &st.reprobe {
+            observer.stage_started(
+                &format!("start {}: {REPROBE_STAGE}", order[0] + 1),
+                Some(short.max_iterations),
+            );
+            for (i, &c) in hist.iter().enumerate() {
+                observer.iteration(i + 1, c);
+            }
+            observer.stage_ended(fit.termination);
+        }
+    }
     for (&k, (fit, hist)) in order.iter().zip(&continued) {
         observer.stage_started(&format!("start {}: joint Levenberg-Marquardt", k + 1), None);
         for (i, &c) in hist.iter().enumerate() {
@@ -317,9 +455,40 @@ pub fn run(
             objective_mm2: hist.iter().map(|&c| mm2(c)).collect(),
         }];
         let mut fit = fit;
+        if let Some((_, c, hist, _)) = sigma_stage
+            .as_ref()
+            .and_then(|st| st.candidate.as_ref())
+            .filter(|c| c.0 == k)
+        {
+            convergence.push(ConvergenceStage {
+                stage: format!("{REPROBE_STAGE} (every {stride}. frame)"),
+                objective_mm2: hist.iter().map(|&c| mm2(c)).collect(),
+            });
+            fit.iterations += c.iterations;
+            fit.evaluations += c.evaluations;
+        }
         if let Some(j) = order.iter().position(|&o| o == k) {
             let (done, hist) = &continued[j];
-            if !hist.is_empty() || stride > 1 {
+            let pre = sigma_stage.as_ref().filter(|_| j == 0);
+            if let Some(st) = pre {
+                convergence.push(ConvergenceStage {
+                    stage: SIGMA_STAGE.to_string(),
+                    objective_mm2: st.history.iter().map(|&c| mm2(c)).collect(),
+                });
+                if !st.history.is_empty() {
+                    fit.iterations += st.at.iterations;
+                    fit.evaluations += st.at.evaluations;
+                }
+                if let Some((r, hist)) = &st.reprobe {
+                    convergence.push(ConvergenceStage {
+                        stage: format!("{REPROBE_STAGE} (every {stride}. frame)"),
+                        objective_mm2: hist.iter().map(|&c| mm2(c)).collect(),
+                    });
+                    fit.iterations += r.iterations;
+                    fit.evaluations += r.evaluations;
+                }
+            }
+            if !hist.is_empty() || stride > 1 || pre.is_some() {
                 convergence.push(ConvergenceStage {
                     stage: "joint Levenberg-Marquardt".to_string(),
                     objective_mm2: hist.iter().map(|&c| mm2(c)).collect(),

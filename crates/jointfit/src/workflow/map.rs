@@ -17,17 +17,38 @@
 //! the final parameters by up to 0.011 SE on opencap_expert1 walking2, at 0.01 SE by 0.03 %
 //! and ≤ 1.02e-3 SE on walking1, walking2, squats1 and STS1 (hip_r + walker_knee_r of
 //! hand_scaled.osim, against running the classical tolerances out).
+//!
+//! **With the global phase** ([`super::global`], the default) the σ estimate is not a fit of
+//! its own (`defer` of [`map_problem_with`]): what it needs is a point near the optimum of
+//! the MAP problem weighed by the starting σ₀ (the σ₀-optimum), and the global phase gets
+//! there on its way. Its probes run on the prior weighed by σ₀, the best start is continued
+//! on every frame to [`SIGMA_POINT_RESOLUTION_SE`] = 0.1 SE of the σ₀-optimum, σ, κ and the
+//! per-parameter factors are estimated there ([`estimate_noise`], the same formulas at the
+//! same optimum as above, only from a start already near it), and the finishing solve runs
+//! on the re-weighed prior from there, after one more probe at the estimated σ on the
+//! probes' frames (the finishing solve then begins near its optimum, as from a probe). The
+//! estimate is the one above up to where on the σ₀-optimum's basin it is taken: 0.1 instead
+//! of 0.01 SE (a point that close moves σ² by `d²/dof` and κ by the 0.3 % bound above). Only
+//! the preliminary fit from the given start is saved; the result moves within statistical
+//! resolution (`docs/performance.md`: on ten opencap, gait2392 and Hamner fits σ within
+//! 0.031 % and the parameters within 0.0021 SE of the preliminary fit's; σ within 0.3 % on
+//! every row of the prior gait table). Without the global phase (`probes` 0,
+//! several full starts, the swarm) the preliminary fit runs as above.
 
 use super::{FitSettings, NoObserver, WorkflowError};
 use crate::calibrate::joint::{solve_joint_to, JointOptions};
 use crate::calibrate::uncertainty::{analyze, UncertaintyOptions};
-use crate::calibrate::Problem;
+use crate::calibrate::{Fit, Problem};
 use crate::ik::IkWorkspace;
 use crate::model::{Model, ParamId};
 use crate::trial::Trial;
 
 /// How close (standard errors) the preliminary fit gets to its optimum (module docs).
 pub const PRELIMINARY_RESOLUTION_SE: f64 = 0.01;
+
+/// How close (standard errors) the global phase's best start gets to the σ₀-optimum before σ
+/// is estimated there (module docs).
+pub const SIGMA_POINT_RESOLUTION_SE: f64 = 0.1;
 
 /// What the σ estimate computed on the way that the fit which follows reuses: the seeded
 /// inner solutions at the start, and the inner solutions and marker term there.
@@ -38,6 +59,10 @@ pub struct Preliminary {
     pub q_inner: Vec<Vec<f64>>,
     /// The marker term there (m², without the prior).
     pub data_cost: f64,
+    /// σ is still to be estimated ([`map_problem_with`]'s `defer`): the problem's prior is
+    /// weighed by the starting σ₀, and the global phase calls [`estimate_noise`] at its
+    /// σ₀-optimum ([`super::global::run`]).
+    pub pending: bool,
 }
 
 /// The problem of `free` on `trials` from `start`, with the model's priors when
@@ -52,12 +77,15 @@ pub fn map_problem<'m>(
     settings: &FitSettings,
     noise: Option<f64>,
 ) -> Result<(Problem<'m>, Option<f64>), WorkflowError> {
-    let (prob, sigma, _) = map_problem_with(model, start, trials, free, settings, noise)?;
+    let (prob, sigma, _) = map_problem_with(model, start, trials, free, settings, noise, false)?;
     Ok((prob, sigma))
 }
 
 /// [`map_problem`], with what the σ estimate computed ([`Preliminary`]; `None` when σ was
-/// given or there is no prior).
+/// given or there is no prior). With `defer` the preliminary fit is not run: the problem's
+/// prior is weighed by the starting σ₀ and the caller finishes the estimate with
+/// [`estimate_noise`] at the σ₀-optimum it reaches anyway (the global phase, module docs);
+/// the σ returned is then σ₀.
 pub fn map_problem_with<'m>(
     model: &'m Model,
     start: &[f64],
@@ -65,6 +93,7 @@ pub fn map_problem_with<'m>(
     free: &[ParamId],
     settings: &FitSettings,
     noise: Option<f64>,
+    defer: bool,
 ) -> Result<(Problem<'m>, Option<f64>, Option<Preliminary>), WorkflowError> {
     let prob = Problem::new(model, start.to_vec(), free, trials)?;
     let has_prior = free
@@ -86,44 +115,56 @@ pub fn map_problem_with<'m>(
     let mut prob = prob.with_model_prior((data / observations as f64).sqrt());
     let mut preliminary = None;
     if prob.prior.is_some() {
-        let s0 = prob.to_scaled(start);
-        let pre = solve_joint_to(
-            &prob,
-            &s0,
-            q0.clone(),
-            &JointOptions::default(),
-            PRELIMINARY_RESOLUTION_SE,
-            &mut NoObserver,
-        );
-        // The unregularized problem on the same frames (the prior changes only `S`, not the
-        // residuals or their degrees of freedom, so its σ² is the posterior's).
-        let mut plain = prob.clone();
-        plain.prior = None;
-        let u = analyze(&plain, &pre, &UncertaintyOptions::default());
-        let kappa = crate::calibrate::prior::correlation_inflation(&u);
-        let sigma2 = match u.dof {
-            0 => f64::INFINITY,
-            dof => (pre.cost - prob.prior_cost(&pre.p)) / dof as f64,
-        };
-        let sigma = (sigma2 * kappa).sqrt();
-        if sigma.is_finite() && sigma > 0.0 {
-            if let Some(pr) = prob.prior.as_mut() {
-                pr.noise = sigma;
-                let names: Vec<&str> = free
-                    .iter()
-                    .map(|id| model.parameters()[id.0].name.as_str())
-                    .collect();
-                pr.inflation = crate::calibrate::prior::parameter_inflation(&u, &names, kappa);
-            }
+        if !defer {
+            let s0 = prob.to_scaled(start);
+            let pre = solve_joint_to(
+                &prob,
+                &s0,
+                q0.clone(),
+                &JointOptions::default(),
+                PRELIMINARY_RESOLUTION_SE,
+                &mut NoObserver,
+            );
+            estimate_noise(&mut prob, &pre);
         }
         preliminary = Some(Preliminary {
             q_seed: q0,
             q_inner: q,
             data_cost: data,
+            pending: defer,
         });
     }
     let used = prob.prior.as_ref().map(|p| p.noise);
     Ok((prob, used, preliminary))
+}
+
+/// Re-weighs the prior of `prob` (weighed by σ₀) by the σ and per-parameter factors
+/// estimated at `fit`, the σ₀-optimum of `prob` to [`PRELIMINARY_RESOLUTION_SE`] or
+/// [`SIGMA_POINT_RESOLUTION_SE`] (module docs); nothing when the estimate is not a positive finite number.
+pub fn estimate_noise(prob: &mut Problem<'_>, fit: &Fit) {
+    // The unregularized problem on the same frames (the prior changes only `S`, not the
+    // residuals or their degrees of freedom, so its σ² is the posterior's).
+    let mut plain = prob.clone();
+    plain.prior = None;
+    let u = analyze(&plain, fit, &UncertaintyOptions::default());
+    let kappa = crate::calibrate::prior::correlation_inflation(&u);
+    let sigma2 = match u.dof {
+        0 => f64::INFINITY,
+        dof => (fit.cost - prob.prior_cost(&fit.p)) / dof as f64,
+    };
+    let sigma = (sigma2 * kappa).sqrt();
+    if sigma.is_finite() && sigma > 0.0 {
+        let model = prob.model;
+        let names: Vec<&str> = prob
+            .free
+            .iter()
+            .map(|&i| model.parameters()[i].name.as_str())
+            .collect();
+        if let Some(pr) = prob.prior.as_mut() {
+            pr.noise = sigma;
+            pr.inflation = crate::calibrate::prior::parameter_inflation(&u, &names, kappa);
+        }
+    }
 }
 
 /// Multiplies the prior weight of each named free parameter of `prob` by its factor (the
