@@ -386,6 +386,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             &provenance(&args, model.spec().lab_up),
             seconds,
             &read,
+            &conflict_notes(&refined.conflict),
         )?),
         None => None,
     };
@@ -397,6 +398,15 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The report's notes of the prior–data conflict step: one per flagged joint.
+fn conflict_notes(conflicts: &[workflow::conflict::JointConflict]) -> Vec<String> {
+    conflicts
+        .iter()
+        .filter(|c| c.flagged)
+        .map(|c| format!("{}.", c.line()))
+        .collect()
 }
 
 /// What the report compares the fit with.

@@ -27,10 +27,15 @@
 //! would have to be for this trial to be typical of it. In one dimension it is the closed
 //! form `τ̂² = ((d − μ)² − c_d)/s₀²` clipped to `[1, cap²]` (Morris 1983, JASA 78:47–55).
 //!
-//! **The rule** ([`assess`], [`widened_spec`]): a joint whose χ² exceeds the
-//! `1 − `[`CONFLICT_ALPHA`] quantile has its prior SD multiplied by `τ̂` (at most
-//! [`TAU_CAP`]) for the final fit and its intervals (`workflow::refine`); every other joint
-//! keeps its prior. `--prior none` has no prior and so no conflict.
+//! **The rule** ([`assess`], [`widen_intervals`]): a joint whose χ² exceeds the
+//! `1 − `[`CONFLICT_ALPHA`] quantile is *flagged*; its intervals are computed for a truth
+//! spread `τ̂` (at most [`TAU_CAP`]) times the prior SD about the prior mean (the prior's part
+//! of the interval variance scaled by `τ̂²`, [`crate::calibrate::prior::Prior::spread`]). The
+//! estimate keeps the stated prior ([`ESTIMATE_CAP`] = 1; [`widened_spec`] would refit with
+//! the SDs widened): widening it failed the held-out check on real gait at every cap tried,
+//! because the statistic flags real gait (correlated skin artefact) as often as a landmark
+//! model that is truly off (`docs/priors.md`, "The prior–data conflict step"). `--prior none`
+//! has no prior and so no conflict.
 
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
@@ -286,7 +291,7 @@ fn ln_gamma(a: f64) -> f64 {
 /// The conflict of every joint of a maximum a posteriori calibration `cal` (of `free` on
 /// `trials` from `start`, with `settings`): rebuilds its problem with the prior weights of
 /// the fit (its σ and per-parameter factors), forms the marker term's reduced normal matrix at
-/// the fitted point, and applies [`statistics`] per joint; `widened` marks the joints the rule
+/// the fitted point, and applies [`statistics`] per joint; `flagged` marks the joints the rule
 /// of the module docs widens. Empty without a prior.
 pub fn assess(
     model: &Model,
