@@ -78,8 +78,8 @@ def personalize(static, preset, side, out, own_window):
 
 print("| trial | side | setting | σ mm | hip shift mm | hip lateral mm (start → fit) | (a) 0.9·PW/2 mm "
       "| (b) lab HJC mm (landmark → fit) | knee axis change deg (thigh) "
-      "| RMS before → after mm (c: lower by) | implausible |")
-print("|---|---|---|---|---|---|---|---|---|---|---|")
+      "| RMS before → after mm (c: lower by) | implausible | prior conflict χ²/dof (τ; * flagged) |")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|")
 ONLY = os.environ.get("PRIOR_TABLE_ONLY")
 for name, static, preset, trials, pelvis, labels in SUBJECTS:
     if ONLY and name not in ONLY.split(","):
@@ -133,7 +133,11 @@ for name, static, preset, trials, pelvis, labels in SUBJECTS:
                     if d0 is not None and d1 is not None:
                         b = f"{d0:.1f} → {d1:.1f} {'ok' if d1 <= d0 + 5 else 'FAIL'}"
                 red = 100.0 * (1.0 - rep["rms_after_mm"] / rep["rms_before_mm"])
+                conf = ", ".join(
+                    f"{c['joint']} {c['chi2'] / max(c['dof'], 1):.1f}/{c['dof']} "
+                    f"({c['tau']:.2f}{'*' if c['flagged'] else ''})"
+                    for c in rep.get("prior_conflict", [])) or "-"
                 print(f"| {name} {short} | {side} | {setting} | {sig} | {shift:.1f} "
                       f"| {lat['start']:.1f} → {lat['fitted']:.1f} | {limit:.1f} {ok_a} | {b} | {ka:.1f} "
                       f"| {rep['rms_before_mm']:.2f} → {rep['rms_after_mm']:.2f} ({red:.0f} %) "
-                      f"| {'; '.join(bad) or '-'} |", flush=True)
+                      f"| {'; '.join(bad) or '-'} | {conf} |", flush=True)

@@ -136,6 +136,10 @@ pub struct CalibrateArgs {
     /// hip_pelvis_lateral at 0.9 × half the inter-ASIS width less 1 mm).
     #[arg(long)]
     pub no_envelope: bool,
+    /// Keep every joint's prior as the model file gives it, even where the trial disagrees
+    /// with it by more than its SD allows (the default widens that joint's prior).
+    #[arg(long)]
+    pub no_prior_conflict: bool,
 }
 
 /// `calibrate --json`: the calibration and the wall time.
@@ -153,6 +157,10 @@ pub struct Report<'a> {
     pub marker_decisions: &'a [workflow::marker_policy::MarkerDecision],
     /// The anatomical envelope's bounds, `active` when the fit ended on one.
     pub envelope: &'a [workflow::envelope::EnvelopeBound],
+    /// With a prior: each joint's prior–data conflict (χ², dof, p, the type-II ML prior
+    /// scale τ) and whether its prior was widened by τ.
+    #[serde(skip_serializing_if = "<[_]>::is_empty")]
+    pub prior_conflict: &'a [workflow::conflict::JointConflict],
     /// With a prior: the short summary the text output prints (which joints the trial
     /// determined, which the prior held, which trial would determine them).
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -231,6 +239,7 @@ pub fn fit_settings(args: &CalibrateArgs) -> FitSettings {
         anatomical_envelope: !args.no_envelope,
         marker_policy: !args.no_marker_policy,
         keep_markers: args.keep_markers.clone(),
+        prior_conflict: !args.no_prior_conflict,
         ..FitSettings::command_default()
     }
 }
@@ -339,6 +348,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
                 marker_trade_offs: &refined.trade_offs,
                 marker_decisions: &refined.marker_decisions,
                 envelope: &refined.envelope,
+                prior_conflict: &refined.conflict,
                 information_summary: information_summary(cal),
                 seconds,
                 trials_read: &read,
@@ -346,6 +356,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             println!("{}", serde_json::to_string_pretty(&report)?);
         } else {
             crate::calibrate_text::print_policy(&refined.marker_decisions, &refined.envelope);
+            crate::calibrate_text::print_conflict(&refined.conflict);
             print_report(cal, seconds);
             crate::prior_args::print_refinement(&refined.markers, &refined.trade_offs);
         }
@@ -375,6 +386,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             &provenance(&args, model.spec().lab_up),
             seconds,
             &read,
+            &conflict_notes(&refined.conflict),
         )?),
         None => None,
     };
@@ -386,6 +398,15 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The report's notes of the prior–data conflict step: one per flagged joint.
+fn conflict_notes(conflicts: &[workflow::conflict::JointConflict]) -> Vec<String> {
+    conflicts
+        .iter()
+        .filter(|c| c.flagged)
+        .map(|c| format!("{}.", c.line()))
+        .collect()
 }
 
 /// What the report compares the fit with.

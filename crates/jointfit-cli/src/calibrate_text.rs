@@ -141,6 +141,14 @@ pub fn print_policy(
     }
 }
 
+/// The joints whose prior the trial contradicts, one line each (`workflow::conflict`):
+/// "prior widened ×τ for the hip: the trial disagrees with the landmark model by χ² = …".
+pub fn print_conflict(conflicts: &[jointfit::workflow::conflict::JointConflict]) {
+    for c in conflicts.iter().filter(|c| c.flagged) {
+        println!("{} (--no-prior-conflict: no test)", c.line());
+    }
+}
+
 /// The data-share class in the table's words.
 fn source_short(s: jointfit::calibrate::prior::Source) -> &'static str {
     use jointfit::calibrate::prior::Source;

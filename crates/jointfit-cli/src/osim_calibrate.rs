@@ -170,6 +170,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
                 &crate::report_cmd::provenance(inputs),
                 seconds,
                 &read,
+                &[],
             )?)
         }
         None => None,

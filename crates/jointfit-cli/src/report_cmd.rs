@@ -257,6 +257,7 @@ pub fn write_calibration_report(
     provenance: &jointfit_report::calibration::Provenance,
     seconds: f64,
     data_checks: &[crate::common::TrialJson],
+    notes: &[String],
 ) -> Result<PathBuf> {
     let mut bar = Progress::new("report: inverse kinematics", None).unit("passes");
     let input = jointfit_report::calibration::calibration_input(
@@ -275,6 +276,7 @@ pub fn write_calibration_report(
     bar.finish("");
     let mut input = input;
     input.data_checks = data_checks.iter().map(|t| t.to_report()).collect();
+    input.notes.extend(notes.iter().cloned());
     jointfit_report::write_report(dir, &input)
         .with_context(|| format!("writing the report to {}", dir.display()))
 }

@@ -37,6 +37,8 @@ pub struct Args {
     /// `--no-envelope`).
     pub no_policy: bool,
     pub no_envelope: bool,
+    /// With `--default`: the prior–data conflict step off (`--no-conflict`).
+    pub no_conflict: bool,
     /// The solver (`joint`, `varpro`, `pso`).
     pub method: Method,
 }
@@ -61,6 +63,7 @@ pub fn parse() -> Result<Args, String> {
         method: Method::Joint,
         no_policy: false,
         no_envelope: false,
+        no_conflict: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
@@ -70,6 +73,7 @@ pub fn parse() -> Result<Args, String> {
             "--compare-none" => a.compare_none = true,
             "--no-policy" => a.no_policy = true,
             "--no-envelope" => a.no_envelope = true,
+            "--no-conflict" => a.no_conflict = true,
             _ => {}
         }
         let switches = [
@@ -78,6 +82,7 @@ pub fn parse() -> Result<Args, String> {
             "--compare-none",
             "--no-policy",
             "--no-envelope",
+            "--no-conflict",
         ];
         if switches.contains(&flag.as_str()) {
             continue;

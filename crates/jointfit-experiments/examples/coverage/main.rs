@@ -29,7 +29,7 @@
 //! them, and `workflow::refine::calibrate_refined` with the default settings, marker policy
 //! and anatomical envelope included; the truth as without it; prints what the policy and the
 //! envelope did), `--misplace-mm MM` (one thigh or shank marker, seeded, moved MM since the
-//! static trial: the trial is synthesized with it moved), `--no-policy`, `--no-envelope` (with `--default`), `--method joint|varpro|pso`, `--compare-none` (each trial also
+//! static trial: the trial is synthesized with it moved), `--no-policy`, `--no-envelope`, `--no-conflict` (with `--default`), `--method joint|varpro|pso`, `--compare-none` (each trial also
 //! fitted with `--prior none`; prints both fits' RMS parameter errors per joint). Figures:
 //! `docs/global.md` (coverage) and `docs/identifiability.md`.
 
@@ -101,6 +101,7 @@ fn main() {
     let clock = Instant::now();
     let mut bw_sum = 0.0;
     let mut global_warnings = 0usize;
+    let mut conflicts = policy::Conflicts::default();
     let mut dump = args.dump.as_ref().map(|path| {
         let mut f = std::io::BufWriter::new(std::fs::File::create(path).expect("--dump file"));
         writeln!(
@@ -144,6 +145,7 @@ fn main() {
             uncertainty: Some(opts),
             marker_policy: !args.no_policy,
             anatomical_envelope: !args.no_envelope,
+            prior_conflict: !args.no_conflict,
             ..FitSettings::default()
         };
         let cal = if args.default {
@@ -161,6 +163,7 @@ fn main() {
                 moved.as_deref(),
                 truth_mm,
             );
+            conflicts.add(seed, &r.conflict);
             r.calibration
         } else {
             calibrate(&model, &start, &[&trial], &free, &settings, &mut NoObserver)
@@ -401,5 +404,6 @@ fn main() {
     }
     if args.default {
         policy.print();
+        conflicts.print();
     }
 }

@@ -133,3 +133,59 @@ impl Policy {
         );
     }
 }
+
+/// One joint's tally: (joint, χ²/dof per trial, largest dof, τ̂ per trial, trials flagged).
+type ConflictRow = (String, Vec<f64>, usize, Vec<f64>, usize);
+
+/// The prior–data conflict statistics of the first fit (`workflow::conflict`), per joint.
+#[derive(Default)]
+pub struct Conflicts {
+    rows: Vec<ConflictRow>,
+}
+
+impl Conflicts {
+    pub fn add(&mut self, seed: u64, cs: &[jointfit::workflow::conflict::JointConflict]) {
+        for c in cs {
+            if std::env::var_os("COVERAGE_CONFLICT_TRACE").is_some() {
+                eprintln!(
+                    "conflict seed {seed} {} chi2 {:.2} dof {} p {:.2e} tau {:.3} flagged {}",
+                    c.joint, c.chi2, c.dof, c.p_value, c.tau, c.flagged
+                );
+            }
+            let row = match self.rows.iter().position(|r| r.0 == c.joint) {
+                Some(i) => &mut self.rows[i],
+                None => {
+                    self.rows
+                        .push((c.joint.clone(), Vec::new(), 0, Vec::new(), 0));
+                    self.rows.last_mut().expect("pushed")
+                }
+            };
+            row.1.push(c.chi2 / c.dof.max(1) as f64);
+            row.2 = row.2.max(c.dof);
+            row.3.push(c.tau);
+            row.4 += c.flagged as usize;
+        }
+    }
+
+    pub fn print(&self) {
+        if self.rows.is_empty() {
+            return;
+        }
+        println!("prior-data conflict (first fit), per joint: χ²/dof median [90th pct], max dof, τ median [90th pct], flagged");
+        for (j, chi, dof, tau, w) in &self.rows {
+            let q = |v: &[f64], f: f64| {
+                let mut v = v.to_vec();
+                v.sort_by(f64::total_cmp);
+                v[((v.len() - 1) as f64 * f).round() as usize]
+            };
+            println!(
+                "  {j:<11} {:>6.2} [{:>6.2}]  {dof}  {:>5.2} [{:>5.2}]  {w} of {}",
+                q(chi, 0.5),
+                q(chi, 0.9),
+                q(tau, 0.5),
+                q(tau, 0.9),
+                chi.len()
+            );
+        }
+    }
+}

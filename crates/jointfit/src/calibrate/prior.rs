@@ -34,6 +34,11 @@ pub struct Prior {
     /// residuals overstate this parameter's information (≥ 1; [`parameter_inflation`]); the
     /// prior weight is multiplied by it. All 1 unless σ was estimated.
     pub inflation: Vec<f64>,
+    /// Per free parameter: the variance of the truth about the prior mean in units of
+    /// `s_k²` that the intervals assume (`τ_k² ≥ 1`); it scales only the prior's part of the
+    /// interval variance ([`super::uncertainty`]), not the fit. All 1 unless the prior–data
+    /// conflict step (`workflow::conflict`) found the trial at odds with this joint's prior.
+    pub spread: Vec<f64>,
 }
 
 impl Prior {
@@ -52,6 +57,7 @@ impl Prior {
                 .collect(),
             noise,
             inflation: vec![1.0; pars.len()],
+            spread: vec![1.0; pars.len()],
         })
     }
 

@@ -19,6 +19,7 @@
 
 mod calibration;
 mod check;
+pub mod conflict;
 pub mod envelope;
 pub mod global;
 mod hold;
@@ -168,6 +169,9 @@ pub struct FitSettings {
     pub marker_policy: bool,
     /// Markers the marker policy leaves as they are.
     pub keep_markers: Vec<String>,
+    /// With a prior: test each joint's prior against the trial and widen the prior of a joint
+    /// the trial disagrees with ([`conflict`]), honoured by [`refine::calibrate_refined`].
+    pub prior_conflict: bool,
 }
 
 impl Default for FitSettings {
@@ -190,6 +194,7 @@ impl Default for FitSettings {
             anatomical_envelope: true,
             marker_policy: true,
             keep_markers: Vec::new(),
+            prior_conflict: true,
         }
     }
 }
@@ -272,6 +277,8 @@ mod tests {
     }
 }
 
+#[cfg(test)]
+mod conflict_tests;
 #[cfg(test)]
 mod policy_tests;
 #[cfg(test)]

@@ -35,8 +35,10 @@ pub struct Reduced {
     pub prior_information: Vec<f64>,
     pub prior_noise: f64,
     /// Per free parameter, the factor `a_k ≥ 1` the prior weight carries
-    /// ([`crate::calibrate::prior::Prior::inflation`]; ones without a prior): with the truth
-    /// drawn from the prior, the prior term's score has variance `σ_p² a_k d_k`.
+    /// ([`crate::calibrate::prior::Prior::inflation`]; ones without a prior) times the
+    /// spread `τ_k²` the intervals assume ([`crate::calibrate::prior::Prior::spread`]): with
+    /// the truth drawn from `N(μ_k, τ_k² s_k²)`, the prior term's score has variance
+    /// `σ_p² a_k τ_k² d_k`.
     pub prior_inflation: Vec<f64>,
 }
 
@@ -194,10 +196,16 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
         n_q: nq,
         prior_information,
         prior_noise: prob.prior.as_ref().map_or(0.0, |p| p.noise),
-        prior_inflation: prob
-            .prior
-            .as_ref()
-            .map_or_else(|| vec![1.0; nf], |p| p.inflation.clone()),
+        prior_inflation: prob.prior.as_ref().map_or_else(
+            || vec![1.0; nf],
+            |p| {
+                p.inflation
+                    .iter()
+                    .zip(&p.spread)
+                    .map(|(a, t)| a * t)
+                    .collect()
+            },
+        ),
     }
 }
 
