@@ -41,14 +41,13 @@
 //! Levenberg–Marquardt never raises the objective, so continuing a probe only lowers it; a
 //! start that converged within its probe needs no continuation.
 
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
 
 use super::calibration::{mm2, ConvergenceStage, StartRun};
 use super::map::{Preliminary, SIGMA_POINT_RESOLUTION_SE};
-use super::starts::restart_point;
+pub use super::probes::{probe_point, probe_starts, ProbeStarts};
+use super::probes::{probe_stride, subsample};
 use super::{FitSettings, Observer};
 use crate::calibrate::joint::{solve_joint, solve_joint_to, JointOptions};
 use crate::calibrate::{Fit, Problem};
@@ -119,36 +118,6 @@ impl Observer for History {
     }
 }
 
-/// One start drawn for the global phase (`k` ≥ 1): from the prior where the problem has one,
-/// else [`restart_point`] of `start`.
-pub fn probe_point(prob: &Problem, start: &[f64], settings: &FitSettings, k: usize) -> Vec<f64> {
-    let model = prob.model;
-    let mut p = restart_point(
-        model,
-        start,
-        &prob.free,
-        settings.restart_mm,
-        settings.restart_deg,
-        settings.seed,
-        k,
-    );
-    if let Some(pr) = &prob.prior {
-        let seed = settings.seed.wrapping_mul(2_000_003).wrapping_add(k as u64);
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        for (j, &i) in prob.free.iter().enumerate() {
-            // Drawn for every parameter, so one parameter's prior does not shift the others.
-            let u1: f64 = 1.0 - rng.gen::<f64>();
-            let u2: f64 = rng.gen();
-            let z = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
-            if pr.sd[j].is_finite() {
-                let par = &model.parameters()[i];
-                p[i] = (pr.mean[j] + z.clamp(-2.0, 2.0) * pr.sd[j]).clamp(par.lower, par.upper);
-            }
-        }
-    }
-    p
-}
-
 /// The outcome of [`run`]: every start's fit and record (start order), the global phase's
 /// summary, and the given start's inner solutions and objective before any iteration.
 pub struct Outcome {
@@ -159,66 +128,11 @@ pub struct Outcome {
     pub cost_before: f64,
 }
 
-/// Every `stride`-th frame of `prob`, the prior reweighed so that the posterior keeps its
-/// balance (the marker term shrinks by about `stride`, so σ² shrinks with it).
-/// Only the kept frames are copied (never the whole problem's: on a long trial that copy
-/// would be the largest allocation of the calibration).
-fn subsample<'m>(prob: &Problem<'m>, stride: usize) -> Problem<'m> {
-    if stride <= 1 {
-        return prob.clone();
-    }
-    let mut prior = prob.prior.clone();
-    if let Some(pr) = prior.as_mut() {
-        pr.noise /= (stride as f64).sqrt();
-    }
-    Problem {
-        model: prob.model,
-        free: prob.free.clone(),
-        base: prob.base.clone(),
-        frames: prob.frames.select((0..prob.frames.len()).step_by(stride)),
-        origin: prob.origin.iter().step_by(stride).copied().collect(),
-        skipped: prob.skipped.clone(),
-        ik: prob.ik,
-        prior,
-    }
-}
-
 /// From this many frames on the finishing solves run one after the other, each on every
 /// thread (its per-frame passes are parallel), instead of side by side: two solves at once
 /// would hold two sets of per-frame coordinates and two block caches, and with this many
 /// frames one solve keeps the threads busy. The result is the same either way.
 pub const SEQUENTIAL_FINISH_FRAMES: usize = 4096;
-
-/// Every start of the global phase (the given one first) and its seeded inner solutions on
-/// the probes' frames: what the probes begin from.
-pub type ProbeStarts = Vec<(Vec<f64>, Vec<Vec<f64>>)>;
-
-/// The probes' frames: every `stride`-th of `prob`'s, `stride` the smallest that leaves at
-/// most `settings.probe_frames`.
-fn probe_stride(prob: &Problem, settings: &FitSettings) -> usize {
-    prob.frames.len().div_ceil(settings.probe_frames.max(1))
-}
-
-/// The starts of the global phase on `prob` ([`probe_point`]) and their seeded inner
-/// solutions on the probes' frames, in start order. Neither depends on the marker noise σ
-/// that weighs the prior (only the prior's means and SDs choose the starts), so a caller may
-/// form them from a problem whose prior carries any σ (forming them beside the σ estimate
-/// was measured slower: `docs/performance.md`).
-pub fn probe_starts(prob: &Problem, start: &[f64], settings: &FitSettings) -> ProbeStarts {
-    let coarse = subsample(prob, probe_stride(prob, settings));
-    (0..settings.probes + 1)
-        .into_par_iter()
-        .map(|k| {
-            let p0 = if k == 0 {
-                start.to_vec()
-            } else {
-                probe_point(prob, start, settings, k)
-            };
-            let q0 = coarse.initial_coords(&p0);
-            (p0, q0)
-        })
-        .collect()
-}
 
 /// Runs the global phase on `prob` from `start` with `settings.probes` extra starts (the
 /// module docs), from `starts` ([`probe_starts`] of the same problem, start and settings)
@@ -560,60 +474,5 @@ pub fn warning(g: &GlobalSearch) -> Option<String> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::super::synthetic_tests::synthetic;
-    use super::super::{calibrate, FitSettings, NoObserver};
-    use crate::calibrate::params_for_groups;
-    use crate::model::lower_limb::{lower_limb, Side};
-    use crate::model::Model;
-
-    /// The whole global phase on a trial long enough for every parallel pass this module
-    /// and [`crate::calibrate::Problem`] run (probes on every 8th frame, two seeded chunks of
-    /// starting coordinates, inner passes in tasks, a finishing solve of a probe that is not
-    /// the given start): the same bits on 1, 2 and 3 threads.
-    #[test]
-    fn global_phase_gives_the_same_bits_on_any_thread_count() {
-        let model = Model::compile(&lower_limb(Side::Right)).unwrap();
-        let truth: Vec<f64> = model
-            .parameters()
-            .iter()
-            .enumerate()
-            .map(|(k, x)| x.nominal + 0.12 * (x.upper - x.lower) * (k as f64 * 1.7).sin())
-            .collect();
-        let trial = synthetic(&model, &truth, 200, 0.004);
-        let free = params_for_groups(&model, &["all"]).unwrap();
-        let start = model.nominal_params();
-        let run = |threads: usize| {
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap()
-                .install(|| {
-                    calibrate(
-                        &model,
-                        &start,
-                        &[&trial],
-                        &free,
-                        &FitSettings::default(),
-                        &mut NoObserver,
-                    )
-                    .unwrap()
-                })
-        };
-        let one = run(1);
-        let g = one.global.clone().unwrap();
-        assert_eq!(g.probe_frames, 25);
-        assert!(g.finished.iter().any(|&k| k != 0), "{g:?}");
-        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-        for threads in [2, 3] {
-            let other = run(threads);
-            assert_eq!(bits(&one.fit.p), bits(&other.fit.p), "{threads} threads");
-            assert_eq!(one.cost_after.to_bits(), other.cost_after.to_bits());
-            assert_eq!(one.cost_before.to_bits(), other.cost_before.to_bits());
-            assert_eq!(one.global, other.global);
-            for (a, b) in one.fit.coords.iter().zip(&other.fit.coords) {
-                assert_eq!(bits(a), bits(b));
-            }
-        }
-    }
-}
+#[path = "global_tests.rs"]
+mod tests;

@@ -1,0 +1,95 @@
+//! The starts of the global phase ([`super::global`]): where each start is drawn, and the
+//! probes' frames (every k-th frame, the prior reweighed to keep the posterior's balance).
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+use super::starts::restart_point;
+use super::FitSettings;
+use crate::calibrate::Problem;
+
+/// One start drawn for the global phase (`k` ≥ 1): from the prior where the problem has one,
+/// else [`restart_point`] of `start`.
+pub fn probe_point(prob: &Problem, start: &[f64], settings: &FitSettings, k: usize) -> Vec<f64> {
+    let model = prob.model;
+    let mut p = restart_point(
+        model,
+        start,
+        &prob.free,
+        settings.restart_mm,
+        settings.restart_deg,
+        settings.seed,
+        k,
+    );
+    if let Some(pr) = &prob.prior {
+        let seed = settings.seed.wrapping_mul(2_000_003).wrapping_add(k as u64);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        for (j, &i) in prob.free.iter().enumerate() {
+            // Drawn for every parameter, so one parameter's prior does not shift the others.
+            let u1: f64 = 1.0 - rng.gen::<f64>();
+            let u2: f64 = rng.gen();
+            let z = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+            if pr.sd[j].is_finite() {
+                let par = &model.parameters()[i];
+                p[i] = (pr.mean[j] + z.clamp(-2.0, 2.0) * pr.sd[j]).clamp(par.lower, par.upper);
+            }
+        }
+    }
+    p
+}
+
+/// Every `stride`-th frame of `prob`, the prior reweighed so that the posterior keeps its
+/// balance (the marker term shrinks by about `stride`, so σ² shrinks with it).
+/// Only the kept frames are copied (never the whole problem's: on a long trial that copy
+/// would be the largest allocation of the calibration).
+pub(super) fn subsample<'m>(prob: &Problem<'m>, stride: usize) -> Problem<'m> {
+    if stride <= 1 {
+        return prob.clone();
+    }
+    let mut prior = prob.prior.clone();
+    if let Some(pr) = prior.as_mut() {
+        pr.noise /= (stride as f64).sqrt();
+    }
+    Problem {
+        model: prob.model,
+        free: prob.free.clone(),
+        base: prob.base.clone(),
+        frames: prob.frames.select((0..prob.frames.len()).step_by(stride)),
+        origin: prob.origin.iter().step_by(stride).copied().collect(),
+        skipped: prob.skipped.clone(),
+        ik: prob.ik,
+        prior,
+    }
+}
+
+/// Every start of the global phase (the given one first) and its seeded inner solutions on
+/// the probes' frames: what the probes begin from.
+pub type ProbeStarts = Vec<(Vec<f64>, Vec<Vec<f64>>)>;
+
+/// The probes' frames: every `stride`-th of `prob`'s, `stride` the smallest that leaves at
+/// most `settings.probe_frames`.
+pub(super) fn probe_stride(prob: &Problem, settings: &FitSettings) -> usize {
+    prob.frames.len().div_ceil(settings.probe_frames.max(1))
+}
+
+/// The starts of the global phase on `prob` ([`probe_point`]) and their seeded inner
+/// solutions on the probes' frames, in start order. Neither depends on the marker noise σ
+/// that weighs the prior (only the prior's means and SDs choose the starts), so a caller may
+/// form them from a problem whose prior carries any σ (forming them beside the σ estimate
+/// was measured slower: `docs/performance.md`).
+pub fn probe_starts(prob: &Problem, start: &[f64], settings: &FitSettings) -> ProbeStarts {
+    let coarse = subsample(prob, probe_stride(prob, settings));
+    (0..settings.probes + 1)
+        .into_par_iter()
+        .map(|k| {
+            let p0 = if k == 0 {
+                start.to_vec()
+            } else {
+                probe_point(prob, start, settings, k)
+            };
+            let q0 = coarse.initial_coords(&p0);
+            (p0, q0)
+        })
+        .collect()
+}
