@@ -40,10 +40,12 @@
 //! ([`secant`], after NL2SOL; Dennis, Gay & Welsch 1981). The coordinates are still
 //! eliminated exactly; a rejected augmented step is retried with Gauss–Newton's at the same
 //! damping before the damping grows. It is off in [`solve_joint`] and [`solve_joint_to`]:
-//! on identical inputs it saves iterations on long trials (Hamner running 119 → 77), but
-//! used everywhere it moves the σ estimate's preliminary fit and the truncated probes, and
-//! with them the command's result (`docs/performance.md`, "The joint solver on long
-//! trials").
+//! on identical inputs it saved iterations on long trials (Hamner running 119 → 77 before
+//! the σ estimate moved into the global phase), but the command's fit is cheaper without
+//! it, used everywhere or only in the σ stage and the finishing solves (the latter +7.0 to
+//! +18.6 % instructions on opencap walking1, gait2392 walk1 and Hamner running;
+//! `docs/performance_fit.md`, "The joint solver on long trials" and "The secant model in
+//! the finishing solves").
 
 use rayon::prelude::*;
 
