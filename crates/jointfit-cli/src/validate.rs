@@ -179,7 +179,8 @@ pub fn decimals(s: &str) -> Result<usize, String> {
 
 /// A trial's data are plausible: rate at most [`MAX_RATE_HZ`] and every recorded coordinate
 /// within ±[`MAX_POSITION_M`] m. The error names the file, the frame (file numbering) and the
-/// marker. (Missing samples are fine here; commands that need some say so themselves.)
+/// marker, or the units when the markers' span says they are wrong
+/// ([`jointfit::checks::check_scale`]: millimetre data declared as metres). (Missing samples are fine here; commands that need some say so themselves.)
 pub fn check_trial(path: &Path, trial: &Trial) -> Result<()> {
     let shown = path.display();
     if trial.rate() > MAX_RATE_HZ {
@@ -194,6 +195,13 @@ pub fn check_trial(path: &Path, trial: &Trial) -> Result<()> {
                 continue;
             }
             if p.iter().any(|v| v.abs() > MAX_POSITION_M) {
+                // Millimetre data declared as metres land here: say so when the whole
+                // trial's scale points to the units rather than one wild sample.
+                let too_wide = jointfit::checks::marker_span(trial)
+                    .is_some_and(|span| span > jointfit::checks::PLAUSIBLE_SPAN[1]);
+                if let Some(units) = jointfit::checks::check_scale(trial).filter(|_| too_wide) {
+                    bail!("{shown}: {}", units.message);
+                }
                 bail!(
                     "{shown}: frame {}, marker {}: position ({:e}, {:e}, {:e}) m is beyond \
                      ±{MAX_POSITION_M} m, not a plausible measurement",
@@ -251,5 +259,28 @@ mod tests {
         assert!(check_trial(Path::new("t.trc"), &t).is_err());
         let t = Trial::new(labels, 100.0, 1, vec![Vector3::repeat(f64::NAN); 4]).unwrap();
         check_trial(Path::new("t.trc"), &t).unwrap();
+    }
+
+    /// Millimetre data declared as metres (a leg 1 km long, the pelvis 1000 m up): the error
+    /// names the units, not one sample.
+    #[test]
+    fn millimetres_declared_as_metres_are_named_as_units() {
+        let labels: Vec<String> = ["RASI", "LASI", "RPSI", "LPSI", "RKNE", "RTOE"]
+            .map(String::from)
+            .to_vec();
+        let frame = [
+            Vector3::new(120.0, 1010.0, 30.0),
+            Vector3::new(-130.0, 1005.0, 35.0),
+            Vector3::new(50.0, 1060.0, -140.0),
+            Vector3::new(-55.0, 1058.0, -138.0),
+            Vector3::new(110.0, 520.0, 40.0),
+            Vector3::new(100.0, 40.0, 180.0),
+        ];
+        let pos: Vec<Vector3<f64>> = (0..5).flat_map(|_| frame).collect();
+        let t = Trial::new(labels, 100.0, 1, pos).unwrap();
+        let e = check_trial(Path::new("w.trc"), &t).unwrap_err().to_string();
+        assert!(e.starts_with("w.trc: the markers span"), "{e}");
+        assert!(e.contains("millimetre data read as metres"), "{e}");
+        assert!(!e.contains('\n'), "{e}");
     }
 }
