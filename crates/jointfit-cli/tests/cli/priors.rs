@@ -242,3 +242,84 @@ fn refined_markers_are_reported_and_carried_by_the_fitted_model() {
         assert!((v - want).abs() < 1e-9, "{loc} vs {:?}", m.position);
     }
 }
+
+/// The prior–data conflict step end to end (`workflow::conflict`): one record per joint in
+/// JSON, a joint rejected at p < 0.01 flagged with its intervals widened by τ and the estimate
+/// unchanged, one text line per flagged joint; `--no-prior-conflict` runs without it.
+#[test]
+fn prior_data_conflict_widens_only_the_flagged_joints_intervals() {
+    let dir = scratch("priors-conflict");
+    let Some((model, walk)) = super::opencap_subject(&dir, "oc.toml") else {
+        return;
+    };
+    let (model, walk) = (model.to_str().unwrap(), walk.to_str().unwrap());
+    let out = tmp(&dir, "fit.toml");
+    let run = |extra: &[&str]| {
+        let mut args = vec!["calibrate", model, walk, "--filter", "6", "-o", &out];
+        args.extend_from_slice(extra);
+        let (ok, stdout, stderr) = jointfit(&args);
+        assert!(ok, "{stderr}");
+        stdout
+    };
+    let with: serde_json::Value = serde_json::from_str(&run(&["--json"])).unwrap();
+    let without: serde_json::Value =
+        serde_json::from_str(&run(&["--json", "--no-prior-conflict"])).unwrap();
+    let joints = with["prior_conflict"].as_array().expect("prior_conflict");
+    let names: Vec<&str> = joints
+        .iter()
+        .map(|j| j["joint"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["hip", "knee", "talocrural", "subtalar"]);
+    assert!(without["prior_conflict"]
+        .as_array()
+        .is_none_or(|a| a.is_empty()));
+    let params = |r: &serde_json::Value| -> std::collections::HashMap<String, (f64, f64)> {
+        r["parameters"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| {
+                let name = p["name"].as_str().unwrap().to_string();
+                (
+                    name,
+                    (p["fitted"].as_f64().unwrap(), p["se"].as_f64().unwrap()),
+                )
+            })
+            .collect()
+    };
+    let (pw, po) = (params(&with), params(&without));
+    let mut flagged = Vec::new();
+    for j in joints {
+        let (chi2, p, tau) = (
+            j["chi2"].as_f64().unwrap(),
+            j["p_value"].as_f64().unwrap(),
+            j["tau"].as_f64().unwrap(),
+        );
+        let members = j["parameters"].as_array().unwrap();
+        assert_eq!(j["dof"].as_u64().unwrap() as usize, members.len(), "{j}");
+        assert!(chi2 >= 0.0 && (0.0..=1.0).contains(&p) && tau >= 1.0, "{j}");
+        let is_flagged = j["flagged"].as_bool().unwrap();
+        assert_eq!(is_flagged, p < 0.01, "{j}");
+        let scale = j["interval_scale"].as_f64().unwrap();
+        assert_eq!(scale, if is_flagged { tau } else { 1.0 }, "{j}");
+        for m in members {
+            let m = m.as_str().unwrap();
+            // The estimate keeps the stated prior.
+            assert_eq!(pw[m].0, po[m].0, "{m}");
+            if is_flagged && tau > 1.01 {
+                assert!(pw[m].1 > po[m].1, "{m}: {} vs {}", pw[m].1, po[m].1);
+            }
+        }
+        if is_flagged {
+            flagged.push(j["joint"].as_str().unwrap().to_string());
+        }
+    }
+    // The shared walking1 contradicts the landmark hip (χ² ≈ 20 on 6 dof; docs/gait_table.md).
+    assert!(flagged.contains(&"hip".to_string()), "{joints:?}");
+    let text = run(&[]);
+    for joint in &flagged {
+        let line = format!("prior–data conflict at the {joint}: intervals widened");
+        assert_eq!(text.matches(&line).count(), 1, "{text}");
+    }
+    assert!(!run(&["--no-prior-conflict"]).contains("prior–data conflict"));
+}
