@@ -232,7 +232,9 @@ fn print_prior_summary(report: &Calibration, noise_mm: f64) {
         "maximum a posteriori fit: priors from the model file, marker noise σ = {noise_mm:.2} \
          mm ({}); intervals include the prior",
         if report.prior_noise_estimated {
-            "estimated from the residuals"
+            // σ carries the correlation factor κ (`workflow::map`): far above the marker RMS
+            // on long, smooth trials, which the wording must not leave unexplained.
+            "estimated from the residuals, inflated for their correlation over time"
         } else {
             "given"
         }
