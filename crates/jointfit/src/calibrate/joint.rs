@@ -51,7 +51,7 @@
 use rayon::prelude::*;
 
 use super::schur::{
-    active_bounds, assemble, back_substitute, cost_at, reduce, solve_reduced, Blocks,
+    active_bounds, assemble, back_substitute, cost_at, reduce, solve_reduced_at_bounds, Blocks,
 };
 use secant::Secant;
 
@@ -200,7 +200,7 @@ pub fn solve_joint_with(
     let mut secant = Secant::new(nf);
     while iterations < opts.max_iterations {
         iterations += 1;
-        let fixed = active_bounds(&s, &blocks.gs);
+        let mut fixed = active_bounds(&s, &blocks.gs);
         let mut accepted = false;
         let mut step = 0.0f64;
         let mut decrease = 0.0;
@@ -234,7 +234,7 @@ pub fn solve_joint_with(
             }
             let limited = secant.limited(&blocks.schur);
             let extra = limited.as_deref().filter(|_| secant.augmented() && !plain);
-            if !solve_reduced(&blocks, extra, &fixed, &mut ds) {
+            if !solve_reduced_at_bounds(&blocks, extra, &s, &mut fixed, &mut ds) {
                 lambda *= 10.0;
                 continue;
             }

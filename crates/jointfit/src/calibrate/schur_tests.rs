@@ -1,5 +1,6 @@
 //! Unit tests of `schur.rs`.
 
+use super::step::solve_reduced;
 use super::*;
 use crate::calibrate::params_for_groups;
 use crate::kinematics::KinData;
@@ -154,4 +155,61 @@ fn short_trials_get_an_even_number_of_chunks() {
     assert_eq!(super::chunk_len(143), 24);
     assert_eq!(super::chunk_len(25), 13);
     assert_eq!(super::chunk_len(10_000), CHUNK);
+}
+
+/// A parameter at a bound whose gradient points inside but whose coupled Gauss–Newton step
+/// points out (found by trying pairs of parameters at their bounds): the step that holds it
+/// (and solves again for the rest) leaves no parameter pushing out of its bound, the held
+/// one does not move, and the step descends in the model.
+#[test]
+fn parameters_pushing_out_of_their_bounds_are_held_and_the_step_descends() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let trial = problem_trial(&model, 60);
+    let free = params_for_groups(&model, &["all"]).unwrap();
+    let prob = Problem::new(&model, model.nominal_params(), &free, &[&trial]).unwrap();
+    let nf = prob.n_free();
+    let lambda = 1e-2;
+    let mut b = Blocks::new(&prob);
+    let mut ds = vec![0.0; nf];
+    let s0 = prob.to_scaled(&model.nominal_params());
+    let mut found = None;
+    // Two coupled parameters at bounds (as the ankle axes of gait2392 subject01 walk1).
+    'search: for k in 0..nf {
+        for l in k + 1..nf {
+            for (bk, bl) in [(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)] {
+                let mut s = s0.clone();
+                s[k] = bk;
+                s[l] = bl;
+                let p = prob.to_params(&s);
+                let qs = prob.initial_coords(&p);
+                assemble(&prob, &p, &qs, &mut b);
+                assert!(reduce(&prob, &qs, &mut b, lambda));
+                let fixed = active_bounds(&s, &b.gs);
+                assert!(solve_reduced(&b, None, &fixed, &mut ds));
+                for (j, bound) in [(k, bk), (l, bl)] {
+                    if !fixed[j] && ds[j] * bound > 0.0 {
+                        found = Some((j, s, qs, fixed));
+                        break 'search;
+                    }
+                }
+            }
+        }
+    }
+    let (k, s, qs, mut fixed) = found.expect("a parameter whose step leaves its bound");
+    assert!(solve_reduced_at_bounds(&b, None, &s, &mut fixed, &mut ds));
+    assert!(fixed[k], "parameter {k} is held");
+    for j in 0..nf {
+        let outward = (s[j] >= 1.0 && ds[j] > 0.0) || (s[j] <= -1.0 && ds[j] < 0.0);
+        assert!(!outward, "parameter {j} at {} steps {}", s[j], ds[j]);
+        if fixed[j] {
+            assert_eq!(ds[j], 0.0);
+            assert_eq!(s[j].abs(), 1.0, "only parameters at a bound are held");
+        }
+    }
+    let step: Vec<f64> = (0..nf)
+        .map(|j| (s[j] + ds[j]).clamp(-1.0, 1.0) - s[j])
+        .collect();
+    let mut dq = vec![vec![0.0; b.nq]; qs.len()];
+    let predicted = back_substitute(&prob, &qs, &b, &step, &mut dq);
+    assert!(predicted > 0.0, "predicted decrease {predicted:e}");
 }
