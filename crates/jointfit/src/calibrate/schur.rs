@@ -282,7 +282,7 @@ pub(crate) fn cost_at(prob: &Problem, b: &Blocks, p: &[f64], qs: &[Vec<f64>]) ->
 
 #[path = "schur_step.rs"]
 mod step;
-pub(crate) use step::{back_substitute, reduce, solve, solve_reduced_at_bounds};
+pub(crate) use step::{back_substitute, reduce, solve_reduced_at_bounds};
 
 #[cfg(test)]
 #[path = "schur_tests.rs"]

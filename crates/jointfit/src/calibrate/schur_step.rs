@@ -43,6 +43,7 @@ fn factor_damped(u: &[f64], nq: usize, lambda: f64, l: &mut Vec<f64>) -> bool {
 /// Damped step on the parameters: fills `ds` (n_f). `fixed[k]` pins parameter k (`δs_k = 0`).
 /// `qs` are the coordinates of the last [`assemble`]. Returns false when a system is not
 /// positive definite at this damping. [`back_substitute`] then gives the coordinate steps.
+#[cfg(test)]
 pub(crate) fn solve(
     prob: &Problem,
     qs: &[Vec<f64>],

@@ -1,6 +1,6 @@
 //! Unit tests of `schur.rs`.
 
-use super::step::solve_reduced;
+use super::step::{solve, solve_reduced};
 use super::*;
 use crate::calibrate::params_for_groups;
 use crate::kinematics::KinData;

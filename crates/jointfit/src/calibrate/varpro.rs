@@ -6,7 +6,9 @@
 //! Jacobian `J_red = (I − J_q (J_qᵀWJ_q)⁻¹ J_qᵀW) J_p`) and the envelope-theorem gradient
 //! `Σ J_p,iᵀ W r_i`. A step is accepted when the re-solved `e_inner` drops.
 
-use super::schur::{active_bounds, assemble, back_substitute, solve, Blocks};
+use super::schur::{
+    active_bounds, assemble, back_substitute, reduce, solve_reduced_at_bounds, Blocks,
+};
 use super::{Fit, Problem};
 use crate::ik::IkWorkspace;
 use crate::solver::{Observer, Termination};
@@ -69,11 +71,15 @@ pub fn solve_varpro(
     while iterations < opts.max_iterations {
         iterations += 1;
         assemble(prob, &p, &qs, &mut blocks);
-        let fixed = active_bounds(&s, &blocks.gs);
+        // Held: parameters at a bound pushed out by the gradient or by the coupled step
+        // (`schur::solve_reduced_at_bounds`, as in the joint solver).
+        let mut fixed = active_bounds(&s, &blocks.gs);
         let mut accepted = false;
         let mut step = 0.0f64;
         while lambda < 1e16 {
-            if !solve(prob, &qs, &mut blocks, lambda, &fixed, &mut ds) {
+            if !(reduce(prob, &qs, &mut blocks, lambda)
+                && solve_reduced_at_bounds(&blocks, None, &s, &mut fixed, &mut ds))
+            {
                 lambda *= 10.0;
                 continue;
             }

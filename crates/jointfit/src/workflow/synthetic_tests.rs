@@ -125,8 +125,11 @@ fn several_starts_are_all_recorded_and_the_best_is_reported() {
     let nominal = model.nominal_params();
     let truth = perturb(&model, &nominal, &idx, 10.0, 5.0, 11);
     let trial = synthetic(&model, &truth, 30, 0.004);
-    // A start 60 mm / 30° off that ends in a local minimum another start escapes.
-    let start = perturb(&model, &truth, &idx, 60.0, 30.0, 201);
+    // A start 60 mm / 30° off that ends in a local minimum another start escapes. (Since
+    // the joint solver holds parameters that its step pushes out of their bounds, 33 of 35
+    // such starts, seeds 195–229, reach the best optimum alone; seed 201, used before, is
+    // one of them.)
+    let start = perturb(&model, &truth, &idx, 60.0, 30.0, 198);
     let settings = FitSettings {
         starts: 4,
         seed: 6,
