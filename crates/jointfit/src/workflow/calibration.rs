@@ -138,6 +138,18 @@ impl Calibration {
     pub fn total_iterations(&self) -> usize {
         self.start_runs.iter().map(|r| r.iterations).sum()
     }
+
+    /// Takes `u` as the calibration's uncertainty: each parameter row's SE, interval,
+    /// identifiability and method from it.
+    pub(super) fn set_uncertainty(&mut self, u: Uncertainty) {
+        for (row, pu) in self.parameters.iter_mut().zip(&u.params) {
+            row.se = pu.se;
+            row.ci95 = pu.ci;
+            row.identifiability = Some(pu.status);
+            row.uncertainty_method = Some(pu.method);
+        }
+        self.uncertainty = Some(u);
+    }
 }
 
 impl FitSettings {
@@ -420,13 +432,7 @@ pub fn calibrate(
             }
         }
     }
-    for (row, pu) in cal.parameters.iter_mut().zip(&u.params) {
-        row.se = pu.se;
-        row.ci95 = pu.ci;
-        row.identifiability = Some(pu.status);
-        row.uncertainty_method = Some(pu.method);
-    }
-    cal.uncertainty = Some(u);
+    cal.set_uncertainty(u);
     cal.fixed_unidentifiable = fixed;
     Ok(cal)
 }

@@ -41,7 +41,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use super::{FitSettings, WorkflowError};
-use crate::calibrate::uncertainty::reduced_system;
+use crate::calibrate::uncertainty::{ln_gamma, reduced_system};
 use crate::model::{Model, ModelSpec, ParamId};
 use crate::trial::Trial;
 
@@ -265,29 +265,6 @@ pub fn chi2_upper_tail(x: f64, k: usize) -> f64 {
     }
 }
 
-/// `ln Γ(a)` for `a > 0` (Lanczos, g = 7, 9 terms).
-fn ln_gamma(a: f64) -> f64 {
-    const C: [f64; 9] = [
-        0.999_999_999_999_809_9,
-        676.520_368_121_885_1,
-        -1_259.139_216_722_402_8,
-        771.323_428_777_653_1,
-        -176.615_029_162_140_6,
-        12.507_343_278_686_905,
-        -0.138_571_095_265_720_12,
-        9.984_369_578_019_572e-6,
-        1.505_632_735_149_311_6e-7,
-    ];
-    if a < 0.5 {
-        let pi = std::f64::consts::PI;
-        return (pi / (pi * a).sin()).ln() - ln_gamma(1.0 - a);
-    }
-    let a = a - 1.0;
-    let t = a + 7.5;
-    let s: f64 = C[0] + (1..9).map(|i| C[i] / (a + i as f64)).sum::<f64>();
-    0.5 * (2.0 * std::f64::consts::PI).ln() + (a + 0.5) * t.ln() - t + s.ln()
-}
-
 /// The conflict of every joint of a maximum a posteriori calibration `cal` (of `free` on
 /// `trials` from `start`, with `settings`): rebuilds its problem with the prior weights of
 /// the fit (its σ and per-parameter factors), forms the marker term's reduced normal matrix at
@@ -434,13 +411,8 @@ pub fn widen_intervals(
         }
     }
     let _ = free;
-    let u = crate::calibrate::uncertainty::analyze(&prob, &cal.fit, opts);
-    for (row, pu) in cal.parameters.iter_mut().zip(&u.params) {
-        row.se = pu.se;
-        row.ci95 = pu.ci;
-        row.identifiability = Some(pu.status);
-        row.uncertainty_method = Some(pu.method);
-    }
-    cal.uncertainty = Some(u);
+    cal.set_uncertainty(crate::calibrate::uncertainty::analyze(
+        &prob, &cal.fit, opts,
+    ));
     Ok(())
 }

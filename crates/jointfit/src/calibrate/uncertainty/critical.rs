@@ -250,7 +250,7 @@ fn beta_fraction(a: f64, b: f64, x: f64) -> f64 {
 }
 
 /// `ln Γ(x)`, `x > 0`, by Lanczos' approximation (g = 7, 9 terms; relative error ≈ 1e-15).
-fn ln_gamma(x: f64) -> f64 {
+pub fn ln_gamma(x: f64) -> f64 {
     const G: f64 = 7.0;
     const C: [f64; 9] = [
         0.999_999_999_999_809_9,

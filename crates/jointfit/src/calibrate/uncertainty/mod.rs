@@ -90,7 +90,7 @@ mod types;
 use super::{Fit, Problem};
 use crate::model::Unit;
 use critical::critical;
-pub use critical::{fixed_b_bartlett, normal_quantile, t_quantile};
+pub use critical::{fixed_b_bartlett, ln_gamma, normal_quantile, t_quantile};
 use estimators::{conservative, continuity, covariances, Covariances};
 pub use explain::coordinate_ranges;
 use explain::{reason, weak_directions};
