@@ -31,18 +31,23 @@ fn frame_rms_mm(answer: &Value) -> Vec<f64> {
         .collect()
 }
 
-fn compare(model_rel: &str, trial_rel: &str, triple_tolerance_deg: Option<f64>) {
-    let (Some(model), Some(trial)) = (
-        jointfit_testkit::data_file(model_rel),
-        jointfit_testkit::data_file(trial_rel),
-    ) else {
-        return;
-    };
-    let Some(python) = jointfit_testkit::python() else {
-        return;
-    };
-    let dir = jointfit_testkit::scratch("osim-ik-own-model");
-    compare_files(
+/// The shared `model_rel` and `trial_rel`, with `jointfit ik` and OpenSim's IK run on them
+/// in scratch directory `scratch` ([`compare_files`]); `None` (the test skips) without the
+/// data or the Python oracle.
+struct BothRuns {
+    model: std::path::PathBuf,
+    trial: std::path::PathBuf,
+    dir: jointfit_testkit::scratch::ScratchDir,
+    /// Per-frame RMS (mm): jointfit's and OpenSim's.
+    rms: (Vec<f64>, Vec<f64>),
+}
+
+fn run_both(model_rel: &str, trial_rel: &str, scratch: &str) -> Option<BothRuns> {
+    let model = jointfit_testkit::data_file(model_rel)?;
+    let trial = jointfit_testkit::data_file(trial_rel)?;
+    let python = jointfit_testkit::python()?;
+    let dir = jointfit_testkit::scratch(scratch);
+    let rms = compare_files(
         model_rel,
         &model,
         &trial,
@@ -50,8 +55,20 @@ fn compare(model_rel: &str, trial_rel: &str, triple_tolerance_deg: Option<f64>) 
         &python,
         Some("no marker determines mtp_angle_r"),
     );
+    Some(BothRuns {
+        model,
+        trial,
+        dir,
+        rms,
+    })
+}
+
+fn compare(model_rel: &str, trial_rel: &str, triple_tolerance_deg: Option<f64>) {
+    let Some(run) = run_both(model_rel, trial_rel, "osim-ik-own-model") else {
+        return;
+    };
     if let Some(tol) = triple_tolerance_deg {
-        triples_agree(&model, &dir, tol);
+        triples_agree(&run.model, &run.dir, tol);
     }
 }
 
@@ -250,32 +267,18 @@ fn trc_frames(text: &str, first: usize, n: usize) -> String {
 /// model is `clamped`: the coordinates against OpenSim's are asserted in `osim_clamped`.
 #[test]
 fn ik_on_opencap_generic_osim_no_frame_worse_than_opensim() {
-    let (model_rel, trial_rel) = (
+    let Some(run) = run_both(
         "opencap_expert1/generic.osim",
         "opencap_expert1/walking1.trc",
-    );
-    let (Some(model), Some(trial)) = (
-        jointfit_testkit::data_file(model_rel),
-        jointfit_testkit::data_file(trial_rel),
+        "osim-ik-generic",
     ) else {
         return;
     };
-    let Some(python) = jointfit_testkit::python() else {
-        return;
-    };
-    let dir = jointfit_testkit::scratch("osim-ik-generic");
-    let (jf, os) = compare_files(
-        model_rel,
-        &model,
-        &trial,
-        &dir,
-        &python,
-        Some("no marker determines mtp_angle_r"),
-    );
+    let (jf, os) = &run.rms;
     let same: Vec<bool> = jf
         .iter()
-        .zip(&os)
+        .zip(os)
         .map(|(a, b)| (a - b).abs() <= 0.01)
         .collect();
-    super::osim_clamped::clamped_agree(&model, &trial, dir.path(), &same);
+    super::osim_clamped::clamped_agree(&run.model, &run.trial, run.dir.path(), &same);
 }
