@@ -401,11 +401,10 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
 }
 
 /// The report's notes of the prior–data conflict step: one per flagged joint.
-fn conflict_notes(conflicts: &[workflow::conflict::JointConflict]) -> Vec<String> {
-    conflicts
-        .iter()
-        .filter(|c| c.flagged)
-        .map(|c| format!("{}.", c.line()))
+pub(crate) fn conflict_notes(conflicts: &[workflow::conflict::JointConflict]) -> Vec<String> {
+    jointfit_io::batch::fit::conflict_lines(conflicts)
+        .into_iter()
+        .map(|l| format!("{l}."))
         .collect()
 }
 

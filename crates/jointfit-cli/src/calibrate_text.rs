@@ -142,10 +142,10 @@ pub fn print_policy(
 }
 
 /// The joints whose prior the trial contradicts, one line each (`workflow::conflict`):
-/// "prior widened ×τ for the hip: the trial disagrees with the landmark model by χ² = …".
+/// "prior–data conflict at the hip: intervals widened for a prior ×τ as wide …".
 pub fn print_conflict(conflicts: &[jointfit::workflow::conflict::JointConflict]) {
-    for c in conflicts.iter().filter(|c| c.flagged) {
-        println!("{} (--no-prior-conflict: no test)", c.line());
+    for line in jointfit_io::batch::fit::conflict_lines(conflicts) {
+        println!("{line} (--no-prior-conflict: no test)");
     }
 }
 

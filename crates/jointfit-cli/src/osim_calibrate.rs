@@ -107,6 +107,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
                 );
             }
             print_held(&fit.result.held_redundant);
+            crate::calibrate_text::print_conflict(&fit.result.prior_conflict);
             print_report(cal, seconds);
         }
         Ok(())
@@ -170,7 +171,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
                 &crate::report_cmd::provenance(inputs),
                 seconds,
                 &read,
-                &[],
+                &crate::calibrate_cmd::conflict_notes(&fit.result.prior_conflict),
             )?)
         }
         None => None,

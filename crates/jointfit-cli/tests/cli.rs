@@ -9,6 +9,8 @@ mod batch;
 mod bench;
 #[path = "cli/bilateral.rs"]
 mod bilateral;
+#[path = "cli/conflict.rs"]
+mod conflict;
 #[path = "cli/data.rs"]
 mod data;
 #[path = "cli/functional.rs"]

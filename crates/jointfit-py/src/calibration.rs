@@ -323,6 +323,9 @@ fn calibrate_osim(
         fit.method,
     );
     cal.model = done.fitted_spec();
+    warnings.extend(jointfit_io::batch::fit::conflict_lines(
+        &done.result.prior_conflict,
+    ));
     for r in &done.result.held_redundant {
         warnings.push(if r.with.is_empty() {
             format!(

@@ -221,6 +221,7 @@ pub fn calibrate(
         .iter()
         .map(|d| format!("marker policy: {}", d.line()))
         .collect();
+    notes.extend(conflict_lines(&refined.conflict));
     for b in &refined.envelope {
         if b.active {
             notes.push(format!(
@@ -240,6 +241,15 @@ pub fn calibrate(
     notes.append(&mut out.warnings);
     out.warnings = notes;
     Ok(out)
+}
+
+/// One warning per joint the prior–data conflict step flagged ([`workflow::conflict`]).
+pub fn conflict_lines(conflicts: &[workflow::conflict::JointConflict]) -> Vec<String> {
+    conflicts
+        .iter()
+        .filter(|c| c.flagged)
+        .map(|c| c.line())
+        .collect()
 }
 
 /// SI rows, warnings and the fitted description of a finished calibration of `model` from

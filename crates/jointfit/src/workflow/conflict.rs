@@ -31,18 +31,19 @@
 //! `1 − `[`CONFLICT_ALPHA`] quantile is *flagged*; its intervals are computed for a truth
 //! spread `τ̂` (at most [`TAU_CAP`]) times the prior SD about the prior mean (the prior's part
 //! of the interval variance scaled by `τ̂²`, [`crate::calibrate::prior::Prior::spread`]). The
-//! estimate keeps the stated prior ([`ESTIMATE_CAP`] = 1; [`widened_spec`] would refit with
-//! the SDs widened): widening it failed the held-out check on real gait at every cap tried,
-//! because the statistic flags real gait (correlated skin artefact) as often as a landmark
-//! model that is truly off (`docs/priors.md`, "The prior–data conflict step"). `--prior none`
-//! has no prior and so no conflict.
+//! estimate keeps the stated prior: refitting with the flagged joint's SDs widened failed the
+//! held-out check on real gait at every cap tried (3, 2, 1.5), because the statistic flags
+//! real gait (correlated skin artefact) as often as a landmark model that is truly off
+//! (`docs/priors.md`, "The prior–data conflict step"). `--prior none` has no prior and so no
+//! conflict. [`check`] is the step as both the jointfit-model and the OpenSim-model
+//! calibrations run it.
 
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use super::{FitSettings, WorkflowError};
 use crate::calibrate::uncertainty::{ln_gamma, reduced_system};
-use crate::model::{Model, ModelSpec, ParamId};
+use crate::model::Model;
 use crate::trial::Trial;
 
 /// Directions of a joint's whitened posterior shift with a smaller prior-predictive variance
@@ -52,10 +53,6 @@ pub const MIN_DIRECTION_VARIANCE: f64 = 0.05;
 pub const CONFLICT_ALPHA: f64 = 0.01;
 /// The largest factor by which a prior SD is widened.
 pub const TAU_CAP: f64 = 3.0;
-/// The largest factor by which the final fit's prior SDs are widened: 1, the estimate keeps
-/// the stated prior (no factor kept the real-gait table and fixed the synthetic hard cases,
-/// `docs/identifiability.md`, "Stop 29"); only the intervals take τ (up to [`TAU_CAP`]).
-pub const ESTIMATE_CAP: f64 = 1.0;
 
 /// The conflict of one joint's prior with the trial.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -73,9 +70,6 @@ pub struct JointConflict {
     pub tau: f64,
     /// Whether the test rejects this joint's prior (p < [`CONFLICT_ALPHA`], τ > 1).
     pub flagged: bool,
-    /// The factor on the prior SDs of the final fit (1: the estimate keeps the stated prior;
-    /// at most [`ESTIMATE_CAP`]).
-    pub estimate_scale: f64,
     /// The factor on the prior SDs that the intervals assume (the truth's spread about the
     /// prior mean; `tau` when widened, else 1).
     pub interval_scale: f64,
@@ -84,29 +78,25 @@ pub struct JointConflict {
 impl JointConflict {
     /// One line for the text output and the report.
     pub fn line(&self) -> String {
-        let what = if self.estimate_scale > 1.0 {
-            format!(
-                "prior widened ×{:.2} for the {}",
-                self.estimate_scale, self.joint
-            )
-        } else {
-            format!(
-                "prior–data conflict at the {}: intervals widened for a prior ×{:.2} as wide (the \
-                 estimate keeps the prior)",
-                self.joint, self.interval_scale
-            )
-        };
         format!(
-            "{what}: the trial disagrees with the landmark model by χ² = {:.1} ({} dof, p = {:.1e})",
-            self.chi2, self.dof, self.p_value
+            "prior–data conflict at the {}: intervals widened for a prior ×{:.2} as wide (the \
+             estimate keeps the prior): the trial disagrees with the model file's prior means by \
+             χ² = {:.1} ({} dof, p = {:.1e})",
+            self.joint, self.interval_scale, self.chi2, self.dof, self.p_value
         )
     }
 }
 
-/// The joint a parameter belongs to (module docs); `None` for refined marker offsets.
+/// The joint a parameter belongs to (module docs); `None` for refined marker offsets. An
+/// OpenSim model's offset scalar (`JOINT.parent.tx`, the dotted names of
+/// `jointfit_io::osim_read`) belongs to its group, the joint named in the file (`hip_r`,
+/// `walker_knee_l`).
 pub fn joint_of(name: &str, group: &str) -> Option<String> {
     if group == crate::model::refine::MARKER_GROUP {
         return None;
+    }
+    if name.contains('.') {
+        return Some(group.to_string());
     }
     for j in ["hip", "knee", "talocrural", "subtalar"] {
         if name.starts_with(j) && name[j.len()..].starts_with('_') {
@@ -265,8 +255,8 @@ pub fn chi2_upper_tail(x: f64, k: usize) -> f64 {
     }
 }
 
-/// The conflict of every joint of a maximum a posteriori calibration `cal` (of `free` on
-/// `trials` from `start`, with `settings`): rebuilds its problem with the prior weights of
+/// The conflict of every joint of a maximum a posteriori calibration `cal` (of its free
+/// parameters on `trials` from `start`, with `settings`): rebuilds its problem with the prior weights of
 /// the fit (its σ and per-parameter factors), forms the marker term's reduced normal matrix at
 /// the fitted point, and applies [`statistics`] per joint; `flagged` marks the joints the rule
 /// of the module docs widens. Empty without a prior.
@@ -274,14 +264,14 @@ pub fn assess(
     model: &Model,
     start: &[f64],
     trials: &[&Trial],
-    free: &[ParamId],
     settings: &FitSettings,
     cal: &super::Calibration,
 ) -> Result<Vec<JointConflict>, WorkflowError> {
     let Some(noise) = cal.prior_noise_mm.map(|mm| mm / crate::model::MM_PER_M) else {
         return Ok(Vec::new());
     };
-    let (mut prob, _) = super::map::map_problem(model, start, trials, free, settings, Some(noise))?;
+    let (mut prob, _) =
+        super::map::map_problem(model, start, trials, &cal.free, settings, Some(noise))?;
     super::map::set_inflation(&mut prob, &cal.prior_inflation);
     let Some(pr) = prob.prior.clone() else {
         return Ok(Vec::new());
@@ -341,45 +331,21 @@ pub fn assess(
                 p_value,
                 tau,
                 flagged,
-                estimate_scale: if flagged { tau.min(ESTIMATE_CAP) } else { 1.0 },
                 interval_scale: if flagged { tau } else { 1.0 },
             }
         })
         .collect())
 }
 
-/// `model`'s description with the prior SD of every parameter of a widened joint multiplied
-/// by its `tau` (the prior mean and the bounds unchanged); `None` when no joint is widened.
-pub fn widened_spec(model: &Model, conflicts: &[JointConflict]) -> Option<ModelSpec> {
-    let widened: Vec<&JointConflict> = conflicts
-        .iter()
-        .filter(|c| c.estimate_scale > 1.0)
-        .collect();
-    if widened.is_empty() {
-        return None;
-    }
-    let mut spec = model.spec().clone();
-    for c in widened {
-        for name in &c.parameters {
-            if let Some(p) = spec.parameters.iter_mut().find(|p| &p.name == name) {
-                p.prior_sd = p.prior_sd.map(|s| s * c.estimate_scale);
-            }
-        }
-    }
-    Some(spec)
-}
-
-/// Redoes the uncertainty analysis of `cal` (a calibration of `model`, whose prior SDs are
-/// already widened by each joint's `estimate_scale`) with the truth's spread about the
-/// prior mean that each widened joint's `interval_scale` states: the prior's part of the
-/// interval variance of its parameters scaled by `(interval_scale/estimate_scale)²`
+/// Redoes the uncertainty analysis of `cal` (a calibration of `model`) with the truth's
+/// spread about the prior mean that each flagged joint's `interval_scale` states: the
+/// prior's part of the interval variance of its parameters scaled by `interval_scale²`
 /// ([`crate::calibrate::prior::Prior::spread`]); the estimate and the data shares are
 /// unchanged. Nothing when no joint needs it or `cal` was not analysed.
 pub fn widen_intervals(
     model: &Model,
     start: &[f64],
     trials: &[&Trial],
-    free: &[ParamId],
     settings: &FitSettings,
     cal: &mut super::Calibration,
     conflicts: &[JointConflict],
@@ -388,7 +354,7 @@ pub fn widen_intervals(
         conflicts
             .iter()
             .find(|c| c.parameters.iter().any(|p| p == name))
-            .map_or(1.0, |c| (c.interval_scale / c.estimate_scale).powi(2))
+            .map_or(1.0, |c| c.interval_scale.powi(2))
     };
     let (Some(opts), Some(noise)) = (&settings.uncertainty, cal.prior_noise_mm) else {
         return Ok(());
@@ -410,9 +376,28 @@ pub fn widen_intervals(
             pr.spread[k] = spread(n).max(1.0);
         }
     }
-    let _ = free;
     cal.set_uncertainty(crate::calibrate::uncertainty::analyze(
         &prob, &cal.fit, opts,
     ));
     Ok(())
+}
+
+/// The conflict step of a maximum a posteriori calibration `cal` (of `model` on `trials` from
+/// `start`) with nothing between the test and the intervals: [`assess`] every joint, then
+/// [`widen_intervals`] of the flagged ones. Empty, and `cal` unchanged, with
+/// `settings.prior_conflict` off or without a prior. (The jointfit-model calibration,
+/// [`super::calibrate_refined`], runs the two halves around its envelope refit.)
+pub fn check(
+    model: &Model,
+    start: &[f64],
+    trials: &[&Trial],
+    settings: &FitSettings,
+    cal: &mut super::Calibration,
+) -> Result<Vec<JointConflict>, WorkflowError> {
+    if !settings.prior_conflict {
+        return Ok(Vec::new());
+    }
+    let conflicts = assess(model, start, trials, settings, cal)?;
+    widen_intervals(model, start, trials, settings, cal, &conflicts)?;
+    Ok(conflicts)
 }

@@ -5,7 +5,7 @@ use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::conflict::{chi2_upper_tail, statistics, TAU_CAP};
+use super::conflict::{chi2_upper_tail, joint_of, statistics, TAU_CAP};
 use super::refine::calibrate_refined;
 use super::refine_tests::spec_with_priors;
 use super::synthetic_tests::synthetic;
@@ -122,6 +122,41 @@ fn dense_problem_matches_the_prior_predictive_of_the_data_only_estimate() {
             out[g].0
         );
     }
+}
+
+#[test]
+fn parameters_are_grouped_by_joint_and_side() {
+    assert_eq!(
+        joint_of("hip_pelvis_lateral", "hip").as_deref(),
+        Some("hip")
+    );
+    assert_eq!(
+        joint_of("knee_thigh_frontal_l", "knee").as_deref(),
+        Some("knee_l")
+    );
+    assert_eq!(
+        joint_of("talocrural_shank_frontal_r", "ankle").as_deref(),
+        Some("talocrural_r")
+    );
+    assert_eq!(
+        joint_of("subtalar_foot_lateral", "ankle").as_deref(),
+        Some("subtalar")
+    );
+    // OpenSim offsets: the joint of the file, sides kept apart (not the jointfit "hip").
+    assert_eq!(
+        joint_of("hip_r.parent.tx", "hip_r").as_deref(),
+        Some("hip_r")
+    );
+    assert_eq!(
+        joint_of("hip_l.child.rz", "hip_l").as_deref(),
+        Some("hip_l")
+    );
+    assert_eq!(
+        joint_of("walker_knee_r.child.ty", "walker_knee_r").as_deref(),
+        Some("walker_knee_r")
+    );
+    let marker = crate::model::refine::MARKER_GROUP;
+    assert_eq!(joint_of("R.ASIS_x", marker), None);
 }
 
 #[test]

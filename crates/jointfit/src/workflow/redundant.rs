@@ -154,10 +154,14 @@ pub struct HeldCalibration {
     pub calibration: Calibration,
     /// Parameters held at their start as redundant, in the order of `free`.
     pub held_redundant: Vec<Redundancy>,
+    /// Each joint's (parameter group's) prior–data conflict ([`super::conflict::check`]);
+    /// empty without a prior or with `prior_conflict` off.
+    pub prior_conflict: Vec<super::conflict::JointConflict>,
 }
 
 /// [`calibrate`] of the non-redundant parameters of `free`; the redundant ones stay at
-/// their `start` values and are listed.
+/// their `start` values and are listed. A maximum a posteriori fit then takes the
+/// prior–data conflict step ([`super::conflict::check`]).
 pub fn calibrate_holding_redundant(
     model: &Model,
     start: &[f64],
@@ -167,10 +171,12 @@ pub fn calibrate_holding_redundant(
     observer: &mut dyn Observer,
 ) -> Result<HeldCalibration, WorkflowError> {
     let (kept, held_redundant) = redundant_parameters(model, start, trials, free)?;
-    let calibration = calibrate(model, start, trials, &kept, settings, observer)?;
+    let mut calibration = calibrate(model, start, trials, &kept, settings, observer)?;
+    let prior_conflict = super::conflict::check(model, start, trials, settings, &mut calibration)?;
     Ok(HeldCalibration {
         calibration,
         held_redundant,
+        prior_conflict,
     })
 }
 

@@ -62,7 +62,7 @@ pub struct RefinedCalibration {
     pub envelope: Vec<EnvelopeBound>,
     /// The marker policy's decisions ([`super::marker_policy`]).
     pub marker_decisions: Vec<MarkerDecision>,
-    /// Each joint's prior–data conflict and whether its prior was widened
+    /// Each joint's prior–data conflict and whether its intervals were widened
     /// ([`super::conflict`]); empty without a prior or with `prior_conflict` off.
     pub conflict: Vec<super::conflict::JointConflict>,
 }
@@ -136,15 +136,11 @@ pub fn calibrate_refined(
     let mut aug_free = free.to_vec();
     aug_free.extend(aug.params_in_group(MARKER_GROUP));
     let mut calibration = calibrate(&aug, &aug_start, &used, &aug_free, settings, observer)?;
-    // A joint whose prior the trial contradicts: its prior widened, refitted (`super::conflict`).
+    // A joint whose prior the trial contradicts (`super::conflict`): tested on the fit
+    // before any envelope bound, its intervals widened on the final fit below.
     let mut conflict = Vec::new();
     if map_fit && settings.prior_conflict {
-        conflict =
-            super::conflict::assess(&aug, &aug_start, &used, &aug_free, settings, &calibration)?;
-        if let Some(wide) = super::conflict::widened_spec(&aug, &conflict) {
-            aug = Model::compile(&wide).map_err(|e| WorkflowError::Refine(e.to_string()))?;
-            calibration = calibrate(&aug, &aug_start, &used, &aug_free, settings, observer)?;
-        }
+        conflict = super::conflict::assess(&aug, &aug_start, &used, settings, &calibration)?;
     }
     // The envelope: a fit inside it is the bounded problem's optimum too; one outside is
     // refitted with the bound (`super::envelope`: bounding every fit would change the
@@ -173,15 +169,7 @@ pub fn calibrate_refined(
     }
     if !conflict.is_empty() {
         let c = &conflict;
-        super::conflict::widen_intervals(
-            &aug,
-            &aug_start,
-            &used,
-            &aug_free,
-            settings,
-            &mut calibration,
-            c,
-        )?;
+        super::conflict::widen_intervals(&aug, &aug_start, &used, settings, &mut calibration, c)?;
     }
     let p = calibration.fit.p.clone();
     note_envelope(&mut calibration, &envelope);
