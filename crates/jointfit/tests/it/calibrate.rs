@@ -452,27 +452,39 @@ fn distance_in_se(
 #[test]
 fn statistical_stop_is_within_a_thousandth_of_a_standard_error() {
     // Oracle: the same solve run to working precision (the classical tolerances alone).
+    // (perturbation seed, noise seed, frames, skin-noise amplitude m): the first ends on an
+    // undamped step's predicted decrease; in the others (60 frames of 1–4 cm skin noise) the
+    // damping stays above 1e-6 to the end and the undamped model at the last point decides
+    // (a trace showed it; 15/10/62 iterations against 21/17/76 run out).
+    let cases = [
+        (5, 9, 50, 0.01),
+        (3, 103, 60, 0.01),
+        (4, 104, 60, 0.01),
+        (1, 101, 60, 0.04),
+    ];
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
-    let p_true = perturbed(&model, 5);
-    let trial = synthetic(&model, &p_true, 50, 0.01, 9);
     let free = params_for_groups(&model, &["all"]).unwrap();
     let base = model.nominal_params();
-    for prior in [None, Some(0.004)] {
-        let mut prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
-        if let Some(sigma) = prior {
-            prob = prob.with_model_prior(sigma);
+    for (seed, noise_seed, frames, amplitude) in cases {
+        let p_true = perturbed(&model, seed);
+        let trial = synthetic(&model, &p_true, frames, amplitude, noise_seed);
+        for prior in [None, Some(0.004)] {
+            let mut prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
+            if let Some(sigma) = prior {
+                prob = prob.with_model_prior(sigma);
+            }
+            let s0 = prob.to_scaled(&base);
+            let q0 = prob.initial_coords(&base);
+            let opts = JointOptions::default();
+            let quick = solve_joint(&prob, &s0, q0.clone(), &opts, &mut NoObserver);
+            let exact = solve_joint_to(&prob, &s0, q0, &opts, 0.0, &mut NoObserver);
+            assert_eq!(quick.termination, Termination::Converged);
+            assert!(quick.iterations < exact.iterations, "seed {seed}");
+            let d = distance_in_se(&prob, &quick, &exact);
+            assert!(
+                d <= RESOLUTION_SE,
+                "seed {seed}, prior {prior:?}: {d:e} SE from the optimum"
+            );
         }
-        let s0 = prob.to_scaled(&base);
-        let q0 = prob.initial_coords(&base);
-        let opts = JointOptions::default();
-        let quick = solve_joint(&prob, &s0, q0.clone(), &opts, &mut NoObserver);
-        let exact = solve_joint_to(&prob, &s0, q0, &opts, 0.0, &mut NoObserver);
-        assert_eq!(quick.termination, Termination::Converged);
-        assert!(quick.iterations <= exact.iterations);
-        let d = distance_in_se(&prob, &quick, &exact);
-        assert!(
-            d <= RESOLUTION_SE,
-            "prior {prior:?}: {d:e} SE from the optimum"
-        );
     }
 }
