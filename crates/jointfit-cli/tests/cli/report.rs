@@ -284,7 +284,9 @@ fn calibrate_refuses_a_report_directory_that_is_a_file_before_fitting() {
 
 #[test]
 fn progress_lines_go_to_stderr_when_asked() {
-    let args = ["demo", "--frames", "20", "--noise-mm", "2"];
+    // 60 frames: more than the probes' 25, so the best start is finished on every frame
+    // (with 20 a probe may already converge and no finishing stage runs).
+    let args = ["demo", "--frames", "60", "--noise-mm", "2"];
     let (ok, quiet_out, err) = run(&args, &[]);
     assert!(ok, "{err}");
     // Off a terminal a short run prints no progress; identifiability warnings may remain.
