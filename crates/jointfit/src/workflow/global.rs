@@ -22,7 +22,8 @@
 //!
 //! When the marker noise σ is to be estimated ([`super::map`]'s module docs), the probes run
 //! on the prior weighed by the starting σ₀, and the best start's finishing solve first
-//! reaches the σ₀-optimum (to 0.1 SE), where σ is estimated; then one more probe from there
+//! reaches the σ₀-optimum (to 0.1 SE; on a long trial first on every `round(√k)`-th frame,
+//! [`super::probes::approach`]), where σ is estimated; then one more probe from there
 //! on the re-weighed prior, and the finishing solves on every frame with it. A second start
 //! that the σ₀ probes put apart is told apart again on the re-weighed prior (its probe and
 //! the best start's continued alike there).
@@ -46,8 +47,8 @@ use serde::Serialize;
 
 use super::calibration::{mm2, ConvergenceStage, StartRun};
 use super::map::{Preliminary, SIGMA_POINT_RESOLUTION_SE};
+use super::probes::{approach_stride, probe_stride, subsample};
 pub use super::probes::{probe_point, probe_starts, ProbeStarts};
-use super::probes::{probe_stride, subsample};
 use super::{FitSettings, Observer};
 use crate::calibrate::joint::{solve_joint, solve_joint_to, JointOptions};
 use crate::calibrate::{Fit, Problem};
@@ -93,6 +94,8 @@ pub const REPROBE_STAGE: &str = "probe at the estimated σ";
 /// objectives on the way, and the probe at the estimated σ from there (with its objectives;
 /// `None` when the probes ran on every frame).
 struct SigmaStage {
+    /// The probe continued on every `m`-th frame first: (m, fit, objectives).
+    approach: Option<(usize, Fit, Vec<f64>)>,
     at: Fit,
     history: Vec<f64>,
     reprobe: Option<(Fit, Vec<f64>)>,
@@ -243,11 +246,22 @@ pub fn run(
         let k = best;
         let f = &probes[k].0;
         let mut h = History::default();
+        let mut approach = None;
         let at = if stride == 1 && f.termination != Termination::IterationLimit {
             f.clone()
         } else {
-            let q0 = coords_of(prob, k);
-            solve_joint_to(prob, &f.s, q0, &finish, SIGMA_POINT_RESOLUTION_SE, &mut h)
+            // On a long trial first on intermediate frames (`super::probes::approach`).
+            let (s0, q0) = match approach_stride(stride) {
+                Some(m) => {
+                    let mut ha = History::default();
+                    let fm = super::probes::approach(prob, m, f, &finish, &mut ha);
+                    let start = (fm.s.clone(), prob.initial_coords(&fm.p));
+                    approach = Some((m, fm, ha.0));
+                    start
+                }
+                None => (f.s.clone(), coords_of(prob, k)),
+            };
+            solve_joint_to(prob, &s0, q0, &finish, SIGMA_POINT_RESOLUTION_SE, &mut h)
         };
         super::map::estimate_noise(prob, &at);
         // A probe on the re-weighed prior from there (its frames' coordinates are the
@@ -285,6 +299,7 @@ pub fn run(
             (None, None)
         };
         sigma_stage = Some(SigmaStage {
+            approach,
             at,
             history: h.0,
             reprobe,
@@ -337,6 +352,14 @@ pub fn run(
         Before::Cost(cost) => cost,
     };
     if let Some(st) = &sigma_stage {
+        if let Some((m, fit, hist)) = &st.approach {
+            let stage = format!("start {}: {SIGMA_STAGE}, every {m}. frame", order[0] + 1);
+            observer.stage_started(&stage, None);
+            for (i, &c) in hist.iter().enumerate() {
+                observer.iteration(i + 1, c);
+            }
+            observer.stage_ended(fit.termination);
+        }
         observer.stage_started(&format!("start {}: {SIGMA_STAGE}", order[0] + 1), None);
         for (i, &c) in st.history.iter().enumerate() {
             observer.iteration(i + 1, c);
@@ -385,6 +408,14 @@ pub fn run(
             let (done, hist) = &continued[j];
             let pre = sigma_stage.as_ref().filter(|_| j == 0);
             if let Some(st) = pre {
+                if let Some((m, a, hist)) = &st.approach {
+                    convergence.push(ConvergenceStage {
+                        stage: format!("{SIGMA_STAGE}, every {m}. frame"),
+                        objective_mm2: hist.iter().map(|&c| mm2(c)).collect(),
+                    });
+                    fit.iterations += a.iterations;
+                    fit.evaluations += a.evaluations;
+                }
                 convergence.push(ConvergenceStage {
                     stage: SIGMA_STAGE.to_string(),
                     objective_mm2: st.history.iter().map(|&c| mm2(c)).collect(),
