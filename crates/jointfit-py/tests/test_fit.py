@@ -163,6 +163,26 @@ def test_calibrate_c3d_from_another_lab_equals_cli(data_dir, run_cli, tmp_path):
     _same_parameters(cal.model, jf.Model.load(fitted))
 
 
+def test_osim_calibration_warns_of_the_joints_the_cli_flags(data_dir, run_cli, tmp_path):
+    """The prior-data conflict step on a user's OpenSim model: the flagged joints of the
+    command's JSON, one warning line each, in the Python result."""
+    import json
+
+    d = data_dir / "opencap_expert1"
+    joints = ["hip_r", "walker_knee_r", "hip_l", "walker_knee_l"]
+    code, out, err = run_cli("calibrate", d / "hand_scaled.osim", d / "walking1.trc", "--joints",
+                             ",".join(joints), "-o", tmp_path / "fit.osim", "--json")
+    assert code == 0, err
+    flagged = [c["joint"] for c in json.loads(out)["prior_conflict"] if c["flagged"]]
+    assert flagged, "walking1 contradicts the hand-scaled left knee (chi2 ~ 110 on 8 dof)"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cal = jf.calibrate(jf.Model.load(d / "hand_scaled.osim"), [jf.Trial.read(d / "walking1.trc")],
+                           joints=joints)
+    lines = [w for w in cal.warnings if w.startswith("prior–data conflict at the ")]
+    assert sorted(w.split(":")[0].rsplit(" ", 1)[1] for w in lines) == sorted(flagged), lines
+
+
 def test_calibrate_recovers_synthetic_truth():
     trial, truth = jf.synthesize(motion="knee", frames=60, noise_mm=0.0, perturb=0.3, seed=4)
     # Start from the truth everywhere but the knee, which starts at nominal.
