@@ -43,12 +43,12 @@
 //! start that converged within its probe needs no continuation.
 
 use rayon::prelude::*;
-use serde::Serialize;
 
 use super::calibration::{mm2, ConvergenceStage, StartRun};
 use super::map::{Preliminary, SIGMA_POINT_RESOLUTION_SE};
 use super::probes::{approach_stride, probe_stride, subsample};
 pub use super::probes::{probe_point, probe_starts, ProbeStarts};
+pub use super::summary::{warning, GlobalSearch, SAME_OPTIMUM};
 use super::{FitSettings, Observer};
 use crate::calibrate::joint::{solve_joint, solve_joint_to, JointOptions};
 use crate::calibrate::{Fit, Problem};
@@ -58,29 +58,6 @@ use crate::solver::Termination;
 /// The two best probes are taken to be in the same basin (only the best is finished) when
 /// their objectives differ by less than this (relative).
 pub const SAME_BASIN: f64 = 1e-4;
-
-/// Two finished starts reached the same optimum when their objectives differ by less than
-/// this (relative).
-pub const SAME_OPTIMUM: f64 = 1e-6;
-
-/// What the global phase did (`jointfit calibrate --json`: `global`).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct GlobalSearch {
-    /// Starts probed (the given one included).
-    pub starts: usize,
-    /// Iterations of each probe.
-    pub probe_iterations: usize,
-    /// Frames the probes ran on (every k-th frame of the trials).
-    pub probe_frames: usize,
-    /// Objective of every start after its probe (mm², on the probes' frames), in start order.
-    pub probe_objective_mm2: Vec<f64>,
-    /// The starts continued to convergence on every frame, best probe first (module docs).
-    pub finished: Vec<usize>,
-    /// Their final objectives (mm²).
-    pub finished_objective_mm2: Vec<f64>,
-    /// Whether every finished start reached the same optimum.
-    pub agree: bool,
-}
 
 /// The stage of the best start's finishing solve on the prior weighed by the starting σ₀,
 /// at whose end σ is estimated (`super::map`).
@@ -253,6 +230,11 @@ pub fn run(
             // On a long trial first on intermediate frames (`super::probes::approach`).
             let (s0, q0) = match approach_stride(stride) {
                 Some(m) => {
+                    // The given start's seeded coordinates are no longer needed (it is this
+                    // start): not two coordinate sets of the whole trial at once.
+                    if k == 0 {
+                        drop(q_before_start.lock().ok().and_then(|mut q| q.take()));
+                    }
                     let mut ha = History::default();
                     let fm = super::probes::approach(prob, m, f, &finish, &mut ha);
                     let start = (fm.s.clone(), prob.initial_coords(&fm.p));
@@ -481,27 +463,6 @@ pub fn run(
         q_before,
         cost_before,
     }
-}
-
-/// The warning of a global phase whose finished starts disagree (`None`: they agree).
-pub fn warning(g: &GlobalSearch) -> Option<String> {
-    if g.agree || g.finished.len() < 2 {
-        return None;
-    }
-    let list: Vec<String> = g
-        .finished
-        .iter()
-        .zip(&g.finished_objective_mm2)
-        .map(|(k, c)| format!("start {k}: {c:.1} mm²"))
-        .collect();
-    Some(format!(
-        "the fit is not known to be the global optimum: the {} most promising of {} starts \
-         ended at different optima ({}); the lowest is kept. More starts (--probes N, or \
-         --starts N for full fits) may find a lower one",
-        g.finished.len(),
-        g.starts,
-        list.join(", ")
-    ))
 }
 
 #[cfg(test)]

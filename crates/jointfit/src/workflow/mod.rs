@@ -31,6 +31,7 @@ mod probes;
 pub mod redundant;
 pub mod refine;
 mod starts;
+mod summary;
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
