@@ -146,6 +146,20 @@ pub(crate) fn observations(prob: &Problem) -> usize {
         .sum()
 }
 
+/// `q_try = qs + dq`, frame by frame in parallel (each frame's sum alone: the same bits on any
+/// number of threads).
+fn trial_coords(q_try: &mut [Vec<f64>], qs: &[Vec<f64>], dq: &[Vec<f64>]) {
+    q_try
+        .par_iter_mut()
+        .zip(qs.par_iter().zip(dq.par_iter()))
+        .with_min_len(PAR_FRAMES)
+        .for_each(|(t, (q, d))| {
+            for ((t, a), b) in t.iter_mut().zip(q).zip(d) {
+                *t = a + b;
+            }
+        });
+}
+
 /// The predicted decrease `hᵀH⁻¹h` of the undamped Gauss–Newton step from the point
 /// `blocks` were assembled at (`s`, `qs`; parameters at a bound that the step would push out
 /// held, as a step holds them). `None` when it is no distance to the optimum of the model:
@@ -298,15 +312,7 @@ pub fn solve_joint_with(
                 Some(_) => augmented,
                 None => gauss_newton,
             };
-            q_try
-                .par_iter_mut()
-                .zip(qs.par_iter().zip(dq.par_iter()))
-                .with_min_len(PAR_FRAMES)
-                .for_each(|(t, (q, d))| {
-                    for ((t, a), b) in t.iter_mut().zip(q).zip(d) {
-                        *t = a + b;
-                    }
-                });
+            trial_coords(&mut q_try, &qs, &dq);
             let lambda_used = lambda;
             let p_try = prob.to_params(&s_try);
             let c = cost_at(prob, &blocks, &p_try, &q_try);
@@ -390,15 +396,7 @@ pub fn solve_joint_with(
                 termination = Termination::Converged;
                 if iterations < opts.max_iterations {
                     let s_try: Vec<f64> = s.iter().zip(&ds).map(|(a, d)| a + d).collect();
-                    q_try
-                        .par_iter_mut()
-                        .zip(qs.par_iter().zip(dq.par_iter()))
-                        .with_min_len(PAR_FRAMES)
-                        .for_each(|(t, (q, d))| {
-                            for ((t, a), b) in t.iter_mut().zip(q).zip(d) {
-                                *t = a + b;
-                            }
-                        });
+                    trial_coords(&mut q_try, &qs, &dq);
                     let p_try = prob.to_params(&s_try);
                     let c = cost_at(prob, &blocks, &p_try, &q_try);
                     evaluations += 1;
