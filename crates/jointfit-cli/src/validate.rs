@@ -180,7 +180,8 @@ pub fn decimals(s: &str) -> Result<usize, String> {
 /// A trial's data are plausible: rate at most [`MAX_RATE_HZ`] and every recorded coordinate
 /// within ±[`MAX_POSITION_M`] m. The error names the file, the frame (file numbering) and the
 /// marker, or the units when the markers' span says they are wrong
-/// ([`jointfit::checks::check_scale`]: millimetre data declared as metres). (Missing samples are fine here; commands that need some say so themselves.)
+/// ([`jointfit::checks::check_scale`]: millimetre data declared as metres). (Missing samples
+/// are fine here; commands that need some say so themselves.)
 pub fn check_trial(path: &Path, trial: &Trial) -> Result<()> {
     let shown = path.display();
     if trial.rate() > MAX_RATE_HZ {

@@ -46,8 +46,9 @@
 //! 52 → 48, 86 → 84, 172 → 150), the parameters moving by at most 3.5e-3, 2.7e-4 and
 //! 1.3e-3 SE (through σ, which the σ stage estimates at 0.1 SE of its optimum).
 //!
-//! On the shared opencap_expert1 walking1 full-leg and `.osim` hip + knee fits the parameters moved by at
-//! most 2e-4 of their standard errors against running the classical tolerances out.
+//! On the shared opencap_expert1 walking1 full-leg and `.osim` hip + knee fits the parameters
+//! moved by at most 2e-4 of their standard errors against running the classical tolerances
+//! out.
 //!
 //! **The second-order term.** On large residuals (running) the Gauss–Newton model misses
 //! `Σ rᵢ∇²rᵢ` and the iterations crawl (ρ → 2 at the damping floor for tens of

@@ -455,7 +455,8 @@ fn statistical_stop_is_within_a_thousandth_of_a_standard_error() {
     // (perturbation seed, noise seed, frames, skin-noise amplitude m): the first ends on an
     // undamped step's predicted decrease; in the others (60 frames of 1–4 cm skin noise) the
     // damping stays above 1e-6 to the end and the undamped model at the last point decides
-    // (a trace showed it; 15/10/62 iterations against 21/17/76 run out).
+    // (a trace showed it; 16/11/63 iterations, the last step counted, against 21/17/76 run
+    // out).
     let cases = [
         (5, 9, 50, 0.01),
         (3, 103, 60, 0.01),
