@@ -137,16 +137,11 @@ fn missing_model_markers_are_named() {
 
 /// With noise, the solution is a stationary point of the weighted cost: the gradient JᵀWr
 /// vanishes and no random nearby point has a lower cost.
-#[test]
-fn noisy_frame_is_a_least_squares_minimum() {
-    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
-    let p = model.nominal_params();
-    let mut rng = ChaCha8Rng::seed_from_u64(3);
-    let q_true = motion(&model, 13, 0.0);
-    let mut kin = KinData::new(&model);
-    forward_kinematics(&model, &p, &q_true, Want::POSITIONS, &mut kin);
-    let targets: Vec<Vector3<f64>> = kin
-        .markers
+/// The markers of frame `f` of [`motion`] with uniform noise of ±1 cm per axis.
+fn noisy_targets(model: &Model, p: &[f64], f: usize, rng: &mut ChaCha8Rng) -> Vec<Vector3<f64>> {
+    let mut kin = KinData::new(model);
+    forward_kinematics(model, p, &motion(model, f, 0.0), Want::POSITIONS, &mut kin);
+    kin.markers
         .iter()
         .map(|m| {
             m + Vector3::new(
@@ -155,7 +150,17 @@ fn noisy_frame_is_a_least_squares_minimum() {
                 rng.gen_range(-0.01..0.01),
             )
         })
-        .collect();
+        .collect()
+}
+
+#[test]
+fn noisy_frame_is_a_least_squares_minimum() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p = model.nominal_params();
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let q_true = motion(&model, 13, 0.0);
+    let mut kin = KinData::new(&model);
+    let targets = noisy_targets(&model, &p, 13, &mut rng);
     let mut q = q_true.clone();
     let mut ws = IkWorkspace::new(&model);
     let fit = solve_frame(&model, &p, &targets, &mut q, &IkOptions::default(), &mut ws);
@@ -185,5 +190,44 @@ fn noisy_frame_is_a_least_squares_minimum() {
     for _ in 0..50 {
         let qn: Vec<f64> = q.iter().map(|v| v + rng.gen_range(-1e-3..1e-3)).collect();
         assert!(cost(&qn, &mut kin) >= c0);
+    }
+}
+
+/// A step tolerance no step can reach (0): the solve still ends at the minimum as converged,
+/// once the step's predicted decrease is below the cost's rounding error, instead of damping
+/// the step until the damping gives up (`Stalled`, 13 extra evaluations per frame on real
+/// data at the calibration's tolerance of 1e-11). Its cost is the cost at that tolerance to
+/// rounding, and every coordinate within 1e-10 of that solution.
+#[test]
+fn a_tolerance_below_working_precision_ends_converged_at_the_minimum() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p = model.nominal_params();
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let mut ws = IkWorkspace::new(&model);
+    for f in [0, 13, 31, 47, 60, 77] {
+        let targets = noisy_targets(&model, &p, f, &mut rng);
+        let start = motion(&model, f, 0.0);
+        let mut q_default = start.clone();
+        let opts = IkOptions {
+            step_tolerance: 1e-11,
+            ..IkOptions::default()
+        };
+        let reference = solve_frame(&model, &p, &targets, &mut q_default, &opts, &mut ws);
+        let exact = IkOptions {
+            step_tolerance: 0.0,
+            ..IkOptions::default()
+        };
+        let mut q = start.clone();
+        let fit = solve_frame(&model, &p, &targets, &mut q, &exact, &mut ws);
+        assert_eq!(fit.status, FrameStatus::Converged, "frame {f}");
+        assert!(
+            fit.iterations < 20,
+            "frame {f}: {} iterations",
+            fit.iterations
+        );
+        assert!(fit.cost <= reference.cost * (1.0 + 1e-12), "frame {f}");
+        let apart = q.iter().zip(&q_default).map(|(a, b)| (a - b).abs());
+        let apart = apart.fold(0.0, f64::max);
+        assert!(apart < 1e-10, "frame {f}: {apart:e} apart");
     }
 }
