@@ -5,7 +5,8 @@ use serde::Serialize;
 use super::starts::{full_starts, multi_start_summary};
 use super::{FitSettings, Method, Observer, Termination, WorkflowError};
 use crate::calibrate::uncertainty::{
-    analyze, unidentifiable_subset, Identifiability, SeMethod, Uncertainty,
+    analyze_reduced, reduced_system, unidentifiable_subset, Identifiability, Reduced, SeMethod,
+    Uncertainty,
 };
 use crate::calibrate::{Fit, Problem};
 use crate::model::{Model, ParamId, MM_PER_M};
@@ -345,6 +346,23 @@ pub fn calibrate(
     settings: &FitSettings,
     observer: &mut dyn Observer,
 ) -> Result<Calibration, WorkflowError> {
+    calibrate_keeping_system(model, start, trials, free, settings, observer).map(|(c, _)| c)
+}
+
+/// [`calibrate`], and the reduced system its uncertainty analysis was formed from
+/// ([`reduced_system`] at the fit, on the problem with the analysis' prior; `None` without
+/// `settings.uncertainty`): the prior–data conflict step ([`super::conflict`]) needs the
+/// same marker-term information, which costs as much as the rest of the analysis (opencap
+/// walking1: one reduced system is about 1.5 % of the command's instructions, and the step
+/// formed it twice more).
+pub(crate) fn calibrate_keeping_system(
+    model: &Model,
+    start: &[f64],
+    trials: &[&Trial],
+    free: &[ParamId],
+    settings: &FitSettings,
+    observer: &mut dyn Observer,
+) -> Result<(Calibration, Option<Reduced>), WorkflowError> {
     let mut free = free.to_vec();
     let noise = settings.marker_noise;
     let mut cal = fit_free(
@@ -362,7 +380,7 @@ pub fn calibrate(
     let inflation = cal.prior_inflation.clone();
     let estimated = cal.prior_noise_estimated;
     let Some(opts) = &settings.uncertainty else {
-        return Ok(cal);
+        return Ok((cal, None));
     };
     let mut fixed = Vec::new();
     for _ in 0..if settings.fix_unidentifiable { 3 } else { 0 } {
@@ -411,18 +429,13 @@ pub fn calibrate(
         _ => (UNCERTAINTY_STAGE.to_string(), None),
     };
     observer.stage_started(&stage, budget);
-    // The data shares need the reduced normal matrix alone: formed beside the analysis (which
-    // forms its own) on the other thread; each result is the same whatever runs where.
-    let (u, share) = rayon::join(
-        || analyze(&prob, &cal.fit, opts),
-        || {
-            prob.prior.is_some().then(|| {
-                let fit = &cal.fit;
-                let red = crate::calibrate::uncertainty::reduced_system(&prob, &fit.p, &fit.coords);
-                crate::calibrate::prior::data_share(&prob, &red.normal)
-            })
-        },
-    );
+    // One reduced system for the analysis, the data shares and the conflict step.
+    let red = reduced_system(&prob, &cal.fit.p, &cal.fit.coords);
+    let u = analyze_reduced(&prob, &cal.fit, opts, &red);
+    let share = prob
+        .prior
+        .is_some()
+        .then(|| crate::calibrate::prior::data_share(&prob, &red.normal));
     observer.stage_ended(Termination::Converged);
     if let Some(share) = share {
         for (row, (&sh, &i)) in cal.parameters.iter_mut().zip(share.iter().zip(&prob.free)) {
@@ -434,7 +447,7 @@ pub fn calibrate(
     }
     cal.set_uncertainty(u);
     cal.fixed_unidentifiable = fixed;
-    Ok(cal)
+    Ok((cal, Some(red)))
 }
 
 /// The name of the uncertainty analysis stage reported to the [`Observer`] by [`calibrate`]

@@ -42,7 +42,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use super::{FitSettings, WorkflowError};
-use crate::calibrate::uncertainty::{ln_gamma, reduced_system};
+use crate::calibrate::uncertainty::{analyze_reduced, ln_gamma, reduced_system, Reduced};
 use crate::model::Model;
 use crate::trial::Trial;
 
@@ -257,15 +257,17 @@ pub fn chi2_upper_tail(x: f64, k: usize) -> f64 {
 
 /// The conflict of every joint of a maximum a posteriori calibration `cal` (of its free
 /// parameters on `trials` from `start`, with `settings`): rebuilds its problem with the prior weights of
-/// the fit (its σ and per-parameter factors), forms the marker term's reduced normal matrix at
-/// the fitted point, and applies [`statistics`] per joint; `flagged` marks the joints the rule
-/// of the module docs widens. Empty without a prior.
+/// the fit (its σ and per-parameter factors), takes the marker term's reduced normal matrix at
+/// the fitted point (from `system`, the reduced system of `cal`'s own uncertainty analysis,
+/// when the caller kept it; else formed here), and applies [`statistics`] per joint;
+/// `flagged` marks the joints the rule of the module docs widens. Empty without a prior.
 pub fn assess(
     model: &Model,
     start: &[f64],
     trials: &[&Trial],
     settings: &FitSettings,
     cal: &super::Calibration,
+    system: Option<&Reduced>,
 ) -> Result<Vec<JointConflict>, WorkflowError> {
     let Some(noise) = cal.prior_noise_mm.map(|mm| mm / crate::model::MM_PER_M) else {
         return Ok(Vec::new());
@@ -276,9 +278,15 @@ pub fn assess(
     let Some(pr) = prob.prior.clone() else {
         return Ok(Vec::new());
     };
-    let mut plain = prob.clone();
-    plain.prior = None;
-    let red = reduced_system(&plain, &cal.fit.p, &cal.fit.coords);
+    // The marker term's information at the fit: the analysis' (`system`), else formed here.
+    let formed;
+    let data_normal = match system {
+        Some(red) => &red.data_normal,
+        None => {
+            formed = reduced_system(&prob, &cal.fit.p, &cal.fit.coords);
+            &formed.data_normal
+        }
+    };
     let d = prob.prior_information();
     let nf = prob.n_free();
     let h: Vec<f64> = (0..nf).map(|k| prob.half_range(k)).collect();
@@ -305,7 +313,7 @@ pub fn assess(
     }
     let groups: Vec<Vec<usize>> = joints.iter().map(|(_, v)| v.clone()).collect();
     let stats = statistics(
-        &red.normal,
+        data_normal,
         &d,
         &pr.inflation,
         &s0,
@@ -349,6 +357,7 @@ pub fn widen_intervals(
     settings: &FitSettings,
     cal: &mut super::Calibration,
     conflicts: &[JointConflict],
+    system: Option<Reduced>,
 ) -> Result<(), WorkflowError> {
     let spread = |name: &str| {
         conflicts
@@ -376,9 +385,15 @@ pub fn widen_intervals(
             pr.spread[k] = spread(n).max(1.0);
         }
     }
-    cal.set_uncertainty(crate::calibrate::uncertainty::analyze(
-        &prob, &cal.fit, opts,
-    ));
+    // The analysis' reduced system with the widened prior (its marker term unchanged).
+    let red = match system {
+        Some(mut red) => {
+            red.set_prior_of(&prob);
+            red
+        }
+        None => reduced_system(&prob, &cal.fit.p, &cal.fit.coords),
+    };
+    cal.set_uncertainty(analyze_reduced(&prob, &cal.fit, opts, &red));
     Ok(())
 }
 
@@ -393,11 +408,12 @@ pub fn check(
     trials: &[&Trial],
     settings: &FitSettings,
     cal: &mut super::Calibration,
+    system: Option<Reduced>,
 ) -> Result<Vec<JointConflict>, WorkflowError> {
     if !settings.prior_conflict {
         return Ok(Vec::new());
     }
-    let conflicts = assess(model, start, trials, settings, cal)?;
-    widen_intervals(model, start, trials, settings, cal, &conflicts)?;
+    let conflicts = assess(model, start, trials, settings, cal, system.as_ref())?;
+    widen_intervals(model, start, trials, settings, cal, &conflicts, system)?;
     Ok(conflicts)
 }

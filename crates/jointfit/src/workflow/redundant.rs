@@ -25,7 +25,7 @@
 use nalgebra::DMatrix;
 use serde::Serialize;
 
-use super::{calibrate, Calibration, FitSettings, Observer, WorkflowError};
+use super::{Calibration, FitSettings, Observer, WorkflowError};
 use crate::calibrate::uncertainty::reduced_system;
 use crate::calibrate::Problem;
 use crate::kinematics::{forward_kinematics, KinData, Want};
@@ -159,7 +159,7 @@ pub struct HeldCalibration {
     pub prior_conflict: Vec<super::conflict::JointConflict>,
 }
 
-/// [`calibrate`] of the non-redundant parameters of `free`; the redundant ones stay at
+/// [`calibrate`](super::calibrate) of the non-redundant parameters of `free`; the redundant ones stay at
 /// their `start` values and are listed. A maximum a posteriori fit then takes the
 /// prior–data conflict step ([`super::conflict::check`]).
 pub fn calibrate_holding_redundant(
@@ -171,8 +171,11 @@ pub fn calibrate_holding_redundant(
     observer: &mut dyn Observer,
 ) -> Result<HeldCalibration, WorkflowError> {
     let (kept, held_redundant) = redundant_parameters(model, start, trials, free)?;
-    let mut calibration = calibrate(model, start, trials, &kept, settings, observer)?;
-    let prior_conflict = super::conflict::check(model, start, trials, settings, &mut calibration)?;
+    let (mut calibration, system) = super::calibration::calibrate_keeping_system(
+        model, start, trials, &kept, settings, observer,
+    )?;
+    let cal = &mut calibration;
+    let prior_conflict = super::conflict::check(model, start, trials, settings, cal, system)?;
     Ok(HeldCalibration {
         calibration,
         held_redundant,

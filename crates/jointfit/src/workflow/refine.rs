@@ -3,7 +3,7 @@
 //!
 //! The model is rewritten so that each marker the trials measure gets three position
 //! parameters with a prior `N(static position, s²)`; the joint parameters `free` and these
-//! marker parameters are fitted together by [`calibrate`] (same solvers, priors, σ
+//! marker parameters are fitted together by [`calibrate`](super::calibrate) (same solvers, priors, σ
 //! estimation, uncertainty). The result carries the rewritten model (for reports), the
 //! fitted description in the input's structure (joint parameters fitted, markers moved), how
 //! far every marker moved, and which marker offsets trade off with which joint parameters
@@ -11,9 +11,10 @@
 
 use serde::Serialize;
 
+use super::calibration::calibrate_keeping_system;
 use super::envelope::{EnvelopeBound, HELD_AT_LIMIT};
 use super::marker_policy::{decide, refined, without_excluded, MarkerDecision};
-use super::{calibrate, Calibration, FitSettings, Observer, WorkflowError};
+use super::{Calibration, FitSettings, Observer, WorkflowError};
 use crate::calibrate::prior::Source;
 use crate::model::refine::{
     fold_marker_parameters, marker_param_name, tracking_markers, with_marker_parameters,
@@ -67,7 +68,7 @@ pub struct RefinedCalibration {
     pub conflict: Vec<super::conflict::JointConflict>,
 }
 
-/// Calibrates `model` like [`calibrate`], and, for a maximum a posteriori fit (the settings
+/// Calibrates `model` like [`calibrate`](super::calibrate), and, for a maximum a posteriori fit (the settings
 /// ask for priors and a free parameter has one):
 ///
 /// * with `settings.anatomical_envelope`, bounds the hip centre medial to the ASIS
@@ -135,12 +136,14 @@ pub fn calibrate_refined(
     aug_start[..start.len()].copy_from_slice(start);
     let mut aug_free = free.to_vec();
     aug_free.extend(aug.params_in_group(MARKER_GROUP));
-    let mut calibration = calibrate(&aug, &aug_start, &used, &aug_free, settings, observer)?;
+    let (mut calibration, mut system) =
+        calibrate_keeping_system(&aug, &aug_start, &used, &aug_free, settings, observer)?;
     // A joint whose prior the trial contradicts (`super::conflict`): tested on the fit
     // before any envelope bound, its intervals widened on the final fit below.
     let mut conflict = Vec::new();
     if map_fit && settings.prior_conflict {
-        conflict = super::conflict::assess(&aug, &aug_start, &used, settings, &calibration)?;
+        let on = (&aug, &aug_start, &used, settings);
+        conflict = super::conflict::assess(on.0, on.1, on.2, on.3, &calibration, system.as_ref())?;
     }
     // The envelope: a fit inside it is the bounded problem's optimum too; one outside is
     // refitted with the bound (`super::envelope`: bounding every fit would change the
@@ -161,7 +164,9 @@ pub fn calibrate_refined(
                         .filter(|&x| x > b.limit_mm);
                 }
                 aug = Model::compile(&bounded).map_err(|e| WorkflowError::Refine(e.to_string()))?;
-                calibration = calibrate(&aug, &aug_start, &used, &aug_free, settings, observer)?;
+                (calibration, system) = calibrate_keeping_system(
+                    &aug, &aug_start, &used, &aug_free, settings, observer,
+                )?;
                 super::envelope::mark_active(&mut bounds, &aug, &calibration.fit.p);
             }
             envelope = bounds;
@@ -169,7 +174,8 @@ pub fn calibrate_refined(
     }
     if !conflict.is_empty() {
         let c = &conflict;
-        super::conflict::widen_intervals(&aug, &aug_start, &used, settings, &mut calibration, c)?;
+        let cal = &mut calibration;
+        super::conflict::widen_intervals(&aug, &aug_start, &used, settings, cal, c, system)?;
     }
     let p = calibration.fit.p.clone();
     note_envelope(&mut calibration, &envelope);

@@ -111,9 +111,20 @@ pub(super) fn display(unit: Unit) -> (f64, &'static str) {
 
 /// Uncertainty of the fitted free parameters of `fit` (a solution of `prob`).
 pub fn analyze(prob: &Problem, fit: &Fit, opts: &UncertaintyOptions) -> Uncertainty {
-    let red = reduced_system(prob, &fit.p, &fit.coords);
-    let cov = covariances(&red, &continuity(prob), Some((prob, fit)), opts, false);
-    build(prob, &fit.p, &fit.s, &fit.coords, &red, &cov, opts)
+    analyze_reduced(prob, fit, opts, &reduced_system(prob, &fit.p, &fit.coords))
+}
+
+/// [`analyze`] from the reduced system `red` of `prob` at `fit`
+/// ([`reduced_system`]`(prob, &fit.p, &fit.coords)`, formed once where a workflow needs it
+/// for more than the analysis).
+pub fn analyze_reduced(
+    prob: &Problem,
+    fit: &Fit,
+    opts: &UncertaintyOptions,
+    red: &Reduced,
+) -> Uncertainty {
+    let cov = covariances(red, &continuity(prob), Some((prob, fit)), opts, false);
+    build(prob, &fit.p, &fit.s, &fit.coords, red, &cov, opts)
 }
 
 /// Predicted uncertainty at parameters `p` with inner solutions `qs` (one per frame of

@@ -12,8 +12,12 @@ use crate::linalg::Cholesky;
 /// The reduced normal equations at one point `(p, q_1 … q_N)`.
 #[derive(Debug, Clone)]
 pub struct Reduced {
-    /// `S` (n_f × n_f) in scaled parameter units (m² per scaled unit²).
+    /// `S` (n_f × n_f) in scaled parameter units (m² per scaled unit²), the prior's
+    /// information on its diagonal when the problem has a prior (the posterior's).
     pub normal: DMatrix<f64>,
+    /// `S` of the marker term alone (the data's information; equal to `normal` without a
+    /// prior).
+    pub data_normal: DMatrix<f64>,
     /// Per fitted frame, the profile score `ψ_i` (n_f, m² per scaled unit).
     pub scores: Vec<DVector<f64>>,
     /// Per group of [`Reduced::group_size`] consecutive fitted frames (the last may be
@@ -168,12 +172,7 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
         }
         cost += part_cost;
     }
-    normal = (&normal + normal.transpose()) * 0.5;
-    // The prior's information (zero without a prior): `S` is then the posterior's.
-    let prior_information = prob.prior_information();
-    for (k, d) in prior_information.iter().enumerate() {
-        normal[(k, k)] += d;
-    }
+    let data_normal = (&normal + normal.transpose()) * 0.5;
     let observations = prob
         .frames
         .iter()
@@ -185,8 +184,9 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
                 * 3
         })
         .sum();
-    Reduced {
-        normal,
+    let mut red = Reduced {
+        normal: data_normal.clone(),
+        data_normal,
         scores,
         group_normals,
         group_size: gs,
@@ -194,9 +194,30 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
         cost,
         observations,
         n_q: nq,
-        prior_information,
-        prior_noise: prob.prior.as_ref().map_or(0.0, |p| p.noise),
-        prior_inflation: prob.prior.as_ref().map_or_else(
+        prior_information: Vec::new(),
+        prior_noise: 0.0,
+        prior_inflation: Vec::new(),
+    };
+    red.set_prior_of(prob);
+    red
+}
+
+impl Reduced {
+    /// The prior part of `self` set to `prob`'s prior (none when `prob` has none): what
+    /// [`reduced_system`] gives on `prob` at the same point, bit for bit, when `prob` differs
+    /// from the problem `self` was formed on only in its prior (its σ, factors or spreads).
+    /// The marker term's part, the costly one, is kept.
+    pub fn set_prior_of(&mut self, prob: &Problem) {
+        let nf = self.data_normal.nrows();
+        debug_assert_eq!(nf, prob.n_free());
+        // The prior's information (zero without a prior): `S` is then the posterior's.
+        self.normal.copy_from(&self.data_normal);
+        self.prior_information = prob.prior_information();
+        for (k, d) in self.prior_information.iter().enumerate() {
+            self.normal[(k, k)] += d;
+        }
+        self.prior_noise = prob.prior.as_ref().map_or(0.0, |p| p.noise);
+        self.prior_inflation = prob.prior.as_ref().map_or_else(
             || vec![1.0; nf],
             |p| {
                 p.inflation
@@ -205,7 +226,7 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
                     .map(|(a, t)| a * t)
                     .collect()
             },
-        ),
+        );
     }
 }
 

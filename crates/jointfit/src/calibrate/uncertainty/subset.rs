@@ -32,6 +32,7 @@ pub fn unidentifiable_subset(prob: &Problem, fit: &Fit, opts: &UncertaintyOption
         let pick = |v: &DVector<f64>| DVector::from_iterator(m, keep.iter().map(|&k| v[k]));
         let sub = Reduced {
             normal: DMatrix::from_fn(m, m, |a, b| red.normal[(keep[a], keep[b])]),
+            data_normal: DMatrix::from_fn(m, m, |a, b| red.data_normal[(keep[a], keep[b])]),
             scores: red.scores.iter().map(pick).collect(),
             group_normals: red
                 .group_normals
