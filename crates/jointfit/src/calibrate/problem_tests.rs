@@ -95,7 +95,7 @@ fn thread_count_case(frames: usize) {
     if frames >= 1024 {
         // Here the IK's chunks are the calibration's.
         let copied: Vec<Vec<Vector3<f64>>> = prob.frames.iter().collect();
-        let ik = crate::ik::warm_started_coords(&model, &p, &copied, |f| f == 0, &prob.ik);
+        let ik = crate::ik::warm_started_coords(&model, &p, &copied, |f| f == 0, &prob.start_ik());
         assert_eq!(one.0, ik);
     }
 }
