@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use super::super::joint::{solve_joint, JointOptions};
 use super::super::{Fit, Problem};
-use super::estimators::{continuity, pseudo_inverse};
+use super::estimators::{continuity, pseudo_solve};
 use super::Reduced;
 
 /// Moving-block bootstrap: covariance (scaled units) of refitted `s` and the count of
@@ -106,8 +106,7 @@ pub(super) fn block_jackknife(
             for si in &scores[(ga * gs).min(n)..(gb * gs).min(n)] {
                 g += si;
             }
-            let (inv, _, _) = pseudo_inverse(&((&s + s.transpose()) * 0.5));
-            inv * g
+            pseudo_solve(&((&s + s.transpose()) * 0.5), &g)
         })
         .collect();
     let mean = deltas.iter().fold(DVector::zeros(nf), |a, d| a + d) / blocks as f64;
