@@ -463,16 +463,20 @@ fn statistical_stop_is_within_a_thousandth_of_a_standard_error() {
         (4, 104, 60, 0.01),
         (1, 101, 60, 0.04),
     ];
-    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
-    let free = params_for_groups(&model, &["all"]).unwrap();
-    let base = model.nominal_params();
+    // Without a prior, and the maximum a posteriori problem of the leg with its landmark
+    // priors (the prior's information counts in the SEs, as in the posterior's).
+    let plain = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let with_priors = crate::priors::model_with_priors();
     for (seed, noise_seed, frames, amplitude) in cases {
-        let p_true = perturbed(&model, seed);
-        let trial = synthetic(&model, &p_true, frames, amplitude, noise_seed);
-        for prior in [None, Some(0.004)] {
-            let mut prob = Problem::new(&model, base.clone(), &free, &[&trial]).unwrap();
+        for (model, prior) in [(&plain, None), (&with_priors, Some(0.004))] {
+            let free = params_for_groups(model, &["all"]).unwrap();
+            let base = model.nominal_params();
+            let p_true = perturbed(model, seed);
+            let trial = synthetic(model, &p_true, frames, amplitude, noise_seed);
+            let mut prob = Problem::new(model, base.clone(), &free, &[&trial]).unwrap();
             if let Some(sigma) = prior {
                 prob = prob.with_model_prior(sigma);
+                assert!(prob.prior.is_some());
             }
             let s0 = prob.to_scaled(&base);
             let q0 = prob.initial_coords(&base);

@@ -26,7 +26,8 @@ mod rand_distr_free {
     }
 }
 
-fn model_with_priors() -> Model {
+/// The built-in right leg with the landmark priors (Bell's hip-centre method).
+pub(crate) fn model_with_priors() -> Model {
     let mut spec = lower_limb(Side::Right);
     fill_landmark_priors(&mut spec, HipCentreMethod::Bell);
     Model::compile(&spec).unwrap()
