@@ -413,19 +413,23 @@ pub(super) fn conservative(
 mod tests {
     use super::*;
 
+    /// A fixed generator of uniform numbers in [−½, ½) (a linear congruential one).
+    fn uniform(mut state: u64) -> impl FnMut() -> f64 {
+        move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        }
+    }
+
     #[test]
     fn long_run_equals_the_direct_sum() {
         // Autocorrelated scores (AR(1) from a fixed generator), three runs with gaps, and
         // bandwidths from below one lag to longer than a run.
         let n = 5;
         let frames = 700;
-        let mut state = 12345u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut next = uniform(12345u64);
         let mut scores: Vec<DVector<f64>> = Vec::with_capacity(frames);
         let mut prev = DVector::zeros(n);
         for _ in 0..frames {
@@ -453,13 +457,7 @@ mod tests {
     #[test]
     fn pseudo_solve_is_the_pseudo_inverse_applied() {
         let n = 7;
-        let mut state = 99u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut next = uniform(99u64);
         // A random orthogonal basis (QR of a random matrix).
         let q = DMatrix::from_fn(n, n, |_, _| next()).qr().q();
         let g = DVector::from_fn(n, |_, _| next());
