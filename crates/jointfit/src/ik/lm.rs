@@ -256,18 +256,17 @@ pub(super) fn lm(
 /// machine epsilon: a few rotations and translations in a chain of about five segments.
 const POSITION_ROUNDOFF_EPS: f64 = 16.0;
 
-/// Whether the rejected step `δ` (`ws.delta`, before any projection into the bounds) is
-/// below what the cost can resolve: its Gauss–Newton predicted decrease `2 gᵀδ − δᵀAδ` (`A`,
-/// `g` of this iteration in `ws`) is smaller than the cost's own rounding error. (A projected
-/// step decreases the model by less than the model's own step, so nothing resolvable is
-/// lost; its own prediction would not do: a projection can make it negative far from any
-/// minimum.) A marker position `x_j` carries an absolute
-/// error of about `c ε ‖x_j‖` (positions are measured from the laboratory origin, metres
-/// away), so `w_j ‖t_j − x_j‖²` carries `2 c ε w_j ‖t_j − x_j‖ ‖x_j‖`, and by Cauchy–Schwarz
-/// the cost at most `2 c ε √(cost · Σ w_j ‖x_j‖²)`. Damping such a step further cannot
-/// produce a decrease the cost would show (a trial's cost differs from the current one by
-/// rounding alone): on opencap walking1, with the calibration's step tolerance of 1e-11,
-/// 5 200 of the inner level's 13 300 forward kinematics were such retries.
+/// Whether the rejected step `δ` (`ws.delta`, before any projection into the bounds) is below what
+/// the cost can resolve: its Gauss–Newton predicted decrease `2 gᵀδ − δᵀAδ` (`A`, `g` of this
+/// iteration in `ws`) is smaller than the cost's own rounding error. (A projected step decreases
+/// the model by less than the model's own step, so nothing resolvable is lost; its own prediction
+/// would not do: a projection can make it negative far from any minimum.) A marker position `x_j`
+/// carries an absolute error of about `c ε ‖x_j‖` (positions are measured from the laboratory
+/// origin, metres away), so `w_j ‖t_j − x_j‖²` carries `2 c ε w_j ‖t_j − x_j‖ ‖x_j‖`, and by
+/// Cauchy–Schwarz the cost at most `2 c ε √(cost · Σ w_j ‖x_j‖²)`. Damping such a step further
+/// cannot produce a decrease the cost would show (a trial's cost differs from the current one by
+/// rounding alone): on opencap walking1, with the calibration's step tolerance of 1e-11, 5 200 of
+/// the inner level's 13 300 forward kinematics were such retries.
 fn below_roundoff(n: usize, cost: f64, ws: &IkWorkspace) -> bool {
     let d = &ws.delta[..n];
     let mut predicted = 0.0;

@@ -256,9 +256,9 @@ pub fn chi2_upper_tail(x: f64, k: usize) -> f64 {
 }
 
 /// The conflict of every joint of a maximum a posteriori calibration `cal` (of its free
-/// parameters on `trials` from `start`, with `settings`): rebuilds its problem with the prior weights of
-/// the fit (its σ and per-parameter factors), takes the marker term's reduced normal matrix at
-/// the fitted point (from `system`, the reduced system of `cal`'s own uncertainty analysis,
+/// parameters on `trials` from `start`, with `settings`): rebuilds its problem with the prior
+/// weights of the fit (its σ and per-parameter factors), takes the marker term's reduced
+/// normal matrix at the fitted point (from `system`, the reduced system of `cal`'s own uncertainty analysis,
 /// when the caller kept it; else formed here), and applies [`statistics`] per joint;
 /// `flagged` marks the joints the rule of the module docs widens. Empty without a prior.
 pub fn assess(

@@ -159,8 +159,8 @@ pub struct HeldCalibration {
     pub prior_conflict: Vec<super::conflict::JointConflict>,
 }
 
-/// [`calibrate`](super::calibrate) of the non-redundant parameters of `free`; the redundant ones stay at
-/// their `start` values and are listed. A maximum a posteriori fit then takes the
+/// [`calibrate`](super::calibrate) of the non-redundant parameters of `free`; the redundant
+/// ones stay at their `start` values and are listed. A maximum a posteriori fit then takes the
 /// prior–data conflict step ([`super::conflict::check`]).
 pub fn calibrate_holding_redundant(
     model: &Model,
@@ -174,8 +174,8 @@ pub fn calibrate_holding_redundant(
     let (mut calibration, system) = super::calibration::calibrate_keeping_system(
         model, start, trials, &kept, settings, observer,
     )?;
-    let cal = &mut calibration;
-    let prior_conflict = super::conflict::check(model, start, trials, settings, cal, system)?;
+    let prior_conflict =
+        super::conflict::check(model, start, trials, settings, &mut calibration, system)?;
     Ok(HeldCalibration {
         calibration,
         held_redundant,

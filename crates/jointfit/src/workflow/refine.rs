@@ -3,8 +3,8 @@
 //!
 //! The model is rewritten so that each marker the trials measure gets three position
 //! parameters with a prior `N(static position, s²)`; the joint parameters `free` and these
-//! marker parameters are fitted together by [`calibrate`](super::calibrate) (same solvers, priors, σ
-//! estimation, uncertainty). The result carries the rewritten model (for reports), the
+//! marker parameters are fitted together by [`calibrate`](super::calibrate) (same solvers,
+//! priors, σ estimation, uncertainty). The result carries the rewritten model (for reports), the
 //! fitted description in the input's structure (joint parameters fitted, markers moved), how
 //! far every marker moved, and which marker offsets trade off with which joint parameters
 //! (posterior correlations, from the uncertainty analysis when it ran).
@@ -68,8 +68,8 @@ pub struct RefinedCalibration {
     pub conflict: Vec<super::conflict::JointConflict>,
 }
 
-/// Calibrates `model` like [`calibrate`](super::calibrate), and, for a maximum a posteriori fit (the settings
-/// ask for priors and a free parameter has one):
+/// Calibrates `model` like [`calibrate`](super::calibrate), and, for a maximum a posteriori
+/// fit (the settings ask for priors and a free parameter has one):
 ///
 /// * with `settings.anatomical_envelope`, bounds the hip centre medial to the ASIS
 ///   ([`super::envelope`]);
@@ -142,8 +142,14 @@ pub fn calibrate_refined(
     // before any envelope bound, its intervals widened on the final fit below.
     let mut conflict = Vec::new();
     if map_fit && settings.prior_conflict {
-        let on = (&aug, &aug_start, &used, settings);
-        conflict = super::conflict::assess(on.0, on.1, on.2, on.3, &calibration, system.as_ref())?;
+        conflict = super::conflict::assess(
+            &aug,
+            &aug_start,
+            &used,
+            settings,
+            &calibration,
+            system.as_ref(),
+        )?;
     }
     // The envelope: a fit inside it is the bounded problem's optimum too; one outside is
     // refitted with the bound (`super::envelope`: bounding every fit would change the
@@ -173,9 +179,15 @@ pub fn calibrate_refined(
         }
     }
     if !conflict.is_empty() {
-        let c = &conflict;
-        let cal = &mut calibration;
-        super::conflict::widen_intervals(&aug, &aug_start, &used, settings, cal, c, system)?;
+        super::conflict::widen_intervals(
+            &aug,
+            &aug_start,
+            &used,
+            settings,
+            &mut calibration,
+            &conflict,
+            system,
+        )?;
     }
     let p = calibration.fit.p.clone();
     note_envelope(&mut calibration, &envelope);
