@@ -4,4 +4,5 @@
 pub mod paper;
 pub mod protocol;
 pub mod report;
+pub mod subject;
 pub mod synth;

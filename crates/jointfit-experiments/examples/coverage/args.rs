@@ -41,6 +41,11 @@ pub struct Args {
     pub no_conflict: bool,
     /// The solver (`joint`, `varpro`, `pso`).
     pub method: Method,
+    /// `--landmark-error`: the fit starts from the subject's landmark model, whose prior means
+    /// are the truth moved by the landmark method's published error (`N(truth, sd²)`, seeded,
+    /// clipped to the bounds), instead of from the nominal model with the nominal as the prior
+    /// mean.
+    pub landmark_error: bool,
 }
 
 pub fn parse() -> Result<Args, String> {
@@ -64,6 +69,7 @@ pub fn parse() -> Result<Args, String> {
         no_policy: false,
         no_envelope: false,
         no_conflict: false,
+        landmark_error: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
@@ -74,6 +80,7 @@ pub fn parse() -> Result<Args, String> {
             "--no-policy" => a.no_policy = true,
             "--no-envelope" => a.no_envelope = true,
             "--no-conflict" => a.no_conflict = true,
+            "--landmark-error" => a.landmark_error = true,
             _ => {}
         }
         let switches = [
@@ -83,6 +90,7 @@ pub fn parse() -> Result<Args, String> {
             "--no-policy",
             "--no-envelope",
             "--no-conflict",
+            "--landmark-error",
         ];
         if switches.contains(&flag.as_str()) {
             continue;

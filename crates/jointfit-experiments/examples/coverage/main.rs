@@ -30,7 +30,11 @@
 //! and anatomical envelope included; the truth as without it; prints what the policy and the
 //! envelope did), `--misplace-mm MM` (one thigh or shank marker, seeded, moved MM since the
 //! static trial: the trial is synthesized with it moved), `--no-policy`, `--no-envelope`, `--no-conflict` (with `--default`), `--method joint|varpro|pso`, `--compare-none` (each trial also
-//! fitted with `--prior none`; prints both fits' RMS parameter errors per joint). Figures:
+//! fitted with `--prior none`; prints both fits' RMS parameter errors per joint),
+//! `--landmark-error` (with `--default` or `--prior`: every fit starts from the subject's
+//! landmark model, whose prior means are the truth moved by the landmark method's published
+//! error, `N(truth, sd²)` seeded and clipped, as `personalize` would write it for this subject;
+//! without it the prior mean and the start are the nominal model). Figures:
 //! `docs/global.md` (coverage) and `docs/identifiability.md`.
 
 mod args;
@@ -53,6 +57,7 @@ use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::{Model, Unit};
 use jointfit::workflow::refine::calibrate_refined;
 use jointfit::workflow::{calibrate, perturb, FitSettings, NoObserver};
+use jointfit_experiments::subject::landmark_model;
 use jointfit_experiments::synth::{coordinates, markers, perturbed_params, SkinNoise};
 
 #[derive(Default, Clone)]
@@ -127,10 +132,19 @@ fn main() {
         let (true_spec, moved) = misplaced(&spec, args.misplace_mm, seed);
         let true_model = Model::compile(&true_spec).expect("built-in model compiles");
         let (trial, _) = markers(&true_model, &truth, &coords, 50.0, Some(&noise));
-        // The fitted joints start at nominal; the others are held at the truth.
+        // The fitted joints start at nominal (or, with `--landmark-error`, at the subject's
+        // landmark model, which is also the prior mean); the others are held at the truth.
+        let landmark = args.landmark_error.then(|| {
+            let (s, means) = landmark_model(&spec, &truth, seed);
+            (Model::compile(&s).expect("landmark model compiles"), means)
+        });
+        let fit_model = landmark.as_ref().map_or(&model, |(m, _)| m);
         let mut start = truth.clone();
         for id in &free {
-            start[id.0] = model.parameters()[id.0].nominal;
+            start[id.0] = match &landmark {
+                Some((_, means)) => means[id.0],
+                None => model.parameters()[id.0].nominal,
+            };
         }
         let opts = UncertaintyOptions {
             bootstrap_replicates: args.replicates,
@@ -149,8 +163,15 @@ fn main() {
             ..FitSettings::default()
         };
         let cal = if args.default {
-            let r = calibrate_refined(&model, &start, &[&trial], &free, &settings, &mut NoObserver)
-                .expect("calibration");
+            let r = calibrate_refined(
+                fit_model,
+                &start,
+                &[&trial],
+                &free,
+                &settings,
+                &mut NoObserver,
+            )
+            .expect("calibration");
             let truth_mm = |name: &str| {
                 model
                     .param_id(name)
@@ -166,8 +187,15 @@ fn main() {
             conflicts.add(seed, &r.conflict);
             r.calibration
         } else {
-            calibrate(&model, &start, &[&trial], &free, &settings, &mut NoObserver)
-                .expect("calibration")
+            calibrate(
+                fit_model,
+                &start,
+                &[&trial],
+                &free,
+                &settings,
+                &mut NoObserver,
+            )
+            .expect("calibration")
         };
         err_fit.add(&model, &free, &cal.fit.p, &truth);
         if args.compare_none {
@@ -177,7 +205,7 @@ fn main() {
                 priors: false,
                 ..FitSettings::default()
             };
-            let fit = calibrate(&model, &start, &[&trial], &free, &none, &mut NoObserver)
+            let fit = calibrate(fit_model, &start, &[&trial], &free, &none, &mut NoObserver)
                 .expect("calibration");
             err_none.add(&model, &free, &fit.fit.p, &truth);
         }
@@ -185,7 +213,7 @@ fn main() {
         // The objective at the truth (inner problem solved there): a fit above it ended in
         // another minimum.
         let cost_truth = {
-            let prob = Problem::new(&model, start.clone(), &free, &[&trial]).expect("problem");
+            let prob = Problem::new(fit_model, start.clone(), &free, &[&trial]).expect("problem");
             let mut q = prob.initial_coords(&truth);
             prob.inner(&truth, &mut q, &mut IkWorkspace::new(&model))
         };
@@ -336,9 +364,9 @@ fn main() {
             (t.sq_err / t.n.max(1) as f64).sqrt()
         );
     }
-    if args.prior {
+    if args.prior || args.default {
         println!(
-            "(with --prior the white/HAC/jack columns apply each estimator's own critical value to \
+            "(with a prior the white/HAC/jack columns apply each estimator's own critical value to \
              the total variance; only `reported` uses the Welch–Satterthwaite value)"
         );
         println!("reported coverage per information label, % (n):");
