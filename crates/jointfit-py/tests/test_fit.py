@@ -170,14 +170,14 @@ def test_osim_calibration_warns_of_the_joints_the_cli_flags(data_dir, run_cli, t
 
     d = data_dir / "opencap_expert1"
     joints = ["hip_r", "walker_knee_r", "hip_l", "walker_knee_l"]
-    code, out, err = run_cli("calibrate", d / "hand_scaled.osim", d / "walking1.trc", "--joints",
+    code, out, err = run_cli("calibrate", d / "hand_scaled.osim", d / "squats1.trc", "--joints",
                              ",".join(joints), "-o", tmp_path / "fit.osim", "--json")
     assert code == 0, err
     flagged = [c["joint"] for c in json.loads(out)["prior_conflict"] if c["flagged"]]
-    assert flagged, "walking1 contradicts the hand-scaled left knee (chi2 ~ 110 on 8 dof)"
+    assert flagged, "squats1 contradicts the hand-scaled right knee (chi2 ~ 49 on 9 dof)"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        cal = jf.calibrate(jf.Model.load(d / "hand_scaled.osim"), [jf.Trial.read(d / "walking1.trc")],
+        cal = jf.calibrate(jf.Model.load(d / "hand_scaled.osim"), [jf.Trial.read(d / "squats1.trc")],
                            joints=joints)
     lines = [w for w in cal.warnings if w.startswith("prior–data conflict at the ")]
     assert sorted(w.split(":")[0].rsplit(" ", 1)[1] for w in lines) == sorted(flagged), lines

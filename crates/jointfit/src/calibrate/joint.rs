@@ -69,7 +69,8 @@
 use rayon::prelude::*;
 
 use super::schur::{
-    active_bounds, assemble, back_substitute, cost_at, reduce, solve_reduced_at_bounds, Blocks,
+    active_bounds, assemble, back_substitute, cost_at, project_coords, reduce,
+    solve_reduced_at_bounds, Blocks,
 };
 use secant::Secant;
 
@@ -148,15 +149,25 @@ pub(crate) fn observations(prob: &Problem) -> usize {
 }
 
 /// `q_try = qs + dq`, frame by frame in parallel (each frame's sum alone: the same bits on any
-/// number of threads).
-fn trial_coords(q_try: &mut [Vec<f64>], qs: &[Vec<f64>], dq: &[Vec<f64>]) {
+/// number of threads), projected into the range of every bounded coordinate (`bounds`,
+/// [`super::schur::coordinate_bounds`]); `dq` becomes the projected step.
+pub(crate) fn trial_coords(
+    q_try: &mut [Vec<f64>],
+    qs: &[Vec<f64>],
+    dq: &mut [Vec<f64>],
+    bounds: &[(usize, f64, f64)],
+) {
     q_try
         .par_iter_mut()
-        .zip(qs.par_iter().zip(dq.par_iter()))
+        .zip(qs.par_iter().zip(dq.par_iter_mut()))
         .with_min_len(PAR_FRAMES)
         .for_each(|(t, (q, d))| {
-            for ((t, a), b) in t.iter_mut().zip(q).zip(d) {
+            for ((t, a), b) in t.iter_mut().zip(q).zip(d.iter()) {
                 *t = a + b;
+            }
+            for &(c, lo, hi) in bounds {
+                t[c] = t[c].clamp(lo, hi);
+                d[c] = t[c] - q[c];
             }
         });
 }
@@ -237,6 +248,7 @@ pub fn solve_joint_with(
     let mut blocks = Blocks::new(prob);
     let mut s: Vec<f64> = s0.iter().map(|v| v.clamp(-1.0, 1.0)).collect();
     let mut qs = q0;
+    project_coords(&mut qs, &blocks.bounds);
     let mut ds = vec![0.0; nf];
     let mut dq = vec![vec![0.0; nq]; frames];
     // The trial point's coordinates, allocated once here on the calling thread and filled in
@@ -313,7 +325,7 @@ pub fn solve_joint_with(
                 Some(_) => augmented,
                 None => gauss_newton,
             };
-            trial_coords(&mut q_try, &qs, &dq);
+            trial_coords(&mut q_try, &qs, &mut dq, &blocks.bounds);
             let lambda_used = lambda;
             let p_try = prob.to_params(&s_try);
             let c = cost_at(prob, &blocks, &p_try, &q_try);
@@ -397,7 +409,7 @@ pub fn solve_joint_with(
                 termination = Termination::Converged;
                 if iterations < opts.max_iterations {
                     let s_try: Vec<f64> = s.iter().zip(&ds).map(|(a, d)| a + d).collect();
-                    trial_coords(&mut q_try, &qs, &dq);
+                    trial_coords(&mut q_try, &qs, &mut dq, &blocks.bounds);
                     let p_try = prob.to_params(&s_try);
                     let c = cost_at(prob, &blocks, &p_try, &q_try);
                     evaluations += 1;

@@ -85,6 +85,63 @@ pub(crate) struct Blocks {
     lambda: f64,
     /// Workspaces of the parallel passes.
     pool: ScratchPool,
+    /// The coordinates bounded to their range (`index, lower, upper`): OpenSim's `clamped`
+    /// ones when the problem's inverse kinematics clamps ([`crate::ik::IkOptions::clamp`]);
+    /// empty for every built-in model.
+    pub(crate) bounds: Vec<(usize, f64, f64)>,
+}
+
+/// The clamped coordinates of `prob`'s model as `(index, lower, upper)`, when its inverse
+/// kinematics bounds them; else none.
+pub(crate) fn coordinate_bounds(prob: &Problem) -> Vec<(usize, f64, f64)> {
+    if !prob.ik.clamp {
+        return Vec::new();
+    }
+    prob.model
+        .coordinates()
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.clamped)
+        .map(|(i, c)| (i, c.range[0], c.range[1]))
+        .collect()
+}
+
+/// Holds, in one frame's blocks at coordinates `q` (`u` = `U`, n_q × n_q; `w` = `W` stored
+/// parameter-major, `w[k·n_q + a]`; `g` = the coordinates' half negative gradient), every
+/// bounded coordinate that sits at a bound with its descent direction pointing out of the
+/// range: its row and column of `U` and its entries of `W` zeroed (the diagonal kept) and
+/// `g` = 0, so the step leaves it where it is (projected Gauss–Newton, Bertsekas 1982; as
+/// [`crate::ik`] does for the same coordinates frame by frame), and the reduced system of the
+/// uncertainty analysis treats it as fixed.
+pub(crate) fn hold_at_bounds(
+    bounds: &[(usize, f64, f64)],
+    q: &[f64],
+    u: &mut [f64],
+    w: &mut [f64],
+    g: &mut [f64],
+) {
+    let nq = q.len();
+    for &(a, lo, hi) in bounds {
+        if !((q[a] <= lo && g[a] < 0.0) || (q[a] >= hi && g[a] > 0.0)) {
+            continue;
+        }
+        for c in (0..nq).filter(|&c| c != a) {
+            u[c * nq + a] = 0.0;
+            u[a * nq + c] = 0.0;
+        }
+        for wk in w.chunks_exact_mut(nq) {
+            wk[a] = 0.0;
+        }
+        g[a] = 0.0;
+    }
+}
+
+/// [`hold_at_bounds`] on one frame's `[U | W | g]` as [`Blocks`] stores it.
+fn hold_split(bounds: &[(usize, f64, f64)], q: &[f64], nf: usize, out: &mut [f64]) {
+    let nq = q.len();
+    let (u, rest) = out.split_at_mut(nq * nq);
+    let (w, g) = rest.split_at_mut(nq * nf);
+    hold_at_bounds(bounds, q, u, w, g);
 }
 
 impl Blocks {
@@ -132,6 +189,7 @@ impl Blocks {
             half: (0..nf).map(|k| prob.half_range(k)).collect(),
             lambda: 0.0,
             pool: ScratchPool::default(),
+            bounds: coordinate_bounds(prob),
         }
     }
 
@@ -166,6 +224,7 @@ impl Blocks {
         let mut out = std::mem::take(&mut sc.buf);
         out.resize(per, 0.0);
         split(&sc.gram, self.nq, self.nf, &sc.grad, &mut out);
+        hold_split(&self.bounds, &qs[f], self.nf, &mut out);
         sc.buf = out;
         &sc.buf
     }
@@ -198,6 +257,7 @@ pub(crate) fn assemble(prob: &Problem, p: &[f64], qs: &[Vec<f64>], b: &mut Block
     slots.resize_with(chunks, || None);
     let half = &b.half;
     let pool = &b.pool;
+    let bounds = &b.bounds;
     let parts: Vec<(Vec<f64>, Vec<f64>, f64)> = slots
         .into_par_iter()
         .enumerate()
@@ -221,6 +281,7 @@ pub(crate) fn assemble(prob: &Problem, p: &[f64], qs: &[Vec<f64>], b: &mut Block
                     if let Some(slot) = slot.as_deref_mut() {
                         let out = &mut slot[(f - start) * per..(f - start + 1) * per];
                         split(&sc.gram, nq, nf, &sc.grad, out);
+                        hold_split(bounds, &qs[f], nf, out);
                     }
                 }
                 (v, gs, cost)
@@ -283,6 +344,15 @@ pub(crate) fn cost_at(prob: &Problem, b: &Blocks, p: &[f64], qs: &[Vec<f64>]) ->
 #[path = "schur_step.rs"]
 mod step;
 pub(crate) use step::{back_substitute, reduce, solve_reduced_at_bounds};
+
+/// Every frame's bounded coordinates ([`coordinate_bounds`]) projected into their ranges.
+pub(crate) fn project_coords(qs: &mut [Vec<f64>], bounds: &[(usize, f64, f64)]) {
+    for q in qs {
+        for &(c, lo, hi) in bounds {
+            q[c] = q[c].clamp(lo, hi);
+        }
+    }
+}
 
 #[cfg(test)]
 #[path = "schur_tests.rs"]

@@ -15,7 +15,7 @@ use rand_chacha::ChaCha8Rng;
 const DEG: f64 = std::f64::consts::PI / 180.0;
 
 /// The right leg with `knee_flexion` and `hip_adduction` clamped to the given ranges (deg).
-fn clamped_leg(knee: [f64; 2], hip_adduction: [f64; 2]) -> Model {
+pub(crate) fn clamped_leg(knee: [f64; 2], hip_adduction: [f64; 2]) -> Model {
     let mut spec = lower_limb(Side::Right);
     for j in &mut spec.joints {
         for c in &mut j.coordinates {

@@ -1,6 +1,7 @@
 //! Integration tests of the core library (one test binary for the crate).
 
 mod calibrate;
+mod calibrate_clamped;
 mod checks;
 mod ik;
 mod ik_clamped;

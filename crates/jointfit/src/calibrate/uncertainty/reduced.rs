@@ -5,7 +5,7 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
 use super::super::kernel::{frame_gram, FrameScratch};
-use super::super::schur::CHUNK;
+use super::super::schur::{coordinate_bounds, hold_at_bounds, CHUNK};
 use super::super::Problem;
 use crate::linalg::Cholesky;
 
@@ -81,6 +81,9 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
     let frames = prob.frames.len();
     let half: Vec<f64> = (0..nf).map(|k| prob.half_range(k)).collect();
     let gs = group_size(frames);
+    // OpenSim's clamped coordinates at a bound of their range are held there, as the joint
+    // solver holds them: fixed, they absorb nothing of a parameter change.
+    let bounds = coordinate_bounds(prob);
     // (normal, scores, (group, its sum over the chunk's frames) in frame order, cost)
     type Chunk = (
         DMatrix<f64>,
@@ -114,6 +117,8 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
                         w[k * nq..(k + 1) * nq]
                             .copy_from_slice(&gram[(nq + k) * n..(nq + k) * n + nq]);
                     }
+                    yg.copy_from_slice(&grad[..nq]);
+                    hold_at_bounds(&bounds, &qs[f], &mut u, &mut w, &mut yg);
                     let max_diag = (0..nq).fold(0.0f64, |m, i| m.max(u[i * nq + i]));
                     // The same tiny regularisation the solver uses; more only if a frame's
                     // coordinates are themselves undetermined (then they absorb nothing along
@@ -133,7 +138,6 @@ pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
                     for k in 0..nf {
                         chol.solve(&mut y[k * nq..(k + 1) * nq]);
                     }
-                    yg.copy_from_slice(&grad[..nq]);
                     chol.solve(&mut yg);
                     let mut psi = DVector::zeros(nf);
                     let mut a = DMatrix::from_fn(nf, nf, |k, c| gram[(nq + c) * n + nq + k]);
