@@ -62,6 +62,15 @@ pub struct CalibrateArgs {
     /// Keep a fit that did not converge and exit 0 (otherwise: exit status 3, nothing written).
     #[arg(long)]
     pub accept_unconverged: bool,
+    /// Fit and write even when the verdict is `reject` (trials whose marker placement does
+    /// not match the model's, an implausible result); otherwise: exit status 5, nothing
+    /// written. The verdict and its reasons are still printed.
+    #[arg(long)]
+    pub accept_rejected: bool,
+    /// Print every flagged parameter with why, and the weak parameter combinations (by
+    /// default: one line per joint).
+    #[arg(long, short)]
+    pub verbose: bool,
     /// Outer iteration limit (1 to 10000; default: the solver's, 200). A fit that reaches it
     /// has not converged (see --accept-unconverged).
     #[arg(long, value_name = "N", value_parser = crate::validate::iterations)]
@@ -240,6 +249,7 @@ pub fn fit_settings(args: &CalibrateArgs) -> FitSettings {
         marker_policy: !args.no_marker_policy,
         keep_markers: args.keep_markers.clone(),
         prior_conflict: !args.no_prior_conflict,
+        refuse_mismatch: !args.accept_rejected,
         ..FitSettings::command_default()
     }
 }
@@ -336,7 +346,8 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         &free,
         &fit_settings(&args),
         &mut observer,
-    )?;
+    )
+    .map_err(|e| crate::calibrate_text::refusal(e, &args.trials))?;
     observer.finish();
     let cal = &refined.calibration;
     let seconds = clock.elapsed().as_secs_f64();
@@ -357,8 +368,9 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         } else {
             crate::calibrate_text::print_policy(&refined.marker_decisions, &refined.envelope);
             crate::calibrate_text::print_conflict(&refined.conflict);
-            print_report(cal, seconds);
+            print_report(cal, seconds, args.verbose);
             crate::prior_args::print_refinement(&refined.markers, &refined.trade_offs);
+            crate::calibrate_text::print_verdict(&cal.verdict);
         }
         Ok(())
     };
@@ -367,6 +379,10 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         return Err(
             crate::output::Unconverged(format!("the calibration ({})", cal.termination)).into(),
         );
+    }
+    if let Err(e) = crate::calibrate_text::gate(&cal.verdict, args.accept_rejected) {
+        print(cal)?;
+        return Err(e);
     }
     // The fitted model keeps the input file's priors (overrides apply to this run only).
     // Refined markers (if any) replace the input's.

@@ -5,7 +5,7 @@
 use jointfit::calibrate::uncertainty::{Identifiability, Uncertainty};
 use jointfit::workflow::{Calibration, Termination};
 
-pub fn print_report(report: &Calibration, seconds: f64) {
+pub fn print_report(report: &Calibration, seconds: f64, verbose: bool) {
     println!(
         "{}: {} free parameters, {} frames ({} skipped), {} iterations, {} evaluations, {:.3} s{}",
         report.method,
@@ -57,9 +57,6 @@ pub fn print_report(report: &Calibration, seconds: f64) {
     if let Some(g) = &report.global {
         println!("{}", global_line(g));
     }
-    if let Some(w) = &report.global_warning {
-        eprintln!("jointfit: warning: {w}");
-    }
     // One vocabulary: with a prior, the last column says where the information came from
     // (the summary's "determined by the trial" / "partly" / "held by the prior"); without
     // one, whether the interval is within the thresholds (the paper's identifiability).
@@ -102,7 +99,43 @@ pub fn print_report(report: &Calibration, seconds: f64) {
         ]);
     }
     print!("{}", t.render());
-    print_notes(report);
+    print_notes(report, verbose);
+}
+
+/// The verdict, last and plainly: `verdict: ok`, or the level and one reason per line.
+pub fn print_verdict(verdict: &jointfit::workflow::Verdict) {
+    println!("verdict: {}", verdict.level);
+    for r in &verdict.reasons {
+        println!("  - {r}");
+    }
+}
+
+/// A `reject` verdict stops the command (exit status 5, nothing written) unless `accept`.
+pub fn gate(verdict: &jointfit::workflow::Verdict, accept: bool) -> anyhow::Result<()> {
+    match (verdict.level, accept) {
+        (jointfit::workflow::Level::Reject, false) => Err(crate::output::Rejected(
+            verdict.reasons.first().cloned().unwrap_or_default(),
+        )
+        .into()),
+        _ => Ok(()),
+    }
+}
+
+/// A calibration error as the command reports it: a trial refused as not belonging with the
+/// model becomes [`crate::output::Rejected`] naming the trial's file.
+pub fn refusal(
+    e: jointfit::workflow::WorkflowError,
+    trials: &[std::path::PathBuf],
+) -> anyhow::Error {
+    match e {
+        jointfit::workflow::WorkflowError::Mismatch { trial, cause } => {
+            let name = trials
+                .get(trial)
+                .map_or(format!("trial {}", trial + 1), |p| p.display().to_string());
+            crate::output::Rejected(format!("{name}: {cause}")).into()
+        }
+        e => e.into(),
+    }
 }
 
 /// The default marker policy's decisions and the anatomical envelope, one line each (before
@@ -171,36 +204,13 @@ fn ident_short(i: Option<Identifiability>) -> &'static str {
 }
 
 /// What follows the table: the uncertainty notes or the prior's summary, plausibility, RMS.
-fn print_notes(report: &Calibration) {
+fn print_notes(report: &Calibration, verbose: bool) {
     match (&report.uncertainty, report.prior_noise_mm) {
-        (Some(u), None) => print_uncertainty_notes(u, &report.fixed_unidentifiable),
+        (Some(u), None) => print_uncertainty_notes(u, &report.fixed_unidentifiable, verbose),
         (_, Some(noise)) => print_prior_summary(report, noise),
         (None, None) => {}
     }
-    let bad: Vec<String> = report
-        .plausibility
-        .iter()
-        .filter(|c| !c.ok)
-        .map(|c| {
-            format!(
-                "{}: {:.1} {u} > {:.1} {u} ({:.1} {u} outside; {})",
-                c.check,
-                c.value,
-                c.limit,
-                c.excess(),
-                c.parameters.join(", "),
-                u = c.unit
-            )
-        })
-        .collect();
-    if !bad.is_empty() {
-        eprintln!(
-            "jointfit: warning: {} of {} anatomical checks failed: {}",
-            bad.len(),
-            report.plausibility.len(),
-            bad.join("; ")
-        );
-    }
+    // The anatomical checks that failed are reasons of the verdict, printed last.
     println!(
         "RMS marker distance: {:.2} mm before, {:.2} mm after ({:.0}% lower)",
         report.rms_before_mm,
@@ -258,7 +268,7 @@ pub fn information_summary(report: &Calibration) -> Vec<String> {
 }
 
 /// How the intervals were made, the warnings for flagged parameters, the weak combinations.
-fn print_uncertainty_notes(u: &Uncertainty, fixed: &[String]) {
+fn print_uncertainty_notes(u: &Uncertainty, fixed: &[String], verbose: bool) {
     let mut methods: Vec<String> = Vec::new();
     for p in &u.params {
         let m = format!("{:?}", p.method).to_lowercase();
@@ -279,7 +289,10 @@ fn print_uncertainty_notes(u: &Uncertainty, fixed: &[String]) {
         )),
         methods.join(", ")
     );
-    for p in u.flagged() {
+    if !verbose {
+        print_flagged_by_joint(u);
+    }
+    for p in u.flagged().filter(|_| verbose) {
         // The status is judged by what the trial alone determines (pooled noise and time
         // correlation, `ParamUncertainty::status_half_width`), the interval is the robust one.
         let hw = match (p.status_half_width, p.half_width) {
@@ -289,8 +302,8 @@ fn print_uncertainty_notes(u: &Uncertainty, fixed: &[String]) {
             (None, Some(h)) => format!("trial alone unbounded, interval ±{h:.1} {}", p.unit),
             (_, None) => "unbounded".to_string(),
         };
-        eprintln!(
-            "jointfit: warning: {} {} by this trial ({hw}; threshold {} {}): {}",
+        println!(
+            "{} {} by this trial ({hw}; threshold {} {}): {}",
             p.name,
             if p.status == Identifiability::Undetermined {
                 "not determined"
@@ -306,7 +319,7 @@ fn print_uncertainty_notes(u: &Uncertainty, fixed: &[String]) {
             p.reason.as_deref().unwrap_or("")
         );
     }
-    for w in &u.weak_directions {
+    for w in u.weak_directions.iter().filter(|_| verbose) {
         println!("weak combination: {}", w.description);
     }
     if !fixed.is_empty() {
@@ -316,6 +329,40 @@ fn print_uncertainty_notes(u: &Uncertainty, fixed: &[String]) {
         );
     } else if u.flagged().next().is_some() {
         println!("(rerun with --fix-unidentifiable to hold the flagged parameters at their starting values)");
+    }
+}
+
+/// The flagged parameters, one line per joint (group): how many, and each one's interval
+/// half-width; `--verbose` says why each one is flagged.
+fn print_flagged_by_joint(u: &Uncertainty) {
+    let mut groups: Vec<(String, Vec<String>, usize)> = Vec::new();
+    for p in u.flagged() {
+        let group = p.group.clone();
+        let hw = p
+            .half_width
+            .map_or("unbounded".to_string(), |h| format!("±{h:.1} {}", p.unit));
+        let item = format!("{} {hw}", p.name);
+        let undetermined = usize::from(p.status == Identifiability::Undetermined);
+        match groups.iter_mut().find(|g| g.0 == group) {
+            Some(g) => {
+                g.1.push(item);
+                g.2 += undetermined;
+            }
+            None => groups.push((group, vec![item], undetermined)),
+        }
+    }
+    for (group, items, undetermined) in &groups {
+        println!(
+            "{group}: {} parameter{} {} by this trial: {} (--verbose: why)",
+            items.len(),
+            if items.len() == 1 { "" } else { "s" },
+            match *undetermined {
+                0 => "poorly determined",
+                n if n == items.len() => "not determined",
+                _ => "poorly or not determined",
+            },
+            items.join(", ")
+        );
     }
 }
 

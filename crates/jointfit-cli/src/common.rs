@@ -256,7 +256,27 @@ pub fn run_checks(
 /// first error.
 pub fn report_findings(findings: &[jointfit::checks::Finding], path: &Path) -> Result<()> {
     use jointfit::checks::Severity;
-    for f in findings.iter().filter(|f| f.severity == Severity::Warning) {
+    // At most two lines of one kind per trial, then how many more (`--json` lists them all):
+    // a units error or another session's static trial otherwise reads as dozens of lines.
+    let mut shown: Vec<(jointfit::checks::CheckKind, usize)> = Vec::new();
+    let warnings: Vec<&jointfit::checks::Finding> = findings
+        .iter()
+        .filter(|f| f.severity == Severity::Warning)
+        .collect();
+    for f in &warnings {
+        let count = match shown.iter_mut().find(|(k, _)| *k == f.kind) {
+            Some((_, n)) => {
+                *n += 1;
+                *n
+            }
+            None => {
+                shown.push((f.kind, 1));
+                1
+            }
+        };
+        if count > 2 {
+            continue;
+        }
         let fix = f
             .fix
             .as_ref()
@@ -266,6 +286,14 @@ pub fn report_findings(findings: &[jointfit::checks::Finding], path: &Path) -> R
             path.display(),
             f.kind.as_str(),
             f.message
+        );
+    }
+    for (kind, n) in shown.iter().filter(|(_, n)| *n > 2) {
+        eprintln!(
+            "jointfit: check: {}: {}: and {} more such findings (--json lists them)",
+            path.display(),
+            kind.as_str(),
+            n - 2
         );
     }
     if let Some(f) = findings.iter().find(|f| f.severity == Severity::Error) {

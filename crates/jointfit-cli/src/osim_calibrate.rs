@@ -80,7 +80,13 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let clock = Instant::now();
     let mut observer = ProgressObserver::new();
     let fit =
-        osim_workflow::personalize(&fit_spec, start, &refs, &fit_settings(&args), &mut observer)?;
+        osim_workflow::personalize(&fit_spec, start, &refs, &fit_settings(&args), &mut observer)
+            .map_err(|e| match e {
+                osim_workflow::OsimFitError::Workflow(w) => {
+                    crate::calibrate_text::refusal(w, &args.trials)
+                }
+                e => e.into(),
+            })?;
     observer.finish();
     let seconds = clock.elapsed().as_secs_f64();
     let cal: &Calibration = &fit.result.calibration;
@@ -108,7 +114,8 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             }
             print_held(&fit.result.held_redundant);
             crate::calibrate_text::print_conflict(&fit.result.prior_conflict);
-            print_report(cal, seconds);
+            print_report(cal, seconds, args.verbose);
+            crate::calibrate_text::print_verdict(&cal.verdict);
         }
         Ok(())
     };
@@ -117,6 +124,10 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         return Err(
             crate::output::Unconverged(format!("the calibration ({})", cal.termination)).into(),
         );
+    }
+    if let Err(e) = crate::calibrate_text::gate(&cal.verdict, args.accept_rejected) {
+        print()?;
+        return Err(e);
     }
     if jointfit_io::model_file::is_osim(&args.output) {
         let text = fit.osim_text(&osim)?;

@@ -32,6 +32,9 @@ pub const EXIT_UNCONVERGED: u8 = 3;
 pub const EXIT_PARTIAL: u8 = 4;
 /// Exit status of a command line that clap rejects.
 pub const EXIT_USAGE: u8 = 2;
+/// Exit status of a fit rejected by its verdict, or of inputs refused as not belonging
+/// together (nothing written).
+pub const EXIT_REJECTED: u8 = 5;
 
 /// `println!` that never panics (see the module docs).
 macro_rules! println {
@@ -120,6 +123,24 @@ impl std::fmt::Display for Unconverged {
 }
 
 impl std::error::Error for Unconverged {}
+
+/// A fit whose verdict is `reject`, or inputs refused before the fit; `main` turns it into
+/// exit status [`EXIT_REJECTED`]. The text is the cause.
+#[derive(Debug)]
+pub struct Rejected(pub String);
+
+impl std::fmt::Display for Rejected {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "rejected: {}; nothing written (exit status {EXIT_REJECTED}; rerun with \
+             --accept-rejected to keep the result anyway)",
+            self.0
+        )
+    }
+}
+
+impl std::error::Error for Rejected {}
 
 /// Set while a batch's files are renamed into place.
 static COMMITTING: AtomicBool = AtomicBool::new(false);
@@ -271,6 +292,8 @@ pub fn finish(
             eprintln!("jointfit: error: {}", one_line(&e));
             if e.downcast_ref::<Unconverged>().is_some() {
                 std::process::ExitCode::from(EXIT_UNCONVERGED)
+            } else if e.downcast_ref::<Rejected>().is_some() {
+                std::process::ExitCode::from(EXIT_REJECTED)
             } else if e.downcast_ref::<PartialFailure>().is_some() {
                 std::process::ExitCode::from(EXIT_PARTIAL)
             } else {

@@ -16,6 +16,7 @@ pub mod kinematics;
 pub mod landmarks;
 pub mod linalg;
 pub mod model;
+pub mod placement;
 pub mod plausibility;
 pub mod repair;
 pub mod residual_checks;

@@ -125,6 +125,10 @@ pub struct Calibration {
     pub prior_inflation: Vec<(String, f64)>,
     /// Anatomical plausibility of the fitted joints ([`crate::plausibility`]).
     pub plausibility: Vec<crate::plausibility::Check>,
+    /// How far to trust the fit ([`super::verdict`]): set by the calibrations that judge
+    /// their inputs and result ([`super::refine::calibrate_refined`],
+    /// [`super::calibrate_holding_redundant`]); `ok` without reasons elsewhere.
+    pub verdict: super::verdict::Verdict,
     /// The fitted solution (SI), the start and the free parameters finally fitted.
     #[serde(skip)]
     pub fit: Fit,
@@ -326,6 +330,7 @@ fn fit_free(
         prior_noise_estimated: noise.is_none(),
         prior_inflation: super::map::inflation_of(&prob),
         plausibility: crate::plausibility::check(model, &fit.p),
+        verdict: super::verdict::Verdict::default(),
         fit,
         start: start.to_vec(),
         free: free.to_vec(),

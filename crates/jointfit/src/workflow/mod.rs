@@ -32,6 +32,7 @@ pub mod redundant;
 pub mod refine;
 mod starts;
 mod summary;
+pub mod verdict;
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
@@ -50,6 +51,7 @@ pub use redundant::{
     calibrate_holding_redundant, redundant_parameters, HeldCalibration, Redundancy,
 };
 pub use starts::{perturb, restart_point};
+pub use verdict::{Level, Verdict};
 
 /// Errors of the workflow.
 #[derive(Debug, Error, PartialEq)]
@@ -74,6 +76,10 @@ pub enum WorkflowError {
     RefineNeedsPriors,
     #[error("marker refinement: {0}")]
     Refine(String),
+    /// A trial does not belong with the model ([`verdict::check_inputs`]); `trial` indexes
+    /// the calibration's trials, and a front end names its file.
+    #[error("trial {}: {cause}", trial + 1)]
+    Mismatch { trial: usize, cause: String },
 }
 
 /// The outer optimizer.
@@ -174,6 +180,10 @@ pub struct FitSettings {
     /// With a prior: test each joint's prior against the trial and widen the prior of a joint
     /// the trial disagrees with ([`conflict`]), honoured by [`refine::calibrate_refined`].
     pub prior_conflict: bool,
+    /// Refuse trials whose marker placement does not match the model's
+    /// ([`verdict::check_inputs`]: [`WorkflowError::Mismatch`]); off, the fit runs and the
+    /// mismatch makes its verdict a `reject`.
+    pub refuse_mismatch: bool,
 }
 
 impl Default for FitSettings {
@@ -197,6 +207,7 @@ impl Default for FitSettings {
             marker_policy: true,
             keep_markers: Vec::new(),
             prior_conflict: true,
+            refuse_mismatch: true,
         }
     }
 }

@@ -170,12 +170,19 @@ pub fn calibrate_holding_redundant(
     settings: &FitSettings,
     observer: &mut dyn Observer,
 ) -> Result<HeldCalibration, WorkflowError> {
+    let mismatches = super::verdict::check_inputs(model, trials, settings.refuse_mismatch)?;
     let (kept, held_redundant) = redundant_parameters(model, start, trials, free)?;
     let (mut calibration, system) = super::calibration::calibrate_keeping_system(
         model, start, trials, &kept, settings, observer,
     )?;
     let prior_conflict =
         super::conflict::check(model, start, trials, settings, &mut calibration, system)?;
+    let evidence = super::verdict::Evidence {
+        mismatches: &mismatches,
+        conflict: &prior_conflict,
+        ..Default::default()
+    };
+    calibration.verdict = super::verdict::judge(model, &calibration, &evidence);
     Ok(HeldCalibration {
         calibration,
         held_redundant,

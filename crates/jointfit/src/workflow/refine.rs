@@ -93,6 +93,7 @@ pub fn calibrate_refined(
     if settings.refine_markers.is_some() && !settings.priors {
         return Err(WorkflowError::RefineNeedsPriors);
     }
+    let mismatches = super::verdict::check_inputs(model, trials, settings.refuse_mismatch)?;
     let map_fit = settings.priors
         && free
             .iter()
@@ -194,7 +195,7 @@ pub fn calibrate_refined(
     let mut fitted = model.spec_with_nominal(&p[..start.len()]);
     fitted.markers = fold_marker_parameters(&aug.spec_with_nominal(&p)).markers;
     let spec = model.spec();
-    let markers = to_refine
+    let markers: Vec<RefinedMarker> = to_refine
         .iter()
         .filter_map(|&(n, _)| {
             let before = spec.markers.iter().find(|m| m.name == n)?;
@@ -215,6 +216,14 @@ pub fn calibrate_refined(
         .collect();
     let names: Vec<&str> = to_refine.iter().map(|r| r.0).collect();
     let trade_offs = trade_offs(&aug, &calibration, &names);
+    let evidence = super::verdict::Evidence {
+        mismatches: &mismatches,
+        refined: &markers,
+        decisions: &decisions,
+        conflict: &conflict,
+        envelope: &envelope,
+    };
+    calibration.verdict = super::verdict::judge(&aug, &calibration, &evidence);
     Ok(RefinedCalibration {
         model: aug,
         calibration,
