@@ -60,9 +60,10 @@ const MANIFEST_HELP: &str =
 but id, model and trials):
   [[job]] id = \"S01\", model = \"S01/subject.toml\" or a built-in name, trials = [\"a.c3d\", ...]
   up (\"y\", \"z\", \"-z\"), filter (Hz), joints, method, seed, starts, bootstrap, threshold_mm,
-  threshold_deg, fix_unidentifiable, prior (\"model\", \"none\"), marker_noise_mm, max_iter:
-  as the calibrate options of the same names, with the same limits.
-At most 100000 jobs. Exit status 4 when some jobs failed (their errors are in results.csv).";
+  threshold_deg, fix_unidentifiable, prior (\"model\", \"none\"), marker_noise_mm, max_iter,
+  accept_rejected: as the calibrate options of the same names, with the same limits.
+At most 100000 jobs. Exit status 4 when some jobs failed or were rejected by their verdict
+(their errors are in results.csv; its verdict column says ok, caution or reject).";
 
 /// Most jobs in one manifest.
 pub const MAX_JOBS: usize = 100_000;
@@ -84,6 +85,7 @@ struct Settings {
     prior: Option<String>,
     marker_noise_mm: Option<f64>,
     max_iter: Option<usize>,
+    accept_rejected: Option<bool>,
 }
 
 /// `value` of manifest key `key` within `lo..=hi` (the command line's limits).
@@ -203,6 +205,10 @@ fn to_job(entry: JobEntry, defaults: &Settings, base: &Path) -> Result<Job> {
             },
             marker_noise_mm: s.marker_noise_mm.or(defaults.marker_noise_mm),
             max_iterations: s.max_iter.or(defaults.max_iter),
+            accept_rejected: s
+                .accept_rejected
+                .or(defaults.accept_rejected)
+                .unwrap_or(d.accept_rejected),
         },
     };
     job.fit.check().map_err(anyhow::Error::msg)?;

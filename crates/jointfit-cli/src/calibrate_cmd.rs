@@ -367,7 +367,6 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
             println!("{}", serde_json::to_string_pretty(&report)?);
         } else {
             crate::calibrate_text::print_policy(&refined.marker_decisions, &refined.envelope);
-            crate::calibrate_text::print_conflict(&refined.conflict);
             print_report(cal, seconds, args.verbose);
             crate::prior_args::print_refinement(&refined.markers, &refined.trade_offs);
             crate::calibrate_text::print_verdict(&cal.verdict);

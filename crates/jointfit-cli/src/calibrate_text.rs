@@ -174,14 +174,6 @@ pub fn print_policy(
     }
 }
 
-/// The joints whose prior the trial contradicts, one line each (`workflow::conflict`):
-/// "prior–data conflict at the hip: intervals widened for a prior ×τ as wide …".
-pub fn print_conflict(conflicts: &[jointfit::workflow::conflict::JointConflict]) {
-    for line in jointfit_io::batch::fit::conflict_lines(conflicts) {
-        println!("{line} (--no-prior-conflict: no test)");
-    }
-}
-
 /// The data-share class in the table's words.
 fn source_short(s: jointfit::calibrate::prior::Source) -> &'static str {
     use jointfit::calibrate::prior::Source;

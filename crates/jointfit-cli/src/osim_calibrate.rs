@@ -113,7 +113,6 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
                 );
             }
             print_held(&fit.result.held_redundant);
-            crate::calibrate_text::print_conflict(&fit.result.prior_conflict);
             print_report(cal, seconds, args.verbose);
             crate::calibrate_text::print_verdict(&cal.verdict);
         }

@@ -61,6 +61,8 @@ mod report;
 mod synth;
 #[path = "cli/up.rs"]
 mod up;
+#[path = "cli/verdict.rs"]
+mod verdict;
 
 /// `jointfit personalize --static STAT --markers PRESET --side right -o OUT`, which must
 /// succeed.

@@ -93,6 +93,15 @@ impl PyCalibration {
     fn warnings(&self) -> Vec<String> {
         self.cal.warnings.clone()
     }
+    /// How far to trust the fit: `.level` ("ok", "caution" or "reject") and `.reasons`, the
+    /// command line's verdict.
+    #[getter]
+    fn verdict(&self) -> PyVerdict {
+        PyVerdict {
+            level: self.cal.verdict.level.name().to_string(),
+            reasons: self.cal.verdict.reasons.clone(),
+        }
+    }
     /// Everything as plain Python values (the row of `jointfit batch`'s results.json,
     /// plus the fitted model as TOML text).
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
@@ -133,6 +142,31 @@ impl PyCalibration {
     }
 }
 
+/// The verdict on a fit (`Calibration.verdict`): `level` is "ok", "caution" or "reject";
+/// `reasons` the sentences behind it, the gravest first.
+#[pyclass(name = "Verdict", module = "jointfit", frozen)]
+#[derive(Clone)]
+pub struct PyVerdict {
+    #[pyo3(get)]
+    level: String,
+    #[pyo3(get)]
+    reasons: Vec<String>,
+}
+
+#[pymethods]
+impl PyVerdict {
+    fn __repr__(&self) -> String {
+        format!("Verdict({:?}, {} reasons)", self.level, self.reasons.len())
+    }
+    fn __str__(&self) -> String {
+        let mut s = format!("verdict: {}", self.level);
+        for r in &self.reasons {
+            s.push_str(&format!("\n  - {r}"));
+        }
+        s
+    }
+}
+
 /// Rebuilds a Calibration from `Calibration.to_json()` (used by pickling).
 #[pyfunction]
 #[pyo3(name = "_calibration_from_json")]
@@ -162,9 +196,12 @@ fn joints_arg(joints: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<String>> {
 /// `starts`, `fix_unidentifiable`, `prior` ("model" or "none"), `marker_noise_mm`,
 /// `max_iter`, `bootstrap`, `threshold_mm`, `threshold_deg`. The fitted parameters equal
 /// `jointfit calibrate`'s for the same inputs and options, bit for bit (an unconverged fit
-/// is kept with a warning, as `--accept-unconverged`). Releases the GIL while it runs.
+/// is kept with a warning, as `--accept-unconverged`). A fit whose verdict is `reject`
+/// (inputs that do not belong together, an implausible result) raises `JointfitError` with
+/// the cause unless `accept_rejected` is true; `Calibration.verdict` says how far to trust
+/// the rest. Releases the GIL while it runs.
 #[pyfunction]
-#[pyo3(signature = (model, trials, joints=None, method="joint", up=None, filter=None, seed=1, bootstrap=0, threshold_mm=5.0, threshold_deg=5.0, starts=1, fix_unidentifiable=false, prior="model", marker_noise_mm=None, max_iter=None, params=None))]
+#[pyo3(signature = (model, trials, joints=None, method="joint", up=None, filter=None, seed=1, bootstrap=0, threshold_mm=5.0, threshold_deg=5.0, starts=1, fix_unidentifiable=false, prior="model", marker_noise_mm=None, max_iter=None, params=None, accept_rejected=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -184,6 +221,7 @@ pub fn calibrate(
     marker_noise_mm: Option<f64>,
     max_iter: Option<usize>,
     params: Option<Vec<String>>,
+    accept_rejected: bool,
 ) -> PyResult<PyCalibration> {
     let osim = model
         .cast::<PyModel>()
@@ -252,6 +290,7 @@ pub fn calibrate(
         },
         marker_noise_mm,
         max_iterations: max_iter,
+        accept_rejected,
     };
     fit.check().map_err(msg)?;
     let read = ReadOptions {
@@ -315,7 +354,18 @@ fn calibrate_osim(
         &settings,
         &mut jointfit::workflow::NoObserver,
     )
-    .map_err(|e| jointfit_io::batch::message(&e))?;
+    .map_err(|e| match e {
+        jointfit_io::osim_read::workflow::OsimFitError::Workflow(
+            jointfit::workflow::WorkflowError::Mismatch { trial, cause },
+        ) => {
+            let name = match &inputs[trial] {
+                TrialInput::Path(p) => p.display().to_string(),
+                TrialInput::Data { name, .. } => name.clone(),
+            };
+            format!("rejected: {name}: {cause}")
+        }
+        e => jointfit_io::batch::message(&e),
+    })?;
     let mut cal = jointfit_io::batch::fit::summarize(
         &done.model,
         &done.model.nominal_params(),
@@ -342,5 +392,9 @@ fn calibrate_osim(
     }
     warnings.append(&mut cal.warnings);
     cal.warnings = warnings;
+    if cal.verdict.level == jointfit::workflow::Level::Reject && !fit.accept_rejected {
+        let cause = cal.verdict.reasons.first().cloned().unwrap_or_default();
+        return Err(format!("rejected: {cause}"));
+    }
     Ok(cal)
 }

@@ -59,6 +59,7 @@ fn _jointfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<model::PyModel>()?;
     m.add_class::<solve::PyIkResult>()?;
     m.add_class::<calibration::PyCalibration>()?;
+    m.add_class::<calibration::PyVerdict>()?;
     m.add_function(wrap_pyfunction!(solve::personalize, m)?)?;
     m.add_function(wrap_pyfunction!(solve::ik, m)?)?;
     m.add_function(wrap_pyfunction!(solve::synthesize, m)?)?;

@@ -95,6 +95,7 @@ pub fn calibration_input(
         }
     }
     input.trust = Some(crate::trust::Trust::from_calibration(cal));
+    input.verdict = Some(cal.verdict.clone());
     input.convergence = Some(Convergence {
         method: cal.method.name().to_string(),
         stages: cal

@@ -30,6 +30,8 @@ pub struct ReportInput {
     /// Per trial: how it was read, repairs and data-check findings (section "Data checks",
     /// [`crate::data_checks`]; omitted when empty).
     pub data_checks: Vec<crate::data_checks::TrialChecks>,
+    /// The verdict on a calibration (`ok`, `caution`, `reject` and why), shown at the top.
+    pub verdict: Option<jointfit::workflow::Verdict>,
 }
 
 impl ReportInput {

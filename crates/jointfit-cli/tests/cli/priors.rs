@@ -43,6 +43,11 @@ fn map_fit_holds_the_hip_closer_and_reports_where_information_came_from() {
         if json {
             args.push("--json");
         }
+        if prior == "none" {
+            // The unregularized fit puts this trial's ankle axis 30° off the landmark axis:
+            // rejected as implausible unless kept on purpose.
+            args.push("--accept-rejected");
+        }
         let (ok, stdout, stderr) = jointfit(&args);
         assert!(ok, "{stderr}");
         (stdout, stderr, out)

@@ -46,6 +46,10 @@ pub struct FitOptions {
     /// Outer iteration limit (`--max-iter`; `None`: the solver's default).
     #[serde(default)]
     pub max_iterations: Option<usize>,
+    /// Keep a fit whose verdict is `reject` (`--accept-rejected`); otherwise the job fails
+    /// with the verdict's first reason.
+    #[serde(default)]
+    pub accept_rejected: bool,
 }
 
 fn one() -> usize {
@@ -70,6 +74,7 @@ impl Default for FitOptions {
             priors: true,
             marker_noise_mm: None,
             max_iterations: None,
+            accept_rejected: false,
         }
     }
 }
@@ -137,6 +142,7 @@ impl FitOptions {
                 .marker_noise_mm
                 .map(|mm| mm * jointfit::model::M_PER_MM),
             max_iterations: self.max_iterations,
+            refuse_mismatch: !self.accept_rejected,
             ..FitSettings::default()
         }
     }
@@ -179,6 +185,9 @@ pub struct Calibration {
     pub converged: bool,
     /// Reading and fitting warnings, one line each.
     pub warnings: Vec<String>,
+    /// How far to trust the fit ([`jointfit::workflow::verdict`]).
+    #[serde(default)]
+    pub verdict: jointfit::workflow::Verdict,
 }
 
 /// Fits the `opts.joints` parameters of `model` to `trials`, starting from `start`.
@@ -240,6 +249,7 @@ pub fn calibrate(
     }
     notes.append(&mut out.warnings);
     out.warnings = notes;
+    out.verdict = refined.calibration.verdict.clone();
     Ok(out)
 }
 
@@ -339,5 +349,6 @@ pub fn summarize(
         evaluations: fit.evaluations,
         converged: fit.converged(),
         warnings,
+        verdict: cal.verdict.clone(),
     }
 }

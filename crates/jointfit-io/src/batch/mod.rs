@@ -89,6 +89,9 @@ pub enum JobError {
     Calibrate(#[from] jointfit::workflow::WorkflowError),
     #[error("job has no trials")]
     NoTrials,
+    /// The verdict of the fit (or of its inputs) is `reject`: the cause.
+    #[error("rejected: {0}")]
+    Rejected(String),
 }
 
 /// The one-line message of an error and its causes, as the command line prints it after
@@ -179,7 +182,21 @@ pub fn run_job(job: &Job) -> Result<Calibration, JobError> {
         trials.push(trial);
     }
     let refs: Vec<&Trial> = trials.iter().collect();
-    let mut cal = fit::calibrate(&model, model.nominal_params(), &refs, &job.fit)?;
+    let mut cal = match fit::calibrate(&model, model.nominal_params(), &refs, &job.fit) {
+        Err(jointfit::workflow::WorkflowError::Mismatch { trial, cause }) => {
+            let name = match &job.trials[trial] {
+                TrialInput::Path(p) => p.display().to_string(),
+                TrialInput::Data { name, .. } => name.clone(),
+            };
+            return Err(JobError::Rejected(format!("{name}: {cause}")));
+        }
+        r => r?,
+    };
+    if cal.verdict.level == jointfit::workflow::Level::Reject && !job.fit.accept_rejected {
+        return Err(JobError::Rejected(
+            cal.verdict.reasons.first().cloned().unwrap_or_default(),
+        ));
+    }
     warnings.append(&mut cal.warnings);
     cal.warnings = warnings;
     Ok(cal)

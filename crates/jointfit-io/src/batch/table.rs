@@ -1,7 +1,8 @@
 //! The results table of a batch: one row per job, in job order.
 //!
 //! `results.json` is a list of objects `{id, status, error, resumed, method, frames,
-//! skipped_frames, rms_before_m, rms_after_m, converged, iterations, parameters: [{name,
+//! skipped_frames, rms_before_m, rms_after_m, converged, verdict, verdict_reasons,
+//! iterations, parameters: [{name,
 //! group, unit, start, fitted, se, ci95, identifiability}], warnings}`. `results.csv` has the
 //! same scalars, then for every parameter fitted in any job the columns `<name>`,
 //! `<name>_ci_low`, `<name>_ci_high` (SI units: m or rad; empty where not fitted or not
@@ -26,6 +27,9 @@ struct Row<'a> {
     rms_before_m: Option<f64>,
     rms_after_m: Option<f64>,
     converged: Option<bool>,
+    /// `ok`, `caution` or `reject` (a job refused or rejected by its verdict), and why.
+    verdict: Option<&'static str>,
+    verdict_reasons: &'a [String],
     iterations: Option<usize>,
     parameters: &'a [ParamRow],
     warnings: &'a [String],
@@ -44,6 +48,8 @@ fn row(o: &Outcome) -> Row<'_> {
             rms_before_m: Some(c.rms_before),
             rms_after_m: Some(c.rms_after),
             converged: Some(c.converged),
+            verdict: Some(c.verdict.level.name()),
+            verdict_reasons: &c.verdict.reasons,
             iterations: Some(c.iterations),
             parameters: &c.parameters,
             warnings: &c.warnings,
@@ -59,6 +65,8 @@ fn row(o: &Outcome) -> Row<'_> {
             rms_before_m: None,
             rms_after_m: None,
             converged: None,
+            verdict: e.starts_with("rejected: ").then_some("reject"),
+            verdict_reasons: &[],
             iterations: None,
             parameters: &[],
             warnings: &[],
@@ -101,6 +109,8 @@ pub fn csv(outcomes: &[Outcome]) -> String {
         "rms_before_m",
         "rms_after_m",
         "converged",
+        "verdict",
+        "verdict_reasons",
         "iterations",
     ]
     .iter()
@@ -129,6 +139,8 @@ pub fn csv(outcomes: &[Outcome]) -> String {
             num(r.rms_before_m),
             num(r.rms_after_m),
             num(r.converged),
+            r.verdict.unwrap_or("").to_string(),
+            field(&r.verdict_reasons.join("; ")),
             num(r.iterations),
         ];
         for n in &names {

@@ -181,7 +181,7 @@ mod tests {
     /// A table of `rows` rows (several chunks) with awkward values: short decimals, long
     /// fractions, NaN, tiny and huge magnitudes.
     fn long_table(rows: usize) -> Table {
-        let mut t = Table::new("Coordinates", &["a", "b", "c", "d"], true);
+        let mut t = Table::new("Coordinates", &["a", "b", "c"], true);
         for r in 0..rows {
             let x = (r as f64 * 0.7310585786300049).sin();
             let gap = if r % 97 == 3 { f64::NAN } else { x * 1e-7 };

@@ -124,8 +124,17 @@ class Calibration:
     def iterations(self) -> int: ...
     @property
     def warnings(self) -> List[str]: ...
+    @property
+    def verdict(self) -> Verdict: ...
     def to_dict(self) -> dict: ...
     def to_json(self) -> str: ...
+
+class Verdict:
+    """How far to trust a fit: level "ok", "caution" or "reject", and the reasons."""
+    @property
+    def level(self) -> str: ...
+    @property
+    def reasons(self) -> List[str]: ...
 
 _TrialArg = Union[Trial, _Path]
 _ModelArg = Union[Model, _Path]
@@ -158,6 +167,8 @@ def calibrate(
     prior: str = "model",
     marker_noise_mm: Optional[float] = None,
     max_iter: Optional[int] = None,
+    params: Optional[Sequence[str]] = None,
+    accept_rejected: bool = False,
 ) -> Calibration: ...
 def synthesize(
     model: Optional[_ModelArg] = None,

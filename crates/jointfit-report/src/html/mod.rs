@@ -37,6 +37,10 @@ html { background:#fff; }
 body { margin:0; color:var(--ink); font:15px/1.55 system-ui,-apple-system,"Segoe UI",Roboto,"Helvetica Neue","Noto Sans","Liberation Sans",Arial,sans-serif; font-feature-settings:"tnum" 1; }
 main { max-width:1120px; margin:0 auto; padding:40px 36px 64px; }
 header { border-bottom:1px solid var(--rule); padding-bottom:22px; margin-bottom:8px; }
+.verdict { border-left:4px solid #2e7d32; padding:6px 14px; margin:14px 0; background:#f3f8f3; }
+.verdict-caution { border-color:#b26a00; background:#fff7e8; }
+.verdict-reject { border-color:#b00020; background:#fdecee; }
+.verdict ul { margin:4px 0 0 0; padding-left:20px; }
 .eyebrow { text-transform:uppercase; letter-spacing:.12em; font-size:12px; color:var(--muted); margin:0 0 6px; font-weight:600; }
 h1 { font-size:30px; line-height:1.2; margin:0 0 6px; font-weight:650; letter-spacing:-.01em; }
 .sub { color:var(--muted); margin:0; }
@@ -103,6 +107,9 @@ pub fn render(input: &ReportInput) -> String {
         CSS
     );
     header(&mut h, input, &title);
+    if let Some(v) = &input.verdict {
+        verdict(&mut h, v);
+    }
     let mut n = 0;
     let mut section = |h: &mut String, id: &str, name: &str| {
         n += 1;
@@ -169,6 +176,28 @@ fn fmt(v: f64, decimals: usize) -> String {
     } else {
         s.replace('-', "\u{2212}")
     }
+}
+
+/// The verdict, first after the header: its level and the reasons (`id="verdict"`).
+fn verdict(h: &mut String, v: &jointfit::workflow::Verdict) {
+    let _ = write!(
+        h,
+        "<div id=\"verdict\" class=\"verdict verdict-{l}\"><p><strong>verdict: {l}</strong>{}</p>",
+        if v.reasons.is_empty() {
+            " — nothing found that argues against the result"
+        } else {
+            ""
+        },
+        l = v.level.name()
+    );
+    if !v.reasons.is_empty() {
+        h.push_str("<ul>");
+        for r in &v.reasons {
+            let _ = write!(h, "<li>{}</li>", escape(r));
+        }
+        h.push_str("</ul>");
+    }
+    h.push_str("</div>");
 }
 
 fn header(h: &mut String, input: &ReportInput, title: &str) {

@@ -253,6 +253,40 @@ pub fn decide(
             });
         }
     }
+    // A marker further from its place than a re-attachment moves is not refined: its label
+    // names another marker in this trial (e.g. two cluster markers swapped), and refining it
+    // would absorb that mismatch ([`super::verdict::REFINE_CAP_MM`]). It is left out when
+    // its segment keeps three markers in that trial; otherwise it stays refined and the
+    // verdict judges the refinement.
+    let cap = super::verdict::REFINE_CAP_MM;
+    let mut left: Vec<(usize, String)> = exclude
+        .iter()
+        .map(|d| (d.trial, d.marker.clone()))
+        .collect();
+    let mut capped = Vec::new();
+    for d in refine.iter().filter(|d| d.offset_mm > cap) {
+        let kept = model
+            .markers()
+            .iter()
+            .filter(|m| model.segments()[m.segment.0].name == d.segment)
+            .filter(|m| trials[d.trial].labels().contains(&m.name))
+            .filter(|m| !left.iter().any(|(t, n)| *t == d.trial && *n == m.name))
+            .count();
+        if kept > 3 {
+            left.push((d.trial, d.marker.clone()));
+            capped.push(d.marker.clone());
+        }
+    }
+    for mut d in refine.extract_if(.., |d| capped.contains(&d.marker)) {
+        d.action = MarkerAction::Exclude;
+        d.prior_sd_mm = None;
+        d.reason = format!(
+            "{}; more than the {cap:.0} mm a re-attached marker moves, so its label may name \
+             another marker: not refined",
+            d.reason
+        );
+        exclude.push(d);
+    }
     // A marker refined for one trial is not also left out of another: its fitted position
     // serves every trial.
     exclude.retain(|e| !refine.iter().any(|r| r.marker == e.marker));

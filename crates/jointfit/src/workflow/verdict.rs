@@ -9,12 +9,13 @@
 //!    model's ([`crate::placement`]: units, a segment of another build, labels naming other
 //!    markers). A mismatch refuses the fit ([`WorkflowError::Mismatch`]).
 //! 2. **After the fit** ([`judge`]), from the calibration and its side results:
-//!    * `reject` when the fit did not converge; when the markers sat further from the model
+//!    * `reject` when the markers sat further from the model
 //!      before the fit than a same-session trial does ([`REJECT_RMS_BEFORE_MM`]) or still do
 //!      after it ([`REJECT_RMS_AFTER_MM`]); when a refined marker moved further than a
 //!      re-attachment explains ([`REFINE_CAP_MM`]); when a fitted joint is outside twice its
 //!      anatomical envelope ([`crate::plausibility`]);
-//!    * `caution` for a joint outside its envelope, a hip held at the envelope's bound, a
+//!    * `caution` for a fit that did not converge (kept on request), a joint outside its
+//!      envelope, a hip held at the envelope's bound, a
 //!      prior–data conflict, markers refined by more than [`CAUTION_REFINE_MM`] or left out,
 //!      an optimum not known to be global, many skipped frames, an RMS above the movement
 //!      bar of OpenSim's best practice ([`CAUTION_RMS_AFTER_MM`]), or motion outside the
@@ -27,7 +28,7 @@
 //! and the bar of a different session read off the shared data (a same-session gait, squat,
 //! jump or run starts below 30 mm with a personalized model).
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::conflict::JointConflict;
 use super::envelope::EnvelopeBound;
@@ -62,7 +63,7 @@ pub const KNEE_HYPEREXTENSION_DEG: f64 = -10.0;
 pub const HIP_ROTATION_DEG: f64 = 20.0;
 
 /// How far to trust a fit.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Level {
     /// Nothing found that argues against the result.
@@ -90,7 +91,7 @@ impl std::fmt::Display for Level {
 }
 
 /// The verdict: its level and the reasons, the gravest first, one sentence each.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Verdict {
     pub level: Level,
     pub reasons: Vec<String>,
@@ -197,9 +198,10 @@ pub fn judge(model: &Model, cal: &Calibration, e: &Evidence) -> Verdict {
             format!("trial {}: {}", m.trial + 1, m.mismatch.cause()),
         );
     }
+    // Convergence has its own gate in front ends (kept only on request): here a caution.
     if !cal.converged {
         v.add(
-            Level::Reject,
+            Level::Caution,
             format!("the fit did not converge ({})", cal.termination),
         );
     }
@@ -292,10 +294,10 @@ fn judge_markers(e: &Evidence, v: &mut Verdict) {
         v.add(
             Level::Caution,
             format!(
-                "left out marker{} {} (the inverse kinematics rejected {} in many frames)",
+                "left out marker{} {}: broken in many frames or placed elsewhere than in the \
+                 static trial (the marker policy's lines say which)",
                 if left_out.len() == 1 { "" } else { "s" },
                 left_out.join(", "),
-                if left_out.len() == 1 { "it" } else { "them" }
             ),
         );
     }

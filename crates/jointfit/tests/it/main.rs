@@ -10,6 +10,7 @@ mod ik_robust;
 mod kinematics;
 mod landmarks;
 mod models;
+mod placement;
 mod posterior;
 mod priors;
 mod residual_checks;

@@ -1,0 +1,203 @@
+//! The verdict end to end (`workflow::verdict`): inputs that do not belong together are
+//! refused with exit status 5 and nothing written, naming the trial and the cause in one
+//! line; matching trials end with `ok` or `caution`; `--accept-rejected` keeps a rejected
+//! fit; the JSON carries `verdict`.
+
+use std::path::Path;
+use std::process::Command;
+
+use serde_json::Value;
+
+/// Runs `jointfit args`: exit code, stdout, stderr.
+fn run(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_jointfit"))
+        .args(args)
+        .output()
+        .expect("jointfit runs");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// A copy of the TRC `src` with the marker labels of line 4 exchanged pairwise.
+fn swap_labels(src: &Path, dst: &Path, pairs: &[(&str, &str)]) {
+    let text = std::fs::read_to_string(src).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let mut names: Vec<String> = lines[3].split('\t').map(str::to_string).collect();
+    for (a, b) in pairs {
+        let ia = names.iter().position(|n| n == a).expect("label a");
+        let ib = names.iter().position(|n| n == b).expect("label b");
+        names.swap(ia, ib);
+    }
+    lines[3] = names.join("\t");
+    std::fs::write(dst, lines.join("\n") + "\n").unwrap();
+}
+
+/// `calibrate MODEL TRIAL -o OUT` refused: exit 5, no output file, one error line that
+/// names the trial's file; the line returned.
+fn assert_refused(model: &Path, trial: &Path, out: &Path) -> String {
+    let (code, _, err) = run(&[
+        "calibrate",
+        model.to_str().unwrap(),
+        trial.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 5, "{err}");
+    assert!(!out.exists(), "a refused fit writes nothing");
+    let line = err
+        .lines()
+        .find(|l| l.starts_with("jointfit: error: rejected:"))
+        .unwrap_or_else(|| panic!("no rejection line: {err}"));
+    // Long paths are shortened in the middle of a one-line error: the file name's end stays.
+    let name = trial.file_name().unwrap().to_str().unwrap();
+    assert!(
+        line.contains(&name[name.len().saturating_sub(10)..]),
+        "{line}"
+    );
+    line.to_string()
+}
+
+#[test]
+fn mismatched_inputs_are_refused_and_matching_ones_are_not() {
+    let Some(g_static) =
+        jointfit_testkit::data_file("opensim_gait2392_subject01/subject01_static.trc")
+    else {
+        return;
+    };
+    let g_walk =
+        jointfit_testkit::data_file("opensim_gait2392_subject01/subject01_walk1.trc").unwrap();
+    let h_static =
+        jointfit_testkit::data_file("opensim_hamner_subject02/subject02_static.trc").unwrap();
+    let h_run =
+        jointfit_testkit::data_file("opensim_hamner_subject02/subject02_running.trc").unwrap();
+    let dir = jointfit_testkit::scratch("verdict-mismatch");
+    let (g, h) = (dir.path().join("g.toml"), dir.path().join("h.toml"));
+    super::personalize(&g_static, "gait2392", &g);
+    super::personalize(&h_static, "gait2392", &h);
+    let out = dir.path().join("fit.toml");
+    // Another subject's static trial with the same marker set, both ways.
+    for (model, trial) in [(&g, &h_run), (&h, &g_walk)] {
+        let line = assert_refused(model, trial, &out);
+        assert!(line.contains("not the same marker placement"), "{line}");
+    }
+    // A marker map that names other markers: a thigh and a shank marker exchanged.
+    let swapped = dir.path().join("swapped.trc");
+    swap_labels(&g_walk, &swapped, &[("R.Thigh.Upper", "R.Shank.Upper")]);
+    let line = assert_refused(&g, &swapped, &out);
+    assert!(
+        line.contains("labels do not name the same markers"),
+        "{line}"
+    );
+    // The matching trial: exit 0, a verdict that is not reject, the JSON's verdict object.
+    let (code, stdout, err) = run(&[
+        "calibrate",
+        g.to_str().unwrap(),
+        g_walk.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let r: Value = serde_json::from_str(&stdout).unwrap();
+    let level = r["verdict"]["level"].as_str().unwrap();
+    assert!(level == "ok" || level == "caution", "{}", r["verdict"]);
+    assert!(r["verdict"]["reasons"].is_array());
+    // The override: the mismatched fit runs, is written, and says reject.
+    std::fs::remove_file(&out).unwrap();
+    let (code, stdout, err) = run(&[
+        "calibrate",
+        g.to_str().unwrap(),
+        h_run.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--accept-rejected",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.exists());
+    let last: Vec<&str> = stdout.lines().rev().take(8).collect();
+    assert!(
+        stdout.contains("verdict: reject\n"),
+        "the verdict closes the text output: {last:?}"
+    );
+}
+
+/// Millimetre data declared as metres, and a left–right exchange of every leg marker: both
+/// refused before any fit.
+#[test]
+fn units_and_sides_that_do_not_match_are_refused() {
+    let Some(dir) = jointfit_testkit::data_dir() else {
+        return;
+    };
+    let scratch = jointfit_testkit::scratch("verdict-units");
+    let Some((subject, walk)) = super::opencap_subject(scratch.path(), "s.toml") else {
+        return;
+    };
+    let _ = dir;
+    let out = scratch.path().join("fit.toml");
+    let sides = scratch.path().join("sides.trc");
+    let pairs: Vec<(String, String)> = ["ASIS", "PSIS"]
+        .iter()
+        .map(|m| (format!("r.{m}"), format!("L.{m}")))
+        .chain(
+            [
+                "knee", "ankle", "thigh1", "thigh2", "thigh3", "sh2", "sh3", "calc", "toe", "5meta",
+            ]
+            .iter()
+            .map(|m| (format!("r_{m}"), format!("L_{m}"))),
+        )
+        .collect();
+    let refs: Vec<(&str, &str)> = pairs
+        .iter()
+        .map(|(a, b)| (a.as_str(), b.as_str()))
+        .collect();
+    swap_labels(&walk, &sides, &refs);
+    let line = assert_refused(&subject, &sides, &out);
+    assert!(line.contains("markers sit elsewhere"), "{line}");
+    // The same trial in centimetres declared as millimetres (every distance ×0.1).
+    let cm = scratch.path().join("cm.trc");
+    let text = std::fs::read_to_string(&walk).unwrap();
+    let scaled: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i < 5 {
+                return l.to_string();
+            }
+            l.split('\t')
+                .enumerate()
+                .map(|(k, v)| match (k, v.trim().parse::<f64>()) {
+                    (k, Ok(x)) if k >= 2 => format!("{}", x * 0.1),
+                    _ => v.to_string(),
+                })
+                .collect::<Vec<_>>()
+                .join("\t")
+        })
+        .collect();
+    std::fs::write(&cm, scaled.join("\n") + "\n").unwrap();
+    let (code, _, err) = run(&[
+        "calibrate",
+        subject.to_str().unwrap(),
+        cm.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_ne!(code, 0, "{err}");
+    assert!(!out.exists());
+    assert!(
+        err.contains("units") || err.contains("times as far apart"),
+        "the cause names the units: {err}"
+    );
+}
+
+/// `demo`: the verdict closes the output, and the run says nothing on stderr besides it.
+#[test]
+fn demo_is_a_clean_run_with_a_verdict() {
+    let (code, stdout, err) = run(&["demo", "--frames", "60"]);
+    assert_eq!(code, 0, "{err}");
+    let last = stdout.lines().last().unwrap();
+    assert!(last.starts_with("verdict: "), "{last}");
+    assert!(!err.contains("warning"), "{err}");
+}
