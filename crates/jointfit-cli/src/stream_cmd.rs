@@ -426,7 +426,7 @@ mod tests {
         // The same text as the .mot writer for a row of values.
         let table = jointfit_io::sto::Table {
             rows: vec![vec![0.01, 1.0 / 3.0, -2.0e-6, 123456.789]],
-            ..jointfit_io::sto::Table::new("t", &["time", "a", "b", "c"], true)
+            ..jointfit_io::sto::Table::new("t", &["a", "b", "c"], true)
         };
         let text = jointfit_io::sto::format_sto(&table).unwrap();
         let mut row = String::new();
