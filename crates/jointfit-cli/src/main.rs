@@ -12,6 +12,7 @@ mod batch_cmd;
 mod bench_cmd;
 mod bench_perf;
 mod bench_profile;
+mod bench_stream;
 mod bench_workload;
 mod calibrate_cmd;
 mod calibrate_text;

@@ -7,7 +7,8 @@
 //!   laboratory frame; an empty cell or `NaN` in any of a marker's three makes it missing.
 //!   Blank lines are skipped.
 //!
-//! Output on standard output, tab-separated, flushed after every line:
+//! Output on standard output, tab-separated, every answer flushed before the stream waits for
+//! input (see [`serve`]):
 //! * line 1: `time` and the coordinate names in model order (locked and coupled coordinates
 //!   after them), the columns of `jointfit ik`'s `.mot`;
 //! * one line per input frame: its time and the coordinates, degrees for rotations and metres
@@ -70,8 +71,9 @@ pub fn run(args: StreamArgs) -> Result<()> {
     };
     let stdin = std::io::stdin();
     let stdout = std::io::stdout();
-    let mut out = std::io::BufWriter::new(stdout.lock());
-    let summary = serve(&model, up, &opts, &mut stdin.lock(), &mut out)?;
+    let mut input = std::io::BufReader::with_capacity(1 << 16, stdin.lock());
+    let mut out = std::io::BufWriter::with_capacity(1 << 16, stdout.lock());
+    let summary = serve(&model, up, &opts, &mut input, &mut out)?;
     eprintln!("jointfit: stream: {}", summary.line());
     Ok(())
 }
@@ -101,11 +103,15 @@ impl Summary {
 /// The protocol of the module docs between `input` and `output`, with `model` (coordinates
 /// it leaves undetermined locked at their defaults, as `ik` does) in a laboratory whose
 /// vertical is `up`. Warnings go to standard error. Returns at the end of the input.
-pub fn serve(
+///
+/// Each answer is flushed before the stream reads further, unless the next frame's line has
+/// already arrived: frames that queue up (they arrive faster than they are solved) are
+/// answered in one write, and no answer ever waits for input.
+pub fn serve<R: Read>(
     model: &Model,
     up: UpAxis,
     opts: &IkOptions,
-    input: &mut impl BufRead,
+    input: &mut std::io::BufReader<R>,
     output: &mut impl Write,
 ) -> Result<Summary> {
     let mut reader = Lines::new(input);
@@ -132,7 +138,7 @@ pub fn serve(
     let columns = Columns::new(stream.model().clone());
     let mut text = String::new();
     columns.header(&mut text);
-    write_line(output, &text)?;
+    write_line(output, &text, true)?;
     let mut markers = vec![Vector3::zeros(); labels.len()];
     let mut summary = Summary::default();
     while let Some((number, line)) = reader.next()? {
@@ -146,7 +152,7 @@ pub fn serve(
             .with_context(|| format!("standard input line {number}"))?;
         text.clear();
         columns.row(&mut text, time, q);
-        write_line(output, &text)?;
+        write_line(output, &text, !reader.has_line())?;
         summary.frames += 1;
         let fit = stream.last_fit().expect("a frame was solved");
         if fit.solved() {
@@ -167,10 +173,11 @@ fn reason(status: &FrameStatus) -> String {
     }
 }
 
-fn write_line(output: &mut impl Write, text: &str) -> Result<()> {
+/// Writes `text`, then flushes when `flush`.
+fn write_line(output: &mut impl Write, text: &str, flush: bool) -> Result<()> {
     output
         .write_all(text.as_bytes())
-        .and_then(|()| output.flush())
+        .and_then(|()| if flush { output.flush() } else { Ok(()) })
         .context("cannot write to standard output")
 }
 
@@ -180,6 +187,14 @@ struct Lines<'a, R> {
     input: &'a mut R,
     bytes: Vec<u8>,
     number: usize,
+}
+
+impl<'a, R: Read> Lines<'a, std::io::BufReader<R>> {
+    /// Whether a whole further line is already read into the buffer (so the next
+    /// [`Lines::next`] does not wait).
+    fn has_line(&self) -> bool {
+        self.input.buffer().contains(&b'\n')
+    }
 }
 
 impl<'a, R: BufRead> Lines<'a, R> {
