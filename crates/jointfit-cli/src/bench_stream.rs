@@ -14,6 +14,8 @@
 //!   1000 frames of the throughput run and after its last, and its peak (`VmHWM`).
 //! * **In process**: [`jointfit::ik::StreamingIk::update`] alone on the same frames (the solve
 //!   without pipes, parsing or printing).
+//! * **Python**: `jointfit.StreamingIK.update` on the same frames, timed by `$JOINTFIT_PYTHON`
+//!   (or `python3`) when it imports the `jointfit` package; left out otherwise.
 
 use std::io::{BufRead, BufReader, Write};
 use std::process::{Command, Stdio};
@@ -75,6 +77,10 @@ pub struct StreamFigures {
     pub pipe_latency: Percentiles,
     /// `StreamingIk::update` alone, in this process.
     pub update_latency: Percentiles,
+    /// `jointfit.StreamingIK.update` from Python (None: no interpreter with the package).
+    pub python_update_latency: Option<Percentiles>,
+    /// Why the Python figure is missing.
+    pub python_note: Option<String>,
     /// Frames fed for throughput and memory.
     pub frames: usize,
     /// Frames per second when they arrive faster than they are solved (goal ≥ 20 000).
@@ -115,6 +121,10 @@ fn run_in(
     };
     fig.update_latency = in_process(model, trial, &feed, args.stream_latency_frames)?;
     fig.pipe_latency = pipe_latency(&model_path, &feed, args.stream_latency_frames)?;
+    match python_latency(&model_path, trial, dir, args.stream_latency_frames) {
+        Ok(p) => fig.python_update_latency = Some(p),
+        Err(e) => fig.python_note = Some(format!("{e:#}")),
+    }
     throughput(&model_path, &feed, args.stream_frames, &mut fig)?;
     Ok(fig)
 }
@@ -184,6 +194,78 @@ fn in_process(model: &Model, trial: &Trial, feed: &Feed, frames: usize) -> Resul
         us.push(t.elapsed().as_secs_f64() * 1e6);
     }
     Ok(Percentiles::of(us))
+}
+
+/// Times `jointfit.StreamingIK.update` (argv: model, feed file, frames) on the feed played
+/// forwards and backwards; prints the percentiles as JSON.
+const PYTHON_LATENCY: &str = r#"
+import json, sys, time, warnings
+import numpy as np
+import jointfit as jf
+model_path, feed_path, frames = sys.argv[1], sys.argv[2], int(sys.argv[3])
+with open(feed_path) as f:
+    labels = f.readline().rstrip("\n").split("\t")
+    rows = np.genfromtxt(f, delimiter="\t", dtype=np.float64, ndmin=2)
+markers = rows[:, 1:].reshape(len(rows), len(labels), 3) / 1000.0
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    s = jf.StreamingIK(jf.Model.load(model_path), labels, up="y")
+n = len(rows)
+order = list(range(n)) + list(range(n - 2, 0, -1))
+us = []
+for k in range(frames):
+    m = markers[order[k % len(order)]]
+    t0 = time.perf_counter()
+    s.update(m, time=k * 0.01)
+    us.append((time.perf_counter() - t0) * 1e6)
+us.sort()
+at = lambda q: us[round((len(us) - 1) * q)]
+print(json.dumps({"frames": frames, "p50_us": at(0.5), "p90_us": at(0.9), "p99_us": at(0.99),
+                  "p999_us": at(0.999), "max_us": at(1.0)}))
+"#;
+
+/// [`PYTHON_LATENCY`] run by `$JOINTFIT_PYTHON` (else `python3`) on the trial.
+fn python_latency(
+    model_path: &std::path::Path,
+    trial: &Trial,
+    dir: &std::path::Path,
+    frames: usize,
+) -> Result<Percentiles> {
+    let python = std::env::var_os("JOINTFIT_PYTHON").unwrap_or_else(|| "python3".into());
+    let script = dir.join("latency.py");
+    std::fs::write(&script, PYTHON_LATENCY)?;
+    let feed = Feed::new(trial);
+    let mut text = feed.header.clone();
+    for k in 0..trial.n_frames() {
+        text.push_str(&feed.line(k));
+    }
+    let feed_path = dir.join("feed.tsv");
+    std::fs::write(&feed_path, text)?;
+    let out = Command::new(&python)
+        .arg(&script)
+        .arg(model_path)
+        .arg(&feed_path)
+        .arg(frames.max(1).to_string())
+        .output()
+        .with_context(|| format!("running {}", python.to_string_lossy()))?;
+    if !out.status.success() {
+        let err = String::from_utf8_lossy(&out.stderr);
+        bail!(
+            "{} could not time jointfit.StreamingIK: {}",
+            python.to_string_lossy(),
+            err.lines().last().unwrap_or("").trim()
+        );
+    }
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout)?;
+    let get = |k: &str| v[k].as_f64().with_context(|| format!("no {k} from Python"));
+    Ok(Percentiles {
+        frames: frames.max(1),
+        p50_us: get("p50_us")?,
+        p90_us: get("p90_us")?,
+        p99_us: get("p99_us")?,
+        p999_us: get("p999_us")?,
+        max_us: get("max_us")?,
+    })
 }
 
 /// `jointfit stream MODEL --up y` with piped standard input and output.
@@ -316,6 +398,14 @@ pub fn print(fig: &StreamFigures) {
         "  update() in process       p50 {:.1} µs, p99 {:.1} µs, max {:.0} µs",
         u.p50_us, u.p99_us, u.max_us
     );
+    match (&fig.python_update_latency, &fig.python_note) {
+        (Some(p), _) => println!(
+            "  Python StreamingIK.update p50 {:.1} µs, p99 {:.1} µs, max {:.0} µs",
+            p.p50_us, p.p99_us, p.max_us
+        ),
+        (None, Some(note)) => println!("  Python: not timed ({note})"),
+        (None, None) => {}
+    }
     if fig.frames > 0 {
         println!(
             "stream, {} frames piped    {:8.0} frames/s  (goal ≥ 20000; {} not solved)",

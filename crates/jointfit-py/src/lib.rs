@@ -14,6 +14,7 @@ use pyo3::prelude::*;
 mod calibration;
 mod model;
 mod solve;
+mod stream;
 mod trial;
 
 create_exception!(
@@ -59,6 +60,7 @@ fn _jointfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<model::PyModel>()?;
     m.add_class::<solve::PyIkResult>()?;
     m.add_class::<calibration::PyCalibration>()?;
+    m.add_class::<stream::PyStreamingIk>()?;
     m.add_function(wrap_pyfunction!(solve::personalize, m)?)?;
     m.add_function(wrap_pyfunction!(solve::ik, m)?)?;
     m.add_function(wrap_pyfunction!(solve::synthesize, m)?)?;
