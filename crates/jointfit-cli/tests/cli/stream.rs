@@ -266,3 +266,41 @@ fn malformed_lines_are_one_line_errors_naming_the_line() {
     let (ok, _, err) = stream(&["lower-limb-right"], "RASI\tRASI\n");
     assert!(!ok && err.contains("twice"), "{err}");
 }
+
+/// `bench --stream-only` feeds `jointfit stream` through pipes and reports every figure
+/// (their values are timings, not asserted): the synthetic gait without the shared data.
+#[test]
+fn bench_stream_section_reports_its_figures() {
+    let (ok, out, err) = super::jointfit(&[
+        "bench",
+        "--data",
+        "/nonexistent-jointfit-data",
+        "--stream-only",
+        "--stream-frames",
+        "3000",
+        "--stream-latency-frames",
+        "300",
+        "--json",
+    ]);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).expect("valid JSON");
+    for part in ["pipe_latency", "update_latency"] {
+        assert_eq!(v[part]["frames"].as_u64(), Some(300), "{out}");
+        let p50 = v[part]["p50_us"].as_f64().unwrap();
+        let max = v[part]["max_us"].as_f64().unwrap();
+        assert!(p50 > 0.0 && p50 <= max && max.is_finite(), "{out}");
+    }
+    assert_eq!(v["frames"].as_u64(), Some(3000));
+    assert_eq!(v["unsolved_frames"].as_u64(), Some(0), "{out}");
+    assert!(v["pipe_frames_per_second"].as_f64().unwrap() > 0.0);
+    let (early, end) = (
+        v["rss_after_1000_mb"].as_f64().unwrap(),
+        v["rss_at_end_mb"].as_f64().unwrap(),
+    );
+    assert!(early > 0.0 && end > 0.0, "{out}");
+    // The Python figure is there or says why not.
+    assert!(
+        v["python_update_latency"].is_object() || v["python_note"].is_string(),
+        "{out}"
+    );
+}
