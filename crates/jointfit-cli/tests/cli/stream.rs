@@ -87,7 +87,7 @@ fn stream_equals_ik(
         mot.to_str().unwrap(),
     ]);
     assert!(ok, "{err}");
-    let (ok, out, err) = stream(&[model], &feed_from_trc(trc));
+    let (ok, out, err) = stream(&[model], feed_from_trc(trc));
     assert!(ok, "{err}");
     let (ik_header, ik_rows) = mot_rows(&mot);
     let (header, rows) = stream_rows(&out);
