@@ -51,6 +51,8 @@ pub struct BenchArgs {
     /// file reading and writing (0: skip).
     #[arg(long, default_value_t = 100_000)]
     io_frames: usize,
+    #[command(flatten)]
+    stream: crate::bench_stream::StreamBenchArgs,
     /// Only the 27-parameter joint calibration of the workload, this many times: each wall
     /// time and the fastest (for profilers and quick comparisons; 0: the full bench).
     #[arg(long, default_value_t = 0)]
@@ -120,6 +122,8 @@ struct Figures {
     peak_rss_mb: Option<f64>,
     /// Reading and writing in an `ik` run on the workload repeated to `io_frames` frames.
     ik_io: Option<bench_perf::IkIo>,
+    /// `jointfit stream` through pipes (`bench_stream`).
+    stream: Option<crate::bench_stream::StreamFigures>,
 }
 
 /// Median wall time (s) of `runs` calls of `f`.
@@ -163,6 +167,16 @@ pub fn run(args: BenchArgs) -> Result<()> {
     }
     if let Some(part) = &args.profile {
         return crate::bench_profile::run(&model, &trial, part, args.repeat, args.io_frames);
+    }
+    if args.stream.stream_only {
+        let s = crate::bench_stream::run(&model, &trial, &args.stream)?;
+        if args.json {
+            println!("{}", serde_json::to_string_pretty(&s)?);
+        } else {
+            println!("workload: {source}");
+            crate::bench_stream::print(&s);
+        }
+        return Ok(());
     }
     let map = MarkerMap::by_name(&model, trial.labels())?;
     let opts = IkOptions::default();
@@ -310,6 +324,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
     if args.io_frames > 0 {
         fig.ik_io = Some(bench_perf::ik_io(&model, &trial, args.io_frames, 3)?);
     }
+    if args.stream.stream_frames > 0 {
+        fig.stream = Some(crate::bench_stream::run(&model, &trial, &args.stream)?);
+    }
 
     if args.json {
         println!("{}", serde_json::to_string_pretty(&fig)?);
@@ -395,6 +412,9 @@ pub fn run(args: BenchArgs) -> Result<()> {
             "ik on {} frames (the trial repeated): read {:.3} s, solve {:.3} s, write {:.3} s (I/O share {:.2}, goal < 0.33)",
             io.frames, io.read_s, io.ik_s, io.write_s, io.io_share
         );
+    }
+    if let Some(s) = &fig.stream {
+        crate::bench_stream::print(s);
     }
     Ok(())
 }

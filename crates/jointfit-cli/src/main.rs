@@ -12,6 +12,7 @@ mod batch_cmd;
 mod bench_cmd;
 mod bench_perf;
 mod bench_profile;
+mod bench_stream;
 mod bench_workload;
 mod calibrate_cmd;
 mod calibrate_text;
@@ -30,6 +31,7 @@ mod prior_args;
 mod progress;
 mod report_cmd;
 mod reproduce_cmd;
+mod stream_cmd;
 mod synth_cmd;
 mod table;
 
@@ -82,6 +84,9 @@ enum Command {
     Calibrate(calibrate_cmd::CalibrateArgs),
     /// Inverse kinematics of a trial with a subject model (the inner level).
     Ik(ik_cmd::IkArgs),
+    /// Inverse kinematics of a live marker feed: labels then one frame per line on stdin (mm),
+    /// coordinates per line on stdout (degrees, metres), flushed per frame.
+    Stream(stream_cmd::StreamArgs),
     /// Write an HTML report (figures, parameter table) of a fitted model on trials.
     Report(report_cmd::ReportArgs),
     /// Export a model to other programs' formats (OpenSim .osim).
@@ -125,6 +130,7 @@ fn main() -> ExitCode {
         Command::Inspect(args) => data_cmd::inspect(args),
         Command::Convert(args) => data_cmd::convert(args),
         Command::Ik(args) => ik_cmd::run(args),
+        Command::Stream(args) => stream_cmd::run(args),
         Command::Calibrate(args) => calibrate_cmd::run(args),
         Command::Batch(args) => batch_cmd::run(args),
         Command::Check(args) => check_cmd::run(args),

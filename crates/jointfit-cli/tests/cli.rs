@@ -57,6 +57,8 @@ mod reliability;
 mod repair;
 #[path = "cli/report.rs"]
 mod report;
+#[path = "cli/stream.rs"]
+mod stream;
 #[path = "cli/synth.rs"]
 mod synth;
 #[path = "cli/up.rs"]

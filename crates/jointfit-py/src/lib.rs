@@ -14,6 +14,7 @@ use pyo3::prelude::*;
 mod calibration;
 mod model;
 mod solve;
+mod stream;
 mod trial;
 
 create_exception!(
@@ -60,6 +61,7 @@ fn _jointfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<solve::PyIkResult>()?;
     m.add_class::<calibration::PyCalibration>()?;
     m.add_class::<calibration::PyVerdict>()?;
+    m.add_class::<stream::PyStreamingIk>()?;
     m.add_function(wrap_pyfunction!(solve::personalize, m)?)?;
     m.add_function(wrap_pyfunction!(solve::ik, m)?)?;
     m.add_function(wrap_pyfunction!(solve::synthesize, m)?)?;

@@ -101,6 +101,41 @@ class IkResult:
     @property
     def times(self) -> npt.NDArray[np.float64]: ...
 
+class StreamingIK:
+    """Inverse kinematics of a live marker feed, one frame per `update` (GIL released)."""
+
+    def __init__(
+        self,
+        model: _ModelArg,
+        labels: Sequence[str],
+        up: Optional[str] = None,
+        hold_undetermined: bool = False,
+        keep_outliers: bool = False,
+    ) -> None: ...
+    def update(
+        self, markers: npt.NDArray[np.float64], time: Optional[float] = None
+    ) -> npt.NDArray[np.float64]:
+        """markers (len(labels), 3) in m, lab frame, NaN if missing -> coordinates (rad, m),
+        NaN when the frame cannot be solved."""
+    def reset(self) -> None: ...
+    @property
+    def coordinate_names(self) -> List[str]: ...
+    @property
+    def marker_names(self) -> List[str]: ...
+    @property
+    def absent(self) -> List[str]: ...
+    @property
+    def held(self) -> List[str]: ...
+    @property
+    def solved(self) -> bool: ...
+    @property
+    def status(self) -> Optional[str]: ...
+    @property
+    def errors(self) -> npt.NDArray[np.float64]:
+        """(markers,), m, the last frame's marker distances."""
+    @property
+    def rejected(self) -> List[str]: ...
+
 class Calibration:
     @property
     def model(self) -> Model: ...

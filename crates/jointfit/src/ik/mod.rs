@@ -45,6 +45,7 @@ mod seed;
 #[cfg(test)]
 mod seed_tests;
 pub mod solvable;
+mod stream;
 mod trial_fit;
 
 use thiserror::Error;
@@ -53,6 +54,7 @@ pub use frames::warm_started_coords;
 pub use lm::{is_gross, solve_frame, undetermined_coordinate, IkWorkspace};
 pub use markers::MarkerMap;
 pub use seed::{seed_frame, seed_frame_by_scouting};
+pub use stream::{StreamError, StreamingIk};
 pub use trial_fit::{
     chunk_ranges, extrapolate, rms, solve_trial, solve_trial_alongside, solve_trial_in_chunks,
     trial_chunk_ranges, unsolved_ranges, TrialFit, UnsolvedRange, MIN_SPLIT_FRAMES,

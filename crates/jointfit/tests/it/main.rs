@@ -7,6 +7,7 @@ mod ik;
 mod ik_clamped;
 mod ik_parallel;
 mod ik_robust;
+mod ik_stream;
 mod kinematics;
 mod landmarks;
 mod models;

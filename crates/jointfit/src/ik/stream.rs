@@ -1,0 +1,330 @@
+//! Inverse kinematics of a live marker feed, one frame at a time ([`StreamingIk`]).
+//!
+//! Each frame solves the inner-level problem of the module docs ([`super`]),
+//!
+//! `q_t = argmin_q Σ_j w_j ‖m_j(t) − x_j(p, q)‖²`,
+//!
+//! with the rules of the trial loop ([`super::solve_trial`]) applied to the frames as they
+//! arrive: the first frame, and the first after a frame whose result was not finite, is seeded
+//! ([`super::seed_frame`]); the frame after a seeded or unsolved one starts from the last
+//! solution; every other frame from the linear extrapolation `2 q_{t−1} − q_{t−2}` of the two
+//! before ([`super::extrapolate`]). Solvability ([`super::solvable`]), gross-error rejection
+//! ([`IkOptions::outlier_distance`]), clamped coordinates and holding undetermined coordinates
+//! ([`IkOptions::hold_undetermined`]) are those of [`super::solve_frame`] and the trial loop,
+//! and each pose is reported on the branch inside the model's coordinate ranges
+//! ([`super::branch`]).
+//!
+//! **What equals the trial loop.** Frames `0..n` fed in order give bit for bit the
+//! coordinates, errors and statuses of [`super::solve_trial_in_chunks`] with the one chunk
+//! `0..n`, on every frame its repair pass left alone ([`super::repair`]: a frame whose RMS is
+//! far above the trial's median is re-solved from its neighbours, which needs the frames that
+//! have not arrived yet; a stream cannot apply it). [`super::solve_trial`] cuts a trial of 128
+//! frames or more into chunks and seeds the first frame of each; those frames and the ones
+//! after them reach the same minimum from another start, so their coordinates agree with the
+//! stream's to within the solver's step tolerance ([`IkOptions::step_tolerance`]), not bit for
+//! bit.
+//!
+//! Samples are taken as a trial file's reader takes them: a sample with a coordinate that is
+//! not finite is missing, and the others are rotated from the laboratory's vertical to the
+//! model's Y up (`crate::trial::up_axis_rotation`, as `Trial::rotate`).
+//!
+//! Memory does not grow with the stream: the object keeps the last two solutions, one
+//! workspace and the bounded cache of solvability verdicts.
+
+use nalgebra::{Matrix3, Vector3};
+use thiserror::Error;
+
+use super::branch::Branches;
+use super::lm::frame_weights;
+use super::trial_fit::marker_errors;
+use super::{
+    extrapolate, seed_frame, solve_frame, FrameFit, FrameStatus, IkError, IkOptions, IkWorkspace,
+    MarkerMap,
+};
+use crate::model::Model;
+use crate::trial::{up_axis_rotation, Trial, UpAxis};
+
+/// Why a feed cannot be set up, or a frame not taken.
+#[derive(Debug, Error, PartialEq)]
+pub enum StreamError {
+    #[error("the feed has no marker labels")]
+    NoLabels,
+    #[error("the feed has the label {0:?} twice")]
+    DuplicateLabel(String),
+    #[error(
+        "no label of the feed is a marker of the model ({model_markers} model markers); the \
+         feed has: {available}"
+    )]
+    NoCommonMarker {
+        model_markers: usize,
+        available: String,
+    },
+    #[error(transparent)]
+    Ik(#[from] IkError),
+    #[error("the model cannot hold its undetermined coordinates: {0}")]
+    Hold(String),
+    #[error("{got} marker positions for {expected} labels")]
+    MarkerCount { got: usize, expected: usize },
+    #[error("time {0} is not a finite number")]
+    TimeNotFinite(f64),
+    #[error("time {time} s does not follow the previous frame's time {previous} s")]
+    TimeNotIncreasing { time: f64, previous: f64 },
+}
+
+/// Inverse kinematics of a marker feed, frame by frame, warm-started from the frames before
+/// (see the module docs). Owns its model and workspace; `Send`, so it can move to the
+/// thread that reads the feed.
+#[derive(Debug, Clone)]
+pub struct StreamingIk {
+    model: Model,
+    p: Vec<f64>,
+    map: MarkerMap,
+    n_labels: usize,
+    /// Model markers the feed lacks (missing in every frame).
+    absent: Vec<String>,
+    /// Coordinates locked at their defaults because no label determines them.
+    held: Vec<String>,
+    /// Laboratory → model frame.
+    rotation: Matrix3<f64>,
+    opts: IkOptions,
+    ws: IkWorkspace,
+    branches: Branches,
+    targets: Vec<Vector3<f64>>,
+    /// The last two solutions (as solved, before choosing their branch) when they belong to
+    /// consecutive frames, as in the trial loop.
+    q: Option<Vec<f64>>,
+    q_before: Option<Vec<f64>>,
+    /// The last frame's reported coordinates (NaN when not solved), errors and outcome.
+    coords: Vec<f64>,
+    errors: Vec<f64>,
+    fit: Option<FrameFit>,
+    last_time: Option<f64>,
+}
+
+impl StreamingIk {
+    /// A stream of the feed whose samples come in the order of `labels`, in the frame of a
+    /// laboratory whose vertical is `up`, solved with `model` at parameters `p`. Model
+    /// markers the feed lacks are missing in every frame ([`StreamingIk::absent`]), as
+    /// [`MarkerMap::allowing_absent`] pairs them for a trial; labels the model lacks are
+    /// ignored.
+    pub fn new(
+        model: Model,
+        p: Vec<f64>,
+        labels: &[String],
+        up: UpAxis,
+        opts: IkOptions,
+    ) -> Result<Self, StreamError> {
+        check_labels(labels)?;
+        if p.len() != model.n_p() {
+            return Err(IkError::ParamLength {
+                got: p.len(),
+                expected: model.n_p(),
+            }
+            .into());
+        }
+        let (map, absent) = MarkerMap::allowing_absent(&model, labels);
+        if absent.len() == model.n_markers() {
+            return Err(StreamError::NoCommonMarker {
+                model_markers: model.n_markers(),
+                available: labels.join(", "),
+            });
+        }
+        let ws = IkWorkspace::new(&model);
+        let branches = Branches::new(&model);
+        Ok(StreamingIk {
+            p,
+            map,
+            n_labels: labels.len(),
+            absent,
+            held: Vec::new(),
+            rotation: up_axis_rotation(up),
+            opts,
+            ws,
+            branches,
+            targets: Vec::with_capacity(model.n_markers()),
+            q: None,
+            q_before: None,
+            coords: vec![f64::NAN; model.n_q()],
+            errors: vec![f64::NAN; model.n_markers()],
+            fit: None,
+            last_time: None,
+            model,
+        })
+    }
+
+    /// [`StreamingIk::new`] at the model's nominal parameters, with the coordinates no label
+    /// of the feed determines locked at their defaults first (a toe joint without toe
+    /// markers), as inverse kinematics of a trial does
+    /// ([`crate::workflow::hold_undetermined`], judged with every label present; their names
+    /// in [`StreamingIk::held`]).
+    pub fn for_feed(
+        model: &Model,
+        labels: &[String],
+        up: UpAxis,
+        opts: IkOptions,
+    ) -> Result<Self, StreamError> {
+        check_labels(labels)?;
+        // One frame with every label present: solvability depends only on which markers are
+        // present.
+        let probe = Trial::new(
+            labels.to_vec(),
+            1.0,
+            0,
+            vec![Vector3::repeat(1.0); labels.len()],
+        )
+        .map_err(|e| StreamError::Hold(e.to_string()))?;
+        let (held_model, held) = crate::workflow::hold_undetermined(model, &[&probe])
+            .map_err(|e| StreamError::Hold(e.to_string()))?;
+        let model = held_model.unwrap_or_else(|| model.clone());
+        let p = model.nominal_params();
+        let mut stream = StreamingIk::new(model, p, labels, up, opts)?;
+        stream.held = held;
+        Ok(stream)
+    }
+
+    /// Solves the frame at `time` (s) from `markers`: one position per feed label, in its
+    /// order, in metres in the laboratory frame (NaN or any non-finite coordinate: missing).
+    /// Returns the coordinates in model order (rad, m; NaN when the frame is not solved; see
+    /// [`StreamingIk::last_fit`] for why). Errors, without changing the stream, when the
+    /// number of positions is not the number of labels or `time` does not increase.
+    pub fn update(&mut self, time: f64, markers: &[Vector3<f64>]) -> Result<&[f64], StreamError> {
+        if markers.len() != self.n_labels {
+            return Err(StreamError::MarkerCount {
+                got: markers.len(),
+                expected: self.n_labels,
+            });
+        }
+        if !time.is_finite() {
+            return Err(StreamError::TimeNotFinite(time));
+        }
+        if let Some(previous) = self.last_time.filter(|&t| time <= t) {
+            return Err(StreamError::TimeNotIncreasing { time, previous });
+        }
+        self.last_time = Some(time);
+        self.set_targets(markers);
+        self.solve();
+        Ok(&self.coords)
+    }
+
+    /// Forgets the frames before: the next frame is seeded, as the first.
+    pub fn reset(&mut self) {
+        self.q = None;
+        self.q_before = None;
+        self.last_time = None;
+    }
+
+    /// The model the frames are solved with (with [`StreamingIk::held`] coordinates locked).
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// The parameters the frames are solved at.
+    pub fn params(&self) -> &[f64] {
+        &self.p
+    }
+
+    /// Model markers the feed lacks: missing in every frame.
+    pub fn absent(&self) -> &[String] {
+        &self.absent
+    }
+
+    /// Coordinates locked at their defaults by [`StreamingIk::for_feed`].
+    pub fn held(&self) -> &[String] {
+        &self.held
+    }
+
+    /// The outcome of the last frame (`None` before the first).
+    pub fn last_fit(&self) -> Option<&FrameFit> {
+        self.fit.as_ref()
+    }
+
+    /// The last frame's coordinates (see [`StreamingIk::update`]).
+    pub fn coords(&self) -> &[f64] {
+        &self.coords
+    }
+
+    /// The last frame's marker distances `‖m − x‖` per model marker (m; NaN for missing and
+    /// rejected markers and in a frame not solved).
+    pub fn errors(&self) -> &[f64] {
+        &self.errors
+    }
+
+    /// Model-ordered targets of one feed frame in the model's frame, as a trial's reader and
+    /// [`MarkerMap::targets`] would give them.
+    fn set_targets(&mut self, markers: &[Vector3<f64>]) {
+        let nan = Vector3::repeat(f64::NAN);
+        let r = &self.rotation;
+        self.targets.clear();
+        self.targets
+            .extend(self.map.columns.iter().map(|c| match c {
+                Some(c) => {
+                    let m = markers[*c];
+                    if m.iter().all(|v| v.is_finite()) {
+                        r * m
+                    } else {
+                        nan
+                    }
+                }
+                None => nan,
+            }));
+    }
+
+    /// One step of the trial loop (`trial_fit::solve_range`) on the current targets.
+    fn solve(&mut self) {
+        let (model, p) = (&self.model, &self.p[..]);
+        let mut qf = match (&self.q, &self.q_before) {
+            (Some(prev), Some(before)) => extrapolate(prev, before),
+            (Some(prev), None) => prev.clone(),
+            (None, _) => seed_frame(model, p, &self.targets, &self.opts, &mut self.ws),
+        };
+        let no_hold = IkOptions {
+            hold_undetermined: false,
+            ..self.opts
+        };
+        let frame_opts = match &self.q {
+            Some(prev) if self.opts.hold_undetermined => {
+                // Held coordinates stay exactly at the previous frame's values.
+                let mut rejected = Vec::new();
+                frame_weights(model, &self.targets, &mut self.ws.weights, &mut rejected);
+                for &c in self
+                    .ws
+                    .solvability
+                    .undetermined(model, p, &self.ws.weights, &self.opts)
+                {
+                    qf[c] = prev[c];
+                }
+                &self.opts
+            }
+            _ => &no_hold,
+        };
+        let fit = solve_frame(model, p, &self.targets, &mut qf, frame_opts, &mut self.ws);
+        if fit.solved() {
+            self.errors = marker_errors(model, &self.targets, &fit, &self.ws);
+            self.coords.copy_from_slice(&qf);
+            self.branches.canonicalize(&mut self.coords);
+            self.q_before = self.q.replace(qf);
+        } else {
+            self.errors.fill(f64::NAN);
+            self.coords.fill(f64::NAN);
+            // Across a gap the velocity is unknown: restart from the last solution alone;
+            // after a result that went wrong, from seeding.
+            self.q_before = None;
+            if fit.status == FrameStatus::Diverged {
+                self.q = None;
+            }
+        }
+        self.fit = Some(fit);
+    }
+}
+
+/// Labels must be given, each once.
+fn check_labels(labels: &[String]) -> Result<(), StreamError> {
+    if labels.is_empty() {
+        return Err(StreamError::NoLabels);
+    }
+    let mut seen = std::collections::HashSet::new();
+    match labels.iter().find(|l| !seen.insert(l.as_str())) {
+        Some(l) => Err(StreamError::DuplicateLabel(l.clone())),
+        None => Ok(()),
+    }
+}
