@@ -271,3 +271,117 @@ mod tests {
         );
     }
 }
+
+/// One body measurement of a subject model against the range people have.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Measure {
+    /// What is measured, e.g. `thigh length (right)`.
+    pub what: String,
+    /// The model's value (mm, or a plain ratio when `unit` is empty).
+    pub value: f64,
+    /// The plausible range, same unit.
+    pub range: [f64; 2],
+    pub unit: &'static str,
+}
+
+impl Measure {
+    pub fn ok(&self) -> bool {
+        (self.range[0]..=self.range[1]).contains(&self.value)
+    }
+
+    /// `thigh length (right) 120 mm, outside 300–560 mm`.
+    pub fn line(&self) -> String {
+        let u = if self.unit.is_empty() {
+            String::new()
+        } else {
+            format!(" {}", self.unit)
+        };
+        let d = if self.unit.is_empty() { 2 } else { 0 };
+        format!(
+            "{} {:.d$}{u}, outside the {:.d$}–{:.d$}{u} of adults",
+            self.what, self.value, self.range[0], self.range[1]
+        )
+    }
+}
+
+/// Thigh length range (mm): hip centre to knee axis. Winter (2009, Biomechanics and Motor
+/// Control of Human Movement, 4th ed., Table 4.1) gives 0.245 × stature, 343–515 mm for
+/// statures 1.40–2.10 m; widened by 10 % for where the landmark method puts the centres.
+pub const THIGH_MM: [f64; 2] = [300.0, 570.0];
+/// Shank length range (mm): knee axis to talocrural axis, 0.246 × stature (same source).
+pub const SHANK_MM: [f64; 2] = [300.0, 570.0];
+/// Inter-ASIS width range (mm): 190–300 mm in adults (Bell et al. 1990, J Biomech
+/// 23:617–621: 20 adults 205–288 mm), widened for marker radius and obesity.
+pub const PELVIS_MM: [f64; 2] = [150.0, 380.0];
+/// Thigh-to-shank length ratio range: 1.0 ± 0.1 in Winter's proportions, widened for where
+/// the landmark method puts the centres.
+pub const THIGH_SHANK_RATIO: [f64; 2] = [0.7, 1.45];
+
+/// The subject model's thigh and shank lengths, their ratio and the pelvis width at
+/// parameters `p`, for every leg of the lower-limb template the model has (parameter names
+/// of [`crate::model::lower_limb`]); empty for other models.
+pub fn anthropometry(model: &Model, p: &[f64]) -> Vec<Measure> {
+    let mut out = Vec::new();
+    if let Some(half) = half_pelvis_width(model) {
+        out.push(Measure {
+            what: "inter-ASIS width".into(),
+            value: 2.0 * half * 1e3,
+            range: PELVIS_MM,
+            unit: "mm",
+        });
+    }
+    for (suffix, leg) in [("", ""), ("_r", " (right)"), ("_l", " (left)")] {
+        let point = |names: [&str; 3]| -> Option<Vector3<f64>> {
+            let ids: Vec<Option<usize>> = names
+                .iter()
+                .map(|n| model.param_id(&format!("{n}{suffix}")).map(|x| x.0))
+                .collect();
+            ids.iter()
+                .any(Option::is_some)
+                .then(|| Vector3::from_iterator(ids.iter().map(|i| i.map_or(0.0, |i| p[i]))))
+        };
+        let hip = point([
+            "hip_thigh_anterior",
+            "hip_thigh_superior",
+            "hip_thigh_lateral",
+        ]);
+        let knee_thigh = point([
+            "knee_thigh_anterior",
+            "knee_thigh_superior",
+            "knee_thigh_lateral",
+        ]);
+        let knee_shank = point([
+            "knee_shank_anterior",
+            "knee_shank_superior",
+            "knee_shank_lateral",
+        ]);
+        let ankle = point([
+            "talocrural_shank_anterior",
+            "talocrural_shank_superior",
+            "talocrural_shank_lateral",
+        ]);
+        let (Some(h), Some(kt), Some(ks), Some(a)) = (hip, knee_thigh, knee_shank, ankle) else {
+            continue;
+        };
+        let (thigh, shank) = ((kt - h).norm() * 1e3, (a - ks).norm() * 1e3);
+        out.push(Measure {
+            what: format!("thigh length{leg}"),
+            value: thigh,
+            range: THIGH_MM,
+            unit: "mm",
+        });
+        out.push(Measure {
+            what: format!("shank length{leg}"),
+            value: shank,
+            range: SHANK_MM,
+            unit: "mm",
+        });
+        out.push(Measure {
+            what: format!("thigh-to-shank length ratio{leg}"),
+            value: thigh / shank,
+            range: THIGH_SHANK_RATIO,
+            unit: "",
+        });
+    }
+    out
+}
