@@ -6,7 +6,11 @@
 //! present (of at most 400 evenly spaced ones); each marker's position is its median over
 //! those of them in which it is present. Then:
 //!
-//! 1. **Ignored**: virtual joint centres (`HJC`, `KJC`, `AJC`) and upper-body labels (head,
+//! 1. **Ignored**: trajectories no one labelled ([`automatic_label`]: Vicon's `*118`,
+//!    `Unlabeled 12`, numbered auto-labels such as `M003`, `Marker12`, `New 0004`, bare
+//!    numbers), points that are not markers (floor projections such as `*Ground`, Plug-in
+//!    Gait's joint-centre and segment-axis outputs `RFEP`, `RFEO`, `RTIO`, …, centres of mass),
+//!    virtual joint centres (`HJC`, `KJC`, `AJC`) and upper-body labels (head,
 //!    trunk, arms), markers more than 0.35 m from the pelvis centre sideways or above 0.9 of
 //!    the ASIS height (unless named as thigh markers, e.g. a trochanter), and markers missing
 //!    in more than half of the frames read.
@@ -81,6 +85,70 @@ const SHANK: &[&str] = &["tib", "sh", "shank", "fib"];
 const FOOT: &[&str] = &[
     "nav", "foot", "mid", "cun", "toe", "hee", "calc", "mt", "meta",
 ];
+
+/// Computed points as normalized labels: Plug-in Gait's segment origins (pelvis, femur,
+/// tibia, foot, toe: the joint centres) and proximal femur point (the hip centre), joint
+/// centres and centres of mass. (Its axis points `TIA`, `TIP`, … share their names with
+/// tibia markers of other sets and are not listed.)
+const COMPUTED: &[&str] = &[
+    "peo",
+    "feo",
+    "fep",
+    "tio",
+    "foo",
+    "too",
+    "hjc",
+    "kjc",
+    "ajc",
+    "com",
+    "centreofmass",
+    "centerofmass",
+    "cog",
+];
+
+/// Why `label` (normalized `norm`) is not a marker anyone placed, if it is not: an
+/// unlabelled trajectory (`*118`, `Unlabeled 12`, `M003`, `Marker12`, `New 0004`, `C_12`,
+/// bare numbers), a floor projection (`*Ground`, `…floor`, `…proj`) or a computed point.
+pub fn automatic_label(label: &str, norm: &str) -> Option<&'static str> {
+    let l = label.rsplit(':').next().unwrap_or(label).trim();
+    let lower = l.to_ascii_lowercase();
+    if lower.starts_with('*') {
+        return Some("an unlabelled or virtual trajectory (a '*' label)");
+    }
+    if lower.contains("unlabel") || lower.contains("unnamed") {
+        return Some("an unlabelled trajectory");
+    }
+    // A word of letters (or none) followed by a number and nothing else.
+    let stem = lower.trim_end_matches(|c: char| c.is_ascii_digit());
+    let digits = lower.len() - stem.len();
+    let stem = stem.trim_end_matches([' ', '_', '-', '.', '#']);
+    if digits > 0
+        && [
+            "",
+            "m",
+            "marker",
+            "mk",
+            "new",
+            "traj",
+            "trajectory",
+            "point",
+            "pt",
+        ]
+        .contains(&stem)
+    {
+        return Some("a numbered automatic label, not a named marker");
+    }
+    if ["ground", "floor", "proj"]
+        .iter()
+        .any(|k| lower.contains(k))
+    {
+        return Some("a floor projection, not a marker");
+    }
+    if COMPUTED.contains(&norm) {
+        return Some("a computed point (joint centre, segment axis or centre of mass)");
+    }
+    None
+}
 
 fn has(norm: &str, keys: &[&str]) -> bool {
     keys.iter().any(|k| norm.contains(k))
@@ -187,6 +255,10 @@ pub fn suggest(trial: &Trial, name: &str) -> Result<Suggestion, LandmarkError> {
             continue;
         }
         if has(&norm, IGNORE) {
+            continue;
+        }
+        if let Some(why) = automatic_label(label, &norm) {
+            notes.push(format!("ignored {label}: {why}"));
             continue;
         }
         let pos = Vector3::new(
@@ -491,4 +563,57 @@ fn leg(m: &[Marker], mine: &[usize], sign: f64) -> Result<(LegMarkers, Vec<Strin
         }
     }
     Ok((leg, notes))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn automatic_and_computed_labels_are_told_from_markers() {
+        for label in [
+            "*118",
+            "Subject:*12",
+            "Unlabeled 12",
+            "unlabelled_3",
+            "M003",
+            "Marker12",
+            "New 0004",
+            "traj_7",
+            "42",
+            "*Ground",
+            "RFloorProj",
+            "RFEP",
+            "LFEO",
+            "RTIO",
+            "LHJC",
+            "CentreOfMass",
+        ] {
+            let (norm, _) = normalize(label);
+            assert!(automatic_label(label, &norm).is_some(), "{label}");
+        }
+        for label in [
+            "RASI",
+            "L.PSIS",
+            "r_knee",
+            "RTIB",
+            "RTIA",
+            "RTIP",
+            "RTHI",
+            "LANK",
+            "RHEE",
+            "RMT5",
+            "R.Toe.Tip",
+            "r_sh2",
+            "r_thigh1",
+            "RKNM",
+            "V.Sacral",
+            "SACR",
+            "RFM1",
+            "LMT2",
+        ] {
+            let (norm, _) = normalize(label);
+            assert_eq!(automatic_label(label, &norm), None, "{label}");
+        }
+    }
 }
