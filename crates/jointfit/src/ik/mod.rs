@@ -45,6 +45,9 @@ mod seed;
 #[cfg(test)]
 mod seed_tests;
 pub mod solvable;
+mod tasks;
+#[cfg(test)]
+mod tasks_tests;
 mod trial_fit;
 
 use thiserror::Error;
@@ -53,6 +56,7 @@ pub use frames::warm_started_coords;
 pub use lm::{is_gross, solve_frame, undetermined_coordinate, IkWorkspace};
 pub use markers::MarkerMap;
 pub use seed::{seed_frame, seed_frame_by_scouting};
+pub use tasks::CoordinateTask;
 pub use trial_fit::{
     chunk_ranges, extrapolate, rms, solve_trial, solve_trial_alongside, solve_trial_in_chunks,
     trial_chunk_ranges, unsolved_ranges, TrialFit, UnsolvedRange, MIN_SPLIT_FRAMES,
@@ -83,9 +87,13 @@ pub struct IkOptions {
     /// determines (1e-8 rad = 6e-7 deg, 1e-8 m = 1e-5 mm).
     pub step_tolerance: f64,
     /// A rotational coordinate is undetermined when 1 mm of noise on the present markers
-    /// moves it by more than this standard deviation (rad; see [`solvable`]).
+    /// moves it by more than this standard deviation (rad; see [`solvable`]). The default,
+    /// 1 rad, is the rank test's tolerance: the markers act on the coordinate through a lever
+    /// arm shorter than 1 mm. (A wrist marker 17 mm from the pronation axis, 3.4° per mm,
+    /// determines pronation.)
     pub max_angle_per_mm: f64,
-    /// The same for a translational coordinate (m per mm of marker noise).
+    /// The same for a translational coordinate (m per mm of marker noise; default 1 m: the
+    /// markers move less than 1 mm per metre of the coordinate).
     pub max_translation_per_mm: f64,
     /// Solve frames with undetermined coordinates by holding those at the values they enter
     /// with (the previous frame's solution in [`solve_trial`]) instead of skipping them.
@@ -109,8 +117,8 @@ impl Default for IkOptions {
         IkOptions {
             max_iterations: 100,
             step_tolerance: 1e-8,
-            max_angle_per_mm: 2f64.to_radians(),
-            max_translation_per_mm: 0.01,
+            max_angle_per_mm: 1.0,
+            max_translation_per_mm: 1.0,
             hold_undetermined: false,
             outlier_distance: 0.05,
             outlier_ratio: 5.0,
