@@ -189,29 +189,17 @@ pub fn run(args: IkArgs) -> Result<()> {
     print_summary(&summary, args.json, seconds, &output)
 }
 
-/// `model` with the marker weights of `tasks` ([`IkTaskSet::marker_weights`]). A task naming
-/// no model marker is ignored, as OpenSim ignores it, with a warning.
+/// `model` with the marker weights of `tasks` ([`IkTaskSet::apply_marker_weights`]). A task
+/// naming no model marker is ignored, as OpenSim ignores it, with a warning.
 pub fn weighted_model(model: &Model, tasks: &IkTaskSet, setup: &Path) -> Result<Model> {
-    let names: Vec<&str> = model.markers().iter().map(|m| m.name.as_str()).collect();
-    let unknown: Vec<&str> = tasks
-        .markers
-        .iter()
-        .filter(|t| t.apply && !names.contains(&t.name.as_str()))
-        .map(|t| t.name.as_str())
-        .collect();
+    let mut spec = model.spec().clone();
+    let unknown = tasks.apply_marker_weights(&mut spec);
     if !unknown.is_empty() {
         eprintln!(
             "jointfit: warning: {}: IKMarkerTask {} name no marker of the model; ignored",
             setup.display(),
             unknown.join(", ")
         );
-    }
-    let weights = tasks.marker_weights(&names);
-    let mut spec = model.spec().clone();
-    for m in &mut spec.markers {
-        if let Some(j) = names.iter().position(|n| *n == m.name) {
-            m.weight = weights[j];
-        }
     }
     Ok(Model::compile(&spec)?)
 }

@@ -112,6 +112,25 @@ impl IkTaskSet {
             .collect()
     }
 
+    /// Sets the marker weights of `spec` to those of OpenSim's IK with these tasks
+    /// ([`IkTaskSet::marker_weights`]): the weights `jointfit ik --setup` fits with, and the
+    /// calibration's marker weights when it takes a setup's tasks. Returns the names of the
+    /// applied marker tasks that name no marker of `spec` (OpenSim ignores them).
+    pub fn apply_marker_weights(&self, spec: &mut jointfit::model::ModelSpec) -> Vec<String> {
+        let names: Vec<&str> = spec.markers.iter().map(|m| m.name.as_str()).collect();
+        let weights = self.marker_weights(&names);
+        let unknown = self
+            .markers
+            .iter()
+            .filter(|t| t.apply && !names.contains(&t.name.as_str()))
+            .map(|t| t.name.clone())
+            .collect();
+        for (m, w) in spec.markers.iter_mut().zip(weights) {
+            m.weight = w;
+        }
+        unknown
+    }
+
     /// The applied coordinate tasks (OpenSim skips the others).
     pub fn applied_coordinates(&self) -> impl Iterator<Item = &CoordinateTaskSpec> {
         self.coordinates.iter().filter(|t| t.apply)
@@ -568,6 +587,28 @@ mod tests {
         assert_eq!(
             t.marker_weights(&["Sternum", "R.ASIS", "Top.Head", "C7"]),
             vec![1.0, 10.0, 0.0, 0.0]
+        );
+    }
+
+    #[test]
+    fn marker_weights_applied_to_a_model_description() {
+        let s = parse_ik_setup(V3, Path::new("setup.xml")).unwrap();
+        let mut spec =
+            jointfit::model::lower_limb::lower_limb(jointfit::model::lower_limb::Side::Right);
+        spec.markers[0].name = "Sternum".into();
+        spec.markers[1].name = "R.ASIS".into();
+        let unknown = s.tasks.apply_marker_weights(&mut spec);
+        // Top.Head's task is not applied: not reported.
+        assert!(unknown.is_empty(), "{unknown:?}");
+        assert_eq!(spec.markers[0].weight, 1.0);
+        assert_eq!(spec.markers[1].weight, 10.0);
+        assert!(spec.markers[2..].iter().all(|m| m.weight == 0.0));
+        // Applied tasks without a marker are reported.
+        let mut spec =
+            jointfit::model::lower_limb::lower_limb(jointfit::model::lower_limb::Side::Right);
+        assert_eq!(
+            s.tasks.apply_marker_weights(&mut spec),
+            ["Sternum", "R.ASIS"]
         );
     }
 
