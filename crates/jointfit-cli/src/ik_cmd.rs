@@ -178,7 +178,7 @@ pub(crate) fn print_summary(
             "RMS marker error per frame: mean {:.2} mm, max {:.2} mm",
             summary.mean_frame_rms_mm, summary.max_frame_rms_mm
         );
-        if let Some(line) = unsolved_line(&summary) {
+        if let Some(line) = unsolved_line(summary) {
             println!("{line}");
         }
         if summary.held_frames > 0 {

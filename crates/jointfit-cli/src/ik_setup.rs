@@ -74,11 +74,11 @@ pub fn run(args: IkArgs) -> Result<()> {
             setup_path.display()
         ),
     };
-    let errors_sto = setup.report_errors.then(|| {
-        setup
-            .results_path()
-            .join(format!("{}_ik_marker_errors.sto", setup.name))
-    });
+    let errors_sto = if setup.report_errors {
+        errors_file(&setup, &setup_path)?
+    } else {
+        None
+    };
     let mut files = crate::output::Files::new()
         .model("model", &model_path)
         .input("setup", &setup_path)
@@ -162,9 +162,6 @@ pub fn run(args: IkArgs) -> Result<()> {
     write_sto(&output, &angles_table(&model, &trial, &fit))
         .with_context(|| format!("writing {}", output.display()))?;
     if let Some(path) = &errors_sto {
-        if let Some(dir) = path.parent() {
-            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        }
         write_sto(path, &marker_errors_table(&model, &trial, &fit))
             .with_context(|| format!("writing {}", path.display()))?;
     }
@@ -187,6 +184,33 @@ pub fn run(args: IkArgs) -> Result<()> {
         }
     }
     print_summary(&summary, args.json, seconds, &output)
+}
+
+/// Where OpenSim writes the marker errors: `<name>_ik_marker_errors.sto` in the results
+/// directory, which is made when its parent exists (OpenSim's `IO::makeDir` makes one
+/// level). A results directory that cannot be made (a setup from another machine, its path
+/// absolute there) is said and skipped: the motion is the result.
+fn errors_file(setup: &IkSetup, setup_path: &Path) -> Result<Option<PathBuf>> {
+    let dir = setup.results_path();
+    if !dir.is_dir() {
+        let parent_exists = match dir.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.is_dir(),
+            _ => true,
+        };
+        if !parent_exists {
+            eprintln!(
+                "jointfit: warning: {}: results_directory {:?} does not exist here; the marker \
+                 errors are not written",
+                setup_path.display(),
+                setup.results_directory.as_deref().unwrap_or("")
+            );
+            return Ok(None);
+        }
+        std::fs::create_dir(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    Ok(Some(
+        dir.join(format!("{}_ik_marker_errors.sto", setup.name)),
+    ))
 }
 
 /// `model` with the marker weights of `tasks` ([`IkTaskSet::apply_marker_weights`]). A task

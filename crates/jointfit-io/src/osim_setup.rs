@@ -384,7 +384,7 @@ pub fn parse_ik_setup(text: &str, path: &Path) -> Result<IkSetup, SetupError> {
         },
     };
     let accuracy = number(path, tool, "accuracy", 1e-5)?;
-    if !(accuracy > 0.0) {
+    if accuracy.is_nan() || accuracy <= 0.0 {
         return Err(invalid(
             path,
             child(tool, "accuracy").expect("present"),
@@ -451,7 +451,7 @@ fn task_set(path: &Path, set: Node) -> Result<IkTaskSet, SetupError> {
         }
         let apply = flag(path, task, "apply", true)?;
         let weight = number(path, task, "weight", 0.0)?;
-        if !(weight >= 0.0) {
+        if weight.is_nan() || weight < 0.0 {
             return Err(invalid(
                 path,
                 task,
