@@ -18,7 +18,9 @@
 //! A frame is solved when its present markers determine every coordinate through the chain
 //! ([`solvable`]); otherwise it is reported with the undetermined coordinate, or (with
 //! [`IkOptions::hold_undetermined`]) solved with those coordinates held at the previous
-//! frame's values. Gross errors do not reach the solution: a marker sample that is not finite
+//! frame's values (in a seeded frame, the seed's). A coordinate task
+//! ([`CoordinateTask`], OpenSim's `IKCoordinateTask`) adds `W w_c (q_c − q̂_c)²` to a frame's
+//! objective (`W` the frame's total marker weight; [`tasks`]). Gross errors do not reach the solution: a marker sample that is not finite
 //! or lies farther than 1 km from the origin counts as missing, and after the fit the marker
 //! farthest from its model position is rejected and the frame re-solved while that distance
 //! is both large and large against the frame's other residuals ([`IkOptions::outlier_distance`];
@@ -45,7 +47,7 @@ mod seed;
 #[cfg(test)]
 mod seed_tests;
 pub mod solvable;
-mod tasks;
+pub mod tasks;
 #[cfg(test)]
 mod tasks_tests;
 mod trial_fit;
@@ -96,7 +98,8 @@ pub struct IkOptions {
     /// markers move less than 1 mm per metre of the coordinate).
     pub max_translation_per_mm: f64,
     /// Solve frames with undetermined coordinates by holding those at the values they enter
-    /// with (the previous frame's solution in [`solve_trial`]) instead of skipping them.
+    /// with (the previous frame's solution in [`solve_trial`], the seed's in a seeded frame:
+    /// the defaults beyond the root) instead of skipping them.
     pub hold_undetermined: bool,
     /// After the fit, a marker farther than this from its model position (m) *and* farther
     /// than [`IkOptions::outlier_ratio`] times the median distance of the frame's present

@@ -265,3 +265,55 @@ fn a_single_marker_off_a_pin_axis_determines_it() {
     assert!(fit.solved(), "{:?}", fit.status);
     assert!((q[knee] - truth[knee]).abs() < 1e-8);
 }
+
+/// With `hold_undetermined`, a trial whose markers never determine the foot is solved from
+/// its first frame on, the foot held where the seed puts it (its defaults), as OpenSim's IK
+/// leaves a coordinate no goal depends on; the other coordinates are exact.
+#[test]
+fn held_from_the_first_frame_at_the_defaults() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p = model.nominal_params();
+    let ankle = model.coord_id("ankle_dorsiflexion").unwrap().0;
+    let subtalar = model.coord_id("subtalar_inversion").unwrap().0;
+    let knee = model.coord_id("knee_flexion").unwrap().0;
+    let truth: Vec<Vec<f64>> = (0..20)
+        .map(|f| {
+            let mut q = pose(&model);
+            q[knee] += 0.02 * f as f64;
+            q
+        })
+        .collect();
+    let mut positions = Vec::new();
+    for q in &truth {
+        for (j, x) in markers_at(&model, &p, q).into_iter().enumerate() {
+            let foot = ["RHEE", "RTOE", "RMT5"].contains(&model.markers()[j].name.as_str());
+            positions.push(if foot { Vector3::repeat(f64::NAN) } else { x });
+        }
+    }
+    let labels = model.markers().iter().map(|m| m.name.clone()).collect();
+    let trial = crate::trial::Trial::new(labels, 100.0, 1, positions).unwrap();
+    let map = super::MarkerMap::by_name(&model, trial.labels()).unwrap();
+    let opts = IkOptions {
+        hold_undetermined: true,
+        ..IkOptions::default()
+    };
+    let fit = super::solve_trial(&model, &p, &trial, &map, &opts).unwrap();
+    let defaults = model.default_coords();
+    for (f, q) in fit.coords.iter().enumerate() {
+        assert!(
+            fit.frames[f].solved(),
+            "frame {f}: {:?}",
+            fit.frames[f].status
+        );
+        assert_eq!(
+            (q[ankle], q[subtalar]),
+            (defaults[ankle], defaults[subtalar])
+        );
+        for c in (0..model.n_q()).filter(|&c| c != ankle && c != subtalar) {
+            assert!(
+                (q[c] - truth[f][c]).abs() < 1e-7,
+                "frame {f}, coordinate {c}"
+            );
+        }
+    }
+}

@@ -269,6 +269,9 @@ fn solve_range(
                 }
                 opts
             }
+            // A seeded frame holds what its markers leave undetermined at the seed's values
+            // (the defaults beyond the root), where OpenSim's IK starts and leaves them.
+            None if opts.hold_undetermined => opts,
             _ => &no_hold,
         };
         let fit = solve_frame(model, p, &targets, &mut qf, frame_opts, &mut ws);
