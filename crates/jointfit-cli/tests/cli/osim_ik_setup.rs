@@ -187,3 +187,85 @@ fn gait2392_setup_with_file_and_manual_tasks_no_frame_worse_than_opensim() {
     );
     assert_eq!(summary["solved_frames"], 121);
 }
+
+/// OpenCap's own IK setup of its Squats_0 trial (OpenSim 4 format, written on another machine:
+/// absolute Windows paths, so the model, the trial and the output are given as arguments; 47
+/// marker tasks of weights 5–30), against OpenCap's published OpenSim IK result of the same
+/// setup (`Squats_0.mot`), both judged by OpenSim's objective of that setup frame by frame:
+/// no frame worse by more than a relative 1e-6.
+#[test]
+fn opencap_squats_setup_no_frame_worse_than_opencaps_opensim_result() {
+    let Some(python) = jointfit_testkit::python() else {
+        return;
+    };
+    let rel = |n: &str| jointfit_testkit::data_file(&format!("opencap_video_subject0/{n}"));
+    let model_name = "LaiArnoldModified2017_poly_withArms_weldHand_scaled.osim";
+    let (Some(setup), Some(model), Some(trial), Some(reference)) = (
+        rel("Squats_0_setup_ik.xml"),
+        rel(model_name),
+        rel("Squats_0.trc"),
+        rel("Squats_0.mot"),
+    ) else {
+        return;
+    };
+    let scratch = jointfit_testkit::scratch("osim-ik-setup-opencap");
+    let dir = scratch.join("ik");
+    std::fs::create_dir_all(&dir).unwrap();
+    let ours = dir.join("jointfit.mot");
+    let (ok, out, err) = jointfit(&[
+        "ik",
+        "--setup",
+        setup.to_str().unwrap(),
+        model.to_str().unwrap(),
+        trial.to_str().unwrap(),
+        "-o",
+        ours.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(ok, "{err}");
+    assert!(err.contains("results_directory"), "{err}");
+    let summary: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(summary["solved_frames"], summary["frames"]);
+    // The oracle reads the setup's own paths: a copy naming the local files.
+    let text = std::fs::read_to_string(&setup).unwrap();
+    let element = |t: &str, tag: &str, value: &str| {
+        let (open, close) = (format!("<{tag}>"), format!("</{tag}>"));
+        let a = t.find(&open).unwrap() + open.len();
+        let b = t.find(&close).unwrap();
+        format!("{}{value}{}", &t[..a], &t[b..])
+    };
+    let text = element(&text, "model_file", model.to_str().unwrap());
+    let text = match text.find("<marker_file>") {
+        Some(_) => element(&text, "marker_file", trial.to_str().unwrap()),
+        None => text.replace(
+            "</InverseKinematicsTool>",
+            &format!(
+                "<marker_file>{}</marker_file></InverseKinematicsTool>",
+                trial.display()
+            ),
+        ),
+    };
+    std::fs::write(dir.join(SETUP), text).unwrap();
+    std::fs::write(dir.join("opencap.mot"), std::fs::read(&reference).unwrap()).unwrap();
+    let obj = objectives(&python, &dir, &["opencap.mot", "jointfit.mot"]);
+    let (os, jf) = (&obj[0], &obj[1]);
+    assert_eq!(os.len(), jf.len());
+    assert_eq!(jf.len() as u64, summary["frames"].as_u64().unwrap());
+    let mut worst = f64::NEG_INFINITY;
+    for (f, ((_, a), (t, b))) in os.iter().zip(jf).enumerate() {
+        let rel = b / a - 1.0;
+        worst = worst.max(rel);
+        assert!(
+            rel <= 1e-6,
+            "frame {f} (t = {t}): jointfit {b:e}, OpenSim {a:e}"
+        );
+    }
+    let sum = |v: &[(f64, f64)]| v.iter().map(|x| x.1).sum::<f64>();
+    eprintln!(
+        "OpenCap Squats_0 setup: {} frames; objective summed: jointfit {:.6e}, OpenCap's OpenSim \
+         {:.6e}; worst frame jointfit/OpenSim − 1 = {worst:.2e}",
+        jf.len(),
+        sum(jf),
+        sum(os)
+    );
+}
