@@ -1,4 +1,6 @@
-//! `jointfit ik <SUBJECT.toml> <TRIAL> -o <OUT.mot> [--errors <ERR.csv>] [--filter HZ] [--json]`.
+//! `jointfit ik <SUBJECT.toml> <TRIAL> -o <OUT.mot> [--errors <ERR.csv>] [--filter HZ] [--json]`,
+//! and `jointfit ik --setup <ik_setup.xml>` (an OpenSim `InverseKinematicsTool` setup: its
+//! model, marker file, task weights, coordinate tasks, time range and output; `setup.rs`).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -17,13 +19,26 @@ use crate::common::{load_for_model, report_findings, CheckJson, Columns, TrialJs
 
 #[derive(Args)]
 pub struct IkArgs {
-    /// Subject model (TOML file or built-in name).
-    pub model: String,
-    /// Motion file (.trc or .c3d).
-    pub trial: PathBuf,
-    /// Joint angles as an OpenSim .mot (degrees, metres).
-    #[arg(short, long)]
-    pub output: PathBuf,
+    /// Subject model (TOML file, OpenSim .osim or built-in name); with --setup, replaces the
+    /// setup's model_file.
+    #[arg(required_unless_present = "setup")]
+    pub model: Option<String>,
+    /// Motion file (.trc or .c3d); with --setup, replaces the setup's marker_file.
+    #[arg(required_unless_present = "setup")]
+    pub trial: Option<PathBuf>,
+    /// Joint angles as an OpenSim .mot (degrees, metres); with --setup, replaces the setup's
+    /// output_motion_file.
+    #[arg(short, long, required_unless_present = "setup")]
+    pub output: Option<PathBuf>,
+    /// An OpenSim InverseKinematicsTool setup file (OpenSim 3.x or 4.x): solves OpenSim's
+    /// weighted objective with its marker weights and coordinate tasks over its time range and
+    /// writes the motion (and the marker errors) where it says (docs/opensim.md).
+    #[arg(long, value_name = "IK_SETUP.xml")]
+    pub setup: Option<PathBuf>,
+    /// With --setup: reject gross marker errors after the fit as `ik` does without a setup
+    /// (OpenSim does not).
+    #[arg(long, requires = "setup")]
+    pub reject_outliers: bool,
     /// Per-frame and per-marker distance errors (mm) as CSV.
     #[arg(long)]
     pub errors: Option<PathBuf>,
@@ -46,7 +61,7 @@ pub struct IkArgs {
 }
 
 #[derive(Serialize)]
-struct Summary {
+pub(crate) struct Summary {
     frames: usize,
     solved_frames: usize,
     /// Runs of frames not solved (file frame numbers, inclusive) and why.
@@ -57,11 +72,11 @@ struct Summary {
     rejected: Vec<RejectedJson>,
     /// Data-check findings (warnings; errors stop the command), with the option that
     /// repairs each.
-    checks: Vec<CheckJson>,
+    pub(crate) checks: Vec<CheckJson>,
     /// The trial as read: vertical, reader notes, repairs (and the checks again).
-    trial: Option<TrialJson>,
-    mean_frame_rms_mm: f64,
-    max_frame_rms_mm: f64,
+    pub(crate) trial: Option<TrialJson>,
+    pub(crate) mean_frame_rms_mm: f64,
+    pub(crate) max_frame_rms_mm: f64,
     marker_rms_mm: Vec<(String, f64)>,
     solve_seconds: f64,
     frames_per_second: f64,
@@ -82,20 +97,30 @@ struct RejectedJson {
 }
 
 pub fn run(args: IkArgs) -> Result<()> {
+    if args.setup.is_some() {
+        return crate::ik_setup::run(args);
+    }
+    let (Some(model_name), Some(trial_path), Some(output)) = (
+        args.model.as_deref(),
+        args.trial.as_deref(),
+        args.output.as_deref(),
+    ) else {
+        bail!("ik needs MODEL, TRIAL and -o OUTPUT (or --setup IK_SETUP.xml)");
+    };
     let mut files = crate::output::Files::new()
-        .model("model", &args.model)
-        .input("trial", &args.trial)
-        .output("output", &args.output);
+        .model("model", model_name)
+        .input("trial", trial_path)
+        .output("output", output);
     if let Some(e) = &args.errors {
         files = files.output("--errors", e);
     }
     files.check()?;
-    let model = jointfit_io::model_file::load_model(&args.model)?;
+    let model = jointfit_io::model_file::load_model(model_name)?;
     // The data checks run in `solve`: the units check first (an error stops the command
     // before the IK), the others alongside the IK, the moved-cluster check after it, from its
     // fit when it is the IK the check would run.
     let loaded = load_for_model(
-        &args.trial,
+        trial_path,
         &args.read,
         &model,
         args.filter,
@@ -111,14 +136,14 @@ pub fn run(args: IkArgs) -> Result<()> {
         },
         ..IkOptions::default()
     };
-    let solved = solve(&model, trial, &args.trial, &args.model, &opts, false)?;
+    let solved = solve(&model, trial, trial_path, model_name, &opts, false)?;
     let model = solved.held_model.as_ref().unwrap_or(&model);
     let seconds = solved.seconds;
     let findings = solved.findings;
     let fit = solved.fit;
-    let trial_json = TrialJson::new(&args.trial, &loaded, &findings);
-    write_sto(&args.output, &angles_table(model, trial, &fit))
-        .with_context(|| format!("writing {}", args.output.display()))?;
+    let trial_json = TrialJson::new(trial_path, &loaded, &findings);
+    write_sto(output, &angles_table(model, trial, &fit))
+        .with_context(|| format!("writing {}", output.display()))?;
     if let Some(path) = &args.errors {
         jointfit_io::atomic::write_atomic(path, errors_csv(model, trial, &fit).as_bytes())
             .with_context(|| format!("writing {}", path.display()))?;
@@ -127,12 +152,22 @@ pub fn run(args: IkArgs) -> Result<()> {
     if !(summary.mean_frame_rms_mm.is_finite() && summary.max_frame_rms_mm.is_finite()) {
         bail!(
             "{}: inverse kinematics gave non-finite marker errors; nothing written",
-            args.trial.display()
+            trial_path.display()
         );
     }
     summary.checks = findings.iter().map(CheckJson::from).collect();
     summary.trial = Some(trial_json);
-    if args.json {
+    print_summary(&summary, args.json, seconds, output)
+}
+
+/// The summary on stdout: JSON, or the lines and the per-marker table.
+pub(crate) fn print_summary(
+    summary: &Summary,
+    json: bool,
+    seconds: f64,
+    output: &std::path::Path,
+) -> Result<()> {
+    if json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
         println!(
@@ -143,7 +178,7 @@ pub fn run(args: IkArgs) -> Result<()> {
             "RMS marker error per frame: mean {:.2} mm, max {:.2} mm",
             summary.mean_frame_rms_mm, summary.max_frame_rms_mm
         );
-        if let Some(line) = unsolved_line(&summary) {
+        if let Some(line) = unsolved_line(summary) {
             println!("{line}");
         }
         if summary.held_frames > 0 {
@@ -160,7 +195,7 @@ pub fn run(args: IkArgs) -> Result<()> {
             t.row(vec![name.clone(), format!("{v:.2}")]);
         }
         print!("{}", t.render());
-        println!("wrote {}", args.output.display());
+        println!("wrote {}", output.display());
     }
     Ok(())
 }
@@ -283,7 +318,7 @@ pub fn solve(
     })
 }
 
-fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f64) -> Summary {
+pub(crate) fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f64) -> Summary {
     let rms: Vec<f64> = (0..fit.frames.len())
         .map(|f| fit.frame_rms(f))
         .filter(|v| !v.is_nan())
@@ -414,7 +449,7 @@ pub fn angles_table(model: &Model, trial: &Trial, fit: &TrialFit) -> Table {
     table
 }
 
-fn errors_csv(model: &Model, trial: &Trial, fit: &TrialFit) -> String {
+pub(crate) fn errors_csv(model: &Model, trial: &Trial, fit: &TrialFit) -> String {
     let mut out = String::from("frame,time,rms_mm");
     for m in model.markers() {
         out.push(',');

@@ -22,6 +22,7 @@ mod data_cmd;
 mod demo_cmd;
 mod export_cmd;
 mod ik_cmd;
+mod ik_setup;
 mod markers_cmd;
 mod model_cmd;
 mod osim_calibrate;

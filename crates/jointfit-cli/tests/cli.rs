@@ -43,6 +43,8 @@ mod osim_clamped;
 mod osim_commands;
 #[path = "cli/osim_ik.rs"]
 mod osim_ik;
+#[path = "cli/osim_ik_setup.rs"]
+mod osim_ik_setup;
 #[path = "cli/osim_personalize.rs"]
 mod osim_personalize;
 #[path = "cli/personalize.rs"]

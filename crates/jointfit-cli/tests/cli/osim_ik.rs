@@ -282,3 +282,73 @@ fn ik_on_opencap_generic_osim_no_frame_worse_than_opensim() {
         .collect();
     super::osim_clamped::clamped_agree(&run.model, &run.trial, run.dir.path(), &same);
 }
+
+/// A Rajagopal-type full-body model with forearm markers: OpenCap's scaled model
+/// (`hand_scaled.osim`, arms with elbow flexion and pronation) with its marker set replaced by
+/// the JAM lab's (`lenhart2015_markers.xml`: `R.Wrist`/`L.Wrist` on the radius, 17–21 mm from
+/// the pronation axis, `R.Forearm` on the ulna), on the JAM overground walk, frames 200–299.
+/// The wrist marker determines pronation once the elbow is known: `ik` holds only the toes
+/// (no marker on them), solves `pro_sup_r` and `pro_sup_l` in every frame, fits no frame
+/// worse than OpenSim's IK, and its pronation follows OpenSim's.
+#[test]
+fn ik_on_full_body_model_with_forearm_markers_solves_pronation() {
+    let (Some(model), Some(markers), Some(trial)) = (
+        jointfit_testkit::data_file("opencap_expert1/hand_scaled.osim"),
+        jointfit_testkit::data_file("opensim_jam_healthy/lenhart2015_markers.xml"),
+        jointfit_testkit::data_file("opensim_jam_healthy/overground_17.trc"),
+    ) else {
+        return;
+    };
+    let Some(python) = jointfit_testkit::python() else {
+        return;
+    };
+    let dir = jointfit_testkit::scratch("osim-ik-forearm");
+    let osim = std::fs::read_to_string(&model).unwrap();
+    let set = std::fs::read_to_string(&markers).unwrap();
+    let block = |t: &str| {
+        let a = t.find("<MarkerSet").unwrap();
+        let b = t.find("</MarkerSet>").unwrap() + "</MarkerSet>".len();
+        (a, b)
+    };
+    let ((a, b), (c, d)) = (block(&osim), block(&set));
+    let combined = dir.join("full_body_jam_markers.osim");
+    std::fs::write(
+        &combined,
+        format!("{}{}{}", &osim[..a], &set[c..d], &osim[b..]),
+    )
+    .unwrap();
+    let short = dir.join("overground_200_299.trc");
+    std::fs::write(
+        &short,
+        trc_frames(&std::fs::read_to_string(&trial).unwrap(), 200, 100),
+    )
+    .unwrap();
+    let rel = "full body + JAM markers";
+    let (jf, _) = compare_files(
+        rel,
+        &combined,
+        &short,
+        &dir,
+        &python,
+        Some("no marker determines mtp_angle_r, mtp_angle_l;"),
+    );
+    assert_eq!(jf.len(), 100);
+    let ours = jointfit_io::sto::read_sto(&dir.join("jointfit.mot")).unwrap();
+    let theirs = jointfit_io::sto::read_sto(&dir.join("opensim_ik.mot")).unwrap();
+    for name in ["pro_sup_r", "pro_sup_l"] {
+        let col = |t: &jointfit_io::sto::Table| t.columns.iter().position(|x| x == name).unwrap();
+        let (i, k) = (col(&ours), col(&theirs));
+        let values: Vec<f64> = ours.rows.iter().map(|r| r[i]).collect();
+        let spread = values.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+            - values.iter().cloned().fold(f64::INFINITY, f64::min);
+        assert!(spread > 1.0, "{name} moves: spread {spread:.3}°");
+        let worst = ours
+            .rows
+            .iter()
+            .zip(&theirs.rows)
+            .map(|(x, y)| (x[i] - y[k]).abs())
+            .fold(0.0, f64::max);
+        eprintln!("{name}: spread {spread:.1}°, largest difference from OpenSim {worst:.2}°");
+        assert!(worst < 2.0, "{name}: {worst:.2}° from OpenSim's");
+    }
+}

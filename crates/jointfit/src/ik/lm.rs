@@ -5,6 +5,7 @@ use nalgebra::Vector3;
 
 use super::normal::Moments;
 use super::solvable::Solvability;
+use super::tasks::goal_cost;
 use super::{FrameFit, FrameStatus, IkOptions};
 use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::linalg::Cholesky;
@@ -30,6 +31,11 @@ pub struct IkWorkspace {
     pub(super) bounds: Vec<[f64; 2]>,
     /// Whether any coordinate is clamped.
     pub(super) any_clamped: bool,
+    /// The coordinate tasks of the current frame: `(coordinate, weight, target)`
+    /// ([`super::tasks`]); empty unless set by [`IkWorkspace::set_coordinate_goals`].
+    pub(super) goals: Vec<(usize, f64, f64)>,
+    /// Per coordinate: whether a task of the current frame determines it.
+    pub(super) known: Vec<bool>,
 }
 
 impl IkWorkspace {
@@ -60,7 +66,14 @@ impl IkWorkspace {
                 })
                 .collect(),
             any_clamped: model.coordinates().iter().any(|c| c.clamped),
+            goals: Vec::new(),
+            known: vec![false; n],
         }
+    }
+    /// Sets the coordinate tasks the next frames solved with this workspace obey: those of
+    /// trial frame `frame` ([`super::CoordinateTask`]; an empty slice: none).
+    pub fn set_coordinate_goals(&mut self, tasks: &[super::CoordinateTask], frame: usize) {
+        super::tasks::frame_goals(tasks, frame, &mut self.goals, &mut self.known);
     }
     /// Kinematics at the last solution (marker positions of the last accepted point).
     pub fn kin(&self) -> &KinData {
@@ -129,7 +142,7 @@ pub fn undetermined_coordinate(
     let mut rejected = Vec::new();
     frame_weights(model, targets, &mut ws.weights, &mut rejected);
     ws.solvability
-        .undetermined(model, p, &ws.weights, opts)
+        .undetermined(model, p, &ws.weights, &ws.known, opts)
         .first()
         .copied()
 }
@@ -177,7 +190,13 @@ pub(super) fn lm(
     }
     ws.moments.set_active(active);
     forward_kinematics(model, p, q, Want::AXES, &mut ws.cur);
-    let mut cost = cost_of(&ws.cur.markers, targets, &ws.weights);
+    // The coordinate tasks' scale: the frame's total marker weight ([`super::tasks`]).
+    let total: f64 = if ws.goals.is_empty() {
+        0.0
+    } else {
+        ws.weights.iter().sum()
+    };
+    let mut cost = cost_of(&ws.cur.markers, targets, &ws.weights) + goal_cost(q, &ws.goals, total);
     let mut lambda = 1e-6;
     let mut iterations = 0;
     // Largest component of the last accepted step (for the contraction estimate).
@@ -186,6 +205,12 @@ pub(super) fn lm(
         iterations += 1;
         ws.moments
             .normal_equations(&ws.cur, targets, &ws.weights, n, &mut ws.a, &mut ws.g);
+        for &(c, w, v) in &ws.goals {
+            if let Some(i) = active.iter().position(|&a| a == c) {
+                ws.a[i * n + i] += total * w;
+                ws.g[i] += total * w * (v - q[c]);
+            }
+        }
         if bounded {
             hold_at_bounds(q, active, &ws.bounds, &mut ws.a, &mut ws.g);
         }
@@ -221,7 +246,8 @@ pub(super) fn lm(
                 }
             }
             forward_kinematics(model, p, &ws.q_trial, Want::AXES, &mut ws.trial);
-            let trial_cost = cost_of(&ws.trial.markers, targets, &ws.weights);
+            let trial_cost = cost_of(&ws.trial.markers, targets, &ws.weights)
+                + goal_cost(&ws.q_trial, &ws.goals, total);
             if trial_cost <= cost {
                 q.copy_from_slice(&ws.q_trial);
                 std::mem::swap(&mut ws.cur, &mut ws.trial);
@@ -346,7 +372,9 @@ pub fn solve_frame(
     ws.start.copy_from_slice(q);
     let mut iterations = 0;
     loop {
-        let undetermined = ws.solvability.undetermined(model, p, &ws.weights, opts);
+        let undetermined =
+            ws.solvability
+                .undetermined_at(model, p, &ws.weights, &ws.known, &ws.start, opts);
         if let Some(&c) = undetermined.first() {
             if !opts.hold_undetermined {
                 return FrameFit {
@@ -360,7 +388,7 @@ pub fn solve_frame(
                 };
             }
         }
-        let held = undetermined.to_vec();
+        let held = undetermined;
         let mut active = std::mem::take(&mut ws.active);
         active.clear();
         active.extend((0..model.n_q()).filter(|c| !held.contains(c)));

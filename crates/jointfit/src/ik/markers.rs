@@ -6,12 +6,16 @@ use super::IkError;
 use crate::model::Model;
 use crate::trial::Trial;
 
-/// Which trial column feeds each model marker.
+/// Which trial column feeds each model marker, and the coordinate tasks the trial's frames
+/// obey.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MarkerMap {
     /// `columns[j]`: trial column of model marker `j` (`None`: the trial lacks it, and it is
     /// missing in every frame).
     pub columns: Vec<Option<usize>>,
+    /// Coordinate tasks over the trial's frames (OpenSim's `IKCoordinateTask`;
+    /// [`super::CoordinateTask`]); empty by default.
+    pub coordinate_tasks: Vec<super::CoordinateTask>,
 }
 
 impl MarkerMap {
@@ -43,7 +47,19 @@ impl MarkerMap {
                 c
             })
             .collect();
-        (MarkerMap { columns }, absent)
+        (
+            MarkerMap {
+                columns,
+                coordinate_tasks: Vec::new(),
+            },
+            absent,
+        )
+    }
+
+    /// The map with coordinate tasks.
+    pub fn with_coordinate_tasks(mut self, tasks: Vec<super::CoordinateTask>) -> Self {
+        self.coordinate_tasks = tasks;
+        self
     }
 
     /// The model-ordered targets of one trial frame (NaN where missing).

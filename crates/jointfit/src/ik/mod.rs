@@ -18,7 +18,9 @@
 //! A frame is solved when its present markers determine every coordinate through the chain
 //! ([`solvable`]); otherwise it is reported with the undetermined coordinate, or (with
 //! [`IkOptions::hold_undetermined`]) solved with those coordinates held at the previous
-//! frame's values. Gross errors do not reach the solution: a marker sample that is not finite
+//! frame's values (in a seeded frame, the seed's). A coordinate task
+//! ([`CoordinateTask`], OpenSim's `IKCoordinateTask`) adds `W w_c (q_c − q̂_c)²` to a frame's
+//! objective (`W` the frame's total marker weight; [`tasks`]). Gross errors do not reach the solution: a marker sample that is not finite
 //! or lies farther than 1 km from the origin counts as missing, and after the fit the marker
 //! farthest from its model position is rejected and the frame re-solved while that distance
 //! is both large and large against the frame's other residuals ([`IkOptions::outlier_distance`];
@@ -46,6 +48,9 @@ mod seed;
 mod seed_tests;
 pub mod solvable;
 mod stream;
+pub mod tasks;
+#[cfg(test)]
+mod tasks_tests;
 mod trial_fit;
 
 use thiserror::Error;
@@ -55,6 +60,7 @@ pub use lm::{is_gross, solve_frame, undetermined_coordinate, IkWorkspace};
 pub use markers::MarkerMap;
 pub use seed::{seed_frame, seed_frame_by_scouting};
 pub use stream::{StreamError, StreamingIk};
+pub use tasks::CoordinateTask;
 pub use trial_fit::{
     chunk_ranges, extrapolate, rms, solve_trial, solve_trial_alongside, solve_trial_in_chunks,
     trial_chunk_ranges, unsolved_ranges, TrialFit, UnsolvedRange, MIN_SPLIT_FRAMES,
@@ -85,12 +91,17 @@ pub struct IkOptions {
     /// determines (1e-8 rad = 6e-7 deg, 1e-8 m = 1e-5 mm).
     pub step_tolerance: f64,
     /// A rotational coordinate is undetermined when 1 mm of noise on the present markers
-    /// moves it by more than this standard deviation (rad; see [`solvable`]).
+    /// moves it by more than this standard deviation (rad; see [`solvable`]). The default,
+    /// 1 rad, is the rank test's tolerance: the markers act on the coordinate through a lever
+    /// arm shorter than 1 mm. (A wrist marker 17 mm from the pronation axis, 3.4° per mm,
+    /// determines pronation.)
     pub max_angle_per_mm: f64,
-    /// The same for a translational coordinate (m per mm of marker noise).
+    /// The same for a translational coordinate (m per mm of marker noise; default 1 m: the
+    /// markers move less than 1 mm per metre of the coordinate).
     pub max_translation_per_mm: f64,
     /// Solve frames with undetermined coordinates by holding those at the values they enter
-    /// with (the previous frame's solution in [`solve_trial`]) instead of skipping them.
+    /// with (the previous frame's solution in [`solve_trial`], the seed's in a seeded frame:
+    /// the defaults beyond the root) instead of skipping them.
     pub hold_undetermined: bool,
     /// After the fit, a marker farther than this from its model position (m) *and* farther
     /// than [`IkOptions::outlier_ratio`] times the median distance of the frame's present
@@ -111,8 +122,8 @@ impl Default for IkOptions {
         IkOptions {
             max_iterations: 100,
             step_tolerance: 1e-8,
-            max_angle_per_mm: 2f64.to_radians(),
-            max_translation_per_mm: 0.01,
+            max_angle_per_mm: 1.0,
+            max_translation_per_mm: 1.0,
             hold_undetermined: false,
             outlier_distance: 0.05,
             outlier_ratio: 5.0,

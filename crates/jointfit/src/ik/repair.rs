@@ -97,6 +97,7 @@ impl Repair<'_> {
             f64::INFINITY
         };
         self.map.targets(self.trial, f, &mut self.targets);
+        self.ws.set_coordinate_goals(&self.map.coordinate_tasks, f);
         let mut attempt = solve_frame(
             self.model,
             self.p,

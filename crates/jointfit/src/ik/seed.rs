@@ -36,7 +36,11 @@ pub fn seed_frame(
     opts: &IkOptions,
     ws: &mut IkWorkspace,
 ) -> Vec<f64> {
-    seed(model, p, targets, opts, ws, true)
+    // The seed fits the markers alone; the frame's coordinate tasks act in its solve.
+    let goals = std::mem::take(&mut ws.goals);
+    let q = seed(model, p, targets, opts, ws, true);
+    ws.goals = goals;
+    q
 }
 
 /// [`seed_frame`] without the certified shortcut ([`certified_root`]): every root scouted

@@ -286,11 +286,15 @@ impl StreamingIk {
                 // Held coordinates stay exactly at the previous frame's values.
                 let mut rejected = Vec::new();
                 frame_weights(model, &self.targets, &mut self.ws.weights, &mut rejected);
-                for &c in self
-                    .ws
-                    .solvability
-                    .undetermined(model, p, &self.ws.weights, &self.opts)
-                {
+                let held = self.ws.solvability.undetermined_at(
+                    model,
+                    p,
+                    &self.ws.weights,
+                    &self.ws.known,
+                    &qf,
+                    &self.opts,
+                );
+                for c in held {
                     qf[c] = prev[c];
                 }
                 &self.opts

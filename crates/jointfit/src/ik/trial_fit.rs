@@ -250,6 +250,7 @@ fn solve_range(
     };
     for f in range {
         map.targets(trial, f, &mut targets);
+        ws.set_coordinate_goals(&map.coordinate_tasks, f);
         let mut qf = match (&q, &q_before) {
             (Some(prev), Some(before)) => extrapolate(prev, before),
             (Some(prev), None) => prev.clone(),
@@ -260,11 +261,17 @@ fn solve_range(
                 // Held coordinates stay exactly at the previous frame's values.
                 let mut rejected = Vec::new();
                 frame_weights(model, &targets, &mut ws.weights, &mut rejected);
-                for &c in ws.solvability.undetermined(model, p, &ws.weights, opts) {
+                let held =
+                    ws.solvability
+                        .undetermined_at(model, p, &ws.weights, &ws.known, prev, opts);
+                for c in held {
                     qf[c] = prev[c];
                 }
                 opts
             }
+            // A seeded frame holds what its markers leave undetermined at the seed's values
+            // (the defaults beyond the root), where OpenSim's IK starts and leaves them.
+            None if opts.hold_undetermined => opts,
             _ => &no_hold,
         };
         let fit = solve_frame(model, p, &targets, &mut qf, frame_opts, &mut ws);
