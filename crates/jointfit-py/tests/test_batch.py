@@ -61,7 +61,7 @@ def test_job_pickles_with_trials_by_value(subject):
 
 
 def test_batch_rejects_non_jobs():
-    with pytest.raises(TypeError, match="jointfit.Job"):
+    with pytest.raises(jf.JointfitError, match="jointfit.Job"):
         jf.batch(["walk.c3d"])
 
 

@@ -157,6 +157,14 @@ fn load_model(input: &ModelInput) -> Result<Model, JobError> {
 
 /// Reads and fits one job, starting from the model's nominal parameters.
 pub fn run_job(job: &Job) -> Result<Calibration, JobError> {
+    run_job_observed(job, &mut jointfit::workflow::NoObserver)
+}
+
+/// [`run_job`] reporting the fit's progress to `observer`.
+pub fn run_job_observed(
+    job: &Job,
+    observer: &mut dyn jointfit::workflow::Observer,
+) -> Result<Calibration, JobError> {
     let model = load_model(&job.model)?;
     if job.trials.is_empty() {
         return Err(JobError::NoTrials);
@@ -179,7 +187,8 @@ pub fn run_job(job: &Job) -> Result<Calibration, JobError> {
         trials.push(trial);
     }
     let refs: Vec<&Trial> = trials.iter().collect();
-    let mut cal = fit::calibrate(&model, model.nominal_params(), &refs, &job.fit)?;
+    let mut cal =
+        fit::calibrate_observed(&model, model.nominal_params(), &refs, &job.fit, observer)?;
     warnings.append(&mut cal.warnings);
     cal.warnings = warnings;
     Ok(cal)

@@ -15,23 +15,55 @@ Quick start::
 
 Many subjects: ``jf.batch([jf.Job(model=..., trials=[...]), ...], client=None)``, or with a
 ``dask.distributed.Client`` on a workstation or a cluster.
+
+Every bad argument raises :class:`JointfitError` naming the argument and what it accepts;
+the warnings of one call come as one :class:`JointfitWarning` (a ``UserWarning``) whose
+``details`` lists them all; Ctrl-C (Jupyter's interrupt) stops a fit within a fraction of a
+second with ``KeyboardInterrupt``.
 """
 
+import functools as _functools
+import os as _os
+
+from . import _jointfit
 from ._jointfit import (
     BUILTIN_MODELS,
     MARKER_SET_PRESETS,
     Calibration,
     IkResult,
     JointfitError,
+    JointfitWarning,
     Model,
     Trial,
     __version__,
-    calibrate,
     ik,
     personalize,
     synthesize,
 )
-from ._batch import Job, batch
+
+
+@_functools.wraps(_jointfit.calibrate)
+def calibrate(model, trials, *args, **options):
+    if args:
+        raise JointfitError(
+            "calibrate takes model and trials by position and its options by name "
+            f"(got {len(args)} more positional arguments)"
+        )
+    if not isinstance(trials, (Trial, str, bytes, _os.PathLike)):
+        try:
+            trials = list(trials)
+        except TypeError:
+            pass  # refused with its message by the check below
+    _jointfit._check_calibrate(model, trials, **options)
+    try:
+        return _jointfit.calibrate(model, trials, **options)
+    except (TypeError, ValueError, OverflowError) as e:
+        if e.__traceback__ is not None and e.__traceback__.tb_next is not None:
+            raise  # raised by Python code the fit called (a progress callback)
+        raise JointfitError(f"calibrate: {e}") from None
+
+
+from ._batch import Job, batch  # noqa: E402  (Job checks its arguments with calibrate's)
 
 __all__ = [
     "BUILTIN_MODELS",
@@ -40,6 +72,7 @@ __all__ = [
     "IkResult",
     "Job",
     "JointfitError",
+    "JointfitWarning",
     "Model",
     "Trial",
     "__version__",
