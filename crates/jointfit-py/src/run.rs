@@ -92,8 +92,8 @@ pub(crate) fn guard<T>(f: impl FnOnce() -> PyResult<T>) -> PyResult<T> {
 
 /// Runs `work` on a worker thread (see the module docs); `progress` is called on this thread
 /// as `progress(stage, iteration, objective)` (the objective in m²; `iteration` 0 and the
-/// objective NaN when a stage begins or a multi-start fit finishes a start, then the stage
-/// is `"start k of n"`).
+/// objective NaN when a stage begins, or when a unit of a long job is done, then the stage
+/// is `"done k of n"`).
 pub(crate) fn interruptible<T: Send + 'static>(
     py: Python<'_>,
     progress: Option<&Bound<'_, PyAny>>,
@@ -136,7 +136,7 @@ pub(crate) fn interruptible<T: Send + 'static>(
                         }
                         Event::Iteration(i, c) => cb.call1((stage.as_str(), i, c)),
                         Event::Progress(done, total) => {
-                            cb.call1((format!("start {done} of {total}"), 0usize, f64::NAN))
+                            cb.call1((format!("done {done} of {total}"), 0usize, f64::NAN))
                         }
                     };
                     call.map_err(stop)?;

@@ -2,9 +2,11 @@
 (``tqdm.auto``: a widget in Jupyter, text in a terminal), else one line per stage on stderr.
 
 Any callable ``progress(stage, iteration, objective)`` can be passed instead: ``stage`` names
-the solver stage (``"start 2 of 5"`` when a multi-start fit finishes a start),
-``iteration`` counts outer iterations from 1 (0 when a stage begins) and ``objective`` is the
-summed squared marker distance ``e_inner`` in m² (NaN when a stage begins).
+the solver stage (such as ``"start 1: joint Levenberg-Marquardt"``, ``"particle swarm"``,
+``"uncertainty analysis"``; ``"done 2 of 7"`` when a unit of a long job ends: a start, a
+probe), ``iteration`` counts the stage's outer iterations from 1 (0 when a stage begins) and
+``objective`` is the summed squared marker distance ``e_inner`` in m² (NaN when a stage
+begins).
 """
 
 from __future__ import annotations
@@ -26,6 +28,11 @@ class Progress:
         self._tqdm = tqdm
 
     def __call__(self, stage: str, iteration: int, objective: float) -> None:
+        if stage.startswith("done "):
+            # The end of a unit of a long job: shown on the current bar, no bar of its own.
+            if self._bar is not None:
+                self._bar.set_postfix_str(stage)
+            return
         if stage != self._stage:
             self._stage = stage
             if self._tqdm is None:
@@ -38,8 +45,7 @@ class Progress:
         if iteration > 0 and self._bar is not None:
             self._bar.update(1)
             if not math.isnan(objective):
-                rms_hint = f"{objective:.3e} m²"
-                self._bar.set_postfix_str(rms_hint, refresh=False)
+                self._bar.set_postfix_str(f"objective {objective:.4e} m²", refresh=False)
 
     def close(self) -> None:
         if self._bar is not None:
