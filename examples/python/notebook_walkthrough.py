@@ -64,6 +64,7 @@ cal.model.save(out / "fitted.osim")
 try:
     import opensim
 
+    opensim.Logger.removeFileSink()  # no opensim.log in the working folder
     sto = opensim.Storage(str(out / "walk.mot"))
     knee = opensim.ArrayDouble()
     sto.getDataColumn("knee_flexion", knee)

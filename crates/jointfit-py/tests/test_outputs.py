@@ -67,6 +67,7 @@ def test_mot_written_by_write_mot_reads_back_in_opensim(fitted, tmp_path):
         import opensim
     except ImportError:
         missing("opensim (pip install opensim==4.6) for the .mot check")
+    opensim.Logger.removeFileSink()  # no opensim.log in the working folder
     trial, _, ik, _ = fitted
     part = trial.between(0.3, 0.9)
     sub = jf.ik("lower-limb-right", part)
