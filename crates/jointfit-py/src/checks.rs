@@ -29,8 +29,31 @@ pub fn check_calibrate(
         if let Some(options) = options {
             check_options(options)?;
         }
-        if model.cast::<PyModel>().is_err() {
-            crate::solve::model_name(model)?;
+        let compiled = match model.cast::<PyModel>() {
+            Ok(m) if m.get().osim.is_none() => Some(m.get().model.clone()),
+            Ok(_) => None,
+            Err(_) => {
+                let name = crate::solve::model_name(model)?;
+                jointfit::model::lower_limb::BUILTIN_NAMES
+                    .contains(&name.as_str())
+                    .then(|| jointfit_io::model_file::load_model(&name).ok())
+                    .flatten()
+            }
+        };
+        // The joint groups exist in the model (an .osim model names its joints instead, and a
+        // model file is read only when the fit runs).
+        if let (Some(m), Some(j)) = (
+            compiled,
+            options.and_then(|o| o.get_item("joints").ok().flatten()),
+        ) {
+            if !j.is_none() {
+                let groups: Vec<String> = match j.extract::<String>() {
+                    Ok(s) => s.split(',').map(|g| g.trim().to_string()).collect(),
+                    Err(_) => args::strings(&j, "joints")?,
+                };
+                let refs: Vec<&str> = groups.iter().map(String::as_str).collect();
+                jointfit::calibrate::params_for_groups(&m, &refs).map_err(|e| crate::err(&e))?;
+            }
         }
         check_trials(trials)
     })

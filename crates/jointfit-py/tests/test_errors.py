@@ -108,6 +108,15 @@ BAD_CALLS = [
     ("IkResult.to_dataframe(degrees='yes')", lambda t, m: jf.ik(m, t).to_dataframe(degrees="yes"), "degrees must be True or False"),
     ("IkResult.write_mot(5)", lambda t, m: jf.ik(m, t).write_mot(5), "path must be a path"),
     ("batch of non-jobs", lambda t, m: jf.batch([1], progress=False), "batch takes jointfit.Job objects"),
+    ("batch(5)", lambda t, m: jf.batch(5), "jobs must be a list of jointfit.Job objects"),
+    ("batch client=5", lambda t, m: jf.batch([jf.Job(model=m, trials=[t])], client=5), "client must be None"),
+    ("Job joints='elbow'", lambda t, m: jf.Job(model=m, trials=[t], joints="elbow"), 'unknown parameter group "elbow"'),
+    ("Job joints=['knee', 5]", lambda t, m: jf.Job(model="lower-limb-right", trials=[t], joints=["knee", 5]), "joints must be a list of strings"),
+    ("calibrate seed=2**64", lambda t, m: jf.calibrate(m, t, seed=2**64), "seed must be a whole number from 0 to 18446744073709551615"),
+    ("calibrate params on a non-.osim model", lambda t, m: jf.calibrate(m, t, params=["x"]), "params selects offset frames of a model loaded from an .osim file"),
+    ("Trial.from_arrays ragged lists", lambda t, m: jf.Trial.from_arrays(["A"], [[[1, 2, 3]], [[1, 2]]], 50), "markers must be an array of real numbers"),
+    ("Trial.from_arrays times of the wrong length", lambda t, m: jf.Trial.from_arrays(t.labels, t.markers, 50, times=[1, 2]), "times: 2 time stamps for 20 frames"),
+    ("Model.with_parameters unknown name", lambda t, m: m.with_parameters({"nope": 0.0}), 'has no parameter "nope"'),
 ]
 
 
@@ -180,6 +189,15 @@ def test_sequential_batch_keeps_the_other_results_when_one_job_is_bad(data):
         warnings.simplefilter("ignore")
         assert results[0] == good.run()
         assert results[2] == other.run()
+
+
+def test_none_means_the_default(data):
+    trial, model = data
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        a = jf.calibrate(model, trial, joints="knee", method=None, seed=None, starts=None)
+        b = jf.calibrate(model, trial, joints="knee")
+    assert a == b
 
 
 def test_numpy_scalars_are_accepted_where_numbers_are(data):

@@ -42,6 +42,12 @@ from ._jointfit import (
 )
 
 
+_DEFAULTED = {
+    "method", "seed", "bootstrap", "threshold_mm", "threshold_deg", "starts",
+    "fix_unidentifiable", "prior",
+}
+
+
 @_functools.wraps(_jointfit.calibrate)
 def calibrate(model, trials, *args, **options):
     if args:
@@ -54,6 +60,8 @@ def calibrate(model, trials, *args, **options):
             trials = list(trials)
         except TypeError:
             pass  # refused with its message by the check below
+    # None means the default for every option (the native defaults of the non-optional ones).
+    options = {k: v for k, v in options.items() if v is not None or k not in _DEFAULTED}
     _jointfit._check_calibrate(model, trials, **options)
     try:
         return _jointfit.calibrate(model, trials, **options)

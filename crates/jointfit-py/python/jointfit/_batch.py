@@ -151,7 +151,15 @@ def batch(
     run on its workers, one task per job. ``progress`` writes one line per finished job to
     stderr.
     """
-    jobs = list(jobs)
+    try:
+        jobs = list(jobs)
+    except TypeError:
+        raise JointfitError(f"jobs must be a list of jointfit.Job objects, not {type(jobs).__name__}") from None
+    if client is not None and not isinstance(client, str) and not hasattr(client, "submit"):
+        raise JointfitError(
+            "client must be None (run here), a scheduler address or a dask.distributed.Client, "
+            f"not {type(client).__name__}"
+        )
     for j in jobs:
         if not isinstance(j, Job):
             raise JointfitError(f"batch takes jointfit.Job objects, not {type(j).__name__}")
