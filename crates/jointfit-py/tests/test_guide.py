@@ -6,6 +6,7 @@ reference (python-api.md) the package's signatures and docstrings: both are rege
 and must equal the files (JOINTFIT_UPDATE_GUIDE=1 rewrites them instead).
 """
 
+import dataclasses
 import inspect
 import os
 import pathlib
@@ -149,19 +150,18 @@ def python_reference():
         obj = getattr(jf, name)
         if inspect.isclass(obj):
             out.extend([f"## class `{name}`", "", _doc(obj), ""])
-            for member, value in sorted(vars(obj).items()):
-                if member.startswith("_") and member not in ("_repr_html_", "__eq__", "__len__"):
+            if dataclasses.is_dataclass(obj):
+                out.extend([f"### `{name}{_signature(obj)}`", ""])
+            for member, raw in sorted(vars(obj).items()):
+                if member.startswith("_") and member != "_repr_html_":
                     continue
-                if member in ("__eq__", "__len__") and not _doc(value):
-                    continue
-                doc = _doc(value)
-                if isinstance(value, (staticmethod, classmethod)):
-                    value = value.__func__
-                kind = "property" if inspect.isdatadescriptor(value) or isinstance(value, property) else "method"
-                if kind == "property" and not callable(value):
+                doc = _doc(raw.__func__ if isinstance(raw, (staticmethod, classmethod)) else raw)
+                if inspect.isdatadescriptor(raw) or isinstance(raw, property):
                     out.extend([f"### `{name}.{member}`", ""])
-                else:
+                elif callable(getattr(obj, member)) and not isinstance(raw, (int, float, str)):
                     out.extend([f"### `{name}.{member}{_signature(getattr(obj, member))}`", ""])
+                else:
+                    continue  # a dataclass field's default: in the signature above
                 if doc:
                     out.extend([doc, ""])
         elif callable(obj):

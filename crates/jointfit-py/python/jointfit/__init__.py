@@ -71,6 +71,16 @@ def calibrate(model, trials, *args, **options):
         raise JointfitError(f"calibrate: {e}") from None
 
 
+calibrate.__doc__ = (calibrate.__doc__ or "").rstrip() + '''
+
+Every argument is checked first (a bad one raises JointfitError naming it and its range; None
+means an option's default). ``progress``: None or False (none), True (a tqdm bar when tqdm is
+installed, else lines on stderr) or a callable ``progress(stage, iteration, objective)``
+(objective in m²; see ``jointfit._progress``). Ctrl-C raises KeyboardInterrupt within a
+fraction of a second and stops the solver; the warnings of the fit come as one
+JointfitWarning whose ``details`` lists them (also in ``Calibration.warnings``).'''
+
+
 from ._batch import Job, batch  # noqa: E402  (Job checks its arguments with calibrate's)
 
 __all__ = [
