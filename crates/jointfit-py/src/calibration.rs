@@ -1,7 +1,7 @@
 //! `calibrate` and `jointfit.Calibration`: the two-level fit of joint parameters.
 
 use jointfit_io::batch::{
-    run_job, Calibration, FitOptions, Job, ModelInput, ReadOptions, TrialInput,
+    run_job_observed, Calibration, FitOptions, Job, ModelInput, ReadOptions, TrialInput,
 };
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
@@ -140,6 +140,144 @@ impl PyCalibration {
             .getattr("_calibration_from_json")?;
         Ok((ctor, PyTuple::new(py, [self.to_json()?])?))
     }
+    /// The parameter table as a pandas DataFrame, one row per free parameter (index
+    /// `parameter`): `group`, `unit` ("m" or "rad"), `start`, `fitted`, `se` (standard
+    /// error), `ci95_low`, `ci95_high` (NaN where the trials do not determine the parameter),
+    /// `identifiability`. SI units. Needs pandas.
+    fn to_dataframe<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let pd = py
+            .import("pandas")
+            .map_err(|_| msg("to_dataframe needs pandas (pip install pandas)"))?;
+        let rows = &self.cal.parameters;
+        let col = PyDict::new(py);
+        let nan = f64::NAN;
+        col.set_item(
+            "group",
+            rows.iter().map(|r| r.group.clone()).collect::<Vec<_>>(),
+        )?;
+        col.set_item(
+            "unit",
+            rows.iter().map(|r| r.unit.clone()).collect::<Vec<_>>(),
+        )?;
+        col.set_item("start", rows.iter().map(|r| r.start).collect::<Vec<_>>())?;
+        col.set_item("fitted", rows.iter().map(|r| r.fitted).collect::<Vec<_>>())?;
+        col.set_item(
+            "se",
+            rows.iter().map(|r| r.se.unwrap_or(nan)).collect::<Vec<_>>(),
+        )?;
+        col.set_item(
+            "ci95_low",
+            rows.iter()
+                .map(|r| r.ci95.map_or(nan, |c| c[0]))
+                .collect::<Vec<_>>(),
+        )?;
+        col.set_item(
+            "ci95_high",
+            rows.iter()
+                .map(|r| r.ci95.map_or(nan, |c| c[1]))
+                .collect::<Vec<_>>(),
+        )?;
+        col.set_item(
+            "identifiability",
+            rows.iter().map(identifiability).collect::<Vec<_>>(),
+        )?;
+        let index_kw = PyDict::new(py);
+        index_kw.set_item("name", "parameter")?;
+        let index = pd.call_method(
+            "Index",
+            (rows.iter().map(|r| r.name.clone()).collect::<Vec<_>>(),),
+            Some(&index_kw),
+        )?;
+        let kw = PyDict::new(py);
+        kw.set_item("index", index)?;
+        pd.call_method("DataFrame", (col,), Some(&kw))
+    }
+    /// An HTML summary for notebooks: the fit (RMS before and after, frames, convergence),
+    /// the parameter table in mm and degrees with 95 % intervals, and the warnings.
+    fn _repr_html_(&self) -> String {
+        let c = &self.cal;
+        let mut h = String::from("<div class=\"jointfit-calibration\">");
+        h.push_str(&format!(
+            "<p><b>Calibration</b> ({method}): {n} parameters, {frames} frames{skipped}; \
+             marker RMS {b:.2} mm → {a:.2} mm; {conv} after {it} iterations</p>",
+            method = html(
+                &serde_json::to_string(&c.method)
+                    .unwrap_or_default()
+                    .replace('"', "")
+            ),
+            n = c.parameters.len(),
+            frames = c.frames,
+            skipped = if c.skipped_frames > 0 {
+                format!(" ({} skipped)", c.skipped_frames)
+            } else {
+                String::new()
+            },
+            b = c.rms_before * 1e3,
+            a = c.rms_after * 1e3,
+            conv = if c.converged {
+                "converged"
+            } else {
+                "<b>not converged</b>"
+            },
+            it = c.iterations,
+        ));
+        h.push_str(
+            "<table><thead><tr><th>parameter</th><th>group</th><th>unit</th><th>start</th>\
+             <th>fitted</th><th>95 % interval</th><th>identifiability</th></tr></thead><tbody>",
+        );
+        for r in &c.parameters {
+            let (unit, k) = if r.unit == "m" {
+                ("mm", 1e3)
+            } else {
+                ("deg", 180.0 / std::f64::consts::PI)
+            };
+            let ci = r.ci95.map_or("—".to_string(), |[lo, hi]| {
+                format!("{:.2} to {:.2}", lo * k, hi * k)
+            });
+            h.push_str(&format!(
+                "<tr><td>{}</td><td>{}</td><td>{unit}</td><td>{:.2}</td><td>{:.2}</td>\
+                 <td>{ci}</td><td>{}</td></tr>",
+                html(&r.name),
+                html(&r.group),
+                r.start * k,
+                r.fitted * k,
+                html(&identifiability(r)),
+            ));
+        }
+        h.push_str("</tbody></table>");
+        if !c.warnings.is_empty() {
+            h.push_str(&format!(
+                "<details><summary>{} warning{}</summary><ul>",
+                c.warnings.len(),
+                if c.warnings.len() == 1 { "" } else { "s" }
+            ));
+            for w in &c.warnings {
+                h.push_str(&format!("<li>{}</li>", html(w)));
+            }
+            h.push_str("</ul></details>");
+        }
+        h.push_str("</div>");
+        h
+    }
+}
+
+/// A parameter's identifiability as a word ("identified", "poorly", ...; "" when unknown).
+fn identifiability(r: &jointfit_io::batch::fit::ParamRow) -> String {
+    r.identifiability
+        .map(|i| {
+            serde_json::to_string(&i)
+                .unwrap_or_default()
+                .replace('"', "")
+        })
+        .unwrap_or_default()
+}
+
+/// `text` escaped for HTML.
+fn html(text: &str) -> String {
+    text.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
 }
 
 /// The verdict on a fit (`Calibration.verdict`): `level` is "ok", "caution" or "reject";
@@ -201,7 +339,7 @@ fn joints_arg(joints: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<String>> {
 /// the cause unless `accept_rejected` is true; `Calibration.verdict` says how far to trust
 /// the rest. Releases the GIL while it runs.
 #[pyfunction]
-#[pyo3(signature = (model, trials, joints=None, method="joint", up=None, filter=None, seed=1, bootstrap=0, threshold_mm=5.0, threshold_deg=5.0, starts=1, fix_unidentifiable=false, prior="model", marker_noise_mm=None, max_iter=None, params=None, accept_rejected=false))]
+#[pyo3(signature = (model, trials, joints=None, method="joint", up=None, filter=None, seed=1, bootstrap=0, threshold_mm=5.0, threshold_deg=5.0, starts=1, fix_unidentifiable=false, prior="model", marker_noise_mm=None, max_iter=None, params=None, progress=None, accept_rejected=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -221,8 +359,10 @@ pub fn calibrate(
     marker_noise_mm: Option<f64>,
     max_iter: Option<usize>,
     params: Option<Vec<String>>,
+    progress: Option<&Bound<'_, PyAny>>,
     accept_rejected: bool,
 ) -> PyResult<PyCalibration> {
+    let progress = crate::run::progress_arg(py, progress)?;
     let osim = model
         .cast::<PyModel>()
         .ok()
@@ -298,9 +438,13 @@ pub fn calibrate(
         filter_hz: filter,
     };
     if let Some(osim) = osim {
-        let cal = py
-            .detach(|| calibrate_osim(&osim, &inputs, &read, &fit, &params.unwrap_or_default()))
-            .map_err(msg)?;
+        let held = osim.clone();
+        let params = params.unwrap_or_default();
+        let cal = crate::run::interruptible(py, progress.as_ref(), move |obs| {
+            calibrate_osim(&held, &inputs, &read, &fit, &params, obs)
+        });
+        crate::run::close_progress(py, progress.as_ref())?;
+        let cal = cal?.map_err(msg)?;
         warn_all(py, &cal.warnings)?;
         return Ok(PyCalibration {
             cal,
@@ -314,7 +458,11 @@ pub fn calibrate(
         read,
         fit,
     };
-    let cal = py.detach(|| run_job(&job)).map_err(|e| err(&e))?;
+    let cal = crate::run::interruptible(py, progress.as_ref(), move |obs| {
+        run_job_observed(&job, obs)
+    });
+    crate::run::close_progress(py, progress.as_ref())?;
+    let cal = cal?.map_err(|e| err(&e))?;
     warn_all(py, &cal.warnings)?;
     Ok(PyCalibration { cal, osim: None })
 }
@@ -328,6 +476,7 @@ fn calibrate_osim(
     read: &ReadOptions,
     fit: &FitOptions,
     params: &[String],
+    observer: &mut dyn jointfit::workflow::Observer,
 ) -> Result<Calibration, String> {
     use jointfit_io::osim_read::workflow::{personalize, selection_spec};
     let mut warnings = Vec::new();
@@ -347,14 +496,7 @@ fn calibrate_osim(
     let spec = selection_spec(osim, &joints, params).map_err(|e| e.to_string())?;
     let refs: Vec<&jointfit::trial::Trial> = trials.iter().collect();
     let settings = fit.settings();
-    let done = personalize(
-        &spec,
-        None,
-        &refs,
-        &settings,
-        &mut jointfit::workflow::NoObserver,
-    )
-    .map_err(|e| match e {
+    let done = personalize(&spec, None, &refs, &settings, observer).map_err(|e| match e {
         jointfit_io::osim_read::workflow::OsimFitError::Workflow(
             jointfit::workflow::WorkflowError::Mismatch { trial, cause },
         ) => {

@@ -9,6 +9,8 @@ use jointfit::model::Model;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
+use crate::args;
+use crate::run::guard;
 use crate::{err, msg};
 
 /// A kinematic leg model: segments, joints, markers and its joint parameters (SI units).
@@ -46,17 +48,12 @@ impl PyModel {
     }
 }
 
-#[pymethods]
 impl PyModel {
-    /// Reads a model: a TOML file, an OpenSim 4 model (.osim; personalize its joints with
-    /// `jointfit.calibrate(model, trials, joints=["hip_r", ...])`) or a built-in name (see
-    /// `jointfit.BUILTIN_MODELS`).
-    #[staticmethod]
-    fn load(py: Python<'_>, path_or_builtin: PathBuf) -> PyResult<Self> {
+    fn load_path(py: Python<'_>, path_or_builtin: &std::path::Path) -> PyResult<Self> {
         let text = path_or_builtin.to_string_lossy().into_owned();
-        if jointfit_io::model_file::is_osim(&path_or_builtin) {
+        if jointfit_io::model_file::is_osim(path_or_builtin) {
             let osim = py
-                .detach(|| jointfit_io::osim_read::read_osim(&path_or_builtin))
+                .detach(|| jointfit_io::osim_read::read_osim(path_or_builtin))
                 .map_err(|e| err(&e))?;
             return PyModel::with_osim(&osim.spec.clone(), Some(Arc::new(osim)));
         }
@@ -64,21 +61,7 @@ impl PyModel {
         Ok(PyModel { model, osim: None })
     }
 
-    /// Builds a model from the text of a model TOML file.
-    #[staticmethod]
-    fn from_toml(text: &str) -> PyResult<Self> {
-        let spec = ModelSpec::from_toml(text).map_err(|e| err(&e))?;
-        PyModel::from_spec(&spec)
-    }
-
-    /// The model as TOML text (the format of `save("….toml")`).
-    fn to_toml(&self) -> String {
-        self.model.spec().to_toml()
-    }
-
-    /// Writes the model; the format follows the extension: .toml (jointfit) or .osim
-    /// (OpenSim 4, at the model's parameters). Written atomically.
-    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+    fn save_path(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let ext = path
             .extension()
             .and_then(|e| e.to_str())
@@ -110,6 +93,38 @@ impl PyModel {
                 path.display()
             ))),
         }
+    }
+}
+
+#[pymethods]
+impl PyModel {
+    /// Reads a model: a TOML file, an OpenSim 4 model (.osim; personalize its joints with
+    /// `jointfit.calibrate(model, trials, joints=["hip_r", ...])`) or a built-in name (see
+    /// `jointfit.BUILTIN_MODELS`).
+    #[staticmethod]
+    fn load(py: Python<'_>, path_or_builtin: &Bound<'_, PyAny>) -> PyResult<Self> {
+        guard(|| Self::load_path(py, &args::path(path_or_builtin, "path_or_builtin")?))
+    }
+
+    /// Builds a model from the text of a model TOML file.
+    #[staticmethod]
+    fn from_toml(text: &Bound<'_, PyAny>) -> PyResult<Self> {
+        guard(|| {
+            let text = args::text(text, "text", "the text of a model TOML file")?;
+            let spec = ModelSpec::from_toml(&text).map_err(|e| err(&e))?;
+            PyModel::from_spec(&spec)
+        })
+    }
+
+    /// The model as TOML text (the format of `save("….toml")`).
+    fn to_toml(&self) -> String {
+        self.model.spec().to_toml()
+    }
+
+    /// Writes the model; the format follows the extension: .toml (jointfit) or .osim
+    /// (OpenSim 4, at the model's parameters). Written atomically.
+    fn save(&self, py: Python<'_>, path: &Bound<'_, PyAny>) -> PyResult<()> {
+        guard(|| self.save_path(py, args::path(path, "path")?))
     }
 
     /// Model name.
@@ -185,9 +200,20 @@ impl PyModel {
     }
 
     /// A copy with some parameters changed (dict name → value, m or rad).
-    fn with_parameters(&self, values: BTreeMap<String, f64>) -> PyResult<Self> {
+    fn with_parameters(&self, values: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let values: BTreeMap<String, Bound<'_, PyAny>> = values.extract().map_err(|_| {
+            msg(format!(
+                "values must be a dict of parameter name to value (m or rad), not {}",
+                args::type_name(values)
+            ))
+        })?;
         let mut p = self.model.nominal_params();
         for (name, v) in values {
+            let v = args::number(
+                &v,
+                &format!("values[{name:?}]"),
+                "a finite number (m or rad)",
+            )?;
             match self.model.param_id(&name) {
                 Some(id) => p[id.0] = v,
                 None => {

@@ -49,7 +49,7 @@ impl PyStreamingIk {
         hold_undetermined: bool,
         keep_outliers: bool,
     ) -> PyResult<Self> {
-        let model = model_arg(model)?;
+        let model = model_arg(py, model)?;
         let up = parse_up(up)?.or(model.spec().lab_up).unwrap_or(UpAxis::Y);
         let opts = IkOptions {
             hold_undetermined,

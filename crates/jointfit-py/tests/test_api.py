@@ -23,7 +23,7 @@ def test_issue_names_exist():
         assert hasattr(jf.Calibration, attr)
     for f in (jf.personalize, jf.ik, jf.calibrate, jf.batch):
         assert callable(f)
-    job = jf.Job(model="lower-limb-right", trials=[], up=None, joints=None, method="joint")
+    job = jf.Job(model="lower-limb-right", trials=["walk.c3d"], up=None, joints=None, method="joint")
     assert job.method == "joint"
     assert py_typed().exists()
 

@@ -19,13 +19,15 @@ def subject(data_dir, tmp_path_factory):
 
 def _jobs(subject):
     """Four jobs: three with synthetic trials sent by value (the third fails: unknown joint
-    group), one with a model file and a real trial read by path where it runs."""
+    group, set after the job was built, since building checks it), one with a model file and
+    a real trial read by path where it runs."""
     jobs = []
     for k, (motion, joints) in enumerate([("knee", ["knee"]), ("ankle", ["ankle"]),
-                                          ("knee", ["elbow"])]):
+                                          ("knee", ["knee"])]):
         trial, _ = jf.synthesize(motion=motion, frames=40, noise_mm=5.0, seed=10 + k)
         jobs.append(jf.Job(model="lower-limb-right", trials=[trial], joints=joints,
                            name=f"s{k}"))
+    jobs[2].joints = ["elbow"]
     model_path, trial_path = subject
     jobs.append(jf.Job(model=model_path, trials=[trial_path], name="s3"))
     return jobs
@@ -61,7 +63,7 @@ def test_job_pickles_with_trials_by_value(subject):
 
 
 def test_batch_rejects_non_jobs():
-    with pytest.raises(TypeError, match="jointfit.Job"):
+    with pytest.raises(jf.JointfitError, match="jointfit.Job"):
         jf.batch(["walk.c3d"])
 
 

@@ -265,11 +265,11 @@ def test_errors_carry_the_cli_messages(opencap, run_cli, tmp_path):
 
 def test_argument_errors():
     t, _ = jf.synthesize(frames=10, noise_mm=0)
-    with pytest.raises(jf.JointfitError, match='unknown method "newton"'):
+    with pytest.raises(jf.JointfitError, match='method must be one of "joint", "gradient", "pso"'):
         jf.calibrate("lower-limb-right", [t], method="newton")
     with pytest.raises(jf.JointfitError, match='up must be "y", "-y", "z", "-z", "x" or "-x"'):
         jf.Trial.read("x.trc", up="w")
     with pytest.raises(jf.JointfitError, match="a trial must be a jointfit.Trial or a path"):
         jf.ik("lower-limb-right", 3)
-    with pytest.raises(jf.JointfitError, match='side must be "both", "right" or "left"'):
+    with pytest.raises(jf.JointfitError, match='side must be one of "both", "right", "left"'):
         jf.personalize(t, markers="opencap", side="middle")

@@ -12,7 +12,7 @@ def test_trial_from_arrays_round_trip_and_gaps():
     rng = np.random.default_rng(1)
     m = rng.normal(size=(5, 3, 3))
     m[2, 1, :] = np.nan
-    m[3, 0, 1] = np.inf  # any non-finite coordinate makes the sample missing
+    m[3, 0, 1] = np.nan  # one NaN coordinate makes the whole sample missing
     t = jf.Trial.from_arrays(["A", "B", "C"], m, 100.0, first_frame=7)
     assert t.labels == ["A", "B", "C"]
     assert t.rate == 100.0 and t.first_frame == 7 and len(t) == 5
@@ -25,6 +25,10 @@ def test_trial_from_arrays_round_trip_and_gaps():
     t2 = pickle.loads(pickle.dumps(t))
     assert t2.labels == t.labels and np.array_equal(t2.markers, out, equal_nan=True)
     assert t.select(["C", "A"]).labels == ["C", "A"]
+    assert t2 == t
+    m[4, 2, 0] = np.inf  # infinity is not a gap: refused, naming frame and marker
+    with pytest.raises(jf.JointfitError, match="frame 4, marker C: position"):
+        jf.Trial.from_arrays(["A", "B", "C"], m, 100.0)
 
 
 def test_trial_from_arrays_errors():
@@ -34,7 +38,7 @@ def test_trial_from_arrays_errors():
         jf.Trial.from_arrays(["A"], np.zeros((4, 1, 2)), 100.0)
     with pytest.raises(jf.JointfitError, match=r'marker label "A" appears twice'):
         jf.Trial.from_arrays(["A", "A"], np.zeros((4, 2, 3)), 100.0)
-    with pytest.raises(jf.JointfitError, match="sampling rate must be positive"):
+    with pytest.raises(jf.JointfitError, match="rate must be a finite number greater than 0"):
         jf.Trial.from_arrays(["A"], np.zeros((4, 1, 3)), 0.0)
 
 

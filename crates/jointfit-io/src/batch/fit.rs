@@ -197,19 +197,24 @@ pub fn calibrate(
     trials: &[&Trial],
     opts: &FitOptions,
 ) -> Result<Calibration, WorkflowError> {
+    calibrate_observed(model, start, trials, opts, &mut NoObserver)
+}
+
+/// [`calibrate`] reporting its solver's progress to `observer`.
+pub fn calibrate_observed(
+    model: &Model,
+    start: Vec<f64>,
+    trials: &[&Trial],
+    opts: &FitOptions,
+    observer: &mut dyn workflow::Observer,
+) -> Result<Calibration, WorkflowError> {
     let groups: Vec<&str> = opts.joints.iter().map(String::as_str).collect();
     let free = params_for_groups(model, &groups)?;
     let settings = opts.settings();
     // The command's calibration (`jointfit calibrate`): with a prior, the anatomical envelope
     // and the marker policy ([`workflow::refine::calibrate_refined`]).
-    let refined = workflow::refine::calibrate_refined(
-        model,
-        &start,
-        trials,
-        &free,
-        &settings,
-        &mut NoObserver,
-    )?;
+    let refined =
+        workflow::refine::calibrate_refined(model, &start, trials, &free, &settings, observer)?;
     // The fitted model may carry marker parameters after the input's (start: their nominal).
     let mut start_all = refined.model.nominal_params();
     start_all[..start.len()].copy_from_slice(&start);

@@ -160,6 +160,14 @@ fn load_model(input: &ModelInput) -> Result<Model, JobError> {
 
 /// Reads and fits one job, starting from the model's nominal parameters.
 pub fn run_job(job: &Job) -> Result<Calibration, JobError> {
+    run_job_observed(job, &mut jointfit::workflow::NoObserver)
+}
+
+/// [`run_job`] reporting the fit's progress to `observer`.
+pub fn run_job_observed(
+    job: &Job,
+    observer: &mut dyn jointfit::workflow::Observer,
+) -> Result<Calibration, JobError> {
     let model = load_model(&job.model)?;
     if job.trials.is_empty() {
         return Err(JobError::NoTrials);
@@ -182,16 +190,17 @@ pub fn run_job(job: &Job) -> Result<Calibration, JobError> {
         trials.push(trial);
     }
     let refs: Vec<&Trial> = trials.iter().collect();
-    let mut cal = match fit::calibrate(&model, model.nominal_params(), &refs, &job.fit) {
-        Err(jointfit::workflow::WorkflowError::Mismatch { trial, cause }) => {
-            let name = match &job.trials[trial] {
-                TrialInput::Path(p) => p.display().to_string(),
-                TrialInput::Data { name, .. } => name.clone(),
-            };
-            return Err(JobError::Rejected(format!("{name}: {cause}")));
-        }
-        r => r?,
-    };
+    let mut cal =
+        match fit::calibrate_observed(&model, model.nominal_params(), &refs, &job.fit, observer) {
+            Err(jointfit::workflow::WorkflowError::Mismatch { trial, cause }) => {
+                let name = match &job.trials[trial] {
+                    TrialInput::Path(p) => p.display().to_string(),
+                    TrialInput::Data { name, .. } => name.clone(),
+                };
+                return Err(JobError::Rejected(format!("{name}: {cause}")));
+            }
+            r => r?,
+        };
     if cal.verdict.level == jointfit::workflow::Level::Reject && !job.fit.accept_rejected {
         return Err(JobError::Rejected(
             cal.verdict.reasons.first().cloned().unwrap_or_default(),

@@ -33,7 +33,8 @@ import sys
 import warnings
 from typing import Any, List, Optional, Sequence, Union
 
-from ._jointfit import Calibration, JointfitError, Model, Trial, calibrate
+from . import _jointfit
+from ._jointfit import Calibration, JointfitError, Model, Trial
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -45,6 +46,10 @@ class Job:
     ``model`` is a :class:`Model`, a model TOML path or a built-in name; ``trials`` a list of
     :class:`Trial` objects (sent by value) or paths (read where the job runs, so they must be
     reachable from the workers). ``name`` labels the job in progress output.
+
+    The arguments are checked when the job is built, with the limits of
+    :func:`jointfit.calibrate` (a bad one raises :class:`JointfitError` there, naming it);
+    trial files are read only when the job runs.
     """
 
     model: Union[Model, PathLike]
@@ -64,14 +69,24 @@ class Job:
     max_iter: Optional[int] = None
     name: Optional[str] = None
 
-    def run(self) -> Calibration:
-        """Runs the calibration here and now (raises :class:`JointfitError` on failure)."""
-        trials = [os.fspath(t) if isinstance(t, os.PathLike) else t for t in self.trials]
-        model = os.fspath(self.model) if isinstance(self.model, os.PathLike) else self.model
+    def __post_init__(self) -> None:
+        if isinstance(self.trials, (str, bytes, os.PathLike, Trial)):
+            self.trials = [self.trials]
+        elif not isinstance(self.trials, (list, tuple)):
+            try:
+                self.trials = list(self.trials)
+            except TypeError:
+                raise JointfitError(
+                    "trials must be a jointfit.Trial, a path or a list of them, "
+                    f"not {type(self.trials).__name__}"
+                ) from None
+        if self.name is not None and not isinstance(self.name, str):
+            raise JointfitError(f"name must be None or a str, not {type(self.name).__name__}")
+        _jointfit._check_calibrate(self.model, list(self.trials), **self._options())
+
+    def _options(self) -> dict:
         joints = list(self.joints) if isinstance(self.joints, (list, tuple)) else self.joints
-        return calibrate(
-            model,
-            trials,
+        return dict(
             joints=joints,
             method=self.method,
             up=self.up,
@@ -87,17 +102,26 @@ class Job:
             max_iter=self.max_iter,
         )
 
+    def run(self) -> Calibration:
+        """Runs the calibration here and now (raises :class:`JointfitError` on failure)."""
+        from . import calibrate
+
+        trials = [os.fspath(t) if isinstance(t, os.PathLike) else t for t in self.trials]
+        model = os.fspath(self.model) if isinstance(self.model, os.PathLike) else self.model
+        return calibrate(model, trials, **self._options())
+
 
 Result = Union[Calibration, BaseException]
 
 
 def _run_job(job: Job) -> Result:
-    """Runs one job; its failure is returned, not raised (warnings stay in the result)."""
+    """Runs one job; its failure (any exception but an interrupt) is returned, not raised
+    (warnings stay in the result)."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             return job.run()
-    except JointfitError as e:
+    except Exception as e:  # noqa: BLE001  (the job's own failure, whatever it is)
         return e
 
 
@@ -127,10 +151,18 @@ def batch(
     run on its workers, one task per job. ``progress`` writes one line per finished job to
     stderr.
     """
-    jobs = list(jobs)
+    try:
+        jobs = list(jobs)
+    except TypeError:
+        raise JointfitError(f"jobs must be a list of jointfit.Job objects, not {type(jobs).__name__}") from None
+    if client is not None and not isinstance(client, str) and not hasattr(client, "submit"):
+        raise JointfitError(
+            "client must be None (run here), a scheduler address or a dask.distributed.Client, "
+            f"not {type(client).__name__}"
+        )
     for j in jobs:
         if not isinstance(j, Job):
-            raise TypeError(f"batch takes jointfit.Job objects, not {type(j).__name__}")
+            raise JointfitError(f"batch takes jointfit.Job objects, not {type(j).__name__}")
     if client is None:
         results: List[Result] = []
         for k, job in enumerate(jobs):

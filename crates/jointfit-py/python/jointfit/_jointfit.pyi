@@ -1,7 +1,7 @@
 """Type stubs of the native module (crates/jointfit-py/src). SI units: m, rad, s, Hz."""
 
 import os
-from typing import Dict, List, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -15,6 +15,13 @@ MARKER_SET_PRESETS: List[str]
 class JointfitError(Exception):
     """An error of jointfit; the message is the command line's for the same failure."""
 
+class JointfitWarning(UserWarning):
+    """The warnings of one call, summarized in one warning; `details` lists each of them."""
+
+    details: List[str]
+
+_Progress = Union[None, bool, Callable[[str, int, float], Any]]
+
 class Trial:
     """Marker trajectories of one trial, in the model's Y-up frame."""
 
@@ -27,19 +34,21 @@ class Trial:
     ) -> Trial: ...
     def repair(
         self,
-        exclude: Sequence[str] = ...,
-        swap: Sequence[str] = ...,
-        fill_gaps: int = 0,
+        exclude: Optional[Sequence[str]] = None,
+        swap: Optional[Sequence[str]] = None,
+        fill_gaps: Optional[int] = None,
         model: Optional[Union[Model, _Path]] = None,
     ) -> Tuple[Trial, List[str]]: ...
     @staticmethod
     def from_arrays(
         labels: Sequence[str],
-        markers: npt.NDArray[np.float64],
+        markers: npt.ArrayLike,
         rate: float,
-        first_frame: int = 0,
+        first_frame: Optional[int] = None,
         name: Optional[str] = None,
-    ) -> Trial: ...
+        times: Optional[npt.ArrayLike] = None,
+    ) -> Trial:
+        """(frames, markers, 3) metres, any real dtype or nested lists; NaN for gaps."""
     @property
     def labels(self) -> List[str]: ...
     @property
@@ -53,9 +62,17 @@ class Trial:
         """(frames, markers, 3), metres, NaN for gaps."""
     @property
     def times(self) -> List[float]: ...
+    @property
+    def duration(self) -> float: ...
     def filtered(self, cutoff: float) -> Trial: ...
     def select(self, labels: Sequence[str]) -> Trial: ...
+    def between(self, t0: float, t1: float) -> Trial:
+        """Frames with t0 <= time <= t1 (s), keeping their times and frame numbers."""
+    def write_trc(
+        self, path: _Path, units: Optional[str] = None, decimals: Optional[int] = None
+    ) -> None: ...
     def __len__(self) -> int: ...
+    def __eq__(self, other: object) -> bool: ...
 
 class Model:
     """A kinematic leg model with its joint parameters."""
@@ -100,6 +117,16 @@ class IkResult:
     def solved(self) -> npt.NDArray[np.bool_]: ...
     @property
     def times(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def units(self) -> Dict[str, str]:
+        """Coordinate name -> "rad" or "m"."""
+    def to_dataframe(self, degrees: Optional[bool] = None) -> Any:
+        """pandas.DataFrame: index time (s), one column per coordinate."""
+    def to_xarray(self) -> Any:
+        """xarray.DataArray (time, coordinate)."""
+    def write_mot(self, path: _Path) -> None:
+        """OpenSim .mot: rotations in degrees, the trial's own time."""
+    def __len__(self) -> int: ...
 
 class StreamingIK:
     """Inverse kinematics of a live marker feed, one frame per `update` (GIL released)."""
@@ -163,6 +190,9 @@ class Calibration:
     def verdict(self) -> Verdict: ...
     def to_dict(self) -> dict: ...
     def to_json(self) -> str: ...
+    def to_dataframe(self) -> Any:
+        """pandas.DataFrame: one row per free parameter (SI units)."""
+    def _repr_html_(self) -> str: ...
 
 class Verdict:
     """How far to trust a fit: level "ok", "caution" or "reject", and the reasons."""
@@ -177,10 +207,10 @@ _ModelArg = Union[Model, _Path]
 def personalize(
     static: _TrialArg,
     markers: str,
-    side: str = "both",
+    side: Optional[str] = None,
     up: Optional[str] = None,
-    hip: str = "bell",
-    window: float = 1.0,
+    hip: Optional[str] = None,
+    window: Optional[float] = None,
     name: Optional[str] = None,
 ) -> Model: ...
 def ik(
@@ -203,15 +233,17 @@ def calibrate(
     marker_noise_mm: Optional[float] = None,
     max_iter: Optional[int] = None,
     params: Optional[Sequence[str]] = None,
+    progress: _Progress = None,
     accept_rejected: bool = False,
 ) -> Calibration: ...
+def _check_calibrate(model: Any, trials: Any, **options: Any) -> None: ...
 def synthesize(
     model: Optional[_ModelArg] = None,
-    motion: str = "all",
-    frames: int = 100,
-    rate: float = 50.0,
-    noise_mm: float = 10.0,
-    perturb: float = 0.4,
-    seed: int = 1,
+    motion: Optional[str] = None,
+    frames: Optional[int] = None,
+    rate: Optional[float] = None,
+    noise_mm: Optional[float] = None,
+    perturb: Optional[float] = None,
+    seed: Optional[int] = None,
 ) -> Tuple[Trial, Model]: ...
 def _calibration_from_json(text: str) -> Calibration: ...
