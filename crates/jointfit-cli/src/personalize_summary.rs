@@ -1,5 +1,6 @@
 //! What `jointfit personalize` prints: per leg, in mm and degrees (text or JSON).
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use jointfit::landmarks::functional::FunctionalReport;
@@ -8,6 +9,8 @@ use jointfit::model::lower_limb::Side;
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;
 use serde::Serialize;
+
+use crate::personalize_subject::JcComparison;
 
 /// Another hip-centre estimate minus ours, in our pelvis frame (anterior, superior, lateral).
 #[derive(Serialize)]
@@ -56,6 +59,13 @@ pub(crate) struct Summary {
     functional: Option<FunctionalSummary>,
     /// Prior SD per parameter (mm or deg), in the model's order.
     prior_sd: Vec<(String, f64)>,
+    /// Hip, knee and ankle centres (`hip_r`, …) in the file's own lab frame (mm), averaged
+    /// over the static window (top level only).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    joint_centres_lab_mm: BTreeMap<String, [f64; 3]>,
+    /// `--compare-jc`: stored joint centres against ours.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    joint_centre_comparison: Vec<JcComparison>,
 }
 
 /// Functional methods' results (mm, deg), in the static trial's frame.
@@ -157,7 +167,19 @@ impl Summary {
                         .map(|sd| (p.name.clone(), sd * p.unit.display_scale()))
                 })
                 .collect(),
+            joint_centres_lab_mm: BTreeMap::new(),
+            joint_centre_comparison: Vec::new(),
         }
+    }
+
+    /// Sets the lab-frame joint centres and their comparisons (a one-leg summary's top level).
+    pub(crate) fn set_joint_centres(
+        &mut self,
+        centres: BTreeMap<String, [f64; 3]>,
+        compare: Vec<JcComparison>,
+    ) {
+        self.joint_centres_lab_mm = centres;
+        self.joint_centre_comparison = compare;
     }
 
     fn param(&self, name: &str) -> f64 {
@@ -169,6 +191,7 @@ impl Summary {
 
     pub(crate) fn render(&self) -> String {
         let mut out = self.render_leg();
+        out += &crate::personalize_subject::render(&self.joint_centre_comparison);
         out += &format!(
             "static pose reproduced to {:.1e} mm; all 27 parameters: jointfit model show {}\n",
             self.static_fk_error_mm, self.output
@@ -324,6 +347,12 @@ pub(crate) struct BothSummary {
     static_pose: Vec<(String, f64)>,
     /// Each leg's one-sided summary (its parameters unsuffixed), right first.
     legs: Vec<Summary>,
+    /// Hip, knee and ankle centres of both legs (`hip_r`, …, `ankle_l`) in the file's own
+    /// lab frame (mm), averaged over the static window.
+    joint_centres_lab_mm: BTreeMap<String, [f64; 3]>,
+    /// `--compare-jc`: stored joint centres against ours.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    joint_centre_comparison: Vec<JcComparison>,
 }
 
 impl BothSummary {
@@ -337,7 +366,19 @@ impl BothSummary {
             parameters: parameters(&b.spec),
             static_pose: static_pose(&b.spec, &b.static_q),
             legs,
+            joint_centres_lab_mm: BTreeMap::new(),
+            joint_centre_comparison: Vec::new(),
         }
+    }
+
+    /// Sets the lab-frame joint centres and their comparisons.
+    pub(crate) fn set_joint_centres(
+        &mut self,
+        centres: BTreeMap<String, [f64; 3]>,
+        compare: Vec<JcComparison>,
+    ) {
+        self.joint_centres_lab_mm = centres;
+        self.joint_centre_comparison = compare;
     }
 
     pub(crate) fn render(&self) -> String {
@@ -349,6 +390,7 @@ impl BothSummary {
             out += &format!("-- {} leg --\n", leg.side);
             out += &leg.render_leg();
         }
+        out += &crate::personalize_subject::render(&self.joint_centre_comparison);
         let fk = self
             .legs
             .iter()

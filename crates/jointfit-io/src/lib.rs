@@ -18,6 +18,7 @@ pub mod osim_read;
 pub mod staging;
 pub mod sto;
 pub mod trc;
+pub mod vsk;
 
 pub mod model_file;
 mod text;

@@ -135,6 +135,7 @@ pub fn personalize_sides(
         ));
     }
     set.validate()?;
+    let set = &set.resolve(trial.labels());
     for (side, other) in [(Side::Right, Side::Left), (Side::Left, Side::Right)] {
         if set.leg(other).is_err() {
             let w = format!(

@@ -54,6 +54,7 @@
 //!
 //! [`lower_limb`]: crate::model::lower_limb::lower_limb
 
+pub mod auto;
 pub mod bilateral;
 mod error;
 pub(crate) mod frames;
@@ -61,7 +62,9 @@ pub mod functional;
 pub mod markerset;
 pub mod motion;
 pub(crate) mod nominal;
+pub mod plugin_gait;
 pub mod priors;
+pub mod subject;
 pub mod suggest;
 pub mod window;
 
@@ -70,7 +73,10 @@ use nalgebra::Vector3;
 pub use bilateral::{personalize_sides, BothLegs, Outcome, PersonalizedModel, Sides};
 pub use error::LandmarkError;
 pub use frames::SegmentFrames;
-pub use markerset::{LegMarkers, MarkerSet, PelvisMarkers, PRESET_NAMES, TRACKED_SEGMENTS};
+pub use markerset::{
+    LegMarkers, MarkerSet, MedialLandmark, PelvisMarkers, PRESET_NAMES, TRACKED_SEGMENTS,
+};
+pub use subject::SubjectMeasurements;
 pub use window::StaticWindow;
 
 use crate::kinematics::{forward_kinematics, KinData, Pose, Want};
@@ -87,6 +93,10 @@ pub enum HipCentreMethod {
     Bell,
     /// Harrington et al. 2007: pelvic depth and width, with constant terms.
     Harrington,
+    /// Davis et al. 1991 as Vicon's Plug-in Gait applies it: leg length, ASIS-to-trochanter
+    /// distance, inter-ASIS distance and marker radius ([`plugin_gait`]); needs the subject's
+    /// leg length in [`PersonalizeOptions::subject`].
+    Davis,
 }
 
 impl HipCentreMethod {
@@ -94,6 +104,7 @@ impl HipCentreMethod {
         match self {
             HipCentreMethod::Bell => "Bell et al. 1990",
             HipCentreMethod::Harrington => "Harrington et al. 2007",
+            HipCentreMethod::Davis => "Davis et al. 1991 (Plug-in Gait)",
         }
     }
 }
@@ -114,6 +125,9 @@ pub struct PersonalizeOptions {
     pub min_marker_spread: f64,
     /// Name of the model written into the description.
     pub name: String,
+    /// The subject's measurements: what [`HipCentreMethod::Davis`] and Plug-in Gait's chord
+    /// function (a marker set's `chord:WAND` medial landmark) need.
+    pub subject: SubjectMeasurements,
 }
 
 impl Default for PersonalizeOptions {
@@ -126,6 +140,7 @@ impl Default for PersonalizeOptions {
             subtalar_deviation: 23f64.to_radians(),
             min_marker_spread: 0.005,
             name: "subject".into(),
+            subject: SubjectMeasurements::default(),
         }
     }
 }
@@ -248,6 +263,7 @@ pub fn personalize_in(
 ) -> Result<Personalized, LandmarkError> {
     check_options(opts)?;
     set.validate()?;
+    let set = &set.resolve(trial.labels());
     let side_name = markerset::side_name(side);
     let leg = set.leg(side)?;
 
@@ -298,14 +314,42 @@ pub fn personalize_in(
     };
     let forefoot: Vector3<f64> =
         leg.forefoot.iter().map(|l| at(l)).sum::<Vector3<f64>>() / leg.forefoot.len() as f64;
+    let radius = 0.5 * opts.subject.marker_diameter_or_default();
+    let medial = |label: &str, width: Option<f64>, what: &str| {
+        Ok::<_, LandmarkError>(match MedialLandmark::parse(label) {
+            MedialLandmark::Marker(l) => frames::Medial::Marker(at(l)),
+            MedialLandmark::Chord { wand } => {
+                let width = width.ok_or_else(|| LandmarkError::MissingMeasurement {
+                    what: format!("{side_name} {what} width"),
+                    why: format!(
+                        "the {side_name} {what} centre by Plug-in Gait's chord function \
+                         (marker set {:?} has no medial {what} marker)",
+                        set.name
+                    ),
+                })?;
+                frames::Medial::Chord {
+                    wand: at(wand),
+                    delta: 0.5 * width + radius,
+                }
+            }
+        })
+    };
     let lm = frames::Landmarks {
         r_asis: at(&p.right_asis),
         l_asis: at(&p.left_asis),
         back,
         lat_epicondyle: at(&leg.lateral_epicondyle),
-        med_epicondyle: at(&leg.medial_epicondyle),
+        med_epicondyle: medial(
+            &leg.medial_epicondyle,
+            opts.subject.knee_width(side),
+            "knee",
+        )?,
         lat_malleolus: at(&leg.lateral_malleolus),
-        med_malleolus: at(&leg.medial_malleolus),
+        med_malleolus: medial(
+            &leg.medial_malleolus,
+            opts.subject.ankle_width(side),
+            "ankle",
+        )?,
         heel: at(&leg.heel),
         forefoot,
     };
