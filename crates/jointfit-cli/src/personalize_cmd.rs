@@ -51,8 +51,9 @@ pub struct PersonalizeArgs {
     /// feet), else y. Recorded in the model as `lab_up` for every later command.
     #[arg(long, value_enum)]
     up: Option<Up>,
-    /// Hip-centre regression (default: davis when the marker set uses Plug-in Gait's chord
-    /// function and the leg length is given, else bell).
+    /// Hip-centre regression (default: davis when the static trial needs Plug-in Gait's
+    /// chord function, having no medial knee or ankle markers, and the leg length is given;
+    /// else bell).
     #[arg(long, value_enum)]
     hip: Option<HipArg>,
     /// Length of the averaged static window (s).
@@ -188,7 +189,10 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
         Some(HipArg::Bell) => HipCentreMethod::Bell,
         Some(HipArg::Harrington) => HipCentreMethod::Harrington,
         Some(HipArg::Davis) => HipCentreMethod::Davis,
-        None if set.uses_chord() && subject.mean_leg_length().is_some() => HipCentreMethod::Davis,
+        // Plug-in Gait's hip where the trial needs its chord function (no medial markers).
+        None if set.resolve(trial.labels()).uses_chord() && subject.mean_leg_length().is_some() => {
+            HipCentreMethod::Davis
+        }
         None => HipCentreMethod::Bell,
     };
     let opts = PersonalizeOptions {
@@ -212,11 +216,15 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
         Err(jointfit::landmarks::LandmarkError::MissingMarkers { .. }) => {
             preset_hint(trial.labels(), &args.markers, sides, &static_name)
         }
-        Err(jointfit::landmarks::LandmarkError::MissingMeasurement { .. }) => {
-            crate::personalize_subject::HINT.to_string()
-        }
         _ => String::new(),
     };
+    // A missing subject measurement: say how to give one after the message.
+    let outcome = outcome.map_err(|e| match e {
+        jointfit::landmarks::LandmarkError::MissingMeasurement { .. } => {
+            anyhow::anyhow!("{e}{}", crate::personalize_subject::HINT)
+        }
+        e => anyhow::Error::new(e),
+    });
     let outcome = outcome.with_context(|| {
         let up = up
             .to_possible_value()

@@ -47,6 +47,8 @@ mod osim_ik;
 mod osim_personalize;
 #[path = "cli/personalize.rs"]
 mod personalize;
+#[path = "cli/plugin_gait.rs"]
+mod plugin_gait;
 #[path = "cli/priors.rs"]
 mod priors;
 #[path = "cli/refusals.rs"]

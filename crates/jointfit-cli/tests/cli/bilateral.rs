@@ -63,7 +63,7 @@ fn both_legs_share_one_pelvis_and_match_the_one_sided_personalizations() {
         ),
         (
             "biobuddy_functional_vicon/Test_func_anat.c3d",
-            "plugin-gait",
+            "plugin-gait-medial",
             1e-3,
         ),
         (
@@ -415,7 +415,7 @@ fn every_preset_personalizes_both_legs_of_a_shared_trial() {
         ("opensim_jam_healthy/static1.trc", "jam", UpAxis::Y, &[]),
         (
             "biobuddy_functional_vicon/Test_func_anat.c3d",
-            "plugin-gait",
+            "plugin-gait-medial",
             UpAxis::NegZ,
             &[],
         ),

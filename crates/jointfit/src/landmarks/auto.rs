@@ -95,7 +95,7 @@ pub fn choose(trial: &Trial, name: &str) -> Result<AutoChoice, LandmarkError> {
         let runner = ranked
             .iter()
             .skip(1)
-            .find(|f| f.name != b.name)
+            .find(|f| f.name != b.name && f.present > 0)
             .map(|f| {
                 format!(
                     "; next {} with {} of {} labels",
