@@ -33,6 +33,8 @@ mod ik_chunks;
 mod limits;
 #[path = "cli/markers.rs"]
 mod markers;
+#[path = "cli/markers_auto.rs"]
+mod markers_auto;
 #[path = "cli/offsets.rs"]
 mod offsets;
 #[path = "cli/osim.rs"]

@@ -9,8 +9,8 @@
 //! leg when the coverage is 1. The chosen preset fits the most legs; among those, the one
 //! that uses the most of the trial's labels (the more specific set: Plug-in Gait with extra
 //! thigh markers over plain Plug-in Gait), then the first in [`PRESET_NAMES`] order. When no
-//! preset fits a leg, the suggestion is returned, with the best preset's missing labels in
-//! the reason.
+//! preset fits both legs and the suggestion covers both, or no preset fits any leg, the
+//! suggestion is returned, with the closest preset's missing labels in the reason.
 
 use super::markerset::{MarkerSet, PRESET_NAMES};
 use super::suggest::suggest;
@@ -91,7 +91,14 @@ pub fn rank_presets(labels: &[String]) -> Vec<PresetFit> {
 pub fn choose(trial: &Trial, name: &str) -> Result<AutoChoice, LandmarkError> {
     let ranked = rank_presets(trial.labels());
     let best = ranked.first().cloned();
-    if let Some(b) = best.as_ref().filter(|b| b.legs_fitted > 0) {
+    // A preset that fits one leg only gives way to a suggestion covering both legs.
+    let suggestion = match best.as_ref() {
+        Some(b) if b.legs_fitted == 2 => None,
+        _ => suggest(trial, name)
+            .ok()
+            .filter(|s| s.set.right.is_some() && s.set.left.is_some()),
+    };
+    if let Some(b) = best.as_ref().filter(|b| b.legs_fitted > 0 && suggestion.is_none()) {
         let runner = ranked
             .iter()
             .skip(1)
@@ -104,9 +111,9 @@ pub fn choose(trial: &Trial, name: &str) -> Result<AutoChoice, LandmarkError> {
             })
             .unwrap_or_default();
         let legs = if b.legs_fitted == 2 {
-            "both legs".to_string()
+            "both legs"
         } else {
-            "one leg".to_string()
+            "one leg"
         };
         return Ok(AutoChoice {
             preset: Some(b.name),
@@ -118,7 +125,10 @@ pub fn choose(trial: &Trial, name: &str) -> Result<AutoChoice, LandmarkError> {
             notes: Vec::new(),
         });
     }
-    let s = suggest(trial, name)?;
+    let s = match suggestion {
+        Some(s) => s,
+        None => suggest(trial, name)?,
+    };
     let why = match best {
         Some(b) => {
             let shown: Vec<&str> = b.missing.iter().take(4).map(String::as_str).collect();
