@@ -133,7 +133,7 @@ pub fn choose(trial: &Trial, name: &str) -> Result<AutoChoice, LandmarkError> {
         Some(b) => {
             let shown: Vec<&str> = b.missing.iter().take(4).map(String::as_str).collect();
             format!(
-                "no preset fits (closest {} lacks {}{})",
+                "no preset fits; closest {} lacks {}{}",
                 b.name,
                 shown.join(", "),
                 if b.missing.len() > 4 { ", …" } else { "" }
