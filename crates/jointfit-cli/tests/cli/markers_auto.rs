@@ -81,7 +81,7 @@ fn each_lab_gets_its_preset() {
         assert!(
             err.contains(
                 "markers auto: the set `markers suggest` proposes (no preset fits; closest \
-                 gait2392 lacks R.Heel, L.Heel): check it)"
+                 gait2392 lacks R.Heel, L.Heel): check it"
             ),
             "{err}"
         );
