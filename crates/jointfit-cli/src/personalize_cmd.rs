@@ -5,10 +5,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{ArgGroup, Args, ValueEnum};
+use jointfit::landmarks::auto::ChosenSet;
 use jointfit::landmarks::functional::FunctionalTrials;
 use jointfit::landmarks::{
-    personalize_sides, HipCentreMethod, MarkerSet, PersonalizeOptions, PersonalizedModel, Sides,
-    PRESET_NAMES,
+    personalize_keypoints, personalize_sides, HipCentreMethod, KeypointSet, MarkerSet,
+    PersonalizeOptions, PersonalizedModel, Sides, KEYPOINT_PRESET_NAMES, PRESET_NAMES,
 };
 use jointfit::model::lower_limb::Side;
 
@@ -26,9 +27,10 @@ pub struct PersonalizeArgs {
     #[arg(long = "static", value_name = "FILE")]
     static_trial: Option<PathBuf>,
     /// Marker set: a TOML file, a preset (gait2392, opencap, opencap-video, jam, plugin-gait,
-    /// plugin-gait-sacr, plugin-gait-medial, plugin-gait-basic, rajagopal; docs/markersets.md)
-    /// or auto: the preset whose labels the static trial carries, else the set `markers
-    /// suggest` proposes (the default).
+    /// plugin-gait-sacr, plugin-gait-medial, plugin-gait-basic, rajagopal; docs/markersets.md),
+    /// a video keypoint set (keypoints, keypoints-shoulders: hip, knee and ankle keypoints as
+    /// joint centres) or auto: the preset whose labels the static trial carries, else the set
+    /// `markers suggest` proposes (the default).
     #[arg(long, value_name = "MAP.toml|PRESET|auto", default_value = "auto")]
     markers: String,
     /// Subject measurements (Plug-in Gait's knee and ankle widths, leg length, …): a Vicon
@@ -163,7 +165,7 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
     let trial = load_trial(&static_trial, up, None)?;
     let scale: Vec<_> = jointfit::checks::check_scale(&trial).into_iter().collect();
     crate::common::report_findings(&scale, &static_trial)?;
-    let set = if args.markers == "auto" {
+    let chosen = if args.markers == "auto" {
         let choice = jointfit::landmarks::auto::choose(&trial, "auto")
             .with_context(|| format!("{}: --markers auto", static_trial.display()))?;
         eprintln!("jointfit: {}: {}", static_trial.display(), choice.reason);
@@ -171,8 +173,14 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
             eprintln!("jointfit: note: {note}");
         }
         choice.set
+    } else if KEYPOINT_PRESET_NAMES.contains(&args.markers.as_str()) {
+        ChosenSet::Keypoints(KeypointSet::preset(&args.markers)?)
     } else {
-        load_marker_set(&args.markers)?
+        ChosenSet::Markers(load_marker_set(&args.markers)?)
+    };
+    let set_name = match &chosen {
+        ChosenSet::Markers(s) => s.name.clone(),
+        ChosenSet::Keypoints(k) => k.name.clone(),
     };
     let subject = crate::personalize_subject::measurements(&static_trial, &args.subject)?;
     let sides = match args.side {
@@ -190,7 +198,10 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
         Some(HipArg::Harrington) => HipCentreMethod::Harrington,
         Some(HipArg::Davis) => HipCentreMethod::Davis,
         // Plug-in Gait's hip where the trial needs its chord function (no medial markers).
-        None if set.resolve(trial.labels()).uses_chord() && subject.mean_leg_length().is_some() => {
+        None if matches!(&chosen, ChosenSet::Markers(set)
+            if set.resolve(trial.labels()).uses_chord())
+            && subject.mean_leg_length().is_some() =>
+        {
             HipCentreMethod::Davis
         }
         None => HipCentreMethod::Bell,
@@ -210,7 +221,18 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
         knee: knee_trial.as_ref(),
         ..FunctionalTrials::default()
     };
-    let outcome = personalize_sides(&trial, &set, sides, &opts, &func);
+    let outcome = match &chosen {
+        ChosenSet::Markers(set) => personalize_sides(&trial, set, sides, &opts, &func),
+        ChosenSet::Keypoints(k) => {
+            if func.hip.is_some() || func.knee.is_some() {
+                bail!(
+                    "functional trials need a marker set, not the keypoint set {:?}",
+                    k.name
+                );
+            }
+            personalize_keypoints(&trial, k, sides, &opts)
+        }
+    };
     // A static trial without the set's labels: name the presets that fit them instead.
     let hint = match &outcome {
         Err(jointfit::landmarks::LandmarkError::MissingMarkers { .. }) => {
@@ -295,7 +317,7 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
         .legs()
         .into_iter()
         .zip(compare)
-        .map(|((side, r), c)| Summary::of(r, &set, side, &static_name, &args.output, c))
+        .map(|((side, r), c)| Summary::of(r, &set_name, side, &static_name, &args.output, c))
         .collect();
     let (json, text) = match &model {
         PersonalizedModel::Both(b) => {

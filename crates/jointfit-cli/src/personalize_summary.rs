@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use jointfit::landmarks::functional::FunctionalReport;
-use jointfit::landmarks::{BothLegs, MarkerSet, Personalized};
+use jointfit::landmarks::{BothLegs, Personalized};
 use jointfit::model::lower_limb::Side;
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;
@@ -112,7 +112,7 @@ impl FunctionalSummary {
 impl Summary {
     pub(crate) fn of(
         r: &Personalized,
-        set: &MarkerSet,
+        set_name: &str,
         side: Side,
         static_trial: &str,
         output: &Path,
@@ -125,7 +125,7 @@ impl Summary {
         Summary {
             static_trial: static_trial.into(),
             output: output.display().to_string(),
-            marker_set: set.name.clone(),
+            marker_set: set_name.to_string(),
             side: if side == Side::Right { "right" } else { "left" },
             window_first_frame: w.first,
             window_frames: w.len,

@@ -135,7 +135,10 @@ mod tests {
         assert_eq!(canonical("RightKneeWidth"), Some("knee_width_r"));
         assert_eq!(canonical("LKneeWidth"), Some("knee_width_l"));
         assert_eq!(canonical("LLegLength"), Some("leg_length_l"));
-        assert_eq!(canonical("LeftAsisTrocanterDistance"), Some("asis_trochanter_l"));
+        assert_eq!(
+            canonical("LeftAsisTrocanterDistance"),
+            Some("asis_trochanter_l")
+        );
         assert_eq!(canonical("InterAsisDistance"), Some("inter_asis"));
         assert_eq!(canonical("MarkerDiameter"), Some("marker_diameter"));
         assert_eq!(canonical("RightTibialTorsion"), None);

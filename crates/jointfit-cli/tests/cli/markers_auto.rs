@@ -41,10 +41,16 @@ fn each_lab_gets_its_preset() {
     for (rel, preset) in [
         ("opencap_expert1/static1.trc", "opencap"),
         ("opencap_video_subject0/neutral.trc", "opencap-video"),
-        ("opensim_gait2392_subject01/subject01_static.trc", "gait2392"),
+        (
+            "opensim_gait2392_subject01/subject01_static.trc",
+            "gait2392",
+        ),
         ("opensim_hamner_subject02/subject02_static.trc", "gait2392"),
         ("opensim_jam_healthy/static1.trc", "jam"),
-        ("biobuddy_functional_vicon/Test_func_anat.c3d", "plugin-gait-medial"),
+        (
+            "biobuddy_functional_vicon/Test_func_anat.c3d",
+            "plugin-gait-medial",
+        ),
         ("pig_pycgm/Static_trial.c3d", "plugin-gait"),
     ] {
         let Some(stat) = data_file(rel) else { continue };
@@ -86,9 +92,71 @@ fn each_lab_gets_its_preset() {
             "{err}"
         );
         let toml = std::fs::read_to_string(&out).unwrap();
-        assert!(toml.contains("R.Calc"), "the suggested set's heel tracks the foot");
+        assert!(
+            toml.contains("R.Calc"),
+            "the suggested set's heel tracks the foot"
+        );
     }
     if ran == 0 {
         println!("skipped: no data");
     }
+}
+
+/// Video keypoints alone (OpenCap's OpenPose keypoints of `neutral.trc`, without the
+/// augmented markers): `--markers auto` takes them as joint centres, and the model's hip,
+/// knee and ankle centres are the keypoints averaged over the static window.
+#[test]
+fn keypoints_alone_are_joint_centres() {
+    let Some(stat) = data_file("opencap_video_subject0/neutral.trc") else {
+        println!("skipped: no data");
+        return;
+    };
+    let dir = scratch("keypoints");
+    let only = dir.join("keypoints.trc");
+    let keep = "Neck,RShoulder,LShoulder,RHip,RKnee,RAnkle,LHip,LKnee,LAnkle,LBigToe,LSmallToe,\
+                LHeel,RBigToe,RSmallToe,RHeel";
+    let (ok, _, err) = jointfit(&[
+        "convert",
+        stat.to_str().unwrap(),
+        only.to_str().unwrap(),
+        "--markers",
+        keep,
+    ]);
+    assert!(ok, "{err}");
+    let out = dir.join("kp.toml");
+    let (ok, json, err) = jointfit(&[
+        "personalize",
+        only.to_str().unwrap(),
+        "--compare-jc",
+        "hip=RHip,knee=RKnee,ankle=RAnkle",
+        "--json",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(
+        err.contains("markers auto: keypoint set keypoints (no marker preset fits"),
+        "{err}"
+    );
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    let rows = v["joint_centre_comparison"].as_array().unwrap();
+    assert_eq!(rows.len(), 6);
+    for r in rows {
+        let d = r["distance_mm"].as_f64().unwrap();
+        assert!(d < 1e-6, "{r}");
+    }
+    // The model tracks the keypoints: the trunk point with a lower weight.
+    let toml = std::fs::read_to_string(&out).unwrap();
+    assert!(toml.contains("name = \"Neck\""), "{toml}");
+    assert!(toml.contains("weight = 0.25"), "{toml}");
+    // The same with the shoulders as the trunk point, asked for by name.
+    let (ok, _, err) = jointfit(&[
+        "personalize",
+        stat.to_str().unwrap(),
+        "--markers",
+        "keypoints-shoulders",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
 }

@@ -69,7 +69,10 @@ fn plug_in_gait_matches_vicon_joint_centres() {
     let rows = distances(&json);
     check_vicon_centres(&rows, "PROCESSING");
     let v: Value = serde_json::from_str(&json).unwrap();
-    assert_eq!(v["legs"][0]["hip_method"], "Davis et al. 1991 (Plug-in Gait)");
+    assert_eq!(
+        v["legs"][0]["hip_method"],
+        "Davis et al. 1991 (Plug-in Gait)"
+    );
     // The centres in the file's own lab frame (Z up): the hips about 0.7 m up, the ankles
     // about 0.1 m, the right leg at smaller lab y than the left in this session.
     let c = &v["joint_centres_lab_mm"];

@@ -26,7 +26,11 @@ pub fn processing_values(params: &Parameters) -> BTreeMap<String, f64> {
 /// The subject measurements of the PROCESSING group (see [`crate::vsk::vicon_measurements`]
 /// for the names read).
 pub fn processing_measurements(params: &Parameters) -> SubjectMeasurements {
-    crate::vsk::vicon_measurements(processing_values(params).iter().map(|(k, v)| (k.as_str(), *v)))
+    crate::vsk::vicon_measurements(
+        processing_values(params)
+            .iter()
+            .map(|(k, v)| (k.as_str(), *v)),
+    )
 }
 
 #[cfg(test)]

@@ -10,8 +10,11 @@
 //! that uses the most of the trial's labels (the more specific set: Plug-in Gait with extra
 //! thigh markers over plain Plug-in Gait), then the first in [`PRESET_NAMES`] order. When no
 //! preset fits both legs and the suggestion covers both, or no preset fits any leg, the
-//! suggestion is returned, with the closest preset's missing labels in the reason.
+//! suggestion is returned, with the closest preset's missing labels in the reason; but when
+//! no marker preset fits any leg and the trial has every keypoint of a keypoint preset
+//! ([`super::keypoints`]), that keypoint set is chosen.
 
+use super::keypoints::{fitting_preset, KeypointSet};
 use super::markerset::{MarkerSet, PRESET_NAMES};
 use super::suggest::suggest;
 use super::LandmarkError;
@@ -31,13 +34,20 @@ pub struct PresetFit {
     pub missing: Vec<String>,
 }
 
+/// A marker set or a keypoint set.
+#[derive(Debug, Clone)]
+pub enum ChosenSet {
+    Markers(MarkerSet),
+    Keypoints(KeypointSet),
+}
+
 /// The marker set chosen for a trial and why.
 #[derive(Debug, Clone)]
 pub struct AutoChoice {
     /// The preset's name, or `None` when the set was suggested.
     pub preset: Option<&'static str>,
     /// The set (a preset as written, or the suggestion).
-    pub set: MarkerSet,
+    pub set: ChosenSet,
     /// One line: what was chosen and why.
     pub reason: String,
     /// The suggestion's notes when the set was suggested.
@@ -98,7 +108,10 @@ pub fn choose(trial: &Trial, name: &str) -> Result<AutoChoice, LandmarkError> {
             .ok()
             .filter(|s| s.set.right.is_some() && s.set.left.is_some()),
     };
-    if let Some(b) = best.as_ref().filter(|b| b.legs_fitted > 0 && suggestion.is_none()) {
+    if let Some(b) = best
+        .as_ref()
+        .filter(|b| b.legs_fitted > 0 && suggestion.is_none())
+    {
         let runner = ranked
             .iter()
             .skip(1)
@@ -117,13 +130,27 @@ pub fn choose(trial: &Trial, name: &str) -> Result<AutoChoice, LandmarkError> {
         };
         return Ok(AutoChoice {
             preset: Some(b.name),
-            set: MarkerSet::preset(b.name)?,
+            set: ChosenSet::Markers(MarkerSet::preset(b.name)?),
             reason: format!(
                 "markers auto: preset {} (the trial has all {} labels it needs for {legs}{runner})",
                 b.name, b.present
             ),
             notes: Vec::new(),
         });
+    }
+    // Video keypoints alone: the hip, knee and ankle keypoints as joint centres.
+    if best.as_ref().is_none_or(|b| b.legs_fitted == 0) {
+        if let Some(k) = fitting_preset(trial.labels()) {
+            return Ok(AutoChoice {
+                preset: Some(k),
+                set: ChosenSet::Keypoints(KeypointSet::preset(k)?),
+                reason: format!(
+                    "markers auto: keypoint set {k} (no marker preset fits; the trial has \
+                     every keypoint it needs, taken as joint centres)"
+                ),
+                notes: Vec::new(),
+            });
+        }
     }
     let s = match suggestion {
         Some(s) => s,
@@ -143,7 +170,7 @@ pub fn choose(trial: &Trial, name: &str) -> Result<AutoChoice, LandmarkError> {
     };
     Ok(AutoChoice {
         preset: None,
-        set: s.set,
+        set: ChosenSet::Markers(s.set),
         reason: format!("markers auto: the set `markers suggest` proposes ({why}): check it"),
         notes: s.notes,
     })
@@ -185,8 +212,8 @@ mod tests {
     #[test]
     fn plain_plug_in_gait_needs_no_medial_markers() {
         let plain: Vec<String> = [
-            "RASI", "LASI", "RPSI", "LPSI", "RTHI", "RKNE", "RTIB", "RANK", "RHEE", "RTOE",
-            "LTHI", "LKNE", "LTIB", "LANK", "LHEE", "LTOE",
+            "RASI", "LASI", "RPSI", "LPSI", "RTHI", "RKNE", "RTIB", "RANK", "RHEE", "RTOE", "LTHI",
+            "LKNE", "LTIB", "LANK", "LHEE", "LTOE",
         ]
         .iter()
         .map(|s| s.to_string())

@@ -199,7 +199,10 @@ impl MarkerSet {
     /// with these labels carries (module docs); a set without alternatives is unchanged.
     pub fn resolve(&self, labels: &[String]) -> MarkerSet {
         let mut out = self.clone();
-        for leg in [out.right.as_mut(), out.left.as_mut()].into_iter().flatten() {
+        for leg in [out.right.as_mut(), out.left.as_mut()]
+            .into_iter()
+            .flatten()
+        {
             leg.medial_epicondyle = resolve_medial(&leg.medial_epicondyle, labels);
             leg.medial_malleolus = resolve_medial(&leg.medial_malleolus, labels);
         }
@@ -263,12 +266,14 @@ impl MarkerSet {
         opt("left PSIS", &p.left_psis);
         opt("sacrum", &p.sacrum);
         // A medial landmark with alternatives stands for its first one (see `resolve`).
-        let medial = |field: &str, marker: &str, wand: &str| {
-            match MedialLandmark::alternatives(field).next() {
-                Some(MedialLandmark::Chord { wand: w }) => (wand.to_string(), w.to_string()),
-                Some(MedialLandmark::Marker(l)) => (marker.to_string(), l.to_string()),
-                None => (marker.to_string(), field.to_string()),
-            }
+        let medial = |field: &str, marker: &str, wand: &str| match MedialLandmark::alternatives(
+            field,
+        )
+        .next()
+        {
+            Some(MedialLandmark::Chord { wand: w }) => (wand.to_string(), w.to_string()),
+            Some(MedialLandmark::Marker(l)) => (marker.to_string(), l.to_string()),
+            None => (marker.to_string(), field.to_string()),
         };
         out.push(("lateral epicondyle".into(), leg.lateral_epicondyle.clone()));
         out.push(medial(

@@ -59,6 +59,7 @@ pub mod bilateral;
 mod error;
 pub(crate) mod frames;
 pub mod functional;
+pub mod keypoints;
 pub mod markerset;
 pub mod motion;
 pub(crate) mod nominal;
@@ -73,6 +74,7 @@ use nalgebra::Vector3;
 pub use bilateral::{personalize_sides, BothLegs, Outcome, PersonalizedModel, Sides};
 pub use error::LandmarkError;
 pub use frames::SegmentFrames;
+pub use keypoints::{personalize_keypoints, KeypointSet, KEYPOINT_PRESET_NAMES};
 pub use markerset::{
     LegMarkers, MarkerSet, MedialLandmark, PelvisMarkers, PRESET_NAMES, TRACKED_SEGMENTS,
 };
@@ -264,48 +266,52 @@ pub fn personalize_in(
     check_options(opts)?;
     set.validate()?;
     let set = &set.resolve(trial.labels());
-    let side_name = markerset::side_name(side);
     let leg = set.leg(side)?;
-
-    // Labels in first-use order, each with its roles.
-    let mut labels: Vec<(String, Vec<String>)> = Vec::new();
-    for (role, label) in set.roles(side)? {
-        match labels.iter_mut().find(|(l, _)| *l == label) {
-            Some((_, roles)) => roles.push(role),
-            None => labels.push((label, vec![role])),
-        }
+    let mut tracking: Vec<(&'static str, Vec<String>)> = Vec::new();
+    for seg in TRACKED_SEGMENTS {
+        tracking.push((seg, set.tracking(side, seg)?.to_vec()));
     }
-    let mut columns = Vec::with_capacity(labels.len());
-    let mut missing = Vec::new();
-    for (label, roles) in &labels {
-        match trial.labels().iter().position(|l| l == label) {
-            Some(c) => columns.push(c),
-            None => missing.push(format!("{} {label:?}", roles.join(" and "))),
-        }
-    }
-    if !missing.is_empty() {
-        return Err(LandmarkError::MissingMarkers {
-            set: set.name.clone(),
-            side: side_name,
-            missing,
-            available: trial.labels().join(", "),
-        });
-    }
-    let names: Vec<String> = labels.iter().map(|(l, _)| l.clone()).collect();
-    let wanted = (opts.window_seconds * trial.rate()).round().max(1.0) as usize;
-    let win = match window {
-        Some(w) => window::check_window(trial, &columns, &names, w)?,
-        None => window::select_window(trial, &columns, &names, wanted)?,
+    let plan = Plan {
+        set_name: &set.name,
+        roles: set.roles(side)?,
+        tracking,
+        weights: Vec::new(),
     };
-    let means = window::window_means(trial, &columns, &win);
-    let idx = |label: &str| {
-        names
+    personalize_plan(trial, &plan, side, opts, func, window, |at| {
+        landmarks_of(set, leg, side, opts, at)
+    })
+}
+
+/// What a marker set or keypoint set gives the shared personalization: the labels with
+/// their roles, the tracking markers per segment, and (through a closure) the landmarks.
+pub(crate) struct Plan<'a> {
+    pub set_name: &'a str,
+    /// (role, label) pairs, landmarks first.
+    pub roles: Vec<(String, String)>,
+    /// Tracking markers of each of [`TRACKED_SEGMENTS`], in that order.
+    pub tracking: Vec<(&'static str, Vec<String>)>,
+    /// Weights of model markers other than 1 (label, weight).
+    pub weights: Vec<(String, f64)>,
+}
+
+impl Plan<'_> {
+    fn tracking(&self, seg: &str) -> &[String] {
+        self.tracking
             .iter()
-            .position(|n| n == label)
-            .expect("resolved label")
-    };
-    let at = |label: &str| means[idx(label)];
+            .find(|(s, _)| *s == seg)
+            .map_or(&[], |(_, l)| l.as_slice())
+    }
+}
 
+/// The landmarks of a marker set's leg from the averaged markers `at`.
+fn landmarks_of(
+    set: &MarkerSet,
+    leg: &LegMarkers,
+    side: Side,
+    opts: &PersonalizeOptions,
+    at: &dyn Fn(&str) -> Vector3<f64>,
+) -> Result<frames::Landmarks, LandmarkError> {
+    let side_name = markerset::side_name(side);
     let p = &set.pelvis;
     let back = match (&p.right_psis, &p.left_psis, &p.sacrum) {
         (Some(r), Some(l), _) => 0.5 * (at(r) + at(l)),
@@ -352,9 +358,64 @@ pub fn personalize_in(
         )?,
         heel: at(&leg.heel),
         forefoot,
+        hip_centre: None,
     };
+    Ok(lm)
+}
+
+/// The shared personalization of one leg (see the module docs): the window, the averaged
+/// labels, the landmarks `landmarks` builds from them, and the model.
+pub(crate) fn personalize_plan(
+    trial: &Trial,
+    plan: &Plan,
+    side: Side,
+    opts: &PersonalizeOptions,
+    func: &functional::FunctionalTrials,
+    window: Option<&StaticWindow>,
+    landmarks: impl Fn(&dyn Fn(&str) -> Vector3<f64>) -> Result<frames::Landmarks, LandmarkError>,
+) -> Result<Personalized, LandmarkError> {
+    let side_name = markerset::side_name(side);
+    // Labels in first-use order, each with its roles.
+    let mut labels: Vec<(String, Vec<String>)> = Vec::new();
+    for (role, label) in plan.roles.iter().cloned() {
+        match labels.iter_mut().find(|(l, _)| *l == label) {
+            Some((_, roles)) => roles.push(role),
+            None => labels.push((label, vec![role])),
+        }
+    }
+    let mut columns = Vec::with_capacity(labels.len());
+    let mut missing = Vec::new();
+    for (label, roles) in &labels {
+        match trial.labels().iter().position(|l| l == label) {
+            Some(c) => columns.push(c),
+            None => missing.push(format!("{} {label:?}", roles.join(" and "))),
+        }
+    }
+    if !missing.is_empty() {
+        return Err(LandmarkError::MissingMarkers {
+            set: plan.set_name.to_string(),
+            side: side_name,
+            missing,
+            available: trial.labels().join(", "),
+        });
+    }
+    let names: Vec<String> = labels.iter().map(|(l, _)| l.clone()).collect();
+    let wanted = (opts.window_seconds * trial.rate()).round().max(1.0) as usize;
+    let win = match window {
+        Some(w) => window::check_window(trial, &columns, &names, w)?,
+        None => window::select_window(trial, &columns, &names, wanted)?,
+    };
+    let means = window::window_means(trial, &columns, &win);
+    let idx = |label: &str| {
+        names
+            .iter()
+            .position(|n| n == label)
+            .expect("resolved label")
+    };
+    let at = |label: &str| means[idx(label)];
+    let lm = landmarks(&at)?;
     for seg in TRACKED_SEGMENTS {
-        let list = set.tracking(side, seg)?;
+        let list = plan.tracking(seg);
         let pts: Vec<_> = list.iter().map(|l| at(l)).collect();
         // Two markers always lie on one line; the joint fixes the rotation about it.
         if list.len() >= 3 {
@@ -363,7 +424,7 @@ pub fn personalize_in(
     }
     let mut an = frames::anatomy(&lm, side, opts)?;
     let cluster = |seg: &str| -> Result<functional::Cluster, LandmarkError> {
-        let labels = set.tracking(side, seg)?.to_vec();
+        let labels = plan.tracking(seg).to_vec();
         let reference = labels.iter().map(|l| at(l)).collect();
         Ok(functional::Cluster {
             segment: seg.to_string(),
@@ -400,13 +461,17 @@ pub fn personalize_in(
     spec.markers.clear();
     for seg in TRACKED_SEGMENTS {
         let inv = pose_of(seg).inverse();
-        for l in set.tracking(side, seg)? {
+        for l in plan.tracking(seg) {
             let x = inv.transform_point(&at(l));
             spec.markers.push(MarkerSpec {
                 name: l.clone(),
                 segment: seg.into(),
                 position: [x.x, x.y, x.z],
-                weight: 1.0,
+                weight: plan
+                    .weights
+                    .iter()
+                    .find(|(n, _)| n == l)
+                    .map_or(1.0, |(_, w)| *w),
             });
         }
     }
@@ -416,7 +481,7 @@ pub fn personalize_in(
         "{} leg personalized by the anatomical-landmark method (marker set {:?}; static frames \
          {}–{} of {}, t = {:.3}–{:.3} s; hip centre {}; PW {:.1} mm)",
         side_name,
-        set.name,
+        plan.set_name,
         win.first,
         win.end() - 1,
         win.total_frames,
@@ -445,7 +510,7 @@ pub fn personalize_in(
 
     let mut segments = Vec::new();
     for seg in TRACKED_SEGMENTS {
-        let list = set.tracking(side, seg)?;
+        let list = plan.tracking(seg);
         let local: Vec<Vector3<f64>> = spec
             .markers
             .iter()

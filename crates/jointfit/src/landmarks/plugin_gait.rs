@@ -59,9 +59,7 @@ pub fn davis_hip(
         .mean_leg_length()
         .ok_or_else(|| Missing("the leg length (right and/or left)".into()))?;
     let own = m.leg_length(side).unwrap_or(mean);
-    let x_dis = m
-        .asis_trochanter(side)
-        .unwrap_or(0.1288 * own - 0.04856);
+    let x_dis = m.asis_trochanter(side).unwrap_or(0.1288 * own - 0.04856);
     let r = 0.5 * m.marker_diameter_or_default();
     let a = 0.5 * m.inter_asis.unwrap_or(pelvis_width);
     let c = 0.115 * mean - 0.0153;

@@ -178,7 +178,10 @@ mod tests {
         let e = m.set("knee", 0.1).unwrap_err();
         assert!(e.starts_with("unknown subject measurement \"knee\""), "{e}");
         let e = m.set("inter_asis", -0.2).unwrap_err();
-        assert_eq!(e, "subject measurement inter_asis = -200 mm is not a plausible length");
+        assert_eq!(
+            e,
+            "subject measurement inter_asis = -200 mm is not a plausible length"
+        );
         assert_eq!(m.values()[2], ("knee_width_r", Some(0.11)));
     }
 }
