@@ -174,9 +174,9 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
         }
         choice.set
     } else if KEYPOINT_PRESET_NAMES.contains(&args.markers.as_str()) {
-        ChosenSet::Keypoints(KeypointSet::preset(&args.markers)?)
+        ChosenSet::Keypoints(Box::new(KeypointSet::preset(&args.markers)?))
     } else {
-        ChosenSet::Markers(load_marker_set(&args.markers)?)
+        ChosenSet::Markers(Box::new(load_marker_set(&args.markers)?))
     };
     let set_name = match &chosen {
         ChosenSet::Markers(s) => s.name.clone(),

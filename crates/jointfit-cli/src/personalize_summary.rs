@@ -133,7 +133,11 @@ impl Summary {
             complete_frames: w.complete_frames,
             total_frames: w.total_frames,
             window_motion_rms_mm: w.motion_rms * 1e3,
-            hip_method: rep.hip_method.citation(),
+            hip_method: if rep.hip_from_keypoint {
+                "the hip keypoint"
+            } else {
+                rep.hip_method.citation()
+            },
             pelvis_width_mm: rep.pelvis_width * 1e3,
             pelvis_depth_mm: rep.pelvis_depth * 1e3,
             knee_width_mm: rep.knee_width * 1e3,

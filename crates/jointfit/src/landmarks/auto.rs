@@ -37,8 +37,8 @@ pub struct PresetFit {
 /// A marker set or a keypoint set.
 #[derive(Debug, Clone)]
 pub enum ChosenSet {
-    Markers(MarkerSet),
-    Keypoints(KeypointSet),
+    Markers(Box<MarkerSet>),
+    Keypoints(Box<KeypointSet>),
 }
 
 /// The marker set chosen for a trial and why.
@@ -130,7 +130,7 @@ pub fn choose(trial: &Trial, name: &str) -> Result<AutoChoice, LandmarkError> {
         };
         return Ok(AutoChoice {
             preset: Some(b.name),
-            set: ChosenSet::Markers(MarkerSet::preset(b.name)?),
+            set: ChosenSet::Markers(Box::new(MarkerSet::preset(b.name)?)),
             reason: format!(
                 "markers auto: preset {} (the trial has all {} labels it needs for {legs}{runner})",
                 b.name, b.present
@@ -143,7 +143,7 @@ pub fn choose(trial: &Trial, name: &str) -> Result<AutoChoice, LandmarkError> {
         if let Some(k) = fitting_preset(trial.labels()) {
             return Ok(AutoChoice {
                 preset: Some(k),
-                set: ChosenSet::Keypoints(KeypointSet::preset(k)?),
+                set: ChosenSet::Keypoints(Box::new(KeypointSet::preset(k)?)),
                 reason: format!(
                     "markers auto: keypoint set {k} (no marker preset fits; the trial has \
                      every keypoint it needs, taken as joint centres)"
@@ -170,7 +170,7 @@ pub fn choose(trial: &Trial, name: &str) -> Result<AutoChoice, LandmarkError> {
     };
     Ok(AutoChoice {
         preset: None,
-        set: ChosenSet::Markers(s.set),
+        set: ChosenSet::Markers(Box::new(s.set)),
         reason: format!("markers auto: the set `markers suggest` proposes ({why}): check it"),
         notes: s.notes,
     })

@@ -162,7 +162,10 @@ pub struct SegmentResidual {
 #[derive(Debug, Clone, PartialEq)]
 pub struct PersonalizeReport {
     pub window: StaticWindow,
+    /// The regression of the hip centre; unused when `hip_from_keypoint`.
     pub hip_method: HipCentreMethod,
+    /// Whether the hip centre is a video keypoint ([`keypoints`]) rather than a regression.
+    pub hip_from_keypoint: bool,
     /// Inter-ASIS distance PW.
     pub pelvis_width: f64,
     /// Mid-ASIS to mid-PSIS (or sacrum) distance PD.
@@ -414,6 +417,7 @@ pub(crate) fn personalize_plan(
     };
     let at = |label: &str| means[idx(label)];
     let lm = landmarks(&at)?;
+    let lm_hip_given = lm.hip_centre.is_some();
     for seg in TRACKED_SEGMENTS {
         let list = plan.tracking(seg);
         let pts: Vec<_> = list.iter().map(|l| at(l)).collect();
@@ -487,7 +491,11 @@ pub(crate) fn personalize_plan(
         win.total_frames,
         first_time,
         trial.time(win.end() - 1),
-        opts.hip_centre.citation(),
+        if lm_hip_given {
+            "the hip keypoint"
+        } else {
+            opts.hip_centre.citation()
+        },
         an.pelvis_width * 1e3
     );
 
@@ -543,6 +551,7 @@ pub(crate) fn personalize_plan(
     let report = PersonalizeReport {
         window: win,
         hip_method: opts.hip_centre,
+        hip_from_keypoint: lm_hip_given,
         pelvis_width: an.pelvis_width,
         pelvis_depth: an.pelvis_depth,
         knee_width: an.knee_width,
