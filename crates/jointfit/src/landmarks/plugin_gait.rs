@@ -124,12 +124,14 @@ mod tests {
             Vector3::new(0.0, 0.1, 0.99),
         );
         let origin = Vector3::new(251.60, 391.74, 1032.89);
-        let mut m = SubjectMeasurements::default();
-        m.leg_length_r = Some(0.940);
-        m.leg_length_l = Some(0.940);
-        m.asis_trochanter_r = Some(0.07251);
-        m.asis_trochanter_l = Some(0.07251);
-        m.inter_asis = Some(0.21590);
+        let m = SubjectMeasurements {
+            leg_length_r: Some(0.940),
+            leg_length_l: Some(0.940),
+            asis_trochanter_r: Some(0.07251),
+            asis_trochanter_l: Some(0.07251),
+            inter_asis: Some(0.21590),
+            ..SubjectMeasurements::default()
+        };
         for (side, want) in [
             (Side::Right, Vector3::new(307.36, 323.83, 938.72)),
             (Side::Left, Vector3::new(181.71, 340.33, 936.18)),
