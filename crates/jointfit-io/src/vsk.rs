@@ -158,7 +158,7 @@ mod tests {
 </KinematicModel>"#;
         let m = parse_vsk(text, "s.vsk").unwrap();
         assert_eq!(m.knee_width_r, Some(0.105));
-        assert_eq!(m.leg_length_l, Some(0.8805));
+        assert!((m.leg_length_l.unwrap() - 0.8805).abs() < 1e-15);
         assert_eq!(m.inter_asis, None);
         let bad = text.replace("\"880.5\"", "\"88o\"");
         let e = parse_vsk(&bad, "s.vsk").unwrap_err().to_string();
