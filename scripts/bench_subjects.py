@@ -75,7 +75,7 @@ SUBJECTS = [
     # No gait trial: the functional right-hip trial (circumduction), not a gait.
     ("biobuddy functional right hip (not gait)",
      static("biobuddy_functional_vicon/anatomical_posture.c3d",
-            "biobuddy_functional_vicon/Test_func_rhip.c3d", "plugin-gait")),
+            "biobuddy_functional_vicon/Test_func_rhip.c3d", "plugin-gait-medial")),
     ("gait2392 subject01 walk1, .osim",
      osim("opensim_gait2392_subject01/subject01_simbody.osim",
           "opensim_gait2392_subject01/subject01_walk1.trc")),

@@ -50,7 +50,7 @@ SUBJECTS = [
      ["biobuddy_functional_vicon/Test_func_rhip.c3d",
       "biobuddy_functional_vicon/Test_func_rknee.c3d",
       "biobuddy_functional_vicon/Test_func_lhip.c3d"]),
-    ("biobuddy-pig", "biobuddy_functional_vicon/anatomical_posture.c3d", "plugin-gait", [],
+    ("biobuddy-pig", "biobuddy_functional_vicon/anatomical_posture.c3d", "plugin-gait-medial", [],
      ["biobuddy_functional_vicon/Test_func_rankle.c3d"]),
     ("qualisys", "c3d_reader/ezc3d/Qualisys.c3d", "suggest", ["--window", "0.02"],
      ["c3d_reader/ezc3d/Qualisys.c3d"]),

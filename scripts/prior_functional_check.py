@@ -31,7 +31,7 @@ print("|---|---|---|---|---|---|---|---|")
 for side in ["right", "left"]:
     s = side[0]
     bell, func = os.path.join(W, f"bell-{side}.toml"), os.path.join(W, f"score-{side}.toml")
-    base = ["personalize", "--static", f"{D}/Test_func_anat.c3d", "--markers", "plugin-gait",
+    base = ["personalize", "--static", f"{D}/Test_func_anat.c3d", "--markers", "plugin-gait-medial",
             "--up=-z", "--side", side]
     for args in [base + ["-o", bell], base + ["--functional-hip", f"{D}/Test_func_{s}hip.c3d", "-o", func]]:
         r = run(args)

@@ -27,6 +27,7 @@ mod markers_cmd;
 mod model_cmd;
 mod osim_calibrate;
 mod personalize_cmd;
+mod personalize_subject;
 mod personalize_summary;
 mod prior_args;
 mod progress;

@@ -5,10 +5,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{ArgGroup, Args, ValueEnum};
+use jointfit::landmarks::auto::ChosenSet;
 use jointfit::landmarks::functional::FunctionalTrials;
 use jointfit::landmarks::{
-    personalize_sides, HipCentreMethod, MarkerSet, PersonalizeOptions, PersonalizedModel, Sides,
-    PRESET_NAMES,
+    personalize_keypoints, personalize_sides, HipCentreMethod, KeypointSet, MarkerSet,
+    PersonalizeOptions, PersonalizedModel, Sides, KEYPOINT_PRESET_NAMES, PRESET_NAMES,
 };
 use jointfit::model::lower_limb::Side;
 
@@ -25,10 +26,24 @@ pub struct PersonalizeArgs {
     /// The static trial as an option (the same as the positional STATIC; give one of them).
     #[arg(long = "static", value_name = "FILE")]
     static_trial: Option<PathBuf>,
-    /// Marker set: a TOML file or a preset (gait2392, opencap, jam, plugin-gait, plugin-gait-basic,
-    /// plugin-gait-sacr, rajagopal; docs/markersets.md).
-    #[arg(long, value_name = "MAP.toml|PRESET")]
+    /// Marker set: a TOML file, a preset (gait2392, opencap, opencap-video, jam, plugin-gait,
+    /// plugin-gait-sacr, plugin-gait-medial, plugin-gait-basic, rajagopal; docs/markersets.md),
+    /// a video keypoint set (keypoints, keypoints-shoulders: hip, knee and ankle keypoints as
+    /// joint centres) or auto: the preset whose labels the static trial carries, else the set
+    /// `markers suggest` proposes (the default).
+    #[arg(long, value_name = "MAP.toml|PRESET|auto", default_value = "auto")]
     markers: String,
+    /// Subject measurements (Plug-in Gait's knee and ankle widths, leg length, …): a Vicon
+    /// .vsk file, or NAME=MM pairs separated by commas (knee_width_r=105,leg_length_l=880;
+    /// names in docs/markersets.md). Repeatable; later values override earlier ones, and both
+    /// override the C3D's PROCESSING group.
+    #[arg(long = "subject", value_name = "FILE.vsk|NAME=MM,…")]
+    subject: Vec<String>,
+    /// Joint centres stored in the static trial to compare ours with, as JOINT=LABEL pairs
+    /// for the right leg (hip, knee, ankle), e.g. hip=RFEP,knee=RFEO,ankle=RTIO (Vicon's
+    /// Plug-in Gait outputs); the left leg's labels swap the R/L prefix.
+    #[arg(long = "compare-jc", value_name = "JOINT=LABEL,…")]
+    compare_jc: Option<String>,
     /// Which legs to model: both (one model, pelvis shared, 54 parameters; falls back to the
     /// one leg whose markers the trial carries, with a warning) or one (27 parameters).
     #[arg(long, value_enum, default_value = "both")]
@@ -38,9 +53,11 @@ pub struct PersonalizeArgs {
     /// feet), else y. Recorded in the model as `lab_up` for every later command.
     #[arg(long, value_enum)]
     up: Option<Up>,
-    /// Hip-centre regression.
-    #[arg(long, value_enum, default_value = "bell")]
-    hip: HipArg,
+    /// Hip-centre regression (default: davis when the static trial needs Plug-in Gait's
+    /// chord function, having no medial knee or ankle markers, and the leg length is given;
+    /// else bell).
+    #[arg(long, value_enum)]
+    hip: Option<HipArg>,
     /// Length of the averaged static window (s).
     #[arg(long, default_value_t = 1.0, value_name = "SECONDS", allow_negative_numbers = true, value_parser = crate::validate::positive)]
     window: f64,
@@ -78,6 +95,7 @@ enum SideArg {
 enum HipArg {
     Bell,
     Harrington,
+    Davis,
 }
 
 /// The marker set of `--markers`: a TOML file or a preset (also `bench --markers`).
@@ -110,7 +128,7 @@ fn preset_hint(labels: &[String], chosen: &str, sides: Sides, static_name: &str)
         .into_iter()
         .filter(|name| *name != chosen)
         .filter(|name| {
-            let Ok(set) = MarkerSet::preset(name) else {
+            let Ok(set) = MarkerSet::preset(name).map(|s| s.resolve(labels)) else {
                 return false;
             };
             legs.iter().any(|&side| {
@@ -142,12 +160,29 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
         .model("marker set", &args.markers)
         .output("output", &args.output)
         .check()?;
-    let set = load_marker_set(&args.markers)?;
     // Recorded in the model as `lab_up`; said in the error context if personalize fails.
     let (up, _) = crate::common::up_or_detected(&static_trial, args.up)?;
     let trial = load_trial(&static_trial, up, None)?;
     let scale: Vec<_> = jointfit::checks::check_scale(&trial).into_iter().collect();
     crate::common::report_findings(&scale, &static_trial)?;
+    let chosen = if args.markers == "auto" {
+        let choice = jointfit::landmarks::auto::choose(&trial, "auto")
+            .with_context(|| format!("{}: --markers auto", static_trial.display()))?;
+        eprintln!("jointfit: {}: {}", static_trial.display(), choice.reason);
+        for note in &choice.notes {
+            eprintln!("jointfit: note: {note}");
+        }
+        choice.set
+    } else if KEYPOINT_PRESET_NAMES.contains(&args.markers.as_str()) {
+        ChosenSet::Keypoints(Box::new(KeypointSet::preset(&args.markers)?))
+    } else {
+        ChosenSet::Markers(Box::new(load_marker_set(&args.markers)?))
+    };
+    let set_name = match &chosen {
+        ChosenSet::Markers(s) => s.name.clone(),
+        ChosenSet::Keypoints(k) => k.name.clone(),
+    };
+    let subject = crate::personalize_subject::measurements(&static_trial, &args.subject)?;
     let sides = match args.side {
         SideArg::Both => Sides::Both,
         SideArg::Right => Sides::One(Side::Right),
@@ -158,13 +193,24 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
             .file_stem()
             .map_or("subject".into(), |s| s.to_string_lossy().into_owned())
     });
+    let hip_centre = match args.hip {
+        Some(HipArg::Bell) => HipCentreMethod::Bell,
+        Some(HipArg::Harrington) => HipCentreMethod::Harrington,
+        Some(HipArg::Davis) => HipCentreMethod::Davis,
+        // Plug-in Gait's hip where the trial needs its chord function (no medial markers).
+        None if matches!(&chosen, ChosenSet::Markers(set)
+            if set.resolve(trial.labels()).uses_chord())
+            && subject.mean_leg_length().is_some() =>
+        {
+            HipCentreMethod::Davis
+        }
+        None => HipCentreMethod::Bell,
+    };
     let opts = PersonalizeOptions {
-        hip_centre: match args.hip {
-            HipArg::Bell => HipCentreMethod::Bell,
-            HipArg::Harrington => HipCentreMethod::Harrington,
-        },
+        hip_centre,
         window_seconds: args.window,
         name,
+        subject,
         ..PersonalizeOptions::default()
     };
     let static_name = static_trial.display().to_string();
@@ -175,7 +221,18 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
         knee: knee_trial.as_ref(),
         ..FunctionalTrials::default()
     };
-    let outcome = personalize_sides(&trial, &set, sides, &opts, &func);
+    let outcome = match &chosen {
+        ChosenSet::Markers(set) => personalize_sides(&trial, set, sides, &opts, &func),
+        ChosenSet::Keypoints(k) => {
+            if func.hip.is_some() || func.knee.is_some() {
+                bail!(
+                    "functional trials need a marker set, not the keypoint set {:?}",
+                    k.name
+                );
+            }
+            personalize_keypoints(&trial, k, sides, &opts)
+        }
+    };
     // A static trial without the set's labels: name the presets that fit them instead.
     let hint = match &outcome {
         Err(jointfit::landmarks::LandmarkError::MissingMarkers { .. }) => {
@@ -183,6 +240,13 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
         }
         _ => String::new(),
     };
+    // A missing subject measurement: say how to give one after the message.
+    let outcome = outcome.map_err(|e| match e {
+        jointfit::landmarks::LandmarkError::MissingMeasurement { .. } => {
+            anyhow::anyhow!("{e}{}", crate::personalize_subject::HINT)
+        }
+        e => anyhow::Error::new(e),
+    });
     let outcome = outcome.with_context(|| {
         let up = up
             .to_possible_value()
@@ -239,21 +303,31 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
         }
     }
 
+    // Joint centres in the file's own lab frame, and against the stored ones asked for.
+    let centres = crate::personalize_subject::centres_lab(&model, up);
+    let jc_compare = match &args.compare_jc {
+        Some(spec) => crate::personalize_subject::compare_jc(&model, &trial, up, spec)
+            .with_context(|| format!("{static_name}: --compare-jc"))?,
+        None => Vec::new(),
+    };
+
     jointfit_io::atomic::write_atomic(&args.output, model.spec().to_toml().as_bytes())
         .with_context(|| format!("{}: cannot write", args.output.display()))?;
     let mut legs: Vec<Summary> = model
         .legs()
         .into_iter()
         .zip(compare)
-        .map(|((side, r), c)| Summary::of(r, &set, side, &static_name, &args.output, c))
+        .map(|((side, r), c)| Summary::of(r, &set_name, side, &static_name, &args.output, c))
         .collect();
     let (json, text) = match &model {
         PersonalizedModel::Both(b) => {
-            let s = BothSummary::of(b, &static_name, &args.output, legs);
+            let mut s = BothSummary::of(b, &static_name, &args.output, legs);
+            s.set_joint_centres(centres, jc_compare);
             (serde_json::to_string_pretty(&s)?, s.render())
         }
         PersonalizedModel::One(..) => {
-            let s = legs.remove(0);
+            let mut s = legs.remove(0);
+            s.set_joint_centres(centres, jc_compare);
             (serde_json::to_string_pretty(&s)?, s.render())
         }
     };

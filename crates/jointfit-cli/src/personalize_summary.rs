@@ -1,13 +1,16 @@
 //! What `jointfit personalize` prints: per leg, in mm and degrees (text or JSON).
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use jointfit::landmarks::functional::FunctionalReport;
-use jointfit::landmarks::{BothLegs, MarkerSet, Personalized};
+use jointfit::landmarks::{BothLegs, Personalized};
 use jointfit::model::lower_limb::Side;
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;
 use serde::Serialize;
+
+use crate::personalize_subject::JcComparison;
 
 /// Another hip-centre estimate minus ours, in our pelvis frame (anterior, superior, lateral).
 #[derive(Serialize)]
@@ -56,6 +59,13 @@ pub(crate) struct Summary {
     functional: Option<FunctionalSummary>,
     /// Prior SD per parameter (mm or deg), in the model's order.
     prior_sd: Vec<(String, f64)>,
+    /// Hip, knee and ankle centres (`hip_r`, …) in the file's own lab frame (mm), averaged
+    /// over the static window (top level only).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    joint_centres_lab_mm: BTreeMap<String, [f64; 3]>,
+    /// `--compare-jc`: stored joint centres against ours.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    joint_centre_comparison: Vec<JcComparison>,
 }
 
 /// Functional methods' results (mm, deg), in the static trial's frame.
@@ -102,7 +112,7 @@ impl FunctionalSummary {
 impl Summary {
     pub(crate) fn of(
         r: &Personalized,
-        set: &MarkerSet,
+        set_name: &str,
         side: Side,
         static_trial: &str,
         output: &Path,
@@ -115,7 +125,7 @@ impl Summary {
         Summary {
             static_trial: static_trial.into(),
             output: output.display().to_string(),
-            marker_set: set.name.clone(),
+            marker_set: set_name.to_string(),
             side: if side == Side::Right { "right" } else { "left" },
             window_first_frame: w.first,
             window_frames: w.len,
@@ -123,7 +133,11 @@ impl Summary {
             complete_frames: w.complete_frames,
             total_frames: w.total_frames,
             window_motion_rms_mm: w.motion_rms * 1e3,
-            hip_method: rep.hip_method.citation(),
+            hip_method: if rep.hip_from_keypoint {
+                "the hip keypoint"
+            } else {
+                rep.hip_method.citation()
+            },
             pelvis_width_mm: rep.pelvis_width * 1e3,
             pelvis_depth_mm: rep.pelvis_depth * 1e3,
             knee_width_mm: rep.knee_width * 1e3,
@@ -157,7 +171,19 @@ impl Summary {
                         .map(|sd| (p.name.clone(), sd * p.unit.display_scale()))
                 })
                 .collect(),
+            joint_centres_lab_mm: BTreeMap::new(),
+            joint_centre_comparison: Vec::new(),
         }
+    }
+
+    /// Sets the lab-frame joint centres and their comparisons (a one-leg summary's top level).
+    pub(crate) fn set_joint_centres(
+        &mut self,
+        centres: BTreeMap<String, [f64; 3]>,
+        compare: Vec<JcComparison>,
+    ) {
+        self.joint_centres_lab_mm = centres;
+        self.joint_centre_comparison = compare;
     }
 
     fn param(&self, name: &str) -> f64 {
@@ -169,6 +195,7 @@ impl Summary {
 
     pub(crate) fn render(&self) -> String {
         let mut out = self.render_leg();
+        out += &crate::personalize_subject::render(&self.joint_centre_comparison);
         out += &format!(
             "static pose reproduced to {:.1e} mm; all 27 parameters: jointfit model show {}\n",
             self.static_fk_error_mm, self.output
@@ -324,6 +351,12 @@ pub(crate) struct BothSummary {
     static_pose: Vec<(String, f64)>,
     /// Each leg's one-sided summary (its parameters unsuffixed), right first.
     legs: Vec<Summary>,
+    /// Hip, knee and ankle centres of both legs (`hip_r`, …, `ankle_l`) in the file's own
+    /// lab frame (mm), averaged over the static window.
+    joint_centres_lab_mm: BTreeMap<String, [f64; 3]>,
+    /// `--compare-jc`: stored joint centres against ours.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    joint_centre_comparison: Vec<JcComparison>,
 }
 
 impl BothSummary {
@@ -337,7 +370,19 @@ impl BothSummary {
             parameters: parameters(&b.spec),
             static_pose: static_pose(&b.spec, &b.static_q),
             legs,
+            joint_centres_lab_mm: BTreeMap::new(),
+            joint_centre_comparison: Vec::new(),
         }
+    }
+
+    /// Sets the lab-frame joint centres and their comparisons.
+    pub(crate) fn set_joint_centres(
+        &mut self,
+        centres: BTreeMap<String, [f64; 3]>,
+        compare: Vec<JcComparison>,
+    ) {
+        self.joint_centres_lab_mm = centres;
+        self.joint_centre_comparison = compare;
     }
 
     pub(crate) fn render(&self) -> String {
@@ -349,6 +394,7 @@ impl BothSummary {
             out += &format!("-- {} leg --\n", leg.side);
             out += &leg.render_leg();
         }
+        out += &crate::personalize_subject::render(&self.joint_centre_comparison);
         let fk = self
             .legs
             .iter()

@@ -7,7 +7,7 @@
 //!   no noise and with the skin-artifact model over several seeds; each fit starts from the
 //!   truth perturbed on the fitted joint's parameters.
 //! * **Table 1, experimental**: `biobuddy_functional_vicon` (static → personalize with the
-//!   plugin-gait preset → hip on the hip trial, knee on the knee trial, ankle on the ankle
+//!   plugin-gait-medial preset → hip on the hip trial, knee on the knee trial, ankle on the ankle
 //!   trial) and `opencap_expert1` (static → personalize with the opencap preset → all 27 on
 //!   walking1, low-passed at 6 Hz); the landmark row is the inner level alone at the
 //!   personalized (nominal) parameters.
@@ -360,7 +360,7 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
             .context("biobuddy functional trials: fitting all")?;
             let mut t = Table2::new(
                 &format!(
-                    "{} (right leg; Test_func_anat.c3d, plugin-gait preset)",
+                    "{} (right leg; Test_func_anat.c3d, plugin-gait-medial preset)",
                     bb.name
                 ),
                 &bb.model,

@@ -33,6 +33,8 @@ mod ik_chunks;
 mod limits;
 #[path = "cli/markers.rs"]
 mod markers;
+#[path = "cli/markers_auto.rs"]
+mod markers_auto;
 #[path = "cli/offsets.rs"]
 mod offsets;
 #[path = "cli/osim.rs"]
@@ -49,6 +51,8 @@ mod osim_ik_setup;
 mod osim_personalize;
 #[path = "cli/personalize.rs"]
 mod personalize;
+#[path = "cli/plugin_gait.rs"]
+mod plugin_gait;
 #[path = "cli/priors.rs"]
 mod priors;
 #[path = "cli/refusals.rs"]

@@ -19,6 +19,7 @@ pub mod osim_setup;
 pub mod staging;
 pub mod sto;
 pub mod trc;
+pub mod vsk;
 
 pub mod model_file;
 mod text;

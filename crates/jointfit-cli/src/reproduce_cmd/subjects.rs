@@ -140,7 +140,7 @@ pub(super) fn biobuddy(data: &Path, stride: usize) -> Result<Subject> {
         data,
         BIOBUDDY,
         "Test_func_anat.c3d",
-        "plugin-gait",
+        "plugin-gait-medial",
         Up::NegZ,
         &[
             "Test_func_rhip.c3d",

@@ -19,7 +19,7 @@ fn run(side: &str) -> Option<(serde_json::Value, ModelSpec)> {
         "--static",
         stat.to_str().unwrap(),
         "--markers",
-        "plugin-gait",
+        "plugin-gait-medial",
         "--side",
         side,
         "--up=-z",

@@ -64,7 +64,7 @@ const LABS: &[Lab] = &[
     ),
     (
         "biobuddy_functional_vicon/Test_func_anat.c3d",
-        "plugin-gait",
+        "plugin-gait-medial",
         &[
             "anatomical_posture.c3d",
             "Test_func_rhip.c3d",

@@ -185,7 +185,7 @@ fn plugin_gait_c3d_with_negative_z_up() {
     for side in [Side::Right, Side::Left] {
         if check(
             rel,
-            "plugin-gait",
+            "plugin-gait-medial",
             side,
             UpAxis::NegZ,
             HipCentreMethod::Bell,
@@ -197,7 +197,7 @@ fn plugin_gait_c3d_with_negative_z_up() {
     }
     // Read as Y-up, the pelvis lies on its side: refused with the reason.
     let trial = read(&data_file(rel).unwrap(), UpAxis::Y);
-    let set = MarkerSet::preset("plugin-gait").unwrap();
+    let set = MarkerSet::preset("plugin-gait-medial").unwrap();
     let e = personalize(&trial, &set, Side::Right, &PersonalizeOptions::default()).unwrap_err();
     assert!(
         matches!(&e, LandmarkError::Implausible(m) if m.contains("not Y-up")),
@@ -319,8 +319,9 @@ fn cli_personalize_writes_a_model_that_loads() {
     assert!(!ok);
     assert!(
         stderr.contains(
-            "\"vicon\" is neither a marker-set file nor a preset (gait2392, opencap, jam, \
-             plugin-gait, plugin-gait-basic, plugin-gait-sacr, rajagopal)"
+            "\"vicon\" is neither a marker-set file nor a preset (gait2392, opencap, \
+             opencap-video, jam, plugin-gait, plugin-gait-sacr, plugin-gait-medial, \
+             plugin-gait-basic, rajagopal)"
         ),
         "{stderr}"
     );
@@ -357,7 +358,7 @@ fn cli_personalize_c3d() {
         "--static",
         path.to_str().unwrap(),
         "--markers",
-        "plugin-gait",
+        "plugin-gait-medial",
         "--side",
         "left",
         "--up=-z",

@@ -39,7 +39,7 @@ fn negative_z_lab_needs_up_only_once() {
     };
     let dir = scratch("up_once");
     let subject = dir.join("subject.toml");
-    let toml = personalize(&stat, "plugin-gait", &subject);
+    let toml = personalize(&stat, "plugin-gait-medial", &subject);
     assert!(toml.contains("lab_up = \"-z\""), "{toml}");
     let (given, forgot, wrong) = (
         dir.join("given.mot"),

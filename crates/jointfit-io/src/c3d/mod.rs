@@ -50,6 +50,7 @@ pub mod header;
 mod layout;
 pub mod parameters;
 pub mod point_types;
+pub mod processing;
 #[cfg(test)]
 mod tests;
 

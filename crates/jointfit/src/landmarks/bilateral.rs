@@ -135,6 +135,7 @@ pub fn personalize_sides(
         ));
     }
     set.validate()?;
+    let set = &set.resolve(trial.labels());
     for (side, other) in [(Side::Right, Side::Left), (Side::Left, Side::Right)] {
         if set.leg(other).is_err() {
             let w = format!(
@@ -243,12 +244,22 @@ pub fn join(
     set: &MarkerSet,
     opts: &PersonalizeOptions,
 ) -> Result<BothLegs, LandmarkError> {
+    join_named(right, left, &set.name, opts)
+}
+
+/// [`join`] with the set given by name (a marker set's or a keypoint set's).
+pub fn join_named(
+    right: Personalized,
+    left: Personalized,
+    set_name: &str,
+    opts: &PersonalizeOptions,
+) -> Result<BothLegs, LandmarkError> {
     let mut spec = join_legs(&right.spec, &left.spec).map_err(LandmarkError::Model)?;
     spec.name = opts.name.clone();
     spec.description = format!(
         "both legs and the pelvis personalized by the anatomical-landmark method (marker set \
-         {:?}); right: {}; left: {}",
-        set.name, right.spec.description, left.spec.description
+         {set_name:?}); right: {}; left: {}",
+        right.spec.description, left.spec.description
     );
     // The static pose by coordinate name: the pelvis and the right leg from the right leg's
     // personalization, the left leg from the left's (one window when they share it).

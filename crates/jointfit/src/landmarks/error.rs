@@ -50,6 +50,8 @@ pub enum LandmarkError {
         spread_mm: f64,
         min_mm: f64,
     },
+    #[error("{why} needs the subject's {what}, which was not given")]
+    MissingMeasurement { what: String, why: String },
     #[error("{segment} frame: {detail}")]
     Degenerate { segment: String, detail: String },
     #[error("{0}")]

@@ -32,12 +32,59 @@ pub(crate) struct Landmarks {
     /// Mid-PSIS, or the sacrum marker.
     pub back: Vector3<f64>,
     pub lat_epicondyle: Vector3<f64>,
-    pub med_epicondyle: Vector3<f64>,
+    /// The medial epicondyle marker, or how Plug-in Gait's chord function finds the knee
+    /// centre without one.
+    pub med_epicondyle: Medial,
     pub lat_malleolus: Vector3<f64>,
-    pub med_malleolus: Vector3<f64>,
+    pub med_malleolus: Medial,
     pub heel: Vector3<f64>,
     /// Mean of the forefoot markers.
     pub forefoot: Vector3<f64>,
+    /// The hip centre itself (a video keypoint), used instead of a regression.
+    pub hip_centre: Option<Vector3<f64>>,
+}
+
+/// A medial landmark: a marker, or Plug-in Gait's chord construction
+/// ([`super::plugin_gait::chord`]) from a wand marker in the plane of the joint.
+#[derive(Debug, Clone)]
+pub(crate) enum Medial {
+    Marker(Vector3<f64>),
+    /// The wand marker and the distance δ = width/2 + marker radius from the lateral marker
+    /// to the joint centre (m).
+    Chord {
+        wand: Vector3<f64>,
+        delta: f64,
+    },
+}
+
+/// The medial point that puts the joint centre at the chord function's centre: the lateral
+/// marker mirrored through it. `proximal` is the joint centre above.
+fn medial_point(
+    medial: &Medial,
+    lateral: &Vector3<f64>,
+    proximal: &Vector3<f64>,
+    joint: &str,
+    segment: &str,
+) -> Result<Vector3<f64>, LandmarkError> {
+    match medial {
+        Medial::Marker(m) => Ok(*m),
+        Medial::Chord { wand, delta } => {
+            let centre =
+                super::plugin_gait::chord(wand, proximal, lateral, *delta).ok_or_else(|| {
+                    LandmarkError::Degenerate {
+                        segment: segment.into(),
+                        detail: format!(
+                            "the {joint} centre by the chord function: the wand marker, the \
+                         lateral marker and the joint centre above are collinear, or the \
+                         lateral marker is within {:.1} mm (half the width plus the marker \
+                         radius) of the joint centre above",
+                            delta * 1e3
+                        ),
+                    }
+                })?;
+            Ok(2.0 * centre - lateral)
+        }
+    }
 }
 
 /// Everything the landmark method derives from one static pose.
@@ -103,6 +150,33 @@ fn perpendicular(
     })
 }
 
+/// The hip centre in the pelvis frame by the regression `opts` names.
+fn regression_hip(
+    opts: &PersonalizeOptions,
+    side: Side,
+    pelvis_width: f64,
+    pelvis_depth: f64,
+) -> Result<Vector3<f64>, LandmarkError> {
+    let s = side.sign();
+    Ok(match opts.hip_centre {
+        HipCentreMethod::Bell => Vector3::new(
+            -0.19 * pelvis_width,
+            -0.30 * pelvis_width,
+            s * 0.36 * pelvis_width,
+        ),
+        HipCentreMethod::Harrington => Vector3::new(
+            -0.24 * pelvis_depth - 0.0099,
+            -0.30 * pelvis_width - 0.0109,
+            s * (0.33 * pelvis_width + 0.0073),
+        ),
+        HipCentreMethod::Davis => super::plugin_gait::davis_hip(&opts.subject, side, pelvis_width)
+            .map_err(|m| LandmarkError::MissingMeasurement {
+                what: m.0,
+                why: "the hip centre by Davis et al. 1991 (Plug-in Gait)".into(),
+            })?,
+    })
+}
+
 /// Builds the frames, hip centre and axes (docs/architecture.md §6) and checks them.
 pub(crate) fn anatomy(
     lm: &Landmarks,
@@ -132,25 +206,32 @@ pub(crate) fn anatomy(
     let pelvis = frame(mid_asis, px, py, pz);
     let pelvis_depth = (mid_asis - lm.back).norm();
 
-    let hip_in_pelvis = match opts.hip_centre {
-        HipCentreMethod::Bell => Vector3::new(
-            -0.19 * pelvis_width,
-            -0.30 * pelvis_width,
-            s * 0.36 * pelvis_width,
-        ),
-        HipCentreMethod::Harrington => Vector3::new(
-            -0.24 * pelvis_depth - 0.0099,
-            -0.30 * pelvis_width - 0.0109,
-            s * (0.33 * pelvis_width + 0.0073),
-        ),
+    let hip_in_pelvis = match lm.hip_centre {
+        Some(h) => pelvis.inverse().transform_point(&h),
+        None => regression_hip(opts, side, pelvis_width, pelvis_depth)?,
     };
     let hip_centre = pelvis.transform_point(&hip_in_pelvis);
 
-    // Rightward (+z) landmark vectors of this leg.
-    let knee_vec = s * (lm.lat_epicondyle - lm.med_epicondyle);
-    let ankle_vec = s * (lm.lat_malleolus - lm.med_malleolus);
-    let knee_centre = 0.5 * (lm.lat_epicondyle + lm.med_epicondyle);
-    let ankle_centre = 0.5 * (lm.lat_malleolus + lm.med_malleolus);
+    // Rightward (+z) landmark vectors of this leg; a chord-function joint centre is the
+    // midpoint of the lateral marker and its mirror image through that centre.
+    let med_epicondyle = medial_point(
+        &lm.med_epicondyle,
+        &lm.lat_epicondyle,
+        &hip_centre,
+        "knee",
+        "thigh",
+    )?;
+    let knee_centre = 0.5 * (lm.lat_epicondyle + med_epicondyle);
+    let med_malleolus = medial_point(
+        &lm.med_malleolus,
+        &lm.lat_malleolus,
+        &knee_centre,
+        "ankle",
+        "shank",
+    )?;
+    let knee_vec = s * (lm.lat_epicondyle - med_epicondyle);
+    let ankle_vec = s * (lm.lat_malleolus - med_malleolus);
+    let ankle_centre = 0.5 * (lm.lat_malleolus + med_malleolus);
     let knee_axis = unit(knee_vec, "the epicondyle line", "thigh")?;
     let ankle_axis = unit(ankle_vec, "the malleolus line", "shank")?;
 

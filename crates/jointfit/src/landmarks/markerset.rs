@@ -28,6 +28,16 @@
 //! build the segment frames from the static trial; tracking markers become model markers and
 //! must also be present in the movement trials. A landmark may also track (a lateral knee
 //! marker often does). A label can track only one segment.
+//!
+//! ## Sets without medial markers (Plug-in Gait)
+//! A medial landmark may be `"chord:WAND"` instead of a label: the joint centre is then found
+//! by Plug-in Gait's chord function ([`super::plugin_gait`]) in the plane of the wand marker
+//! `WAND` (thigh wand at the knee, tibia wand at the ankle), the lateral marker and the joint
+//! centre above, from the subject's knee or ankle width and the marker diameter
+//! ([`super::SubjectMeasurements`]). A medial landmark may also list alternatives separated
+//! by `|`, e.g. `"RKNEM|chord:RTHI"`: the first one the static trial carries is used (a chord
+//! alternative when its wand marker is there) — medial markers where the lab placed them,
+//! the chord function otherwise.
 
 use serde::{Deserialize, Serialize};
 
@@ -35,31 +45,83 @@ use super::LandmarkError;
 use crate::model::lower_limb::Side;
 
 /// Names of the built-in marker sets.
-pub const PRESET_NAMES: [&str; 7] = [
+pub const PRESET_NAMES: [&str; 9] = [
     "gait2392",
     "opencap",
+    "opencap-video",
     "jam",
     "plugin-gait",
-    "plugin-gait-basic",
     "plugin-gait-sacr",
+    "plugin-gait-medial",
+    "plugin-gait-basic",
     "rajagopal",
 ];
 
-const PRESETS: [(&str, &str); 7] = [
+const PRESETS: [(&str, &str); 9] = [
     ("gait2392", include_str!("presets/gait2392.toml")),
     ("opencap", include_str!("presets/opencap.toml")),
+    ("opencap-video", include_str!("presets/opencap-video.toml")),
     ("jam", include_str!("presets/jam.toml")),
     ("plugin-gait", include_str!("presets/plugin-gait.toml")),
-    (
-        "plugin-gait-basic",
-        include_str!("presets/plugin-gait-basic.toml"),
-    ),
     (
         "plugin-gait-sacr",
         include_str!("presets/plugin-gait-sacr.toml"),
     ),
+    (
+        "plugin-gait-medial",
+        include_str!("presets/plugin-gait-medial.toml"),
+    ),
+    (
+        "plugin-gait-basic",
+        include_str!("presets/plugin-gait-basic.toml"),
+    ),
     ("rajagopal", include_str!("presets/rajagopal.toml")),
 ];
+
+/// One alternative of a medial landmark (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MedialLandmark<'a> {
+    /// A marker label.
+    Marker(&'a str),
+    /// Plug-in Gait's chord function in the plane of this wand marker.
+    Chord { wand: &'a str },
+}
+
+impl<'a> MedialLandmark<'a> {
+    /// Reads one alternative: `chord:WAND` or a label.
+    pub fn parse(text: &'a str) -> MedialLandmark<'a> {
+        match text.strip_prefix("chord:") {
+            Some(wand) => MedialLandmark::Chord { wand },
+            None => MedialLandmark::Marker(text),
+        }
+    }
+
+    /// The alternatives of a medial landmark field, in order.
+    pub fn alternatives(field: &'a str) -> impl Iterator<Item = MedialLandmark<'a>> {
+        field.split('|').map(MedialLandmark::parse)
+    }
+
+    /// The label the static trial must carry for this alternative.
+    pub fn label(self) -> &'a str {
+        match self {
+            MedialLandmark::Marker(l) | MedialLandmark::Chord { wand: l } => l,
+        }
+    }
+}
+
+/// The first alternative of `field` whose label is in `labels`, else the first alternative.
+fn resolve_medial(field: &str, labels: &[String]) -> String {
+    let mut alts = field.split('|');
+    let first = alts.next().unwrap_or(field);
+    std::iter::once(first)
+        .chain(alts)
+        .find(|a| {
+            let l = MedialLandmark::parse(a).label();
+            labels.iter().any(|x| x == l)
+        })
+        .unwrap_or(first)
+        .to_string()
+}
 
 /// A laboratory's marker labels mapped to anatomical roles (see the module docs).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -133,6 +195,31 @@ impl MarkerSet {
         MarkerSet::from_toml(text, &format!("preset {name}"))
     }
 
+    /// The set with each medial landmark's alternatives reduced to the first one the trial
+    /// with these labels carries (module docs); a set without alternatives is unchanged.
+    pub fn resolve(&self, labels: &[String]) -> MarkerSet {
+        let mut out = self.clone();
+        for leg in [out.right.as_mut(), out.left.as_mut()]
+            .into_iter()
+            .flatten()
+        {
+            leg.medial_epicondyle = resolve_medial(&leg.medial_epicondyle, labels);
+            leg.medial_malleolus = resolve_medial(&leg.medial_malleolus, labels);
+        }
+        out
+    }
+
+    /// Whether any medial landmark may come from the chord function (module docs).
+    pub fn uses_chord(&self) -> bool {
+        [self.right.as_ref(), self.left.as_ref()]
+            .into_iter()
+            .flatten()
+            .flat_map(|l| [&l.medial_epicondyle, &l.medial_malleolus])
+            .any(|f| {
+                MedialLandmark::alternatives(f).any(|a| matches!(a, MedialLandmark::Chord { .. }))
+            })
+    }
+
     /// Writes the set as TOML.
     pub fn to_toml(&self) -> String {
         toml::to_string_pretty(self).expect("a marker set always serializes to TOML")
@@ -178,15 +265,29 @@ impl MarkerSet {
         opt("right PSIS", &p.right_psis);
         opt("left PSIS", &p.left_psis);
         opt("sacrum", &p.sacrum);
-        for (role, label) in [
-            ("lateral epicondyle", &leg.lateral_epicondyle),
-            ("medial epicondyle", &leg.medial_epicondyle),
-            ("lateral malleolus", &leg.lateral_malleolus),
-            ("medial malleolus", &leg.medial_malleolus),
-            ("heel", &leg.heel),
-        ] {
-            out.push((role.to_string(), label.clone()));
-        }
+        // A medial landmark with alternatives stands for its first one (see `resolve`).
+        let medial = |field: &str, marker: &str, wand: &str| match MedialLandmark::alternatives(
+            field,
+        )
+        .next()
+        {
+            Some(MedialLandmark::Chord { wand: w }) => (wand.to_string(), w.to_string()),
+            Some(MedialLandmark::Marker(l)) => (marker.to_string(), l.to_string()),
+            None => (marker.to_string(), field.to_string()),
+        };
+        out.push(("lateral epicondyle".into(), leg.lateral_epicondyle.clone()));
+        out.push(medial(
+            &leg.medial_epicondyle,
+            "medial epicondyle",
+            "thigh wand (knee centre by the chord function)",
+        ));
+        out.push(("lateral malleolus".into(), leg.lateral_malleolus.clone()));
+        out.push(medial(
+            &leg.medial_malleolus,
+            "medial malleolus",
+            "tibia wand (ankle centre by the chord function)",
+        ));
+        out.push(("heel".into(), leg.heel.clone()));
         for l in &leg.forefoot {
             out.push(("forefoot".into(), l.clone()));
         }
@@ -238,12 +339,25 @@ impl MarkerSet {
             if leg.forefoot.is_empty() {
                 return Err(bad(format!("{sn} forefoot lists no marker")));
             }
-            if leg.lateral_epicondyle == leg.medial_epicondyle
-                || leg.lateral_malleolus == leg.medial_malleolus
-            {
-                return Err(bad(format!(
-                    "{sn} leg: the lateral and medial landmarks must be different markers"
-                )));
+            for (lateral, medial) in [
+                (&leg.lateral_epicondyle, &leg.medial_epicondyle),
+                (&leg.lateral_malleolus, &leg.medial_malleolus),
+            ] {
+                for alt in MedialLandmark::alternatives(medial) {
+                    let l = alt.label();
+                    if l == lateral.as_str() {
+                        return Err(bad(format!(
+                            "{sn} leg: the lateral and medial landmarks must be different \
+                             markers"
+                        )));
+                    }
+                    if l.trim().is_empty() || l.trim() != l {
+                        return Err(bad(format!(
+                            "{sn} leg: medial landmark {medial:?} has an empty alternative or \
+                             one with surrounding spaces"
+                        )));
+                    }
+                }
             }
             for seg in TRACKED_SEGMENTS {
                 if seg == "pelvis" && owner.iter().any(|(o, _)| o == "pelvis") {
@@ -351,13 +465,13 @@ mod tests {
         let e = MarkerSet::preset("vicon").unwrap_err().to_string();
         assert_eq!(
             e,
-            "unknown marker-set preset \"vicon\"; presets: gait2392, opencap, jam, plugin-gait, \
-             plugin-gait-basic, plugin-gait-sacr, rajagopal"
+            "unknown marker-set preset \"vicon\"; presets: gait2392, opencap, opencap-video, jam, \
+             plugin-gait, plugin-gait-sacr, plugin-gait-medial, plugin-gait-basic, rajagopal"
         );
     }
 
     fn edit(f: impl FnOnce(&mut MarkerSet)) -> String {
-        let mut set = MarkerSet::preset("plugin-gait").unwrap();
+        let mut set = MarkerSet::preset("plugin-gait-medial").unwrap();
         f(&mut set);
         MarkerSet::from_toml(&set.to_toml(), "edited.toml")
             .unwrap_err()

@@ -54,14 +54,18 @@
 //!
 //! [`lower_limb`]: crate::model::lower_limb::lower_limb
 
+pub mod auto;
 pub mod bilateral;
 mod error;
 pub(crate) mod frames;
 pub mod functional;
+pub mod keypoints;
 pub mod markerset;
 pub mod motion;
 pub(crate) mod nominal;
+pub mod plugin_gait;
 pub mod priors;
+pub mod subject;
 pub mod suggest;
 pub mod window;
 
@@ -70,7 +74,11 @@ use nalgebra::Vector3;
 pub use bilateral::{personalize_sides, BothLegs, Outcome, PersonalizedModel, Sides};
 pub use error::LandmarkError;
 pub use frames::SegmentFrames;
-pub use markerset::{LegMarkers, MarkerSet, PelvisMarkers, PRESET_NAMES, TRACKED_SEGMENTS};
+pub use keypoints::{personalize_keypoints, KeypointSet, KEYPOINT_PRESET_NAMES};
+pub use markerset::{
+    LegMarkers, MarkerSet, MedialLandmark, PelvisMarkers, PRESET_NAMES, TRACKED_SEGMENTS,
+};
+pub use subject::SubjectMeasurements;
 pub use window::StaticWindow;
 
 use crate::kinematics::{forward_kinematics, KinData, Pose, Want};
@@ -87,6 +95,10 @@ pub enum HipCentreMethod {
     Bell,
     /// Harrington et al. 2007: pelvic depth and width, with constant terms.
     Harrington,
+    /// Davis et al. 1991 as Vicon's Plug-in Gait applies it: leg length, ASIS-to-trochanter
+    /// distance, inter-ASIS distance and marker radius ([`plugin_gait`]); needs the subject's
+    /// leg length in [`PersonalizeOptions::subject`].
+    Davis,
 }
 
 impl HipCentreMethod {
@@ -94,6 +106,7 @@ impl HipCentreMethod {
         match self {
             HipCentreMethod::Bell => "Bell et al. 1990",
             HipCentreMethod::Harrington => "Harrington et al. 2007",
+            HipCentreMethod::Davis => "Davis et al. 1991 (Plug-in Gait)",
         }
     }
 }
@@ -114,6 +127,9 @@ pub struct PersonalizeOptions {
     pub min_marker_spread: f64,
     /// Name of the model written into the description.
     pub name: String,
+    /// The subject's measurements: what [`HipCentreMethod::Davis`] and Plug-in Gait's chord
+    /// function (a marker set's `chord:WAND` medial landmark) need.
+    pub subject: SubjectMeasurements,
 }
 
 impl Default for PersonalizeOptions {
@@ -126,6 +142,7 @@ impl Default for PersonalizeOptions {
             subtalar_deviation: 23f64.to_radians(),
             min_marker_spread: 0.005,
             name: "subject".into(),
+            subject: SubjectMeasurements::default(),
         }
     }
 }
@@ -145,7 +162,10 @@ pub struct SegmentResidual {
 #[derive(Debug, Clone, PartialEq)]
 pub struct PersonalizeReport {
     pub window: StaticWindow,
+    /// The regression of the hip centre; unused when `hip_from_keypoint`.
     pub hip_method: HipCentreMethod,
+    /// Whether the hip centre is a video keypoint ([`keypoints`]) rather than a regression.
+    pub hip_from_keypoint: bool,
     /// Inter-ASIS distance PW.
     pub pelvis_width: f64,
     /// Mid-ASIS to mid-PSIS (or sacrum) distance PD.
@@ -248,12 +268,119 @@ pub fn personalize_in(
 ) -> Result<Personalized, LandmarkError> {
     check_options(opts)?;
     set.validate()?;
-    let side_name = markerset::side_name(side);
+    let set = &set.resolve(trial.labels());
     let leg = set.leg(side)?;
+    let mut tracking: Vec<(&'static str, Vec<String>)> = Vec::new();
+    for seg in TRACKED_SEGMENTS {
+        tracking.push((seg, set.tracking(side, seg)?.to_vec()));
+    }
+    let plan = Plan {
+        set_name: &set.name,
+        roles: set.roles(side)?,
+        tracking,
+        weights: Vec::new(),
+    };
+    personalize_plan(trial, &plan, side, opts, func, window, |at| {
+        landmarks_of(set, leg, side, opts, at)
+    })
+}
 
+/// What a marker set or keypoint set gives the shared personalization: the labels with
+/// their roles, the tracking markers per segment, and (through a closure) the landmarks.
+pub(crate) struct Plan<'a> {
+    pub set_name: &'a str,
+    /// (role, label) pairs, landmarks first.
+    pub roles: Vec<(String, String)>,
+    /// Tracking markers of each of [`TRACKED_SEGMENTS`], in that order.
+    pub tracking: Vec<(&'static str, Vec<String>)>,
+    /// Weights of model markers other than 1 (label, weight).
+    pub weights: Vec<(String, f64)>,
+}
+
+impl Plan<'_> {
+    fn tracking(&self, seg: &str) -> &[String] {
+        self.tracking
+            .iter()
+            .find(|(s, _)| *s == seg)
+            .map_or(&[], |(_, l)| l.as_slice())
+    }
+}
+
+/// The landmarks of a marker set's leg from the averaged markers `at`.
+fn landmarks_of(
+    set: &MarkerSet,
+    leg: &LegMarkers,
+    side: Side,
+    opts: &PersonalizeOptions,
+    at: &dyn Fn(&str) -> Vector3<f64>,
+) -> Result<frames::Landmarks, LandmarkError> {
+    let side_name = markerset::side_name(side);
+    let p = &set.pelvis;
+    let back = match (&p.right_psis, &p.left_psis, &p.sacrum) {
+        (Some(r), Some(l), _) => 0.5 * (at(r) + at(l)),
+        (_, _, Some(s)) => at(s),
+        _ => unreachable!("validated marker set"),
+    };
+    let forefoot: Vector3<f64> =
+        leg.forefoot.iter().map(|l| at(l)).sum::<Vector3<f64>>() / leg.forefoot.len() as f64;
+    let radius = 0.5 * opts.subject.marker_diameter_or_default();
+    let medial = |label: &str, width: Option<f64>, what: &str| {
+        Ok::<_, LandmarkError>(match MedialLandmark::parse(label) {
+            MedialLandmark::Marker(l) => frames::Medial::Marker(at(l)),
+            MedialLandmark::Chord { wand } => {
+                let width = width.ok_or_else(|| LandmarkError::MissingMeasurement {
+                    what: format!("{side_name} {what} width"),
+                    why: format!(
+                        "the {side_name} {what} centre by Plug-in Gait's chord function \
+                         (marker set {:?} has no medial {what} marker)",
+                        set.name
+                    ),
+                })?;
+                frames::Medial::Chord {
+                    wand: at(wand),
+                    delta: 0.5 * width + radius,
+                }
+            }
+        })
+    };
+    let lm = frames::Landmarks {
+        r_asis: at(&p.right_asis),
+        l_asis: at(&p.left_asis),
+        back,
+        lat_epicondyle: at(&leg.lateral_epicondyle),
+        med_epicondyle: medial(
+            &leg.medial_epicondyle,
+            opts.subject.knee_width(side),
+            "knee",
+        )?,
+        lat_malleolus: at(&leg.lateral_malleolus),
+        med_malleolus: medial(
+            &leg.medial_malleolus,
+            opts.subject.ankle_width(side),
+            "ankle",
+        )?,
+        heel: at(&leg.heel),
+        forefoot,
+        hip_centre: None,
+    };
+    Ok(lm)
+}
+
+/// The shared personalization of one leg (see the module docs): the window, the averaged
+/// labels, the landmarks `landmarks` builds from them, and the model.
+pub(crate) fn personalize_plan(
+    trial: &Trial,
+    plan: &Plan,
+    side: Side,
+    opts: &PersonalizeOptions,
+    func: &functional::FunctionalTrials,
+    window: Option<&StaticWindow>,
+    landmarks: impl Fn(&dyn Fn(&str) -> Vector3<f64>) -> Result<frames::Landmarks, LandmarkError>,
+) -> Result<Personalized, LandmarkError> {
+    let side_name = markerset::side_name(side);
     // Labels in first-use order, each with its roles.
     let mut labels: Vec<(String, Vec<String>)> = Vec::new();
-    for (role, label) in set.roles(side)? {
+    for (role, label) in plan.roles.iter().cloned() {
         match labels.iter_mut().find(|(l, _)| *l == label) {
             Some((_, roles)) => roles.push(role),
             None => labels.push((label, vec![role])),
@@ -269,7 +396,7 @@ pub fn personalize_in(
     }
     if !missing.is_empty() {
         return Err(LandmarkError::MissingMarkers {
-            set: set.name.clone(),
+            set: plan.set_name.to_string(),
             side: side_name,
             missing,
             available: trial.labels().join(", "),
@@ -289,28 +416,10 @@ pub fn personalize_in(
             .expect("resolved label")
     };
     let at = |label: &str| means[idx(label)];
-
-    let p = &set.pelvis;
-    let back = match (&p.right_psis, &p.left_psis, &p.sacrum) {
-        (Some(r), Some(l), _) => 0.5 * (at(r) + at(l)),
-        (_, _, Some(s)) => at(s),
-        _ => unreachable!("validated marker set"),
-    };
-    let forefoot: Vector3<f64> =
-        leg.forefoot.iter().map(|l| at(l)).sum::<Vector3<f64>>() / leg.forefoot.len() as f64;
-    let lm = frames::Landmarks {
-        r_asis: at(&p.right_asis),
-        l_asis: at(&p.left_asis),
-        back,
-        lat_epicondyle: at(&leg.lateral_epicondyle),
-        med_epicondyle: at(&leg.medial_epicondyle),
-        lat_malleolus: at(&leg.lateral_malleolus),
-        med_malleolus: at(&leg.medial_malleolus),
-        heel: at(&leg.heel),
-        forefoot,
-    };
+    let lm = landmarks(&at)?;
+    let lm_hip_given = lm.hip_centre.is_some();
     for seg in TRACKED_SEGMENTS {
-        let list = set.tracking(side, seg)?;
+        let list = plan.tracking(seg);
         let pts: Vec<_> = list.iter().map(|l| at(l)).collect();
         // Two markers always lie on one line; the joint fixes the rotation about it.
         if list.len() >= 3 {
@@ -319,7 +428,7 @@ pub fn personalize_in(
     }
     let mut an = frames::anatomy(&lm, side, opts)?;
     let cluster = |seg: &str| -> Result<functional::Cluster, LandmarkError> {
-        let labels = set.tracking(side, seg)?.to_vec();
+        let labels = plan.tracking(seg).to_vec();
         let reference = labels.iter().map(|l| at(l)).collect();
         Ok(functional::Cluster {
             segment: seg.to_string(),
@@ -356,13 +465,17 @@ pub fn personalize_in(
     spec.markers.clear();
     for seg in TRACKED_SEGMENTS {
         let inv = pose_of(seg).inverse();
-        for l in set.tracking(side, seg)? {
+        for l in plan.tracking(seg) {
             let x = inv.transform_point(&at(l));
             spec.markers.push(MarkerSpec {
                 name: l.clone(),
                 segment: seg.into(),
                 position: [x.x, x.y, x.z],
-                weight: 1.0,
+                weight: plan
+                    .weights
+                    .iter()
+                    .find(|(n, _)| n == l)
+                    .map_or(1.0, |(_, w)| *w),
             });
         }
     }
@@ -372,13 +485,17 @@ pub fn personalize_in(
         "{} leg personalized by the anatomical-landmark method (marker set {:?}; static frames \
          {}–{} of {}, t = {:.3}–{:.3} s; hip centre {}; PW {:.1} mm)",
         side_name,
-        set.name,
+        plan.set_name,
         win.first,
         win.end() - 1,
         win.total_frames,
         first_time,
         trial.time(win.end() - 1),
-        opts.hip_centre.citation(),
+        if lm_hip_given {
+            "the hip keypoint"
+        } else {
+            opts.hip_centre.citation()
+        },
         an.pelvis_width * 1e3
     );
 
@@ -401,7 +518,7 @@ pub fn personalize_in(
 
     let mut segments = Vec::new();
     for seg in TRACKED_SEGMENTS {
-        let list = set.tracking(side, seg)?;
+        let list = plan.tracking(seg);
         let local: Vec<Vector3<f64>> = spec
             .markers
             .iter()
@@ -434,6 +551,7 @@ pub fn personalize_in(
     let report = PersonalizeReport {
         window: win,
         hip_method: opts.hip_centre,
+        hip_from_keypoint: lm_hip_given,
         pelvis_width: an.pelvis_width,
         pelvis_depth: an.pelvis_depth,
         knee_width: an.knee_width,

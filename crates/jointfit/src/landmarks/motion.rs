@@ -78,7 +78,7 @@ mod tests {
     /// would fall below its minimum keeps the label and says so; the result still validates.
     #[test]
     fn absent_markers_leave_the_tracking_lists() {
-        let mut set = MarkerSet::preset("plugin-gait").unwrap();
+        let mut set = MarkerSet::preset("plugin-gait-medial").unwrap();
         let r = set.right.clone().unwrap();
         let gone = [r.lateral_epicondyle.clone(), r.lateral_malleolus.clone()];
         let before = (r.thigh.len(), r.shank.len());
@@ -99,11 +99,11 @@ mod tests {
         assert!(notes.iter().all(|n| n.contains("right")), "{notes:?}");
         MarkerSet::from_toml(&set.to_toml(), "cut.toml").unwrap();
         // Nothing present: every list keeps its markers, and each says why.
-        let mut all_gone = MarkerSet::preset("plugin-gait").unwrap();
+        let mut all_gone = MarkerSet::preset("plugin-gait-medial").unwrap();
         let notes = keep_tracked_in(&mut all_gone, &|_| false);
         assert_eq!(
             all_gone.to_toml(),
-            MarkerSet::preset("plugin-gait").unwrap().to_toml()
+            MarkerSet::preset("plugin-gait-medial").unwrap().to_toml()
         );
         assert_eq!(notes.len(), 7, "{notes:?}");
         assert!(notes[0].starts_with("the pelvis keeps"), "{notes:?}");

@@ -29,6 +29,13 @@ pub fn hip_regression_sd(method: HipCentreMethod) -> PriorEntry {
             source: "Bell et al. 1989/1990: 95 % of adult hip centres within 26 mm (9.3 mm \
                      per axis), widened for skin-marker ASIS palpation (Della Croce et al. 2005)",
         },
+        HipCentreMethod::Davis => PriorEntry {
+            sd: 15.0 * MM,
+            source: "Davis et al. 1991 regression (Plug-in Gait), judged wider than Bell's: \
+                     the least accurate of the regressions Harrington et al. 2007 compared \
+                     with MRI, and it adds the errors of the measured leg length and \
+                     ASIS-to-trochanter distance",
+        },
         HipCentreMethod::Harrington => PriorEntry {
             sd: 10.0 * MM,
             source: "Harrington et al. 2007 regression vs CT, 12.3 ± 5.9 mm 3-D (Mantovani \
