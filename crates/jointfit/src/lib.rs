@@ -19,6 +19,7 @@ pub mod model;
 pub mod plausibility;
 pub mod repair;
 pub mod residual_checks;
+pub mod scale;
 pub mod signal;
 pub mod solver;
 #[doc(hidden)]
