@@ -86,18 +86,18 @@ fn scale_offset(o: &mut OffsetSpec, s: &[f64; 3]) {
     }
 }
 
-/// Whether coordinate `name` drives a translation in `spec` (slider or custom translation).
+/// Whether coordinate `name` is translational as OpenSim classifies it: a slider's, or used
+/// by a custom joint's translation axis through a linear function of slope ±1 (a coordinate
+/// used only through other functions is "coupled", neither rotational nor translational).
 pub fn is_translational(spec: &ModelSpec, name: &str) -> bool {
-    spec.joints.iter().any(|j| {
-        let own = j.coordinates.iter().any(|c| c.name() == name);
-        match &j.kind {
-            JointKindSpec::Slider { .. } => own,
-            JointKindSpec::Custom { axes } => axes.iter().any(|a| {
-                a.motion == AxisMotion::Translation && a.coordinate.as_deref() == Some(name)
-            }),
-            JointKindSpec::Free { .. } => false,
-            _ => false,
-        }
+    spec.joints.iter().any(|j| match &j.kind {
+        JointKindSpec::Slider { .. } => j.coordinates.iter().any(|c| c.name() == name),
+        JointKindSpec::Custom { axes } => axes.iter().any(|a| {
+            a.motion == AxisMotion::Translation
+                && a.coordinate.as_deref() == Some(name)
+                && matches!(a.function, FunctionSpec::Linear { slope, .. } if slope.abs() == 1.0)
+        }),
+        _ => false,
     })
 }
 
