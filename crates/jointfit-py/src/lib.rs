@@ -13,6 +13,7 @@ use pyo3::prelude::*;
 
 mod calibration;
 mod model;
+mod scale;
 mod solve;
 mod trial;
 
@@ -63,6 +64,7 @@ fn _jointfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(solve::ik, m)?)?;
     m.add_function(wrap_pyfunction!(solve::synthesize, m)?)?;
     m.add_function(wrap_pyfunction!(calibration::calibrate, m)?)?;
+    m.add_function(wrap_pyfunction!(scale::scale, m)?)?;
     m.add_function(wrap_pyfunction!(calibration::calibration_from_json, m)?)?;
     Ok(())
 }

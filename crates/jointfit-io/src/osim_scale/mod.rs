@@ -35,6 +35,8 @@
 //! lengths, can differ from OpenSim's (see `docs/scaling.md` for the measured size).
 
 mod paths;
+pub mod setup;
+pub mod workflow;
 
 use std::collections::HashMap;
 use std::ops::Range;

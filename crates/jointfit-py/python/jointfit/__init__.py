@@ -29,6 +29,7 @@ from ._jointfit import (
     calibrate,
     ik,
     personalize,
+    scale,
     synthesize,
 )
 from ._batch import Job, batch
@@ -47,5 +48,6 @@ __all__ = [
     "calibrate",
     "ik",
     "personalize",
+    "scale",
     "synthesize",
 ]

@@ -1,7 +1,7 @@
 """Type stubs of the native module (crates/jointfit-py/src). SI units: m, rad, s, Hz."""
 
 import os
-from typing import Dict, List, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -139,6 +139,19 @@ def personalize(
     window: float = 1.0,
     name: Optional[str] = None,
 ) -> Model: ...
+def scale(
+    model: Union[str, os.PathLike],
+    static: Union[str, os.PathLike],
+    trials: Sequence[Union[str, os.PathLike]] = (),
+    markerset: Optional[Union[str, os.PathLike]] = None,
+    mass: Optional[float] = None,
+    height: Optional[float] = None,
+    output: Optional[Union[str, os.PathLike]] = None,
+    prior: str = "anthropometric",
+    per_axis: bool = False,
+    symmetric: bool = False,
+    time_range: Optional[Tuple[float, float]] = None,
+) -> Dict[str, Any]: ...
 def ik(
     model: _ModelArg, trial: _TrialArg, up: Optional[str] = None, filter: Optional[float] = None
 ) -> IkResult: ...

@@ -140,7 +140,13 @@ struct Problem<'a> {
     targets: &'a [Vec<Vector3<f64>>],
     lay: Layout,
     n_q: usize,
+    /// The starting θ; its coordinates anchor the weak pose rows.
+    start: Vec<f64>,
 }
+
+/// SD (rad or m) of the weak rows that hold coordinates no marker determines (a toe joint
+/// without toe markers) at their starting values; far wider than any determined one.
+const POSE_SD: f64 = 10.0;
 
 impl Problem<'_> {
     fn factors(&self, th: &[f64]) -> ScaleFactors {
@@ -189,7 +195,7 @@ impl Problem<'_> {
             }
             None => 0,
         };
-        data + deltas + prior
+        data + deltas + prior + self.n_q * self.lay.q.len()
     }
 
     /// Residuals, and with `jac` the Jacobian.
@@ -259,6 +265,15 @@ impl Problem<'_> {
                 r[row] = (th[u_at] - ratio.ln()) / s;
                 if jac {
                     j[(row, u_at)] = 1.0 / s;
+                }
+                row += 1;
+            }
+        }
+        for &at in &self.lay.q {
+            for c in at..at + self.n_q {
+                r[row] = (th[c] - self.start[c]) / POSE_SD;
+                if jac {
+                    j[(row, c)] = 1.0 / POSE_SD;
                 }
                 row += 1;
             }
@@ -362,12 +377,13 @@ pub fn fit_scale(
     if let Some(u) = lay.size {
         th[u] = start.ln();
     }
-    let pb = Problem {
+    let mut pb = Problem {
         spec,
         opts,
         targets,
         lay,
         n_q,
+        start: Vec::new(),
     };
     // Starting poses: inverse kinematics on the model at the starting size.
     let m0 = pb.model(&th)?;
@@ -380,6 +396,7 @@ pub fn fit_scale(
         let at = pb.lay.q[f];
         th[at..at + n_q].copy_from_slice(&q);
     }
+    pb.start = th.clone();
 
     let (mut r, mut j) = pb.evaluate(&th, true)?;
     let mut cost = r.norm_squared();
