@@ -137,7 +137,13 @@ fn print_text(out: &ScaleOutcome, path: &Path) {
         let f = g.factors;
         let s = g.sd;
         if f[0] == f[1] && f[1] == f[2] {
-            println!("  {:<14} {:.4} ± {:.4}   {}", g.name, f[0], s[0], g.bodies.join(", "));
+            println!(
+                "  {:<14} {:.4} ± {:.4}   {}",
+                g.name,
+                f[0],
+                s[0],
+                g.bodies.join(", ")
+            );
         } else {
             println!(
                 "  {:<14} {:.4} {:.4} {:.4} ± {:.4} {:.4} {:.4}   {}",
@@ -156,7 +162,12 @@ fn print_text(out: &ScaleOutcome, path: &Path) {
         .fit
         .markers
         .iter()
-        .map(|m| (m, (m.moved[0].powi(2) + m.moved[1].powi(2) + m.moved[2].powi(2)).sqrt()))
+        .map(|m| {
+            (
+                m,
+                (m.moved[0].powi(2) + m.moved[1].powi(2) + m.moved[2].powi(2)).sqrt(),
+            )
+        })
         .collect();
     moved.sort_by(|a, b| b.1.total_cmp(&a.1));
     println!("markers moved most from their scaled generic place:");
@@ -164,7 +175,10 @@ fn print_text(out: &ScaleOutcome, path: &Path) {
         println!("  {:<14} {:5.1} mm ({})", m.name, d * 1000.0, m.body);
     }
     if !out.absent.is_empty() {
-        println!("not in the static trial (placed by scaling only): {}", out.absent.join(", "));
+        println!(
+            "not in the static trial (placed by scaling only): {}",
+            out.absent.join(", ")
+        );
     }
     for f in &out.flags {
         println!("implausible: {f}");
@@ -192,7 +206,12 @@ pub fn run(args: ScaleArgs) -> Result<()> {
     if args.json {
         let report = JsonReport {
             output: output.display().to_string(),
-            scale_factors: out.fit.factors.iter().map(|(k, v)| (k.as_str(), *v)).collect(),
+            scale_factors: out
+                .fit
+                .factors
+                .iter()
+                .map(|(k, v)| (k.as_str(), *v))
+                .collect(),
             groups: &out.fit.groups,
             markers: out
                 .fit

@@ -57,6 +57,8 @@ mod reliability;
 mod repair;
 #[path = "cli/report.rs"]
 mod report;
+#[path = "cli/scale.rs"]
+mod scale;
 #[path = "cli/synth.rs"]
 mod synth;
 #[path = "cli/up.rs"]

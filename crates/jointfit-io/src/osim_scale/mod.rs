@@ -124,7 +124,10 @@ fn scalar(node: Node, tag: &str) -> Result<Option<f64>, Fail> {
     })?;
     match v[..] {
         [x] => Ok(Some(x)),
-        _ => Err(fail(node, format!("<{tag}> needs one number, has {}", v.len()))),
+        _ => Err(fail(
+            node,
+            format!("<{tag}> needs one number, has {}", v.len()),
+        )),
     }
 }
 
@@ -240,12 +243,11 @@ pub fn scale_osim(
         line: e.pos().row,
         message: format!("not XML: {e}"),
     })?;
-    let lengths = paths::length_ratios(model, &doc, factors).map_err(|message| {
-        OsimScaleError::Model {
+    let lengths =
+        paths::length_ratios(model, &doc, factors).map_err(|message| OsimScaleError::Model {
             path: path.to_path_buf(),
             message,
-        }
-    })?;
+        })?;
     scale_doc(model, &doc, factors, opts, lengths).map_err(|f| OsimScaleError::Invalid {
         path: path.to_path_buf(),
         line: doc.text_pos_at(f.pos).row,
@@ -279,7 +281,12 @@ fn frames_of(model: Node) -> Frames {
 fn owner_frame<'a>(node: Node<'a, '_>) -> Option<&'a str> {
     node.ancestors()
         .skip(1)
-        .find(|a| matches!(a.tag_name().name(), "Body" | "PhysicalOffsetFrame" | "Ground"))
+        .find(|a| {
+            matches!(
+                a.tag_name().name(),
+                "Body" | "PhysicalOffsetFrame" | "Ground"
+            )
+        })
         .map(|a| name(a))
 }
 
@@ -391,7 +398,10 @@ fn scale_doc(
                 msg: f.msg,
             })?;
             let [xx, yy, zz, xy, xz, yz] = v[..] else {
-                return Err(fail(*b, format!("<inertia> needs six numbers, has {}", v.len())));
+                return Err(fail(
+                    *b,
+                    format!("<inertia> needs six numbers, has {}", v.len()),
+                ));
             };
             let mut i = [xx, yy, zz, xy, xz, yz];
             if let Some(s) = s {
@@ -409,11 +419,8 @@ fn scale_doc(
         }
     }
 
-    let registered: HashMap<&str, [f64; 3]> = opts
-        .markers
-        .iter()
-        .map(|(n, v)| (n.as_str(), *v))
-        .collect();
+    let registered: HashMap<&str, [f64; 3]> =
+        opts.markers.iter().map(|(n, v)| (n.as_str(), *v)).collect();
 
     for n in m.descendants().filter(|n| n.is_element()) {
         match n.tag_name().name() {
@@ -422,7 +429,9 @@ fn scale_doc(
                     continue;
                 };
                 for g in elements(n) {
-                    if let (Some(v), Some(r)) = (vec3(g, "scale_factors")?, text_range(g, "scale_factors")) {
+                    if let (Some(v), Some(r)) =
+                        (vec3(g, "scale_factors")?, text_range(g, "scale_factors"))
+                    {
                         ed.set(r, triple(mul(v, s)));
                     }
                 }
@@ -431,7 +440,8 @@ fn scale_doc(
                 let Some(s) = text(n, "socket_parent").and_then(|p| factor_of(path_leaf(p))) else {
                     continue;
                 };
-                if let (Some(t), Some(r)) = (vec3(n, "translation")?, text_range(n, "translation")) {
+                if let (Some(t), Some(r)) = (vec3(n, "translation")?, text_range(n, "translation"))
+                {
                     ed.set(r, triple(mul(t, s)));
                 }
             }
@@ -458,7 +468,8 @@ fn scale_doc(
                     continue;
                 };
                 for (k, axis) in ["x", "y", "z"].iter().enumerate() {
-                    let driven = text(n, &format!("socket_{axis}_coordinate")).is_some_and(|c| !c.is_empty());
+                    let driven = text(n, &format!("socket_{axis}_coordinate"))
+                        .is_some_and(|c| !c.is_empty());
                     if !driven {
                         continue;
                     }
@@ -530,7 +541,8 @@ fn scale_doc(
                 let Some(s) = owner_frame(n).and_then(factor_of) else {
                     continue;
                 };
-                if let (Some(t), Some(r)) = (vec3(n, "translation")?, text_range(n, "translation")) {
+                if let (Some(t), Some(r)) = (vec3(n, "translation")?, text_range(n, "translation"))
+                {
                     ed.set(r, triple(mul(t, s)));
                 }
                 let rot = vec3(n, "xyz_body_rotation")?.unwrap_or([0.0; 3]);
@@ -556,7 +568,9 @@ fn scale_doc(
                         set_scalar("outer_radius", (l(0) + l(1)) * 0.5)?;
                     }
                     _ => {
-                        if let (Some(d), Some(r)) = (vec3(n, "dimensions")?, text_range(n, "dimensions")) {
+                        if let (Some(d), Some(r)) =
+                            (vec3(n, "dimensions")?, text_range(n, "dimensions"))
+                        {
                             ed.set(r, triple([d[0] * l(0), d[1] * l(1), d[2] * l(2)]));
                         }
                     }
@@ -575,7 +589,11 @@ fn scale_doc(
         if child(n, "GeometryPath").is_none() && child(n, "path").is_none() {
             continue;
         }
-        for tag in ["optimal_fiber_length", "tendon_slack_length", "resting_length"] {
+        for tag in [
+            "optimal_fiber_length",
+            "tendon_slack_length",
+            "resting_length",
+        ] {
             if let (Some(v), Some(r)) = (scalar(n, tag)?, text_range(n, tag)) {
                 ed.set(r, format!("{}", v * k));
             }
@@ -626,7 +644,11 @@ mod tests {
         // a solid cylinder along y: I_yy = m r²/2, I_xx = I_zz = m (L²/12 + r²/4)
         let (m, r, l) = (3.0, 0.05, 0.4);
         let side = m * (l * l / 12.0 + r * r / 4.0);
-        let i = scaled_inertia([side, 0.5 * m * r * r, side, 0.0, 0.0, 0.0], m, [1.2, 1.1, 1.2]);
+        let i = scaled_inertia(
+            [side, 0.5 * m * r * r, side, 0.0, 0.0, 0.0],
+            m,
+            [1.2, 1.1, 1.2],
+        );
         let (r2, l2) = (r * r * 1.44, l * 1.1 * l * 1.1);
         assert!((i[1] - 0.5 * m * r2).abs() < 1e-15);
         assert!((i[0] - m * (l2 / 12.0 + r2 / 4.0)).abs() < 1e-15);

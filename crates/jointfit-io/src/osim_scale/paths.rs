@@ -26,7 +26,13 @@ struct Point {
 fn default_pose(model: &Model) -> (KinData, HashMap<String, f64>) {
     let mut data = KinData::new(model);
     let q = model.default_coords();
-    forward_kinematics(model, &model.nominal_params(), &q, Want::POSITIONS, &mut data);
+    forward_kinematics(
+        model,
+        &model.nominal_params(),
+        &q,
+        Want::POSITIONS,
+        &mut data,
+    );
     let mut values: HashMap<String, f64> = model
         .coordinates()
         .iter()
@@ -103,7 +109,8 @@ pub(super) fn length_ratios(
     let bodies: Vec<String> = osim.spec.segments.iter().map(|s| s.name.clone()).collect();
     let mut out = Vec::new();
     for n in doc.descendants().filter(|n| n.is_element()) {
-        let path = child(n, "GeometryPath").or_else(|| child(n, "path").and_then(|p| child(p, "GeometryPath")));
+        let path = child(n, "GeometryPath")
+            .or_else(|| child(n, "path").and_then(|p| child(p, "GeometryPath")));
         let Some(path) = path else {
             continue;
         };

@@ -71,10 +71,23 @@ pub fn read_marker_set(path: &Path) -> Result<Vec<MarkerDef>, SetupError> {
             .or_else(|| text(m, "body"))
             .map(path_leaf)
             .filter(|b| !b.is_empty())
-            .ok_or_else(|| invalid(path, &doc, m, format!("{what}: no <body> or <socket_parent_frame>")))?;
-        let v = numbers(m, "location").map_err(|f| invalid(path, &doc, m, format!("{what}: {}", f.msg)))?;
+            .ok_or_else(|| {
+                invalid(
+                    path,
+                    &doc,
+                    m,
+                    format!("{what}: no <body> or <socket_parent_frame>"),
+                )
+            })?;
+        let v = numbers(m, "location")
+            .map_err(|f| invalid(path, &doc, m, format!("{what}: {}", f.msg)))?;
         let [x, y, z] = v[..] else {
-            return Err(invalid(path, &doc, m, format!("{what}: <location> needs three numbers")));
+            return Err(invalid(
+                path,
+                &doc,
+                m,
+                format!("{what}: <location> needs three numbers"),
+            ));
         };
         out.push(MarkerDef {
             name: name(m).to_string(),
@@ -177,8 +190,11 @@ pub fn read_scale_setup(path: &Path) -> Result<ScaleSetup, SetupError> {
         marker_set: file(maker, "marker_set_file"),
         static_trial: file(scaler, "marker_file").or_else(|| file(placer, "marker_file")),
         mass: number(tool, "mass")?.filter(|m| *m > 0.0),
-        height: number(tool, "height")?.filter(|h| *h > 0.0).map(|h| h / 1000.0),
-        output_model: file(placer, "output_model_file").or_else(|| file(scaler, "output_model_file")),
+        height: number(tool, "height")?
+            .filter(|h| *h > 0.0)
+            .map(|h| h / 1000.0),
+        output_model: file(placer, "output_model_file")
+            .or_else(|| file(scaler, "output_model_file")),
         ..Default::default()
     };
     for node in [scaler, placer].into_iter().flatten() {
@@ -189,7 +205,10 @@ pub fn read_scale_setup(path: &Path) -> Result<ScaleSetup, SetupError> {
             }
         }
     }
-    if let Some(set) = scaler.and_then(|n| child(n, "MeasurementSet")).and_then(|n| child(n, "objects")) {
+    if let Some(set) = scaler
+        .and_then(|n| child(n, "MeasurementSet"))
+        .and_then(|n| child(n, "objects"))
+    {
         for m in elements(set) {
             if text(m, "apply") == Some("false") {
                 continue;
@@ -207,4 +226,98 @@ pub fn read_scale_setup(path: &Path) -> Result<ScaleSetup, SetupError> {
         }
     }
     Ok(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn marker_sets_of_both_versions_attach_to_a_model() {
+        let dir = tempfile::tempdir().unwrap();
+        let v3 = dir.path().join("v3.xml");
+        std::fs::write(
+            &v3,
+            "<OpenSimDocument Version=\"20302\"><MarkerSet><objects>\
+             <Marker name=\"A\"><body> femur_r </body><location> 0.1 -0.2 0.03 </location>\
+             <fixed> true </fixed></Marker></objects></MarkerSet></OpenSimDocument>",
+        )
+        .unwrap();
+        let v4 = dir.path().join("v4.xml");
+        std::fs::write(
+            &v4,
+            "<OpenSimDocument Version=\"40000\"><MarkerSet><objects>\
+             <Marker name=\"B\"><socket_parent_frame>/bodyset/tibia_l</socket_parent_frame>\
+             <location>1 2 3</location></Marker></objects></MarkerSet></OpenSimDocument>",
+        )
+        .unwrap();
+        let a = read_marker_set(&v3).unwrap();
+        assert_eq!(
+            a,
+            vec![MarkerDef {
+                name: "A".into(),
+                body: "femur_r".into(),
+                location: [0.1, -0.2, 0.03],
+                fixed: true
+            }]
+        );
+        let b = read_marker_set(&v4).unwrap();
+        assert_eq!(
+            (b[0].body.as_str(), b[0].location, b[0].fixed),
+            ("tibia_l", [1.0, 2.0, 3.0], false)
+        );
+
+        let model = "<OpenSimDocument Version=\"40000\"><Model name=\"m\"><BodySet/></Model></OpenSimDocument>";
+        let with = with_marker_set(model, &a).unwrap();
+        assert!(with.starts_with("<OpenSimDocument Version=\"40000\"><Model name=\"m\"><BodySet/>"));
+        assert!(with.ends_with("</Model></OpenSimDocument>"));
+        let doc = Document::parse(&with).unwrap();
+        let m = doc
+            .descendants()
+            .find(|n| n.has_tag_name("Marker"))
+            .unwrap();
+        assert_eq!(text(m, "socket_parent_frame"), Some("/bodyset/femur_r"));
+        assert_eq!(numbers(m, "location").unwrap(), vec![0.1, -0.2, 0.03]);
+        // replacing an existing set keeps one
+        let again = with_marker_set(&with, &b).unwrap();
+        assert_eq!(again.matches("<MarkerSet").count(), 1);
+        assert!(again.contains("/bodyset/tibia_l"));
+    }
+
+    #[test]
+    fn a_scale_setup_names_its_files_mass_height_and_groups() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("setup.xml");
+        std::fs::write(
+            &p,
+            "<OpenSimDocument><ScaleTool name=\"s\"><mass> 72.6 </mass><height> 1803.4 </height>\
+             <GenericModelMaker><model_file> g.osim </model_file>\
+             <marker_set_file> m.xml </marker_set_file></GenericModelMaker>\
+             <ModelScaler><MeasurementSet><objects>\
+             <Measurement name=\"thigh\"><apply> true </apply><BodyScaleSet><objects>\
+             <BodyScale name=\"femur_r\"/><BodyScale name=\"femur_l\"/></objects></BodyScaleSet></Measurement>\
+             <Measurement name=\"off\"><apply> false </apply><BodyScaleSet><objects>\
+             <BodyScale name=\"torso\"/></objects></BodyScaleSet></Measurement>\
+             </objects></MeasurementSet><marker_file> s.trc </marker_file>\
+             <time_range> 1 2 </time_range></ModelScaler>\
+             <MarkerPlacer><output_model_file> out.osim </output_model_file></MarkerPlacer>\
+             </ScaleTool></OpenSimDocument>",
+        )
+        .unwrap();
+        let s = read_scale_setup(&p).unwrap();
+        assert_eq!(s.model, Some(dir.path().join("g.osim")));
+        assert_eq!(s.marker_set, Some(dir.path().join("m.xml")));
+        assert_eq!(s.static_trial, Some(dir.path().join("s.trc")));
+        assert_eq!(s.output_model, Some(dir.path().join("out.osim")));
+        assert_eq!(s.mass, Some(72.6));
+        assert!((s.height.unwrap() - 1.8034).abs() < 1e-12);
+        assert_eq!(s.time_range, Some([1.0, 2.0]));
+        assert_eq!(
+            s.groups,
+            vec![SetupGroup {
+                name: "thigh".into(),
+                bodies: vec!["femur_r".into(), "femur_l".into()]
+            }]
+        );
+    }
 }

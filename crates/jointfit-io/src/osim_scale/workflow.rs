@@ -87,7 +87,12 @@ pub struct ScaleOutcome {
 }
 
 /// Motion-trial frames: `n` evenly spaced frames with at least half the model's markers.
-fn motion_frames(model: &Model, trial: &jointfit::trial::Trial, n: usize, spec: &jointfit::model::spec::ModelSpec) -> Vec<Vec<Vector3<f64>>> {
+fn motion_frames(
+    model: &Model,
+    trial: &jointfit::trial::Trial,
+    n: usize,
+    spec: &jointfit::model::spec::ModelSpec,
+) -> Vec<Vec<Vector3<f64>>> {
     let nf = trial.n_frames();
     let mut out = Vec::new();
     if nf == 0 || n == 0 {
@@ -120,7 +125,11 @@ pub fn scale_subject(req: &ScaleRequest) -> Result<ScaleOutcome, String> {
                 ));
             }
         }
-        fixed = defs.iter().filter(|d| d.fixed).map(|d| d.name.clone()).collect();
+        fixed = defs
+            .iter()
+            .filter(|d| d.fixed)
+            .map(|d| d.name.clone())
+            .collect();
         let text = with_marker_set(&osim.text, &defs)
             .map_err(|e| format!("{}: {e}", req.generic.display()))?;
         osim = parse_osim(text, &req.generic).map_err(|e| e.to_string())?;
@@ -188,7 +197,9 @@ pub fn scale_subject(req: &ScaleRequest) -> Result<ScaleOutcome, String> {
     opts.marker_sd = req.marker_sd;
     opts.prior = req.prior.then(|| SizePrior {
         proportion_sd: PROPORTION_SD,
-        stature: req.height.map(|h| (h / marker_extent(&generic), STATURE_SD)),
+        stature: req
+            .height
+            .map(|h| (h / marker_extent(&generic), STATURE_SD)),
     });
     let fit = fit_scale(&spec, &targets, &opts).map_err(|e| {
         format!(
@@ -238,7 +249,9 @@ pub fn marker_extent(model: &Model) -> f64 {
         &mut data,
     );
     let ys = data.markers.iter().map(|m| m.y);
-    let (lo, hi) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| (a.min(y), b.max(y)));
+    let (lo, hi) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
+        (a.min(y), b.max(y))
+    });
     (hi - lo).max(1e-3)
 }
 

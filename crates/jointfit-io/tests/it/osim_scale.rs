@@ -111,7 +111,12 @@ fn check_model(relative: &str, seed: u64, mass: f64) {
         ("offset frame translation", "frames", None, 1e-12),
         ("marker location", "markers", None, 1e-12),
         ("path point at the default pose", "points", None, 1e-12),
-        ("wrap object translation", "wraps", Some("translation"), 1e-12),
+        (
+            "wrap object translation",
+            "wraps",
+            Some("translation"),
+            1e-12,
+        ),
         ("wrap object size", "wraps", Some("size"), 1e-12),
     ] {
         if a[key].as_object().unwrap().is_empty() {
@@ -122,7 +127,10 @@ fn check_model(relative: &str, seed: u64, mass: f64) {
         assert!(d <= tol, "{relative}: {what} differs by {d:e}");
     }
     // Fibre and tendon lengths: exact (to round-off) for muscles without wrapping.
-    let (ma, mb) = (a["muscles"].as_object().unwrap(), b["muscles"].as_object().unwrap());
+    let (ma, mb) = (
+        a["muscles"].as_object().unwrap(),
+        b["muscles"].as_object().unwrap(),
+    );
     let (mut plain, mut wrapped): (f64, f64) = (0.0, 0.0);
     for (name, x) in ma {
         let y = &mb[name];
@@ -140,13 +148,23 @@ fn check_model(relative: &str, seed: u64, mass: f64) {
         "fibre/tendon length, unwrapped muscles: {plain:.1e}, wrapped: {wrapped:.1e} (relative)"
     ));
     println!("{relative}:\n  {}", report.join("\n  "));
-    assert!(plain <= 1e-9, "{relative}: unwrapped muscle lengths differ by {plain:e}");
-    assert!(wrapped <= 0.03, "{relative}: wrapped muscle lengths differ by {wrapped:e}");
+    assert!(
+        plain <= 1e-9,
+        "{relative}: unwrapped muscle lengths differ by {plain:e}"
+    );
+    assert!(
+        wrapped <= 0.03,
+        "{relative}: wrapped muscle lengths differ by {wrapped:e}"
+    );
 }
 
 #[test]
 fn gait2392_scaled_as_opensim_scales_it() {
-    check_model("opensim_gait2392_subject01/gait2392_thelen2003muscle.osim", 7, 81.5);
+    check_model(
+        "opensim_gait2392_subject01/gait2392_thelen2003muscle.osim",
+        7,
+        81.5,
+    );
 }
 
 #[test]

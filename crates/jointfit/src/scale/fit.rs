@@ -8,7 +8,11 @@
 //! where the body poses `T_b` use the scaled model ([`super::geometry`]). Residual rows:
 //!
 //! * data: `(x_j − m_fj)/σ_d` for every present marker of every frame;
-//! * marker placement prior: `δ_j/σ_m` (the registered marker stays near its generic place);
+//! * marker placement prior: `δ_j/σ_j` (the registered marker stays near its generic place);
+//!   `σ_j = σ_m` for every marker at first; a marker the fit moves beyond `2σ_j` is taken for a
+//!   tracking marker placed anywhere on its segment and its `σ_j` widens to half its offset,
+//!   then the fit resumes (up to four rounds: a Huber-like reweighting that keeps landmarks
+//!   tight and lets clusters go where the data put them);
 //! * anthropometric prior (optional): `(ln g_k − u)/σ_p` for every factor (segment
 //!   proportions of the generic model, spread `σ_p`), and with a stature `H`:
 //!   `(u − ln(H/H_generic))/σ_H`.
@@ -55,6 +59,8 @@ pub struct ScaleOptions {
     /// `None`: the pure fit (no anthropometric prior).
     pub prior: Option<SizePrior>,
     pub max_iterations: usize,
+    /// Widen the offset prior of markers the data move far (tracking markers; module docs).
+    pub robust: bool,
 }
 
 impl ScaleOptions {
@@ -69,6 +75,7 @@ impl ScaleOptions {
                 stature: None,
             }),
             max_iterations: 60,
+            robust: true,
         }
     }
 }
@@ -83,7 +90,9 @@ pub enum ScaleError {
     UnknownBody(String, String),
     #[error("body {0:?} is in two scale groups")]
     TwiceGrouped(String),
-    #[error("the normal equations are singular: the data and priors leave the factors undetermined")]
+    #[error(
+        "the normal equations are singular: the data and priors leave the factors undetermined"
+    )]
     Singular,
 }
 
@@ -142,6 +151,8 @@ struct Problem<'a> {
     n_q: usize,
     /// The starting θ; its coordinates anchor the weak pose rows.
     start: Vec<f64>,
+    /// Per model marker: the SD of its offset prior (m).
+    msd: Vec<f64>,
 }
 
 /// SD (rad or m) of the weak rows that hold coordinates no marker determines (a toe joint
@@ -191,7 +202,8 @@ impl Problem<'_> {
         let deltas = 3 * self.lay.delta.iter().flatten().count();
         let prior = match &self.opts.prior {
             Some(p) => {
-                self.lay.groups.iter().map(|g| g.1).sum::<usize>() + usize::from(p.stature.is_some())
+                self.lay.groups.iter().map(|g| g.1).sum::<usize>()
+                    + usize::from(p.stature.is_some())
             }
             None => 0,
         };
@@ -240,11 +252,14 @@ impl Problem<'_> {
                 row += 3;
             }
         }
-        for at in self.lay.delta.iter().flatten() {
+        for (at, sd) in self.lay.delta.iter().zip(&self.msd) {
+            let Some(at) = at else {
+                continue;
+            };
             for k in 0..3 {
-                r[row] = th[at + k] / self.opts.marker_sd;
+                r[row] = th[at + k] / sd;
                 if jac {
-                    j[(row, at + k)] = 1.0 / self.opts.marker_sd;
+                    j[(row, at + k)] = 1.0 / sd;
                 }
                 row += 1;
             }
@@ -306,7 +321,74 @@ impl Problem<'_> {
     }
 }
 
-fn layout(spec: &ModelSpec, opts: &ScaleOptions, n_q: usize, frames: usize) -> Result<Layout, ScaleError> {
+/// Prior SDs beyond which a marker's offset marks it as a tracking marker (module docs).
+const ROBUST_IN_SD: f64 = 2.0;
+/// Rounds of widening.
+const ROBUST_ROUNDS: usize = 4;
+
+type Solved = (Vec<f64>, DVector<f64>, DMatrix<f64>, f64, usize);
+
+/// Levenberg–Marquardt from `th` (Marquardt's diagonal scaling).
+fn solve(pb: &Problem, mut th: Vec<f64>) -> Result<Solved, ScaleError> {
+    let (mut r, mut j) = pb.evaluate(&th, true)?;
+    let mut cost = r.norm_squared();
+    let mut lambda = 1e-3;
+    let mut iterations = 0;
+    while iterations < pb.opts.max_iterations {
+        iterations += 1;
+        let jt = j.transpose();
+        let a = &jt * &j;
+        let g = &jt * &r;
+        let mut improved = false;
+        for _ in 0..12 {
+            let mut damped = a.clone();
+            for k in 0..damped.nrows() {
+                damped[(k, k)] += lambda * a[(k, k)].max(1e-9);
+            }
+            let Some(ch) = damped.cholesky() else {
+                lambda *= 10.0;
+                continue;
+            };
+            let step = ch.solve(&(-&g));
+            let trial: Vec<f64> = th.iter().zip(step.iter()).map(|(x, d)| x + d).collect();
+            if pb
+                .lay
+                .groups
+                .iter()
+                .any(|&(at, n)| trial[at..at + n].iter().any(|v| *v <= 0.05))
+            {
+                lambda *= 4.0;
+                continue;
+            }
+            let (r2, _) = pb.evaluate(&trial, false)?;
+            let c2 = r2.norm_squared();
+            if c2 < cost {
+                let done = (cost - c2) <= 1e-12 * cost.max(1e-30) || step.amax() < 1e-10;
+                th = trial;
+                cost = c2;
+                lambda = (lambda / 3.0).max(1e-12);
+                improved = !done;
+                let (r3, j3) = pb.evaluate(&th, true)?;
+                r = r3;
+                j = j3;
+                break;
+            }
+            lambda *= 4.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+
+    Ok((th, r, j, cost, iterations))
+}
+
+fn layout(
+    spec: &ModelSpec,
+    opts: &ScaleOptions,
+    n_q: usize,
+    frames: usize,
+) -> Result<Layout, ScaleError> {
     let mut n = 0;
     let mut groups = Vec::new();
     let mut seen = std::collections::HashSet::new();
@@ -384,6 +466,7 @@ pub fn fit_scale(
         lay,
         n_q,
         start: Vec::new(),
+        msd: vec![opts.marker_sd; spec.markers.len()],
     };
     // Starting poses: inverse kinematics on the model at the starting size.
     let m0 = pb.model(&th)?;
@@ -398,47 +481,30 @@ pub fn fit_scale(
     }
     pb.start = th.clone();
 
-    let (mut r, mut j) = pb.evaluate(&th, true)?;
-    let mut cost = r.norm_squared();
-    let mut lambda = 1e-3;
-    let mut iterations = 0;
-    while iterations < opts.max_iterations {
-        iterations += 1;
-        let jt = j.transpose();
-        let a = &jt * &j;
-        let g = &jt * &r;
-        let mut improved = false;
-        for _ in 0..12 {
-            let mut damped = a.clone();
-            for k in 0..damped.nrows() {
-                damped[(k, k)] += lambda * a[(k, k)].max(1e-9);
-            }
-            let Some(ch) = damped.cholesky() else {
-                lambda *= 10.0;
+    let (mut r, mut j, mut cost, mut iterations) =
+        (DVector::zeros(0), DMatrix::zeros(0, 0), 0.0, 0);
+    // Markers whose offset the data pull beyond `ROBUST_IN_SD` prior SDs are tracking
+    // markers placed anywhere on the segment (clusters), not landmarks: their prior widens to
+    // their offset (a Huber-like reweighting), and the fit is repeated from where it stopped.
+    for _round in 0..ROBUST_ROUNDS {
+        let (th2, r2, j2, c2, it) = solve(&pb, th)?;
+        th = th2;
+        r = r2;
+        j = j2;
+        cost = c2;
+        iterations += it;
+        let mut widened = false;
+        for (mi, at) in pb.lay.delta.iter().enumerate() {
+            let Some(at) = at else {
                 continue;
             };
-            let step = ch.solve(&(-&g));
-            let trial: Vec<f64> = th.iter().zip(step.iter()).map(|(x, d)| x + d).collect();
-            if pb.lay.groups.iter().any(|&(at, n)| trial[at..at + n].iter().any(|v| *v <= 0.05)) {
-                lambda *= 4.0;
-                continue;
+            let d = (th[*at].powi(2) + th[at + 1].powi(2) + th[at + 2].powi(2)).sqrt();
+            if opts.robust && d > ROBUST_IN_SD * pb.msd[mi] * 1.05 {
+                pb.msd[mi] = d / ROBUST_IN_SD;
+                widened = true;
             }
-            let (r2, _) = pb.evaluate(&trial, false)?;
-            let c2 = r2.norm_squared();
-            if c2 < cost {
-                let done = (cost - c2) <= 1e-12 * cost.max(1e-30) || step.amax() < 1e-10;
-                th = trial;
-                cost = c2;
-                lambda = (lambda / 3.0).max(1e-12);
-                improved = !done;
-                let (r3, j3) = pb.evaluate(&th, true)?;
-                r = r3;
-                j = j3;
-                break;
-            }
-            lambda *= 4.0;
         }
-        if !improved {
+        if !widened {
             break;
         }
     }
@@ -497,7 +563,11 @@ pub fn fit_scale(
                 body: m.segment.clone(),
                 position: [cm.local.x, cm.local.y, cm.local.z],
                 moved,
-                rms: if *n > 0 { (s / *n as f64).sqrt() } else { f64::NAN },
+                rms: if *n > 0 {
+                    (s / *n as f64).sqrt()
+                } else {
+                    f64::NAN
+                },
             }
         })
         .collect();
@@ -552,7 +622,13 @@ mod tests {
             *v += 0.05 * ((k as f64) * 1.7).sin();
         }
         let mut data = KinData::new(&scaled);
-        forward_kinematics(&scaled, &scaled.nominal_params(), &q, Want::POSITIONS, &mut data);
+        forward_kinematics(
+            &scaled,
+            &scaled.nominal_params(),
+            &q,
+            Want::POSITIONS,
+            &mut data,
+        );
         let targets = vec![data.markers.clone()];
         let mut opts = ScaleOptions::new(groups);
         opts.prior = None;
@@ -569,7 +645,12 @@ mod tests {
         }
         assert!(fit.rms < 1e-8, "rms {}", fit.rms);
         for m in &fit.markers {
-            assert!(m.moved.iter().all(|d| d.abs() < 1e-6), "{}: {:?}", m.name, m.moved);
+            assert!(
+                m.moved.iter().all(|d| d.abs() < 1e-6),
+                "{}: {:?}",
+                m.name,
+                m.moved
+            );
         }
     }
 }

@@ -62,10 +62,7 @@ pub fn is_dof_function(f: &FunctionSpec) -> bool {
 /// `scale · f`, folding into an existing multiplier as OpenSim does.
 pub fn multiply(f: &FunctionSpec, scale: f64) -> FunctionSpec {
     match f {
-        FunctionSpec::Multiplier {
-            scale: s,
-            function,
-        } => FunctionSpec::Multiplier {
+        FunctionSpec::Multiplier { scale: s, function } => FunctionSpec::Multiplier {
             scale: s * scale,
             function: function.clone(),
         },
@@ -167,16 +164,36 @@ mod tests {
         f.insert("thigh".into(), [1.1, 1.2, 0.9]);
         let out = scaled_spec(&spec, &f);
         for (a, b) in spec.joints.iter().zip(&out.joints) {
-            let pf = if a.parent == "thigh" { [1.1, 1.2, 0.9] } else { [1.0; 3] };
-            let cf = if a.child == "thigh" { [1.1, 1.2, 0.9] } else { [1.0; 3] };
+            let pf = if a.parent == "thigh" {
+                [1.1, 1.2, 0.9]
+            } else {
+                [1.0; 3]
+            };
+            let cf = if a.child == "thigh" {
+                [1.1, 1.2, 0.9]
+            } else {
+                [1.0; 3]
+            };
             for k in 0..3 {
-                check(a.parent_offset.scalars()[k], b.parent_offset.scalars()[k], pf[k]);
-                check(a.child_offset.scalars()[k], b.child_offset.scalars()[k], cf[k]);
+                check(
+                    a.parent_offset.scalars()[k],
+                    b.parent_offset.scalars()[k],
+                    pf[k],
+                );
+                check(
+                    a.child_offset.scalars()[k],
+                    b.child_offset.scalars()[k],
+                    cf[k],
+                );
             }
             assert_eq!(a.parent_offset.rx, b.parent_offset.rx);
         }
         for (a, b) in spec.markers.iter().zip(&out.markers) {
-            let s = if a.segment == "thigh" { [1.1, 1.2, 0.9] } else { [1.0; 3] };
+            let s = if a.segment == "thigh" {
+                [1.1, 1.2, 0.9]
+            } else {
+                [1.0; 3]
+            };
             for k in 0..3 {
                 assert_eq!(b.position[k], a.position[k] * s[k]);
             }

@@ -74,7 +74,11 @@ pub fn default_groups(spec: &ModelSpec, per_axis: bool, symmetric: bool) -> Vec<
 
 /// Per model marker: the mean position over `frames` of the trial's marker of that name
 /// (NaN when absent or never present).
-pub fn averaged_targets(spec: &ModelSpec, trial: &Trial, frames: Range<usize>) -> Vec<Vector3<f64>> {
+pub fn averaged_targets(
+    spec: &ModelSpec,
+    trial: &Trial,
+    frames: Range<usize>,
+) -> Vec<Vector3<f64>> {
     spec.markers
         .iter()
         .map(|m| {
@@ -123,6 +127,9 @@ pub fn plausibility(groups: &[GroupFit], asymmetry: f64, spread: f64) -> Vec<Str
                                 100.0 * d,
                                 ["x", "y", "z"][k]
                             ));
+                        }
+                        if !g.per_axis_like() && !h.per_axis_like() {
+                            break;
                         }
                     }
                 }
