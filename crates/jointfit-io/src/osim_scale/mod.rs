@@ -135,10 +135,7 @@ fn scalar(node: Node, tag: &str) -> Result<Option<f64>, Fail> {
 /// element is empty).
 fn text_range(node: Node, tag: &str) -> Option<Range<usize>> {
     let c = child(node, tag)?;
-    match c.first_child().filter(|t| t.is_text()) {
-        Some(t) => Some(t.range()),
-        None => None,
-    }
+    c.first_child().filter(|t| t.is_text()).map(|t| t.range())
 }
 
 fn triple(v: [f64; 3]) -> String {

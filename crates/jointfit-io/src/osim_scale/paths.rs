@@ -46,7 +46,7 @@ fn default_pose(model: &Model) -> (KinData, HashMap<String, f64>) {
 
 fn point(p: Node, bodies: &[String], values: &HashMap<String, f64>) -> Option<Point> {
     let parent = path_leaf(text(p, "socket_parent_frame")?).to_string();
-    let body = bodies.iter().any(|b| *b == parent).then_some(parent);
+    let body = bodies.contains(&parent).then_some(parent);
     let coordinate = |tag: &str| {
         text(p, tag)
             .map(path_leaf)
@@ -91,7 +91,7 @@ fn world(model: &Model, data: &KinData, body: &Option<String>, loc: [f64; 3]) ->
     let pose = body
         .as_ref()
         .and_then(|b| model.segment_id(b))
-        .map_or(Pose::identity(), |id| data.segment_poses[id.0].clone());
+        .map_or(Pose::identity(), |id| data.segment_poses[id.0]);
     pose.transform_point(&Vector3::from(loc))
 }
 

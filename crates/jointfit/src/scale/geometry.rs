@@ -118,8 +118,8 @@ pub fn scaled_spec(spec: &ModelSpec, factors: &ScaleFactors) -> ModelSpec {
     }
     for m in out.markers.iter_mut() {
         if let Some(s) = factors.get(&m.segment) {
-            for k in 0..3 {
-                m.position[k] *= s[k];
+            for (x, f) in m.position.iter_mut().zip(s) {
+                *x *= f;
             }
         }
     }
@@ -194,8 +194,8 @@ mod tests {
             } else {
                 [1.0; 3]
             };
-            for k in 0..3 {
-                assert_eq!(b.position[k], a.position[k] * s[k]);
+            for ((y, x), f) in b.position.iter().zip(a.position).zip(s) {
+                assert_eq!(*y, x * f);
             }
         }
     }
