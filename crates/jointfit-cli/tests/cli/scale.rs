@@ -74,6 +74,7 @@ fn scale_gait2392_from_the_tutorial_setup() {
     };
     let ik = Script::new(&python, "scale_compare.py")
         .args(&["ik", &s(&out), &s(&walk), &s(&dir.join("ik"))])
+        .current_dir(&dir)
         .run_json();
     let mean = ik["mean_rms"].as_f64().unwrap();
     println!(

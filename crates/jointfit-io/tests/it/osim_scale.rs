@@ -18,9 +18,11 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::Value;
 
-fn dump(python: &Path, model: &Path) -> Value {
+/// OpenSim writes `opensim.log` into the working directory: the scratch one.
+fn dump(python: &Path, model: &Path, cwd: &Path) -> Value {
     Script::new(python, "osim_scale_check.py")
         .args(&["dump", &model.to_string_lossy()])
+        .current_dir(cwd)
         .run_json()
 }
 
@@ -99,8 +101,12 @@ fn check_model(relative: &str, seed: u64, mass: f64) {
             &mass.to_string(),
             &theirs.to_string_lossy(),
         ])
+        .current_dir(dir.path())
         .run_json();
-    let (a, b) = (dump(&python, &mine), dump(&python, &theirs));
+    let (a, b) = (
+        dump(&python, &mine, dir.path()),
+        dump(&python, &theirs, dir.path()),
+    );
 
     let mut report = Vec::new();
     for (what, key, field, tol) in [

@@ -157,7 +157,7 @@ struct Problem<'a> {
 
 /// SD (rad or m) of the weak rows that hold coordinates no marker determines (a toe joint
 /// without toe markers) at their starting values; far wider than any determined one.
-const POSE_SD: f64 = 10.0;
+const POSE_SD: f64 = 1000.0;
 
 impl Problem<'_> {
     fn factors(&self, th: &[f64]) -> ScaleFactors {
