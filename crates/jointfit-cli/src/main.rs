@@ -33,6 +33,7 @@ mod prior_args;
 mod progress;
 mod report_cmd;
 mod reproduce_cmd;
+mod scale_cmd;
 mod stream_cmd;
 mod synth_cmd;
 mod table;
@@ -78,6 +79,8 @@ enum Command {
         #[command(subcommand)]
         command: markers_cmd::MarkersCommand,
     },
+    /// Scale a generic OpenSim model to a subject and register its markers (static trial).
+    Scale(scale_cmd::ScaleArgs),
     /// Build a subject's leg model from a static trial (anatomical-landmark method).
     Personalize(personalize_cmd::PersonalizeArgs),
     /// Before a fit: each joint's range of motion and which parameters the trial can determine.
@@ -138,6 +141,7 @@ fn main() -> ExitCode {
         Command::Check(args) => check_cmd::run(args),
         Command::Demo(args) => demo_cmd::run(args),
         Command::Personalize(args) => personalize_cmd::run(args),
+        Command::Scale(args) => scale_cmd::run(args),
         Command::Report(args) => report_cmd::run(args),
         Command::Bench(args) => bench_cmd::run(args),
         Command::Export { command } => export_cmd::run(command),

@@ -15,6 +15,7 @@ pub mod csv;
 pub mod message;
 pub mod osim;
 pub mod osim_read;
+pub mod osim_scale;
 pub mod osim_setup;
 pub mod staging;
 pub mod sto;

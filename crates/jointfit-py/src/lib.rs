@@ -19,6 +19,7 @@ mod calibration;
 mod checks;
 mod model;
 mod run;
+mod scale;
 mod solve;
 mod stream;
 mod trial;
@@ -132,6 +133,7 @@ fn _jointfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(solve::synthesize, m)?)?;
     m.add_function(wrap_pyfunction!(calibration::calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(checks::check_calibrate, m)?)?;
+    m.add_function(wrap_pyfunction!(scale::scale, m)?)?;
     m.add_function(wrap_pyfunction!(calibration::calibration_from_json, m)?)?;
     Ok(())
 }

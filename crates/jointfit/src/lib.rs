@@ -20,6 +20,7 @@ pub mod placement;
 pub mod plausibility;
 pub mod repair;
 pub mod residual_checks;
+pub mod scale;
 pub mod signal;
 pub mod solver;
 #[doc(hidden)]

@@ -14,12 +14,12 @@
 //! Checked against OpenSim 4.6 (marker and body positions at random poses) in
 //! `tests/it/osim_read.rs`.
 
-mod functions;
+pub(crate) mod functions;
 mod joints;
 pub mod personalize;
 pub mod workflow;
 mod write;
-mod xml;
+pub(crate) mod xml;
 
 use std::collections::HashMap;
 use std::ops::Range;
@@ -53,8 +53,8 @@ pub enum OsimReadError {
 /// An error at a byte position of the document (turned into a line number by the caller).
 #[derive(Debug)]
 pub(crate) struct Fail {
-    pos: usize,
-    msg: String,
+    pub(crate) pos: usize,
+    pub(crate) msg: String,
 }
 
 impl Fail {

@@ -8,6 +8,7 @@ mod osim_joint_model;
 mod osim_joint_types;
 mod osim_names;
 mod osim_read;
+mod osim_scale;
 mod sto;
 mod sto_edges;
 mod trc_fast;

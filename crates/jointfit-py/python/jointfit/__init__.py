@@ -40,6 +40,7 @@ from ._jointfit import (
     __version__,
     ik,
     personalize,
+    scale,
     synthesize,
 )
 
@@ -102,5 +103,6 @@ __all__ = [
     "calibrate",
     "ik",
     "personalize",
+    "scale",
     "synthesize",
 ]

@@ -213,6 +213,19 @@ def personalize(
     window: Optional[float] = None,
     name: Optional[str] = None,
 ) -> Model: ...
+def scale(
+    model: Union[str, os.PathLike],
+    static: Union[str, os.PathLike],
+    trials: Sequence[Union[str, os.PathLike]] = (),
+    markerset: Optional[Union[str, os.PathLike]] = None,
+    mass: Optional[float] = None,
+    height: Optional[float] = None,
+    output: Optional[Union[str, os.PathLike]] = None,
+    prior: str = "anthropometric",
+    per_axis: bool = False,
+    symmetric: bool = False,
+    time_range: Optional[Tuple[float, float]] = None,
+) -> Dict[str, Any]: ...
 def ik(
     model: _ModelArg, trial: _TrialArg, up: Optional[str] = None, filter: Optional[float] = None
 ) -> IkResult: ...

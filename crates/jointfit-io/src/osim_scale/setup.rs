@@ -1,0 +1,323 @@
+//! OpenSim's scaling inputs: `MarkerSet` files (OpenSim 3: `<body>`; OpenSim 4:
+//! `<socket_parent_frame>`) attached to a model's text, and `ScaleTool` setup files.
+
+use std::path::{Path, PathBuf};
+
+use roxmltree::{Document, Node};
+use thiserror::Error;
+
+use crate::osim_read::xml::{child, elements, name, numbers, path_leaf, text};
+
+#[derive(Debug, Error)]
+pub enum SetupError {
+    #[error("{path}: cannot read: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: line {line}: {message}")]
+    Invalid {
+        path: PathBuf,
+        line: u32,
+        message: String,
+    },
+}
+
+/// One marker of a marker set.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MarkerDef {
+    pub name: String,
+    pub body: String,
+    /// Location in the body (m).
+    pub location: [f64; 3],
+    /// Kept where it is by marker placement.
+    pub fixed: bool,
+}
+
+fn read(path: &Path) -> Result<String, SetupError> {
+    std::fs::read_to_string(path).map_err(|source| SetupError::Read {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+fn invalid(path: &Path, doc: &Document, node: Node, message: String) -> SetupError {
+    SetupError::Invalid {
+        path: path.to_path_buf(),
+        line: doc.text_pos_at(node.range().start).row,
+        message,
+    }
+}
+
+fn parse<'i>(path: &Path, text: &'i str) -> Result<Document<'i>, SetupError> {
+    Document::parse(text).map_err(|e| SetupError::Invalid {
+        path: path.to_path_buf(),
+        line: e.pos().row,
+        message: format!("not XML: {e}"),
+    })
+}
+
+/// The markers of an OpenSim `MarkerSet` file (versions 3 and 4).
+pub fn read_marker_set(path: &Path) -> Result<Vec<MarkerDef>, SetupError> {
+    let t = read(path)?;
+    let doc = parse(path, &t)?;
+    let mut out = Vec::new();
+    for m in doc
+        .descendants()
+        .filter(|n| n.tag_name().name() == "Marker")
+    {
+        let what = format!("Marker {:?}", name(m));
+        let body = text(m, "socket_parent_frame")
+            .or_else(|| text(m, "body"))
+            .map(path_leaf)
+            .filter(|b| !b.is_empty())
+            .ok_or_else(|| {
+                invalid(
+                    path,
+                    &doc,
+                    m,
+                    format!("{what}: no <body> or <socket_parent_frame>"),
+                )
+            })?;
+        let v = numbers(m, "location")
+            .map_err(|f| invalid(path, &doc, m, format!("{what}: {}", f.msg)))?;
+        let [x, y, z] = v[..] else {
+            return Err(invalid(
+                path,
+                &doc,
+                m,
+                format!("{what}: <location> needs three numbers"),
+            ));
+        };
+        out.push(MarkerDef {
+            name: name(m).to_string(),
+            body: body.to_string(),
+            location: [x, y, z],
+            fixed: text(m, "fixed") == Some("true"),
+        });
+    }
+    if out.is_empty() {
+        return Err(SetupError::Invalid {
+            path: path.to_path_buf(),
+            line: 1,
+            message: "no <Marker> elements".into(),
+        });
+    }
+    Ok(out)
+}
+
+/// The model text with its `MarkerSet` replaced by `markers` (OpenSim 4 form), or one added
+/// when the model has none. Everything else is kept byte for byte.
+pub fn with_marker_set(model: &str, markers: &[MarkerDef]) -> Result<String, String> {
+    let doc = Document::parse(model).map_err(|e| format!("not XML: {e}"))?;
+    let m = child(doc.root_element(), "Model").ok_or("no <Model>")?;
+    let mut set = String::from("<MarkerSet name=\"markerset\">\n\t\t\t<objects>\n");
+    for d in markers {
+        set.push_str(&format!(
+            "\t\t\t\t<Marker name=\"{}\">\n\t\t\t\t\t<socket_parent_frame>/bodyset/{}</socket_parent_frame>\n\t\t\t\t\t<location>{} {} {}</location>\n\t\t\t\t\t<fixed>{}</fixed>\n\t\t\t\t</Marker>\n",
+            crate::xml::escape(&d.name),
+            crate::xml::escape(&d.body),
+            d.location[0],
+            d.location[1],
+            d.location[2],
+            d.fixed
+        ));
+    }
+    set.push_str("\t\t\t</objects>\n\t\t\t<groups />\n\t\t</MarkerSet>");
+    let (at, end) = match child(m, "MarkerSet") {
+        Some(old) => (old.range().start, old.range().end),
+        None => {
+            let close = m.range().end - "</Model>".len();
+            if !model[close..].starts_with("</Model>") {
+                return Err("cannot find </Model>".into());
+            }
+            (close, close)
+        }
+    };
+    let extra = if end == at { "\n\t" } else { "" };
+    Ok(format!("{}{set}{extra}{}", &model[..at], &model[end..]))
+}
+
+/// A body group of a `Measurement`: the bodies it scales and the axes it names.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SetupGroup {
+    pub name: String,
+    pub bodies: Vec<String>,
+}
+
+/// What a `ScaleTool` setup says, paths resolved against the setup's directory.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ScaleSetup {
+    pub model: Option<PathBuf>,
+    pub marker_set: Option<PathBuf>,
+    pub static_trial: Option<PathBuf>,
+    /// Time range of the static trial (s).
+    pub time_range: Option<[f64; 2]>,
+    /// Subject mass (kg; absent or -1: none).
+    pub mass: Option<f64>,
+    /// Subject height (m; the file gives mm).
+    pub height: Option<f64>,
+    /// The applied measurements' body groups.
+    pub groups: Vec<SetupGroup>,
+    pub output_model: Option<PathBuf>,
+}
+
+/// Reads a `ScaleTool` setup file.
+pub fn read_scale_setup(path: &Path) -> Result<ScaleSetup, SetupError> {
+    let t = read(path)?;
+    let doc = parse(path, &t)?;
+    let tool = doc
+        .descendants()
+        .find(|n| n.tag_name().name() == "ScaleTool")
+        .ok_or_else(|| invalid(path, &doc, doc.root_element(), "no <ScaleTool>".into()))?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let file = |node: Option<Node>, tag: &str| -> Option<PathBuf> {
+        let v = text(node?, tag)?;
+        (!v.is_empty() && v != "Unassigned").then(|| dir.join(v))
+    };
+    let number = |node: Node, tag: &str| -> Result<Option<f64>, SetupError> {
+        if child(node, tag).is_none() {
+            return Ok(None);
+        }
+        let v = numbers(node, tag).map_err(|f| invalid(path, &doc, node, f.msg))?;
+        Ok(v.first().copied())
+    };
+    let maker = child(tool, "GenericModelMaker");
+    let scaler = child(tool, "ModelScaler");
+    let placer = child(tool, "MarkerPlacer");
+    let mut s = ScaleSetup {
+        model: file(maker, "model_file"),
+        marker_set: file(maker, "marker_set_file"),
+        static_trial: file(scaler, "marker_file").or_else(|| file(placer, "marker_file")),
+        mass: number(tool, "mass")?.filter(|m| *m > 0.0),
+        height: number(tool, "height")?
+            .filter(|h| *h > 0.0)
+            .map(|h| h / 1000.0),
+        output_model: file(placer, "output_model_file")
+            .or_else(|| file(scaler, "output_model_file")),
+        ..Default::default()
+    };
+    for node in [scaler, placer].into_iter().flatten() {
+        if s.time_range.is_none() && child(node, "time_range").is_some() {
+            let v = numbers(node, "time_range").map_err(|f| invalid(path, &doc, node, f.msg))?;
+            if let [a, b] = v[..] {
+                s.time_range = Some([a, b]);
+            }
+        }
+    }
+    if let Some(set) = scaler
+        .and_then(|n| child(n, "MeasurementSet"))
+        .and_then(|n| child(n, "objects"))
+    {
+        for m in elements(set) {
+            if text(m, "apply") == Some("false") {
+                continue;
+            }
+            let bodies: Vec<String> = child(m, "BodyScaleSet")
+                .and_then(|b| child(b, "objects"))
+                .map(|o| elements(o).map(|b| name(b).to_string()).collect())
+                .unwrap_or_default();
+            if !bodies.is_empty() {
+                s.groups.push(SetupGroup {
+                    name: name(m).to_string(),
+                    bodies,
+                });
+            }
+        }
+    }
+    Ok(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn marker_sets_of_both_versions_attach_to_a_model() {
+        let dir = tempfile::tempdir().unwrap();
+        let v3 = dir.path().join("v3.xml");
+        std::fs::write(
+            &v3,
+            "<OpenSimDocument Version=\"20302\"><MarkerSet><objects>\
+             <Marker name=\"A\"><body> femur_r </body><location> 0.1 -0.2 0.03 </location>\
+             <fixed> true </fixed></Marker></objects></MarkerSet></OpenSimDocument>",
+        )
+        .unwrap();
+        let v4 = dir.path().join("v4.xml");
+        std::fs::write(
+            &v4,
+            "<OpenSimDocument Version=\"40000\"><MarkerSet><objects>\
+             <Marker name=\"B\"><socket_parent_frame>/bodyset/tibia_l</socket_parent_frame>\
+             <location>1 2 3</location></Marker></objects></MarkerSet></OpenSimDocument>",
+        )
+        .unwrap();
+        let a = read_marker_set(&v3).unwrap();
+        assert_eq!(
+            a,
+            vec![MarkerDef {
+                name: "A".into(),
+                body: "femur_r".into(),
+                location: [0.1, -0.2, 0.03],
+                fixed: true
+            }]
+        );
+        let b = read_marker_set(&v4).unwrap();
+        assert_eq!(
+            (b[0].body.as_str(), b[0].location, b[0].fixed),
+            ("tibia_l", [1.0, 2.0, 3.0], false)
+        );
+
+        let model = "<OpenSimDocument Version=\"40000\"><Model name=\"m\"><BodySet/></Model></OpenSimDocument>";
+        let with = with_marker_set(model, &a).unwrap();
+        assert!(with.starts_with("<OpenSimDocument Version=\"40000\"><Model name=\"m\"><BodySet/>"));
+        assert!(with.ends_with("</Model></OpenSimDocument>"));
+        let doc = Document::parse(&with).unwrap();
+        let m = doc
+            .descendants()
+            .find(|n| n.has_tag_name("Marker"))
+            .unwrap();
+        assert_eq!(text(m, "socket_parent_frame"), Some("/bodyset/femur_r"));
+        assert_eq!(numbers(m, "location").unwrap(), vec![0.1, -0.2, 0.03]);
+        // replacing an existing set keeps one
+        let again = with_marker_set(&with, &b).unwrap();
+        assert_eq!(again.matches("<MarkerSet").count(), 1);
+        assert!(again.contains("/bodyset/tibia_l"));
+    }
+
+    #[test]
+    fn a_scale_setup_names_its_files_mass_height_and_groups() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("setup.xml");
+        std::fs::write(
+            &p,
+            "<OpenSimDocument><ScaleTool name=\"s\"><mass> 72.6 </mass><height> 1803.4 </height>\
+             <GenericModelMaker><model_file> g.osim </model_file>\
+             <marker_set_file> m.xml </marker_set_file></GenericModelMaker>\
+             <ModelScaler><MeasurementSet><objects>\
+             <Measurement name=\"thigh\"><apply> true </apply><BodyScaleSet><objects>\
+             <BodyScale name=\"femur_r\"/><BodyScale name=\"femur_l\"/></objects></BodyScaleSet></Measurement>\
+             <Measurement name=\"off\"><apply> false </apply><BodyScaleSet><objects>\
+             <BodyScale name=\"torso\"/></objects></BodyScaleSet></Measurement>\
+             </objects></MeasurementSet><marker_file> s.trc </marker_file>\
+             <time_range> 1 2 </time_range></ModelScaler>\
+             <MarkerPlacer><output_model_file> out.osim </output_model_file></MarkerPlacer>\
+             </ScaleTool></OpenSimDocument>",
+        )
+        .unwrap();
+        let s = read_scale_setup(&p).unwrap();
+        assert_eq!(s.model, Some(dir.path().join("g.osim")));
+        assert_eq!(s.marker_set, Some(dir.path().join("m.xml")));
+        assert_eq!(s.static_trial, Some(dir.path().join("s.trc")));
+        assert_eq!(s.output_model, Some(dir.path().join("out.osim")));
+        assert_eq!(s.mass, Some(72.6));
+        assert!((s.height.unwrap() - 1.8034).abs() < 1e-12);
+        assert_eq!(s.time_range, Some([1.0, 2.0]));
+        assert_eq!(
+            s.groups,
+            vec![SetupGroup {
+                name: "thigh".into(),
+                bodies: vec!["femur_r".into(), "femur_l".into()]
+            }]
+        );
+    }
+}

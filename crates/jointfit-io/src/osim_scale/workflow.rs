@@ -1,0 +1,265 @@
+//! The whole `scale` pipeline on files, shared by the CLI and Python: generic `.osim` (with a
+//! marker set attached) + static trial (+ motion trials) → fitted factors and registered
+//! markers → the subject's `.osim` text as OpenSim's scaling writes it.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use jointfit::kinematics::{forward_kinematics, KinData, Want};
+use jointfit::model::Model;
+use jointfit::scale::{
+    averaged_targets, default_groups, fit_scale, plausibility, ScaleFit, ScaleGroup,
+    ScaleOptions as FitOptions, SizePrior,
+};
+use nalgebra::Vector3;
+
+use super::setup::{read_marker_set, with_marker_set, SetupGroup};
+use super::{scale_osim, ScaleOptions};
+use crate::osim_read::{parse_osim, read_osim};
+
+/// Everything `scale` needs.
+#[derive(Debug, Clone)]
+pub struct ScaleRequest {
+    pub generic: PathBuf,
+    pub static_trial: PathBuf,
+    pub trials: Vec<PathBuf>,
+    pub marker_set: Option<PathBuf>,
+    /// Subject mass (kg): the written model's total mass.
+    pub mass: Option<f64>,
+    /// Subject stature (m): the anthropometric prior's overall size.
+    pub height: Option<f64>,
+    /// Static trial time range (s); `None`: every frame.
+    pub time_range: Option<[f64; 2]>,
+    /// Body groups (a setup's measurements); `None`: [`default_groups`].
+    pub groups: Option<Vec<SetupGroup>>,
+    /// The anthropometric prior (false: the pure fit).
+    pub prior: bool,
+    pub per_axis: bool,
+    pub symmetric: bool,
+    /// Prior SD of marker offsets (m).
+    pub marker_sd: f64,
+    /// Frames taken from each motion trial (evenly spaced).
+    pub frames_per_trial: usize,
+}
+
+impl ScaleRequest {
+    pub fn new(generic: PathBuf, static_trial: PathBuf) -> Self {
+        ScaleRequest {
+            generic,
+            static_trial,
+            trials: vec![],
+            marker_set: None,
+            mass: None,
+            height: None,
+            time_range: None,
+            groups: None,
+            prior: true,
+            per_axis: false,
+            symmetric: false,
+            marker_sd: 0.01,
+            frames_per_trial: 8,
+        }
+    }
+}
+
+/// Spread of a segment's factor about the overall size (log units): adult segment-length to
+/// stature ratios vary by about this much (docs/scaling.md).
+pub const PROPORTION_SD: f64 = 0.05;
+/// Spread of the stature ratio (log units): the generic stature is estimated from its
+/// markers' vertical extent at the default pose.
+pub const STATURE_SD: f64 = 0.03;
+
+#[derive(Debug, Clone)]
+pub struct ScaleOutcome {
+    /// The subject's `.osim` text.
+    pub text: String,
+    pub fit: ScaleFit,
+    /// Implausible factors, in words with the numbers.
+    pub flags: Vec<String>,
+    pub generic_mass: f64,
+    pub total_mass: f64,
+    /// Frames used: the averaged static frame, then the motion frames.
+    pub frames: usize,
+    /// Model markers the static trial lacks.
+    pub absent: Vec<String>,
+    /// Wall time of the fit and the scaling (s), without reading files.
+    pub seconds: f64,
+}
+
+/// Motion-trial frames: `n` evenly spaced frames with at least half the model's markers.
+fn motion_frames(
+    model: &Model,
+    trial: &jointfit::trial::Trial,
+    n: usize,
+    spec: &jointfit::model::spec::ModelSpec,
+) -> Vec<Vec<Vector3<f64>>> {
+    let nf = trial.n_frames();
+    let mut out = Vec::new();
+    if nf == 0 || n == 0 {
+        return out;
+    }
+    for k in 0..n {
+        let f = (k * nf + nf / 2) / n;
+        let t = averaged_targets(spec, trial, f..f + 1);
+        if t.iter().filter(|m| m.x.is_finite()).count() * 2 >= model.n_markers() {
+            out.push(t);
+        }
+    }
+    out
+}
+
+/// Runs the pipeline (module docs). Errors are one-line messages naming the file.
+pub fn scale_subject(req: &ScaleRequest) -> Result<ScaleOutcome, String> {
+    let mut osim = read_osim(&req.generic).map_err(|e| e.to_string())?;
+    let mut fixed = Vec::new();
+    if let Some(ms) = &req.marker_set {
+        let defs = read_marker_set(ms).map_err(|e| e.to_string())?;
+        for d in &defs {
+            if !osim.spec.segments.iter().any(|s| s.name == d.body) {
+                return Err(format!(
+                    "{}: marker {:?} sits on body {:?}, which {} does not have",
+                    ms.display(),
+                    d.name,
+                    d.body,
+                    req.generic.display()
+                ));
+            }
+        }
+        fixed = defs
+            .iter()
+            .filter(|d| d.fixed)
+            .map(|d| d.name.clone())
+            .collect();
+        let text = with_marker_set(&osim.text, &defs)
+            .map_err(|e| format!("{}: {e}", req.generic.display()))?;
+        osim = parse_osim(text, &req.generic).map_err(|e| e.to_string())?;
+    }
+    let spec = osim.spec.clone();
+    if spec.markers.is_empty() {
+        return Err(format!(
+            "{}: the model has no markers; give a marker set (--markerset)",
+            req.generic.display()
+        ));
+    }
+    let generic = Model::compile(&spec).map_err(|e| format!("{}: {e}", req.generic.display()))?;
+    let stat = crate::trial_file::read_trial(&req.static_trial).map_err(|e| e.to_string())?;
+    let frames = match req.time_range {
+        Some([a, b]) => {
+            let idx: Vec<usize> = (0..stat.n_frames())
+                .filter(|&f| stat.time(f) >= a - 1e-9 && stat.time(f) <= b + 1e-9)
+                .collect();
+            match (idx.first(), idx.last()) {
+                (Some(&s), Some(&e)) => s..e + 1,
+                _ => {
+                    return Err(format!(
+                        "{}: no frame in the time range {a}–{b} s",
+                        req.static_trial.display()
+                    ))
+                }
+            }
+        }
+        None => 0..stat.n_frames(),
+    };
+    let mut targets = vec![averaged_targets(&spec, &stat, frames)];
+    let absent: Vec<String> = spec
+        .markers
+        .iter()
+        .zip(&targets[0])
+        .filter(|(_, t)| !t.x.is_finite())
+        .map(|(m, _)| m.name.clone())
+        .collect();
+    for path in &req.trials {
+        let t = crate::trial_file::read_trial(path).map_err(|e| e.to_string())?;
+        targets.extend(motion_frames(&generic, &t, req.frames_per_trial, &spec));
+    }
+
+    let clock = Instant::now();
+    let groups: Vec<ScaleGroup> = match &req.groups {
+        // A setup may name bodies the model lacks (OpenSim skips them too).
+        Some(gs) => gs
+            .iter()
+            .map(|g| ScaleGroup {
+                name: g.name.clone(),
+                bodies: g
+                    .bodies
+                    .iter()
+                    .filter(|b| spec.segments.iter().any(|s| s.name == **b))
+                    .cloned()
+                    .collect(),
+                per_axis: req.per_axis,
+            })
+            .filter(|g| !g.bodies.is_empty())
+            .collect(),
+        None => default_groups(&spec, req.per_axis, req.symmetric),
+    };
+    let mut opts = FitOptions::new(groups);
+    opts.fixed_markers = fixed;
+    opts.marker_sd = req.marker_sd;
+    opts.prior = req.prior.then(|| SizePrior {
+        proportion_sd: PROPORTION_SD,
+        stature: req
+            .height
+            .map(|h| (h / marker_extent(&generic), STATURE_SD)),
+    });
+    let fit = fit_scale(&spec, &targets, &opts).map_err(|e| {
+        format!(
+            "{} on {}: {e}",
+            req.generic.display(),
+            req.static_trial.display()
+        )
+    })?;
+    let markers: Vec<(String, [f64; 3])> = fit
+        .markers
+        .iter()
+        .filter(|m| osim.markers.iter().any(|s| s.name == m.name))
+        .map(|m| (m.name.clone(), m.position))
+        .collect();
+    let scaled = scale_osim(
+        &osim,
+        &req.generic,
+        &fit.factors,
+        &ScaleOptions {
+            total_mass: req.mass,
+            markers,
+        },
+    )
+    .map_err(|e| e.to_string())?;
+    let flags = plausibility(&fit.groups, 0.05, 3.0 * PROPORTION_SD);
+    Ok(ScaleOutcome {
+        text: scaled.text,
+        fit,
+        flags,
+        generic_mass: scaled.generic_mass,
+        total_mass: scaled.total_mass,
+        frames: targets.len(),
+        absent,
+        seconds: clock.elapsed().as_secs_f64(),
+    })
+}
+
+/// The generic model's stature proxy (m): the vertical (y) extent of its markers at the
+/// default pose.
+pub fn marker_extent(model: &Model) -> f64 {
+    let mut data = KinData::new(model);
+    forward_kinematics(
+        model,
+        &model.nominal_params(),
+        &model.default_coords(),
+        Want::POSITIONS,
+        &mut data,
+    );
+    let ys = data.markers.iter().map(|m| m.y);
+    let (lo, hi) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
+        (a.min(y), b.max(y))
+    });
+    (hi - lo).max(1e-3)
+}
+
+/// Output path next to the setup, when `path` is relative.
+pub fn resolve(base: &Path, path: &Path) -> PathBuf {
+    if path.is_absolute() {
+        path.to_path_buf()
+    } else {
+        base.join(path)
+    }
+}

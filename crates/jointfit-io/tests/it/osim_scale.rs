@@ -1,0 +1,179 @@
+//! [`jointfit_io::osim_scale`] against OpenSim 4.6's own `Model::scale` (preserve mass
+//! distribution, a given total mass) for the same per-body factors, non-uniform on every
+//! body: both files loaded by OpenSim, and every quantity scaling changes compared (bodies'
+//! masses, mass centres, inertias; body origins at the default pose, which carry the joint
+//! offset frames and the scaled translation functions; offset frame translations; markers;
+//! muscle path points at the default pose; wrap objects; optimal fibre and tendon slack
+//! lengths). Everything but the fibre and tendon lengths of wrapped muscles must agree to
+//! round-off; those (polyline path length, wrapping not followed) are reported and bounded.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use jointfit::scale::ScaleFactors;
+use jointfit_io::osim_read::read_osim;
+use jointfit_io::osim_scale::{scale_osim, ScaleOptions};
+use jointfit_testkit::script::Script;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde_json::Value;
+
+/// OpenSim writes `opensim.log` into the working directory: the scratch one.
+fn dump(python: &Path, model: &Path, cwd: &Path) -> Value {
+    Script::new(python, "osim_scale_check.py")
+        .args(&["dump", &model.to_string_lossy()])
+        .current_dir(cwd)
+        .run_json()
+}
+
+fn triples(v: &Value) -> Vec<f64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+/// Largest difference over the keys of two `{name: [numbers]}` maps (and the key sets agree).
+fn max_diff(a: &Value, b: &Value, field: Option<&str>) -> f64 {
+    let (a, b) = (a.as_object().unwrap(), b.as_object().unwrap());
+    assert_eq!(
+        a.keys().collect::<Vec<_>>(),
+        b.keys().collect::<Vec<_>>(),
+        "same components"
+    );
+    let mut worst: f64 = 0.0;
+    for (k, va) in a {
+        let (va, vb) = match field {
+            Some(f) => (&va[f], &b[k][f]),
+            None => (va, &b[k]),
+        };
+        let (xa, xb) = match va {
+            Value::Number(_) => (vec![va.as_f64().unwrap()], vec![vb.as_f64().unwrap()]),
+            _ => (triples(va), triples(vb)),
+        };
+        for (x, y) in xa.iter().zip(&xb) {
+            worst = worst.max((x - y).abs() / x.abs().max(y.abs()).max(1.0));
+        }
+    }
+    worst
+}
+
+fn check_model(relative: &str, seed: u64, mass: f64) {
+    let (Some(python), Some(generic)) = (
+        jointfit_testkit::python(),
+        jointfit_testkit::data_file(relative),
+    ) else {
+        println!("skipped: no $JOINTFIT_PYTHON or data");
+        return;
+    };
+    let dir = jointfit_testkit::scratch::scratch("osim_scale");
+    let osim = read_osim(&generic).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut factors = ScaleFactors::new();
+    for s in &osim.spec.segments {
+        let f: [f64; 3] = std::array::from_fn(|_| rng.gen_range(0.85..1.2));
+        factors.insert(s.name.clone(), f);
+    }
+    // OpenSim scales a translational coupler only with equal factors: the bodies of the
+    // dependent joints' parents get uniform ones.
+    let ours = scale_osim(
+        &osim,
+        &generic,
+        &factors,
+        &ScaleOptions {
+            total_mass: Some(mass),
+            markers: vec![],
+        },
+    )
+    .unwrap();
+    let mine = dir.path().join("ours.osim");
+    std::fs::write(&mine, &ours.text).unwrap();
+    let theirs = dir.path().join("opensim.osim");
+    let json: BTreeMap<&str, [f64; 3]> = factors.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+    let fpath = dir.path().join("factors.json");
+    std::fs::write(&fpath, serde_json::to_string(&json).unwrap()).unwrap();
+    Script::new(&python, "osim_scale_check.py")
+        .args(&[
+            "scale",
+            &generic.to_string_lossy(),
+            &fpath.to_string_lossy(),
+            &mass.to_string(),
+            &theirs.to_string_lossy(),
+        ])
+        .current_dir(dir.path())
+        .run_json();
+    let (a, b) = (
+        dump(&python, &mine, dir.path()),
+        dump(&python, &theirs, dir.path()),
+    );
+
+    let mut report = Vec::new();
+    for (what, key, field, tol) in [
+        ("mass", "bodies", Some("mass"), 1e-12),
+        ("mass centre", "bodies", Some("mass_center"), 1e-12),
+        ("inertia", "bodies", Some("inertia"), 1e-12),
+        ("body origin at the default pose", "origins", None, 1e-12),
+        ("offset frame translation", "frames", None, 1e-12),
+        ("marker location", "markers", None, 1e-12),
+        ("path point at the default pose", "points", None, 1e-12),
+        (
+            "wrap object translation",
+            "wraps",
+            Some("translation"),
+            1e-12,
+        ),
+        ("wrap object size", "wraps", Some("size"), 1e-12),
+    ] {
+        if a[key].as_object().unwrap().is_empty() {
+            continue;
+        }
+        let d = max_diff(&a[key], &b[key], field);
+        report.push(format!("{what}: {d:.1e}"));
+        assert!(d <= tol, "{relative}: {what} differs by {d:e}");
+    }
+    // Fibre and tendon lengths: exact (to round-off) for muscles without wrapping.
+    let (ma, mb) = (
+        a["muscles"].as_object().unwrap(),
+        b["muscles"].as_object().unwrap(),
+    );
+    let (mut plain, mut wrapped): (f64, f64) = (0.0, 0.0);
+    for (name, x) in ma {
+        let y = &mb[name];
+        for f in ["optimal_fiber_length", "tendon_slack_length"] {
+            let (u, v) = (x[f].as_f64().unwrap(), y[f].as_f64().unwrap());
+            let rel = (u - v).abs() / v.abs();
+            if x["wraps"].as_u64().unwrap() == 0 {
+                plain = plain.max(rel);
+            } else {
+                wrapped = wrapped.max(rel);
+            }
+        }
+    }
+    report.push(format!(
+        "fibre/tendon length, unwrapped muscles: {plain:.1e}, wrapped: {wrapped:.1e} (relative)"
+    ));
+    println!("{relative}:\n  {}", report.join("\n  "));
+    assert!(
+        plain <= 1e-9,
+        "{relative}: unwrapped muscle lengths differ by {plain:e}"
+    );
+    assert!(
+        wrapped <= 0.03,
+        "{relative}: wrapped muscle lengths differ by {wrapped:e}"
+    );
+}
+
+#[test]
+fn gait2392_scaled_as_opensim_scales_it() {
+    check_model(
+        "opensim_gait2392_subject01/gait2392_thelen2003muscle.osim",
+        7,
+        81.5,
+    );
+}
+
+#[test]
+fn opencap_lai_uhlrich_scaled_as_opensim_scales_it() {
+    check_model("opencap_expert1/generic.osim", 11, 64.0);
+}

@@ -1,0 +1,14 @@
+//! Scaling a generic model to a subject: OpenSim's geometric scaling rules
+//! ([`geometry`]), and the fit of per-body scale factors, marker offsets and the static pose
+//! ([`fit`]) with its groups, static targets and plausibility checks ([`groups`]). The maths
+//! and the priors are in `docs/scaling.md`.
+
+pub mod fit;
+pub mod geometry;
+pub mod groups;
+
+pub use fit::{
+    fit_scale, GroupFit, MarkerFit, ScaleError, ScaleFit, ScaleGroup, ScaleOptions, SizePrior,
+};
+pub use geometry::{scaled_spec, ScaleFactors};
+pub use groups::{averaged_targets, default_groups, mirror_name, plausibility};
