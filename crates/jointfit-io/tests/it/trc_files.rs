@@ -54,6 +54,27 @@ const fn read(
     }
 }
 
+/// An OpenCap video session's TRC (metres, 63 keypoints and augmented markers at 60 Hz); the
+/// first frame's `Neck` as the file's text gives it.
+fn video(name: &str, frames: usize, neck: [f64; 3]) -> Case {
+    let file: &'static str =
+        Box::leak(format!("opencap_video_subject0/{name}.trc").into_boxed_str());
+    let values: &'static [(usize, &'static str, Option<[f64; 3]>)] =
+        Box::leak(vec![(0, "Neck", Some(neck))].into_boxed_slice());
+    Case {
+        file,
+        expect: Expect::Read {
+            markers: 63,
+            frames,
+            rate: 60.0,
+            units: TrcUnits::Metres,
+            notes: &[],
+            strict_rejects: false,
+            values,
+        },
+    }
+}
+
 const fn reject(file: &'static str, kind: &'static str) -> Case {
     Case {
         file,
@@ -256,6 +277,9 @@ pub(crate) fn cases() -> Vec<Case> {
             60.0,
             &[(0, "R.ASIS", Some([0.623995790, 1.069763310, 0.164409300]))],
         ),
+        video("Asym_0", 899, [0.8907200, 1.4649397, 0.3429600]),
+        video("Squats_0", 832, [0.9152100, 1.4629023, 0.3685200]),
+        video("neutral", 96, [0.9814000, 1.4505270, 0.3857600]),
         read(
             "opensim_jam_healthy/overground_17.trc",
             40,
