@@ -459,7 +459,13 @@ impl Model {
             if ps.prior_sd.is_some() && ps.prior_mean.is_none() {
                 ps.prior_mean = Some(ps.nominal);
             }
-            ps.nominal = *v;
+            // A fitted value mapped back from the solver's scaled variables can land one
+            // rounding step outside its bound; the description must stay loadable.
+            ps.nominal = if ps.lower <= ps.upper {
+                v.clamp(ps.lower, ps.upper)
+            } else {
+                *v
+            };
         }
         spec
     }

@@ -177,3 +177,20 @@ fn joints_may_be_listed_in_any_order() {
     assert_eq!(model.segments()[0].name, "upper");
     assert_eq!(model.coordinates()[0].name, "shoulder_angle");
 }
+
+/// A fitted value one rounding step past its bound (the solver's scaled variables mapped
+/// back) is written at the bound, so the saved description compiles again.
+#[test]
+fn a_fitted_value_a_rounding_step_past_its_bound_is_saved_at_the_bound() {
+    let model = Model::compile(&jointfit::model::lower_limb::lower_limb(
+        jointfit::model::lower_limb::Side::Right,
+    ))
+    .unwrap();
+    let mut p = model.nominal_params();
+    let upper = model.spec().parameters[0].upper;
+    p[0] = f64::from_bits(upper.to_bits() + 1);
+    assert!(p[0] > upper);
+    let spec = model.spec_with_nominal(&p);
+    assert_eq!(spec.parameters[0].nominal, upper);
+    Model::compile(&spec).unwrap();
+}
