@@ -79,6 +79,10 @@ pub struct PersonalizeArgs {
     /// Print the summary as JSON.
     #[arg(long)]
     json: bool,
+    /// Write the model even when its thigh, shank or pelvis measures are outside adult ranges
+    /// (otherwise: exit status 5, nothing written).
+    #[arg(long)]
+    accept_rejected: bool,
     /// Output model file (TOML), written atomically.
     #[arg(short = 'o', long = "output", value_name = "SUBJECT.toml")]
     output: PathBuf,
@@ -148,6 +152,32 @@ fn preset_hint(labels: &[String], chosen: &str, sides: Sides, static_name: &str)
              marker set from them)"
         ),
     }
+}
+
+/// The subject model's body measurements against adult ranges
+/// ([`jointfit::plausibility::anthropometry`]): outside one, the static trial, its units or the
+/// marker map is wrong, and nothing is written (exit status 5) unless `accept`.
+fn refuse_implausible(static_name: &str, model: &PersonalizedModel, accept: bool) -> Result<()> {
+    let compiled = jointfit::model::Model::compile(model.spec())?;
+    let bad: Vec<String> =
+        jointfit::plausibility::anthropometry(&compiled, &compiled.nominal_params())
+            .iter()
+            .filter(|m| !m.ok())
+            .map(|m| m.line())
+            .collect();
+    if bad.is_empty() {
+        return Ok(());
+    }
+    let cause = format!(
+        "{static_name}: the subject model is not a plausible adult leg: {}; check the static \
+         trial's units and the marker map",
+        bad.join("; ")
+    );
+    if accept {
+        eprintln!("jointfit: warning: {cause} (kept: --accept-rejected)");
+        return Ok(());
+    }
+    Err(crate::output::Rejected(cause).into())
 }
 
 pub fn run(mut args: PersonalizeArgs) -> Result<()> {
@@ -311,6 +341,7 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
         None => Vec::new(),
     };
 
+    refuse_implausible(&static_name, &model, args.accept_rejected)?;
     jointfit_io::atomic::write_atomic(&args.output, model.spec().to_toml().as_bytes())
         .with_context(|| format!("{}: cannot write", args.output.display()))?;
     let mut legs: Vec<Summary> = model

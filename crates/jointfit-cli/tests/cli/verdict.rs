@@ -201,3 +201,55 @@ fn demo_is_a_clean_run_with_a_verdict() {
     assert!(last.starts_with("verdict: "), "{last}");
     assert!(!err.contains("warning"), "{err}");
 }
+
+/// A static trial at 0.3 of its size (a units or export error): `personalize` refuses it with
+/// exit status 5 naming the measures and their adult ranges, and writes nothing; the real one
+/// passes.
+#[test]
+fn personalize_refuses_a_static_trial_of_no_adult_size() {
+    let Some(stat) = jointfit_testkit::data_file("opencap_expert1/static1.trc") else {
+        return;
+    };
+    let dir = jointfit_testkit::scratch("verdict-anthropometry");
+    let small = dir.path().join("small.trc");
+    let text = std::fs::read_to_string(&stat).unwrap();
+    let scaled: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i < 5 {
+                return l.to_string();
+            }
+            l.split('\t')
+                .enumerate()
+                .map(|(k, v)| match (k, v.trim().parse::<f64>()) {
+                    (k, Ok(x)) if k >= 2 => format!("{}", x * 0.3),
+                    _ => v.to_string(),
+                })
+                .collect::<Vec<_>>()
+                .join("\t")
+        })
+        .collect();
+    std::fs::write(&small, scaled.join("\n") + "\n").unwrap();
+    let out = dir.path().join("s.toml");
+    let args = |trial: &Path| {
+        run(&[
+            "personalize",
+            trial.to_str().unwrap(),
+            "--markers",
+            "opencap",
+            "-o",
+            out.to_str().unwrap(),
+        ])
+    };
+    let (code, _, err) = args(&small);
+    assert_eq!(code, 5, "{err}");
+    assert!(!out.exists());
+    assert!(
+        err.contains("thigh length") && err.contains("of adults"),
+        "{err}"
+    );
+    let (code, _, err) = args(&stat);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.exists());
+}
