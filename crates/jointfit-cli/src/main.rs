@@ -1,7 +1,9 @@
 //! The `jointfit` command-line tool: thin clap front end, one module per subcommand.
 //!
 //! Exit status: 0 success; 1 error (one line on stderr, no file written); 2 bad command line;
-//! 3 a fit did not converge (nothing written unless `--accept-unconverged`). See [`output`].
+//! 3 a fit did not converge (nothing written unless `--accept-unconverged`); 4 some batch jobs
+//! failed; 5 rejected by the verdict (nothing written unless `--accept-rejected`). See
+//! [`output`].
 
 // First: its never-panicking print macros replace std's in every module declared below.
 #[macro_use]
@@ -63,7 +65,8 @@ A subject, from a static trial and motion trials (.c3d or .trc):
   jointfit export osim fitted.toml -o fitted.osim
 Without any data: jointfit demo. Each command's options: jointfit COMMAND --help.
 Exit status: 0 success, 1 error, 2 bad command line, 3 calibrate did not converge,
-4 some batch jobs failed.";
+4 some batch jobs failed, 5 rejected (inputs that do not belong together, an implausible
+result; nothing written).";
 
 /// Subcommands, listed by `--help` in this order (the order of a workflow).
 #[derive(Subcommand)]
