@@ -11,12 +11,13 @@
 //! 2. **After the fit** ([`judge`]), from the calibration and its side results:
 //!    * `reject` when the markers sat further from the model
 //!      before the fit than a same-session trial does ([`REJECT_RMS_BEFORE_MM`]) or still do
-//!      after it ([`REJECT_RMS_AFTER_MM`]); when a refined marker moved further than a
-//!      re-attachment explains ([`REFINE_CAP_MM`]); when a fitted joint is outside twice its
+//!      after it ([`REJECT_RMS_AFTER_MM`]); when a fitted joint is outside twice its
 //!      anatomical envelope ([`crate::plausibility`]);
 //!    * `caution` for a fit that did not converge (kept on request), a joint outside its
 //!      envelope, a hip held at the envelope's bound, a
-//!      prior–data conflict, markers refined by more than [`CAUTION_REFINE_MM`] or left out,
+//!      strong prior–data conflict ([`STRONG_CONFLICT_P`]; a weaker one is listed without
+//!      raising the level), markers refined by more than [`CAUTION_REFINE_MM`] (beyond
+//!      [`REFINE_CAP_MM`] only a re-attached cluster explains it) or left out,
 //!      an optimum not known to be global, many skipped frames, an RMS above the movement
 //!      bar of OpenSim's best practice ([`CAUTION_RMS_AFTER_MM`]), or motion outside the
 //!      anatomical range (knee hyperextension beyond [`KNEE_HYPEREXTENSION_DEG`], a hip
@@ -46,11 +47,15 @@ pub const REJECT_RMS_BEFORE_MM: f64 = 50.0;
 pub const REJECT_RMS_AFTER_MM: f64 = 40.0;
 /// After the fit: the movement bar of OpenSim's best practice (mm).
 pub const CAUTION_RMS_AFTER_MM: f64 = 20.0;
-/// A refined marker may move this far (mm): a re-attached marker lands within a few
-/// centimetres; beyond, the refinement absorbs a mismatch of the inputs.
+/// A single re-attached marker lands within this distance (mm) of where it was; the marker
+/// policy leaves a marker further off out when its segment keeps enough markers, and a
+/// refinement beyond it is said in the verdict.
 pub const REFINE_CAP_MM: f64 = 30.0;
 /// Refined markers moved further than this (mm) are a caution.
 pub const CAUTION_REFINE_MM: f64 = 15.0;
+/// A prior–data conflict (flagged at p < 0.01, [`super::conflict`]) stronger than this is a
+/// caution; a weaker one is listed beside the level without raising it.
+pub const STRONG_CONFLICT_P: f64 = 1e-4;
 /// Share of frames the fit skipped above which the result is a caution.
 pub const CAUTION_SKIPPED: f64 = 0.1;
 /// Knee extension beyond this (deg, negative flexion) in any frame is a caution: passive
@@ -111,7 +116,8 @@ impl Default for Verdict {
 }
 
 impl Verdict {
-    /// Adds a reason of `level` after those at least as grave.
+    /// Adds a reason of `level` after those at least as grave (an `ok` reason is a note: it
+    /// is listed without raising the level).
     pub fn add(&mut self, level: Level, reason: String) {
         let at = self
             .grades
@@ -208,8 +214,14 @@ pub fn judge(model: &Model, cal: &Calibration, e: &Evidence) -> Verdict {
     judge_rms(cal, &mut v);
     judge_markers(e, &mut v);
     judge_anatomy(cal, e.envelope, &mut v);
+    // A flagged conflict has its intervals widened already (the estimate stays honest): a
+    // note beside an `ok`, a caution only when the trial contradicts the prior strongly.
     for c in e.conflict.iter().filter(|c| c.flagged) {
-        v.add(Level::Caution, c.line());
+        let level = match c.p_value < STRONG_CONFLICT_P {
+            true => Level::Caution,
+            false => Level::Ok,
+        };
+        v.add(level, c.line());
     }
     if let Some(w) = &cal.global_warning {
         v.add(Level::Caution, w.clone());
@@ -272,12 +284,15 @@ fn judge_markers(e: &Evidence, v: &mut Verdict) {
             worst.shift_mm,
             worst.name
         );
+        // Past the cap only a re-attached cluster explains it (another build or labels that
+        // name other markers were refused before the fit, [`check_inputs`]): a caution.
         if worst.shift_mm > REFINE_CAP_MM {
             v.add(
-                Level::Reject,
+                Level::Caution,
                 format!(
-                    "{line}: more than the {REFINE_CAP_MM:.0} mm a re-attached marker moves; \
-                     the trials and the model's static trial may not share a marker placement"
+                    "{line}: more than a single re-attached marker moves \
+                     ({REFINE_CAP_MM:.0} mm); check that the cluster was re-attached between \
+                     the static trial and this one"
                 ),
             );
         } else if worst.shift_mm > CAUTION_REFINE_MM {
