@@ -57,6 +57,8 @@ mod reliability;
 mod repair;
 #[path = "cli/report.rs"]
 mod report;
+#[path = "cli/safety.rs"]
+mod safety;
 #[path = "cli/synth.rs"]
 mod synth;
 #[path = "cli/up.rs"]

@@ -1,0 +1,140 @@
+//! Reproducers of a fault sweep, one test each: a model without markers is an error naming
+//! it (not a panic), size options refuse past their limit, outputs never replace an input
+//! (not even with `--force`, which replaces only the model it names), replaced files keep
+//! their permissions and read-only ones are refused. The oracle is the file system (bytes and
+//! modes before and after) and the exit status.
+
+use super::reliability::{refused, run, Scratch};
+
+/// `m.toml` of `s` without its markers, written as `bare.toml`; returns its path.
+fn without_markers(s: &Scratch) -> String {
+    let text = std::fs::read_to_string(s.dir.join("m.toml")).unwrap();
+    let mut spec = jointfit::model::ModelSpec::from_toml(&text).unwrap();
+    spec.markers.clear();
+    spec.name = "bare leg".into();
+    std::fs::write(s.dir.join("bare.toml"), spec.to_toml()).unwrap();
+    s.p("bare.toml")
+}
+
+#[test]
+fn a_model_without_markers_is_an_error_naming_the_model() {
+    let s = Scratch::new("bare");
+    let (bare, t) = (without_markers(&s), s.p("t.trc"));
+    let (out, rep, truth) = (s.p("o.toml"), s.p("rep"), s.p("truth.toml"));
+    let cases: Vec<Vec<&str>> = vec![
+        vec!["calibrate", &bare, &t, "-o", &out],
+        vec!["check", &bare, &t],
+        vec!["report", &bare, &t, "-o", &rep],
+        vec!["ik", &bare, &t, "-o", &out],
+        vec![
+            "synth", &bare, "--motion", "hip", "-o", &out, "--truth", &truth,
+        ],
+    ];
+    for args in &cases {
+        let err = refused(&s, args);
+        assert!(err.contains("has no markers"), "{args:?}: {err}");
+        assert!(
+            err.contains("bare leg") || err.contains("bare.toml"),
+            "{args:?} does not name the model: {err}"
+        );
+    }
+}
+
+#[test]
+fn bench_sizes_are_refused_with_their_limit() {
+    for (opt, v) in [
+        ("--io-frames", "100000000"),
+        ("--long-frames", "1e9"),
+        ("--rss-frames", "18446744073709551615"),
+        ("--fit-only", "1000000"),
+    ] {
+        let out = run(&["bench", opt, v]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{opt} {v}: {err}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(err.contains(opt), "{err}");
+    }
+    let out = run(&["bench", "--io-frames", "100000000"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("500000"), "the limit is said: {err}");
+}
+
+/// `--force` replaces the model file it names and nothing else: not the motion trial, not a
+/// functional trial of `personalize`, whatever the spelling.
+#[test]
+fn force_never_replaces_a_trial() {
+    let s = Scratch::new("force");
+    let (m, t) = (s.p("m.toml"), s.p("t.trc"));
+    std::fs::create_dir_all(s.dir.join("sub")).unwrap();
+    let spelled = s.p("sub/../t.trc");
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(s.dir.join("t.trc"), s.dir.join("link.trc")).unwrap();
+    let link = s.p("link.trc");
+    for out in [&t, &spelled, &link] {
+        let err = refused(
+            &s,
+            &["calibrate", &m, &t, "--joints", "hip", "-o", out, "--force"],
+        );
+        assert!(err.contains("refusing to overwrite an input"), "{err}");
+        assert!(
+            !err.contains("--force"),
+            "the error must not suggest --force: {err}"
+        );
+    }
+    std::fs::copy(s.dir.join("t.trc"), s.dir.join("hip.trc")).unwrap();
+    let hip = s.p("hip.trc");
+    for opt in ["--functional-hip", "--functional-knee"] {
+        let err = refused(
+            &s,
+            &[
+                "personalize",
+                "--static",
+                &t,
+                "--markers",
+                "gait2392",
+                "--side",
+                "right",
+                opt,
+                &hip,
+                "-o",
+                &hip,
+            ],
+        );
+        assert!(err.contains("refusing to overwrite an input"), "{err}");
+    }
+    // The model itself may be updated in place with --force.
+    let out = run(&["calibrate", &m, &t, "--joints", "hip", "-o", &m, "--force"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[cfg(unix)]
+#[test]
+fn replaced_outputs_keep_their_permissions_and_read_only_ones_are_refused() {
+    use std::os::unix::fs::PermissionsExt;
+    let s = Scratch::new("perm");
+    let (m, t, mot) = (s.p("m.toml"), s.p("t.trc"), s.p("x.mot"));
+    let mode = |p: &str| std::fs::metadata(p).unwrap().permissions().mode() & 0o7777;
+    std::fs::write(&mot, b"old").unwrap();
+    std::fs::set_permissions(&mot, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let out = run(&["ik", &m, &t, "-o", &mot]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_ne!(std::fs::read(&mot).unwrap(), b"old");
+    assert_eq!(mode(&mot), 0o600);
+    std::fs::set_permissions(&mot, std::fs::Permissions::from_mode(0o444)).unwrap();
+    let err = refused(&s, &["ik", &m, &t, "-o", &mot]);
+    assert!(err.contains("read-only"), "{err}");
+    std::fs::set_permissions(s.dir.join("m.toml"), std::fs::Permissions::from_mode(0o400)).unwrap();
+    let err = refused(
+        &s,
+        &["calibrate", &m, &t, "--joints", "hip", "-o", &m, "--force"],
+    );
+    assert!(err.contains("read-only"), "{err}");
+}
