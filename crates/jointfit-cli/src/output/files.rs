@@ -143,6 +143,22 @@ impl Files {
     /// (unless allowed) or with each other, or lie in a directory that does not exist.
     pub fn check(self) -> Result<()> {
         for o in &self.outputs {
+            // A writer killed during its commit into this directory: completed or undone
+            // first, so this command starts from whole files (`jointfit_io::staging`).
+            if let Some(dir) = o.path.parent() {
+                let dir = if dir.as_os_str().is_empty() {
+                    Path::new(".")
+                } else {
+                    dir
+                };
+                for done in jointfit_io::staging::recover(dir) {
+                    super::stderr_fmt(format_args!(
+                        "jointfit: note: {}: completed the commit of a run that was killed \
+                         while writing it\n",
+                        done.display()
+                    ));
+                }
+            }
             let shown = o.path.display();
             if o.path.file_name().is_none() {
                 bail!("{shown}: {} does not name a file", o.what);

@@ -138,3 +138,75 @@ fn replaced_outputs_keep_their_permissions_and_read_only_ones_are_refused() {
     );
     assert!(err.contains("read-only"), "{err}");
 }
+
+/// `ik -o x.mot --errors x.csv` in `s` with the commit paused between its two renames:
+/// returns the child once the first output has landed (its bytes changed from "old").
+#[cfg(target_os = "linux")]
+fn paused_in_commit(s: &Scratch) -> std::process::Child {
+    let (m, t, mot, csv) = (s.p("m.toml"), s.p("t.trc"), s.p("x.mot"), s.p("x.csv"));
+    std::fs::write(&mot, b"old").unwrap();
+    std::fs::write(&csv, b"old").unwrap();
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_jointfit"))
+        .args(["ik", &m, &t, "-o", &mot, "--errors", &csv])
+        .env("JOINTFIT_TEST_PAUSE_BETWEEN_RENAMES", "3")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while std::fs::read(&mot).unwrap() == b"old" {
+        assert!(
+            start.elapsed().as_secs() < 60,
+            "the first rename never came"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    child
+}
+
+/// A run killed between the renames of its outputs leaves a journal; the next command that
+/// writes into the directory completes the commit, so the `.mot` and `.csv` match again (the
+/// same bytes as an uninterrupted run), and no temporary file or journal is left. SIGINT in
+/// the same place waits for the last rename and exits 0: everything was written.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_commit_cut_by_a_kill_is_completed_and_an_interrupt_reports_success() {
+    let s = Scratch::new("commit");
+    let (m, t) = (s.p("m.toml"), s.p("t.trc"));
+    let out = run(&["ik", &m, &t, "-o", &s.p("r.mot"), "--errors", &s.p("r.csv")]);
+    assert!(out.status.success());
+    let want_csv = std::fs::read(s.dir.join("r.csv")).unwrap();
+    let want_mot = std::fs::read(s.dir.join("r.mot")).unwrap();
+    let hidden = |s: &Scratch| -> Vec<String> {
+        s.snapshot()
+            .into_iter()
+            .map(|(n, _)| n)
+            .filter(|n| n.contains("/.") || n.starts_with('.'))
+            .collect()
+    };
+    let mut child = paused_in_commit(&s);
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert_eq!(std::fs::read(s.dir.join("x.csv")).unwrap(), b"old");
+    assert!(
+        !hidden(&s).is_empty(),
+        "a journal and a temporary file remain"
+    );
+    let out = run(&["ik", &m, &t, "-o", &s.p("y.mot")]);
+    assert!(out.status.success());
+    assert_eq!(std::fs::read(s.dir.join("x.csv")).unwrap(), want_csv);
+    assert_eq!(std::fs::read(s.dir.join("x.mot")).unwrap(), want_mot);
+    assert_eq!(hidden(&s), Vec::<String>::new());
+
+    let child = paused_in_commit(&s);
+    // SAFETY: signalling our own child process.
+    unsafe {
+        libc::kill(child.id() as libc::pid_t, libc::SIGINT);
+    }
+    let done = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&done.stderr);
+    assert_eq!(done.status.code(), Some(0), "{err}");
+    assert!(err.contains("every output was written"), "{err}");
+    assert_eq!(std::fs::read(s.dir.join("x.csv")).unwrap(), want_csv);
+    assert_eq!(hidden(&s), Vec::<String>::new());
+}
