@@ -210,3 +210,72 @@ fn a_commit_cut_by_a_kill_is_completed_and_an_interrupt_reports_success() {
     assert_eq!(std::fs::read(s.dir.join("x.csv")).unwrap(), want_csv);
     assert_eq!(hidden(&s), Vec::<String>::new());
 }
+
+/// `t.trc` of `s` with every coordinate multiplied by `factor` (units line unchanged), as
+/// `name`; returns its path.
+fn scaled(s: &Scratch, factor: f64, name: &str) -> String {
+    let text = std::fs::read_to_string(s.dir.join("t.trc")).unwrap();
+    let out: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i < 5 || l.trim().is_empty() {
+                return l.to_string();
+            }
+            l.split('\t')
+                .enumerate()
+                .map(|(k, c)| match (k, c.parse::<f64>()) {
+                    (k, Ok(v)) if k >= 2 => format!("{}", v * factor),
+                    _ => c.to_string(),
+                })
+                .collect::<Vec<_>>()
+                .join("\t")
+        })
+        .collect();
+    std::fs::write(s.dir.join(name), out.join("\n") + "\n").unwrap();
+    s.p(name)
+}
+
+/// Units wrong by 10, 0.1 or 1000 are one clear error, whatever the span: the model's marker
+/// distances show the factor even where the span alone looks like a person; the span check
+/// says the limits it applies.
+#[test]
+fn units_off_by_powers_of_ten_are_one_error() {
+    let s = Scratch::new("units");
+    let m = s.p("m.toml");
+    for (factor, name, hint) in [
+        (0.1, "tenth.trc", "centimetre data read as millimetres"),
+        (10.0, "ten.trc", "millimetre data read as centimetres"),
+        (1000.0, "thousand.trc", "millimetre data read as metres"),
+    ] {
+        let t = scaled(&s, factor, name);
+        for cmd in ["ik", "calibrate"] {
+            let out = s.p("o.out");
+            let err = refused(&s, &[cmd, &m, &t, "-o", &out]);
+            assert!(err.contains(hint), "{cmd} ×{factor}: {err}");
+            assert!(!err.contains("moved"), "{err}");
+            if err.contains("span") {
+                assert!(err.contains("accepts 0.05–6 m"), "{err}");
+            }
+        }
+    }
+}
+
+/// An `.osim` coordinate range with its minimum above its maximum is an error naming the
+/// coordinate (it was replaced by an invented range of ±1 rad around the minimum).
+#[test]
+fn an_osim_range_upside_down_is_an_error() {
+    let s = Scratch::new("range");
+    let osim = s.p("m.osim");
+    let out = run(&["export", "osim", &s.p("m.toml"), "-o", &osim]);
+    assert!(out.status.success());
+    let text = std::fs::read_to_string(&osim).unwrap();
+    let at = text.find("<range>").unwrap() + "<range>".len();
+    let end = at + text[at..].find("</range>").unwrap();
+    let nums: Vec<&str> = text[at..end].split_whitespace().collect();
+    let flipped = format!("{}{} {}{}", &text[..at], nums[1], nums[0], &text[end..]);
+    std::fs::write(&osim, flipped).unwrap();
+    let err = refused(&s, &["model", "show", &osim]);
+    assert!(err.contains("minimum above its maximum"), "{err}");
+    assert!(err.contains("coordinate"), "{err}");
+}

@@ -222,6 +222,10 @@ struct Saved {
 /// A description of the job that changes whenever its inputs or settings change.
 fn fingerprint(job: &Job) -> String {
     let model = match &job.model {
+        ModelInput::Named(n) if Path::new(n).is_file() => {
+            crate::content_hash::hash_files_and(&[Path::new(n)], "")
+                .unwrap_or_else(|e| format!("unreadable: {e}"))
+        }
         ModelInput::Named(n) => n.clone(),
         ModelInput::Spec(s) => s.to_toml(),
     };
@@ -229,14 +233,10 @@ fn fingerprint(job: &Job) -> String {
         .trials
         .iter()
         .map(|t| match t {
-            TrialInput::Path(p) => {
-                let stamp = std::fs::metadata(p)
-                    .and_then(|m| m.modified())
-                    .ok()
-                    .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
-                    .map_or(0, |d| d.as_nanos());
-                format!("{} @{stamp}", p.display())
-            }
+            // By content (crate::content_hash), not path and time: an edited trial with the
+            // same modification time is a changed job.
+            TrialInput::Path(p) => crate::content_hash::hash_files_and(&[p.as_path()], "")
+                .unwrap_or_else(|e| format!("unreadable: {e}")),
             TrialInput::Data { name, trial } => {
                 format!("{name} ({} frames in memory)", trial.n_frames())
             }
