@@ -279,3 +279,57 @@ fn an_osim_range_upside_down_is_an_error() {
     assert!(err.contains("minimum above its maximum"), "{err}");
     assert!(err.contains("coordinate"), "{err}");
 }
+
+/// Batch resume follows the contents of the inputs: a trial replaced by other data with the
+/// same modification time is fitted again (it used to be "done earlier, skipped" with the old
+/// result); an untouched job is skipped. A job id too long to name a file is refused before
+/// any fit.
+#[test]
+fn batch_resume_is_keyed_by_content_and_ids_are_checked_first() {
+    let s = Scratch::new("resume");
+    let (m, t) = (s.p("m.toml"), s.p("t.trc"));
+    let jobs = s.dir.join("jobs.toml");
+    let manifest = |id: &str| {
+        format!(
+            "[defaults]\njoints = [\"hip\"]\n\n[[job]]\nid = \"{id}\"\nmodel = {m:?}\ntrials = \
+             [{t:?}]\n"
+        )
+    };
+    std::fs::write(&jobs, manifest("a")).unwrap();
+    let out = s.p("out");
+    let batch = || run(&["batch", jobs.to_str().unwrap(), "-o", &out, "--jobs", "1"]);
+    let first = batch();
+    assert!(
+        first.status.success(),
+        "{}",
+        String::from_utf8_lossy(&first.stderr)
+    );
+    let again = batch();
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(err.contains("done earlier, skipped"), "{err}");
+    // Other data (the trial with its coordinates shifted by 1 mm), same modification time.
+    let stamp = std::fs::metadata(&t).unwrap().modified().unwrap();
+    let text = std::fs::read_to_string(&t).unwrap();
+    let edited = text.replacen("950.000000000", "951.000000000", 5);
+    assert_ne!(edited, text);
+    std::fs::write(&t, edited).unwrap();
+    std::fs::File::options()
+        .write(true)
+        .open(&t)
+        .unwrap()
+        .set_modified(stamp)
+        .unwrap();
+    let third = batch();
+    let err = String::from_utf8_lossy(&third.stderr);
+    assert!(third.status.success(), "{err}");
+    assert!(!err.contains("done earlier, skipped"), "{err}");
+    // A 251-character id: refused up front, nothing fitted, no results table.
+    let long = "x".repeat(251);
+    std::fs::write(&jobs, manifest(&long)).unwrap();
+    let out2 = s.p("out2");
+    let refused = run(&["batch", jobs.to_str().unwrap(), "-o", &out2]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{err}");
+    assert!(err.contains("at most 100 characters"), "{err}");
+    assert!(!s.dir.join("out2").exists());
+}

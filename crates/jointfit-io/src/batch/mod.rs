@@ -200,7 +200,9 @@ pub struct Outcome {
 pub enum BatchError {
     #[error("job id {0:?} appears twice")]
     DuplicateId(String),
-    #[error("job id {0:?} cannot name a file (use letters, digits, '-', '_', '.')")]
+    #[error(
+        "job id {0:?} cannot name a file (at most 100 characters: letters, digits, '-', '_', '.')"
+    )]
     BadId(String),
     #[error("{path}: {source}")]
     Io {
@@ -252,10 +254,16 @@ fn fingerprint(job: &Job) -> String {
     .to_string()
 }
 
+/// Longest job id (characters `[A-Za-z0-9._-]`).
+pub const MAX_ID_CHARS: usize = 100;
+
 fn check_ids(jobs: &[Job]) -> Result<(), BatchError> {
     let mut seen = std::collections::HashSet::new();
     for j in jobs {
+        // At most MAX_ID_CHARS: the id names the job's result files (`jobs/<id>.json`), which
+        // must fit a file name (255 bytes) with room for the extension and a temporary prefix.
         let ok = !j.id.is_empty()
+            && j.id.len() <= MAX_ID_CHARS
             && !j.id.starts_with('.')
             && j.id
                 .chars()
