@@ -171,6 +171,31 @@ pub fn install_signal_handlers() {
 
 pub use jointfit_io::message::tidy;
 
+/// Most worker threads per core that `RAYON_NUM_THREADS` may ask for.
+pub const MAX_THREADS_PER_CORE: usize = 4;
+
+/// Caps the worker threads at [`MAX_THREADS_PER_CORE`] per core: `RAYON_NUM_THREADS=100000`
+/// would spend minutes starting threads that only compete for the same cores. Said once.
+pub fn cap_threads() {
+    let Some(asked) = std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|v| v.trim().parse::<usize>().ok())
+    else {
+        return;
+    };
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let cap = MAX_THREADS_PER_CORE * cores;
+    if asked > cap {
+        eprintln!(
+            "jointfit: warning: RAYON_NUM_THREADS={asked} is more than {MAX_THREADS_PER_CORE} \
+             threads per core; using {cap}"
+        );
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(cap)
+            .build_global();
+    }
+}
+
 /// The error and its causes on one line (see [`jointfit_io::message::one_line`], which the
 /// Python package uses too, so both say the same).
 pub fn one_line(e: &anyhow::Error) -> String {
@@ -187,9 +212,13 @@ pub fn clap_error(e: clap::Error) -> std::process::ExitCode {
             | ErrorKind::DisplayVersion
             | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
     ) {
-        let _ = e.print();
+        // Help that cannot be written (`--help > /dev/full`) is a failed run.
+        let printed = e.print().and_then(|()| io::stdout().flush());
         let code = if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
             EXIT_USAGE
+        } else if let Err(err) = printed {
+            eprintln!("jointfit: error: cannot write to standard output: {err}");
+            1
         } else {
             0
         };

@@ -333,3 +333,29 @@ fn batch_resume_is_keyed_by_content_and_ids_are_checked_first() {
     assert!(err.contains("at most 100 characters"), "{err}");
     assert!(!s.dir.join("out2").exists());
 }
+
+/// Help that cannot be written is a failure; an absurd thread count is capped with one
+/// warning instead of minutes of thread start-up.
+#[cfg(target_os = "linux")]
+#[test]
+fn help_to_a_full_disk_fails_and_thread_counts_are_capped() {
+    let full = std::fs::File::options()
+        .write(true)
+        .open("/dev/full")
+        .unwrap();
+    let st = std::process::Command::new(env!("CARGO_BIN_EXE_jointfit"))
+        .arg("--help")
+        .stdout(full)
+        .stderr(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert_eq!(st.code(), Some(1));
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_jointfit"))
+        .args(["model", "show", "lower-limb-right"])
+        .env("RAYON_NUM_THREADS", "100000")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert_eq!(err.matches("threads per core").count(), 1, "{err}");
+}
