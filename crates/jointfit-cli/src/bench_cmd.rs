@@ -42,35 +42,35 @@ pub struct BenchArgs {
     #[arg(long)]
     json: bool,
     /// Frames of the synthetic calibration timed on 1 and 2 threads (0: skip).
-    #[arg(long, default_value_t = 10_000)]
+    #[arg(long, default_value_t = 10_000, value_parser = crate::validate::bench_frames)]
     long_frames: usize,
     /// Frames of the synthetic calibration whose peak memory is measured (0: skip).
-    #[arg(long, default_value_t = 20_000)]
+    #[arg(long, default_value_t = 20_000, value_parser = crate::validate::bench_frames)]
     rss_frames: usize,
     /// Frames of the trial (the workload repeated) whose `ik` run is timed for the share of
     /// file reading and writing (0: skip).
-    #[arg(long, default_value_t = 100_000)]
+    #[arg(long, default_value_t = 100_000, value_parser = crate::validate::bench_frames)]
     io_frames: usize,
     #[command(flatten)]
     stream: crate::bench_stream::StreamBenchArgs,
     /// Only the 27-parameter joint calibration of the workload, this many times: each wall
     /// time and the fastest (for profilers and quick comparisons; 0: the full bench).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = crate::validate::runs_or_zero)]
     fit_only: usize,
     /// Only one part of the bench, `--repeat` times (for profilers; `bench_profile.rs`):
     /// ik, checked, before, after, read or write.
     #[arg(long, value_name = "PART")]
     profile: Option<String>,
     /// With `--profile`: how many times.
-    #[arg(long, default_value_t = 10, requires = "profile")]
+    #[arg(long, default_value_t = 10, requires = "profile", value_parser = crate::validate::runs)]
     repeat: usize,
     /// Internal: run one calibration of this many frames and print its peak RSS.
-    #[arg(long, hide = true)]
+    #[arg(long, hide = true, value_parser = crate::validate::bench_frames)]
     rss_child: Option<usize>,
     /// With `--rss-child`: cap the outer iterations (probes and finishing solves alike, as
     /// `calibrate --max-iterations`), to measure the memory of a very long trial in less time;
     /// the peak is reached in the first iterations.
-    #[arg(long, requires = "rss_child")]
+    #[arg(long, requires = "rss_child", value_parser = crate::validate::iterations)]
     rss_max_iterations: Option<usize>,
 }
 

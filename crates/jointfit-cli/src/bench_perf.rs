@@ -55,11 +55,27 @@ pub fn opensim_ik(
     if !script.exists() {
         return Err(format!("{} not found", script.display()));
     }
-    let dir = std::env::temp_dir().join(format!("jointfit-bench-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let result = opensim_in(&python, &script, &dir, model, trial, input, repeat);
-    let _ = std::fs::remove_dir_all(&dir);
-    result
+    let dir = scratch_dir("jointfit-bench-").map_err(|e| e.to_string())?;
+    opensim_in(&python, &script, dir.path(), model, trial, input, repeat)
+}
+
+/// A new private scratch folder in the system's temporary directory: an unpredictable name
+/// created exclusively with mode 0700 (`tempfile`), so no other user can plant a file or a
+/// symlink in it; removed with its contents when the value is dropped.
+pub fn scratch_dir(prefix: &str) -> Result<tempfile::TempDir> {
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(prefix);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o700));
+    }
+    builder.tempdir().map_err(|e| {
+        anyhow::anyhow!(
+            "cannot create a scratch folder in {}: {e}",
+            std::env::temp_dir().display()
+        )
+    })
 }
 
 /// [`opensim_ik`] with its scratch folder `dir`.
@@ -383,8 +399,8 @@ pub fn repeat_trial(trial: &Trial, frames: usize) -> Result<Trial> {
 /// the moved-cluster check), the `.mot` formatted by `format_sto` and synced to disk.
 pub fn ik_io(model: &Model, trial: &Trial, frames: usize, runs: usize) -> Result<IkIo> {
     let long = repeat_trial(trial, frames)?;
-    let dir = std::env::temp_dir().join(format!("jointfit-bench-io-{}", std::process::id()));
-    std::fs::create_dir_all(&dir)?;
+    let scratch = scratch_dir("jointfit-bench-io-")?;
+    let dir = scratch.path();
     let result = (|| -> Result<IkIo> {
         let trc = dir.join("long.trc");
         let mot = dir.join("long.mot");
@@ -435,6 +451,31 @@ pub fn ik_io(model: &Model, trial: &Trial, frames: usize, runs: usize) -> Result
         best.io_share = (best.read_s + best.write_s) / (best.read_s + best.ik_s + best.write_s);
         Ok(best)
     })();
-    let _ = std::fs::remove_dir_all(&dir);
+    drop(scratch);
     result
+}
+
+#[cfg(test)]
+mod scratch_tests {
+    /// Scratch folders of `bench` are private: fresh unpredictable names, mode 0700, gone
+    /// with their contents when dropped (never a `/tmp/jointfit-*-<pid>` another user could
+    /// plant a symlink at).
+    #[test]
+    fn scratch_folders_are_private_and_removed() {
+        let a = super::scratch_dir("jointfit-bench-").unwrap();
+        let b = super::scratch_dir("jointfit-bench-").unwrap();
+        assert_ne!(a.path(), b.path());
+        let pid = std::process::id().to_string();
+        assert!(!a.path().to_string_lossy().ends_with(&pid));
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let mode = std::fs::metadata(a.path()).unwrap().permissions().mode() & 0o777;
+            assert_eq!(mode, 0o700);
+        }
+        std::fs::write(a.path().join("long.trc"), b"x").unwrap();
+        let kept = a.path().to_path_buf();
+        drop(a);
+        assert!(!kept.exists());
+    }
 }

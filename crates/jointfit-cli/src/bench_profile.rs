@@ -26,10 +26,10 @@ pub fn run(
     let for_model = crate::bench_cmd::for_model(model, trial)?;
     let (map, _) = MarkerMap::allowing_absent(model, for_model.labels());
     let fit = workflow::ik_trial(model, &p, &for_model, &opts)?.fit;
-    let dir = std::env::temp_dir().join(format!("jointfit-profile-{}", std::process::id()));
-    let trc = dir.join("long.trc");
+    // A private scratch folder (mode 0700, unpredictable name), removed when dropped.
+    let scratch = crate::bench_perf::scratch_dir("jointfit-profile-")?;
+    let trc = scratch.path().join("long.trc");
     let long = if part == "read" || part == "write" {
-        std::fs::create_dir_all(&dir)?;
         let long = crate::bench_perf::repeat_trial(trial, io_frames)?;
         let text = jointfit_io::trc::format_trc(&long, "long.trc", &Default::default())?;
         std::fs::write(&trc, text)?;
@@ -90,7 +90,7 @@ pub fn run(
         }
         Ok(())
     })();
-    let _ = std::fs::remove_dir_all(&dir);
+    drop(scratch);
     result?;
     println!("fastest of {repeat}: {:.3} ms", best * 1e3);
     Ok(())

@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use clap::ValueEnum;
 use jointfit::trial::{Trial, UpAxis};
 use jointfit_io::trial_file::{LoadOptions, TrialFileError};
@@ -158,6 +158,12 @@ pub fn load_for_model(
     filter_hz: Option<f64>,
     columns: Columns,
 ) -> Result<Loaded> {
+    if model.n_markers() == 0 {
+        bail!(
+            "model \"{}\" has no markers, so no trial can be fitted to it",
+            model.spec().name
+        );
+    }
     let options = args.repairs()?;
     let names: std::collections::HashSet<&str> =
         model.markers().iter().map(|m| m.name.as_str()).collect();

@@ -10,7 +10,10 @@
 //!   for new ones, so symlinks, hard links and `a/../b` spellings count). Every file is written
 //!   through `jointfit_io::atomic::write_atomic` inside one `jointfit_io::staging::Batch`
 //!   opened by `main`: nothing is renamed into place unless the whole command succeeded, and
-//!   SIGINT/SIGTERM/SIGHUP remove the temporary files ([`install_signal_handlers`]).
+//!   SIGINT/SIGTERM/SIGHUP remove the temporary files ([`install_signal_handlers`]). The
+//!   commit itself is all-or-nothing across a crash and serialized with other writers of the
+//!   same directories (`jointfit_io::staging`'s journal and directory locks); a signal that
+//!   arrives during it waits for it, and a run whose files all landed exits 0.
 //! - **Exit status.** 0 success; 1 error (nothing written); 2 bad command line; 3 a fit did
 //!   not converge (nothing written; `--accept-unconverged` keeps it and exits 0); 4 some jobs
 //!   of `jointfit batch` failed (its files are kept: the results table records the failures).
@@ -189,6 +192,31 @@ pub fn install_signal_handlers() {
 
 pub use jointfit_io::message::tidy;
 
+/// Most worker threads per core that `RAYON_NUM_THREADS` may ask for.
+pub const MAX_THREADS_PER_CORE: usize = 4;
+
+/// Caps the worker threads at [`MAX_THREADS_PER_CORE`] per core: `RAYON_NUM_THREADS=100000`
+/// would spend minutes starting threads that only compete for the same cores. Said once.
+pub fn cap_threads() {
+    let Some(asked) = std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|v| v.trim().parse::<usize>().ok())
+    else {
+        return;
+    };
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let cap = MAX_THREADS_PER_CORE * cores;
+    if asked > cap {
+        eprintln!(
+            "jointfit: warning: RAYON_NUM_THREADS={asked} is more than {MAX_THREADS_PER_CORE} \
+             threads per core; using {cap}"
+        );
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(cap)
+            .build_global();
+    }
+}
+
 /// The error and its causes on one line (see [`jointfit_io::message::one_line`], which the
 /// Python package uses too, so both say the same).
 pub fn one_line(e: &anyhow::Error) -> String {
@@ -205,9 +233,13 @@ pub fn clap_error(e: clap::Error) -> std::process::ExitCode {
             | ErrorKind::DisplayVersion
             | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
     ) {
-        let _ = e.print();
+        // Help that cannot be written (`--help > /dev/full`) is a failed run.
+        let printed = e.print().and_then(|()| io::stdout().flush());
         let code = if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
             EXIT_USAGE
+        } else if let Err(err) = printed {
+            eprintln!("jointfit: error: cannot write to standard output: {err}");
+            1
         } else {
             0
         };
@@ -255,15 +287,24 @@ fn pause_for_tests() {
 }
 
 /// Renames a batch's files into place. An interrupt during the renames waits for the last
-/// one, so that it lands before the first rename or after the last, never between two.
+/// one, so that it lands before the first rename or after the last, never between two. The
+/// exit status then says what happened: an interrupted run whose files all landed ends as a
+/// success (with a note on stderr), one whose commit failed ends as the signal would have.
 fn commit(b: jointfit_io::staging::Batch) -> Result<()> {
     COMMITTING.store(true, Ordering::SeqCst);
     let r = b.commit().map(|_| ()).map_err(anyhow::Error::from);
     COMMITTING.store(false, Ordering::SeqCst);
     let sig = PENDING_SIGNAL.swap(0, Ordering::SeqCst);
     if sig != 0 {
-        #[cfg(unix)]
-        on_signal(sig);
+        if r.is_ok() {
+            eprintln!(
+                "jointfit: note: interrupted (signal {sig}) while the outputs were renamed into \
+                 place; every output was written"
+            );
+        } else {
+            #[cfg(unix)]
+            on_signal(sig);
+        }
     }
     r
 }

@@ -185,11 +185,18 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
     let Some(static_trial) = args.static_file.take().or(args.static_trial.take()) else {
         bail!("personalize: no static trial (give it as STATIC or --static FILE)");
     };
-    crate::output::Files::new()
+    let mut files = crate::output::Files::new()
         .input("static trial", &static_trial)
-        .model("marker set", &args.markers)
-        .output("output", &args.output)
-        .check()?;
+        .model("marker set", &args.markers);
+    for (what, trial) in [
+        ("--functional-hip trial", &args.functional_hip),
+        ("--functional-knee trial", &args.functional_knee),
+    ] {
+        if let Some(t) = trial {
+            files = files.input(what, t);
+        }
+    }
+    files.output("output", &args.output).check()?;
     // Recorded in the model as `lab_up`; said in the error context if personalize fails.
     let (up, _) = crate::common::up_or_detected(&static_trial, args.up)?;
     let trial = load_trial(&static_trial, up, None)?;

@@ -117,6 +117,12 @@ pub fn run(args: SynthArgs) -> Result<()> {
         .check()?;
     let spec = jointfit_io::model_file::load_spec(&args.model)?;
     let model = jointfit_io::model_file::load_model(&args.model)?;
+    if model.n_markers() == 0 {
+        bail!(
+            "{}: the model has no markers, so there is nothing to synthesize",
+            args.model
+        );
+    }
     let check = |ok: bool, what: &str, v: f64| -> Result<()> {
         if ok {
             Ok(())

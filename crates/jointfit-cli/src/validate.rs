@@ -9,7 +9,8 @@
 //! - `--filter`: at least [`MIN_FILTER_HZ`] Hz (a lower cutoff rings over the whole trial and
 //!   smears gait into a drift); the Nyquist limit is checked against the trial's rate when it
 //!   is filtered.
-//! - frame counts of synthetic motions: at most [`MAX_FRAMES`].
+//! - frame counts of synthetic motions: at most [`MAX_FRAMES`]; of `bench` workloads at most
+//!   [`MAX_BENCH_FRAMES`], its repetitions at most [`MAX_RUNS`].
 //! - starts, seeds and stride of `reproduce`: at most [`MAX_RUNS`]; rates of synthetic
 //!   motions at most [`MAX_RATE_HZ`].
 //! - synthetic motions: `--amplitude` at most [`MAX_AMPLITUDE`], noise and perturbations at
@@ -30,6 +31,9 @@ pub const MIN_FILTER_HZ: f64 = 0.1;
 pub const MAX_FRAMES: usize = 100_000;
 /// Most starts, seeds or stride of `reproduce`.
 pub const MAX_RUNS: usize = 1_000;
+/// Most frames of a `bench` workload (`--long-frames`, `--rss-frames`, `--io-frames`): five
+/// times the largest default, about 1.5 GB of trial and text at the workload's markers.
+pub const MAX_BENCH_FRAMES: usize = 500_000;
 /// Most block-bootstrap replicates.
 pub const MAX_BOOTSTRAP: usize = jointfit_io::batch::fit::MAX_BOOTSTRAP;
 /// Most outer iterations of a calibration (`--max-iter`).
@@ -146,6 +150,16 @@ pub fn omega(s: &str) -> Result<f64, String> {
 /// Frames of a synthetic motion: 1 to [`MAX_FRAMES`].
 pub fn frames(s: &str) -> Result<usize, String> {
     count(s, 1, MAX_FRAMES)
+}
+
+/// Frames of a timed `bench` workload: 0 (skip) to [`MAX_BENCH_FRAMES`].
+pub fn bench_frames(s: &str) -> Result<usize, String> {
+    count(s, 0, MAX_BENCH_FRAMES)
+}
+
+/// A repetition count of `bench` that may be 0 (skip): 0 to [`MAX_RUNS`].
+pub fn runs_or_zero(s: &str) -> Result<usize, String> {
+    count(s, 0, MAX_RUNS)
 }
 
 /// A run count (starts, seeds, stride): 1 to [`MAX_RUNS`].

@@ -63,6 +63,8 @@ mod reliability;
 mod repair;
 #[path = "cli/report.rs"]
 mod report;
+#[path = "cli/safety.rs"]
+mod safety;
 #[path = "cli/scale.rs"]
 mod scale;
 #[path = "cli/stream.rs"]

@@ -5,6 +5,9 @@
 //! renames it over the destination. If anything fails before the rename, the temporary file
 //! is removed and the destination is left as it was.
 //!
+//! A destination that exists keeps its permissions (and, for a privileged process, its owner
+//! and group); a read-only destination is refused, not replaced.
+//!
 //! The temporary file is registered for removal by a signal handler, and inside an open
 //! [`Batch`](crate::staging::Batch) its rename waits for the batch's commit (see
 //! [`crate::staging`]).
@@ -44,8 +47,21 @@ pub fn write_atomic_with(
         _ => PathBuf::from("."),
     };
     let base = file_name.to_string_lossy();
+    // A file being replaced keeps its permissions; a read-only one is not replaced.
+    let existing = fs::metadata(path).ok().filter(|m| m.is_file());
+    if let Some(md) = &existing {
+        if md.permissions().readonly() {
+            return Err(io::Error::new(
+                io::ErrorKind::PermissionDenied,
+                format!("{} is read-only; refusing to replace it", path.display()),
+            ));
+        }
+    }
     staging::sweep_stale(&dir, &base);
     let (tmp_path, mut file) = create_temp(&dir, &base)?;
+    if let Some(md) = &existing {
+        keep_attributes(&file, md);
+    }
     let slot = staging::register(&tmp_path);
     let result = (|| {
         write(&mut file)?;
@@ -69,6 +85,18 @@ pub fn write_atomic_with(
             staging::unregister(slot);
             Err(e)
         }
+    }
+}
+
+/// Gives the temporary file `file` the permissions (and, where allowed, the owner and
+/// group) of the file `md` it will replace. Best effort for the owner: only a privileged
+/// process may give a file away.
+fn keep_attributes(file: &File, md: &fs::Metadata) {
+    let _ = file.set_permissions(md.permissions());
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        let _ = std::os::unix::fs::fchown(file, Some(md.uid()), Some(md.gid()));
     }
 }
 
@@ -138,6 +166,24 @@ mod tests {
         assert!(write_atomic(&p, b"data").is_err());
         assert!(p.is_dir());
         assert_eq!(entries(dir.path()), vec!["target".to_string()]);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_replaced_file_keeps_its_permissions_and_read_only_is_refused() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("private.toml");
+        write_atomic(&p, b"first").unwrap();
+        fs::set_permissions(&p, fs::Permissions::from_mode(0o600)).unwrap();
+        write_atomic(&p, b"second").unwrap();
+        let mode = fs::metadata(&p).unwrap().permissions().mode() & 0o7777;
+        assert_eq!(mode, 0o600);
+        fs::set_permissions(&p, fs::Permissions::from_mode(0o440)).unwrap();
+        let err = write_atomic(&p, b"third").unwrap_err();
+        assert_eq!(err.kind(), io::ErrorKind::PermissionDenied, "{err}");
+        assert_eq!(fs::read(&p).unwrap(), b"second");
+        assert_eq!(entries(dir.path()), vec!["private.toml".to_string()]);
     }
 
     #[test]

@@ -11,6 +11,7 @@
 pub mod atomic;
 pub mod batch;
 pub mod c3d;
+pub mod content_hash;
 pub mod csv;
 pub mod message;
 pub mod osim;

@@ -4,7 +4,10 @@
 //!   0.3–2.5 m. The median over frames of the largest distance between two present markers
 //!   outside [`PLAUSIBLE_SPAN`] (0.05–6 m, room for partial marker sets and stray markers)
 //!   means the declared units are wrong (millimetre data declared `m` span about 1000 m); the
-//!   finding names the likely factor and the fix.
+//!   finding names the likely factor and the fix. Against a subject model, the median ratio
+//!   of same-segment marker distances in the trial to the model's outside [1/3, 3] is the
+//!   same error (a factor 10 that a partial marker set's span would hide), said once instead
+//!   of as a moved marker per pair.
 //! * Against a subject model ([`check_trial`]), for markers on one segment, whose distances
 //!   the rigid model fixes (`‖local_a − local_b‖`, measured on the static trial):
 //!   - **cluster**: the median distance of a pair over the trial differs from the model's by
@@ -155,8 +158,22 @@ pub fn check_scale(trial: &Trial) -> Option<Finding> {
         return None;
     }
     // The power of ten that brings the span nearest to 1 m.
-    let power = span.log10().round() as i32;
-    let hint = match power {
+    let hint = units_hint(span.log10().round() as i32);
+    let [lo, hi] = PLAUSIBLE_SPAN;
+    Some(Finding {
+        kind: CheckKind::Scale,
+        severity: Severity::Error,
+        message: format!(
+            "the markers span {span:.3} m (this check accepts {lo}–{hi} m): this looks like \
+             {hint} (TRC: the Units value on line 3; C3D: the POINT:UNITS parameter)"
+        ),
+        fix: None,
+    })
+}
+
+/// What a length `10^power` times too large says about the declared units.
+fn units_hint(power: i32) -> &'static str {
+    match power {
         3 => "millimetre data read as metres: declare the units as mm",
         2 => "centimetre data read as metres: declare the units as cm",
         1 => "millimetre data read as centimetres: declare the units as mm",
@@ -164,22 +181,23 @@ pub fn check_scale(trial: &Trial) -> Option<Finding> {
         -2 => "metre data read as centimetres: declare the units as m",
         -3 => "metre data read as millimetres: declare the units as m",
         _ => "the units or the data are wrong",
-    };
-    Some(Finding {
-        kind: CheckKind::Scale,
-        severity: Severity::Error,
-        message: format!(
-            "the markers span {span:.3} m (a person spans about 0.3–2.5 m): this looks like \
-             {hint} (TRC: the Units value on line 3; C3D: the POINT:UNITS parameter)"
-        ),
-        fix: None,
-    })
+    }
 }
+
+/// Shortest model distance of a marker pair that enters the model-based units check (m).
+pub const MIN_PAIR_DISTANCE: f64 = 0.03;
 
 /// Every check of the module docs for `trial` against the subject `model` (markers matched
 /// by `map`). Frame numbers in messages are the file's.
 pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding> {
     let mut out = check_trial_before_ik(model, trial, map);
+    // Wrong units move every cluster: the units finding says it once.
+    if out
+        .iter()
+        .any(|f| f.kind == CheckKind::Scale && f.severity == Severity::Error)
+    {
+        return out;
+    }
     out.extend(crate::residual_checks::check_offsets(
         model,
         trial,
@@ -231,6 +249,15 @@ pub fn check_trial_before_ik(model: &Model, trial: &Trial, map: &MarkerMap) -> V
         },
     );
     let mut out: Vec<Finding> = scale.into_iter().collect();
+    // Units wrong by a power of ten move every marker pair of every segment: one finding
+    // that says so instead of a "marker moved" line per pair.
+    if out.is_empty() {
+        out.extend(ctx.model_scale(&segments, &reference));
+    }
+    // With wrong units every distance and speed is off too: the units finding alone.
+    if !out.is_empty() {
+        return out;
+    }
     out.extend(per_segment.into_iter().flatten());
     // Jumps per model marker; gaps per model marker, one finding for the markers that are
     // missing in exactly the same frames (a subject walking out of the capture volume).
@@ -294,6 +321,55 @@ impl Ctx<'_> {
         self.map.columns[j]
             .map(|c| self.trial.frame(f)[c])
             .filter(|p| p.x.is_finite())
+    }
+
+    /// The units check against the model: the median, over marker pairs of one segment at
+    /// least [`MIN_PAIR_DISTANCE`] apart in the model, of the ratio of the pair's distance in
+    /// the trial (median over frames) to the model's. A ratio outside [1/3, 3] cannot be a
+    /// different subject or a moved marker; it is the units (a factor 10, 100 or 1000).
+    fn model_scale(&self, segments: &[Vec<usize>], reference: &str) -> Option<Finding> {
+        let n = self.trial.n_frames();
+        let step = (n / 64).max(1);
+        let mut ratios = Vec::new();
+        for markers in segments.iter().filter(|m| m.len() >= 2) {
+            for (i, &a) in markers.iter().enumerate() {
+                for &b in &markers[i + 1..] {
+                    let r = (self.model.markers()[a].local - self.model.markers()[b].local).norm();
+                    if r < MIN_PAIR_DISTANCE {
+                        continue;
+                    }
+                    let mut d: Vec<f64> = (0..n)
+                        .step_by(step)
+                        .filter_map(|f| Some((self.pos(f, a)? - self.pos(f, b)?).norm()))
+                        .collect();
+                    if d.is_empty() {
+                        continue;
+                    }
+                    let mid = d.len() / 2;
+                    ratios.push(*d.select_nth_unstable_by(mid, f64::total_cmp).1 / r);
+                }
+            }
+        }
+        if ratios.len() < 2 {
+            return None;
+        }
+        let mid = ratios.len() / 2;
+        let ratio = *ratios.select_nth_unstable_by(mid, f64::total_cmp).1;
+        if (1.0 / 3.0..=3.0).contains(&ratio) || !ratio.is_finite() || ratio <= 0.0 {
+            return None;
+        }
+        Some(Finding {
+            kind: CheckKind::Scale,
+            severity: Severity::Error,
+            message: format!(
+                "marker distances within segments are {ratio:.3} times those of {reference} \
+                 (median over {} marker pairs): this looks like {} (TRC: the Units value on \
+                 line 3; C3D: the POINT:UNITS parameter)",
+                ratios.len(),
+                units_hint(ratio.log10().round() as i32)
+            ),
+            fix: None,
+        })
     }
 
     fn name(&self, j: usize) -> &str {

@@ -122,6 +122,9 @@ fn offsets_over(
 ) -> Vec<MarkerOffset> {
     use rayon::prelude::*;
     let nm = model.n_markers();
+    if nm == 0 {
+        return Vec::new();
+    }
     // Per frame, the residual of every model marker (NaN where missing or not solved).
     let frame_residuals = |f: usize, kin: &mut KinData, out: &mut Vec<Vector3<f64>>| {
         let start = out.len();
@@ -377,3 +380,30 @@ pub fn reference_name(model: &Model) -> String {
 
 /// How the OpenSim reader describes a model it read (`jointfit_io::osim_read`).
 pub const OSIM_DESCRIPTION: &str = "OpenSim model read from ";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A model without markers has no offsets to report: the checks return instead of
+    /// dividing the residuals into chunks of zero markers.
+    #[test]
+    fn a_model_without_markers_has_no_offsets() {
+        let mut spec = crate::model::lower_limb::builtin("lower-limb-right").unwrap();
+        spec.markers.clear();
+        let model = Model::compile(&spec).unwrap();
+        let labels = vec!["A".to_string(), "B".to_string()];
+        let positions = (0..200)
+            .flat_map(|i| {
+                let t = i as f64 * 0.01;
+                [Vector3::new(t, 1.0, 0.0), Vector3::new(t, 0.5, 0.1)]
+            })
+            .collect();
+        let trial = Trial::new(labels.clone(), 100.0, 1, positions).unwrap();
+        let (map, _) = MarkerMap::allowing_absent(&model, &labels);
+        let findings = crate::checks::check_trial(&model, &trial, &map);
+        assert!(findings
+            .iter()
+            .all(|f| f.kind != crate::checks::CheckKind::Offset));
+    }
+}

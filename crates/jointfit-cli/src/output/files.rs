@@ -56,10 +56,14 @@ fn lexical_absolute(p: &Path) -> PathBuf {
     out
 }
 
+/// The `what` of the one input an in-place output may replace.
+const MODEL: &str = "model";
+
 struct Entry {
     what: String,
     path: PathBuf,
-    /// Outputs only: may replace an input when the command's `--force` is given.
+    /// Outputs only: may replace the model input (and no other input) when the command's
+    /// `--force` is given.
     in_place_ok: bool,
     /// Outputs only: the command creates the file's directory when it is missing.
     creates_dir: bool,
@@ -121,7 +125,9 @@ impl Files {
         self
     }
 
-    /// An output that may replace an input when `force` is set (an in-place update).
+    /// An output that may replace the input called `"model"` when `force` is set (an
+    /// in-place update of the model file); it may never replace any other input (a trial, a
+    /// marker set), with or without `force`.
     pub fn output_in_place(mut self, what: &str, path: impl AsRef<Path>, force: bool) -> Files {
         self.outputs.push(Entry {
             what: what.to_string(),
@@ -137,12 +143,38 @@ impl Files {
     /// (unless allowed) or with each other, or lie in a directory that does not exist.
     pub fn check(self) -> Result<()> {
         for o in &self.outputs {
+            // A writer killed during its commit into this directory: completed or undone
+            // first, so this command starts from whole files (`jointfit_io::staging`).
+            if let Some(dir) = o.path.parent() {
+                let dir = if dir.as_os_str().is_empty() {
+                    Path::new(".")
+                } else {
+                    dir
+                };
+                for done in jointfit_io::staging::recover(dir) {
+                    super::stderr_fmt(format_args!(
+                        "jointfit: note: {}: completed the commit of a run that was killed \
+                         while writing it\n",
+                        done.display()
+                    ));
+                }
+            }
             let shown = o.path.display();
             if o.path.file_name().is_none() {
                 bail!("{shown}: {} does not name a file", o.what);
             }
             if o.path.is_dir() {
                 bail!("{shown}: {} is a directory, not a file", o.what);
+            }
+            // A read-only file is one its owner protected: never silently replaced.
+            if let Ok(md) = fs::metadata(&o.path) {
+                if md.permissions().readonly() {
+                    bail!(
+                        "{shown}: {} exists and is read-only; refusing to replace it (make it \
+                         writable or choose another name)",
+                        o.what
+                    );
+                }
             }
             // Refused before any work: a long fit must not end on this error.
             if let (true, Some(dir)) = (o.creates_dir, o.path.parent()) {
@@ -174,8 +206,9 @@ impl Files {
         }
         for (o, oid) in &outs {
             if let Some(i) = inputs.get(oid) {
-                if !(o.in_place_ok && self.force) {
-                    let hint = if o.in_place_ok {
+                let model = i.what == MODEL;
+                if !(o.in_place_ok && self.force && model) {
+                    let hint = if o.in_place_ok && model {
                         " (add --force to update it in place)"
                     } else {
                         ""
@@ -265,5 +298,51 @@ mod tests {
             .output_in_place("output", &a, true)
             .check()
             .is_ok());
+    }
+
+    /// `--force` lets an in-place output replace the model it names, never a trial or any
+    /// other input, whatever the spelling.
+    #[test]
+    fn force_replaces_only_the_model() {
+        let dir = jointfit_testkit::scratch("force");
+        let (model, trial) = (dir.join("m.toml"), dir.join("t.trc"));
+        fs::write(&model, b"m").unwrap();
+        fs::write(&trial, b"t").unwrap();
+        let err = Files::new()
+            .input("model", &model)
+            .input("trial", &trial)
+            .output_in_place("output", dir.join("./t.trc"), true)
+            .check()
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("same file as trial"), "{err}");
+        assert!(!err.contains("--force"), "{err}");
+        let err = Files::new()
+            .input("model", &model)
+            .output_in_place("output", &model, false)
+            .check()
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("add --force"), "{err}");
+        let _ = fs::remove_dir_all(&dir);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn read_only_outputs_are_refused() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = jointfit_testkit::scratch("readonly");
+        let out = dir.join("out.mot");
+        fs::write(&out, b"keep").unwrap();
+        fs::set_permissions(&out, fs::Permissions::from_mode(0o444)).unwrap();
+        let err = Files::new()
+            .output("output", &out)
+            .check()
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("read-only"), "{err}");
+        fs::set_permissions(&out, fs::Permissions::from_mode(0o600)).unwrap();
+        assert!(Files::new().output("output", &out).check().is_ok());
+        let _ = fs::remove_dir_all(&dir);
     }
 }

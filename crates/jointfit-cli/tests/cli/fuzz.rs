@@ -94,6 +94,13 @@ fn corpus(s: &Scratch) -> (Vec<String>, Vec<String>) {
         "long.toml",
         format!("name = \"{}\"\n", "y".repeat(200_000)).as_bytes(),
     );
+    // A model without markers.
+    let mut bare = jointfit::model::ModelSpec::from_toml(&good_toml).unwrap();
+    bare.markers.clear();
+    w("bare.toml", bare.to_toml().as_bytes());
+    // Units off by a tenth and by ten (coordinates scaled, units line unchanged).
+    w("tenth.trc", map_data(&|c| scale_number(c, 0.1)).as_bytes());
+    w("ten.trc", map_data(&|c| scale_number(c, 10.0)).as_bytes());
     #[cfg(unix)]
     {
         std::os::unix::fs::symlink(input.join("t.trc"), input.join("link.trc")).unwrap();
@@ -117,6 +124,8 @@ fn corpus(s: &Scratch) -> (Vec<String>, Vec<String>) {
         "hard.trc",
         "missing.trc",
         "sub/../t.trc",
+        "tenth.trc",
+        "ten.trc",
     ]
     .iter()
     .map(|n| p(n))
@@ -128,6 +137,7 @@ fn corpus(s: &Scratch) -> (Vec<String>, Vec<String>) {
         "bad.toml",
         "nan.toml",
         "long.toml",
+        "bare.toml",
     ]
     .iter()
     .map(|n| p(n))
@@ -135,6 +145,12 @@ fn corpus(s: &Scratch) -> (Vec<String>, Vec<String>) {
     models.push("lower-limb-right".into());
     models.push("no-such-model".into());
     (trials, models)
+}
+
+/// A data cell times `factor` (other text as it is).
+fn scale_number(c: &str, factor: f64) -> String {
+    c.parse::<f64>()
+        .map_or_else(|_| c.to_string(), |v| format!("{}", v * factor))
 }
 
 struct Gen<'a> {
@@ -216,7 +232,7 @@ impl Gen<'_> {
     fn command(&mut self) -> Vec<String> {
         let s = |x: &str| x.to_string();
         self.used.clear();
-        let which = self.rng.gen_range(0..11);
+        let which = self.rng.gen_range(0..12);
         let mut a: Vec<String> = match which {
             0 => vec![s("model"), s("show"), self.pick(self.models)],
             1 => vec![s("inspect"), self.pick(self.trials)],
@@ -272,6 +288,18 @@ impl Gen<'_> {
                 s("-o"),
                 self.output("toml"),
             ],
+            9 => {
+                // Sizes past their limits only: a valid size is a legitimately long bench.
+                let opt = ["--io-frames", "--long-frames", "--rss-frames", "--fit-only"]
+                    .choose(&mut self.rng)
+                    .unwrap()
+                    .to_string();
+                let v = ["100000000", "1e9", "-1", "18446744073709551616", "abc"]
+                    .choose(&mut self.rng)
+                    .unwrap()
+                    .to_string();
+                vec![s("bench"), opt, v]
+            }
             10 => {
                 // Small frame counts only: a valid large one is a legitimately long run.
                 let frames = ["2", "5", "0", "-1", "abc", "100001", "1e3"];
@@ -315,6 +343,11 @@ impl Gen<'_> {
             let i = a.iter().position(|x| x == "hip").unwrap();
             a[i] = format!("gait:{t}");
         }
+        // --force may replace only the model: with an output aliasing a trial it must refuse.
+        // (Not with the model itself as the output, which --force rightly replaces.)
+        if which == 7 && !self.models.contains(&a[6]) && self.maybe(0.3) {
+            a.push(s("--force"));
+        }
         if which == 7 && self.maybe(0.2) {
             a.push(s("--report"));
             a.push(self.out.join("crep").display().to_string());
@@ -322,7 +355,7 @@ impl Gen<'_> {
         if matches!(which, 0 | 1 | 3 | 4 | 5 | 7) && self.maybe(0.3) {
             a.push(s("--json"));
         }
-        if matches!(which, 2 | 3 | 4 | 7 | 8 | 9) && self.maybe(0.2) {
+        if matches!(which, 2 | 3 | 4 | 7 | 8 | 11) && self.maybe(0.2) {
             a.push(s("--up"));
             a.push(
                 ["y", "z", "-z", "x"]

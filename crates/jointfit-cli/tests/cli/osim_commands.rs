@@ -72,13 +72,10 @@ fn osim_commands_as_a_new_user_runs_them() {
         assert!(std::path::Path::new(&out_dir).join("index.html").is_file());
     }
 
-    // ik with a model none of whose markers the trial has: an error, nothing written.
+    // ik with a model without markers: an error naming the model, nothing written.
     let mot = path("bare.mot");
     let (ok, _, err) = jointfit(&["ik", bare, trial, "-o", &mot]);
     assert!(!ok, "{err}");
-    assert!(
-        err.contains("no marker of the trial is a marker of the model"),
-        "{err}"
-    );
+    assert!(err.contains("has no markers"), "{err}");
     assert!(!std::path::Path::new(&mot).exists());
 }

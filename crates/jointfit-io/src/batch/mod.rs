@@ -226,7 +226,9 @@ pub struct Outcome {
 pub enum BatchError {
     #[error("job id {0:?} appears twice")]
     DuplicateId(String),
-    #[error("job id {0:?} cannot name a file (use letters, digits, '-', '_', '.')")]
+    #[error(
+        "job id {0:?} cannot name a file (at most 100 characters: letters, digits, '-', '_', '.')"
+    )]
     BadId(String),
     #[error("{path}: {source}")]
     Io {
@@ -248,6 +250,10 @@ struct Saved {
 /// A description of the job that changes whenever its inputs or settings change.
 fn fingerprint(job: &Job) -> String {
     let model = match &job.model {
+        ModelInput::Named(n) if Path::new(n).is_file() => {
+            crate::content_hash::hash_files_and(&[Path::new(n)], "")
+                .unwrap_or_else(|e| format!("unreadable: {e}"))
+        }
         ModelInput::Named(n) => n.clone(),
         ModelInput::Spec(s) => s.to_toml(),
     };
@@ -255,14 +261,10 @@ fn fingerprint(job: &Job) -> String {
         .trials
         .iter()
         .map(|t| match t {
-            TrialInput::Path(p) => {
-                let stamp = std::fs::metadata(p)
-                    .and_then(|m| m.modified())
-                    .ok()
-                    .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
-                    .map_or(0, |d| d.as_nanos());
-                format!("{} @{stamp}", p.display())
-            }
+            // By content (crate::content_hash), not path and time: an edited trial with the
+            // same modification time is a changed job.
+            TrialInput::Path(p) => crate::content_hash::hash_files_and(&[p.as_path()], "")
+                .unwrap_or_else(|e| format!("unreadable: {e}")),
             TrialInput::Data { name, trial } => {
                 format!("{name} ({} frames in memory)", trial.n_frames())
             }
@@ -278,10 +280,16 @@ fn fingerprint(job: &Job) -> String {
     .to_string()
 }
 
+/// Longest job id (characters `[A-Za-z0-9._-]`).
+pub const MAX_ID_CHARS: usize = 100;
+
 fn check_ids(jobs: &[Job]) -> Result<(), BatchError> {
     let mut seen = std::collections::HashSet::new();
     for j in jobs {
+        // At most MAX_ID_CHARS: the id names the job's result files (`jobs/<id>.json`), which
+        // must fit a file name (255 bytes) with room for the extension and a temporary prefix.
         let ok = !j.id.is_empty()
+            && j.id.len() <= MAX_ID_CHARS
             && !j.id.starts_with('.')
             && j.id
                 .chars()

@@ -47,6 +47,15 @@ fn coordinate(c: Node, joint: &str) -> Result<CoordinateSpec, Fail> {
             let [lo, hi] = r[..] else {
                 return Err(Fail::at(c, format!("{what}: <range> needs two numbers")));
             };
+            if lo > hi {
+                return Err(Fail::at(
+                    c,
+                    format!(
+                        "{what}: <range> {lo} {hi} has its minimum above its maximum (write \
+                         the smaller value first)"
+                    ),
+                ));
+            }
             Some([lo, hi])
         }
         None => None,
@@ -62,7 +71,8 @@ fn coordinate(c: Node, joint: &str) -> Result<CoordinateSpec, Fail> {
         None => 0.0,
     };
     let locked = flag(c, "locked", false)?;
-    // OpenSim accepts an empty range (lo = hi) for a locked coordinate; the core needs lo < hi.
+    // OpenSim accepts an empty range (lo = hi) for a locked coordinate; the core needs lo < hi
+    // (a range with lo > hi was refused above).
     let range = range.map(|[lo, hi]| {
         if lo < hi {
             [lo, hi]

@@ -129,13 +129,16 @@ impl<'a> Compiler<'a> {
                 )));
             }
         }
-        // Depth-first from ground, children in spec order.
+        // Depth-first from ground, children in spec order (looked up by parent name, so the
+        // walk is linear in the number of joints).
+        let mut children_of: HashMap<&str, Vec<usize>> = HashMap::new();
+        for (j, js) in spec.joints.iter().enumerate() {
+            children_of.entry(js.parent.as_str()).or_default().push(j);
+        }
         let mut order = Vec::with_capacity(spec.joints.len());
         let mut stack = vec!["ground"];
         while let Some(parent) = stack.pop() {
-            let children: Vec<usize> = (0..spec.joints.len())
-                .filter(|&j| spec.joints[j].parent == parent)
-                .collect();
+            let children = children_of.remove(parent).unwrap_or_default();
             for &j in children.iter().rev() {
                 stack.push(spec.joints[j].child.as_str());
             }

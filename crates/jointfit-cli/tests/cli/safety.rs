@@ -1,0 +1,361 @@
+//! Reproducers of a fault sweep, one test each: a model without markers is an error naming
+//! it (not a panic), size options refuse past their limit, outputs never replace an input
+//! (not even with `--force`, which replaces only the model it names), replaced files keep
+//! their permissions and read-only ones are refused. The oracle is the file system (bytes and
+//! modes before and after) and the exit status.
+
+use super::reliability::{refused, run, Scratch};
+
+/// `m.toml` of `s` without its markers, written as `bare.toml`; returns its path.
+fn without_markers(s: &Scratch) -> String {
+    let text = std::fs::read_to_string(s.dir.join("m.toml")).unwrap();
+    let mut spec = jointfit::model::ModelSpec::from_toml(&text).unwrap();
+    spec.markers.clear();
+    spec.name = "bare leg".into();
+    std::fs::write(s.dir.join("bare.toml"), spec.to_toml()).unwrap();
+    s.p("bare.toml")
+}
+
+#[test]
+fn a_model_without_markers_is_an_error_naming_the_model() {
+    let s = Scratch::new("bare");
+    let (bare, t) = (without_markers(&s), s.p("t.trc"));
+    let (out, rep, truth) = (s.p("o.toml"), s.p("rep"), s.p("truth.toml"));
+    let cases: Vec<Vec<&str>> = vec![
+        vec!["calibrate", &bare, &t, "-o", &out],
+        vec!["check", &bare, &t],
+        vec!["report", &bare, &t, "-o", &rep],
+        vec!["ik", &bare, &t, "-o", &out],
+        vec![
+            "synth", &bare, "--motion", "hip", "-o", &out, "--truth", &truth,
+        ],
+    ];
+    for args in &cases {
+        let err = refused(&s, args);
+        assert!(err.contains("has no markers"), "{args:?}: {err}");
+        assert!(
+            err.contains("bare leg") || err.contains("bare.toml"),
+            "{args:?} does not name the model: {err}"
+        );
+    }
+}
+
+#[test]
+fn bench_sizes_are_refused_with_their_limit() {
+    for (opt, v) in [
+        ("--io-frames", "100000000"),
+        ("--long-frames", "1e9"),
+        ("--rss-frames", "18446744073709551615"),
+        ("--fit-only", "1000000"),
+    ] {
+        let out = run(&["bench", opt, v]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{opt} {v}: {err}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(err.contains(opt), "{err}");
+    }
+    let out = run(&["bench", "--io-frames", "100000000"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("500000"), "the limit is said: {err}");
+}
+
+/// `--force` replaces the model file it names and nothing else: not the motion trial, not a
+/// functional trial of `personalize`, whatever the spelling.
+#[test]
+fn force_never_replaces_a_trial() {
+    let s = Scratch::new("force");
+    let (m, t) = (s.p("m.toml"), s.p("t.trc"));
+    std::fs::create_dir_all(s.dir.join("sub")).unwrap();
+    let spelled = s.p("sub/../t.trc");
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(s.dir.join("t.trc"), s.dir.join("link.trc")).unwrap();
+    let link = s.p("link.trc");
+    for out in [&t, &spelled, &link] {
+        let err = refused(
+            &s,
+            &["calibrate", &m, &t, "--joints", "hip", "-o", out, "--force"],
+        );
+        assert!(err.contains("refusing to overwrite an input"), "{err}");
+        assert!(
+            !err.contains("--force"),
+            "the error must not suggest --force: {err}"
+        );
+    }
+    std::fs::copy(s.dir.join("t.trc"), s.dir.join("hip.trc")).unwrap();
+    let hip = s.p("hip.trc");
+    for opt in ["--functional-hip", "--functional-knee"] {
+        let err = refused(
+            &s,
+            &[
+                "personalize",
+                "--static",
+                &t,
+                "--markers",
+                "gait2392",
+                "--side",
+                "right",
+                opt,
+                &hip,
+                "-o",
+                &hip,
+            ],
+        );
+        assert!(err.contains("refusing to overwrite an input"), "{err}");
+    }
+    // The model itself may be updated in place with --force.
+    let out = run(&["calibrate", &m, &t, "--joints", "hip", "-o", &m, "--force"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[cfg(unix)]
+#[test]
+fn replaced_outputs_keep_their_permissions_and_read_only_ones_are_refused() {
+    use std::os::unix::fs::PermissionsExt;
+    let s = Scratch::new("perm");
+    let (m, t, mot) = (s.p("m.toml"), s.p("t.trc"), s.p("x.mot"));
+    let mode = |p: &str| std::fs::metadata(p).unwrap().permissions().mode() & 0o7777;
+    std::fs::write(&mot, b"old").unwrap();
+    std::fs::set_permissions(&mot, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let out = run(&["ik", &m, &t, "-o", &mot]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_ne!(std::fs::read(&mot).unwrap(), b"old");
+    assert_eq!(mode(&mot), 0o600);
+    std::fs::set_permissions(&mot, std::fs::Permissions::from_mode(0o444)).unwrap();
+    let err = refused(&s, &["ik", &m, &t, "-o", &mot]);
+    assert!(err.contains("read-only"), "{err}");
+    std::fs::set_permissions(s.dir.join("m.toml"), std::fs::Permissions::from_mode(0o400)).unwrap();
+    let err = refused(
+        &s,
+        &["calibrate", &m, &t, "--joints", "hip", "-o", &m, "--force"],
+    );
+    assert!(err.contains("read-only"), "{err}");
+}
+
+/// `ik -o x.mot --errors x.csv` in `s` with the commit paused between its two renames:
+/// returns the child once the first output has landed (its bytes changed from "old").
+#[cfg(target_os = "linux")]
+fn paused_in_commit(s: &Scratch) -> std::process::Child {
+    let (m, t, mot, csv) = (s.p("m.toml"), s.p("t.trc"), s.p("x.mot"), s.p("x.csv"));
+    std::fs::write(&mot, b"old").unwrap();
+    std::fs::write(&csv, b"old").unwrap();
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_jointfit"))
+        .args(["ik", &m, &t, "-o", &mot, "--errors", &csv])
+        .env("JOINTFIT_TEST_PAUSE_BETWEEN_RENAMES", "3")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while std::fs::read(&mot).unwrap() == b"old" {
+        assert!(
+            start.elapsed().as_secs() < 60,
+            "the first rename never came"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    child
+}
+
+/// A run killed between the renames of its outputs leaves a journal; the next command that
+/// writes into the directory completes the commit, so the `.mot` and `.csv` match again (the
+/// same bytes as an uninterrupted run), and no temporary file or journal is left. SIGINT in
+/// the same place waits for the last rename and exits 0: everything was written.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_commit_cut_by_a_kill_is_completed_and_an_interrupt_reports_success() {
+    let s = Scratch::new("commit");
+    let (m, t) = (s.p("m.toml"), s.p("t.trc"));
+    let out = run(&["ik", &m, &t, "-o", &s.p("r.mot"), "--errors", &s.p("r.csv")]);
+    assert!(out.status.success());
+    let want_csv = std::fs::read(s.dir.join("r.csv")).unwrap();
+    let want_mot = std::fs::read(s.dir.join("r.mot")).unwrap();
+    let hidden = |s: &Scratch| -> Vec<String> {
+        s.snapshot()
+            .into_iter()
+            .map(|(n, _)| n)
+            .filter(|n| n.contains("/.") || n.starts_with('.'))
+            .collect()
+    };
+    let mut child = paused_in_commit(&s);
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert_eq!(std::fs::read(s.dir.join("x.csv")).unwrap(), b"old");
+    assert!(
+        !hidden(&s).is_empty(),
+        "a journal and a temporary file remain"
+    );
+    let out = run(&["ik", &m, &t, "-o", &s.p("y.mot")]);
+    assert!(out.status.success());
+    assert_eq!(std::fs::read(s.dir.join("x.csv")).unwrap(), want_csv);
+    assert_eq!(std::fs::read(s.dir.join("x.mot")).unwrap(), want_mot);
+    assert_eq!(hidden(&s), Vec::<String>::new());
+
+    let child = paused_in_commit(&s);
+    // SAFETY: signalling our own child process.
+    unsafe {
+        libc::kill(child.id() as libc::pid_t, libc::SIGINT);
+    }
+    let done = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&done.stderr);
+    assert_eq!(done.status.code(), Some(0), "{err}");
+    assert!(err.contains("every output was written"), "{err}");
+    assert_eq!(std::fs::read(s.dir.join("x.csv")).unwrap(), want_csv);
+    assert_eq!(hidden(&s), Vec::<String>::new());
+}
+
+/// `t.trc` of `s` with every coordinate multiplied by `factor` (units line unchanged), as
+/// `name`; returns its path.
+fn scaled(s: &Scratch, factor: f64, name: &str) -> String {
+    let text = std::fs::read_to_string(s.dir.join("t.trc")).unwrap();
+    let out: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i < 5 || l.trim().is_empty() {
+                return l.to_string();
+            }
+            l.split('\t')
+                .enumerate()
+                .map(|(k, c)| match (k, c.parse::<f64>()) {
+                    (k, Ok(v)) if k >= 2 => format!("{}", v * factor),
+                    _ => c.to_string(),
+                })
+                .collect::<Vec<_>>()
+                .join("\t")
+        })
+        .collect();
+    std::fs::write(s.dir.join(name), out.join("\n") + "\n").unwrap();
+    s.p(name)
+}
+
+/// Units wrong by 10, 0.1 or 1000 are one clear error, whatever the span: the model's marker
+/// distances show the factor even where the span alone looks like a person; the span check
+/// says the limits it applies.
+#[test]
+fn units_off_by_powers_of_ten_are_one_error() {
+    let s = Scratch::new("units");
+    let m = s.p("m.toml");
+    for (factor, name, hint) in [
+        (0.1, "tenth.trc", "centimetre data read as millimetres"),
+        (10.0, "ten.trc", "millimetre data read as centimetres"),
+        (1000.0, "thousand.trc", "millimetre data read as metres"),
+    ] {
+        let t = scaled(&s, factor, name);
+        for cmd in ["ik", "calibrate"] {
+            let out = s.p("o.out");
+            let err = refused(&s, &[cmd, &m, &t, "-o", &out]);
+            assert!(err.contains(hint), "{cmd} ×{factor}: {err}");
+            assert!(!err.contains("moved"), "{err}");
+            if err.contains("span") {
+                assert!(err.contains("accepts 0.05–6 m"), "{err}");
+            }
+        }
+    }
+}
+
+/// An `.osim` coordinate range with its minimum above its maximum is an error naming the
+/// coordinate (it was replaced by an invented range of ±1 rad around the minimum).
+#[test]
+fn an_osim_range_upside_down_is_an_error() {
+    let s = Scratch::new("range");
+    let osim = s.p("m.osim");
+    let out = run(&["export", "osim", &s.p("m.toml"), "-o", &osim]);
+    assert!(out.status.success());
+    let text = std::fs::read_to_string(&osim).unwrap();
+    let at = text.find("<range>").unwrap() + "<range>".len();
+    let end = at + text[at..].find("</range>").unwrap();
+    let nums: Vec<&str> = text[at..end].split_whitespace().collect();
+    let flipped = format!("{}{} {}{}", &text[..at], nums[1], nums[0], &text[end..]);
+    std::fs::write(&osim, flipped).unwrap();
+    let err = refused(&s, &["model", "show", &osim]);
+    assert!(err.contains("minimum above its maximum"), "{err}");
+    assert!(err.contains("coordinate"), "{err}");
+}
+
+/// Batch resume follows the contents of the inputs: a trial replaced by other data with the
+/// same modification time is fitted again (it used to be "done earlier, skipped" with the old
+/// result); an untouched job is skipped. A job id too long to name a file is refused before
+/// any fit.
+#[test]
+fn batch_resume_is_keyed_by_content_and_ids_are_checked_first() {
+    let s = Scratch::new("resume");
+    let (m, t) = (s.p("m.toml"), s.p("t.trc"));
+    let jobs = s.dir.join("jobs.toml");
+    let manifest = |id: &str| {
+        format!(
+            "[defaults]\njoints = [\"hip\"]\n\n[[job]]\nid = \"{id}\"\nmodel = {m:?}\ntrials = \
+             [{t:?}]\n"
+        )
+    };
+    std::fs::write(&jobs, manifest("a")).unwrap();
+    let out = s.p("out");
+    let batch = || run(&["batch", jobs.to_str().unwrap(), "-o", &out, "--jobs", "1"]);
+    let first = batch();
+    assert!(
+        first.status.success(),
+        "{}",
+        String::from_utf8_lossy(&first.stderr)
+    );
+    let again = batch();
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(err.contains("done earlier, skipped"), "{err}");
+    // Other data (the trial with its coordinates shifted by 1 mm), same modification time.
+    let stamp = std::fs::metadata(&t).unwrap().modified().unwrap();
+    let text = std::fs::read_to_string(&t).unwrap();
+    let edited = text.replacen("950.000000000", "951.000000000", 5);
+    assert_ne!(edited, text);
+    std::fs::write(&t, edited).unwrap();
+    std::fs::File::options()
+        .write(true)
+        .open(&t)
+        .unwrap()
+        .set_modified(stamp)
+        .unwrap();
+    let third = batch();
+    let err = String::from_utf8_lossy(&third.stderr);
+    assert!(third.status.success(), "{err}");
+    assert!(!err.contains("done earlier, skipped"), "{err}");
+    // A 251-character id: refused up front, nothing fitted, no results table.
+    let long = "x".repeat(251);
+    std::fs::write(&jobs, manifest(&long)).unwrap();
+    let out2 = s.p("out2");
+    let refused = run(&["batch", jobs.to_str().unwrap(), "-o", &out2]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{err}");
+    assert!(err.contains("at most 100 characters"), "{err}");
+    assert!(!s.dir.join("out2").exists());
+}
+
+/// Help that cannot be written is a failure; an absurd thread count is capped with one
+/// warning instead of minutes of thread start-up.
+#[cfg(target_os = "linux")]
+#[test]
+fn help_to_a_full_disk_fails_and_thread_counts_are_capped() {
+    let full = std::fs::File::options()
+        .write(true)
+        .open("/dev/full")
+        .unwrap();
+    let st = std::process::Command::new(env!("CARGO_BIN_EXE_jointfit"))
+        .arg("--help")
+        .stdout(full)
+        .stderr(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert_eq!(st.code(), Some(1));
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_jointfit"))
+        .args(["model", "show", "lower-limb-right"])
+        .env("RAYON_NUM_THREADS", "100000")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert_eq!(err.matches("threads per core").count(), 1, "{err}");
+}
