@@ -14,7 +14,7 @@ markers (the trial as `jointfit convert` writes it, so presence is what `ik` see
 
 and runs `jointfit ik --json` three times: as is (the chain-rank rule), with
 `--fill-gaps N` (gaps of at most 0.5 s filled, the longest the checks offer to fill), and with `--hold-undetermined`. Prints a
-Markdown table (the one in docs/frames_solved.md) and, per run, the share of determined
+Markdown table (the one in notebook/frames_solved.md) and, per run, the share of determined
 frames that were solved.
 
 Usage (stdlib only):
