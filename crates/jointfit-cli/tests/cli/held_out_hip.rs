@@ -1,4 +1,4 @@
-//! Issue 12's held-out check on a shared trial that carries the lab's own hip centre:
+//! Held-out check on a shared trial that carries the lab's own hip centre:
 //! default `personalize` + `calibrate` must leave the hip centre
 //! (a) medial to the ASIS: lateral offset ≤ 0.9 × half the inter-ASIS distance;
 //! (b) no further from the lab's hip centre than the landmark model's was, + 5 mm;
