@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Issue 17's ratios on every shared subject with a static and a gait trial: `jointfit bench`
-on each (docs/performance_fit.md, "Any subject").
+"""The speed ratios on every shared subject with a static and a gait trial: `jointfit bench`
+on each (notebook/performance_fit.md, "Any subject").
 
 Usage: bench_subjects.py JOINTFIT DATA [WORKDIR] [--only NAME,NAME] [--fit-only N]
 

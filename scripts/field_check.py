@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""A new user's pass over every motion file of the shared data (docs/field_check.md).
+"""A new user's pass over every motion file of the shared data (notebook/field_check.md).
 
 Every C3D and TRC file under $JOINTFIT_DATA gets `inspect`, `convert` and `markers suggest`
 (the file as its own static trial). Where a subject model can be built (a lab's static trial

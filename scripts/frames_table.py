@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Frames solved before/after on every shared trial with gaps (issue 13, "Must show").
+"""Frames solved before/after on every shared trial with gaps.
 
 For each trial and leg: personalize a subject model (from the trial's own static trial when
 the lab has one, else from the stillest complete stretch of the walk itself: `personalize
@@ -8,13 +8,13 @@ where every landmark is present), then count, per frame, from the presence of th
 markers (the trial as `jointfit convert` writes it, so presence is what `ik` sees):
 
 * old rule: every segment with markers has at least 3 present (the per-segment count that
-  `ik` used before issue 13);
+  `ik` used before the chain-rank rule);
 * determined: pelvis >= 2, thigh >= 2, shank >= 1, foot >= 2 present (the held-out
   condition's definition of frames whose coordinates the present markers determine);
 
 and runs `jointfit ik --json` three times: as is (the chain-rank rule), with
 `--fill-gaps N` (gaps of at most 0.5 s filled, the longest the checks offer to fill), and with `--hold-undetermined`. Prints a
-Markdown table (the one in docs/frames_solved.md) and, per run, the share of determined
+Markdown table (the one in notebook/frames_solved.md) and, per run, the share of determined
 frames that were solved.
 
 Usage (stdlib only):

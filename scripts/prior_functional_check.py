@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Held-out criterion (b) by proxy on biobuddy_functional_vicon (issue 12).
+"""Held-out criterion (b) by proxy on biobuddy_functional_vicon.
 
 The Vicon functional trials come without a lab hip-centre estimate (the gait trials that have
 one are in prior_gait_table.py), so (b) ("no further from the lab's hip centre than the

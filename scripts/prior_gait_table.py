@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Default (MAP) vs --prior none vs --refine-markers calibrate on the shared gait trials
-(issue 12 "must show" and the held-out check).
+(the gait table and the held-out check).
 
 Usage: scripts/prior_gait_table.py JOINTFIT_BINARY DATA_DIR [WORK_DIR] [-- EXTRA CALIBRATE ARGS]
 (PRIOR_TABLE_ONLY=opencap,opensim-c3d limits the subjects; PRIOR_TABLE_HIP=bell|harrington

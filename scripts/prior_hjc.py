@@ -1,4 +1,4 @@
-"""The lab's own hip centre in a jointfit model's pelvis frame (issue 12, held-out criterion (b)).
+"""The lab's own hip centre in a jointfit model's pelvis frame (held-out criterion (b)).
 
 Some shared trials carry a lab hip-centre estimate as a virtual marker (OpenCap Expert1:
 R_HJC/L_HJC, functional; OpenSim's walking2/5.c3d: RHJC/LHJC). Such a marker moves with the

@@ -1,4 +1,4 @@
-//! The performance goals of `jointfit bench` (issue 17): OpenSim's IK solver on the same model
+//! The performance goals of `jointfit bench`: OpenSim's IK solver on the same model
 //! and trial, 1- against 2-thread wall time of a long calibration, the uncertainty step's
 //! share, the peak memory of a long calibration (measured in a child process) and the share of
 //! file reading and writing in an `ik` run. Every calibration here is

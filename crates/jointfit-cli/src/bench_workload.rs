@@ -13,7 +13,7 @@
 //!   `walker_knee_r`, when there is no `knee_r`). Every selected offset scalar is free: the
 //!   bench's fit does not hold the redundant ones as `calibrate MODEL.osim` does.
 //! * Nothing: OpenCap's `opencap_expert1/{static1,walking1}.trc` with the `opencap` preset,
-//!   right leg, up y (the figures of `docs/performance.md`); without the shared data a
+//!   right leg, up y (the figures of `notebook/performance.md`); without the shared data a
 //!   synthetic gait of the built-in leg stands in, and the source says so.
 //!
 //! In every case the model is the one `ik` and `calibrate` run on these trials

@@ -1,4 +1,4 @@
-//! Does the default calibration reach the global optimum? (issue 12 item 6)
+//! Does the default calibration reach the global optimum?
 //!
 //! For each case of `jointfit synth lower-limb-right --motion M --noise skin --perturb-mm 30
 //! --perturb-deg 15 --seed S` (50 frames at 10 Hz, skin artifact up to 1 cm), fits all 27

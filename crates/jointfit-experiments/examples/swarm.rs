@@ -1,10 +1,10 @@
-//! The particle swarm on the cases of issues 12 and 17 (see `docs/global.md`).
+//! The particle swarm on the hard noiseless and noisy cases (see `docs/global.md`).
 //!
-//! * **ankle, noiseless** (issue 12): `jointfit synth lower-limb-right --motion ankle --noise
+//! * **ankle, noiseless**: `jointfit synth lower-limb-right --motion ankle --noise
 //!   none --perturb-mm 30 --perturb-deg 15 --seed S`, the true model with its ankle reset to
 //!   nominal as the start, `calibrate --joints ankle --method pso --seed S`. The global
 //!   optimum is the truth (objective 0).
-//! * **hip, noisy** (issue 17): the same with `--motion hip --noise skin`, `--joints hip`.
+//! * **hip, noisy**: the same with `--motion hip --noise skin`, `--joints hip`.
 //!
 //! Prints the swarm's and the polished objective, how many fitted parameters ended at a
 //! bound, the largest error against the truth, the iterations and the time.

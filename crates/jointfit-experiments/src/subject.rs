@@ -4,7 +4,7 @@
 //! estimates them from anatomical landmarks (Bell et al. 1990 for the hip centre, the
 //! epicondyles and malleoli for the axes) and writes each estimate as the parameter's prior
 //! mean, with the method's published error as its SD (`jointfit::landmarks::priors`). For a
-//! subject drawn far from the generic model (30 mm / 15°, the hard cases of issue 12), the
+//! subject drawn far from the generic model (30 mm / 15°, the hard cases), the
 //! landmark model is therefore the truth moved by the landmark method's error, not the generic
 //! nominal model: [`landmark_model`] draws that error, `N(0, sd²)` per parameter, seeded.
 

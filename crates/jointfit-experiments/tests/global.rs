@@ -1,4 +1,4 @@
-//! The default calibration reaches the global optimum on the cases of issue 12 item 6
+//! The default calibration reaches the global optimum on the hard synthetic cases
 //! (`jointfit synth lower-limb-right --motion all|ankle --noise skin --perturb-mm 30
 //! --perturb-deg 15 --seed S`), with the objective at the true parameters as the oracle:
 //! the global optimum of a noisy trial lies at or below it.
@@ -106,7 +106,7 @@ fn global_phase_is_deterministic_whatever_the_threads() {
     );
 }
 
-/// Issue 12 item 6: the swarm on the noiseless ankle case, as the issue ran it with the CLI
+/// The swarm on the noiseless ankle case, as run with the CLI
 /// (`jointfit synth lower-limb-right --motion ankle --noise none --perturb-mm 30
 /// --perturb-deg 15 --seed 7316`, the true model with its ankle reset to nominal as the start,
 /// `calibrate --method pso --seed 7316 --joints J`), reaches the objective at the truth (0, the
@@ -176,7 +176,7 @@ fn swarm_finds_the_noiseless_ankle_with_every_parameter_free() {
     assert!(iterations >= 100, "{iterations}");
 }
 
-/// Issue 17 goal 6: the swarm on the noisy hip (`--motion hip --noise skin`, 50 frames,
+/// The swarm on the noisy hip (`--motion hip --noise skin`, 50 frames,
 /// seed 7317, the hip reset to nominal) stops on its basin test long before its iteration
 /// limit, gives the same numbers on one and two threads, and ends in the minimum that the
 /// joint solver reaches from the true parameters (the oracle: the trial's optimum near the

@@ -1,4 +1,4 @@
-//! Issue 12's hard synthetic cases with the default (maximum a posteriori) fit.
+//! The hard synthetic cases with the default (maximum a posteriori) fit.
 //!
 //! The subject is the generic leg moved by up to 30 mm / 15° (seeds from 7401, as `jointfit
 //! synth --perturb-mm 30 --perturb-deg 15`), the trial a full-leg or ankle motion with 10 mm skin

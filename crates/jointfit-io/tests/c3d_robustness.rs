@@ -159,7 +159,7 @@ fn tiny_and_degenerate_inputs() {
     }
 }
 
-/// Long randomized session (ignored by default): see the module docs.
+/// Long randomized run (ignored by default): see the module docs.
 #[test]
 #[ignore]
 fn long_fuzz_session() {

@@ -1,4 +1,4 @@
-"""The public names: every one the issue lists exists, the type stubs describe exactly what
+"""The public names: every documented one exists, the type stubs describe exactly what
 the native module has, everything public carries a docstring."""
 
 import ast

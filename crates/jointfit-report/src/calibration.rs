@@ -166,7 +166,7 @@ mod tests {
         (model, cal, trial)
     }
 
-    /// Issue 18 item 6: the seed drives `--starts` (and the bootstrap), so the report must
+    /// The seed drives `--starts` (and the bootstrap), so the report must
     /// not call it unused then; with one start of the joint method it is unused.
     #[test]
     fn the_seed_is_reported_as_used_when_it_drives_the_starts() {

@@ -1,4 +1,4 @@
-//! FK and both marker Jacobians of the 27-parameter leg model (issue: ≤ 1 µs per evaluation).
+//! FK and both marker Jacobians of the 27-parameter leg model (target: ≤ 1 µs per evaluation).
 //!
 //! `cargo bench -p jointfit --bench kinematics`
 

@@ -59,7 +59,7 @@ fn cholesky_fixed<const N: usize>(a: &mut [f64]) -> bool {
 // same sequence of roundings as subtracting column k's share from column j for k in
 // order (the column form this replaced), so the factor is the same to the bit, with a
 // scalar inner loop that costs fewer instructions on the IK's small matrices (12 to 40
-// columns: 3.3 % of `bench --profile ik`, `docs/ik_speed.md`).
+// columns: 3.3 % of `bench --profile ik`, `notebook/ik_speed.md`).
 #[inline(always)]
 fn cholesky_general(a: &mut [f64], n: usize) -> bool {
     let a = &mut a[..n * n];

@@ -105,7 +105,7 @@ fn prior_data_conflict_widens_only_the_flagged_joints_intervals() {
     let args = ["calibrate", model, walk, "--filter", "6", "-o", &out];
     let (joints, flagged) = check_step(&args);
     assert_eq!(joints, ["hip", "knee", "talocrural", "subtalar"]);
-    // The shared walking1 contradicts the landmark hip (χ² ≈ 20 on 6 dof; docs/gait_table.md).
+    // The shared walking1 contradicts the landmark hip (χ² ≈ 20 on 6 dof; notebook/gait_table.md).
     assert!(flagged.contains(&"hip".to_string()), "{flagged:?}");
 }
 

@@ -178,7 +178,7 @@ fn ik_on_a_trial_lacking_model_markers() {
     assert!(!mot.exists());
 }
 
-/// Field files (docs/field_check.md): a Vicon file that repeats 2760 parameters prints one
+/// Field files (notebook/field_check.md): a Vicon file that repeats 2760 parameters prints one
 /// warning per group, not one per parameter, and still converts with every frame; a C3D
 /// without POINT:UNITS says which units it was read in instead of "units ,".
 #[test]
@@ -215,7 +215,7 @@ fn field_c3d_quirks_are_said_briefly() {
 /// Plug-in Gait's computed outputs (angles, forces, moments, powers), which the file lists in
 /// POINT:ANGLES/FORCES/MOMENTS/POWERS, are not markers: the trial leaves them out, as BTK and
 /// OpenSim's BTK-based reader do, and says so. Oracle: ezc3d reads 77 points in
-/// gait-pig.c3d, 10 + 6 + 6 + 6 of them named in those four lists (docs/field_check.md).
+/// gait-pig.c3d, 10 + 6 + 6 + 6 of them named in those four lists (notebook/field_check.md).
 #[test]
 fn c3d_model_outputs_are_not_markers() {
     let Some(pig) = data_file("c3d_reader/c3dorg/sample_03/gait-pig.c3d") else {

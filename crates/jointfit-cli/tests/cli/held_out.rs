@@ -1,4 +1,4 @@
-//! The held-out condition of issue 13: on the shared C3D walks of other labs (Qualisys.c3d
+//! Held-out check: on the shared C3D walks of other labs (Qualisys.c3d
 //! of the ezc3d test files, OpenSim's Vicon test walks walking2.c3d and walking5.c3d), at
 //! least 98 % of the frames whose coordinates the present markers determine (pelvis ≥ 2,
 //! thigh ≥ 2, shank ≥ 1, foot ≥ 2 of the model's markers present) are solved by `ik`, for

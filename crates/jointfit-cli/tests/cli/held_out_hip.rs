@@ -1,4 +1,4 @@
-//! Issue 12's held-out check on a shared trial that carries the lab's own hip centre:
+//! Held-out check on a shared trial that carries the lab's own hip centre:
 //! default `personalize` + `calibrate` must leave the hip centre
 //! (a) medial to the ASIS: lateral offset ≤ 0.9 × half the inter-ASIS distance;
 //! (b) no further from the lab's hip centre than the landmark model's was, + 5 mm;
@@ -6,7 +6,7 @@
 //!
 //! The lab's estimate is OpenCap Expert1's `R_HJC`/`L_HJC`: a functional (pelvis–thigh
 //! common point) centre from the lab's own hip calibration trials, written into every trial as
-//! a virtual marker that moves with the four pelvis markers (`docs/gait_table.md`). The `opencap`
+//! a virtual marker that moves with the four pelvis markers (`notebook/gait_table.md`). The `opencap`
 //! preset does not use it, so the landmark model is independent of it. Per frame it is put in
 //! the pelvis markers' frame (origin mid-ASIS, z from left to right ASIS, y normal to the
 //! ASIS–mid-PSIS plane) and carried into the model's pelvis frame by the same construction
@@ -213,7 +213,7 @@ fn default_calibration_passes_the_held_out_hip_check_on_opencap_sit_to_stand() {
 }
 
 /// OpenSim's Vicon walk (no static trial: the model comes from the walk's own stillest
-/// 0.02 s, `docs/frames_solved.md`). Its `RHJC` (a computed marker, present in the last
+/// 0.02 s, `notebook/frames_solved.md`). Its `RHJC` (a computed marker, present in the last
 /// third, rigid with the pelvis markers) lies ≈ 50 mm from the landmark estimate and at the
 /// ASIS's own lateral offset (inter-ASIS 198 mm), so (a)'s envelope, built from the same
 /// ASIS markers, does not hold for the lab's own centre: the test asserts that fact and

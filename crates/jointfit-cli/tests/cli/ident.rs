@@ -1,5 +1,5 @@
 //! `jointfit check` and the uncertainty columns and warnings of `jointfit calibrate`
-//! (issue 7), on synthetic trials written as TRC files.
+//! on synthetic trials written as TRC files.
 
 use std::path::{Path, PathBuf};
 

@@ -78,7 +78,7 @@ fn jam_overground_with_a_two_marker_foot_is_solved() {
 }
 
 /// One coordinate of 1e21 mm in one marker of frame 41 of walking1 is refused when the file
-/// is read (one line naming frame and marker; issue 16's input validation). A wild sample the
+/// is read (one line naming frame and marker). A wild sample the
 /// reader lets through (the same coordinate 2 m off) is rejected by IK and reported: every
 /// frame is solved, and the coordinates agree with the clean trial's (frame 41 to within what
 /// dropping one marker changes, the rest to solver precision).
@@ -271,7 +271,7 @@ fn a_cut_c3d_is_announced_by_every_command() {
     assert!(said(&err), "personalize (ok {ok}): {err}");
 }
 
-/// Issue 14: the `.mot` time column is the TRC's own Time column, as OpenSim's IK writes it
+/// The `.mot` time column is the TRC's own Time column, as OpenSim's IK writes it
 /// (subject01_walk1 prints 0.017 s steps at 60 Hz, 0.05 s off frame / rate by the end), so
 /// that force-plate files pair with it by time. Both columns are read from the files' text.
 #[test]

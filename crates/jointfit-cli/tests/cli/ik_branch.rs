@@ -1,4 +1,4 @@
-//! Which Euler-angle branch `jointfit ik` reports (`jointfit::ik::branch`, issue 13).
+//! Which Euler-angle branch `jointfit ik` reports (`jointfit::ik::branch`).
 //!
 //! OpenCap's unscaled `generic.osim` on walking1: the warm-started chain reached the left
 //! hip's other branch of the same rotation (flexion −108°, adduction −209°, rotation −229°

@@ -1,4 +1,4 @@
-//! Issue 16, the remaining items: every long loop has a documented cap (a larger value is a
+//! Limits: every long loop has a documented cap (a larger value is a
 //! one-line error naming the cap), the bootstrap's progress reaches stderr through the
 //! workflow's observer, a fit that did not converge exits 3 and writes nothing unless
 //! `--accept-unconverged`, and sizes declared in file headers never allocate: a TRC header
@@ -261,7 +261,7 @@ fn trc_headers_declaring_billions_are_one_line_errors() {
     }
 }
 
-/// Held-out variant of issue 16's "inputs destroyed": a batch whose job model is the fitted
+/// Held-out variant of "outputs never destroy inputs": a batch whose job model is the fitted
 /// model file the batch would write (`out/models/a.toml`), or whose trial is its results
 /// table, is refused before any work, and every file stays as it was.
 #[test]

@@ -1,4 +1,4 @@
-//! OpenSim's `clamped` coordinates (issue 13, brief B of 2026-11-27): `jointfit ik` keeps every
+//! OpenSim's `clamped` coordinates: `jointfit ik` keeps every
 //! coordinate a model marks `<clamped>true</clamped>` inside its range, as OpenSim's IK does,
 //! and OpenSim 4.6's IK is the oracle. On OpenCap's unscaled `generic.osim` (every coordinate
 //! clamped, about 95 mm RMS) with walking1 the bounded least squares has several local

@@ -190,7 +190,7 @@ fn ik_on_opencap_hand_scaled_osim_no_frame_worse_than_opensim() {
 
 /// OpenSim's gait2392 subject01 with its walking trial (its toe markers sit on the calcaneus
 /// body, so the toes are held here too). OpenSim evaluates a `.mot` by looking its frames up
-/// by time, so this needs the `.mot` to carry the TRC's own Time column (issue 14; at 60 Hz
+/// by time, so this needs the `.mot` to carry the TRC's own Time column (at 60 Hz
 /// it is printed in 0.017 s steps).
 #[test]
 fn ik_on_gait2392_subject01_no_frame_worse_than_opensim() {
@@ -263,7 +263,7 @@ fn trc_frames(text: &str, first: usize, n: usize) -> String {
 /// OpenCap's unscaled generic model on the same trial: it matches the subject's markers
 /// poorly (about 100 mm RMS), and warm-started frames used to fall into wrong local minima
 /// (frame 20 at 683 mm where OpenSim finds 98 mm). Absurd frames are re-solved from their
-/// neighbours and a fresh seed (issue 14; `jointfit::ik::repair`). Every coordinate of this
+/// neighbours and a fresh seed (`jointfit::ik::repair`). Every coordinate of this
 /// model is `clamped`: the coordinates against OpenSim's are asserted in `osim_clamped`.
 #[test]
 fn ik_on_opencap_generic_osim_no_frame_worse_than_opensim() {

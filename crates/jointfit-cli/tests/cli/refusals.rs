@@ -1,4 +1,4 @@
-//! The reproducers of issue 16 about refusals, one test each: no panics on huge counts, bad
+//! Refusals, one test each: no panics on huge counts, bad
 //! values and data are refused by name, errors are one line with each cause once, CSV is
 //! quoted. The oracle is the file system (a refused run changes nothing, `reliability.rs`'s
 //! `refused`) and, for the CSV, Python's `csv` module.

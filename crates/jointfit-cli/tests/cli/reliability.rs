@@ -1,4 +1,4 @@
-//! The reproducers of issue 16 about files, one test each: outputs never destroy inputs, a
+//! File safety, one test each: outputs never destroy inputs, a
 //! failed run writes nothing, a full stdout or a signal leaves no file behind. The refusals of
 //! bad values and data are in `refusals.rs`, which shares this file's `Scratch` and
 //! `refused`. The oracle is the file system (bytes before and after, directory listings).

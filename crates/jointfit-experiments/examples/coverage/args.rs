@@ -16,7 +16,7 @@ pub struct Args {
     pub first_seed: u64,
     pub bandwidth: Option<f64>,
     pub blocks: usize,
-    /// `Some((mm, deg))`: truth = nominal moved by up to these (the hard cases of issue 12).
+    /// `Some((mm, deg))`: truth = nominal moved by up to these (the hard cases).
     pub perturb: Option<(f64, f64)>,
     pub joints: String,
     /// Per (seed, parameter) rows as CSV for offline analysis.

@@ -1,4 +1,4 @@
-//! Monte Carlo check of the uncertainty intervals (issue 7).
+//! Monte Carlo check of the uncertainty intervals.
 //!
 //! For each seed: true parameters = nominal moved by up to 40 % of each half-range, a
 //! synthetic trial of the chosen motion with skin-artifact noise (`A sin(ωt + φ)`, A up to

@@ -104,7 +104,7 @@ pub fn vax_to_f32(b: [u8; 4]) -> f32 {
 mod tests {
     use super::*;
 
-    /// Encodes an IEEE value as VAX bytes (test helper; only for normal values).
+    /// Encodes an IEEE value as VAX bytes (for tests; only for normal values).
     fn to_vax(x: f32) -> [u8; 4] {
         if x == 0.0 {
             return [0; 4];

@@ -1,4 +1,4 @@
-//! The trial keeps a TRC's own Time column (issue 14): OpenSim copies it into its results, and
+//! The trial keeps a TRC's own Time column: OpenSim copies it into its results, and
 //! force-plate files are paired with the motion by time. Irregular stamps within half a frame
 //! survive reading, writing a TRC and writing a `.mot`; stamps that do not increase fall back
 //! to frame / DataRate with a note.

@@ -62,7 +62,7 @@
 //! the σ estimate moved into the global phase), but the command's fit is cheaper without
 //! it, used everywhere or only in the σ stage and the finishing solves (the latter +7.0 to
 //! +18.6 % instructions on opencap walking1, gait2392 walk1 and Hamner running;
-//! `docs/performance_fit.md`, "The joint solver on long trials", and `docs/solver_tail.md`,
+//! `notebook/performance_fit.md`, "The joint solver on long trials", and `notebook/solver_tail.md`,
 //! which also traces the remaining linear tail to the second-order term of the ankle's
 //! coordinates and axes).
 

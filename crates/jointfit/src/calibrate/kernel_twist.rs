@@ -32,7 +32,7 @@
 //! (`a` the column whose set contains `b`'s) costs 6 multiply-adds, instead of 3 per marker row
 //! of the explicit product, and neither Jacobian matrix is filled. The entries are formed
 //! column by column, four rows `a` at a time under a fixed 0/1 mask that keeps each pair once,
-//! then mirrored (`docs/performance.md`).
+//! then mirrored (`notebook/performance.md`).
 //!
 //! The reference point `P` is the weighted centroid of the frame's present markers, so that
 //! the moments stay of the size of the marker cloud (no cancellation between large terms).

@@ -291,7 +291,7 @@ impl<'m> Problem<'m> {
     /// threads. The loop of [`crate::ik::warm_started_coords`], on targets gathered from the
     /// trials; like the `ik` command (and unlike that function's [`crate::ik::chunk_ranges`]),
     /// a problem of 128 to 1023 frames is cut into two chunks, so that a gait trial's seeded
-    /// IK runs on two cores (`docs/performance.md`: the cost is one more seed).
+    /// IK runs on two cores (`notebook/performance.md`: the cost is one more seed).
     ///
     /// These are starting points: to the `ik` command's step tolerance (1e-8), not the inner
     /// level's 1e-11 ([`Problem::inner`] and the joint solver go on from them). On opencap

@@ -274,7 +274,7 @@ pub(crate) fn back_substitute(
 /// Clamping such a component after the solve changes the step of every parameter it is
 /// coupled with, and the clamped step need not descend: on gait2392 subject01 walk1 the model
 /// predicted an increase for five steps in a row with the ankle-axis parameters at their
-/// bounds, which raised the damping 10⁴-fold (`docs/solver_tail.md`). Held and solved
+/// bounds, which raised the damping 10⁴-fold (`notebook/solver_tail.md`). Held and solved
 /// again, the step is the Gauss–Newton step of the free parameters (Bertsekas 1982, projected
 /// Newton methods).
 pub(crate) fn solve_reduced_at_bounds(

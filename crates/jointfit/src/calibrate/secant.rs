@@ -41,7 +41,7 @@
 //! 110. The step therefore uses `A` limited so that `S + A ⪰ θ S` (θ = [`CURVATURE_FLOOR`]):
 //! in no direction is the model's curvature below θ of Gauss–Newton's, so a step is at most
 //! 1/θ times Gauss–Newton's along any direction, and the gain ratio ρ decides, as before,
-//! whether it is taken. θ = 0.05, 0.1, 0.2 and 0.5 were measured (`docs/performance_fit.md`);
+//! whether it is taken. θ = 0.05, 0.1, 0.2 and 0.5 were measured (`notebook/performance_fit.md`);
 //! 0.2 gave the fewest iterations on Hamner running and opencap walking1.
 
 use nalgebra::{DMatrix, SymmetricEigen};

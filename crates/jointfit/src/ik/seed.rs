@@ -218,7 +218,7 @@ fn keep_better(best: &mut Option<(f64, Vec<f64>)>, cost: f64, qs: Vec<f64>, rot:
 /// scouting looks for; at least two starts must reach it, so that both Euler-angle triples
 /// of the orientation are seen and the smaller is kept as [`seed_frame`] keeps it. On
 /// opencap walking1 this cuts a seed from 1.23 to 0.21 M instructions (callgrind;
-/// `docs/ik_speed.md`).
+/// `notebook/ik_speed.md`).
 #[allow(clippy::too_many_arguments)]
 fn certified_root(
     model: &Model,

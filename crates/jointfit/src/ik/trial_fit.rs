@@ -188,7 +188,7 @@ pub const MAX_CHUNKS: usize = 32;
 /// short trial (a gait cycle or two) uses two cores. The second chunk's seed costs about as
 /// much as 2 warm-started frames (`seed.rs`: 0.21 M instructions, 1.26 M before the
 /// certified root fit, against ≈ 0.12 M a frame on walking1), and two idle cores solve it
-/// in ≈ 0.55 of the one-chunk time (measurements in `docs/ik_speed.md`).
+/// in ≈ 0.55 of the one-chunk time (measurements in `notebook/ik_speed.md`).
 pub const MIN_SPLIT_FRAMES: usize = 128;
 
 /// The chunks of consecutive frames [`solve_trial`] solves independently: one below

@@ -1,4 +1,4 @@
-//! Prior–data conflict per joint (issue 12): does the trial disagree with the landmark model
+//! Prior–data conflict per joint: does the trial disagree with the landmark model
 //! by more than the prior's stated SD allows?
 //!
 //! **The statistic.** Linearize the maximum a posteriori fit at its optimum `m` (scaled

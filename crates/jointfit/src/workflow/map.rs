@@ -30,7 +30,7 @@
 //! estimate is the one above up to where on the σ₀-optimum's basin it is taken: 0.1 instead
 //! of 0.01 SE (a point that close moves σ² by `d²/dof` and κ by the 0.3 % bound above). Only
 //! the preliminary fit from the given start is saved; the result moves within statistical
-//! resolution (`docs/performance_fit.md`: on ten opencap, gait2392 and Hamner fits σ within
+//! resolution (`notebook/performance_fit.md`: on ten opencap, gait2392 and Hamner fits σ within
 //! 0.031 % and the parameters within 0.0021 SE of the preliminary fit's; σ within 0.3 % on
 //! every row of the prior gait table). Without the global phase (`probes` 0,
 //! several full starts, the swarm) the preliminary fit runs as above.

@@ -27,7 +27,7 @@
 //!   (`max(10 mm, ⌈‖μ‖_max / 5 / 5 mm⌉ · 5 mm)`, the bound being 5 SDs, as the offset
 //!   finding's own advice); the joints then stop absorbing the offset. Refining every marker
 //!   (`--refine-markers`) fixed the marker RMS on such trials but moved the hip by up to
-//!   27 mm on squats and sit-to-stand, where no marker was displaced (`docs/gait_table.md`).
+//!   27 mm on squats and sit-to-stand, where no marker was displaced (`notebook/gait_table.md`).
 //! * **leave out** (of that trial) a marker that is not displaced but that the robust IK
 //!   rejected in at least [`BROKEN_SHARE`] of its frames: it jumps or sits far from its
 //!   segment in many frames without a steady offset, so no fixed position explains it.

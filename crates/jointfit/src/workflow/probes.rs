@@ -80,7 +80,7 @@ pub(super) fn probe_stride(prob: &Problem, settings: &FitSettings) -> usize {
 /// solutions on the probes' frames, in start order. Neither depends on the marker noise σ
 /// that weighs the prior (only the prior's means and SDs choose the starts), so a caller may
 /// form them from a problem whose prior carries any σ (forming them beside the σ estimate
-/// was measured slower: `docs/performance_fit.md`).
+/// was measured slower: `notebook/performance_fit.md`).
 pub fn probe_starts(prob: &Problem, start: &[f64], settings: &FitSettings) -> ProbeStarts {
     let coarse = subsample(prob, probe_stride(prob, settings));
     (0..settings.probes + 1)

@@ -115,7 +115,7 @@ fn calibrate_recovers_the_truth_and_fills_the_rows() {
     assert!((c[c.len() - 1] - cal.cost_after * 1e6).abs() <= 1e-12 * c[0]);
 }
 
-/// Item 6 of issue 18: with several starts the convergence record, the iteration count and
+/// With several starts the convergence record, the iteration count and
 /// the termination all belong to the start that won (here not start 0).
 #[test]
 fn several_starts_are_all_recorded_and_the_best_is_reported() {
@@ -273,7 +273,7 @@ fn ik_trial_solves_every_frame_and_names_what_is_missing() {
     assert!(ik_trial(&model, &p, &other, &crate::ik::IkOptions::default()).is_err());
 }
 
-/// Issue 18 item 6: `seed_frame` starts the root's translations at their default values
+/// `seed_frame` starts the root's translations at their default values
 /// (not at a centroid offset) and relies on the first iterations to carry them; a subject
 /// tens of metres from the lab origin, turned about the vertical, is still found.
 #[test]

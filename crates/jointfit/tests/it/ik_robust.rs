@@ -53,7 +53,7 @@ fn min_singular(model: &Model, p: &[f64], q: &[f64], present: &[bool], cols: &[u
     j.singular_values().min()
 }
 
-/// The sparse case: pelvis 2, thigh 2, shank 1, foot 2 markers in every frame.
+/// A sparse case: pelvis 2, thigh 2, shank 1, foot 2 markers in every frame.
 /// The joints carry the rest, so every frame is solved, exactly (noiseless data).
 #[test]
 fn sparse_segments_are_solved_through_the_chain() {

@@ -1,5 +1,4 @@
-//! The identifiability status rule (`calibrate::uncertainty`, private `status` module; issue
-//! 12): recomputed from the analysis' public fields by an independent path, and the
+//! The identifiability status rule (`calibrate::uncertainty`, private `status` module): recomputed from the analysis' public fields by an independent path, and the
 //! prior's part kept out of it.
 
 use jointfit::calibrate::prior::{correlation_inflation, data_share, Source};

@@ -1,4 +1,4 @@
-//! Uncertainty and identifiability (issue 7) against independent oracles: a dense Schur
+//! Uncertainty and identifiability against independent oracles: a dense Schur
 //! complement of finite-difference Jacobians, the empirical scatter of fits over noise seeds,
 //! interval coverage of the known truth, and a trial that cannot determine the hip.
 //!

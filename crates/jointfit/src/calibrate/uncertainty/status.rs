@@ -41,7 +41,7 @@
 //! own noisy estimates (rank correlation with a labelled parameter's own ratio 0.66 over
 //! 200 seeds, against 0.30 pooled over all 27), and the label selected the trials where they
 //! came out small: 91.4 % coverage of "determined" in 1000 seeds against 94.1 % for all its
-//! intervals (`docs/identifiability.md`, stop 26). With every parameter free nothing changes.
+//! intervals (`docs/identifiability.md`). With every parameter free nothing changes.
 //! Held parameters away from the trial's optimum carry their misfit into their scores, which
 //! varies with the motion like correlated noise (centring removes only its mean), so `κ` then
 //! errs on the large, strict side (Hamner's running, hip alone: 8.4 against 3.2 all free).
