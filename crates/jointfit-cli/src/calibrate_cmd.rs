@@ -67,6 +67,11 @@ pub struct CalibrateArgs {
     /// written. The verdict and its reasons are still printed.
     #[arg(long)]
     pub accept_rejected: bool,
+    /// Marker weights of an OpenSim IK task set (an IKTaskSet file or an IK setup file): the
+    /// fit weighs each marker as OpenSim's IK with these tasks does (a marker task not applied
+    /// or absent weighs 0).
+    #[arg(long, value_name = "TASKS.xml")]
+    pub weights: Option<PathBuf>,
     /// Print every flagged parameter with why, and the weak parameter combinations (by
     /// default: one line per joint).
     #[arg(long, short)]
@@ -270,7 +275,29 @@ pub fn check_files(args: &CalibrateArgs, mut files: crate::output::Files) -> Res
     if let Some(dir) = &args.report {
         files = files.output_in_dir("--report", dir, "index.html");
     }
+    if let Some(w) = &args.weights {
+        files = files.input("--weights", w);
+    }
     files.check()?;
+    Ok(())
+}
+
+/// `--weights`: the task set's marker weights written into `spec` (a warning names applied
+/// tasks of markers the model lacks, which OpenSim ignores too).
+pub fn apply_weights(
+    args: &CalibrateArgs,
+    spec: &mut jointfit::model::spec::ModelSpec,
+) -> Result<()> {
+    if let Some(path) = &args.weights {
+        let unknown = jointfit_io::osim_setup::read_task_set(path)?.apply_marker_weights(spec);
+        if !unknown.is_empty() {
+            eprintln!(
+                "jointfit: warning: {}: marker tasks of markers the model lacks (ignored): {}",
+                path.display(),
+                unknown.join(", ")
+            );
+        }
+    }
     Ok(())
 }
 
@@ -320,6 +347,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let input_model = jointfit_io::model_file::load_model(&args.model)?;
     let mut fit_spec = input_model.spec().clone();
     crate::prior_args::apply(&mut fit_spec, args.prior, &args.prior_sd)?;
+    apply_weights(&args, &mut fit_spec)?;
     check_marker_noise(&args)?;
     let model = jointfit::model::Model::compile(&fit_spec)?;
     let start = match &args.seed_from {

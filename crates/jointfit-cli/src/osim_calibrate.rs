@@ -66,6 +66,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         .map_err(|e| anyhow::anyhow!("{}: {e}", args.model))?;
     let mut fit_spec = spec.clone();
     crate::prior_args::apply(&mut fit_spec, args.prior, &args.prior_sd)?;
+    crate::calibrate_cmd::apply_weights(&args, &mut fit_spec)?;
     check_marker_noise(&args)?;
     let model = jointfit::model::Model::compile(&fit_spec)?;
     let start = match &args.seed_from {

@@ -75,6 +75,8 @@ mod synth;
 mod up;
 #[path = "cli/verdict.rs"]
 mod verdict;
+#[path = "cli/weights.rs"]
+mod weights;
 
 /// `jointfit personalize --static STAT --markers PRESET --side right -o OUT`, which must
 /// succeed.

@@ -221,6 +221,18 @@ impl PyCalibration {
             },
             it = c.iterations,
         ));
+        // The verdict first after the summary line, as in the command line's report.
+        h.push_str(&format!(
+            "<p><b>verdict: {}</b></p>",
+            html(c.verdict.level.name())
+        ));
+        if !c.verdict.reasons.is_empty() {
+            h.push_str("<ul>");
+            for r in &c.verdict.reasons {
+                h.push_str(&format!("<li>{}</li>", html(r)));
+            }
+            h.push_str("</ul>");
+        }
         h.push_str(
             "<table><thead><tr><th>parameter</th><th>group</th><th>unit</th><th>start</th>\
              <th>fitted</th><th>95 % interval</th><th>identifiability</th></tr></thead><tbody>",

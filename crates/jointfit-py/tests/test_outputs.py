@@ -157,3 +157,15 @@ def test_calibration_table_and_html(fitted):
     for name in cal.parameters:
         assert name in text
     assert f"{cal.rms_after * 1e3:.2f} mm" in text
+
+
+def test_the_verdict_is_in_the_calibration_and_its_html(fitted):
+    """`Calibration.verdict` is the command line's verdict: a level of three and its reasons;
+    the notebook view shows it."""
+    _, _, _, cal = fitted
+    v = cal.verdict
+    assert v.level in ("ok", "caution", "reject")
+    assert all(isinstance(r, str) and r for r in v.reasons)
+    assert cal.to_dict()["verdict"]["level"] == v.level
+    text = "".join(ET.fromstring(cal._repr_html_()).itertext())
+    assert f"verdict: {v.level}" in text
