@@ -109,23 +109,53 @@ pub fn run(cmd: MarkersCommand) -> Result<()> {
         eprintln!("jointfit: {path}: {note}");
     }
     text.push_str(&suggestion.set.to_toml());
-    // Try it: personalize each leg the set describes.
+    // A preset that covers the labels is the better choice than a guess.
+    if let Some(best) = jointfit::landmarks::auto::rank_presets(trial.labels())
+        .into_iter()
+        .find(|f| f.legs_fitted > 0)
+    {
+        eprintln!(
+            "jointfit: {path}: the labels fit preset {} ({} of 2 legs complete): --markers {} \
+             instead of this suggestion",
+            best.name, best.legs_fitted, best.name
+        );
+    }
+    // Try it: personalize each leg the set describes; a leg no adult has refuses the set
+    // (the roles were given to the wrong markers).
+    let mut implausible = Vec::new();
     for (side, present) in [
         (Side::Right, suggestion.set.right.is_some()),
         (Side::Left, suggestion.set.left.is_some()),
     ] {
         if present {
-            if let Err(e) = personalize(
+            match personalize(
                 &trial,
                 &suggestion.set,
                 side,
                 &PersonalizeOptions::default(),
             ) {
-                eprintln!(
+                Err(e) => eprintln!(
                     "jointfit: warning: {path}: personalize with this set fails for the {side:?} leg: {e}"
-                );
+                ),
+                Ok(leg) => {
+                    let model = jointfit::model::Model::compile(&leg.spec)?;
+                    implausible.extend(
+                        jointfit::plausibility::anthropometry(&model, &model.nominal_params())
+                            .iter()
+                            .filter(|m| !m.ok())
+                            .map(|m| format!("{side:?} leg: {}", m.line())),
+                    );
+                }
             }
         }
+    }
+    if !implausible.is_empty() {
+        return Err(crate::output::Rejected(format!(
+            "{path}: the suggested roles give no adult's leg ({}); some roles went to the \
+             wrong markers: name them in a marker-set file",
+            implausible.join("; ")
+        ))
+        .into());
     }
     match &output {
         Some(o) => {

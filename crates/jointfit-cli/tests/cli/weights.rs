@@ -75,5 +75,8 @@ fn task_set_weights_weigh_the_calibration() {
         .zip(&tutorial)
         .map(|(a, b)| (a - b).abs())
         .fold(0.0, f64::max);
-    assert!(moved > 1e-6, "the tutorial's weights change the fit ({moved})");
+    assert!(
+        moved > 1e-6,
+        "the tutorial's weights change the fit ({moved})"
+    );
 }
