@@ -35,6 +35,30 @@ fn swap_labels(src: &Path, dst: &Path, pairs: &[(&str, &str)]) {
     std::fs::write(dst, lines.join("\n") + "\n").unwrap();
 }
 
+/// A copy of the TRC `src` with every coordinate multiplied by `factor` (a units mistake or
+/// a body of another size), the five header lines as they are.
+fn scaled_trc(src: &Path, dst: &Path, factor: f64) {
+    let text = std::fs::read_to_string(src).unwrap();
+    let scaled: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i < 5 {
+                return l.to_string();
+            }
+            l.split('\t')
+                .enumerate()
+                .map(|(k, v)| match (k, v.trim().parse::<f64>()) {
+                    (k, Ok(x)) if k >= 2 => format!("{}", x * factor),
+                    _ => v.to_string(),
+                })
+                .collect::<Vec<_>>()
+                .join("\t")
+        })
+        .collect();
+    std::fs::write(dst, scaled.join("\n") + "\n").unwrap();
+}
+
 /// `calibrate MODEL TRIAL -o OUT` refused: exit 5, no output file, one error line that
 /// names the trial's file; the line returned.
 fn assert_refused(model: &Path, trial: &Path, out: &Path) -> String {
@@ -158,25 +182,7 @@ fn units_and_sides_that_do_not_match_are_refused() {
     assert!(line.contains("markers sit elsewhere"), "{line}");
     // The same trial in centimetres declared as millimetres (every distance ×0.1).
     let cm = scratch.path().join("cm.trc");
-    let text = std::fs::read_to_string(&walk).unwrap();
-    let scaled: Vec<String> = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| {
-            if i < 5 {
-                return l.to_string();
-            }
-            l.split('\t')
-                .enumerate()
-                .map(|(k, v)| match (k, v.trim().parse::<f64>()) {
-                    (k, Ok(x)) if k >= 2 => format!("{}", x * 0.1),
-                    _ => v.to_string(),
-                })
-                .collect::<Vec<_>>()
-                .join("\t")
-        })
-        .collect();
-    std::fs::write(&cm, scaled.join("\n") + "\n").unwrap();
+    scaled_trc(&walk, &cm, 0.1);
     let (code, _, err) = run(&[
         "calibrate",
         subject.to_str().unwrap(),
@@ -212,25 +218,7 @@ fn personalize_refuses_a_static_trial_of_no_adult_size() {
     };
     let dir = jointfit_testkit::scratch("verdict-anthropometry");
     let small = dir.path().join("small.trc");
-    let text = std::fs::read_to_string(&stat).unwrap();
-    let scaled: Vec<String> = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| {
-            if i < 5 {
-                return l.to_string();
-            }
-            l.split('\t')
-                .enumerate()
-                .map(|(k, v)| match (k, v.trim().parse::<f64>()) {
-                    (k, Ok(x)) if k >= 2 => format!("{}", x * 0.3),
-                    _ => v.to_string(),
-                })
-                .collect::<Vec<_>>()
-                .join("\t")
-        })
-        .collect();
-    std::fs::write(&small, scaled.join("\n") + "\n").unwrap();
+    scaled_trc(&stat, &small, 0.3);
     let out = dir.path().join("s.toml");
     let args = |trial: &Path| {
         run(&[

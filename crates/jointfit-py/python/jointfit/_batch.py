@@ -68,6 +68,7 @@ class Job:
     marker_noise_mm: Optional[float] = None
     max_iter: Optional[int] = None
     name: Optional[str] = None
+    accept_rejected: bool = False
 
     def __post_init__(self) -> None:
         if isinstance(self.trials, (str, bytes, os.PathLike, Trial)):
@@ -100,6 +101,7 @@ class Job:
             prior=self.prior,
             marker_noise_mm=self.marker_noise_mm,
             max_iter=self.max_iter,
+            accept_rejected=self.accept_rejected,
         )
 
     def run(self) -> Calibration:
