@@ -127,15 +127,7 @@ pub fn run(args: IkArgs) -> Result<()> {
         Columns::ForModel,
     )?;
     let trial = &loaded.trial;
-    let opts = IkOptions {
-        hold_undetermined: args.hold_undetermined,
-        outlier_distance: if args.keep_outliers {
-            f64::INFINITY
-        } else {
-            IkOptions::default().outlier_distance
-        },
-        ..IkOptions::default()
-    };
+    let opts = IkOptions::with_rules(args.hold_undetermined, !args.keep_outliers);
     let solved = solve(&model, trial, trial_path, model_name, &opts, false)?;
     let model = solved.held_model.as_ref().unwrap_or(&model);
     let seconds = solved.seconds;

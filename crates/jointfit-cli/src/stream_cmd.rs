@@ -60,15 +60,7 @@ pub fn run(args: StreamArgs) -> Result<()> {
         (None, Some(u)) => u,
         (None, None) => UpAxis::Y,
     };
-    let opts = IkOptions {
-        hold_undetermined: args.hold_undetermined,
-        outlier_distance: if args.keep_outliers {
-            f64::INFINITY
-        } else {
-            IkOptions::default().outlier_distance
-        },
-        ..IkOptions::default()
-    };
+    let opts = IkOptions::with_rules(args.hold_undetermined, !args.keep_outliers);
     let stdin = std::io::stdin();
     let stdout = std::io::stdout();
     let mut input = std::io::BufReader::with_capacity(1 << 16, stdin.lock());

@@ -51,15 +51,7 @@ impl PyStreamingIk {
     ) -> PyResult<Self> {
         let model = model_arg(py, model)?;
         let up = parse_up(up)?.or(model.spec().lab_up).unwrap_or(UpAxis::Y);
-        let opts = IkOptions {
-            hold_undetermined,
-            outlier_distance: if keep_outliers {
-                f64::INFINITY
-            } else {
-                IkOptions::default().outlier_distance
-            },
-            ..IkOptions::default()
-        };
+        let opts = IkOptions::with_rules(hold_undetermined, !keep_outliers);
         let stream = StreamingIk::for_feed(&model, &labels, up, opts)
             .map_err(|e| msg(format!("StreamingIK: {e}")))?;
         let mut warnings = Vec::new();

@@ -4,24 +4,12 @@
 use std::path::{Path, PathBuf};
 
 use roxmltree::{Document, Node};
-use thiserror::Error;
 
 use crate::osim_read::xml::{child, elements, name, numbers, path_leaf, text};
 
-#[derive(Debug, Error)]
-pub enum SetupError {
-    #[error("{path}: cannot read: {source}")]
-    Read {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    #[error("{path}: line {line}: {message}")]
-    Invalid {
-        path: PathBuf,
-        line: u32,
-        message: String,
-    },
-}
+/// Errors of a marker-set or scale-setup file: those of an `.osim` file (the same XML
+/// reading, the same one-line messages).
+pub use crate::osim_read::OsimReadError as SetupError;
 
 /// One marker of a marker set.
 #[derive(Debug, Clone, PartialEq)]

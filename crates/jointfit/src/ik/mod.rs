@@ -117,6 +117,25 @@ pub struct IkOptions {
     pub clamp: bool,
 }
 
+impl IkOptions {
+    /// The defaults with the two rules a front end chooses: coordinates no marker determines
+    /// held at the previous frame's values (`hold_undetermined`), and gross-error rejection
+    /// of markers beyond the default outlier distance (`reject_outliers`; off: every marker
+    /// is kept, as OpenSim's IK keeps them).
+    pub fn with_rules(hold_undetermined: bool, reject_outliers: bool) -> IkOptions {
+        let d = IkOptions::default();
+        IkOptions {
+            hold_undetermined,
+            outlier_distance: if reject_outliers {
+                d.outlier_distance
+            } else {
+                f64::INFINITY
+            },
+            ..d
+        }
+    }
+}
+
 impl Default for IkOptions {
     fn default() -> Self {
         IkOptions {
