@@ -224,7 +224,7 @@ fn bench_runs_without_data() {
 /// staged output that would appear only after OpenSim needed it).
 #[test]
 fn bench_times_opensim_on_the_shared_trial() {
-    let (Some(data), Some(_python)) = (jointfit::testing::data_dir(), jointfit::testing::python())
+    let (Some(data), Some(_python)) = (jointfit_testkit::data_dir(), jointfit_testkit::python())
     else {
         return;
     };

@@ -43,14 +43,14 @@ use crate::trial::Trial;
 mod segment;
 
 /// Distance change within a segment's cluster above which a pair is reported (m).
-pub const CLUSTER_TOLERANCE: f64 = 0.01;
+pub(crate) const CLUSTER_TOLERANCE: f64 = 0.01;
 /// The least mean difference (m) between two markers' model distances to their segment's
 /// other markers for a swap of the two to be tested: a real swap then changes those
 /// distances by twice this at least, beyond the skin motion of a gait trial (≈ 10–15 mm).
-pub const SWAP_MIN_ASYMMETRY: f64 = 0.02;
+pub(crate) const SWAP_MIN_ASYMMETRY: f64 = 0.02;
 /// Marker speed above which a frame-to-frame displacement is a jump (m/s); the fastest body
 /// markers (the foot in sprinting) stay below 20 m/s.
-pub const JUMP_SPEED: f64 = 30.0;
+pub(crate) const JUMP_SPEED: f64 = 30.0;
 /// Spans of a trial's markers that pass the units check (m).
 pub const PLAUSIBLE_SPAN: [f64; 2] = [0.05, 6.0];
 
@@ -185,7 +185,7 @@ fn units_hint(power: i32) -> &'static str {
 }
 
 /// Shortest model distance of a marker pair that enters the model-based units check (m).
-pub const MIN_PAIR_DISTANCE: f64 = 0.03;
+pub(crate) const MIN_PAIR_DISTANCE: f64 = 0.03;
 
 /// Every check of the module docs for `trial` against the subject `model` (markers matched
 /// by `map`). Frame numbers in messages are the file's.

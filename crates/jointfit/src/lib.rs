@@ -14,7 +14,7 @@ pub mod checks;
 pub mod ik;
 pub mod kinematics;
 pub mod landmarks;
-pub mod linalg;
+pub(crate) mod linalg;
 pub mod model;
 pub mod placement;
 pub mod plausibility;
@@ -23,8 +23,6 @@ pub mod residual_checks;
 pub mod scale;
 pub mod signal;
 pub mod solver;
-#[doc(hidden)]
-pub mod testing;
 pub mod trial;
 pub mod vertical;
 pub mod workflow;

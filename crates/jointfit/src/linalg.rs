@@ -7,7 +7,7 @@
 /// The Cholesky factor `L` (`A = L Lᵀ`) of a symmetric positive-definite `n × n` matrix,
 /// held in the caller's column-major buffer (allocation-free).
 #[derive(Debug)]
-pub struct Cholesky<'a> {
+pub(crate) struct Cholesky<'a> {
     l: &'a [f64],
     n: usize,
 }
@@ -15,22 +15,24 @@ pub struct Cholesky<'a> {
 impl<'a> Cholesky<'a> {
     /// Factors `a` (column-major `n × n`, only the lower triangle read) in place; `None`
     /// when a pivot is not positive (then `a` is partly overwritten and no factor exists).
-    pub fn factor(a: &'a mut [f64], n: usize) -> Option<Cholesky<'a>> {
+    pub(crate) fn factor(a: &'a mut [f64], n: usize) -> Option<Cholesky<'a>> {
         cholesky_in_place(a, n).then_some(Cholesky { l: a, n })
     }
 
     /// Solves `A x = b` in place (`b` becomes `x`).
-    pub fn solve(&self, b: &mut [f64]) {
+    pub(crate) fn solve(&self, b: &mut [f64]) {
         cholesky_solve(self.l, self.n, b);
     }
 
+    #[cfg(test)]
     /// Solves `L y = b` in place.
-    pub fn forward(&self, b: &mut [f64]) {
+    pub(crate) fn forward(&self, b: &mut [f64]) {
         forward_solve(self.l, self.n, b);
     }
 
+    #[cfg(test)]
     /// Solves `Lᵀ x = y` in place.
-    pub fn backward(&self, b: &mut [f64]) {
+    pub(crate) fn backward(&self, b: &mut [f64]) {
         backward_solve(self.l, self.n, b);
     }
 }

@@ -32,23 +32,23 @@ use crate::trial::Trial;
 
 /// The median pair ratio outside which the two files are in different units or describe
 /// different things.
-pub const UNIT_RATIO: [f64; 2] = [0.6, 1.6];
+pub(crate) const UNIT_RATIO: [f64; 2] = [0.6, 1.6];
 /// A segment's median distance ratio further than this from 1 is another build.
-pub const BUILD_RATIO: f64 = 0.08;
+pub(crate) const BUILD_RATIO: f64 = 0.08;
 /// ... when its median distance change is also above this (m) ...
-pub const BUILD_CHANGE: f64 = 0.012;
+pub(crate) const BUILD_CHANGE: f64 = 0.012;
 /// ... and the median ratio over every pair is further than this from 1.
-pub const BUILD_OVERALL: f64 = 0.025;
+pub(crate) const BUILD_OVERALL: f64 = 0.025;
 /// A marker whose median distance change to its segment partners is above this is displaced
 /// (m): twice the soft-tissue motion of a thigh marker in gait.
-pub const DISPLACED: f64 = 0.03;
+pub(crate) const DISPLACED: f64 = 0.03;
 /// A marker displaced by more than this (m) was not re-attached: its label names another
 /// marker (a re-attached marker lands within a few centimetres of where it was).
 pub const GROSS: f64 = 0.08;
 /// Least number of pairs of a segment for its build ratio.
-pub const MIN_PAIRS: usize = 3;
+pub(crate) const MIN_PAIRS: usize = 3;
 /// Pairs shorter than this in the model do not enter ratios (m): their ratio is mostly noise.
-pub const MIN_PAIR_LENGTH: f64 = 0.04;
+pub(crate) const MIN_PAIR_LENGTH: f64 = 0.04;
 
 /// One pair of markers of one segment.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -104,7 +104,7 @@ pub enum Mismatch {
 
 impl Mismatch {
     /// The cause in words (no file name; the caller prefixes it).
-    pub fn cause(&self) -> String {
+    pub(crate) fn cause(&self) -> String {
         match self {
             Mismatch::Units { ratio } => format!(
                 "its markers are {ratio:.3} times as far apart as the model's: the two are in \
@@ -241,7 +241,7 @@ pub fn compare(model: &Model, trial: &Trial, map: &MarkerMap) -> Placement {
 impl Placement {
     /// The segments whose markers changed together beyond [`BUILD_RATIO`] and
     /// [`BUILD_CHANGE`]: (segment, median change (m), pairs), largest change first.
-    pub fn rebuilt_segments(&self) -> Vec<(String, f64, usize)> {
+    pub(crate) fn rebuilt_segments(&self) -> Vec<(String, f64, usize)> {
         let mut out: Vec<(String, f64, usize)> = self
             .segments
             .iter()
@@ -269,7 +269,7 @@ impl Placement {
     }
 
     /// The markers displaced by more than [`DISPLACED`], largest first.
-    pub fn displaced(&self) -> Vec<(String, f64)> {
+    pub(crate) fn displaced(&self) -> Vec<(String, f64)> {
         let mut out: Vec<(String, f64)> = self
             .markers
             .iter()

@@ -40,18 +40,19 @@ pub struct Check {
 }
 
 impl Check {
+    #[cfg(test)]
     /// How far outside the envelope (0 when inside).
-    pub fn excess(&self) -> f64 {
+    pub(crate) fn excess(&self) -> f64 {
         (self.value - self.limit).max(0.0)
     }
 }
 
 /// 95 % radius of an isotropic 3-D normal, in σ (√χ²₃(0.95)).
-pub const RADIUS_95_3D: f64 = 2.795;
+pub(crate) const RADIUS_95_3D: f64 = 2.795;
 /// 95 % radius of an isotropic 2-D normal, in σ (√χ²₂(0.95)).
-pub const RADIUS_95_2D: f64 = 2.448;
+pub(crate) const RADIUS_95_2D: f64 = 2.448;
 /// Largest accepted hip-centre lateral offset as a fraction of half the inter-ASIS width.
-pub const HIP_LATERAL_FRACTION: f64 = 0.9;
+pub(crate) const HIP_LATERAL_FRACTION: f64 = 0.9;
 
 fn sd_of(model: &Model, i: usize) -> f64 {
     let p = &model.parameters()[i];
@@ -69,7 +70,7 @@ fn sd_of(model: &Model, i: usize) -> f64 {
 
 /// Half the inter-ASIS distance (m) from the pelvis markers on the pelvis z axis, if any
 /// (at their static-trial positions when the markers are refined, [`marker_home`]).
-pub fn half_pelvis_width(model: &Model) -> Option<f64> {
+pub(crate) fn half_pelvis_width(model: &Model) -> Option<f64> {
     let pelvis = model.segments().iter().position(|s| s.name == "pelvis")?;
     let zs: Vec<f64> = (0..model.n_markers())
         .map(|j| marker_home(model, j))
@@ -307,15 +308,15 @@ impl Measure {
 /// Thigh length range (mm): hip centre to knee axis. Winter (2009, Biomechanics and Motor
 /// Control of Human Movement, 4th ed., Table 4.1) gives 0.245 × stature, 343–515 mm for
 /// statures 1.40–2.10 m; widened by 10 % for where the landmark method puts the centres.
-pub const THIGH_MM: [f64; 2] = [300.0, 570.0];
+pub(crate) const THIGH_MM: [f64; 2] = [300.0, 570.0];
 /// Shank length range (mm): knee axis to talocrural axis, 0.246 × stature (same source).
-pub const SHANK_MM: [f64; 2] = [300.0, 570.0];
+pub(crate) const SHANK_MM: [f64; 2] = [300.0, 570.0];
 /// Inter-ASIS width range (mm): 190–300 mm in adults (Bell et al. 1990, J Biomech
 /// 23:617–621: 20 adults 205–288 mm), widened for marker radius and obesity.
-pub const PELVIS_MM: [f64; 2] = [150.0, 380.0];
+pub(crate) const PELVIS_MM: [f64; 2] = [150.0, 380.0];
 /// Thigh-to-shank length ratio range: 1.0 ± 0.1 in Winter's proportions, widened for where
 /// the landmark method puts the centres.
-pub const THIGH_SHANK_RATIO: [f64; 2] = [0.7, 1.45];
+pub(crate) const THIGH_SHANK_RATIO: [f64; 2] = [0.7, 1.45];
 
 /// The subject model's thigh and shank lengths, their ratio and the pelvis width at
 /// parameters `p`, for every leg of the lower-limb template the model has (parameter names

@@ -38,14 +38,14 @@ use crate::trial::Trial;
 
 /// Smallest mean residual (m) in the segment frame that counts as a displaced marker. The
 /// clean shared trials stay below 22 mm (`docs/moved_clusters.md`).
-pub const MIN_OFFSET: f64 = 0.03;
+pub(crate) const MIN_OFFSET: f64 = 0.03;
 /// Smallest ratio of the mean residual to its spread that counts as systematic.
-pub const MIN_RATIO: f64 = 2.0;
+pub(crate) const MIN_RATIO: f64 = 2.0;
 /// Frames a marker must be present (and its frame solved) in for its statistic.
-pub const MIN_FRAMES: usize = 10;
+pub(crate) const MIN_FRAMES: usize = 10;
 /// Frames looked at, at most (consecutive, from the middle of a longer trial: 2 s at 100 Hz,
 /// a gait cycle).
-pub const MAX_FRAMES: usize = 200;
+pub(crate) const MAX_FRAMES: usize = 200;
 
 /// The residual statistic of one model marker over a trial.
 #[derive(Debug, Clone, PartialEq)]
@@ -66,7 +66,7 @@ impl MarkerOffset {
         self.mean.norm()
     }
     /// `‖μ_j‖ / σ_j` (infinite when the spread is zero).
-    pub fn ratio(&self) -> f64 {
+    pub(crate) fn ratio(&self) -> f64 {
         if self.spread > 0.0 {
             self.size() / self.spread
         } else {
@@ -74,7 +74,7 @@ impl MarkerOffset {
         }
     }
     /// Whether the offset is large and systematic (see the module docs).
-    pub fn displaced(&self) -> bool {
+    pub(crate) fn displaced(&self) -> bool {
         self.frames >= MIN_FRAMES && self.size() >= MIN_OFFSET && self.ratio() >= MIN_RATIO
     }
 }
@@ -99,7 +99,7 @@ pub fn marker_offsets(
 
 /// The statistic from an inverse kinematics `fit` of `trial` already at hand (every solved
 /// frame enters): what [`marker_offsets`] computes after its own IK.
-pub fn offsets_of_fit(
+pub(crate) fn offsets_of_fit(
     model: &Model,
     p: &[f64],
     trial: &Trial,

@@ -25,7 +25,7 @@ pub enum Termination {
 
 impl Termination {
     /// `true` only for [`Termination::Converged`].
-    pub fn converged(self) -> bool {
+    pub(crate) fn converged(self) -> bool {
         self == Termination::Converged
     }
 

@@ -282,7 +282,7 @@ pub enum UpAxis {
 
 impl UpAxis {
     /// Every axis, in the order `y, -y, z, -z, x, -x`.
-    pub const ALL: [UpAxis; 6] = [
+    pub(crate) const ALL: [UpAxis; 6] = [
         UpAxis::Y,
         UpAxis::NegY,
         UpAxis::Z,
@@ -311,7 +311,7 @@ impl UpAxis {
     }
 
     /// The lab's unit vector that points up.
-    pub fn direction(self) -> Vector3<f64> {
+    pub(crate) fn direction(self) -> Vector3<f64> {
         match self {
             UpAxis::Y => Vector3::y(),
             UpAxis::NegY => -Vector3::y(),

@@ -23,7 +23,7 @@ use nalgebra::Vector3;
 use crate::trial::{Trial, UpAxis};
 
 /// `d` must lie within this angle of a coordinate axis (rad) for the answer to be trusted.
-pub const MAX_TILT: f64 = 35.0 * std::f64::consts::PI / 180.0;
+pub(crate) const MAX_TILT: f64 = 35.0 * std::f64::consts::PI / 180.0;
 
 /// Short codes matched exactly (after the normalisation of the module docs) and the height
 /// they stand for (fraction of stature).
@@ -101,7 +101,7 @@ const CONTAINS: &[(&str, f64)] = &[
 ];
 
 /// The height (fraction of stature) a marker label stands for, if it names a known landmark.
-pub fn label_height(label: &str) -> Option<f64> {
+pub(crate) fn label_height(label: &str) -> Option<f64> {
     let label = label
         .rsplit(':')
         .next()
@@ -231,13 +231,6 @@ pub fn detect_up(trial: &Trial) -> Option<UpDetection> {
         tilt,
         markers: points.len(),
     })
-}
-
-/// For a trial already rotated to the model's Y-up frame: `Some(detection)` when its markers
-/// say that some other lab axis is up (the trial looks rotated relative to the subject model:
-/// a different `--up` is needed), `None` when they agree with Y or say nothing.
-pub fn rotated_relative_to_model(trial: &Trial) -> Option<UpDetection> {
-    detect_up(trial).filter(|d| d.up != UpAxis::Y)
 }
 
 /// The warning for a trial as recorded (`raw`, lab frame) that is about to be read with `up`

@@ -44,7 +44,6 @@ use std::io::Write;
 use std::time::Instant;
 
 use args::{misplaced, parse};
-use jointfit::testing::params_from_priors;
 use policy::{Errors, Policy, GROUPS};
 
 use jointfit::calibrate::prior::Source;
@@ -118,7 +117,7 @@ fn main() {
     });
     for seed in args.first_seed..args.first_seed + args.seeds {
         let truth = match (args.prior, args.perturb) {
-            (true, _) => params_from_priors(&model, seed),
+            (true, _) => model.sample_priors(seed),
             (false, Some((mm, deg))) => {
                 perturb(&model, &model.nominal_params(), &every, mm, deg, seed)
             }

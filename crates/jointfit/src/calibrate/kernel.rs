@@ -61,7 +61,7 @@ pub(crate) struct FrameScratch {
 }
 
 impl FrameScratch {
-    pub fn new(prob: &Problem) -> Self {
+    pub(crate) fn new(prob: &Problem) -> Self {
         let mut sc = Self::tiled(prob);
         sc.twist = TwistPlan::new(prob);
         sc
@@ -69,13 +69,13 @@ impl FrameScratch {
 
     /// Whether this workspace takes the twist kernel.
     #[cfg(test)]
-    pub fn is_twist(&self) -> bool {
+    pub(crate) fn is_twist(&self) -> bool {
         self.twist.is_some()
     }
 
     /// A workspace of the tiled kernel, whatever the problem (the twist kernel's fallback,
     /// and its oracle in tests).
-    pub fn tiled(prob: &Problem) -> Self {
+    pub(crate) fn tiled(prob: &Problem) -> Self {
         let model = prob.model;
         let n = model.n_q() + prob.n_free();
         let nrows = 3 * model.n_markers();
@@ -109,7 +109,7 @@ pub(crate) struct ScratchPool(Mutex<Vec<FrameScratch>>);
 
 impl ScratchPool {
     /// A workspace from the pool (or a new one), returned to the pool when dropped.
-    pub fn take<'a>(&'a self, prob: &Problem) -> Pooled<'a> {
+    pub(crate) fn take<'a>(&'a self, prob: &Problem) -> Pooled<'a> {
         let sc = self
             .0
             .lock()

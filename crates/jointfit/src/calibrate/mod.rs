@@ -45,10 +45,10 @@ use crate::ik::{
 };
 use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::{Model, ParamId};
-pub use crate::solver::Termination;
+pub(crate) use crate::solver::Termination;
 use crate::trial::Trial;
 use nalgebra::Vector3;
-pub use targets::Targets;
+pub(crate) use targets::Targets;
 
 #[derive(Debug, Error, PartialEq)]
 pub enum CalibError {
@@ -123,11 +123,11 @@ fn group_choices(model: &Model) -> String {
 }
 
 /// Frames per partial sum of [`Problem::inner`] (fixed: it sets the order of the sum).
-pub const INNER_CHUNK: usize = 256;
+pub(crate) const INNER_CHUNK: usize = 256;
 
 /// Frames per parallel task of [`Problem::inner`] (any value gives the same result; small
 /// enough that a 143-frame trial is split between the threads).
-pub const INNER_TASK: usize = 16;
+pub(crate) const INNER_TASK: usize = 16;
 
 /// One calibration problem: model, free parameters, the frames to fit (their targets read
 /// from the trials in place, which therefore live as long as the problem).
@@ -333,7 +333,7 @@ impl<'m> Problem<'m> {
 
     /// The inner level's IK options at the `ik` command's step tolerance: those of
     /// [`Problem::initial_coords`].
-    pub fn start_ik(&self) -> IkOptions {
+    pub(crate) fn start_ik(&self) -> IkOptions {
         IkOptions {
             step_tolerance: IkOptions::default().step_tolerance,
             ..self.ik
@@ -362,7 +362,7 @@ impl<'m> Problem<'m> {
     /// The forward kinematics run in parallel over blocks of [`ERROR_BLOCK`] frames and the
     /// visits follow in order on the calling thread, so any sum the caller forms has the
     /// same bits on any number of threads (and as a serial loop).
-    pub fn visit_marker_errors(
+    pub(crate) fn visit_marker_errors(
         &self,
         p: &[f64],
         qs: &[Vec<f64>],
@@ -395,7 +395,7 @@ impl<'m> Problem<'m> {
 }
 
 /// Frames per block of [`Problem::visit_marker_errors`] (bounds its memory on long trials).
-pub const ERROR_BLOCK: usize = 4096;
+pub(crate) const ERROR_BLOCK: usize = 4096;
 
 /// The result of an outer solve.
 #[derive(Debug, Clone)]

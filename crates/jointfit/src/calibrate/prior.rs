@@ -44,7 +44,7 @@ pub struct Prior {
 impl Prior {
     /// The prior that the model file states (`prior_sd`, `prior_mean`) for the parameters
     /// `free`; `None` when none of them has a prior SD.
-    pub fn from_model(model: &Model, free: &[usize], noise: f64) -> Option<Prior> {
+    pub(crate) fn from_model(model: &Model, free: &[usize], noise: f64) -> Option<Prior> {
         let pars: Vec<_> = free.iter().map(|&i| &model.parameters()[i]).collect();
         if pars.iter().all(|p| p.prior_sd.is_none()) {
             return None;
@@ -63,7 +63,7 @@ impl Prior {
 
     /// Weight `a_k σ²/s_k²` of parameter k's prior residual (`a_k`: [`Prior::inflation`];
     /// 0 without a prior).
-    pub fn weight(&self, k: usize) -> f64 {
+    pub(crate) fn weight(&self, k: usize) -> f64 {
         let w = (self.noise / self.sd[k]).powi(2) * self.inflation[k];
         if w.is_finite() {
             w
@@ -116,7 +116,7 @@ impl Problem<'_> {
 
     /// Prior information of the free parameters in scaled units (`σ²h_k²/s_k²`, the
     /// diagonal the prior adds to the reduced normal matrix); zeros without a prior.
-    pub fn prior_information(&self) -> Vec<f64> {
+    pub(crate) fn prior_information(&self) -> Vec<f64> {
         (0..self.n_free())
             .map(|k| match &self.prior {
                 Some(pr) => pr.weight(k) * self.half_range(k).powi(2),
@@ -297,7 +297,7 @@ fn variance_ratio(p: &super::uncertainty::ParamUncertainty) -> Option<f64> {
 /// concentrates on a parameter (the hip centre in squats, sit-to-stand and ankle circles:
 /// `r_k` 2–6 × `κ`, `docs/priors.md`) the trial counts for less there; elsewhere `κ` stays,
 /// so the noisy `r_k` of one parameter never weakens its prior below the trial's rule.
-pub fn parameter_inflation(
+pub(crate) fn parameter_inflation(
     u: &super::uncertainty::Uncertainty,
     names: &[&str],
     kappa: f64,

@@ -146,12 +146,12 @@ fn hold_split(bounds: &[(usize, f64, f64)], q: &[f64], nf: usize, out: &mut [f64
 
 impl Blocks {
     /// Room for the blocks of `n_frames` frames within [`CACHE_BYTES`].
-    pub fn new(prob: &Problem) -> Self {
+    pub(crate) fn new(prob: &Problem) -> Self {
         Self::with_budget(prob, CACHE_BYTES)
     }
 
     /// As [`Blocks::new`] with a cache of at most `bytes` (0: recompute every frame).
-    pub fn with_budget(prob: &Problem, bytes: usize) -> Self {
+    pub(crate) fn with_budget(prob: &Problem, bytes: usize) -> Self {
         let nq = prob.model.n_q();
         let nf = prob.n_free();
         let frames = prob.frames.len();

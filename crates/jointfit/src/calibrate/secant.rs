@@ -66,7 +66,7 @@ pub(crate) struct Secant {
 }
 
 impl Secant {
-    pub fn new(n: usize) -> Self {
+    pub(crate) fn new(n: usize) -> Self {
         Secant {
             n,
             a: vec![0.0; n * n],
@@ -77,7 +77,7 @@ impl Secant {
     }
 
     /// Whether the next step uses the augmented model.
-    pub fn augmented(&self) -> bool {
+    pub(crate) fn augmented(&self) -> bool {
         self.augmented
     }
 
@@ -85,7 +85,7 @@ impl Secant {
     /// of the step (n × n, column-major): in the metric of `S = L Lᵀ` the eigenvalues of
     /// `L⁻¹ A L⁻ᵀ` are raised to at least `θ − 1`. `None` while `A` is zero or when `S` is not
     /// positive definite.
-    pub fn limited(&self, s: &[f64]) -> Option<Vec<f64>> {
+    pub(crate) fn limited(&self, s: &[f64]) -> Option<Vec<f64>> {
         let n = self.n;
         if self.a.iter().all(|&x| x == 0.0) {
             return None;
@@ -120,13 +120,13 @@ impl Secant {
     }
 
     /// `dᵀ M d` for `m` (n × n, column-major).
-    pub fn curvature(&self, m: &[f64], d: &[f64]) -> f64 {
+    pub(crate) fn curvature(&self, m: &[f64], d: &[f64]) -> f64 {
         quad(m, self.n, d)
     }
 
     /// At a new point: the undamped reduced matrix `s` and right-hand side `g` there. Updates
     /// `A` with the secant pair from the previous point, when there was one.
-    pub fn observe(&mut self, s: &[f64], g: &[f64]) {
+    pub(crate) fn observe(&mut self, s: &[f64], g: &[f64]) {
         if let Some((g0, d)) = self.last.take() {
             let n = self.n;
             // y♯ = g(s) − g(s₊) − S₊ δ
@@ -139,14 +139,14 @@ impl Secant {
     }
 
     /// The point's data are not available (a singular frame at λ = 0): no update from it.
-    pub fn forget(&mut self) {
+    pub(crate) fn forget(&mut self) {
         self.last = None;
         self.here = None;
     }
 
     /// The step `d` was accepted; `actual` the objective's decrease, `gauss_newton` and
     /// `augmented` the two models' predictions: picks the model for the next step.
-    pub fn accepted(&mut self, d: &[f64], actual: f64, gauss_newton: f64, augmented: f64) {
+    pub(crate) fn accepted(&mut self, d: &[f64], actual: f64, gauss_newton: f64, augmented: f64) {
         self.augmented = (actual - augmented).abs() < (actual - gauss_newton).abs();
         self.last = self.here.take().map(|g| (g, d.to_vec()));
     }

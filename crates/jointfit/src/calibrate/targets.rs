@@ -72,18 +72,18 @@ impl<'t> Targets<'t> {
         self.frames.len()
     }
 
-    pub fn is_empty(&self) -> bool {
+    pub(crate) fn is_empty(&self) -> bool {
         self.frames.is_empty()
     }
 
     /// Model markers per frame.
-    pub fn n_markers(&self) -> usize {
+    pub(crate) fn n_markers(&self) -> usize {
         self.n_markers
     }
 
     /// Frame `f`'s targets, one per model marker (NaN where missing), into `out`; returns
     /// them.
-    pub fn fill<'a>(&self, f: usize, out: &'a mut Vec<Vector3<f64>>) -> &'a [Vector3<f64>] {
+    pub(crate) fn fill<'a>(&self, f: usize, out: &'a mut Vec<Vector3<f64>>) -> &'a [Vector3<f64>] {
         let (s, k) = self.frames[f];
         self.fill_from(s as usize, k as usize, out)
     }
@@ -115,12 +115,12 @@ impl<'t> Targets<'t> {
     }
 
     /// Every frame's targets in order, each in a new vector.
-    pub fn iter(&self) -> impl Iterator<Item = Vec<Vector3<f64>>> + '_ {
+    pub(crate) fn iter(&self) -> impl Iterator<Item = Vec<Vector3<f64>>> + '_ {
         (0..self.len()).map(|f| self.get(f))
     }
 
     /// The targets of the frames `frames` (indices into these), in that order.
-    pub fn select(&self, frames: impl IntoIterator<Item = usize>) -> Self {
+    pub(crate) fn select(&self, frames: impl IntoIterator<Item = usize>) -> Self {
         Targets {
             sources: self.sources.clone(),
             frames: frames.into_iter().map(|f| self.frames[f]).collect(),

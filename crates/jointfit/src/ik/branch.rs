@@ -110,7 +110,7 @@ impl Branches {
 
     /// Replaces `q` by the equivalent coordinates inside the ranges (see the module docs);
     /// the marker positions stay the same (to rounding). NaN coordinates are left alone.
-    pub fn canonicalize(&self, q: &mut [f64]) {
+    pub(crate) fn canonicalize(&self, q: &mut [f64]) {
         for &[(a, ka), (b, kb), (c, kc)] in &self.triples {
             let solved = [q[a], q[b], q[c]];
             let other = [

@@ -72,11 +72,11 @@ impl IkWorkspace {
     }
     /// Sets the coordinate tasks the next frames solved with this workspace obey: those of
     /// trial frame `frame` ([`super::CoordinateTask`]; an empty slice: none).
-    pub fn set_coordinate_goals(&mut self, tasks: &[super::CoordinateTask], frame: usize) {
+    pub(crate) fn set_coordinate_goals(&mut self, tasks: &[super::CoordinateTask], frame: usize) {
         super::tasks::frame_goals(tasks, frame, &mut self.goals, &mut self.known);
     }
     /// Kinematics at the last solution (marker positions of the last accepted point).
-    pub fn kin(&self) -> &KinData {
+    pub(crate) fn kin(&self) -> &KinData {
         &self.cur
     }
 }
@@ -125,14 +125,14 @@ fn gross_error(targets: &[Vector3<f64>], ws: &IkWorkspace, opts: &IkOptions) -> 
 
 /// Whether a (non-NaN) marker sample is a gross error: not finite, or farther than 1 km from
 /// the laboratory origin.
-pub fn is_gross(t: &Vector3<f64>) -> bool {
+pub(crate) fn is_gross(t: &Vector3<f64>) -> bool {
     let d = t.norm();
     !d.is_finite() || d >= ABSURD_DISTANCE
 }
 
 /// The first coordinate the present markers of `targets` leave undetermined at parameters
 /// `p` ([`super::solvable`]); `None` when the frame is solvable.
-pub fn undetermined_coordinate(
+pub(crate) fn undetermined_coordinate(
     model: &Model,
     p: &[f64],
     targets: &[Vector3<f64>],

@@ -42,13 +42,13 @@ mod frames;
 mod lm;
 mod markers;
 mod normal;
-pub mod repair;
+pub(crate) mod repair;
 mod seed;
 #[cfg(test)]
 mod seed_tests;
-pub mod solvable;
+pub(crate) mod solvable;
 mod stream;
-pub mod tasks;
+pub(crate) mod tasks;
 #[cfg(test)]
 mod tasks_tests;
 mod trial_fit;
@@ -56,15 +56,26 @@ mod trial_fit;
 use thiserror::Error;
 
 pub use frames::warm_started_coords;
-pub use lm::{is_gross, solve_frame, undetermined_coordinate, IkWorkspace};
+pub(crate) use lm::is_gross;
+pub use lm::solve_frame;
+pub(crate) use lm::undetermined_coordinate;
+pub use lm::IkWorkspace;
 pub use markers::MarkerMap;
-pub use seed::{seed_frame, seed_frame_by_scouting};
-pub use stream::{StreamError, StreamingIk};
+pub use seed::seed_frame;
+#[cfg(test)]
+use seed::seed_frame_by_scouting;
+pub use stream::StreamError;
+pub use stream::StreamingIk;
 pub use tasks::CoordinateTask;
-pub use trial_fit::{
-    chunk_ranges, extrapolate, rms, solve_trial, solve_trial_alongside, solve_trial_in_chunks,
-    trial_chunk_ranges, unsolved_ranges, TrialFit, UnsolvedRange, MIN_SPLIT_FRAMES,
-};
+pub use trial_fit::chunk_ranges;
+pub(crate) use trial_fit::extrapolate;
+pub use trial_fit::rms;
+pub use trial_fit::solve_trial;
+pub(crate) use trial_fit::solve_trial_alongside;
+pub use trial_fit::solve_trial_in_chunks;
+pub use trial_fit::trial_chunk_ranges;
+pub use trial_fit::unsolved_ranges;
+pub use trial_fit::TrialFit;
 
 /// Why IK could not start.
 #[derive(Debug, Error, PartialEq)]

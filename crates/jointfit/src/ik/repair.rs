@@ -36,13 +36,13 @@ use crate::model::Model;
 use crate::trial::Trial;
 
 /// A frame is suspect above `max(SUSPECT_RATIO · m, m + SUSPECT_MARGIN)` (m: the median).
-pub const SUSPECT_RATIO: f64 = 2.0;
+pub(crate) const SUSPECT_RATIO: f64 = 2.0;
 /// See [`SUSPECT_RATIO`] (m).
-pub const SUSPECT_MARGIN: f64 = 0.005;
+pub(crate) const SUSPECT_MARGIN: f64 = 0.005;
 /// A frame is implausible above `max(IMPLAUSIBLE_RATIO · m, m + IMPLAUSIBLE_MARGIN)`.
-pub const IMPLAUSIBLE_RATIO: f64 = 5.0;
+pub(crate) const IMPLAUSIBLE_RATIO: f64 = 5.0;
 /// See [`IMPLAUSIBLE_RATIO`] (m).
-pub const IMPLAUSIBLE_MARGIN: f64 = 0.05;
+pub(crate) const IMPLAUSIBLE_MARGIN: f64 = 0.05;
 
 /// The median of `v` (NaN when empty).
 fn median(mut v: Vec<f64>) -> f64 {

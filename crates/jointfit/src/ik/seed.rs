@@ -43,10 +43,11 @@ pub fn seed_frame(
     q
 }
 
+#[cfg(test)]
 /// [`seed_frame`] without the certified shortcut ([`certified_root`]): every root scouted
 /// on the grid. The oracle of the shortcut's tests.
 #[doc(hidden)]
-pub fn seed_frame_by_scouting(
+pub(crate) fn seed_frame_by_scouting(
     model: &Model,
     p: &[f64],
     targets: &[Vector3<f64>],

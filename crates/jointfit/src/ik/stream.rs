@@ -218,11 +218,6 @@ impl StreamingIk {
         &self.model
     }
 
-    /// The parameters the frames are solved at.
-    pub fn params(&self) -> &[f64] {
-        &self.p
-    }
-
     /// Model markers the feed lacks: missing in every frame.
     pub fn absent(&self) -> &[String] {
         &self.absent

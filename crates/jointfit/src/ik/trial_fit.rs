@@ -56,7 +56,7 @@ pub fn rms(values: impl Iterator<Item = f64>) -> f64 {
 /// `q_i⁰ = 2 q_{i−1} − q_{i−2}`. At mocap rates the coordinates are smooth, so this starts
 /// within `O(Δt²)` of the solution instead of `O(Δt)`, which saves about one Gauss-Newton
 /// iteration per frame.
-pub fn extrapolate(prev: &[f64], before: &[f64]) -> Vec<f64> {
+pub(crate) fn extrapolate(prev: &[f64], before: &[f64]) -> Vec<f64> {
     prev.iter().zip(before).map(|(a, b)| 2.0 * a - b).collect()
 }
 
@@ -91,7 +91,7 @@ pub fn solve_trial(
 /// a chunk first and `also` (with the parallel tasks it spawns) fills the time of whichever
 /// thread finishes its chunk first, instead of delaying a chunk by its whole length. Neither
 /// result depends on the order the pool runs them in.
-pub fn solve_trial_alongside<R: Send>(
+pub(crate) fn solve_trial_alongside<R: Send>(
     model: &Model,
     p: &[f64],
     trial: &Trial,
@@ -181,15 +181,15 @@ fn solve_chunks_alongside<R: Send>(
 /// Fewest frames in a chunk of a long trial (in [`trial_chunk_ranges`] and [`chunk_ranges`]): from 1024 frames on a trial is cut into `⌊n / 512⌋` chunks, so that
 /// the seeds cost under 5 % and, from 4096 frames on, there are enough chunks for work
 /// stealing to balance the load on a shared machine.
-pub const MIN_CHUNK_FRAMES: usize = 512;
+pub(crate) const MIN_CHUNK_FRAMES: usize = 512;
 /// Most chunks in a trial (enough to balance the load on a few cores).
-pub const MAX_CHUNKS: usize = 32;
+pub(crate) const MAX_CHUNKS: usize = 32;
 /// From this many frames on [`solve_trial`] cuts a trial into at least two chunks, so that a
 /// short trial (a gait cycle or two) uses two cores. The second chunk's seed costs about as
 /// much as 2 warm-started frames (`seed.rs`: 0.21 M instructions, 1.26 M before the
 /// certified root fit, against ≈ 0.12 M a frame on walking1), and two idle cores solve it
 /// in ≈ 0.55 of the one-chunk time (measurements in `notebook/ik_speed.md`).
-pub const MIN_SPLIT_FRAMES: usize = 128;
+pub(crate) const MIN_SPLIT_FRAMES: usize = 128;
 
 /// The chunks of consecutive frames [`solve_trial`] solves independently: one below
 /// [`MIN_SPLIT_FRAMES`] frames, else `k = clamp(⌊n / 512⌋, 2, 32)` chunks of nearly equal

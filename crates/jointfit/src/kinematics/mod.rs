@@ -39,20 +39,20 @@ impl Pose {
             trans: Vector3::zeros(),
         }
     }
-    pub fn new(rot: Matrix3<f64>, trans: Vector3<f64>) -> Self {
+    pub(crate) fn new(rot: Matrix3<f64>, trans: Vector3<f64>) -> Self {
         Pose { rot, trans }
     }
-    pub fn is_identity(&self) -> bool {
+    pub(crate) fn is_identity(&self) -> bool {
         self.trans == Vector3::zeros() && self.rot == Matrix3::identity()
     }
     /// `self · other`.
-    pub fn compose(&self, other: &Pose) -> Pose {
+    pub(crate) fn compose(&self, other: &Pose) -> Pose {
         Pose {
             rot: self.rot * other.rot,
             trans: self.trans + self.rot * other.trans,
         }
     }
-    pub fn inverse(&self) -> Pose {
+    pub(crate) fn inverse(&self) -> Pose {
         let rt = self.rot.transpose();
         Pose {
             rot: rt,
@@ -238,7 +238,7 @@ impl Want {
         dp: true,
         axes: true,
     };
-    pub const AXES: Want = Want {
+    pub(crate) const AXES: Want = Want {
         dq: false,
         dp: false,
         axes: true,

@@ -238,7 +238,7 @@ fn leg_labels(set: &MarkerSet, side: Side) -> Result<Vec<String>, LandmarkError>
 }
 
 /// Joins two one-sided personalizations (see the module docs).
-pub fn join(
+pub(crate) fn join(
     right: Personalized,
     left: Personalized,
     set: &MarkerSet,
@@ -248,7 +248,7 @@ pub fn join(
 }
 
 /// [`join`] with the set given by name (a marker set's or a keypoint set's).
-pub fn join_named(
+pub(crate) fn join_named(
     right: Personalized,
     left: Personalized,
     set_name: &str,

@@ -39,12 +39,12 @@ use crate::model::lower_limb::Side;
 use crate::trial::Trial;
 
 /// Weight of the trunk point among the pelvis markers.
-pub const TRUNK_WEIGHT: f64 = 0.25;
+pub(crate) const TRUNK_WEIGHT: f64 = 0.25;
 
 /// Prior SD (m, per axis) of the joint-centre position parameters of a keypoint model: 3-D
 /// joint centres from multi-camera pose estimation differ from marker-based ones by about
 /// 2–5 cm (Needham et al. 2021, Sci Rep 11:20673); judged 25 mm per axis.
-pub const KEYPOINT_SD: f64 = 0.025;
+pub(crate) const KEYPOINT_SD: f64 = 0.025;
 
 /// Half the nominal knee and ankle widths of the virtual landmarks (m).
 const HALF_KNEE: f64 = 0.05;
@@ -99,7 +99,7 @@ impl KeypointSet {
     }
 
     /// Parses a keypoint-set TOML; `name` (a file name) is used in errors.
-    pub fn from_toml(text: &str, name: &str) -> Result<KeypointSet, LandmarkError> {
+    pub(crate) fn from_toml(text: &str, name: &str) -> Result<KeypointSet, LandmarkError> {
         let set: KeypointSet =
             toml::from_str(text).map_err(|e| LandmarkError::MarkerSetSyntax {
                 source_name: name.to_string(),
@@ -114,7 +114,7 @@ impl KeypointSet {
         Ok(set)
     }
 
-    pub fn leg(&self, side: Side) -> &KeypointLeg {
+    pub(crate) fn leg(&self, side: Side) -> &KeypointLeg {
         match side {
             Side::Right => &self.right,
             Side::Left => &self.left,
@@ -122,7 +122,7 @@ impl KeypointSet {
     }
 
     /// Every label the set needs, both legs.
-    pub fn labels(&self) -> Vec<String> {
+    pub(crate) fn labels(&self) -> Vec<String> {
         let mut out: Vec<String> = Vec::new();
         for side in [Side::Right, Side::Left] {
             for (_, l) in self.roles(side) {
@@ -135,7 +135,7 @@ impl KeypointSet {
     }
 
     /// (role, label) of one leg: the pelvis's keypoints, then the leg's.
-    pub fn roles(&self, side: Side) -> Vec<(String, String)> {
+    pub(crate) fn roles(&self, side: Side) -> Vec<(String, String)> {
         let leg = self.leg(side);
         let mut out = vec![
             ("right hip centre".to_string(), self.right.hip.clone()),
@@ -290,7 +290,7 @@ fn widen_priors(spec: &mut crate::model::spec::ModelSpec) {
 
 /// The keypoint preset whose every label `labels` has, the first in
 /// [`KEYPOINT_PRESET_NAMES`] order.
-pub fn fitting_preset(labels: &[String]) -> Option<&'static str> {
+pub(crate) fn fitting_preset(labels: &[String]) -> Option<&'static str> {
     KEYPOINT_PRESET_NAMES.into_iter().find(|n| {
         KeypointSet::preset(n).is_ok_and(|s| s.labels().iter().all(|l| labels.contains(l)))
     })

@@ -80,7 +80,7 @@ const PRESETS: [(&str, &str); 9] = [
 
 /// One alternative of a medial landmark (module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum MedialLandmark<'a> {
+pub(crate) enum MedialLandmark<'a> {
     /// A marker label.
     Marker(&'a str),
     /// Plug-in Gait's chord function in the plane of this wand marker.
@@ -89,7 +89,7 @@ pub enum MedialLandmark<'a> {
 
 impl<'a> MedialLandmark<'a> {
     /// Reads one alternative: `chord:WAND` or a label.
-    pub fn parse(text: &'a str) -> MedialLandmark<'a> {
+    pub(crate) fn parse(text: &'a str) -> MedialLandmark<'a> {
         match text.strip_prefix("chord:") {
             Some(wand) => MedialLandmark::Chord { wand },
             None => MedialLandmark::Marker(text),
@@ -97,12 +97,12 @@ impl<'a> MedialLandmark<'a> {
     }
 
     /// The alternatives of a medial landmark field, in order.
-    pub fn alternatives(field: &'a str) -> impl Iterator<Item = MedialLandmark<'a>> {
+    pub(crate) fn alternatives(field: &'a str) -> impl Iterator<Item = MedialLandmark<'a>> {
         field.split('|').map(MedialLandmark::parse)
     }
 
     /// The label the static trial must carry for this alternative.
-    pub fn label(self) -> &'a str {
+    pub(crate) fn label(self) -> &'a str {
         match self {
             MedialLandmark::Marker(l) | MedialLandmark::Chord { wand: l } => l,
         }
@@ -171,7 +171,7 @@ pub struct LegMarkers {
 }
 
 /// The segments that carry tracking markers, in model order.
-pub const TRACKED_SEGMENTS: [&str; 4] = ["pelvis", "thigh", "shank", "foot"];
+pub(crate) const TRACKED_SEGMENTS: [&str; 4] = ["pelvis", "thigh", "shank", "foot"];
 
 impl MarkerSet {
     /// Parses and validates a marker-set TOML text; `name` (a file name) is used in errors.
@@ -226,7 +226,7 @@ impl MarkerSet {
     }
 
     /// The markers of one leg.
-    pub fn leg(&self, side: Side) -> Result<&LegMarkers, LandmarkError> {
+    pub(crate) fn leg(&self, side: Side) -> Result<&LegMarkers, LandmarkError> {
         match side {
             Side::Right => self.right.as_ref(),
             Side::Left => self.left.as_ref(),
@@ -238,7 +238,7 @@ impl MarkerSet {
     }
 
     /// Tracking markers of `segment` (one of [`TRACKED_SEGMENTS`]) for `side`.
-    pub fn tracking(&self, side: Side, segment: &str) -> Result<&[String], LandmarkError> {
+    pub(crate) fn tracking(&self, side: Side, segment: &str) -> Result<&[String], LandmarkError> {
         let leg = || self.leg(side);
         Ok(match segment {
             "pelvis" => &self.pelvis.tracking,
@@ -300,7 +300,7 @@ impl MarkerSet {
     }
 
     /// Checks the set's structure (not the labels of any trial).
-    pub fn validate(&self) -> Result<(), LandmarkError> {
+    pub(crate) fn validate(&self) -> Result<(), LandmarkError> {
         let bad = |detail: String| LandmarkError::InvalidMarkerSet {
             set: self.name.clone(),
             detail,
@@ -426,7 +426,7 @@ impl MarkerSet {
 /// alone seed its six coordinates), 2 on a leg segment (the joint to its parent fixes the
 /// rotation about the line through two markers, as Plug-in Gait's thigh, shank and foot rely
 /// on).
-pub fn min_tracking(segment: &str) -> usize {
+pub(crate) fn min_tracking(segment: &str) -> usize {
     if segment == "pelvis" {
         3
     } else {

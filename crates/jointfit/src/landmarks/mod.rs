@@ -59,27 +59,36 @@ pub mod bilateral;
 mod error;
 pub(crate) mod frames;
 pub mod functional;
-pub mod keypoints;
-pub mod markerset;
+pub(crate) mod keypoints;
+pub(crate) mod markerset;
 pub mod motion;
 pub(crate) mod nominal;
-pub mod plugin_gait;
+pub(crate) mod plugin_gait;
 pub mod priors;
 pub mod subject;
 pub mod suggest;
-pub mod window;
+pub(crate) mod window;
 
 use nalgebra::Vector3;
 
-pub use bilateral::{personalize_sides, BothLegs, Outcome, PersonalizedModel, Sides};
+pub use bilateral::personalize_sides;
+pub use bilateral::BothLegs;
+pub use bilateral::Outcome;
+pub use bilateral::PersonalizedModel;
+pub use bilateral::Sides;
 pub use error::LandmarkError;
-pub use frames::SegmentFrames;
-pub use keypoints::{personalize_keypoints, KeypointSet, KEYPOINT_PRESET_NAMES};
-pub use markerset::{
-    LegMarkers, MarkerSet, MedialLandmark, PelvisMarkers, PRESET_NAMES, TRACKED_SEGMENTS,
-};
+pub(crate) use frames::SegmentFrames;
+pub use keypoints::personalize_keypoints;
+pub use keypoints::KeypointSet;
+pub use keypoints::KEYPOINT_PRESET_NAMES;
+pub use markerset::LegMarkers;
+pub use markerset::MarkerSet;
+pub(crate) use markerset::MedialLandmark;
+pub use markerset::PelvisMarkers;
+pub use markerset::PRESET_NAMES;
+pub(crate) use markerset::TRACKED_SEGMENTS;
 pub use subject::SubjectMeasurements;
-pub use window::StaticWindow;
+pub(crate) use window::StaticWindow;
 
 use crate::kinematics::{forward_kinematics, KinData, Pose, Want};
 use crate::model::lower_limb::{lower_limb, Side};
@@ -245,7 +254,7 @@ pub fn personalize(
 /// [`personalize`] with the hip centre (SCoRE) and/or knee axis (SARA) taken from
 /// functional trials ([`functional`]); their bootstrap spread sets those parameters' prior
 /// SDs, the landmark table the others' ([`priors`]).
-pub fn personalize_with(
+pub(crate) fn personalize_with(
     trial: &Trial,
     set: &MarkerSet,
     side: Side,

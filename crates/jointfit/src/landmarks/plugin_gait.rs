@@ -39,18 +39,18 @@ use super::subject::SubjectMeasurements;
 use crate::model::lower_limb::Side;
 
 /// Vicon's θ (rad) in Davis's hip regression.
-pub const DAVIS_THETA: f64 = 0.5;
+pub(crate) const DAVIS_THETA: f64 = 0.5;
 /// Vicon's β (rad) in Davis's hip regression.
-pub const DAVIS_BETA: f64 = 0.314;
+pub(crate) const DAVIS_BETA: f64 = 0.314;
 
 /// What a Plug-in Gait joint centre needs and did not get: the measurement's description.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Missing(pub String);
+pub(crate) struct Missing(pub String);
 
 /// The hip centre in the pelvis frame (m; x anterior, y superior, z right) by Davis et al.
 /// 1991 as Plug-in Gait applies it (module docs). `pelvis_width` is the inter-ASIS distance
 /// of the markers, used when no `inter_asis` measurement is given.
-pub fn davis_hip(
+pub(crate) fn davis_hip(
     m: &SubjectMeasurements,
     side: Side,
     pelvis_width: f64,
@@ -75,7 +75,7 @@ pub fn davis_hip(
 /// The chord function (module docs): the joint centre in the plane of `wand`, `proximal` and
 /// `lateral`, `delta` from `lateral`, seen from `proximal` at a right angle. `None` when the
 /// three points are collinear or `delta` is not shorter than `|proximal − lateral|`.
-pub fn chord(
+pub(crate) fn chord(
     wand: &Vector3<f64>,
     proximal: &Vector3<f64>,
     lateral: &Vector3<f64>,

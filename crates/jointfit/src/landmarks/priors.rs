@@ -13,7 +13,7 @@ use crate::model::spec::ModelSpec;
 
 /// One prior: standard deviation (m or rad) and where it comes from.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PriorEntry {
+pub(crate) struct PriorEntry {
     pub sd: f64,
     pub source: &'static str,
 }
@@ -22,7 +22,7 @@ const MM: f64 = 1e-3;
 const DEG: f64 = std::f64::consts::PI / 180.0;
 
 /// Per-axis SD of a regression hip centre (m).
-pub fn hip_regression_sd(method: HipCentreMethod) -> PriorEntry {
+pub(crate) fn hip_regression_sd(method: HipCentreMethod) -> PriorEntry {
     match method {
         HipCentreMethod::Bell => PriorEntry {
             sd: 12.0 * MM,
@@ -55,7 +55,7 @@ pub fn hip_regression_sd(method: HipCentreMethod) -> PriorEntry {
 /// (≈ 3.5 mm for 5 mm per ASIS) and 0.36 × the width error (≈ 2.5 mm): √(4.7² + 3.5² + 2.5²)
 /// ≈ 6.4 mm, rounded up to 7 mm. Anterior and superior keep the larger regression SD, where
 /// the skin over the ASIS (9.7 ± 7.0 mm, Mantovani et al. 2016) and pelvic depth add error.
-pub fn hip_lateral_sd() -> PriorEntry {
+pub(crate) fn hip_lateral_sd() -> PriorEntry {
     PriorEntry {
         sd: 7.0 * MM,
         source: "hip centre medio-lateral position: predicted by pelvic width to 3.6–4.8 mm \
@@ -65,7 +65,7 @@ pub fn hip_lateral_sd() -> PriorEntry {
 }
 
 /// The prior SD of a lower-limb template parameter estimated by the landmark method.
-pub fn landmark_prior(name: &str, hip: HipCentreMethod) -> Option<PriorEntry> {
+pub(crate) fn landmark_prior(name: &str, hip: HipCentreMethod) -> Option<PriorEntry> {
     let e = |sd: f64, source: &'static str| Some(PriorEntry { sd, source });
     match name {
         "hip_pelvis_lateral" => Some(hip_lateral_sd()),

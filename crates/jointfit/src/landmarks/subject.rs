@@ -25,7 +25,7 @@ pub const MEASUREMENT_NAMES: [&str; 10] = [
 ];
 
 /// Plug-in Gait's default marker diameter (m) when none is given.
-pub const DEFAULT_MARKER_DIAMETER: f64 = 0.014;
+pub(crate) const DEFAULT_MARKER_DIAMETER: f64 = 0.014;
 
 /// A subject's measurements (m); `None` when not measured.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -58,8 +58,9 @@ impl SubjectMeasurements {
         ]
     }
 
+    #[cfg(test)]
     /// The values by canonical name, in [`MEASUREMENT_NAMES`] order.
-    pub fn values(&self) -> [(&'static str, Option<f64>); 10] {
+    pub(crate) fn values(&self) -> [(&'static str, Option<f64>); 10] {
         let mut copy = self.clone();
         let vals = copy.slots().map(|v| *v);
         let mut out = [("", None); 10];
@@ -101,12 +102,13 @@ impl SubjectMeasurements {
         }
     }
 
+    #[cfg(test)]
     /// Whether no value is given.
-    pub fn is_empty(&self) -> bool {
+    pub(crate) fn is_empty(&self) -> bool {
         self.values().iter().all(|(_, v)| v.is_none())
     }
 
-    pub fn leg_length(&self, side: Side) -> Option<f64> {
+    pub(crate) fn leg_length(&self, side: Side) -> Option<f64> {
         match side {
             Side::Right => self.leg_length_r,
             Side::Left => self.leg_length_l,
@@ -121,21 +123,21 @@ impl SubjectMeasurements {
         }
     }
 
-    pub fn knee_width(&self, side: Side) -> Option<f64> {
+    pub(crate) fn knee_width(&self, side: Side) -> Option<f64> {
         match side {
             Side::Right => self.knee_width_r,
             Side::Left => self.knee_width_l,
         }
     }
 
-    pub fn ankle_width(&self, side: Side) -> Option<f64> {
+    pub(crate) fn ankle_width(&self, side: Side) -> Option<f64> {
         match side {
             Side::Right => self.ankle_width_r,
             Side::Left => self.ankle_width_l,
         }
     }
 
-    pub fn asis_trochanter(&self, side: Side) -> Option<f64> {
+    pub(crate) fn asis_trochanter(&self, side: Side) -> Option<f64> {
         match side {
             Side::Right => self.asis_trochanter_r,
             Side::Left => self.asis_trochanter_l,
@@ -143,16 +145,8 @@ impl SubjectMeasurements {
     }
 
     /// The marker diameter, Plug-in Gait's 14 mm when not given.
-    pub fn marker_diameter_or_default(&self) -> f64 {
+    pub(crate) fn marker_diameter_or_default(&self) -> f64 {
         self.marker_diameter.unwrap_or(DEFAULT_MARKER_DIAMETER)
-    }
-}
-
-/// The canonical name of a measurement for one side (`knee_width` → `knee_width_r`).
-pub fn sided(name: &str, side: Side) -> String {
-    match side {
-        Side::Right => format!("{name}_r"),
-        Side::Left => format!("{name}_l"),
     }
 }
 

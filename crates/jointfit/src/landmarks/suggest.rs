@@ -109,7 +109,7 @@ const COMPUTED: &[&str] = &[
 /// Why `label` (normalized `norm`) is not a marker anyone placed, if it is not: an
 /// unlabelled trajectory (`*118`, `Unlabeled 12`, `M003`, `Marker12`, `New 0004`, `C_12`,
 /// bare numbers), a floor projection (`*Ground`, `…floor`, `…proj`) or a computed point.
-pub fn automatic_label(label: &str, norm: &str) -> Option<&'static str> {
+pub(crate) fn automatic_label(label: &str, norm: &str) -> Option<&'static str> {
     let l = label.rsplit(':').next().unwrap_or(label).trim();
     let lower = l.to_ascii_lowercase();
     if lower.starts_with('*') {

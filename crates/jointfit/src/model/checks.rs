@@ -16,18 +16,18 @@ use super::ModelError;
 
 /// Largest magnitude of a length in a model file (m): a leg model is a couple of metres long,
 /// so anything beyond 100 m is a unit or typing error, not a subject.
-pub const MAX_LENGTH_M: f64 = 100.0;
+pub(crate) const MAX_LENGTH_M: f64 = 100.0;
 /// Largest magnitude of an angle in a model file (rad), about 16 turns.
-pub const MAX_ANGLE_RAD: f64 = 100.0;
+pub(crate) const MAX_ANGLE_RAD: f64 = 100.0;
 /// Consecutive rotation axes whose angle has a smaller sine are taken as parallel (0.06°).
-pub const MIN_AXIS_SINE: f64 = 1e-3;
+pub(crate) const MIN_AXIS_SINE: f64 = 1e-3;
 
 fn invalid(msg: String) -> ModelError {
     ModelError::Invalid(msg)
 }
 
 /// Checks the fields of `spec` that compilation takes for granted (see the module docs).
-pub fn check_spec(spec: &ModelSpec) -> Result<(), ModelError> {
+pub(crate) fn check_spec(spec: &ModelSpec) -> Result<(), ModelError> {
     for p in &spec.parameters {
         let limit = match p.unit {
             Unit::Metre => MAX_LENGTH_M,

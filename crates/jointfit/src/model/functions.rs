@@ -236,7 +236,7 @@ impl Function {
     }
 
     /// The value when the function is constant.
-    pub fn constant(&self) -> Option<f64> {
+    pub(crate) fn constant(&self) -> Option<f64> {
         match self {
             Function::Constant(c) => Some(*c),
             Function::Scaled { scale, inner } => inner.constant().map(|v| scale * v),

@@ -1,25 +1,31 @@
 //! Kinematic models: the description people write ([`spec`]), the compiled model
 //! ([`Model`]), and the built-in sample models ([`lower_limb`]).
 
-pub mod checks;
+pub(crate) mod checks;
 mod compile;
 mod compiled;
 pub mod custom;
 pub mod functions;
 pub mod lower_limb;
 pub(crate) mod plan;
-pub mod refine;
+pub(crate) mod refine;
+mod sample;
 pub mod spec;
 mod splines;
 mod validate;
 
-pub use compiled::{
-    offset_rotation, CoordId, CoordKind, Coordinate, Joint, JointId, JointKind, Marker, Model,
-    ParamId, ParamUse, Parameter, Segment, SegmentId,
-};
+pub use compiled::offset_rotation;
+pub use compiled::CoordKind;
+pub use compiled::JointKind;
+pub use compiled::Model;
+pub use compiled::ParamId;
+pub use compiled::SegmentId;
 pub(crate) use compiled::{Motion, Source};
 pub(crate) use plan::Item;
-pub use spec::{ModelSpec, Unit, MM_PER_M, M_PER_MM};
+pub use spec::ModelSpec;
+pub use spec::Unit;
+pub use spec::MM_PER_M;
+pub use spec::M_PER_MM;
 
 use thiserror::Error;
 

@@ -29,17 +29,17 @@ use super::spec::{JointSpec, ModelSpec, Unit};
 use super::{Model, SegmentId};
 
 /// Prefix of the segments that carry one refined marker each.
-pub const MARKER_FRAME_PREFIX: &str = "marker frame ";
+pub(crate) const MARKER_FRAME_PREFIX: &str = "marker frame ";
 /// Parameter group of the marker offsets.
-pub const MARKER_GROUP: &str = "markers";
+pub(crate) const MARKER_GROUP: &str = "markers";
 /// Default prior SD of a refined marker position (m) per axis.
-pub const DEFAULT_MARKER_PRIOR_SD: f64 = 0.010;
+pub(crate) const DEFAULT_MARKER_PRIOR_SD: f64 = 0.010;
 /// Search bound around the static position, in prior SDs.
-pub const BOUND_IN_SD: f64 = 5.0;
+pub(crate) const BOUND_IN_SD: f64 = 5.0;
 
 /// The parameter holding axis `axis` (0, 1, 2: x, y, z of the segment frame) of marker
 /// `marker`'s position.
-pub fn marker_param_name(marker: &str, axis: usize) -> String {
+pub(crate) fn marker_param_name(marker: &str, axis: usize) -> String {
     format!("marker_{marker}_{}", ["x", "y", "z"][axis])
 }
 
@@ -50,7 +50,11 @@ fn frame_name(marker: &str) -> String {
 /// The description with the positions of `markers` (names of markers of `spec`; others are
 /// ignored) as parameters of group [`MARKER_GROUP`], nominal = the given position, prior SD
 /// `prior_sd` (m), bounds ± [`BOUND_IN_SD`]·`prior_sd` (module docs).
-pub fn with_marker_parameters(spec: &ModelSpec, markers: &[&str], prior_sd: f64) -> ModelSpec {
+pub(crate) fn with_marker_parameters(
+    spec: &ModelSpec,
+    markers: &[&str],
+    prior_sd: f64,
+) -> ModelSpec {
     let mut out = spec.clone();
     for m in out.markers.iter_mut() {
         if !markers.contains(&m.name.as_str()) {
@@ -105,7 +109,7 @@ pub fn with_marker_parameters(spec: &ModelSpec, markers: &[&str], prior_sd: f64)
 /// frame's parent segment at the frame's offset (the parameters' `nominal`, i.e. the fitted
 /// values of a fitted description) plus its own position; the frames, their welds and their
 /// parameters are removed. A description without marker frames is returned unchanged.
-pub fn fold_marker_parameters(spec: &ModelSpec) -> ModelSpec {
+pub(crate) fn fold_marker_parameters(spec: &ModelSpec) -> ModelSpec {
     let mut out = spec.clone();
     let value = |s: &ScalarSpec| -> f64 {
         match s {
@@ -151,7 +155,7 @@ pub fn fold_marker_parameters(spec: &ModelSpec) -> ModelSpec {
 /// Where marker `j` of `model` sits at its prior (static-trial) position: the segment it is
 /// fixed in and its position there (m), looking through a marker frame to the segment the
 /// frame is welded to (then the position is the offset parameters' prior means).
-pub fn marker_home(model: &Model, j: usize) -> (SegmentId, Vector3<f64>) {
+pub(crate) fn marker_home(model: &Model, j: usize) -> (SegmentId, Vector3<f64>) {
     let m = &model.markers()[j];
     let seg = &model.segments()[m.segment.0];
     if !seg.name.starts_with(MARKER_FRAME_PREFIX) {
@@ -172,7 +176,7 @@ pub fn marker_home(model: &Model, j: usize) -> (SegmentId, Vector3<f64>) {
 
 /// The markers of `spec` a refinement should free: weight > 0 and measured (not all NaN) in
 /// at least one of the `present` name lists.
-pub fn tracking_markers<'s>(spec: &'s ModelSpec, present: &[Vec<String>]) -> Vec<&'s str> {
+pub(crate) fn tracking_markers<'s>(spec: &'s ModelSpec, present: &[Vec<String>]) -> Vec<&'s str> {
     spec.markers
         .iter()
         .filter(|m: &&MarkerSpec| m.weight > 0.0 && present.iter().any(|l| l.contains(&m.name)))

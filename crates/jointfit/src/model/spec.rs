@@ -46,7 +46,7 @@
 
 use serde::{Deserialize, Serialize};
 
-pub use super::functions::FunctionSpec;
+pub(crate) use super::functions::FunctionSpec;
 
 /// A whole model: segments, the joints that connect them, parameters and markers.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -167,7 +167,7 @@ pub enum AxisSpec {
 }
 
 impl AxisSpec {
-    pub fn named(s: &str) -> Self {
+    pub(crate) fn named(s: &str) -> Self {
         AxisSpec::Named(s.to_string())
     }
 }
@@ -232,7 +232,7 @@ pub struct OffsetSpec {
 pub const OFFSET_SCALARS: [&str; 6] = ["tx", "ty", "tz", "rx", "ry", "rz"];
 
 impl OffsetSpec {
-    pub fn is_identity(&self) -> bool {
+    pub(crate) fn is_identity(&self) -> bool {
         self.scalars().iter().all(|s| s.is_zero())
     }
     /// The scalars in the order of [`OFFSET_SCALARS`].
@@ -276,7 +276,7 @@ impl Default for ScalarSpec {
 }
 
 impl ScalarSpec {
-    pub fn is_zero(&self) -> bool {
+    pub(crate) fn is_zero(&self) -> bool {
         matches!(self, ScalarSpec::Fixed(v) if *v == 0.0)
     }
     /// A parameter reference with a scale (written as a bare name when the scale is 1).

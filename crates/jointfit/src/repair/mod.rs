@@ -78,7 +78,7 @@ impl Swap {
     }
 
     /// The option value that gives this swap back (`A,B@F`).
-    pub fn to_arg(&self) -> String {
+    pub(crate) fn to_arg(&self) -> String {
         match (self.from, self.to) {
             (None, None) => format!("{},{}", self.a, self.b),
             (Some(f), None) => format!("{},{}@{f}", self.a, self.b),

@@ -24,7 +24,7 @@ use crate::model::spec::{
 pub type ScaleFactors = BTreeMap<String, [f64; 3]>;
 
 /// The unit vector of an axis description (`"x"`, `"-y"`, a vector); `None` when malformed.
-pub fn axis_vector(axis: &AxisSpec) -> Option<[f64; 3]> {
+pub(crate) fn axis_vector(axis: &AxisSpec) -> Option<[f64; 3]> {
     match axis {
         AxisSpec::Vector(v) => {
             let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
@@ -48,19 +48,19 @@ pub fn axis_vector(axis: &AxisSpec) -> Option<[f64; 3]> {
 
 /// The factor OpenSim applies to a translation function along `axis` of a joint whose
 /// parent body has factors `s`: `|a|·s`.
-pub fn axis_factor(axis: &AxisSpec, s: &[f64; 3]) -> f64 {
+pub(crate) fn axis_factor(axis: &AxisSpec, s: &[f64; 3]) -> f64 {
     axis_vector(axis).map_or(1.0, |a| {
         a[0].abs() * s[0] + a[1].abs() * s[1] + a[2].abs() * s[2]
     })
 }
 
 /// Whether OpenSim leaves this translation function alone (the identity: a DOF).
-pub fn is_dof_function(f: &FunctionSpec) -> bool {
+pub(crate) fn is_dof_function(f: &FunctionSpec) -> bool {
     matches!(f, FunctionSpec::Linear { slope, intercept } if *slope == 1.0 && *intercept == 0.0)
 }
 
 /// `scale · f`, folding into an existing multiplier as OpenSim does.
-pub fn multiply(f: &FunctionSpec, scale: f64) -> FunctionSpec {
+pub(crate) fn multiply(f: &FunctionSpec, scale: f64) -> FunctionSpec {
     match f {
         FunctionSpec::Multiplier { scale: s, function } => FunctionSpec::Multiplier {
             scale: s * scale,

@@ -11,7 +11,7 @@ use crate::model::spec::ModelSpec;
 use crate::trial::Trial;
 
 /// The other side's name of a bilateral body (`femur_r` ↔ `femur_l`), if it has one.
-pub fn mirror_name(body: &str) -> Option<String> {
+pub(crate) fn mirror_name(body: &str) -> Option<String> {
     if let Some(s) = body.strip_suffix("_r") {
         Some(format!("{s}_l"))
     } else {

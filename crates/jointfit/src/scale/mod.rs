@@ -3,12 +3,18 @@
 //! ([`fit`]) with its groups, static targets and plausibility checks ([`groups`]). The maths
 //! and the priors are in `docs/scaling.md`.
 
-pub mod fit;
+pub(crate) mod fit;
 pub mod geometry;
-pub mod groups;
+pub(crate) mod groups;
 
-pub use fit::{
-    fit_scale, GroupFit, MarkerFit, ScaleError, ScaleFit, ScaleGroup, ScaleOptions, SizePrior,
-};
-pub use geometry::{scaled_spec, ScaleFactors};
-pub use groups::{averaged_targets, default_groups, mirror_name, plausibility};
+pub use fit::fit_scale;
+pub use fit::GroupFit;
+pub use fit::ScaleFit;
+pub use fit::ScaleGroup;
+pub use fit::ScaleOptions;
+pub use fit::SizePrior;
+pub use geometry::scaled_spec;
+pub use geometry::ScaleFactors;
+pub use groups::averaged_targets;
+pub use groups::default_groups;
+pub use groups::plausibility;

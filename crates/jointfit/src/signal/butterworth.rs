@@ -9,11 +9,11 @@ use super::{check_cutoff, check_rate, SignalError};
 
 /// Highest design order [`butter_lowpass`] accepts. Far above anything used on marker data;
 /// the bound keeps the overall gain `k ~ (π f_c/f_s)^N` well away from underflow.
-pub const MAX_DESIGN_ORDER: usize = 32;
+pub(crate) const MAX_DESIGN_ORDER: usize = 32;
 
 /// One second-order section `(b0 + b1 z⁻¹ + b2 z⁻²) / (a0 + a1 z⁻¹ + a2 z⁻²)` with `a0 = 1`.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Section {
+pub(crate) struct Section {
     /// Numerator coefficients `[b0, b1, b2]`.
     pub b: [f64; 3],
     /// Denominator coefficients `[a0, a1, a2]`, `a0 = 1`.
@@ -21,17 +21,19 @@ pub struct Section {
 }
 
 impl Section {
+    #[cfg(test)]
     /// The section as a row of scipy's `sos` array: `[b0, b1, b2, a0, a1, a2]`.
-    pub fn to_row(&self) -> [f64; 6] {
+    pub(crate) fn to_row(self) -> [f64; 6] {
         let (b, a) = (self.b, self.a);
         [b[0], b[1], b[2], a[0], a[1], a[2]]
     }
 
     /// Gain at zero frequency, `H(z = 1) = Σb / Σa`.
-    pub fn dc_gain(&self) -> f64 {
+    pub(crate) fn dc_gain(&self) -> f64 {
         self.b.iter().sum::<f64>() / self.a.iter().sum::<f64>()
     }
 
+    #[cfg(test)]
     /// Response at `z⁻¹ = w`.
     fn response_at(&self, w: Complex<f64>) -> Complex<f64> {
         let num = w * (w * self.b[2] + self.b[1]) + self.b[0];
@@ -48,31 +50,33 @@ pub struct Sos {
 }
 
 impl Sos {
-    pub fn sections(&self) -> &[Section] {
+    pub(crate) fn sections(&self) -> &[Section] {
         &self.sections
     }
 
+    #[cfg(test)]
     /// The sections as rows of scipy's `sos` array, shape (sections, 6).
-    pub fn to_rows(&self) -> Vec<[f64; 6]> {
-        self.sections.iter().map(Section::to_row).collect()
+    pub(crate) fn to_rows(&self) -> Vec<[f64; 6]> {
+        self.sections.iter().map(|s| s.to_row()).collect()
     }
 
     /// scipy's `ntaps` for padding: `2·S + 1` less the number of sections that are really first
     /// order (counted as `min(#{b2 = 0}, #{a2 = 0})`). `N + 1` for a Butterworth design of
     /// order `N`.
-    pub fn ntaps(&self) -> usize {
+    pub(crate) fn ntaps(&self) -> usize {
         let b2_zero = self.sections.iter().filter(|s| s.b[2] == 0.0).count();
         let a2_zero = self.sections.iter().filter(|s| s.a[2] == 0.0).count();
         2 * self.sections.len() + 1 - b2_zero.min(a2_zero)
     }
 
     /// scipy's default pad length for `sosfiltfilt`: `3·ntaps` samples at each end.
-    pub fn default_padlen(&self) -> usize {
+    pub(crate) fn default_padlen(&self) -> usize {
         3 * self.ntaps()
     }
 
+    #[cfg(test)]
     /// Complex frequency response of one pass at `freq_hz` for sampling rate `rate_hz`.
-    pub fn response(&self, freq_hz: f64, rate_hz: f64) -> Complex<f64> {
+    pub(crate) fn response(&self, freq_hz: f64, rate_hz: f64) -> Complex<f64> {
         let omega = 2.0 * PI * freq_hz / rate_hz;
         let w = Complex::new(omega.cos(), -omega.sin()); // z⁻¹ on the unit circle
         self.sections
@@ -80,13 +84,15 @@ impl Sos {
             .fold(Complex::new(1.0, 0.0), |h, s| h * s.response_at(w))
     }
 
+    #[cfg(test)]
     /// Magnitude `|H(f)|` of one pass. The forward–backward filter has gain `|H(f)|²`.
-    pub fn gain(&self, freq_hz: f64, rate_hz: f64) -> f64 {
+    pub(crate) fn gain(&self, freq_hz: f64, rate_hz: f64) -> f64 {
         self.response(freq_hz, rate_hz).norm()
     }
 
+    #[cfg(test)]
     /// Gain at zero frequency (1 for a low-pass, up to rounding).
-    pub fn dc_gain(&self) -> f64 {
+    pub(crate) fn dc_gain(&self) -> f64 {
         self.sections.iter().map(Section::dc_gain).product()
     }
 }
@@ -99,7 +105,11 @@ impl Sos {
 /// [`SignalError::BadRate`] unless `rate_hz` is positive and finite;
 /// [`SignalError::BadCutoff`] unless `0 < cutoff_hz < rate_hz/2`;
 /// [`SignalError::BadDesignOrder`] unless `1 ≤ order ≤ MAX_DESIGN_ORDER`.
-pub fn butter_lowpass(order: usize, cutoff_hz: f64, rate_hz: f64) -> Result<Sos, SignalError> {
+pub(crate) fn butter_lowpass(
+    order: usize,
+    cutoff_hz: f64,
+    rate_hz: f64,
+) -> Result<Sos, SignalError> {
     check_rate(rate_hz)?;
     check_cutoff(cutoff_hz, rate_hz)?;
     if !(1..=MAX_DESIGN_ORDER).contains(&order) {

@@ -7,7 +7,7 @@ use super::{SignalError, Sos};
 /// Section states (transposed direct form II, `[z0, z1]` per section) in which the cascade is
 /// stationary under a constant unit input: `scipy.signal.sosfilt_zi`. Multiply by the input
 /// level to start a pass in steady state.
-pub fn sosfilt_zi(sos: &Sos) -> Vec<[f64; 2]> {
+pub(crate) fn sosfilt_zi(sos: &Sos) -> Vec<[f64; 2]> {
     let mut scale = 1.0;
     sos.sections()
         .iter()
@@ -42,7 +42,7 @@ fn step(sos: &Sos, state: &mut [[f64; 2]], mut x: f64) -> f64 {
 ///
 /// # Panics
 /// If `state` does not have one entry per section.
-pub fn sosfilt_in_place(sos: &Sos, x: &mut [f64], state: &mut [[f64; 2]]) {
+pub(crate) fn sosfilt_in_place(sos: &Sos, x: &mut [f64], state: &mut [[f64; 2]]) {
     assert_eq!(state.len(), sos.sections().len(), "one state per section");
     for v in x.iter_mut() {
         *v = step(sos, state, *v);
@@ -54,7 +54,7 @@ pub fn sosfilt_in_place(sos: &Sos, x: &mut [f64], state: &mut [[f64; 2]]) {
 ///
 /// # Errors
 /// [`SignalError::TooShort`] unless `x.len() > padlen`.
-pub fn odd_extend(x: &[f64], padlen: usize) -> Result<Vec<f64>, SignalError> {
+pub(crate) fn odd_extend(x: &[f64], padlen: usize) -> Result<Vec<f64>, SignalError> {
     let n = x.len();
     if n <= padlen {
         return Err(SignalError::TooShort { len: n, padlen });
@@ -82,7 +82,11 @@ pub fn sosfiltfilt(sos: &Sos, x: &[f64]) -> Result<Vec<f64>, SignalError> {
 /// # Errors
 /// [`SignalError::TooShort`] unless `x.len() > padlen`;
 /// [`SignalError::NonFinite`] if any sample is NaN or infinite.
-pub fn sosfiltfilt_padlen(sos: &Sos, x: &[f64], padlen: usize) -> Result<Vec<f64>, SignalError> {
+pub(crate) fn sosfiltfilt_padlen(
+    sos: &Sos,
+    x: &[f64],
+    padlen: usize,
+) -> Result<Vec<f64>, SignalError> {
     if let Some((index, &value)) = x.iter().enumerate().find(|(_, v)| !v.is_finite()) {
         return Err(SignalError::NonFinite { index, value });
     }

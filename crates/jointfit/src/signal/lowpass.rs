@@ -5,9 +5,9 @@ use std::f64::consts::PI;
 
 use serde::{Deserialize, Serialize};
 
-use super::{
-    butter_lowpass, check_cutoff, check_rate, sosfiltfilt, SignalError, Sos, MAX_DESIGN_ORDER,
-};
+#[cfg(test)]
+use super::sosfiltfilt;
+use super::{butter_lowpass, check_cutoff, check_rate, SignalError, Sos, MAX_DESIGN_ORDER};
 
 /// What [`LowPass::order`] counts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -71,7 +71,7 @@ impl Default for LowPass {
 
 /// Winter's correction factor `C = (2^(1/passes) − 1)^(1/(2·design_order))`: a design with
 /// pre-warped cutoff `tan(π f_c/f_s)/C`, run `passes` times, is −3 dB at `f_c`.
-pub fn winter_correction_factor(design_order: usize, passes: usize) -> f64 {
+pub(crate) fn winter_correction_factor(design_order: usize, passes: usize) -> f64 {
     (2f64.powf(1.0 / passes as f64) - 1.0).powf(1.0 / (2.0 * design_order as f64))
 }
 
@@ -82,7 +82,7 @@ impl LowPass {
     /// [`SignalError::OddEffectiveOrder`] for an odd order under
     /// [`OrderConvention::Effective`]; [`SignalError::BadDesignOrder`] when the design order is
     /// 0 or above [`MAX_DESIGN_ORDER`].
-    pub fn design_order(&self) -> Result<usize, SignalError> {
+    pub(crate) fn design_order(&self) -> Result<usize, SignalError> {
         let n = match self.convention {
             OrderConvention::Effective if self.order % 2 == 1 => {
                 return Err(SignalError::OddEffectiveOrder(self.order))
@@ -100,8 +100,9 @@ impl LowPass {
         }
     }
 
+    #[cfg(test)]
     /// The order of the zero-phase result (twice the design order).
-    pub fn effective_order(&self) -> Result<usize, SignalError> {
+    pub(crate) fn effective_order(&self) -> Result<usize, SignalError> {
         Ok(2 * self.design_order()?)
     }
 
@@ -111,7 +112,7 @@ impl LowPass {
     /// # Errors
     /// [`SignalError::BadRate`], [`SignalError::BadCutoff`] (cutoff not in `(0, f_s/2)`, before
     /// or after the correction), and the errors of [`LowPass::design_order`].
-    pub fn design_cutoff_hz(&self, rate_hz: f64) -> Result<f64, SignalError> {
+    pub(crate) fn design_cutoff_hz(&self, rate_hz: f64) -> Result<f64, SignalError> {
         check_rate(rate_hz)?;
         check_cutoff(self.cutoff_hz, rate_hz)?;
         let n = self.design_order()?;
@@ -133,18 +134,19 @@ impl LowPass {
         butter_lowpass(self.design_order()?, cutoff, rate_hz)
     }
 
+    #[cfg(test)]
     /// Filters one gap-free signal sampled at `rate_hz` forward and backward with scipy's
     /// default padding (see [`sosfiltfilt`]).
     ///
     /// # Errors
     /// As [`LowPass::design`] and [`sosfiltfilt`].
-    pub fn apply(&self, x: &[f64], rate_hz: f64) -> Result<Vec<f64>, SignalError> {
+    pub(crate) fn apply(&self, x: &[f64], rate_hz: f64) -> Result<Vec<f64>, SignalError> {
         sosfiltfilt(&self.design(rate_hz)?, x)
     }
 
     /// The padding [`filter_trial`](super::filter_trial) uses for a stretch of `len` samples
     /// filtered with `sos`, or `None` when the stretch is left raw.
-    pub fn padlen_for(&self, sos: &Sos, len: usize) -> Option<usize> {
+    pub(crate) fn padlen_for(&self, sos: &Sos, len: usize) -> Option<usize> {
         let default = sos.default_padlen();
         if len > default {
             return Some(default);

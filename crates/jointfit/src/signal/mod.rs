@@ -131,10 +131,20 @@ mod tests;
 #[cfg(test)]
 mod tests_scipy;
 
-pub use butterworth::{butter_lowpass, Section, Sos, MAX_DESIGN_ORDER};
-pub use filtfilt::{odd_extend, sosfilt_in_place, sosfilt_zi, sosfiltfilt, sosfiltfilt_padlen};
-pub use lowpass::{winter_correction_factor, LowPass, OrderConvention, ShortStretches};
-pub use trial_filter::{filter_trial, FilterReport, FilteredStretch, MarkerFilterReport};
+pub(crate) use butterworth::butter_lowpass;
+pub(crate) use butterworth::Sos;
+pub(crate) use butterworth::MAX_DESIGN_ORDER;
+pub use filtfilt::sosfiltfilt;
+pub(crate) use filtfilt::sosfiltfilt_padlen;
+#[cfg(test)]
+use filtfilt::{odd_extend, sosfilt_in_place, sosfilt_zi};
+pub use lowpass::LowPass;
+pub use lowpass::OrderConvention;
+#[cfg(test)]
+use lowpass::{winter_correction_factor, ShortStretches};
+pub use trial_filter::filter_trial;
+#[cfg(test)]
+use trial_filter::FilteredStretch;
 
 use thiserror::Error;
 

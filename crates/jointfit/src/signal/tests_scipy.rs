@@ -15,7 +15,7 @@ use crate::trial::Trial;
 
 /// Runs `scripts/filter_reference.py` on `request`; `None` when there is no Python oracle.
 fn scipy(request: &Value) -> Option<Value> {
-    let python = crate::testing::python()?;
+    let python = jointfit_testkit::env::python()?;
     let script = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../../scripts/filter_reference.py"

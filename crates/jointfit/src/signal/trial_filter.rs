@@ -58,16 +58,18 @@ impl FilterReport {
             .filter(move |m| m.max_displacement_m > threshold_m)
     }
 
+    #[cfg(test)]
     /// Largest displacement over all markers, metres.
-    pub fn max_displacement_m(&self) -> f64 {
+    pub(crate) fn max_displacement_m(&self) -> f64 {
         self.markers
             .iter()
             .map(|m| m.max_displacement_m)
             .fold(0.0, f64::max)
     }
 
+    #[cfg(test)]
     /// Number of stretches left raw over all markers.
-    pub fn raw_stretch_count(&self) -> usize {
+    pub(crate) fn raw_stretch_count(&self) -> usize {
         self.markers.iter().map(|m| m.raw.len()).sum()
     }
 }

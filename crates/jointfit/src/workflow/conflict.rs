@@ -48,11 +48,11 @@ use crate::trial::Trial;
 
 /// Directions of a joint's whitened posterior shift with a smaller prior-predictive variance
 /// (in prior variances) are left out of its statistic.
-pub const MIN_DIRECTION_VARIANCE: f64 = 0.05;
+pub(crate) const MIN_DIRECTION_VARIANCE: f64 = 0.05;
 /// Significance level of the conflict test.
-pub const CONFLICT_ALPHA: f64 = 0.01;
+pub(crate) const CONFLICT_ALPHA: f64 = 0.01;
 /// The largest factor by which a prior SD is widened.
-pub const TAU_CAP: f64 = 3.0;
+pub(crate) const TAU_CAP: f64 = 3.0;
 
 /// The conflict of one joint's prior with the trial.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -91,7 +91,7 @@ impl JointConflict {
 /// OpenSim model's offset scalar (`JOINT.parent.tx`, the dotted names of
 /// `jointfit_io::osim_read`) belongs to its group, the joint named in the file (`hip_r`,
 /// `walker_knee_l`).
-pub fn joint_of(name: &str, group: &str) -> Option<String> {
+pub(crate) fn joint_of(name: &str, group: &str) -> Option<String> {
     if group == crate::model::refine::MARKER_GROUP {
         return None;
     }
@@ -114,7 +114,7 @@ pub fn joint_of(name: &str, group: &str) -> Option<String> {
 /// covariance, [`crate::calibrate::prior::parameter_inflation`]), `s0` the stated prior variances, `sigma2` the data variance factor, `shift`
 /// the posterior mean minus the prior mean.
 #[allow(clippy::too_many_arguments)]
-pub fn statistics(
+pub(crate) fn statistics(
     n: &DMatrix<f64>,
     d: &[f64],
     inflation: &[f64],
@@ -210,7 +210,7 @@ fn maximize_log_scale(f: impl Fn(f64) -> f64, cap: f64) -> f64 {
 
 /// Upper tail `P(X > x)` of χ²(k): the regularized incomplete gamma `Q(k/2, x/2)` (series
 /// below `a + 1`, continued fraction above; Abramowitz & Stegun 6.5.29 and 6.5.31).
-pub fn chi2_upper_tail(x: f64, k: usize) -> f64 {
+pub(crate) fn chi2_upper_tail(x: f64, k: usize) -> f64 {
     if k == 0 || !x.is_finite() {
         return if x.is_finite() { 1.0 } else { 0.0 };
     }
@@ -261,7 +261,7 @@ pub fn chi2_upper_tail(x: f64, k: usize) -> f64 {
 /// normal matrix at the fitted point (from `system`, the reduced system of `cal`'s own uncertainty analysis,
 /// when the caller kept it; else formed here), and applies [`statistics`] per joint;
 /// `flagged` marks the joints the rule of the module docs widens. Empty without a prior.
-pub fn assess(
+pub(crate) fn assess(
     model: &Model,
     start: &[f64],
     trials: &[&Trial],
@@ -350,7 +350,7 @@ pub fn assess(
 /// prior's part of the interval variance of its parameters scaled by `interval_scale²`
 /// ([`crate::calibrate::prior::Prior::spread`]); the estimate and the data shares are
 /// unchanged. Nothing when no joint needs it or `cal` was not analysed.
-pub fn widen_intervals(
+pub(crate) fn widen_intervals(
     model: &Model,
     start: &[f64],
     trials: &[&Trial],
@@ -402,7 +402,7 @@ pub fn widen_intervals(
 /// [`widen_intervals`] of the flagged ones. Empty, and `cal` unchanged, with
 /// `settings.prior_conflict` off or without a prior. (The jointfit-model calibration,
 /// [`super::calibrate_refined`], runs the two halves around its envelope refit.)
-pub fn check(
+pub(crate) fn check(
     model: &Model,
     start: &[f64],
     trials: &[&Trial],

@@ -257,7 +257,7 @@ fn landmark_hip_four_sds_off_is_flagged_and_a_prior_draw_is_not() {
     assert!(covered_stated < 3);
     // The truth drawn from the prior: nothing flagged.
     for seed in [3u64, 4, 5] {
-        let truth = crate::testing::params_from_priors(&model, seed);
+        let truth = model.sample_priors(seed);
         let trial = synthetic(&model, &truth, 80, 0.002);
         let fit = calibrate_refined(&model, &start, &[&trial], &free, &settings, &mut NoObserver)
             .unwrap();

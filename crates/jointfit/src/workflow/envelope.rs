@@ -36,7 +36,7 @@ use crate::plausibility::{half_pelvis_width, HIP_LATERAL_FRACTION};
 /// How far inside the plausibility limit the bound sits (m): the held-out check measures the
 /// inter-ASIS width on marker centres again, and rounds; 1 mm keeps a fit held at the bound
 /// inside the check's limit.
-pub const ENVELOPE_MARGIN: f64 = 0.001;
+pub(crate) const ENVELOPE_MARGIN: f64 = 0.001;
 
 /// The hip-lateral parameters the envelope bounds.
 const HIP_LATERAL: [&str; 3] = [
@@ -68,7 +68,10 @@ pub const HELD_AT_LIMIT: &str = "held at the anatomical limit: hip centre medial
 /// The envelope's bounds for `model` started at `start`, and the model description with
 /// them (`None`: nothing to bound: no ASIS markers on the pelvis z axis, no hip-lateral
 /// parameter, or the start or nominal value already outside the envelope).
-pub fn bounded_spec(model: &Model, start: &[f64]) -> Option<(ModelSpec, Vec<EnvelopeBound>)> {
+pub(crate) fn bounded_spec(
+    model: &Model,
+    start: &[f64],
+) -> Option<(ModelSpec, Vec<EnvelopeBound>)> {
     let half = half_pelvis_width(model)?;
     let limit = HIP_LATERAL_FRACTION * half - ENVELOPE_MARGIN;
     let mut spec = model.spec().clone();
@@ -96,7 +99,7 @@ pub fn bounded_spec(model: &Model, start: &[f64]) -> Option<(ModelSpec, Vec<Enve
 
 /// Marks each bound whose parameter ends within 1 µm of it (`p` the fitted vector of
 /// `model`, which has the bounded parameters under the same names).
-pub fn mark_active(bounds: &mut [EnvelopeBound], model: &Model, p: &[f64]) {
+pub(crate) fn mark_active(bounds: &mut [EnvelopeBound], model: &Model, p: &[f64]) {
     for b in bounds {
         if let Some(id) = model.param_id(&b.parameter) {
             b.active = p[id.0] * MM_PER_M >= b.limit_mm - 1e-3;

@@ -46,9 +46,12 @@ use rayon::prelude::*;
 
 use super::calibration::{mm2, ConvergenceStage, StartRun};
 use super::map::{Preliminary, SIGMA_POINT_RESOLUTION_SE};
+pub(crate) use super::probes::probe_starts;
+pub(crate) use super::probes::ProbeStarts;
 use super::probes::{approach_stride, probe_stride, subsample};
-pub use super::probes::{probe_point, probe_starts, ProbeStarts};
-pub use super::summary::{warning, GlobalSearch, SAME_OPTIMUM};
+pub(crate) use super::summary::warning;
+pub use super::summary::GlobalSearch;
+pub(crate) use super::summary::SAME_OPTIMUM;
 use super::{FitSettings, Observer};
 use crate::calibrate::joint::{solve_joint, solve_joint_to, JointOptions};
 use crate::calibrate::{Fit, Problem};
@@ -57,15 +60,15 @@ use crate::solver::Termination;
 
 /// The two best probes are taken to be in the same basin (only the best is finished) when
 /// their objectives differ by less than this (relative).
-pub const SAME_BASIN: f64 = 1e-4;
+pub(crate) const SAME_BASIN: f64 = 1e-4;
 
 /// The stage of the best start's finishing solve on the prior weighed by the starting σ₀,
 /// at whose end σ is estimated (`super::map`).
-pub const SIGMA_STAGE: &str = "joint Levenberg-Marquardt at the starting σ (σ estimate)";
+pub(crate) const SIGMA_STAGE: &str = "joint Levenberg-Marquardt at the starting σ (σ estimate)";
 
 /// The probe from the σ₀-optimum on the re-weighed prior, before the best start's
 /// finishing solve.
-pub const REPROBE_STAGE: &str = "probe at the estimated σ";
+pub(crate) const REPROBE_STAGE: &str = "probe at the estimated σ";
 
 /// The best start's σ estimate ([`run`]): the σ₀-optimum it was estimated at and the
 /// objectives on the way, and the probe at the estimated σ from there (with its objectives;
@@ -100,7 +103,7 @@ impl Observer for History {
 
 /// The outcome of [`run`]: every start's fit and record (start order), the global phase's
 /// summary, and the given start's inner solutions and objective before any iteration.
-pub struct Outcome {
+pub(crate) struct Outcome {
     pub fits: Vec<Fit>,
     pub runs: Vec<StartRun>,
     pub summary: GlobalSearch,
@@ -112,12 +115,12 @@ pub struct Outcome {
 /// thread (its per-frame passes are parallel), instead of side by side: two solves at once
 /// would hold two sets of per-frame coordinates and two block caches, and with this many
 /// frames one solve keeps the threads busy. The result is the same either way.
-pub const SEQUENTIAL_FINISH_FRAMES: usize = 4096;
+pub(crate) const SEQUENTIAL_FINISH_FRAMES: usize = 4096;
 
 /// Runs the global phase on `prob` from `start` with `settings.probes` extra starts (the
 /// module docs), from `starts` ([`probe_starts`] of the same problem, start and settings)
 /// when given; progress goes to `observer` in start order.
-pub fn run(
+pub(crate) fn run(
     prob: &mut Problem,
     start: &[f64],
     settings: &FitSettings,

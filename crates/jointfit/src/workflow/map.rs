@@ -44,15 +44,15 @@ use crate::model::{Model, ParamId};
 use crate::trial::Trial;
 
 /// How close (standard errors) the preliminary fit gets to its optimum (module docs).
-pub const PRELIMINARY_RESOLUTION_SE: f64 = 0.01;
+pub(crate) const PRELIMINARY_RESOLUTION_SE: f64 = 0.01;
 
 /// How close (standard errors) the global phase's best start gets to the σ₀-optimum before σ
 /// is estimated there (module docs).
-pub const SIGMA_POINT_RESOLUTION_SE: f64 = 0.1;
+pub(crate) const SIGMA_POINT_RESOLUTION_SE: f64 = 0.1;
 
 /// What the σ estimate computed on the way that the fit which follows reuses: the seeded
 /// inner solutions at the start, and the inner solutions and marker term there.
-pub struct Preliminary {
+pub(crate) struct Preliminary {
     /// [`Problem::initial_coords`] at the start.
     pub q_seed: Vec<Vec<f64>>,
     /// One more inner pass from `q_seed` ([`Problem::inner`]).
@@ -69,7 +69,7 @@ pub struct Preliminary {
 /// `settings.priors` is set and the model has any, weighed by `noise` (m) when given, else by
 /// the σ estimated as the module docs say. Returns the problem and the σ used (`None`: no
 /// prior, the paper's unregularized fit).
-pub fn map_problem<'m>(
+pub(crate) fn map_problem<'m>(
     model: &'m Model,
     start: &[f64],
     trials: &[&'m Trial],
@@ -86,7 +86,7 @@ pub fn map_problem<'m>(
 /// prior is weighed by the starting σ₀ and the caller finishes the estimate with
 /// [`estimate_noise`] at the σ₀-optimum it reaches anyway (the global phase, module docs);
 /// the σ returned is then σ₀.
-pub fn map_problem_with<'m>(
+pub(crate) fn map_problem_with<'m>(
     model: &'m Model,
     start: &[f64],
     trials: &[&'m Trial],
@@ -141,7 +141,7 @@ pub fn map_problem_with<'m>(
 /// Re-weighs the prior of `prob` (weighed by σ₀) by the σ and per-parameter factors
 /// estimated at `fit`, the σ₀-optimum of `prob` to [`PRELIMINARY_RESOLUTION_SE`] or
 /// [`SIGMA_POINT_RESOLUTION_SE`] (module docs); nothing when the estimate is not a positive finite number.
-pub fn estimate_noise(prob: &mut Problem<'_>, fit: &Fit) {
+pub(crate) fn estimate_noise(prob: &mut Problem<'_>, fit: &Fit) {
     // The unregularized problem on the same frames (the prior changes only `S`, not the
     // residuals or their degrees of freedom, so its σ² is the posterior's).
     let mut plain = prob.clone();
@@ -170,7 +170,7 @@ pub fn estimate_noise(prob: &mut Problem<'_>, fit: &Fit) {
 /// Multiplies the prior weight of each named free parameter of `prob` by its factor (the
 /// per-parameter factors of an earlier fit of the same trials, [`inflation_of`]); nothing
 /// without a prior or with no factors.
-pub fn set_inflation(prob: &mut Problem<'_>, factors: &[(String, f64)]) {
+pub(crate) fn set_inflation(prob: &mut Problem<'_>, factors: &[(String, f64)]) {
     let model = prob.model;
     let free = prob.free.clone();
     let Some(pr) = prob.prior.as_mut() else {
@@ -185,7 +185,7 @@ pub fn set_inflation(prob: &mut Problem<'_>, factors: &[(String, f64)]) {
 }
 
 /// The free parameters of `prob` whose prior weight carries a factor above 1, with it.
-pub fn inflation_of(prob: &Problem<'_>) -> Vec<(String, f64)> {
+pub(crate) fn inflation_of(prob: &Problem<'_>) -> Vec<(String, f64)> {
     let Some(pr) = &prob.prior else {
         return Vec::new();
     };

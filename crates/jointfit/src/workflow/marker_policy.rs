@@ -50,12 +50,12 @@ use super::marker_rigid::{rigid_displaced, RigidOffset, MIN_OTHERS};
 
 /// Smallest mean of the leave-one-out residual ([`super::marker_rigid`]) that refines a
 /// marker (m), and its smallest ratio to the spread (module docs).
-pub const RIGID_MIN_OFFSET: f64 = 0.012;
-pub const RIGID_MIN_RATIO: f64 = 3.0;
+pub(crate) const RIGID_MIN_OFFSET: f64 = 0.012;
+pub(crate) const RIGID_MIN_RATIO: f64 = 3.0;
 
 /// Share of a marker's frames in which the robust IK rejected it, from which a marker that
 /// is not displaced counts as broken.
-pub const BROKEN_SHARE: f64 = 0.25;
+pub(crate) const BROKEN_SHARE: f64 = 0.25;
 
 /// What the policy does with a marker.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -304,7 +304,7 @@ pub fn decide(
 }
 
 /// The trials without the markers the decisions leave out of them.
-pub fn without_excluded(trials: &[&Trial], decisions: &[MarkerDecision]) -> Vec<Trial> {
+pub(crate) fn without_excluded(trials: &[&Trial], decisions: &[MarkerDecision]) -> Vec<Trial> {
     trials
         .iter()
         .enumerate()
@@ -329,7 +329,7 @@ pub fn without_excluded(trials: &[&Trial], decisions: &[MarkerDecision]) -> Vec<
 }
 
 /// The refined markers with their prior SD (m), from the decisions.
-pub fn refined(decisions: &[MarkerDecision]) -> Vec<(&str, f64)> {
+pub(crate) fn refined(decisions: &[MarkerDecision]) -> Vec<(&str, f64)> {
     decisions
         .iter()
         .filter(|d| d.action == MarkerAction::Refine)

@@ -25,11 +25,11 @@ use crate::residual_checks::frames_looked_at;
 use crate::trial::Trial;
 
 /// Other markers of the segment a frame needs for the leave-one-out transform.
-pub const MIN_OTHERS: usize = 3;
+pub(crate) const MIN_OTHERS: usize = 3;
 
 /// The leave-one-out statistic of one model marker over a trial.
 #[derive(Debug, Clone, PartialEq)]
-pub struct RigidOffset {
+pub(crate) struct RigidOffset {
     pub marker: usize,
     /// `μ_j` in the segment frame (m).
     pub mean: Vector3<f64>,
@@ -39,10 +39,10 @@ pub struct RigidOffset {
 }
 
 impl RigidOffset {
-    pub fn size(&self) -> f64 {
+    pub(crate) fn size(&self) -> f64 {
         self.mean.norm()
     }
-    pub fn ratio(&self) -> f64 {
+    pub(crate) fn ratio(&self) -> f64 {
         if self.spread > 0.0 {
             self.size() / self.spread
         } else {
@@ -52,7 +52,7 @@ impl RigidOffset {
 }
 
 /// The rigid transform `(R, t)` minimising `Σ ‖R a_k + t − b_k‖²` (at least 3 points).
-pub fn fit_rigid(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> (Matrix3<f64>, Vector3<f64>) {
+pub(crate) fn fit_rigid(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> (Matrix3<f64>, Vector3<f64>) {
     let n = a.len() as f64;
     let ca = a.iter().sum::<Vector3<f64>>() / n;
     let cb = b.iter().sum::<Vector3<f64>>() / n;
@@ -125,7 +125,7 @@ fn statistic(
 /// flagged (a displaced marker pulls the leave-one-out transforms of the others, so their
 /// statistics can pass too; it keeps the largest share of the misfit itself), then the rest
 /// are tested again without it, while [`MIN_OTHERS`] others remain.
-pub fn rigid_displaced(
+pub(crate) fn rigid_displaced(
     model: &Model,
     trial: &Trial,
     steady: impl Fn(&RigidOffset) -> bool,

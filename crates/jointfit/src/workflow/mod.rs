@@ -24,11 +24,11 @@ pub mod envelope;
 pub mod global;
 mod hold;
 mod ik;
-pub mod map;
+pub(crate) mod map;
 pub mod marker_policy;
-pub mod marker_rigid;
+pub(crate) mod marker_rigid;
 mod probes;
-pub mod redundant;
+pub(crate) mod redundant;
 pub mod refine;
 mod starts;
 mod summary;
@@ -40,18 +40,28 @@ use thiserror::Error;
 use crate::calibrate::uncertainty::UncertaintyOptions;
 use crate::calibrate::CalibError;
 
-pub use crate::solver::{NoObserver, Observer, Termination};
-pub use calibration::{
-    calibrate, Calibration, ConvergenceStage, MultiStart, ParamRow, StartRun, UNCERTAINTY_STAGE,
-};
-pub use check::{check, CheckReport};
-pub use hold::{hold_undetermined, lock_undetermined};
-pub use ik::{ik_checked, ik_trial, ik_warm_started, transfer_params, IkRun};
-pub use redundant::{
-    calibrate_holding_redundant, redundant_parameters, HeldCalibration, Redundancy,
-};
-pub use starts::{perturb, restart_point};
-pub use verdict::{Level, Verdict};
+pub use crate::solver::NoObserver;
+pub use crate::solver::Observer;
+pub use crate::solver::Termination;
+pub use calibration::calibrate;
+pub use calibration::Calibration;
+pub use calibration::UNCERTAINTY_STAGE;
+pub use check::check;
+pub use check::CheckReport;
+pub use hold::hold_undetermined;
+pub use hold::lock_undetermined;
+pub use ik::ik_checked;
+pub use ik::ik_trial;
+pub use ik::ik_warm_started;
+pub use ik::transfer_params;
+pub use redundant::calibrate_holding_redundant;
+pub use redundant::HeldCalibration;
+pub use redundant::Redundancy;
+pub use starts::perturb;
+#[cfg(test)]
+use starts::restart_point;
+pub use verdict::Level;
+pub use verdict::Verdict;
 
 /// Errors of the workflow.
 #[derive(Debug, Error, PartialEq)]
@@ -99,7 +109,7 @@ pub enum Method {
 
 impl Method {
     /// Every method, in the order of the command line's choices.
-    pub const ALL: [Method; 3] = [Method::Joint, Method::Gradient, Method::Pso];
+    pub(crate) const ALL: [Method; 3] = [Method::Joint, Method::Gradient, Method::Pso];
 
     /// The lower-case name (`joint`, `gradient`, `pso`), as on the command line and in JSON.
     pub fn name(self) -> &'static str {
@@ -214,7 +224,7 @@ impl Default for FitSettings {
 
 impl FitSettings {
     /// Starts actually run: `starts` (at least one), one for the particle swarm.
-    pub fn effective_starts(&self) -> usize {
+    pub(crate) fn effective_starts(&self) -> usize {
         if self.method == Method::Pso {
             1
         } else {
@@ -224,7 +234,7 @@ impl FitSettings {
 
     /// Extra starts of the global phase actually run: `probes` for a single-start joint fit,
     /// else none (several full starts are their own global phase; the swarm is global).
-    pub fn effective_probes(&self) -> usize {
+    pub(crate) fn effective_probes(&self) -> usize {
         if self.method == Method::Joint && self.starts <= 1 {
             self.probes
         } else {

@@ -180,7 +180,7 @@ fn no_decision_on_clean_trials_with_the_joints_off_their_landmarks() {
     let mut ik_says_displaced = Vec::new();
     for seed in 1..=40u64 {
         // The landmark model wrong by the landmark method's published error.
-        let p = crate::testing::params_from_priors(&model, seed);
+        let p = model.sample_priors(seed);
         let trial = synthetic(&model, &p, 60, 0.0003);
         let (map, _) = MarkerMap::allowing_absent(&model, trial.labels());
         for o in marker_offsets(&model, &start, &trial, &map, &IkOptions::default()) {

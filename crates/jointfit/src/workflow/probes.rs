@@ -14,7 +14,12 @@ use crate::calibrate::{Fit, Problem};
 
 /// One start drawn for the global phase (`k` ≥ 1): from the prior where the problem has one,
 /// else [`restart_point`] of `start`.
-pub fn probe_point(prob: &Problem, start: &[f64], settings: &FitSettings, k: usize) -> Vec<f64> {
+pub(crate) fn probe_point(
+    prob: &Problem,
+    start: &[f64],
+    settings: &FitSettings,
+    k: usize,
+) -> Vec<f64> {
     let model = prob.model;
     let mut p = restart_point(
         model,
@@ -68,7 +73,7 @@ pub(super) fn subsample<'m>(prob: &Problem<'m>, stride: usize) -> Problem<'m> {
 
 /// Every start of the global phase (the given one first) and its seeded inner solutions on
 /// the probes' frames: what the probes begin from.
-pub type ProbeStarts = Vec<(Vec<f64>, Vec<Vec<f64>>)>;
+pub(crate) type ProbeStarts = Vec<(Vec<f64>, Vec<Vec<f64>>)>;
 
 /// The probes' frames: every `stride`-th of `prob`'s, `stride` the smallest that leaves at
 /// most `settings.probe_frames`.
@@ -81,7 +86,7 @@ pub(super) fn probe_stride(prob: &Problem, settings: &FitSettings) -> usize {
 /// that weighs the prior (only the prior's means and SDs choose the starts), so a caller may
 /// form them from a problem whose prior carries any σ (forming them beside the σ estimate
 /// was measured slower: `notebook/performance_fit.md`).
-pub fn probe_starts(prob: &Problem, start: &[f64], settings: &FitSettings) -> ProbeStarts {
+pub(crate) fn probe_starts(prob: &Problem, start: &[f64], settings: &FitSettings) -> ProbeStarts {
     let coarse = subsample(prob, probe_stride(prob, settings));
     (0..settings.probes + 1)
         .into_par_iter()

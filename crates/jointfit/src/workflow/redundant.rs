@@ -33,7 +33,7 @@ use crate::model::{Model, ParamId};
 use crate::trial::Trial;
 
 /// Largest residual information (relative, unit diagonal) of a redundant parameter.
-pub const REDUNDANT_TOL: f64 = 1e-8;
+pub(crate) const REDUNDANT_TOL: f64 = 1e-8;
 
 /// A free parameter held at its start because others reproduce its effect.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -48,7 +48,7 @@ pub struct Redundancy {
 
 /// Splits `free` into the parameters to fit and the redundant ones (module docs), at
 /// parameters `start` on `trials`.
-pub fn redundant_parameters(
+pub(crate) fn redundant_parameters(
     model: &Model,
     start: &[f64],
     trials: &[&Trial],

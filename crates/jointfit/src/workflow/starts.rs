@@ -107,7 +107,7 @@ pub(super) fn multi_start_summary(prob: &Problem, fits: &[Fit], best: usize) -> 
 
 /// Start `k` (≥ 1) of a multi-start fit: [`perturb`] of `start` with a seed derived from the
 /// run's `seed` and `k`, so every start of every run is reproducible and distinct.
-pub fn restart_point(
+pub(crate) fn restart_point(
     model: &Model,
     start: &[f64],
     free: &[usize],

@@ -5,7 +5,7 @@ use serde::Serialize;
 
 /// Two finished starts reached the same optimum when their objectives differ by less than
 /// this (relative).
-pub const SAME_OPTIMUM: f64 = 1e-6;
+pub(crate) const SAME_OPTIMUM: f64 = 1e-6;
 
 /// What the global phase did (`jointfit calibrate --json`: `global`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -28,7 +28,7 @@ pub struct GlobalSearch {
 }
 
 /// The warning of a global phase whose finished starts disagree (`None`: they agree).
-pub fn warning(g: &GlobalSearch) -> Option<String> {
+pub(crate) fn warning(g: &GlobalSearch) -> Option<String> {
     if g.agree || g.finished.len() < 2 {
         return None;
     }

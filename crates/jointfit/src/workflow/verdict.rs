@@ -42,30 +42,30 @@ use crate::trial::Trial;
 
 /// Before the fit, markers this far from the model (RMS, mm) mean the model is not of this
 /// trial's session or marker set.
-pub const REJECT_RMS_BEFORE_MM: f64 = 50.0;
+pub(crate) const REJECT_RMS_BEFORE_MM: f64 = 50.0;
 /// After the fit: twice the movement bar of OpenSim's best practice (mm).
-pub const REJECT_RMS_AFTER_MM: f64 = 40.0;
+pub(crate) const REJECT_RMS_AFTER_MM: f64 = 40.0;
 /// After the fit: the movement bar of OpenSim's best practice (mm).
-pub const CAUTION_RMS_AFTER_MM: f64 = 20.0;
+pub(crate) const CAUTION_RMS_AFTER_MM: f64 = 20.0;
 /// A single re-attached marker lands within this distance (mm) of where it was; the marker
 /// policy leaves a marker further off out when its segment keeps enough markers, and a
 /// refinement beyond it is said in the verdict.
-pub const REFINE_CAP_MM: f64 = 30.0;
+pub(crate) const REFINE_CAP_MM: f64 = 30.0;
 /// Refined markers moved further than this (mm) are a caution.
-pub const CAUTION_REFINE_MM: f64 = 15.0;
+pub(crate) const CAUTION_REFINE_MM: f64 = 15.0;
 /// A prior–data conflict (flagged at p < 0.01, [`super::conflict`]) stronger than this is a
 /// caution; a weaker one is listed beside the level without raising it.
-pub const STRONG_CONFLICT_P: f64 = 1e-4;
+pub(crate) const STRONG_CONFLICT_P: f64 = 1e-4;
 /// Share of frames the fit skipped above which the result is a caution.
-pub const CAUTION_SKIPPED: f64 = 0.1;
+pub(crate) const CAUTION_SKIPPED: f64 = 0.1;
 /// Knee extension beyond this (deg, negative flexion) in any frame is a caution: passive
 /// hyperextension of healthy knees rarely exceeds 5–10° (Soucie et al. 2011, Haemophilia
 /// 17:500–507).
-pub const KNEE_HYPEREXTENSION_DEG: f64 = -10.0;
+pub(crate) const KNEE_HYPEREXTENSION_DEG: f64 = -10.0;
 /// A hip rotated by more than this (deg) in the median frame of a trial: gait keeps the hip
 /// within about ±15° of neutral (Kadaba et al. 1990, J Orthop Res 8:383–392), so a fitted
 /// joint frame that holds it at 20° or more through a trial has turned the thigh's axes.
-pub const HIP_ROTATION_DEG: f64 = 20.0;
+pub(crate) const HIP_ROTATION_DEG: f64 = 20.0;
 
 /// How far to trust a fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
@@ -126,7 +126,7 @@ impl Default for Verdict {
 impl Verdict {
     /// Adds a reason of `level` after those at least as grave (an `ok` reason is a note: it
     /// is listed without raising the level).
-    pub fn add(&mut self, level: Level, reason: String) {
+    pub(crate) fn add(&mut self, level: Level, reason: String) {
         let at = self
             .grades
             .iter()
@@ -162,7 +162,7 @@ pub struct TrialMismatch {
 }
 
 /// Step 1 of the module docs: each trial's marker placement against the model's.
-pub fn placement_mismatches(model: &Model, trials: &[&Trial]) -> Vec<TrialMismatch> {
+pub(crate) fn placement_mismatches(model: &Model, trials: &[&Trial]) -> Vec<TrialMismatch> {
     trials
         .iter()
         .enumerate()
@@ -177,7 +177,7 @@ pub fn placement_mismatches(model: &Model, trials: &[&Trial]) -> Vec<TrialMismat
 
 /// Step 1 as a refusal: the first mismatch as [`WorkflowError::Mismatch`], unless
 /// `refuse` is off (then the mismatches are returned, to become reasons of a `reject`).
-pub fn check_inputs(
+pub(crate) fn check_inputs(
     model: &Model,
     trials: &[&Trial],
     refuse: bool,

@@ -44,7 +44,7 @@ const MAX_RATIO: f64 = 1.0;
 /// Two-sided critical value at `level` of the Bartlett-kernel HAC interval with bandwidth
 /// `ratio = b/N` of the trial length, under fixed-b asymptotics (Kiefer & Vogelsang 2005;
 /// see the module docs). `ratio = 0` gives the normal quantile.
-pub fn fixed_b_bartlett(level: f64, ratio: f64) -> f64 {
+pub(crate) fn fixed_b_bartlett(level: f64, ratio: f64) -> f64 {
     let r = ratio.clamp(0.0, MAX_RATIO);
     let cv95 = 1.9600 + 2.9694 * r + 0.4160 * r * r - 0.5324 * r * r * r;
     let z = normal_quantile(0.5 + 0.5 * level);
@@ -52,7 +52,7 @@ pub fn fixed_b_bartlett(level: f64, ratio: f64) -> f64 {
 }
 
 /// Inverse of the standard normal CDF (Acklam's rational approximation, |error| < 1.2e-9).
-pub fn normal_quantile(p: f64) -> f64 {
+pub(crate) fn normal_quantile(p: f64) -> f64 {
     const A: [f64; 6] = [
         -3.969683028665376e1,
         2.209460984245205e2,
@@ -105,7 +105,7 @@ pub fn normal_quantile(p: f64) -> f64 {
 
 /// Quantile of Student's t with `nu` degrees of freedom from the normal one (Cornish–Fisher
 /// expansion, Abramowitz & Stegun 26.7.5; relative error < 1e-4 for `nu ≥ 5` at 0.975).
-pub fn t_quantile(p: f64, nu: f64) -> f64 {
+pub(crate) fn t_quantile(p: f64, nu: f64) -> f64 {
     let z = normal_quantile(p);
     let (z3, z5, z7, z9) = (z.powi(3), z.powi(5), z.powi(7), z.powi(9));
     z + (z3 + z) / (4.0 * nu)
@@ -116,7 +116,7 @@ pub fn t_quantile(p: f64, nu: f64) -> f64 {
 
 /// Cumulative distribution of Student's t with `nu > 0` degrees of freedom at `x`:
 /// `1 − I_{ν/(ν+x²)}(ν/2, 1/2)/2` for `x ≥ 0` (Abramowitz & Stegun 26.7.1, 26.5.27).
-pub fn t_cdf(x: f64, nu: f64) -> f64 {
+pub(crate) fn t_cdf(x: f64, nu: f64) -> f64 {
     let tail = 0.5 * incomplete_beta(0.5 * nu, 0.5, nu / (nu + x * x));
     if x >= 0.0 {
         1.0 - tail
@@ -128,7 +128,7 @@ pub fn t_cdf(x: f64, nu: f64) -> f64 {
 /// Quantile of Student's t with `nu` degrees of freedom (any `nu > 0`), `p > 0.5`: the root
 /// of [`t_cdf`] by Newton steps on its density, kept inside a bisection bracket (a few
 /// evaluations); the normal quantile beyond `1e7` degrees of freedom.
-pub fn t_quantile_any(p: f64, nu: f64) -> f64 {
+pub(crate) fn t_quantile_any(p: f64, nu: f64) -> f64 {
     let z = normal_quantile(p);
     if nu > 1e7 {
         return z;
@@ -171,7 +171,7 @@ pub fn t_quantile_any(p: f64, nu: f64) -> f64 {
 /// The degrees of freedom `ν` of the Student t whose `p` quantile is `cv` (infinite when `cv`
 /// is the normal quantile or below), to 1e-6 relative: the t that matches an interval's
 /// critical value, e.g. the fixed-b one, at its level.
-pub fn dof_of_critical(p: f64, cv: f64) -> f64 {
+pub(crate) fn dof_of_critical(p: f64, cv: f64) -> f64 {
     if cv <= normal_quantile(p) * (1.0 + 1e-12) {
         return f64::INFINITY;
     }
@@ -192,7 +192,7 @@ pub fn dof_of_critical(p: f64, cv: f64) -> f64 {
 /// part `v_r` estimated with `nu` degrees of freedom and `v_p` known: Student's t with the
 /// Welch–Satterthwaite degrees of freedom `ν (v_r + v_p)²/v_r²` (Satterthwaite 1946,
 /// Biometrics 2:110–114). `t_ν`'s quantile when `v_p = 0`, the normal one when `v_r = 0`.
-pub fn mixed_critical(p: f64, nu: f64, v_random: f64, v_known: f64) -> f64 {
+pub(crate) fn mixed_critical(p: f64, nu: f64, v_random: f64, v_known: f64) -> f64 {
     if v_random <= 0.0 {
         return normal_quantile(p);
     }
@@ -250,7 +250,7 @@ fn beta_fraction(a: f64, b: f64, x: f64) -> f64 {
 }
 
 /// `ln Γ(x)`, `x > 0`, by Lanczos' approximation (g = 7, 9 terms; relative error ≈ 1e-15).
-pub fn ln_gamma(x: f64) -> f64 {
+pub(crate) fn ln_gamma(x: f64) -> f64 {
     const G: f64 = 7.0;
     const C: [f64; 9] = [
         0.999_999_999_999_809_9,

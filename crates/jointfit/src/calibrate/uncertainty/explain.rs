@@ -9,7 +9,7 @@ use super::{
 use crate::model::{CoordKind, Model, Unit};
 
 /// Ranges of motion of every coordinate over the frames `qs` (display units).
-pub fn coordinate_ranges(model: &Model, qs: &[Vec<f64>]) -> Vec<CoordRange> {
+pub(crate) fn coordinate_ranges(model: &Model, qs: &[Vec<f64>]) -> Vec<CoordRange> {
     model
         .coordinates()
         .iter()

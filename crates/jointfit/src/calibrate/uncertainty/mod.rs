@@ -90,16 +90,24 @@ mod types;
 use super::{Fit, Problem};
 use crate::model::Unit;
 use critical::critical;
-pub use critical::{fixed_b_bartlett, ln_gamma, normal_quantile, t_quantile};
+pub(crate) use critical::ln_gamma;
 use estimators::{conservative, continuity, covariances, Covariances};
-pub use explain::coordinate_ranges;
+pub(crate) use explain::coordinate_ranges;
 use explain::{reason, weak_directions};
-pub use reduced::{group_size, reduced_system, Reduced, MAX_GROUPS};
+pub use reduced::group_size;
+pub use reduced::reduced_system;
+pub(crate) use reduced::Reduced;
+pub use reduced::MAX_GROUPS;
 pub use subset::unidentifiable_subset;
-pub use types::{
-    BootstrapInfo, CoordRange, DirectionComponent, Identifiability, ParamUncertainty, SeMethod,
-    Uncertainty, UncertaintyOptions, WeakDirection,
-};
+pub(crate) use types::BootstrapInfo;
+pub(crate) use types::CoordRange;
+pub(crate) use types::DirectionComponent;
+pub use types::Identifiability;
+pub(crate) use types::ParamUncertainty;
+pub use types::SeMethod;
+pub use types::Uncertainty;
+pub use types::UncertaintyOptions;
+pub(crate) use types::WeakDirection;
 
 /// Eigenvalues of `S` below this fraction of the largest count as zero (not determined).
 const NULL_RATIO: f64 = 1e-10;
@@ -117,7 +125,7 @@ pub fn analyze(prob: &Problem, fit: &Fit, opts: &UncertaintyOptions) -> Uncertai
 /// [`analyze`] from the reduced system `red` of `prob` at `fit`
 /// ([`reduced_system`]`(prob, &fit.p, &fit.coords)`, formed once where a workflow needs it
 /// for more than the analysis).
-pub fn analyze_reduced(
+pub(crate) fn analyze_reduced(
     prob: &Problem,
     fit: &Fit,
     opts: &UncertaintyOptions,

@@ -211,7 +211,7 @@ impl Reduced {
     /// [`reduced_system`] gives on `prob` at the same point, bit for bit, when `prob` differs
     /// from the problem `self` was formed on only in its prior (its σ, factors or spreads).
     /// The marker term's part, the costly one, is kept.
-    pub fn set_prior_of(&mut self, prob: &Problem) {
+    pub(crate) fn set_prior_of(&mut self, prob: &Problem) {
         let nf = self.data_normal.nrows();
         debug_assert_eq!(nf, prob.n_free());
         // The prior's information (zero without a prior): `S` is then the posterior's.

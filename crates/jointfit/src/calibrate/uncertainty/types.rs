@@ -70,7 +70,7 @@ pub struct UncertaintyOptions {
 
 impl UncertaintyOptions {
     /// The flag threshold of a parameter of `unit` (SI: m or rad).
-    pub fn threshold(&self, unit: Unit) -> f64 {
+    pub(crate) fn threshold(&self, unit: Unit) -> f64 {
         match unit {
             Unit::Metre => self.threshold_m,
             Unit::Radian => self.threshold_rad,

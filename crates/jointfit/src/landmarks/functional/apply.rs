@@ -22,11 +22,11 @@ use crate::landmarks::LandmarkError;
 use crate::trial::Trial;
 
 /// Floor of the functional hip centre's prior SD per axis (m).
-pub const HIP_FLOOR: f64 = 0.005;
+pub(crate) const HIP_FLOOR: f64 = 0.005;
 /// Floor of the functional knee axis' prior SD per orientation angle (rad).
-pub const KNEE_ANGLE_FLOOR: f64 = 2.0 * std::f64::consts::PI / 180.0;
+pub(crate) const KNEE_ANGLE_FLOOR: f64 = 2.0 * std::f64::consts::PI / 180.0;
 /// Floor of the functional knee axis point's prior SD per axis (m).
-pub const KNEE_POINT_FLOOR: f64 = 0.003;
+pub(crate) const KNEE_POINT_FLOOR: f64 = 0.003;
 
 /// Functional trials to use in `personalize_with` (each in metres, Y-up, like the static).
 #[derive(Debug, Clone, Copy, Default)]

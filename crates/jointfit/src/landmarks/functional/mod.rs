@@ -40,9 +40,12 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use thiserror::Error;
 
-pub use apply::{FunctionalReport, FunctionalTrials};
-pub use sara::{sara, AxisFit};
-pub use score::{score, CentreFit};
+pub use apply::FunctionalReport;
+pub use apply::FunctionalTrials;
+pub(crate) use sara::sara;
+pub(crate) use sara::AxisFit;
+pub(crate) use score::score;
+pub(crate) use score::CentreFit;
 
 use super::frames::rigid_fit;
 use crate::kinematics::Pose;
@@ -82,7 +85,7 @@ pub enum FunctionalError {
 
 /// A marker cluster: labels and their reference coordinates (m).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Cluster {
+pub(crate) struct Cluster {
     /// Segment name, for messages.
     pub segment: String,
     pub labels: Vec<String>,
@@ -115,7 +118,7 @@ impl Default for FunctionalOptions {
 
 /// Per-frame poses of two clusters, on the frames where both have ≥ 3 markers.
 #[derive(Debug, Clone)]
-pub struct PosePairs {
+pub(crate) struct PosePairs {
     pub a: Vec<Pose>,
     pub b: Vec<Pose>,
     /// Trial frame index of each pair.
@@ -123,7 +126,11 @@ pub struct PosePairs {
 }
 
 /// Rigidly fits both clusters to every frame of `trial` where each has at least 3 markers.
-pub fn pose_pairs(trial: &Trial, a: &Cluster, b: &Cluster) -> Result<PosePairs, FunctionalError> {
+pub(crate) fn pose_pairs(
+    trial: &Trial,
+    a: &Cluster,
+    b: &Cluster,
+) -> Result<PosePairs, FunctionalError> {
     let cols = |c: &Cluster| -> Result<Vec<usize>, FunctionalError> {
         c.labels
             .iter()
@@ -257,7 +264,7 @@ pub(crate) mod synthetic {
     /// Trial with clusters "a" (a1..a4) and "b" (b1..b4); b rotates relative to a about
     /// `centre` (in the static frame) by `rel(t)`; the pair also moves rigidly in the lab.
     /// Returns the trial and both clusters' reference (static) coordinates.
-    pub fn trial(
+    pub(crate) fn trial(
         centre: Vector3<f64>,
         rel: impl Fn(f64) -> Rotation3<f64>,
         frames: usize,

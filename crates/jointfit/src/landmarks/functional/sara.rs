@@ -74,7 +74,7 @@ fn solve(
 /// flexion-extension trial). `near`: the returned point is the axis point nearest it (e.g.
 /// the landmark knee centre); `hint`: the axis is signed to point the same way (e.g. the
 /// landmark axis, pointing right).
-pub fn sara(
+pub(crate) fn sara(
     trial: &Trial,
     a: &Cluster,
     b: &Cluster,
@@ -95,7 +95,7 @@ pub fn sara(
 }
 
 /// SARA on given pose pairs; `None` when degenerate.
-pub fn sara_pairs(
+pub(crate) fn sara_pairs(
     pairs: &PosePairs,
     near: &Vector3<f64>,
     hint: &Vector3<f64>,

@@ -39,7 +39,7 @@ fn solve(n: &Matrix6<f64>, h: &Vector6<f64>) -> Option<(Vector3<f64>, Vector3<f6
 
 /// The SCoRE centre between clusters `a` (proximal) and `b` (distal) from a functional trial
 /// (e.g. hip circumduction: pelvis and thigh).
-pub fn score(
+pub(crate) fn score(
     trial: &Trial,
     a: &Cluster,
     b: &Cluster,
@@ -63,7 +63,7 @@ pub fn score(
 }
 
 /// SCoRE on given pose pairs; `None` when the normal matrix is singular.
-pub fn score_pairs(pairs: &PosePairs, opts: &FunctionalOptions) -> Option<CentreFit> {
+pub(crate) fn score_pairs(pairs: &PosePairs, opts: &FunctionalOptions) -> Option<CentreFit> {
     let normals = frame_normals(pairs);
     let n = normals.len();
     let (nn, h) = sum_normals(&normals, 0..n);

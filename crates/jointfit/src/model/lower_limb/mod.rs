@@ -33,7 +33,10 @@ use std::f64::consts::PI;
 mod bilateral;
 mod params;
 
-pub use bilateral::{bilateral, join_legs, PELVIS_JOINT, PELVIS_SEGMENT, SIDE_SUFFIXES};
+pub use bilateral::bilateral;
+pub(crate) use bilateral::join_legs;
+pub(crate) use bilateral::PELVIS_SEGMENT;
+pub use bilateral::SIDE_SUFFIXES;
 
 use params::{nominal, par, param_spec, PARAMS};
 
@@ -60,14 +63,14 @@ impl Side {
         }
     }
     /// Suffix of this leg's names in the bilateral model: `_r` or `_l`.
-    pub fn suffix(self) -> &'static str {
+    pub(crate) fn suffix(self) -> &'static str {
         match self {
             Side::Right => "_r",
             Side::Left => "_l",
         }
     }
     /// `right` or `left`.
-    pub fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             Side::Right => "right",
             Side::Left => "left",
