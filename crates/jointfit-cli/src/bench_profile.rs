@@ -59,8 +59,8 @@ pub fn run(
                     ));
                 }
                 "after" => {
-                    let reference = jointfit::residual_checks::reference_name(model);
-                    std::hint::black_box(jointfit::residual_checks::check_offsets_after_ik(
+                    let reference = jointfit::checks::offsets::reference_name(model);
+                    std::hint::black_box(jointfit::checks::offsets::check_offsets_after_ik(
                         model, &for_model, &map, &reference, &p, &opts, &fit,
                     ));
                 }

@@ -285,9 +285,9 @@ pub fn solve(
         crate::common::warn_absent_markers(path, &run.absent);
     }
     let fit = run.fit;
-    let reference = jointfit::residual_checks::reference_name(checked_model);
+    let reference = jointfit::checks::offsets::reference_name(checked_model);
     let offsets = if held.is_empty() {
-        jointfit::residual_checks::check_offsets_after_ik(
+        jointfit::checks::offsets::check_offsets_after_ik(
             checked_model,
             trial,
             &map,
@@ -298,7 +298,7 @@ pub fn solve(
         )
     } else {
         // The IK ran on the model with coordinates held: not the check's.
-        jointfit::residual_checks::check_offsets(checked_model, trial, &map, &reference)
+        jointfit::checks::offsets::check_offsets(checked_model, trial, &map, &reference)
     };
     report_findings(&offsets, path)?;
     findings.extend(offsets);

@@ -29,7 +29,7 @@ fn load(path: &Path) -> Trial {
 fn render(name: &str, model: &Model, trial: &Trial, out: &mut String) {
     let (map, _) = MarkerMap::allowing_absent(model, trial.labels());
     writeln!(out, "== {name}").unwrap();
-    // The moved-marker check (`jointfit::residual_checks`, after IK) is not part of the
+    // The moved-marker check (`jointfit::checks::offsets`, after IK) is not part of the
     // snapshot: it is tested in jointfit-cli's `offsets` test.
     for f in check_trial(model, trial, &map)
         .into_iter()

@@ -195,7 +195,7 @@ fn default_calibration_passes_the_held_out_hip_check_on_opencap_walking2() {
 /// Sit-to-stand: the correlated thigh artefact of deep flexion concentrates on the hip
 /// centre (its robust-to-white variance ratio ≈ 4 × the trial's), which a single trial-wide
 /// correlation factor let the fit move 23 mm lateral, to the limit of (a); the per-parameter
-/// inflation of the prior weight (`calibrate::prior::parameter_inflation`) holds it.
+/// inflation of the prior weight (`calibrate::uncertainty::parameter_inflation`) holds it.
 #[test]
 fn default_calibration_passes_the_held_out_hip_check_on_opencap_sit_to_stand() {
     let (Some(stat), Some(walk)) = (

@@ -1,4 +1,4 @@
-//! The moved-cluster check (`jointfit::residual_checks`) on every shared motion trial, both
+//! The moved-cluster check (`jointfit::checks::offsets`) on every shared motion trial, both
 //! legs: OpenCap Expert1's walking1 and walking3, whose left thigh cluster sits about 110 mm
 //! from where static1 puts it, are flagged; every other trial (walking2 and the rest of the
 //! session, gait2392 subject01, Hamner running, the JAM walk, the biobuddy Vicon trials) is
@@ -9,9 +9,9 @@
 
 use std::path::Path;
 
+use jointfit::checks::offsets::{marker_offsets, offset_findings, offsets_from_ik, reference_name};
 use jointfit::checks::CheckKind;
 use jointfit::ik::{IkOptions, MarkerMap};
-use jointfit::residual_checks::{marker_offsets, offset_findings, offsets_from_ik, reference_name};
 use jointfit_io::trial_file::{load_trial, LoadOptions};
 use jointfit_testkit::{data_file, scratch};
 

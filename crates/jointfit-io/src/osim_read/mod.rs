@@ -410,7 +410,7 @@ fn parse(doc: &Document, path: &Path) -> Result<Parsed, Fail> {
         },
         description: format!(
             "{}{}",
-            jointfit::residual_checks::OSIM_DESCRIPTION,
+            jointfit::checks::offsets::OSIM_DESCRIPTION,
             path.display()
         ),
         segments,

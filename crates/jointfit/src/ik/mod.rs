@@ -39,6 +39,7 @@
 pub mod branch;
 mod composite;
 mod frames;
+mod hold;
 mod lm;
 mod markers;
 mod normal;
@@ -56,6 +57,8 @@ mod trial_fit;
 use thiserror::Error;
 
 pub use frames::warm_started_coords;
+pub use hold::hold_undetermined;
+pub use hold::lock_undetermined;
 pub(crate) use lm::is_gross;
 pub use lm::solve_frame;
 pub(crate) use lm::undetermined_coordinate;

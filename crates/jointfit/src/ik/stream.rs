@@ -155,7 +155,7 @@ impl StreamingIk {
     /// [`StreamingIk::new`] at the model's nominal parameters, with the coordinates no label
     /// of the feed determines locked at their defaults first (a toe joint without toe
     /// markers), as inverse kinematics of a trial does
-    /// ([`crate::workflow::hold_undetermined`], judged with every label present; their names
+    /// ([`super::hold_undetermined`], judged with every label present; their names
     /// in [`StreamingIk::held`]).
     pub fn for_feed(
         model: &Model,
@@ -173,7 +173,7 @@ impl StreamingIk {
             vec![Vector3::repeat(1.0); labels.len()],
         )
         .map_err(|e| StreamError::Hold(e.to_string()))?;
-        let (held_model, held) = crate::workflow::hold_undetermined(model, &[&probe])
+        let (held_model, held) = super::hold_undetermined(model, &[&probe])
             .map_err(|e| StreamError::Hold(e.to_string()))?;
         let model = held_model.unwrap_or_else(|| model.clone());
         let p = model.nominal_params();

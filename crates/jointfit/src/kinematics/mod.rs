@@ -20,107 +20,11 @@
 pub mod fd;
 pub(crate) mod twist;
 
-use nalgebra::{DMatrix, Matrix3, Vector3};
+use nalgebra::{DMatrix, Vector3};
 
 use crate::model::plan::JCol;
-use crate::model::{Item, Model, Motion, Source};
-
-/// A rigid transform `x ↦ rot · x + trans` (`a_from_b` maps b-coordinates into a).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Pose {
-    pub rot: Matrix3<f64>,
-    pub trans: Vector3<f64>,
-}
-
-impl Pose {
-    pub fn identity() -> Self {
-        Pose {
-            rot: Matrix3::identity(),
-            trans: Vector3::zeros(),
-        }
-    }
-    pub(crate) fn new(rot: Matrix3<f64>, trans: Vector3<f64>) -> Self {
-        Pose { rot, trans }
-    }
-    pub(crate) fn is_identity(&self) -> bool {
-        self.trans == Vector3::zeros() && self.rot == Matrix3::identity()
-    }
-    /// `self · other`.
-    pub(crate) fn compose(&self, other: &Pose) -> Pose {
-        Pose {
-            rot: self.rot * other.rot,
-            trans: self.trans + self.rot * other.trans,
-        }
-    }
-    pub(crate) fn inverse(&self) -> Pose {
-        let rt = self.rot.transpose();
-        Pose {
-            rot: rt,
-            trans: -(rt * self.trans),
-        }
-    }
-    pub fn transform_point(&self, x: &Vector3<f64>) -> Vector3<f64> {
-        self.rot * x + self.trans
-    }
-
-    /// Right-multiplies by one elementary transform: `self ← self · E(value)`.
-    #[inline]
-    pub(crate) fn apply(&mut self, motion: &Motion, value: f64) {
-        match motion {
-            Motion::RotX => {
-                let (s, c) = value.sin_cos();
-                let (c1, c2) = (
-                    self.rot.column(1).into_owned(),
-                    self.rot.column(2).into_owned(),
-                );
-                self.rot.set_column(1, &(c * c1 + s * c2));
-                self.rot.set_column(2, &(c * c2 - s * c1));
-            }
-            Motion::RotY => {
-                let (s, c) = value.sin_cos();
-                let (c0, c2) = (
-                    self.rot.column(0).into_owned(),
-                    self.rot.column(2).into_owned(),
-                );
-                self.rot.set_column(0, &(c * c0 - s * c2));
-                self.rot.set_column(2, &(s * c0 + c * c2));
-            }
-            Motion::RotZ => {
-                let (s, c) = value.sin_cos();
-                let (c0, c1) = (
-                    self.rot.column(0).into_owned(),
-                    self.rot.column(1).into_owned(),
-                );
-                self.rot.set_column(0, &(c * c0 + s * c1));
-                self.rot.set_column(1, &(c * c1 - s * c0));
-            }
-            Motion::Rot(axis) => {
-                let r = nalgebra::Rotation3::from_axis_angle(axis, value);
-                self.rot *= r.matrix();
-            }
-            Motion::TransX => self.trans += value * self.rot.column(0),
-            Motion::TransY => self.trans += value * self.rot.column(1),
-            Motion::TransZ => self.trans += value * self.rot.column(2),
-            Motion::Trans(axis) => self.trans += value * (self.rot * axis.into_inner()),
-            Motion::Fixed(p) => {
-                self.trans += self.rot * p.trans;
-                self.rot *= p.rot;
-            }
-        }
-    }
-
-    /// The world direction of a step's axis when the accumulated pose is `self`.
-    #[inline]
-    fn axis_of(&self, motion: &Motion) -> Vector3<f64> {
-        match motion {
-            Motion::RotX | Motion::TransX => self.rot.column(0).into_owned(),
-            Motion::RotY | Motion::TransY => self.rot.column(1).into_owned(),
-            Motion::RotZ | Motion::TransZ => self.rot.column(2).into_owned(),
-            Motion::Rot(a) | Motion::Trans(a) => self.rot * a.into_inner(),
-            Motion::Fixed(_) => Vector3::zeros(),
-        }
-    }
-}
+use crate::model::{Item, Model, Source};
+pub use crate::spatial::Pose;
 
 /// Per-evaluation workspace: one per thread or particle. The model stays immutable.
 #[derive(Debug, Clone)]

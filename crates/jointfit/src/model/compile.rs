@@ -8,14 +8,14 @@ use std::collections::HashMap;
 use nalgebra::{Unit as UnitVec, Vector3};
 
 use super::compiled::{
-    CoordKind, Coordinate, Joint, JointId, JointKind, Marker, Model, Motion, ParamUse, Parameter,
-    Segment, SegmentId, Source, Step,
+    CoordKind, Coordinate, Joint, JointId, JointKind, Marker, Model, ParamUse, Parameter, Segment,
+    SegmentId, Source, Step,
 };
 use super::custom::{CoordRule, DependentCoordinate, MotionType, Role};
 use super::spec::{CoordinateSpec, OffsetSpec, Unit, OFFSET_SCALARS};
 use super::validate::{check_name, joint_kind, Compiler};
 use super::ModelError;
-use crate::kinematics::Pose;
+use crate::spatial::{Motion, Pose};
 
 impl Compiler<'_> {
     /// Compiles the description; the names were validated by [`Compiler::new`].

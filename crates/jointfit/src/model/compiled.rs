@@ -25,11 +25,11 @@
 //!   accessors hand out shared slices. To change a model, edit its [`ModelSpec`]
 //!   ([`Model::spec`], [`Model::spec_with_nominal`]) and compile again.
 
-use nalgebra::{Matrix3, Unit as UnitVec, Vector3};
+use nalgebra::{Matrix3, Vector3};
 
 use super::spec::{ModelSpec, Unit};
 use super::ModelError;
-use crate::kinematics::Pose;
+use crate::spatial::{Motion, Pose};
 
 /// Index of a segment in [`Model::segments`] (topological order: parents first).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -233,29 +233,6 @@ pub struct Marker {
     /// Non-negative weight of the marker's squared residual in IK and calibration
     /// (dimensionless; 0 ignores the marker).
     pub weight: f64,
-}
-
-/// The elementary motion of one step of a segment's chain.
-#[derive(Debug, Clone, PartialEq)]
-pub(crate) enum Motion {
-    RotX,
-    RotY,
-    RotZ,
-    Rot(UnitVec<Vector3<f64>>),
-    TransX,
-    TransY,
-    TransZ,
-    Trans(UnitVec<Vector3<f64>>),
-    Fixed(Pose),
-}
-
-impl Motion {
-    pub(crate) fn is_rotation(&self) -> bool {
-        matches!(
-            self,
-            Motion::RotX | Motion::RotY | Motion::RotZ | Motion::Rot(_)
-        )
-    }
 }
 
 /// Where an elementary step takes its scalar from.

@@ -14,13 +14,14 @@ pub mod spec;
 mod splines;
 mod validate;
 
+pub(crate) use crate::spatial::Motion;
 pub use compiled::offset_rotation;
 pub use compiled::CoordKind;
 pub use compiled::JointKind;
 pub use compiled::Model;
 pub use compiled::ParamId;
 pub use compiled::SegmentId;
-pub(crate) use compiled::{Motion, Source};
+pub(crate) use compiled::Source;
 pub(crate) use plan::Item;
 pub use spec::ModelSpec;
 pub use spec::Unit;

@@ -121,7 +121,7 @@ pub struct Calibration {
     /// Whether that noise was estimated from the residuals (else given).
     pub prior_noise_estimated: bool,
     /// The free parameters whose prior weight was multiplied by a factor above 1, with the
-    /// factor ([`crate::calibrate::prior::parameter_inflation`]); empty when σ was given.
+    /// factor ([`crate::calibrate::uncertainty::parameter_inflation`]); empty when σ was given.
     pub prior_inflation: Vec<(String, f64)>,
     /// Anatomical plausibility of the fitted joints ([`crate::plausibility`]).
     pub plausibility: Vec<crate::plausibility::Check>,

@@ -111,7 +111,7 @@ pub(crate) fn joint_of(name: &str, group: &str) -> Option<String> {
 /// in one parameterization: `n` the data normal matrix, `d` the prior diagonal as the fit
 /// weighed it, `inflation` the per-parameter factors `a_k` it carries (the score covariance
 /// is taken as `σ² Λ^½ N Λ^½`, `Λ = diag(a_k)`: the curvature adjustment's robust data
-/// covariance, [`crate::calibrate::prior::parameter_inflation`]), `s0` the stated prior variances, `sigma2` the data variance factor, `shift`
+/// covariance, [`crate::calibrate::uncertainty::parameter_inflation`]), `s0` the stated prior variances, `sigma2` the data variance factor, `shift`
 /// the posterior mean minus the prior mean.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn statistics(

@@ -68,7 +68,7 @@ fn ik_trial_alongside<R: Send>(
 /// alongside it, queued behind the IK's chunks ([`crate::ik::solve_trial_alongside`]: on two
 /// threads each takes a chunk and the first to finish takes the checks, whose parallel
 /// parts the other joins when it finishes); the moved-cluster check then reads the IK's own fit
-/// ([`crate::residual_checks::check_offsets_after_ik`]) when that is the IK it would run
+/// ([`crate::checks::offsets::check_offsets_after_ik`]) when that is the IK it would run
 /// (nominal parameters, default options), instead of solving the frames a second time.
 pub fn ik_checked(
     model: &Model,
@@ -80,12 +80,12 @@ pub fn ik_checked(
     let (run, mut findings) = ik_trial_alongside(model, p, trial, opts, || {
         crate::checks::check_trial_before_ik(model, trial, &map)
     });
-    let reference = crate::residual_checks::reference_name(model);
+    let reference = crate::checks::offsets::reference_name(model);
     findings.extend(match &run {
-        Ok(run) => crate::residual_checks::check_offsets_after_ik(
+        Ok(run) => crate::checks::offsets::check_offsets_after_ik(
             model, trial, &map, &reference, p, opts, &run.fit,
         ),
-        Err(_) => crate::residual_checks::check_offsets(model, trial, &map, &reference),
+        Err(_) => crate::checks::offsets::check_offsets(model, trial, &map, &reference),
     });
     (run, findings)
 }

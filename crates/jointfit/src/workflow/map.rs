@@ -4,10 +4,10 @@
 //!
 //! Estimation: σ² starts as the residual variance at the start, then one preliminary MAP fit
 //! (joint solver) gives the residual variance of the reduced system, inflated by the
-//! time-correlation factor κ of [`crate::calibrate::prior::correlation_inflation`] (the ratio
+//! time-correlation factor κ of [`crate::calibrate::uncertainty::correlation_inflation`] (the ratio
 //! of the robust to the white variance; without it thousands of correlated samples would
 //! count as independent and swamp any prior), and per parameter by its own excess over κ
-//! ([`crate::calibrate::prior::parameter_inflation`]).
+//! ([`crate::calibrate::uncertainty::parameter_inflation`]).
 //!
 //! The preliminary fit stops at [`PRELIMINARY_RESOLUTION_SE`] = 0.01 standard errors from
 //! its optimum ([`crate::calibrate::joint`]'s statistical rule) instead of a thousandth: a
@@ -147,7 +147,7 @@ pub(crate) fn estimate_noise(prob: &mut Problem<'_>, fit: &Fit) {
     let mut plain = prob.clone();
     plain.prior = None;
     let u = analyze(&plain, fit, &UncertaintyOptions::default());
-    let kappa = crate::calibrate::prior::correlation_inflation(&u);
+    let kappa = crate::calibrate::uncertainty::correlation_inflation(&u);
     let sigma2 = match u.dof {
         0 => f64::INFINITY,
         dof => (fit.cost - prob.prior_cost(&fit.p)) / dof as f64,
@@ -162,7 +162,7 @@ pub(crate) fn estimate_noise(prob: &mut Problem<'_>, fit: &Fit) {
             .collect();
         if let Some(pr) = prob.prior.as_mut() {
             pr.noise = sigma;
-            pr.inflation = crate::calibrate::prior::parameter_inflation(&u, &names, kappa);
+            pr.inflation = crate::calibrate::uncertainty::parameter_inflation(&u, &names, kappa);
         }
     }
 }

@@ -4,7 +4,7 @@
 //!
 //! Each trial gets one robust inverse kinematics at the start parameters (the landmark
 //! model) on the frames [`frames_looked_at`] picks, and from it the residual statistic of
-//! [`crate::residual_checks`] (mean `μ_j` and spread `σ_j` of marker `j`'s residual in its
+//! [`crate::checks::offsets`] (mean `μ_j` and spread `σ_j` of marker `j`'s residual in its
 //! segment's frame) and the share of the frames in which the robust IK rejected the marker
 //! as a gross error ([`crate::ik::FrameFit::rejected`]):
 //!
@@ -39,11 +39,11 @@
 
 use serde::Serialize;
 
+use crate::checks::offsets::{frames_looked_at, offsets_of_fit, MarkerOffset, MIN_FRAMES};
+use crate::checks::offsets::{MIN_OFFSET, MIN_RATIO};
 use crate::ik::{solve_trial, IkOptions, MarkerMap};
 use crate::model::refine::{BOUND_IN_SD, DEFAULT_MARKER_PRIOR_SD};
 use crate::model::{Model, MM_PER_M};
-use crate::residual_checks::{frames_looked_at, offsets_of_fit, MarkerOffset, MIN_FRAMES};
-use crate::residual_checks::{MIN_OFFSET, MIN_RATIO};
 use crate::trial::Trial;
 
 use super::marker_rigid::{rigid_displaced, RigidOffset, MIN_OTHERS};

@@ -12,7 +12,7 @@
 //! ```
 //!
 //! has over the frames a mean `μ_j` and a spread `σ_j`. Unlike the residual after inverse
-//! kinematics ([`crate::residual_checks`]) it does not depend on the joint parameters at all:
+//! kinematics ([`crate::checks::offsets`]) it does not depend on the joint parameters at all:
 //! a joint placed wrong by the landmark method leaves it at zero, while a marker that sits
 //! elsewhere on its segment than in the static trial shows its full displacement (the IK
 //! spreads part of it over the segment's other markers and absorbs part into the
@@ -20,8 +20,8 @@
 
 use nalgebra::{Matrix3, Vector3};
 
+use crate::checks::offsets::frames_looked_at;
 use crate::model::Model;
-use crate::residual_checks::frames_looked_at;
 use crate::trial::Trial;
 
 /// Other markers of the segment a frame needs for the leave-one-out transform.

@@ -171,8 +171,8 @@ fn no_decision_on_clean_trials_with_the_joints_off_their_landmarks() {
     // residual after IK at the landmark model then carries the joints' error (the heel, far
     // from the ankle axes on a three-marker foot, sat 30–35 mm off in 5 % of such trials in
     // `coverage --prior --default`), which the policy refined as a displaced marker.
+    use crate::checks::offsets::marker_offsets;
     use crate::ik::{IkOptions, MarkerMap};
-    use crate::residual_checks::marker_offsets;
     let spec = spec_with_priors();
     let model = Model::compile(&spec).unwrap();
     let start = model.nominal_params();

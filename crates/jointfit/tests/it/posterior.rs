@@ -20,7 +20,7 @@ fn posterior_interval_of_a_parameter_the_trial_cannot_see_is_the_priors() {
 }
 
 /// With the prior weights multiplied by factors `a_k` (the per-parameter correlation
-/// adjustment of an estimated σ, [`jointfit::calibrate::prior::parameter_inflation`]), what
+/// adjustment of an estimated σ, [`jointfit::calibrate::uncertainty::parameter_inflation`]), what
 /// the trial cannot see still gets the prior's own interval (times `√(1 − share)`), not one
 /// `√a_k` narrower: the prior term's score variance carries the factor too.
 #[test]

@@ -1,13 +1,13 @@
-//! The moved-cluster check (`jointfit::residual_checks`) on synthetic trials with skin-artifact
+//! The moved-cluster check (`jointfit::checks::offsets`) on synthetic trials with skin-artifact
 //! noise: the truth is the marker displacement seeded into the data.
 
+use jointfit::checks::offsets::{
+    frames_looked_at, marker_offsets, offset_findings, offsets_from_ik, reference_name,
+};
 use jointfit::checks::{check_trial, CheckKind};
 use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
-use jointfit::residual_checks::{
-    frames_looked_at, marker_offsets, offset_findings, offsets_from_ik, reference_name,
-};
 use jointfit::trial::Trial;
 use jointfit_testkit::synth::{self, Noise};
 
@@ -114,7 +114,7 @@ fn an_osim_model_is_the_reference() {
     let mut spec = lower_limb(Side::Right);
     spec.description = format!(
         "{}/data/gait2392.osim",
-        jointfit::residual_checks::OSIM_DESCRIPTION
+        jointfit::checks::offsets::OSIM_DESCRIPTION
     );
     let model = Model::compile(&spec).unwrap();
     assert_eq!(reference_name(&model), "the model (gait2392.osim)");

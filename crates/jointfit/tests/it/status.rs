@@ -1,7 +1,8 @@
 //! The identifiability status rule (`calibrate::uncertainty`, private `status` module): recomputed from the analysis' public fields by an independent path, and the
 //! prior's part kept out of it.
 
-use jointfit::calibrate::prior::{correlation_inflation, data_share, Source};
+use jointfit::calibrate::prior::{data_share, Source};
+use jointfit::calibrate::uncertainty::correlation_inflation;
 use jointfit::calibrate::uncertainty::{
     analyze, predict, reduced_system, Identifiability, SeMethod, UncertaintyOptions,
 };

@@ -81,6 +81,7 @@
 mod critical;
 mod estimators;
 mod explain;
+mod inflation;
 mod reduced;
 mod resampling;
 mod status;
@@ -94,6 +95,8 @@ pub(crate) use critical::ln_gamma;
 use estimators::{conservative, continuity, covariances, Covariances};
 pub(crate) use explain::coordinate_ranges;
 use explain::{reason, weak_directions};
+pub use inflation::correlation_inflation;
+pub(crate) use inflation::parameter_inflation;
 pub use reduced::group_size;
 pub use reduced::reduced_system;
 pub(crate) use reduced::Reduced;

@@ -22,7 +22,7 @@
 //! with `S_d` the data part of the reduced normal matrix (`S` without the prior's diagonal),
 //! `σ²` the residual variance pooled over every marker sample, and `κ` the trial's
 //! time-correlation factor pooled over the free parameters ([`score_correlation`], the `κ`
-//! that also weighs the prior: [`crate::calibrate::prior::correlation_inflation`]). It must
+//! that also weighs the prior: [`crate::calibrate::uncertainty::correlation_inflation`]). It must
 //! also not sit at a bound and, with a prior, not be held by the prior (data share `< 0.3`,
 //! [`crate::calibrate::prior::Source`]), so that the status never says "determined" where
 //! the information label says "held by the prior". The interval printed next to the label
@@ -109,7 +109,7 @@ pub(super) fn trial_correlation(
 /// every covariance taken for the data alone: a data-part covariance `C = S⁻¹ M S⁻¹` of the
 /// posterior (`M` the scores' long-run covariance, or `σ² S_d` for the white one) becomes
 /// `S_d⁻¹ S C S S_d⁻¹ = S_d⁻¹ M S_d⁻¹` (`S_d = S − D`; `S_d = S` without a prior). This is
-/// [`crate::calibrate::prior::correlation_inflation`]'s `κ`, the one that weighs the prior,
+/// [`crate::calibrate::uncertainty::correlation_inflation`]'s `κ`, the one that weighs the prior,
 /// computed at this fit: without a prior exactly its mean of `(se_robust/se_white)²`.
 pub(super) fn score_correlation(cov: &Covariances, red: &Reduced, sigma2: f64) -> f64 {
     let d = DMatrix::from_diagonal(&DVector::from_column_slice(&red.prior_information));

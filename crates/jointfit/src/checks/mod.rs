@@ -27,7 +27,7 @@
 //!   - **gaps**: frames in which a model marker is missing, with the longest run (one finding
 //!     for the markers missing in exactly the same frames);
 //!   - **offset**: after inverse kinematics, markers that sit at the same wrong place of their
-//!     segment in every frame, e.g. a whole cluster moved ([`crate::residual_checks`]).
+//!     segment in every frame, e.g. a whole cluster moved ([`crate::checks::offsets`]).
 //!
 //! Nothing here changes the data; the findings are for the user (and the report). A finding
 //! that a repair of [`crate::repair`] addresses carries the option that applies it
@@ -40,6 +40,7 @@ use crate::ik::MarkerMap;
 use crate::model::Model;
 use crate::trial::Trial;
 
+pub mod offsets;
 mod segment;
 
 /// Distance change within a segment's cluster above which a pair is reported (m).
@@ -72,7 +73,7 @@ pub enum CheckKind {
     Jump,
     Gaps,
     /// Markers that sit at the same wrong place of their segment in every frame
-    /// ([`crate::residual_checks`]).
+    /// ([`crate::checks::offsets`]).
     Offset,
 }
 
@@ -198,18 +199,18 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
     {
         return out;
     }
-    out.extend(crate::residual_checks::check_offsets(
+    out.extend(crate::checks::offsets::check_offsets(
         model,
         trial,
         map,
-        &crate::residual_checks::reference_name(model),
+        &crate::checks::offsets::reference_name(model),
     ));
     out
 }
 
 /// The checks of [`check_trial`] that need no inverse kinematics (all but the moved-cluster
-/// check of [`crate::residual_checks`], which [`check_trial`] appends last): a front end that
-/// runs the IK anyway appends [`crate::residual_checks::check_offsets_after_ik`] to these and
+/// check of [`crate::checks::offsets`], which [`check_trial`] appends last): a front end that
+/// runs the IK anyway appends [`crate::checks::offsets::check_offsets_after_ik`] to these and
 /// gets what [`check_trial`] gives without a second IK (`workflow::ik_checked`).
 ///
 /// The units check, each segment's cluster and swap checks and each marker's jump and gap
@@ -218,7 +219,7 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
 /// threads.
 pub fn check_trial_before_ik(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding> {
     use rayon::prelude::*;
-    let reference = crate::residual_checks::reference_name(model);
+    let reference = crate::checks::offsets::reference_name(model);
     // Marker pairs of one segment with the model's distance.
     let mut segments: Vec<Vec<usize>> = vec![Vec::new(); model.segments().len()];
     for (j, m) in model.markers().iter().enumerate() {
