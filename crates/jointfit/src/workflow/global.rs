@@ -78,10 +78,9 @@ struct SigmaStage {
     approach: Option<(usize, Fit, Vec<f64>)>,
     at: Fit,
     history: Vec<f64>,
-    reprobe: Option<(Fit, Vec<f64>)>,
-    /// The second start's probe continued on the re-weighed prior: (start, fit, objectives,
-    /// and the objective of the best start's probe continued alike).
-    candidate: Option<(usize, Fit, Vec<f64>, f64)>,
+    reprobe: Option<Run>,
+    /// The second start's probe continued on the re-weighed prior.
+    candidate: Option<Candidate>,
 }
 
 /// The objective before the fit: the marker term alone (the prior term is added once σ is
@@ -117,6 +116,13 @@ pub(crate) struct Outcome {
 /// frames one solve keeps the threads busy. The result is the same either way.
 pub(crate) const SEQUENTIAL_FINISH_FRAMES: usize = 4096;
 
+/// A solver run: its fit and the objective after each iteration (m²).
+type Run = (Fit, Vec<f64>);
+
+/// The second start's probe continued on the re-weighed prior: (start, fit, objectives, and
+/// the objective of the best start's probe continued alike).
+type Candidate = (usize, Fit, Vec<f64>, f64);
+
 /// Runs the global phase on `prob` from `start` with `settings.probes` extra starts (the
 /// module docs), from `starts` ([`probe_starts`] of the same problem, start and settings)
 /// when given; progress goes to `observer` in start order.
@@ -129,8 +135,75 @@ pub(crate) fn run(
     observer: &mut dyn Observer,
 ) -> Outcome {
     let n = settings.probes + 1;
-    // The user's iteration limit (`FitSettings::max_iterations`) bounds the probes and the
-    // finishing solves alike.
+    let (finish, short) = solver_options(settings);
+    let stride = probe_stride(prob, settings);
+    let coarse = subsample(prob, stride);
+    observer.progress(0, n + 1);
+    let starts = starts
+        .filter(|s| s.len() == n)
+        .unwrap_or_else(|| probe_starts(prob, start, settings));
+    let probes = probe(&coarse, starts, &short);
+    // The observer hears of every probe after the fact, in start order.
+    for (k, (fit, hist)) in probes.iter().enumerate() {
+        let stage = format!("probe {} of {n}", k + 1);
+        replay(
+            observer,
+            &stage,
+            Some(short.max_iterations),
+            hist,
+            fit.termination,
+        );
+    }
+    observer.progress(n, n + 1);
+    let (best, second) = rank(&probes);
+    let probe_objective_mm2 = probes.iter().map(|p| mm2(p.0.cost)).collect();
+    // (The σ estimate computed the objective before the fit at the same start on the same
+    // frames; the prior term is added once σ is final.)
+    let estimate = pre.as_ref().is_some_and(|p| p.pending) && prob.prior.is_some();
+    let (q_before_start, q_before, before) = before_fit(prob, start, pre);
+    let probed = Probed {
+        runs: probes,
+        stride,
+        best,
+        second,
+        seeded: std::sync::Mutex::new(Some(q_before_start)),
+    };
+    let sigma_stage = estimate.then(|| estimate_sigma(prob, &probed, &finish, &short));
+    let prob: &Problem = prob;
+    let order = finish_order(&probed, sigma_stage.as_ref());
+    let continued = finish_all(prob, &probed, sigma_stage.as_ref(), &order, &finish);
+    let cost_before = match before {
+        Before::Data(data) => data + prob.prior_cost(start),
+        Before::Cost(cost) => cost,
+    };
+    if let Some(st) = &sigma_stage {
+        report_sigma(observer, st, order[0], &short);
+    }
+    for (&k, (fit, hist)) in order.iter().zip(&continued) {
+        let stage = format!("start {}: joint Levenberg-Marquardt", k + 1);
+        replay(observer, &stage, None, hist, fit.termination);
+    }
+    observer.progress(n + 1, n + 1);
+    let (fits, runs) = records(probed, sigma_stage.as_ref(), &order, &continued);
+    let summary = summarize(
+        &fits,
+        order,
+        probe_objective_mm2,
+        &short,
+        coarse.frames.len(),
+    );
+    Outcome {
+        fits,
+        runs,
+        summary,
+        q_before,
+        cost_before,
+    }
+}
+
+/// The finishing solves' options (the user's iteration limit, `FitSettings::max_iterations`)
+/// and the probes' (at most as many iterations).
+fn solver_options(settings: &FitSettings) -> (JointOptions, JointOptions) {
     let finish = JointOptions {
         max_iterations: settings
             .max_iterations
@@ -141,33 +214,41 @@ pub(crate) fn run(
         max_iterations: settings.probe_iterations.max(1).min(finish.max_iterations),
         ..JointOptions::default()
     };
-    let stride = probe_stride(prob, settings);
-    let coarse = subsample(prob, stride);
-    observer.progress(0, n + 1);
-    let starts = starts
-        .filter(|s| s.len() == n)
-        .unwrap_or_else(|| probe_starts(prob, start, settings));
-    let probes: Vec<(Fit, Vec<f64>)> = starts
+    (finish, short)
+}
+
+/// Tells `observer` of a run that ended on another thread, as one stage.
+fn replay(
+    observer: &mut dyn Observer,
+    stage: &str,
+    budget: Option<usize>,
+    history: &[f64],
+    termination: Termination,
+) {
+    observer.stage_started(stage, budget);
+    for (i, &c) in history.iter().enumerate() {
+        observer.iteration(i + 1, c);
+    }
+    observer.stage_ended(termination);
+}
+
+/// Every start probed on the subsampled problem `coarse`, in parallel, in start order.
+fn probe(coarse: &Problem, starts: ProbeStarts, short: &JointOptions) -> Vec<Run> {
+    starts
         .into_par_iter()
         .map(|(p0, q0)| {
             let mut h = History::default();
-            let fit = solve_joint(&coarse, &coarse.to_scaled(&p0), q0, &short, &mut h);
+            let fit = solve_joint(coarse, &coarse.to_scaled(&p0), q0, short, &mut h);
             (fit, h.0)
         })
-        .collect();
-    // The observer hears of every probe after the fact, in start order.
-    for (k, (fit, hist)) in probes.iter().enumerate() {
-        observer.stage_started(
-            &format!("probe {} of {n}", k + 1),
-            Some(short.max_iterations),
-        );
-        for (i, &c) in hist.iter().enumerate() {
-            observer.iteration(i + 1, c);
-        }
-        observer.stage_ended(fit.termination);
-    }
-    observer.progress(n, n + 1);
-    let mut order: Vec<usize> = (0..n).collect();
+        .collect()
+}
+
+/// The best probe (lowest objective, ties: the lower start) and the second start to finish
+/// unless the probes put it in the best's basin: the given start (so the result is never
+/// worse than one local fit from it), else the runner-up.
+fn rank(probes: &[Run]) -> (usize, Option<usize>) {
+    let mut order: Vec<usize> = (0..probes.len()).collect();
     order.sort_by(|&a, &b| {
         probes[a]
             .0
@@ -175,20 +256,23 @@ pub(crate) fn run(
             .total_cmp(&probes[b].0.cost)
             .then(a.cmp(&b))
     });
-    // A second start is finished unless the probes put it in the best's basin: the given
-    // start (so the result is never worse than one local fit from it), else the runner-up.
     let best = order[0];
     let second = if best != 0 {
         Some(0)
     } else {
         order.get(1).copied()
     };
-    let probe_objective_mm2 = probes.iter().map(|p| mm2(p.0.cost)).collect();
-    // The given start on every frame: the objective before the fit.
-    // (The σ estimate computed both at the same start on the same frames; the prior term is
-    // added once σ is final.)
-    let estimate = pre.as_ref().is_some_and(|p| p.pending) && prob.prior.is_some();
-    let (q_before_start, q_before, before) = match pre {
+    (best, second)
+}
+
+/// The given start on every frame before any iteration: its seeded coordinates, its inner
+/// solutions and the objective there (from the σ estimate's preliminary pass when given).
+fn before_fit(
+    prob: &Problem,
+    start: &[f64],
+    pre: Option<Preliminary>,
+) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, Before) {
+    match pre {
         Some(pre) => (pre.q_seed, pre.q_inner, Before::Data(pre.data_cost)),
         None => {
             let q_seed = prob.initial_coords(start);
@@ -196,118 +280,158 @@ pub(crate) fn run(
             let cost = prob.inner(start, &mut q, &mut IkWorkspace::new(prob.model));
             (q_seed, q, Before::Cost(cost))
         }
-    };
-    // The given start's seeded coordinates go to its finishing solve (moved, not copied).
-    let q_before_start = std::sync::Mutex::new(Some(q_before_start));
-    // Where start `k`'s finishing solve begins on every frame.
-    let coords_of = |prob: &Problem, k: usize| {
-        let f = &probes[k].0;
-        let seeded = (stride > 1 && k == 0)
-            .then(|| q_before_start.lock().ok()?.take())
+    }
+}
+
+/// The probes and what the later stages read of them.
+struct Probed {
+    /// Every start's probe, in start order.
+    runs: Vec<Run>,
+    /// The probes ran on every `stride`-th frame.
+    stride: usize,
+    best: usize,
+    second: Option<usize>,
+    /// The given start's seeded coordinates on every frame, moved (not copied) into its
+    /// finishing solve.
+    seeded: std::sync::Mutex<Option<Vec<Vec<f64>>>>,
+}
+
+impl Probed {
+    /// Where start `k`'s finishing solve begins on every frame.
+    fn coords_of(&self, prob: &Problem, k: usize) -> Vec<Vec<f64>> {
+        let f = &self.runs[k].0;
+        let seeded = (self.stride > 1 && k == 0)
+            .then(|| self.seeded.lock().ok()?.take())
             .flatten();
-        if stride == 1 {
+        if self.stride == 1 {
             f.coords.clone()
         } else if let Some(q) = seeded {
             q
         } else {
             prob.initial_coords(&f.p)
         }
-    };
-    // σ still to be estimated (`super::map`'s module docs): the best start is finished on
-    // the prior weighed by the starting σ₀ to the preliminary resolution, σ and the
-    // per-parameter factors are estimated there, and every finishing solve below runs on
-    // the re-weighed prior (the best one from that σ₀-optimum).
-    let probe_apart = |k: usize| {
-        let (c1, c2) = (probes[best].0.cost, probes[k].0.cost);
-        c2 - c1 > SAME_BASIN * c1.abs()
-    };
-    let mut sigma_stage: Option<SigmaStage> = None;
-    if estimate {
-        let k = best;
-        let f = &probes[k].0;
-        let mut h = History::default();
-        let mut approach = None;
-        let at = if stride == 1 && f.termination != Termination::IterationLimit {
-            f.clone()
-        } else {
-            // On a long trial first on intermediate frames (`super::probes::approach`).
-            let (s0, q0) = match approach_stride(stride) {
-                Some(m) => {
-                    // The given start's seeded coordinates are no longer needed (it is this
-                    // start): not two coordinate sets of the whole trial at once.
-                    if k == 0 {
-                        drop(q_before_start.lock().ok().and_then(|mut q| q.take()));
-                    }
-                    let mut ha = History::default();
-                    let fm = super::probes::approach(prob, m, f, &finish, &mut ha);
-                    let start = (fm.s.clone(), prob.initial_coords(&fm.p));
-                    approach = Some((m, fm, ha.0));
-                    start
-                }
-                None => (f.s.clone(), coords_of(prob, k)),
-            };
-            solve_joint_to(prob, &s0, q0, &finish, SIGMA_POINT_RESOLUTION_SE, &mut h)
-        };
-        super::map::estimate_noise(prob, &at);
-        // A probe on the re-weighed prior from there (its frames' coordinates are the
-        // σ₀-optimum's): the finishing solve begins near its optimum for a few coarse
-        // iterations' cost.
-        // The second start's probe is continued on the re-weighed prior too (beside it), so
-        // that the two are told apart on the prior of the finishing solves, as without the
-        // σ estimate.
-        let (reprobe, candidate) = if stride > 1 {
-            let coarse = subsample(prob, stride);
-            let reprobe = || {
-                let q0: Vec<Vec<f64>> = at.coords.iter().step_by(stride).cloned().collect();
-                let mut h = History::default();
-                let fit = solve_joint(&coarse, &at.s, q0, &short, &mut h);
-                (fit, h.0)
-            };
-            // (Only when the probes on σ₀ put it apart: on the same prior weighed a little
-            // differently the two stay in one basin.)
-            let candidate = || {
-                second.filter(|&j| probe_apart(j)).map(|j| {
-                    let on = |k: usize, h: &mut History| {
-                        let f = &probes[k].0;
-                        solve_joint(&coarse, &f.s, f.coords.clone(), &short, h)
-                    };
-                    let mut h = History::default();
-                    let fit = on(j, &mut h);
-                    // The best start's probe continued alike: like compared with like.
-                    let best_cost = on(best, &mut History::default()).cost;
-                    (j, fit, h.0, best_cost)
-                })
-            };
-            let (r, c) = rayon::join(reprobe, candidate);
-            (Some(r), c)
-        } else {
-            (None, None)
-        };
-        sigma_stage = Some(SigmaStage {
-            approach,
-            at,
-            history: h.0,
-            reprobe,
-            candidate,
-        });
     }
-    // A second start is finished unless the probes put it in the best's basin: the given
-    // start (so the result is never worse than one local fit from it), else the runner-up.
-    // (Told apart by their probes on the re-weighed prior when σ was estimated.)
+
+    /// The probes put start `k` outside the best's basin.
+    fn apart(&self, k: usize) -> bool {
+        let (c1, c2) = (self.runs[self.best].0.cost, self.runs[k].0.cost);
+        c2 - c1 > SAME_BASIN * c1.abs()
+    }
+}
+
+/// σ still to be estimated (`super::map`'s module docs): the best start finished on the
+/// prior weighed by the starting σ₀ to the preliminary resolution, σ and the per-parameter
+/// factors estimated there, and (on a subsample) the probes continued on the re-weighed prior.
+fn estimate_sigma(
+    prob: &mut Problem,
+    probed: &Probed,
+    finish: &JointOptions,
+    short: &JointOptions,
+) -> SigmaStage {
+    let (k, stride) = (probed.best, probed.stride);
+    let f = &probed.runs[k].0;
+    let mut h = History::default();
+    let mut approach = None;
+    let at = if stride == 1 && f.termination != Termination::IterationLimit {
+        f.clone()
+    } else {
+        // On a long trial first on intermediate frames (`super::probes::approach`).
+        let (s0, q0) = match approach_stride(stride) {
+            Some(m) => {
+                // The given start's seeded coordinates are no longer needed (it is this
+                // start): not two coordinate sets of the whole trial at once.
+                if k == 0 {
+                    drop(probed.seeded.lock().ok().and_then(|mut q| q.take()));
+                }
+                let mut ha = History::default();
+                let fm = super::probes::approach(prob, m, f, finish, &mut ha);
+                let start = (fm.s.clone(), prob.initial_coords(&fm.p));
+                approach = Some((m, fm, ha.0));
+                start
+            }
+            None => (f.s.clone(), probed.coords_of(prob, k)),
+        };
+        solve_joint_to(prob, &s0, q0, finish, SIGMA_POINT_RESOLUTION_SE, &mut h)
+    };
+    super::map::estimate_noise(prob, &at);
+    let (reprobe, candidate) = if stride > 1 {
+        let (r, c) = reprobe(prob, probed, &at, short);
+        (Some(r), c)
+    } else {
+        (None, None)
+    };
+    SigmaStage {
+        approach,
+        at,
+        history: h.0,
+        reprobe,
+        candidate,
+    }
+}
+
+/// A probe on the re-weighed prior from the σ₀-optimum `at` (its frames' coordinates are
+/// the σ₀-optimum's): the finishing solve begins near its optimum for a few coarse
+/// iterations' cost. Beside it the second start's probe is continued on the re-weighed
+/// prior, so that the two are told apart on the prior of the finishing solves, as without
+/// the σ estimate (only when the probes on σ₀ put it apart: on the same prior weighed a
+/// little differently the two stay in one basin).
+fn reprobe(
+    prob: &Problem,
+    probed: &Probed,
+    at: &Fit,
+    short: &JointOptions,
+) -> (Run, Option<Candidate>) {
+    let stride = probed.stride;
+    let coarse = subsample(prob, stride);
+    let reprobe = || {
+        let q0: Vec<Vec<f64>> = at.coords.iter().step_by(stride).cloned().collect();
+        let mut h = History::default();
+        let fit = solve_joint(&coarse, &at.s, q0, short, &mut h);
+        (fit, h.0)
+    };
+    let candidate = || {
+        probed.second.filter(|&j| probed.apart(j)).map(|j| {
+            let on = |k: usize, h: &mut History| {
+                let f = &probed.runs[k].0;
+                solve_joint(&coarse, &f.s, f.coords.clone(), short, h)
+            };
+            let mut h = History::default();
+            let fit = on(j, &mut h);
+            // The best start's probe continued alike: like compared with like.
+            let best_cost = on(probed.best, &mut History::default()).cost;
+            (j, fit, h.0, best_cost)
+        })
+    };
+    rayon::join(reprobe, candidate)
+}
+
+/// The starts to finish: the best, and the second unless the probes put it in the best's
+/// basin (told apart by their probes on the re-weighed prior when σ was estimated).
+fn finish_order(probed: &Probed, sigma: Option<&SigmaStage>) -> Vec<usize> {
     let apart = |k: usize| {
-        let (c1, c2) = match sigma_stage.as_ref().map(|st| (&st.reprobe, &st.candidate)) {
+        let (c1, c2) = match sigma.map(|st| (&st.reprobe, &st.candidate)) {
             Some((_, Some((j, c, _, b)))) if *j == k => (*b, c.cost),
-            _ => return probe_apart(k),
+            _ => return probed.apart(k),
         };
         c2 - c1 > SAME_BASIN * c1.abs()
     };
-    let order: Vec<usize> = std::iter::once(best)
-        .chain(second.filter(|&k| apart(k)))
-        .collect();
-    let prob: &Problem = prob;
+    std::iter::once(probed.best)
+        .chain(probed.second.filter(|&k| apart(k)))
+        .collect()
+}
+
+/// The finishing solves on every frame of the starts in `order` (side by side unless the
+/// trial is long, [`SEQUENTIAL_FINISH_FRAMES`]).
+fn finish_all(
+    prob: &Problem,
+    probed: &Probed,
+    sigma: Option<&SigmaStage>,
+    order: &[usize],
+    finish: &JointOptions,
+) -> Vec<Run> {
     let finish_one = |k: usize| {
         let mut h = History::default();
-        if let Some(st) = sigma_stage.as_ref().filter(|_| k == order[0]) {
+        if let Some(st) = sigma.filter(|_| k == order[0]) {
             // From the probe's parameters, the σ₀-optimum's coordinates polished there by one
             // inner pass (without it the first iteration lands far above the optimum: on
             // walking1 732 mm² instead of 0.18 mm², and the solve takes 9 iterations, not 7).
@@ -316,113 +440,85 @@ pub(crate) fn run(
             if let Some((r, _)) = &st.reprobe {
                 prob.inner(&r.p, &mut q0, &mut IkWorkspace::new(prob.model));
             }
-            let fit = solve_joint(prob, s0, q0, &finish, &mut h);
+            let fit = solve_joint(prob, s0, q0, finish, &mut h);
             return (fit, h.0);
         }
-        let f = &probes[k].0;
-        if stride == 1 && f.termination != Termination::IterationLimit {
+        let f = &probed.runs[k].0;
+        if probed.stride == 1 && f.termination != Termination::IterationLimit {
             return (f.clone(), Vec::new());
         }
-        let q0 = coords_of(prob, k);
-        let fit = solve_joint(prob, &f.s, q0, &finish, &mut h);
+        let q0 = probed.coords_of(prob, k);
+        let fit = solve_joint(prob, &f.s, q0, finish, &mut h);
         (fit, h.0)
     };
-    let continued: Vec<(Fit, Vec<f64>)> = if prob.frames.len() >= SEQUENTIAL_FINISH_FRAMES {
+    if prob.frames.len() >= SEQUENTIAL_FINISH_FRAMES {
         order.iter().map(|&k| finish_one(k)).collect()
     } else {
         order.par_iter().map(|&k| finish_one(k)).collect()
-    };
-    let cost_before = match before {
-        Before::Data(data) => data + prob.prior_cost(start),
-        Before::Cost(cost) => cost,
-    };
-    if let Some(st) = &sigma_stage {
-        if let Some((m, fit, hist)) = &st.approach {
-            let stage = format!("start {}: {SIGMA_STAGE}, every {m}. frame", order[0] + 1);
-            observer.stage_started(&stage, None);
-            for (i, &c) in hist.iter().enumerate() {
-                observer.iteration(i + 1, c);
-            }
-            observer.stage_ended(fit.termination);
-        }
-        observer.stage_started(&format!("start {}: {SIGMA_STAGE}", order[0] + 1), None);
-        for (i, &c) in st.history.iter().enumerate() {
-            observer.iteration(i + 1, c);
-        }
-        observer.stage_ended(st.at.termination);
-        if let Some((fit, hist)) = &st.reprobe {
-            observer.stage_started(
-                &format!("start {}: {REPROBE_STAGE}", order[0] + 1),
-                Some(short.max_iterations),
-            );
-            for (i, &c) in hist.iter().enumerate() {
-                observer.iteration(i + 1, c);
-            }
-            observer.stage_ended(fit.termination);
-        }
     }
-    for (&k, (fit, hist)) in order.iter().zip(&continued) {
-        observer.stage_started(&format!("start {}: joint Levenberg-Marquardt", k + 1), None);
-        for (i, &c) in hist.iter().enumerate() {
-            observer.iteration(i + 1, c);
-        }
-        observer.stage_ended(fit.termination);
+}
+
+/// Tells `observer` of the σ estimate's stages of the start `first` finished first.
+fn report_sigma(observer: &mut dyn Observer, st: &SigmaStage, first: usize, short: &JointOptions) {
+    if let Some((m, fit, hist)) = &st.approach {
+        let stage = format!("start {}: {SIGMA_STAGE}, every {m}. frame", first + 1);
+        replay(observer, &stage, None, hist, fit.termination);
     }
-    observer.progress(n + 1, n + 1);
-    let mut fits = Vec::with_capacity(n);
-    let mut runs = Vec::with_capacity(n);
-    for (k, (fit, hist)) in probes.into_iter().enumerate() {
-        let mut convergence = vec![ConvergenceStage {
-            stage: format!("probe (joint Levenberg-Marquardt, every {stride}. frame)"),
-            objective_mm2: hist.iter().map(|&c| mm2(c)).collect(),
-        }];
+    let stage = format!("start {}: {SIGMA_STAGE}", first + 1);
+    replay(observer, &stage, None, &st.history, st.at.termination);
+    if let Some((fit, hist)) = &st.reprobe {
+        let stage = format!("start {}: {REPROBE_STAGE}", first + 1);
+        replay(
+            observer,
+            &stage,
+            Some(short.max_iterations),
+            hist,
+            fit.termination,
+        );
+    }
+}
+
+/// One stage of a start's record, its objectives in mm².
+fn stage(name: String, history: &[f64]) -> ConvergenceStage {
+    ConvergenceStage {
+        stage: name,
+        objective_mm2: history.iter().map(|&c| mm2(c)).collect(),
+    }
+}
+
+/// Every start's fit and record, in start order: its probe, the continued probe on the
+/// re-weighed prior, and for a finished start the σ estimate's stages and its finishing
+/// solve (iterations and evaluations summed over them all).
+fn records(
+    probed: Probed,
+    sigma: Option<&SigmaStage>,
+    order: &[usize],
+    continued: &[Run],
+) -> (Vec<Fit>, Vec<StartRun>) {
+    let stride = probed.stride;
+    let mut fits = Vec::with_capacity(probed.runs.len());
+    let mut runs = Vec::with_capacity(probed.runs.len());
+    for (k, (fit, hist)) in probed.runs.into_iter().enumerate() {
+        let name = format!("probe (joint Levenberg-Marquardt, every {stride}. frame)");
+        let mut convergence = vec![stage(name, &hist)];
         let mut fit = fit;
-        if let Some((_, c, hist, _)) = sigma_stage
-            .as_ref()
+        if let Some((_, c, hist, _)) = sigma
             .and_then(|st| st.candidate.as_ref())
             .filter(|c| c.0 == k)
         {
-            convergence.push(ConvergenceStage {
-                stage: format!("{REPROBE_STAGE} (every {stride}. frame)"),
-                objective_mm2: hist.iter().map(|&c| mm2(c)).collect(),
-            });
+            let name = format!("{REPROBE_STAGE} (every {stride}. frame)");
+            convergence.push(stage(name, hist));
             fit.iterations += c.iterations;
             fit.evaluations += c.evaluations;
         }
         if let Some(j) = order.iter().position(|&o| o == k) {
-            let (done, hist) = &continued[j];
-            let pre = sigma_stage.as_ref().filter(|_| j == 0);
+            let pre = sigma.filter(|_| j == 0);
             if let Some(st) = pre {
-                if let Some((m, a, hist)) = &st.approach {
-                    convergence.push(ConvergenceStage {
-                        stage: format!("{SIGMA_STAGE}, every {m}. frame"),
-                        objective_mm2: hist.iter().map(|&c| mm2(c)).collect(),
-                    });
-                    fit.iterations += a.iterations;
-                    fit.evaluations += a.evaluations;
-                }
-                convergence.push(ConvergenceStage {
-                    stage: SIGMA_STAGE.to_string(),
-                    objective_mm2: st.history.iter().map(|&c| mm2(c)).collect(),
-                });
-                if !st.history.is_empty() {
-                    fit.iterations += st.at.iterations;
-                    fit.evaluations += st.at.evaluations;
-                }
-                if let Some((r, hist)) = &st.reprobe {
-                    convergence.push(ConvergenceStage {
-                        stage: format!("{REPROBE_STAGE} (every {stride}. frame)"),
-                        objective_mm2: hist.iter().map(|&c| mm2(c)).collect(),
-                    });
-                    fit.iterations += r.iterations;
-                    fit.evaluations += r.evaluations;
-                }
+                sigma_stages(st, stride, &mut fit, &mut convergence);
             }
+            let (done, hist) = &continued[j];
             if !hist.is_empty() || stride > 1 || pre.is_some() {
-                convergence.push(ConvergenceStage {
-                    stage: "joint Levenberg-Marquardt".to_string(),
-                    objective_mm2: hist.iter().map(|&c| mm2(c)).collect(),
-                });
+                convergence.push(stage("joint Levenberg-Marquardt".to_string(), hist));
                 let probe_iterations = fit.iterations;
                 let probe_evaluations = fit.evaluations;
                 fit = done.clone();
@@ -443,6 +539,45 @@ pub(crate) fn run(
         });
         fits.push(fit);
     }
+    (fits, runs)
+}
+
+/// The σ estimate's stages in the record of the start finished first: the approach on
+/// intermediate frames, the solve on the σ₀-weighed prior and the probe on the re-weighed one.
+fn sigma_stages(
+    st: &SigmaStage,
+    stride: usize,
+    fit: &mut Fit,
+    convergence: &mut Vec<ConvergenceStage>,
+) {
+    if let Some((m, a, hist)) = &st.approach {
+        convergence.push(stage(format!("{SIGMA_STAGE}, every {m}. frame"), hist));
+        fit.iterations += a.iterations;
+        fit.evaluations += a.evaluations;
+    }
+    convergence.push(stage(SIGMA_STAGE.to_string(), &st.history));
+    if !st.history.is_empty() {
+        fit.iterations += st.at.iterations;
+        fit.evaluations += st.at.evaluations;
+    }
+    if let Some((r, hist)) = &st.reprobe {
+        convergence.push(stage(
+            format!("{REPROBE_STAGE} (every {stride}. frame)"),
+            hist,
+        ));
+        fit.iterations += r.iterations;
+        fit.evaluations += r.evaluations;
+    }
+}
+
+/// The global phase's summary: the finished starts' objectives and whether they agree.
+fn summarize(
+    fits: &[Fit],
+    order: Vec<usize>,
+    probe_objective_mm2: Vec<f64>,
+    short: &JointOptions,
+    probe_frames: usize,
+) -> GlobalSearch {
     let finished_objective_mm2: Vec<f64> = order.iter().map(|&k| mm2(fits[k].cost)).collect();
     let best = finished_objective_mm2
         .iter()
@@ -451,20 +586,14 @@ pub(crate) fn run(
     let agree = finished_objective_mm2
         .iter()
         .all(|&c| c - best <= SAME_OPTIMUM * best.abs());
-    Outcome {
-        fits,
-        runs,
-        summary: GlobalSearch {
-            starts: n,
-            probe_iterations: short.max_iterations,
-            probe_frames: coarse.frames.len(),
-            probe_objective_mm2,
-            finished: order,
-            finished_objective_mm2,
-            agree,
-        },
-        q_before,
-        cost_before,
+    GlobalSearch {
+        starts: fits.len(),
+        probe_iterations: short.max_iterations,
+        probe_frames,
+        probe_objective_mm2,
+        finished: order,
+        finished_objective_mm2,
+        agree,
     }
 }
 
