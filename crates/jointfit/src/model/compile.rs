@@ -17,180 +17,164 @@ use super::validate::{check_name, joint_kind, Compiler};
 use super::ModelError;
 use crate::spatial::{Motion, Pose};
 
+/// What the joints' chains build up, joint after joint in topological order.
+#[derive(Default)]
+struct Chains {
+    segments: Vec<Segment>,
+    joints: Vec<Joint>,
+    coordinates: Vec<Coordinate>,
+    dependents: Vec<DependentCoordinate>,
+    functions: Vec<super::custom::AxisFn>,
+    steps: Vec<Step>,
+    step_ranges: Vec<std::ops::Range<usize>>,
+    /// Per parameter of the description, the steps that read it.
+    uses: Vec<Vec<ParamUse>>,
+    coord_names: HashMap<String, ()>,
+}
+
+/// Segment i of the model is the child of the i-th joint in topological order (`None`: ground).
+fn seg_id(new_seg_of: &HashMap<&str, usize>, name: &str) -> Option<SegmentId> {
+    if name == "ground" {
+        None
+    } else {
+        Some(SegmentId(new_seg_of[name]))
+    }
+}
+
 impl Compiler<'_> {
     /// Compiles the description; the names were validated by [`Compiler::new`].
     pub(super) fn run(self) -> Result<Model, ModelError> {
         let spec = self.spec;
         let order = self.topological_joints()?;
         let roles = super::custom::roles(spec, &order)?;
-        let mut dependents = Vec::new();
-        let mut functions = Vec::new();
-        // Segment i of the model is the child of the i-th joint in topological order.
         let new_seg_of: HashMap<&str, usize> = order
             .iter()
             .enumerate()
             .map(|(i, &j)| (spec.joints[j].child.as_str(), i))
             .collect();
-        let seg_id = |name: &str| -> Option<SegmentId> {
-            if name == "ground" {
-                None
-            } else {
-                Some(SegmentId(new_seg_of[name]))
-            }
+        let mut chains = Chains {
+            uses: vec![Vec::new(); spec.parameters.len()],
+            ..Chains::default()
         };
-
-        let mut segments = Vec::new();
-        let mut joints = Vec::new();
-        let mut coordinates: Vec<Coordinate> = Vec::new();
-        let mut steps: Vec<Step> = Vec::new();
-        let mut step_ranges = Vec::new();
-        let mut uses: Vec<Vec<ParamUse>> = vec![Vec::new(); spec.parameters.len()];
-        let mut coord_names = HashMap::new();
-
         for (ji, &j) in order.iter().enumerate() {
-            let js = &spec.joints[j];
-            let mut kind = joint_kind(&js.kind, &js.name)?;
-            let custom = matches!(kind, JointKind::Custom { .. });
-            if !custom && js.coordinates.len() != kind.dof() {
-                return Err(ModelError::Invalid(format!(
-                    "joint {:?} is {} with {} degrees of freedom but lists {} coordinates",
-                    js.name,
-                    kind.type_name(),
-                    kind.dof(),
-                    js.coordinates.len()
-                )));
-            }
-            let parent = seg_id(&js.parent);
-            let child = SegmentId(ji);
-            segments.push(Segment {
-                name: js.child.clone(),
-                parent,
-                joint: JointId(ji),
-            });
-            let first_coord = coordinates.len();
-            let start = steps.len();
-
-            // Parent offset: T(t) Rx Ry Rz.
-            self.offset_steps(
-                &js.parent_offset,
-                false,
-                &js.name,
-                parent,
-                JointId(ji),
-                &mut steps,
-                &mut uses,
-            )?;
-            // Joint motion.
-            let motions = kind.motions();
-            for (k, cs) in js.coordinates.iter().enumerate() {
-                let name = cs.name();
-                check_name(name, "coordinate")?;
-                if coord_names.insert(name.to_string(), ()).is_some() {
-                    return Err(ModelError::Duplicate {
-                        kind: "coordinate",
-                        name: name.to_string(),
-                    });
-                }
-                let ckind = super::custom::custom_coord_kind(&js.kind, name).unwrap_or_else(|| {
-                    if motions[k].0 {
-                        CoordKind::Rotational
-                    } else {
-                        CoordKind::Translational
-                    }
-                });
-                let motion = super::custom::opensim_motion(&js.kind, name).unwrap_or(match ckind {
-                    CoordKind::Rotational => MotionType::Rotational,
-                    CoordKind::Translational => MotionType::Translational,
-                });
-                let (range, default, clamped) = match cs {
-                    CoordinateSpec::Name(_) => (None, 0.0, false),
-                    CoordinateSpec::Full {
-                        range,
-                        default,
-                        clamped,
-                        ..
-                    } => (*range, *default, *clamped),
-                };
-                let range = range.unwrap_or(match ckind {
-                    CoordKind::Rotational => [-std::f64::consts::PI, std::f64::consts::PI],
-                    CoordKind::Translational => [-10.0, 10.0],
-                });
-                if !(range[0].is_finite()
-                    && range[1].is_finite()
-                    && range[0] < range[1]
-                    && default.is_finite())
-                {
-                    return Err(ModelError::Invalid(format!(
-                        "coordinate {name:?}: range {range:?} / default {default} invalid"
-                    )));
-                }
-                let index = match &roles[name] {
-                    Role::Free(i) => *i,
-                    other => {
-                        let rule = match other {
-                            Role::Locked(v) => CoordRule::Locked(*v),
-                            Role::Coupled { independent, g } => CoordRule::Coupled {
-                                independent: *independent,
-                                function: g.clone(),
-                            },
-                            Role::Free(_) => unreachable!("handled above"),
-                        };
-                        dependents.push(DependentCoordinate {
-                            name: name.to_string(),
-                            joint: JointId(ji),
-                            kind: ckind,
-                            motion,
-                            range,
-                            default,
-                            rule,
-                        });
-                        continue;
-                    }
-                };
-                debug_assert_eq!(index, coordinates.len());
-                coordinates.push(Coordinate {
-                    name: name.to_string(),
-                    joint: JointId(ji),
-                    kind: ckind,
-                    motion,
-                    range,
-                    clamped,
-                    default,
-                });
-                if !custom {
-                    let (motion, sign) = motion_for(motions[k].0, &motions[k].1);
-                    steps.push(Step {
-                        motion,
-                        source: Source::Coord { index, scale: sign },
-                    });
-                }
-            }
-            if let JointKind::Custom { axes, dof } = &mut kind {
-                *dof = coordinates.len() - first_coord;
-                super::custom::axis_steps(axes, js, &roles, &mut functions, &mut steps)?;
-            }
-            // Child offset, inverted: Rz⁻¹ Ry⁻¹ Rx⁻¹ T(−t).
-            self.offset_steps(
-                &js.child_offset,
-                true,
-                &js.name,
-                Some(child),
-                JointId(ji),
-                &mut steps,
-                &mut uses,
-            )?;
-            joints.push(Joint {
-                name: js.name.clone(),
-                parent,
-                child,
-                kind,
-                first_coord,
-            });
-            let merged = merge_constants(steps.split_off(start));
-            steps.extend(merged);
-            step_ranges.push(start..steps.len());
+            self.joint_chain(ji, j, &roles, &new_seg_of, &mut chains)?;
         }
+        let parameters = self.parameters(std::mem::take(&mut chains.uses))?;
+        let markers = self.markers(&new_seg_of)?;
+        let Chains {
+            segments,
+            joints,
+            coordinates,
+            dependents,
+            functions,
+            steps,
+            step_ranges,
+            ..
+        } = chains;
+        let plan = super::plan::Plan::new(
+            &steps,
+            &step_ranges,
+            &segments
+                .iter()
+                .map(|s| s.parent.map(|p| p.0))
+                .collect::<Vec<_>>(),
+            &markers.iter().map(|m| m.segment.0).collect::<Vec<_>>(),
+        );
+        Ok(Model {
+            name: spec.name.clone(),
+            description: spec.description.clone(),
+            segments,
+            joints,
+            coordinates,
+            parameters,
+            markers,
+            dependents,
+            functions,
+            steps,
+            plan,
+            spec: spec.clone(),
+        })
+    }
 
+    /// Joint `j` of the description, the `ji`-th in topological order: its child segment,
+    /// its coordinates and its chain `T(t_p) Rx Ry Rz · motion(q) · Rz⁻¹ Ry⁻¹ Rx⁻¹ T(−t_c)`
+    /// with runs of constant steps merged.
+    fn joint_chain(
+        &self,
+        ji: usize,
+        j: usize,
+        roles: &HashMap<String, Role>,
+        new_seg_of: &HashMap<&str, usize>,
+        c: &mut Chains,
+    ) -> Result<(), ModelError> {
+        let js = &self.spec.joints[j];
+        let mut kind = joint_kind(&js.kind, &js.name)?;
+        let custom = matches!(kind, JointKind::Custom { .. });
+        if !custom && js.coordinates.len() != kind.dof() {
+            return Err(ModelError::Invalid(format!(
+                "joint {:?} is {} with {} degrees of freedom but lists {} coordinates",
+                js.name,
+                kind.type_name(),
+                kind.dof(),
+                js.coordinates.len()
+            )));
+        }
+        let parent = seg_id(new_seg_of, &js.parent);
+        let child = SegmentId(ji);
+        c.segments.push(Segment {
+            name: js.child.clone(),
+            parent,
+            joint: JointId(ji),
+        });
+        let first_coord = c.coordinates.len();
+        let start = c.steps.len();
+        // Parent offset: T(t) Rx Ry Rz.
+        let (id, offset) = (JointId(ji), &js.parent_offset);
+        self.offset_steps(
+            offset,
+            false,
+            &js.name,
+            parent,
+            id,
+            &mut c.steps,
+            &mut c.uses,
+        )?;
+        // Joint motion.
+        let motions = kind.motions();
+        for (k, cs) in js.coordinates.iter().enumerate() {
+            coordinate(js, id, cs, motions.get(k), custom, roles, c)?;
+        }
+        if let JointKind::Custom { axes, dof } = &mut kind {
+            *dof = c.coordinates.len() - first_coord;
+            super::custom::axis_steps(axes, js, roles, &mut c.functions, &mut c.steps)?;
+        }
+        // Child offset, inverted: Rz⁻¹ Ry⁻¹ Rx⁻¹ T(−t).
+        let offset = &js.child_offset;
+        self.offset_steps(
+            offset,
+            true,
+            &js.name,
+            Some(child),
+            id,
+            &mut c.steps,
+            &mut c.uses,
+        )?;
+        c.joints.push(Joint {
+            name: js.name.clone(),
+            parent,
+            child,
+            kind,
+            first_coord,
+        });
+        let merged = merge_constants(c.steps.split_off(start));
+        c.steps.extend(merged);
+        c.step_ranges.push(start..c.steps.len());
+        Ok(())
+    }
+
+    /// The parameters with the steps that read them (each must be read by some offset).
+    fn parameters(&self, uses: Vec<Vec<ParamUse>>) -> Result<Vec<Parameter>, ModelError> {
+        let spec = self.spec;
         let mut parameters = Vec::with_capacity(spec.parameters.len());
         for (ps, u) in spec.parameters.iter().zip(uses) {
             if u.is_empty() {
@@ -212,7 +196,12 @@ impl Compiler<'_> {
                 uses: u,
             });
         }
+        Ok(parameters)
+    }
 
+    /// The markers, each on a segment of the model with a finite position and weight ≥ 0.
+    fn markers(&self, new_seg_of: &HashMap<&str, usize>) -> Result<Vec<Marker>, ModelError> {
+        let spec = self.spec;
         let mut markers = Vec::with_capacity(spec.markers.len());
         let mut marker_names = HashMap::new();
         for m in &spec.markers {
@@ -244,31 +233,7 @@ impl Compiler<'_> {
                 weight: m.weight,
             });
         }
-
-        let plan = super::plan::Plan::new(
-            &steps,
-            &step_ranges,
-            &segments
-                .iter()
-                .map(|s| s.parent.map(|p| p.0))
-                .collect::<Vec<_>>(),
-            &markers.iter().map(|m| m.segment.0).collect::<Vec<_>>(),
-        );
-
-        Ok(Model {
-            name: spec.name.clone(),
-            description: spec.description.clone(),
-            segments,
-            joints,
-            coordinates,
-            parameters,
-            markers,
-            dependents,
-            functions,
-            steps,
-            plan,
-            spec: spec.clone(),
-        })
+        Ok(markers)
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -317,6 +282,111 @@ impl Compiler<'_> {
         }
         Ok(())
     }
+}
+
+/// One coordinate of joint `js` (`axis`: its motion, rotation or not, and its axis): a
+/// coordinate of `q` with its step (none for a `custom` joint, whose axes come later), or a
+/// dependent coordinate (locked or coupled, [`Role`]).
+fn coordinate(
+    js: &super::spec::JointSpec,
+    joint: JointId,
+    cs: &CoordinateSpec,
+    axis: Option<&(bool, Vector3<f64>)>,
+    custom: bool,
+    roles: &HashMap<String, Role>,
+    c: &mut Chains,
+) -> Result<(), ModelError> {
+    let axis = || axis.expect("a joint's motions cover its coordinates");
+    let name = cs.name();
+    check_name(name, "coordinate")?;
+    if c.coord_names.insert(name.to_string(), ()).is_some() {
+        return Err(ModelError::Duplicate {
+            kind: "coordinate",
+            name: name.to_string(),
+        });
+    }
+    let ckind = super::custom::custom_coord_kind(&js.kind, name).unwrap_or_else(|| {
+        if axis().0 {
+            CoordKind::Rotational
+        } else {
+            CoordKind::Translational
+        }
+    });
+    let motion = super::custom::opensim_motion(&js.kind, name).unwrap_or(match ckind {
+        CoordKind::Rotational => MotionType::Rotational,
+        CoordKind::Translational => MotionType::Translational,
+    });
+    let (range, default, clamped) = coordinate_range(cs, ckind)?;
+    let index = match &roles[name] {
+        Role::Free(i) => *i,
+        other => {
+            let rule = match other {
+                Role::Locked(v) => CoordRule::Locked(*v),
+                Role::Coupled { independent, g } => CoordRule::Coupled {
+                    independent: *independent,
+                    function: g.clone(),
+                },
+                Role::Free(_) => unreachable!("handled above"),
+            };
+            c.dependents.push(DependentCoordinate {
+                name: name.to_string(),
+                joint,
+                kind: ckind,
+                motion,
+                range,
+                default,
+                rule,
+            });
+            return Ok(());
+        }
+    };
+    debug_assert_eq!(index, c.coordinates.len());
+    c.coordinates.push(Coordinate {
+        name: name.to_string(),
+        joint,
+        kind: ckind,
+        motion,
+        range,
+        clamped,
+        default,
+    });
+    if !custom {
+        let (rotation, axis) = axis();
+        let (motion, sign) = motion_for(*rotation, axis);
+        c.steps.push(Step {
+            motion,
+            source: Source::Coord { index, scale: sign },
+        });
+    }
+    Ok(())
+}
+
+/// A coordinate's range (±π or ±10 m when not given), default and clamping, checked.
+fn coordinate_range(
+    cs: &CoordinateSpec,
+    ckind: CoordKind,
+) -> Result<([f64; 2], f64, bool), ModelError> {
+    let (range, default, clamped) = match cs {
+        CoordinateSpec::Name(_) => (None, 0.0, false),
+        CoordinateSpec::Full {
+            range,
+            default,
+            clamped,
+            ..
+        } => (*range, *default, *clamped),
+    };
+    let range = range.unwrap_or(match ckind {
+        CoordKind::Rotational => [-std::f64::consts::PI, std::f64::consts::PI],
+        CoordKind::Translational => [-10.0, 10.0],
+    });
+    if !(range[0].is_finite() && range[1].is_finite() && range[0] < range[1] && default.is_finite())
+    {
+        return Err(ModelError::Invalid(format!(
+            "coordinate {:?}: range {range:?} / default {default} invalid",
+            cs.name()
+        )));
+    }
+    Ok((range, default, clamped))
 }
 
 /// The elementary motion for a unit axis; principal axes get the fast specialised form and a
