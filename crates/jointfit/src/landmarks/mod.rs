@@ -386,32 +386,7 @@ pub(crate) fn personalize_plan(
     window: Option<&StaticWindow>,
     landmarks: impl Fn(&dyn Fn(&str) -> Vector3<f64>) -> Result<frames::Landmarks, LandmarkError>,
 ) -> Result<Personalized, LandmarkError> {
-    let side_name = markerset::side_name(side);
-    // Labels in first-use order, each with its roles.
-    let mut labels: Vec<(String, Vec<String>)> = Vec::new();
-    for (role, label) in plan.roles.iter().cloned() {
-        match labels.iter_mut().find(|(l, _)| *l == label) {
-            Some((_, roles)) => roles.push(role),
-            None => labels.push((label, vec![role])),
-        }
-    }
-    let mut columns = Vec::with_capacity(labels.len());
-    let mut missing = Vec::new();
-    for (label, roles) in &labels {
-        match trial.labels().iter().position(|l| l == label) {
-            Some(c) => columns.push(c),
-            None => missing.push(format!("{} {label:?}", roles.join(" and "))),
-        }
-    }
-    if !missing.is_empty() {
-        return Err(LandmarkError::MissingMarkers {
-            set: plan.set_name.to_string(),
-            side: side_name,
-            missing,
-            available: trial.labels().join(", "),
-        });
-    }
-    let names: Vec<String> = labels.iter().map(|(l, _)| l.clone()).collect();
+    let (names, columns) = plan_columns(trial, plan, side)?;
     let wanted = (opts.window_seconds * trial.rate()).round().max(1.0) as usize;
     let win = match window {
         Some(w) => window::check_window(trial, &columns, &names, w)?,
@@ -452,16 +427,6 @@ pub(crate) fn personalize_plan(
         (None, Vec::new())
     };
     let offsets = nominal::offsets(&an, side)?;
-
-    let mut spec = lower_limb(side);
-    nominal::fill_offsets(&mut spec, &offsets);
-    nominal::set_bounds(&mut spec, &an);
-    for (name, sd) in &functional_sds {
-        if let Some(p) = spec.parameters.iter_mut().find(|p| p.name == *name) {
-            p.prior_sd = Some(*sd);
-        }
-    }
-    priors::fill_landmark_priors(&mut spec, opts.hip_centre);
     let f = &an.frames;
     let poses: [(&str, Pose); 5] = [
         ("pelvis", f.pelvis),
@@ -470,93 +435,28 @@ pub(crate) fn personalize_plan(
         ("talus", f.talus),
         ("foot", f.foot),
     ];
-    let pose_of = |seg: &str| poses.iter().find(|(n, _)| *n == seg).expect("segment").1;
-    spec.markers.clear();
-    for seg in TRACKED_SEGMENTS {
-        let inv = pose_of(seg).inverse();
-        for l in plan.tracking(seg) {
-            let x = inv.transform_point(&at(l));
-            spec.markers.push(MarkerSpec {
-                name: l.clone(),
-                segment: seg.into(),
-                position: [x.x, x.y, x.z],
-                weight: plan
-                    .weights
-                    .iter()
-                    .find(|(n, _)| n == l)
-                    .map_or(1.0, |(_, w)| *w),
-            });
-        }
-    }
-    let first_time = trial.time(win.first);
-    spec.name = opts.name.clone();
-    spec.description = format!(
-        "{} leg personalized by the anatomical-landmark method (marker set {:?}; static frames \
-         {}–{} of {}, t = {:.3}–{:.3} s; hip centre {}; PW {:.1} mm)",
-        side_name,
-        plan.set_name,
-        win.first,
-        win.end() - 1,
-        win.total_frames,
-        first_time,
-        trial.time(win.end() - 1),
-        if lm_hip_given {
-            "the hip keypoint"
-        } else {
-            opts.hip_centre.citation()
-        },
-        an.pelvis_width * 1e3
+    let mut spec = leg_spec(
+        plan,
+        side,
+        opts,
+        &an,
+        &offsets,
+        &functional_sds,
+        &poses,
+        &at,
     );
-
+    let hip = if lm_hip_given {
+        "the hip keypoint"
+    } else {
+        opts.hip_centre.citation()
+    };
+    spec.description = describe(trial, plan, side, &win, hip, an.pelvis_width);
     let model = Model::compile(&spec).map_err(LandmarkError::Model)?;
     let static_q = nominal::static_coordinates(&model, &offsets, &poses)?;
-    let mut kin = KinData::new(&model);
-    forward_kinematics(
-        &model,
-        &model.nominal_params(),
-        &static_q,
-        Want::POSITIONS,
-        &mut kin,
-    );
-    let static_fk_error = model
-        .markers()
-        .iter()
-        .zip(&kin.markers)
-        .map(|(m, x)| (x - at(&m.name)).norm())
-        .fold(0.0, f64::max);
-
-    let mut segments = Vec::new();
-    for seg in TRACKED_SEGMENTS {
-        let list = plan.tracking(seg);
-        let local: Vec<Vector3<f64>> = spec
-            .markers
-            .iter()
-            .filter(|m| m.segment == seg)
-            .map(|m| Vector3::from(m.position))
-            .collect();
-        let cols: Vec<usize> = list.iter().map(|l| columns[idx(l)]).collect();
-        let (mut sum2, mut max, mut n) = (0.0, 0.0f64, 0usize);
-        for fr in win.first..win.end() {
-            let world: Vec<_> = cols
-                .iter()
-                .map(|&c| trial.get(fr, c).expect("complete frame"))
-                .collect();
-            let fit = frames::rigid_fit(&local, &world);
-            for (l, w) in local.iter().zip(&world) {
-                let d = (fit.transform_point(l) - w).norm();
-                sum2 += d * d;
-                max = max.max(d);
-                n += 1;
-            }
-        }
-        segments.push(SegmentResidual {
-            segment: seg.into(),
-            markers: list.to_vec(),
-            rms: (sum2 / n as f64).sqrt(),
-            max,
-        });
-    }
-
+    let static_fk_error = static_fk_error(&model, &static_q, &at);
+    let cols =
+        |seg: &str| -> Vec<usize> { plan.tracking(seg).iter().map(|l| columns[idx(l)]).collect() };
+    let segments = tracking_residuals(trial, plan, &spec, &cols, &win);
     let report = PersonalizeReport {
         window: win,
         hip_method: opts.hip_centre,
@@ -583,4 +483,169 @@ pub(crate) fn personalize_plan(
         frames: an.frames,
         report,
     })
+}
+
+/// The plan's labels in first-use order and their columns in `trial`; an error naming every
+/// label the trial lacks, with its roles.
+fn plan_columns(
+    trial: &Trial,
+    plan: &Plan,
+    side: Side,
+) -> Result<(Vec<String>, Vec<usize>), LandmarkError> {
+    // Labels in first-use order, each with its roles.
+    let mut labels: Vec<(String, Vec<String>)> = Vec::new();
+    for (role, label) in plan.roles.iter().cloned() {
+        match labels.iter_mut().find(|(l, _)| *l == label) {
+            Some((_, roles)) => roles.push(role),
+            None => labels.push((label, vec![role])),
+        }
+    }
+    let mut columns = Vec::with_capacity(labels.len());
+    let mut missing = Vec::new();
+    for (label, roles) in &labels {
+        match trial.labels().iter().position(|l| l == label) {
+            Some(c) => columns.push(c),
+            None => missing.push(format!("{} {label:?}", roles.join(" and "))),
+        }
+    }
+    if !missing.is_empty() {
+        return Err(LandmarkError::MissingMarkers {
+            set: plan.set_name.to_string(),
+            side: markerset::side_name(side),
+            missing,
+            available: trial.labels().join(", "),
+        });
+    }
+    Ok((labels.into_iter().map(|(l, _)| l).collect(), columns))
+}
+
+/// The leg's description: the sample leg with the subject's offsets, bounds and priors
+/// (functional SDs where a functional trial gave them) and the tracking markers in their
+/// segments' frames at the static pose (`at`: a label's mean position in the window).
+#[allow(clippy::too_many_arguments)]
+fn leg_spec(
+    plan: &Plan,
+    side: Side,
+    opts: &PersonalizeOptions,
+    an: &frames::Anatomy,
+    offsets: &nominal::Offsets,
+    functional_sds: &[(&str, f64)],
+    poses: &[(&str, Pose); 5],
+    at: &dyn Fn(&str) -> Vector3<f64>,
+) -> ModelSpec {
+    let mut spec = lower_limb(side);
+    nominal::fill_offsets(&mut spec, offsets);
+    nominal::set_bounds(&mut spec, an);
+    for (name, sd) in functional_sds {
+        if let Some(p) = spec.parameters.iter_mut().find(|p| p.name == *name) {
+            p.prior_sd = Some(*sd);
+        }
+    }
+    priors::fill_landmark_priors(&mut spec, opts.hip_centre);
+    let pose_of = |seg: &str| poses.iter().find(|(n, _)| *n == seg).expect("segment").1;
+    spec.markers.clear();
+    for seg in TRACKED_SEGMENTS {
+        let inv = pose_of(seg).inverse();
+        for l in plan.tracking(seg) {
+            let x = inv.transform_point(&at(l));
+            spec.markers.push(MarkerSpec {
+                name: l.clone(),
+                segment: seg.into(),
+                position: [x.x, x.y, x.z],
+                weight: plan
+                    .weights
+                    .iter()
+                    .find(|(n, _)| n == l)
+                    .map_or(1.0, |(_, w)| *w),
+            });
+        }
+    }
+    spec.name = opts.name.clone();
+    spec
+}
+
+/// The description of a personalized leg: marker set, static window, hip centre method
+/// (`hip`) and pelvis width.
+fn describe(
+    trial: &Trial,
+    plan: &Plan,
+    side: Side,
+    win: &StaticWindow,
+    hip: &str,
+    pelvis_width: f64,
+) -> String {
+    format!(
+        "{} leg personalized by the anatomical-landmark method (marker set {:?}; static frames \
+         {}–{} of {}, t = {:.3}–{:.3} s; hip centre {}; PW {:.1} mm)",
+        markerset::side_name(side),
+        plan.set_name,
+        win.first,
+        win.end() - 1,
+        win.total_frames,
+        trial.time(win.first),
+        trial.time(win.end() - 1),
+        hip,
+        pelvis_width * 1e3
+    )
+}
+
+/// The largest distance between a model marker at the static pose and its mean position in
+/// the window (`at`).
+fn static_fk_error(model: &Model, static_q: &[f64], at: &dyn Fn(&str) -> Vector3<f64>) -> f64 {
+    let mut kin = KinData::new(model);
+    forward_kinematics(
+        model,
+        &model.nominal_params(),
+        static_q,
+        Want::POSITIONS,
+        &mut kin,
+    );
+    model
+        .markers()
+        .iter()
+        .zip(&kin.markers)
+        .map(|(m, x)| (x - at(&m.name)).norm())
+        .fold(0.0, f64::max)
+}
+
+/// Per tracked segment, how rigidly its markers (`cols`: their trial columns) moved in the
+/// window: RMS and largest distance of each frame's markers from their rigid fit.
+fn tracking_residuals(
+    trial: &Trial,
+    plan: &Plan,
+    spec: &ModelSpec,
+    cols: &dyn Fn(&str) -> Vec<usize>,
+    win: &StaticWindow,
+) -> Vec<SegmentResidual> {
+    let mut segments = Vec::new();
+    for seg in TRACKED_SEGMENTS {
+        let local: Vec<Vector3<f64>> = spec
+            .markers
+            .iter()
+            .filter(|m| m.segment == seg)
+            .map(|m| Vector3::from(m.position))
+            .collect();
+        let cols = cols(seg);
+        let (mut sum2, mut max, mut n) = (0.0, 0.0f64, 0usize);
+        for fr in win.first..win.end() {
+            let world: Vec<_> = cols
+                .iter()
+                .map(|&c| trial.get(fr, c).expect("complete frame"))
+                .collect();
+            let fit = frames::rigid_fit(&local, &world);
+            for (l, w) in local.iter().zip(&world) {
+                let d = (fit.transform_point(l) - w).norm();
+                sum2 += d * d;
+                max = max.max(d);
+                n += 1;
+            }
+        }
+        segments.push(SegmentResidual {
+            segment: seg.into(),
+            markers: plan.tracking(seg).to_vec(),
+            rms: (sum2 / n as f64).sqrt(),
+            max,
+        });
+    }
+    segments
 }
