@@ -177,16 +177,6 @@ fn talus_levelling_angle() -> f64 {
 
 /// The 27-parameter, 12-coordinate leg model for one side.
 pub fn lower_limb(side: Side) -> ModelSpec {
-    let s = side.sign();
-    let r = side.prefix();
-    let named = |a: &str| AxisSpec::named(a);
-    let flip = |a: &str| {
-        if side == Side::Right {
-            AxisSpec::named(a)
-        } else {
-            AxisSpec::named(&format!("-{a}"))
-        }
-    };
     let segments = ["pelvis", "thigh", "shank", "talus", "foot"]
         .iter()
         .map(|n| SegmentSpec {
@@ -194,8 +184,44 @@ pub fn lower_limb(side: Side) -> ModelSpec {
             description: String::new(),
         })
         .collect();
+    let side_name = match side {
+        Side::Right => "right",
+        Side::Left => "left",
+    };
+    ModelSpec {
+        name: format!("lower-limb-{side_name}"),
+        description: format!(
+            "Reinbolt et al. 2005 sample model, {side_name} leg: 12 coordinates, 27 joint \
+             parameters (hip 6, knee 9, ankle 12); generic adult nominal geometry"
+        ),
+        segments,
+        joints: vec![
+            pelvis_joint(),
+            hip_joint(side),
+            knee_joint(side),
+            talocrural_joint(side),
+            subtalar_joint(side),
+        ],
+        parameters: PARAMS.iter().map(param_spec).collect(),
+        markers: markers(side),
+        couplers: vec![],
+        lab_up: None,
+    }
+}
 
-    let pelvis = joint(
+/// An axis of the right leg, mirrored (negated) for the left.
+fn flip(side: Side, a: &str) -> AxisSpec {
+    if side == Side::Right {
+        AxisSpec::named(a)
+    } else {
+        AxisSpec::named(&format!("-{a}"))
+    }
+}
+
+/// The pelvis in the world: a free joint, 3 translations and 3 rotations.
+fn pelvis_joint() -> JointSpec {
+    let named = |a: &str| AxisSpec::named(a);
+    joint(
         "ground_pelvis",
         "ground",
         "pelvis",
@@ -230,8 +256,14 @@ pub fn lower_limb(side: Side) -> ModelSpec {
         ],
         OffsetSpec::default(),
         OffsetSpec::default(),
-    );
-    let hip = joint(
+    )
+}
+
+/// The hip: a gimbal (flexion, adduction, rotation) with the hip centre in pelvis and thigh.
+fn hip_joint(side: Side) -> JointSpec {
+    let named = |a: &str| AxisSpec::named(a);
+    let flip = |a: &str| flip(side, a);
+    joint(
         "hip",
         "pelvis",
         "thigh",
@@ -255,8 +287,13 @@ pub fn lower_limb(side: Side) -> ModelSpec {
             tz: par("hip_thigh_lateral", side),
             ..OffsetSpec::default()
         },
-    );
-    let knee = joint(
+    )
+}
+
+/// The knee: a pin, its axis placed and oriented in thigh and shank (9 parameters).
+fn knee_joint(side: Side) -> JointSpec {
+    let named = |a: &str| AxisSpec::named(a);
+    joint(
         "knee",
         "thigh",
         "shank",
@@ -277,8 +314,13 @@ pub fn lower_limb(side: Side) -> ModelSpec {
             ry: par("knee_shank_transverse", side),
             ..OffsetSpec::default()
         },
-    );
-    let talocrural = joint(
+    )
+}
+
+/// The talocrural joint: a pin placed and oriented in the shank, the talus levelled.
+fn talocrural_joint(side: Side) -> JointSpec {
+    let named = |a: &str| AxisSpec::named(a);
+    joint(
         "talocrural",
         "shank",
         "talus",
@@ -296,8 +338,13 @@ pub fn lower_limb(side: Side) -> ModelSpec {
             rz: ScalarSpec::Fixed(talus_levelling_angle()),
             ..OffsetSpec::default()
         },
-    );
-    let subtalar = joint(
+    )
+}
+
+/// The subtalar joint: a pin placed and oriented in talus and foot.
+fn subtalar_joint(side: Side) -> JointSpec {
+    let flip = |a: &str| flip(side, a);
+    joint(
         "subtalar",
         "talus",
         "foot",
@@ -316,9 +363,13 @@ pub fn lower_limb(side: Side) -> ModelSpec {
             rz: par("subtalar_foot_sagittal", side),
             ..OffsetSpec::default()
         },
-    );
+    )
+}
 
-    // Generic marker placements (m, segment frames, right side; z mirrored for the left).
+/// The generic marker placements (m, segment frames, right side; z mirrored for the left).
+fn markers(side: Side) -> Vec<MarkerSpec> {
+    let s = side.sign();
+    let r = side.prefix();
     let mk = |name: String, segment: &str, x: f64, y: f64, z: f64| MarkerSpec {
         name,
         segment: segment.to_string(),
@@ -326,7 +377,7 @@ pub fn lower_limb(side: Side) -> ModelSpec {
         weight: 1.0,
     };
     let leg = |n: &str| format!("{r}{n}");
-    let markers = vec![
+    vec![
         MarkerSpec {
             name: "RASI".into(),
             segment: "pelvis".into(),
@@ -362,23 +413,5 @@ pub fn lower_limb(side: Side) -> ModelSpec {
         mk(leg("HEE"), "foot", 0.0, 0.0, 0.0),
         mk(leg("TOE"), "foot", 0.18, 0.01, -0.01),
         mk(leg("MT5"), "foot", 0.14, -0.005, 0.04),
-    ];
-
-    let side_name = match side {
-        Side::Right => "right",
-        Side::Left => "left",
-    };
-    ModelSpec {
-        name: format!("lower-limb-{side_name}"),
-        description: format!(
-            "Reinbolt et al. 2005 sample model, {side_name} leg: 12 coordinates, 27 joint \
-             parameters (hip 6, knee 9, ankle 12); generic adult nominal geometry"
-        ),
-        segments,
-        joints: vec![pelvis, hip, knee, talocrural, subtalar],
-        parameters: PARAMS.iter().map(param_spec).collect(),
-        markers,
-        couplers: vec![],
-        lab_up: None,
-    }
+    ]
 }
