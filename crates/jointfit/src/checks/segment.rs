@@ -5,20 +5,156 @@ use nalgebra::Vector3;
 
 use super::{runs, CheckKind, Ctx, Finding, Severity, CLUSTER_TOLERANCE, SWAP_MIN_ASYMMETRY};
 
+/// The distances of one segment's `m` markers in each of `n` frames against the subject
+/// model's, computed once for the cluster and swap checks.
+struct Distances {
+    m: usize,
+    n: usize,
+    /// Every marker pair in every frame (NaN when one is missing): `d[(f * m + i) * m + k]`.
+    d: Vec<f64>,
+    /// The model's distances: `r[i * m + k]`.
+    r: Vec<f64>,
+    /// Frames in which every marker of the segment is present.
+    complete: Vec<bool>,
+    /// Per complete frame and marker, its distance misfit to the segment's other markers,
+    /// `E_i = Σ_{c ≠ i} |d_ic − r_ic|` (for the swap test's bound): `misfit[f * m + i]`.
+    misfit: Vec<f64>,
+}
+
+impl Distances {
+    fn d(&self, f: usize, i: usize, k: usize) -> f64 {
+        self.d[(f * self.m + i) * self.m + k]
+    }
+
+    fn r(&self, i: usize, k: usize) -> f64 {
+        self.r[i * self.m + k]
+    }
+
+    /// The swap test of markers `i` and `k` in frame `f` against the markers not
+    /// `excluded`: `Some(crossed / plain)` when it reads as a swap.
+    fn test(&self, i: usize, k: usize, f: usize, excluded: &[bool]) -> Option<f64> {
+        if !self.d(f, i, k).is_finite() {
+            return None;
+        }
+        let (mut plain, mut crossed, mut asymmetry, mut count) = (0.0, 0.0, 0.0, 0usize);
+        for c in (0..self.m).filter(|&c| c != i && c != k && !excluded[c]) {
+            let (dac, dbc) = (self.d(f, i, c), self.d(f, k, c));
+            if !dac.is_finite() {
+                continue;
+            }
+            let (rac, rbc) = (self.r(i, c), self.r(k, c));
+            plain += (dac - rac).abs() + (dbc - rbc).abs();
+            crossed += (dbc - rac).abs() + (dac - rbc).abs();
+            asymmetry += (rac - rbc).abs();
+            count += 1;
+        }
+        (count > 0
+            && asymmetry >= SWAP_MIN_ASYMMETRY * count as f64
+            && plain > 0.02 * count as f64
+            && crossed < 0.3 * plain)
+            .then_some(crossed / plain)
+    }
+
+    /// Every pair's swap test in every frame, alone.
+    fn swap_flags(&self, pairs: &[(usize, usize)]) -> Vec<Vec<Option<f64>>> {
+        let (m, n) = (self.m, self.n);
+        let none = vec![false; m];
+        let mut flagged: Vec<Vec<Option<f64>>> = Vec::with_capacity(pairs.len());
+        for &(i, k) in pairs {
+            // The asymmetry test depends on the frame only through which markers are
+            // present: in a complete frame its sum runs over every other marker, in the
+            // same order as in `test`, so it is taken once for all of them.
+            // In a complete frame the test can hold only when the bound of the module
+            // docs' swap passes (see `swap_bound_passes`); the sums of the bound are taken
+            // once per pair and once per frame and marker instead of once per pair and
+            // frame. Its margin covers their rounding, so the test runs, as written, on
+            // every frame it could accept.
+            let complete_asymmetry = (0..m)
+                .filter(|&c| c != i && c != k)
+                .map(|c| (self.r(i, c) - self.r(k, c)).abs())
+                .sum::<f64>();
+            flagged.push(
+                (0..n)
+                    .map(|f| {
+                        if self.complete[f] && self.d(f, i, k).is_finite() {
+                            let eik = (self.d(f, i, k) - self.r(i, k)).abs();
+                            let plain = self.misfit[f * m + i] + self.misfit[f * m + k] - 2.0 * eik;
+                            if !swap_bound_passes(plain, complete_asymmetry, m - 2) {
+                                return None;
+                            }
+                        }
+                        self.test(i, k, f, &none)
+                    })
+                    .collect(),
+            );
+        }
+        flagged
+    }
+
+    /// One swap corrupts the references of the others: with a and b exchanged, a pair
+    /// (c, e) whose distances to a and b mirror each other also reads as a swap. In a
+    /// frame where several pairs read as swaps, they are taken strongest first (smallest
+    /// crossed/plain), and each later one is kept only when it shares no marker with a
+    /// kept one and still reads as a swap against the markers no kept swap moved.
+    fn keep_independent_swaps(&self, pairs: &[(usize, usize)], flagged: &mut [Vec<Option<f64>>]) {
+        let mut excluded = vec![false; self.m];
+        let mut order: Vec<(f64, usize)> = Vec::new();
+        for f in 0..self.n {
+            order.clear();
+            order.extend(
+                flagged
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(p, v)| v[f].map(|x| (x, p))),
+            );
+            if order.len() < 2 {
+                continue;
+            }
+            order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            excluded.fill(false);
+            for &(_, p) in &order {
+                let (i, k) = pairs[p];
+                let keep = !excluded[i] && !excluded[k] && self.test(i, k, f, &excluded).is_some();
+                if keep {
+                    excluded[i] = true;
+                    excluded[k] = true;
+                } else {
+                    flagged[p][f] = None;
+                }
+            }
+        }
+    }
+}
+
 impl Ctx<'_> {
     /// The cluster and swap findings of one segment's present model markers (at least two).
     pub(super) fn segment_findings(&self, markers: &[usize], reference: &str) -> Vec<Finding> {
+        let model = self.model;
+        let dist = self.distances(markers);
+        let seg = &model.segments()[model.markers()[markers[0]].segment.0].name;
+        let mut out = self.cluster_findings(markers, &dist, seg, reference);
+        // Swaps: runs of frames where exchanging two labels fits the other markers far better.
+        let m = markers.len();
+        if m < 3 {
+            return out;
+        }
+        let pairs: Vec<(usize, usize)> = (0..m)
+            .flat_map(|i| (i + 1..m).map(move |k| (i, k)))
+            .collect();
+        let mut flagged = dist.swap_flags(&pairs);
+        dist.keep_independent_swaps(&pairs, &mut flagged);
+        self.swap_findings(markers, &pairs, &flagged, seg, &mut out);
+        out
+    }
+
+    /// The distances of the segment's markers in every frame and in the subject model.
+    fn distances(&self, markers: &[usize]) -> Distances {
         let (model, n) = (self.model, self.trial.n_frames());
-        let first = self.trial.first_frame();
-        let mut out = Vec::new();
         let model_distance =
             |a: usize, b: usize| (model.markers()[a].local - model.markers()[b].local).norm();
-        // The distance of every marker pair in every frame (NaN when one is missing),
-        // computed once for the cluster and swap checks: `d[(f * m + i) * m + k]`.
         let m = markers.len();
         let mut d = vec![f64::NAN; n * m * m];
         let mut at: Vec<Option<Vector3<f64>>> = vec![None; m];
-        // Frames in which every marker of the segment is present.
         let mut complete = vec![false; n];
         for f in 0..n {
             for (i, &j) in markers.iter().enumerate() {
@@ -38,9 +174,6 @@ impl Ctx<'_> {
         let r: Vec<f64> = (0..m * m)
             .map(|x| model_distance(markers[x / m], markers[x % m]))
             .collect();
-        let seg = &model.segments()[model.markers()[markers[0]].segment.0].name;
-        // Per complete frame and marker, its distance misfit to the segment's other markers,
-        // `E_i = Σ_{c ≠ i} |d_ic − r_ic|` (for the swap test's bound below).
         let mut misfit = vec![0.0; n * m];
         for f in (0..n).filter(|&f| complete[f]) {
             for i in 0..m {
@@ -50,24 +183,39 @@ impl Ctx<'_> {
                     .sum();
             }
         }
+        Distances {
+            m,
+            n,
+            d,
+            r,
+            complete,
+            misfit,
+        }
+    }
 
-        // Clusters.
+    /// A finding per marker pair whose median distance in the trial differs from the model's
+    /// by more than [`CLUSTER_TOLERANCE`].
+    fn cluster_findings(
+        &self,
+        markers: &[usize],
+        dist: &Distances,
+        seg: &str,
+        reference: &str,
+    ) -> Vec<Finding> {
+        let (m, n) = (dist.m, dist.n);
+        let mut out = Vec::new();
         let mut v: Vec<f64> = Vec::with_capacity(n);
         for i in 0..m {
             for k in i + 1..m {
                 let (a, b) = (markers[i], markers[k]);
                 v.clear();
-                v.extend(
-                    (0..n)
-                        .map(|f| d[(f * m + i) * m + k])
-                        .filter(|x| x.is_finite()),
-                );
+                v.extend((0..n).map(|f| dist.d(f, i, k)).filter(|x| x.is_finite()));
                 if v.is_empty() {
                     continue;
                 }
                 let mid = v.len() / 2;
                 let median = *v.select_nth_unstable_by(mid, f64::total_cmp).1;
-                let rr = r[i * m + k];
+                let rr = dist.r(i, k);
                 if (median - rr).abs() > CLUSTER_TOLERANCE {
                     out.push(Finding {
                         kind: CheckKind::Cluster,
@@ -89,99 +237,20 @@ impl Ctx<'_> {
                 }
             }
         }
+        out
+    }
 
-        // Swaps: runs of frames where exchanging two labels fits the other markers far better.
-        if m < 3 {
-            return out;
-        }
-        // Every pair's test in every frame: `Some(crossed / plain)` when it reads as a swap.
-        let pairs: Vec<(usize, usize)> = (0..m)
-            .flat_map(|i| (i + 1..m).map(move |k| (i, k)))
-            .collect();
-        let test = |i: usize, k: usize, f: usize, excluded: &[bool]| -> Option<f64> {
-            if !d[(f * m + i) * m + k].is_finite() {
-                return None;
-            }
-            let (mut plain, mut crossed, mut asymmetry, mut count) = (0.0, 0.0, 0.0, 0usize);
-            for c in (0..m).filter(|&c| c != i && c != k && !excluded[c]) {
-                let (dac, dbc) = (d[(f * m + i) * m + c], d[(f * m + k) * m + c]);
-                if !dac.is_finite() {
-                    continue;
-                }
-                let (rac, rbc) = (r[i * m + c], r[k * m + c]);
-                plain += (dac - rac).abs() + (dbc - rbc).abs();
-                crossed += (dbc - rac).abs() + (dac - rbc).abs();
-                asymmetry += (rac - rbc).abs();
-                count += 1;
-            }
-            (count > 0
-                && asymmetry >= SWAP_MIN_ASYMMETRY * count as f64
-                && plain > 0.02 * count as f64
-                && crossed < 0.3 * plain)
-                .then_some(crossed / plain)
-        };
-        let none = vec![false; m];
-        let mut flagged: Vec<Vec<Option<f64>>> = Vec::with_capacity(pairs.len());
-        for &(i, k) in &pairs {
-            // The asymmetry test depends on the frame only through which markers are
-            // present: in a complete frame its sum runs over every other marker, in the
-            // same order as in `test`, so it is taken once for all of them.
-            // In a complete frame the test can hold only when the bound of the module
-            // docs' swap passes (see `swap_bound_passes`); the sums of the bound are taken
-            // once per pair and once per frame and marker instead of once per pair and
-            // frame. Its margin covers their rounding, so the test runs, as written, on
-            // every frame it could accept.
-            let complete_asymmetry = (0..m)
-                .filter(|&c| c != i && c != k)
-                .map(|c| (r[i * m + c] - r[k * m + c]).abs())
-                .sum::<f64>();
-            flagged.push(
-                (0..n)
-                    .map(|f| {
-                        if complete[f] && d[(f * m + i) * m + k].is_finite() {
-                            let eik = (d[(f * m + i) * m + k] - r[i * m + k]).abs();
-                            let plain = misfit[f * m + i] + misfit[f * m + k] - 2.0 * eik;
-                            if !swap_bound_passes(plain, complete_asymmetry, m - 2) {
-                                return None;
-                            }
-                        }
-                        test(i, k, f, &none)
-                    })
-                    .collect(),
-            );
-        }
-        // One swap corrupts the references of the others: with a and b exchanged, a pair
-        // (c, e) whose distances to a and b mirror each other also reads as a swap. In a
-        // frame where several pairs read as swaps, they are taken strongest first (smallest
-        // crossed/plain), and each later one is kept only when it shares no marker with a
-        // kept one and still reads as a swap against the markers no kept swap moved.
-        let mut excluded = vec![false; m];
-        let mut order: Vec<(f64, usize)> = Vec::new();
-        for f in 0..n {
-            order.clear();
-            order.extend(
-                flagged
-                    .iter()
-                    .enumerate()
-                    .filter_map(|(p, v)| v[f].map(|x| (x, p))),
-            );
-            if order.len() < 2 {
-                continue;
-            }
-            order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            excluded.fill(false);
-            for &(_, p) in &order {
-                let (i, k) = pairs[p];
-                let keep = !excluded[i] && !excluded[k] && test(i, k, f, &excluded).is_some();
-                if keep {
-                    excluded[i] = true;
-                    excluded[k] = true;
-                } else {
-                    flagged[p][f] = None;
-                }
-            }
-        }
-        for (&(i, k), flags) in pairs.iter().zip(&flagged) {
+    /// A finding per run of frames in which a pair reads as swapped.
+    fn swap_findings(
+        &self,
+        markers: &[usize],
+        pairs: &[(usize, usize)],
+        flagged: &[Vec<Option<f64>>],
+        seg: &str,
+        out: &mut Vec<Finding>,
+    ) {
+        let (n, first) = (self.trial.n_frames(), self.trial.first_frame());
+        for (&(i, k), flags) in pairs.iter().zip(flagged) {
             let (a, b) = (markers[i], markers[k]);
             for (start, end) in runs(flags.iter().map(Option::is_some)) {
                 let (from, to) = (first + start as i64, first + end as i64);
@@ -209,7 +278,6 @@ impl Ctx<'_> {
                 });
             }
         }
-        out
     }
 }
 
