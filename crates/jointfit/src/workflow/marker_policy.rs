@@ -111,6 +111,24 @@ fn prior_sd_for(size: f64) -> f64 {
     (mm / MM_PER_M).max(DEFAULT_MARKER_PRIOR_SD)
 }
 
+/// The decisions gathered over the trials: refinements (one per marker) and exclusions.
+#[derive(Default)]
+struct Decisions {
+    refine: Vec<MarkerDecision>,
+    exclude: Vec<MarkerDecision>,
+}
+
+impl Decisions {
+    /// A refinement; a marker refined for several trials keeps the largest prior SD.
+    fn refine(&mut self, d: MarkerDecision) {
+        match self.refine.iter_mut().find(|r| r.marker == d.marker) {
+            Some(r) if r.prior_sd_mm < d.prior_sd_mm => *r = d,
+            Some(_) => {}
+            None => self.refine.push(d),
+        }
+    }
+}
+
 /// The policy's decisions for `trials` fitted with `model` from `start`, markers named in
 /// `keep` left alone. Refinements first (one per marker, the largest prior SD over the
 /// trials), then exclusions, each in model marker order.
@@ -120,173 +138,15 @@ pub fn decide(
     trials: &[&Trial],
     keep: &[String],
 ) -> Vec<MarkerDecision> {
-    let mut refine: Vec<MarkerDecision> = Vec::new();
-    let mut exclude: Vec<MarkerDecision> = Vec::new();
+    let mut dec = Decisions::default();
     for (t, trial) in trials.iter().enumerate() {
-        let (map, _) = MarkerMap::allowing_absent(model, trial.labels());
-        let (a, b) = frames_looked_at(trial.n_frames());
-        let sub = trial.slice_frames(a, b);
-        let Ok(fit) = solve_trial(model, start, &sub, &map, &IkOptions::default()) else {
-            continue;
-        };
-        let offsets = offsets_of_fit(model, start, &sub, &map, &fit);
-        let rejected = |j: usize| {
-            fit.frames
-                .iter()
-                .filter(|f| f.solved() && f.rejected.contains(&j))
-                .count()
-        };
-        let name = |o: &MarkerOffset| model.markers()[o.marker].name.clone();
-        let segment = |o: &MarkerOffset| {
-            let s = model.markers()[o.marker].segment.0;
-            model.segments()[s].name.clone()
-        };
-        for (s, _) in model.segments().iter().enumerate() {
-            let here: Vec<&MarkerOffset> = offsets
-                .iter()
-                .filter(|o| model.markers()[o.marker].segment.0 == s)
-                .filter(|o| !keep.contains(&name(o)))
-                .collect();
-            let moved: Vec<&MarkerOffset> =
-                here.iter().copied().filter(|o| o.displaced()).collect();
-            // The markers of a segment attached to ground define its pose: all of them
-            // off means the IK put the segment elsewhere, which only the joints' error
-            // does (a moved pelvis cluster is the hip centre moving); no cluster there.
-            let rooted = model.segments()[s].parent.is_none();
-            // Enough markers of the segment in the trial for the leave-one-out test.
-            let checkable = here.len() > MIN_OTHERS;
-            let cluster = !rooted && moved.len() >= 2 && 2 * moved.len() >= here.len();
-            let largest = moved.iter().map(|o| o.size()).fold(0.0, f64::max);
-            for o in &here {
-                let share = rejected(o.marker) as f64 / o.frames.max(1) as f64;
-                let decision = |action, prior_sd_mm, reason| MarkerDecision {
-                    marker: name(o),
-                    segment: segment(o),
-                    action,
-                    trial: t,
-                    prior_sd_mm,
-                    offset_mm: o.size() * MM_PER_M,
-                    spread_mm: o.spread * MM_PER_M,
-                    frames: o.frames,
-                    rejected_share: share,
-                    reason,
-                };
-                let steady = format!(
-                    "sits {:.0} mm from its static-trial place in every frame (spread {:.0} mm \
-                     over {} frames of trial {})",
-                    o.size() * MM_PER_M,
-                    o.spread * MM_PER_M,
-                    o.frames,
-                    t + 1
-                );
-                // A lone displaced marker on a segment too small for the leave-one-out test
-                // is not refined: its residual after IK at the landmark model is the landmark
-                // joints' error as much as its own (module docs).
-                let refined = if o.displaced() && (cluster || checkable) {
-                    let sd = prior_sd_for(if cluster { largest } else { o.size() });
-                    Some((sd, steady))
-                } else if cluster && o.size() >= MIN_OFFSET / 2.0 {
-                    let reason = format!(
-                        "its {} cluster moved; it sits {:.0} mm off (spread {:.0} mm) in trial {}",
-                        segment(o),
-                        o.size() * MM_PER_M,
-                        o.spread * MM_PER_M,
-                        t + 1
-                    );
-                    Some((prior_sd_for(largest), reason))
-                } else {
-                    None
-                };
-                if let Some((sd, reason)) = refined {
-                    let d = decision(MarkerAction::Refine, Some(sd * MM_PER_M), reason);
-                    match refine.iter_mut().find(|r| r.marker == d.marker) {
-                        Some(r) if r.prior_sd_mm < d.prior_sd_mm => *r = d,
-                        Some(_) => {}
-                        None => refine.push(d),
-                    }
-                } else if !o.displaced() && o.frames >= MIN_FRAMES && share >= BROKEN_SHARE {
-                    let reason = format!(
-                        "rejected as a gross error in {:.0} % of {} frames of trial {} without a \
-                         steady offset ({:.0} mm, spread {:.0} mm, < {MIN_RATIO:.0}× or \
-                         < {:.0} mm): no fixed position explains it",
-                        100.0 * share,
-                        o.frames,
-                        t + 1,
-                        o.size() * MM_PER_M,
-                        o.spread * MM_PER_M,
-                        MIN_OFFSET * MM_PER_M
-                    );
-                    exclude.push(decision(MarkerAction::Exclude, None, reason));
-                }
-            }
-        }
-        let steady = |o: &RigidOffset| {
-            o.frames >= MIN_FRAMES && o.size() >= RIGID_MIN_OFFSET && o.ratio() >= RIGID_MIN_RATIO
-        };
-        for o in rigid_displaced(model, trial, steady) {
-            let m = &model.markers()[o.marker];
-            if keep.contains(&m.name) || refine.iter().any(|r| r.marker == m.name) {
-                continue;
-            }
-            let share = offsets
-                .iter()
-                .find(|x| x.marker == o.marker)
-                .map_or(0.0, |x| rejected(o.marker) as f64 / x.frames.max(1) as f64);
-            refine.push(MarkerDecision {
-                marker: m.name.clone(),
-                segment: model.segments()[m.segment.0].name.clone(),
-                action: MarkerAction::Refine,
-                trial: t,
-                prior_sd_mm: Some(prior_sd_for(o.size()) * MM_PER_M),
-                offset_mm: o.size() * MM_PER_M,
-                spread_mm: o.spread * MM_PER_M,
-                frames: o.frames,
-                rejected_share: share,
-                reason: format!(
-                    "sits {:.0} mm from where its segment's other markers put it (static-trial \
-                     layout) in every frame (spread {:.0} mm over {} frames of trial {})",
-                    o.size() * MM_PER_M,
-                    o.spread * MM_PER_M,
-                    o.frames,
-                    t + 1
-                ),
-            });
-        }
+        trial_decisions(model, start, trial, t, keep, &mut dec);
     }
-    // A marker further from its place than a re-attachment moves is not refined: its label
-    // names another marker in this trial (e.g. two cluster markers swapped), and refining it
-    // would absorb that mismatch ([`super::verdict::REFINE_CAP_MM`]). It is left out when
-    // its segment keeps three markers in that trial; otherwise it stays refined and the
-    // verdict judges the refinement.
-    let cap = super::verdict::REFINE_CAP_MM;
-    let mut left: Vec<(usize, String)> = exclude
-        .iter()
-        .map(|d| (d.trial, d.marker.clone()))
-        .collect();
-    let mut capped = Vec::new();
-    for d in refine.iter().filter(|d| d.offset_mm > cap) {
-        let kept = model
-            .markers()
-            .iter()
-            .filter(|m| model.segments()[m.segment.0].name == d.segment)
-            .filter(|m| trials[d.trial].labels().contains(&m.name))
-            .filter(|m| !left.iter().any(|(t, n)| *t == d.trial && *n == m.name))
-            .count();
-        if kept > 3 {
-            left.push((d.trial, d.marker.clone()));
-            capped.push(d.marker.clone());
-        }
-    }
-    for mut d in refine.extract_if(.., |d| capped.contains(&d.marker)) {
-        d.action = MarkerAction::Exclude;
-        d.prior_sd_mm = None;
-        d.reason = format!(
-            "{}; more than the {cap:.0} mm a re-attached marker moves, so its label may name \
-             another marker: not refined",
-            d.reason
-        );
-        exclude.push(d);
-    }
+    cap_refinements(model, trials, &mut dec);
+    let Decisions {
+        mut refine,
+        mut exclude,
+    } = dec;
     // A marker refined for one trial is not also left out of another: its fitted position
     // serves every trial.
     exclude.retain(|e| !refine.iter().any(|r| r.marker == e.marker));
@@ -301,6 +161,218 @@ pub fn decide(
     exclude.sort_by_key(|d| (d.trial, order(d)));
     refine.extend(exclude);
     refine
+}
+
+/// Trial `t`'s decisions: its markers' offsets after IK at `start` (on the frames looked
+/// at), segment by segment, then the markers its segment's other markers put elsewhere.
+fn trial_decisions(
+    model: &Model,
+    start: &[f64],
+    trial: &Trial,
+    t: usize,
+    keep: &[String],
+    dec: &mut Decisions,
+) {
+    let (map, _) = MarkerMap::allowing_absent(model, trial.labels());
+    let (a, b) = frames_looked_at(trial.n_frames());
+    let sub = trial.slice_frames(a, b);
+    let Ok(fit) = solve_trial(model, start, &sub, &map, &IkOptions::default()) else {
+        return;
+    };
+    let offsets = offsets_of_fit(model, start, &sub, &map, &fit);
+    let rejected = |j: usize| {
+        fit.frames
+            .iter()
+            .filter(|f| f.solved() && f.rejected.contains(&j))
+            .count()
+    };
+    for s in 0..model.segments().len() {
+        segment_decisions(model, s, t, &offsets, keep, &rejected, dec);
+    }
+    rigid_decisions(model, trial, t, keep, &offsets, &rejected, dec);
+}
+
+/// The decisions for segment `s`'s markers in trial `t` (`rejected`: in how many frames the
+/// IK rejected a model marker as a gross error).
+fn segment_decisions(
+    model: &Model,
+    s: usize,
+    t: usize,
+    offsets: &[MarkerOffset],
+    keep: &[String],
+    rejected: &dyn Fn(usize) -> usize,
+    dec: &mut Decisions,
+) {
+    let name = |o: &MarkerOffset| model.markers()[o.marker].name.clone();
+    let segment = |o: &MarkerOffset| {
+        let s = model.markers()[o.marker].segment.0;
+        model.segments()[s].name.clone()
+    };
+    let here: Vec<&MarkerOffset> = offsets
+        .iter()
+        .filter(|o| model.markers()[o.marker].segment.0 == s)
+        .filter(|o| !keep.contains(&name(o)))
+        .collect();
+    let moved: Vec<&MarkerOffset> = here.iter().copied().filter(|o| o.displaced()).collect();
+    // The markers of a segment attached to ground define its pose: all of them
+    // off means the IK put the segment elsewhere, which only the joints' error
+    // does (a moved pelvis cluster is the hip centre moving); no cluster there.
+    let rooted = model.segments()[s].parent.is_none();
+    // Enough markers of the segment in the trial for the leave-one-out test.
+    let checkable = here.len() > MIN_OTHERS;
+    let cluster = !rooted && moved.len() >= 2 && 2 * moved.len() >= here.len();
+    let largest = moved.iter().map(|o| o.size()).fold(0.0, f64::max);
+    for o in &here {
+        let share = rejected(o.marker) as f64 / o.frames.max(1) as f64;
+        let decision = |action, prior_sd_mm, reason| MarkerDecision {
+            marker: name(o),
+            segment: segment(o),
+            action,
+            trial: t,
+            prior_sd_mm,
+            offset_mm: o.size() * MM_PER_M,
+            spread_mm: o.spread * MM_PER_M,
+            frames: o.frames,
+            rejected_share: share,
+            reason,
+        };
+        if let Some((sd, reason)) = refinement(o, &segment(o), t, cluster, checkable, largest) {
+            dec.refine(decision(MarkerAction::Refine, Some(sd * MM_PER_M), reason));
+        } else if !o.displaced() && o.frames >= MIN_FRAMES && share >= BROKEN_SHARE {
+            let reason = format!(
+                "rejected as a gross error in {:.0} % of {} frames of trial {} without a \
+                 steady offset ({:.0} mm, spread {:.0} mm, < {MIN_RATIO:.0}× or \
+                 < {:.0} mm): no fixed position explains it",
+                100.0 * share,
+                o.frames,
+                t + 1,
+                o.size() * MM_PER_M,
+                o.spread * MM_PER_M,
+                MIN_OFFSET * MM_PER_M
+            );
+            dec.exclude
+                .push(decision(MarkerAction::Exclude, None, reason));
+        }
+    }
+}
+
+/// The prior SD (m) and reason of a refinement of marker `o` of segment `segment` in trial
+/// `t`, or `None`. A lone displaced marker on a segment too small for the leave-one-out test
+/// (`checkable`) is not refined: its residual after IK at the landmark model is the landmark
+/// joints' error as much as its own (module docs).
+fn refinement(
+    o: &MarkerOffset,
+    segment: &str,
+    t: usize,
+    cluster: bool,
+    checkable: bool,
+    largest: f64,
+) -> Option<(f64, String)> {
+    if o.displaced() && (cluster || checkable) {
+        let steady = format!(
+            "sits {:.0} mm from its static-trial place in every frame (spread {:.0} mm \
+             over {} frames of trial {})",
+            o.size() * MM_PER_M,
+            o.spread * MM_PER_M,
+            o.frames,
+            t + 1
+        );
+        let sd = prior_sd_for(if cluster { largest } else { o.size() });
+        Some((sd, steady))
+    } else if cluster && o.size() >= MIN_OFFSET / 2.0 {
+        let reason = format!(
+            "its {segment} cluster moved; it sits {:.0} mm off (spread {:.0} mm) in trial {}",
+            o.size() * MM_PER_M,
+            o.spread * MM_PER_M,
+            t + 1
+        );
+        Some((prior_sd_for(largest), reason))
+    } else {
+        None
+    }
+}
+
+/// Refinements of the markers of trial `t` that sit steadily away from where their
+/// segment's other markers put them (the static-trial layout), unless kept or refined.
+fn rigid_decisions(
+    model: &Model,
+    trial: &Trial,
+    t: usize,
+    keep: &[String],
+    offsets: &[MarkerOffset],
+    rejected: &dyn Fn(usize) -> usize,
+    dec: &mut Decisions,
+) {
+    let steady = |o: &RigidOffset| {
+        o.frames >= MIN_FRAMES && o.size() >= RIGID_MIN_OFFSET && o.ratio() >= RIGID_MIN_RATIO
+    };
+    for o in rigid_displaced(model, trial, steady) {
+        let m = &model.markers()[o.marker];
+        if keep.contains(&m.name) || dec.refine.iter().any(|r| r.marker == m.name) {
+            continue;
+        }
+        let share = offsets
+            .iter()
+            .find(|x| x.marker == o.marker)
+            .map_or(0.0, |x| rejected(o.marker) as f64 / x.frames.max(1) as f64);
+        dec.refine.push(MarkerDecision {
+            marker: m.name.clone(),
+            segment: model.segments()[m.segment.0].name.clone(),
+            action: MarkerAction::Refine,
+            trial: t,
+            prior_sd_mm: Some(prior_sd_for(o.size()) * MM_PER_M),
+            offset_mm: o.size() * MM_PER_M,
+            spread_mm: o.spread * MM_PER_M,
+            frames: o.frames,
+            rejected_share: share,
+            reason: format!(
+                "sits {:.0} mm from where its segment's other markers put it (static-trial \
+                 layout) in every frame (spread {:.0} mm over {} frames of trial {})",
+                o.size() * MM_PER_M,
+                o.spread * MM_PER_M,
+                o.frames,
+                t + 1
+            ),
+        });
+    }
+}
+
+/// A marker further from its place than a re-attachment moves is not refined: its label
+/// names another marker in this trial (e.g. two cluster markers swapped), and refining it
+/// would absorb that mismatch ([`super::verdict::REFINE_CAP_MM`]). It is left out when
+/// its segment keeps three markers in that trial; otherwise it stays refined and the
+/// verdict judges the refinement.
+fn cap_refinements(model: &Model, trials: &[&Trial], dec: &mut Decisions) {
+    let cap = super::verdict::REFINE_CAP_MM;
+    let mut left: Vec<(usize, String)> = dec
+        .exclude
+        .iter()
+        .map(|d| (d.trial, d.marker.clone()))
+        .collect();
+    let mut capped = Vec::new();
+    for d in dec.refine.iter().filter(|d| d.offset_mm > cap) {
+        let kept = model
+            .markers()
+            .iter()
+            .filter(|m| model.segments()[m.segment.0].name == d.segment)
+            .filter(|m| trials[d.trial].labels().contains(&m.name))
+            .filter(|m| !left.iter().any(|(t, n)| *t == d.trial && *n == m.name))
+            .count();
+        if kept > 3 {
+            left.push((d.trial, d.marker.clone()));
+            capped.push(d.marker.clone());
+        }
+    }
+    for mut d in dec.refine.extract_if(.., |d| capped.contains(&d.marker)) {
+        d.action = MarkerAction::Exclude;
+        d.prior_sd_mm = None;
+        d.reason = format!(
+            "{}; more than the {cap:.0} mm a re-attached marker moves, so its label may name \
+             another marker: not refined",
+            d.reason
+        );
+        dec.exclude.push(d);
+    }
 }
 
 /// The trials without the markers the decisions leave out of them.
