@@ -242,143 +242,31 @@ pub fn solve_joint_with(
     observer: &mut dyn Observer,
 ) -> Fit {
     let observations = observations(prob);
-    let nq = prob.model.n_q();
-    let nf = prob.n_free();
-    let frames = prob.frames.len();
-    let mut blocks = Blocks::new(prob);
-    let mut s: Vec<f64> = s0.iter().map(|v| v.clamp(-1.0, 1.0)).collect();
-    let mut qs = q0;
-    project_coords(&mut qs, &blocks.bounds);
-    let mut ds = vec![0.0; nf];
-    let mut dq = vec![vec![0.0; nq]; frames];
-    // The trial point's coordinates, allocated once here on the calling thread and filled in
-    // parallel (each frame's sum alone: the same bits on any number of threads); swapped
-    // with `qs` when a step is accepted.
-    let mut q_try = qs.clone();
-    let mut lambda = 1e-4;
-    // Nielsen's damping update: the growth factor for a rejected step doubles each time.
-    let mut nu = 2.0;
+    let mut st = Solve::new(prob, s0, q0);
     let mut history = Vec::new();
     // The previous accepted step's decrease (for the geometric tail of the stopping rule).
     let mut last_decrease = f64::INFINITY;
-    let mut evaluations = 0;
     let mut iterations = 0;
     let mut termination = Termination::IterationLimit;
-    let mut p = prob.to_params(&s);
-    assemble(prob, &p, &qs, &mut blocks);
-    evaluations += 1;
-    let mut cost = blocks.cost;
-    let mut secant = Secant::new(nf);
     while iterations < opts.max_iterations {
         iterations += 1;
-        let mut fixed = active_bounds(&s, &blocks.gs);
-        let mut accepted = false;
-        let mut step = 0.0f64;
-        let mut decrease = 0.0;
-        let mut model_decrease = f64::INFINITY;
-        // The secant model's data at this point: the reduced system at the step's damping
-        // when that is small (then equal to the undamped one to 1e-6), else at λ = 0.
-        let data_lambda = if lambda <= SECANT_MAX_DAMPING {
-            lambda
-        } else {
-            0.0
-        };
-        let mut reduced_at = None;
-        // Gauss–Newton only for the rest of this iteration (an augmented step was rejected).
-        let mut plain = false;
-        if use_secant {
-            if reduce(prob, &qs, &mut blocks, data_lambda) {
-                secant.observe(&blocks.schur, &blocks.rhs);
-                reduced_at = Some(data_lambda);
-            } else {
-                secant.forget();
-            }
-        }
-        while lambda < 1e16 {
-            if reduced_at != Some(lambda) {
-                reduced_at = None;
-                if !reduce(prob, &qs, &mut blocks, lambda) {
-                    lambda *= 10.0;
-                    continue;
-                }
-                reduced_at = Some(lambda);
-            }
-            let limited = secant.limited(&blocks.schur);
-            let extra = limited.as_deref().filter(|_| secant.augmented() && !plain);
-            if !solve_reduced_at_bounds(&blocks, extra, &s, &mut fixed, &mut ds) {
-                lambda *= 10.0;
-                continue;
-            }
-            let s_try: Vec<f64> = s
-                .iter()
-                .zip(&ds)
-                .map(|(a, d)| (a + d).clamp(-1.0, 1.0))
-                .collect();
-            let ds_eff: Vec<f64> = s_try.iter().zip(&s).map(|(a, b)| a - b).collect();
-            let gauss_newton = back_substitute(prob, &qs, &blocks, &ds_eff, &mut dq);
-            let augmented = match &limited {
-                Some(a) => gauss_newton - secant.curvature(a, &ds_eff),
-                None => gauss_newton,
-            };
-            // The model that chose the step predicts its decrease.
-            let predicted = match extra {
-                Some(_) => augmented,
-                None => gauss_newton,
-            };
-            trial_coords(&mut q_try, &qs, &mut dq, &blocks.bounds);
-            let lambda_used = lambda;
-            let p_try = prob.to_params(&s_try);
-            let c = cost_at(prob, &blocks, &p_try, &q_try);
-            evaluations += 1;
-            if c <= cost {
-                // The largest step (a maximum: the same in any order of evaluation).
-                let largest = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-                step = dq
-                    .par_iter()
-                    .with_min_len(PAR_FRAMES)
-                    .map(|d| largest(d))
-                    .reduce(|| 0.0, f64::max)
-                    .max(largest(&ds_eff));
-                // Gain ratio ρ = actual / predicted decrease: near 1 the quadratic model is
-                // good and the damping shrinks by up to 3; a poor model keeps it.
-                let rho = if predicted > 0.0 {
-                    (cost - c) / predicted
-                } else {
-                    0.0
-                };
-                lambda = (lambda * (1.0 - (2.0 * rho - 1.0).powi(3)).max(1.0 / 3.0)).max(1e-12);
-                nu = 2.0;
-                if lambda_used <= RESOLUTION_MAX_DAMPING {
-                    model_decrease = predicted;
-                }
-                decrease = cost - c;
-                secant.accepted(&ds_eff, decrease, gauss_newton, augmented);
-                s = s_try;
-                std::mem::swap(&mut qs, &mut q_try);
-                p = p_try;
-                cost = c;
-                accepted = true;
-                break;
-            }
-            if extra.is_some() {
-                // The augmented model failed: Gauss–Newton's step at the same damping first.
-                plain = true;
-                continue;
-            }
-            lambda *= nu;
-            nu *= 2.0;
-        }
-        history.push(cost);
-        observer.iteration(iterations, cost);
-        if !accepted {
+        let accepted = st.iterate(use_secant);
+        history.push(st.cost);
+        observer.iteration(iterations, st.cost);
+        let Some(Accepted {
+            step,
+            decrease,
+            model_decrease,
+        }) = accepted
+        else {
             termination = Termination::Stalled;
             break;
-        }
+        };
         // Converged on a negligible step, or when the objective no longer moves at working
         // precision (the last digits of a linearly converging tail change nothing).
         // Or when the Gauss–Newton model puts the optimum closer than `resolution` standard
         // errors (the module docs).
-        let sigma2 = noise_variance(prob, cost - prob.prior_cost(&p), observations);
+        let sigma2 = noise_variance(prob, st.cost - prob.prior_cost(&st.p), observations);
         // The decrease still to come if the objective keeps falling geometrically at the
         // last ratio r: D r / (1 − r) (infinite when it is not falling faster).
         let r = decrease / last_decrease;
@@ -390,51 +278,250 @@ pub fn solve_joint_with(
         last_decrease = decrease;
         let limit = resolution * resolution * sigma2;
         let resolved = resolution > 0.0 && sigma2 > 0.0 && model_decrease <= limit && tail <= limit;
-        if step < opts.tolerance || decrease <= COST_TOLERANCE * cost || resolved {
+        if step < opts.tolerance || decrease <= COST_TOLERANCE * st.cost || resolved {
             termination = Termination::Converged;
             break;
         }
-        assemble(prob, &p, &qs, &mut blocks);
-        evaluations += 1;
-        cost = blocks.cost;
+        st.assemble();
         // The observed tail is within the resolution but the step was too damped for its
         // predicted decrease to stand for Gauss–Newton's: the undamped model at the new point
         // decides (one more reduction), and its step ends the solve when it lowers the
         // objective (one more evaluation; module docs). (The tail needs two decreases: `r`
         // of the first step is 0.)
         let damped = model_decrease == f64::INFINITY && r > 0.0;
-        if resolution > 0.0 && sigma2 > 0.0 && damped && tail <= limit {
-            let undamped = undamped_decrease(prob, &qs, &mut blocks, &s, &mut ds, &mut dq);
-            if undamped.is_some_and(|d| d <= limit) {
-                termination = Termination::Converged;
-                if iterations < opts.max_iterations {
-                    let s_try: Vec<f64> = s.iter().zip(&ds).map(|(a, d)| a + d).collect();
-                    trial_coords(&mut q_try, &qs, &mut dq, &blocks.bounds);
-                    let p_try = prob.to_params(&s_try);
-                    let c = cost_at(prob, &blocks, &p_try, &q_try);
-                    evaluations += 1;
-                    if c <= cost {
-                        iterations += 1;
-                        s = s_try;
-                        std::mem::swap(&mut qs, &mut q_try);
-                        p = p_try;
-                        cost = c;
-                        history.push(cost);
-                        observer.iteration(iterations, cost);
-                    }
-                }
-                break;
+        if resolution > 0.0 && sigma2 > 0.0 && damped && tail <= limit && st.undamped_within(limit)
+        {
+            termination = Termination::Converged;
+            if iterations < opts.max_iterations && st.undamped_step() {
+                iterations += 1;
+                history.push(st.cost);
+                observer.iteration(iterations, st.cost);
             }
+            break;
         }
     }
     Fit {
-        s,
-        p,
-        coords: qs,
-        cost,
+        s: st.s,
+        p: st.p,
+        coords: st.qs,
+        cost: st.cost,
         iterations,
-        evaluations,
+        evaluations: st.evaluations,
         history,
         termination,
+    }
+}
+
+/// What an accepted step did: its largest component, the decrease of the objective, and the
+/// decrease its model predicted (infinite when the step was too damped to stand for
+/// Gauss–Newton's, [`RESOLUTION_MAX_DAMPING`]).
+struct Accepted {
+    step: f64,
+    decrease: f64,
+    model_decrease: f64,
+}
+
+/// The state of a joint solve between iterations: the point (scaled parameters `s`,
+/// parameters `p`, coordinates `qs`), its objective and blocks, the damping, and the buffers
+/// of the steps.
+struct Solve<'a, 'm> {
+    prob: &'a Problem<'m>,
+    blocks: Blocks,
+    s: Vec<f64>,
+    p: Vec<f64>,
+    qs: Vec<Vec<f64>>,
+    cost: f64,
+    ds: Vec<f64>,
+    dq: Vec<Vec<f64>>,
+    /// The trial point's coordinates, allocated once here on the calling thread and filled
+    /// in parallel (each frame's sum alone: the same bits on any number of threads); swapped
+    /// with `qs` when a step is accepted.
+    q_try: Vec<Vec<f64>>,
+    lambda: f64,
+    /// Nielsen's damping update: the growth factor for a rejected step doubles each time.
+    nu: f64,
+    evaluations: usize,
+    secant: Secant,
+}
+
+impl<'a, 'm> Solve<'a, 'm> {
+    /// The solve at `s0` (clamped into the bounds) and `q0` (projected into theirs),
+    /// assembled there.
+    fn new(prob: &'a Problem<'m>, s0: &[f64], q0: Vec<Vec<f64>>) -> Self {
+        let (nq, nf, frames) = (prob.model.n_q(), prob.n_free(), prob.frames.len());
+        let mut blocks = Blocks::new(prob);
+        let s: Vec<f64> = s0.iter().map(|v| v.clamp(-1.0, 1.0)).collect();
+        let mut qs = q0;
+        project_coords(&mut qs, &blocks.bounds);
+        let q_try = qs.clone();
+        let p = prob.to_params(&s);
+        assemble(prob, &p, &qs, &mut blocks);
+        let cost = blocks.cost;
+        Solve {
+            prob,
+            blocks,
+            s,
+            p,
+            qs,
+            cost,
+            ds: vec![0.0; nf],
+            dq: vec![vec![0.0; nq]; frames],
+            q_try,
+            lambda: 1e-4,
+            nu: 2.0,
+            evaluations: 1,
+            secant: Secant::new(nf),
+        }
+    }
+
+    /// The blocks at the current point (one more evaluation).
+    fn assemble(&mut self) {
+        assemble(self.prob, &self.p, &self.qs, &mut self.blocks);
+        self.evaluations += 1;
+        self.cost = self.blocks.cost;
+    }
+
+    /// One Levenberg–Marquardt iteration: steps at growing damping until one lowers the
+    /// objective (then taken), or `None` when the damping runs out.
+    fn iterate(&mut self, use_secant: bool) -> Option<Accepted> {
+        let prob = self.prob;
+        let mut fixed = active_bounds(&self.s, &self.blocks.gs);
+        let mut model_decrease = f64::INFINITY;
+        // The secant model's data at this point: the reduced system at the step's damping
+        // when that is small (then equal to the undamped one to 1e-6), else at λ = 0.
+        let data_lambda = if self.lambda <= SECANT_MAX_DAMPING {
+            self.lambda
+        } else {
+            0.0
+        };
+        let mut reduced_at = None;
+        // Gauss–Newton only for the rest of this iteration (an augmented step was rejected).
+        let mut plain = false;
+        if use_secant {
+            if reduce(prob, &self.qs, &mut self.blocks, data_lambda) {
+                self.secant.observe(&self.blocks.schur, &self.blocks.rhs);
+                reduced_at = Some(data_lambda);
+            } else {
+                self.secant.forget();
+            }
+        }
+        while self.lambda < 1e16 {
+            if reduced_at != Some(self.lambda) {
+                reduced_at = None;
+                if !reduce(prob, &self.qs, &mut self.blocks, self.lambda) {
+                    self.lambda *= 10.0;
+                    continue;
+                }
+                reduced_at = Some(self.lambda);
+            }
+            let limited = self.secant.limited(&self.blocks.schur);
+            let extra = limited
+                .as_deref()
+                .filter(|_| self.secant.augmented() && !plain);
+            let (blocks, s) = (&self.blocks, &self.s);
+            if !solve_reduced_at_bounds(blocks, extra, s, &mut fixed, &mut self.ds) {
+                self.lambda *= 10.0;
+                continue;
+            }
+            let s_try: Vec<f64> = s
+                .iter()
+                .zip(&self.ds)
+                .map(|(a, d)| (a + d).clamp(-1.0, 1.0))
+                .collect();
+            let ds_eff: Vec<f64> = s_try.iter().zip(s).map(|(a, b)| a - b).collect();
+            let gauss_newton = back_substitute(prob, &self.qs, blocks, &ds_eff, &mut self.dq);
+            let augmented = match &limited {
+                Some(a) => gauss_newton - self.secant.curvature(a, &ds_eff),
+                None => gauss_newton,
+            };
+            // The model that chose the step predicts its decrease.
+            let predicted = match extra {
+                Some(_) => augmented,
+                None => gauss_newton,
+            };
+            trial_coords(&mut self.q_try, &self.qs, &mut self.dq, &blocks.bounds);
+            let lambda_used = self.lambda;
+            let p_try = prob.to_params(&s_try);
+            let c = cost_at(prob, blocks, &p_try, &self.q_try);
+            self.evaluations += 1;
+            if c <= self.cost {
+                // The largest step (a maximum: the same in any order of evaluation).
+                let largest = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+                let step = self
+                    .dq
+                    .par_iter()
+                    .with_min_len(PAR_FRAMES)
+                    .map(|d| largest(d))
+                    .reduce(|| 0.0, f64::max)
+                    .max(largest(&ds_eff));
+                // Gain ratio ρ = actual / predicted decrease: near 1 the quadratic model is
+                // good and the damping shrinks by up to 3; a poor model keeps it.
+                let rho = if predicted > 0.0 {
+                    (self.cost - c) / predicted
+                } else {
+                    0.0
+                };
+                self.lambda =
+                    (self.lambda * (1.0 - (2.0 * rho - 1.0).powi(3)).max(1.0 / 3.0)).max(1e-12);
+                self.nu = 2.0;
+                if lambda_used <= RESOLUTION_MAX_DAMPING {
+                    model_decrease = predicted;
+                }
+                let decrease = self.cost - c;
+                self.secant
+                    .accepted(&ds_eff, decrease, gauss_newton, augmented);
+                self.s = s_try;
+                std::mem::swap(&mut self.qs, &mut self.q_try);
+                self.p = p_try;
+                self.cost = c;
+                return Some(Accepted {
+                    step,
+                    decrease,
+                    model_decrease,
+                });
+            }
+            if extra.is_some() {
+                // The augmented model failed: Gauss–Newton's step at the same damping first.
+                plain = true;
+                continue;
+            }
+            self.lambda *= self.nu;
+            self.nu *= 2.0;
+        }
+        None
+    }
+
+    /// The undamped model's predicted decrease at the current point is within `limit` (its
+    /// step left in `ds`, `dq`).
+    fn undamped_within(&mut self, limit: f64) -> bool {
+        let (prob, s) = (self.prob, &self.s);
+        undamped_decrease(
+            prob,
+            &self.qs,
+            &mut self.blocks,
+            s,
+            &mut self.ds,
+            &mut self.dq,
+        )
+        .is_some_and(|d| d <= limit)
+    }
+
+    /// Takes the undamped step of [`Solve::undamped_within`] when it does not raise the
+    /// objective (one more evaluation).
+    fn undamped_step(&mut self) -> bool {
+        let prob = self.prob;
+        let s_try: Vec<f64> = self.s.iter().zip(&self.ds).map(|(a, d)| a + d).collect();
+        trial_coords(&mut self.q_try, &self.qs, &mut self.dq, &self.blocks.bounds);
+        let p_try = prob.to_params(&s_try);
+        let c = cost_at(prob, &self.blocks, &p_try, &self.q_try);
+        self.evaluations += 1;
+        if c > self.cost {
+            return false;
+        }
+        self.s = s_try;
+        std::mem::swap(&mut self.qs, &mut self.q_try);
+        self.p = p_try;
+        self.cost = c;
+        true
     }
 }
