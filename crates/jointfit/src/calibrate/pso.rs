@@ -112,56 +112,12 @@ pub fn solve_pso(
     opts: &PsoOptions,
     observer: &mut dyn Observer,
 ) -> Fit {
-    // A particle's cost only has to rank it against the others: coordinates to 1e-8 rad/m
-    // leave the objective exact to ~1e-16 relative (the error in e_inner is quadratic in
-    // the coordinate error at the inner minimum), at about half the inner iterations of the
-    // tight tolerance that gradient-based outer levels need.
-    let fast = Problem {
-        ik: crate::ik::IkOptions {
-            step_tolerance: prob.ik.step_tolerance.max(1e-8),
-            ..prob.ik
-        },
-        ..prob.clone()
-    };
+    let fast = ranking_problem(prob);
     let prob = &fast;
-    let nf = prob.n_free();
     let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
-    let mut swarm: Vec<Particle> = (0..opts.particles.max(2))
-        .map(|_| {
-            let x: Vec<f64> = (0..nf).map(|_| rng.gen_range(-1.0..=1.0)).collect();
-            let v: Vec<f64> = (0..nf)
-                .map(|_| rng.gen_range(-opts.v_max..=opts.v_max))
-                .collect();
-            Particle {
-                best_x: x.clone(),
-                x,
-                v,
-                best_cost: f64::INFINITY,
-                best_q: q0.to_vec(),
-                qs: q0.to_vec(),
-                ws: IkWorkspace::new(prob.model),
-                cost: f64::INFINITY,
-            }
-        })
-        .collect();
-    let evaluate = |swarm: &mut Vec<Particle>| {
-        swarm.par_iter_mut().for_each(|pt| {
-            let p = prob.to_params(&pt.x);
-            pt.cost = prob.inner(&p, &mut pt.qs, &mut pt.ws);
-            if pt.cost < pt.best_cost {
-                pt.best_cost = pt.cost;
-                pt.best_x.clone_from(&pt.x);
-                pt.best_q.clone_from(&pt.qs);
-            }
-        });
-    };
-    evaluate(&mut swarm);
+    let mut swarm = initial_swarm(prob, q0, opts, &mut rng);
+    evaluate(prob, &mut swarm);
     let mut evaluations = swarm.len();
-    let best_of = |swarm: &[Particle]| {
-        (0..swarm.len())
-            .min_by(|&a, &b| swarm[a].best_cost.total_cmp(&swarm[b].best_cost))
-            .expect("non-empty swarm")
-    };
     let mut g = best_of(&swarm);
     let mut g_x = swarm[g].best_x.clone();
     let mut g_cost = swarm[g].best_cost;
@@ -173,35 +129,11 @@ pub fn solve_pso(
     let mut iterations = 0;
     let mut termination = Termination::IterationLimit;
     // The basin test: the last polished minimum and the iteration since which it held.
-    let polish_opts = JointOptions {
-        max_iterations: opts.basin_polish_iterations,
-        tolerance: 1e-8,
-    };
     let mut basin: Option<(Fit, usize)> = None;
     while iterations < opts.max_iterations {
         iterations += 1;
-        for pt in swarm.iter_mut() {
-            #[allow(clippy::needless_range_loop)] // k indexes five arrays in step
-            for k in 0..nf {
-                let (r1, r2): (f64, f64) = (rng.gen(), rng.gen());
-                let v = inertia * pt.v[k]
-                    + opts.c1 * r1 * (pt.best_x[k] - pt.x[k])
-                    + opts.c2 * r2 * (g_x[k] - pt.x[k]);
-                pt.v[k] = v.clamp(-opts.v_max, opts.v_max);
-                // Reflected at a bound, the velocity reversed: a particle that overshoots
-                // keeps exploring inside instead of sticking to the bound with no speed.
-                let mut x = pt.x[k] + pt.v[k];
-                if x > 1.0 {
-                    x = 2.0 - x;
-                    pt.v[k] = -pt.v[k];
-                } else if x < -1.0 {
-                    x = -2.0 - x;
-                    pt.v[k] = -pt.v[k];
-                }
-                pt.x[k] = x.clamp(-1.0, 1.0);
-            }
-        }
-        evaluate(&mut swarm);
+        fly(&mut swarm, &mut rng, inertia, &g_x, opts);
+        evaluate(prob, &mut swarm);
         evaluations += swarm.len();
         g = best_of(&swarm);
         if swarm[g].best_cost < g_cost {
@@ -219,22 +151,7 @@ pub fn solve_pso(
         observer.iteration(iterations, g_cost);
         if opts.basin_every > 0 && iterations % opts.basin_every == 0 {
             let q = swarm[g].best_q.clone();
-            let local = solve_joint(prob, &g_x, q, &polish_opts, &mut crate::solver::NoObserver);
-            let same = basin.as_ref().is_some_and(|(b, _)| {
-                // Relative, with a floor for noiseless trials whose minimum is 0.
-                let scale = b.cost.abs().max(1e-12 * history[0].abs());
-                (local.cost - b.cost).abs() <= opts.basin_tolerance * scale
-                    && local
-                        .s
-                        .iter()
-                        .zip(&b.s)
-                        .all(|(x, y)| (x - y).abs() <= opts.basin_tolerance.sqrt())
-            });
-            let since = match (&basin, same) {
-                (Some((_, since)), true) => *since,
-                _ => iterations,
-            };
-            basin = Some((local, since));
+            let since = polish(prob, &g_x, q, opts, history[0], iterations, &mut basin);
             if iterations - since >= opts.stall_iterations {
                 termination = Termination::Converged;
                 break;
@@ -273,4 +190,130 @@ pub fn solve_pso(
         history,
         termination,
     }
+}
+
+/// `prob` with the inner tolerance a particle's cost needs. A particle's cost only has to
+/// rank it against the others: coordinates to 1e-8 rad/m leave the objective exact to
+/// ~1e-16 relative (the error in e_inner is quadratic in the coordinate error at the inner
+/// minimum), at about half the inner iterations of the tight tolerance that gradient-based
+/// outer levels need.
+fn ranking_problem<'m>(prob: &Problem<'m>) -> Problem<'m> {
+    Problem {
+        ik: crate::ik::IkOptions {
+            step_tolerance: prob.ik.step_tolerance.max(1e-8),
+            ..prob.ik
+        },
+        ..prob.clone()
+    }
+}
+
+/// The particles at uniform random positions in the scaled box with uniform random
+/// velocities up to `v_max`, each starting its inner solves from `q0`.
+fn initial_swarm(
+    prob: &Problem,
+    q0: &[Vec<f64>],
+    opts: &PsoOptions,
+    rng: &mut ChaCha8Rng,
+) -> Vec<Particle> {
+    let nf = prob.n_free();
+    (0..opts.particles.max(2))
+        .map(|_| {
+            let x: Vec<f64> = (0..nf).map(|_| rng.gen_range(-1.0..=1.0)).collect();
+            let v: Vec<f64> = (0..nf)
+                .map(|_| rng.gen_range(-opts.v_max..=opts.v_max))
+                .collect();
+            Particle {
+                best_x: x.clone(),
+                x,
+                v,
+                best_cost: f64::INFINITY,
+                best_q: q0.to_vec(),
+                qs: q0.to_vec(),
+                ws: IkWorkspace::new(prob.model),
+                cost: f64::INFINITY,
+            }
+        })
+        .collect()
+}
+
+/// Every particle's cost at its position (in parallel), its own best updated.
+fn evaluate(prob: &Problem, swarm: &mut [Particle]) {
+    swarm.par_iter_mut().for_each(|pt| {
+        let p = prob.to_params(&pt.x);
+        pt.cost = prob.inner(&p, &mut pt.qs, &mut pt.ws);
+        if pt.cost < pt.best_cost {
+            pt.best_cost = pt.cost;
+            pt.best_x.clone_from(&pt.x);
+            pt.best_q.clone_from(&pt.qs);
+        }
+    });
+}
+
+/// The particle with the lowest best cost (the first of equals).
+fn best_of(swarm: &[Particle]) -> usize {
+    (0..swarm.len())
+        .min_by(|&a, &b| swarm[a].best_cost.total_cmp(&swarm[b].best_cost))
+        .expect("non-empty swarm")
+}
+
+/// One move of every particle: its velocity pulled towards its own best and the swarm's
+/// (`g_x`), limited to `v_max`, and its position moved by it, reflected at the bounds.
+fn fly(swarm: &mut [Particle], rng: &mut ChaCha8Rng, inertia: f64, g_x: &[f64], opts: &PsoOptions) {
+    for pt in swarm.iter_mut() {
+        #[allow(clippy::needless_range_loop)] // k indexes five arrays in step
+        for k in 0..pt.x.len() {
+            let (r1, r2): (f64, f64) = (rng.gen(), rng.gen());
+            let v = inertia * pt.v[k]
+                + opts.c1 * r1 * (pt.best_x[k] - pt.x[k])
+                + opts.c2 * r2 * (g_x[k] - pt.x[k]);
+            pt.v[k] = v.clamp(-opts.v_max, opts.v_max);
+            // Reflected at a bound, the velocity reversed: a particle that overshoots
+            // keeps exploring inside instead of sticking to the bound with no speed.
+            let mut x = pt.x[k] + pt.v[k];
+            if x > 1.0 {
+                x = 2.0 - x;
+                pt.v[k] = -pt.v[k];
+            } else if x < -1.0 {
+                x = -2.0 - x;
+                pt.v[k] = -pt.v[k];
+            }
+            pt.x[k] = x.clamp(-1.0, 1.0);
+        }
+    }
+}
+
+/// The basin test: the swarm's best (`g_x`, its coordinates `q`) polished by a few joint
+/// iterations, compared with the last polished minimum `basin` (replaced by this one).
+/// Returns the iteration since which the polished minimum stayed in one basin (`first`:
+/// the first best cost, the floor of the comparison on a noiseless trial).
+fn polish(
+    prob: &Problem,
+    g_x: &[f64],
+    q: Vec<Vec<f64>>,
+    opts: &PsoOptions,
+    first: f64,
+    iterations: usize,
+    basin: &mut Option<(Fit, usize)>,
+) -> usize {
+    let polish_opts = JointOptions {
+        max_iterations: opts.basin_polish_iterations,
+        tolerance: 1e-8,
+    };
+    let local = solve_joint(prob, g_x, q, &polish_opts, &mut crate::solver::NoObserver);
+    let same = basin.as_ref().is_some_and(|(b, _)| {
+        // Relative, with a floor for noiseless trials whose minimum is 0.
+        let scale = b.cost.abs().max(1e-12 * first.abs());
+        (local.cost - b.cost).abs() <= opts.basin_tolerance * scale
+            && local
+                .s
+                .iter()
+                .zip(&b.s)
+                .all(|(x, y)| (x - y).abs() <= opts.basin_tolerance.sqrt())
+    });
+    let since = match (&*basin, same) {
+        (Some((_, since)), true) => *since,
+        _ => iterations,
+    };
+    *basin = Some((local, since));
+    since
 }
