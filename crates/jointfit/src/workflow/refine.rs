@@ -104,35 +104,8 @@ pub fn calibrate_refined(
     };
     let used = without_excluded(trials, &decisions);
     let used: Vec<&Trial> = used.iter().collect();
-    let mut to_refine: Vec<(&str, f64)> = refined(&decisions);
-    if let Some(sd) = settings.refine_markers {
-        let present: Vec<Vec<String>> = used.iter().map(|t| t.labels().to_vec()).collect();
-        let policy = to_refine;
-        to_refine = tracking_markers(model.spec(), &present)
-            .into_iter()
-            .map(|n| {
-                let own = policy.iter().find(|(m, _)| *m == n).map_or(0.0, |p| p.1);
-                (n, sd.max(own))
-            })
-            .collect();
-    }
-    // One call per prior SD, in the order of the markers (the parameters' order).
-    let mut spec = model.spec().clone();
-    let mut sds: Vec<f64> = to_refine.iter().map(|r| r.1).collect();
-    sds.sort_by(f64::total_cmp);
-    sds.dedup();
-    for sd in sds {
-        let names: Vec<&str> = to_refine
-            .iter()
-            .filter(|r| r.1 == sd)
-            .map(|r| r.0)
-            .collect();
-        spec = with_marker_parameters(&spec, &names, sd);
-    }
-    let mut aug = match to_refine.is_empty() {
-        true => model.clone(),
-        false => Model::compile(&spec).map_err(|e| WorkflowError::Refine(e.to_string()))?,
-    };
+    let to_refine = markers_to_refine(model, &decisions, &used, settings.refine_markers);
+    let mut aug = with_refined_markers(model, &to_refine)?;
     let mut aug_start = aug.nominal_params();
     aug_start[..start.len()].copy_from_slice(start);
     let mut aug_free = free.to_vec();
@@ -152,32 +125,20 @@ pub fn calibrate_refined(
             system.as_ref(),
         )?;
     }
-    // The envelope: a fit inside it is the bounded problem's optimum too; one outside is
-    // refitted with the bound (`super::envelope`: bounding every fit would change the
-    // parameters' scaling, and with it the σ estimate, where the bound is never reached).
     let mut envelope = Vec::new();
     if map_fit && settings.anatomical_envelope {
-        if let Some((bounded, mut bounds)) = super::envelope::bounded_spec(&aug, &aug_start) {
-            let p = &calibration.fit.p;
-            let outside = bounds.iter().any(|b| {
-                aug.param_id(&b.parameter)
-                    .is_some_and(|id| p[id.0] * MM_PER_M > b.limit_mm)
-            });
-            if outside {
-                for b in bounds.iter_mut() {
-                    b.unbounded_fit_mm = aug
-                        .param_id(&b.parameter)
-                        .map(|id| p[id.0] * MM_PER_M)
-                        .filter(|&x| x > b.limit_mm);
-                }
-                aug = Model::compile(&bounded).map_err(|e| WorkflowError::Refine(e.to_string()))?;
-                (calibration, system) = calibrate_keeping_system(
-                    &aug, &aug_start, &used, &aug_free, settings, observer,
-                )?;
-                super::envelope::mark_active(&mut bounds, &aug, &calibration.fit.p);
-            }
-            envelope = bounds;
-        }
+        let fit = Fitted {
+            model: aug,
+            calibration,
+            system,
+        };
+        let sub = Subproblem {
+            start: &aug_start,
+            trials: &used,
+            free: &aug_free,
+        };
+        let fit = within_envelope(fit, &sub, settings, observer, &mut envelope)?;
+        (aug, calibration, system) = (fit.model, fit.calibration, fit.system);
     }
     if !conflict.is_empty() {
         super::conflict::widen_intervals(
@@ -194,26 +155,7 @@ pub fn calibrate_refined(
     note_envelope(&mut calibration, &envelope);
     let mut fitted = model.spec_with_nominal(&p[..start.len()]);
     fitted.markers = fold_marker_parameters(&aug.spec_with_nominal(&p)).markers;
-    let spec = model.spec();
-    let markers: Vec<RefinedMarker> = to_refine
-        .iter()
-        .filter_map(|&(n, _)| {
-            let before = spec.markers.iter().find(|m| m.name == n)?;
-            let after = fitted.markers.iter().find(|m| m.name == n)?;
-            let mm = |x: [f64; 3]| x.map(|v| v * MM_PER_M);
-            let d = (0..3)
-                .map(|k| (after.position[k] - before.position[k]).powi(2))
-                .sum::<f64>()
-                .sqrt();
-            Some(RefinedMarker {
-                name: n.to_string(),
-                segment: before.segment.clone(),
-                start_mm: mm(before.position),
-                fitted_mm: mm(after.position),
-                shift_mm: d * MM_PER_M,
-            })
-        })
-        .collect();
+    let markers = refined_markers(model.spec(), &fitted, &to_refine);
     let names: Vec<&str> = to_refine.iter().map(|r| r.0).collect();
     let trade_offs = trade_offs(&aug, &calibration, &names);
     let evidence = super::verdict::Evidence {
@@ -234,6 +176,132 @@ pub fn calibrate_refined(
         marker_decisions: decisions,
         conflict,
     })
+}
+
+/// The markers to refine with their prior SDs (m): the policy's, or with `refine_all` every
+/// marker the `used` trials measure (a displaced one with the larger of the two SDs).
+fn markers_to_refine<'a>(
+    model: &'a Model,
+    decisions: &'a [MarkerDecision],
+    used: &[&Trial],
+    refine_all: Option<f64>,
+) -> Vec<(&'a str, f64)> {
+    let policy = refined(decisions);
+    let Some(sd) = refine_all else {
+        return policy;
+    };
+    let present: Vec<Vec<String>> = used.iter().map(|t| t.labels().to_vec()).collect();
+    tracking_markers(model.spec(), &present)
+        .into_iter()
+        .map(|n| {
+            let own = policy.iter().find(|(m, _)| *m == n).map_or(0.0, |p| p.1);
+            (n, sd.max(own))
+        })
+        .collect()
+}
+
+/// `model` with the positions of the markers `to_refine` as parameters (one call per prior
+/// SD, in the order of the markers: the parameters' order); `model` itself without any.
+fn with_refined_markers(model: &Model, to_refine: &[(&str, f64)]) -> Result<Model, WorkflowError> {
+    if to_refine.is_empty() {
+        return Ok(model.clone());
+    }
+    let mut spec = model.spec().clone();
+    let mut sds: Vec<f64> = to_refine.iter().map(|r| r.1).collect();
+    sds.sort_by(f64::total_cmp);
+    sds.dedup();
+    for sd in sds {
+        let names: Vec<&str> = to_refine
+            .iter()
+            .filter(|r| r.1 == sd)
+            .map(|r| r.0)
+            .collect();
+        spec = with_marker_parameters(&spec, &names, sd);
+    }
+    Model::compile(&spec).map_err(|e| WorkflowError::Refine(e.to_string()))
+}
+
+/// A calibration with the model it was fitted with and its reduced system.
+struct Fitted {
+    model: Model,
+    calibration: Calibration,
+    system: Option<crate::calibrate::uncertainty::Reduced>,
+}
+
+/// What a refit fits: the start, the trials and the free parameters.
+struct Subproblem<'a> {
+    start: &'a [f64],
+    trials: &'a [&'a Trial],
+    free: &'a [ParamId],
+}
+
+/// The envelope: a fit inside it is the bounded problem's optimum too; one outside is
+/// refitted with the bound (`super::envelope`: bounding every fit would change the
+/// parameters' scaling, and with it the σ estimate, where the bound is never reached). The
+/// bounds, with the unbounded fit and whether each is active, go to `envelope`.
+fn within_envelope(
+    fit: Fitted,
+    sub: &Subproblem,
+    settings: &FitSettings,
+    observer: &mut dyn Observer,
+    envelope: &mut Vec<super::envelope::EnvelopeBound>,
+) -> Result<Fitted, WorkflowError> {
+    let Some((bounded, mut bounds)) = super::envelope::bounded_spec(&fit.model, sub.start) else {
+        return Ok(fit);
+    };
+    let (aug, p) = (&fit.model, &fit.calibration.fit.p);
+    let outside = bounds.iter().any(|b| {
+        aug.param_id(&b.parameter)
+            .is_some_and(|id| p[id.0] * MM_PER_M > b.limit_mm)
+    });
+    let fit = if outside {
+        for b in bounds.iter_mut() {
+            b.unbounded_fit_mm = aug
+                .param_id(&b.parameter)
+                .map(|id| p[id.0] * MM_PER_M)
+                .filter(|&x| x > b.limit_mm);
+        }
+        let model = Model::compile(&bounded).map_err(|e| WorkflowError::Refine(e.to_string()))?;
+        let (calibration, system) =
+            calibrate_keeping_system(&model, sub.start, sub.trials, sub.free, settings, observer)?;
+        super::envelope::mark_active(&mut bounds, &model, &calibration.fit.p);
+        Fitted {
+            model,
+            calibration,
+            system,
+        }
+    } else {
+        fit
+    };
+    *envelope = bounds;
+    Ok(fit)
+}
+
+/// Each refined marker's position in its segment before and after the fit.
+fn refined_markers(
+    spec: &ModelSpec,
+    fitted: &ModelSpec,
+    to_refine: &[(&str, f64)],
+) -> Vec<RefinedMarker> {
+    to_refine
+        .iter()
+        .filter_map(|&(n, _)| {
+            let before = spec.markers.iter().find(|m| m.name == n)?;
+            let after = fitted.markers.iter().find(|m| m.name == n)?;
+            let mm = |x: [f64; 3]| x.map(|v| v * MM_PER_M);
+            let d = (0..3)
+                .map(|k| (after.position[k] - before.position[k]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            Some(RefinedMarker {
+                name: n.to_string(),
+                segment: before.segment.clone(),
+                start_mm: mm(before.position),
+                fitted_mm: mm(after.position),
+                shift_mm: d * MM_PER_M,
+            })
+        })
+        .collect()
 }
 
 /// A parameter held on an active envelope bound: its information class says so (the limit,
