@@ -50,14 +50,14 @@ pub struct CheckArgs {
     pub json: bool,
 }
 
-/// `check --json`: the trial and what [`workflow::check`] found.
+/// `check --json`: the trial and what [`workflow::predict`] found.
 #[derive(Serialize)]
 pub struct CheckReport {
     pub trial: String,
     /// The trial as read: vertical, reader notes, repairs and data checks.
     pub read: TrialJson,
     #[serde(flatten)]
-    pub check: workflow::CheckReport,
+    pub check: workflow::Prediction,
 }
 
 pub fn run(args: CheckArgs) -> Result<()> {
@@ -78,7 +78,7 @@ pub fn run(args: CheckArgs) -> Result<()> {
     let report = CheckReport {
         trial: args.trial.display().to_string(),
         read,
-        check: workflow::check(&model, &model.nominal_params(), &[&trial], &free, &opts)?,
+        check: workflow::predict(&model, &model.nominal_params(), &[&trial], &free, &opts)?,
     };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);

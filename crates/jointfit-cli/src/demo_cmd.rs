@@ -132,7 +132,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
 /// is inside too): the demo shows a person, not a random geometry.
 fn plausible_truth(model: &Model, seed: u64) -> Vec<f64> {
     let nominal = model.nominal_params();
-    let at_nominal = jointfit::plausibility::check(model, &nominal);
+    let at_nominal = jointfit::plausibility::assess(model, &nominal);
     let moved = perturbed_params(model, 0.4, seed);
     let mut share = 1.0;
     loop {
@@ -141,7 +141,7 @@ fn plausible_truth(model: &Model, seed: u64) -> Vec<f64> {
             .zip(&moved)
             .map(|(n, m)| n + share * (m - n))
             .collect();
-        let plausible = jointfit::plausibility::check(model, &truth)
+        let plausible = jointfit::plausibility::assess(model, &truth)
             .iter()
             .zip(&at_nominal)
             .all(|(c, n)| {

@@ -24,9 +24,9 @@ use crate::landmarks::HipCentreMethod;
 use crate::model::refine::marker_home;
 use crate::model::Model;
 
-/// One plausibility check.
+/// One fitted joint measure against its anatomical envelope.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct Check {
+pub struct Plausibility {
     /// What is checked, e.g. `hip centre lateral offset`.
     pub check: String,
     /// The parameters involved.
@@ -39,7 +39,7 @@ pub struct Check {
     pub ok: bool,
 }
 
-impl Check {
+impl Plausibility {
     #[cfg(test)]
     /// How far outside the envelope (0 when inside).
     pub(crate) fn excess(&self) -> f64 {
@@ -88,16 +88,16 @@ fn pin_axis(rx: f64, ry: f64) -> Vector3<f64> {
 /// Runs every check that the model's parameters allow on the parameter vector `p`: for a
 /// one-sided model on its parameters, for the bilateral model on each leg's (names suffixed
 /// `_r` and `_l`; the check says which leg).
-pub fn check(model: &Model, p: &[f64]) -> Vec<Check> {
+pub fn assess(model: &Model, p: &[f64]) -> Vec<Plausibility> {
     let mut out = Vec::new();
     for (suffix, leg) in [("", ""), ("_r", " (right)"), ("_l", " (left)")] {
-        out.extend(check_leg(model, p, suffix, leg));
+        out.extend(assess_leg(model, p, suffix, leg));
     }
     out
 }
 
 /// The checks of one leg: parameter names end in `suffix`, check names in `leg`.
-fn check_leg(model: &Model, p: &[f64], suffix: &str, leg: &str) -> Vec<Check> {
+fn assess_leg(model: &Model, p: &[f64], suffix: &str, leg: &str) -> Vec<Plausibility> {
     let id = |n: &str| model.param_id(&format!("{n}{suffix}")).map(|x| x.0);
     let mean = |i: usize| model.parameters()[i].prior_mean;
     let mut out = Vec::new();
@@ -116,7 +116,7 @@ fn check_leg(model: &Model, p: &[f64], suffix: &str, leg: &str) -> Vec<Check> {
             .collect();
         if let Some(half) = half_pelvis_width(model) {
             let limit = HIP_LATERAL_FRACTION * half;
-            out.push(Check {
+            out.push(Plausibility {
                 check: format!(
                     "hip centre lateral offset (≤ 0.9 × half the inter-ASIS width){leg}"
                 ),
@@ -134,7 +134,7 @@ fn check_leg(model: &Model, p: &[f64], suffix: &str, leg: &str) -> Vec<Check> {
             .sqrt();
         let sd = h.iter().map(|&i| sd_of(model, i)).fold(0.0, f64::max);
         let limit = RADIUS_95_3D * sd;
-        out.push(Check {
+        out.push(Plausibility {
             check: format!("hip centre distance from the landmark/functional estimate{leg}"),
             parameters: names,
             value: d * 1e3,
@@ -181,7 +181,7 @@ fn check_leg(model: &Model, p: &[f64], suffix: &str, leg: &str) -> Vec<Check> {
         let angle = dir(p[ia], p[ib]).angle(&dir(mean(ia), mean(ib)));
         let sd = sd_of(model, ia).max(sd_of(model, ib));
         let limit = RADIUS_95_2D * sd;
-        out.push(Check {
+        out.push(Plausibility {
             check: format!("{what}{leg}: angle from the landmark/functional axis"),
             parameters: vec![format!("{a}{suffix}"), format!("{b}{suffix}")],
             value: angle.to_degrees(),
@@ -210,7 +210,7 @@ mod tests {
     fn nominal_passes_and_moves_are_measured() {
         let m = model();
         let p0 = m.nominal_params();
-        let checks = check(&m, &p0);
+        let checks = assess(&m, &p0);
         assert_eq!(checks.len(), 6);
         for c in &checks {
             assert!(c.ok, "{c:?}");
@@ -220,7 +220,7 @@ mod tests {
         let lat = m.param_id("hip_pelvis_lateral").unwrap().0;
         p[lat] = 0.120;
         let shift = 0.120 - p0[lat];
-        let c = check(&m, &p);
+        let c = assess(&m, &p);
         assert!(
             !c[0].ok && (c[0].excess() - 12.0).abs() < 1e-6,
             "{:?}",
@@ -232,7 +232,7 @@ mod tests {
         let mut p = p0.clone();
         let f = m.param_id("knee_thigh_frontal").unwrap().0;
         p[f] += 15f64.to_radians();
-        let c = check(&m, &p);
+        let c = assess(&m, &p);
         let knee = c
             .iter()
             .find(|c| c.check.starts_with("knee axis in thigh"))
@@ -244,13 +244,13 @@ mod tests {
     fn bilateral_model_is_checked_per_leg() {
         let spec = crate::model::lower_limb::builtin("lower-limb").unwrap();
         let m = Model::compile(&spec).unwrap();
-        let one = check(&model(), &model().nominal_params()).len();
-        let both = check(&m, &m.nominal_params());
+        let one = assess(&model(), &model().nominal_params()).len();
+        let both = assess(&m, &m.nominal_params());
         // Every one-sided check, once per leg, each naming its leg and suffixed parameters.
         assert_eq!(both.len(), 2 * one, "{both:?}");
         assert!(both.iter().all(|c| c.ok));
         for (leg, suffix) in [("(right)", "_r"), ("(left)", "_l")] {
-            let mine: Vec<&Check> = both.iter().filter(|c| c.check.contains(leg)).collect();
+            let mine: Vec<&Plausibility> = both.iter().filter(|c| c.check.contains(leg)).collect();
             assert_eq!(mine.len(), one);
             assert!(mine
                 .iter()
@@ -260,7 +260,7 @@ mod tests {
         let f = m.param_id("knee_thigh_frontal_l").unwrap().0;
         let mut p = m.nominal_params();
         p[f] += 0.5;
-        let failed: Vec<String> = check(&m, &p)
+        let failed: Vec<String> = assess(&m, &p)
             .into_iter()
             .filter(|c| !c.ok)
             .map(|c| c.check)

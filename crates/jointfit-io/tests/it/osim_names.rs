@@ -95,7 +95,7 @@ fn osim_errors() {
          independent axes, so this joint cannot be exported"
     );
     // A universal joint with parallel axes: refused when the model is loaded, before any
-    // export (jointfit::model::checks).
+    // export (jointfit::model::fields).
     let mut spec = all_kinds();
     if let jointfit::model::spec::JointKindSpec::Universal { axes } = &mut spec.joints[2].kind {
         axes[1] = jointfit::model::spec::AxisSpec::Vector([0.0, 0.0, -2.0]);

@@ -449,7 +449,7 @@ impl Model {
 
     /// Validates and compiles a description. Every error names the offending item.
     pub fn compile(spec: &ModelSpec) -> Result<Model, ModelError> {
-        super::checks::check_spec(spec)?;
+        super::fields::validate_fields(spec)?;
         super::validate::Compiler::new(spec)?.run()
     }
 }

@@ -1,10 +1,10 @@
 //! Kinematic models: the description people write ([`spec`]), the compiled model
 //! ([`Model`]), and the built-in sample models ([`lower_limb`]).
 
-pub(crate) mod checks;
 mod compile;
 mod compiled;
 pub mod custom;
+pub(crate) mod fields;
 pub mod functions;
 pub mod lower_limb;
 pub(crate) mod plan;

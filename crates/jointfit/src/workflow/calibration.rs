@@ -124,7 +124,7 @@ pub struct Calibration {
     /// factor ([`crate::calibrate::uncertainty::parameter_inflation`]); empty when σ was given.
     pub prior_inflation: Vec<(String, f64)>,
     /// Anatomical plausibility of the fitted joints ([`crate::plausibility`]).
-    pub plausibility: Vec<crate::plausibility::Check>,
+    pub plausibility: Vec<crate::plausibility::Plausibility>,
     /// How far to trust the fit ([`super::verdict`]): set by the calibrations that judge
     /// their inputs and result ([`super::refine::calibrate_refined`],
     /// [`super::calibrate_holding_redundant`]); `ok` without reasons elsewhere.
@@ -329,7 +329,7 @@ fn fit_free(
         prior_noise_mm: prob.prior.as_ref().map(|p| p.noise * MM_PER_M),
         prior_noise_estimated: noise.is_none(),
         prior_inflation: super::map::inflation_of(&prob),
-        plausibility: crate::plausibility::check(model, &fit.p),
+        plausibility: crate::plausibility::assess(model, &fit.p),
         verdict: super::verdict::Verdict::default(),
         fit,
         start: start.to_vec(),

@@ -35,7 +35,7 @@
 //! held-out check on real gait at every cap tried (3, 2, 1.5), because the statistic flags
 //! real gait (correlated skin artefact) as often as a landmark model that is truly off
 //! (`docs/priors.md`, "The prior–data conflict step"). `--prior none` has no prior and so no
-//! conflict. [`check`] is the step as both the jointfit-model and the OpenSim-model
+//! conflict. [`assess_and_widen`] is the step as both the jointfit-model and the OpenSim-model
 //! calibrations run it.
 
 use nalgebra::{DMatrix, DVector};
@@ -402,7 +402,7 @@ pub(crate) fn widen_intervals(
 /// [`widen_intervals`] of the flagged ones. Empty, and `cal` unchanged, with
 /// `settings.prior_conflict` off or without a prior. (The jointfit-model calibration,
 /// [`super::calibrate_refined`], runs the two halves around its envelope refit.)
-pub(crate) fn check(
+pub(crate) fn assess_and_widen(
     model: &Model,
     start: &[f64],
     trials: &[&Trial],

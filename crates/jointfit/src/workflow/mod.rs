@@ -1,5 +1,5 @@
 //! The jobs of the program, on models and trials already in memory: calibrate a model
-//! ([`calibrate`]), predict what a trial can determine ([`check`]), inverse kinematics of a
+//! ([`calibrate`]), predict what a trial can determine ([`predict`]), inverse kinematics of a
 //! trial ([`ik_trial`]), carry parameters from one model to another ([`transfer_params`]).
 //!
 //! This is the one place that drives the solvers of [`crate::calibrate`] and [`crate::ik`]:
@@ -18,7 +18,6 @@
 //! and the rest refitted.
 
 mod calibration;
-mod check;
 pub mod conflict;
 pub mod envelope;
 pub mod global;
@@ -26,6 +25,7 @@ mod ik;
 pub(crate) mod map;
 pub mod marker_policy;
 pub(crate) mod marker_rigid;
+mod predict;
 mod probes;
 pub(crate) mod redundant;
 pub mod refine;
@@ -47,12 +47,12 @@ pub use crate::solver::Termination;
 pub use calibration::calibrate;
 pub use calibration::Calibration;
 pub use calibration::UNCERTAINTY_STAGE;
-pub use check::check;
-pub use check::CheckReport;
 pub use ik::ik_checked;
 pub use ik::ik_trial;
 pub use ik::ik_warm_started;
 pub use ik::transfer_params;
+pub use predict::predict;
+pub use predict::Prediction;
 pub use redundant::calibrate_holding_redundant;
 pub use redundant::HeldCalibration;
 pub use redundant::Redundancy;

@@ -154,14 +154,14 @@ pub struct HeldCalibration {
     pub calibration: Calibration,
     /// Parameters held at their start as redundant, in the order of `free`.
     pub held_redundant: Vec<Redundancy>,
-    /// Each joint's (parameter group's) prior–data conflict ([`super::conflict::check`]);
+    /// Each joint's (parameter group's) prior–data conflict ([`super::conflict::assess_and_widen`]);
     /// empty without a prior or with `prior_conflict` off.
     pub prior_conflict: Vec<super::conflict::JointConflict>,
 }
 
 /// [`calibrate`](super::calibrate) of the non-redundant parameters of `free`; the redundant
 /// ones stay at their `start` values and are listed. A maximum a posteriori fit then takes the
-/// prior–data conflict step ([`super::conflict::check`]).
+/// prior–data conflict step ([`super::conflict::assess_and_widen`]).
 pub fn calibrate_holding_redundant(
     model: &Model,
     start: &[f64],
@@ -175,8 +175,14 @@ pub fn calibrate_holding_redundant(
     let (mut calibration, system) = super::calibration::calibrate_keeping_system(
         model, start, trials, &kept, settings, observer,
     )?;
-    let prior_conflict =
-        super::conflict::check(model, start, trials, settings, &mut calibration, system)?;
+    let prior_conflict = super::conflict::assess_and_widen(
+        model,
+        start,
+        trials,
+        settings,
+        &mut calibration,
+        system,
+    )?;
     let evidence = super::verdict::Evidence {
         mismatches: &mismatches,
         conflict: &prior_conflict,

@@ -237,12 +237,12 @@ fn unidentifiable_parameters_are_held_at_their_start() {
 }
 
 #[test]
-fn check_predicts_what_a_knee_only_trial_determines() {
+fn predict_says_what_a_knee_only_trial_determines() {
     let model = leg();
     let p = model.nominal_params();
     let trial = synthetic(&model, &p, 40, 0.002);
     let free = params_for_groups(&model, &["knee"]).unwrap();
-    let r = check(
+    let r = predict(
         &model,
         &p,
         &[&trial],

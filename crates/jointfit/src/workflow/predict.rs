@@ -1,4 +1,4 @@
-//! [`check`]: before a fit, what can the trials determine?
+//! [`predict`]: before a fit, what can the trials determine?
 //!
 //! Inverse kinematics at the given (e.g. landmark) parameters gives each joint's range of
 //! motion per axis; the reduced normal matrix there (the Fisher information of the joint
@@ -9,16 +9,14 @@
 use serde::Serialize;
 
 use super::WorkflowError;
-use crate::calibrate::uncertainty::{
-    predict, CoordRange, Identifiability, Uncertainty, UncertaintyOptions,
-};
+use crate::calibrate::uncertainty::{CoordRange, Identifiability, Uncertainty, UncertaintyOptions};
 use crate::calibrate::Problem;
 use crate::model::{Model, ParamId, MM_PER_M};
 use crate::trial::Trial;
 
-/// What [`check`] found.
+/// What [`predict`] found.
 #[derive(Debug, Clone, Serialize)]
-pub struct CheckReport {
+pub struct Prediction {
     pub frames: usize,
     pub skipped_frames: usize,
     /// RMS marker distance of IK at the given parameters (mm), over every present marker
@@ -38,21 +36,21 @@ pub struct CheckReport {
 
 /// Predicts, at parameters `p`, how well `trials` determine the parameters `free`
 /// (thresholds, noise assumption and estimators from `opts`; no bootstrap, which needs a fit).
-pub fn check(
+pub fn predict(
     model: &Model,
     p: &[f64],
     trials: &[&Trial],
     free: &[ParamId],
     opts: &UncertaintyOptions,
-) -> Result<CheckReport, WorkflowError> {
+) -> Result<Prediction, WorkflowError> {
     let prob = Problem::new(model, p.to_vec(), free, trials)?;
     let qs = prob.initial_coords(p);
-    let prediction = predict(&prob, p, &qs, opts);
+    let prediction = crate::calibrate::uncertainty::predict(&prob, p, &qs, opts);
     let (determined, not_determined): (Vec<_>, Vec<_>) = prediction
         .params
         .iter()
         .partition(|q| q.status == Identifiability::Determined);
-    Ok(CheckReport {
+    Ok(Prediction {
         frames: prob.frames.len(),
         skipped_frames: prob.skipped.len(),
         ik_rms_mm: prob.marker_rms(p, &qs) * MM_PER_M,

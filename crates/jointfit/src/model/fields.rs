@@ -1,4 +1,4 @@
-//! Field checks of a model description that run before it is compiled: every number finite
+//! Field validation of a model description before it is compiled: every number finite
 //! and of a plausible size, every nominal value inside its bounds (and blamed on itself, not on
 //! the bounds), every joint's axes independent.
 //!
@@ -27,7 +27,7 @@ fn invalid(msg: String) -> ModelError {
 }
 
 /// Checks the fields of `spec` that compilation takes for granted (see the module docs).
-pub(crate) fn check_spec(spec: &ModelSpec) -> Result<(), ModelError> {
+pub(crate) fn validate_fields(spec: &ModelSpec) -> Result<(), ModelError> {
     for p in &spec.parameters {
         let limit = match p.unit {
             Unit::Metre => MAX_LENGTH_M,
@@ -172,7 +172,7 @@ mod tests {
     #[test]
     fn builtin_models_pass() {
         for name in crate::model::lower_limb::BUILTIN_NAMES {
-            check_spec(&builtin(name).unwrap()).unwrap();
+            validate_fields(&builtin(name).unwrap()).unwrap();
         }
     }
 
