@@ -260,47 +260,9 @@ fn fit_free(
             .map(|(m, r)| (m.name.clone(), r * MM_PER_M))
             .collect()
     };
-    let parameters = prob
-        .free
-        .iter()
-        .map(|&i| {
-            let par = &model.parameters()[i];
-            let k = par.unit.display_scale();
-            let prior_sd = prob.prior.as_ref().and(par.prior_sd);
-            ParamRow {
-                name: par.name.clone(),
-                group: par.group.clone(),
-                unit: par.unit.display_suffix(),
-                start: start[i] * k,
-                fitted: fit.p[i] * k,
-                change: (fit.p[i] - start[i]) * k,
-                se: None,
-                ci95: None,
-                identifiability: None,
-                uncertainty_method: None,
-                prior_sd: prior_sd.map(|s| s * k),
-                prior_mean: prior_sd.map(|_| par.prior_mean * k),
-                data_share: None,
-                source: None,
-            }
-        })
-        .collect();
-    // Four passes of forward kinematics over the frames, two on each thread (each pass's
-    // sums in frame order, as alone).
-    let ((rms_before, rms_after), (per_marker_before, per_marker_after)) = rayon::join(
-        || {
-            rayon::join(
-                || prob.marker_rms(start, &q_before),
-                || prob.marker_rms(&fit.p, &fit.coords),
-            )
-        },
-        || {
-            rayon::join(
-                || per_marker_rms(&prob, start, &q_before),
-                || per_marker_rms(&prob, &fit.p, &fit.coords),
-            )
-        },
-    );
+    let parameters = param_rows(model, &prob, start, &fit);
+    let ((rms_before, rms_after), (per_marker_before, per_marker_after)) =
+        rms_before_after(&prob, start, &q_before, &fit);
     Ok(Calibration {
         method: settings.method,
         seed: settings.seed,
@@ -335,6 +297,60 @@ fn fit_free(
         start: start.to_vec(),
         free: free.to_vec(),
     })
+}
+
+/// The free parameters' rows of a fit from `start` (display units, no uncertainty yet).
+/// The marker RMS before (`start`, coordinates `q_before`) and after the fit, overall and
+/// per marker: four passes of forward kinematics over the frames, two on each thread (each
+/// pass's sums in frame order, as alone).
+#[allow(clippy::type_complexity)]
+fn rms_before_after(
+    prob: &Problem,
+    start: &[f64],
+    q_before: &[Vec<f64>],
+    fit: &Fit,
+) -> ((f64, f64), (Vec<f64>, Vec<f64>)) {
+    rayon::join(
+        || {
+            rayon::join(
+                || prob.marker_rms(start, q_before),
+                || prob.marker_rms(&fit.p, &fit.coords),
+            )
+        },
+        || {
+            rayon::join(
+                || per_marker_rms(prob, start, q_before),
+                || per_marker_rms(prob, &fit.p, &fit.coords),
+            )
+        },
+    )
+}
+
+fn param_rows(model: &Model, prob: &Problem, start: &[f64], fit: &Fit) -> Vec<ParamRow> {
+    prob.free
+        .iter()
+        .map(|&i| {
+            let par = &model.parameters()[i];
+            let k = par.unit.display_scale();
+            let prior_sd = prob.prior.as_ref().and(par.prior_sd);
+            ParamRow {
+                name: par.name.clone(),
+                group: par.group.clone(),
+                unit: par.unit.display_suffix(),
+                start: start[i] * k,
+                fitted: fit.p[i] * k,
+                change: (fit.p[i] - start[i]) * k,
+                se: None,
+                ci95: None,
+                identifiability: None,
+                uncertainty_method: None,
+                prior_sd: prior_sd.map(|s| s * k),
+                prior_mean: prior_sd.map(|_| par.prior_mean * k),
+                data_share: None,
+                source: None,
+            }
+        })
+        .collect()
 }
 
 /// Calibrates the parameters `free` of `model` on `trials` from `start` (a full parameter
