@@ -28,116 +28,128 @@ fn invalid(msg: String) -> ModelError {
 
 /// Checks the fields of `spec` that compilation takes for granted (see the module docs).
 pub(crate) fn validate_fields(spec: &ModelSpec) -> Result<(), ModelError> {
-    for p in &spec.parameters {
-        let limit = match p.unit {
-            Unit::Metre => MAX_LENGTH_M,
-            Unit::Radian => MAX_ANGLE_RAD,
-        };
-        for (what, v) in [("lower", p.lower), ("upper", p.upper)] {
-            if !v.is_finite() {
-                return Err(ModelError::BadBounds {
-                    name: p.name.clone(),
-                    detail: format!("{what} bound {v} is not a finite number"),
-                });
-            }
-            if v.abs() > limit {
-                return Err(ModelError::BadBounds {
-                    name: p.name.clone(),
-                    detail: format!("{what} bound {v:e} is implausibly large (limit ±{limit})"),
-                });
-            }
+    spec.parameters.iter().try_for_each(validate_parameter)?;
+    spec.joints.iter().try_for_each(validate_joint)?;
+    spec.markers.iter().try_for_each(validate_marker)
+}
+
+/// A parameter's bounds and nominal value: finite and of a plausible size for its unit.
+fn validate_parameter(p: &super::spec::ParameterSpec) -> Result<(), ModelError> {
+    let limit = match p.unit {
+        Unit::Metre => MAX_LENGTH_M,
+        Unit::Radian => MAX_ANGLE_RAD,
+    };
+    for (what, v) in [("lower", p.lower), ("upper", p.upper)] {
+        if !v.is_finite() {
+            return Err(ModelError::BadBounds {
+                name: p.name.clone(),
+                detail: format!("{what} bound {v} is not a finite number"),
+            });
         }
-        if !p.nominal.is_finite() {
-            return Err(invalid(format!(
-                "parameter {:?}: nominal {} is not a finite number",
-                p.name, p.nominal
-            )));
-        }
-        if p.nominal.abs() > limit {
-            return Err(invalid(format!(
-                "parameter {:?}: nominal {:e} is implausibly large (limit ±{limit})",
-                p.name, p.nominal
-            )));
+        if v.abs() > limit {
+            return Err(ModelError::BadBounds {
+                name: p.name.clone(),
+                detail: format!("{what} bound {v:e} is implausibly large (limit ±{limit})"),
+            });
         }
     }
-    for s in &spec.joints {
-        let joint = &s.name;
-        for (side, off) in [
-            ("parent_offset", &s.parent_offset),
-            ("child_offset", &s.child_offset),
-        ] {
-            for (k, v) in off.scalars().iter().enumerate() {
-                let value = match v {
-                    ScalarSpec::Fixed(x) => *x,
-                    ScalarSpec::Scaled { scale, .. } => *scale,
-                    ScalarSpec::Param(_) => 1.0,
-                };
-                let limit = if k < 3 { MAX_LENGTH_M } else { MAX_ANGLE_RAD };
-                if !value.is_finite() || value.abs() > limit {
-                    return Err(invalid(format!(
-                        "joint {joint:?}: {side}.{} = {value:e} is not a finite number of \
-                         plausible size (limit ±{limit})",
-                        super::spec::OFFSET_SCALARS[k]
-                    )));
-                }
-            }
-        }
-        for c in &s.coordinates {
-            if let super::spec::CoordinateSpec::Full {
-                name,
-                range,
-                default,
-                ..
-            } = c
-            {
-                let mut vals = vec![*default];
-                if let Some(r) = range {
-                    vals.extend_from_slice(r);
-                }
-                if vals.iter().any(|v| !v.is_finite()) {
-                    return Err(invalid(format!(
-                        "joint {joint:?}: coordinate {name:?} has a range or default that is \
-                         not a finite number"
-                    )));
-                }
-            }
-        }
-        let rotations: &[AxisSpec] = match &s.kind {
-            JointKindSpec::Free { rotation_axes } => rotation_axes,
-            JointKindSpec::Gimbal { axes } => axes,
-            JointKindSpec::Universal { axes } => axes,
-            _ => &[],
-        };
-        let dirs: Vec<Option<Vector3<f64>>> = rotations.iter().map(axis_direction).collect();
-        for i in 1..dirs.len() {
-            if let (Some(a), Some(b)) = (dirs[i - 1], dirs[i]) {
-                if a.cross(&b).norm() < MIN_AXIS_SINE {
-                    return Err(invalid(format!(
-                        "joint {joint:?}: rotation axes {} and {} are parallel, so the two \
-                         rotations cannot be told apart",
-                        i,
-                        i + 1
-                    )));
-                }
+    if !p.nominal.is_finite() {
+        return Err(invalid(format!(
+            "parameter {:?}: nominal {} is not a finite number",
+            p.name, p.nominal
+        )));
+    }
+    if p.nominal.abs() > limit {
+        return Err(invalid(format!(
+            "parameter {:?}: nominal {:e} is implausibly large (limit ±{limit})",
+            p.name, p.nominal
+        )));
+    }
+    Ok(())
+}
+
+/// A joint's offsets (finite, plausible sizes), its coordinates' ranges and defaults
+/// (finite) and its rotation axes (no two consecutive ones parallel).
+fn validate_joint(s: &super::spec::JointSpec) -> Result<(), ModelError> {
+    let joint = &s.name;
+    for (side, off) in [
+        ("parent_offset", &s.parent_offset),
+        ("child_offset", &s.child_offset),
+    ] {
+        for (k, v) in off.scalars().iter().enumerate() {
+            let value = match v {
+                ScalarSpec::Fixed(x) => *x,
+                ScalarSpec::Scaled { scale, .. } => *scale,
+                ScalarSpec::Param(_) => 1.0,
+            };
+            let limit = if k < 3 { MAX_LENGTH_M } else { MAX_ANGLE_RAD };
+            if !value.is_finite() || value.abs() > limit {
+                return Err(invalid(format!(
+                    "joint {joint:?}: {side}.{} = {value:e} is not a finite number of \
+                     plausible size (limit ±{limit})",
+                    super::spec::OFFSET_SCALARS[k]
+                )));
             }
         }
     }
-    for m in &spec.markers {
-        if m.position
-            .iter()
-            .any(|v| !v.is_finite() || v.abs() > MAX_LENGTH_M)
+    for c in &s.coordinates {
+        if let super::spec::CoordinateSpec::Full {
+            name,
+            range,
+            default,
+            ..
+        } = c
         {
-            return Err(invalid(format!(
-                "marker {:?}: position {:?} is not finite or implausibly large (limit ±{} m)",
-                m.name, m.position, MAX_LENGTH_M
-            )));
+            let mut vals = vec![*default];
+            if let Some(r) = range {
+                vals.extend_from_slice(r);
+            }
+            if vals.iter().any(|v| !v.is_finite()) {
+                return Err(invalid(format!(
+                    "joint {joint:?}: coordinate {name:?} has a range or default that is \
+                     not a finite number"
+                )));
+            }
         }
-        if !m.weight.is_finite() || m.weight < 0.0 {
-            return Err(invalid(format!(
-                "marker {:?}: weight {} must be finite and non-negative",
-                m.name, m.weight
-            )));
+    }
+    let rotations: &[AxisSpec] = match &s.kind {
+        JointKindSpec::Free { rotation_axes } => rotation_axes,
+        JointKindSpec::Gimbal { axes } => axes,
+        JointKindSpec::Universal { axes } => axes,
+        _ => &[],
+    };
+    let dirs: Vec<Option<Vector3<f64>>> = rotations.iter().map(axis_direction).collect();
+    for i in 1..dirs.len() {
+        if let (Some(a), Some(b)) = (dirs[i - 1], dirs[i]) {
+            if a.cross(&b).norm() < MIN_AXIS_SINE {
+                return Err(invalid(format!(
+                    "joint {joint:?}: rotation axes {} and {} are parallel, so the two \
+                     rotations cannot be told apart",
+                    i,
+                    i + 1
+                )));
+            }
         }
+    }
+    Ok(())
+}
+
+/// A marker's position (finite, plausible size) and weight (finite, non-negative).
+fn validate_marker(m: &super::spec::MarkerSpec) -> Result<(), ModelError> {
+    if m.position
+        .iter()
+        .any(|v| !v.is_finite() || v.abs() > MAX_LENGTH_M)
+    {
+        return Err(invalid(format!(
+            "marker {:?}: position {:?} is not finite or implausibly large (limit ±{} m)",
+            m.name, m.position, MAX_LENGTH_M
+        )));
+    }
+    if !m.weight.is_finite() || m.weight < 0.0 {
+        return Err(invalid(format!(
+            "marker {:?}: weight {} must be finite and non-negative",
+            m.name, m.weight
+        )));
     }
     Ok(())
 }
