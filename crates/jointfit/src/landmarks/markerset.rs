@@ -301,104 +301,139 @@ impl MarkerSet {
 
     /// Checks the set's structure (not the labels of any trial).
     pub(crate) fn validate(&self) -> Result<(), LandmarkError> {
-        let bad = |detail: String| LandmarkError::InvalidMarkerSet {
-            set: self.name.clone(),
-            detail,
-        };
-        let p = &self.pelvis;
-        match (&p.right_psis, &p.left_psis, &p.sacrum) {
-            (Some(_), None, _) | (None, Some(_), _) => {
-                return Err(bad(
-                    "give both right_psis and left_psis, or neither (a sacrum marker alone \
-                     is enough)"
-                        .into(),
-                ))
-            }
-            (None, None, None) => {
-                return Err(bad(
-                    "the pelvis needs right_psis and left_psis, or a sacrum marker".into(),
-                ))
-            }
-            _ => {}
-        }
-        if p.right_asis == p.left_asis {
-            return Err(bad(format!(
-                "right_asis and left_asis are the same label {:?}",
-                p.right_asis
-            )));
-        }
+        self.validate_pelvis()?;
         if self.right.is_none() && self.left.is_none() {
-            return Err(bad("it has neither a [right] nor a [left] leg".into()));
+            return Err(self.invalid("it has neither a [right] nor a [left] leg".into()));
         }
         // Which list holds each tracking label, over both legs (the pelvis list once): a
         // label in two lists would define one model marker twice.
         let mut owner: Vec<(String, &str)> = Vec::new();
         for side in [Side::Right, Side::Left] {
             let Ok(leg) = self.leg(side) else { continue };
-            let sn = side_name(side);
-            if leg.forefoot.is_empty() {
-                return Err(bad(format!("{sn} forefoot lists no marker")));
+            self.validate_landmarks(side, leg)?;
+            self.validate_tracking(side, &mut owner)?;
+        }
+        self.validate_labels()
+    }
+
+    /// The error of a set whose structure is wrong.
+    fn invalid(&self, detail: String) -> LandmarkError {
+        LandmarkError::InvalidMarkerSet {
+            set: self.name.clone(),
+            detail,
+        }
+    }
+
+    /// The pelvis: both PSIS or neither (then a sacrum marker), two distinct ASIS labels.
+    fn validate_pelvis(&self) -> Result<(), LandmarkError> {
+        let p = &self.pelvis;
+        match (&p.right_psis, &p.left_psis, &p.sacrum) {
+            (Some(_), None, _) | (None, Some(_), _) => {
+                return Err(self.invalid(
+                    "give both right_psis and left_psis, or neither (a sacrum marker alone \
+                     is enough)"
+                        .into(),
+                ))
             }
-            for (lateral, medial) in [
-                (&leg.lateral_epicondyle, &leg.medial_epicondyle),
-                (&leg.lateral_malleolus, &leg.medial_malleolus),
-            ] {
-                for alt in MedialLandmark::alternatives(medial) {
-                    let l = alt.label();
-                    if l == lateral.as_str() {
-                        return Err(bad(format!(
-                            "{sn} leg: the lateral and medial landmarks must be different \
-                             markers"
-                        )));
-                    }
-                    if l.trim().is_empty() || l.trim() != l {
-                        return Err(bad(format!(
-                            "{sn} leg: medial landmark {medial:?} has an empty alternative or \
-                             one with surrounding spaces"
-                        )));
-                    }
-                }
+            (None, None, None) => {
+                return Err(self.invalid(
+                    "the pelvis needs right_psis and left_psis, or a sacrum marker".into(),
+                ))
             }
-            for seg in TRACKED_SEGMENTS {
-                if seg == "pelvis" && owner.iter().any(|(o, _)| o == "pelvis") {
-                    continue;
-                }
-                let list = self.tracking(side, seg)?;
-                let mut distinct: Vec<&str> = list.iter().map(String::as_str).collect();
-                distinct.sort_unstable();
-                distinct.dedup();
-                if distinct.len() != list.len() {
-                    return Err(bad(format!("{sn} {seg} tracking lists a marker twice")));
-                }
-                let need = min_tracking(seg);
-                if list.len() < need {
-                    let why = if seg == "pelvis" {
-                        "the pelvis, the root of the chain, needs at least 3"
-                    } else {
-                        "a leg segment needs at least 2 (the joint above fixes the rest)"
-                    };
-                    return Err(bad(format!(
-                        "{sn} {seg} has {} tracking marker(s) {:?}; {why}",
-                        list.len(),
-                        list
+            _ => {}
+        }
+        if p.right_asis == p.left_asis {
+            return Err(self.invalid(format!(
+                "right_asis and left_asis are the same label {:?}",
+                p.right_asis
+            )));
+        }
+        Ok(())
+    }
+
+    /// A leg's landmarks: a forefoot marker, and medial landmarks other than the lateral
+    /// ones, without empty or space-padded alternatives.
+    fn validate_landmarks(&self, side: Side, leg: &LegMarkers) -> Result<(), LandmarkError> {
+        let sn = side_name(side);
+        if leg.forefoot.is_empty() {
+            return Err(self.invalid(format!("{sn} forefoot lists no marker")));
+        }
+        for (lateral, medial) in [
+            (&leg.lateral_epicondyle, &leg.medial_epicondyle),
+            (&leg.lateral_malleolus, &leg.medial_malleolus),
+        ] {
+            for alt in MedialLandmark::alternatives(medial) {
+                let l = alt.label();
+                if l == lateral.as_str() {
+                    return Err(self.invalid(format!(
+                        "{sn} leg: the lateral and medial landmarks must be different \
+                         markers"
                     )));
                 }
-                let here = if seg == "pelvis" {
-                    seg.to_string()
-                } else {
-                    format!("{sn} {seg}")
-                };
-                for l in list {
-                    if let Some((other, _)) = owner.iter().find(|(_, m)| *m == l.as_str()) {
-                        return Err(bad(format!(
-                            "marker {l:?} is in the tracking lists of both the {other} and the \
-                             {here}; a marker can track one segment only"
-                        )));
-                    }
-                    owner.push((here.clone(), l));
+                if l.trim().is_empty() || l.trim() != l {
+                    return Err(self.invalid(format!(
+                        "{sn} leg: medial landmark {medial:?} has an empty alternative or \
+                         one with surrounding spaces"
+                    )));
                 }
             }
         }
+        Ok(())
+    }
+
+    /// A leg's tracking lists: no label twice, enough markers per segment
+    /// ([`min_tracking`]), and no label in two segments' lists (`owner`: the lists seen so
+    /// far, the pelvis's once).
+    fn validate_tracking<'s>(
+        &'s self,
+        side: Side,
+        owner: &mut Vec<(String, &'s str)>,
+    ) -> Result<(), LandmarkError> {
+        let sn = side_name(side);
+        for seg in TRACKED_SEGMENTS {
+            if seg == "pelvis" && owner.iter().any(|(o, _)| o == "pelvis") {
+                continue;
+            }
+            let list = self.tracking(side, seg)?;
+            let mut distinct: Vec<&str> = list.iter().map(String::as_str).collect();
+            distinct.sort_unstable();
+            distinct.dedup();
+            if distinct.len() != list.len() {
+                return Err(self.invalid(format!("{sn} {seg} tracking lists a marker twice")));
+            }
+            let need = min_tracking(seg);
+            if list.len() < need {
+                let why = if seg == "pelvis" {
+                    "the pelvis, the root of the chain, needs at least 3"
+                } else {
+                    "a leg segment needs at least 2 (the joint above fixes the rest)"
+                };
+                return Err(self.invalid(format!(
+                    "{sn} {seg} has {} tracking marker(s) {:?}; {why}",
+                    list.len(),
+                    list
+                )));
+            }
+            let here = if seg == "pelvis" {
+                seg.to_string()
+            } else {
+                format!("{sn} {seg}")
+            };
+            for l in list {
+                if let Some((other, _)) = owner.iter().find(|(_, m)| *m == l.as_str()) {
+                    return Err(self.invalid(format!(
+                        "marker {l:?} is in the tracking lists of both the {other} and the \
+                         {here}; a marker can track one segment only"
+                    )));
+                }
+                owner.push((here.clone(), l));
+            }
+        }
+        Ok(())
+    }
+
+    /// Every role's label is non-empty and without surrounding spaces.
+    fn validate_labels(&self) -> Result<(), LandmarkError> {
         let all_labels = self
             .roles(if self.right.is_some() {
                 Side::Right
@@ -413,7 +448,7 @@ impl MarkerSet {
             });
         for (role, label) in all_labels {
             if label.trim().is_empty() || label.trim() != label {
-                return Err(bad(format!(
+                return Err(self.invalid(format!(
                     "{role}: label {label:?} is empty or has surrounding spaces"
                 )));
             }
