@@ -324,48 +324,13 @@ fn fill_gaps(t: &mut Trial, model: Option<&Model>, max_len: usize, actions: &mut
                 left[1] += len;
                 continue;
             }
-            let by_rigid: Option<Vec<Vector3<f64>>> = (s..=e)
-                .map(|f| {
-                    let from = |r: usize| rigid_carry(&original, j, &mates, r, f);
-                    match (before.and_then(from), after.and_then(from)) {
-                        (Some(a), Some(b)) => {
-                            let w = (f - s + 1) as f64 / (len + 1) as f64;
-                            Some(a * (1.0 - w) + b * w)
-                        }
-                        (Some(a), None) if after.is_none() => Some(a),
-                        (None, Some(b)) if before.is_none() => Some(b),
-                        _ => None,
-                    }
-                })
-                .collect();
+            let by_rigid = rigid_fill(&original, j, &mates, (s, e), before, after);
             if let Some(points) = by_rigid {
                 filled[s..=e].copy_from_slice(&points);
                 rigid[0] += 1;
                 rigid[1] += len;
             } else if let (Some(b), Some(a)) = (before, after) {
-                let traj = original.trajectory(j);
-                let slope = |i: usize, prev: Option<usize>, next: Option<usize>| {
-                    let present = |k: Option<usize>| k.filter(|&k| traj[k].x.is_finite());
-                    match (present(prev), present(next)) {
-                        (Some(p), Some(n)) => (traj[n] - traj[p]) / (n - p) as f64,
-                        (Some(p), None) => (traj[i] - traj[p]) / (i - p) as f64,
-                        (None, Some(n)) => (traj[n] - traj[i]) / (n - i) as f64,
-                        (None, None) => Vector3::zeros(),
-                    }
-                };
-                // Slopes per frame at the two ends; the gap spans h = a − b frames.
-                let m0 = slope(b, b.checked_sub(1), None);
-                let m1 = slope(a, None, (a + 1 < nf).then_some(a + 1));
-                let h = (a - b) as f64;
-                let (p0, p1) = (traj[b], traj[a]);
-                for (f, slot) in filled.iter_mut().enumerate().take(e + 1).skip(s) {
-                    let u = (f - b) as f64 / h;
-                    let (u2, u3) = (u * u, u * u * u);
-                    *slot = p0 * (2.0 * u3 - 3.0 * u2 + 1.0)
-                        + m0 * (h * (u3 - 2.0 * u2 + u))
-                        + p1 * (-2.0 * u3 + 3.0 * u2)
-                        + m1 * (h * (u3 - u2));
-                }
+                spline_fill(&original.trajectory(j), (b, a), &mut filled[s..=e]);
                 spline[0] += 1;
                 spline[1] += len;
             } else {
@@ -392,6 +357,63 @@ fn fill_gaps(t: &mut Trial, model: Option<&Model>, max_len: usize, actions: &mut
                 frames: left[1],
             });
         }
+    }
+}
+
+/// The gap `s..=e` of marker `j` filled by its segment `mates` carried rigidly from the frames
+/// just `before` and `after` it (blended linearly when both exist; one alone only at the
+/// trial's ends), or `None` when a frame of the gap cannot be carried.
+fn rigid_fill(
+    original: &Trial,
+    j: usize,
+    mates: &[usize],
+    (s, e): (usize, usize),
+    before: Option<usize>,
+    after: Option<usize>,
+) -> Option<Vec<Vector3<f64>>> {
+    let len = e - s + 1;
+    (s..=e)
+        .map(|f| {
+            let from = |r: usize| rigid_carry(original, j, mates, r, f);
+            match (before.and_then(from), after.and_then(from)) {
+                (Some(a), Some(b)) => {
+                    let w = (f - s + 1) as f64 / (len + 1) as f64;
+                    Some(a * (1.0 - w) + b * w)
+                }
+                (Some(a), None) if after.is_none() => Some(a),
+                (None, Some(b)) if before.is_none() => Some(b),
+                _ => None,
+            }
+        })
+        .collect()
+}
+
+/// The gap between the present frames `b` and `a` of trajectory `traj` filled (`gap`: frames
+/// `b + 1 ..= a − 1`) by the cubic Hermite spline through both ends with the slopes there.
+fn spline_fill(traj: &[Vector3<f64>], (b, a): (usize, usize), gap: &mut [Vector3<f64>]) {
+    let nf = traj.len();
+    let slope = |i: usize, prev: Option<usize>, next: Option<usize>| {
+        let present = |k: Option<usize>| k.filter(|&k| traj[k].x.is_finite());
+        match (present(prev), present(next)) {
+            (Some(p), Some(n)) => (traj[n] - traj[p]) / (n - p) as f64,
+            (Some(p), None) => (traj[i] - traj[p]) / (i - p) as f64,
+            (None, Some(n)) => (traj[n] - traj[i]) / (n - i) as f64,
+            (None, None) => Vector3::zeros(),
+        }
+    };
+    // Slopes per frame at the two ends; the gap spans h = a − b frames.
+    let m0 = slope(b, b.checked_sub(1), None);
+    let m1 = slope(a, None, (a + 1 < nf).then_some(a + 1));
+    let h = (a - b) as f64;
+    let (p0, p1) = (traj[b], traj[a]);
+    for (k, slot) in gap.iter_mut().enumerate() {
+        let f = b + 1 + k;
+        let u = (f - b) as f64 / h;
+        let (u2, u3) = (u * u, u * u * u);
+        *slot = p0 * (2.0 * u3 - 3.0 * u2 + 1.0)
+            + m0 * (h * (u3 - 2.0 * u2 + u))
+            + p1 * (-2.0 * u3 + 3.0 * u2)
+            + m1 * (h * (u3 - u2));
     }
 }
 
