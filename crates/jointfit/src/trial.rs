@@ -10,8 +10,9 @@
 //! into NaN so that no downstream code has to know about them.
 
 use nalgebra::{Matrix3, Vector3};
-use serde::{Deserialize, Serialize};
 use thiserror::Error;
+
+pub use crate::spatial::{up_axis_rotation, UpAxis};
 
 /// Errors raised when building or querying a [`Trial`].
 #[derive(Debug, Error, PartialEq)]
@@ -253,97 +254,6 @@ impl Trial {
             missing as f64 / nf as f64
         };
         (frac, longest)
-    }
-}
-
-/// Which lab axis points up, for [`up_axis_rotation`]. In a model file (`lab_up`) and on
-/// the command line it is written `y`, `-y`, `z`, `-z`, `x` or `-x`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum UpAxis {
-    /// +Y is up (OpenSim, TRC exports): no rotation.
-    #[serde(rename = "y")]
-    Y,
-    /// −Y is up.
-    #[serde(rename = "-y")]
-    NegY,
-    /// +Z is up (most C3D labs: Vicon, Qualisys default).
-    #[serde(rename = "z")]
-    Z,
-    /// −Z is up.
-    #[serde(rename = "-z")]
-    NegZ,
-    /// +X is up.
-    #[serde(rename = "x")]
-    X,
-    /// −X is up.
-    #[serde(rename = "-x")]
-    NegX,
-}
-
-impl UpAxis {
-    /// Every axis, in the order `y, -y, z, -z, x, -x`.
-    pub(crate) const ALL: [UpAxis; 6] = [
-        UpAxis::Y,
-        UpAxis::NegY,
-        UpAxis::Z,
-        UpAxis::NegZ,
-        UpAxis::X,
-        UpAxis::NegX,
-    ];
-
-    /// The written name: `y`, `-y`, `z`, `-z`, `x`, `-x`.
-    pub fn name(self) -> &'static str {
-        match self {
-            UpAxis::Y => "y",
-            UpAxis::NegY => "-y",
-            UpAxis::Z => "z",
-            UpAxis::NegZ => "-z",
-            UpAxis::X => "x",
-            UpAxis::NegX => "-x",
-        }
-    }
-
-    /// Parses a written name (case-insensitive); `None` for anything else.
-    pub fn parse(s: &str) -> Option<UpAxis> {
-        let s = s.trim().to_ascii_lowercase();
-        let s = s.strip_prefix('+').unwrap_or(&s);
-        UpAxis::ALL.into_iter().find(|a| a.name() == s)
-    }
-
-    /// The lab's unit vector that points up.
-    pub(crate) fn direction(self) -> Vector3<f64> {
-        match self {
-            UpAxis::Y => Vector3::y(),
-            UpAxis::NegY => -Vector3::y(),
-            UpAxis::Z => Vector3::z(),
-            UpAxis::NegZ => -Vector3::z(),
-            UpAxis::X => Vector3::x(),
-            UpAxis::NegX => -Vector3::x(),
-        }
-    }
-}
-
-impl std::fmt::Display for UpAxis {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-/// Rotation from a lab frame with the given vertical axis to the model's Y-up frame (a proper
-/// rotation taking `up.direction()` to +y).
-///
-/// For `Z`: a rotation of −90° about x, mapping lab (x, y, z) to model (x, z, −y): lab X stays
-/// the model's x (anterior when subjects walk along +X), lab Z becomes model y (up).
-/// For `NegZ`: +90° about x, mapping (x, y, z) to (x, −z, y). For `NegY`: 180° about x,
-/// (x, −y, −z). For `X`: +90° about z, (−y, x, z); for `NegX`: −90° about z, (y, −x, z).
-pub fn up_axis_rotation(up: UpAxis) -> Matrix3<f64> {
-    match up {
-        UpAxis::Y => Matrix3::identity(),
-        UpAxis::NegY => Matrix3::new(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0),
-        UpAxis::Z => Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0),
-        UpAxis::NegZ => Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0),
-        UpAxis::X => Matrix3::new(0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0),
-        UpAxis::NegX => Matrix3::new(0.0, 1.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 1.0),
     }
 }
 

@@ -70,7 +70,7 @@ pub struct ModelSpec {
     /// the marker layout by [`crate::vertical::detect_up`] or given by `--up`). Trials read for
     /// this model are rotated from this axis to Y up unless told otherwise. Absent: `y`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub lab_up: Option<crate::trial::UpAxis>,
+    pub lab_up: Option<crate::spatial::UpAxis>,
 }
 
 /// `dependent = function(independent)`: the dependent coordinate leaves the coordinate vector
