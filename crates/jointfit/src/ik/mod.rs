@@ -57,8 +57,7 @@ mod trial_fit;
 use thiserror::Error;
 
 pub use frames::warm_started_coords;
-pub use hold::hold_undetermined;
-pub use hold::lock_undetermined;
+pub use hold::{hold_undetermined, lock_undetermined};
 pub(crate) use lm::is_gross;
 pub use lm::solve_frame;
 pub(crate) use lm::undetermined_coordinate;
@@ -67,18 +66,13 @@ pub use markers::MarkerMap;
 pub use seed::seed_frame;
 #[cfg(test)]
 use seed::seed_frame_by_scouting;
-pub use stream::StreamError;
-pub use stream::StreamingIk;
+pub use stream::{StreamError, StreamingIk};
 pub use tasks::CoordinateTask;
 pub use trial_fit::chunk_ranges;
 pub(crate) use trial_fit::extrapolate;
-pub use trial_fit::rms;
-pub use trial_fit::solve_trial;
 pub(crate) use trial_fit::solve_trial_alongside;
-pub use trial_fit::solve_trial_in_chunks;
-pub use trial_fit::trial_chunk_ranges;
-pub use trial_fit::unsolved_ranges;
-pub use trial_fit::TrialFit;
+pub use trial_fit::{rms, solve_trial};
+pub use trial_fit::{solve_trial_in_chunks, trial_chunk_ranges, unsolved_ranges, TrialFit};
 
 /// Why IK could not start.
 #[derive(Debug, Error, PartialEq)]

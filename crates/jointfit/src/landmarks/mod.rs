@@ -71,22 +71,14 @@ pub(crate) mod window;
 
 use nalgebra::Vector3;
 
-pub use bilateral::personalize_sides;
-pub use bilateral::BothLegs;
-pub use bilateral::Outcome;
-pub use bilateral::PersonalizedModel;
-pub use bilateral::Sides;
+pub use bilateral::{personalize_sides, BothLegs, Outcome, PersonalizedModel, Sides};
 pub use error::LandmarkError;
 pub(crate) use frames::SegmentFrames;
-pub use keypoints::personalize_keypoints;
-pub use keypoints::KeypointSet;
-pub use keypoints::KEYPOINT_PRESET_NAMES;
-pub use markerset::LegMarkers;
-pub use markerset::MarkerSet;
+pub use keypoints::{personalize_keypoints, KeypointSet, KEYPOINT_PRESET_NAMES};
 pub(crate) use markerset::MedialLandmark;
-pub use markerset::PelvisMarkers;
-pub use markerset::PRESET_NAMES;
 pub(crate) use markerset::TRACKED_SEGMENTS;
+pub use markerset::{LegMarkers, MarkerSet};
+pub use markerset::{PelvisMarkers, PRESET_NAMES};
 pub use subject::SubjectMeasurements;
 pub(crate) use window::StaticWindow;
 

@@ -15,18 +15,10 @@ mod splines;
 mod validate;
 
 pub(crate) use crate::spatial::Motion;
-pub use compiled::offset_rotation;
-pub use compiled::CoordKind;
-pub use compiled::JointKind;
-pub use compiled::Model;
-pub use compiled::ParamId;
-pub use compiled::SegmentId;
 pub(crate) use compiled::Source;
+pub use compiled::{offset_rotation, CoordKind, JointKind, Model, ParamId, SegmentId};
 pub(crate) use plan::Item;
-pub use spec::ModelSpec;
-pub use spec::Unit;
-pub use spec::MM_PER_M;
-pub use spec::M_PER_MM;
+pub use spec::{ModelSpec, Unit, MM_PER_M, M_PER_MM};
 
 use thiserror::Error;
 

@@ -7,14 +7,6 @@ pub(crate) mod fit;
 pub mod geometry;
 pub(crate) mod groups;
 
-pub use fit::fit_scale;
-pub use fit::GroupFit;
-pub use fit::ScaleFit;
-pub use fit::ScaleGroup;
-pub use fit::ScaleOptions;
-pub use fit::SizePrior;
-pub use geometry::scaled_spec;
-pub use geometry::ScaleFactors;
-pub use groups::averaged_targets;
-pub use groups::default_groups;
-pub use groups::plausibility;
+pub use fit::{fit_scale, GroupFit, ScaleFit, ScaleGroup, ScaleOptions, SizePrior};
+pub use geometry::{scaled_spec, ScaleFactors};
+pub use groups::{averaged_targets, default_groups, plausibility};

@@ -131,17 +131,14 @@ mod tests;
 #[cfg(test)]
 mod tests_scipy;
 
-pub(crate) use butterworth::butter_lowpass;
-pub(crate) use butterworth::Sos;
-pub(crate) use butterworth::MAX_DESIGN_ORDER;
+pub(crate) use butterworth::{butter_lowpass, Sos, MAX_DESIGN_ORDER};
 pub use filtfilt::sosfiltfilt;
 pub(crate) use filtfilt::sosfiltfilt_padlen;
 #[cfg(test)]
 use filtfilt::{odd_extend, sosfilt_in_place, sosfilt_zi};
-pub use lowpass::LowPass;
-pub use lowpass::OrderConvention;
 #[cfg(test)]
 use lowpass::{winter_correction_factor, ShortStretches};
+pub use lowpass::{LowPass, OrderConvention};
 pub use trial_filter::filter_trial;
 #[cfg(test)]
 use trial_filter::FilteredStretch;

@@ -46,9 +46,8 @@ use rayon::prelude::*;
 
 use super::calibration::{mm2, ConvergenceStage, StartRun};
 use super::map::{Preliminary, SIGMA_POINT_RESOLUTION_SE};
-pub(crate) use super::probes::probe_starts;
-pub(crate) use super::probes::ProbeStarts;
 use super::probes::{approach_stride, probe_stride, subsample};
+pub(crate) use super::probes::{probe_starts, ProbeStarts};
 pub(crate) use super::summary::warning;
 pub use super::summary::GlobalSearch;
 pub(crate) use super::summary::SAME_OPTIMUM;

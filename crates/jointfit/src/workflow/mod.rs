@@ -39,28 +39,16 @@ use thiserror::Error;
 use crate::calibrate::uncertainty::UncertaintyOptions;
 use crate::calibrate::CalibError;
 
-pub use crate::ik::hold_undetermined;
-pub use crate::ik::lock_undetermined;
-pub use crate::solver::NoObserver;
-pub use crate::solver::Observer;
-pub use crate::solver::Termination;
-pub use calibration::calibrate;
-pub use calibration::Calibration;
-pub use calibration::UNCERTAINTY_STAGE;
-pub use ik::ik_checked;
-pub use ik::ik_trial;
-pub use ik::ik_warm_started;
-pub use ik::transfer_params;
-pub use predict::predict;
-pub use predict::Prediction;
-pub use redundant::calibrate_holding_redundant;
-pub use redundant::HeldCalibration;
-pub use redundant::Redundancy;
+pub use crate::ik::{hold_undetermined, lock_undetermined};
+pub use crate::solver::{NoObserver, Observer, Termination};
+pub use calibration::{calibrate, Calibration, UNCERTAINTY_STAGE};
+pub use ik::{ik_checked, ik_trial, ik_warm_started, transfer_params};
+pub use predict::{predict, Prediction};
+pub use redundant::{calibrate_holding_redundant, HeldCalibration, Redundancy};
 pub use starts::perturb;
 #[cfg(test)]
 use starts::restart_point;
-pub use verdict::Level;
-pub use verdict::Verdict;
+pub use verdict::{Level, Verdict};
 
 /// Errors of the workflow.
 #[derive(Debug, Error, PartialEq)]

@@ -97,20 +97,15 @@ pub(crate) use explain::coordinate_ranges;
 use explain::{reason, weak_directions};
 pub use inflation::correlation_inflation;
 pub(crate) use inflation::parameter_inflation;
-pub use reduced::group_size;
-pub use reduced::reduced_system;
 pub(crate) use reduced::Reduced;
 pub use reduced::MAX_GROUPS;
+pub use reduced::{group_size, reduced_system};
 pub use subset::unidentifiable_subset;
-pub(crate) use types::BootstrapInfo;
-pub(crate) use types::CoordRange;
-pub(crate) use types::DirectionComponent;
 pub use types::Identifiability;
 pub(crate) use types::ParamUncertainty;
-pub use types::SeMethod;
-pub use types::Uncertainty;
-pub use types::UncertaintyOptions;
 pub(crate) use types::WeakDirection;
+pub(crate) use types::{BootstrapInfo, CoordRange, DirectionComponent};
+pub use types::{SeMethod, Uncertainty, UncertaintyOptions};
 
 /// Eigenvalues of `S` below this fraction of the largest count as zero (not determined).
 const NULL_RATIO: f64 = 1e-10;

@@ -40,12 +40,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use thiserror::Error;
 
-pub use apply::FunctionalReport;
-pub use apply::FunctionalTrials;
-pub(crate) use sara::sara;
-pub(crate) use sara::AxisFit;
-pub(crate) use score::score;
-pub(crate) use score::CentreFit;
+pub use apply::{FunctionalReport, FunctionalTrials};
+pub(crate) use sara::{sara, AxisFit};
+pub(crate) use score::{score, CentreFit};
 
 use super::frames::rigid_fit;
 use crate::kinematics::Pose;

@@ -34,9 +34,8 @@ mod bilateral;
 mod params;
 
 pub use bilateral::bilateral;
-pub(crate) use bilateral::join_legs;
-pub(crate) use bilateral::PELVIS_SEGMENT;
 pub use bilateral::SIDE_SUFFIXES;
+pub(crate) use bilateral::{join_legs, PELVIS_SEGMENT};
 
 use params::{nominal, par, param_spec, PARAMS};
 
