@@ -360,7 +360,7 @@ fn print_flagged_by_joint(u: &Uncertainty) {
 
 /// The global phase in words (`docs/global.md`): how many starts were tried and on what, which
 /// were finished on every frame, their objectives, and whether they agree.
-pub fn global_line(g: &jointfit::workflow::global::GlobalSearch) -> String {
+pub fn global_line(g: &jointfit::workflow::GlobalSearch) -> String {
     let name = |k: usize| {
         if k == 0 {
             "the given start".to_string()
@@ -392,7 +392,7 @@ pub fn global_line(g: &jointfit::workflow::global::GlobalSearch) -> String {
 
 #[cfg(test)]
 mod tests {
-    use jointfit::workflow::global::GlobalSearch;
+    use jointfit::workflow::GlobalSearch;
 
     /// The line names the starts, the frames and the finished starts by role, and says
     /// whether they agree, in each of its three cases.

@@ -49,7 +49,7 @@ use super::map::{Preliminary, SIGMA_POINT_RESOLUTION_SE};
 use super::probes::{approach_stride, probe_stride, subsample};
 pub(crate) use super::probes::{probe_starts, ProbeStarts};
 pub(crate) use super::summary::warning;
-pub use super::summary::GlobalSearch;
+pub(crate) use super::summary::GlobalSearch;
 pub(crate) use super::summary::SAME_OPTIMUM;
 use super::{FitSettings, Observer};
 use crate::calibrate::joint::{solve_joint, solve_joint_to, JointOptions};

@@ -20,7 +20,7 @@
 mod calibration;
 pub mod conflict;
 pub mod envelope;
-pub mod global;
+mod global;
 mod ik;
 pub(crate) mod map;
 pub mod marker_policy;
@@ -48,6 +48,7 @@ pub use redundant::{calibrate_holding_redundant, HeldCalibration, Redundancy};
 pub use starts::perturb;
 #[cfg(test)]
 use starts::restart_point;
+pub use summary::GlobalSearch;
 pub use verdict::{Level, Verdict};
 
 /// Errors of the workflow.
