@@ -184,28 +184,14 @@ pub(crate) fn anatomy(
     opts: &PersonalizeOptions,
 ) -> Result<Anatomy, LandmarkError> {
     let s = side.sign();
-    // Pelvis: origin mid-ASIS, z left → right ASIS, x anterior in the ASIS/back plane.
-    let mid_asis = 0.5 * (lm.r_asis + lm.l_asis);
-    let pelvis_width = (lm.r_asis - lm.l_asis).norm();
-    let pz = unit(lm.r_asis - lm.l_asis, "the inter-ASIS line", "pelvis")?;
-    let px = perpendicular(
-        mid_asis - lm.back,
-        &pz,
-        "the PSIS/sacrum-to-ASIS line",
-        "pelvis",
-    )?;
-    let py = pz.cross(&px);
-    let up = py.y.clamp(-1.0, 1.0).acos().to_degrees();
-    if up > 45.0 {
-        return Err(LandmarkError::Implausible(format!(
-            "the pelvis superior axis (from the ASIS and PSIS/sacrum markers) is {up:.0}° from \
-             the trial's +Y: the trial is not Y-up (choose the lab's up axis) or the right and \
-             left ASIS labels are swapped"
-        )));
-    }
-    let pelvis = frame(mid_asis, px, py, pz);
-    let pelvis_depth = (mid_asis - lm.back).norm();
-
+    let PelvisFrame {
+        pelvis,
+        mid_asis,
+        px,
+        pz,
+        pelvis_width,
+        pelvis_depth,
+    } = pelvis_frame(lm)?;
     let hip_in_pelvis = match lm.hip_centre {
         Some(h) => pelvis.inverse().transform_point(&h),
         None => regression_hip(opts, side, pelvis_width, pelvis_depth)?,
@@ -253,47 +239,17 @@ pub(crate) fn anatomy(
     let foot = frame(lm.heel, fx, fz.cross(&fx), fz);
 
     let sn = super::markerset::side_name(side);
-    for (what, v) in [("epicondyle", tz), ("malleolus", sz)] {
-        if v.dot(&pz) < 0.0 {
-            return Err(LandmarkError::Implausible(format!(
-                "the {sn} lateral {what} lies medial of the medial one (seen from the pelvis): \
-                 are the lateral and medial labels swapped, or is this the other leg?"
-            )));
-        }
-    }
-    if fx.dot(&px) < 0.0 {
-        return Err(LandmarkError::Implausible(format!(
-            "the {sn} forefoot markers lie behind the heel marker (seen from the pelvis): are \
-             the heel and forefoot labels swapped?"
-        )));
-    }
-    if s * (knee_centre - mid_asis).dot(&pz) < 0.0 {
-        return Err(LandmarkError::Implausible(format!(
-            "the {sn} knee lies on the other side of the pelvis midline: wrong leg, or right \
-             and left ASIS labels swapped?"
-        )));
-    }
-
-    // Subtalar axis (Inman): elevation and medial deviation in the foot frame, anterior.
-    let (elev, dev) = (opts.subtalar_elevation, s * opts.subtalar_deviation);
-    let u_foot = Vector3::new(dev.cos() * elev.cos(), elev.sin(), -dev.sin() * elev.cos());
-    let subtalar_axis = foot.rot * u_foot;
-    // Common perpendicular of the talocrural axis a and the subtalar axis u: n = u × a points
-    // inferior and anterior; the subtalar axis passes at `subtalar_offset` along it.
-    let n = unit(
-        subtalar_axis.cross(&ankle_axis),
-        "the common perpendicular of the talocrural and subtalar axes",
-        "talus",
+    let lateral = [("epicondyle", tz), ("malleolus", sz)];
+    check_leg_sides(
+        sn,
+        lateral,
+        fx,
+        s * (knee_centre - mid_asis).dot(&pz),
+        &px,
+        &pz,
     )?;
-    let subtalar_point = ankle_centre + opts.subtalar_offset * n;
-    let talus_y = -n;
-    let talus = frame(
-        ankle_centre,
-        talus_y.cross(&ankle_axis),
-        talus_y,
-        ankle_axis,
-    );
-
+    let (talus, subtalar_axis, subtalar_point) =
+        talus_frame(opts, s, &foot, &ankle_axis, &ankle_centre)?;
     Ok(Anatomy {
         frames: SegmentFrames {
             pelvis,
@@ -316,6 +272,120 @@ pub(crate) fn anatomy(
         knee_width: knee_vec.norm(),
         ankle_width: ankle_vec.norm(),
     })
+}
+
+/// The pelvis frame and measures of [`anatomy`].
+struct PelvisFrame {
+    pelvis: Pose,
+    mid_asis: Vector3<f64>,
+    /// The pelvis's anterior (x) and rightward (z) axes in the lab.
+    px: Vector3<f64>,
+    pz: Vector3<f64>,
+    pelvis_width: f64,
+    pelvis_depth: f64,
+}
+
+/// Pelvis: origin mid-ASIS, z left → right ASIS, x anterior in the ASIS/back plane; refused
+/// when its superior axis is far from the trial's +Y.
+fn pelvis_frame(lm: &Landmarks) -> Result<PelvisFrame, LandmarkError> {
+    let mid_asis = 0.5 * (lm.r_asis + lm.l_asis);
+    let pelvis_width = (lm.r_asis - lm.l_asis).norm();
+    let pz = unit(lm.r_asis - lm.l_asis, "the inter-ASIS line", "pelvis")?;
+    let px = perpendicular(
+        mid_asis - lm.back,
+        &pz,
+        "the PSIS/sacrum-to-ASIS line",
+        "pelvis",
+    )?;
+    let py = pz.cross(&px);
+    let up = py.y.clamp(-1.0, 1.0).acos().to_degrees();
+    if up > 45.0 {
+        return Err(LandmarkError::Implausible(format!(
+            "the pelvis superior axis (from the ASIS and PSIS/sacrum markers) is {up:.0}° from \
+             the trial's +Y: the trial is not Y-up (choose the lab's up axis) or the right and \
+             left ASIS labels are swapped"
+        )));
+    }
+    let pelvis = frame(mid_asis, px, py, pz);
+    let pelvis_depth = (mid_asis - lm.back).norm();
+
+    Ok(PelvisFrame {
+        pelvis,
+        mid_asis,
+        px,
+        pz,
+        pelvis_width,
+        pelvis_depth,
+    })
+}
+
+/// Refuses a leg (`sn`: its side's name) whose lateral landmarks (`lateral`: the thigh's and
+/// shank's lateral axes) point medially, whose forefoot (`fx`: the foot's anterior axis)
+/// lies behind the heel, or whose knee lies across the pelvis midline (`knee_side`: the
+/// knee's signed lateral distance from it), as seen from the pelvis (`px`, `pz`).
+fn check_leg_sides(
+    sn: &str,
+    lateral: [(&str, Vector3<f64>); 2],
+    fx: Vector3<f64>,
+    knee_side: f64,
+    px: &Vector3<f64>,
+    pz: &Vector3<f64>,
+) -> Result<(), LandmarkError> {
+    for (what, v) in lateral {
+        if v.dot(pz) < 0.0 {
+            return Err(LandmarkError::Implausible(format!(
+                "the {sn} lateral {what} lies medial of the medial one (seen from the pelvis): \
+                 are the lateral and medial labels swapped, or is this the other leg?"
+            )));
+        }
+    }
+    if fx.dot(px) < 0.0 {
+        return Err(LandmarkError::Implausible(format!(
+            "the {sn} forefoot markers lie behind the heel marker (seen from the pelvis): are \
+             the heel and forefoot labels swapped?"
+        )));
+    }
+    if knee_side < 0.0 {
+        return Err(LandmarkError::Implausible(format!(
+            "the {sn} knee lies on the other side of the pelvis midline: wrong leg, or right \
+             and left ASIS labels swapped?"
+        )));
+    }
+    Ok(())
+}
+
+/// The talus frame (origin at the ankle centre, z along the talocrural axis, y along the
+/// common perpendicular to the subtalar axis), the subtalar axis and a point on it
+/// (`s`: the side's sign).
+fn talus_frame(
+    opts: &PersonalizeOptions,
+    s: f64,
+    foot: &Pose,
+    ankle_axis: &Vector3<f64>,
+    ankle_centre: &Vector3<f64>,
+) -> Result<(Pose, Vector3<f64>, Vector3<f64>), LandmarkError> {
+    let (ankle_axis, ankle_centre) = (*ankle_axis, *ankle_centre);
+    // Subtalar axis (Inman): elevation and medial deviation in the foot frame, anterior.
+    let (elev, dev) = (opts.subtalar_elevation, s * opts.subtalar_deviation);
+    let u_foot = Vector3::new(dev.cos() * elev.cos(), elev.sin(), -dev.sin() * elev.cos());
+    let subtalar_axis = foot.rot * u_foot;
+    // Common perpendicular of the talocrural axis a and the subtalar axis u: n = u × a points
+    // inferior and anterior; the subtalar axis passes at `subtalar_offset` along it.
+    let n = unit(
+        subtalar_axis.cross(&ankle_axis),
+        "the common perpendicular of the talocrural and subtalar axes",
+        "talus",
+    )?;
+    let subtalar_point = ankle_centre + opts.subtalar_offset * n;
+    let talus_y = -n;
+    let talus = frame(
+        ankle_centre,
+        talus_y.cross(&ankle_axis),
+        talus_y,
+        ankle_axis,
+    );
+
+    Ok((talus, subtalar_axis, subtalar_point))
 }
 
 /// Refuses a segment whose tracking markers (averaged) lie within `min_spread` of one line:
