@@ -203,45 +203,7 @@ pub(super) fn weak_directions(
                 }
             })
             .collect();
-        let words: Vec<String> = comps
-            .iter()
-            .map(|&k| {
-                let par = &model.parameters()[prob.free[k]];
-                let sign = if v[k] * v[comps[0]] >= 0.0 {
-                    "+"
-                } else {
-                    "−"
-                };
-                let d = if par.description.is_empty() {
-                    &par.name
-                } else {
-                    &par.description
-                };
-                let hw_k = if hw.is_finite() {
-                    format!("±{:.1} {}", hw * v[k].abs() * scale[k], display(par.unit).1)
-                } else {
-                    "unbounded".to_string()
-                };
-                format!("{sign}[{d}] {hw_k}")
-            })
-            .collect();
-        let lead = if null {
-            "not determined at all"
-        } else {
-            "poorly determined"
-        };
-        let ids: Vec<usize> = comps.iter().map(|&k| prob.free[k]).collect();
-        let head = headline(model, &ids);
-        let description = if words.is_empty() {
-            format!("{lead}: a combination spread over many parameters")
-        } else if words.len() == 1 {
-            format!("{head} {lead}: {}", words[0])
-        } else {
-            format!(
-                "{head} {lead} (components moving together as signed): {}",
-                words.join(", ")
-            )
-        };
+        let description = direction_words(prob, &v, &comps, hw, scale, null);
         out.push(WeakDirection {
             eigenvalue: lam,
             components,
@@ -252,6 +214,59 @@ pub(super) fn weak_directions(
         }
     }
     out
+}
+
+/// A weak direction `v` in words: its components `comps` (largest first) with their signs
+/// and half-widths (`hw` along the direction, `scale` per parameter), not determined at all
+/// (`null`) or poorly.
+fn direction_words(
+    prob: &Problem,
+    v: &nalgebra::DVector<f64>,
+    comps: &[usize],
+    hw: f64,
+    scale: &[f64],
+    null: bool,
+) -> String {
+    let model = prob.model;
+    let words: Vec<String> = comps
+        .iter()
+        .map(|&k| {
+            let par = &model.parameters()[prob.free[k]];
+            let sign = if v[k] * v[comps[0]] >= 0.0 {
+                "+"
+            } else {
+                "−"
+            };
+            let d = if par.description.is_empty() {
+                &par.name
+            } else {
+                &par.description
+            };
+            let hw_k = if hw.is_finite() {
+                format!("±{:.1} {}", hw * v[k].abs() * scale[k], display(par.unit).1)
+            } else {
+                "unbounded".to_string()
+            };
+            format!("{sign}[{d}] {hw_k}")
+        })
+        .collect();
+    let lead = if null {
+        "not determined at all"
+    } else {
+        "poorly determined"
+    };
+    let ids: Vec<usize> = comps.iter().map(|&k| prob.free[k]).collect();
+    let head = headline(model, &ids);
+    if words.is_empty() {
+        format!("{lead}: a combination spread over many parameters")
+    } else if words.len() == 1 {
+        format!("{head} {lead}: {}", words[0])
+    } else {
+        format!(
+            "{head} {lead} (components moving together as signed): {}",
+            words.join(", ")
+        )
+    }
 }
 
 /// A short name for a combination of parameters (model indices `ids`), e.g. "hip centre,
