@@ -181,20 +181,7 @@ fn build(
     let kappa = status::trial_correlation(prob, p, qs, cov, red, sigma2, opts);
     let alone = status::data_alone_variance(red, sigma2);
     let share = crate::calibrate::prior::data_share(prob, &red.normal);
-    let corr: Vec<Vec<Option<f64>>> = (0..nf)
-        .map(|a| {
-            (0..nf)
-                .map(|b| {
-                    if cov.null[a] || cov.null[b] {
-                        None
-                    } else {
-                        let d = (white[(a, a)] * white[(b, b)]).sqrt();
-                        Some(if d > 0.0 { white[(a, b)] / d } else { 0.0 })
-                    }
-                })
-                .collect()
-        })
-        .collect();
+    let corr = correlations(&cov.null, &white);
     let params = (0..nf)
         .map(|k| {
             let i = prob.free[k];
@@ -222,27 +209,16 @@ fn build(
                 at_bound || status::held(share[k]),
             );
             let reason = (status != Identifiability::Determined).then(|| {
-                let partner = (0..nf)
-                    .filter(|&b| b != k)
-                    .filter_map(|b| corr[k][b].map(|r| (b, r)))
-                    .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
-                    .filter(|(_, r)| r.abs() >= 0.9)
-                    .map(|(b, r)| (model.parameters()[prob.free[b]].name.as_str(), r));
                 let sigma_mm = opts.assumed_sigma_m.map_or(red.sigma2(), |s| s * s).sqrt() * 1e3;
-                let mut text = reason(model, i, at_bound, &ranges, partner, sigma_mm);
-                // `scale[k]` is the bounds' half-width in display units.
-                if half_width.is_some_and(|h| h > scale[k]) {
-                    text.push_str(&format!(
-                        "; the interval is wider than the search bounds (±{:.0} {unit}), so \
-                         the trial adds little to them",
-                        scale[k]
-                    ));
-                }
-                if status == Identifiability::Undetermined {
-                    format!("not determined by this trial at all: {text}")
-                } else {
-                    text
-                }
+                let bounds = (scale[k], unit);
+                let why = Why {
+                    k,
+                    at_bound,
+                    ranges: &ranges,
+                    corr: &corr,
+                    sigma_mm,
+                };
+                why_not_determined(prob, &why, half_width, bounds, status)
             });
             ParamUncertainty {
                 name: par.name.clone(),
@@ -287,5 +263,67 @@ fn build(
         corr,
         weak_directions,
         ranges,
+    }
+}
+
+/// The correlations of the free parameters from the covariance `white` (`None` where either
+/// is in the null space).
+fn correlations(null: &[bool], white: &nalgebra::DMatrix<f64>) -> Vec<Vec<Option<f64>>> {
+    let nf = null.len();
+    (0..nf)
+        .map(|a| {
+            (0..nf)
+                .map(|b| {
+                    if null[a] || null[b] {
+                        None
+                    } else {
+                        let d = (white[(a, a)] * white[(b, b)]).sqrt();
+                        Some(if d > 0.0 { white[(a, b)] / d } else { 0.0 })
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// What [`why_not_determined`] reads of free parameter `k`.
+struct Why<'a> {
+    k: usize,
+    at_bound: bool,
+    ranges: &'a [CoordRange],
+    corr: &'a [Vec<Option<f64>>],
+    sigma_mm: f64,
+}
+
+/// Why free parameter `why.k` is not determined: [`reason`] with its most correlated
+/// partner (|r| ≥ 0.9), and whether its interval is wider than its search bounds (`bounds`:
+/// their half-width and unit, for display).
+fn why_not_determined(
+    prob: &Problem,
+    why: &Why,
+    half_width: Option<f64>,
+    (bound, unit): (f64, &str),
+    status: Identifiability,
+) -> String {
+    let (model, k) = (prob.model, why.k);
+    let partner = (0..prob.n_free())
+        .filter(|&b| b != k)
+        .filter_map(|b| why.corr[k][b].map(|r| (b, r)))
+        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        .filter(|(_, r)| r.abs() >= 0.9)
+        .map(|(b, r)| (model.parameters()[prob.free[b]].name.as_str(), r));
+    let i = prob.free[k];
+    let mut text = reason(model, i, why.at_bound, why.ranges, partner, why.sigma_mm);
+    // `bound` is the bounds' half-width in display units.
+    if half_width.is_some_and(|h| h > bound) {
+        text.push_str(&format!(
+            "; the interval is wider than the search bounds (±{bound:.0} {unit}), so \
+             the trial adds little to them"
+        ));
+    }
+    if status == Identifiability::Undetermined {
+        format!("not determined by this trial at all: {text}")
+    } else {
+        text
     }
 }
