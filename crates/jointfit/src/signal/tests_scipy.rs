@@ -10,6 +10,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
 
+use super::trial_filter::FilterReport;
 use super::*;
 use crate::trial::Trial;
 
@@ -202,34 +203,22 @@ fn sosfiltfilt_matches_scipy() {
     );
 }
 
-#[test]
-fn trial_filter_matches_scipy_per_stretch() {
-    let mut rng = ChaCha8Rng::seed_from_u64(7);
-    let rate = 100.0;
-    let frames = 160;
-    // Gap patterns (missing frame ranges) giving stretches of many lengths around the thresholds.
-    let gaps: [&[(usize, usize)]; 4] = [
-        &[],
-        &[(20, 25), (28, 30), (34, 40), (50, 52), (62, 63), (79, 90)],
-        &[
-            (0, 3),
-            (6, 8),
-            (13, 14),
-            (30, 31),
-            (47, 60),
-            (76, 77),
-            (155, 160),
-        ],
-        &[(3, 150)],
-    ];
+/// A trial of noisy sines at `rate` with one marker per gap pattern (missing frame ranges),
+/// and each marker's trajectory.
+fn gapped_trial(
+    rng: &mut ChaCha8Rng,
+    rate: f64,
+    frames: usize,
+    gaps: &[&[(usize, usize)]],
+) -> (Trial, Vec<Vec<Vector3<f64>>>) {
     let labels: Vec<String> = (0..gaps.len()).map(|i| format!("M{i}")).collect();
     let columns: Vec<Vec<Vector3<f64>>> = gaps
         .iter()
         .map(|g| {
             let (x, y, z) = (
-                noisy_sine(&mut rng, frames, rate),
-                noisy_sine(&mut rng, frames, rate),
-                noisy_sine(&mut rng, frames, rate),
+                noisy_sine(rng, frames, rate),
+                noisy_sine(rng, frames, rate),
+                noisy_sine(rng, frames, rate),
             );
             (0..frames)
                 .map(|f| {
@@ -245,8 +234,100 @@ fn trial_filter_matches_scipy_per_stretch() {
     let positions = (0..frames)
         .flat_map(|f| columns.iter().map(move |c| c[f]))
         .collect();
-    let trial = Trial::new(labels, rate, 1, positions).unwrap();
+    (Trial::new(labels, rate, 1, positions).unwrap(), columns)
+}
 
+/// Which stretch-coordinates scipy is asked to filter: (marker, frames, axis).
+type Requests = Vec<(usize, std::ops::Range<usize>, usize)>;
+
+/// Walks every marker's stretches: gaps stay missing in `out`, stretches left raw are
+/// unchanged, and the filtered ones become scipy requests (with the padding scipy's
+/// default rule gives: a design of order n has ntaps = n + 1 and pads 3·ntaps, restated
+/// independently of `LowPass::padlen_for`); the report counts both.
+fn stretch_requests(
+    filter: &LowPass,
+    columns: &[Vec<Vector3<f64>>],
+    out: &Trial,
+    report: &FilterReport,
+) -> (Requests, Vec<serde_json::Value>) {
+    let ntaps = filter.design_order().unwrap() + 1;
+    let expected_padlen = |len: usize| {
+        if len > 3 * ntaps {
+            Some(None)
+        } else if filter.short_stretches == ShortStretches::ReducePadding && len > ntaps {
+            Some(Some(len - 1))
+        } else {
+            None
+        }
+    };
+    let mut requests = Vec::new();
+    let mut items = Vec::new();
+    for (m, col) in columns.iter().enumerate() {
+        let frames = col.len();
+        let present: Vec<bool> = col.iter().map(|p| !p.x.is_nan()).collect();
+        let mut f = 0;
+        let (mut n_filtered, mut n_raw) = (0, 0);
+        while f < frames {
+            if !present[f] {
+                assert!(
+                    out.get(f, m).is_none(),
+                    "gap at frame {f} of M{m} stays missing"
+                );
+                f += 1;
+                continue;
+            }
+            let start = f;
+            while f < frames && present[f] {
+                f += 1;
+            }
+            match expected_padlen(f - start) {
+                None => {
+                    n_raw += 1;
+                    for (k, p) in col.iter().enumerate().take(f).skip(start) {
+                        assert_eq!(out.get(k, m), Some(*p));
+                    }
+                }
+                Some(padlen) => {
+                    n_filtered += 1;
+                    for axis in 0..3 {
+                        let x: Vec<f64> = col[start..f].iter().map(|p| p[axis]).collect();
+                        items.push(json!({
+                            "order": filter.design_order().unwrap(),
+                            "cutoff_hz": filter.cutoff_hz,
+                            "rate_hz": out.rate(),
+                            "x": x,
+                            "padlen": padlen,
+                        }));
+                        requests.push((m, start..f, axis));
+                    }
+                }
+            }
+        }
+        assert_eq!(report.markers[m].filtered.len(), n_filtered, "M{m}");
+        assert_eq!(report.markers[m].raw.len(), n_raw, "M{m}");
+    }
+    (requests, items)
+}
+
+#[test]
+fn trial_filter_matches_scipy_per_stretch() {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    // Gap patterns (missing frame ranges) giving stretches of many lengths around the thresholds.
+    let gaps: [&[(usize, usize)]; 4] = [
+        &[],
+        &[(20, 25), (28, 30), (34, 40), (50, 52), (62, 63), (79, 90)],
+        &[
+            (0, 3),
+            (6, 8),
+            (13, 14),
+            (30, 31),
+            (47, 60),
+            (76, 77),
+            (155, 160),
+        ],
+        &[(3, 150)],
+    ];
+    let (trial, columns) = gapped_trial(&mut rng, 100.0, 160, &gaps);
     for filter in [
         LowPass::default(),
         LowPass {
@@ -259,63 +340,7 @@ fn trial_filter_matches_scipy_per_stretch() {
         },
     ] {
         let (out, report) = filter_trial(&trial, &filter).unwrap();
-        // The rule, restated independently of LowPass::padlen_for: a design of order n has
-        // ntaps = n + 1 and scipy's default padding 3·ntaps.
-        let ntaps = filter.design_order().unwrap() + 1;
-        let expected_padlen = |len: usize| {
-            if len > 3 * ntaps {
-                Some(None)
-            } else if filter.short_stretches == ShortStretches::ReducePadding && len > ntaps {
-                Some(Some(len - 1))
-            } else {
-                None
-            }
-        };
-        let mut requests = Vec::new(); // (marker, frames, axis)
-        let mut items = Vec::new();
-        for (m, col) in columns.iter().enumerate() {
-            let present: Vec<bool> = col.iter().map(|p| !p.x.is_nan()).collect();
-            let mut f = 0;
-            let (mut n_filtered, mut n_raw) = (0, 0);
-            while f < frames {
-                if !present[f] {
-                    assert!(
-                        out.get(f, m).is_none(),
-                        "gap at frame {f} of M{m} stays missing"
-                    );
-                    f += 1;
-                    continue;
-                }
-                let start = f;
-                while f < frames && present[f] {
-                    f += 1;
-                }
-                match expected_padlen(f - start) {
-                    None => {
-                        n_raw += 1;
-                        for (k, p) in col.iter().enumerate().take(f).skip(start) {
-                            assert_eq!(out.get(k, m), Some(*p));
-                        }
-                    }
-                    Some(padlen) => {
-                        n_filtered += 1;
-                        for axis in 0..3 {
-                            let x: Vec<f64> = col[start..f].iter().map(|p| p[axis]).collect();
-                            items.push(json!({
-                                "order": filter.design_order().unwrap(),
-                                "cutoff_hz": filter.cutoff_hz,
-                                "rate_hz": rate,
-                                "x": x,
-                                "padlen": padlen,
-                            }));
-                            requests.push((m, start..f, axis));
-                        }
-                    }
-                }
-            }
-            assert_eq!(report.markers[m].filtered.len(), n_filtered, "M{m}");
-            assert_eq!(report.markers[m].raw.len(), n_raw, "M{m}");
-        }
+        let (requests, items) = stretch_requests(&filter, &columns, &out, &report);
         let Some(answer) = scipy(&json!({ "sosfiltfilt": items })) else {
             return;
         };
