@@ -445,15 +445,7 @@ impl<'a, 'm> Solve<'a, 'm> {
             let c = cost_at(prob, blocks, &p_try, &self.q_try);
             self.evaluations += 1;
             if c <= self.cost {
-                // The largest step (a maximum: the same in any order of evaluation).
-                let largest = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-                let step = self
-                    .dq
-                    .par_iter()
-                    .with_min_len(PAR_FRAMES)
-                    .map(|d| largest(d))
-                    .reduce(|| 0.0, f64::max)
-                    .max(largest(&ds_eff));
+                let step = self.largest_step(&ds_eff);
                 // Gain ratio ρ = actual / predicted decrease: near 1 the quadratic model is
                 // good and the damping shrinks by up to 3; a poor model keeps it.
                 let rho = if predicted > 0.0 {
@@ -489,6 +481,18 @@ impl<'a, 'm> Solve<'a, 'm> {
             self.nu *= 2.0;
         }
         None
+    }
+
+    /// The largest component of the step (`ds` and the coordinates' `dq`; a maximum: the
+    /// same in any order of evaluation).
+    fn largest_step(&self, ds: &[f64]) -> f64 {
+        let largest = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        self.dq
+            .par_iter()
+            .with_min_len(PAR_FRAMES)
+            .map(|d| largest(d))
+            .reduce(|| 0.0, f64::max)
+            .max(largest(ds))
     }
 
     /// The undamped model's predicted decrease at the current point is within `limit` (its

@@ -394,14 +394,7 @@ pub(crate) fn personalize_plan(
     let at = |label: &str| means[idx(label)];
     let lm = landmarks(&at)?;
     let lm_hip_given = lm.hip_centre.is_some();
-    for seg in TRACKED_SEGMENTS {
-        let list = plan.tracking(seg);
-        let pts: Vec<_> = list.iter().map(|l| at(l)).collect();
-        // Two markers always lie on one line; the joint fixes the rotation about it.
-        if list.len() >= 3 {
-            frames::check_spread(seg, list, &pts, opts.min_marker_spread)?;
-        }
-    }
+    check_spreads(plan, &at, opts)?;
     let mut an = frames::anatomy(&lm, side, opts)?;
     let cluster = |seg: &str| -> Result<functional::Cluster, LandmarkError> {
         let labels = plan.tracking(seg).to_vec();
@@ -419,14 +412,7 @@ pub(crate) fn personalize_plan(
         (None, Vec::new())
     };
     let offsets = nominal::offsets(&an, side)?;
-    let f = &an.frames;
-    let poses: [(&str, Pose); 5] = [
-        ("pelvis", f.pelvis),
-        ("thigh", f.thigh),
-        ("shank", f.shank),
-        ("talus", f.talus),
-        ("foot", f.foot),
-    ];
+    let poses = named_poses(&an.frames);
     let mut spec = leg_spec(
         plan,
         side,
@@ -475,6 +461,34 @@ pub(crate) fn personalize_plan(
         frames: an.frames,
         report,
     })
+}
+
+/// Refuses a segment whose (at least three) tracking markers lie near one line; two markers
+/// always do, and the joint fixes the rotation about it.
+fn check_spreads(
+    plan: &Plan,
+    at: &dyn Fn(&str) -> Vector3<f64>,
+    opts: &PersonalizeOptions,
+) -> Result<(), LandmarkError> {
+    for seg in TRACKED_SEGMENTS {
+        let list = plan.tracking(seg);
+        let pts: Vec<_> = list.iter().map(|l| at(l)).collect();
+        if list.len() >= 3 {
+            frames::check_spread(seg, list, &pts, opts.min_marker_spread)?;
+        }
+    }
+    Ok(())
+}
+
+/// The segment frames at the static pose, by segment name.
+fn named_poses(f: &SegmentFrames) -> [(&'static str, Pose); 5] {
+    [
+        ("pelvis", f.pelvis),
+        ("thigh", f.thigh),
+        ("shank", f.shank),
+        ("talus", f.talus),
+        ("foot", f.foot),
+    ]
 }
 
 /// The plan's labels in first-use order and their columns in `trial`; an error naming every
