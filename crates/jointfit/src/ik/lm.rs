@@ -203,17 +203,7 @@ pub(super) fn lm(
     let mut last_step = f64::INFINITY;
     while iterations < opts.max_iterations {
         iterations += 1;
-        ws.moments
-            .normal_equations(&ws.cur, targets, &ws.weights, n, &mut ws.a, &mut ws.g);
-        for &(c, w, v) in &ws.goals {
-            if let Some(i) = active.iter().position(|&a| a == c) {
-                ws.a[i * n + i] += total * w;
-                ws.g[i] += total * w * (v - q[c]);
-            }
-        }
-        if bounded {
-            hold_at_bounds(q, active, &ws.bounds, &mut ws.a, &mut ws.g);
-        }
+        normal_equations(targets, q, active, total, bounded, ws);
         let max_diag = (0..n).fold(0.0f64, |m, i| m.max(ws.a[i * n + i]));
         // Try steps with growing damping until the cost drops.
         loop {
@@ -231,20 +221,7 @@ pub(super) fn lm(
             };
             ws.delta[..n].copy_from_slice(&ws.g[..n]);
             chol.solve(&mut ws.delta[..n]);
-            let mut step_max = ws.delta[..n].iter().fold(0.0f64, |m, d| m.max(d.abs()));
-            ws.q_trial.copy_from_slice(q);
-            for (i, &c) in active.iter().enumerate() {
-                ws.q_trial[c] += ws.delta[i];
-            }
-            if bounded {
-                // Projected step: the box's nearest point, and its length as the step.
-                step_max = 0.0;
-                for &c in active {
-                    let [lo, hi] = ws.bounds[c];
-                    ws.q_trial[c] = ws.q_trial[c].clamp(lo, hi);
-                    step_max = step_max.max((ws.q_trial[c] - q[c]).abs());
-                }
-            }
+            let step_max = trial_point(q, active, bounded, ws);
             forward_kinematics(model, p, &ws.q_trial, Want::AXES, &mut ws.trial);
             let trial_cost = cost_of(&ws.trial.markers, targets, &ws.weights)
                 + goal_cost(&ws.q_trial, &ws.goals, total);
@@ -276,6 +253,52 @@ pub(super) fn lm(
         }
     }
     (cost, iterations, Termination::IterationLimit)
+}
+
+/// The frame's Gauss–Newton normal equations at `ws.cur` into `ws.a`, `ws.g` (over the
+/// `active` coordinates), with the coordinate tasks weighed by `total` and, when `bounded`,
+/// the coordinates at a bound held there.
+fn normal_equations(
+    targets: &[Vector3<f64>],
+    q: &[f64],
+    active: &[usize],
+    total: f64,
+    bounded: bool,
+    ws: &mut IkWorkspace,
+) {
+    let n = active.len();
+    ws.moments
+        .normal_equations(&ws.cur, targets, &ws.weights, n, &mut ws.a, &mut ws.g);
+    for &(c, w, v) in &ws.goals {
+        if let Some(i) = active.iter().position(|&a| a == c) {
+            ws.a[i * n + i] += total * w;
+            ws.g[i] += total * w * (v - q[c]);
+        }
+    }
+    if bounded {
+        hold_at_bounds(q, active, &ws.bounds, &mut ws.a, &mut ws.g);
+    }
+}
+
+/// The trial point `q + δ` (`δ` in `ws.delta`) in `ws.q_trial`, projected into the bounds
+/// when `bounded`; returns the step's length (its largest component, after projection).
+fn trial_point(q: &[f64], active: &[usize], bounded: bool, ws: &mut IkWorkspace) -> f64 {
+    let n = active.len();
+    let mut step_max = ws.delta[..n].iter().fold(0.0f64, |m, d| m.max(d.abs()));
+    ws.q_trial.copy_from_slice(q);
+    for (i, &c) in active.iter().enumerate() {
+        ws.q_trial[c] += ws.delta[i];
+    }
+    if bounded {
+        // Projected step: the box's nearest point, and its length as the step.
+        step_max = 0.0;
+        for &c in active {
+            let [lo, hi] = ws.bounds[c];
+            ws.q_trial[c] = ws.q_trial[c].clamp(lo, hi);
+            step_max = step_max.max((ws.q_trial[c] - q[c]).abs());
+        }
+    }
+    step_max
 }
 
 /// Relative rounding error of a marker position from forward kinematics, in units of the
