@@ -108,28 +108,7 @@ pub(crate) fn reduce(prob: &Problem, qs: &[Vec<f64>], b: &mut Blocks, lambda: f6
                 }
                 // With U* = L Lᵀ: Wᵀ U*⁻¹ W = ZᵀZ and Wᵀ U*⁻¹ g = Zᵀy, so the chunk's share of
                 // both is one product [Z | y]ᵀ[Z | y] ((n_f + 1) × (n_f + 1), column-major).
-                let mut zz = vec![0.0; m * m];
-                let rows = range.len() * nq;
-                // SAFETY: A = Zᵀ (m × rows) and B = Z (rows × m) read z (rows·m) with strides
-                // (1, m) and (m, 1); C (m × m, column-major) is zz.
-                unsafe {
-                    matrixmultiply::dgemm(
-                        m,
-                        rows,
-                        m,
-                        1.0,
-                        z.as_ptr(),
-                        1,
-                        m as isize,
-                        z.as_ptr(),
-                        m as isize,
-                        1,
-                        0.0,
-                        zz.as_mut_ptr(),
-                        1,
-                        m as isize,
-                    );
-                }
+                let zz = gram_of_rows(&z, range.len() * nq, m);
                 sc.fac = l;
                 sc.vec = z;
                 Some(zz)
@@ -164,6 +143,33 @@ pub(crate) fn reduce(prob: &Problem, qs: &[Vec<f64>], b: &mut Blocks, lambda: f6
     b.lambda = lambda;
     b.factors_valid = true;
     true
+}
+
+/// `ZᵀZ` (m × m, column-major) of the row-major `rows × m` matrix `z`.
+fn gram_of_rows(z: &[f64], rows: usize, m: usize) -> Vec<f64> {
+    assert!(z.len() >= rows * m, "z holds rows × m values");
+    let mut zz = vec![0.0; m * m];
+    // SAFETY: A = Zᵀ (m × rows) and B = Z (rows × m) read z (rows·m, checked above) with
+    // strides (1, m) and (m, 1); C (m × m, column-major) is zz.
+    unsafe {
+        matrixmultiply::dgemm(
+            m,
+            rows,
+            m,
+            1.0,
+            z.as_ptr(),
+            1,
+            m as isize,
+            z.as_ptr(),
+            m as isize,
+            1,
+            0.0,
+            zz.as_mut_ptr(),
+            1,
+            m as isize,
+        );
+    }
+    zz
 }
 
 /// Solves the system of the last [`reduce`], plus `extra` (n_f × n_f, column-major: a model
