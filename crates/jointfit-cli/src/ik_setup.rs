@@ -35,18 +35,12 @@ pub fn run(args: IkArgs) -> Result<()> {
     } else {
         None
     };
-    let mut files = crate::output::Files::new()
-        .model("model", &model_path)
-        .input("setup", &setup_path)
-        .input("trial", &trial_path)
-        .output("output", &output);
-    if let Some(e) = &args.errors {
-        files = files.output("--errors", e);
-    }
-    if let Some(e) = &errors_sto {
-        files = files.output("results_directory", e);
-    }
-    files.check()?;
+    let outputs = [
+        ("output", Some(output.as_path())),
+        ("--errors", args.errors.as_deref()),
+        ("results_directory", errors_sto.as_deref()),
+    ];
+    check_files(&model_path, &setup_path, &trial_path, &outputs)?;
     let given = jointfit_io::model_file::load_model(&model_path)?;
     let model = weighted_model(&given, &setup.tasks, &setup_path)?;
     let loaded = load_for_model(
@@ -94,16 +88,7 @@ pub fn run(args: IkArgs) -> Result<()> {
         })
         .collect();
     crate::common::warn_absent_markers(&trial_path, &tracked_absent);
-    let opts = IkOptions {
-        // OpenSim leaves a coordinate no goal depends on where it was.
-        hold_undetermined: true,
-        outlier_distance: if args.reject_outliers {
-            IkOptions::default().outlier_distance
-        } else {
-            f64::INFINITY
-        },
-        ..IkOptions::default()
-    };
+    let opts = ik_options(args.reject_outliers);
     let p = model.nominal_params();
     let start = Instant::now();
     let fit = solve_trial(&model, &p, &trial, &map, &opts)
@@ -138,6 +123,39 @@ pub fn run(args: IkArgs) -> Result<()> {
         }
     }
     print_summary(&summary, args.json, seconds, &output)
+}
+
+/// The inputs exist and the outputs (those given) can be written.
+fn check_files(
+    model: &str,
+    setup: &Path,
+    trial: &Path,
+    outputs: &[(&str, Option<&Path>)],
+) -> Result<()> {
+    let mut files = crate::output::Files::new()
+        .model("model", model)
+        .input("setup", setup)
+        .input("trial", trial);
+    for (what, path) in outputs {
+        if let Some(path) = path {
+            files = files.output(what, path);
+        }
+    }
+    files.check()
+}
+
+/// OpenSim's inverse kinematics: a coordinate no goal depends on stays where it was;
+/// outlying markers are rejected only when asked.
+fn ik_options(reject_outliers: bool) -> IkOptions {
+    IkOptions {
+        hold_undetermined: true,
+        outlier_distance: if reject_outliers {
+            IkOptions::default().outlier_distance
+        } else {
+            f64::INFINITY
+        },
+        ..IkOptions::default()
+    }
 }
 
 /// The model, the trial and the output: from the command line, else from the setup file
