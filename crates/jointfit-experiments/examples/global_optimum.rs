@@ -121,15 +121,8 @@ fn fit_case(
     let mut q = prob.initial_coords(&truth);
     let at_truth = prob.inner(&truth, &mut q, &mut IkWorkspace::new(model));
     let clock = Instant::now();
-    let cal = calibrate(
-        model,
-        &nominal,
-        &[&trial],
-        &free,
-        settings,
-        &mut NoObserver,
-    )
-    .expect("calibration");
+    let cal = calibrate(model, &nominal, &[&trial], &free, settings, &mut NoObserver)
+        .expect("calibration");
     let ms = clock.elapsed().as_secs_f64() * 1e3;
     let excess = cal.cost_after / at_truth - 1.0;
     *worst = worst.max(excess);
