@@ -18,7 +18,7 @@ use source::RustFile;
 /// `measures.rs`) and dates of work, in any text file of the repository. Goal: 0.
 const PROCESS_WORDS: usize = 0;
 /// Functions whose body spans more than 100 lines, under `crates/`. Goal: at most 10.
-const LONG_FUNCTIONS: usize = 76;
+const LONG_FUNCTIONS: usize = 47;
 /// Public items of the core library (methods and re-exported names included). Goal: at most 250.
 const CORE_PUBLIC_ITEMS: usize = 890;
 /// Modules of `jointfit-io` that run fits, IK or calibration. Goal: 0 (the io crate reads
