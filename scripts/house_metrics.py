@@ -68,6 +68,8 @@ def text_files(top):
     for here, dirs, files in os.walk(os.path.join(ROOT, top)):
         dirs[:] = [d for d in dirs if d not in SKIPPED_DIRS]
         for name in files:
+            if name.endswith(".log"):
+                continue  # run logs (OpenSim writes one where it runs), not source
             path = os.path.join(here, name)
             try:
                 with open(path, encoding="utf-8") as f:

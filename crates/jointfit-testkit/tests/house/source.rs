@@ -23,8 +23,8 @@ pub fn root() -> PathBuf {
 }
 
 /// Every text file below `dir` (relative to `root`, `/`-separated, sorted), without build
-/// output, virtual environments and caches; a file with a NUL byte or that is not UTF-8 is
-/// not text.
+/// output, virtual environments, caches and run logs; a file with a NUL byte or that is not
+/// UTF-8 is not text.
 pub fn text_files(root: &Path, dir: &str) -> Vec<(String, String)> {
     let mut out = Vec::new();
     walk(root, &root.join(dir), &mut out);
@@ -43,6 +43,8 @@ fn walk(root: &Path, dir: &Path, out: &mut Vec<(String, String)>) {
             if !SKIPPED_DIRS.contains(&name.as_str()) {
                 walk(root, &path, out);
             }
+        } else if name.ends_with(".log") {
+            // Run logs (OpenSim writes one where it runs), not source.
         } else if let Ok(text) = fs::read_to_string(&path) {
             if !text.contains('\0') {
                 let rel = path.strip_prefix(root).unwrap_or(&path);
