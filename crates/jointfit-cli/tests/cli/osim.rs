@@ -351,12 +351,12 @@ fn best_ik(run: &dyn Fn(&[&str]) -> String, files: [&Path; 4], repeat: usize) ->
         let start = Instant::now();
         let out = run(&[
             "ik",
-            s(&subject),
-            s(&walk),
+            s(subject),
+            s(walk),
             "-o",
-            s(&mot),
+            s(mot),
             "--errors",
-            s(&errors),
+            s(errors),
             // OpenSim's IK keeps every marker; so does this run.
             "--keep-outliers",
             "--json",

@@ -119,7 +119,7 @@ fn seeded_swap_and_gap_are_found_and_repaired() {
 /// `walk` with the samples of markers `a` and `b` exchanged from file frame `from` on,
 /// written to `out`.
 fn write_swapped(walk: &Path, out: &Path, a: &str, b: &str, from: i64) {
-    let text = std::fs::read_to_string(&walk).unwrap();
+    let text = std::fs::read_to_string(walk).unwrap();
     let labels: Vec<&str> = text.lines().nth(3).unwrap().split('\t').collect();
     let col = |name: &str| labels.iter().position(|l| l.trim() == name).unwrap();
     let (ca, cb) = (col(a), col(b));
