@@ -490,15 +490,7 @@ fn read_renamed(
     up: jointfit::trial::UpAxis,
     renames: &[(&str, &str)],
 ) -> Trial {
-    let mut t = if path.extension().is_some_and(|e| e == "c3d") {
-        jointfit_io::c3d::read_c3d(path)
-            .unwrap()
-            .to_trial()
-            .unwrap()
-    } else {
-        jointfit_io::trc::read_trc(path).unwrap()
-    };
-    t.rotate(&jointfit::trial::up_axis_rotation(up));
+    let mut t = super::personalize::read(path, up);
     if !renames.is_empty() {
         let labels = t
             .labels()

@@ -17,7 +17,8 @@ use nalgebra::Vector3;
 
 use super::jointfit;
 
-fn read(path: &Path, up: UpAxis) -> Trial {
+/// A TRC or C3D trial turned so that `up` becomes y.
+pub(super) fn read(path: &Path, up: UpAxis) -> Trial {
     let mut t = if path.extension().is_some_and(|e| e == "c3d") {
         jointfit_io::c3d::read_c3d(path)
             .unwrap()
