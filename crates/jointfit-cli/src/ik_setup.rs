@@ -29,68 +29,18 @@ use crate::ik_cmd::{angles_table, errors_csv, print_summary, summarize, IkArgs};
 pub fn run(args: IkArgs) -> Result<()> {
     let setup_path = args.setup.clone().expect("--setup given");
     let setup = read_ik_setup(&setup_path)?;
-    let model_path = match (&args.model, setup.model_path()) {
-        (Some(m), _) => m.clone(),
-        (None, Some(p)) => {
-            if !p.exists() {
-                bail!(
-                    "{}: model_file {:?} not found (looked in the working directory and in {}); \
-                     give the model as the first argument",
-                    setup_path.display(),
-                    setup.model_file.as_deref().unwrap_or(""),
-                    setup.dir().display()
-                );
-            }
-            p.display().to_string()
-        }
-        (None, None) => bail!(
-            "{}: no model_file; give the model as the first argument",
-            setup_path.display()
-        ),
-    };
-    let trial_path = match (&args.trial, setup.marker_path()) {
-        (Some(t), _) => t.clone(),
-        (None, Some(p)) => {
-            if !p.exists() {
-                bail!(
-                    "{}: marker_file {:?} not found ({}); give the trial as the second argument",
-                    setup_path.display(),
-                    setup.marker_file.as_deref().unwrap_or(""),
-                    p.display()
-                );
-            }
-            p
-        }
-        (None, None) => bail!(
-            "{}: no marker_file; give the trial as the second argument",
-            setup_path.display()
-        ),
-    };
-    let output = match (&args.output, setup.output_path()) {
-        (Some(o), _) => o.clone(),
-        (None, Some(p)) => p,
-        (None, None) => bail!(
-            "{}: no output_motion_file; give one with -o",
-            setup_path.display()
-        ),
-    };
+    let (model_path, trial_path, output) = input_paths(&args, &setup, &setup_path)?;
     let errors_sto = if setup.report_errors {
         errors_file(&setup, &setup_path)?
     } else {
         None
     };
-    let mut files = crate::output::Files::new()
-        .model("model", &model_path)
-        .input("setup", &setup_path)
-        .input("trial", &trial_path)
-        .output("output", &output);
-    if let Some(e) = &args.errors {
-        files = files.output("--errors", e);
-    }
-    if let Some(e) = &errors_sto {
-        files = files.output("results_directory", e);
-    }
-    files.check()?;
+    let outputs = [
+        ("output", Some(output.as_path())),
+        ("--errors", args.errors.as_deref()),
+        ("results_directory", errors_sto.as_deref()),
+    ];
+    check_files(&model_path, &setup_path, &trial_path, &outputs)?;
     let given = jointfit_io::model_file::load_model(&model_path)?;
     let model = weighted_model(&given, &setup.tasks, &setup_path)?;
     let loaded = load_for_model(
@@ -138,16 +88,7 @@ pub fn run(args: IkArgs) -> Result<()> {
         })
         .collect();
     crate::common::warn_absent_markers(&trial_path, &tracked_absent);
-    let opts = IkOptions {
-        // OpenSim leaves a coordinate no goal depends on where it was.
-        hold_undetermined: true,
-        outlier_distance: if args.reject_outliers {
-            IkOptions::default().outlier_distance
-        } else {
-            f64::INFINITY
-        },
-        ..IkOptions::default()
-    };
+    let opts = ik_options(args.reject_outliers);
     let p = model.nominal_params();
     let start = Instant::now();
     let fit = solve_trial(&model, &p, &trial, &map, &opts)
@@ -159,16 +100,14 @@ pub fn run(args: IkArgs) -> Result<()> {
             trial_path.display()
         );
     }
-    write_sto(&output, &angles_table(&model, &trial, &fit))
-        .with_context(|| format!("writing {}", output.display()))?;
-    if let Some(path) = &errors_sto {
-        write_sto(path, &marker_errors_table(&model, &trial, &fit))
-            .with_context(|| format!("writing {}", path.display()))?;
-    }
-    if let Some(path) = &args.errors {
-        jointfit_io::atomic::write_atomic(path, errors_csv(&model, &trial, &fit).as_bytes())
-            .with_context(|| format!("writing {}", path.display()))?;
-    }
+    write_results(
+        &model,
+        &trial,
+        &fit,
+        &output,
+        errors_sto.as_deref(),
+        args.errors.as_deref(),
+    )?;
     let mut summary = summarize(&model, &trial, &fit, seconds);
     if !(summary.mean_frame_rms_mm.is_finite() && summary.max_frame_rms_mm.is_finite()) {
         bail!(
@@ -184,6 +123,116 @@ pub fn run(args: IkArgs) -> Result<()> {
         }
     }
     print_summary(&summary, args.json, seconds, &output)
+}
+
+/// The inputs exist and the outputs (those given) can be written.
+fn check_files(
+    model: &str,
+    setup: &Path,
+    trial: &Path,
+    outputs: &[(&str, Option<&Path>)],
+) -> Result<()> {
+    let mut files = crate::output::Files::new()
+        .model("model", model)
+        .input("setup", setup)
+        .input("trial", trial);
+    for (what, path) in outputs {
+        if let Some(path) = path {
+            files = files.output(what, path);
+        }
+    }
+    files.check()
+}
+
+/// OpenSim's inverse kinematics: a coordinate no goal depends on stays where it was;
+/// outlying markers are rejected only when asked.
+fn ik_options(reject_outliers: bool) -> IkOptions {
+    IkOptions {
+        hold_undetermined: true,
+        outlier_distance: if reject_outliers {
+            IkOptions::default().outlier_distance
+        } else {
+            f64::INFINITY
+        },
+        ..IkOptions::default()
+    }
+}
+
+/// The model, the trial and the output: from the command line, else from the setup file
+/// (whose named files must exist).
+fn input_paths(
+    args: &IkArgs,
+    setup: &IkSetup,
+    setup_path: &Path,
+) -> Result<(String, PathBuf, PathBuf)> {
+    let model_path = match (&args.model, setup.model_path()) {
+        (Some(m), _) => m.clone(),
+        (None, Some(p)) => {
+            if !p.exists() {
+                bail!(
+                    "{}: model_file {:?} not found (looked in the working directory and in {}); \
+                     give the model as the first argument",
+                    setup_path.display(),
+                    setup.model_file.as_deref().unwrap_or(""),
+                    setup.dir().display()
+                );
+            }
+            p.display().to_string()
+        }
+        (None, None) => bail!(
+            "{}: no model_file; give the model as the first argument",
+            setup_path.display()
+        ),
+    };
+    let trial_path = match (&args.trial, setup.marker_path()) {
+        (Some(t), _) => t.clone(),
+        (None, Some(p)) => {
+            if !p.exists() {
+                bail!(
+                    "{}: marker_file {:?} not found ({}); give the trial as the second argument",
+                    setup_path.display(),
+                    setup.marker_file.as_deref().unwrap_or(""),
+                    p.display()
+                );
+            }
+            p
+        }
+        (None, None) => bail!(
+            "{}: no marker_file; give the trial as the second argument",
+            setup_path.display()
+        ),
+    };
+    let output = match (&args.output, setup.output_path()) {
+        (Some(o), _) => o.clone(),
+        (None, Some(p)) => p,
+        (None, None) => bail!(
+            "{}: no output_motion_file; give one with -o",
+            setup_path.display()
+        ),
+    };
+    Ok((model_path, trial_path, output))
+}
+
+/// The coordinates (`output`), OpenSim's marker errors file and the `--errors` table.
+fn write_results(
+    model: &Model,
+    trial: &Trial,
+    fit: &TrialFit,
+    output: &Path,
+    errors_sto: Option<&Path>,
+    errors_csv_path: Option<&Path>,
+) -> Result<()> {
+    write_sto(output, &angles_table(model, trial, fit))
+        .with_context(|| format!("writing {}", output.display()))?;
+    if let Some(path) = errors_sto {
+        write_sto(path, &marker_errors_table(model, trial, fit))
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    if let Some(path) = errors_csv_path {
+        jointfit_io::atomic::write_atomic(path, errors_csv(model, trial, fit).as_bytes())
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
 }
 
 /// Where OpenSim writes the marker errors: `<name>_ik_marker_errors.sto` in the results

@@ -12,8 +12,9 @@ use jointfit::landmarks::{
     PersonalizeOptions, PersonalizedModel, Sides, KEYPOINT_PRESET_NAMES, PRESET_NAMES,
 };
 use jointfit::model::lower_limb::Side;
+use jointfit::trial::Trial;
 
-use crate::personalize_summary::{BothSummary, HjcComparison, Summary};
+use crate::personalize_summary::{BothSummary, HjcComparison, LabCentres, Summary};
 
 use crate::common::{load_trial, Up};
 
@@ -185,8 +186,64 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
     let Some(static_trial) = args.static_file.take().or(args.static_trial.take()) else {
         bail!("personalize: no static trial (give it as STATIC or --static FILE)");
     };
+    check_files(&args, &static_trial)?;
+    // Recorded in the model as `lab_up`; said in the error context if personalize fails.
+    let (up, _) = crate::common::up_or_detected(&static_trial, args.up)?;
+    let trial = load_trial(&static_trial, up, None)?;
+    let scale: Vec<_> = jointfit::checks::check_scale(&trial).into_iter().collect();
+    crate::common::report_findings(&scale, &static_trial)?;
+    let chosen = choose_set(&args.markers, &trial, &static_trial)?;
+    let static_name = static_trial.display().to_string();
+    let mut model = personalize(&args, &trial, &chosen, up, &static_trial)?;
+    let spec = model.spec_mut();
+    spec.description = format!("{}; from {static_name}", spec.description);
+    spec.lab_up = Some(up.into());
+
+    let compare = compare_hjc(&args.compare_hjc, &trial, &model, &static_name)?;
+    // Joint centres in the file's own lab frame, and against the stored ones asked for.
+    let centres = crate::personalize_subject::centres_lab(&model, up);
+    let jc_compare = match &args.compare_jc {
+        Some(spec) => crate::personalize_subject::compare_jc(&model, &trial, up, spec)
+            .with_context(|| format!("{static_name}: --compare-jc"))?,
+        None => Vec::new(),
+    };
+
+    refuse_implausible(&static_name, &model, args.accept_rejected)?;
+    jointfit_io::atomic::write_atomic(&args.output, model.spec().to_toml().as_bytes())
+        .with_context(|| format!("{}: cannot write", args.output.display()))?;
+    let set_name = match &chosen {
+        ChosenSet::Markers(s) => s.name.clone(),
+        ChosenSet::Keypoints(k) => k.name.clone(),
+    };
+    let mut legs: Vec<Summary> = model
+        .legs()
+        .into_iter()
+        .zip(compare)
+        .map(|((side, r), c)| Summary::of(r, &set_name, side, &static_name, &args.output, c))
+        .collect();
+    let centres = LabCentres::new(centres, jc_compare);
+    let (json, text) = match &model {
+        PersonalizedModel::Both(b) => {
+            let s = BothSummary::of(b, &static_name, &args.output, legs, centres);
+            (serde_json::to_string_pretty(&s)?, s.render())
+        }
+        PersonalizedModel::One(..) => {
+            let s = legs.remove(0).with_centres(centres);
+            (serde_json::to_string_pretty(&s)?, s.render())
+        }
+    };
+    if args.json {
+        println!("{json}");
+    } else {
+        print!("{text}");
+    }
+    Ok(())
+}
+
+/// The input and output files exist and can be read or written.
+fn check_files(args: &PersonalizeArgs, static_trial: &Path) -> Result<()> {
     let mut files = crate::output::Files::new()
-        .input("static trial", &static_trial)
+        .input("static trial", static_trial)
         .model("marker set", &args.markers);
     for (what, trial) in [
         ("--functional-hip trial", &args.functional_hip),
@@ -196,35 +253,37 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
             files = files.input(what, t);
         }
     }
-    files.output("output", &args.output).check()?;
-    // Recorded in the model as `lab_up`; said in the error context if personalize fails.
-    let (up, _) = crate::common::up_or_detected(&static_trial, args.up)?;
-    let trial = load_trial(&static_trial, up, None)?;
-    let scale: Vec<_> = jointfit::checks::check_scale(&trial).into_iter().collect();
-    crate::common::report_findings(&scale, &static_trial)?;
-    let chosen = if args.markers == "auto" {
-        let choice = jointfit::landmarks::auto::choose(&trial, "auto")
+    files.output("output", &args.output).check()
+}
+
+/// The marker set `--markers` names: `auto` (chosen from the static trial's labels, the
+/// reason said on stderr), a keypoint preset, or a marker-set file or preset.
+fn choose_set(markers: &str, trial: &Trial, static_trial: &Path) -> Result<ChosenSet> {
+    if markers == "auto" {
+        let choice = jointfit::landmarks::auto::choose(trial, "auto")
             .with_context(|| format!("{}: --markers auto", static_trial.display()))?;
         eprintln!("jointfit: {}: {}", static_trial.display(), choice.reason);
         for note in &choice.notes {
             eprintln!("jointfit: note: {note}");
         }
-        choice.set
-    } else if KEYPOINT_PRESET_NAMES.contains(&args.markers.as_str()) {
-        ChosenSet::Keypoints(Box::new(KeypointSet::preset(&args.markers)?))
+        Ok(choice.set)
+    } else if KEYPOINT_PRESET_NAMES.contains(&markers) {
+        Ok(ChosenSet::Keypoints(Box::new(KeypointSet::preset(
+            markers,
+        )?)))
     } else {
-        ChosenSet::Markers(Box::new(load_marker_set(&args.markers)?))
-    };
-    let set_name = match &chosen {
-        ChosenSet::Markers(s) => s.name.clone(),
-        ChosenSet::Keypoints(k) => k.name.clone(),
-    };
-    let subject = crate::personalize_subject::measurements(&static_trial, &args.subject)?;
-    let sides = match args.side {
-        SideArg::Both => Sides::Both,
-        SideArg::Right => Sides::One(Side::Right),
-        SideArg::Left => Sides::One(Side::Left),
-    };
+        Ok(ChosenSet::Markers(Box::new(load_marker_set(markers)?)))
+    }
+}
+
+/// The personalization options of the command line, the static trial and the chosen set.
+fn options(
+    args: &PersonalizeArgs,
+    trial: &Trial,
+    chosen: &ChosenSet,
+    static_trial: &Path,
+) -> Result<PersonalizeOptions> {
+    let subject = crate::personalize_subject::measurements(static_trial, &args.subject)?;
     let name = args.name.clone().unwrap_or_else(|| {
         args.output
             .file_stem()
@@ -235,7 +294,7 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
         Some(HipArg::Harrington) => HipCentreMethod::Harrington,
         Some(HipArg::Davis) => HipCentreMethod::Davis,
         // Plug-in Gait's hip where the trial needs its chord function (no medial markers).
-        None if matches!(&chosen, ChosenSet::Markers(set)
+        None if matches!(chosen, ChosenSet::Markers(set)
             if set.resolve(trial.labels()).uses_chord())
             && subject.mean_leg_length().is_some() =>
         {
@@ -243,14 +302,31 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
         }
         None => HipCentreMethod::Bell,
     };
-    let opts = PersonalizeOptions {
+    Ok(PersonalizeOptions {
         hip_centre,
         window_seconds: args.window,
         name,
         subject,
         ..PersonalizeOptions::default()
-    };
+    })
+}
+
+/// The personalized model of the static trial (and the functional trials), errors said with
+/// the reading options and a hint of what to give instead; a warning goes to stderr.
+fn personalize(
+    args: &PersonalizeArgs,
+    trial: &Trial,
+    chosen: &ChosenSet,
+    up: Up,
+    static_trial: &Path,
+) -> Result<PersonalizedModel> {
     let static_name = static_trial.display().to_string();
+    let opts = options(args, trial, chosen, static_trial)?;
+    let sides = match args.side {
+        SideArg::Both => Sides::Both,
+        SideArg::Right => Sides::One(Side::Right),
+        SideArg::Left => Sides::One(Side::Left),
+    };
     let load = |p: &Option<PathBuf>| p.as_ref().map(|p| load_trial(p, up, None)).transpose();
     let (hip_trial, knee_trial) = (load(&args.functional_hip)?, load(&args.functional_knee)?);
     let func = FunctionalTrials {
@@ -258,8 +334,8 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
         knee: knee_trial.as_ref(),
         ..FunctionalTrials::default()
     };
-    let outcome = match &chosen {
-        ChosenSet::Markers(set) => personalize_sides(&trial, set, sides, &opts, &func),
+    let outcome = match chosen {
+        ChosenSet::Markers(set) => personalize_sides(trial, set, sides, &opts, &func),
         ChosenSet::Keypoints(k) => {
             if func.hip.is_some() || func.knee.is_some() {
                 bail!(
@@ -267,7 +343,7 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
                     k.name
                 );
             }
-            personalize_keypoints(&trial, k, sides, &opts)
+            personalize_keypoints(trial, k, sides, &opts)
         }
     };
     // A static trial without the set's labels: name the presets that fit them instead.
@@ -303,14 +379,19 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
     if let Some(w) = &outcome.warning {
         eprintln!("warning: {static_name}: {w}");
     }
-    let mut model = outcome.model;
-    let spec = model.spec_mut();
-    spec.description = format!("{}; from {static_name}", spec.description);
-    spec.lab_up = Some(up.into());
+    Ok(outcome.model)
+}
 
-    // Each --compare-hjc label against the hip centre of the leg nearest to it.
+/// Each `--compare-hjc` label against the hip centre of the leg nearest to it (pelvis
+/// frame, mm), per leg of `model`.
+fn compare_hjc(
+    labels: &[String],
+    trial: &Trial,
+    model: &PersonalizedModel,
+    static_name: &str,
+) -> Result<Vec<Vec<HjcComparison>>> {
     let mut compare: Vec<Vec<HjcComparison>> = model.legs().iter().map(|_| Vec::new()).collect();
-    for label in &args.compare_hjc {
+    for label in labels {
         let c = trial
             .index_of(label)
             .with_context(|| format!("{static_name}: --compare-hjc"))?;
@@ -339,40 +420,5 @@ pub fn run(mut args: PersonalizeArgs) -> Result<()> {
             compare[k].push(row);
         }
     }
-
-    // Joint centres in the file's own lab frame, and against the stored ones asked for.
-    let centres = crate::personalize_subject::centres_lab(&model, up);
-    let jc_compare = match &args.compare_jc {
-        Some(spec) => crate::personalize_subject::compare_jc(&model, &trial, up, spec)
-            .with_context(|| format!("{static_name}: --compare-jc"))?,
-        None => Vec::new(),
-    };
-
-    refuse_implausible(&static_name, &model, args.accept_rejected)?;
-    jointfit_io::atomic::write_atomic(&args.output, model.spec().to_toml().as_bytes())
-        .with_context(|| format!("{}: cannot write", args.output.display()))?;
-    let mut legs: Vec<Summary> = model
-        .legs()
-        .into_iter()
-        .zip(compare)
-        .map(|((side, r), c)| Summary::of(r, &set_name, side, &static_name, &args.output, c))
-        .collect();
-    let (json, text) = match &model {
-        PersonalizedModel::Both(b) => {
-            let mut s = BothSummary::of(b, &static_name, &args.output, legs);
-            s.set_joint_centres(centres, jc_compare);
-            (serde_json::to_string_pretty(&s)?, s.render())
-        }
-        PersonalizedModel::One(..) => {
-            let mut s = legs.remove(0);
-            s.set_joint_centres(centres, jc_compare);
-            (serde_json::to_string_pretty(&s)?, s.render())
-        }
-    };
-    if args.json {
-        println!("{json}");
-    } else {
-        print!("{text}");
-    }
-    Ok(())
+    Ok(compare)
 }

@@ -28,6 +28,37 @@ struct SegmentRow {
     max_mm: f64,
 }
 
+/// Hip, knee and ankle centres (`hip_r`, …) in the file's own lab frame (mm), averaged over
+/// the static window, and the stored joint centres asked for against them: the closing part of
+/// a one-leg or a both-legs summary.
+#[derive(Serialize, Default)]
+pub(crate) struct LabCentres {
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    joint_centres_lab_mm: BTreeMap<String, [f64; 3]>,
+    /// `--compare-jc`: stored joint centres against ours.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    joint_centre_comparison: Vec<JcComparison>,
+}
+
+impl LabCentres {
+    pub(crate) fn new(centres: BTreeMap<String, [f64; 3]>, compare: Vec<JcComparison>) -> Self {
+        LabCentres {
+            joint_centres_lab_mm: centres,
+            joint_centre_comparison: compare,
+        }
+    }
+
+    /// The closing lines of a summary: the joint-centre comparisons, then `reproduced` and
+    /// where the model of `parameters` parameters was written.
+    fn closing(&self, reproduced: &str, parameters: usize, output: &str) -> String {
+        let mut out = crate::personalize_subject::render(&self.joint_centre_comparison);
+        out +=
+            &format!("{reproduced}; all {parameters} parameters: jointfit model show {output}\n");
+        out += &format!("wrote {output}\n");
+        out
+    }
+}
+
 /// Everything printed, in mm and degrees.
 #[derive(Serialize)]
 pub(crate) struct Summary {
@@ -59,13 +90,9 @@ pub(crate) struct Summary {
     functional: Option<FunctionalSummary>,
     /// Prior SD per parameter (mm or deg), in the model's order.
     prior_sd: Vec<(String, f64)>,
-    /// Hip, knee and ankle centres (`hip_r`, …) in the file's own lab frame (mm), averaged
-    /// over the static window (top level only).
-    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
-    joint_centres_lab_mm: BTreeMap<String, [f64; 3]>,
-    /// `--compare-jc`: stored joint centres against ours.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    joint_centre_comparison: Vec<JcComparison>,
+    /// Joint centres in the lab frame (top level only).
+    #[serde(flatten)]
+    centres: LabCentres,
 }
 
 /// Functional methods' results (mm, deg), in the static trial's frame.
@@ -171,19 +198,13 @@ impl Summary {
                         .map(|sd| (p.name.clone(), sd * p.unit.display_scale()))
                 })
                 .collect(),
-            joint_centres_lab_mm: BTreeMap::new(),
-            joint_centre_comparison: Vec::new(),
+            centres: LabCentres::default(),
         }
     }
 
-    /// Sets the lab-frame joint centres and their comparisons (a one-leg summary's top level).
-    pub(crate) fn set_joint_centres(
-        &mut self,
-        centres: BTreeMap<String, [f64; 3]>,
-        compare: Vec<JcComparison>,
-    ) {
-        self.joint_centres_lab_mm = centres;
-        self.joint_centre_comparison = compare;
+    /// The summary with the lab-frame joint centres (a one-leg summary's top level).
+    pub(crate) fn with_centres(self, centres: LabCentres) -> Summary {
+        Summary { centres, ..self }
     }
 
     fn param(&self, name: &str) -> f64 {
@@ -194,19 +215,29 @@ impl Summary {
     }
 
     pub(crate) fn render(&self) -> String {
-        let mut out = self.render_leg();
-        out += &crate::personalize_subject::render(&self.joint_centre_comparison);
-        out += &format!(
-            "static pose reproduced to {:.1e} mm; all 27 parameters: jointfit model show {}\n",
-            self.static_fk_error_mm, self.output
+        let reproduced = format!(
+            "static pose reproduced to {:.1e} mm",
+            self.static_fk_error_mm
         );
-        out += &format!("wrote {}\n", self.output);
-        out
+        self.render_leg()
+            + &self
+                .centres
+                .closing(&reproduced, self.parameters.len(), &self.output)
     }
 
     /// Everything but the closing lines (one leg of a bilateral model too).
     pub(crate) fn render_leg(&self) -> String {
-        let p = |n: &str| self.param(n);
+        let mut out = self.render_window_and_sizes();
+        out += &self.render_axes();
+        out += &self.render_residuals();
+        if let Some(f) = &self.functional {
+            out += &f.render();
+        }
+        out
+    }
+
+    /// The leg, the static window and the segment sizes.
+    fn render_window_and_sizes(&self) -> String {
         let mut out = format!(
             "personalized {} leg from {} (marker set {})\n",
             self.side, self.static_trial, self.marker_set
@@ -230,7 +261,13 @@ impl Summary {
             self.thigh_length_mm,
             self.shank_length_mm
         );
-        out += &format!(
+        out
+    }
+
+    /// The personalized joint centres and axes.
+    fn render_axes(&self) -> String {
+        let p = |n: &str| self.param(n);
+        let mut out = format!(
             "hip centre ({}) in pelvis: anterior {:.1}, superior {:.1}, lateral {:.1} mm\n",
             self.hip_method,
             p("hip_pelvis_anterior"),
@@ -261,12 +298,17 @@ impl Summary {
             p("subtalar_foot_superior"),
             p("subtalar_foot_lateral")
         );
+        out
+    }
+
+    /// The rigid-fit residual per segment and the other hip-centre estimates.
+    fn render_residuals(&self) -> String {
         let seg: Vec<String> = self
             .segments
             .iter()
             .map(|s| format!("{} {:.2}/{:.2}", s.segment, s.rms_mm, s.max_mm))
             .collect();
-        out += &format!(
+        let mut out = format!(
             "rigid-fit residual over the window (RMS/max mm): {}\n",
             seg.join(", ")
         );
@@ -277,35 +319,43 @@ impl Summary {
                 c.marker, c.distance_mm, c.delta_mm[0], c.delta_mm[1], c.delta_mm[2]
             );
         }
-        if let Some(f) = &self.functional {
-            if let (Some(d), Some(s), Some(sd)) =
-                (f.hip_minus_landmark_mm, f.hip_shift_mm, f.hip_sd_mm)
-            {
-                out += &format!(
-                    "functional hip centre (SCoRE): {s:.1} mm from the regression (anterior \
-                     {:+.1}, superior {:+.1}, lateral {:+.1} mm); bootstrap SD {:.1}/{:.1}/{:.1} \
-                     mm; centre gap RMS {:.1} mm over {:.0} deg of motion\n",
-                    d[0],
-                    d[1],
-                    d[2],
-                    sd[0],
-                    sd[1],
-                    sd[2],
-                    f.hip_rms_gap_mm.unwrap_or(f64::NAN),
-                    f.hip_range_deg.unwrap_or(f64::NAN)
-                );
-            }
-            if let Some(a) = f.knee_axis_angle_deg {
-                out += &format!(
-                    "functional knee axis (SARA): {a:.1} deg from the epicondylar axis \
-                     (bootstrap {:.1} deg), point {:.1} mm from mid-epicondyles; gap RMS {:.1} \
-                     mm over {:.0} deg of motion\n",
-                    f.knee_axis_sd_deg.unwrap_or(f64::NAN),
-                    f.knee_point_shift_mm.unwrap_or(f64::NAN),
-                    f.knee_rms_gap_mm.unwrap_or(f64::NAN),
-                    f.knee_range_deg.unwrap_or(f64::NAN)
-                );
-            }
+        out
+    }
+}
+
+impl FunctionalSummary {
+    /// The functional hip centre and knee axis against the landmark estimates.
+    fn render(&self) -> String {
+        let mut out = String::new();
+        if let (Some(d), Some(s), Some(sd)) = (
+            self.hip_minus_landmark_mm,
+            self.hip_shift_mm,
+            self.hip_sd_mm,
+        ) {
+            out += &format!(
+                "functional hip centre (SCoRE): {s:.1} mm from the regression (anterior \
+                 {:+.1}, superior {:+.1}, lateral {:+.1} mm); bootstrap SD {:.1}/{:.1}/{:.1} \
+                 mm; centre gap RMS {:.1} mm over {:.0} deg of motion\n",
+                d[0],
+                d[1],
+                d[2],
+                sd[0],
+                sd[1],
+                sd[2],
+                self.hip_rms_gap_mm.unwrap_or(f64::NAN),
+                self.hip_range_deg.unwrap_or(f64::NAN)
+            );
+        }
+        if let Some(a) = self.knee_axis_angle_deg {
+            out += &format!(
+                "functional knee axis (SARA): {a:.1} deg from the epicondylar axis \
+                 (bootstrap {:.1} deg), point {:.1} mm from mid-epicondyles; gap RMS {:.1} \
+                 mm over {:.0} deg of motion\n",
+                self.knee_axis_sd_deg.unwrap_or(f64::NAN),
+                self.knee_point_shift_mm.unwrap_or(f64::NAN),
+                self.knee_rms_gap_mm.unwrap_or(f64::NAN),
+                self.knee_range_deg.unwrap_or(f64::NAN)
+            );
         }
         out
     }
@@ -351,16 +401,19 @@ pub(crate) struct BothSummary {
     static_pose: Vec<(String, f64)>,
     /// Each leg's one-sided summary (its parameters unsuffixed), right first.
     legs: Vec<Summary>,
-    /// Hip, knee and ankle centres of both legs (`hip_r`, …, `ankle_l`) in the file's own
-    /// lab frame (mm), averaged over the static window.
-    joint_centres_lab_mm: BTreeMap<String, [f64; 3]>,
-    /// `--compare-jc`: stored joint centres against ours.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    joint_centre_comparison: Vec<JcComparison>,
+    /// Joint centres of both legs (`hip_r`, …, `ankle_l`) in the lab frame.
+    #[serde(flatten)]
+    centres: LabCentres,
 }
 
 impl BothSummary {
-    pub(crate) fn of(b: &BothLegs, static_trial: &str, output: &Path, legs: Vec<Summary>) -> Self {
+    pub(crate) fn of(
+        b: &BothLegs,
+        static_trial: &str,
+        output: &Path,
+        legs: Vec<Summary>,
+        centres: LabCentres,
+    ) -> Self {
         BothSummary {
             static_trial: static_trial.into(),
             output: output.display().to_string(),
@@ -370,19 +423,8 @@ impl BothSummary {
             parameters: parameters(&b.spec),
             static_pose: static_pose(&b.spec, &b.static_q),
             legs,
-            joint_centres_lab_mm: BTreeMap::new(),
-            joint_centre_comparison: Vec::new(),
+            centres,
         }
-    }
-
-    /// Sets the lab-frame joint centres and their comparisons.
-    pub(crate) fn set_joint_centres(
-        &mut self,
-        centres: BTreeMap<String, [f64; 3]>,
-        compare: Vec<JcComparison>,
-    ) {
-        self.joint_centres_lab_mm = centres;
-        self.joint_centre_comparison = compare;
     }
 
     pub(crate) fn render(&self) -> String {
@@ -394,7 +436,6 @@ impl BothSummary {
             out += &format!("-- {} leg --\n", leg.side);
             out += &leg.render_leg();
         }
-        out += &crate::personalize_subject::render(&self.joint_centre_comparison);
         let fk = self
             .legs
             .iter()
@@ -409,13 +450,9 @@ impl BothSummary {
                 self.pelvis_gap_mm
             )
         };
-        out += &format!(
-            "{pelvis}; static poses reproduced to {fk:.1e} mm; all {} parameters: jointfit \
-             model show {}\n",
-            self.parameters.len(),
-            self.output
-        );
-        out += &format!("wrote {}\n", self.output);
-        out
+        let reproduced = format!("{pelvis}; static poses reproduced to {fk:.1e} mm");
+        out + &self
+            .centres
+            .closing(&reproduced, self.parameters.len(), &self.output)
     }
 }

@@ -7,6 +7,7 @@
 //! SUBJECT OUT.trc` should recover the truth file's nominal values. Motions and noise are
 //! documented in `jointfit_experiments::synth`.
 
+use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
@@ -123,35 +124,7 @@ pub fn run(args: SynthArgs) -> Result<()> {
             args.model
         );
     }
-    let check = |ok: bool, what: &str, v: f64| -> Result<()> {
-        if ok {
-            Ok(())
-        } else {
-            bail!("{what} must be finite and positive (got {v})")
-        }
-    };
-    check(
-        args.rate.is_finite() && args.rate > 0.0,
-        "--rate",
-        args.rate,
-    )?;
-    check(
-        args.amplitude.is_finite() && args.amplitude >= 0.0,
-        "--amplitude",
-        args.amplitude,
-    )?;
-    for (w, v) in [
-        ("--skin-mm", args.skin_mm),
-        ("--skin-omega", args.skin_omega),
-        ("--white-mm", args.white_mm),
-        ("--perturb-mm", args.perturb_mm),
-        ("--perturb-deg", args.perturb_deg),
-    ] {
-        check(v.is_finite() && v >= 0.0, w, v)?;
-    }
-    if args.frames == 0 {
-        bail!("--frames must be at least 1");
-    }
+    check_numbers(&args)?;
     let all: Vec<usize> = (0..model.n_p()).collect();
     let truth = if args.perturb_mm > 0.0 || args.perturb_deg > 0.0 {
         perturb(
@@ -165,56 +138,8 @@ pub fn run(args: SynthArgs) -> Result<()> {
     } else {
         model.nominal_params()
     };
-    let (coords, rate, dropped) = match args.motion.strip_prefix("gait:") {
-        Some(path) => {
-            let path = PathBuf::from(path);
-            let up = match (args.up, spec.lab_up) {
-                (Some(u), _) => u,
-                (None, Some(u)) => Up::from(u),
-                (None, None) => Up::Y,
-            };
-            let trial = load_trial(&path, up, args.filter)?;
-            let (coords, dropped) = gait_coordinates(&model, &model.nominal_params(), &trial)
-                .with_context(|| format!("{}: inverse kinematics", path.display()))?;
-            if coords.is_empty() {
-                bail!(
-                    "{}: no frame could be solved by inverse kinematics",
-                    path.display()
-                );
-            }
-            (coords, trial.rate(), dropped)
-        }
-        None => {
-            let motion: Motion = args
-                .motion
-                .parse()
-                .map_err(|e| anyhow::anyhow!("--motion: {e}, or gait:<TRIAL>"))?;
-            let coords = coordinates_scaled(&model, motion, args.frames, args.amplitude)
-                .with_context(|| format!("{}: motion {}", args.model, args.motion))?;
-            (coords, args.rate, Vec::new())
-        }
-    };
-    let skin = SkinNoise {
-        max_amplitude: args.skin_mm * 1e-3,
-        max_omega: args.skin_omega,
-        seed: args.seed,
-    };
-    let white = WhiteNoise {
-        sigma: args.white_mm * 1e-3,
-        seed: args.seed,
-    };
-    let noise = match args.noise {
-        NoiseKind::None => Noise::none(),
-        NoiseKind::Skin => Noise {
-            skin: Some(skin),
-            white: None,
-        },
-        NoiseKind::White => Noise {
-            skin: None,
-            white: Some(white),
-        },
-        NoiseKind::SkinWhite => Noise::skin_and_white(skin, white),
-    };
+    let (coords, rate, dropped) = coordinates(&args, spec.lab_up.map(Up::from), &model)?;
+    let noise = noise(&args);
     let (trial, stats) = synthesize(&model, &truth, &coords, rate, &noise);
     let opts = TrcWriteOptions {
         units: TrcUnits::Millimetres,
@@ -253,32 +178,133 @@ pub fn run(args: SynthArgs) -> Result<()> {
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
-        println!(
-            "synthetic {} motion: {} frames at {} Hz, {} markers of {}",
-            summary.motion, summary.frames, summary.rate_hz, summary.markers, summary.model
-        );
-        if !summary.dropped_gait_frames.is_empty() {
-            println!(
-                "dropped {} gait frames that IK could not solve",
-                summary.dropped_gait_frames.len()
-            );
-        }
-        let a = summary.noise_rms_axis_mm;
-        println!(
-            "noise {} (seed {}): RMS x {:.3}, y {:.3}, z {:.3} mm; 3-D RMS {:.3} mm; max {:.3} mm",
-            summary.noise,
-            args.seed,
-            a[0],
-            a[1],
-            a[2],
-            summary.noise_rms_3d_mm,
-            summary.noise_max_axis_mm
-        );
-        println!(
-            "true parameters: nominal moved by up to {} mm / {} deg",
-            args.perturb_mm, args.perturb_deg
-        );
-        println!("wrote {} and {}", summary.output, summary.truth);
+        print!("{}", summary.render());
     }
     Ok(())
+}
+
+/// The numeric options are finite and in range.
+fn check_numbers(args: &SynthArgs) -> Result<()> {
+    let check = |ok: bool, what: &str, v: f64| -> Result<()> {
+        if ok {
+            Ok(())
+        } else {
+            bail!("{what} must be finite and positive (got {v})")
+        }
+    };
+    check(
+        args.rate.is_finite() && args.rate > 0.0,
+        "--rate",
+        args.rate,
+    )?;
+    check(
+        args.amplitude.is_finite() && args.amplitude >= 0.0,
+        "--amplitude",
+        args.amplitude,
+    )?;
+    for (w, v) in [
+        ("--skin-mm", args.skin_mm),
+        ("--skin-omega", args.skin_omega),
+        ("--white-mm", args.white_mm),
+        ("--perturb-mm", args.perturb_mm),
+        ("--perturb-deg", args.perturb_deg),
+    ] {
+        check(v.is_finite() && v >= 0.0, w, v)?;
+    }
+    if args.frames == 0 {
+        bail!("--frames must be at least 1");
+    }
+    Ok(())
+}
+
+/// The coordinates to synthesize, their rate and the gait frames dropped: inverse
+/// kinematics of a gait trial (`gait:<TRIAL>`, read with `--up`, else the model's lab up,
+/// else y), or a built-in motion.
+fn coordinates(
+    args: &SynthArgs,
+    lab_up: Option<Up>,
+    model: &jointfit::model::Model,
+) -> Result<(Vec<Vec<f64>>, f64, Vec<usize>)> {
+    Ok(match args.motion.strip_prefix("gait:") {
+        Some(path) => {
+            let path = PathBuf::from(path);
+            let up = args.up.or(lab_up).unwrap_or(Up::Y);
+            let trial = load_trial(&path, up, args.filter)?;
+            let (coords, dropped) = gait_coordinates(model, &model.nominal_params(), &trial)
+                .with_context(|| format!("{}: inverse kinematics", path.display()))?;
+            if coords.is_empty() {
+                bail!(
+                    "{}: no frame could be solved by inverse kinematics",
+                    path.display()
+                );
+            }
+            (coords, trial.rate(), dropped)
+        }
+        None => {
+            let motion: Motion = args
+                .motion
+                .parse()
+                .map_err(|e| anyhow::anyhow!("--motion: {e}, or gait:<TRIAL>"))?;
+            let coords = coordinates_scaled(model, motion, args.frames, args.amplitude)
+                .with_context(|| format!("{}: motion {}", args.model, args.motion))?;
+            (coords, args.rate, Vec::new())
+        }
+    })
+}
+
+/// The marker noise `--noise` asks for.
+fn noise(args: &SynthArgs) -> Noise {
+    let skin = SkinNoise {
+        max_amplitude: args.skin_mm * 1e-3,
+        max_omega: args.skin_omega,
+        seed: args.seed,
+    };
+    let white = WhiteNoise {
+        sigma: args.white_mm * 1e-3,
+        seed: args.seed,
+    };
+    match args.noise {
+        NoiseKind::None => Noise::none(),
+        NoiseKind::Skin => Noise {
+            skin: Some(skin),
+            white: None,
+        },
+        NoiseKind::White => Noise {
+            skin: None,
+            white: Some(white),
+        },
+        NoiseKind::SkinWhite => Noise::skin_and_white(skin, white),
+    }
+}
+
+impl Summary {
+    /// The text `synth` prints.
+    fn render(&self) -> String {
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "synthetic {} motion: {} frames at {} Hz, {} markers of {}",
+            self.motion, self.frames, self.rate_hz, self.markers, self.model
+        );
+        if !self.dropped_gait_frames.is_empty() {
+            let _ = writeln!(
+                out,
+                "dropped {} gait frames that IK could not solve",
+                self.dropped_gait_frames.len()
+            );
+        }
+        let a = self.noise_rms_axis_mm;
+        let _ = writeln!(
+            out,
+            "noise {} (seed {}): RMS x {:.3}, y {:.3}, z {:.3} mm; 3-D RMS {:.3} mm; max {:.3} mm",
+            self.noise, self.seed, a[0], a[1], a[2], self.noise_rms_3d_mm, self.noise_max_axis_mm
+        );
+        let _ = writeln!(
+            out,
+            "true parameters: nominal moved by up to {} mm / {} deg",
+            self.perturb_mm, self.perturb_deg
+        );
+        let _ = writeln!(out, "wrote {} and {}", self.output, self.truth);
+        out
+    }
 }

@@ -19,10 +19,33 @@ use jointfit::calibrate::{params_for_groups, Problem};
 use jointfit::ik::IkWorkspace;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
-use jointfit::workflow::{calibrate, perturb, FitSettings, NoObserver};
+use jointfit::workflow::{calibrate, perturb, Calibration, FitSettings, NoObserver};
 use jointfit_experiments::synth::{coordinates_scaled, synthesize, Motion, Noise, SkinNoise};
 
 fn main() {
+    let (settings, motions, seeds) = options();
+    let model = Model::compile(&lower_limb(Side::Right)).expect("built-in model compiles");
+    println!(
+        "{:<6} {:>5} {:>14} {:>14} {:>9} {:>8} {:>7} {:>8}",
+        "motion", "seed", "fit (mm²)", "truth (mm²)", "excess", "starts", "warn", "ms"
+    );
+    let mut worst: f64 = f64::NEG_INFINITY;
+    for &motion in &motions {
+        for &seed in &seeds {
+            let cal = fit_case(&model, &settings, motion, seed, &mut worst);
+            if std::env::var("TRACE").is_ok() {
+                trace(&cal);
+            }
+        }
+    }
+    println!(
+        "worst excess over the objective at the truth: {:.2} %",
+        100.0 * worst
+    );
+}
+
+/// The fit settings, motions and seeds of the command line (and `PROBE_FRAMES`).
+fn options() -> (FitSettings, Vec<Motion>, Vec<u64>) {
     let mut starts = None;
     let mut probes = None;
     let mut probe_iterations = None;
@@ -55,10 +78,6 @@ fn main() {
             }
         }
     }
-    let model = Model::compile(&lower_limb(Side::Right)).expect("built-in model compiles");
-    let free = params_for_groups(&model, &["all"]).expect("all");
-    let all: Vec<usize> = (0..model.n_p()).collect();
-    let nominal = model.nominal_params();
     let mut settings = FitSettings::default();
     if let Some(s) = starts {
         settings.starts = s;
@@ -72,75 +91,76 @@ fn main() {
     if let Some(n) = probe_iterations {
         settings.probe_iterations = n;
     }
+    (settings, motions, seeds)
+}
+
+/// One case: the synthetic trial of `motion` and `seed`, the default fit from the nominal
+/// model, and a row comparing its objective with the objective at the truth (the largest
+/// relative excess so far in `worst`).
+fn fit_case(
+    model: &Model,
+    settings: &FitSettings,
+    motion: Motion,
+    seed: u64,
+    worst: &mut f64,
+) -> Calibration {
+    let free = params_for_groups(model, &["all"]).expect("all");
+    let all: Vec<usize> = (0..model.n_p()).collect();
+    let nominal = model.nominal_params();
+    let truth = perturb(model, &nominal, &all, 30.0, 15.0, seed);
+    let coords = coordinates_scaled(model, motion, 50, 1.0).expect("motion");
+    let noise = Noise {
+        skin: Some(SkinNoise {
+            seed,
+            ..SkinNoise::default()
+        }),
+        white: None,
+    };
+    let (trial, _) = synthesize(model, &truth, &coords, 10.0, &noise);
+    let prob = Problem::new(model, nominal.clone(), &free, &[&trial]).expect("problem");
+    let mut q = prob.initial_coords(&truth);
+    let at_truth = prob.inner(&truth, &mut q, &mut IkWorkspace::new(model));
+    let clock = Instant::now();
+    let cal = calibrate(model, &nominal, &[&trial], &free, settings, &mut NoObserver)
+        .expect("calibration");
+    let ms = clock.elapsed().as_secs_f64() * 1e3;
+    let excess = cal.cost_after / at_truth - 1.0;
+    *worst = worst.max(excess);
     println!(
-        "{:<6} {:>5} {:>14} {:>14} {:>9} {:>8} {:>7} {:>8}",
-        "motion", "seed", "fit (mm²)", "truth (mm²)", "excess", "starts", "warn", "ms"
+        "{:<6} {:>5} {:>14.3} {:>14.3} {:>8.2}% {:>8} {:>7} {:>8.1}",
+        format!("{motion:?}").to_lowercase(),
+        seed,
+        cal.cost_after * 1e6,
+        at_truth * 1e6,
+        100.0 * excess,
+        cal.start_runs.len(),
+        cal.global_warning.is_some(),
+        ms
     );
-    let mut worst: f64 = f64::NEG_INFINITY;
-    for &motion in &motions {
-        for &seed in &seeds {
-            let truth = perturb(&model, &nominal, &all, 30.0, 15.0, seed);
-            let coords = coordinates_scaled(&model, motion, 50, 1.0).expect("motion");
-            let noise = Noise {
-                skin: Some(SkinNoise {
-                    seed,
-                    ..SkinNoise::default()
-                }),
-                white: None,
-            };
-            let (trial, _) = synthesize(&model, &truth, &coords, 10.0, &noise);
-            let prob = Problem::new(&model, nominal.clone(), &free, &[&trial]).expect("problem");
-            let mut q = prob.initial_coords(&truth);
-            let at_truth = prob.inner(&truth, &mut q, &mut IkWorkspace::new(&model));
-            let clock = Instant::now();
-            let cal = calibrate(
-                &model,
-                &nominal,
-                &[&trial],
-                &free,
-                &settings,
-                &mut NoObserver,
-            )
-            .expect("calibration");
-            let ms = clock.elapsed().as_secs_f64() * 1e3;
-            let excess = cal.cost_after / at_truth - 1.0;
-            worst = worst.max(excess);
+    cal
+}
+
+/// With `TRACE` set: the global phase's probes, or each start's convergence.
+fn trace(cal: &Calibration) {
+    if let Some(g) = &cal.global {
+        println!(
+            "   probes {:?}\n   finished {:?} {:?}",
+            g.probe_objective_mm2
+                .iter()
+                .map(|c| c.round())
+                .collect::<Vec<_>>(),
+            g.finished,
+            g.finished_objective_mm2
+        );
+    }
+    if cal.global.is_none() {
+        for r in &cal.start_runs {
+            let h = &r.convergence[0].objective_mm2;
+            let at = |i: usize| h.get(i).or(h.last()).copied().unwrap_or(f64::NAN);
             println!(
-                "{:<6} {:>5} {:>14.3} {:>14.3} {:>8.2}% {:>8} {:>7} {:>8.1}",
-                format!("{motion:?}").to_lowercase(),
-                seed,
-                cal.cost_after * 1e6,
-                at_truth * 1e6,
-                100.0 * excess,
-                cal.start_runs.len(),
-                cal.global_warning.is_some(),
-                ms
+                "   start {:>2}: it {:>3} final {:>10.1}  @2 {:>10.1} @4 {:>10.1} @6 {:>10.1} @10 {:>10.1}",
+                r.start, r.iterations, r.objective_mm2, at(2), at(4), at(6), at(10)
             );
-            if let (Some(g), true) = (&cal.global, std::env::var("TRACE").is_ok()) {
-                println!(
-                    "   probes {:?}\n   finished {:?} {:?}",
-                    g.probe_objective_mm2
-                        .iter()
-                        .map(|c| c.round())
-                        .collect::<Vec<_>>(),
-                    g.finished,
-                    g.finished_objective_mm2
-                );
-            }
-            if std::env::var("TRACE").is_ok() && cal.global.is_none() {
-                for r in &cal.start_runs {
-                    let h = &r.convergence[0].objective_mm2;
-                    let at = |i: usize| h.get(i).or(h.last()).copied().unwrap_or(f64::NAN);
-                    println!(
-                        "   start {:>2}: it {:>3} final {:>10.1}  @2 {:>10.1} @4 {:>10.1} @6 {:>10.1} @10 {:>10.1}",
-                        r.start, r.iterations, r.objective_mm2, at(2), at(4), at(6), at(10)
-                    );
-                }
-            }
         }
     }
-    println!(
-        "worst excess over the objective at the truth: {:.2} %",
-        100.0 * worst
-    );
 }

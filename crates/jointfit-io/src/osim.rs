@@ -76,7 +76,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use jointfit::model::spec::JointSpec;
-use jointfit::model::{JointKind, Model};
+use jointfit::model::{Coordinate, JointKind, Model};
 use nalgebra::Vector3;
 use thiserror::Error;
 
@@ -168,6 +168,92 @@ pub fn to_osim(model: &Model, p: &[f64]) -> Result<String, OsimError> {
     x.push_str("    <force_units>N</force_units>\n");
     x.push_str("    <gravity>0 -9.80665 0</gravity>\n");
 
+    body_set(&mut x, model);
+    x.push_str("    <JointSet name=\"jointset\">\n      <objects>\n");
+    for ji in 0..model.joints().len() {
+        joint_xml(&mut x, model, p, ji)?;
+    }
+    x.push_str("      </objects>\n    </JointSet>\n");
+    marker_set(&mut x, model);
+    x.push_str("  </Model>\n</OpenSimDocument>\n");
+    Ok(x)
+}
+
+/// One joint of `model` (`ji`) as an OpenSim `CustomJoint` (or `WeldJoint`) with its
+/// coordinates, offset frames and spatial transform.
+fn joint_xml(x: &mut String, model: &Model, p: &[f64], ji: usize) -> Result<(), OsimError> {
+    let joint = &model.joints()[ji];
+    let spec = joint_spec(model, ji);
+    let parent = match joint.parent {
+        Some(s) => model.segments()[s.0].name.as_str(),
+        None => "ground",
+    };
+    let child = model.segments()[joint.child.0].name.as_str();
+    let parent_offset = eval_offset(model, p, &spec.parent_offset, &joint.name)?;
+    let child_offset = eval_offset(model, p, &spec.child_offset, &joint.name)?;
+    let tag = match joint.kind {
+        JointKind::Weld => "WeldJoint",
+        _ => "CustomJoint",
+    };
+    let _ = writeln!(x, "        <{tag} name=\"{}\">", escape(&joint.name));
+    let _ = writeln!(
+        x,
+        "          <socket_parent_frame>{}_offset</socket_parent_frame>",
+        escape(parent)
+    );
+    let _ = writeln!(
+        x,
+        "          <socket_child_frame>{}_offset</socket_child_frame>",
+        escape(child)
+    );
+    let coords = &model.coordinates()[joint.first_coord..joint.first_coord + joint.kind.dof()];
+    coordinates_xml(x, coords);
+    x.push_str("          <frames>\n");
+    offset_frame(x, parent, &parent_offset);
+    offset_frame(x, child, &child_offset);
+    x.push_str("          </frames>\n");
+    if !matches!(joint.kind, JointKind::Weld) {
+        let names: Vec<&str> = coords.iter().map(|c| c.name.as_str()).collect();
+        let axes = spatial_axes(&joint.kind, &names, &joint.name)?;
+        x.push_str("          <SpatialTransform>\n");
+        for (k, (axis, coord)) in axes.iter().enumerate() {
+            transform_axis(x, k, axis, *coord);
+        }
+        x.push_str("          </SpatialTransform>\n");
+    }
+    let _ = writeln!(x, "        </{tag}>");
+    Ok(())
+}
+
+/// The `<coordinates>` of a joint (none for a joint without coordinates).
+fn coordinates_xml(x: &mut String, coords: &[Coordinate]) {
+    if !coords.is_empty() {
+        x.push_str("          <coordinates>\n");
+        for c in coords {
+            let _ = writeln!(x, "            <Coordinate name=\"{}\">", escape(&c.name));
+            let _ = writeln!(
+                x,
+                "              <default_value>{}</default_value>",
+                num(c.default)
+            );
+            x.push_str("              <default_speed_value>0</default_speed_value>\n");
+            let _ = writeln!(
+                x,
+                "              <range>{} {}</range>",
+                num(c.range[0]),
+                num(c.range[1])
+            );
+            x.push_str("              <clamped>false</clamped>\n");
+            x.push_str("              <locked>false</locked>\n");
+            x.push_str("              <prescribed>false</prescribed>\n");
+            x.push_str("            </Coordinate>\n");
+        }
+        x.push_str("          </coordinates>\n");
+    }
+}
+
+/// The `<BodySet>`: each segment with placeholder mass and inertia.
+fn body_set(x: &mut String, model: &Model) {
     x.push_str("    <BodySet name=\"bodyset\">\n      <objects>\n");
     for seg in model.segments() {
         let _ = writeln!(x, "        <Body name=\"{}\">", escape(&seg.name));
@@ -178,73 +264,10 @@ pub fn to_osim(model: &Model, p: &[f64]) -> Result<String, OsimError> {
         x.push_str("        </Body>\n");
     }
     x.push_str("      </objects>\n    </BodySet>\n");
+}
 
-    x.push_str("    <JointSet name=\"jointset\">\n      <objects>\n");
-    for (ji, joint) in model.joints().iter().enumerate() {
-        let spec = joint_spec(model, ji);
-        let parent = match joint.parent {
-            Some(s) => model.segments()[s.0].name.as_str(),
-            None => "ground",
-        };
-        let child = model.segments()[joint.child.0].name.as_str();
-        let parent_offset = eval_offset(model, p, &spec.parent_offset, &joint.name)?;
-        let child_offset = eval_offset(model, p, &spec.child_offset, &joint.name)?;
-        let tag = match joint.kind {
-            JointKind::Weld => "WeldJoint",
-            _ => "CustomJoint",
-        };
-        let _ = writeln!(x, "        <{tag} name=\"{}\">", escape(&joint.name));
-        let _ = writeln!(
-            x,
-            "          <socket_parent_frame>{}_offset</socket_parent_frame>",
-            escape(parent)
-        );
-        let _ = writeln!(
-            x,
-            "          <socket_child_frame>{}_offset</socket_child_frame>",
-            escape(child)
-        );
-        let coords = &model.coordinates()[joint.first_coord..joint.first_coord + joint.kind.dof()];
-        if !coords.is_empty() {
-            x.push_str("          <coordinates>\n");
-            for c in coords {
-                let _ = writeln!(x, "            <Coordinate name=\"{}\">", escape(&c.name));
-                let _ = writeln!(
-                    x,
-                    "              <default_value>{}</default_value>",
-                    num(c.default)
-                );
-                x.push_str("              <default_speed_value>0</default_speed_value>\n");
-                let _ = writeln!(
-                    x,
-                    "              <range>{} {}</range>",
-                    num(c.range[0]),
-                    num(c.range[1])
-                );
-                x.push_str("              <clamped>false</clamped>\n");
-                x.push_str("              <locked>false</locked>\n");
-                x.push_str("              <prescribed>false</prescribed>\n");
-                x.push_str("            </Coordinate>\n");
-            }
-            x.push_str("          </coordinates>\n");
-        }
-        x.push_str("          <frames>\n");
-        offset_frame(&mut x, parent, &parent_offset);
-        offset_frame(&mut x, child, &child_offset);
-        x.push_str("          </frames>\n");
-        if !matches!(joint.kind, JointKind::Weld) {
-            let names: Vec<&str> = coords.iter().map(|c| c.name.as_str()).collect();
-            let axes = spatial_axes(&joint.kind, &names, &joint.name)?;
-            x.push_str("          <SpatialTransform>\n");
-            for (k, (axis, coord)) in axes.iter().enumerate() {
-                transform_axis(&mut x, k, axis, *coord);
-            }
-            x.push_str("          </SpatialTransform>\n");
-        }
-        let _ = writeln!(x, "        </{tag}>");
-    }
-    x.push_str("      </objects>\n    </JointSet>\n");
-
+/// The `<MarkerSet>`: each marker fixed in its segment.
+fn marker_set(x: &mut String, model: &Model) {
     x.push_str("    <MarkerSet name=\"markerset\">\n      <objects>\n");
     for m in model.markers() {
         let _ = writeln!(x, "        <Marker name=\"{}\">", escape(&m.name));
@@ -258,8 +281,6 @@ pub fn to_osim(model: &Model, p: &[f64]) -> Result<String, OsimError> {
         x.push_str("        </Marker>\n");
     }
     x.push_str("      </objects>\n    </MarkerSet>\n");
-    x.push_str("  </Model>\n</OpenSimDocument>\n");
-    Ok(x)
 }
 
 /// Writes [`to_osim`] to `path` atomically (temporary file + rename).

@@ -179,26 +179,14 @@ fn cells(line: &str) -> Vec<&str> {
     v
 }
 
-fn parse(text: &str) -> Result<Table, StoErrorKind> {
-    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    if text.trim().is_empty() {
-        return Err(StoErrorKind::Empty);
-    }
-    let lines = numbered_lines(text);
-    let end = lines
-        .iter()
-        .position(|(_, l)| l.trim().eq_ignore_ascii_case("endheader"))
-        .ok_or(StoErrorKind::NoEndHeader)?;
-
-    let mut table = Table {
-        name: String::new(),
-        columns: Vec::new(),
-        rows: Vec::new(),
-        in_degrees: false,
-        extra_header: Vec::new(),
-    };
+/// The header lines before `endheader`: the table's name, `inDegrees` and extra lines into
+/// `table`; the row and column counts it declares.
+fn parse_header(
+    header: &[(usize, &str)],
+    table: &mut Table,
+) -> Result<(Option<usize>, Option<usize>), StoErrorKind> {
     let (mut n_rows, mut n_cols) = (None, None);
-    for (i, &(line_no, raw)) in lines[..end].iter().enumerate() {
+    for (i, &(line_no, raw)) in header.iter().enumerate() {
         let line = raw.trim_end();
         let count = |key: &str, v: &str| {
             v.trim()
@@ -241,6 +229,28 @@ fn parse(text: &str) -> Result<Table, StoErrorKind> {
             _ => table.extra_header.push(line.to_string()),
         }
     }
+    Ok((n_rows, n_cols))
+}
+
+fn parse(text: &str) -> Result<Table, StoErrorKind> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    if text.trim().is_empty() {
+        return Err(StoErrorKind::Empty);
+    }
+    let lines = numbered_lines(text);
+    let end = lines
+        .iter()
+        .position(|(_, l)| l.trim().eq_ignore_ascii_case("endheader"))
+        .ok_or(StoErrorKind::NoEndHeader)?;
+
+    let mut table = Table {
+        name: String::new(),
+        columns: Vec::new(),
+        rows: Vec::new(),
+        in_degrees: false,
+        extra_header: Vec::new(),
+    };
+    let (n_rows, n_cols) = parse_header(&lines[..end], &mut table)?;
 
     let mut body = lines[end + 1..]
         .iter()

@@ -7,11 +7,13 @@
 //! * [`scratch`]: temporary directories that are removed when the test ends, passed or failed.
 //! * [`models`]: small sample models covering every joint kind (like Pinocchio's
 //!   `buildModels`), next to the built-in legs of [`jointfit::model::lower_limb`].
+//! * [`osim_text`]: which lines a personalized `.osim` write-back changed.
 //! * [`synth`]: the one synthetic-trial generator: markers of a model along a motion, with
 //!   known truth and seeded noise.
 
 pub mod env;
 pub mod models;
+pub mod osim_text;
 pub mod scratch;
 pub mod script;
 pub mod synth;

@@ -143,51 +143,29 @@ impl Files {
     /// (unless allowed) or with each other, or lie in a directory that does not exist.
     pub fn check(self) -> Result<()> {
         for o in &self.outputs {
-            // A writer killed during its commit into this directory: completed or undone
-            // first, so this command starts from whole files (`jointfit_io::staging`).
-            if let Some(dir) = o.path.parent() {
-                let dir = if dir.as_os_str().is_empty() {
-                    Path::new(".")
-                } else {
-                    dir
-                };
-                for done in jointfit_io::staging::recover(dir) {
-                    super::stderr_fmt(format_args!(
-                        "jointfit: note: {}: completed the commit of a run that was killed \
-                         while writing it\n",
-                        done.display()
-                    ));
-                }
-            }
-            let shown = o.path.display();
-            if o.path.file_name().is_none() {
-                bail!("{shown}: {} does not name a file", o.what);
-            }
-            if o.path.is_dir() {
-                bail!("{shown}: {} is a directory, not a file", o.what);
-            }
-            // A read-only file is one its owner protected: never silently replaced.
-            if let Ok(md) = fs::metadata(&o.path) {
-                if md.permissions().readonly() {
-                    bail!(
-                        "{shown}: {} exists and is read-only; refusing to replace it (make it \
-                         writable or choose another name)",
-                        o.what
-                    );
-                }
-            }
-            // Refused before any work: a long fit must not end on this error.
-            if let (true, Some(dir)) = (o.creates_dir, o.path.parent()) {
-                if dir.exists() && !dir.is_dir() {
-                    bail!(
-                        "{}: {} exists and is not a directory ({} is written into it)",
-                        dir.display(),
-                        o.what,
-                        o.path.file_name().unwrap_or_default().to_string_lossy()
-                    );
-                }
+            o.check_output()?;
+        }
+        self.check_clashes()?;
+        for o in &self.outputs {
+            let dir = match o.path.parent() {
+                Some(d) if !d.as_os_str().is_empty() => d,
+                _ => Path::new("."),
+            };
+            if !o.creates_dir && !dir.is_dir() {
+                bail!(
+                    "{}: {} cannot be written: directory {} does not exist",
+                    o.path.display(),
+                    o.what,
+                    dir.display()
+                );
             }
         }
+        Ok(())
+    }
+
+    /// No output is an input (but the model, in place with `--force`), and no two outputs
+    /// are one file.
+    fn check_clashes(&self) -> Result<()> {
         let ins: Vec<(&Entry, Identity)> = self
             .inputs
             .iter()
@@ -236,113 +214,60 @@ impl Files {
                 );
             }
         }
-        for o in &self.outputs {
-            let dir = match o.path.parent() {
-                Some(d) if !d.as_os_str().is_empty() => d,
-                _ => Path::new("."),
-            };
-            if !o.creates_dir && !dir.is_dir() {
-                bail!(
-                    "{}: {} cannot be written: directory {} does not exist",
-                    o.path.display(),
-                    o.what,
-                    dir.display()
-                );
-            }
-        }
         Ok(())
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn identity_sees_through_spellings_and_links() {
-        let dir = jointfit_testkit::scratch("ident");
-        fs::create_dir_all(dir.join("sub")).unwrap();
-        let a = dir.join("a.trc");
-        fs::write(&a, b"x").unwrap();
-        let spelled = dir.join("sub/../a.trc");
-        assert_eq!(identity(&a), identity(&spelled));
-        #[cfg(unix)]
-        {
-            let link = dir.join("link.trc");
-            let _ = fs::remove_file(&link);
-            std::os::unix::fs::symlink(&a, &link).unwrap();
-            assert_eq!(identity(&a), identity(&link));
-            let hard = dir.join("hard.trc");
-            let _ = fs::remove_file(&hard);
-            fs::hard_link(&a, &hard).unwrap();
-            assert_eq!(identity(&a), identity(&hard));
+impl Entry {
+    /// One output on its own: an interrupted commit into its directory finished first; a
+    /// file name that is not a directory nor read-only; a directory the command creates that
+    /// is not a file.
+    fn check_output(&self) -> Result<()> {
+        let o = self;
+        // A writer killed during its commit into this directory: completed or undone
+        // first, so this command starts from whole files (`jointfit_io::staging`).
+        if let Some(dir) = o.path.parent() {
+            let dir = if dir.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                dir
+            };
+            for done in jointfit_io::staging::recover(dir) {
+                super::stderr_fmt(format_args!(
+                    "jointfit: note: {}: completed the commit of a run that was killed \
+                     while writing it\n",
+                    done.display()
+                ));
+            }
         }
-        let new1 = dir.join("new.trc");
-        let new2 = dir.join("sub/./../new.trc");
-        assert_eq!(identity(&new1), identity(&new2));
-        assert_ne!(identity(&new1), identity(&a));
-        let err = Files::new()
-            .input("trial", &a)
-            .output("output", &spelled)
-            .check()
-            .unwrap_err()
-            .to_string();
-        assert!(err.contains("refusing to overwrite an input"), "{err}");
-        assert!(Files::new()
-            .output("output", &new1)
-            .output("--truth", &new2)
-            .check()
-            .is_err());
-        assert!(Files::new()
-            .input("model", &a)
-            .output_in_place("output", &a, true)
-            .check()
-            .is_ok());
-    }
-
-    /// `--force` lets an in-place output replace the model it names, never a trial or any
-    /// other input, whatever the spelling.
-    #[test]
-    fn force_replaces_only_the_model() {
-        let dir = jointfit_testkit::scratch("force");
-        let (model, trial) = (dir.join("m.toml"), dir.join("t.trc"));
-        fs::write(&model, b"m").unwrap();
-        fs::write(&trial, b"t").unwrap();
-        let err = Files::new()
-            .input("model", &model)
-            .input("trial", &trial)
-            .output_in_place("output", dir.join("./t.trc"), true)
-            .check()
-            .unwrap_err()
-            .to_string();
-        assert!(err.contains("same file as trial"), "{err}");
-        assert!(!err.contains("--force"), "{err}");
-        let err = Files::new()
-            .input("model", &model)
-            .output_in_place("output", &model, false)
-            .check()
-            .unwrap_err()
-            .to_string();
-        assert!(err.contains("add --force"), "{err}");
-        let _ = fs::remove_dir_all(&dir);
-    }
-
-    #[cfg(unix)]
-    #[test]
-    fn read_only_outputs_are_refused() {
-        use std::os::unix::fs::PermissionsExt;
-        let dir = jointfit_testkit::scratch("readonly");
-        let out = dir.join("out.mot");
-        fs::write(&out, b"keep").unwrap();
-        fs::set_permissions(&out, fs::Permissions::from_mode(0o444)).unwrap();
-        let err = Files::new()
-            .output("output", &out)
-            .check()
-            .unwrap_err()
-            .to_string();
-        assert!(err.contains("read-only"), "{err}");
-        fs::set_permissions(&out, fs::Permissions::from_mode(0o600)).unwrap();
-        assert!(Files::new().output("output", &out).check().is_ok());
-        let _ = fs::remove_dir_all(&dir);
+        let shown = o.path.display();
+        if o.path.file_name().is_none() {
+            bail!("{shown}: {} does not name a file", o.what);
+        }
+        if o.path.is_dir() {
+            bail!("{shown}: {} is a directory, not a file", o.what);
+        }
+        // A read-only file is one its owner protected: never silently replaced.
+        if let Ok(md) = fs::metadata(&o.path) {
+            if md.permissions().readonly() {
+                bail!(
+                    "{shown}: {} exists and is read-only; refusing to replace it (make it \
+                     writable or choose another name)",
+                    o.what
+                );
+            }
+        }
+        // Refused before any work: a long fit must not end on this error.
+        if let (true, Some(dir)) = (o.creates_dir, o.path.parent()) {
+            if dir.exists() && !dir.is_dir() {
+                bail!(
+                    "{}: {} exists and is not a directory ({} is written into it)",
+                    dir.display(),
+                    o.what,
+                    o.path.file_name().unwrap_or_default().to_string_lossy()
+                );
+            }
+        }
+        Ok(())
     }
 }

@@ -7,7 +7,7 @@ use jointfit::landmarks::bilateral::common_window;
 use jointfit::landmarks::functional::FunctionalTrials;
 use jointfit::landmarks::{
     personalize, personalize_in, personalize_sides, LandmarkError, MarkerSet, PersonalizeOptions,
-    PersonalizedModel, Sides,
+    Personalized, PersonalizedModel, Sides,
 };
 use jointfit::model::lower_limb::{Side, SIDE_SUFFIXES};
 use jointfit::model::Model;
@@ -98,25 +98,7 @@ fn both_legs_share_one_pelvis_and_match_the_one_sided_personalizations() {
             .map(|side| personalize(&trial, &set, side, &opts).unwrap())
             .into_iter()
             .collect();
-        let old_gap = own[0]
-            .spec
-            .markers
-            .iter()
-            .filter(|m| m.segment == "pelvis")
-            .map(|m| {
-                let x = nalgebra::Vector3::from(m.position);
-                let y = own[1]
-                    .spec
-                    .markers
-                    .iter()
-                    .find(|n| n.name == m.name)
-                    .unwrap();
-                let y = nalgebra::Vector3::from(y.position);
-                (own[0].frames.pelvis.transform_point(&x)
-                    - own[1].frames.pelvis.transform_point(&y))
-                .norm()
-            })
-            .fold(0.0, f64::max);
+        let old_gap = pelvis_marker_gap(&own[0], &own[1]);
         eprintln!(
             "{rel}: windows right {} left {} common {}; pelvis markers moved {:.3} mm between \
              the legs' own windows",
@@ -146,15 +128,7 @@ fn both_legs_share_one_pelvis_and_match_the_one_sided_personalizations() {
                 worst[k] = worst[k].max(d);
             }
             for (exact_or_own, tol, what) in [(&exact, 1e-12, "common"), (&own, sway, "own")] {
-                let m1 = Model::compile(&exact_or_own.spec).unwrap();
-                let mut k1 = KinData::new(&m1);
-                let p1 = m1.nominal_params();
-                forward_kinematics(&m1, &p1, &exact_or_own.static_q, Want::POSITIONS, &mut k1);
-                let mut far = 0.0f64;
-                for (m, x) in m1.markers().iter().zip(&k1.markers) {
-                    let j = model.marker_index(&m.name).unwrap();
-                    far = far.max((kin.markers[j] - x).norm());
-                }
+                let far = static_marker_distance(&model, &kin, exact_or_own);
                 eprintln!(
                     "{rel} {side:?}: markers at the static pose within {:.3} mm of the \
                      one-sided model over the {what} window; nominals within {:.3} mm / {:.4} \
@@ -389,7 +363,7 @@ type Case<'a> = (
 /// renamed (stated per case).
 #[test]
 fn every_preset_personalizes_both_legs_of_a_shared_trial() {
-    use jointfit::trial::{up_axis_rotation, UpAxis};
+    use jointfit::trial::UpAxis;
     let jam_as_rajagopal: &[(&str, &str)] = &[
         ("R.Mkn", "R.MKnee"),
         ("L.Mkn", "L.MKnee"),
@@ -457,28 +431,7 @@ fn every_preset_personalizes_both_legs_of_a_shared_trial() {
     let mut covered: Vec<&str> = Vec::new();
     for (rel, preset, up, renames) in cases {
         let Some(path) = data_file(rel) else { return };
-        let mut t = if rel.ends_with(".c3d") {
-            jointfit_io::c3d::read_c3d(&path)
-                .unwrap()
-                .to_trial()
-                .unwrap()
-        } else {
-            jointfit_io::trc::read_trc(&path).unwrap()
-        };
-        t.rotate(&up_axis_rotation(up));
-        if !renames.is_empty() {
-            let labels = t
-                .labels()
-                .iter()
-                .map(|l| {
-                    renames
-                        .iter()
-                        .find(|(from, _)| from == l)
-                        .map_or(l.clone(), |(_, to)| to.to_string())
-                })
-                .collect();
-            t = Trial::new(labels, t.rate(), t.first_frame(), t.positions().to_vec()).unwrap();
-        }
+        let t = read_renamed(&path, up, renames);
         let set = MarkerSet::preset(preset).unwrap();
         let model = both(&t, &set).unwrap_or_else(|e| panic!("{rel} {preset}: {e}"));
         let PersonalizedModel::Both(b) = model else {
@@ -498,4 +451,58 @@ fn every_preset_personalizes_both_legs_of_a_shared_trial() {
             "preset {name} has no shared-trial check"
         );
     }
+}
+
+/// The largest distance between the lab positions of a pelvis marker in two one-sided
+/// personalizations (each over its own static window).
+fn pelvis_marker_gap(a: &Personalized, b: &Personalized) -> f64 {
+    a.spec
+        .markers
+        .iter()
+        .filter(|m| m.segment == "pelvis")
+        .map(|m| {
+            let x = nalgebra::Vector3::from(m.position);
+            let y = b.spec.markers.iter().find(|n| n.name == m.name).unwrap();
+            let y = nalgebra::Vector3::from(y.position);
+            (a.frames.pelvis.transform_point(&x) - b.frames.pelvis.transform_point(&y)).norm()
+        })
+        .fold(0.0, f64::max)
+}
+
+/// The largest distance between a marker of `leg` at its static pose and the same marker of
+/// the bilateral `model` at its static pose (`kin`).
+fn static_marker_distance(model: &Model, kin: &KinData, leg: &Personalized) -> f64 {
+    let m1 = Model::compile(&leg.spec).unwrap();
+    let mut k1 = KinData::new(&m1);
+    let p1 = m1.nominal_params();
+    forward_kinematics(&m1, &p1, &leg.static_q, Want::POSITIONS, &mut k1);
+    let mut far = 0.0f64;
+    for (m, x) in m1.markers().iter().zip(&k1.markers) {
+        let j = model.marker_index(&m.name).unwrap();
+        far = far.max((kin.markers[j] - x).norm());
+    }
+    far
+}
+
+/// The trial at `path` turned to Y up, its labels renamed (`from`, `to`).
+fn read_renamed(
+    path: &std::path::Path,
+    up: jointfit::trial::UpAxis,
+    renames: &[(&str, &str)],
+) -> Trial {
+    let mut t = super::personalize::read(path, up);
+    if !renames.is_empty() {
+        let labels = t
+            .labels()
+            .iter()
+            .map(|l| {
+                renames
+                    .iter()
+                    .find(|(from, _)| from == l)
+                    .map_or(l.clone(), |(_, to)| to.to_string())
+            })
+            .collect();
+        t = Trial::new(labels, t.rate(), t.first_frame(), t.positions().to_vec()).unwrap();
+    }
+    t
 }

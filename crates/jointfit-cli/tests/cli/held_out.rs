@@ -76,28 +76,7 @@ fn held_out_walks_solve_the_determined_frames() {
             ]);
             assert!(ok, "{rel} {side}: {err}");
             let model = jointfit_io::model_file::load_model(&s(&subject)).unwrap();
-            // Determined frames (file frame numbers), from the presence of model markers.
-            let need = [("pelvis", 2), ("thigh", 2), ("shank", 1), ("foot", 2)];
-            let determined: HashSet<i64> = (0..trial.n_frames())
-                .filter(|&f| {
-                    need.iter().all(|&(seg, k)| {
-                        let present = model
-                            .markers()
-                            .iter()
-                            .filter(|m| model.segments()[m.segment.0].name == seg)
-                            .filter(|m| {
-                                trial
-                                    .index_of(&m.name)
-                                    .ok()
-                                    .and_then(|c| trial.get(f, c))
-                                    .is_some()
-                            })
-                            .count();
-                        present >= k
-                    })
-                })
-                .map(|f| trial.first_frame() + f as i64)
-                .collect();
+            let determined = determined_frames(&model, &trial);
             assert!(!determined.is_empty(), "{rel} {side}");
             let (ok, out, err) = jointfit(&[
                 "ik",
@@ -109,14 +88,7 @@ fn held_out_walks_solve_the_determined_frames() {
             ]);
             assert!(ok, "{rel} {side}: {err}");
             let json: serde_json::Value = serde_json::from_str(&out).unwrap();
-            let mut unsolved = HashSet::new();
-            for r in json["unsolved"].as_array().unwrap() {
-                let (a, b) = (
-                    r["first_frame"].as_i64().unwrap(),
-                    r["last_frame"].as_i64().unwrap(),
-                );
-                unsolved.extend(a..=b);
-            }
+            let unsolved = unsolved_frames(&json);
             let solved = determined.iter().filter(|f| !unsolved.contains(f)).count();
             let share = solved as f64 / determined.len() as f64;
             println!(
@@ -130,4 +102,46 @@ fn held_out_walks_solve_the_determined_frames() {
             assert!(share >= MIN_SHARE, "{rel} {side}: {share}");
         }
     }
+}
+
+/// The frames (file frame numbers) the model's markers determine: at least two pelvis, two
+/// thigh, one shank and two foot markers present.
+fn determined_frames(
+    model: &jointfit::model::Model,
+    trial: &jointfit::trial::Trial,
+) -> HashSet<i64> {
+    let need = [("pelvis", 2), ("thigh", 2), ("shank", 1), ("foot", 2)];
+    (0..trial.n_frames())
+        .filter(|&f| {
+            need.iter().all(|&(seg, k)| {
+                let present = model
+                    .markers()
+                    .iter()
+                    .filter(|m| model.segments()[m.segment.0].name == seg)
+                    .filter(|m| {
+                        trial
+                            .index_of(&m.name)
+                            .ok()
+                            .and_then(|c| trial.get(f, c))
+                            .is_some()
+                    })
+                    .count();
+                present >= k
+            })
+        })
+        .map(|f| trial.first_frame() + f as i64)
+        .collect()
+}
+
+/// The frames `ik --json` lists in its unsolved runs.
+fn unsolved_frames(json: &serde_json::Value) -> HashSet<i64> {
+    let mut unsolved = HashSet::new();
+    for r in json["unsolved"].as_array().unwrap() {
+        let (a, b) = (
+            r["first_frame"].as_i64().unwrap(),
+            r["last_frame"].as_i64().unwrap(),
+        );
+        unsolved.extend(a..=b);
+    }
+    unsolved
 }

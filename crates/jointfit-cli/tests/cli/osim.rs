@@ -261,64 +261,13 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
         assert!(ok, "jointfit {args:?}: {err}");
         out
     };
-    run(&[
-        "personalize",
-        "--static",
-        s(&stat),
-        "--markers",
-        "opencap",
-        "--side",
-        side,
-        "-o",
-        s(&subject),
-    ]);
+    // The subject model of the static trial, and its OpenSim export.
+    super::personalize_side(&stat, "opencap", side, &subject);
     run(&["export", "osim", s(&subject), "-o", s(&osim)]);
     // jointfit ik, best of `repeat` for the timing (the machine may be shared).
-    let mut ours: Option<Value> = None;
-    let mut wall = f64::INFINITY;
-    for _ in 0..repeat {
-        let start = Instant::now();
-        let out = run(&[
-            "ik",
-            s(&subject),
-            s(&walk),
-            "-o",
-            s(&mot),
-            "--errors",
-            s(&errors),
-            // OpenSim's IK keeps every marker; so does this run.
-            "--keep-outliers",
-            "--json",
-        ]);
-        wall = wall.min(start.elapsed().as_secs_f64());
-        let v: Value = serde_json::from_str(&out).unwrap();
-        if ours
-            .as_ref()
-            .is_none_or(|o| v["solve_seconds"].as_f64() < o["solve_seconds"].as_f64())
-        {
-            ours = Some(v);
-        }
-    }
-    let ours = ours.unwrap();
+    let (ours, wall) = best_ik(&run, [&subject, &walk, &mot, &errors], repeat);
     let model = jointfit_io::model_file::load_model(s(&subject)).unwrap();
-    let weights: serde_json::Map<String, Value> = model
-        .markers()
-        .iter()
-        .map(|m| (m.name.clone(), json!(m.weight)))
-        .collect();
-    let theirs = check(
-        &python,
-        "ik",
-        &json!({"model": osim, "trc": walk, "out_dir": dir.path(), "weights": weights,
-                "accuracy": 1e-8, "repeat": repeat}),
-        &dir,
-    );
-    let read_back = check(
-        &python,
-        "mot",
-        &json!({"model": osim, "mot": mot, "trc": walk}),
-        &dir,
-    );
+    let (theirs, read_back) = opensim(&python, &model, [&osim, &walk, &mot], &dir, repeat);
     let n = ours["frames"].as_u64().unwrap() as usize;
     assert_eq!(
         theirs["frames"].as_u64().unwrap() as usize,
@@ -327,109 +276,22 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
     );
     assert_eq!(ours["solved_frames"].as_u64().unwrap() as usize, n);
 
-    // (c) OpenSim reads the .mot jointfit wrote: labels, degrees, the same numbers through
-    // both of its readers, and its own kinematics at those angles reproduces the marker
-    // errors jointfit reported (so values and units survived the file).
-    // TimeSeriesTable holds time as its independent column, not as a label.
-    let labels: Vec<String> = model.coordinates().iter().map(|c| c.name.clone()).collect();
-    let got_labels: Vec<String> = read_back["labels"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|l| l.as_str().unwrap().to_string())
-        .collect();
-    assert_eq!(got_labels, labels);
-    assert_eq!(read_back["inDegrees"], "yes");
+    // (c) OpenSim reads the .mot jointfit wrote.
     let jf_q = osim_coords(&read_back, "q", &model);
-    let storage_q = osim_coords(&read_back, "storage_q", &model);
-    let table = jointfit_io::sto::read_sto(&mot).unwrap();
-    assert_eq!(jf_q.len(), n);
-    for f in 0..n {
-        for (k, c) in model.coordinates().iter().enumerate() {
-            let written = table.rows[f][k + 1];
-            let si = match c.kind {
-                CoordKind::Rotational => written.to_radians(),
-                CoordKind::Translational => written,
-            };
-            assert!((jf_q[f][k] - si).abs() <= 1e-12, "frame {f} {}", c.name);
-            assert!(
-                (storage_q[f][k] - si).abs() <= 1e-9,
-                "Storage: frame {f} {}",
-                c.name
-            );
-        }
-    }
     let jf_err = read_errors_csv(&errors, &model);
-    let mot_err = osim_errors_mm(&read_back, &model);
-    let mut mot_worst = 0.0f64;
-    for f in 0..n {
-        for j in 0..model.n_markers() {
-            let d = (jf_err[f][j] - mot_err[f][j]).abs();
-            mot_worst = mot_worst.max(d);
-            // The CSV holds 4 decimals of a millimetre.
-            assert!(
-                d <= 1e-3,
-                "frame {f} marker {}: {d} mm",
-                model.markers()[j].name
-            );
-        }
-    }
-
+    assert_eq!(jf_q.len(), n);
+    let mot_worst = mot_read_back(&model, &read_back, &mot, &jf_q, &jf_err);
     // (b) OpenSim's IK against ours, frame by frame.
     let os_q = osim_coords(&theirs, "q", &model);
     let os_err = osim_errors_mm(&theirs, &model);
-    let mut same = 0;
-    let (mut angle_worst, mut marker_worst) = (0.0f64, 0.0f64);
-    let mut other_minima = Vec::new();
-    let mut disagree = Vec::new();
-    for f in 0..n {
-        let (dq, at) = coord_diff(&model, &jf_q[f], &os_q[f]);
-        let de = (0..model.n_markers())
-            .map(|j| (jf_err[f][j] - os_err[f][j]).abs())
-            .fold(0.0, f64::max);
-        let cost = |e: &[f64]| {
-            model
-                .markers()
-                .iter()
-                .zip(e)
-                .map(|(m, v)| m.weight * v * v)
-                .sum::<f64>()
-        };
-        if dq > OTHER_MINIMUM {
-            other_minima.push(format!(
-                "frame {f}: {at} differs by {dq:.2}; cost (mm²) jointfit {:.3}, OpenSim {:.3}",
-                cost(&jf_err[f]),
-                cost(&os_err[f])
-            ));
-            continue;
-        }
-        angle_worst = angle_worst.max(dq);
-        marker_worst = marker_worst.max(de);
-        let tol = match model.coordinates()[model.coord_id(&at).map_or(0, |c| c.0)].kind {
-            CoordKind::Rotational => ANGLE_TOL_DEG,
-            CoordKind::Translational => TRANS_TOL_MM,
-        };
-        if dq <= tol && de <= MARKER_TOL_MM {
-            same += 1;
-        } else {
-            disagree.push(format!(
-                "frame {f}: {at} differs by {dq:.4}, markers by {de:.4} mm"
-            ));
-        }
-    }
-    let last_solver = f64s(&theirs["solver_last_q"]);
-    let names: Vec<&str> = theirs["coordinates"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|c| c.as_str().unwrap())
-        .collect();
-    let solver_last: Vec<f64> = model
-        .coordinates()
-        .iter()
-        .map(|c| last_solver[names.iter().position(|n| *n == c.name).unwrap()])
-        .collect();
-    let (dsolver, _) = coord_diff(&model, &solver_last, &os_q[n - 1]);
+    let Agreement {
+        same,
+        angle_worst,
+        marker_worst,
+        other_minima,
+        disagree,
+    } = agreement(&model, &jf_q, &jf_err, &os_q, &os_err);
+    let dsolver = solver_last_frame(&model, &theirs, &os_q[n - 1]);
 
     let os_seconds = theirs["seconds"].as_f64().unwrap();
     let os_solver = theirs["solver_seconds"].as_f64().unwrap();
@@ -477,4 +339,212 @@ fn compare_ik(side: &str, trial: &str, repeat: usize) {
         other_minima.len()
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `jointfit ik` of the walk with the subject model, writing the coordinates and the marker
+/// errors, run `repeat` times: the answer of the fastest solve and the fastest whole command.
+fn best_ik(run: &dyn Fn(&[&str]) -> String, files: [&Path; 4], repeat: usize) -> (Value, f64) {
+    let [subject, walk, mot, errors] = files;
+    let mut ours: Option<Value> = None;
+    let mut wall = f64::INFINITY;
+    for _ in 0..repeat {
+        let start = Instant::now();
+        let out = run(&[
+            "ik",
+            s(subject),
+            s(walk),
+            "-o",
+            s(mot),
+            "--errors",
+            s(errors),
+            // OpenSim's IK keeps every marker; so does this run.
+            "--keep-outliers",
+            "--json",
+        ]);
+        wall = wall.min(start.elapsed().as_secs_f64());
+        let v: Value = serde_json::from_str(&out).unwrap();
+        if ours
+            .as_ref()
+            .is_none_or(|o| v["solve_seconds"].as_f64() < o["solve_seconds"].as_f64())
+        {
+            ours = Some(v);
+        }
+    }
+    (ours.unwrap(), wall)
+}
+
+/// (c) OpenSim reads the .mot jointfit wrote: labels, degrees, the same numbers through both
+/// of its readers, and its own kinematics at those angles reproduces the marker errors
+/// jointfit reported (so values and units survived the file). The largest marker-error
+/// difference (mm).
+fn mot_read_back(
+    model: &Model,
+    read_back: &Value,
+    mot: &Path,
+    jf_q: &[Vec<f64>],
+    jf_err: &[Vec<f64>],
+) -> f64 {
+    let n = jf_q.len();
+    // TimeSeriesTable holds time as its independent column, not as a label.
+    let labels: Vec<String> = model.coordinates().iter().map(|c| c.name.clone()).collect();
+    let got_labels: Vec<String> = read_back["labels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l.as_str().unwrap().to_string())
+        .collect();
+    assert_eq!(got_labels, labels);
+    assert_eq!(read_back["inDegrees"], "yes");
+    let storage_q = osim_coords(read_back, "storage_q", model);
+    let table = jointfit_io::sto::read_sto(mot).unwrap();
+    for f in 0..n {
+        for (k, c) in model.coordinates().iter().enumerate() {
+            let written = table.rows[f][k + 1];
+            let si = match c.kind {
+                CoordKind::Rotational => written.to_radians(),
+                CoordKind::Translational => written,
+            };
+            assert!((jf_q[f][k] - si).abs() <= 1e-12, "frame {f} {}", c.name);
+            assert!(
+                (storage_q[f][k] - si).abs() <= 1e-9,
+                "Storage: frame {f} {}",
+                c.name
+            );
+        }
+    }
+    let mot_err = osim_errors_mm(read_back, model);
+    let mut mot_worst = 0.0f64;
+    for f in 0..n {
+        for j in 0..model.n_markers() {
+            let d = (jf_err[f][j] - mot_err[f][j]).abs();
+            mot_worst = mot_worst.max(d);
+            // The CSV holds 4 decimals of a millimetre.
+            assert!(
+                d <= 1e-3,
+                "frame {f} marker {}: {d} mm",
+                model.markers()[j].name
+            );
+        }
+    }
+
+    mot_worst
+}
+
+/// How OpenSim's IK and ours compare over the frames.
+struct Agreement {
+    /// Frames within tolerance.
+    same: usize,
+    /// Largest coordinate (deg or mm) and marker-error (mm) differences in the same minimum.
+    angle_worst: f64,
+    marker_worst: f64,
+    /// Frames where the two solvers ended in different local minima.
+    other_minima: Vec<String>,
+    /// Frames in the same minimum but outside tolerance.
+    disagree: Vec<String>,
+}
+
+/// (b) OpenSim's IK against ours, frame by frame.
+fn agreement(
+    model: &Model,
+    jf_q: &[Vec<f64>],
+    jf_err: &[Vec<f64>],
+    os_q: &[Vec<f64>],
+    os_err: &[Vec<f64>],
+) -> Agreement {
+    let n = jf_q.len();
+    let mut same = 0;
+    let (mut angle_worst, mut marker_worst) = (0.0f64, 0.0f64);
+    let mut other_minima = Vec::new();
+    let mut disagree = Vec::new();
+    for f in 0..n {
+        let (dq, at) = coord_diff(model, &jf_q[f], &os_q[f]);
+        let de = (0..model.n_markers())
+            .map(|j| (jf_err[f][j] - os_err[f][j]).abs())
+            .fold(0.0, f64::max);
+        let cost = |e: &[f64]| {
+            model
+                .markers()
+                .iter()
+                .zip(e)
+                .map(|(m, v)| m.weight * v * v)
+                .sum::<f64>()
+        };
+        if dq > OTHER_MINIMUM {
+            other_minima.push(format!(
+                "frame {f}: {at} differs by {dq:.2}; cost (mm²) jointfit {:.3}, OpenSim {:.3}",
+                cost(&jf_err[f]),
+                cost(&os_err[f])
+            ));
+            continue;
+        }
+        angle_worst = angle_worst.max(dq);
+        marker_worst = marker_worst.max(de);
+        let tol = match model.coordinates()[model.coord_id(&at).map_or(0, |c| c.0)].kind {
+            CoordKind::Rotational => ANGLE_TOL_DEG,
+            CoordKind::Translational => TRANS_TOL_MM,
+        };
+        if dq <= tol && de <= MARKER_TOL_MM {
+            same += 1;
+        } else {
+            disagree.push(format!(
+                "frame {f}: {at} differs by {dq:.4}, markers by {de:.4} mm"
+            ));
+        }
+    }
+    Agreement {
+        same,
+        angle_worst,
+        marker_worst,
+        other_minima,
+        disagree,
+    }
+}
+
+/// The coordinate difference between OpenSim's tool and its solver run alone on the last
+/// frame.
+fn solver_last_frame(model: &Model, theirs: &Value, tool_last: &[f64]) -> f64 {
+    let last_solver = f64s(&theirs["solver_last_q"]);
+    let names: Vec<&str> = theirs["coordinates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_str().unwrap())
+        .collect();
+    let solver_last: Vec<f64> = model
+        .coordinates()
+        .iter()
+        .map(|c| last_solver[names.iter().position(|n| *n == c.name).unwrap()])
+        .collect();
+    coord_diff(model, &solver_last, tool_last).0
+}
+
+/// OpenSim's answers: its IK of the walk on the exported model (with the subject model's
+/// marker weights, best of `repeat`), and its reading of the .mot jointfit wrote.
+fn opensim(
+    python: &Path,
+    model: &Model,
+    files: [&Path; 3],
+    dir: &ScratchDir,
+    repeat: usize,
+) -> (Value, Value) {
+    let [osim, walk, mot] = files;
+    let weights: serde_json::Map<String, Value> = model
+        .markers()
+        .iter()
+        .map(|m| (m.name.clone(), json!(m.weight)))
+        .collect();
+    let theirs = check(
+        python,
+        "ik",
+        &json!({"model": osim, "trc": walk, "out_dir": dir.path(), "weights": weights,
+                "accuracy": 1e-8, "repeat": repeat}),
+        dir,
+    );
+    let read_back = check(
+        python,
+        "mot",
+        &json!({"model": osim, "mot": mot, "trc": walk}),
+        dir,
+    );
+    (theirs, read_back)
 }

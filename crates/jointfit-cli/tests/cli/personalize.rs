@@ -17,7 +17,8 @@ use nalgebra::Vector3;
 
 use super::jointfit;
 
-fn read(path: &Path, up: UpAxis) -> Trial {
+/// A TRC or C3D trial turned so that `up` becomes y.
+pub(super) fn read(path: &Path, up: UpAxis) -> Trial {
     let mut t = if path.extension().is_some_and(|e| e == "c3d") {
         jointfit_io::c3d::read_c3d(path)
             .unwrap()
@@ -281,18 +282,7 @@ fn cli_personalize_writes_a_model_that_loads() {
 
     // The wrong marker set: one line naming the missing labels; nothing written.
     let bad = dir.join("bad.toml");
-    let (ok, _, stderr) = jointfit(&[
-        "personalize",
-        "--static",
-        path.to_str().unwrap(),
-        "--markers",
-        "gait2392",
-        "--side",
-        "left",
-        "-o",
-        bad.to_str().unwrap(),
-    ]);
-    assert!(!ok);
+    let stderr = refused_left_leg(&path, "gait2392", &bad);
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
     assert!(
         stderr.contains(
@@ -305,18 +295,7 @@ fn cli_personalize_writes_a_model_that_loads() {
     assert!(!bad.exists());
 
     // Unknown preset, marker-set file with an error.
-    let (ok, _, stderr) = jointfit(&[
-        "personalize",
-        "--static",
-        path.to_str().unwrap(),
-        "--markers",
-        "vicon",
-        "--side",
-        "left",
-        "-o",
-        bad.to_str().unwrap(),
-    ]);
-    assert!(!ok);
+    let stderr = refused_left_leg(&path, "vicon", &bad);
     assert!(
         stderr.contains(
             "\"vicon\" is neither a marker-set file nor a preset (gait2392, opencap, \
@@ -327,23 +306,34 @@ fn cli_personalize_writes_a_model_that_loads() {
     );
     let map = dir.join("lab.toml");
     std::fs::write(&map, "name = \"lab\"\n[pelvis]\nright_asis = 1\n").unwrap();
-    let (ok, _, stderr) = jointfit(&[
-        "personalize",
-        "--static",
-        path.to_str().unwrap(),
-        "--markers",
-        map.to_str().unwrap(),
-        "--side",
-        "left",
-        "-o",
-        bad.to_str().unwrap(),
-    ]);
-    assert!(!ok);
+    let stderr = refused_left_leg(&path, map.to_str().unwrap(), &bad);
     assert!(
         stderr.contains(&format!("marker set {}: ", map.display())),
         "{stderr}"
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `personalize` of the left leg of `static_trial` with `markers` into `out`, which must
+/// fail; its stderr.
+fn refused_left_leg(
+    static_trial: &std::path::Path,
+    markers: &str,
+    out: &std::path::Path,
+) -> String {
+    let (ok, _, stderr) = jointfit(&[
+        "personalize",
+        "--static",
+        static_trial.to_str().unwrap(),
+        "--markers",
+        markers,
+        "--side",
+        "left",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!ok, "{markers}: {stderr}");
+    stderr
 }
 
 #[test]

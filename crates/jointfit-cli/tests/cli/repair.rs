@@ -39,27 +39,7 @@ fn seeded_swap_and_gap_are_found_and_repaired() {
     personalize(&stat, "opencap", &subject);
     // r_thigh1 and r_thigh4 exchanged from file frame 60 on.
     let swapped = dir.join("swapped.trc");
-    let text = std::fs::read_to_string(&walk).unwrap();
-    let labels: Vec<&str> = text.lines().nth(3).unwrap().split('\t').collect();
-    let col = |name: &str| labels.iter().position(|l| l.trim() == name).unwrap();
-    let (ca, cb) = (col("r_thigh1"), col("r_thigh4"));
-    let lines: Vec<String> = text
-        .split('\n')
-        .enumerate()
-        .map(|(i, line)| {
-            let mut cells: Vec<&str> = line.split('\t').collect();
-            if i >= 5
-                && cells.len() > cb + 2
-                && cells[0].trim().parse::<i64>().is_ok_and(|f| f >= 60)
-            {
-                for k in 0..3 {
-                    cells.swap(ca + k, cb + k);
-                }
-            }
-            cells.join("\t")
-        })
-        .collect();
-    std::fs::write(&swapped, lines.join("\n")).unwrap();
+    write_swapped(&walk, &swapped, "r_thigh1", "r_thigh4", 60);
     let clean = ik(&subject, &walk, &dir.join("clean.mot"), &[]);
     let bad = ik(&subject, &swapped, &dir.join("bad.mot"), &[]);
     let swap_fixes = fixes(&bad, "swap");
@@ -134,4 +114,30 @@ fn seeded_swap_and_gap_are_found_and_repaired() {
     assert!(!ok);
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(err.contains("--swap-labels \"r_thigh1\""), "{err}");
+}
+
+/// `walk` with the samples of markers `a` and `b` exchanged from file frame `from` on,
+/// written to `out`.
+fn write_swapped(walk: &Path, out: &Path, a: &str, b: &str, from: i64) {
+    let text = std::fs::read_to_string(walk).unwrap();
+    let labels: Vec<&str> = text.lines().nth(3).unwrap().split('\t').collect();
+    let col = |name: &str| labels.iter().position(|l| l.trim() == name).unwrap();
+    let (ca, cb) = (col(a), col(b));
+    let lines: Vec<String> = text
+        .split('\n')
+        .enumerate()
+        .map(|(i, line)| {
+            let mut cells: Vec<&str> = line.split('\t').collect();
+            if i >= 5
+                && cells.len() > cb + 2
+                && cells[0].trim().parse::<i64>().is_ok_and(|f| f >= from)
+            {
+                for k in 0..3 {
+                    cells.swap(ca + k, cb + k);
+                }
+            }
+            cells.join("\t")
+        })
+        .collect();
+    std::fs::write(out, lines.join("\n")).unwrap();
 }

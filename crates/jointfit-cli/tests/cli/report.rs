@@ -78,21 +78,7 @@ fn calibrate_report_and_report_command_on_a_real_walking_trial() {
     let dir = scratch("report");
     let subj = dir.join("subj.toml");
     let fitted = dir.join("fitted.toml");
-    let (ok, _, err) = run(
-        &[
-            "personalize",
-            "--static",
-            s(&stat),
-            "--markers",
-            "opencap",
-            "--side",
-            "right",
-            "-o",
-            s(&subj),
-        ],
-        &[],
-    );
-    assert!(ok, "{err}");
+    super::personalize(&stat, "opencap", &subj);
     let rep = dir.join("calibrated");
     let (ok, out, err) = run(
         &[
@@ -132,36 +118,7 @@ fn calibrate_report_and_report_command_on_a_real_walking_trial() {
     );
     assert!((after - rms_after).abs() < 0.02, "{after} vs {rms_after}");
     assert!(after < before);
-    // Every model marker has its two bars; every parameter a row; the convergence chart
-    // has the joint solver's iterations (plus the starting point).
-    let markers = root.by_id("fig-marker-rms").unwrap().all_text();
-    for name in ["r.ASIS", "r_thigh1", "r_knee", "r_calc", "r_toe"] {
-        assert!(markers.contains(name), "{name} missing");
-    }
-    let conv = root.by_id("fig-convergence").unwrap();
-    let views = conv.find_all("svg");
-    assert_eq!(views.len(), 2);
-    let iterations = json["iterations"].as_u64().unwrap() as usize;
-    assert_eq!(views[0].find_all("circle").len(), iterations + 1);
-    // The JSON report carries the same history: the starting objective, then one per
-    // iteration, ending at the final cost.
-    let stage = &json["convergence"][0];
-    let hist: Vec<f64> = stage["objective_mm2"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
-    assert_eq!(hist.len(), iterations + 1);
-    let mm2 = 1e6;
-    let cost_before = json["cost_before"].as_f64().unwrap() * mm2;
-    let cost_after = json["cost_after"].as_f64().unwrap() * mm2;
-    assert!((hist[0] - cost_before).abs() <= 1e-9 * cost_before);
-    assert!((hist[iterations] - cost_after).abs() <= 1e-9 * cost_after);
-    assert!(hist.windows(2).all(|w| w[1] <= w[0]), "{hist:?}");
-    // The excess over the best value leaves out the iterations that reached it.
-    let excess = views[1].find_all("circle").len();
-    assert!(excess >= 1 && excess <= iterations, "{excess}");
+    charts_match_the_json(&root, &json);
     let settings = root.by_id("tbl-settings").unwrap().all_text();
     for needle in ["walking1.trc", "joint", "6 Hz", "jointfit calibrate", "UTC"] {
         assert!(
@@ -197,14 +154,56 @@ fn calibrate_report_and_report_command_on_a_real_walking_trial() {
         .contains("Not available"));
 
     // Errors name the file and write nothing.
+    report_errors_write_nothing(&dir, &fitted, &walk, &subj);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The marker chart has every model marker; the convergence chart has the joint solver's
+/// iterations (plus the starting point), as the JSON report's history has them.
+fn charts_match_the_json(root: &Element, json: &serde_json::Value) {
+    // Every model marker has its two bars; every parameter a row; the convergence chart
+    // has the joint solver's iterations (plus the starting point).
+    let markers = root.by_id("fig-marker-rms").unwrap().all_text();
+    for name in ["r.ASIS", "r_thigh1", "r_knee", "r_calc", "r_toe"] {
+        assert!(markers.contains(name), "{name} missing");
+    }
+    let conv = root.by_id("fig-convergence").unwrap();
+    let views = conv.find_all("svg");
+    assert_eq!(views.len(), 2);
+    let iterations = json["iterations"].as_u64().unwrap() as usize;
+    assert_eq!(views[0].find_all("circle").len(), iterations + 1);
+    // The JSON report carries the same history: the starting objective, then one per
+    // iteration, ending at the final cost.
+    let stage = &json["convergence"][0];
+    let hist: Vec<f64> = stage["objective_mm2"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(hist.len(), iterations + 1);
+    let mm2 = 1e6;
+    let cost_before = json["cost_before"].as_f64().unwrap() * mm2;
+    let cost_after = json["cost_after"].as_f64().unwrap() * mm2;
+    assert!((hist[0] - cost_before).abs() <= 1e-9 * cost_before);
+    assert!((hist[iterations] - cost_after).abs() <= 1e-9 * cost_after);
+    assert!(hist.windows(2).all(|w| w[1] <= w[0]), "{hist:?}");
+    // The excess over the best value leaves out the iterations that reached it.
+    let excess = views[1].find_all("circle").len();
+    assert!(excess >= 1 && excess <= iterations, "{excess}");
+}
+
+/// `report` with a missing trial or a landmark model lacking a parameter: one line naming
+/// the file, nothing written.
+fn report_errors_write_nothing(dir: &ScratchDir, fitted: &Path, walk: &Path, subj: &Path) {
     let bad = dir.join("bad");
-    let (ok, _, err) = run(&["report", s(&fitted), "no-such.trc", "-o", s(&bad)], &[]);
+    let (ok, _, err) = run(&["report", s(fitted), "no-such.trc", "-o", s(&bad)], &[]);
     assert!(!ok);
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(err.contains("no-such.trc"), "{err}");
     assert!(!bad.exists());
     let renamed = dir.join("renamed.toml");
-    let text = std::fs::read_to_string(&subj).unwrap();
+    let text = std::fs::read_to_string(subj).unwrap();
     std::fs::write(
         &renamed,
         text.replace("hip_pelvis_anterior", "hip_pelvis_front"),
@@ -213,8 +212,8 @@ fn calibrate_report_and_report_command_on_a_real_walking_trial() {
     let (ok, _, err) = run(
         &[
             "report",
-            s(&fitted),
-            s(&walk),
+            s(fitted),
+            s(walk),
             "--landmark",
             s(&renamed),
             "-o",
@@ -228,7 +227,6 @@ fn calibrate_report_and_report_command_on_a_real_walking_trial() {
         "{err}"
     );
     assert!(!bad.exists());
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// `calibrate --report FILE` where FILE is an existing file is refused before the fit (a long

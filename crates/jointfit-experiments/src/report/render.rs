@@ -45,104 +45,119 @@ impl Report {
     pub fn table1_markdown(&self) -> String {
         let mut out = String::new();
         if !self.synthetic.is_empty() {
-            let mut header = vec!["data".to_string(), "RMS error".to_string()];
-            for c in &self.synthetic {
-                header.push(format!("{} — ours", c.label));
-                header.push(format!("{} — paper", TABLE1_COLUMNS[c.paper_column]));
-            }
-            let mut rows = Vec::new();
-            type Getter = fn(&SyntheticResult) -> Option<f64>;
-            let noiseless: [(&str, Getter, usize); 3] = [
-                ("marker distances (mm)", |r| Some(r.marker_rms_mm), 0),
-                ("orientation parameters (deg)", |r| r.orientation_rms_deg, 1),
-                ("position parameters (mm)", |r| r.position_rms_mm, 2),
-            ];
-            for (q, get, paper_row) in noiseless {
-                let mut row = vec!["synthetic without noise".into(), q.into()];
-                for c in &self.synthetic {
-                    row.push(opt(get(&c.noiseless)));
-                    row.push(opt(TABLE1[paper_row].values[c.paper_column]));
-                }
-                rows.push(row);
-            }
-            type ColumnGetter = fn(&SyntheticColumn) -> Option<Spread>;
-            let noisy: [(&str, ColumnGetter, usize); 3] = [
-                ("marker distances (mm)", SyntheticColumn::noisy_marker, 3),
-                (
-                    "orientation parameters (deg)",
-                    SyntheticColumn::noisy_orientation,
-                    4,
-                ),
-                (
-                    "position parameters (mm)",
-                    SyntheticColumn::noisy_position,
-                    5,
-                ),
-            ];
-            for (q, get, paper_row) in noisy {
-                let mut row = vec!["synthetic with noise".into(), q.into()];
-                for c in &self.synthetic {
-                    row.push(spread(get(c)));
-                    row.push(opt(TABLE1[paper_row].values[c.paper_column]));
-                }
-                rows.push(row);
-            }
-            let mut row = vec![
-                "synthetic with noise".into(),
-                "injected noise, 3-D RMS (mm)".into(),
-            ];
-            for c in &self.synthetic {
-                row.push(spread(c.noise_3d()));
-                row.push("—".into());
-            }
-            rows.push(row);
-            let mut row = vec![
-                "synthetic with noise".into(),
-                "seeds with fitted cost < cost at truth".into(),
-            ];
-            for c in &self.synthetic {
-                row.push(format!("{}/{}", c.below_truth(), c.noisy.len()));
-                row.push("—".into());
-            }
-            rows.push(row);
-            out += &table(&header, &rows);
-            out += "\nNoisy cells: mean ± sample std [min–max] over the seeds.\n\n";
+            out += &self.table1_synthetic();
         }
         if !self.experimental.is_empty() {
-            let mut header = vec!["data".to_string(), "RMS marker distance (mm)".to_string()];
-            for c in &self.experimental {
-                header.push(format!("{} — ours", c.label));
-                header.push(format!("{} — paper", TABLE1_COLUMNS[c.paper_column]));
-            }
-            let mut rows = vec![
-                vec!["experimental".into(), "two-level optimization".into()],
-                vec!["experimental".into(), "anatomical landmarks".into()],
-                vec!["experimental".into(), "reduction (%)".into()],
-            ];
-            for c in &self.experimental {
-                let r = &c.result;
-                rows[0].push(num(r.fitted_rms_mm));
-                rows[0].push(opt(TABLE1[6].values[c.paper_column]));
-                rows[1].push(num(r.landmark_rms_mm));
-                rows[1].push(opt(TABLE1[7].values[c.paper_column]));
-                rows[2].push(format!("{:.0}", r.reduction_percent));
-                rows[2].push(format!("{:.0}", TABLE1_REDUCTION_PERCENT[c.paper_column]));
-            }
-            out += &table(&header, &rows);
-            out += "\n";
-            for c in &self.experimental {
-                out += &format!(
-                    "- {}: {} — {} ({} frames, fitted {}; {:.2} s)\n",
-                    c.label,
-                    c.dataset,
-                    c.trials.join(" + "),
-                    c.result.frames,
-                    c.result.groups.join(","),
-                    c.result.seconds
-                );
-            }
-            out += "\n";
+            out += &self.table1_experimental();
         }
+        out
+    }
+
+    /// Table 1's synthetic rows: without noise, with noise (spread over the seeds), the
+    /// injected noise and how often the fit ended below the cost at the truth.
+    fn table1_synthetic(&self) -> String {
+        let mut out = String::new();
+        let mut header = vec!["data".to_string(), "RMS error".to_string()];
+        for c in &self.synthetic {
+            header.push(format!("{} — ours", c.label));
+            header.push(format!("{} — paper", TABLE1_COLUMNS[c.paper_column]));
+        }
+        let mut rows = Vec::new();
+        type Getter = fn(&SyntheticResult) -> Option<f64>;
+        let noiseless: [(&str, Getter, usize); 3] = [
+            ("marker distances (mm)", |r| Some(r.marker_rms_mm), 0),
+            ("orientation parameters (deg)", |r| r.orientation_rms_deg, 1),
+            ("position parameters (mm)", |r| r.position_rms_mm, 2),
+        ];
+        for (q, get, paper_row) in noiseless {
+            let mut row = vec!["synthetic without noise".into(), q.into()];
+            for c in &self.synthetic {
+                row.push(opt(get(&c.noiseless)));
+                row.push(opt(TABLE1[paper_row].values[c.paper_column]));
+            }
+            rows.push(row);
+        }
+        type ColumnGetter = fn(&SyntheticColumn) -> Option<Spread>;
+        let noisy: [(&str, ColumnGetter, usize); 3] = [
+            ("marker distances (mm)", SyntheticColumn::noisy_marker, 3),
+            (
+                "orientation parameters (deg)",
+                SyntheticColumn::noisy_orientation,
+                4,
+            ),
+            (
+                "position parameters (mm)",
+                SyntheticColumn::noisy_position,
+                5,
+            ),
+        ];
+        for (q, get, paper_row) in noisy {
+            let mut row = vec!["synthetic with noise".into(), q.into()];
+            for c in &self.synthetic {
+                row.push(spread(get(c)));
+                row.push(opt(TABLE1[paper_row].values[c.paper_column]));
+            }
+            rows.push(row);
+        }
+        let mut row = vec![
+            "synthetic with noise".into(),
+            "injected noise, 3-D RMS (mm)".into(),
+        ];
+        for c in &self.synthetic {
+            row.push(spread(c.noise_3d()));
+            row.push("—".into());
+        }
+        rows.push(row);
+        let mut row = vec![
+            "synthetic with noise".into(),
+            "seeds with fitted cost < cost at truth".into(),
+        ];
+        for c in &self.synthetic {
+            row.push(format!("{}/{}", c.below_truth(), c.noisy.len()));
+            row.push("—".into());
+        }
+        rows.push(row);
+        out += &table(&header, &rows);
+        out += "\nNoisy cells: mean ± sample std [min–max] over the seeds.\n\n";
+        out
+    }
+
+    /// Table 1's experimental rows and a line per data set.
+    fn table1_experimental(&self) -> String {
+        let mut out = String::new();
+        let mut header = vec!["data".to_string(), "RMS marker distance (mm)".to_string()];
+        for c in &self.experimental {
+            header.push(format!("{} — ours", c.label));
+            header.push(format!("{} — paper", TABLE1_COLUMNS[c.paper_column]));
+        }
+        let mut rows = vec![
+            vec!["experimental".into(), "two-level optimization".into()],
+            vec!["experimental".into(), "anatomical landmarks".into()],
+            vec!["experimental".into(), "reduction (%)".into()],
+        ];
+        for c in &self.experimental {
+            let r = &c.result;
+            rows[0].push(num(r.fitted_rms_mm));
+            rows[0].push(opt(TABLE1[6].values[c.paper_column]));
+            rows[1].push(num(r.landmark_rms_mm));
+            rows[1].push(opt(TABLE1[7].values[c.paper_column]));
+            rows[2].push(format!("{:.0}", r.reduction_percent));
+            rows[2].push(format!("{:.0}", TABLE1_REDUCTION_PERCENT[c.paper_column]));
+        }
+        out += &table(&header, &rows);
+        out += "\n";
+        for c in &self.experimental {
+            out += &format!(
+                "- {}: {} — {} ({} frames, fitted {}; {:.2} s)\n",
+                c.label,
+                c.dataset,
+                c.trials.join(" + "),
+                c.result.frames,
+                c.result.groups.join(","),
+                c.result.seconds
+            );
+        }
+        out += "\n";
         out
     }
 

@@ -145,43 +145,7 @@ pub(super) fn finish(head: Head, mut data: Parsed) -> Result<TrcFile, TrcErrorKi
             rows,
         });
     }
-    // The Time column becomes the trial's time stamps when it agrees with DataRate and
-    // strictly increases (OpenSim copies it into its results).
-    let mut keep_times = true;
-    let mut rate = header.data_rate;
-    if let Some(note) = data.check_times(header.data_rate) {
-        // A file resampled without updating its header (OpenSim's own exports of walking2/5
-        // keep every 10th frame and DataRate 250 Hz): when the Time column is evenly spaced
-        // at another rate, OpenSim uses the Time column, and so does the trial (its time
-        // stamps as written, its rate the column's).
-        // The last row may be off the grid: a file resampled by keeping every k-th frame
-        // and the original last frame (OpenSim's walking5 export: last step 8 ms, not 40).
-        let n = data.times.len().saturating_sub(1);
-        match column_rate(&data.times).filter(|&r| data.check_first_times(r, n).is_none()) {
-            Some(r) => {
-                // Equal rates: only the last row is off the grid, its time kept as written.
-                if (r - header.data_rate).abs() > 1e-9 * r {
-                    notes.push(TrcNote::RateFromTimeColumn {
-                        header: header.data_rate,
-                        column: r,
-                    });
-                }
-                rate = r;
-            }
-            None => {
-                notes.push(note);
-                keep_times = false;
-            }
-        }
-    } else if let Some(i) = (1..data.times.len()).find(|&i| data.times[i] <= data.times[i - 1]) {
-        let (line, frame, _) = data.time_cells[i];
-        notes.push(TrcNote::TimeNotIncreasing {
-            line,
-            frame,
-            found: data.times[i],
-        });
-        keep_times = false;
-    }
+    let (rate, keep_times) = time_column(&data, header.data_rate, &mut notes);
     notes.extend(
         std::mem::take(&mut data.zero).into_note(|count, first_line, marker| {
             TrcNote::ZeroSamples {
@@ -228,6 +192,48 @@ pub(super) fn finish(head: Head, mut data: Parsed) -> Result<TrcFile, TrcErrorKi
         times,
         notes,
     })
+}
+
+/// The trial's rate, and whether the Time column becomes its time stamps: when it agrees
+/// with DataRate and strictly increases (OpenSim copies it into its results), or when it is
+/// evenly spaced at another rate (then the column's rate); a note says which.
+fn time_column(data: &Parsed, header_rate: f64, notes: &mut Vec<TrcNote>) -> (f64, bool) {
+    let mut keep_times = true;
+    let mut rate = header_rate;
+    if let Some(note) = data.check_times(header_rate) {
+        // A file resampled without updating its header (OpenSim's own exports of walking2/5
+        // keep every 10th frame and DataRate 250 Hz): when the Time column is evenly spaced
+        // at another rate, OpenSim uses the Time column, and so does the trial (its time
+        // stamps as written, its rate the column's).
+        // The last row may be off the grid: a file resampled by keeping every k-th frame
+        // and the original last frame (OpenSim's walking5 export: last step 8 ms, not 40).
+        let n = data.times.len().saturating_sub(1);
+        match column_rate(&data.times).filter(|&r| data.check_first_times(r, n).is_none()) {
+            Some(r) => {
+                // Equal rates: only the last row is off the grid, its time kept as written.
+                if (r - header_rate).abs() > 1e-9 * r {
+                    notes.push(TrcNote::RateFromTimeColumn {
+                        header: header_rate,
+                        column: r,
+                    });
+                }
+                rate = r;
+            }
+            None => {
+                notes.push(note);
+                keep_times = false;
+            }
+        }
+    } else if let Some(i) = (1..data.times.len()).find(|&i| data.times[i] <= data.times[i - 1]) {
+        let (line, frame, _) = data.time_cells[i];
+        notes.push(TrcNote::TimeNotIncreasing {
+            line,
+            frame,
+            found: data.times[i],
+        });
+        keep_times = false;
+    }
+    (rate, keep_times)
 }
 
 fn parse_header(keys: &str, values: &str) -> Result<TrcHeader, TrcErrorKind> {

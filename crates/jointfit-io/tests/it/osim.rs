@@ -311,41 +311,7 @@ fn osim_xml_structure() {
             assert_eq!(child_text(c, "clamped"), "false");
             assert_eq!(numbers(child_text(c, "range")).len(), 2);
         }
-        let frames: Vec<_> = j
-            .descendants()
-            .filter(|n| n.has_tag_name("PhysicalOffsetFrame"))
-            .collect();
-        assert_eq!(frames.len(), 2);
-        // The sockets name the joint's own offset frames.
-        for (socket, frame) in ["socket_parent_frame", "socket_child_frame"]
-            .iter()
-            .zip(&frames)
-        {
-            assert_eq!(child_text(*j, socket), frame.attribute("name").unwrap());
-        }
-        if let Some(st) = j.children().find(|n| n.has_tag_name("SpatialTransform")) {
-            let axes: Vec<&str> = st
-                .children()
-                .filter(|n| n.has_tag_name("TransformAxis"))
-                .map(|n| n.attribute("name").unwrap())
-                .collect();
-            assert_eq!(
-                axes,
-                [
-                    "rotation1",
-                    "rotation2",
-                    "rotation3",
-                    "translation1",
-                    "translation2",
-                    "translation3"
-                ]
-            );
-            for ax in st.children().filter(|n| n.has_tag_name("TransformAxis")) {
-                let a = numbers(child_text(ax, "axis"));
-                let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
-                assert!((n - 1.0).abs() < 1e-12, "unit axes");
-            }
-        }
+        check_joint_frames_and_axes(*j);
     }
     let expected: Vec<&str> = model
         .coordinates()
@@ -354,8 +320,63 @@ fn osim_xml_structure() {
         .collect();
     assert_eq!(coords, expected);
 
-    // The shoulder's parent offset: tx = sh_x, ty = −sh_y, rx = sh_rx, rz = 0.3; its child
-    // offset: tz = 0.05, ry = 0.5·sh_rx.
+    check_offsets(&joints);
+
+    let markers = set("MarkerSet");
+    assert_eq!(markers.len(), model.n_markers());
+    for (x, m) in markers.iter().zip(model.markers()) {
+        assert_eq!(x.attribute("name"), Some(m.name.as_str()));
+        assert_eq!(
+            child_text(*x, "socket_parent_frame"),
+            format!("/bodyset/{}", model.segments()[m.segment.0].name)
+        );
+        assert_eq!(numbers(child_text(*x, "location")), m.local.as_slice());
+    }
+}
+
+/// A joint has its two offset frames, named by its sockets, and a spatial transform (when it
+/// has one) of six unit axes in OpenSim's order.
+fn check_joint_frames_and_axes(j: roxmltree::Node) {
+    let frames: Vec<_> = j
+        .descendants()
+        .filter(|n| n.has_tag_name("PhysicalOffsetFrame"))
+        .collect();
+    assert_eq!(frames.len(), 2);
+    // The sockets name the joint's own offset frames.
+    for (socket, frame) in ["socket_parent_frame", "socket_child_frame"]
+        .iter()
+        .zip(&frames)
+    {
+        assert_eq!(child_text(j, socket), frame.attribute("name").unwrap());
+    }
+    if let Some(st) = j.children().find(|n| n.has_tag_name("SpatialTransform")) {
+        let axes: Vec<&str> = st
+            .children()
+            .filter(|n| n.has_tag_name("TransformAxis"))
+            .map(|n| n.attribute("name").unwrap())
+            .collect();
+        assert_eq!(
+            axes,
+            [
+                "rotation1",
+                "rotation2",
+                "rotation3",
+                "translation1",
+                "translation2",
+                "translation3"
+            ]
+        );
+        for ax in st.children().filter(|n| n.has_tag_name("TransformAxis")) {
+            let a = numbers(child_text(ax, "axis"));
+            let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+            assert!((n - 1.0).abs() < 1e-12, "unit axes");
+        }
+    }
+}
+
+/// The offset frames of the shoulder (parent: tx = sh_x, ty = −sh_y, rx = sh_rx, rz = 0.3;
+/// child: tz = 0.05, ry = 0.5·sh_rx) and the root's parent (the ground).
+fn check_offsets(joints: &[roxmltree::Node]) {
     let shoulder = joints[1];
     let frame = |name: &str| {
         shoulder
@@ -378,15 +399,4 @@ fn osim_xml_structure() {
         .find(|n| n.attribute("name") == Some("ground_offset"))
         .unwrap();
     assert_eq!(child_text(root_frame, "socket_parent"), "/ground");
-
-    let markers = set("MarkerSet");
-    assert_eq!(markers.len(), model.n_markers());
-    for (x, m) in markers.iter().zip(model.markers()) {
-        assert_eq!(x.attribute("name"), Some(m.name.as_str()));
-        assert_eq!(
-            child_text(*x, "socket_parent_frame"),
-            format!("/bodyset/{}", model.segments()[m.segment.0].name)
-        );
-        assert_eq!(numbers(child_text(*x, "location")), m.local.as_slice());
-    }
 }

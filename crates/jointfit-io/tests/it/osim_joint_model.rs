@@ -127,6 +127,37 @@ pub(super) const BODIES: [(&str, &str); 12] = [
 
 /// The generated model's text.
 pub(super) fn model_text() -> String {
+    let bodies = body_set();
+    let joints = [
+        standard_joints(),
+        custom_joints_of_functions(),
+        custom_joints_of_coordinate_kinds(),
+    ]
+    .concat();
+    let markers = marker_set();
+    let coupler = format!(
+        "<CoordinateCouplerConstraint name=\"couple_dep\"><isEnforced>true</isEnforced>\
+         <coupled_coordinates_function>{}</coupled_coordinates_function>\
+         <independent_coordinate_names>c2_k</independent_coordinate_names>\
+         <dependent_coordinate_name>c3_dep</dependent_coordinate_name>\
+         <scale_factor>1.3</scale_factor></CoordinateCouplerConstraint>",
+        simm(&Y)
+    );
+    format!(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\" ?>\n<OpenSimDocument Version=\"40000\">\n\
+         <Model name=\"all_joint_types\">\n<components>{}</components>\n\
+         <Ground name=\"ground\" />\n<gravity>0 -9.80665 0</gravity>\n\
+         <BodySet name=\"bodyset\"><objects>\n{bodies}</objects><groups /></BodySet>\n\
+         <JointSet name=\"jointset\"><objects>\n{joints}</objects><groups /></JointSet>\n\
+         <ConstraintSet name=\"constraintset\"><objects>{coupler}</objects><groups /></ConstraintSet>\n\
+         <MarkerSet name=\"markerset\"><objects>\n{markers}</objects><groups /></MarkerSet>\n\
+         </Model>\n</OpenSimDocument>\n",
+        frame("cust4_tip", "cust4", [0.05, -0.2, 0.01], [0.3, 0.1, -0.4]),
+    )
+}
+
+/// A body per entry of `BODIES`, with mass and inertia.
+fn body_set() -> String {
     let mut bodies = String::new();
     for (b, _) in BODIES {
         writeln!(
@@ -136,6 +167,11 @@ pub(super) fn model_text() -> String {
         )
         .unwrap();
     }
+    bodies
+}
+
+/// One joint of each of OpenSim's fixed kinds, in a chain from the ground.
+fn standard_joints() -> String {
     let j = joint;
     let mut joints = String::new();
     joints += &j(
@@ -210,7 +246,19 @@ pub(super) fn model_text() -> String {
         0.8,
     );
     joints += &j("WeldJoint", "weld", "planar_b", "weld_b", "", "", -2.0);
-    let st = |axes: [String; 6]| format!("<SpatialTransform>{}</SpatialTransform>", axes.concat());
+    joints
+}
+
+/// A `SpatialTransform` of six axes.
+fn spatial_transform(axes: [String; 6]) -> String {
+    format!("<SpatialTransform>{}</SpatialTransform>", axes.concat())
+}
+
+/// Two custom joints whose axes follow every function kind (linear, SIMM spline, natural
+/// cubic, GCV, piecewise linear, constant, polynomial, multiplier).
+fn custom_joints_of_functions() -> String {
+    let (j, st) = (joint, spatial_transform);
+    let mut joints = String::new();
     joints += &j(
         "CustomJoint",
         "custom1",
@@ -258,6 +306,14 @@ pub(super) fn model_text() -> String {
         ]),
         -1.5,
     );
+    joints
+}
+
+/// Two custom joints with a dependent, a locked and a clamped coordinate, and a chain of
+/// multiplied splines.
+fn custom_joints_of_coordinate_kinds() -> String {
+    let (j, st) = (joint, spatial_transform);
+    let mut joints = String::new();
     joints += &j(
         "CustomJoint",
         "custom3",
@@ -310,6 +366,11 @@ pub(super) fn model_text() -> String {
         ]),
         -0.3,
     );
+    joints
+}
+
+/// Two markers on each body, and one on a frame of the last body.
+fn marker_set() -> String {
     let mut markers = String::new();
     for (i, (b, _)) in BODIES.iter().enumerate() {
         let s = i as f64;
@@ -329,23 +390,5 @@ pub(super) fn model_text() -> String {
     markers +=
         "<Marker name=\"cust4_on_frame\"><socket_parent_frame>/cust4_tip</socket_parent_frame>\
                 <location>0.03 -0.01 0.02</location><fixed>false</fixed></Marker>\n";
-    let coupler = format!(
-        "<CoordinateCouplerConstraint name=\"couple_dep\"><isEnforced>true</isEnforced>\
-         <coupled_coordinates_function>{}</coupled_coordinates_function>\
-         <independent_coordinate_names>c2_k</independent_coordinate_names>\
-         <dependent_coordinate_name>c3_dep</dependent_coordinate_name>\
-         <scale_factor>1.3</scale_factor></CoordinateCouplerConstraint>",
-        simm(&Y)
-    );
-    format!(
-        "<?xml version=\"1.0\" encoding=\"UTF-8\" ?>\n<OpenSimDocument Version=\"40000\">\n\
-         <Model name=\"all_joint_types\">\n<components>{}</components>\n\
-         <Ground name=\"ground\" />\n<gravity>0 -9.80665 0</gravity>\n\
-         <BodySet name=\"bodyset\"><objects>\n{bodies}</objects><groups /></BodySet>\n\
-         <JointSet name=\"jointset\"><objects>\n{joints}</objects><groups /></JointSet>\n\
-         <ConstraintSet name=\"constraintset\"><objects>{coupler}</objects><groups /></ConstraintSet>\n\
-         <MarkerSet name=\"markerset\"><objects>\n{markers}</objects><groups /></MarkerSet>\n\
-         </Model>\n</OpenSimDocument>\n",
-        frame("cust4_tip", "cust4", [0.05, -0.2, 0.01], [0.3, 0.1, -0.4]),
-    )
+    markers
 }

@@ -41,8 +41,69 @@ fn variant(keys: &str, values: &str, row_end: &str, nl: &str) -> String {
 fn field_trc_variants_read_as_opensim_reads_them() {
     let tmp = scratch("trc-field");
     let dir = tmp.path();
+    let cases = field_variants();
+    let paths: Vec<String> = cases
+        .iter()
+        .map(|(name, text, _)| {
+            let p = dir.join(format!("{name}.trc"));
+            std::fs::write(&p, text).unwrap();
+            p.display().to_string()
+        })
+        .collect();
+    let Some(by_file) = opensim_reads(&paths) else {
+        return;
+    };
+    assert_eq!(by_file.len(), cases.len());
+    for (((name, _, opensim_reads), path), theirs) in cases.iter().zip(&paths).zip(&by_file) {
+        let refused = theirs[0][0] == "ERROR";
+        assert_eq!(
+            !refused, *opensim_reads,
+            "{name}: OpenSim said {:?}",
+            theirs[0]
+        );
+        let ours = read_trc_file(std::path::Path::new(path));
+        if refused {
+            // Extra header fields are matched by name (harmless); a value beyond the last
+            // marker is an error naming the line, as in OpenSim.
+            match *name {
+                "extra-header-fields" => assert!(ours.is_ok(), "{name}: {:?}", ours.err()),
+                _ => {
+                    let e = ours.expect_err(name).to_string();
+                    assert!(e.contains("line 7"), "{name}: {e}");
+                }
+            }
+            continue;
+        }
+        let ours = ours.unwrap_or_else(|e| panic!("{name}: {e}"));
+        let field = |k: &str| theirs.iter().find(|l| l[0] == k).unwrap();
+        let t = &ours.trial;
+        assert_eq!(&field("labels")[1..], t.labels(), "{name}");
+        let rows = field("rows")[1].parse::<usize>().unwrap();
+        assert_eq!(rows, t.n_frames(), "{name}");
+        assert_eq!(rows, ours.header.num_frames, "{name}: header frame count");
+        assert_eq!(ours.header.num_markers, 3, "{name}");
+        assert_eq!(ours.header.data_rate, 100.0, "{name}");
+        let per_metre = 1.0 / ours.header.units.to_metres();
+        for (f, row) in theirs.iter().filter(|l| l[0] == "row").enumerate() {
+            for k in 0..t.n_markers() {
+                let p = t.get(f, k).unwrap();
+                for j in 0..3 {
+                    let o = num(&row[2 + 3 * k + j]);
+                    assert!(
+                        (p[j] * per_metre - o).abs() <= 4.0 * f64::EPSILON * o.abs(),
+                        "{name}: frame {f} marker {k}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// (name, text, whether OpenSim reads it) of each header and line-ending variant seen in the
+/// field.
+fn field_variants() -> Vec<(&'static str, String, bool)> {
     let plain_values = "100\t100\t6\t3\tmm\t100\t1\t6";
-    let cases: Vec<(&str, String, bool)> = vec![
+    vec![
         // (name, text, must OpenSim read it)
         ("plain", variant(KEYS, plain_values, "", "\n"), true),
         (
@@ -96,21 +157,15 @@ fn field_trc_variants_read_as_opensim_reads_them() {
             variant(KEYS, plain_values, "\t1.0\t2.0", "\n"),
             false,
         ),
-    ];
-    let paths: Vec<String> = cases
-        .iter()
-        .map(|(name, text, _)| {
-            let p = dir.join(format!("{name}.trc"));
-            std::fs::write(&p, text).unwrap();
-            p.display().to_string()
-        })
-        .collect();
+    ]
+}
+
+/// What OpenSim reads from each file: its output lines per file; `None` without the oracle.
+fn opensim_reads(paths: &[String]) -> Option<Vec<Vec<Vec<String>>>> {
     let args: Vec<&str> = std::iter::once("trc-read")
         .chain(paths.iter().map(String::as_str))
         .collect();
-    let Some(lines) = oracle::run(&args) else {
-        return;
-    };
+    let lines = oracle::run(&args)?;
     let mut by_file: Vec<Vec<Vec<String>>> = Vec::new();
     for l in lines {
         if l[0] == "FILE" {
@@ -119,48 +174,5 @@ fn field_trc_variants_read_as_opensim_reads_them() {
             by_file.last_mut().unwrap().push(l);
         }
     }
-    assert_eq!(by_file.len(), cases.len());
-    for (((name, _, opensim_reads), path), theirs) in cases.iter().zip(&paths).zip(&by_file) {
-        let refused = theirs[0][0] == "ERROR";
-        assert_eq!(
-            !refused, *opensim_reads,
-            "{name}: OpenSim said {:?}",
-            theirs[0]
-        );
-        let ours = read_trc_file(std::path::Path::new(path));
-        if refused {
-            // Extra header fields are matched by name (harmless); a value beyond the last
-            // marker is an error naming the line, as in OpenSim.
-            match *name {
-                "extra-header-fields" => assert!(ours.is_ok(), "{name}: {:?}", ours.err()),
-                _ => {
-                    let e = ours.expect_err(name).to_string();
-                    assert!(e.contains("line 7"), "{name}: {e}");
-                }
-            }
-            continue;
-        }
-        let ours = ours.unwrap_or_else(|e| panic!("{name}: {e}"));
-        let field = |k: &str| theirs.iter().find(|l| l[0] == k).unwrap();
-        let t = &ours.trial;
-        assert_eq!(&field("labels")[1..], t.labels(), "{name}");
-        let rows = field("rows")[1].parse::<usize>().unwrap();
-        assert_eq!(rows, t.n_frames(), "{name}");
-        assert_eq!(rows, ours.header.num_frames, "{name}: header frame count");
-        assert_eq!(ours.header.num_markers, 3, "{name}");
-        assert_eq!(ours.header.data_rate, 100.0, "{name}");
-        let per_metre = 1.0 / ours.header.units.to_metres();
-        for (f, row) in theirs.iter().filter(|l| l[0] == "row").enumerate() {
-            for k in 0..t.n_markers() {
-                let p = t.get(f, k).unwrap();
-                for j in 0..3 {
-                    let o = num(&row[2 + 3 * k + j]);
-                    assert!(
-                        (p[j] * per_metre - o).abs() <= 4.0 * f64::EPSILON * o.abs(),
-                        "{name}: frame {f} marker {k}"
-                    );
-                }
-            }
-        }
-    }
+    Some(by_file)
 }

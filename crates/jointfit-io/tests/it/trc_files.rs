@@ -83,7 +83,16 @@ const fn reject(file: &'static str, kind: &'static str) -> Case {
 }
 
 pub(crate) fn cases() -> Vec<Case> {
-    let mut v = vec![
+    let mut v = reader_test_files();
+    v.extend(opensim_test_files());
+    v.extend(opencap_files());
+    v.extend(lab_files());
+    v
+}
+
+/// The test files of BTK's and OpenSim's TRC readers, and OpenSim's own gait example.
+fn reader_test_files() -> Vec<Case> {
+    vec![
         reject("trc_reader/btk/Empty.trc", "Empty"),
         // Header NumMarkers 66, labels row 33 names, rows with values past marker 33.
         reject("trc_reader/btk/Gait.trc", "MarkerCountMismatch"),
@@ -164,7 +173,12 @@ pub(crate) fn cases() -> Vec<Case> {
             60.0,
             &[(0, "R.ASIS", Some([0.61724762, 1.05527502, 0.17078198]))],
         ),
-    ];
+    ]
+}
+
+/// OpenSim's format examples and its reference exports of C3D walks.
+fn opensim_test_files() -> Vec<Case> {
+    let mut v = Vec::new();
     v.extend([
         Case {
             file: "trc_reader/opensim/dataWithEformat.trc",
@@ -214,6 +228,12 @@ pub(crate) fn cases() -> Vec<Case> {
             },
         });
     }
+    v
+}
+
+/// Every trial of OpenCap's expert subject: first-frame right knee marker (mm in the file).
+fn opencap_files() -> Vec<Case> {
+    let mut v = Vec::new();
     let opencap: [(&str, usize, usize, [f64; 3]); 12] = [
         ("DJ1", 51, 240, [-1104.12540, 797.70659, -461.26084]),
         ("DJ2", 51, 234, [-1196.33006, 803.95604, -458.87685]),
@@ -234,7 +254,13 @@ pub(crate) fn cases() -> Vec<Case> {
             Box::leak(vec![(0, "r_knee", Some(first_mm.map(|x| x / 1000.0)))].into_boxed_slice());
         v.push(read(file, markers, frames, 100.0, values));
     }
-    v.extend([
+    v
+}
+
+/// Static and motion trials of the OpenSim example subjects, OpenCap's video keypoints and
+/// the JAM subject.
+fn lab_files() -> Vec<Case> {
+    vec![
         read(
             "opensim_gait2392_subject01/subject01_static.trc",
             49,
@@ -294,8 +320,7 @@ pub(crate) fn cases() -> Vec<Case> {
             200.0,
             &[(1203, "L.MT0", Some([0.624108, 0.279370, -2.261526]))],
         ),
-    ]);
-    v
+    ]
 }
 
 fn note_kind(n: &TrcNote) -> &'static str {

@@ -52,7 +52,18 @@ fn base_reads() {
 #[test]
 fn malformed_inputs_map_to_one_error_each() {
     let b = base();
-    let cases: Vec<(String, &str, &str)> = vec![
+    let cases = [header_errors(&b), row_errors(&b)].concat();
+    for (text, kind, fragment) in cases {
+        let (got, msg) = err_of(&text);
+        assert_eq!(got, kind, "{msg}");
+        assert!(msg.contains(fragment), "{kind}: {msg:?} lacks {fragment:?}");
+    }
+}
+
+/// (text, error kind, fragment of the message) of malformed headers and label rows of the
+/// well-formed file `b`.
+fn header_errors(b: &str) -> Vec<(String, &'static str, &'static str)> {
+    vec![
         (String::new(), "Empty", "empty"),
         (" \n\t\n".into(), "Empty", "empty"),
         ("hello\tworld\n".into(), "NotTrc", "PathFileType"),
@@ -104,6 +115,12 @@ fn malformed_inputs_map_to_one_error_each() {
             "DuplicateLabel",
             "markers 1 and 2",
         ),
+    ]
+}
+
+/// (text, error kind, fragment of the message) of malformed data rows of `b`.
+fn row_errors(b: &str) -> Vec<(String, &'static str, &'static str)> {
+    vec![
         (
             b.replace("\tX2\tY2\tZ2", ""),
             "CoordinateRowMismatch",
@@ -151,12 +168,7 @@ fn malformed_inputs_map_to_one_error_each() {
             "FrameNumberJump",
             "line 8",
         ),
-    ];
-    for (text, kind, fragment) in cases {
-        let (got, msg) = err_of(&text);
-        assert_eq!(got, kind, "{msg}");
-        assert!(msg.contains(fragment), "{kind}: {msg:?} lacks {fragment:?}");
-    }
+    ]
 }
 
 #[test]

@@ -50,6 +50,27 @@ fn at_bound(p: &ParamRow) -> bool {
 
 pub(super) fn parameters(h: &mut String, input: &ReportInput) {
     let has_base = input.parameters.iter().any(|p| p.baseline.is_some());
+    lead(h, input, has_base);
+    table_head(h, input, has_base);
+    let cols = if has_base { 8 } else { 6 };
+    let mut group: Option<&str> = None;
+    for p in &input.parameters {
+        if group != Some(p.group.as_str()) {
+            group = Some(p.group.as_str());
+            let _ = write!(
+                h,
+                "<tr class=\"group\"><td colspan=\"{cols}\">{}</td></tr>",
+                escape(&p.group)
+            );
+        }
+        row(h, p, has_base);
+    }
+    h.push_str("</tbody></table></div>");
+}
+
+/// The paragraphs above the table: how to read the gauge, and which parameters ended at a
+/// bound.
+fn lead(h: &mut String, input: &ReportInput, has_base: bool) {
     let bound: Vec<&str> = input
         .parameters
         .iter()
@@ -93,6 +114,10 @@ pub(super) fn parameters(h: &mut String, input: &ReportInput) {
             if bound.len() == 1 { "its value is" } else { "their values are" }
         );
     }
+}
+
+/// The table's opening and header row.
+fn table_head(h: &mut String, input: &ReportInput, has_base: bool) {
     let _ = write!(
         h,
         "<div class=\"scroll\"><table id=\"tbl-parameters\"><thead><tr><th>parameter</th><th>unit</th>{}<th class=\"n\">{}</th>{}\
@@ -109,78 +134,70 @@ pub(super) fn parameters(h: &mut String, input: &ReportInput) {
             None => "interval".to_string(),
         }
     );
-    let cols = if has_base { 8 } else { 6 };
-    let mut group: Option<&str> = None;
-    for p in &input.parameters {
-        if group != Some(p.group.as_str()) {
-            group = Some(p.group.as_str());
-            let _ = write!(
-                h,
-                "<tr class=\"group\"><td colspan=\"{cols}\">{}</td></tr>",
-                escape(&p.group)
-            );
-        }
-        let fixed = p.free == Some(false);
-        let at_bound = at_bound(p);
+}
+
+/// One parameter's row: name (and badges), unit, baseline, fitted value, change, interval,
+/// bounds and gauge.
+fn row(h: &mut String, p: &ParamRow, has_base: bool) {
+    let fixed = p.free == Some(false);
+    let at_bound = at_bound(p);
+    let _ = write!(
+        h,
+        "<tr{}><td class=\"name\">{}{}{}</td><td>{}</td>",
+        if fixed { " class=\"fixed\"" } else { "" },
+        escape(&p.name),
+        if fixed {
+            " <span class=\"badge\" style=\"background:#eef1f4;color:#7a8590\">fixed</span>"
+        } else {
+            ""
+        },
+        if at_bound {
+            "<span class=\"badge\">at bound</span>"
+        } else {
+            ""
+        },
+        escape(&p.unit)
+    );
+    if has_base {
         let _ = write!(
             h,
-            "<tr{}><td class=\"name\">{}{}{}</td><td>{}</td>",
-            if fixed { " class=\"fixed\"" } else { "" },
-            escape(&p.name),
-            if fixed {
-                " <span class=\"badge\" style=\"background:#eef1f4;color:#7a8590\">fixed</span>"
-            } else {
-                ""
-            },
-            if at_bound {
-                "<span class=\"badge\">at bound</span>"
-            } else {
-                ""
-            },
-            escape(&p.unit)
-        );
-        if has_base {
-            let _ = write!(
-                h,
-                "<td class=\"n\">{}</td>",
-                p.baseline.map(|b| fmt(b, 2)).unwrap_or_else(|| "–".into())
-            );
-        }
-        let _ = write!(h, "<td class=\"n\"><b>{}</b></td>", fmt(p.fitted, 2));
-        if has_base {
-            let _ = write!(
-                h,
-                "<td class=\"n\">{}</td>",
-                p.baseline
-                    .map(|b| {
-                        let d = p.fitted - b;
-                        if d.abs() < 0.005 {
-                            "0".to_string()
-                        } else {
-                            format!("{}{}", if d > 0.0 { "+" } else { "" }, fmt(d, 2))
-                        }
-                    })
-                    .unwrap_or_else(|| "–".into())
-            );
-        }
-        let _ = write!(
-            h,
-            "<td class=\"n\">{}</td><td class=\"n\">{} … {}</td><td>{}</td></tr>",
-            match &p.interval {
-                Some(iv) => format!(
-                    "<span title=\"{}% interval {} … {}; standard error {}\">±{}</span>",
-                    fmt(100.0 * iv.level, 0),
-                    fmt(iv.lower, 2),
-                    fmt(iv.upper, 2),
-                    fmt(iv.se, 2),
-                    fmt(0.5 * (iv.upper - iv.lower), 2)
-                ),
-                None => "–".to_string(),
-            },
-            fmt(p.lower, 1),
-            fmt(p.upper, 1),
-            gauge(p)
+            "<td class=\"n\">{}</td>",
+            p.baseline.map(|b| fmt(b, 2)).unwrap_or_else(|| "–".into())
         );
     }
-    h.push_str("</tbody></table></div>");
+    let _ = write!(h, "<td class=\"n\"><b>{}</b></td>", fmt(p.fitted, 2));
+    if has_base {
+        let _ = write!(
+            h,
+            "<td class=\"n\">{}</td>",
+            p.baseline
+                .map(|b| {
+                    let d = p.fitted - b;
+                    if d.abs() < 0.005 {
+                        "0".to_string()
+                    } else {
+                        format!("{}{}", if d > 0.0 { "+" } else { "" }, fmt(d, 2))
+                    }
+                })
+                .unwrap_or_else(|| "–".into())
+        );
+    }
+    let _ = write!(
+        h,
+        "<td class=\"n\">{}</td><td class=\"n\">{} … {}</td><td>{}</td></tr>",
+        match &p.interval {
+            Some(iv) => format!(
+                "<span title=\"{}% interval {} … {}; standard error {}\">±{}</span>",
+                fmt(100.0 * iv.level, 0),
+                fmt(iv.lower, 2),
+                fmt(iv.upper, 2),
+                fmt(iv.se, 2),
+                fmt(0.5 * (iv.upper - iv.lower), 2)
+            ),
+            None => "–".to_string(),
+        },
+        fmt(p.lower, 1),
+        fmt(p.upper, 1),
+        gauge(p)
+    );
 }

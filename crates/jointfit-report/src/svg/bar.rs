@@ -18,8 +18,64 @@ pub struct BarChart {
     pub font: f64,
 }
 
+/// Where things go on a [`BarChart`] (px).
+struct Layout {
+    font: f64,
+    /// Height of one bar.
+    bar: f64,
+    /// Height of one category (its bars and a gap).
+    row: f64,
+    left: f64,
+    top: f64,
+    /// Plot width and height.
+    pw: f64,
+    ph: f64,
+    height: f64,
+    /// The value at the right end of the axis, the ticks and their spacing.
+    x_hi: f64,
+    ticks: Vec<f64>,
+    step: f64,
+}
+
+impl Layout {
+    fn x(&self, v: f64) -> f64 {
+        self.left + v / self.x_hi * self.pw
+    }
+}
+
 impl BarChart {
     pub fn to_svg(&self) -> String {
+        let l = self.layout();
+        let f = l.font;
+        let mut s = String::new();
+        let _ = write!(
+            s,
+            r#"<svg class="chart" viewBox="0 0 {w} {h:.1}" width="{w}" height="{h:.1}" role="img" font-size="{f}"><title>{}</title>"#,
+            escape(&self.x_label),
+            w = self.width,
+            h = l.height
+        );
+        self.legend(&mut s, &l);
+        grid(&mut s, &l);
+        for (c, name) in self.categories.iter().enumerate() {
+            self.category(&mut s, &l, c, name);
+        }
+        let (left, top, pw) = (l.left, l.top, l.pw);
+        let _ = write!(
+            s,
+            r#"<path class="axis" d="M{left:.1},{top:.1}V{:.1}H{:.1}" fill="none"/><text class="label" x="{:.1}" y="{:.1}" text-anchor="middle" font-size="{:.1}">{}</text></svg>"#,
+            top + l.ph,
+            left + pw,
+            left + pw / 2.0,
+            l.height - 0.45 * f,
+            f + 1.0,
+            escape(&self.x_label)
+        );
+        s
+    }
+
+    /// Margins from the font and the longest category label; the axis from the largest value.
+    fn layout(&self) -> Layout {
         let f = self.font;
         let ng = self.groups.len().max(1);
         let bar = 9.0;
@@ -37,8 +93,6 @@ impl BarChart {
         let top = 1.8 * f + 6.0;
         let bottom = 3.2 * f;
         let ph = self.categories.len() as f64 * row;
-        let height = top + ph + bottom;
-        let pw = self.width - left - right;
         let hi = self
             .values
             .iter()
@@ -52,17 +106,25 @@ impl BarChart {
         } else {
             1.0
         };
-        let sx = |v: f64| left + v / x_hi * pw;
-        let mut s = String::new();
-        let _ = write!(
-            s,
-            r#"<svg class="chart" viewBox="0 0 {w} {h:.1}" width="{w}" height="{h:.1}" role="img" font-size="{f}"><title>{}</title>"#,
-            escape(&self.x_label),
-            w = self.width,
-            h = height
-        );
-        // Legend on top.
-        let mut lx = left;
+        Layout {
+            font: f,
+            bar,
+            row,
+            left,
+            top,
+            pw: self.width - left - right,
+            ph,
+            height: top + ph + bottom,
+            x_hi,
+            ticks,
+            step,
+        }
+    }
+
+    /// The legend on top: a swatch and the label of each group.
+    fn legend(&self, s: &mut String, l: &Layout) {
+        let (f, bar) = (l.font, l.bar);
+        let mut lx = l.left;
         for (label, color) in &self.groups {
             let _ = write!(
                 s,
@@ -75,74 +137,73 @@ impl BarChart {
             );
             lx += 30.0 + label.chars().count() as f64 * f * 0.56;
         }
-        for v in &ticks {
-            let x = sx(*v);
+    }
+
+    /// One category: its band (every other row), its label and one bar per group ("n/a"
+    /// where the value is missing).
+    fn category(&self, s: &mut String, l: &Layout, c: usize, name: &str) {
+        let (f, bar, row, left) = (l.font, l.bar, l.row, l.left);
+        let ng = self.groups.len().max(1);
+        let y0 = l.top + c as f64 * row + 4.0;
+        if c % 2 == 1 {
             let _ = write!(
                 s,
-                r#"<line class="grid" x1="{x:.1}" y1="{top:.1}" x2="{x:.1}" y2="{:.1}"/><text class="tick" x="{x:.1}" y="{:.1}" text-anchor="middle">{}</text>"#,
-                top + ph,
-                top + ph + 1.3 * f + 3.0,
-                escape(&format_tick(*v, step))
+                r#"<rect class="band" x="0" y="{:.1}" width="{:.1}" height="{row:.1}"/>"#,
+                y0 - 4.0,
+                left + l.pw
             );
-        }
-        for (c, name) in self.categories.iter().enumerate() {
-            let y0 = top + c as f64 * row + 4.0;
-            if c % 2 == 1 {
-                let _ = write!(
-                    s,
-                    r#"<rect class="band" x="0" y="{:.1}" width="{:.1}" height="{row:.1}"/>"#,
-                    y0 - 4.0,
-                    left + pw
-                );
-            }
-            let _ = write!(
-                s,
-                r#"<text class="tick" x="{:.1}" y="{:.1}" text-anchor="end">{}</text>"#,
-                left - 6.0,
-                y0 + ng as f64 * bar / 2.0 + 0.35 * f,
-                escape(name)
-            );
-            for (g, (label, color)) in self.groups.iter().enumerate() {
-                let v = self.values.get(c).and_then(|r| r.get(g)).copied();
-                let y = y0 + g as f64 * bar;
-                match v {
-                    Some(v) if v.is_finite() => {
-                        let _ = write!(
-                            s,
-                            r#"<rect x="{left:.1}" y="{y:.1}" width="{:.1}" height="{:.1}" fill="{}"><title>{}: {} {:.2}</title></rect><text class="value" x="{:.1}" y="{:.1}">{:.1}</text>"#,
-                            (sx(v) - left).max(0.5),
-                            bar - 1.0,
-                            escape(color),
-                            escape(name),
-                            escape(label),
-                            v,
-                            sx(v) + 3.0,
-                            y + bar - 1.5,
-                            v
-                        );
-                    }
-                    _ => {
-                        let _ = write!(
-                            s,
-                            r#"<text class="value" x="{:.1}" y="{:.1}">n/a</text>"#,
-                            left + 3.0,
-                            y + bar - 1.5
-                        );
-                    }
-                }
-            }
         }
         let _ = write!(
             s,
-            r#"<path class="axis" d="M{left:.1},{top:.1}V{:.1}H{:.1}" fill="none"/><text class="label" x="{:.1}" y="{:.1}" text-anchor="middle" font-size="{:.1}">{}</text></svg>"#,
-            top + ph,
-            left + pw,
-            left + pw / 2.0,
-            height - 0.45 * f,
-            f + 1.0,
-            escape(&self.x_label)
+            r#"<text class="tick" x="{:.1}" y="{:.1}" text-anchor="end">{}</text>"#,
+            left - 6.0,
+            y0 + ng as f64 * bar / 2.0 + 0.35 * f,
+            escape(name)
         );
-        s
+        for (g, (label, color)) in self.groups.iter().enumerate() {
+            let v = self.values.get(c).and_then(|r| r.get(g)).copied();
+            let y = y0 + g as f64 * bar;
+            match v {
+                Some(v) if v.is_finite() => {
+                    let _ = write!(
+                        s,
+                        r#"<rect x="{left:.1}" y="{y:.1}" width="{:.1}" height="{:.1}" fill="{}"><title>{}: {} {:.2}</title></rect><text class="value" x="{:.1}" y="{:.1}">{:.1}</text>"#,
+                        (l.x(v) - left).max(0.5),
+                        bar - 1.0,
+                        escape(color),
+                        escape(name),
+                        escape(label),
+                        v,
+                        l.x(v) + 3.0,
+                        y + bar - 1.5,
+                        v
+                    );
+                }
+                _ => {
+                    let _ = write!(
+                        s,
+                        r#"<text class="value" x="{:.1}" y="{:.1}">n/a</text>"#,
+                        left + 3.0,
+                        y + bar - 1.5
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// The vertical grid lines and their tick labels.
+fn grid(s: &mut String, l: &Layout) {
+    let (f, top, ph) = (l.font, l.top, l.ph);
+    for v in &l.ticks {
+        let x = l.x(*v);
+        let _ = write!(
+            s,
+            r#"<line class="grid" x1="{x:.1}" y1="{top:.1}" x2="{x:.1}" y2="{:.1}"/><text class="tick" x="{x:.1}" y="{:.1}" text-anchor="middle">{}</text>"#,
+            top + ph,
+            top + ph + 1.3 * f + 3.0,
+            escape(&format_tick(*v, l.step))
+        );
     }
 }
 

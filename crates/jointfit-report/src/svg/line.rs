@@ -83,15 +83,28 @@ impl LineChart {
 
     /// The chart as an `<svg>` element.
     pub fn to_svg(&self) -> String {
-        let f = self.font;
-        let finite = |s: &Series| {
-            s.points
-                .iter()
-                .copied()
-                .filter(|(x, y)| x.is_finite() && y.is_finite())
-                .collect::<Vec<_>>()
-        };
-        let all: Vec<(f64, f64)> = self.series.iter().flat_map(finite).collect();
+        let fr = self.frame();
+        let mut s = String::new();
+        let _ = write!(
+            s,
+            r#"<svg class="chart" viewBox="0 0 {w} {h}" width="{w}" height="{h}" role="img" font-size="{f}">"#,
+            w = self.width,
+            h = self.height,
+            f = self.font
+        );
+        self.title_element(&mut s, &fr);
+        self.grid_and_axes(&mut s, &fr);
+        self.data(&mut s, &fr);
+        if self.legend && !self.series.is_empty() {
+            self.legend_row(&mut s, &fr);
+        }
+        s.push_str("</svg>");
+        s
+    }
+
+    /// The x axis: its range and ticks (integer ticks from zero for iteration counts;
+    /// exactly the data range with ticks inside it for time axes) and the tick spacing.
+    fn x_axis(&self, all: &[(f64, f64)]) -> (f64, f64, Vec<f64>, f64) {
         let (x_lo, x_hi) = min_max(all.iter().map(|p| p.0));
         let (x_lo, x_hi, mut xticks) = if self.x_integer {
             let (a, b, t) = linear_ticks(x_lo, x_hi, 6);
@@ -123,7 +136,12 @@ impl LineChart {
         } else {
             1.0
         };
-        // Value axis.
+        (x_lo, x_hi, xticks, x_step)
+    }
+
+    /// The value axis in axis units (log10 of the value on a log axis): its range, tick
+    /// positions and tick labels.
+    fn y_axis(&self, all: &[(f64, f64)]) -> (f64, f64, Vec<f64>, Vec<String>) {
         let ys = all.iter().map(|p| p.1);
         let (ylo, yhi) = match self.y_scale {
             Scale::Linear => {
@@ -137,20 +155,32 @@ impl LineChart {
             Scale::Log10 => min_max(ys.filter(|v| *v > 0.0)),
         };
         let target = if self.height < 200.0 { 4 } else { 5 };
-        let (y_axis_lo, y_axis_hi, yticks, ylabels): (f64, f64, Vec<f64>, Vec<String>) =
-            match self.y_scale {
-                Scale::Linear => {
-                    let (a, b, t) = linear_ticks(ylo, yhi, target);
-                    let step = if t.len() > 1 { t[1] - t[0] } else { 1.0 };
-                    let labels = t.iter().map(|v| format_tick(*v, step)).collect();
-                    (a, b, t, labels)
-                }
-                Scale::Log10 => {
-                    let (a, b, _) = log_ticks(ylo, yhi);
-                    let (pos, labels) = log_axis_ticks(a, b);
-                    (a as f64, b as f64, pos, labels)
-                }
-            };
+        match self.y_scale {
+            Scale::Linear => {
+                let (a, b, t) = linear_ticks(ylo, yhi, target);
+                let step = if t.len() > 1 { t[1] - t[0] } else { 1.0 };
+                let labels = t.iter().map(|v| format_tick(*v, step)).collect();
+                (a, b, t, labels)
+            }
+            Scale::Log10 => {
+                let (a, b, _) = log_ticks(ylo, yhi);
+                let (pos, labels) = log_axis_ticks(a, b);
+                (a as f64, b as f64, pos, labels)
+            }
+        }
+    }
+
+    /// Both axes and the plot area's place, from the finite points of every series.
+    fn frame(&self) -> Frame {
+        let f = self.font;
+        let all: Vec<(f64, f64)> = self
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter().copied())
+            .filter(|(x, y)| x.is_finite() && y.is_finite())
+            .collect();
+        let (x_lo, x_hi, xticks, x_step) = self.x_axis(&all);
+        let (y_lo, y_hi, yticks, ylabels) = self.y_axis(&all);
         let ylabel_width =
             ylabels.iter().map(|l| l.chars().count()).max().unwrap_or(1) as f64 * f * 0.6;
         let left = (ylabel_width + 2.2 * f + 8.0).max(40.0);
@@ -161,27 +191,33 @@ impl LineChart {
         };
         let bottom = 3.3 * f;
         let right = 0.9 * f + 6.0;
-        let pw = self.width - left - right;
-        let ph = self.height - top - bottom;
-        let sx = |x: f64| left + (x - x_lo) / (x_hi - x_lo).max(1e-300) * pw;
-        let to_axis = |y: f64| match self.y_scale {
-            Scale::Linear => y,
-            Scale::Log10 => y.log10(),
-        };
-        let sy = |v: f64| top + ph - (v - y_axis_lo) / (y_axis_hi - y_axis_lo).max(1e-300) * ph;
-        let mut s = String::new();
-        let _ = write!(
-            s,
-            r#"<svg class="chart" viewBox="0 0 {w} {h}" width="{w}" height="{h}" role="img" font-size="{f}">"#,
-            w = self.width,
-            h = self.height
-        );
+        Frame {
+            f,
+            left,
+            top,
+            pw: self.width - left - right,
+            ph: self.height - top - bottom,
+            x_lo,
+            x_hi,
+            xticks,
+            x_step,
+            y_lo,
+            y_hi,
+            yticks,
+            ylabels,
+            scale: self.y_scale,
+        }
+    }
+
+    /// The chart's `<title>` (and the drawn title of a small panel).
+    fn title_element(&self, s: &mut String, fr: &Frame) {
+        let f = fr.f;
         if let Some(t) = &self.title {
             let _ = write!(
                 s,
                 r#"<title>{}</title><text class="title" x="{:.1}" y="{:.1}" font-size="{:.1}">{}</text>"#,
                 escape(t),
-                left,
+                fr.left,
                 1.3 * f,
                 f + 1.0,
                 escape(t)
@@ -194,9 +230,13 @@ impl LineChart {
                 escape(&self.x_label)
             );
         }
-        // Grid and tick labels.
-        for (v, l) in yticks.iter().zip(&ylabels) {
-            let y = sy(*v);
+    }
+
+    /// Grid lines with their tick labels, the left and bottom axes and their labels.
+    fn grid_and_axes(&self, s: &mut String, fr: &Frame) {
+        let (f, left, top, pw, ph) = (fr.f, fr.left, fr.top, fr.pw, fr.ph);
+        for (v, l) in fr.yticks.iter().zip(&fr.ylabels) {
+            let y = fr.sy(*v);
             let _ = write!(
                 s,
                 r#"<line class="grid" x1="{:.1}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}"/><text class="tick" x="{:.1}" y="{:.1}" text-anchor="end">{}</text>"#,
@@ -207,8 +247,8 @@ impl LineChart {
                 escape(l)
             );
         }
-        for v in &xticks {
-            let x = sx(*v);
+        for v in &fr.xticks {
+            let x = fr.sx(*v);
             let _ = write!(
                 s,
                 r#"<line class="grid" x1="{x:.1}" y1="{:.1}" x2="{x:.1}" y2="{:.1}"/><line class="axis" x1="{x:.1}" y1="{:.1}" x2="{x:.1}" y2="{:.1}"/><text class="tick" x="{x:.1}" y="{:.1}" text-anchor="middle">{}</text>"#,
@@ -217,7 +257,7 @@ impl LineChart {
                 top + ph,
                 top + ph + 4.0,
                 top + ph + 1.3 * f + 3.0,
-                escape(&format_tick(*v, x_step))
+                escape(&format_tick(*v, fr.x_step))
             );
         }
         // Axes (left and bottom).
@@ -245,27 +285,29 @@ impl LineChart {
             f + 1.0,
             escape(&self.y_label)
         );
-        // Data, clipped to the plot area.
+    }
+
+    /// Each series as a path (broken at gaps, dots where asked), clipped to the plot area;
+    /// the clip path is named by the chart's id, else by a fingerprint of what `s` holds.
+    fn data(&self, s: &mut String, fr: &Frame) {
         let clip = if self.id.is_empty() {
-            format!("clip-{:x}", fingerprint(&s, &self.series))
+            format!("clip-{:x}", fingerprint(s, &self.series))
         } else {
             format!("clip-{}", self.id)
         };
         let _ = write!(
             s,
             r#"<clipPath id="{clip}"><rect x="{:.1}" y="{:.1}" width="{:.1}" height="{:.1}"/></clipPath><g clip-path="url(#{clip})">"#,
-            left,
-            top - 2.0,
-            pw + 2.0,
-            ph + 4.0
+            fr.left,
+            fr.top - 2.0,
+            fr.pw + 2.0,
+            fr.ph + 4.0
         );
         for ser in &self.series {
             let mut d = String::new();
             let mut pen_down = false;
             for &(x, y) in &decimate(&ser.points, MAX_DRAWN_POINTS) {
-                let ok =
-                    x.is_finite() && y.is_finite() && (self.y_scale == Scale::Linear || y > 0.0);
-                if !ok {
+                if !fr.drawable(x, y) {
                     pen_down = false;
                     continue;
                 }
@@ -273,8 +315,8 @@ impl LineChart {
                     d,
                     "{}{:.1},{:.1}",
                     if pen_down { "L" } else { "M" },
-                    sx(x),
-                    sy(to_axis(y))
+                    fr.sx(x),
+                    fr.sy(fr.to_axis(y))
                 );
                 pen_down = true;
             }
@@ -283,60 +325,100 @@ impl LineChart {
                 r#"<path d="{d}" fill="none" stroke="{}" stroke-width="{}" stroke-linejoin="round" stroke-linecap="round"{}><title>{}</title></path>"#,
                 escape(&ser.color),
                 ser.width,
-                if ser.dashed {
-                    r#" stroke-dasharray="5 4""#
-                } else {
-                    ""
-                },
+                dash(ser),
                 escape(&ser.label)
             );
             if ser.dots {
-                for &(x, y) in &ser.points {
-                    if x.is_finite() && y.is_finite() && (self.y_scale == Scale::Linear || y > 0.0)
-                    {
-                        let _ = write!(
-                            s,
-                            r#"<circle cx="{:.1}" cy="{:.1}" r="2.6" fill="{}"/>"#,
-                            sx(x),
-                            sy(to_axis(y)),
-                            escape(&ser.color)
-                        );
-                    }
+                for &(x, y) in ser.points.iter().filter(|&&(x, y)| fr.drawable(x, y)) {
+                    let _ = write!(
+                        s,
+                        r#"<circle cx="{:.1}" cy="{:.1}" r="2.6" fill="{}"/>"#,
+                        fr.sx(x),
+                        fr.sy(fr.to_axis(y)),
+                        escape(&ser.color)
+                    );
                 }
             }
         }
         s.push_str("</g>");
-        if self.legend && !self.series.is_empty() {
-            // One row above the plot area, right-aligned, so that it never hides data.
-            let widths: Vec<f64> = self
-                .series
-                .iter()
-                .map(|x| 34.0 + x.label.chars().count() as f64 * f * 0.56)
-                .collect();
-            let mut x0 = left + pw - widths.iter().sum::<f64>();
-            let y = top - 0.75 * f;
-            for (ser, w) in self.series.iter().zip(&widths) {
-                let _ = write!(
-                    s,
-                    r#"<line x1="{:.1}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="{}" stroke-width="{}"{}/><text x="{:.1}" y="{:.1}">{}</text>"#,
-                    x0,
-                    x0 + 20.0,
-                    escape(&ser.color),
-                    ser.width.max(2.2),
-                    if ser.dashed {
-                        r#" stroke-dasharray="5 4""#
-                    } else {
-                        ""
-                    },
-                    x0 + 25.0,
-                    y + 0.35 * f,
-                    escape(&ser.label)
-                );
-                x0 += w;
-            }
+    }
+
+    /// The legend: one row above the plot area, right-aligned, so that it never hides data.
+    fn legend_row(&self, s: &mut String, fr: &Frame) {
+        let f = fr.f;
+        let widths: Vec<f64> = self
+            .series
+            .iter()
+            .map(|x| 34.0 + x.label.chars().count() as f64 * f * 0.56)
+            .collect();
+        let mut x0 = fr.left + fr.pw - widths.iter().sum::<f64>();
+        let y = fr.top - 0.75 * f;
+        for (ser, w) in self.series.iter().zip(&widths) {
+            let _ = write!(
+                s,
+                r#"<line x1="{:.1}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="{}" stroke-width="{}"{}/><text x="{:.1}" y="{:.1}">{}</text>"#,
+                x0,
+                x0 + 20.0,
+                escape(&ser.color),
+                ser.width.max(2.2),
+                dash(ser),
+                x0 + 25.0,
+                y + 0.35 * f,
+                escape(&ser.label)
+            );
+            x0 += w;
         }
-        s.push_str("</svg>");
-        s
+    }
+}
+
+/// The dash attribute of a dashed series (empty for a solid one).
+fn dash(ser: &Series) -> &'static str {
+    if ser.dashed {
+        r#" stroke-dasharray="5 4""#
+    } else {
+        ""
+    }
+}
+
+/// The plot area of a [`LineChart`] (px) and its two axes.
+struct Frame {
+    f: f64,
+    left: f64,
+    top: f64,
+    /// Plot width and height.
+    pw: f64,
+    ph: f64,
+    x_lo: f64,
+    x_hi: f64,
+    xticks: Vec<f64>,
+    x_step: f64,
+    /// The value axis in axis units (log10 of the value on a log axis).
+    y_lo: f64,
+    y_hi: f64,
+    yticks: Vec<f64>,
+    ylabels: Vec<String>,
+    scale: Scale,
+}
+
+impl Frame {
+    fn sx(&self, x: f64) -> f64 {
+        self.left + (x - self.x_lo) / (self.x_hi - self.x_lo).max(1e-300) * self.pw
+    }
+
+    fn sy(&self, v: f64) -> f64 {
+        self.top + self.ph - (v - self.y_lo) / (self.y_hi - self.y_lo).max(1e-300) * self.ph
+    }
+
+    fn to_axis(&self, y: f64) -> f64 {
+        match self.scale {
+            Scale::Linear => y,
+            Scale::Log10 => y.log10(),
+        }
+    }
+
+    /// A point that can be drawn: finite, and positive on a log axis.
+    fn drawable(&self, x: f64, y: f64) -> bool {
+        x.is_finite() && y.is_finite() && (self.scale == Scale::Linear || y > 0.0)
     }
 }
 
