@@ -352,7 +352,7 @@ fn frame_count(
     // that fits; else, if the data end cleanly (at a frame boundary or a whole number of
     // blocks), read the frames that are there, else the file is truncated.
     let len = k.len;
-    let clean_end = len % BLOCK == 0
+    let clean_end = len.is_multiple_of(BLOCK)
         || len
             .saturating_sub(data.data_offset)
             .checked_rem(data.frame_bytes)
