@@ -359,3 +359,68 @@ fn help_to_a_full_disk_fails_and_thread_counts_are_capped() {
     assert!(out.status.success(), "{err}");
     assert_eq!(err.matches("threads per core").count(), 1, "{err}");
 }
+
+/// Prior SDs too small for the objective to represent (1e-200 mm used to drop the prior
+/// silently, or to end in a confusing rejection) are one-line errors naming the parameter,
+/// from the model file, from `--prior-sd` and from `--marker-prior-sd-mm`.
+#[test]
+fn prior_sds_below_what_the_fit_represents_are_refused_naming_the_prior() {
+    let s = Scratch::new("prior-sd");
+    let (m, t, out) = (s.p("m.toml"), s.p("t.trc"), s.p("o.toml"));
+    let text = std::fs::read_to_string(s.dir.join("m.toml")).unwrap();
+    let mut spec = jointfit::model::ModelSpec::from_toml(&text).unwrap();
+    let p = &mut spec.parameters[0];
+    let name = p.name.clone();
+    p.prior_sd = Some(1e-203);
+    p.prior_mean = Some(p.nominal);
+    std::fs::write(s.dir.join("tiny.toml"), spec.to_toml()).unwrap();
+    let tiny = s.p("tiny.toml");
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["calibrate", &tiny, &t, "-o", &out], &name),
+        (
+            vec![
+                "calibrate",
+                &m,
+                &t,
+                "-o",
+                &out,
+                "--prior-sd",
+                "hip=1e-200mm",
+            ],
+            "hip_pelvis",
+        ),
+        (
+            vec![
+                "calibrate",
+                &m,
+                &t,
+                "-o",
+                &out,
+                "--prior-sd",
+                "knee=1e-300deg",
+            ],
+            "knee",
+        ),
+        (
+            vec![
+                "calibrate",
+                &m,
+                &t,
+                "-o",
+                &out,
+                "--refine-markers",
+                "--marker-prior-sd-mm",
+                "1e-200",
+            ],
+            "marker_",
+        ),
+    ];
+    for (args, names) in &cases {
+        let err = refused(&s, args);
+        assert!(err.contains("prior"), "{args:?}: {err}");
+        assert!(
+            err.contains(names),
+            "{args:?} does not name the prior: {err}"
+        );
+    }
+}
