@@ -222,9 +222,11 @@ impl IkSetup {
 }
 
 fn read_text(path: &Path) -> Result<String, SetupError> {
-    std::fs::read_to_string(path).map_err(|source| SetupError::Read {
-        path: path.display().to_string(),
-        source,
+    crate::limits::read_text(path, crate::limits::DOCUMENT_BYTES, "setup").map_err(|source| {
+        SetupError::Read {
+            path: path.display().to_string(),
+            source,
+        }
     })
 }
 

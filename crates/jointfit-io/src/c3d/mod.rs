@@ -284,10 +284,12 @@ impl C3d {
 
 /// Reads a C3D file from disk; errors name the file.
 pub fn read_c3d(path: &Path) -> Result<C3d, C3dError> {
-    let bytes = std::fs::read(path).map_err(|source| C3dError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = crate::limits::read_bytes(path, crate::limits::TRIAL_BYTES, "motion").map_err(
+        |source| C3dError::Io {
+            path: path.to_path_buf(),
+            source,
+        },
+    )?;
     parse_c3d(&bytes).map_err(|e| C3dError::InFile {
         path: path.to_path_buf(),
         source: Box::new(e),

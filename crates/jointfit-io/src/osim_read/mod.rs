@@ -120,10 +120,12 @@ impl OsimModel {
 
 /// Reads an `.osim` file.
 pub fn read_osim(path: &Path) -> Result<OsimModel, OsimReadError> {
-    let text = std::fs::read_to_string(path).map_err(|source| OsimReadError::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text = crate::limits::read_text(path, crate::limits::DOCUMENT_BYTES, "model").map_err(
+        |source| OsimReadError::Read {
+            path: path.to_path_buf(),
+            source,
+        },
+    )?;
     parse_osim(text, path)
 }
 
