@@ -679,3 +679,76 @@ fn oversized_inputs_are_refused_quickly_naming_the_limit() {
         );
     }
 }
+
+/// A static trial shrunk to 0.3 of its size, or flattened onto a plane (one lab axis set
+/// to a constant), is refused by `personalize`, never written as a subject model: the shrunk
+/// one by the adult anthropometry check (exit 5), the flattened ones by the pelvis frame.
+#[test]
+fn shrunk_and_flattened_statics_are_refused_by_personalize() {
+    let Some(src) = jointfit_testkit::data_file("opensim_gait2392_subject01/subject01_static.trc")
+    else {
+        return;
+    };
+    let s = Scratch::new("bad-static");
+    let text = std::fs::read_to_string(&src).unwrap();
+    let variant = |name: &str, f: &dyn Fn(usize, f64) -> f64| -> String {
+        let lines: Vec<String> = text
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                if i < 5 {
+                    return l.to_string();
+                }
+                l.split('\t')
+                    .enumerate()
+                    .map(|(k, c)| match c.trim().parse::<f64>() {
+                        Ok(v) if k >= 2 => format!("{:.6}", f(k - 2, v)),
+                        _ => c.to_string(),
+                    })
+                    .collect::<Vec<_>>()
+                    .join("\t")
+            })
+            .collect();
+        std::fs::write(s.dir.join(name), lines.join("\n")).unwrap();
+        s.p(name)
+    };
+    let out = s.p("subject.toml");
+    let cases = [
+        (
+            variant("shrunk.trc", &|_, v| 0.3 * v),
+            Some(5),
+            "not a plausible adult leg",
+        ),
+        (
+            variant("flat_z.trc", &|k, v| if k % 3 == 2 { 0.0 } else { v }),
+            Some(1),
+            "pelvis",
+        ),
+        (
+            variant("flat_y.trc", &|k, v| if k % 3 == 1 { 900.0 } else { v }),
+            Some(1),
+            "pelvis",
+        ),
+    ];
+    for (trial, code, words) in &cases {
+        let args = [
+            "personalize",
+            "--static",
+            trial,
+            "--markers",
+            "gait2392",
+            "--side",
+            "right",
+            "-o",
+            &out,
+        ];
+        let o = run(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), *code, "{trial}: {err}");
+        assert!(err.contains(words), "{trial}: {err}");
+        assert!(
+            !s.dir.join("subject.toml").exists(),
+            "{trial}: a model was written"
+        );
+    }
+}
