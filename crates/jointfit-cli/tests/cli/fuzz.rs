@@ -254,9 +254,10 @@ fn write_oversized(s: &Scratch) -> Vec<String> {
         paths.push(big.join(name).display().to_string());
     }
     #[cfg(unix)]
-    for name in ["zero.osim"] {
-        std::os::unix::fs::symlink("/dev/zero", big.join(name)).unwrap();
-        paths.push(big.join(name).display().to_string());
+    {
+        let zero = big.join("zero.osim");
+        std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+        paths.push(zero.display().to_string());
     }
     paths
 }
