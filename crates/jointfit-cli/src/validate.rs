@@ -287,8 +287,8 @@ pub fn distinct_swaps(swaps: &[jointfit::repair::Swap]) -> Result<()> {
 }
 
 /// A trial a calibration can learn nothing from is refused with its cause: fewer than two
-/// frames, or no marker moving (every present marker within `STILL_M` of its first position
-/// in every frame, e.g. two identical frames or a copy of one frame).
+/// frames, or no marker moving (every marker within `STILL_M` of its first present sample in
+/// every frame, e.g. two identical frames or a copy of one frame).
 pub fn check_motion(path: &Path, trial: &Trial) -> Result<()> {
     const STILL_M: f64 = 1e-6;
     let shown = path.display();
@@ -300,13 +300,21 @@ pub fn check_motion(path: &Path, trial: &Trial) -> Result<()> {
             if n == 1 { "" } else { "s" }
         );
     }
-    let first = trial.frame(0);
-    let moves = (1..n).any(|f| {
-        trial
-            .frame(f)
-            .iter()
-            .zip(first)
-            .any(|(p, q)| !p.x.is_nan() && !q.x.is_nan() && (p - q).norm() > STILL_M)
+    // Each marker against its own first present sample (a walk may start with gaps).
+    let mut first: Vec<Option<nalgebra::Vector3<f64>>> = vec![None; trial.labels().len()];
+    let moves = (0..n).any(|f| {
+        trial.frame(f).iter().zip(first.iter_mut()).any(|(p, q)| {
+            if p.x.is_nan() {
+                return false;
+            }
+            match q {
+                None => {
+                    *q = Some(*p);
+                    false
+                }
+                Some(q) => (p - *q).norm() > STILL_M,
+            }
+        })
     });
     if !moves {
         bail!(

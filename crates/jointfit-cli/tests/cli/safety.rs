@@ -752,3 +752,21 @@ fn shrunk_and_flattened_statics_are_refused_by_personalize() {
         );
     }
 }
+
+/// `jointfit stream` bounds a single input line: an endless line (`/dev/zero` on standard
+/// input, no line end ever) is refused within seconds naming the limit, not read until
+/// memory runs out.
+#[test]
+fn stream_refuses_an_endless_line() {
+    let clock = std::time::Instant::now();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_jointfit"))
+        .args(["stream", "lower-limb-right"])
+        .stdin(std::fs::File::open("/dev/zero").unwrap())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("line 1 is longer than 1048576 bytes"), "{err}");
+    assert!(clock.elapsed().as_secs() < 30, "{:?}", clock.elapsed());
+}
