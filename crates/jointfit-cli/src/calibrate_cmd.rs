@@ -350,6 +350,7 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     apply_weights(&args, &mut fit_spec)?;
     check_marker_noise(&args)?;
     let model = jointfit::model::Model::compile(&fit_spec)?;
+    crate::validate::model_markers("--keep-markers", &args.keep_markers, &model)?;
     let start = match &args.seed_from {
         Some(seed) => {
             let earlier = jointfit_io::model_file::load_model(seed)?;
@@ -360,6 +361,8 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
     let (trials, read) = load_trials(&args, &model)?;
     let refs: Vec<&Trial> = trials.iter().collect();
     for (path, trial) in args.trials.iter().zip(&refs) {
+        crate::validate::check_markers(Path::new(path), trial, &model)?;
+        crate::validate::check_motion(Path::new(path), trial)?;
         let (_, absent) = jointfit::ik::MarkerMap::allowing_absent(&model, trial.labels());
         crate::common::warn_absent_markers(path, &absent);
     }

@@ -109,13 +109,15 @@ pub struct TrialArgs {
 impl TrialArgs {
     /// The repairs asked for ([`jointfit::repair::RepairOptions`]).
     pub fn repairs(&self) -> Result<jointfit::repair::RepairOptions> {
+        let swaps: Vec<jointfit::repair::Swap> = self
+            .swap_labels
+            .iter()
+            .map(|s| jointfit::repair::Swap::parse(s))
+            .collect::<Result<_, _>>()?;
+        crate::validate::distinct_swaps(&swaps)?;
         Ok(jointfit::repair::RepairOptions {
             exclude: self.exclude_marker.clone(),
-            swaps: self
-                .swap_labels
-                .iter()
-                .map(|s| jointfit::repair::Swap::parse(s))
-                .collect::<Result<_, _>>()?,
+            swaps,
             fill_gaps: self.fill_gaps,
         })
     }

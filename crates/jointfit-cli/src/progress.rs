@@ -77,11 +77,15 @@ impl Progress {
         let mode = Mode::from_env();
         let secs = match std::env::var("JOINTFIT_PROGRESS_SECONDS") {
             Ok(s) => log_interval(&s).unwrap_or_else(|| {
-                eprintln!(
-                    "jointfit: warning: JOINTFIT_PROGRESS_SECONDS={}: not a number of seconds \
+                // One warning per run, however many tasks report progress.
+                static WARNED: std::sync::Once = std::sync::Once::new();
+                WARNED.call_once(|| {
+                    eprintln!(
+                        "jointfit: warning: JOINTFIT_PROGRESS_SECONDS={}: not a number of seconds \
                      from 0 to {MAX_LOG_SECONDS}; using 5",
-                    crate::output::tidy(&s)
-                );
+                        crate::output::tidy(&s)
+                    )
+                });
                 5.0
             }),
             Err(_) => 5.0,

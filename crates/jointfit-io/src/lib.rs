@@ -13,6 +13,7 @@ pub mod batch;
 pub mod c3d;
 pub mod content_hash;
 pub mod csv;
+pub mod limits;
 pub mod message;
 pub mod osim;
 pub mod osim_read;

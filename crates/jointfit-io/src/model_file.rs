@@ -40,10 +40,12 @@ pub fn load_spec(name_or_path: &str) -> Result<ModelSpec, ModelFileError> {
     if is_osim(path) {
         return Ok(crate::osim_read::read_osim(path)?.spec);
     }
-    let text = std::fs::read_to_string(path).map_err(|source| ModelFileError::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text = crate::limits::read_text(path, crate::limits::DOCUMENT_BYTES, "model").map_err(
+        |source| ModelFileError::Read {
+            path: path.to_path_buf(),
+            source,
+        },
+    )?;
     ModelSpec::from_toml(&text).map_err(|e| ModelFileError::Parse {
         path: path.to_path_buf(),
         message: toml_one_line(&text, &e),

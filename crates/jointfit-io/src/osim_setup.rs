@@ -222,9 +222,11 @@ impl IkSetup {
 }
 
 fn read_text(path: &Path) -> Result<String, SetupError> {
-    std::fs::read_to_string(path).map_err(|source| SetupError::Read {
-        path: path.display().to_string(),
-        source,
+    crate::limits::read_text(path, crate::limits::DOCUMENT_BYTES, "setup").map_err(|source| {
+        SetupError::Read {
+            path: path.display().to_string(),
+            source,
+        }
     })
 }
 
@@ -254,9 +256,19 @@ fn child<'a, 'i>(node: Node<'a, 'i>, tag: &str) -> Option<Node<'a, 'i>> {
         .find(|c| c.is_element() && c.tag_name().name() == tag)
 }
 
+/// An element's text with comments beside it set aside ([`crate::xml::value_piece`]; the
+/// first piece when comments split it).
+fn value_of<'a>(c: Node<'a, '_>) -> &'a str {
+    let piece = match crate::xml::value_piece(c) {
+        Ok(p) => p,
+        Err(_) => c.children().find(|t| t.is_text()),
+    };
+    piece.and_then(|t| t.text()).unwrap_or("")
+}
+
 /// A child's text, trimmed; `None` when absent, empty or `Unassigned`.
 fn text_value(node: Node, tag: &str) -> Option<String> {
-    let t = child(node, tag)?.text().unwrap_or("").trim().to_string();
+    let t = value_of(child(node, tag)?).trim().to_string();
     (!t.is_empty() && t != "Unassigned").then_some(t)
 }
 
@@ -273,7 +285,10 @@ fn numbers(path: &Path, node: Node, tag: &str) -> Result<Option<Vec<f64>>, Setup
     let Some(c) = child(node, tag) else {
         return Ok(None);
     };
-    let text = c.text().unwrap_or("");
+    let text = match crate::xml::value_piece(c) {
+        Ok(piece) => piece.and_then(|t| t.text()).unwrap_or(""),
+        Err(n) => return Err(invalid(path, c, crate::xml::split_value_message(tag, n))),
+    };
     let mut out = Vec::new();
     for t in text.split_whitespace() {
         match parse_number(t) {
@@ -301,7 +316,7 @@ fn flag(path: &Path, node: Node, tag: &str, default: bool) -> Result<bool, Setup
     let Some(c) = child(node, tag) else {
         return Ok(default);
     };
-    match c.text().unwrap_or("").trim().to_ascii_lowercase().as_str() {
+    match value_of(c).trim().to_ascii_lowercase().as_str() {
         "" => Ok(default),
         "true" | "1" => Ok(true),
         "false" | "0" => Ok(false),

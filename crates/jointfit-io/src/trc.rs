@@ -412,6 +412,8 @@ pub(crate) fn read_trc_in_blocks(
     #[cfg(any(unix, windows))]
     {
         let file = std::fs::File::open(path).map_err(|e| fail(TrcErrorKind::Io(e)))?;
+        crate::limits::check_size(&file, crate::limits::TRIAL_BYTES, "motion")
+            .map_err(|e| fail(TrcErrorKind::Io(e)))?;
         let len = file
             .metadata()
             .map_err(|e| fail(TrcErrorKind::Io(e)))?
@@ -420,7 +422,8 @@ pub(crate) fn read_trc_in_blocks(
             return read.map_err(fail);
         }
     }
-    let bytes = std::fs::read(path).map_err(|e| fail(TrcErrorKind::Io(e)))?;
+    let bytes = crate::limits::read_bytes(path, crate::limits::TRIAL_BYTES, "motion")
+        .map_err(|e| fail(TrcErrorKind::Io(e)))?;
     // Valid UTF-8 (nearly every file) is used in place, without a copy.
     let text = String::from_utf8(bytes).unwrap_or_else(|e| decode(e.as_bytes()));
     read::parse_in_blocks(&text, select, block).map_err(fail)

@@ -119,10 +119,12 @@ pub fn parse_vsk(text: &str, path: &str) -> Result<SubjectMeasurements, VskError
 /// Reads a `.vsk` file's subject measurements.
 pub fn read_vsk(path: &Path) -> Result<SubjectMeasurements, VskError> {
     let shown = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| VskError::Io {
-        path: shown.clone(),
-        source,
-    })?;
+    let text = crate::limits::read_text(path, crate::limits::DOCUMENT_BYTES, "subject").map_err(
+        |source| VskError::Io {
+            path: shown.clone(),
+            source,
+        },
+    )?;
     parse_vsk(&text, &shown)
 }
 

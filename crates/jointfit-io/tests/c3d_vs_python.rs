@@ -93,17 +93,40 @@ fn known(file: &str, reader: &str, aspect: &str) -> bool {
 /// Compares jointfit with one oracle; returns (summary cell, max diff mm, failures).
 fn compare(file: &str, reader: &str, ours: &C3d, o: &Oracle) -> (String, f64, Vec<String>) {
     let mut fails = Vec::new();
-    let p = &ours.points;
-    let np = p.n_points();
     if known(file, reader, "layout") {
         return (format!("known ({}x{})", o.frames, o.points), 0.0, fails);
     }
+    if !compare_shape(file, reader, ours, o, &mut fails) {
+        return ("SHAPE".into(), f64::NAN, fails);
+    }
+    let (present, max_diff) = compare_points(file, reader, ours, o, &mut fails);
+    compare_residuals(file, reader, ours, o, &mut fails);
+    let analog_note = compare_analog(file, reader, ours, o, &mut fails);
+    let cell = if fails.is_empty() {
+        format!("ok {present}{analog_note}")
+    } else {
+        "FAIL".into()
+    };
+    (cell, max_diff, fails)
+}
+
+/// Frames, points, labels, first frame and rate; false when the shapes differ (nothing else
+/// can be compared then).
+fn compare_shape(
+    file: &str,
+    reader: &str,
+    ours: &C3d,
+    o: &Oracle,
+    fails: &mut Vec<String>,
+) -> bool {
+    let p = &ours.points;
+    let np = p.n_points();
     if o.frames != p.n_frames || o.points != np {
         fails.push(format!(
             "{file} vs {reader}: {}x{} (frames x points), jointfit {}x{np}",
             o.frames, o.points, p.n_frames
         ));
-        return ("SHAPE".into(), f64::NAN, fails);
+        return false;
     }
     for (i, (a, b)) in p.labels.iter().zip(&o.labels).enumerate() {
         if a != b {
@@ -124,7 +147,19 @@ fn compare(file: &str, reader: &str, ours: &C3d, o: &Oracle) -> (String, f64, Ve
             o.rate, p.rate
         ));
     }
-    // Points and the missing set.
+    true
+}
+
+/// Coordinates and the missing set; returns (samples present, max difference mm).
+fn compare_points(
+    file: &str,
+    reader: &str,
+    ours: &C3d,
+    o: &Oracle,
+    fails: &mut Vec<String>,
+) -> (usize, f64) {
+    let p = &ours.points;
+    let np = p.n_points();
     let (mut max_diff, mut miss_mismatch, mut present) = (0.0f64, 0usize, 0usize);
     let mut first_mismatch = None;
     for (k, ours_m) in p.positions.iter().enumerate() {
@@ -157,56 +192,61 @@ fn compare(file: &str, reader: &str, ours: &C3d, o: &Oracle) -> (String, f64, Ve
             "{file} vs {reader}: max coordinate difference {max_diff:.3e} mm"
         ));
     }
-    // Residuals (c3d only: ezc3d swaps the bytes of the residual word).
-    if let Some(r) = &o.residual_mm {
-        let worst = p
-            .residuals
-            .iter()
-            .zip(r)
-            .filter(|(a, b)| !a.is_nan() && **b >= 0.0)
-            .map(|(a, b)| (a * 1000.0 - b).abs())
-            .fold(0.0, f64::max);
-        if worst > TOL_MM {
-            fails.push(format!(
-                "{file} vs {reader}: residuals differ by {worst:.3e} mm"
-            ));
-        }
+    (present, max_diff)
+}
+
+/// Residuals (c3d only: ezc3d swaps the bytes of the residual word).
+fn compare_residuals(file: &str, reader: &str, ours: &C3d, o: &Oracle, fails: &mut Vec<String>) {
+    let Some(r) = &o.residual_mm else { return };
+    let worst = ours
+        .points
+        .residuals
+        .iter()
+        .zip(r)
+        .filter(|(a, b)| !a.is_nan() && **b >= 0.0)
+        .map(|(a, b)| (a * 1000.0 - b).abs())
+        .fold(0.0, f64::max);
+    if worst > TOL_MM {
+        fails.push(format!(
+            "{file} vs {reader}: residuals differ by {worst:.3e} mm"
+        ));
     }
-    // Analog.
+}
+
+/// Analog shape and samples; returns the note for the summary cell.
+fn compare_analog(
+    file: &str,
+    reader: &str,
+    ours: &C3d,
+    o: &Oracle,
+    fails: &mut Vec<String>,
+) -> &'static str {
     let a = &ours.analog;
-    let analog_note = if known(file, reader, "analog") {
-        " (analog: known)"
-    } else if (o.analog_channels, o.analog_samples) != (a.n_channels(), a.n_samples()) {
-        {
-            fails.push(format!(
-                "{file} vs {reader}: analog {}x{} (channels x samples), jointfit {}x{}",
-                o.analog_channels,
-                o.analog_samples,
-                a.n_channels(),
-                a.n_samples()
-            ));
-            " (analog shape!)"
-        }
-    } else {
-        let worst = a
-            .samples
-            .iter()
-            .zip(&o.analog)
-            .map(|(x, y)| (x - y).abs() / y.abs().max(1.0))
-            .fold(0.0, f64::max);
-        if worst > 1e-9 {
-            fails.push(format!(
-                "{file} vs {reader}: analog differs by {worst:.3e} (relative)"
-            ));
-        }
-        ""
-    };
-    let cell = if fails.is_empty() {
-        format!("ok {present}{analog_note}")
-    } else {
-        "FAIL".into()
-    };
-    (cell, max_diff, fails)
+    if known(file, reader, "analog") {
+        return " (analog: known)";
+    }
+    if (o.analog_channels, o.analog_samples) != (a.n_channels(), a.n_samples()) {
+        fails.push(format!(
+            "{file} vs {reader}: analog {}x{} (channels x samples), jointfit {}x{}",
+            o.analog_channels,
+            o.analog_samples,
+            a.n_channels(),
+            a.n_samples()
+        ));
+        return " (analog shape!)";
+    }
+    let worst = a
+        .samples
+        .iter()
+        .zip(&o.analog)
+        .map(|(x, y)| (x - y).abs() / y.abs().max(1.0))
+        .fold(0.0, f64::max);
+    if worst > 1e-9 {
+        fails.push(format!(
+            "{file} vs {reader}: analog differs by {worst:.3e} (relative)"
+        ));
+    }
+    ""
 }
 
 /// Sanity of a file no oracle reads: coordinates inside ±20 m, at least one sample present,
@@ -269,6 +309,159 @@ fn file_name(p: &Path) -> String {
     p.file_name().unwrap().to_string_lossy().into_owned()
 }
 
+/// One line of the summary table: file, frames, points, ezc3d cell, c3d cell, max diff mm.
+type Row = (String, usize, usize, String, String, f64);
+
+/// Runs `scripts/c3d_reference.py` on `files`; returns its output directory and index.
+fn run_oracle(py: &Path, files: &[PathBuf]) -> (jointfit_testkit::ScratchDir, Vec<Value>) {
+    let out = jointfit_testkit::scratch("c3d-ref");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/c3d_reference.py");
+    let status = Command::new(py)
+        .arg(&script)
+        .arg(out.path())
+        .args(files)
+        .status()
+        .expect("run the Python oracle");
+    assert!(status.success(), "{} failed: {status}", script.display());
+    let index: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("index.json")).unwrap()).unwrap();
+    let entries = index.as_array().unwrap().clone();
+    assert_eq!(entries.len(), files.len());
+    (out, entries)
+}
+
+/// A file both Python readers fail on: jointfit must do what [`BOTH_FAIL`] pins.
+fn both_fail_row(
+    rel: String,
+    name: &str,
+    errors: (Option<String>, Option<String>),
+    ours: &Result<C3d, C3dError>,
+    fails: &mut Vec<String>,
+) -> Option<Row> {
+    let Some((_, expect)) = BOTH_FAIL.iter().find(|(f, _)| *f == name) else {
+        fails.push(format!(
+            "{rel}: both Python readers fail ({:?} / {:?}) and BOTH_FAIL does not say what \
+             jointfit should do (jointfit: {:?})",
+            errors.0,
+            errors.1,
+            ours.as_ref()
+                .map(|c| c.points.n_frames)
+                .map_err(|e| e.to_string())
+        ));
+        return None;
+    };
+    let cell = match (expect, ours) {
+        (Expect::Rejects(is, what), Err(e)) => {
+            let inner = match e {
+                C3dError::InFile { source, .. } => source.as_ref(),
+                e => e,
+            };
+            if !is(inner) {
+                fails.push(format!("{rel}: expected {what}, got {e}"));
+            }
+            format!("rejected: {what}")
+        }
+        (
+            Expect::Reads {
+                frames,
+                points,
+                first_label,
+            },
+            Ok(c),
+        ) => {
+            let p = &c.points;
+            if (p.n_frames, p.n_points()) != (*frames, *points)
+                || p.labels.first().map(String::as_str) != Some(*first_label)
+            {
+                fails.push(format!(
+                    "{rel}: expected {frames}x{points} starting {first_label:?}, got {}x{} \
+                     starting {:?}",
+                    p.n_frames,
+                    p.n_points(),
+                    p.labels.first()
+                ));
+            }
+            if let Err(e) = sane(c) {
+                fails.push(format!("{rel}: {e}"));
+            }
+            "read, sane".into()
+        }
+        (_, r) => {
+            fails.push(format!(
+                "{rel}: unexpected outcome {:?}",
+                r.as_ref()
+                    .map(|c| c.points.n_frames)
+                    .map_err(|e| e.to_string())
+            ));
+            "FAIL".into()
+        }
+    };
+    let (fr, pt) = ours
+        .as_ref()
+        .map_or((0, 0), |c| (c.points.n_frames, c.points.n_points()));
+    Some((rel, fr, pt, "both fail".to_string(), cell, f64::NAN))
+}
+
+/// A file at least one Python reader reads: jointfit against each reader that reads it.
+fn compared_row(
+    rel: String,
+    name: &str,
+    oracles: [(&str, &Result<Oracle, String>); 2],
+    ours: Result<C3d, C3dError>,
+    fails: &mut Vec<String>,
+) -> Option<Row> {
+    let c = match ours {
+        Ok(c) => c,
+        Err(e) => {
+            fails.push(format!(
+                "{rel}: a Python reader reads it, jointfit fails: {e}"
+            ));
+            return None;
+        }
+    };
+    let mut cells = BTreeMap::new();
+    let mut worst = 0.0f64;
+    for (reader, o) in oracles {
+        let cell = match o {
+            Err(e) => format!("err: {}", e.split(':').next().unwrap_or(e)),
+            Ok(o) => {
+                let (cell, diff, f) = compare(name, reader, &c, o);
+                worst = worst.max(diff);
+                fails.extend(f);
+                cell
+            }
+        };
+        cells.insert(reader, cell);
+    }
+    if name == "kyowadengyo.c3d" {
+        if let Err(e) = sane(&c) {
+            fails.push(format!("{rel}: {e}"));
+        }
+    }
+    Some((
+        rel,
+        c.points.n_frames,
+        c.points.n_points(),
+        cells["ezc3d"].clone(),
+        cells["c3d"].clone(),
+        worst,
+    ))
+}
+
+fn print_table(rows: &[Row]) {
+    println!(
+        "{:<58} {:>6} {:>4}  {:<28} {:<28} {:>9}",
+        "file", "frames", "pts", "ezc3d", "c3d", "max mm"
+    );
+    for (rel, fr, pt, ez, cp, d) in rows {
+        println!("{rel:<58} {fr:>6} {pt:>4}  {ez:<28} {cp:<28} {d:>9.2e}");
+    }
+    println!("known disagreements:");
+    for (f, r, a, why) in KNOWN {
+        println!("  {f} / {r} / {a}: {why}");
+    }
+}
+
 #[test]
 fn c3d_matches_ezc3d_and_c3d_on_every_sample() {
     let Some(data) = data_dir() else { return };
@@ -279,24 +472,11 @@ fn c3d_matches_ezc3d_and_c3d_on_every_sample() {
         "expected the C3D sample set, found {}",
         files.len()
     );
-    let out = jointfit_testkit::scratch("c3d-ref");
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/c3d_reference.py");
-    let status = Command::new(&py)
-        .arg(&script)
-        .arg(out.path())
-        .args(&files)
-        .status()
-        .expect("run the Python oracle");
-    assert!(status.success(), "{} failed: {status}", script.display());
-    let index: Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("index.json")).unwrap()).unwrap();
-    let entries = index.as_array().unwrap();
-    assert_eq!(entries.len(), files.len());
-
+    let (out, entries) = run_oracle(&py, &files);
     let mut fails = Vec::new();
     let mut rows = Vec::new();
     let mut both_fail_seen = Vec::new();
-    for (i, (path, entry)) in files.iter().zip(entries).enumerate() {
+    for (i, (path, entry)) in files.iter().zip(&entries).enumerate() {
         let name = file_name(path);
         let rel = path
             .strip_prefix(&data)
@@ -306,108 +486,13 @@ fn c3d_matches_ezc3d_and_c3d_on_every_sample() {
         let ez = oracle(&entry["ezc3d"], &out, i, "ezc3d");
         let cp = oracle(&entry["c3d"], &out, i, "c3d");
         let ours = read_c3d(path);
-        if ez.is_err() && cp.is_err() {
+        let row = if ez.is_err() && cp.is_err() {
             both_fail_seen.push(name.clone());
-            let Some((_, expect)) = BOTH_FAIL.iter().find(|(f, _)| *f == name) else {
-                fails.push(format!(
-                    "{rel}: both Python readers fail ({:?} / {:?}) and BOTH_FAIL does not say \
-                     what jointfit should do (jointfit: {:?})",
-                    ez.err(),
-                    cp.err(),
-                    ours.as_ref()
-                        .map(|c| c.points.n_frames)
-                        .map_err(|e| e.to_string())
-                ));
-                continue;
-            };
-            let cell = match (expect, &ours) {
-                (Expect::Rejects(is, what), Err(e)) => {
-                    let inner = match e {
-                        C3dError::InFile { source, .. } => source.as_ref(),
-                        e => e,
-                    };
-                    if !is(inner) {
-                        fails.push(format!("{rel}: expected {what}, got {e}"));
-                    }
-                    format!("rejected: {what}")
-                }
-                (
-                    Expect::Reads {
-                        frames,
-                        points,
-                        first_label,
-                    },
-                    Ok(c),
-                ) => {
-                    let p = &c.points;
-                    if (p.n_frames, p.n_points()) != (*frames, *points)
-                        || p.labels.first().map(String::as_str) != Some(*first_label)
-                    {
-                        fails.push(format!(
-                            "{rel}: expected {frames}x{points} starting {first_label:?}, got \
-                             {}x{} starting {:?}",
-                            p.n_frames,
-                            p.n_points(),
-                            p.labels.first()
-                        ));
-                    }
-                    if let Err(e) = sane(c) {
-                        fails.push(format!("{rel}: {e}"));
-                    }
-                    "read, sane".into()
-                }
-                (_, r) => {
-                    fails.push(format!(
-                        "{rel}: unexpected outcome {:?}",
-                        r.as_ref()
-                            .map(|c| c.points.n_frames)
-                            .map_err(|e| e.to_string())
-                    ));
-                    "FAIL".into()
-                }
-            };
-            let (fr, pt) = ours
-                .as_ref()
-                .map_or((0, 0), |c| (c.points.n_frames, c.points.n_points()));
-            rows.push((rel, fr, pt, "both fail".to_string(), cell, f64::NAN));
-            continue;
-        }
-        let c = match ours {
-            Ok(c) => c,
-            Err(e) => {
-                fails.push(format!(
-                    "{rel}: a Python reader reads it, jointfit fails: {e}"
-                ));
-                continue;
-            }
+            both_fail_row(rel, &name, (ez.err(), cp.err()), &ours, &mut fails)
+        } else {
+            compared_row(rel, &name, [("ezc3d", &ez), ("c3d", &cp)], ours, &mut fails)
         };
-        let mut cells = BTreeMap::new();
-        let mut worst = 0.0f64;
-        for (reader, o) in [("ezc3d", &ez), ("c3d", &cp)] {
-            let cell = match o {
-                Err(e) => format!("err: {}", e.split(':').next().unwrap_or(e)),
-                Ok(o) => {
-                    let (cell, diff, f) = compare(&name, reader, &c, o);
-                    worst = worst.max(diff);
-                    fails.extend(f);
-                    cell
-                }
-            };
-            cells.insert(reader, cell);
-        }
-        if name == "kyowadengyo.c3d" {
-            if let Err(e) = sane(&c) {
-                fails.push(format!("{rel}: {e}"));
-            }
-        }
-        rows.push((
-            rel,
-            c.points.n_frames,
-            c.points.n_points(),
-            cells["ezc3d"].clone(),
-            cells["c3d"].clone(),
-            worst,
-        ));
+        rows.extend(row);
     }
     for (f, _) in BOTH_FAIL {
         if !both_fail_seen.iter().any(|s| s == f) {
@@ -416,19 +501,8 @@ fn c3d_matches_ezc3d_and_c3d_on_every_sample() {
             ));
         }
     }
-
-    println!(
-        "{:<58} {:>6} {:>4}  {:<28} {:<28} {:>9}",
-        "file", "frames", "pts", "ezc3d", "c3d", "max mm"
-    );
-    for (rel, fr, pt, ez, cp, d) in &rows {
-        println!("{rel:<58} {fr:>6} {pt:>4}  {ez:<28} {cp:<28} {d:>9.2e}");
-    }
-    println!("known disagreements:");
-    for (f, r, a, why) in KNOWN {
-        println!("  {f} / {r} / {a}: {why}");
-    }
-    let _ = std::fs::remove_dir_all(&out);
+    print_table(&rows);
+    drop(out);
     assert!(
         fails.is_empty(),
         "{} failures:\n{}",
@@ -465,5 +539,57 @@ fn every_sample_file_reads_or_fails_as_pinned() {
             }
             (Err(e), _) => panic!("{name}: {e}"),
         }
+    }
+}
+
+/// A file of 70,000 frames written by ezc3d (an independent writer): its header's last frame
+/// saturates at 65535, POINT:FRAMES too, and no TRIAL:ACTUAL_END_FIELD is written. jointfit
+/// reads every frame the writer stored (counted from the data size, with a note), and each
+/// coordinate is the one written. (ezc3d 1.5 reads such a file back as 65,535 frames; the `c3d`
+/// package reads 65,535 and warns that bytes remain: both cut it.)
+#[test]
+fn ezc3d_file_past_65535_frames_is_read_whole() {
+    let Some(py) = python() else { return };
+    let dir = jointfit_testkit::scratch("c3d-long");
+    let path = dir.join("long.c3d");
+    let code = "import sys, ezc3d, numpy as np\n\
+                c = ezc3d.c3d()\n\
+                c['parameters']['POINT']['RATE']['value'] = [200]\n\
+                c['parameters']['POINT']['UNITS']['value'] = ['mm']\n\
+                c['parameters']['POINT']['LABELS']['value'] = ['A', 'B']\n\
+                n = 70000\n\
+                p = np.ones((4, 2, n))\n\
+                p[0, 0, :] = np.arange(n) * 0.5 + 1\n\
+                p[1, 1, :] = 3000 - np.arange(n) * 0.01\n\
+                c['data']['points'] = p\n\
+                c.write(sys.argv[1])\n";
+    let status = Command::new(&py)
+        .args(["-c", code])
+        .arg(&path)
+        .status()
+        .expect("run ezc3d");
+    assert!(status.success(), "ezc3d failed to write: {status}");
+    let c = read_c3d(&path).unwrap();
+    let p = &c.points;
+    assert_eq!((p.n_frames, p.n_points()), (70_000, 2), "{:?}", c.warnings);
+    assert_eq!(p.rate, 200.0);
+    assert!(
+        c.warnings
+            .iter()
+            .any(|w| w.contains("65535") && w.contains("70000")),
+        "{:?}",
+        c.warnings
+    );
+    for f in [0, 65_534, 65_535, 69_999] {
+        let a = p.positions[2 * f] * 1000.0;
+        let b = p.positions[2 * f + 1] * 1000.0;
+        assert!(
+            (a.x - (f as f64 * 0.5 + 1.0)).abs() < 1e-3,
+            "frame {f}: {a:?}"
+        );
+        assert!(
+            (b.y - (3000.0 - f as f64 * 0.01)).abs() < 1e-3,
+            "frame {f}: {b:?}"
+        );
     }
 }

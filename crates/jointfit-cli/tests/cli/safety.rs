@@ -359,3 +359,414 @@ fn help_to_a_full_disk_fails_and_thread_counts_are_capped() {
     assert!(out.status.success(), "{err}");
     assert_eq!(err.matches("threads per core").count(), 1, "{err}");
 }
+
+/// Prior SDs too small for the objective to represent (1e-200 mm used to drop the prior
+/// silently, or to end in a confusing rejection) are one-line errors naming the parameter,
+/// from the model file, from `--prior-sd` and from `--marker-prior-sd-mm`.
+#[test]
+fn prior_sds_below_what_the_fit_represents_are_refused_naming_the_prior() {
+    let s = Scratch::new("prior-sd");
+    let (m, t, out) = (s.p("m.toml"), s.p("t.trc"), s.p("o.toml"));
+    let text = std::fs::read_to_string(s.dir.join("m.toml")).unwrap();
+    let mut spec = jointfit::model::ModelSpec::from_toml(&text).unwrap();
+    let p = &mut spec.parameters[0];
+    let name = p.name.clone();
+    p.prior_sd = Some(1e-203);
+    p.prior_mean = Some(p.nominal);
+    std::fs::write(s.dir.join("tiny.toml"), spec.to_toml()).unwrap();
+    let tiny = s.p("tiny.toml");
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["calibrate", &tiny, &t, "-o", &out], &name),
+        (
+            vec![
+                "calibrate",
+                &m,
+                &t,
+                "-o",
+                &out,
+                "--prior-sd",
+                "hip=1e-200mm",
+            ],
+            "hip_pelvis",
+        ),
+        (
+            vec![
+                "calibrate",
+                &m,
+                &t,
+                "-o",
+                &out,
+                "--prior-sd",
+                "knee=1e-300deg",
+            ],
+            "knee",
+        ),
+        (
+            vec![
+                "calibrate",
+                &m,
+                &t,
+                "-o",
+                &out,
+                "--refine-markers",
+                "--marker-prior-sd-mm",
+                "1e-200",
+            ],
+            "marker_",
+        ),
+    ];
+    for (args, names) in &cases {
+        let err = refused(&s, args);
+        assert!(err.contains("prior"), "{args:?}: {err}");
+        assert!(
+            err.contains(names),
+            "{args:?} does not name the prior: {err}"
+        );
+    }
+}
+
+/// `t.trc` of `s` rewritten: `rows` picks and edits the data rows (frame, time and values,
+/// tab-separated), `label` renames each label of the marker row; the header's frame counts
+/// follow. Written as `name`; returns its path.
+fn edited_trc(
+    s: &Scratch,
+    name: &str,
+    rows: impl Fn(&[&str]) -> Vec<String>,
+    label: impl Fn(&str) -> String,
+) -> String {
+    let text = std::fs::read_to_string(s.dir.join("t.trc")).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    let data: Vec<&str> = lines[5..]
+        .iter()
+        .copied()
+        .filter(|l| !l.trim().is_empty())
+        .collect();
+    let new_rows = rows(&data);
+    let mut head: Vec<String> = lines[..5].iter().map(|l| l.to_string()).collect();
+    let mut counts: Vec<String> = head[2].split('\t').map(str::to_string).collect();
+    counts[2] = new_rows.len().to_string();
+    counts[7] = new_rows.len().to_string();
+    head[2] = counts.join("\t");
+    head[3] = head[3]
+        .split('\t')
+        .enumerate()
+        .map(|(i, l)| {
+            if i >= 2 && !l.is_empty() {
+                label(l)
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\t");
+    let out = format!("{}\n{}\n", head.join("\n"), new_rows.join("\n"));
+    std::fs::write(s.dir.join(name), out).unwrap();
+    s.p(name)
+}
+
+/// Row `r` with frame number `frame` and time `(frame − 1) / 10`.
+fn renumbered(r: &str, frame: usize) -> String {
+    let mut cells: Vec<String> = r.split('\t').map(str::to_string).collect();
+    cells[0] = frame.to_string();
+    cells[1] = format!("{:.6}", (frame - 1) as f64 / 10.0);
+    cells.join("\t")
+}
+
+/// Trials a calibration can learn nothing from are refused with their cause, not fitted to a
+/// "100 % lower" error: one frame, two identical frames, every marker still.
+#[test]
+fn degenerate_trials_are_refused_with_their_cause() {
+    let s = Scratch::new("degenerate");
+    let same = |l: &str| l.to_string();
+    let one = edited_trc(&s, "one.trc", |d| vec![renumbered(d[0], 1)], same);
+    let two = edited_trc(
+        &s,
+        "two.trc",
+        |d| vec![renumbered(d[3], 1), renumbered(d[3], 2)],
+        same,
+    );
+    let still = edited_trc(
+        &s,
+        "still.trc",
+        |d| (1..=20).map(|f| renumbered(d[5], f)).collect(),
+        same,
+    );
+    let (m, out) = (s.p("m.toml"), s.p("o.toml"));
+    for (t, words) in [
+        (&one, &["1 frame", "two frames"][..]),
+        (&two, &["no marker moves"][..]),
+        (&still, &["no marker moves", "20 frames"][..]),
+    ] {
+        let err = refused(&s, &["calibrate", &m, t, "-o", &out]);
+        for w in words {
+            assert!(err.contains(w), "{t}: {err}");
+        }
+        assert!(err.contains(t.as_str()), "names the trial: {err}");
+    }
+}
+
+/// The plain causes of "no frame has enough markers to fit" are told apart, naming markers:
+/// no marker of the model in the trial, labels that differ in case or by a prefix, every
+/// model marker gapped in every frame.
+#[test]
+fn unfittable_trials_name_their_markers() {
+    let s = Scratch::new("no-frames");
+    let all = |d: &[&str]| d.iter().map(|r| r.to_string()).collect::<Vec<_>>();
+    let other = edited_trc(&s, "other.trc", all, |l| l.chars().rev().collect());
+    let lower = edited_trc(&s, "lower.trc", all, |l| l.to_ascii_lowercase());
+    let prefixed = edited_trc(&s, "prefixed.trc", all, |l| format!("Pat01_{l}"));
+    let gapped = edited_trc(
+        &s,
+        "gapped.trc",
+        |d| {
+            d.iter()
+                .map(|r| {
+                    let c: Vec<&str> = r.split('\t').collect();
+                    let blanks = vec![""; c.len() - 2].join("\t");
+                    format!("{}\t{}\t{blanks}", c[0], c[1])
+                })
+                .collect()
+        },
+        |l| l.to_string(),
+    );
+    let (m, out) = (s.p("m.toml"), s.p("o.toml"));
+    for (t, words) in [
+        (&other, &["none of the model's", "RASI", "ISAR"][..]),
+        (&lower, &["case", "rasi (RASI?)"][..]),
+        (&prefixed, &["prefix", "Pat01_RASI (RASI?)"][..]),
+        (&gapped, &["missing in all 30 frames", "RASI"][..]),
+    ] {
+        // The data checks may warn first (the gapped trial's gaps); one error line follows.
+        let o = run(&["calibrate", &m, t, "-o", &out]);
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert_eq!(o.status.code(), Some(1), "{t}: {err}");
+        let errors: Vec<&str> = err
+            .lines()
+            .filter(|l| l.starts_with("jointfit: error: "))
+            .collect();
+        assert_eq!(errors.len(), 1, "{err}");
+        let err = errors[0];
+        for w in words {
+            assert!(err.contains(w), "{t}: {w:?} not in {err}");
+        }
+    }
+}
+
+/// `--keep-markers` with a name the model lacks is refused listing the model's markers;
+/// `--swap-labels` given the same pair twice (either order) or two pairs sharing a marker
+/// in the same frames is refused instead of cancelling.
+#[test]
+fn marker_options_that_name_nothing_or_cancel_are_refused() {
+    let s = Scratch::new("marker-options");
+    let (m, t, out) = (s.p("m.toml"), s.p("t.trc"), s.p("o.toml"));
+    let err = refused(
+        &s,
+        &[
+            "calibrate",
+            &m,
+            &t,
+            "-o",
+            &out,
+            "--keep-markers",
+            "RASI,nope",
+        ],
+    );
+    assert!(err.contains("--keep-markers nope"), "{err}");
+    assert!(err.contains("RASI, LASI"), "lists the valid names: {err}");
+    for pairs in [
+        ["RKNE,RANK", "RKNE,RANK"],
+        ["RKNE,RANK", "RANK,RKNE"],
+        ["RKNE,RANK", "RANK,RHEE"],
+        ["RKNE,RANK@5", "RKNE,RTOE@10-20"],
+    ] {
+        let err = refused(
+            &s,
+            &[
+                "calibrate",
+                &m,
+                &t,
+                "-o",
+                &out,
+                "--swap-labels",
+                pairs[0],
+                "--swap-labels",
+                pairs[1],
+            ],
+        );
+        assert!(err.contains("--swap-labels"), "{pairs:?}: {err}");
+        assert!(err.contains("same frames"), "{pairs:?}: {err}");
+    }
+}
+
+/// A NaN, negative or huge progress interval is warned about once per run, however many
+/// tasks report progress.
+#[test]
+fn a_bad_progress_interval_is_warned_once() {
+    let s = Scratch::new("progress-env");
+    let (m, t, out) = (s.p("m.toml"), s.p("t.trc"), s.p("o.toml"));
+    for bad in ["NaN", "-1", "0x10", "1e300"] {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_jointfit"))
+            .args([
+                "calibrate",
+                &m,
+                &t,
+                "-o",
+                &out,
+                "--force",
+                "--accept-rejected",
+            ])
+            .env("JOINTFIT_PROGRESS_SECONDS", bad)
+            .env("JOINTFIT_PROGRESS", "log")
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{bad}: {err}");
+        let warned = err
+            .lines()
+            .filter(|l| l.contains("JOINTFIT_PROGRESS_SECONDS"))
+            .count();
+        assert_eq!(warned, 1, "{bad}: {err}");
+    }
+}
+
+/// Every input file has a size limit: a model, motion trial or setup file that is a 2 GiB
+/// (sparse) file or the endless `/dev/zero` is refused within seconds, the limit named.
+#[test]
+fn oversized_inputs_are_refused_quickly_naming_the_limit() {
+    let s = Scratch::new("sizes");
+    let (m, t, out) = (s.p("m.toml"), s.p("t.trc"), s.p("o.mot"));
+    // The oversized files live outside the directory `refused` compares before and after.
+    let big = jointfit_testkit::scratch("rel-sizes-big");
+    let b = |name: &str| big.join(name).display().to_string();
+    let mut cases: Vec<(Vec<String>, &str)> = Vec::new();
+    for name in ["big.toml", "big.osim", "big.trc", "big.c3d"] {
+        let f = std::fs::File::create(big.join(name)).unwrap();
+        f.set_len(2 << 30).unwrap();
+    }
+    #[cfg(unix)]
+    for name in ["zero.trc", "zero.c3d", "zero.osim"] {
+        std::os::unix::fs::symlink("/dev/zero", big.join(name)).unwrap();
+    }
+    let ik = |model: &str, trial: &str| -> Vec<String> {
+        ["ik", model, trial, "-o", &out]
+            .iter()
+            .map(|a| a.to_string())
+            .collect()
+    };
+    cases.push((ik(&b("big.toml"), &t), "256 MiB"));
+    cases.push((ik(&b("big.osim"), &t), "256 MiB"));
+    cases.push((ik("/dev/zero", &t), "256 MiB"));
+    cases.push((ik(&m, &b("big.trc")), "1024 MiB"));
+    cases.push((ik(&m, &b("big.c3d")), "1024 MiB"));
+    #[cfg(unix)]
+    {
+        cases.push((ik(&b("zero.osim"), &t), "256 MiB"));
+        cases.push((ik(&m, &b("zero.trc")), "1024 MiB"));
+        cases.push((ik(&m, &b("zero.c3d")), "1024 MiB"));
+    }
+    for (args, limit) in &cases {
+        let clock = std::time::Instant::now();
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let err = refused(&s, &args);
+        assert!(
+            err.contains("limit") && err.contains(limit),
+            "{args:?}: {err}"
+        );
+        assert!(
+            clock.elapsed().as_secs() < 30,
+            "{args:?} took {:?}",
+            clock.elapsed()
+        );
+    }
+}
+
+/// A static trial shrunk to 0.3 of its size, or flattened onto a plane (one lab axis set
+/// to a constant), is refused by `personalize`, never written as a subject model: the shrunk
+/// one by the adult anthropometry check (exit 5), the flattened ones by the pelvis frame.
+#[test]
+fn shrunk_and_flattened_statics_are_refused_by_personalize() {
+    let Some(src) = jointfit_testkit::data_file("opensim_gait2392_subject01/subject01_static.trc")
+    else {
+        return;
+    };
+    let s = Scratch::new("bad-static");
+    let text = std::fs::read_to_string(&src).unwrap();
+    let variant = |name: &str, f: &dyn Fn(usize, f64) -> f64| -> String {
+        let lines: Vec<String> = text
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                if i < 5 {
+                    return l.to_string();
+                }
+                l.split('\t')
+                    .enumerate()
+                    .map(|(k, c)| match c.trim().parse::<f64>() {
+                        Ok(v) if k >= 2 => format!("{:.6}", f(k - 2, v)),
+                        _ => c.to_string(),
+                    })
+                    .collect::<Vec<_>>()
+                    .join("\t")
+            })
+            .collect();
+        std::fs::write(s.dir.join(name), lines.join("\n")).unwrap();
+        s.p(name)
+    };
+    let out = s.p("subject.toml");
+    let cases = [
+        (
+            variant("shrunk.trc", &|_, v| 0.3 * v),
+            Some(5),
+            "not a plausible adult leg",
+        ),
+        (
+            variant("flat_z.trc", &|k, v| if k % 3 == 2 { 0.0 } else { v }),
+            Some(1),
+            "pelvis",
+        ),
+        (
+            variant("flat_y.trc", &|k, v| if k % 3 == 1 { 900.0 } else { v }),
+            Some(1),
+            "pelvis",
+        ),
+    ];
+    for (trial, code, words) in &cases {
+        let args = [
+            "personalize",
+            "--static",
+            trial,
+            "--markers",
+            "gait2392",
+            "--side",
+            "right",
+            "-o",
+            &out,
+        ];
+        let o = run(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), *code, "{trial}: {err}");
+        assert!(err.contains(words), "{trial}: {err}");
+        assert!(
+            !s.dir.join("subject.toml").exists(),
+            "{trial}: a model was written"
+        );
+    }
+}
+
+/// `jointfit stream` bounds a single input line: an endless line (`/dev/zero` on standard
+/// input, no line end ever) is refused within seconds naming the limit, not read until
+/// memory runs out.
+#[test]
+fn stream_refuses_an_endless_line() {
+    let clock = std::time::Instant::now();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_jointfit"))
+        .args(["stream", "lower-limb-right"])
+        .stdin(std::fs::File::open("/dev/zero").unwrap())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("line 1 is longer than 1048576 bytes"), "{err}");
+    assert!(clock.elapsed().as_secs() < 30, "{:?}", clock.elapsed());
+}

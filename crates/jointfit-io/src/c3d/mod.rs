@@ -25,7 +25,13 @@
 //!   more frames than the data section holds and a parameter declares a count that fits (the
 //!   largest such is used). Parameters: TRIAL:ACTUAL_END_FIELD (two 16-bit words, low first,
 //!   giving a 32-bit last frame), POINT:LONG_FRAMES, POINT:FRAMES. First frame:
-//!   TRIAL:ACTUAL_START_FIELD, else header word 4.
+//!   TRIAL:ACTUAL_START_FIELD, else header word 4. A header whose last frame is 65535 (the
+//!   largest word 5 holds) with no parameter declaring more is read to the end of the data
+//!   section: the count comes from the data size, less the zero padding of the last block
+//!   (as the bytes say; ezc3d 1.5 and `c3d` stop at 65,535 frames there).
+//! - Frame rate: POINT:RATE, else header words 11–12; when both are there and differ,
+//!   POINT:RATE (what editing software updates), with a warning naming both.
+//! - Repeated point labels are kept as stored in [`Points`]; a warning names each.
 //! - Data start: header word 9, unless it points outside the file or at the parameter
 //!   section, then POINT:DATA_START.
 //! - Units: POINT:UNITS `mm`, `cm` or `m` (case-insensitive; long names accepted); a missing or
@@ -232,7 +238,8 @@ impl C3d {
 
     /// The markers as a [`Trial`]: every point except the computed outputs (angles, forces,
     /// moments, powers; [`point_types`]). Labels are made unique and non-empty: an empty label
-    /// becomes `POINT<k>` (1-based), a repeated one gets `_2`, `_3`, … appended.
+    /// becomes `POINT<k>` (1-based), a repeated one gets `_2`, `_3`, … appended (the reader's
+    /// warnings name every repeated label).
     ///
     /// # Errors
     /// [`C3dError::Trial`] when the point rate is not positive (analog-only files).
@@ -277,10 +284,12 @@ impl C3d {
 
 /// Reads a C3D file from disk; errors name the file.
 pub fn read_c3d(path: &Path) -> Result<C3d, C3dError> {
-    let bytes = std::fs::read(path).map_err(|source| C3dError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = crate::limits::read_bytes(path, crate::limits::TRIAL_BYTES, "motion").map_err(
+        |source| C3dError::Io {
+            path: path.to_path_buf(),
+            source,
+        },
+    )?;
     parse_c3d(&bytes).map_err(|e| C3dError::InFile {
         path: path.to_path_buf(),
         source: Box::new(e),
@@ -317,47 +326,13 @@ pub fn parse_c3d(bytes: &[u8]) -> Result<C3d, C3dError> {
     let header = Header::decode(head, processor);
     let params = section.parameters;
     let mut warnings = section.warnings;
-    let get = |g: &str, p: &str| params.get(g, p);
 
-    // Points: storage, scale, units.
-    let scale = match get("POINT", "SCALE").and_then(Parameter::f64) {
-        Some(s) => {
-            let s = s as f32;
-            if s != header.scale {
-                if s > 0.0 && (header.scale - s).abs() > 1e-6 * s.abs() {
-                    // Integer data: the scale multiplies every coordinate, and nothing in the
-                    // file says which of the two is right.
-                    return Err(C3dError::ScaleMismatch {
-                        header: header.scale,
-                        parameter: s,
-                    });
-                }
-                // Both negative (float storage either way): the scale multiplies only the
-                // residuals, which the reader uses for their sign, so nothing read changes
-                // (every Vicon Nexus file has header −1, POINT:SCALE −0.01: no note).
-                if !(s < 0.0 && header.scale < 0.0) {
-                    warnings.push(format!(
-                        "POINT:SCALE is {s} but the header says {}; used POINT:SCALE",
-                        header.scale
-                    ));
-                }
-            }
-            s
-        }
-        None => header.scale,
-    };
+    let scale = point_scale(&header, &params, &mut warnings)?;
     let float = scale < 0.0;
-    let units = get("POINT", "UNITS")
-        .and_then(Parameter::string)
-        .unwrap_or_default();
-    let metres = if units.is_empty() {
-        warnings.push("POINT:UNITS is missing or blank; read as mm".into());
-        1e-3
-    } else {
-        metres_per_unit(&units).ok_or_else(|| C3dError::UnknownUnits(units.clone()))?
-    };
+    let (units, metres) = point_units(&params, &mut warnings)?;
     let resolved = layout::resolve(
         &layout::Known {
+            bytes,
             len,
             header: &header,
             params: &params,
@@ -371,28 +346,143 @@ pub fn parse_c3d(bytes: &[u8]) -> Result<C3d, C3dError> {
         &mut warnings,
     )?;
     let layout = resolved.layout;
-    let (first_frame, n_frames, n_points) =
-        (resolved.first_frame, layout.n_frames, layout.n_points);
-    let (n_channels, analog_values) = (layout.n_channels, layout.analog_values);
+    let rate = point_rate(&header, &params, &mut warnings);
+    let points = read_points(bytes, &layout, &params, resolved.first_frame, rate);
+    note_labels(&params, &points.labels, &mut warnings);
+    let analog = read_analog(bytes, &layout, &params, rate);
+    Ok(C3d {
+        processor,
+        header,
+        float_storage: float,
+        units,
+        points,
+        analog,
+        parameters: params,
+        warnings,
+    })
+}
 
-    // Samples.
-    let samples = data::decode_points(bytes, &layout);
-    let mut labels = params.strings_continued("POINT", "LABELS");
-    if labels.len() < n_points {
+/// The point scale: POINT:SCALE, else header words 7–8 (see the module docs for when the two
+/// disagree).
+fn point_scale(
+    header: &Header,
+    params: &Parameters,
+    warnings: &mut Vec<String>,
+) -> Result<f32, C3dError> {
+    let Some(s) = params.get("POINT", "SCALE").and_then(Parameter::f64) else {
+        return Ok(header.scale);
+    };
+    let s = s as f32;
+    if s != header.scale {
+        if s > 0.0 && (header.scale - s).abs() > 1e-6 * s.abs() {
+            // Integer data: the scale multiplies every coordinate, and nothing in the file
+            // says which of the two is right.
+            return Err(C3dError::ScaleMismatch {
+                header: header.scale,
+                parameter: s,
+            });
+        }
+        // Both negative (float storage either way): the scale multiplies only the residuals,
+        // which the reader uses for their sign, so nothing read changes (every Vicon Nexus
+        // file has header −1, POINT:SCALE −0.01: no note).
+        if !(s < 0.0 && header.scale < 0.0) {
+            warnings.push(format!(
+                "POINT:SCALE is {s} but the header says {}; used POINT:SCALE",
+                header.scale
+            ));
+        }
+    }
+    Ok(s)
+}
+
+/// POINT:UNITS as stored and metres per unit (millimetres, with a warning, when blank).
+fn point_units(params: &Parameters, warnings: &mut Vec<String>) -> Result<(String, f64), C3dError> {
+    let units = params
+        .get("POINT", "UNITS")
+        .and_then(Parameter::string)
+        .unwrap_or_default();
+    if units.is_empty() {
+        warnings.push("POINT:UNITS is missing or blank; read as mm".into());
+        return Ok((units, 1e-3));
+    }
+    let metres = metres_per_unit(&units).ok_or_else(|| C3dError::UnknownUnits(units.clone()))?;
+    Ok((units, metres))
+}
+
+/// The 3D frame rate: POINT:RATE, else header words 11–12. When both are there and differ,
+/// POINT:RATE is used (writers that edit a file, e.g. to resample it, update the parameter;
+/// the header's rate is what the capture started with) and the difference is noted.
+fn point_rate(header: &Header, params: &Parameters, warnings: &mut Vec<String>) -> f64 {
+    let header_rate = f64::from(header.frame_rate);
+    let Some(rate) = params.get("POINT", "RATE").and_then(Parameter::f64) else {
+        return header_rate;
+    };
+    let differ = (rate - header_rate).abs() > 1e-6 * rate.abs().max(header_rate.abs());
+    if differ && header_rate.is_finite() && header_rate > 0.0 {
         warnings.push(format!(
-            "{} point labels for {n_points} points",
-            labels.len()
+            "the header's frame rate is {header_rate} Hz but POINT:RATE is {rate} Hz; used \
+             POINT:RATE (the parameter is what editing software updates)"
         ));
     }
-    labels.resize(n_points, String::new());
-    let outputs = point_types::output_points(&params, &labels);
-    if !outputs.is_empty() {
-        warnings.push(point_types::note(&outputs, &labels));
-    }
-    let rate = get("POINT", "RATE")
-        .and_then(Parameter::f64)
-        .unwrap_or(f64::from(header.frame_rate));
+    rate
+}
 
+/// The 3D points of the data section, with their labels and descriptions.
+fn read_points(
+    bytes: &[u8],
+    layout: &data::Layout,
+    params: &Parameters,
+    first_frame: i64,
+    rate: f64,
+) -> Points {
+    let samples = data::decode_points(bytes, layout);
+    let mut labels = params.strings_continued("POINT", "LABELS");
+    labels.resize(layout.n_points, String::new());
+    Points {
+        labels,
+        descriptions: params.strings_continued("POINT", "DESCRIPTIONS"),
+        rate,
+        first_frame,
+        n_frames: layout.n_frames,
+        positions: samples.positions,
+        residuals: samples.residuals,
+        camera_masks: samples.camera_masks,
+    }
+}
+
+/// Notes about the point labels: fewer labels than points, computed outputs among them, and
+/// labels that repeat (one line naming each repeated label and how [`C3d::to_trial`] renames
+/// its repeats).
+fn note_labels(params: &Parameters, labels: &[String], warnings: &mut Vec<String>) {
+    let stored = params.strings_continued("POINT", "LABELS").len();
+    if stored < labels.len() {
+        warnings.push(format!("{stored} point labels for {} points", labels.len()));
+    }
+    let outputs = point_types::output_points(params, labels);
+    if !outputs.is_empty() {
+        warnings.push(point_types::note(&outputs, labels));
+    }
+    let mut counts: Vec<(&str, usize)> = Vec::new();
+    for l in labels.iter().filter(|l| !l.is_empty()) {
+        match counts.iter_mut().find(|(name, _)| name == l) {
+            Some((_, n)) => *n += 1,
+            None => counts.push((l, 1)),
+        }
+    }
+    let repeated: Vec<String> = counts
+        .iter()
+        .filter(|(_, n)| *n > 1)
+        .map(|(name, n)| format!("{name} ×{n} (read as {name}, {name}_2, …)"))
+        .collect();
+    if !repeated.is_empty() {
+        warnings.push(format!("repeated point labels: {}", repeated.join(", ")));
+    }
+}
+
+/// The analog channels of the data section, scaled as ANALOG:OFFSET, SCALE and GEN_SCALE say.
+fn read_analog(bytes: &[u8], layout: &data::Layout, params: &Parameters, rate: f64) -> Analog {
+    let get = |g: &str, p: &str| params.get(g, p);
+    let n_channels = layout.n_channels;
     let unsigned = get("ANALOG", "FORMAT")
         .and_then(Parameter::string)
         .is_some_and(|f| f.eq_ignore_ascii_case("UNSIGNED"));
@@ -412,44 +502,25 @@ pub fn parse_c3d(bytes: &[u8]) -> Result<C3d, C3dError> {
         .and_then(Parameter::f64)
         .unwrap_or(1.0);
     let scaling = AnalogScaling {
-        unsigned: unsigned && !float,
+        unsigned: unsigned && !layout.float,
         offsets: per_channel("OFFSET", 0.0, unsigned),
         scales: per_channel("SCALE", 1.0, false)
             .into_iter()
             .map(|s| s * gen_scale)
             .collect(),
     };
-    let analog_samples = data::decode_analog(bytes, &layout, &scaling);
-    let samples_per_frame = analog_values.checked_div(n_channels).unwrap_or(0);
-    let mut analog_labels = params.strings_continued("ANALOG", "LABELS");
-    analog_labels.resize(n_channels, String::new());
+    let samples = data::decode_analog(bytes, layout, &scaling);
+    let samples_per_frame = layout.analog_values.checked_div(n_channels).unwrap_or(0);
+    let mut labels = params.strings_continued("ANALOG", "LABELS");
+    labels.resize(n_channels, String::new());
     let analog_rate = get("ANALOG", "RATE")
         .and_then(Parameter::f64)
         .unwrap_or(rate * samples_per_frame as f64);
-
-    Ok(C3d {
-        processor,
-        header,
-        float_storage: float,
-        units,
-        points: Points {
-            labels,
-            descriptions: params.strings_continued("POINT", "DESCRIPTIONS"),
-            rate,
-            first_frame,
-            n_frames,
-            positions: samples.positions,
-            residuals: samples.residuals,
-            camera_masks: samples.camera_masks,
-        },
-        analog: Analog {
-            labels: analog_labels,
-            units: params.strings_continued("ANALOG", "UNITS"),
-            rate: analog_rate,
-            samples_per_frame,
-            samples: analog_samples,
-        },
-        parameters: params,
-        warnings,
-    })
+    Analog {
+        labels,
+        units: params.strings_continued("ANALOG", "UNITS"),
+        rate: analog_rate,
+        samples_per_frame,
+        samples,
+    }
 }

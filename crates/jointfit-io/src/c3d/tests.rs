@@ -20,6 +20,12 @@ struct Spec {
     units: Option<&'static str>,
     analog_channels: usize,
     analog_per_frame: usize,
+    /// POINT:RATE (and ANALOG:RATE per sample), Hz.
+    rate: f32,
+    /// Header words 11–12 (default: `rate`).
+    header_rate: Option<f32>,
+    /// POINT:LABELS (default: `M0`, `M1`, …).
+    labels: Option<Vec<&'static str>>,
 }
 
 impl Default for Spec {
@@ -35,6 +41,9 @@ impl Default for Spec {
             units: Some("mm"),
             analog_channels: 2,
             analog_per_frame: 2,
+            rate: 100.0,
+            header_rate: None,
+            labels: None,
         }
     }
 }
@@ -95,89 +104,17 @@ fn param(ty: i8, dims: &[u8], data: &[u8]) -> Vec<u8> {
 
 fn write(s: &Spec) -> Vec<u8> {
     let e = Enc(s.processor);
-    let float = s.scale < 0.0;
-    let labels: Vec<String> = (0..s.n_points).map(|i| format!("M{i}")).collect();
-    let int = |v: u16| param(2, &[], &e.u16(v));
-    let flt = |v: f32| param(4, &[], &e.f32(v));
-    let mut recs = vec![
-        record(&e, -1, "POINT", &[0]),
-        record(&e, -2, "ANALOG", &[0]),
-        record(&e, -3, "TRIAL", &[0]),
-        record(&e, 1, "USED", &int(s.n_points as u16)),
-        record(&e, 1, "SCALE", &flt(s.scale)),
-        record(&e, 1, "RATE", &flt(100.0)),
-        record(&e, 1, "FRAMES", &int(s.frames.min(65535) as u16)),
-        record(&e, 2, "USED", &int(s.analog_channels as u16)),
-        record(&e, 2, "RATE", &flt(100.0 * s.analog_per_frame as f32)),
-        record(&e, 2, "GEN_SCALE", &flt(0.5)),
-    ];
-    if let Some(u) = s.units {
-        recs.push(record(
-            &e,
-            1,
-            "UNITS",
-            &param(-1, &[u.len() as u8], u.as_bytes()),
-        ));
-    }
-    for (k, chunk) in labels.chunks(255).enumerate() {
-        let name = if k == 0 {
-            "LABELS".to_string()
-        } else {
-            format!("LABELS{}", k + 1)
-        };
-        let text: Vec<u8> = chunk
-            .iter()
-            .flat_map(|l| format!("{l:<4}").into_bytes())
-            .collect();
-        recs.push(record(
-            &e,
-            1,
-            &name,
-            &param(-1, &[4, chunk.len() as u8], &text),
-        ));
-    }
-    let scales: Vec<u8> = (0..s.analog_channels)
-        .flat_map(|c| e.f32(c as f32 + 1.0))
-        .collect();
-    let offsets: Vec<u8> = (0..s.analog_channels).flat_map(|_| e.u16(10)).collect();
-    recs.push(record(
-        &e,
-        2,
-        "SCALE",
-        &param(4, &[s.analog_channels as u8], &scales),
-    ));
-    recs.push(record(
-        &e,
-        2,
-        "OFFSET",
-        &param(2, &[s.analog_channels as u8], &offsets),
-    ));
-    if let Some(end) = s.actual_end {
-        let w: Vec<u8> = [end as u16, (end >> 16) as u16]
-            .iter()
-            .flat_map(|&x| e.u16(x))
-            .collect();
-        recs.push(record(
-            &e,
-            3,
-            "ACTUAL_START_FIELD",
-            &param(2, &[2], &[e.u16(1), e.u16(0)].concat()),
-        ));
-        recs.push(record(&e, 3, "ACTUAL_END_FIELD", &param(2, &[2], &w)));
-    }
+    let mut recs = parameter_records(&e, s);
     // Lay the records out once to learn the block count, then again with DATA_START.
-    let lay = |recs: &[Vec<u8>]| {
-        let mut section = vec![1, 0x50, 0, s.processor.code()];
-        for r in recs {
-            section.extend_from_slice(r);
-        }
-        section.extend_from_slice(&[0, 0]);
-        section
-    };
-    let blocks = (lay(&recs).len() + 32).div_ceil(512);
+    let blocks = (lay_section(s, &recs).len() + 32).div_ceil(512);
     let data_block = 2 + blocks as u16;
-    recs.push(record(&e, 1, "DATA_START", &int(data_block)));
-    let mut section = lay(&recs);
+    recs.push(record(
+        &e,
+        1,
+        "DATA_START",
+        &param(2, &[], &e.u16(data_block)),
+    ));
+    let mut section = lay_section(s, &recs);
     assert!(
         section.len() <= blocks * 512,
         "test writer: section grew past its blocks"
@@ -185,6 +122,118 @@ fn write(s: &Spec) -> Vec<u8> {
     section[2] = blocks as u8;
     section.resize(blocks * 512, 0);
 
+    let mut out = header_block(&e, s, data_block);
+    out.extend_from_slice(&section);
+    out.extend_from_slice(&data_section(&e, s));
+    let padded = out.len().div_ceil(512) * 512;
+    out.resize(padded, 0);
+    out
+}
+
+/// The point labels written: `s.labels`, else `M0`, `M1`, ….
+fn labels_of(s: &Spec) -> Vec<String> {
+    match &s.labels {
+        Some(l) => l.iter().map(|x| x.to_string()).collect(),
+        None => (0..s.n_points).map(|i| format!("M{i}")).collect(),
+    }
+}
+
+/// POINT, ANALOG and TRIAL groups and their parameters (all but POINT:DATA_START).
+fn parameter_records(e: &Enc, s: &Spec) -> Vec<Vec<u8>> {
+    let int = |v: u16| param(2, &[], &e.u16(v));
+    let flt = |v: f32| param(4, &[], &e.f32(v));
+    let mut recs = vec![
+        record(e, -1, "POINT", &[0]),
+        record(e, -2, "ANALOG", &[0]),
+        record(e, -3, "TRIAL", &[0]),
+        record(e, 1, "USED", &int(s.n_points as u16)),
+        record(e, 1, "SCALE", &flt(s.scale)),
+        record(e, 1, "RATE", &flt(s.rate)),
+        record(e, 1, "FRAMES", &int(s.frames.min(65535) as u16)),
+        record(e, 2, "USED", &int(s.analog_channels as u16)),
+        record(e, 2, "RATE", &flt(s.rate * s.analog_per_frame as f32)),
+        record(e, 2, "GEN_SCALE", &flt(0.5)),
+    ];
+    if let Some(u) = s.units {
+        recs.push(record(
+            e,
+            1,
+            "UNITS",
+            &param(-1, &[u.len() as u8], u.as_bytes()),
+        ));
+    }
+    recs.extend(label_records(e, &labels_of(s)));
+    recs.extend(analog_records(e, s));
+    if let Some(end) = s.actual_end {
+        let w: Vec<u8> = [end as u16, (end >> 16) as u16]
+            .iter()
+            .flat_map(|&x| e.u16(x))
+            .collect();
+        recs.push(record(
+            e,
+            3,
+            "ACTUAL_START_FIELD",
+            &param(2, &[2], &[e.u16(1), e.u16(0)].concat()),
+        ));
+        recs.push(record(e, 3, "ACTUAL_END_FIELD", &param(2, &[2], &w)));
+    }
+    recs
+}
+
+/// POINT:LABELS, LABELS2, … (255 labels each, 4 characters wide).
+fn label_records(e: &Enc, labels: &[String]) -> Vec<Vec<u8>> {
+    labels
+        .chunks(255)
+        .enumerate()
+        .map(|(k, chunk)| {
+            let name = if k == 0 {
+                "LABELS".to_string()
+            } else {
+                format!("LABELS{}", k + 1)
+            };
+            let text: Vec<u8> = chunk
+                .iter()
+                .flat_map(|l| format!("{l:<4}").into_bytes())
+                .collect();
+            record(e, 1, &name, &param(-1, &[4, chunk.len() as u8], &text))
+        })
+        .collect()
+}
+
+/// ANALOG:SCALE (channel c: c + 1) and ANALOG:OFFSET (10 each).
+fn analog_records(e: &Enc, s: &Spec) -> Vec<Vec<u8>> {
+    let scales: Vec<u8> = (0..s.analog_channels)
+        .flat_map(|c| e.f32(c as f32 + 1.0))
+        .collect();
+    let offsets: Vec<u8> = (0..s.analog_channels).flat_map(|_| e.u16(10)).collect();
+    vec![
+        record(
+            e,
+            2,
+            "SCALE",
+            &param(4, &[s.analog_channels as u8], &scales),
+        ),
+        record(
+            e,
+            2,
+            "OFFSET",
+            &param(2, &[s.analog_channels as u8], &offsets),
+        ),
+    ]
+}
+
+/// The parameter section before padding: its 4-byte header, the records, the end mark.
+fn lay_section(s: &Spec, recs: &[Vec<u8>]) -> Vec<u8> {
+    let mut section = vec![1, 0x50, 0, s.processor.code()];
+    for r in recs {
+        section.extend_from_slice(r);
+    }
+    section.extend_from_slice(&[0, 0]);
+    section
+}
+
+/// Block 1.
+fn header_block(e: &Enc, s: &Spec, data_block: u16) -> Vec<u8> {
     let mut header = vec![0u8; 512];
     header[0] = 2;
     header[1] = 0x50;
@@ -200,37 +249,32 @@ fn write(s: &Spec) -> Vec<u8> {
     put(7, &e.f32(s.header_scale.unwrap_or(s.scale)));
     put(9, &e.u16(data_block));
     put(10, &e.u16(s.analog_per_frame as u16));
-    put(11, &e.f32(100.0));
+    put(11, &e.f32(s.header_rate.unwrap_or(s.rate)));
+    header
+}
 
-    let mut out = header;
-    out.extend_from_slice(&section);
+/// Every frame: the points (x, y, z, residual word) then the analog words.
+fn data_section(e: &Enc, s: &Spec) -> Vec<u8> {
+    let float = s.scale < 0.0;
+    let mut out = Vec::new();
+    let mut put = |v: f32| {
+        if float {
+            out.extend_from_slice(&e.f32(v));
+        } else {
+            out.extend_from_slice(&e.u16(v as i16 as u16));
+        }
+    };
     for f in 0..s.frames {
         for p in 0..s.n_points {
-            let xyz = position(f, p);
-            let word: i16 = if (f, p) == (3, 2) { -1 } else { 0x0305 };
-            if float {
-                for v in xyz {
-                    out.extend_from_slice(&e.f32(v));
-                }
-                out.extend_from_slice(&e.f32(f32::from(word)));
-            } else {
-                for v in xyz {
-                    out.extend_from_slice(&e.u16((v / s.scale).round() as i16 as u16));
-                }
-                out.extend_from_slice(&e.u16(word as u16));
+            for v in position(f, p) {
+                put(if float { v } else { (v / s.scale).round() });
             }
+            put(if (f, p) == (3, 2) { -1.0 } else { 773.0 });
         }
         for k in 0..s.analog_channels * s.analog_per_frame {
-            let raw = (f * 100 + k) as i16;
-            if float {
-                out.extend_from_slice(&e.f32(f32::from(raw)));
-            } else {
-                out.extend_from_slice(&e.u16(raw as u16));
-            }
+            put(f32::from((f * 100 + k) as i16));
         }
     }
-    let padded = out.len().div_ceil(512) * 512;
-    out.resize(padded, 0);
     out
 }
 
@@ -481,4 +525,97 @@ fn billions_of_declared_frames_allocate_nothing() {
         "{e}"
     );
     assert_eq!(e.to_string().lines().count(), 1);
+}
+
+/// A header saturated at 65535 frames, no TRIAL:ACTUAL_END_FIELD and POINT:FRAMES 65535 too
+/// (its 16-bit word saturated): the frames past 65535 are read, counted from the data size,
+/// the zero padding of the last block is not taken for frames, and a warning says so.
+#[test]
+fn more_than_65535_frames_without_actual_end_field_counted_from_the_data() {
+    // Float storage only: the test's coordinates past frame 32767 overflow 16-bit words.
+    for (frames, n_points, processor, analog_channels) in [
+        (70_000, 1, Processor::Intel, 0),
+        (65_600, 3, Processor::Mips, 2),
+        (66_000, 2, Processor::Dec, 1),
+    ] {
+        let s = Spec {
+            n_points,
+            frames,
+            processor,
+            header_last: Some(65535),
+            analog_channels,
+            analog_per_frame: analog_channels.min(1),
+            ..Spec::default()
+        };
+        let c = parse_c3d(&write(&s)).unwrap();
+        assert_eq!(c.points.n_frames, frames, "{:?}", c.warnings);
+        let notes: Vec<&String> = c
+            .warnings
+            .iter()
+            .filter(|w| w.contains("65535") && w.contains(&frames.to_string()))
+            .collect();
+        assert_eq!(notes.len(), 1, "{:?}", c.warnings);
+        check(&c, &s, 1e-3);
+    }
+    // Exactly 65535 frames stored: nothing more to read, no note.
+    let s = Spec {
+        n_points: 1,
+        frames: 65535,
+        header_last: Some(65535),
+        analog_channels: 0,
+        analog_per_frame: 0,
+        ..Spec::default()
+    };
+    let c = parse_c3d(&write(&s)).unwrap();
+    assert_eq!(c.points.n_frames, 65535);
+    assert!(c.warnings.is_empty(), "{:?}", c.warnings);
+}
+
+/// A header frame rate that differs from POINT:RATE: POINT:RATE is used, and one note names
+/// both.
+#[test]
+fn header_rate_disagreeing_with_point_rate_is_noted() {
+    let s = Spec {
+        rate: 120.0,
+        header_rate: Some(60.0),
+        ..Spec::default()
+    };
+    let c = parse_c3d(&write(&s)).unwrap();
+    assert_eq!(c.point_rate(), 120.0);
+    let notes: Vec<&String> = c.warnings.iter().filter(|w| w.contains("Hz")).collect();
+    assert_eq!(notes.len(), 1, "{:?}", c.warnings);
+    assert!(notes[0].contains("60") && notes[0].contains("120") && notes[0].contains("used"));
+    // Equal rates: no note.
+    let c = parse_c3d(&write(&Spec {
+        rate: 120.0,
+        ..Spec::default()
+    }))
+    .unwrap();
+    assert!(c.warnings.is_empty(), "{:?}", c.warnings);
+}
+
+/// Repeated labels are noted once, naming each repeated label and its count; the trial gets
+/// the renamed repeats the note announces.
+#[test]
+fn repeated_labels_are_noted_in_one_line() {
+    let s = Spec {
+        n_points: 5,
+        labels: Some(vec!["RKNE", "LKNE", "RKNE", "LASI", "LKNE"]),
+        analog_channels: 0,
+        analog_per_frame: 0,
+        ..Spec::default()
+    };
+    let c = parse_c3d(&write(&s)).unwrap();
+    let notes: Vec<&String> = c
+        .warnings
+        .iter()
+        .filter(|w| w.contains("repeated"))
+        .collect();
+    assert_eq!(notes.len(), 1, "{:?}", c.warnings);
+    assert!(notes[0].contains("RKNE ×2") && notes[0].contains("LKNE ×2"));
+    assert!(!notes[0].contains("LASI"));
+    let t = c.to_trial().unwrap();
+    assert_eq!(t.labels(), ["RKNE", "LKNE", "RKNE_2", "LASI", "LKNE_2"]);
+    let c = parse_c3d(&write(&Spec::default())).unwrap();
+    assert!(!c.warnings.iter().any(|w| w.contains("repeated")));
 }

@@ -120,10 +120,12 @@ impl OsimModel {
 
 /// Reads an `.osim` file.
 pub fn read_osim(path: &Path) -> Result<OsimModel, OsimReadError> {
-    let text = std::fs::read_to_string(path).map_err(|source| OsimReadError::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text = crate::limits::read_text(path, crate::limits::DOCUMENT_BYTES, "model").map_err(
+        |source| OsimReadError::Read {
+            path: path.to_path_buf(),
+            source,
+        },
+    )?;
     parse_osim(text, path)
 }
 
@@ -163,7 +165,7 @@ pub(crate) struct Frames<'a, 'i> {
 
 fn span(node: Node, tag: &str) -> Option<Range<usize>> {
     let c = child(node, tag)?;
-    let t = c.first_child().filter(|t| t.is_text())?;
+    let t = crate::xml::value_piece(c).ok()??;
     Some(t.range())
 }
 
@@ -243,10 +245,79 @@ fn parse(doc: &Document, path: &Path) -> Result<Parsed, Fail> {
     if root.tag_name().name() != "OpenSimDocument" {
         return Err(Fail::at(root, "not an OpenSim document".into()));
     }
-    let version: u32 = root
-        .attribute("Version")
-        .and_then(|v| v.trim().parse().ok())
-        .unwrap_or(0);
+    check_version(root)?;
+    let model = child(root, "Model").ok_or_else(|| Fail::at(root, "no <Model>".into()))?;
+    let frames = frames(model)?;
+    let mut offsets = Vec::new();
+    let mut joint_specs = Vec::new();
+    for j in set(model, "JointSet") {
+        if !joints::JOINT_TYPES.contains(&j.tag_name().name()) {
+            return Err(Fail::at(
+                j,
+                format!("{} is a joint type jointfit does not support", label(j)),
+            ));
+        }
+        joint_specs.push(joints::joint(j, &frames, &mut offsets)?);
+    }
+    let (markers, marker_sites) = markers(model, &frames)?;
+    let mut couplers = Vec::new();
+    for c in set(model, "ConstraintSet") {
+        if flag(c, "isEnforced", true)? {
+            couplers.push(coupler(c)?);
+        }
+    }
+    let stem = path
+        .file_stem()
+        .map_or("model".to_string(), |s| s.to_string_lossy().into_owned());
+    let spec = ModelSpec {
+        name: match name(model) {
+            "" => stem,
+            n => n.to_string(),
+        },
+        description: format!(
+            "{}{}",
+            jointfit::checks::offsets::OSIM_DESCRIPTION,
+            path.display()
+        ),
+        segments: frames
+            .bodies
+            .iter()
+            .map(|b| SegmentSpec {
+                name: b.clone(),
+                description: String::new(),
+            })
+            .collect(),
+        joints: joint_specs,
+        parameters: vec![],
+        markers,
+        couplers,
+        lab_up: None,
+    };
+    Ok((spec, offsets, marker_sites))
+}
+
+/// The document's `Version`: an integer (as OpenSim reads it) of at least 40000.
+fn check_version(root: Node) -> Result<(), Fail> {
+    let Some(raw) = root.attribute("Version") else {
+        return Err(Fail::at(
+            root,
+            "<OpenSimDocument> has no Version attribute; only OpenSim 4 models (Version ≥ \
+             40000) are read"
+                .into(),
+        ));
+    };
+    let version: u32 = match raw.trim().parse::<i32>() {
+        Ok(v) if v >= 0 => v as u32,
+        _ => {
+            return Err(Fail::at(
+                root,
+                format!(
+                    "OpenSim document Version {raw:?} is unsupported: not a version number \
+                     (OpenSim reads it as an integer, e.g. 40000, and refuses this file too)"
+                ),
+            ))
+        }
+    };
     if version < 40000 {
         return Err(Fail::at(
             root,
@@ -256,23 +327,26 @@ fn parse(doc: &Document, path: &Path) -> Result<Parsed, Fail> {
             ),
         ));
     }
-    let model = child(root, "Model").ok_or_else(|| Fail::at(root, "no <Model>".into()))?;
-    let set = |tag: &str| child(model, tag).and_then(|s| child(s, "objects"));
-    let ground = child(model, "Ground").map_or("ground".to_string(), |g| name(g).to_string());
+    Ok(())
+}
 
-    let mut segments = Vec::new();
+/// The objects of one of the model's sets (`BodySet`, `JointSet`, …); none when absent.
+fn set<'a, 'i>(model: Node<'a, 'i>, tag: &str) -> impl Iterator<Item = Node<'a, 'i>> {
+    child(model, tag)
+        .and_then(|s| child(s, "objects"))
+        .into_iter()
+        .flat_map(elements)
+}
+
+/// Ground, the bodies, and the offset frames outside joints.
+fn frames<'a, 'i>(model: Node<'a, 'i>) -> Result<Frames<'a, 'i>, Fail> {
+    let ground = child(model, "Ground").map_or("ground".to_string(), |g| name(g).to_string());
     let mut bodies = Vec::new();
-    if let Some(objs) = set("BodySet") {
-        for b in elements(objs) {
-            if b.tag_name().name() != "Body" {
-                return Err(Fail::at(b, format!("{} is not supported", label(b))));
-            }
-            bodies.push(name(b).to_string());
-            segments.push(SegmentSpec {
-                name: name(b).to_string(),
-                description: String::new(),
-            });
+    for b in set(model, "BodySet") {
+        if b.tag_name().name() != "Body" {
+            return Err(Fail::at(b, format!("{} is not supported", label(b))));
         }
+        bodies.push(name(b).to_string());
     }
     let mut loose: HashMap<&str, Vec<Node>> = HashMap::new();
     for f in model
@@ -287,138 +361,102 @@ fn parse(doc: &Document, path: &Path) -> Result<Parsed, Fail> {
             loose.entry(name(f)).or_default().push(f);
         }
     }
-    let frames = Frames {
+    Ok(Frames {
         ground,
         bodies,
         loose,
-    };
+    })
+}
 
-    let mut offsets = Vec::new();
-    let mut joint_specs = Vec::new();
-    if let Some(objs) = set("JointSet") {
-        for j in elements(objs) {
-            if !joints::JOINT_TYPES.contains(&j.tag_name().name()) {
-                return Err(Fail::at(
-                    j,
-                    format!("{} is a joint type jointfit does not support", label(j)),
-                ));
-            }
-            joint_specs.push(joints::joint(j, &frames, &mut offsets)?);
-        }
-    }
-
+/// The markers (those fixed in ground left out) and where their locations sit in the file.
+fn markers(model: Node, frames: &Frames) -> Result<(Vec<MarkerSpec>, Vec<MarkerSite>), Fail> {
     let mut markers = Vec::new();
     let mut marker_sites = Vec::new();
-    if let Some(objs) = set("MarkerSet") {
-        for m in elements(objs) {
-            let what = label(m);
-            let parent = text(m, "socket_parent_frame")
-                .ok_or_else(|| Fail::at(m, format!("{what}: no <socket_parent_frame>")))?;
-            let end = frames
-                .resolve(path_leaf(parent), None)
-                .map_err(|e| Fail::at(m, format!("{what}: {parent:?}: {e}")))?;
-            if end.body == "ground" {
-                continue; // a marker fixed in ground carries no information about the model
-            }
-            let loc = vec3(m, "location")?;
-            let mut position = loc;
-            match &end.site {
-                Some(site) => {
-                    let v = site.value;
-                    let p = offset_rotation(v[3], v[4], v[5]) * Vector3::from(loc)
-                        + Vector3::new(v[0], v[1], v[2]);
-                    position = [p.x, p.y, p.z];
-                }
-                None => {
-                    if let Some(r) = span(m, "location") {
-                        marker_sites.push(MarkerSite {
-                            name: name(m).to_string(),
-                            location: r,
-                        });
-                    }
-                }
-            }
-            markers.push(MarkerSpec {
-                name: name(m).to_string(),
-                segment: end.body,
-                position,
-                weight: 1.0,
-            });
+    for m in set(model, "MarkerSet") {
+        let what = label(m);
+        let parent = text(m, "socket_parent_frame")
+            .ok_or_else(|| Fail::at(m, format!("{what}: no <socket_parent_frame>")))?;
+        let end = frames
+            .resolve(path_leaf(parent), None)
+            .map_err(|e| Fail::at(m, format!("{what}: {parent:?}: {e}")))?;
+        if end.body == "ground" {
+            continue; // a marker fixed in ground carries no information about the model
         }
-    }
-
-    let mut couplers = Vec::new();
-    if let Some(objs) = set("ConstraintSet") {
-        for c in elements(objs) {
-            let what = label(c);
-            if !flag(c, "isEnforced", true)? {
-                continue;
+        let loc = vec3(m, "location")?;
+        let mut position = loc;
+        match &end.site {
+            Some(site) => {
+                let v = site.value;
+                let p = offset_rotation(v[3], v[4], v[5]) * Vector3::from(loc)
+                    + Vector3::new(v[0], v[1], v[2]);
+                position = [p.x, p.y, p.z];
             }
-            if c.tag_name().name() != "CoordinateCouplerConstraint" {
-                return Err(Fail::at(
-                    c,
-                    format!("{what}: enforced constraints other than CoordinateCouplerConstraint are not supported"),
-                ));
-            }
-            let holder = child(c, "coupled_coordinates_function")
-                .ok_or_else(|| Fail::at(c, format!("{what}: no <coupled_coordinates_function>")))?;
-            let f = functions::function_in(holder, &[]).map_err(|e| e.context(&what))?;
-            let indep: Vec<&str> = text(c, "independent_coordinate_names")
-                .unwrap_or("")
-                .split_whitespace()
-                .collect();
-            let [independent] = indep[..] else {
-                return Err(Fail::at(
-                    c,
-                    format!(
-                        "{what}: needs exactly one independent coordinate, has {}",
-                        indep.len()
-                    ),
-                ));
-            };
-            let dependent = text(c, "dependent_coordinate_name")
-                .filter(|d| !d.is_empty())
-                .ok_or_else(|| Fail::at(c, format!("{what}: no dependent coordinate")))?;
-            let scale = match child(c, "scale_factor") {
-                Some(_) => number(c, "scale_factor")?,
-                None => 1.0,
-            };
-            let function = if scale == 1.0 {
-                f
-            } else {
-                FunctionSpec::Multiplier {
-                    scale,
-                    function: Box::new(f),
+            None => {
+                if let Some(r) = span(m, "location") {
+                    marker_sites.push(MarkerSite {
+                        name: name(m).to_string(),
+                        location: r,
+                    });
                 }
-            };
-            couplers.push(CouplerSpec {
-                name: name(c).to_string(),
-                dependent: dependent.to_string(),
-                independent: independent.to_string(),
-                function,
-            });
+            }
         }
+        markers.push(MarkerSpec {
+            name: name(m).to_string(),
+            segment: end.body,
+            position,
+            weight: 1.0,
+        });
     }
+    Ok((markers, marker_sites))
+}
 
-    let stem = path
-        .file_stem()
-        .map_or("model".to_string(), |s| s.to_string_lossy().into_owned());
-    let spec = ModelSpec {
-        name: match name(model) {
-            "" => stem,
-            n => n.to_string(),
-        },
-        description: format!(
-            "{}{}",
-            jointfit::checks::offsets::OSIM_DESCRIPTION,
-            path.display()
-        ),
-        segments,
-        joints: joint_specs,
-        parameters: vec![],
-        markers,
-        couplers,
-        lab_up: None,
+/// An enforced `CoordinateCouplerConstraint`.
+fn coupler(c: Node) -> Result<CouplerSpec, Fail> {
+    let what = label(c);
+    if c.tag_name().name() != "CoordinateCouplerConstraint" {
+        return Err(Fail::at(
+            c,
+            format!(
+                "{what}: enforced constraints other than CoordinateCouplerConstraint are not \
+                 supported"
+            ),
+        ));
+    }
+    let holder = child(c, "coupled_coordinates_function")
+        .ok_or_else(|| Fail::at(c, format!("{what}: no <coupled_coordinates_function>")))?;
+    let f = functions::function_in(holder, &[]).map_err(|e| e.context(&what))?;
+    let indep: Vec<&str> = text(c, "independent_coordinate_names")
+        .unwrap_or("")
+        .split_whitespace()
+        .collect();
+    let [independent] = indep[..] else {
+        return Err(Fail::at(
+            c,
+            format!(
+                "{what}: needs exactly one independent coordinate, has {}",
+                indep.len()
+            ),
+        ));
     };
-    Ok((spec, offsets, marker_sites))
+    let dependent = text(c, "dependent_coordinate_name")
+        .filter(|d| !d.is_empty())
+        .ok_or_else(|| Fail::at(c, format!("{what}: no dependent coordinate")))?;
+    let scale = match child(c, "scale_factor") {
+        Some(_) => number(c, "scale_factor")?,
+        None => 1.0,
+    };
+    let function = if scale == 1.0 {
+        f
+    } else {
+        FunctionSpec::Multiplier {
+            scale,
+            function: Box::new(f),
+        }
+    };
+    Ok(CouplerSpec {
+        name: name(c).to_string(),
+        dependent: dependent.to_string(),
+        independent: independent.to_string(),
+        function,
+    })
 }

@@ -25,9 +25,16 @@ pub(crate) fn label(node: Node) -> String {
     format!("{} {:?}", node.tag_name().name(), name(node))
 }
 
-/// The text of a child element, trimmed (`None` when the child is absent).
+/// The text of a child element, trimmed, comments beside it set aside (`None` when the child
+/// is absent; the first piece when comments split it, see [`crate::xml::value_piece`]).
 pub(crate) fn text<'a>(node: Node<'a, '_>, tag: &str) -> Option<&'a str> {
-    child(node, tag).map(|c| c.text().unwrap_or("").trim())
+    child(node, tag).map(|c| {
+        let piece = match crate::xml::value_piece(c) {
+            Ok(p) => p,
+            Err(_) => c.children().find(|t| t.is_text()),
+        };
+        piece.and_then(|t| t.text()).unwrap_or("").trim()
+    })
 }
 
 /// Whitespace-separated numbers of a child element.
@@ -38,18 +45,20 @@ pub(crate) fn numbers(node: Node, tag: &str) -> Result<Vec<f64>, Fail> {
     parse_numbers(c)
 }
 
-/// Whitespace-separated numbers of an element's own text.
+/// Whitespace-separated numbers of an element's own text, comments beside them set aside; an
+/// element whose numbers a comment splits is refused, as OpenSim refuses it
+/// ([`crate::xml::value_piece`]).
 pub(crate) fn parse_numbers(c: Node) -> Result<Vec<f64>, Fail> {
-    c.text()
+    let tag = c.tag_name().name();
+    let piece = crate::xml::value_piece(c)
+        .map_err(|n| Fail::at(c, crate::xml::split_value_message(tag, n)))?;
+    piece
+        .and_then(|t| t.text())
         .unwrap_or("")
         .split_whitespace()
         .map(|t| {
-            t.parse::<f64>().map_err(|_| {
-                Fail::at(
-                    c,
-                    format!("<{}>: {t:?} is not a number", c.tag_name().name()),
-                )
-            })
+            t.parse::<f64>()
+                .map_err(|_| Fail::at(c, format!("<{tag}>: {t:?} is not a number")))
         })
         .collect()
 }

@@ -9,6 +9,7 @@ mod osim_joint_types;
 mod osim_names;
 mod osim_read;
 mod osim_scale;
+mod osim_values;
 mod sto;
 mod sto_edges;
 mod trc_fast;

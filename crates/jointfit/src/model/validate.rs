@@ -44,20 +44,13 @@ impl<'a> Compiler<'a> {
                     name: p.name.clone(),
                 });
             }
+            check_prior_sd(p)?;
             let vals = [p.nominal, p.lower, p.upper];
             if vals.iter().any(|v| !v.is_finite()) || p.lower >= p.upper {
                 return Err(ModelError::BadBounds {
                     name: p.name.clone(),
                     detail: format!("need finite lower < upper, got [{}, {}]", p.lower, p.upper),
                 });
-            }
-            if let Some(sd) = p.prior_sd {
-                if !(sd.is_finite() && sd > 0.0) {
-                    return Err(ModelError::BadBounds {
-                        name: p.name.clone(),
-                        detail: format!("prior_sd must be finite and > 0, got {sd}"),
-                    });
-                }
             }
             if p.prior_mean.is_some_and(|m| !m.is_finite()) {
                 return Err(ModelError::BadBounds {
@@ -269,4 +262,85 @@ pub(super) fn check_name(name: &str, kind: &'static str) -> Result<(), ModelErro
         )));
     }
     Ok(())
+}
+
+/// A parameter's prior SD must be finite, positive, and not below the spacing of doubles
+/// across the parameter's values: `s ≥ ε · max(|nominal|, |lower|, |upper|, upper − lower)`
+/// (ε = 2⁻⁵², [`f64::EPSILON`]). A smaller SD pins the parameter tighter than a double can
+/// tell its values apart, and its weight σ²/s² in the objective overflows to infinity for
+/// `s < σ·1e-154` (1e-200 mm would silently drop the prior from the fit).
+fn check_prior_sd(p: &super::spec::ParameterSpec) -> Result<(), ModelError> {
+    let Some(sd) = p.prior_sd else {
+        return Ok(());
+    };
+    if !(sd.is_finite() && sd > 0.0) {
+        return Err(ModelError::BadBounds {
+            name: p.name.clone(),
+            detail: format!("prior_sd must be finite and > 0, got {sd}"),
+        });
+    }
+    let scale = [
+        p.nominal.abs(),
+        p.lower.abs(),
+        p.upper.abs(),
+        p.upper - p.lower,
+    ]
+    .into_iter()
+    .filter(|v| v.is_finite())
+    .fold(0.0, f64::max);
+    let floor = f64::EPSILON * scale;
+    if sd < floor {
+        return Err(ModelError::BadBounds {
+            name: p.name.clone(),
+            detail: format!(
+                "prior_sd {sd:e} is below what the fit can represent: at least {floor:.1e} \
+                 (2^-52 of the parameter's values) is needed for the prior to weigh in"
+            ),
+        });
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod prior_sd_tests {
+    use crate::model::lower_limb::builtin;
+    use crate::model::{Model, ModelError};
+
+    /// Prior SDs the fit cannot use are refused naming the parameter; 1e-200 mm is one of
+    /// them (its weight σ²/s² at σ = 1 mm is infinite, which the objective would drop).
+    #[test]
+    fn prior_sds_the_fit_cannot_represent_are_refused() {
+        assert!((1e-3f64 / 1e-203).powi(2).is_infinite());
+        let spec = builtin("lower-limb-right").unwrap();
+        let name = spec.parameters[0].name.clone();
+        let value = spec.parameters[0]
+            .nominal
+            .abs()
+            .max(spec.parameters[0].upper - spec.parameters[0].lower);
+        let floor = f64::EPSILON * value;
+        for (sd, ok) in [
+            (1e-203, false),
+            (0.0, false),
+            (-1e-3, false),
+            (f64::NAN, false),
+            (f64::INFINITY, false),
+            (floor * 0.5, false),
+            (floor * 2.0, true),
+            (5e-3, true),
+        ] {
+            let mut s = spec.clone();
+            s.parameters[0].prior_sd = Some(sd);
+            s.parameters[0].prior_mean = Some(s.parameters[0].nominal);
+            match Model::compile(&s) {
+                Ok(_) => assert!(ok, "{sd:e} accepted"),
+                Err(e) => {
+                    assert!(!ok, "{sd:e}: {e}");
+                    assert!(matches!(e, ModelError::BadBounds { .. }), "{e}");
+                    let msg = e.to_string();
+                    assert!(msg.contains(&name) && msg.contains("prior_sd"), "{msg}");
+                    assert_eq!(msg.lines().count(), 1);
+                }
+            }
+        }
+    }
 }
