@@ -27,6 +27,7 @@ mod ik;
 pub mod map;
 pub mod marker_policy;
 pub mod marker_rigid;
+pub mod motion_range;
 mod probes;
 pub mod redundant;
 pub mod refine;

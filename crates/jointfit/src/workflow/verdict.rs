@@ -201,6 +201,8 @@ pub struct Evidence<'a> {
     pub decisions: &'a [MarkerDecision],
     pub conflict: &'a [JointConflict],
     pub envelope: &'a [EnvelopeBound],
+    /// Joints held because the trials barely move them ([`super::motion_range`]).
+    pub held: &'a [super::motion_range::HeldJoint],
 }
 
 /// Step 2 of the module docs: the verdict on `cal`, a calibration of `model`.
@@ -245,6 +247,11 @@ pub fn judge(model: &Model, cal: &Calibration, e: &Evidence) -> Verdict {
         );
     }
     judge_motion(model, cal, &mut v);
+    // A note: the held joints keep their prior values, which the fit does not claim to have
+    // determined.
+    if !e.held.is_empty() {
+        v.add(Level::Ok, super::motion_range::held_line(e.held));
+    }
     v
 }
 
