@@ -63,6 +63,8 @@ mod reliability;
 mod repair;
 #[path = "cli/report.rs"]
 mod report;
+#[path = "cli/rms.rs"]
+mod rms;
 #[path = "cli/safety.rs"]
 mod safety;
 #[path = "cli/scale.rs"]

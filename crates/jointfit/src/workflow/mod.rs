@@ -27,6 +27,7 @@ mod ik;
 pub mod map;
 pub mod marker_policy;
 pub mod marker_rigid;
+mod marker_rms;
 pub mod motion_range;
 mod probes;
 pub mod redundant;
@@ -48,6 +49,7 @@ pub use calibration::{
 pub use check::{check, CheckReport};
 pub use hold::{hold_undetermined, lock_undetermined};
 pub use ik::{ik_checked, ik_trial, ik_warm_started, transfer_params, IkRun};
+pub use marker_rms::{marker_rms, MarkerRms};
 pub use redundant::{
     calibrate_holding_redundant, redundant_parameters, HeldCalibration, Redundancy,
 };

@@ -59,7 +59,7 @@ fn central_range(mut v: Vec<f64>) -> f64 {
 /// Each moving joint's range of motion over the frames `qs` (deg): the largest 5–95 % range
 /// of its rotational coordinates; joints without a rotational coordinate and the root joint
 /// are left out.
-pub fn joint_ranges(model: &Model, qs: &[Vec<f64>]) -> Vec<(String, f64)> {
+pub(crate) fn joint_ranges(model: &Model, qs: &[Vec<f64>]) -> Vec<(String, f64)> {
     let mut out: Vec<(String, f64)> = Vec::new();
     for (c, coord) in model.coordinates().iter().enumerate() {
         let joint = &model.joints()[coord.joint.0];
@@ -85,7 +85,7 @@ fn other_side(joint: &str) -> Option<String> {
 }
 
 /// The joints of `ranges` ([`joint_ranges`]) to hold (module docs), without their parameters.
-pub fn still_joints(ranges: &[(String, f64)]) -> Vec<HeldJoint> {
+pub(crate) fn still_joints(ranges: &[(String, f64)]) -> Vec<HeldJoint> {
     ranges
         .iter()
         .filter(|(_, range)| *range < STILL_RANGE_DEG)
@@ -153,7 +153,7 @@ pub fn hold_still_joints(
 }
 
 /// One line naming the held joints, their ranges, the other leg's and the thresholds.
-pub fn held_line(held: &[HeldJoint]) -> String {
+pub(crate) fn held_line(held: &[HeldJoint]) -> String {
     let list = |f: &dyn Fn(&HeldJoint) -> String| held.iter().map(f).collect::<Vec<_>>().join(", ");
     format!(
         "held {} at the start values: the trial moved {} (5–95 % range), below {STILL_RANGE_DEG:.0}°, \
