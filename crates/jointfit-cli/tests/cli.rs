@@ -35,6 +35,8 @@ mod limits;
 mod markers;
 #[path = "cli/markers_auto.rs"]
 mod markers_auto;
+#[path = "cli/markers_trust.rs"]
+mod markers_trust;
 #[path = "cli/offsets.rs"]
 mod offsets;
 #[path = "cli/osim.rs"]
