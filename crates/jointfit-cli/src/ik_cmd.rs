@@ -76,7 +76,8 @@ pub(crate) struct Summary {
     /// The trial as read: vertical, reader notes, repairs (and the checks again).
     pub(crate) trial: Option<TrialJson>,
     /// The marker RMS every command prints ([`workflow::marker_rms`]: every fitted frame and
-    /// present marker, the calibration's inverse kinematics); `None` for an `.osim` setup.
+    /// present marker, the calibration's inverse kinematics); `None` for a model without
+    /// joint parameters or an `.osim` setup.
     pub(crate) rms_mm: Option<f64>,
     /// Mean and largest of the per-frame RMS of this command's inverse kinematics.
     pub(crate) mean_frame_rms_mm: f64,
@@ -151,7 +152,11 @@ pub fn run(args: IkArgs) -> Result<()> {
             trial_path.display()
         );
     }
-    summary.rms_mm = Some(workflow::marker_rms(model, &model.nominal_params(), &[trial])?.rms_mm);
+    // A model without joint parameters (an .osim read as it is) has no calibration, so no
+    // RMS of its definition: the per-frame figures only.
+    summary.rms_mm = workflow::marker_rms(model, &model.nominal_params(), &[trial])
+        .ok()
+        .map(|r| r.rms_mm);
     summary.checks = findings.iter().map(CheckJson::from).collect();
     summary.trial = Some(trial_json);
     print_summary(&summary, args.json, seconds, output)
