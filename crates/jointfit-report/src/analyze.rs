@@ -72,15 +72,16 @@ pub fn analyze_with_progress(
     }
     input.markers = errors.per_marker(model, baseline.is_some());
     let all: Vec<&Trial> = trials.iter().map(|(_, t)| *t).collect();
-    let overall = |p: &[f64]| {
-        jointfit::workflow::marker_rms(model, p, &all)
-            .map(|r| r.rms_mm)
-            .map_err(|e| trial_error(&trials[0].0, e))
+    // A model without joint parameters (an .osim read as it is) has no calibration and so no
+    // RMS of that definition: the RMS of the report's own inverse kinematics instead.
+    let overall = |p: &[f64], own: &[Vec<f64>]| match model.n_p() {
+        0 => rms(own.iter().flatten().copied()) * MM,
+        _ => jointfit::workflow::marker_rms(model, p, &all).map_or(f64::NAN, |r| r.rms_mm),
     };
-    input.overall_rms_mm = match trials.is_empty() {
-        true => (baseline.map(|_| f64::NAN), f64::NAN),
-        false => (baseline.map(overall).transpose()?, overall(fitted)?),
-    };
+    input.overall_rms_mm = (
+        baseline.map(|b| overall(b, &errors.baseline)),
+        overall(fitted, &errors.fitted),
+    );
     Ok(())
 }
 
