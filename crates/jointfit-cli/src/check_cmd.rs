@@ -110,8 +110,8 @@ fn load(args: &CheckArgs) -> Result<jointfit::model::Model> {
 fn print_check(report: &CheckReport) {
     let r = &report.check;
     println!(
-        "{}: {} frames ({} skipped), IK with the nominal model over every marker sample, \
-         as calibrate weighs them (no outlier rejection, unlike `ik`): RMS {:.2} mm",
+        "{}: {} frames ({} skipped), RMS marker distance with the nominal model {:.2} mm \
+         (every frame and marker, as calibrate, ik and report print it)",
         report.trial, r.frames, r.skipped_frames, r.ik_rms_mm
     );
     println!("\nrange of motion (IK, nominal model)");

@@ -75,6 +75,11 @@ pub(crate) struct Summary {
     pub(crate) checks: Vec<CheckJson>,
     /// The trial as read: vertical, reader notes, repairs (and the checks again).
     pub(crate) trial: Option<TrialJson>,
+    /// The marker RMS every command prints ([`workflow::marker_rms`]: every fitted frame and
+    /// present marker, the calibration's inverse kinematics); `None` for a model without
+    /// joint parameters or an `.osim` setup.
+    pub(crate) rms_mm: Option<f64>,
+    /// Mean and largest of the per-frame RMS of this command's inverse kinematics.
     pub(crate) mean_frame_rms_mm: f64,
     pub(crate) max_frame_rms_mm: f64,
     marker_rms_mm: Vec<(String, f64)>,
@@ -147,6 +152,11 @@ pub fn run(args: IkArgs) -> Result<()> {
             trial_path.display()
         );
     }
+    // A model without joint parameters (an .osim read as it is) has no calibration, so no
+    // RMS of its definition: the per-frame figures only.
+    summary.rms_mm = workflow::marker_rms(model, &model.nominal_params(), &[trial])
+        .ok()
+        .map(|r| r.rms_mm);
     summary.checks = findings.iter().map(CheckJson::from).collect();
     summary.trial = Some(trial_json);
     print_summary(&summary, args.json, seconds, output)
@@ -166,6 +176,12 @@ pub(crate) fn print_summary(
             "{} frames ({} solved) in {:.3} s ({:.0} frames/s)",
             summary.frames, summary.solved_frames, seconds, summary.frames_per_second
         );
+        if let Some(rms) = summary.rms_mm {
+            println!(
+                "RMS marker distance: {rms:.2} mm (every frame and marker, as check, calibrate \
+                 and report print it)"
+            );
+        }
         println!(
             "RMS marker error per frame: mean {:.2} mm, max {:.2} mm",
             summary.mean_frame_rms_mm, summary.max_frame_rms_mm
@@ -348,6 +364,7 @@ pub(crate) fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f
         rejected,
         checks: Vec::new(),
         trial: None,
+        rms_mm: None,
         mean_frame_rms_mm: rms.iter().sum::<f64>() / rms.len().max(1) as f64 * MM_PER_M,
         max_frame_rms_mm: rms.iter().cloned().fold(0.0, f64::max) * MM_PER_M,
         marker_rms_mm: model

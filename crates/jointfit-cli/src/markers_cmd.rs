@@ -52,53 +52,23 @@ pub fn run(cmd: MarkersCommand) -> Result<()> {
     }
     files.check()?;
     let path = r#static.display().to_string();
-    let (up, detected) = crate::common::up_or_detected(&r#static, up)?;
-    if let Some(d) = detected {
-        eprintln!("jointfit: {path}: up axis detected: {d}");
-    }
-    let trial = load_trial(&r#static, up, None)?;
-    let virtual_points = plug_in_gait_axes(trial.labels());
-    let trial =
-        if virtual_points.is_empty() {
-            trial
-        } else {
-            eprintln!(
-            "jointfit: {path}: left out {} points that are Plug-in Gait's segment axes (origin, \
-             anterior, lateral, proximal: {}{}), not skin markers",
-            virtual_points.len(),
-            virtual_points[..virtual_points.len().min(4)].join(", "),
-            if virtual_points.len() > 4 { ", …" } else { "" }
-        );
-            let kept: Vec<&str> = trial
-                .labels()
-                .iter()
-                .map(String::as_str)
-                .filter(|l| !virtual_points.iter().any(|v| v == l))
-                .collect();
-            trial.select(&kept)?
-        };
+    let (up, trial) = load_static(&r#static, up)?;
     let name = name.unwrap_or_else(|| {
         output
             .as_ref()
             .and_then(|o| o.file_stem())
             .map_or("suggested".into(), |s| s.to_string_lossy().into_owned())
     });
-    let mut suggestion = jointfit::landmarks::suggest::suggest(&trial, &name)
-        .with_context(|| format!("{path}: cannot suggest a marker set"))?;
-    match &motion {
-        Some(m) => {
-            let (moving, _) = jointfit_io::trial_file::read_trial_noted(m)?;
-            let present = |l: &str| motion::has_samples(&moving, l);
-            for note in motion::keep_tracked_in(&mut suggestion.set, &present) {
-                suggestion.notes.push(note);
-            }
+    let mut suggestion = match jointfit::landmarks::suggest::suggest(&trial, &name) {
+        Ok(s) => s,
+        Err(e) => {
+            preset_hint(&path, &trial);
+            return Err(
+                anyhow::Error::new(e).context(format!("{path}: cannot suggest a marker set"))
+            );
         }
-        None => {
-            if let Some(note) = static_only_hint(&suggestion.set) {
-                suggestion.notes.push(note);
-            }
-        }
-    }
+    };
+    with_motion(&mut suggestion, motion.as_deref())?;
     let mut text = format!(
         "# Suggested by `jointfit markers suggest` from {path} (up axis {}).\n\
          # Check every role before use: see docs/markersets.md.\n",
@@ -109,7 +79,102 @@ pub fn run(cmd: MarkersCommand) -> Result<()> {
         eprintln!("jointfit: {path}: {note}");
     }
     text.push_str(&suggestion.set.to_toml());
-    // A preset that covers the labels is the better choice than a guess.
+    print_roles(&suggestion.roles);
+    preset_hint(&path, &trial);
+    try_personalize(&path, &trial, &suggestion.set)?;
+    match &output {
+        Some(o) => {
+            jointfit_io::atomic::write_atomic(o, text.as_bytes())
+                .with_context(|| format!("{}: cannot write", o.display()))?;
+            println!("wrote {}", o.display());
+        }
+        None => print!("{text}"),
+    }
+    Ok(())
+}
+
+/// The static trial in the model's frame, without Plug-in Gait's virtual segment axes; the
+/// vertical given or detected (said on stderr).
+fn load_static(path: &std::path::Path, up: Option<Up>) -> Result<(Up, jointfit::trial::Trial)> {
+    let name = path.display().to_string();
+    let (up, detected) = crate::common::up_or_detected(path, up)?;
+    if let Some(d) = detected {
+        eprintln!("jointfit: {name}: up axis detected: {d}");
+    }
+    let trial = load_trial(path, up, None)?;
+    let virtual_points = plug_in_gait_axes(trial.labels());
+    if virtual_points.is_empty() {
+        return Ok((up, trial));
+    }
+    eprintln!(
+        "jointfit: {name}: left out {} points that are Plug-in Gait's segment axes (origin, \
+         anterior, lateral, proximal: {}{}), not skin markers",
+        virtual_points.len(),
+        virtual_points[..virtual_points.len().min(4)].join(", "),
+        if virtual_points.len() > 4 {
+            ", …"
+        } else {
+            ""
+        }
+    );
+    let kept: Vec<&str> = trial
+        .labels()
+        .iter()
+        .map(String::as_str)
+        .filter(|l| !virtual_points.iter().any(|v| v == l))
+        .collect();
+    Ok((up, trial.select(&kept)?))
+}
+
+/// With `--motion`: tracking markers the motion trial lacks are left out of the tracking
+/// lists, and each role's motion coherence with its segment is measured; without it, a hint
+/// on static-only landmarks.
+fn with_motion(
+    suggestion: &mut jointfit::landmarks::suggest::Suggestion,
+    motion: Option<&std::path::Path>,
+) -> Result<()> {
+    let Some(m) = motion else {
+        if let Some(note) = static_only_hint(&suggestion.set) {
+            suggestion.notes.push(note);
+        }
+        return Ok(());
+    };
+    let (moving, _) = jointfit_io::trial_file::read_trial_noted(m)?;
+    let present = |l: &str| motion::has_samples(&moving, l);
+    for note in motion::keep_tracked_in(&mut suggestion.set, &present) {
+        suggestion.notes.push(note);
+    }
+    jointfit::landmarks::suggest::coherence(&moving, &suggestion.set, &mut suggestion.roles);
+    Ok(())
+}
+
+/// Every role with its confidence and what it is based on (stderr).
+fn print_roles(roles: &[jointfit::landmarks::suggest::Role]) {
+    let mut t = crate::table::Table::new(&["role", "marker", "confidence", "based on"]);
+    for r in roles {
+        t.row(vec![
+            r.role.clone(),
+            r.marker.clone(),
+            r.confidence().name().to_string(),
+            r.basis(),
+        ]);
+    }
+    eprint!("{}", t.render());
+    let low: Vec<&str> = roles
+        .iter()
+        .filter(|r| r.confidence() == jointfit::landmarks::suggest::Confidence::Low)
+        .map(|r| r.marker.as_str())
+        .collect();
+    if !low.is_empty() {
+        eprintln!(
+            "jointfit: warning: low confidence in the roles of {}: check them first",
+            low.join(", ")
+        );
+    }
+}
+
+/// A preset that covers the labels is the better choice than a guess (stderr).
+fn preset_hint(path: &str, trial: &jointfit::trial::Trial) {
     if let Some(best) = jointfit::landmarks::auto::rank_presets(trial.labels())
         .into_iter()
         .find(|f| f.legs_fitted > 0)
@@ -120,52 +185,43 @@ pub fn run(cmd: MarkersCommand) -> Result<()> {
             best.name, best.legs_fitted, best.name
         );
     }
-    // Try it: personalize each leg the set describes; a leg no adult has refuses the set
-    // (the roles were given to the wrong markers).
+}
+
+/// Tries the set: personalizes each leg it describes; a leg no adult has refuses the set
+/// (the roles were given to the wrong markers).
+fn try_personalize(path: &str, trial: &jointfit::trial::Trial, set: &MarkerSet) -> Result<()> {
     let mut implausible = Vec::new();
     for (side, present) in [
-        (Side::Right, suggestion.set.right.is_some()),
-        (Side::Left, suggestion.set.left.is_some()),
+        (Side::Right, set.right.is_some()),
+        (Side::Left, set.left.is_some()),
     ] {
-        if present {
-            match personalize(
-                &trial,
-                &suggestion.set,
-                side,
-                &PersonalizeOptions::default(),
-            ) {
-                Err(e) => eprintln!(
-                    "jointfit: warning: {path}: personalize with this set fails for the {side:?} leg: {e}"
-                ),
-                Ok(leg) => {
-                    let model = jointfit::model::Model::compile(&leg.spec)?;
-                    implausible.extend(
-                        jointfit::plausibility::anthropometry(&model, &model.nominal_params())
-                            .iter()
-                            .filter(|m| !m.ok())
-                            .map(|m| format!("{side:?} leg: {}", m.line())),
-                    );
-                }
+        if !present {
+            continue;
+        }
+        match personalize(trial, set, side, &PersonalizeOptions::default()) {
+            Err(e) => eprintln!(
+                "jointfit: warning: {path}: personalize with this set fails for the {side:?} leg: {e}"
+            ),
+            Ok(leg) => {
+                let model = jointfit::model::Model::compile(&leg.spec)?;
+                implausible.extend(
+                    jointfit::plausibility::anthropometry(&model, &model.nominal_params())
+                        .iter()
+                        .filter(|m| !m.ok())
+                        .map(|m| format!("{side:?} leg: {}", m.line())),
+                );
             }
         }
     }
-    if !implausible.is_empty() {
-        return Err(crate::output::Rejected(format!(
-            "{path}: the suggested roles give no adult's leg ({}); some roles went to the \
-             wrong markers: name them in a marker-set file",
-            implausible.join("; ")
-        ))
-        .into());
+    if implausible.is_empty() {
+        return Ok(());
     }
-    match &output {
-        Some(o) => {
-            jointfit_io::atomic::write_atomic(o, text.as_bytes())
-                .with_context(|| format!("{}: cannot write", o.display()))?;
-            println!("wrote {}", o.display());
-        }
-        None => print!("{text}"),
-    }
-    Ok(())
+    Err(crate::output::Rejected(format!(
+        "{path}: the suggested roles give no adult's leg ({}); some roles went to the wrong \
+         markers: name them in a marker-set file",
+        implausible.join("; ")
+    ))
+    .into())
 }
 
 /// Without `--motion`: the landmarks that also track a segment (lateral knee and ankle

@@ -35,6 +35,8 @@ mod limits;
 mod markers;
 #[path = "cli/markers_auto.rs"]
 mod markers_auto;
+#[path = "cli/markers_trust.rs"]
+mod markers_trust;
 #[path = "cli/offsets.rs"]
 mod offsets;
 #[path = "cli/osim.rs"]
@@ -63,6 +65,8 @@ mod reliability;
 mod repair;
 #[path = "cli/report.rs"]
 mod report;
+#[path = "cli/rms.rs"]
+mod rms;
 #[path = "cli/safety.rs"]
 mod safety;
 #[path = "cli/scale.rs"]

@@ -78,6 +78,8 @@ pub fn calibration_input(
         &IkOptions::default(),
         progress,
     )?;
+    // The calibration's own marker RMS (the same definition, on the markers it used).
+    input.overall_rms_mm = (Some(cal.rms_before_mm), cal.rms_after_mm);
     let free: Vec<usize> = cal.free.iter().map(|id| id.0).collect();
     input.parameters = parameter_rows(model, &cal.fit.p, Some(&cal.start), Some(&free));
     // The 95 % intervals of the uncertainty analysis (mm/deg, as the report's table).

@@ -241,3 +241,84 @@ fn personalize_refuses_a_static_trial_of_no_adult_size() {
     assert_eq!(code, 0, "{err}");
     assert!(out.exists());
 }
+
+/// A one-sided functional trial (the right knee flexed through 135°, the left leg standing)
+/// on a bilateral model: the left knee is held at its landmark values with one line that
+/// names it, its range and the threshold, and is neither among the fitted parameters nor
+/// changed in the written model; the right knee is fitted.
+#[test]
+fn a_one_sided_trial_holds_the_standing_knee() {
+    let Some(stat) = jointfit_testkit::data_file("biobuddy_functional_vicon/Test_func_anat.c3d")
+    else {
+        return;
+    };
+    let knee =
+        jointfit_testkit::data_file("biobuddy_functional_vicon/Test_func_rknee.c3d").unwrap();
+    let dir = jointfit_testkit::scratch("verdict-one-sided");
+    let (model, out) = (dir.path().join("both.toml"), dir.path().join("fit.toml"));
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let (code, _, err) = run(&[
+        "personalize",
+        &s(&stat),
+        "--markers",
+        "plugin-gait-medial",
+        "--up=-z",
+        "-o",
+        &s(&model),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let (code, stdout, err) = run(&[
+        "calibrate",
+        &s(&model),
+        &s(&knee),
+        "--up=-z",
+        "-o",
+        &s(&out),
+        "--json",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let r: Value = serde_json::from_str(&stdout).unwrap();
+    let reasons: Vec<&str> = r["verdict"]["reasons"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(Value::as_str)
+        .collect();
+    let line = reasons
+        .iter()
+        .find(|l| l.starts_with("held ") && l.contains("knee_l"))
+        .unwrap_or_else(|| panic!("{reasons:?}"));
+    assert!(
+        line.contains("below 15°") && line.contains("knee_r"),
+        "{line}"
+    );
+    let fitted: Vec<&str> = r["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|p| p["name"].as_str())
+        .collect();
+    assert!(fitted
+        .iter()
+        .any(|n| n.starts_with("knee_") && n.ends_with("_r")));
+    assert!(
+        !fitted
+            .iter()
+            .any(|n| n.starts_with("knee_") && n.ends_with("_l")),
+        "{fitted:?}"
+    );
+    // The written model keeps the left knee's landmark values exactly.
+    let nominal = |path: &Path| -> Vec<(String, f64)> {
+        let spec =
+            jointfit::model::spec::ModelSpec::from_toml(&std::fs::read_to_string(path).unwrap())
+                .unwrap();
+        spec.parameters
+            .iter()
+            .filter(|p| p.name.starts_with("knee_") && p.name.ends_with("_l"))
+            .map(|p| (p.name.clone(), p.nominal))
+            .collect()
+    };
+    let (before, after) = (nominal(&model), nominal(&out));
+    assert!(!before.is_empty());
+    assert_eq!(before, after);
+}

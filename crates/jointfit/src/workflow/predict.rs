@@ -11,7 +11,7 @@ use serde::Serialize;
 use super::WorkflowError;
 use crate::calibrate::uncertainty::{CoordRange, Identifiability, Uncertainty, UncertaintyOptions};
 use crate::calibrate::Problem;
-use crate::model::{Model, ParamId, MM_PER_M};
+use crate::model::{Model, ParamId};
 use crate::trial::Trial;
 
 /// What [`predict`] found.
@@ -19,10 +19,8 @@ use crate::trial::Trial;
 pub struct Prediction {
     pub frames: usize,
     pub skipped_frames: usize,
-    /// RMS marker distance of IK at the given parameters (mm), over every present marker
-    /// sample as the calibration weighs them: gross samples dropped, but no per-frame
-    /// outlier rejection (which `ik` applies), so it equals `calibrate`'s RMS before the fit
-    /// and can exceed `ik`'s RMS on the same trial.
+    /// The marker RMS at the given parameters (mm, [`super::marker_rms`]): `calibrate`'s RMS
+    /// before the fit, and the one `ik` and `report` print.
     pub ik_rms_mm: f64,
     /// Range of motion per coordinate (deg or mm) from that IK.
     pub ranges: Vec<CoordRange>,
@@ -44,7 +42,8 @@ pub fn predict(
     opts: &UncertaintyOptions,
 ) -> Result<Prediction, WorkflowError> {
     let prob = Problem::new(model, p.to_vec(), free, trials)?;
-    let qs = prob.initial_coords(p);
+    let mut qs = prob.initial_coords(p);
+    let ik_rms_mm = super::marker_rms::start_rms(&prob, p, &mut qs);
     let prediction = crate::calibrate::uncertainty::predict(&prob, p, &qs, opts);
     let (determined, not_determined): (Vec<_>, Vec<_>) = prediction
         .params
@@ -53,7 +52,7 @@ pub fn predict(
     Ok(Prediction {
         frames: prob.frames.len(),
         skipped_frames: prob.skipped.len(),
-        ik_rms_mm: prob.marker_rms(p, &qs) * MM_PER_M,
+        ik_rms_mm,
         ranges: prediction.ranges.clone(),
         determined: determined.iter().map(|q| q.name.clone()).collect(),
         not_determined: not_determined.iter().map(|q| q.name.clone()).collect(),

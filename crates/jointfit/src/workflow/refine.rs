@@ -66,6 +66,8 @@ pub struct RefinedCalibration {
     /// Each joint's prior–data conflict and whether its intervals were widened
     /// ([`super::conflict`]); empty without a prior or with `prior_conflict` off.
     pub conflict: Vec<super::conflict::JointConflict>,
+    /// Joints the trials barely move, held at their start ([`super::motion_range`]).
+    pub held_joints: Vec<super::motion_range::HeldJoint>,
 }
 
 /// Calibrates `model` like [`calibrate`](super::calibrate), and, for a maximum a posteriori
@@ -94,6 +96,8 @@ pub fn calibrate_refined(
         return Err(WorkflowError::RefineNeedsPriors);
     }
     let mismatches = super::verdict::check_inputs(model, trials, settings.refuse_mismatch)?;
+    let (free, held_joints) = super::motion_range::hold_still_joints(model, start, trials, free)?;
+    let free = free.as_slice();
     let map_fit = settings.priors
         && free
             .iter()
@@ -164,6 +168,7 @@ pub fn calibrate_refined(
         decisions: &decisions,
         conflict: &conflict,
         envelope: &envelope,
+        held: &held_joints,
     };
     calibration.verdict = super::verdict::judge(&aug, &calibration, &evidence);
     Ok(RefinedCalibration {
@@ -175,6 +180,7 @@ pub fn calibrate_refined(
         envelope,
         marker_decisions: decisions,
         conflict,
+        held_joints,
     })
 }
 

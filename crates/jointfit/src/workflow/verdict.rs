@@ -22,12 +22,15 @@
 //!      bar of OpenSim's best practice ([`CAUTION_RMS_AFTER_MM`]), or motion outside the
 //!      anatomical range (knee hyperextension beyond [`KNEE_HYPEREXTENSION_DEG`], a hip
 //!      rotated by more than [`HIP_ROTATION_DEG`] through a whole trial);
-//!    * `ok` otherwise.
+//!    * `ok` otherwise; notes beside the level: a weak prior–data conflict, and the joints
+//!      held because the trial barely moved them on one leg of a bilateral model
+//!      ([`super::motion_range`]).
 //!
 //! The thresholds of the RMS are OpenSim's best-practice bars for a movement trial (RMS
 //! below 2 cm, the largest error below 4 cm; Hicks et al. 2015, J Biomech Eng 137:020905)
 //! and the bar of a different session read off the shared data (a same-session gait, squat,
-//! jump or run starts below 30 mm with a personalized model).
+//! jump or run starts below 30 mm with a personalized model). The RMS is the one every
+//! command prints ([`super::marker_rms`]). User documentation: `docs/verdict.md`.
 
 use serde::{Deserialize, Serialize};
 
@@ -201,6 +204,8 @@ pub struct Evidence<'a> {
     pub decisions: &'a [MarkerDecision],
     pub conflict: &'a [JointConflict],
     pub envelope: &'a [EnvelopeBound],
+    /// Joints held because the trials barely move them ([`super::motion_range`]).
+    pub held: &'a [super::motion_range::HeldJoint],
 }
 
 /// Step 2 of the module docs: the verdict on `cal`, a calibration of `model`.
@@ -245,6 +250,11 @@ pub fn judge(model: &Model, cal: &Calibration, e: &Evidence) -> Verdict {
         );
     }
     judge_motion(model, cal, &mut v);
+    // A note: the held joints keep their prior values, which the fit does not claim to have
+    // determined.
+    if !e.held.is_empty() {
+        v.add(Level::Ok, super::motion_range::held_line(e.held));
+    }
     v
 }
 

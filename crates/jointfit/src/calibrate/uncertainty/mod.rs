@@ -102,7 +102,7 @@ pub use reduced::MAX_GROUPS;
 pub use reduced::{group_size, reduced_system};
 pub use subset::unidentifiable_subset;
 pub use types::Identifiability;
-pub(crate) use types::ParamUncertainty;
+pub use types::ParamUncertainty;
 pub(crate) use types::WeakDirection;
 pub(crate) use types::{BootstrapInfo, CoordRange, DirectionComponent};
 pub use types::{SeMethod, Uncertainty, UncertaintyOptions};

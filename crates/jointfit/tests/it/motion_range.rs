@@ -1,0 +1,148 @@
+//! Joints a trial barely moves ([`jointfit::workflow::motion_range`]): on a bilateral model
+//! and a synthetic one-sided trial (the right leg exercised, the left standing with small
+//! known sways), the left joints are found with their true ranges of motion and held at their
+//! start values by the calibration, which fits the right leg and says so in one line.
+
+use jointfit::model::lower_limb::bilateral;
+use jointfit::model::Model;
+use jointfit::trial::Trial;
+use jointfit::workflow::motion_range::{
+    hold_still_joints, HeldJoint, MOVED_RANGE_DEG, STILL_RANGE_DEG,
+};
+use jointfit::workflow::refine::calibrate_refined;
+use jointfit::workflow::{FitSettings, NoObserver};
+use jointfit_testkit::synth;
+
+/// (coordinate, mean, amplitude) in rad: sinusoids at 1 Hz over two whole periods.
+const MOTION: &[(&str, f64, f64)] = &[
+    ("hip_flexion_r", 0.3, 0.45),
+    ("hip_adduction_r", 0.0, 0.1),
+    ("knee_flexion_r", 0.6, 0.55),
+    ("ankle_dorsiflexion_r", 0.0, 0.3),
+    ("subtalar_inversion_r", 0.0, 0.35),
+    ("hip_flexion_l", 0.1, 0.03),
+    ("hip_adduction_l", 0.0, 0.02),
+    ("knee_flexion_l", 0.1, 0.05),
+    ("ankle_dorsiflexion_l", 0.0, 0.04),
+    ("subtalar_inversion_l", 0.0, 0.06),
+];
+
+fn one_sided_trial(model: &Model, p: &[f64]) -> Trial {
+    let w = 2.0 * std::f64::consts::PI;
+    let motion = |f: usize| {
+        let t = f as f64 / 100.0;
+        let mut q = model.default_coords();
+        q[model.coord_id("pelvis_ty").unwrap().0] = 0.93;
+        for (k, (name, mean, amp)) in MOTION.iter().enumerate() {
+            q[model.coord_id(name).unwrap().0] = mean + amp * (w * t + 0.4 * k as f64).sin();
+        }
+        q
+    };
+    synth::synthetic_trial(model, p, 200, 100.0, motion, synth::Noise::None, 0).trial
+}
+
+/// The 5–95 % range of `A sin` sampled evenly over whole periods (deg): 2 A sin(0.45 π).
+fn sine_range_deg(amp: f64) -> f64 {
+    (2.0 * amp * (0.45 * std::f64::consts::PI).sin()).to_degrees()
+}
+
+fn amplitude(coord: &str) -> f64 {
+    MOTION.iter().find(|m| m.0 == coord).unwrap().2
+}
+
+#[test]
+fn the_standing_legs_joints_are_found_with_their_ranges() {
+    let model = Model::compile(&bilateral()).unwrap();
+    let p = model.nominal_params();
+    let trial = one_sided_trial(&model, &p);
+    let free: Vec<_> = (0..model.n_p()).map(jointfit::model::ParamId).collect();
+    let (kept, held) = hold_still_joints(&model, &p, &[&trial], &free).unwrap();
+    let names: Vec<&str> = held.iter().map(|h| h.joint.as_str()).collect();
+    assert_eq!(names, ["hip_l", "knee_l", "talocrural_l", "subtalar_l"]);
+    let want = |h: &HeldJoint| match h.joint.as_str() {
+        "hip_l" => sine_range_deg(amplitude("hip_flexion_l")),
+        "knee_l" => sine_range_deg(amplitude("knee_flexion_l")),
+        "talocrural_l" => sine_range_deg(amplitude("ankle_dorsiflexion_l")),
+        _ => sine_range_deg(amplitude("subtalar_inversion_l")),
+    };
+    for h in &held {
+        // Noise-free markers: inverse kinematics returns the true angles; 200 samples of two
+        // periods put the quantiles within 0.1° of the continuous ones.
+        assert!(
+            (h.range_deg - want(h)).abs() < 0.1,
+            "{h:?} against {}",
+            want(h)
+        );
+        assert!(h.range_deg < STILL_RANGE_DEG && h.other_range_deg >= MOVED_RANGE_DEG);
+        assert!(!h.parameters.is_empty());
+    }
+    // Every left-leg parameter is held, every right-leg one kept.
+    for id in &free {
+        let name = &model.parameters()[id.0].name;
+        assert_eq!(kept.contains(id), name.ends_with("_r"), "{name}");
+    }
+}
+
+#[test]
+fn the_calibration_holds_them_and_fits_the_moving_leg() {
+    let model = Model::compile(&bilateral()).unwrap();
+    let truth = model.nominal_params();
+    let trial = one_sided_trial(&model, &truth);
+    // The start: the right knee 10 mm and 4° off; the left one true.
+    let mut start = truth.clone();
+    for (name, d) in [
+        ("knee_thigh_anterior_r", 0.01),
+        ("knee_thigh_frontal_r", 0.07),
+    ] {
+        start[model.param_id(name).unwrap().0] += d;
+    }
+    let free: Vec<_> = model
+        .params_in_group("knee_r")
+        .into_iter()
+        .chain(model.params_in_group("knee_l"))
+        .collect();
+    assert!(!free.is_empty(), "groups: {:?}", model.groups());
+    let settings = FitSettings {
+        probes: 0,
+        ..FitSettings::default()
+    };
+    let fit =
+        calibrate_refined(&model, &start, &[&trial], &free, &settings, &mut NoObserver).unwrap();
+    let cal = &fit.calibration;
+    let names: Vec<&str> = fit.held_joints.iter().map(|h| h.joint.as_str()).collect();
+    assert_eq!(names, ["knee_l"]);
+    // Held: exactly at the start, and not among the fitted rows.
+    for id in &free {
+        let par = &model.parameters()[id.0];
+        let row = cal.parameters.iter().find(|r| r.name == par.name);
+        if par.name.ends_with("_l") {
+            assert_eq!(cal.fit.p[id.0], start[id.0], "{}", par.name);
+            assert!(row.is_none(), "{} is not fitted", par.name);
+        } else {
+            assert!(row.is_some(), "{} is fitted", par.name);
+        }
+    }
+    // The moving knee is fitted: the start's misfit is gone (noise-free markers).
+    assert!(
+        cal.rms_before_mm > 1.0 && cal.rms_after_mm < 0.05,
+        "{} -> {}",
+        cal.rms_before_mm,
+        cal.rms_after_mm
+    );
+    // One line of the verdict names the joint, its range and the threshold.
+    let line = cal
+        .verdict
+        .reasons
+        .iter()
+        .find(|r| r.starts_with("held knee_l"))
+        .unwrap_or_else(|| panic!("{:?}", cal.verdict));
+    let said: f64 = line
+        .split("moved knee_l ")
+        .nth(1)
+        .and_then(|rest| rest.split('°').next())
+        .and_then(|x| x.parse().ok())
+        .unwrap_or_else(|| panic!("{line}"));
+    let want = sine_range_deg(amplitude("knee_flexion_l"));
+    assert!((said - want).abs() < 0.15, "{line} against {want}");
+    assert!(line.contains("below 15°"), "{line}");
+}
