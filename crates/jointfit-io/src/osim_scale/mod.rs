@@ -28,14 +28,14 @@
 //!   path length after to before scaling at the default pose (`Muscle::postScale`); a
 //!   `Ligament`'s or `PathSpring`'s `resting_length` likewise.
 //!
-//! Contact geometry is not scaled by OpenSim and stays as it is. Path lengths here are the
-//! polyline through the active path points (conditional points active at the default
-//! coordinate values, moving points at their default-pose location); wrapping surfaces are
-//! not followed, so for a wrapped muscle the length ratio, and so the fibre and tendon
-//! lengths, can differ from OpenSim's (see `docs/scaling.md` for the measured size).
+//! Contact geometry is not scaled by OpenSim and stays as it is. Path lengths are OpenSim's
+//! `GeometryPath` lengths at the default pose (conditional points active at the default
+//! coordinate values, moving points at their default-pose location, wrapping over
+//! `WrapCylinder`s followed; module `paths`).
 
 mod paths;
 pub mod setup;
+mod wrap;
 pub mod workflow;
 
 use std::collections::HashMap;
@@ -140,6 +140,16 @@ fn text_range(node: Node, tag: &str) -> Option<Range<usize>> {
 
 fn triple(v: [f64; 3]) -> String {
     format!("{} {} {}", v[0], v[1], v[2])
+}
+
+/// How a wrap object's frame axes stretch under body factors `s`: `ℓ_k = ‖R e_k ⊙ s‖`
+/// with `R` the frame's `xyz_body_rotation` (body-fixed X-Y-Z).
+fn frame_stretch(rotation: [f64; 3], s: [f64; 3]) -> [f64; 3] {
+    let rm = offset_rotation(rotation[0], rotation[1], rotation[2]);
+    std::array::from_fn(|k| {
+        let c: Vector3<f64> = rm.column(k).into_owned();
+        Vector3::new(c.x * s[0], c.y * s[1], c.z * s[2]).norm()
+    })
 }
 
 fn mul(a: [f64; 3], s: [f64; 3]) -> [f64; 3] {
@@ -249,6 +259,25 @@ pub fn scale_osim(
         path: path.to_path_buf(),
         line: doc.text_pos_at(f.pos).row,
         message: f.msg,
+    })
+}
+
+/// `(name, [ℓ, ℓ'])`: the length (m) of every muscle's (ligament's, path spring's) path at
+/// the default pose, in the model and in the model scaled by `factors`, as OpenSim computes
+/// it (wrap cylinders followed; `paths` module docs).
+pub fn path_lengths(
+    model: &OsimModel,
+    path: &Path,
+    factors: &ScaleFactors,
+) -> Result<Vec<(String, [f64; 2])>, OsimScaleError> {
+    let doc = Document::parse(&model.text).map_err(|e| OsimScaleError::Invalid {
+        path: path.to_path_buf(),
+        line: e.pos().row,
+        message: format!("not XML: {e}"),
+    })?;
+    paths::lengths(model, &doc, factors).map_err(|message| OsimScaleError::Model {
+        path: path.to_path_buf(),
+        message,
     })
 }
 
@@ -543,11 +572,8 @@ fn scale_doc(
                     ed.set(r, triple(mul(t, s)));
                 }
                 let rot = vec3(n, "xyz_body_rotation")?.unwrap_or([0.0; 3]);
-                let rm = offset_rotation(rot[0], rot[1], rot[2]);
-                let l = |k: usize| -> f64 {
-                    let c: Vector3<f64> = rm.column(k).into_owned();
-                    Vector3::new(c.x * s[0], c.y * s[1], c.z * s[2]).norm()
-                };
+                let stretch = frame_stretch(rot, s);
+                let l = |k: usize| stretch[k];
                 let mut set_scalar = |tag: &str, k: f64| -> Result<(), Fail> {
                     if let (Some(v), Some(r)) = (scalar(n, tag)?, text_range(n, tag)) {
                         ed.set(r, format!("{}", v * k));
