@@ -62,6 +62,8 @@ pub struct ScaleOptions {
     pub max_iterations: usize,
     /// Widen the offset prior of markers the data move far (tracking markers; module docs).
     pub robust: bool,
+    /// Bodies held at given factors (OpenSim's manual scales), in no group.
+    pub fixed_factors: ScaleFactors,
     /// Weights `w_j` of markers' data rows (`√w_j (x_j − m_fj)/σ_d`; 0 leaves the marker's
     /// data out, as OpenSim's marker placer does with a task of weight 0); unnamed: 1.
     pub marker_weights: Vec<(String, f64)>,
@@ -81,6 +83,7 @@ impl ScaleOptions {
             max_iterations: 60,
             robust: true,
             marker_weights: Vec::new(),
+            fixed_factors: ScaleFactors::new(),
         }
     }
 }
@@ -93,7 +96,7 @@ pub enum ScaleError {
     TooFewMarkers { frame: usize, present: usize },
     #[error("group {0:?} names body {1:?}, which the model does not have")]
     UnknownBody(String, String),
-    #[error("body {0:?} is in two scale groups")]
+    #[error("body {0:?} is in two scale groups (or in one and held at given factors)")]
     TwiceGrouped(String),
     #[error(
         "the normal equations are singular: the data and priors leave the factors undetermined"
@@ -168,7 +171,7 @@ const POSE_SD: f64 = 1000.0;
 
 impl Problem<'_> {
     fn factors(&self, th: &[f64]) -> ScaleFactors {
-        let mut f = ScaleFactors::new();
+        let mut f = self.opts.fixed_factors.clone();
         for (g, &(at, n)) in self.opts.groups.iter().zip(&self.lay.groups) {
             let s = if n == 3 {
                 [th[at], th[at + 1], th[at + 2]]
@@ -466,7 +469,7 @@ fn layout(
             if !spec.segments.iter().any(|s| s.name == *b) {
                 return Err(ScaleError::UnknownBody(g.name.clone(), b.clone()));
             }
-            if !seen.insert(b.clone()) {
+            if !seen.insert(b.clone()) || opts.fixed_factors.contains_key(b) {
                 return Err(ScaleError::TwiceGrouped(b.clone()));
             }
         }
@@ -590,7 +593,7 @@ fn solve_robust(pb: &mut Problem, mut th: Vec<f64>) -> Result<Solved, ScaleError
 }
 
 /// Each group's factors with their SDs: the diagonal of `(JᵀJ)⁻¹`, inflated by `χ²/dof`
-/// when that exceeds 1.
+/// when that exceeds 1; then each body held at given factors (SD 0).
 fn group_fits(pb: &Problem, sol: &Solved) -> Result<Vec<GroupFit>, ScaleError> {
     let (th, r, j, cost, _) = sol;
     let cov = (j.transpose() * j)
@@ -598,7 +601,7 @@ fn group_fits(pb: &Problem, sol: &Solved) -> Result<Vec<GroupFit>, ScaleError> {
         .ok_or(ScaleError::Singular)?;
     let dof = (r.len() as f64 - pb.lay.n as f64).max(1.0);
     let inflate = (cost / dof).max(1.0);
-    Ok(pb
+    let fitted = pb
         .opts
         .groups
         .iter()
@@ -611,8 +614,14 @@ fn group_fits(pb: &Problem, sol: &Solved) -> Result<Vec<GroupFit>, ScaleError> {
                 factors: std::array::from_fn(|k| th[pick(k)]),
                 sd: std::array::from_fn(|k| (cov[(pick(k), pick(k))] * inflate).sqrt()),
             }
-        })
-        .collect())
+        });
+    let held = pb.opts.fixed_factors.iter().map(|(b, f)| GroupFit {
+        name: b.clone(),
+        bodies: vec![b.clone()],
+        factors: *f,
+        sd: [0.0; 3],
+    });
+    Ok(fitted.chain(held).collect())
 }
 
 /// The registered markers with their errors, and the RMS over every present sample (m).
@@ -776,5 +785,30 @@ mod tests {
         opts.marker_weights = vec![(spec.markers[bad].name.clone(), 0.0)];
         let fit = fit_scale(&spec, &[markers], &opts).unwrap();
         assert!(factor_error(&fit) < 1e-6, "{:?}", fit.groups);
+    }
+
+    /// A body held at its true factors while the others are fitted: they are recovered, and
+    /// the held body is reported with SD 0.
+    #[test]
+    fn bodies_held_at_given_factors_stay_there() {
+        let (spec, mut groups, markers) = scaled_leg();
+        let k = groups.iter().position(|g| g.name == "shank").unwrap();
+        let shank = groups.remove(k);
+        let mut opts = ScaleOptions::new(groups);
+        opts.prior = None;
+        for b in &shank.bodies {
+            opts.fixed_factors.insert(b.clone(), [0.92; 3]);
+        }
+        let fit = fit_scale(&spec, &[markers], &opts).unwrap();
+        let held = fit.groups.iter().find(|g| g.bodies == shank.bodies[..1]);
+        assert_eq!(held.map(|g| (g.factors, g.sd)), Some(([0.92; 3], [0.0; 3])));
+        for b in &shank.bodies {
+            assert_eq!(fit.factors[b], [0.92; 3]);
+        }
+        let others = fit.groups.iter().filter(|g| g.sd[0] > 0.0);
+        for g in others {
+            let (_, s) = TRUTH.iter().find(|(n, _)| *n == g.name).unwrap();
+            assert!((g.factors[0] - s[0]).abs() < 1e-6, "{g:?}");
+        }
     }
 }
