@@ -29,7 +29,8 @@ pub struct ScaleArgs {
     #[arg(long, value_name = "MARKERS.xml")]
     pub markerset: Option<PathBuf>,
     /// OpenSim ScaleTool setup: model, marker set, static trial, time range, mass, height,
-    /// the measurements' body groups.
+    /// the measurements' body groups, manual scales (held, not fitted), the marker placer's
+    /// marker weights, preserve_mass_distribution.
     #[arg(long, value_name = "scale_setup.xml")]
     pub setup: Option<PathBuf>,
     /// The subject model to write.
@@ -124,6 +125,11 @@ fn request(args: &ScaleArgs) -> Result<(ScaleRequest, PathBuf)> {
         .as_ref()
         .map(|s| s.groups.clone())
         .filter(|g| !g.is_empty());
+    if let Some(s) = &setup {
+        req.manual_scales = s.manual_scales.clone();
+        req.marker_weights = s.marker_weights.clone();
+        req.scale_masses = !s.preserve_mass_distribution;
+    }
     req.prior = args.prior == ScalePrior::Anthropometric;
     req.per_axis = args.per_axis;
     req.symmetric = args.symmetric;

@@ -61,7 +61,7 @@ fn max_diff(a: &Value, b: &Value, field: Option<&str>) -> f64 {
 
 /// The generic model scaled by jointfit and by OpenSim with the same random factors, both
 /// dumped by OpenSim: `(ours, OpenSim's)`; `None` without Python or data.
-fn scaled_pair(relative: &str, seed: u64, mass: f64) -> Option<(Value, Value)> {
+fn scaled_pair(relative: &str, seed: u64, mass: f64, scale_masses: bool) -> Option<(Value, Value)> {
     let (Some(python), Some(generic)) = (
         jointfit_testkit::python(),
         jointfit_testkit::data_file(relative),
@@ -84,6 +84,7 @@ fn scaled_pair(relative: &str, seed: u64, mass: f64) -> Option<(Value, Value)> {
         &ScaleOptions {
             total_mass: Some(mass),
             markers: vec![],
+            scale_masses,
         },
     )
     .unwrap();
@@ -100,6 +101,7 @@ fn scaled_pair(relative: &str, seed: u64, mass: f64) -> Option<(Value, Value)> {
             &fpath.to_string_lossy(),
             &mass.to_string(),
             &theirs.to_string_lossy(),
+            if scale_masses { "grow" } else { "keep" },
         ])
         .current_dir(dir.path())
         .run_json();
@@ -157,8 +159,8 @@ fn worst_muscle(a: &Value, b: &Value, wrapped: bool) -> (f64, String) {
     worst
 }
 
-fn check_model(relative: &str, seed: u64, mass: f64) {
-    let Some((a, b)) = scaled_pair(relative, seed, mass) else {
+fn check_model(relative: &str, seed: u64, mass: f64, scale_masses: bool) {
+    let Some((a, b)) = scaled_pair(relative, seed, mass, scale_masses) else {
         return;
     };
     let mut report = compare_geometry(relative, &a, &b);
@@ -184,12 +186,24 @@ fn gait2392_scaled_as_opensim_scales_it() {
         "opensim_gait2392_subject01/gait2392_thelen2003muscle.osim",
         7,
         81.5,
+        false,
+    );
+}
+
+/// `preserve_mass_distribution` false: masses grow with the product of the factors first.
+#[test]
+fn gait2392_with_masses_scaled_by_volume_as_opensim_scales_it() {
+    check_model(
+        "opensim_gait2392_subject01/gait2392_thelen2003muscle.osim",
+        5,
+        70.0,
+        true,
     );
 }
 
 #[test]
 fn opencap_lai_uhlrich_scaled_as_opensim_scales_it() {
-    check_model("opencap_expert1/generic.osim", 11, 64.0);
+    check_model("opencap_expert1/generic.osim", 11, 64.0, false);
 }
 
 /// Every muscle's path length at the default pose (wrapping over cylinders) against
