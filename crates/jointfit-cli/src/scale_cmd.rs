@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
+use jointfit_io::osim_scale::record::{read_record, write_record, ScaleRecord};
 use jointfit_io::osim_scale::setup::read_scale_setup;
 use jointfit_io::osim_scale::workflow::{scale_subject, ScaleOutcome, ScaleRequest};
 use serde::Serialize;
@@ -201,6 +202,22 @@ fn print_text(out: &ScaleOutcome, path: &Path) {
     println!("wrote {}", path.display());
 }
 
+/// The scaling record beside an `.osim` model (what `scale` wrote), for its report.
+pub fn scaling_beside(model: &Path) -> Result<Option<ScaleRecord>> {
+    if !jointfit_io::model_file::is_osim(model) {
+        return Ok(None);
+    }
+    read_record(model).map_err(anyhow::Error::msg)
+}
+
+/// [`scaling_beside`] the report inputs' "subject model".
+pub fn scaling_of(inputs: &[(String, String)]) -> Result<Option<ScaleRecord>> {
+    match inputs.iter().find(|(k, _)| k == "subject model") {
+        Some((_, model)) => scaling_beside(Path::new(model)),
+        None => Ok(None),
+    }
+}
+
 pub fn run(args: ScaleArgs) -> Result<()> {
     let (req, output) = request(&args)?;
     if output.extension().and_then(|e| e.to_str()) != Some("osim") {
@@ -209,6 +226,7 @@ pub fn run(args: ScaleArgs) -> Result<()> {
     let out = scale_subject(&req).map_err(anyhow::Error::msg)?;
     jointfit_io::atomic::write_atomic(&output, out.text.as_bytes())
         .with_context(|| format!("{}: cannot write", output.display()))?;
+    write_record(&output, &ScaleRecord::new(&req, &out)).map_err(anyhow::Error::msg)?;
     if args.json {
         let report = JsonReport {
             output: output.display().to_string(),

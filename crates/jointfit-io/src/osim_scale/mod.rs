@@ -36,9 +36,10 @@
 //! `WrapCylinder`s followed; module `paths`).
 
 mod paths;
+pub mod record;
 pub mod setup;
-mod wrap;
 pub mod workflow;
+mod wrap;
 
 use std::collections::HashMap;
 use std::ops::Range;
@@ -521,8 +522,7 @@ fn scale_moving_point(ctx: &Ctx, n: Node, ed: &mut Edits) -> Result<(), Fail> {
         return Ok(());
     };
     for (k, axis) in ["x", "y", "z"].iter().enumerate() {
-        let driven =
-            text(n, &format!("socket_{axis}_coordinate")).is_some_and(|c| !c.is_empty());
+        let driven = text(n, &format!("socket_{axis}_coordinate")).is_some_and(|c| !c.is_empty());
         if !driven {
             continue;
         }

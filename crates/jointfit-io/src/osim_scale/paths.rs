@@ -21,8 +21,8 @@
 use std::collections::HashMap;
 
 use jointfit::kinematics::{forward_kinematics, KinData, Pose, Want};
-use jointfit::model::offset_rotation;
 use jointfit::model::functions::Function;
+use jointfit::model::offset_rotation;
 use jointfit::model::Model;
 use jointfit::scale::{scaled_spec, ScaleFactors};
 use nalgebra::Vector3;
@@ -141,9 +141,7 @@ fn wrap_objects(doc: &Document, bodies: &[String]) -> Result<HashMap<String, Wra
         .filter(|n| kinds.contains(&n.tag_name().name()))
     {
         let owner = owner_frame(n).unwrap_or("");
-        let on_ground = n
-            .ancestors()
-            .any(|a| a.tag_name().name() == "Ground");
+        let on_ground = n.ancestors().any(|a| a.tag_name().name() == "Ground");
         let body = bodies.iter().find(|b| *b == owner).cloned();
         let three = |tag: &str| -> [f64; 3] {
             match numbers(n, tag).ok().as_deref() {
@@ -281,8 +279,16 @@ impl Geometry<'_> {
     /// The positions in the current path of the first and last active points of a range.
     fn range_in_path(&self, c: &Current, range: [i64; 2]) -> Option<(usize, usize)> {
         let n = self.points.len();
-        let lo = if range[0] < 1 { 0 } else { range[0] as usize - 1 };
-        let hi = if range[1] < 1 { n - 1 } else { range[1] as usize - 1 };
+        let lo = if range[0] < 1 {
+            0
+        } else {
+            range[0] as usize - 1
+        };
+        let hi = if range[1] < 1 {
+            n - 1
+        } else {
+            range[1] as usize - 1
+        };
         let first = (lo..=hi.min(n - 1)).find(|&j| self.points[j].1)?;
         let last = (lo..=hi.min(n - 1)).rev().find(|&j| self.points[j].1)?;
         let pos = |j: usize| c.path.iter().position(|e| *e == Elem::Point(j));
@@ -317,8 +323,8 @@ impl Geometry<'_> {
                 }
                 (Outcome::Wrapped, Some(arc)) => {
                     let (pa, pb) = (self.ground(c, a), self.ground(c, b));
-                    let change = (pa - arc.r1).norm() + arc.length + (pb - arc.r2).norm()
-                        - (pa - pb).norm();
+                    let change =
+                        (pa - arc.r1).norm() + arc.length + (pb - arc.r2).norm() - (pa - pb).norm();
                     if change < least {
                         least = change;
                         best = Some((arc, k + 1));

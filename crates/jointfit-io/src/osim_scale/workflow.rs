@@ -10,8 +10,8 @@ use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;
 use jointfit::scale::{
-    averaged_targets, default_groups, fit_scale, plausibility, ScaleFactors, ScaleFit,
-    ScaleGroup, ScaleOptions as FitOptions, SizePrior,
+    averaged_targets, default_groups, fit_scale, plausibility, ScaleFactors, ScaleFit, ScaleGroup,
+    ScaleOptions as FitOptions, SizePrior,
 };
 use jointfit::trial::Trial;
 use nalgebra::Vector3;
@@ -169,13 +169,16 @@ fn static_range(req: &ScaleRequest, stat: &Trial) -> Result<Range<usize>, String
     }
 }
 
+/// Per frame, per model marker: the measured position (m; NaN: absent).
+type Targets = Vec<Vec<Vector3<f64>>>;
+
 /// The fit's targets: the averaged static frame, then the motion frames; and the model
 /// markers the static trial lacks.
 fn read_targets(
     req: &ScaleRequest,
     spec: &ModelSpec,
     generic: &Model,
-) -> Result<(Vec<Vec<Vector3<f64>>>, Vec<String>), String> {
+) -> Result<(Targets, Vec<String>), String> {
     let stat = crate::trial_file::read_trial(&req.static_trial).map_err(|e| e.to_string())?;
     let mut targets = vec![averaged_targets(spec, &stat, static_range(req, &stat)?)];
     let absent: Vec<String> = spec
@@ -232,9 +235,7 @@ fn fit_options(
     opts.fixed_factors = held;
     opts.prior = req.prior.then(|| SizePrior {
         proportion_sd: PROPORTION_SD,
-        stature: req
-            .height
-            .map(|h| (h / marker_extent(generic), STATURE_SD)),
+        stature: req.height.map(|h| (h / marker_extent(generic), STATURE_SD)),
     });
     opts
 }

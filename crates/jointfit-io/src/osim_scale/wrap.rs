@@ -212,11 +212,8 @@ impl Cylinder {
             V::new(0.0, 0.0, 0.5 * self.length),
         );
         let nan = V::repeat(f64::NAN);
-        let (near12, t12, near00) = intersect_lines(p1, p2, start, end).unwrap_or((
-            nan,
-            f64::NAN,
-            nan,
-        ));
+        let (near12, t12, near00) =
+            intersect_lines(p1, p2, start, end).unwrap_or((nan, f64::NAN, nan));
         let crosses = (near12 - near00).norm_squared() < r * r && t12 > 0.0 && t12 < 1.0;
         let mut outcome = Outcome::Wrapped;
         if self.quadrant.is_none() {
@@ -348,7 +345,9 @@ fn adjust_tangent(p: V, r: &mut V, w: V) -> bool {
     let (rw, _) = unit(w - *r);
     let alpha = pr.dot(&DN).acos();
     let omega = rw.dot(&DN).acos();
-    if !((alpha - omega).abs() > TANGENCY_THRESHOLD) {
+    // A NaN angle (degenerate directions) leaves the point where it is, as in OpenSim.
+    let off = (alpha - omega).abs();
+    if off.is_nan() || off <= TANGENCY_THRESHOLD {
         return false;
     }
     let pa = closest_on_line(p, *r, DN);

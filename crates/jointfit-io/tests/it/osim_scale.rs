@@ -231,14 +231,20 @@ fn path_lengths_at_the_default_pose_are_opensims() {
         let v = m["length"].as_f64().unwrap();
         let rel = (l[0] - v).abs() / v;
         if rel > 1e-6 {
-            rows.push(format!("{name}: {:.6} vs {v:.6} ({} wraps)", l[0], m["wraps"]));
+            rows.push(format!(
+                "{name}: {:.6} vs {v:.6} ({} wraps)",
+                l[0], m["wraps"]
+            ));
         }
         if rel > worst.0 {
             worst = (rel, name.clone());
         }
     }
     println!("{}", rows.join("\n"));
-    println!("worst path length difference: {:.1e} ({})", worst.0, worst.1);
+    println!(
+        "worst path length difference: {:.1e} ({})",
+        worst.0, worst.1
+    );
     assert!(ours.len() >= 80);
     assert!(worst.0 <= 1e-12, "{worst:?}");
 }

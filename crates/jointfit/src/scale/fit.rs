@@ -232,12 +232,7 @@ impl Problem<'_> {
     }
 
     /// Data rows of every frame; returns `(row, frame, marker)` of each.
-    fn data_rows(
-        &self,
-        model: &Model,
-        th: &[f64],
-        rows: &mut Rows,
-    ) -> Vec<(usize, usize, usize)> {
+    fn data_rows(&self, model: &Model, th: &[f64], rows: &mut Rows) -> Vec<(usize, usize, usize)> {
         let mut data = KinData::new(model);
         let mut out = Vec::new();
         for (f, t) in self.targets.iter().enumerate() {
@@ -312,8 +307,9 @@ impl Problem<'_> {
     /// Weak rows holding undetermined coordinates at their starting values.
     fn pose_rows(&self, th: &[f64], rows: &mut Rows) {
         for &at in &self.lay.q {
-            for c in at..at + self.n_q {
-                rows.push((th[c] - self.start[c]) / POSE_SD, &[(c, 1.0 / POSE_SD)]);
+            let held = th[at..at + self.n_q].iter().zip(&self.start[at..]);
+            for (c, (x, x0)) in held.enumerate() {
+                rows.push((x - x0) / POSE_SD, &[(at + c, 1.0 / POSE_SD)]);
             }
         }
     }
@@ -638,9 +634,7 @@ fn marker_fits(pb: &Problem, th: &[f64]) -> Result<(Vec<MarkerFit>, f64), ScaleE
             }
         }
     }
-    let (total, count) = sums
-        .iter()
-        .fold((0.0, 0), |(a, n), (s, k)| (a + s, n + k));
+    let (total, count) = sums.iter().fold((0.0, 0), |(a, n), (s, k)| (a + s, n + k));
     let markers = pb
         .spec
         .markers
@@ -740,8 +734,8 @@ mod tests {
         let mut worst: f64 = 0.0;
         for (name, s) in TRUTH {
             let g = fit.groups.iter().find(|g| g.name == name).unwrap();
-            for k in 0..3 {
-                worst = worst.max((g.factors[k] - s[k]).abs());
+            for (f, t) in g.factors.iter().zip(s) {
+                worst = worst.max((f - t).abs());
             }
         }
         worst
