@@ -111,3 +111,56 @@ pub(super) fn render(h: &mut String, rec: &ScaleRecord) {
     factor_table(h, rec);
     marker_table(h, rec);
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use jointfit_io::osim_scale::record::{RecordGroup, RecordMarker};
+
+    #[test]
+    fn factors_show_their_interval_or_that_they_were_held() {
+        let group = |name: &str, f: [f64; 3], sd: [f64; 3]| RecordGroup {
+            name: name.into(),
+            bodies: vec![format!("{name}_r")],
+            factors: f,
+            sd,
+        };
+        let marker = |name: &str, moved_mm: [f64; 3]| RecordMarker {
+            name: name.into(),
+            body: "femur_r".into(),
+            moved_mm,
+            rms_mm: Some(2.0),
+        };
+        let rec = ScaleRecord {
+            generic: "generic.osim".into(),
+            static_trial: "static.trc".into(),
+            trials: vec![],
+            groups: vec![
+                group("thigh", [1.1; 3], [0.01; 3]),
+                group("tibia", [0.98; 3], [0.0; 3]),
+                group("pelvis", [1.0, 1.2, 1.1], [0.01, 0.02, 0.03]),
+            ],
+            markers: vec![
+                marker("small", [1.0, 0.0, 0.0]),
+                marker("big", [0.0, 30.0, 40.0]),
+            ],
+            rms_mm: 2.5,
+            frames: 1,
+            generic_mass: 75.0,
+            total_mass: 70.0,
+            flags: vec!["left and right <differ>".into()],
+        };
+        let mut h = String::new();
+        render(&mut h, &rec);
+        // 1.1 ± 1.96·0.01
+        assert!(h.contains("<td class=\"n\">1.1000</td><td class=\"n\">1.0804–1.1196</td>"));
+        assert!(h.contains("<td class=\"n\">0.9800</td><td class=\"n\">held (given)</td>"));
+        assert!(h.contains("1.0000 1.2000 1.1000"));
+        assert!(h.contains("0.9804–1.0196, 1.1608–1.2392, 1.0412–1.1588"));
+        // largest offset first: |(0, 30, 40)| = 50 mm
+        let (big, small) = (h.find(">big<").unwrap(), h.find(">small<").unwrap());
+        assert!(big < small);
+        assert!(h.contains("<td class=\"n\">50.0</td>"));
+        assert!(h.contains("left and right &lt;differ&gt;"));
+    }
+}
