@@ -1,8 +1,9 @@
 """OpenSim 4.x oracle of `jointfit_io::osim_scale`.
 
-    python osim_scale_check.py scale GENERIC.osim FACTORS.json MASS OUT.osim
-        OpenSim's own Model::scale (preserve mass distribution; MASS <= 0: the generic's
-        total mass) with the per-body factors {"body": [sx, sy, sz]}, written to OUT.osim.
+    python osim_scale_check.py scale GENERIC.osim FACTORS.json MASS OUT.osim [keep|grow]
+        OpenSim's own Model::scale (keep: preserve mass distribution, the default; grow:
+        masses scale with the factors' product; MASS <= 0: no total mass) with the per-body
+        factors {"body": [sx, sy, sz]}, written to OUT.osim.
     python osim_scale_check.py dump MODEL.osim
         What scaling changes, as OpenSim reads the file: bodies (mass, mass centre, inertia),
         body origins in ground at the default pose, offset frame translations, markers,
@@ -19,7 +20,7 @@ def vec(v):
     return [v[0], v[1], v[2]]
 
 
-def scale(generic, factors_path, mass, out):
+def scale(generic, factors_path, mass, out, masses="keep"):
     model = osim.Model(generic)
     state = model.initSystem()
     with open(factors_path) as f:
@@ -31,7 +32,7 @@ def scale(generic, factors_path, mass, out):
         sc.setScaleFactors(osim.Vec3(*s))
         sc.setApply(True)
         scale_set.cloneAndAppend(sc)
-    model.scale(state, scale_set, True, float(mass))
+    model.scale(state, scale_set, masses == "keep", float(mass))
     model.printToXML(out)
     print("@@" + json.dumps({"written": out}))
 
@@ -89,7 +90,7 @@ def dump(path):
 
 if __name__ == "__main__":
     if sys.argv[1] == "scale":
-        scale(*sys.argv[2:6])
+        scale(*sys.argv[2:7])
     elif sys.argv[1] == "dump":
         dump(sys.argv[2])
     else:

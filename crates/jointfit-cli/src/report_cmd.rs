@@ -94,6 +94,7 @@ pub fn run(args: ReportArgs) -> Result<()> {
     ));
     input.settings = with_provenance(settings);
     input.data_checks = read.iter().map(TrialJson::to_report).collect();
+    input.scaling = crate::scale_cmd::scaling_beside(Path::new(&args.model))?;
     let path = jointfit_report::write_report(&args.output, &input)
         .with_context(|| format!("writing the report to {}", args.output.display()))?;
     println!(
@@ -277,6 +278,7 @@ pub fn write_calibration_report(
     let mut input = input;
     input.data_checks = data_checks.iter().map(|t| t.to_report()).collect();
     input.notes.extend(notes.iter().cloned());
+    input.scaling = crate::scale_cmd::scaling_of(&provenance.inputs)?;
     jointfit_report::write_report(dir, &input)
         .with_context(|| format!("writing the report to {}", dir.display()))
 }

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
+use jointfit_io::osim_scale::record::{read_record, write_record, ScaleRecord};
 use jointfit_io::osim_scale::setup::read_scale_setup;
 use jointfit_io::osim_scale::workflow::{scale_subject, ScaleOutcome, ScaleRequest};
 use serde::Serialize;
@@ -29,7 +30,8 @@ pub struct ScaleArgs {
     #[arg(long, value_name = "MARKERS.xml")]
     pub markerset: Option<PathBuf>,
     /// OpenSim ScaleTool setup: model, marker set, static trial, time range, mass, height,
-    /// the measurements' body groups.
+    /// the measurements' body groups, manual scales (held, not fitted), the marker placer's
+    /// marker weights, preserve_mass_distribution.
     #[arg(long, value_name = "scale_setup.xml")]
     pub setup: Option<PathBuf>,
     /// The subject model to write.
@@ -124,6 +126,11 @@ fn request(args: &ScaleArgs) -> Result<(ScaleRequest, PathBuf)> {
         .as_ref()
         .map(|s| s.groups.clone())
         .filter(|g| !g.is_empty());
+    if let Some(s) = &setup {
+        req.manual_scales = s.manual_scales.clone();
+        req.marker_weights = s.marker_weights.clone();
+        req.scale_masses = !s.preserve_mass_distribution;
+    }
     req.prior = args.prior == ScalePrior::Anthropometric;
     req.per_axis = args.per_axis;
     req.symmetric = args.symmetric;
@@ -195,6 +202,22 @@ fn print_text(out: &ScaleOutcome, path: &Path) {
     println!("wrote {}", path.display());
 }
 
+/// The scaling record beside an `.osim` model (what `scale` wrote), for its report.
+pub fn scaling_beside(model: &Path) -> Result<Option<ScaleRecord>> {
+    if !jointfit_io::model_file::is_osim(model) {
+        return Ok(None);
+    }
+    read_record(model).map_err(anyhow::Error::msg)
+}
+
+/// [`scaling_beside`] the report inputs' "subject model".
+pub fn scaling_of(inputs: &[(String, String)]) -> Result<Option<ScaleRecord>> {
+    match inputs.iter().find(|(k, _)| k == "subject model") {
+        Some((_, model)) => scaling_beside(Path::new(model)),
+        None => Ok(None),
+    }
+}
+
 pub fn run(args: ScaleArgs) -> Result<()> {
     let (req, output) = request(&args)?;
     if output.extension().and_then(|e| e.to_str()) != Some("osim") {
@@ -203,6 +226,7 @@ pub fn run(args: ScaleArgs) -> Result<()> {
     let out = scale_subject(&req).map_err(anyhow::Error::msg)?;
     jointfit_io::atomic::write_atomic(&output, out.text.as_bytes())
         .with_context(|| format!("{}: cannot write", output.display()))?;
+    write_record(&output, &ScaleRecord::new(&req, &out)).map_err(anyhow::Error::msg)?;
     if args.json {
         let report = JsonReport {
             output: output.display().to_string(),

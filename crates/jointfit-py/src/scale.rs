@@ -12,7 +12,8 @@ use crate::msg;
 /// Scales the generic OpenSim model `model` (a path) to the subject of the static trial
 /// `static` (a path), optional motion trials `trials`, an OpenSim MarkerSet file
 /// `markerset`, total mass `mass` (kg) and stature `height` (m, for the anthropometric
-/// prior; `prior="none"` fits without it). Writes `output` (an .osim) when given.
+/// prior; `prior="none"` fits without it). Writes `output` (an .osim) when given, with the
+/// scaling record beside it (`SUBJECT.scale.json`, shown by the model's reports).
 ///
 /// Returns a dict: `osim` (the subject model's text), `scale_factors` ({body: [sx, sy, sz]}),
 /// `groups` (name, bodies, factors, sd), `markers` (name, body, position and `moved` in m),
@@ -55,6 +56,8 @@ pub fn scale<'py>(
     if let Some(path) = &output {
         jointfit_io::atomic::write_atomic(path, out.text.as_bytes())
             .map_err(|e| msg(format!("{}: cannot write: {e}", path.display())))?;
+        let record = jointfit_io::osim_scale::record::ScaleRecord::new(&req, &out);
+        jointfit_io::osim_scale::record::write_record(path, &record).map_err(msg)?;
     }
     let d = PyDict::new(py);
     d.set_item("osim", &out.text)?;

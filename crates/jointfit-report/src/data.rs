@@ -32,6 +32,9 @@ pub struct ReportInput {
     pub data_checks: Vec<crate::data_checks::TrialChecks>,
     /// The verdict on a calibration (`ok`, `caution`, `reject` and why), shown at the top.
     pub verdict: Option<jointfit::workflow::Verdict>,
+    /// How the model was scaled from a generic one (section "Scaling"; `jointfit scale`'s
+    /// record beside the model).
+    pub scaling: Option<jointfit_io::osim_scale::record::ScaleRecord>,
 }
 
 impl ReportInput {

@@ -23,20 +23,23 @@
 //!   moment is the cylinder's axis `a`, `r² = 2 I_aa / m`, `L² = 12 (I_oo − m r²/4) / m`
 //!   (`o` another axis), `L ← L s_a`, `r² ← r² s_b s_c`, `I_aa = m r²/2`, the other two
 //!   `m (L²/12 + r²/4)`, products `I_ij ← I_ij s_i s_j`;
+//! * with `preserve_mass_distribution` false ([`ScaleOptions::scale_masses`]): each body's
+//!   mass and inertia also times `|sx sy sz|`;
 //! * then every mass and inertia times `M / Σ m` when a total mass `M` is given;
 //! * muscles: `optimal_fiber_length` and `tendon_slack_length` times `ℓ'/ℓ`, the ratio of the
 //!   path length after to before scaling at the default pose (`Muscle::postScale`); a
 //!   `Ligament`'s or `PathSpring`'s `resting_length` likewise.
 //!
-//! Contact geometry is not scaled by OpenSim and stays as it is. Path lengths here are the
-//! polyline through the active path points (conditional points active at the default
-//! coordinate values, moving points at their default-pose location); wrapping surfaces are
-//! not followed, so for a wrapped muscle the length ratio, and so the fibre and tendon
-//! lengths, can differ from OpenSim's (see `docs/scaling.md` for the measured size).
+//! Contact geometry is not scaled by OpenSim and stays as it is. Path lengths are OpenSim's
+//! `GeometryPath` lengths at the default pose (conditional points active at the default
+//! coordinate values, moving points at their default-pose location, wrapping over
+//! `WrapCylinder`s followed; module `paths`).
 
 mod paths;
+pub mod record;
 pub mod setup;
 pub mod workflow;
+mod wrap;
 
 use std::collections::HashMap;
 use std::ops::Range;
@@ -71,6 +74,9 @@ pub struct ScaleOptions {
     /// New marker locations (m, in the marker's parent frame, after scaling) that replace the
     /// scaled generic ones (the registered markers).
     pub markers: Vec<(String, [f64; 3])>,
+    /// Masses grow with the product of their body's factors (OpenSim's
+    /// `preserve_mass_distribution` false), before the total mass is set; false: masses kept.
+    pub scale_masses: bool,
 }
 
 /// The written model and what changed.
@@ -140,6 +146,16 @@ fn text_range(node: Node, tag: &str) -> Option<Range<usize>> {
 
 fn triple(v: [f64; 3]) -> String {
     format!("{} {} {}", v[0], v[1], v[2])
+}
+
+/// How a wrap object's frame axes stretch under body factors `s`: `ℓ_k = ‖R e_k ⊙ s‖`
+/// with `R` the frame's `xyz_body_rotation` (body-fixed X-Y-Z).
+fn frame_stretch(rotation: [f64; 3], s: [f64; 3]) -> [f64; 3] {
+    let rm = offset_rotation(rotation[0], rotation[1], rotation[2]);
+    std::array::from_fn(|k| {
+        let c: Vector3<f64> = rm.column(k).into_owned();
+        Vector3::new(c.x * s[0], c.y * s[1], c.z * s[2]).norm()
+    })
 }
 
 fn mul(a: [f64; 3], s: [f64; 3]) -> [f64; 3] {
@@ -252,6 +268,25 @@ pub fn scale_osim(
     })
 }
 
+/// `(name, [ℓ, ℓ'])`: the length (m) of every muscle's (ligament's, path spring's) path at
+/// the default pose, in the model and in the model scaled by `factors`, as OpenSim computes
+/// it (wrap cylinders followed; `paths` module docs).
+pub fn path_lengths(
+    model: &OsimModel,
+    path: &Path,
+    factors: &ScaleFactors,
+) -> Result<Vec<(String, [f64; 2])>, OsimScaleError> {
+    let doc = Document::parse(&model.text).map_err(|e| OsimScaleError::Invalid {
+        path: path.to_path_buf(),
+        line: e.pos().row,
+        message: format!("not XML: {e}"),
+    })?;
+    paths::lengths(model, &doc, factors).map_err(|message| OsimScaleError::Model {
+        path: path.to_path_buf(),
+        message,
+    })
+}
+
 fn frames_of(model: Node) -> Frames {
     let ground = child(model, "Ground").map_or("ground".to_string(), |g| name(g).to_string());
     let bodies = child(model, "BodySet")
@@ -345,43 +380,61 @@ pub fn scaled_inertia(inertia: [f64; 6], mass: f64, s: [f64; 3]) -> [f64; 6] {
     ]
 }
 
-fn scale_doc(
-    model: &OsimModel,
-    doc: &Document,
+/// What the component edits need: the model, its frames, the factors, registered markers.
+struct Ctx<'a> {
+    model: &'a OsimModel,
+    frames: Frames,
+    factors: &'a ScaleFactors,
+    registered: HashMap<&'a str, [f64; 3]>,
+}
+
+impl Ctx<'_> {
+    fn factor_of(&self, frame: &str) -> Option<[f64; 3]> {
+        self.frames
+            .base(frame)
+            .and_then(|b| self.factors.get(b))
+            .copied()
+    }
+}
+
+/// Bodies' mass centres, inertias and masses (module docs); returns the generic and the
+/// written total mass.
+fn scale_bodies(
+    m: Node,
     factors: &ScaleFactors,
     opts: &ScaleOptions,
-    lengths: Vec<(String, f64)>,
-) -> Result<Scaled, Fail> {
-    let root = doc.root_element();
-    let m = child(root, "Model").ok_or_else(|| fail(root, "no <Model>".into()))?;
-    let frames = frames_of(m);
-    let factor_of = |frame: &str| frames.base(frame).and_then(|b| factors.get(b)).copied();
-    let mut ed = Edits {
-        text: &model.text,
-        list: Vec::new(),
-    };
-
-    // Bodies: mass centre, inertia, mass; total mass first.
+    ed: &mut Edits,
+) -> Result<(f64, f64), Fail> {
     let bodies: Vec<Node> = child(m, "BodySet")
         .and_then(|s| child(s, "objects"))
         .map(|o| elements(o).collect())
         .unwrap_or_default();
-    let mut generic_mass = 0.0;
+    // Mass factor of each body: the product of its factors when masses scale with volume.
+    let grow = |b: Node| -> f64 {
+        match factors.get(name(b)) {
+            Some(s) if opts.scale_masses => (s[0] * s[1] * s[2]).abs(),
+            _ => 1.0,
+        }
+    };
+    let (mut generic_mass, mut grown_mass) = (0.0, 0.0);
     for b in &bodies {
-        generic_mass += scalar(*b, "mass")?.unwrap_or(0.0);
+        let mass = scalar(*b, "mass")?.unwrap_or(0.0);
+        generic_mass += mass;
+        grown_mass += mass * grow(*b);
     }
-    let total_mass = opts.total_mass.unwrap_or(generic_mass);
-    let mass_factor = if opts.total_mass.is_some() && generic_mass > 0.0 {
-        total_mass / generic_mass
+    let total_mass = opts.total_mass.unwrap_or(grown_mass);
+    let normalise = if opts.total_mass.is_some() && grown_mass > 0.0 {
+        total_mass / grown_mass
     } else {
         1.0
     };
     for b in &bodies {
         let s = factors.get(name(*b)).copied();
         let mass = scalar(*b, "mass")?.unwrap_or(0.0);
-        if mass_factor != 1.0 {
+        let k = grow(*b) * normalise;
+        if k != 1.0 {
             if let Some(r) = text_range(*b, "mass") {
-                ed.set(r, format!("{}", mass * mass_factor));
+                ed.set(r, format!("{}", mass * k));
             }
         }
         if let Some(s) = s {
@@ -389,195 +442,198 @@ fn scale_doc(
                 ed.set(r, triple(mul(c, s)));
             }
         }
-        if child(*b, "inertia").is_some() {
-            let v = numbers(*b, "inertia").map_err(|f| Fail {
-                pos: f.pos,
-                msg: f.msg,
-            })?;
-            let [xx, yy, zz, xy, xz, yz] = v[..] else {
-                return Err(fail(
-                    *b,
-                    format!("<inertia> needs six numbers, has {}", v.len()),
-                ));
-            };
-            let mut i = [xx, yy, zz, xy, xz, yz];
-            if let Some(s) = s {
-                i = scaled_inertia(i, mass, s);
-            }
-            if s.is_some() || mass_factor != 1.0 {
-                let i = i.map(|x| x * mass_factor);
-                if let Some(r) = text_range(*b, "inertia") {
-                    ed.set(
-                        r,
-                        format!("{} {} {} {} {} {}", i[0], i[1], i[2], i[3], i[4], i[5]),
-                    );
-                }
+        if child(*b, "inertia").is_none() {
+            continue;
+        }
+        let v = numbers(*b, "inertia").map_err(|f| Fail {
+            pos: f.pos,
+            msg: f.msg,
+        })?;
+        let [xx, yy, zz, xy, xz, yz] = v[..] else {
+            return Err(fail(
+                *b,
+                format!("<inertia> needs six numbers, has {}", v.len()),
+            ));
+        };
+        let mut i = [xx, yy, zz, xy, xz, yz];
+        if let Some(s) = s {
+            i = scaled_inertia(i, mass, s);
+        }
+        if s.is_some() || k != 1.0 {
+            let i = i.map(|x| x * k);
+            if let Some(r) = text_range(*b, "inertia") {
+                ed.set(
+                    r,
+                    format!("{} {} {} {} {} {}", i[0], i[1], i[2], i[3], i[4], i[5]),
+                );
             }
         }
     }
+    Ok((generic_mass, total_mass))
+}
 
-    let registered: HashMap<&str, [f64; 3]> =
-        opts.markers.iter().map(|(n, v)| (n.as_str(), *v)).collect();
-
-    for n in m.descendants().filter(|n| n.is_element()) {
-        match n.tag_name().name() {
-            "attached_geometry" => {
-                let Some(s) = owner_frame(n).and_then(factor_of) else {
-                    continue;
-                };
-                for g in elements(n) {
-                    if let (Some(v), Some(r)) =
-                        (vec3(g, "scale_factors")?, text_range(g, "scale_factors"))
-                    {
-                        ed.set(r, triple(mul(v, s)));
-                    }
-                }
-            }
-            "PhysicalOffsetFrame" => {
-                let Some(s) = text(n, "socket_parent").and_then(|p| factor_of(path_leaf(p))) else {
-                    continue;
-                };
-                if let (Some(t), Some(r)) = (vec3(n, "translation")?, text_range(n, "translation"))
-                {
-                    ed.set(r, triple(mul(t, s)));
-                }
-            }
-            "Marker" | "PathPoint" | "ConditionalPathPoint" => {
-                let parent = text(n, "socket_parent_frame").map(path_leaf);
-                let new = if n.tag_name().name() == "Marker" {
-                    registered.get(name(n)).copied()
-                } else {
-                    None
-                };
-                let s = parent.and_then(factor_of);
-                let Some(r) = text_range(n, "location") else {
-                    continue;
-                };
-                match (new, s, vec3(n, "location")?) {
-                    (Some(v), _, _) => ed.set(r, triple(v)),
-                    (None, Some(s), Some(loc)) => ed.set(r, triple(mul(loc, s))),
-                    _ => {}
-                }
-            }
-            "MovingPathPoint" => {
-                let Some(s) = text(n, "socket_parent_frame").and_then(|p| factor_of(path_leaf(p)))
-                else {
-                    continue;
-                };
-                for (k, axis) in ["x", "y", "z"].iter().enumerate() {
-                    let driven = text(n, &format!("socket_{axis}_coordinate"))
-                        .is_some_and(|c| !c.is_empty());
-                    if !driven {
-                        continue;
-                    }
-                    if let Some(f) = child(n, &format!("{axis}_location")).and_then(function_node) {
-                        ed.multiply_function(f, s[k])?;
-                    }
-                }
-            }
-            "CustomJoint" => {
-                let Some(parent) = text(n, "socket_parent_frame").map(path_leaf) else {
-                    continue;
-                };
-                let Some(s) = factor_of(parent) else {
-                    continue;
-                };
-                let Some(st) = child(n, "SpatialTransform") else {
-                    continue;
-                };
-                for ax in elements(st).filter(|a| {
-                    a.tag_name().name() == "TransformAxis"
-                        && matches!(name(*a), "translation1" | "translation2" | "translation3")
-                }) {
-                    let Some(f) = function_node(ax) else {
-                        continue;
-                    };
-                    if f.tag_name().name() == "LinearFunction" {
-                        let c = numbers(f, "coefficients").unwrap_or_default();
-                        if c.len() == 2 && c[0] == 1.0 && c[1] == 0.0 {
-                            continue;
-                        }
-                    }
-                    let a = vec3(ax, "axis")?.unwrap_or([0.0; 3]);
-                    let k = a[0].abs() * s[0] + a[1].abs() * s[1] + a[2].abs() * s[2];
-                    ed.multiply_function(f, k)?;
-                }
-            }
-            "CoordinateCouplerConstraint" => {
-                let Some(dep) = text(n, "dependent_coordinate_name") else {
-                    continue;
-                };
-                if !geometry::is_translational(&model.spec, dep) {
-                    continue;
-                }
-                let parent = model
-                    .spec
-                    .joints
-                    .iter()
-                    .find(|j| j.coordinates.iter().any(|c| c.name() == dep))
-                    .map(|j| j.parent.clone());
-                let Some(s) = parent.and_then(|p| factors.get(&p).copied()) else {
-                    continue;
-                };
-                if !(is_equal(s[0], s[1]) && is_equal(s[1], s[2])) {
-                    return Err(fail(
-                        n,
-                        format!(
-                            "coupler of translational coordinate {dep:?}: OpenSim scales it \
-                             only with equal factors on all three axes"
-                        ),
-                    ));
-                }
-                let old = scalar(n, "scale_factor")?.unwrap_or(1.0);
-                match text_range(n, "scale_factor") {
-                    Some(r) => ed.set(r, format!("{}", old * s[0])),
-                    None => return Err(fail(n, "coupler has no <scale_factor>".into())),
-                }
-            }
-            "WrapSphere" | "WrapCylinder" | "WrapEllipsoid" | "WrapTorus" => {
-                let Some(s) = owner_frame(n).and_then(factor_of) else {
-                    continue;
-                };
-                if let (Some(t), Some(r)) = (vec3(n, "translation")?, text_range(n, "translation"))
-                {
-                    ed.set(r, triple(mul(t, s)));
-                }
-                let rot = vec3(n, "xyz_body_rotation")?.unwrap_or([0.0; 3]);
-                let rm = offset_rotation(rot[0], rot[1], rot[2]);
-                let l = |k: usize| -> f64 {
-                    let c: Vector3<f64> = rm.column(k).into_owned();
-                    Vector3::new(c.x * s[0], c.y * s[1], c.z * s[2]).norm()
-                };
-                let mut set_scalar = |tag: &str, k: f64| -> Result<(), Fail> {
-                    if let (Some(v), Some(r)) = (scalar(n, tag)?, text_range(n, tag)) {
-                        ed.set(r, format!("{}", v * k));
-                    }
-                    Ok(())
-                };
-                match n.tag_name().name() {
-                    "WrapSphere" => set_scalar("radius", (s[0] + s[1] + s[2]) / 3.0)?,
-                    "WrapCylinder" => {
-                        set_scalar("radius", (l(0) + l(1)) * 0.5)?;
-                        set_scalar("length", l(2))?;
-                    }
-                    "WrapTorus" => {
-                        set_scalar("inner_radius", (l(0) + l(1)) * 0.5)?;
-                        set_scalar("outer_radius", (l(0) + l(1)) * 0.5)?;
-                    }
-                    _ => {
-                        if let (Some(d), Some(r)) =
-                            (vec3(n, "dimensions")?, text_range(n, "dimensions"))
-                        {
-                            ed.set(r, triple([d[0] * l(0), d[1] * l(1), d[2] * l(2)]));
-                        }
-                    }
-                }
-            }
-            _ => {}
+/// Attached geometry: `scale_factors ⊙ s`.
+fn scale_geometry(ctx: &Ctx, n: Node, ed: &mut Edits) -> Result<(), Fail> {
+    let Some(s) = owner_frame(n).and_then(|f| ctx.factor_of(f)) else {
+        return Ok(());
+    };
+    for g in elements(n) {
+        if let (Some(v), Some(r)) = (vec3(g, "scale_factors")?, text_range(g, "scale_factors")) {
+            ed.set(r, triple(mul(v, s)));
         }
     }
+    Ok(())
+}
 
-    // Path actuators: lengths by the default-pose path length ratio.
+/// A `PhysicalOffsetFrame`: translation `⊙ s` of its parent's body.
+fn scale_offset_frame(ctx: &Ctx, n: Node, ed: &mut Edits) -> Result<(), Fail> {
+    let Some(s) = text(n, "socket_parent").and_then(|p| ctx.factor_of(path_leaf(p))) else {
+        return Ok(());
+    };
+    if let (Some(t), Some(r)) = (vec3(n, "translation")?, text_range(n, "translation")) {
+        ed.set(r, triple(mul(t, s)));
+    }
+    Ok(())
+}
+
+/// A marker (its registered place when given) or a fixed path point: location `⊙ s`.
+fn scale_point(ctx: &Ctx, n: Node, ed: &mut Edits) -> Result<(), Fail> {
+    let parent = text(n, "socket_parent_frame").map(path_leaf);
+    let new = if n.tag_name().name() == "Marker" {
+        ctx.registered.get(name(n)).copied()
+    } else {
+        None
+    };
+    let s = parent.and_then(|p| ctx.factor_of(p));
+    let Some(r) = text_range(n, "location") else {
+        return Ok(());
+    };
+    match (new, s, vec3(n, "location")?) {
+        (Some(v), _, _) => ed.set(r, triple(v)),
+        (None, Some(s), Some(loc)) => ed.set(r, triple(mul(loc, s))),
+        _ => {}
+    }
+    Ok(())
+}
+
+/// A `MovingPathPoint`: each coordinate-driven location function times `s_k`.
+fn scale_moving_point(ctx: &Ctx, n: Node, ed: &mut Edits) -> Result<(), Fail> {
+    let Some(s) = text(n, "socket_parent_frame").and_then(|p| ctx.factor_of(path_leaf(p))) else {
+        return Ok(());
+    };
+    for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+        let driven = text(n, &format!("socket_{axis}_coordinate")).is_some_and(|c| !c.is_empty());
+        if !driven {
+            continue;
+        }
+        if let Some(f) = child(n, &format!("{axis}_location")).and_then(function_node) {
+            ed.multiply_function(f, s[k])?;
+        }
+    }
+    Ok(())
+}
+
+/// A `CustomJoint`'s translation axes with a function other than `q ↦ q`: times
+/// `|a|·s_parent`.
+fn scale_custom_joint(ctx: &Ctx, n: Node, ed: &mut Edits) -> Result<(), Fail> {
+    let Some(s) = text(n, "socket_parent_frame").and_then(|p| ctx.factor_of(path_leaf(p))) else {
+        return Ok(());
+    };
+    let Some(st) = child(n, "SpatialTransform") else {
+        return Ok(());
+    };
+    for ax in elements(st).filter(|a| {
+        a.tag_name().name() == "TransformAxis"
+            && matches!(name(*a), "translation1" | "translation2" | "translation3")
+    }) {
+        let Some(f) = function_node(ax) else {
+            continue;
+        };
+        if f.tag_name().name() == "LinearFunction" {
+            let c = numbers(f, "coefficients").unwrap_or_default();
+            if c.len() == 2 && c[0] == 1.0 && c[1] == 0.0 {
+                continue;
+            }
+        }
+        let a = vec3(ax, "axis")?.unwrap_or([0.0; 3]);
+        let k = a[0].abs() * s[0] + a[1].abs() * s[1] + a[2].abs() * s[2];
+        ed.multiply_function(f, k)?;
+    }
+    Ok(())
+}
+
+/// A `CoordinateCouplerConstraint` of a translational coordinate: `scale_factor · sx`.
+fn scale_coupler(ctx: &Ctx, n: Node, ed: &mut Edits) -> Result<(), Fail> {
+    let Some(dep) = text(n, "dependent_coordinate_name") else {
+        return Ok(());
+    };
+    if !geometry::is_translational(&ctx.model.spec, dep) {
+        return Ok(());
+    }
+    let parent = ctx
+        .model
+        .spec
+        .joints
+        .iter()
+        .find(|j| j.coordinates.iter().any(|c| c.name() == dep))
+        .map(|j| j.parent.clone());
+    let Some(s) = parent.and_then(|p| ctx.factors.get(&p).copied()) else {
+        return Ok(());
+    };
+    if !(is_equal(s[0], s[1]) && is_equal(s[1], s[2])) {
+        return Err(fail(
+            n,
+            format!(
+                "coupler of translational coordinate {dep:?}: OpenSim scales it \
+                 only with equal factors on all three axes"
+            ),
+        ));
+    }
+    let old = scalar(n, "scale_factor")?.unwrap_or(1.0);
+    match text_range(n, "scale_factor") {
+        Some(r) => ed.set(r, format!("{}", old * s[0])),
+        None => return Err(fail(n, "coupler has no <scale_factor>".into())),
+    }
+    Ok(())
+}
+
+/// A wrap object: translation `⊙ s`, its size by the stretch of its axes (module docs).
+fn scale_wrap(ctx: &Ctx, n: Node, ed: &mut Edits) -> Result<(), Fail> {
+    let Some(s) = owner_frame(n).and_then(|f| ctx.factor_of(f)) else {
+        return Ok(());
+    };
+    if let (Some(t), Some(r)) = (vec3(n, "translation")?, text_range(n, "translation")) {
+        ed.set(r, triple(mul(t, s)));
+    }
+    let rot = vec3(n, "xyz_body_rotation")?.unwrap_or([0.0; 3]);
+    let l = frame_stretch(rot, s);
+    let mut set_scalar = |tag: &str, k: f64| -> Result<(), Fail> {
+        if let (Some(v), Some(r)) = (scalar(n, tag)?, text_range(n, tag)) {
+            ed.set(r, format!("{}", v * k));
+        }
+        Ok(())
+    };
+    match n.tag_name().name() {
+        "WrapSphere" => set_scalar("radius", (s[0] + s[1] + s[2]) / 3.0)?,
+        "WrapCylinder" => {
+            set_scalar("radius", (l[0] + l[1]) * 0.5)?;
+            set_scalar("length", l[2])?;
+        }
+        "WrapTorus" => {
+            set_scalar("inner_radius", (l[0] + l[1]) * 0.5)?;
+            set_scalar("outer_radius", (l[0] + l[1]) * 0.5)?;
+        }
+        _ => {
+            if let (Some(d), Some(r)) = (vec3(n, "dimensions")?, text_range(n, "dimensions")) {
+                ed.set(r, triple([d[0] * l[0], d[1] * l[1], d[2] * l[2]]));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Path actuators, ligaments, path springs: lengths times the path length ratio.
+fn scale_path_lengths(m: Node, lengths: &[(String, f64)], ed: &mut Edits) -> Result<(), Fail> {
     let ratio: HashMap<&str, f64> = lengths.iter().map(|(n, r)| (n.as_str(), *r)).collect();
     for n in m.descendants().filter(|n| n.is_element()) {
         let Some(&k) = ratio.get(name(n)) else {
@@ -596,27 +652,71 @@ fn scale_doc(
             }
         }
     }
+    Ok(())
+}
 
-    let mut list = ed.list;
-    list.sort_by_key(|(r, _)| r.start);
-    for w in list.windows(2) {
-        if w[0].0.end > w[1].0.start {
-            return Err(Fail {
-                pos: w[1].0.start,
-                msg: "two scaled values overlap in the file".into(),
-            });
+impl Edits<'_> {
+    /// The text with every edit applied (edits must not overlap).
+    fn apply(self) -> Result<String, Fail> {
+        let mut list = self.list;
+        list.sort_by_key(|(r, _)| r.start);
+        for w in list.windows(2) {
+            if w[0].0.end > w[1].0.start {
+                return Err(Fail {
+                    pos: w[1].0.start,
+                    msg: "two scaled values overlap in the file".into(),
+                });
+            }
+        }
+        let mut out = String::with_capacity(self.text.len() + 64 * list.len());
+        let mut at = 0;
+        for (r, t) in &list {
+            out.push_str(&self.text[at..r.start]);
+            out.push_str(t);
+            at = r.end;
+        }
+        out.push_str(&self.text[at..]);
+        Ok(out)
+    }
+}
+
+fn scale_doc(
+    model: &OsimModel,
+    doc: &Document,
+    factors: &ScaleFactors,
+    opts: &ScaleOptions,
+    lengths: Vec<(String, f64)>,
+) -> Result<Scaled, Fail> {
+    let root = doc.root_element();
+    let m = child(root, "Model").ok_or_else(|| fail(root, "no <Model>".into()))?;
+    let mut ed = Edits {
+        text: &model.text,
+        list: Vec::new(),
+    };
+    let (generic_mass, total_mass) = scale_bodies(m, factors, opts, &mut ed)?;
+    let ctx = Ctx {
+        model,
+        frames: frames_of(m),
+        factors,
+        registered: opts.markers.iter().map(|(n, v)| (n.as_str(), *v)).collect(),
+    };
+    for n in m.descendants().filter(|n| n.is_element()) {
+        match n.tag_name().name() {
+            "attached_geometry" => scale_geometry(&ctx, n, &mut ed)?,
+            "PhysicalOffsetFrame" => scale_offset_frame(&ctx, n, &mut ed)?,
+            "Marker" | "PathPoint" | "ConditionalPathPoint" => scale_point(&ctx, n, &mut ed)?,
+            "MovingPathPoint" => scale_moving_point(&ctx, n, &mut ed)?,
+            "CustomJoint" => scale_custom_joint(&ctx, n, &mut ed)?,
+            "CoordinateCouplerConstraint" => scale_coupler(&ctx, n, &mut ed)?,
+            "WrapSphere" | "WrapCylinder" | "WrapEllipsoid" | "WrapTorus" => {
+                scale_wrap(&ctx, n, &mut ed)?
+            }
+            _ => {}
         }
     }
-    let mut out = String::with_capacity(model.text.len() + 64 * list.len());
-    let mut at = 0;
-    for (r, t) in &list {
-        out.push_str(&model.text[at..r.start]);
-        out.push_str(t);
-        at = r.end;
-    }
-    out.push_str(&model.text[at..]);
+    scale_path_lengths(m, &lengths, &mut ed)?;
     Ok(Scaled {
-        text: out,
+        text: ed.apply()?,
         generic_mass,
         total_mass,
         length_ratios: lengths,

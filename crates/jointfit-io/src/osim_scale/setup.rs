@@ -145,9 +145,80 @@ pub struct ScaleSetup {
     pub mass: Option<f64>,
     /// Subject height (m; the file gives mm).
     pub height: Option<f64>,
-    /// The applied measurements' body groups.
+    /// The applied measurements' body groups (when `scaling_order` has `measurements`).
     pub groups: Vec<SetupGroup>,
+    /// The applied manual scales `(body, [sx, sy, sz])` of the `ScaleSet` (when
+    /// `scaling_order` has `manualScale`); they override a measurement's factors.
+    pub manual_scales: Vec<(String, [f64; 3])>,
+    /// `preserve_mass_distribution` (OpenSim's default: true).
+    pub preserve_mass_distribution: bool,
+    /// Weights of the marker placer's `IKMarkerTask`s (a task not applied: weight 0).
+    pub marker_weights: Vec<(String, f64)>,
     pub output_model: Option<PathBuf>,
+}
+
+fn optional_number(
+    path: &Path,
+    doc: &Document,
+    node: Node,
+    tag: &str,
+) -> Result<Option<f64>, SetupError> {
+    if child(node, tag).is_none() {
+        return Ok(None);
+    }
+    let v = numbers(node, tag).map_err(|f| invalid(path, doc, node, f.msg))?;
+    Ok(v.first().copied())
+}
+
+/// The `ModelScaler`'s measurements (their body groups), manual scales, scaling order and
+/// mass distribution flag.
+fn read_scaler(
+    path: &Path,
+    doc: &Document,
+    scaler: Node,
+    s: &mut ScaleSetup,
+) -> Result<(), SetupError> {
+    let order: Vec<&str> = text(scaler, "scaling_order")
+        .unwrap_or("measurements")
+        .split_whitespace()
+        .collect();
+    s.preserve_mass_distribution = text(scaler, "preserve_mass_distribution") != Some("false");
+    let objects = |tag: &str| {
+        child(scaler, tag)
+            .and_then(|n| child(n, "objects"))
+            .into_iter()
+            .flat_map(elements)
+    };
+    if order.contains(&"measurements") {
+        for m in objects("MeasurementSet").filter(|m| text(*m, "apply") != Some("false")) {
+            let bodies: Vec<String> = child(m, "BodyScaleSet")
+                .and_then(|b| child(b, "objects"))
+                .map(|o| elements(o).map(|b| name(b).to_string()).collect())
+                .unwrap_or_default();
+            if !bodies.is_empty() {
+                s.groups.push(SetupGroup {
+                    name: name(m).to_string(),
+                    bodies,
+                });
+            }
+        }
+    }
+    if order.contains(&"manualScale") {
+        for sc in objects("ScaleSet").filter(|m| text(*m, "apply") != Some("false")) {
+            let body = text(sc, "segment").unwrap_or("").to_string();
+            let v = numbers(sc, "scales").map_err(|f| invalid(path, doc, sc, f.msg))?;
+            let [x, y, z] = v[..] else {
+                return Err(invalid(
+                    path,
+                    doc,
+                    sc,
+                    format!("Scale of {body:?}: <scales> needs three numbers"),
+                ));
+            };
+            s.manual_scales.push((body, [x, y, z]));
+        }
+    }
+    Ok(())
 }
 
 /// Reads a `ScaleTool` setup file.
@@ -163,13 +234,7 @@ pub fn read_scale_setup(path: &Path) -> Result<ScaleSetup, SetupError> {
         let v = text(node?, tag)?;
         (!v.is_empty() && v != "Unassigned").then(|| dir.join(v))
     };
-    let number = |node: Node, tag: &str| -> Result<Option<f64>, SetupError> {
-        if child(node, tag).is_none() {
-            return Ok(None);
-        }
-        let v = numbers(node, tag).map_err(|f| invalid(path, &doc, node, f.msg))?;
-        Ok(v.first().copied())
-    };
+    let number = |node: Node, tag: &str| optional_number(path, &doc, node, tag);
     let maker = child(tool, "GenericModelMaker");
     let scaler = child(tool, "ModelScaler");
     let placer = child(tool, "MarkerPlacer");
@@ -183,33 +248,30 @@ pub fn read_scale_setup(path: &Path) -> Result<ScaleSetup, SetupError> {
             .map(|h| h / 1000.0),
         output_model: file(placer, "output_model_file")
             .or_else(|| file(scaler, "output_model_file")),
+        preserve_mass_distribution: true,
         ..Default::default()
     };
+    if let Some(sc) = scaler {
+        read_scaler(path, &doc, sc, &mut s)?;
+    }
+    if let Some(tasks) = placer
+        .and_then(|p| child(p, "IKTaskSet"))
+        .and_then(|t| child(t, "objects"))
+    {
+        for t in elements(tasks).filter(|t| t.tag_name().name() == "IKMarkerTask") {
+            let w = if text(t, "apply") == Some("false") {
+                0.0
+            } else {
+                number(t, "weight")?.unwrap_or(1.0)
+            };
+            s.marker_weights.push((name(t).to_string(), w));
+        }
+    }
     for node in [scaler, placer].into_iter().flatten() {
         if s.time_range.is_none() && child(node, "time_range").is_some() {
             let v = numbers(node, "time_range").map_err(|f| invalid(path, &doc, node, f.msg))?;
             if let [a, b] = v[..] {
                 s.time_range = Some([a, b]);
-            }
-        }
-    }
-    if let Some(set) = scaler
-        .and_then(|n| child(n, "MeasurementSet"))
-        .and_then(|n| child(n, "objects"))
-    {
-        for m in elements(set) {
-            if text(m, "apply") == Some("false") {
-                continue;
-            }
-            let bodies: Vec<String> = child(m, "BodyScaleSet")
-                .and_then(|b| child(b, "objects"))
-                .map(|o| elements(o).map(|b| name(b).to_string()).collect())
-                .unwrap_or_default();
-            if !bodies.is_empty() {
-                s.groups.push(SetupGroup {
-                    name: name(m).to_string(),
-                    bodies,
-                });
             }
         }
     }
@@ -307,5 +369,43 @@ mod tests {
                 bodies: vec!["femur_r".into(), "femur_l".into()]
             }]
         );
+        assert!(s.preserve_mass_distribution);
+        assert!(s.manual_scales.is_empty() && s.marker_weights.is_empty());
+    }
+
+    #[test]
+    fn a_scale_setup_gives_manual_scales_mass_flag_and_marker_weights() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("setup.xml");
+        let setup = |order: &str| {
+            format!(
+                "<OpenSimDocument><ScaleTool name=\"s\"><ModelScaler>\
+                 <scaling_order> {order} </scaling_order>\
+                 <MeasurementSet><objects><Measurement name=\"thigh\"><BodyScaleSet><objects>\
+                 <BodyScale name=\"femur_r\"/></objects></BodyScaleSet></Measurement></objects></MeasurementSet>\
+                 <ScaleSet><objects>\
+                 <Scale name=\"\"><scales> 1.1 1.2 1.3 </scales><segment> tibia_r </segment><apply> true </apply></Scale>\
+                 <Scale name=\"\"><scales> 2 2 2 </scales><segment> torso </segment><apply> false </apply></Scale>\
+                 </objects></ScaleSet><preserve_mass_distribution> false </preserve_mass_distribution>\
+                 </ModelScaler><MarkerPlacer><IKTaskSet><objects>\
+                 <IKMarkerTask name=\"R.ASIS\"><apply> true </apply><weight> 1000 </weight></IKMarkerTask>\
+                 <IKMarkerTask name=\"Sternum\"><apply> false </apply><weight> 1 </weight></IKMarkerTask>\
+                 <IKCoordinateTask name=\"knee\"><apply> true </apply><weight> 1 </weight></IKCoordinateTask>\
+                 </objects></IKTaskSet></MarkerPlacer></ScaleTool></OpenSimDocument>"
+            )
+        };
+        std::fs::write(&p, setup("manualScale")).unwrap();
+        let s = read_scale_setup(&p).unwrap();
+        assert!(s.groups.is_empty());
+        assert_eq!(s.manual_scales, vec![("tibia_r".into(), [1.1, 1.2, 1.3])]);
+        assert!(!s.preserve_mass_distribution);
+        assert_eq!(
+            s.marker_weights,
+            vec![("R.ASIS".into(), 1000.0), ("Sternum".into(), 0.0)]
+        );
+        std::fs::write(&p, setup("measurements")).unwrap();
+        let s = read_scale_setup(&p).unwrap();
+        assert_eq!(s.groups.len(), 1);
+        assert!(s.manual_scales.is_empty());
     }
 }

@@ -2,20 +2,23 @@
 //! marker set attached) + static trial (+ motion trials) → fitted factors and registered
 //! markers → the subject's `.osim` text as OpenSim's scaling writes it.
 
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
+use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;
 use jointfit::scale::{
-    averaged_targets, default_groups, fit_scale, plausibility, ScaleFit, ScaleGroup,
+    averaged_targets, default_groups, fit_scale, plausibility, ScaleFactors, ScaleFit, ScaleGroup,
     ScaleOptions as FitOptions, SizePrior,
 };
+use jointfit::trial::Trial;
 use nalgebra::Vector3;
 
 use super::setup::{read_marker_set, with_marker_set, SetupGroup};
 use super::{scale_osim, ScaleOptions};
-use crate::osim_read::{parse_osim, read_osim};
+use crate::osim_read::{parse_osim, read_osim, OsimModel};
 
 /// Everything `scale` needs.
 #[derive(Debug, Clone)]
@@ -40,6 +43,14 @@ pub struct ScaleRequest {
     pub marker_sd: f64,
     /// Frames taken from each motion trial (evenly spaced).
     pub frames_per_trial: usize,
+    /// Bodies held at given factors `(body, [sx, sy, sz])` (a setup's manual scales); bodies
+    /// the model lacks are skipped.
+    pub manual_scales: Vec<(String, [f64; 3])>,
+    /// Weights of markers' data rows (a setup's marker-placer tasks); unnamed: 1.
+    pub marker_weights: Vec<(String, f64)>,
+    /// Masses grow with the product of their body's factors (a setup's
+    /// `preserve_mass_distribution` false).
+    pub scale_masses: bool,
 }
 
 impl ScaleRequest {
@@ -58,6 +69,9 @@ impl ScaleRequest {
             symmetric: false,
             marker_sd: 0.01,
             frames_per_trial: 8,
+            manual_scales: Vec::new(),
+            marker_weights: Vec::new(),
+            scale_masses: false,
         }
     }
 }
@@ -108,59 +122,65 @@ fn motion_frames(
     out
 }
 
-/// Runs the pipeline (module docs). Errors are one-line messages naming the file.
-pub fn scale_subject(req: &ScaleRequest) -> Result<ScaleOutcome, String> {
-    let mut osim = read_osim(&req.generic).map_err(|e| e.to_string())?;
-    let mut fixed = Vec::new();
-    if let Some(ms) = &req.marker_set {
-        let defs = read_marker_set(ms).map_err(|e| e.to_string())?;
-        for d in &defs {
-            if !osim.spec.segments.iter().any(|s| s.name == d.body) {
-                return Err(format!(
-                    "{}: marker {:?} sits on body {:?}, which {} does not have",
-                    ms.display(),
-                    d.name,
-                    d.body,
-                    req.generic.display()
-                ));
-            }
-        }
-        fixed = defs
-            .iter()
-            .filter(|d| d.fixed)
-            .map(|d| d.name.clone())
-            .collect();
-        let text = with_marker_set(&osim.text, &defs)
-            .map_err(|e| format!("{}: {e}", req.generic.display()))?;
-        osim = parse_osim(text, &req.generic).map_err(|e| e.to_string())?;
-    }
-    let spec = osim.spec.clone();
-    if spec.markers.is_empty() {
-        return Err(format!(
-            "{}: the model has no markers; give a marker set (--markerset)",
-            req.generic.display()
-        ));
-    }
-    let generic = Model::compile(&spec).map_err(|e| format!("{}: {e}", req.generic.display()))?;
-    let stat = crate::trial_file::read_trial(&req.static_trial).map_err(|e| e.to_string())?;
-    let frames = match req.time_range {
-        Some([a, b]) => {
-            let idx: Vec<usize> = (0..stat.n_frames())
-                .filter(|&f| stat.time(f) >= a - 1e-9 && stat.time(f) <= b + 1e-9)
-                .collect();
-            match (idx.first(), idx.last()) {
-                (Some(&s), Some(&e)) => s..e + 1,
-                _ => {
-                    return Err(format!(
-                        "{}: no frame in the time range {a}–{b} s",
-                        req.static_trial.display()
-                    ))
-                }
-            }
-        }
-        None => 0..stat.n_frames(),
+/// The generic model with the request's marker set attached, and the markers it keeps
+/// fixed.
+fn with_markers(req: &ScaleRequest) -> Result<(OsimModel, Vec<String>), String> {
+    let osim = read_osim(&req.generic).map_err(|e| e.to_string())?;
+    let Some(ms) = &req.marker_set else {
+        return Ok((osim, Vec::new()));
     };
-    let mut targets = vec![averaged_targets(&spec, &stat, frames)];
+    let defs = read_marker_set(ms).map_err(|e| e.to_string())?;
+    for d in &defs {
+        if !osim.spec.segments.iter().any(|s| s.name == d.body) {
+            return Err(format!(
+                "{}: marker {:?} sits on body {:?}, which {} does not have",
+                ms.display(),
+                d.name,
+                d.body,
+                req.generic.display()
+            ));
+        }
+    }
+    let fixed = defs
+        .iter()
+        .filter(|d| d.fixed)
+        .map(|d| d.name.clone())
+        .collect();
+    let text = with_marker_set(&osim.text, &defs)
+        .map_err(|e| format!("{}: {e}", req.generic.display()))?;
+    let osim = parse_osim(text, &req.generic).map_err(|e| e.to_string())?;
+    Ok((osim, fixed))
+}
+
+/// The static trial's frames in the request's time range.
+fn static_range(req: &ScaleRequest, stat: &Trial) -> Result<Range<usize>, String> {
+    let Some([a, b]) = req.time_range else {
+        return Ok(0..stat.n_frames());
+    };
+    let idx: Vec<usize> = (0..stat.n_frames())
+        .filter(|&f| stat.time(f) >= a - 1e-9 && stat.time(f) <= b + 1e-9)
+        .collect();
+    match (idx.first(), idx.last()) {
+        (Some(&s), Some(&e)) => Ok(s..e + 1),
+        _ => Err(format!(
+            "{}: no frame in the time range {a}–{b} s",
+            req.static_trial.display()
+        )),
+    }
+}
+
+/// Per frame, per model marker: the measured position (m; NaN: absent).
+type Targets = Vec<Vec<Vector3<f64>>>;
+
+/// The fit's targets: the averaged static frame, then the motion frames; and the model
+/// markers the static trial lacks.
+fn read_targets(
+    req: &ScaleRequest,
+    spec: &ModelSpec,
+    generic: &Model,
+) -> Result<(Targets, Vec<String>), String> {
+    let stat = crate::trial_file::read_trial(&req.static_trial).map_err(|e| e.to_string())?;
+    let mut targets = vec![averaged_targets(spec, &stat, static_range(req, &stat)?)];
     let absent: Vec<String> = spec
         .markers
         .iter()
@@ -170,37 +190,71 @@ pub fn scale_subject(req: &ScaleRequest) -> Result<ScaleOutcome, String> {
         .collect();
     for path in &req.trials {
         let t = crate::trial_file::read_trial(path).map_err(|e| e.to_string())?;
-        targets.extend(motion_frames(&generic, &t, req.frames_per_trial, &spec));
+        targets.extend(motion_frames(generic, &t, req.frames_per_trial, spec));
     }
+    Ok((targets, absent))
+}
 
-    let clock = Instant::now();
+/// The fit's options: groups (a setup's measurements, or one per marked body) without the
+/// bodies held at manual scales, priors, fixed markers, weights.
+fn fit_options(
+    req: &ScaleRequest,
+    spec: &ModelSpec,
+    generic: &Model,
+    fixed: Vec<String>,
+) -> FitOptions {
+    let has = |b: &str| spec.segments.iter().any(|s| s.name == b);
+    let mut held = ScaleFactors::new();
+    for (b, f) in req.manual_scales.iter().filter(|(b, _)| has(b)) {
+        held.insert(b.clone(), *f);
+    }
     let groups: Vec<ScaleGroup> = match &req.groups {
         // A setup may name bodies the model lacks (OpenSim skips them too).
         Some(gs) => gs
             .iter()
             .map(|g| ScaleGroup {
                 name: g.name.clone(),
-                bodies: g
-                    .bodies
-                    .iter()
-                    .filter(|b| spec.segments.iter().any(|s| s.name == **b))
-                    .cloned()
-                    .collect(),
+                bodies: g.bodies.iter().filter(|b| has(b)).cloned().collect(),
                 per_axis: req.per_axis,
             })
-            .filter(|g| !g.bodies.is_empty())
             .collect(),
-        None => default_groups(&spec, req.per_axis, req.symmetric),
+        None => default_groups(spec, req.per_axis, req.symmetric),
     };
+    let groups = groups
+        .into_iter()
+        .map(|mut g| {
+            g.bodies.retain(|b| !held.contains_key(b));
+            g
+        })
+        .filter(|g| !g.bodies.is_empty())
+        .collect();
     let mut opts = FitOptions::new(groups);
     opts.fixed_markers = fixed;
     opts.marker_sd = req.marker_sd;
+    opts.marker_weights = req.marker_weights.clone();
+    opts.fixed_factors = held;
     opts.prior = req.prior.then(|| SizePrior {
         proportion_sd: PROPORTION_SD,
-        stature: req
-            .height
-            .map(|h| (h / marker_extent(&generic), STATURE_SD)),
+        stature: req.height.map(|h| (h / marker_extent(generic), STATURE_SD)),
     });
+    opts
+}
+
+/// Runs the pipeline (module docs). Errors are one-line messages naming the file.
+pub fn scale_subject(req: &ScaleRequest) -> Result<ScaleOutcome, String> {
+    let (osim, fixed) = with_markers(req)?;
+    let spec = osim.spec.clone();
+    if spec.markers.is_empty() {
+        return Err(format!(
+            "{}: the model has no markers; give a marker set (--markerset)",
+            req.generic.display()
+        ));
+    }
+    let generic = Model::compile(&spec).map_err(|e| format!("{}: {e}", req.generic.display()))?;
+    let (targets, absent) = read_targets(req, &spec, &generic)?;
+
+    let clock = Instant::now();
+    let opts = fit_options(req, &spec, &generic, fixed);
     let fit = fit_scale(&spec, &targets, &opts).map_err(|e| {
         format!(
             "{} on {}: {e}",
@@ -221,6 +275,7 @@ pub fn scale_subject(req: &ScaleRequest) -> Result<ScaleOutcome, String> {
         &ScaleOptions {
             total_mass: req.mass,
             markers,
+            scale_masses: req.scale_masses,
         },
     )
     .map_err(|e| e.to_string())?;

@@ -3,7 +3,8 @@
 //! element closed, attributes quoted, all text escaped), which the tests check.
 //!
 //! Element ids a reader (or a test) can rely on: `summary`, `fig-frame-error`,
-//! `fig-marker-rms`, `fig-joint-angles`, `tbl-parameters`, `fig-convergence`, `tbl-settings`.
+//! `fig-marker-rms`, `fig-joint-angles`, `tbl-parameters`, `fig-convergence`, `tbl-settings`,
+//! and with a scaling record `tbl-scale-factors`, `tbl-marker-offsets` (`html/scaling.rs`).
 //!
 //! This file holds the page frame (style sheet, header cards, section order, footer), the
 //! convergence figure and the settings list; the figures over the trial are in `html/plots.rs`, the
@@ -16,6 +17,7 @@ use crate::svg::{escape, LineChart, Scale, Series};
 
 mod params;
 mod plots;
+mod scaling;
 
 use params::parameters;
 use plots::{frame_error, joint_angles, marker_rms};
@@ -119,6 +121,11 @@ pub fn render(input: &ReportInput) -> String {
             escape(name)
         );
     };
+    if let Some(rec) = &input.scaling {
+        section(&mut h, "scaling", "Scaling from the generic model");
+        scaling::render(&mut h, rec);
+        h.push_str("</section>");
+    }
     if !input.data_checks.is_empty() {
         section(&mut h, "data-checks", "Data checks");
         crate::data_checks::render(&mut h, &input.data_checks);

@@ -7,7 +7,8 @@
 //! coordinates of frame `f`. The model marker is `x_j(θ) = T_b(q_f; s) (s_b ⊙ c_j + δ_j)`,
 //! where the body poses `T_b` use the scaled model ([`super::geometry`]). Residual rows:
 //!
-//! * data: `(x_j − m_fj)/σ_d` for every present marker of every frame;
+//! * data: `√w_j (x_j − m_fj)/σ_d` for every present marker of every frame (`w_j` the
+//!   marker's weight, 1 unless given);
 //! * marker placement prior: `δ_j/σ_j` (the registered marker stays near its generic place);
 //!   `σ_j = σ_m` for every marker at first; a marker the fit moves beyond `2σ_j` is taken for a
 //!   tracking marker placed anywhere on its segment and its `σ_j` widens to half its offset,
@@ -61,6 +62,11 @@ pub struct ScaleOptions {
     pub max_iterations: usize,
     /// Widen the offset prior of markers the data move far (tracking markers; module docs).
     pub robust: bool,
+    /// Bodies held at given factors (OpenSim's manual scales), in no group.
+    pub fixed_factors: ScaleFactors,
+    /// Weights `w_j` of markers' data rows (`√w_j (x_j − m_fj)/σ_d`; 0 leaves the marker's
+    /// data out, as OpenSim's marker placer does with a task of weight 0); unnamed: 1.
+    pub marker_weights: Vec<(String, f64)>,
 }
 
 impl ScaleOptions {
@@ -76,6 +82,8 @@ impl ScaleOptions {
             }),
             max_iterations: 60,
             robust: true,
+            marker_weights: Vec::new(),
+            fixed_factors: ScaleFactors::new(),
         }
     }
 }
@@ -88,7 +96,7 @@ pub enum ScaleError {
     TooFewMarkers { frame: usize, present: usize },
     #[error("group {0:?} names body {1:?}, which the model does not have")]
     UnknownBody(String, String),
-    #[error("body {0:?} is in two scale groups")]
+    #[error("body {0:?} is in two scale groups (or in one and held at given factors)")]
     TwiceGrouped(String),
     #[error(
         "the normal equations are singular: the data and priors leave the factors undetermined"
@@ -153,6 +161,8 @@ struct Problem<'a> {
     start: Vec<f64>,
     /// Per model marker: the SD of its offset prior (m).
     msd: Vec<f64>,
+    /// Per model marker: the weight of its data rows (`ScaleOptions::marker_weights`).
+    weight: Vec<f64>,
 }
 
 /// SD (rad or m) of the weak rows that hold coordinates no marker determines (a toe joint
@@ -161,7 +171,7 @@ const POSE_SD: f64 = 1000.0;
 
 impl Problem<'_> {
     fn factors(&self, th: &[f64]) -> ScaleFactors {
-        let mut f = ScaleFactors::new();
+        let mut f = self.opts.fixed_factors.clone();
         for (g, &(at, n)) in self.opts.groups.iter().zip(&self.lay.groups) {
             let s = if n == 3 {
                 [th[at], th[at + 1], th[at + 2]]
@@ -193,11 +203,22 @@ impl Problem<'_> {
         forward_kinematics(model, &model.nominal_params(), q, want, data);
     }
 
+    /// Whether marker `mi`'s sample `m` makes data rows (present, weight above 0).
+    fn used(&self, mi: usize, m: &Vector3<f64>) -> bool {
+        m.x.is_finite() && self.weight[mi] > 0.0
+    }
+
     fn n_rows(&self) -> usize {
         let data: usize = self
             .targets
             .iter()
-            .map(|t| 3 * t.iter().filter(|m| m.x.is_finite()).count())
+            .map(|t| {
+                3 * t
+                    .iter()
+                    .enumerate()
+                    .filter(|(mi, m)| self.used(*mi, m))
+                    .count()
+            })
             .sum();
         let deltas = 3 * self.lay.delta.iter().flatten().count();
         let prior = match &self.opts.prior {
@@ -210,32 +231,28 @@ impl Problem<'_> {
         data + deltas + prior + self.n_q * self.lay.q.len()
     }
 
-    /// Residuals, and with `jac` the Jacobian.
-    fn evaluate(&self, th: &[f64], jac: bool) -> Result<(DVector<f64>, DMatrix<f64>), ScaleError> {
-        let nr = self.n_rows();
-        let mut r = DVector::zeros(nr);
-        let mut j = DMatrix::zeros(if jac { nr } else { 0 }, self.lay.n);
-        let model = self.model(th)?;
-        let mut data = KinData::new(&model);
-        let sd = self.opts.noise_sd;
-        let mut row = 0;
-        let mut data_rows = Vec::new();
+    /// Data rows of every frame; returns `(row, frame, marker)` of each.
+    fn data_rows(&self, model: &Model, th: &[f64], rows: &mut Rows) -> Vec<(usize, usize, usize)> {
+        let mut data = KinData::new(model);
+        let mut out = Vec::new();
         for (f, t) in self.targets.iter().enumerate() {
-            let want = if jac { Want::DQ } else { Want::POSITIONS };
-            self.markers(&model, th, &mut data, f, want);
+            let want = if rows.jac { Want::DQ } else { Want::POSITIONS };
+            self.markers(model, th, &mut data, f, want);
             for (mi, m) in t.iter().enumerate() {
-                if !m.x.is_finite() {
+                if !self.used(mi, m) {
                     continue;
                 }
+                let scale = self.weight[mi].sqrt() / self.opts.noise_sd;
                 let x = data.markers[mi];
+                let row = rows.row;
                 for k in 0..3 {
-                    r[row + k] = (x[k] - m[k]) / sd;
+                    rows.r[row + k] = (x[k] - m[k]) * scale;
                 }
-                if jac {
+                if rows.jac {
                     let q0 = self.lay.q[f];
                     for c in 0..self.n_q {
                         for k in 0..3 {
-                            j[(row + k, q0 + c)] = data.jq()[(3 * mi + k, c)] / sd;
+                            rows.j[(row + k, q0 + c)] = data.jq()[(3 * mi + k, c)] * scale;
                         }
                     }
                     if let Some(at) = self.lay.delta[mi] {
@@ -243,81 +260,132 @@ impl Problem<'_> {
                         let rot = data.segment_poses[seg.0].rot;
                         for k in 0..3 {
                             for a in 0..3 {
-                                j[(row + k, at + a)] = rot[(k, a)] / sd;
+                                rows.j[(row + k, at + a)] = rot[(k, a)] * scale;
                             }
                         }
                     }
                 }
-                data_rows.push((row, f, mi));
-                row += 3;
+                out.push((row, f, mi));
+                rows.row += 3;
             }
         }
+        out
+    }
+
+    /// Marker placement rows `δ_j/σ_j`.
+    fn placement_rows(&self, th: &[f64], rows: &mut Rows) {
         for (at, sd) in self.lay.delta.iter().zip(&self.msd) {
             let Some(at) = at else {
                 continue;
             };
             for k in 0..3 {
-                r[row] = th[at + k] / sd;
-                if jac {
-                    j[(row, at + k)] = 1.0 / sd;
-                }
-                row += 1;
+                rows.push(th[at + k] / sd, &[(at + k, 1.0 / sd)]);
             }
         }
-        if let Some(p) = &self.opts.prior {
-            let u_at = self.lay.size.expect("a size unknown with the prior");
-            for &(at, n) in &self.lay.groups {
-                for k in at..at + n {
-                    r[row] = (th[k].ln() - th[u_at]) / p.proportion_sd;
-                    if jac {
-                        j[(row, k)] = 1.0 / (th[k] * p.proportion_sd);
-                        j[(row, u_at)] = -1.0 / p.proportion_sd;
-                    }
-                    row += 1;
-                }
-            }
-            if let Some((ratio, s)) = p.stature {
-                r[row] = (th[u_at] - ratio.ln()) / s;
-                if jac {
-                    j[(row, u_at)] = 1.0 / s;
-                }
-                row += 1;
+    }
+
+    /// Anthropometric rows: proportions about the overall size, and the stature.
+    fn size_rows(&self, th: &[f64], rows: &mut Rows) {
+        let Some(p) = &self.opts.prior else {
+            return;
+        };
+        let u_at = self.lay.size.expect("a size unknown with the prior");
+        let sd = p.proportion_sd;
+        for &(at, n) in &self.lay.groups {
+            for k in at..at + n {
+                rows.push(
+                    (th[k].ln() - th[u_at]) / sd,
+                    &[(k, 1.0 / (th[k] * sd)), (u_at, -1.0 / sd)],
+                );
             }
         }
+        if let Some((ratio, s)) = p.stature {
+            rows.push((th[u_at] - ratio.ln()) / s, &[(u_at, 1.0 / s)]);
+        }
+    }
+
+    /// Weak rows holding undetermined coordinates at their starting values.
+    fn pose_rows(&self, th: &[f64], rows: &mut Rows) {
         for &at in &self.lay.q {
-            for c in at..at + self.n_q {
-                r[row] = (th[c] - self.start[c]) / POSE_SD;
-                if jac {
-                    j[(row, c)] = 1.0 / POSE_SD;
-                }
-                row += 1;
+            let held = th[at..at + self.n_q].iter().zip(&self.start[at..]);
+            for (c, (x, x0)) in held.enumerate() {
+                rows.push((x - x0) / POSE_SD, &[(at + c, 1.0 / POSE_SD)]);
             }
         }
-        debug_assert_eq!(row, nr);
-        if jac {
-            // ∂/∂g by forward differences over recompiled scaled models.
-            for &(at, n) in &self.lay.groups {
-                for k in at..at + n {
-                    let h = 1e-6 * th[k].abs().max(1.0);
-                    let mut t2 = th.to_vec();
-                    t2[k] += h;
-                    let m2 = self.model(&t2)?;
-                    let mut d2 = KinData::new(&m2);
-                    let mut last = usize::MAX;
-                    for &(rw, f, mi) in &data_rows {
-                        if f != last {
-                            self.markers(&m2, &t2, &mut d2, f, Want::POSITIONS);
-                            last = f;
-                        }
-                        let x = d2.markers[mi];
-                        for a in 0..3 {
-                            j[(rw + a, k)] = ((x[a] - self.targets[f][mi][a]) / sd - r[rw + a]) / h;
-                        }
+    }
+
+    /// `∂r/∂g` of the data rows by forward differences over recompiled scaled models.
+    fn factor_columns(
+        &self,
+        th: &[f64],
+        data_rows: &[(usize, usize, usize)],
+        rows: &mut Rows,
+    ) -> Result<(), ScaleError> {
+        for &(at, n) in &self.lay.groups {
+            for k in at..at + n {
+                let h = 1e-6 * th[k].abs().max(1.0);
+                let mut t2 = th.to_vec();
+                t2[k] += h;
+                let m2 = self.model(&t2)?;
+                let mut d2 = KinData::new(&m2);
+                let mut last = usize::MAX;
+                for &(rw, f, mi) in data_rows {
+                    if f != last {
+                        self.markers(&m2, &t2, &mut d2, f, Want::POSITIONS);
+                        last = f;
+                    }
+                    let scale = self.weight[mi].sqrt() / self.opts.noise_sd;
+                    let x = d2.markers[mi];
+                    for a in 0..3 {
+                        let r2 = (x[a] - self.targets[f][mi][a]) * scale;
+                        rows.j[(rw + a, k)] = (r2 - rows.r[rw + a]) / h;
                     }
                 }
             }
         }
-        Ok((r, j))
+        Ok(())
+    }
+
+    /// Residuals, and with `jac` the Jacobian (module docs).
+    fn evaluate(&self, th: &[f64], jac: bool) -> Result<(DVector<f64>, DMatrix<f64>), ScaleError> {
+        let nr = self.n_rows();
+        let mut rows = Rows {
+            r: DVector::zeros(nr),
+            j: DMatrix::zeros(if jac { nr } else { 0 }, self.lay.n),
+            row: 0,
+            jac,
+        };
+        let model = self.model(th)?;
+        let data_rows = self.data_rows(&model, th, &mut rows);
+        self.placement_rows(th, &mut rows);
+        self.size_rows(th, &mut rows);
+        self.pose_rows(th, &mut rows);
+        debug_assert_eq!(rows.row, nr);
+        if jac {
+            self.factor_columns(th, &data_rows, &mut rows)?;
+        }
+        Ok((rows.r, rows.j))
+    }
+}
+
+/// Residuals and Jacobian being filled, row by row.
+struct Rows {
+    r: DVector<f64>,
+    j: DMatrix<f64>,
+    row: usize,
+    jac: bool,
+}
+
+impl Rows {
+    /// One residual row with its nonzero Jacobian entries `(column, value)`.
+    fn push(&mut self, value: f64, entries: &[(usize, f64)]) {
+        self.r[self.row] = value;
+        if self.jac {
+            for &(c, v) in entries {
+                self.j[(self.row, c)] = v;
+            }
+        }
+        self.row += 1;
     }
 }
 
@@ -397,7 +465,7 @@ fn layout(
             if !spec.segments.iter().any(|s| s.name == *b) {
                 return Err(ScaleError::UnknownBody(g.name.clone(), b.clone()));
             }
-            if !seen.insert(b.clone()) {
+            if !seen.insert(b.clone()) || opts.fixed_factors.contains_key(b) {
                 return Err(ScaleError::TwiceGrouped(b.clone()));
             }
         }
@@ -432,13 +500,13 @@ fn layout(
     })
 }
 
-/// Fits the scale (module docs). `targets[f][j]`: the measured position (m, world) of model
-/// marker `j` in frame `f` (NaN: absent); frame 0 is normally the averaged static trial.
-pub fn fit_scale(
-    spec: &ModelSpec,
-    targets: &[Vec<Vector3<f64>>],
-    opts: &ScaleOptions,
-) -> Result<ScaleFit, ScaleError> {
+/// The problem at its starting point: factors 1 (or the stature ratio), offsets 0, each
+/// frame's pose by inverse kinematics on the model at the starting size.
+fn start<'a>(
+    spec: &'a ModelSpec,
+    targets: &'a [Vec<Vector3<f64>>],
+    opts: &'a ScaleOptions,
+) -> Result<(Problem<'a>, Vec<f64>), ScaleError> {
     let generic = Model::compile(spec)?;
     let n_q = generic.n_q();
     for (f, t) in targets.iter().enumerate() {
@@ -449,16 +517,26 @@ pub fn fit_scale(
     }
     let lay = layout(spec, opts, n_q, targets.len())?;
     let mut th = vec![0.0; lay.n];
-    let start = opts
+    let size = opts
         .prior
         .and_then(|p| p.stature)
         .map_or(1.0, |(ratio, _)| ratio);
     for &(at, n) in &lay.groups {
-        th[at..at + n].fill(start);
+        th[at..at + n].fill(size);
     }
     if let Some(u) = lay.size {
-        th[u] = start.ln();
+        th[u] = size.ln();
     }
+    let weight = spec
+        .markers
+        .iter()
+        .map(|m| {
+            opts.marker_weights
+                .iter()
+                .find(|(n, _)| *n == m.name)
+                .map_or(1.0, |(_, w)| *w)
+        })
+        .collect();
     let mut pb = Problem {
         spec,
         opts,
@@ -467,8 +545,8 @@ pub fn fit_scale(
         n_q,
         start: Vec::new(),
         msd: vec![opts.marker_sd; spec.markers.len()],
+        weight,
     };
-    // Starting poses: inverse kinematics on the model at the starting size.
     let m0 = pb.model(&th)?;
     let ik = IkOptions::default();
     let mut ws = IkWorkspace::new(&m0);
@@ -480,18 +558,17 @@ pub fn fit_scale(
         th[at..at + n_q].copy_from_slice(&q);
     }
     pb.start = th.clone();
+    Ok((pb, th))
+}
 
-    let (mut r, mut j, mut cost, mut iterations) =
-        (DVector::zeros(0), DMatrix::zeros(0, 0), 0.0, 0);
-    // Markers whose offset the data pull beyond `ROBUST_IN_SD` prior SDs are tracking
-    // markers placed anywhere on the segment (clusters), not landmarks: their prior widens to
-    // their offset (a Huber-like reweighting), and the fit is repeated from where it stopped.
-    for _round in 0..ROBUST_ROUNDS {
-        let (th2, r2, j2, c2, it) = solve(&pb, th)?;
+/// Solves, widening the offset prior of markers whose offset the data pull beyond
+/// `ROBUST_IN_SD` prior SDs (tracking markers placed anywhere on the segment, not landmarks:
+/// a Huber-like reweighting), and solving again from where it stopped.
+fn solve_robust(pb: &mut Problem, mut th: Vec<f64>) -> Result<Solved, ScaleError> {
+    let mut iterations = 0;
+    for round in 0..ROBUST_ROUNDS {
+        let (th2, r, j, cost, it) = solve(pb, th)?;
         th = th2;
-        r = r2;
-        j = j2;
-        cost = c2;
         iterations += it;
         let mut widened = false;
         for (mi, at) in pb.lay.delta.iter().enumerate() {
@@ -499,26 +576,29 @@ pub fn fit_scale(
                 continue;
             };
             let d = (th[*at].powi(2) + th[at + 1].powi(2) + th[at + 2].powi(2)).sqrt();
-            if opts.robust && d > ROBUST_IN_SD * pb.msd[mi] * 1.05 {
+            if pb.opts.robust && d > ROBUST_IN_SD * pb.msd[mi] * 1.05 {
                 pb.msd[mi] = d / ROBUST_IN_SD;
                 widened = true;
             }
         }
-        if !widened {
-            break;
+        if !widened || round + 1 == ROBUST_ROUNDS {
+            return Ok((th, r, j, cost, iterations));
         }
     }
+    unreachable!("at least one round")
+}
 
-    // Uncertainty of the factors.
-    let a = j.transpose() * &j;
-    let cov = a.try_inverse().ok_or(ScaleError::Singular)?;
-    let n_data: usize = targets
-        .iter()
-        .map(|t| 3 * t.iter().filter(|m| m.x.is_finite()).count())
-        .sum();
+/// Each group's factors with their SDs: the diagonal of `(JᵀJ)⁻¹`, inflated by `χ²/dof`
+/// when that exceeds 1; then each body held at given factors (SD 0).
+fn group_fits(pb: &Problem, sol: &Solved) -> Result<Vec<GroupFit>, ScaleError> {
+    let (th, r, j, cost, _) = sol;
+    let cov = (j.transpose() * j)
+        .try_inverse()
+        .ok_or(ScaleError::Singular)?;
     let dof = (r.len() as f64 - pb.lay.n as f64).max(1.0);
     let inflate = (cost / dof).max(1.0);
-    let groups = opts
+    let fitted = pb
+        .opts
         .groups
         .iter()
         .zip(&pb.lay.groups)
@@ -530,61 +610,78 @@ pub fn fit_scale(
                 factors: std::array::from_fn(|k| th[pick(k)]),
                 sd: std::array::from_fn(|k| (cov[(pick(k), pick(k))] * inflate).sqrt()),
             }
-        })
-        .collect();
+        });
+    let held = pb.opts.fixed_factors.iter().map(|(b, f)| GroupFit {
+        name: b.clone(),
+        bodies: vec![b.clone()],
+        factors: *f,
+        sd: [0.0; 3],
+    });
+    Ok(fitted.chain(held).collect())
+}
 
-    // Markers and their errors.
-    let model = pb.model(&th)?;
+/// The registered markers with their errors, and the RMS over every present sample (m).
+fn marker_fits(pb: &Problem, th: &[f64]) -> Result<(Vec<MarkerFit>, f64), ScaleError> {
+    let model = pb.model(th)?;
     let mut data = KinData::new(&model);
-    let mut sums = vec![(0.0, 0usize); spec.markers.len()];
-    let mut total = 0.0;
-    for (f, t) in targets.iter().enumerate() {
-        pb.markers(&model, &th, &mut data, f, Want::POSITIONS);
+    let mut sums = vec![(0.0, 0usize); pb.spec.markers.len()];
+    for (f, t) in pb.targets.iter().enumerate() {
+        pb.markers(&model, th, &mut data, f, Want::POSITIONS);
         for (mi, m) in t.iter().enumerate() {
             if m.x.is_finite() {
-                let e = (data.markers[mi] - m).norm_squared();
-                sums[mi].0 += e;
+                sums[mi].0 += (data.markers[mi] - m).norm_squared();
                 sums[mi].1 += 1;
-                total += e;
             }
         }
     }
-    let factors = pb.factors(&th);
-    let markers = spec
+    let (total, count) = sums.iter().fold((0.0, 0), |(a, n), (s, k)| (a + s, n + k));
+    let markers = pb
+        .spec
         .markers
         .iter()
         .zip(&pb.lay.delta)
         .zip(model.markers())
         .zip(&sums)
-        .map(|(((m, d), cm), (s, n))| {
-            let moved = d.map_or([0.0; 3], |at| [th[at], th[at + 1], th[at + 2]]);
-            MarkerFit {
-                name: m.name.clone(),
-                body: m.segment.clone(),
-                position: [cm.local.x, cm.local.y, cm.local.z],
-                moved,
-                rms: if *n > 0 {
-                    (s / *n as f64).sqrt()
-                } else {
-                    f64::NAN
-                },
-            }
+        .map(|(((m, d), cm), (s, n))| MarkerFit {
+            name: m.name.clone(),
+            body: m.segment.clone(),
+            position: [cm.local.x, cm.local.y, cm.local.z],
+            moved: d.map_or([0.0; 3], |at| [th[at], th[at + 1], th[at + 2]]),
+            rms: if *n > 0 {
+                (s / *n as f64).sqrt()
+            } else {
+                f64::NAN
+            },
         })
         .collect();
-    let coords = pb
-        .lay
-        .q
-        .iter()
-        .map(|&at| th[at..at + n_q].to_vec())
-        .collect();
+    Ok((markers, (total / count.max(1) as f64).sqrt()))
+}
+
+/// Fits the scale (module docs). `targets[f][j]`: the measured position (m, world) of model
+/// marker `j` in frame `f` (NaN: absent); frame 0 is normally the averaged static trial.
+pub fn fit_scale(
+    spec: &ModelSpec,
+    targets: &[Vec<Vector3<f64>>],
+    opts: &ScaleOptions,
+) -> Result<ScaleFit, ScaleError> {
+    let (mut pb, th) = start(spec, targets, opts)?;
+    let sol = solve_robust(&mut pb, th)?;
+    let groups = group_fits(&pb, &sol)?;
+    let th = &sol.0;
+    let (markers, rms) = marker_fits(&pb, th)?;
     Ok(ScaleFit {
-        factors,
+        factors: pb.factors(th),
         groups,
         markers,
-        coords,
-        rms: (total / (n_data / 3).max(1) as f64).sqrt(),
+        coords: pb
+            .lay
+            .q
+            .iter()
+            .map(|&at| th[at..at + pb.n_q].to_vec())
+            .collect(),
+        rms,
         size: pb.lay.size.map(|u| th[u].exp()),
-        iterations,
+        iterations: sol.4,
     })
 }
 
@@ -594,23 +691,23 @@ mod tests {
     use crate::model::lower_limb::{lower_limb, Side};
     use crate::scale::default_groups;
 
-    /// Markers of the leg scaled by known factors, at a pose away from the default: the
-    /// pure fit (no anthropometric prior) recovers the factors and the pose.
-    #[test]
-    fn recovers_known_factors_of_a_scaled_leg() {
+    const TRUTH: [(&str, [f64; 3]); 4] = [
+        ("pelvis", [1.06; 3]),
+        ("thigh", [1.02, 1.13, 0.97]),
+        ("shank", [0.92; 3]),
+        ("foot", [1.04; 3]),
+    ];
+
+    /// The leg's groups (the thigh per axis) and its markers scaled by [`TRUTH`], at a pose
+    /// away from the default.
+    fn scaled_leg() -> (ModelSpec, Vec<ScaleGroup>, Vec<Vector3<f64>>) {
         let spec = lower_limb(Side::Right);
         let mut groups = default_groups(&spec, false, false);
         for g in groups.iter_mut() {
             g.per_axis = g.name == "thigh";
         }
-        let truth: [(&str, [f64; 3]); 4] = [
-            ("pelvis", [1.06; 3]),
-            ("thigh", [1.02, 1.13, 0.97]),
-            ("shank", [0.92; 3]),
-            ("foot", [1.04; 3]),
-        ];
         let mut factors = ScaleFactors::new();
-        for (name, s) in truth {
+        for (name, s) in TRUTH {
             let g = groups.iter().find(|g| g.name == name).unwrap();
             for b in &g.bodies {
                 factors.insert(b.clone(), s);
@@ -629,20 +726,29 @@ mod tests {
             Want::POSITIONS,
             &mut data,
         );
-        let targets = vec![data.markers.clone()];
-        let mut opts = ScaleOptions::new(groups);
-        opts.prior = None;
-        let fit = fit_scale(&spec, &targets, &opts).unwrap();
-        for (name, s) in truth {
+        (spec, groups, data.markers.clone())
+    }
+
+    /// Largest difference between fitted and true factors.
+    fn factor_error(fit: &ScaleFit) -> f64 {
+        let mut worst: f64 = 0.0;
+        for (name, s) in TRUTH {
             let g = fit.groups.iter().find(|g| g.name == name).unwrap();
-            for k in 0..3 {
-                assert!(
-                    (g.factors[k] - s[k]).abs() < 1e-6,
-                    "{name}: {:?} vs {s:?}",
-                    g.factors
-                );
+            for (f, t) in g.factors.iter().zip(s) {
+                worst = worst.max((f - t).abs());
             }
         }
+        worst
+    }
+
+    /// The pure fit (no anthropometric prior) recovers the factors and the pose.
+    #[test]
+    fn recovers_known_factors_of_a_scaled_leg() {
+        let (spec, groups, markers) = scaled_leg();
+        let mut opts = ScaleOptions::new(groups);
+        opts.prior = None;
+        let fit = fit_scale(&spec, &[markers], &opts).unwrap();
+        assert!(factor_error(&fit) < 1e-6, "{:?}", fit.groups);
         assert!(fit.rms < 1e-8, "rms {}", fit.rms);
         for m in &fit.markers {
             assert!(
@@ -651,6 +757,52 @@ mod tests {
                 m.name,
                 m.moved
             );
+        }
+    }
+
+    /// A marker displaced by 4 cm biases the factors; with weight 0 its data are left out
+    /// and the factors are the true ones again.
+    #[test]
+    fn a_marker_of_weight_zero_does_not_pull_the_factors() {
+        let (spec, groups, mut markers) = scaled_leg();
+        let bad = spec
+            .markers
+            .iter()
+            .position(|m| m.segment == spec.segments[2].name)
+            .unwrap();
+        markers[bad] += Vector3::new(0.0, 0.04, 0.0);
+        let mut opts = ScaleOptions::new(groups);
+        opts.prior = None;
+        opts.robust = false;
+        let biased = fit_scale(&spec, std::slice::from_ref(&markers), &opts).unwrap();
+        assert!(factor_error(&biased) > 1e-3, "{:?}", biased.groups);
+        opts.marker_weights = vec![(spec.markers[bad].name.clone(), 0.0)];
+        let fit = fit_scale(&spec, &[markers], &opts).unwrap();
+        assert!(factor_error(&fit) < 1e-6, "{:?}", fit.groups);
+    }
+
+    /// A body held at its true factors while the others are fitted: they are recovered, and
+    /// the held body is reported with SD 0.
+    #[test]
+    fn bodies_held_at_given_factors_stay_there() {
+        let (spec, mut groups, markers) = scaled_leg();
+        let k = groups.iter().position(|g| g.name == "shank").unwrap();
+        let shank = groups.remove(k);
+        let mut opts = ScaleOptions::new(groups);
+        opts.prior = None;
+        for b in &shank.bodies {
+            opts.fixed_factors.insert(b.clone(), [0.92; 3]);
+        }
+        let fit = fit_scale(&spec, &[markers], &opts).unwrap();
+        let held = fit.groups.iter().find(|g| g.bodies == shank.bodies[..1]);
+        assert_eq!(held.map(|g| (g.factors, g.sd)), Some(([0.92; 3], [0.0; 3])));
+        for b in &shank.bodies {
+            assert_eq!(fit.factors[b], [0.92; 3]);
+        }
+        let others = fit.groups.iter().filter(|g| g.sd[0] > 0.0);
+        for g in others {
+            let (_, s) = TRUTH.iter().find(|(n, _)| *n == g.name).unwrap();
+            assert!((g.factors[0] - s[0]).abs() < 1e-6, "{g:?}");
         }
     }
 }
