@@ -23,20 +23,20 @@ impl Pose {
             trans: Vector3::zeros(),
         }
     }
-    pub(crate) fn new(rot: Matrix3<f64>, trans: Vector3<f64>) -> Self {
+    pub fn new(rot: Matrix3<f64>, trans: Vector3<f64>) -> Self {
         Pose { rot, trans }
     }
     pub(crate) fn is_identity(&self) -> bool {
         self.trans == Vector3::zeros() && self.rot == Matrix3::identity()
     }
     /// `self · other`.
-    pub(crate) fn compose(&self, other: &Pose) -> Pose {
+    pub fn compose(&self, other: &Pose) -> Pose {
         Pose {
             rot: self.rot * other.rot,
             trans: self.trans + self.rot * other.trans,
         }
     }
-    pub(crate) fn inverse(&self) -> Pose {
+    pub fn inverse(&self) -> Pose {
         let rt = self.rot.transpose();
         Pose {
             rot: rt,
