@@ -16,7 +16,7 @@ pub const MAX_RATE_HZ: f64 = 100_000.0;
 /// Lowest low-pass cutoff (Hz), as on the command line.
 pub const MIN_FILTER_HZ: f64 = 0.1;
 /// Largest noise amplitude of a synthetic trial (mm).
-pub const MAX_NOISE_MM: f64 = jointfit_io::batch::fit::MAX_NOISE_MM;
+pub const MAX_NOISE_MM: f64 = jointfit_app::fit::MAX_NOISE_MM;
 /// Largest plausible marker coordinate (m).
 pub const MAX_POSITION_M: f64 = 1_000.0;
 /// Longest averaging window of a static trial (s).

@@ -1,7 +1,7 @@
 //! `jointfit.Trial`: marker trajectories (frames × markers × 3, metres, NaN for gaps).
 
 use jointfit::trial::{Trial, UpAxis};
-use jointfit_io::batch::{prepare_trial, read_trial, ReadOptions};
+use jointfit_app::{prepare_trial, read_trial, ReadOptions};
 use nalgebra::Vector3;
 use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray3, PyArrayMethods};
