@@ -26,6 +26,7 @@ pub mod batch;
 pub mod fit;
 pub mod osim;
 mod pipeline;
+pub mod present;
 pub mod read;
 
 use jointfit::model::ModelError;

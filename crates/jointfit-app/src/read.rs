@@ -193,7 +193,12 @@ pub fn read_trial(path: &Path, read: &ReadOptions) -> Result<(Trial, Vec<String>
     let up = read.up.unwrap_or(UpAxis::Y);
     let rotated = jointfit::vertical::rotation_warning(&trial, up, &format!("up {up}"));
     let (trial, mut warnings) = prepare_trial(trial, &name, Some(up), read.filter_hz)?;
-    warnings.extend(rotated.map(|w| format!("{name}: {w}")));
+    warnings.extend(rotated.map(|(w, axis)| {
+        format!(
+            "{name}: {w}; {} if that is right",
+            crate::present::read_with_up(axis)
+        )
+    }));
     Ok((trial, warnings))
 }
 

@@ -127,7 +127,12 @@ pub fn refusal(e: jointfit_app::Error, trials: &[std::path::PathBuf]) -> anyhow:
     let names: Vec<String> = trials.iter().map(|p| p.display().to_string()).collect();
     match jointfit_app::name_trial(e, &names) {
         jointfit_app::Error::Rejected(cause) => crate::output::Rejected(cause).into(),
-        jointfit_app::Error::Calibrate(w) => w.into(),
+        jointfit_app::Error::Calibrate(w) => {
+            match jointfit_app::present::hint(&w, jointfit_app::present::Front::Cli) {
+                Some(hint) => anyhow::anyhow!("{w} ({hint})"),
+                None => w.into(),
+            }
+        }
         e => e.into(),
     }
 }

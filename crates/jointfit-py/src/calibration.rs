@@ -1,5 +1,6 @@
 //! `calibrate` and `jointfit.Calibration`: the two-level fit of joint parameters.
 
+use jointfit::model::Unit;
 use jointfit_app::{
     run_observed, Calibration, FitOptions, ModelSource, ReadOptions, Request, TrialSource,
 };
@@ -238,21 +239,23 @@ impl PyCalibration {
              <th>fitted</th><th>95 % interval</th><th>identifiability</th></tr></thead><tbody>",
         );
         for r in &c.parameters {
-            let (unit, k) = if r.unit == "m" {
-                ("mm", 1e3)
+            let si = if r.unit == "m" {
+                Unit::Metre
             } else {
-                ("deg", 180.0 / std::f64::consts::PI)
+                Unit::Radian
             };
+            let show = |v: f64| jointfit_app::present::shown(v, si).0;
+            let unit = jointfit_app::present::shown(0.0, si).1;
             let ci = r.ci95.map_or("—".to_string(), |[lo, hi]| {
-                format!("{:.2} to {:.2}", lo * k, hi * k)
+                format!("{:.2} to {:.2}", show(lo), show(hi))
             });
             h.push_str(&format!(
                 "<tr><td>{}</td><td>{}</td><td>{unit}</td><td>{:.2}</td><td>{:.2}</td>\
                  <td>{ci}</td><td>{}</td></tr>",
                 html(&r.name),
                 html(&r.group),
-                r.start * k,
-                r.fitted * k,
+                show(r.start),
+                show(r.fitted),
                 html(&identifiability(r)),
             ));
         }
@@ -417,9 +420,21 @@ pub fn calibrate(
         run_observed(&request, obs)
     });
     crate::run::close_progress(py, progress.as_ref())?;
-    let cal = cal?.map_err(|e| err(&e))?;
+    let cal = cal?.map_err(|e| calibrate_error(&e))?;
     warn_all(py, &cal.warnings)?;
     Ok(PyCalibration { cal, osim })
+}
+
+/// The error of a calibration, with the keyword argument that resolves it when one does.
+fn calibrate_error(e: &jointfit_app::Error) -> PyErr {
+    use jointfit_app::present::{hint, Front};
+    match e {
+        jointfit_app::Error::Calibrate(w) => match hint(w, Front::Python) {
+            Some(h) => msg(format!("{} ({h})", jointfit_app::message(e))),
+            None => err(e),
+        },
+        e => err(e),
+    }
 }
 
 /// `model` of `calibrate`: a Model (with the `.osim` it was loaded from, if any), a model
