@@ -39,8 +39,8 @@ use thiserror::Error;
 pub use fit::{Calibration, FitOptions, Method, ParamRow};
 pub use pipeline::{fit, gate, name_trial, run, run_observed, Detail, Fitted, Request};
 pub use read::{
-    load_subject, prepare_trial, read_trial, read_trials, ModelSource, ReadOptions, Subject,
-    TrialSource,
+    check_plausible, load_subject, prepare_trial, read_trial, read_trials, ModelSource,
+    ReadOptions, Subject, TrialSource,
 };
 
 /// Why a request failed. The display is the command line's message for the same failure.
@@ -69,6 +69,9 @@ pub enum Error {
     },
     #[error(transparent)]
     Calibrate(#[from] jointfit::workflow::WorkflowError),
+    /// Trial data no measurement can give (a rate, a coordinate, the units): the cause.
+    #[error("{0}")]
+    Implausible(String),
     #[error("no trials to fit")]
     NoTrials,
     /// The verdict of the fit (or of its inputs) is `reject`: the cause.

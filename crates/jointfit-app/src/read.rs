@@ -149,6 +149,50 @@ fn refuse_params(model: &str, fit: &FitOptions) -> Result<(), Error> {
     }
 }
 
+/// Largest plausible sampling rate (Hz).
+pub const MAX_RATE_HZ: f64 = 100_000.0;
+/// Largest plausible marker coordinate (m).
+pub const MAX_POSITION_M: f64 = 1_000.0;
+
+/// The data of a trial are plausible: rate at most [`MAX_RATE_HZ`], every recorded coordinate
+/// within ±[`MAX_POSITION_M`] m. The error names the trial (`name`), the frame (file
+/// numbering) and the marker, or the units when the markers' span says they are wrong
+/// ([`jointfit::checks::check_scale`]: millimetre data declared as metres). Missing samples
+/// are fine here.
+pub fn check_plausible(trial: &Trial, name: &str) -> Result<(), Error> {
+    let implausible = |what: String| Err(Error::Implausible(format!("{name}: {what}")));
+    if trial.rate() > MAX_RATE_HZ {
+        return implausible(format!(
+            "frame rate {:e} Hz is implausible (limit {MAX_RATE_HZ} Hz)",
+            trial.rate()
+        ));
+    }
+    for f in 0..trial.n_frames() {
+        for (m, p) in trial.frame(f).iter().enumerate() {
+            if p.x.is_nan() || p.iter().all(|v| v.abs() <= MAX_POSITION_M) {
+                continue;
+            }
+            // Millimetre data declared as metres land here: say so when the whole trial's
+            // scale points to the units rather than one wild sample.
+            let too_wide = jointfit::checks::marker_span(trial)
+                .is_some_and(|span| span > jointfit::checks::PLAUSIBLE_SPAN[1]);
+            if let Some(units) = jointfit::checks::check_scale(trial).filter(|_| too_wide) {
+                return implausible(units.message);
+            }
+            return implausible(format!(
+                "frame {}, marker {}: position ({:e}, {:e}, {:e}) m is beyond \
+                 ±{MAX_POSITION_M} m, not a plausible measurement",
+                trial.first_frame() + f as i64,
+                trial.labels()[m],
+                p.x,
+                p.y,
+                p.z
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Filtering that moves a marker further than this is reported (m).
 const FILTER_WARNING_M: f64 = 0.02;
 
@@ -186,10 +230,12 @@ pub fn prepare_trial(
     Ok((trial, warnings))
 }
 
-/// Reads a motion file (rotated to Y-up, filtered as asked) and its warnings.
+/// Reads a motion file (checked plausible, rotated to Y-up, filtered as asked) and its
+/// warnings.
 pub fn read_trial(path: &Path, read: &ReadOptions) -> Result<(Trial, Vec<String>), Error> {
     let trial = jointfit_io::trial_file::read_trial(path)?;
     let name = path.display().to_string();
+    check_plausible(&trial, &name)?;
     let up = read.up.unwrap_or(UpAxis::Y);
     let rotated = jointfit::vertical::rotation_warning(&trial, up, &format!("up {up}"));
     let (trial, mut warnings) = prepare_trial(trial, &name, Some(up), read.filter_hz)?;
@@ -230,4 +276,48 @@ pub fn read_trials(
         trials.push(trial);
     }
     Ok((trials, warnings))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Vector3;
+
+    #[test]
+    fn implausible_data_are_named_by_frame_and_marker() {
+        let labels = vec!["A".to_string(), "B".to_string()];
+        let mut pos = vec![Vector3::new(0.1, 0.2, 0.3); 6];
+        let t = Trial::new(labels.clone(), 100.0, 1, pos.clone()).unwrap();
+        check_plausible(&t, "t.trc").unwrap();
+        pos[3] = Vector3::new(1e300, 0.0, 0.0);
+        let t = Trial::new(labels.clone(), 100.0, 1, pos).unwrap();
+        let e = check_plausible(&t, "t.trc").unwrap_err().to_string();
+        assert!(e.starts_with("t.trc: frame 2, marker B: position"), "{e}");
+        let t = Trial::new(labels.clone(), 1e300, 1, vec![Vector3::zeros(); 2]).unwrap();
+        let e = check_plausible(&t, "t.trc").unwrap_err().to_string();
+        assert!(e.contains("frame rate 1e300 Hz is implausible"), "{e}");
+        let t = Trial::new(labels, 100.0, 1, vec![Vector3::repeat(f64::NAN); 4]).unwrap();
+        check_plausible(&t, "t.trc").unwrap();
+    }
+
+    /// Millimetre data declared as metres (the pelvis 1000 m up): the error names the units.
+    #[test]
+    fn millimetres_declared_as_metres_are_named_as_units() {
+        let labels: Vec<String> = ["RASI", "LASI", "RPSI", "LPSI", "RKNE", "RTOE"]
+            .map(String::from)
+            .to_vec();
+        let frame = [
+            Vector3::new(120.0, 1010.0, 30.0),
+            Vector3::new(-130.0, 1005.0, 35.0),
+            Vector3::new(50.0, 1060.0, -140.0),
+            Vector3::new(-55.0, 1058.0, -138.0),
+            Vector3::new(110.0, 520.0, 40.0),
+            Vector3::new(100.0, 40.0, 180.0),
+        ];
+        let pos: Vec<Vector3<f64>> = (0..5).flat_map(|_| frame).collect();
+        let t = Trial::new(labels, 100.0, 1, pos).unwrap();
+        let e = check_plausible(&t, "w.trc").unwrap_err().to_string();
+        assert!(e.starts_with("w.trc: the markers span"), "{e}");
+        assert!(e.contains("millimetre data read as metres"), "{e}");
+    }
 }
