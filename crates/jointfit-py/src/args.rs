@@ -17,8 +17,6 @@ pub const MAX_RATE_HZ: f64 = jointfit_app::read::MAX_RATE_HZ;
 pub const MIN_FILTER_HZ: f64 = 0.1;
 /// Largest noise amplitude of a synthetic trial (mm).
 pub const MAX_NOISE_MM: f64 = jointfit_app::fit::MAX_NOISE_MM;
-/// Largest plausible marker coordinate (m).
-pub const MAX_POSITION_M: f64 = jointfit_app::read::MAX_POSITION_M;
 /// Longest averaging window of a static trial (s).
 pub const MAX_WINDOW_S: f64 = 3_600.0;
 
