@@ -1,8 +1,8 @@
 //! `jointfit batch MANIFEST -o DIR [--jobs N]`: many calibrations on one machine.
 //!
-//! This file only parses the manifest, reports progress and prints; the runner (a rayon
-//! pool, resumption, the results table) is `jointfit_io::batch`, which the Python package
-//! uses too.
+//! This file only parses the manifest, reports progress and prints; every job is a request
+//! of the calibration pipeline (`jointfit_app`) and the runner (a rayon pool, resumption,
+//! the results table) is `jointfit_app::batch`.
 //!
 //! The manifest is TOML; paths are relative to the manifest's folder:
 //!
@@ -32,9 +32,8 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use jointfit::trial::UpAxis;
-use jointfit_io::batch::{
-    run_batch, FitOptions, Job, ModelInput, Outcome, ReadOptions, TrialInput,
-};
+use jointfit_app::batch::{run_batch, Job, Outcome};
+use jointfit_app::{FitOptions, ModelSource, ReadOptions, Request, TrialSource};
 use serde::Deserialize;
 
 #[derive(Args)]
@@ -127,38 +126,37 @@ fn parse_up(s: &str) -> Result<Option<UpAxis>> {
     }
 }
 
-fn to_job(entry: JobEntry, defaults: &Settings, base: &Path) -> Result<Job> {
-    let s = &entry.settings;
-    let d = FitOptions::default();
-    let rel = |p: &str| -> PathBuf {
-        let p = Path::new(p);
-        if p.is_absolute() {
-            p.to_path_buf()
-        } else {
-            base.join(p)
+impl Settings {
+    /// These settings, each missing one taken from `defaults`.
+    fn or(&self, defaults: &Settings) -> Settings {
+        let d = defaults.clone();
+        let s = self.clone();
+        Settings {
+            up: s.up.or(d.up),
+            joints: s.joints.or(d.joints),
+            method: s.method.or(d.method),
+            filter: s.filter.or(d.filter),
+            seed: s.seed.or(d.seed),
+            bootstrap: s.bootstrap.or(d.bootstrap),
+            threshold_mm: s.threshold_mm.or(d.threshold_mm),
+            threshold_deg: s.threshold_deg.or(d.threshold_deg),
+            starts: s.starts.or(d.starts),
+            fix_unidentifiable: s.fix_unidentifiable.or(d.fix_unidentifiable),
+            prior: s.prior.or(d.prior),
+            marker_noise_mm: s.marker_noise_mm.or(d.marker_noise_mm),
+            max_iter: s.max_iter.or(d.max_iter),
+            accept_rejected: s.accept_rejected.or(d.accept_rejected),
         }
-    };
-    let builtin = jointfit::model::lower_limb::BUILTIN_NAMES.contains(&entry.model.as_str());
-    let model = if builtin && !rel(&entry.model).exists() {
-        entry.model.clone()
-    } else {
-        rel(&entry.model).display().to_string()
-    };
-    let method = s.method.clone().or(defaults.method.clone());
-    let job = Job {
-        id: entry.id.clone(),
-        model: ModelInput::Named(model),
-        trials: entry
-            .trials
-            .iter()
-            .map(|t| TrialInput::Path(rel(t)))
-            .collect(),
-        read: ReadOptions {
-            up: match s.up.as_ref().or(defaults.up.as_ref()) {
+    }
+
+    /// How the job's trial files are read.
+    fn read_options(&self) -> Result<ReadOptions> {
+        Ok(ReadOptions {
+            up: match &self.up {
                 Some(u) => parse_up(u)?,
                 None => None,
             },
-            filter_hz: match s.filter.or(defaults.filter) {
+            filter_hz: match self.filter {
                 Some(hz) => Some(bounded(
                     "filter",
                     hz,
@@ -167,52 +165,71 @@ fn to_job(entry: JobEntry, defaults: &Settings, base: &Path) -> Result<Job> {
                 )?),
                 None => None,
             },
-        },
-        fit: FitOptions {
-            joints: s
-                .joints
-                .clone()
-                .or(defaults.joints.clone())
-                .unwrap_or(d.joints),
-            method: match method {
+        })
+    }
+
+    /// The fit options: the calibrate command's defaults where the manifest says nothing,
+    /// checked against its limits.
+    fn fit_options(&self) -> Result<FitOptions> {
+        let d = FitOptions::default();
+        let fit = FitOptions {
+            joints: self.joints.clone().unwrap_or(d.joints),
+            method: match &self.method {
                 Some(m) => m.parse().map_err(anyhow::Error::msg)?,
                 None => d.method,
             },
-            seed: s.seed.or(defaults.seed).unwrap_or(d.seed),
-            bootstrap: s.bootstrap.or(defaults.bootstrap).unwrap_or(d.bootstrap),
-            threshold_mm: s
-                .threshold_mm
-                .or(defaults.threshold_mm)
-                .unwrap_or(d.threshold_mm),
-            threshold_deg: s
-                .threshold_deg
-                .or(defaults.threshold_deg)
-                .unwrap_or(d.threshold_deg),
-            starts: s.starts.or(defaults.starts).unwrap_or(d.starts),
-            fix_unidentifiable: s
-                .fix_unidentifiable
-                .or(defaults.fix_unidentifiable)
-                .unwrap_or(d.fix_unidentifiable),
-            priors: match s
-                .prior
-                .as_ref()
-                .or(defaults.prior.as_ref())
-                .map(String::as_str)
-            {
+            seed: self.seed.unwrap_or(d.seed),
+            bootstrap: self.bootstrap.unwrap_or(d.bootstrap),
+            threshold_mm: self.threshold_mm.unwrap_or(d.threshold_mm),
+            threshold_deg: self.threshold_deg.unwrap_or(d.threshold_deg),
+            starts: self.starts.unwrap_or(d.starts),
+            fix_unidentifiable: self.fix_unidentifiable.unwrap_or(d.fix_unidentifiable),
+            priors: match self.prior.as_deref() {
                 None | Some("model") => true,
                 Some("none") => false,
                 Some(other) => bail!("prior must be \"model\" or \"none\", not {other:?}"),
             },
-            marker_noise_mm: s.marker_noise_mm.or(defaults.marker_noise_mm),
-            max_iterations: s.max_iter.or(defaults.max_iter),
-            accept_rejected: s
-                .accept_rejected
-                .or(defaults.accept_rejected)
-                .unwrap_or(d.accept_rejected),
-        },
+            marker_noise_mm: self.marker_noise_mm,
+            max_iterations: self.max_iter,
+            accept_rejected: self.accept_rejected.unwrap_or(d.accept_rejected),
+            ..d
+        };
+        fit.check().map_err(anyhow::Error::msg)?;
+        Ok(fit)
+    }
+}
+
+/// `path` of the manifest, relative to its folder `base` unless absolute.
+fn relative_to(base: &Path, path: &str) -> PathBuf {
+    let p = Path::new(path);
+    if p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        base.join(p)
+    }
+}
+
+fn to_job(entry: JobEntry, defaults: &Settings, base: &Path) -> Result<Job> {
+    let settings = entry.settings.or(defaults);
+    let builtin = jointfit::model::lower_limb::BUILTIN_NAMES.contains(&entry.model.as_str());
+    let model = if builtin && !relative_to(base, &entry.model).exists() {
+        entry.model.clone()
+    } else {
+        relative_to(base, &entry.model).display().to_string()
     };
-    job.fit.check().map_err(anyhow::Error::msg)?;
-    Ok(job)
+    Ok(Job {
+        id: entry.id,
+        request: Request {
+            model: ModelSource::Named(model),
+            trials: entry
+                .trials
+                .iter()
+                .map(|t| TrialSource::Path(relative_to(base, t)))
+                .collect(),
+            read: settings.read_options()?,
+            fit: settings.fit_options()?,
+        },
+    })
 }
 
 /// Reads a manifest into jobs (paths resolved against its folder).
@@ -252,11 +269,11 @@ fn read_manifest(path: &Path) -> Result<Vec<Job>> {
 fn check_files(args: &BatchArgs, jobs: &[Job]) -> Result<()> {
     let mut files = crate::output::Files::new().input("manifest", &args.manifest);
     for job in jobs {
-        if let ModelInput::Named(m) = &job.model {
+        if let ModelSource::Named(m) = &job.request.model {
             files = files.model(&format!("model of job {:?}", job.id), m);
         }
-        for t in &job.trials {
-            if let TrialInput::Path(p) = t {
+        for t in &job.request.trials {
+            if let TrialSource::Path(p) = t {
                 files = files.input(&format!("trial of job {:?}", job.id), p);
             }
         }
@@ -310,7 +327,7 @@ pub fn run(args: BatchArgs) -> Result<()> {
         .count();
     let failed = outcomes.iter().filter(|o| o.result.is_err()).count();
     if args.json {
-        println!("{}", jointfit_io::batch::table::json(&outcomes));
+        println!("{}", jointfit_app::batch::table::json(&outcomes));
     } else {
         let mut t = crate::table::Table::new(&[
             "job",

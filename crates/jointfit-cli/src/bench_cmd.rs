@@ -151,57 +151,51 @@ pub fn for_model(model: &Model, trial: &Trial) -> Result<Trial> {
     Ok(trial.select(&names)?)
 }
 
-pub fn run(args: BenchArgs) -> Result<()> {
-    if let Some(frames) = args.rss_child {
-        return bench_perf::rss_child(frames, args.rss_max_iterations);
-    }
-    let crate::bench_workload::Workload {
-        model,
-        trial,
-        source,
-        opensim,
-    } = crate::bench_workload::workload(&args.subject, args.data.clone())?;
-    let p = model.nominal_params();
+/// The modes that time one part alone (`--rss-child`, `--fit-only`, `--profile`,
+/// `--stream-only`): `Some` when one ran.
+fn single_mode(args: &BenchArgs, w: &crate::bench_workload::Workload) -> Option<Result<()>> {
+    let p = w.model.nominal_params();
     if args.fit_only > 0 {
-        return fit::fit_only(&model, &p, &trial, &source, args.fit_only);
+        return Some(fit::fit_only(
+            &w.model,
+            &p,
+            &w.trial,
+            &w.source,
+            args.fit_only,
+        ));
     }
     if let Some(part) = &args.profile {
-        return crate::bench_profile::run(&model, &trial, part, args.repeat, args.io_frames);
+        return Some(crate::bench_profile::run(
+            &w.model,
+            &w.trial,
+            part,
+            args.repeat,
+            args.io_frames,
+        ));
     }
     if args.stream.stream_only {
-        let s = crate::bench_stream::run(&model, &trial, &args.stream)?;
-        if args.json {
-            println!("{}", serde_json::to_string_pretty(&s)?);
-        } else {
-            println!("workload: {source}");
-            crate::bench_stream::print(&s);
-        }
-        return Ok(());
+        return Some((|| {
+            let s = crate::bench_stream::run(&w.model, &w.trial, &args.stream)?;
+            if args.json {
+                println!("{}", serde_json::to_string_pretty(&s)?);
+            } else {
+                println!("workload: {}", w.source);
+                crate::bench_stream::print(&s);
+            }
+            Ok(())
+        })());
     }
-    let map = MarkerMap::by_name(&model, trial.labels())?;
-    let opts = IkOptions::default();
-    let mut fig = Figures {
-        source,
-        markers: model.n_markers(),
-        parameters: model.n_p(),
-        synthetic_workload: bench_perf::SYNTHETIC_WORKLOAD,
-        frames: trial.n_frames(),
-        ..Figures::default()
-    };
+    None
+}
 
-    // Forward kinematics at the solved poses.
-    let reference = workflow::ik_trial(&model, &p, &trial, &opts)?.fit;
-    let poses: Vec<&Vec<f64>> = reference
-        .coords
-        .iter()
-        .filter(|q| q[0].is_finite())
-        .collect();
-    let mut kin = KinData::new(&model);
+/// Forward kinematics at the solved poses: positions, + ∂x/∂q, + ∂x/∂p (µs).
+fn time_kinematics(model: &Model, p: &[f64], poses: &[&Vec<f64>], fig: &mut Figures) {
+    let mut kin = KinData::new(model);
     let mut fk = |want: Want| {
         let reps = 20_000;
         median_time(7, || {
             for i in 0..reps {
-                forward_kinematics(&model, &p, poses[i % poses.len()], want, &mut kin);
+                forward_kinematics(model, p, poses[i % poses.len()], want, &mut kin);
             }
         }) / reps as f64
             * 1e6
@@ -209,58 +203,70 @@ pub fn run(args: BenchArgs) -> Result<()> {
     fig.fk_us = fk(Want::POSITIONS);
     fig.fk_dq_us = fk(Want::DQ);
     fig.fk_dq_dp_us = fk(Want::BOTH);
+}
 
-    // IK: the whole trial from scratch, and warm-started frames alone.
+/// IK of the whole trial from scratch, with and without the data checks, on every thread
+/// and on one.
+fn time_ik_trial(model: &Model, p: &[f64], trial: &Trial, fig: &mut Figures) -> Result<()> {
+    let opts = IkOptions::default();
     let n = trial.n_frames() as f64;
     fig.ik_trial_us_per_frame = median_time(21, || {
-        workflow::ik_trial(&model, &p, &trial, &opts).expect("validated above");
+        workflow::ik_trial(model, p, trial, &opts).expect("validated above");
     }) / n
         * 1e6;
-    let for_model = for_model(&model, &trial)?;
-    let checked = median_time(21, || {
-        let (run, findings) = workflow::ik_checked(&model, &p, &for_model, &opts);
-        std::hint::black_box((run.expect("validated above"), findings));
-    }) / n;
+    let for_model = for_model(model, trial)?;
+    let checked_run = || {
+        median_time(21, || {
+            let (run, findings) = workflow::ik_checked(model, p, &for_model, &opts);
+            std::hint::black_box((run.expect("validated above"), findings));
+        }) / n
+    };
+    let checked = checked_run();
     fig.ik_checked_us_per_frame = checked * 1e6;
     fig.ik_checked_frames_per_second = 1.0 / checked;
     let one_thread = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     fig.ik_trial_1_thread_us_per_frame = one_thread.install(|| {
         median_time(21, || {
-            workflow::ik_trial(&model, &p, &trial, &opts).expect("validated above");
+            workflow::ik_trial(model, p, trial, &opts).expect("validated above");
         })
     }) / n
         * 1e6;
-    let checked_1 = one_thread.install(|| {
-        median_time(21, || {
-            let (run, findings) = workflow::ik_checked(&model, &p, &for_model, &opts);
-            std::hint::black_box((run.expect("validated above"), findings));
-        })
-    }) / n;
+    let checked_1 = one_thread.install(checked_run);
     fig.ik_checked_1_thread_us_per_frame = checked_1 * 1e6;
     fig.ik_checked_1_thread_frames_per_second = 1.0 / checked_1;
+    Ok(())
+}
+
+/// IK of the warm-started frames alone (after the first solved one).
+fn time_ik_warm(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+    reference: &[Vec<f64>],
+    fig: &mut Figures,
+) -> Result<()> {
+    let map = MarkerMap::by_name(model, trial.labels())?;
+    let opts = IkOptions::default();
     let first = reference
-        .coords
         .iter()
         .position(|q| q[0].is_finite())
         .context("no frame of the trial could be solved")?;
     let warm_frames = (first + 1..trial.n_frames()).count().max(1) as f64;
     let mut iterations = 0usize;
     let warm = median_time(21, || {
-        iterations = workflow::ik_warm_started(
-            &model,
-            &p,
-            &trial,
-            &map,
-            first,
-            &reference.coords[first],
-            &opts,
-        );
+        iterations =
+            workflow::ik_warm_started(model, p, trial, &map, first, &reference[first], &opts);
     });
     fig.ik_warm_us_per_frame = warm / warm_frames * 1e6;
     fig.ik_warm_frames_per_second = warm_frames / warm;
     fig.ik_iterations_per_frame = iterations as f64 / warm_frames;
+    Ok(())
+}
 
-    // Throughput on every core: independent copies of the trial (a batch of trials).
+/// Throughput on every core: independent copies of the trial (a batch of trials).
+fn time_ik_batch(model: &Model, p: &[f64], trial: &Trial, fig: &mut Figures) {
+    let opts = IkOptions::default();
+    let n = trial.n_frames() as f64;
     fig.threads = rayon::current_num_threads();
     let copies = 32 * fig.threads;
     let batch = |threads: usize| -> f64 {
@@ -271,7 +277,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         let t = median_time(5, || {
             pool.install(|| {
                 (0..copies).into_par_iter().for_each(|_| {
-                    workflow::ik_trial(&model, &p, &trial, &opts).expect("validated above");
+                    workflow::ik_trial(model, p, trial, &opts).expect("validated above");
                 })
             })
         });
@@ -281,38 +287,61 @@ pub fn run(args: BenchArgs) -> Result<()> {
     let one = batch(1);
     fig.ik_parallel_frames_per_second = batch(fig.threads);
     fig.ik_parallel_speedup = fig.ik_parallel_frames_per_second / one;
+}
 
-    // Calibration of all 27 parameters from the subject model as `jointfit calibrate` runs
-    // it with no options (`fit::command_fit`: marker policy, σ estimate, global phase,
-    // envelope, uncertainty, trade-offs), with `--method` joint, gradient or pso.
-    let all = params_for_groups(&model, &["all"])?;
-    jointfit::calibrate::Problem::new(&model, p.clone(), &all, &[&trial])?;
+/// Calibration of all 27 parameters from the subject model as `jointfit calibrate` runs it
+/// with no options (`fit::command_fit`: marker policy, σ estimate, global phase, envelope,
+/// uncertainty, trade-offs), with `--method` joint, gradient or pso.
+fn time_calibration(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+    pso: bool,
+    fig: &mut Figures,
+) -> Result<()> {
+    let all = params_for_groups(model, &["all"])?;
+    jointfit::calibrate::Problem::new(model, p.to_vec(), &all, &[trial])?;
     let fit = |method: Method, free: &[jointfit::model::ParamId], trial: &Trial| {
-        fit::command_fit(&model, &p, trial, free, method, &mut NoObserver)
-            .expect("validated above");
+        fit::command_fit(model, p, trial, free, method, &mut NoObserver).expect("validated above");
     };
-    fig.joint_27_ms = median_time(5, || fit(Method::Joint, &all, &trial)) * 1e3;
-    fig.gradient_27_ms = median_time(3, || fit(Method::Gradient, &all, &trial)) * 1e3;
-    if args.pso {
-        let hip = params_for_groups(&model, &["hip"])?;
+    fig.joint_27_ms = median_time(5, || fit(Method::Joint, &all, trial)) * 1e3;
+    fig.gradient_27_ms = median_time(3, || fit(Method::Gradient, &all, trial)) * 1e3;
+    if pso {
+        let hip = params_for_groups(model, &["hip"])?;
         let short = trial.slice_frames(0, 50.min(trial.n_frames()));
         fig.pso_hip_50_ms = Some(median_time(1, || fit(Method::Pso, &hip, &short)) * 1e3);
     }
+    Ok(())
+}
 
-    let mut opensim_note = String::from("OpenSim: not available (synthetic workload)");
-    if let Some(input) = &opensim {
-        match bench_perf::opensim_ik(&model, &trial, input, 3) {
-            Ok(os) => {
-                let ours_ms = fig.ik_trial_us_per_frame * fig.frames as f64 / 1e3;
-                fig.opensim_ik_over_jointfit_ik = Some(os.solver_ms / ours_ms);
-                let ours_1_ms = fig.ik_trial_1_thread_us_per_frame * fig.frames as f64 / 1e3;
-                fig.opensim_ik_over_jointfit_ik_1_thread = Some(os.solver_ms / ours_1_ms);
-                fig.fit_over_opensim_ik = Some(fig.joint_27_ms / os.solver_ms);
-                fig.opensim = Some(os);
-            }
-            Err(e) => opensim_note = format!("OpenSim: not available ({e})"),
+/// OpenSim's IK on the same model and trial, against ours: the line to print when it is not
+/// available.
+fn time_opensim(w: &crate::bench_workload::Workload, fig: &mut Figures) -> String {
+    let Some(input) = &w.opensim else {
+        return String::from("OpenSim: not available (synthetic workload)");
+    };
+    match bench_perf::opensim_ik(&w.model, &w.trial, input, 3) {
+        Ok(os) => {
+            let ours_ms = fig.ik_trial_us_per_frame * fig.frames as f64 / 1e3;
+            fig.opensim_ik_over_jointfit_ik = Some(os.solver_ms / ours_ms);
+            let ours_1_ms = fig.ik_trial_1_thread_us_per_frame * fig.frames as f64 / 1e3;
+            fig.opensim_ik_over_jointfit_ik_1_thread = Some(os.solver_ms / ours_1_ms);
+            fig.fit_over_opensim_ik = Some(fig.joint_27_ms / os.solver_ms);
+            fig.opensim = Some(os);
+            String::new()
         }
+        Err(e) => format!("OpenSim: not available ({e})"),
     }
+}
+
+/// The optional figures: the long calibration, the peak memory, the share of I/O in `ik`,
+/// the live feed.
+fn optional_figures(
+    args: &BenchArgs,
+    model: &Model,
+    trial: &Trial,
+    fig: &mut Figures,
+) -> Result<()> {
     if args.long_frames > 0 {
         fig.long_fit = Some(bench_perf::long_fit(args.long_frames)?);
     }
@@ -320,18 +349,57 @@ pub fn run(args: BenchArgs) -> Result<()> {
     if args.rss_frames > 0 {
         fig.peak_rss_mb = Some(bench_perf::peak_rss(args.rss_frames)?.0);
     }
-
     if args.io_frames > 0 {
-        fig.ik_io = Some(bench_perf::ik_io(&model, &trial, args.io_frames, 3)?);
+        fig.ik_io = Some(bench_perf::ik_io(model, trial, args.io_frames, 3)?);
     }
     if args.stream.stream_frames > 0 {
-        fig.stream = Some(crate::bench_stream::run(&model, &trial, &args.stream)?);
+        fig.stream = Some(crate::bench_stream::run(model, trial, &args.stream)?);
     }
+    Ok(())
+}
 
+pub fn run(args: BenchArgs) -> Result<()> {
+    if let Some(frames) = args.rss_child {
+        return bench_perf::rss_child(frames, args.rss_max_iterations);
+    }
+    let w = crate::bench_workload::workload(&args.subject, args.data.clone())?;
+    if let Some(done) = single_mode(&args, &w) {
+        return done;
+    }
+    let (model, trial) = (&w.model, &w.trial);
+    let p = model.nominal_params();
+    MarkerMap::by_name(model, trial.labels())?;
+    let mut fig = Figures {
+        source: w.source.clone(),
+        markers: model.n_markers(),
+        parameters: model.n_p(),
+        synthetic_workload: bench_perf::SYNTHETIC_WORKLOAD,
+        frames: trial.n_frames(),
+        ..Figures::default()
+    };
+    let reference = workflow::ik_trial(model, &p, trial, &IkOptions::default())?.fit;
+    let poses: Vec<&Vec<f64>> = reference
+        .coords
+        .iter()
+        .filter(|q| q[0].is_finite())
+        .collect();
+    time_kinematics(model, &p, &poses, &mut fig);
+    time_ik_trial(model, &p, trial, &mut fig)?;
+    time_ik_warm(model, &p, trial, &reference.coords, &mut fig)?;
+    time_ik_batch(model, &p, trial, &mut fig);
+    time_calibration(model, &p, trial, args.pso, &mut fig)?;
+    let opensim_note = time_opensim(&w, &mut fig);
+    optional_figures(&args, model, trial, &mut fig)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&fig)?);
         return Ok(());
     }
+    print_figures(&fig, &opensim_note);
+    Ok(())
+}
+
+/// The figures as text.
+fn print_figures(fig: &Figures, opensim_note: &str) {
     println!(
         "workload: {} ({} markers, {} frames, {} free parameters)",
         fig.source, fig.markers, fig.frames, fig.parameters
@@ -416,5 +484,4 @@ pub fn run(args: BenchArgs) -> Result<()> {
     if let Some(s) = &fig.stream {
         crate::bench_stream::print(s);
     }
-    Ok(())
 }

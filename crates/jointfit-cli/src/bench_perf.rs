@@ -24,8 +24,8 @@ use jointfit::workflow::{
 use jointfit_experiments::synth;
 use serde::Serialize;
 
-/// OpenSim 4.6's IK on the subject model and trial (best of `repeat`), through
-/// `scripts/osim_check.py ik` and `$JOINTFIT_PYTHON`; `None` when either is missing.
+/// OpenSim 4.6's IK on the subject model and trial (best of `repeat`), through the OpenSim
+/// check script (built into the binary) and `$JOINTFIT_PYTHON`; `None` without Python.
 #[derive(Serialize, Clone, Copy)]
 pub struct OpenSimIk {
     /// `InverseKinematicsSolver`: assemble on the first frame, track each next one (ms).
@@ -34,9 +34,9 @@ pub struct OpenSimIk {
     pub tool_ms: f64,
 }
 
-fn script() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/osim_check.py")
-}
+/// The OpenSim check script, built into the binary: `bench` writes it to its private
+/// scratch folder and runs it there, so the binary needs no source tree.
+const OSIM_CHECK: &str = include_str!("../../../scripts/osim_check.py");
 
 /// Why OpenSim cannot be timed here, or its timings: its IK on `input`'s model and trial
 /// ([`crate::bench_workload::OpenSimInput`]): the user's `.osim`, else `model` exported; the
@@ -51,11 +51,10 @@ pub fn opensim_ik(
     let python = std::env::var_os("JOINTFIT_PYTHON")
         .map(PathBuf::from)
         .ok_or("JOINTFIT_PYTHON is not set")?;
-    let script = script();
-    if !script.exists() {
-        return Err(format!("{} not found", script.display()));
-    }
     let dir = scratch_dir("jointfit-bench-").map_err(|e| e.to_string())?;
+    let script = dir.path().join("osim_check.py");
+    std::fs::write(&script, OSIM_CHECK)
+        .map_err(|e| format!("{}: cannot write: {e}", script.display()))?;
     opensim_in(&python, &script, dir.path(), model, trial, input, repeat)
 }
 

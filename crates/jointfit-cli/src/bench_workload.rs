@@ -201,7 +201,7 @@ fn from_model(
             }
         })
         .collect();
-    let spec = jointfit_io::osim_read::workflow::selection_spec(&osim, &joints, &[])
+    let spec = jointfit_app::osim::selection_spec(&osim, &joints, &[])
         .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
     let model = Model::compile(&spec).with_context(|| name.to_string())?;
     let what = format!("{name} (offsets of {} fitted)", joints.join(", "));

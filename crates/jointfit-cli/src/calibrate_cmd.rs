@@ -1,14 +1,16 @@
-//! `jointfit calibrate <SUBJECT.toml> <TRIAL>... --joints <LIST> --method <M> -o <FITTED.toml>`:
-//! reads the files, runs [`jointfit::workflow::calibrate`], prints and writes the results.
+//! `jointfit calibrate <SUBJECT.toml|MODEL.osim> <TRIAL>... --joints <LIST> -o <FITTED>`:
+//! parses the options into the calibration pipeline's ([`jointfit_app::FitOptions`]), runs
+//! its stages (model, trials with this command's repairs and data checks, fit), prints and
+//! writes the results.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use jointfit::calibrate::params_for_groups;
 use jointfit::trial::Trial;
-use jointfit::workflow::{self, uncertainty_options, Calibration, FitSettings, Method, Observer};
+use jointfit::workflow::{self, Calibration, FitSettings, Method, Observer};
+use jointfit_app::{Detail, FitOptions, ModelSource, Subject};
 use serde::Serialize;
 
 use crate::common::{load_checked, Columns, TrialJson};
@@ -227,35 +229,29 @@ impl Observer for ProgressObserver {
     }
 }
 
-/// The settings of a run from the command line: with no options,
-/// [`FitSettings::command_default`] (the settings `jointfit bench` times).
-pub fn fit_settings(args: &CalibrateArgs) -> FitSettings {
-    FitSettings {
+/// The pipeline's options of a run from the command line: with no options, the options whose
+/// settings are [`FitSettings::command_default`] (the settings `jointfit bench` times).
+pub fn fit_options(args: &CalibrateArgs) -> FitOptions {
+    FitOptions {
+        joints: args.joints.clone(),
         method: args.method.into(),
         seed: args.seed,
+        threshold_mm: args.threshold_mm,
+        threshold_deg: args.threshold_deg,
+        bootstrap: args.bootstrap,
         starts: args.starts as usize,
-        probes: args.probes as usize,
-        uncertainty: Some(uncertainty_options(
-            args.threshold_mm,
-            args.threshold_deg,
-            args.bootstrap,
-            args.seed,
-        )),
         fix_unidentifiable: args.fix_unidentifiable,
         priors: args.prior != crate::prior_args::PriorArg::None,
-        marker_noise: args
-            .marker_noise_mm
-            .map(|mm| mm * jointfit::model::M_PER_MM),
-        refine_markers: args
-            .refine_markers
-            .then_some(args.marker_prior_sd_mm * jointfit::model::M_PER_MM),
+        marker_noise_mm: args.marker_noise_mm,
         max_iterations: args.max_iter,
+        accept_rejected: args.accept_rejected,
+        probes: args.probes as usize,
+        refine_markers_mm: args.refine_markers.then_some(args.marker_prior_sd_mm),
         anatomical_envelope: !args.no_envelope,
         marker_policy: !args.no_marker_policy,
         keep_markers: args.keep_markers.clone(),
         prior_conflict: !args.no_prior_conflict,
-        refuse_mismatch: !args.accept_rejected,
-        ..FitSettings::command_default()
+        params: args.params.clone(),
     }
 }
 
@@ -329,126 +325,203 @@ pub fn load_trials(
         .unzip())
 }
 
-pub fn run(args: CalibrateArgs) -> Result<()> {
-    if jointfit_io::model_file::is_osim(Path::new(&args.model)) {
-        return crate::osim_calibrate::run(args);
+/// The read and prepare stages as this command runs them: the model as read (the fitted
+/// model keeps its priors), the model to fit (with `--prior-sd` overrides and `--weights`),
+/// the start (`--seed-from`) and the trials (repairs, data checks).
+pub struct Prepared {
+    pub given: Subject,
+    pub subject: Subject,
+    pub start: Option<Vec<f64>>,
+    pub trials: Vec<Trial>,
+    pub read: Vec<TrialJson>,
+}
+
+/// The model of `args` as read, then as fitted: the priors and weights of this run applied.
+fn prepare_model(args: &CalibrateArgs, opts: &FitOptions) -> Result<(Subject, Subject)> {
+    let source = ModelSource::read(&args.model)?;
+    let given = jointfit_app::load_subject(&source, opts).map_err(|e| match e {
+        jointfit_app::Error::Selection(e) => anyhow::anyhow!("{}: {e}", args.model),
+        e => e.into(),
+    })?;
+    let mut fit_spec = given.model.spec().clone();
+    crate::prior_args::apply(&mut fit_spec, args.prior, &args.prior_sd)?;
+    apply_weights(args, &mut fit_spec)?;
+    check_marker_noise(args)?;
+    let subject = Subject {
+        model: jointfit::model::Model::compile(&fit_spec)?,
+        osim: given.osim.clone(),
+    };
+    Ok((given, subject))
+}
+
+/// Reads the model, the start and the trials of `args` ([`Prepared`]).
+pub fn prepare(args: &CalibrateArgs, opts: &FitOptions) -> Result<Prepared> {
+    let (given, subject) = prepare_model(args, opts)?;
+    crate::validate::model_markers("--keep-markers", &args.keep_markers, &subject.model)?;
+    let start = match &args.seed_from {
+        Some(seed) => {
+            let earlier = jointfit_io::model_file::load_model(seed)?;
+            Some(workflow::transfer_params(&subject.model, &earlier, seed)?)
+        }
+        None => None,
+    };
+    let (trials, read) = load_trials(args, &subject.model)?;
+    for (path, trial) in args.trials.iter().zip(&trials) {
+        crate::validate::check_markers(Path::new(path), trial, &subject.model)?;
+        crate::validate::check_motion(Path::new(path), trial)?;
     }
-    if !args.params.is_empty() {
+    if subject.osim.is_none() {
+        for (path, trial) in args.trials.iter().zip(&trials) {
+            let (_, absent) =
+                jointfit::ik::MarkerMap::allowing_absent(&subject.model, trial.labels());
+            crate::common::warn_absent_markers(path, &absent);
+        }
+    }
+    Ok(Prepared {
+        given,
+        subject,
+        start,
+        trials,
+        read,
+    })
+}
+
+pub fn run(args: CalibrateArgs) -> Result<()> {
+    let osim = jointfit_io::model_file::is_osim(Path::new(&args.model));
+    if !osim && !args.params.is_empty() {
         anyhow::bail!(
             "--params selects offset frames of an .osim model; {} is not one (use --joints)",
             args.model
         );
     }
-    check_files(
-        &args,
-        crate::output::Files::new().model("model", &args.model),
-    )?;
-    let spec = jointfit_io::model_file::load_spec(&args.model)?;
-    let input_model = jointfit_io::model_file::load_model(&args.model)?;
-    let mut fit_spec = input_model.spec().clone();
-    crate::prior_args::apply(&mut fit_spec, args.prior, &args.prior_sd)?;
-    apply_weights(&args, &mut fit_spec)?;
-    check_marker_noise(&args)?;
-    let model = jointfit::model::Model::compile(&fit_spec)?;
-    crate::validate::model_markers("--keep-markers", &args.keep_markers, &model)?;
-    let start = match &args.seed_from {
-        Some(seed) => {
-            let earlier = jointfit_io::model_file::load_model(seed)?;
-            workflow::transfer_params(&model, &earlier, seed)?
-        }
-        None => model.nominal_params(),
+    let files = match osim {
+        true => crate::output::Files::new().input("model", Path::new(&args.model)),
+        false => crate::output::Files::new().model("model", &args.model),
     };
-    let (trials, read) = load_trials(&args, &model)?;
-    let refs: Vec<&Trial> = trials.iter().collect();
-    for (path, trial) in args.trials.iter().zip(&refs) {
-        crate::validate::check_markers(Path::new(path), trial, &model)?;
-        crate::validate::check_motion(Path::new(path), trial)?;
-        let (_, absent) = jointfit::ik::MarkerMap::allowing_absent(&model, trial.labels());
-        crate::common::warn_absent_markers(path, &absent);
-    }
-    let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
-    let free = params_for_groups(&model, &groups)?;
+    check_files(&args, files)?;
+    let opts = fit_options(&args);
+    let prepared = prepare(&args, &opts)?;
+    let refs: Vec<&Trial> = prepared.trials.iter().collect();
     let clock = Instant::now();
     let mut observer = ProgressObserver::new();
-    let refined = workflow::refine::calibrate_refined(
-        &model,
-        &start,
+    let fitted = jointfit_app::fit(
+        &prepared.subject,
+        prepared.start.clone(),
         &refs,
-        &free,
-        &fit_settings(&args),
+        &opts,
         &mut observer,
     )
     .map_err(|e| crate::calibrate_text::refusal(e, &args.trials))?;
     observer.finish();
-    let cal = &refined.calibration;
     let seconds = clock.elapsed().as_secs_f64();
-    let print = |cal: &Calibration| -> Result<()> {
-        if args.json {
-            let report = Report {
-                calibration: cal,
-                refined_markers: &refined.markers,
-                marker_trade_offs: &refined.trade_offs,
-                marker_decisions: &refined.marker_decisions,
-                envelope: &refined.envelope,
-                prior_conflict: &refined.conflict,
-                information_summary: information_summary(cal),
-                seconds,
-                trials_read: &read,
-            };
-            println!("{}", serde_json::to_string_pretty(&report)?);
-        } else {
-            crate::calibrate_text::print_policy(&refined.marker_decisions, &refined.envelope);
-            print_report(cal, seconds, args.verbose);
-            crate::prior_args::print_refinement(&refined.markers, &refined.trade_offs);
-            crate::calibrate_text::print_verdict(&cal.verdict);
-        }
-        Ok(())
-    };
+    match &fitted.detail {
+        Detail::Native(refined) => finish(&args, &prepared, refined, seconds),
+        Detail::Osim(fit) => crate::osim_calibrate::finish(&args, &prepared, fit, seconds),
+    }
+}
+
+/// Prints the calibration of a jointfit model (text or `--json`).
+fn print(
+    args: &CalibrateArgs,
+    refined: &workflow::refine::RefinedCalibration,
+    seconds: f64,
+    read: &[TrialJson],
+) -> Result<()> {
+    let cal = &refined.calibration;
+    if args.json {
+        let report = Report {
+            calibration: cal,
+            refined_markers: &refined.markers,
+            marker_trade_offs: &refined.trade_offs,
+            marker_decisions: &refined.marker_decisions,
+            envelope: &refined.envelope,
+            prior_conflict: &refined.conflict,
+            information_summary: information_summary(cal),
+            seconds,
+            trials_read: read,
+        };
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        crate::calibrate_text::print_policy(&refined.marker_decisions, &refined.envelope);
+        print_report(cal, seconds, args.verbose);
+        crate::prior_args::print_refinement(&refined.markers, &refined.trade_offs);
+        crate::calibrate_text::print_verdict(&cal.verdict);
+    }
+    Ok(())
+}
+
+/// The gates of a finished fit: an unconverged fit (unless `--accept-unconverged`) and a
+/// rejected one (unless `--accept-rejected`) are printed, then refused.
+pub fn gates(
+    args: &CalibrateArgs,
+    cal: &Calibration,
+    print: impl Fn() -> Result<()>,
+) -> Result<()> {
     if !cal.converged && !args.accept_unconverged {
-        print(cal)?;
+        print()?;
         return Err(
             crate::output::Unconverged(format!("the calibration ({})", cal.termination)).into(),
         );
     }
     if let Err(e) = crate::calibrate_text::gate(&cal.verdict, args.accept_rejected) {
-        print(cal)?;
+        print()?;
         return Err(e);
     }
+    Ok(())
+}
+
+/// Gates, writes (the fitted model, `--report`) and prints the calibration of a jointfit
+/// model.
+fn finish(
+    args: &CalibrateArgs,
+    prepared: &Prepared,
+    refined: &workflow::refine::RefinedCalibration,
+    seconds: f64,
+) -> Result<()> {
+    let cal = &refined.calibration;
+    let print = || print(args, refined, seconds, &prepared.read);
+    gates(args, cal, print)?;
     // The fitted model keeps the input file's priors (overrides apply to this run only).
     // Refined markers (if any) replace the input's.
+    let input_model = &prepared.given.model;
     let mut fitted = input_model.spec_with_nominal(&cal.fit.p[..input_model.n_p()]);
     fitted.markers = refined.fitted.markers.clone();
-    fitted.name = format!("{} (fitted)", spec.name);
+    fitted.name = format!("{} (fitted)", input_model.spec().name);
     jointfit_io::model_file::save_spec(&args.output, &fitted)
         .with_context(|| format!("writing {}", args.output.display()))?;
     let html = match &args.report {
         Some(dir) => Some(crate::report_cmd::write_calibration_report(
             dir,
-            &spec.name,
-            baseline_label(&args),
+            &input_model.spec().name,
+            baseline_label(args),
             &refined.model,
-            &named_trials(&args.trials, &refs),
+            &named_trials(&args.trials, &prepared.trials),
             cal,
-            &provenance(&args, model.spec().lab_up),
+            &provenance(args, prepared.subject.model.spec().lab_up),
             seconds,
-            &read,
+            &prepared.read,
             &conflict_notes(&refined.conflict),
         )?),
         None => None,
     };
-    print(cal)?;
+    print()?;
+    print_written(args, html.as_deref());
+    Ok(())
+}
+
+/// The files written, unless `--json`.
+pub fn print_written(args: &CalibrateArgs, report: Option<&Path>) {
     if !args.json {
         println!("wrote {}", args.output.display());
-        if let Some(path) = html {
+        if let Some(path) = report {
             println!("wrote {}", path.display());
         }
     }
-    Ok(())
 }
 
 /// The report's notes of the prior–data conflict step: one per flagged joint.
 pub(crate) fn conflict_notes(conflicts: &[workflow::conflict::JointConflict]) -> Vec<String> {
-    jointfit_io::batch::fit::conflict_lines(conflicts)
+    jointfit_app::fit::conflict_lines(conflicts)
         .into_iter()
         .map(|l| format!("{l}."))
         .collect()
@@ -465,11 +538,11 @@ fn baseline_label(args: &CalibrateArgs) -> &'static str {
     }
 }
 
-fn named_trials<'t>(paths: &[PathBuf], trials: &[&'t Trial]) -> Vec<(String, &'t Trial)> {
+pub fn named_trials<'t>(paths: &[PathBuf], trials: &'t [Trial]) -> Vec<(String, &'t Trial)> {
     paths
         .iter()
         .map(|p| crate::report_cmd::display_name(p))
-        .zip(trials.iter().copied())
+        .zip(trials.iter())
         .collect()
 }
 
@@ -513,13 +586,17 @@ mod tests {
         args: CalibrateArgs,
     }
 
-    /// `jointfit calibrate SUBJECT TRIAL -o OUT` runs [`FitSettings::command_default`], the
+    /// `jointfit calibrate SUBJECT TRIAL -o OUT` runs [`FitSettings::command_default`] (through
+    /// the pipeline's one option → settings mapping), the
     /// settings `jointfit bench` times (a changed option default would make the bench time
     /// something else than the command).
     #[test]
     fn the_command_with_no_options_runs_the_command_default() {
         let w =
             Wrap::try_parse_from(["calibrate", "s.toml", "walk.trc", "-o", "fit.toml"]).unwrap();
-        assert_eq!(fit_settings(&w.args), FitSettings::command_default());
+        assert_eq!(
+            fit_options(&w.args).settings(),
+            FitSettings::command_default()
+        );
     }
 }

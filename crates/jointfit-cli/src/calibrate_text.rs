@@ -123,16 +123,15 @@ pub fn gate(verdict: &jointfit::workflow::Verdict, accept: bool) -> anyhow::Resu
 
 /// A calibration error as the command reports it: a trial refused as not belonging with the
 /// model becomes [`crate::output::Rejected`] naming the trial's file.
-pub fn refusal(
-    e: jointfit::workflow::WorkflowError,
-    trials: &[std::path::PathBuf],
-) -> anyhow::Error {
-    match e {
-        jointfit::workflow::WorkflowError::Mismatch { trial, cause } => {
-            let name = trials
-                .get(trial)
-                .map_or(format!("trial {}", trial + 1), |p| p.display().to_string());
-            crate::output::Rejected(format!("{name}: {cause}")).into()
+pub fn refusal(e: jointfit_app::Error, trials: &[std::path::PathBuf]) -> anyhow::Error {
+    let names: Vec<String> = trials.iter().map(|p| p.display().to_string()).collect();
+    match jointfit_app::name_trial(e, &names) {
+        jointfit_app::Error::Rejected(cause) => crate::output::Rejected(cause).into(),
+        jointfit_app::Error::Calibrate(w) => {
+            match jointfit_app::present::hint(&w, jointfit_app::present::Front::Cli) {
+                Some(hint) => anyhow::anyhow!("{w} ({hint})"),
+                None => w.into(),
+            }
         }
         e => e.into(),
     }

@@ -102,7 +102,7 @@ fn load(args: &CheckArgs) -> Result<jointfit::model::Model> {
         .filter(|j| *j != "all")
         .cloned()
         .collect();
-    let spec = jointfit_io::osim_read::workflow::selection_spec(&osim, &joints, &[])
+    let spec = jointfit_app::osim::selection_spec(&osim, &joints, &[])
         .map_err(|e| anyhow::anyhow!("{}: {e}", args.model))?;
     Ok(jointfit::model::Model::compile(&spec)?)
 }

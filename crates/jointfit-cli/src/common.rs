@@ -185,8 +185,10 @@ pub fn load_for_model(
         _ => format!("up {up} (the default)"),
     };
     notes.extend(
-        jointfit::vertical::rotation_warning(&trial, up, &given)
-            .map(|w| w + &converted_hint(path, &trial, up_source)),
+        jointfit::vertical::rotation_warning(&trial, up, &given).map(|(w, axis)| {
+            format!("{w}; pass --up {axis} if that is right")
+                + &converted_hint(path, &trial, up_source)
+        }),
     );
     for note in &notes {
         eprintln!("jointfit: warning: {}: {note}", path.display());

@@ -10,8 +10,7 @@ use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::{Model, Unit};
 use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion, SkinNoise};
 
-use jointfit::calibrate::params_for_groups;
-use jointfit::workflow::{self, FitSettings};
+use jointfit_app::{FitOptions, ModelSource, ReadOptions, TrialSource};
 
 use crate::calibrate_cmd::{print_report, MethodArg, ProgressObserver};
 
@@ -54,24 +53,25 @@ pub fn run(args: DemoArgs) -> Result<()> {
         noise_rms * 1e3,
         args.seed
     );
-    let settings = FitSettings {
+    // The pipeline's read, prepare and fit stages (the trial is in memory, Y-up, unfiltered).
+    let opts = FitOptions {
         method: args.method.into(),
         seed: args.seed,
-        uncertainty: Some(jointfit::calibrate::uncertainty::UncertaintyOptions::default()),
-        ..FitSettings::default()
+        ..FitOptions::default()
     };
+    let subject =
+        jointfit_app::load_subject(&ModelSource::Spec(Box::new(model.spec().clone())), &opts)?;
+    let source = TrialSource::Data {
+        name: "synthetic trial".into(),
+        trial: Box::new(trial),
+    };
+    let (trials, _) = jointfit_app::read_trials(&[source], &ReadOptions::default(), None)?;
     let clock = std::time::Instant::now();
     let mut observer = ProgressObserver::new();
-    let report = workflow::calibrate(
-        &model,
-        &model.nominal_params(),
-        &[&trial],
-        &params_for_groups(&model, &["all"])?,
-        &settings,
-        &mut observer,
-    )?;
+    let fitted = jointfit_app::fit(&subject, None, &[&trials[0]], &opts, &mut observer)?;
     observer.finish();
-    print_report(&report, clock.elapsed().as_secs_f64(), false);
+    let report = fitted.calibration();
+    print_report(report, clock.elapsed().as_secs_f64(), false);
     let fit = &report.fit;
     let mut t = crate::table::Table::new(&[
         "parameter",
@@ -120,8 +120,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
         rms(&pos),
         rms(&ori)
     );
-    let verdict = workflow::verdict::judge(&model, &report, &Default::default());
-    crate::calibrate_text::print_verdict(&verdict);
+    crate::calibrate_text::print_verdict(&report.verdict);
     Ok(())
 }
 

@@ -36,7 +36,7 @@ use jointfit_io::atomic::write_atomic;
 use crate::calibrate_cmd::MethodArg;
 
 mod subjects;
-use subjects::{biobuddy, data_dir, needed_files, opencap, require, BIOBUDDY, OPENCAP};
+use subjects::{biobuddy, data_dir, needed_files, opencap, require, Subject, BIOBUDDY, OPENCAP};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Which {
@@ -126,19 +126,6 @@ fn bounds_note(model: &Model, method: &str, p: &[f64]) -> Option<String> {
     })
 }
 
-/// `git describe` of the source tree this binary was built from, when it is still there.
-fn git_describe() -> Option<String> {
-    let out = std::process::Command::new("git")
-        .args(["-C", env!("CARGO_MANIFEST_DIR")])
-        .args(["describe", "--always", "--dirty", "--tags"])
-        .output()
-        .ok()?;
-    out.status
-        .success()
-        .then(|| String::from_utf8_lossy(&out.stdout).trim().to_string())
-        .filter(|s| !s.is_empty())
-}
-
 fn synthetic_columns(
     args: &ReproduceArgs,
     settings: &FitSettings,
@@ -198,36 +185,34 @@ fn synthetic_columns(
     Ok(out)
 }
 
-pub fn run(args: ReproduceArgs) -> Result<()> {
-    let clock = Instant::now();
+/// The counts and the rate are usable.
+fn check_args(args: &ReproduceArgs) -> Result<()> {
     if args.seeds == 0 || args.starts == 0 || args.frames == 0 || args.stride == 0 {
         bail!("--seeds, --starts, --frames and --stride must be at least 1");
     }
     if !(args.rate.is_finite() && args.rate > 0.0) {
         bail!("--rate must be finite and positive (got {})", args.rate);
     }
-    let data = data_dir(&args.data);
-    // The paper's protocol: local fits from the perturbed starts, no global phase.
-    let settings = FitSettings {
-        method: args.method.into(),
-        starts: args.starts,
-        probes: 0,
-        ..FitSettings::default()
-    };
-    let needs_data = args.table == Which::Table2 || !args.synthetic_only;
-    if needs_data {
-        if args.gait_trials.is_empty() {
-            bail!("--gait-trials needs at least one trial");
-        }
-        let files = needed_files(&args.gait_trials);
-        let refs: Vec<&str> = files.iter().map(|s| s.as_str()).collect();
-        let what = match args.table {
-            Which::Table1 => "table 1 (experimental part)",
-            Which::Table2 => "table 2",
-        };
-        require(&data, &refs, what)?;
+    Ok(())
+}
+
+/// The shared data the run needs are there (the experimental part and table 2).
+fn check_data(args: &ReproduceArgs, data: &std::path::Path) -> Result<()> {
+    if args.gait_trials.is_empty() {
+        bail!("--gait-trials needs at least one trial");
     }
-    let mut notes = vec![format!(
+    let files = needed_files(&args.gait_trials);
+    let refs: Vec<&str> = files.iter().map(|s| s.as_str()).collect();
+    let what = match args.table {
+        Which::Table1 => "table 1 (experimental part)",
+        Which::Table2 => "table 2",
+    };
+    require(data, &refs, what)
+}
+
+/// The first note: which outer optimizer ran, against the paper's.
+fn optimizer_note(settings: &FitSettings) -> String {
+    format!(
         "Outer optimizer: {} ({} start{} per fit). The paper used a particle swarm for single \
          joints and a gradient method for the full leg (~41 h per noisy single joint on a cluster); \
          the joint sparse Levenberg–Marquardt shares the two-level optima and each fit here takes \
@@ -235,183 +220,206 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
         settings.method.name(),
         settings.starts,
         if settings.starts == 1 { "" } else { "s" }
-    )];
-    let mut synthetic = Vec::new();
-    let mut experimental_cols = Vec::new();
-    let mut table2 = Vec::new();
-    let biobuddy_subject = if needs_data {
-        Some(biobuddy(&data, args.stride)?)
-    } else {
-        None
-    };
-    let opencap_subject = if needs_data {
-        Some(opencap(&data, args.stride, &args.gait_trials)?)
-    } else {
-        None
-    };
+    )
+}
 
-    if args.table == Which::Table1 {
-        let gait = match &opencap_subject {
-            Some(s) => {
-                let (coords, dropped) =
-                    gait_coordinates(&s.model, &s.model.nominal_params(), &s.trials[0].1)
-                        .with_context(|| {
-                            format!("{OPENCAP}/{}: inverse kinematics", s.trials[0].0)
-                        })?;
-                if !dropped.is_empty() {
-                    notes.push(format!("gait IK dropped {} frames", dropped.len()));
-                }
-                Some((coords, s.trials[0].1.rate()))
+/// Table 1's synthetic columns (with a gait column from the OpenCap subject's IK, when the
+/// data are there) and their notes.
+fn synthetic_part(
+    args: &ReproduceArgs,
+    settings: &FitSettings,
+    opencap: Option<&Subject>,
+    notes: &mut Vec<String>,
+) -> Result<Vec<SyntheticColumn>> {
+    let gait = match opencap {
+        Some(s) => {
+            let (coords, dropped) =
+                gait_coordinates(&s.model, &s.model.nominal_params(), &s.trials[0].1)
+                    .with_context(|| format!("{OPENCAP}/{}: inverse kinematics", s.trials[0].0))?;
+            if !dropped.is_empty() {
+                notes.push(format!("gait IK dropped {} frames", dropped.len()));
             }
-            None => None,
-        };
-        let gait_name = opencap_subject
-            .as_ref()
-            .map(|s| format!("{OPENCAP}/{} (6 Hz low-pass)", s.trials[0].0))
-            .unwrap_or_default();
-        let gait_ref = gait
-            .as_ref()
-            .map(|(c, r)| (c.as_slice(), *r, gait_name.as_str()));
-        synthetic = synthetic_columns(&args, &settings, gait_ref)?;
-        notes.push(format!(
-            "Synthetic: truth = nominal parameters of {}; {} frames per joint motion at {} Hz \
-             (amplitude ×{}); start = truth moved by up to {} mm / {}° per fitted parameter \
-             (uniform, seeded); noise = skin artifact A·sin(ωt+φ) per marker-axis, A ≤ 10 mm, \
-             ω ≤ 25 rad/s, seeds {}–{}; the noiseless row uses seed {}.",
-            args.subject,
-            args.frames,
-            args.rate,
-            args.amplitude,
-            args.perturb_mm,
-            args.perturb_deg,
-            args.first_seed,
-            args.first_seed + args.seeds as u64 - 1,
-            args.first_seed
-        ));
-    }
+            Some((coords, s.trials[0].1.rate()))
+        }
+        None => None,
+    };
+    let gait_name = opencap
+        .map(|s| format!("{OPENCAP}/{} (6 Hz low-pass)", s.trials[0].0))
+        .unwrap_or_default();
+    let gait_ref = gait
+        .as_ref()
+        .map(|(c, r)| (c.as_slice(), *r, gait_name.as_str()));
+    let synthetic = synthetic_columns(args, settings, gait_ref)?;
+    notes.push(format!(
+        "Synthetic: truth = nominal parameters of {}; {} frames per joint motion at {} Hz \
+         (amplitude ×{}); start = truth moved by up to {} mm / {}° per fitted parameter \
+         (uniform, seeded); noise = skin artifact A·sin(ωt+φ) per marker-axis, A ≤ 10 mm, \
+         ω ≤ 25 rad/s, seeds {}–{}; the noiseless row uses seed {}.",
+        args.subject,
+        args.frames,
+        args.rate,
+        args.amplitude,
+        args.perturb_mm,
+        args.perturb_deg,
+        args.first_seed,
+        args.first_seed + args.seeds as u64 - 1,
+        args.first_seed
+    ));
+    Ok(synthetic)
+}
 
-    if let (Some(bb), Some(oc)) = (&biobuddy_subject, &opencap_subject) {
-        let nominal = bb.model.nominal_params();
-        let mut single = nominal.clone();
-        for (k, (label, group)) in [
-            ("Hip only", "hip"),
-            ("Knee only", "knee"),
-            ("Ankle only", "ankle"),
-        ]
-        .iter()
-        .enumerate()
-        {
-            let (name, trial) = &bb.trials[k];
-            eprintln!("jointfit: experimental {label} on {BIOBUDDY}/{name}");
-            let r = experimental(
-                &bb.model,
-                &nominal,
-                &[group],
-                &[trial],
-                &settings,
-                args.first_seed,
-            )
+/// The experimental single-joint columns (hip, knee, ankle on the biobuddy subject's
+/// functional trials) and the parameters with each joint at its single-joint fit.
+fn single_joint_columns(
+    bb: &Subject,
+    settings: &FitSettings,
+    seed: u64,
+) -> Result<(Vec<ExperimentalColumn>, Vec<f64>)> {
+    let nominal = bb.model.nominal_params();
+    let mut single = nominal.clone();
+    let mut columns = Vec::new();
+    for (k, (label, group)) in [
+        ("Hip only", "hip"),
+        ("Knee only", "knee"),
+        ("Ankle only", "ankle"),
+    ]
+    .iter()
+    .enumerate()
+    {
+        let (name, trial) = &bb.trials[k];
+        eprintln!("jointfit: experimental {label} on {BIOBUDDY}/{name}");
+        let r = experimental(&bb.model, &nominal, &[group], &[trial], settings, seed)
             .with_context(|| format!("{BIOBUDDY}/{name}: fitting {group}"))?;
-            for id in bb.model.params_in_group(group) {
-                single[id.0] = r.fitted[id.0];
-            }
-            experimental_cols.push(ExperimentalColumn {
-                label: label.to_string(),
-                paper_column: k,
-                dataset: format!("{BIOBUDDY} (Plug-in Gait, 12 Hz, unfiltered)"),
-                trials: vec![name.clone()],
-                result: r,
-            });
+        for id in bb.model.params_in_group(group) {
+            single[id.0] = r.fitted[id.0];
         }
-        let names: Vec<String> = oc.trials.iter().map(|(n, _)| n.clone()).collect();
-        eprintln!(
-            "jointfit: experimental full leg on {OPENCAP}/{}",
-            names.join(" + ")
-        );
-        let gait_trials: Vec<&Trial> = oc.trials.iter().map(|(_, t)| t).collect();
-        let gait_fit = experimental(
-            &oc.model,
-            &oc.model.nominal_params(),
-            &["all"],
-            &gait_trials,
-            &settings,
-            args.first_seed,
-        )
-        .with_context(|| format!("{OPENCAP}/{}: fitting all", names.join(" + ")))?;
-        let oc_fitted = gait_fit.fitted.clone();
-        experimental_cols.push(ExperimentalColumn {
-            label: "Full leg (gait)".to_string(),
-            paper_column: 3,
-            dataset: format!("{OPENCAP} (OpenCap markers, 100 Hz, 6 Hz low-pass)"),
-            trials: names.clone(),
-            result: gait_fit,
+        columns.push(ExperimentalColumn {
+            label: label.to_string(),
+            paper_column: k,
+            dataset: format!("{BIOBUDDY} (Plug-in Gait, 12 Hz, unfiltered)"),
+            trials: vec![name.clone()],
+            result: r,
         });
-        if args.table == Which::Table2 {
-            eprintln!("jointfit: full leg on the three {BIOBUDDY} functional trials");
-            let all: Vec<&Trial> = bb.trials.iter().map(|(_, t)| t).collect();
-            let full = experimental(
-                &bb.model,
-                &single,
-                &["all"],
-                &all,
-                &settings,
-                args.first_seed,
-            )
-            .context("biobuddy functional trials: fitting all")?;
-            let mut t = Table2::new(
-                &format!(
-                    "{} (right leg; Test_func_anat.c3d, plugin-gait-medial preset)",
-                    bb.name
-                ),
-                &bb.model,
-                &[
-                    ("anatomical landmarks", Some(&nominal)),
-                    ("single joint", Some(&single)),
-                    ("full leg (3 functional trials)", Some(&full.fitted)),
-                ],
-            );
-            t.notes
-                .extend(bounds_note(&bb.model, "single joint", &single));
-            t.notes
-                .extend(bounds_note(&bb.model, "full leg", &full.fitted));
-            t.notes.push(format!(
-                "single joint: hip on Test_func_rhip, knee on Test_func_rknee, ankle on \
-                 Test_func_rankle, each from the landmark values; full leg: all 27 on the three \
-                 trials together ({} frames), started from the single-joint values (this \
-                 subject has no gait trial); marker RMS {:.2} mm vs {:.2} mm for the landmark model",
-                full.frames, full.fitted_rms_mm, full.landmark_rms_mm
-            ));
-            table2.push(t);
-            let mut t = Table2::new(
-                &format!("{} (right leg; static1.trc, opencap preset)", oc.name),
-                &oc.model,
-                &[
-                    ("anatomical landmarks", Some(&oc.model.nominal_params())),
-                    ("single joint", None),
-                    ("full leg (gait)", Some(&oc_fitted)),
-                ],
-            );
-            t.notes
-                .extend(bounds_note(&oc.model, "full leg (gait)", &oc_fitted));
-            t.notes.push(format!(
-                "no single-joint functional trials exist for this subject; full leg: all 27 on \
-                 {} (6 Hz low-pass) from the landmark values",
-                names.join(" + ")
-            ));
-            table2.push(t);
-        }
-        if args.table == Which::Table2 {
-            experimental_cols.clear();
-        }
     }
+    Ok((columns, single))
+}
 
-    let command = std::iter::once("jointfit".to_string())
-        .chain(std::env::args().skip(1))
-        .collect::<Vec<_>>()
-        .join(" ");
-    let settings_json = serde_json::json!({
+/// The experimental full-leg column: all 27 on the OpenCap subject's gait trials.
+fn gait_column(oc: &Subject, settings: &FitSettings, seed: u64) -> Result<ExperimentalColumn> {
+    let names: Vec<String> = oc.trials.iter().map(|(n, _)| n.clone()).collect();
+    eprintln!(
+        "jointfit: experimental full leg on {OPENCAP}/{}",
+        names.join(" + ")
+    );
+    let gait_trials: Vec<&Trial> = oc.trials.iter().map(|(_, t)| t).collect();
+    let gait_fit = experimental(
+        &oc.model,
+        &oc.model.nominal_params(),
+        &["all"],
+        &gait_trials,
+        settings,
+        seed,
+    )
+    .with_context(|| format!("{OPENCAP}/{}: fitting all", names.join(" + ")))?;
+    Ok(ExperimentalColumn {
+        label: "Full leg (gait)".to_string(),
+        paper_column: 3,
+        dataset: format!("{OPENCAP} (OpenCap markers, 100 Hz, 6 Hz low-pass)"),
+        trials: names,
+        result: gait_fit,
+    })
+}
+
+/// Table 2 of the biobuddy subject: landmark, single-joint and full-leg parameters (the full
+/// leg on its three functional trials, started from the single-joint values).
+fn biobuddy_table2(
+    bb: &Subject,
+    single: &[f64],
+    settings: &FitSettings,
+    seed: u64,
+) -> Result<Table2> {
+    eprintln!("jointfit: full leg on the three {BIOBUDDY} functional trials");
+    let nominal = bb.model.nominal_params();
+    let all: Vec<&Trial> = bb.trials.iter().map(|(_, t)| t).collect();
+    let full = experimental(&bb.model, single, &["all"], &all, settings, seed)
+        .context("biobuddy functional trials: fitting all")?;
+    let mut t = Table2::new(
+        &format!(
+            "{} (right leg; Test_func_anat.c3d, plugin-gait-medial preset)",
+            bb.name
+        ),
+        &bb.model,
+        &[
+            ("anatomical landmarks", Some(&nominal)),
+            ("single joint", Some(single)),
+            ("full leg (3 functional trials)", Some(&full.fitted)),
+        ],
+    );
+    t.notes
+        .extend(bounds_note(&bb.model, "single joint", single));
+    t.notes
+        .extend(bounds_note(&bb.model, "full leg", &full.fitted));
+    t.notes.push(format!(
+        "single joint: hip on Test_func_rhip, knee on Test_func_rknee, ankle on \
+         Test_func_rankle, each from the landmark values; full leg: all 27 on the three \
+         trials together ({} frames), started from the single-joint values (this \
+         subject has no gait trial); marker RMS {:.2} mm vs {:.2} mm for the landmark model",
+        full.frames, full.fitted_rms_mm, full.landmark_rms_mm
+    ));
+    Ok(t)
+}
+
+/// Table 2 of the OpenCap subject: landmark and full-leg (gait) parameters.
+fn opencap_table2(oc: &Subject, gait: &ExperimentalColumn) -> Table2 {
+    let fitted = &gait.result.fitted;
+    let mut t = Table2::new(
+        &format!("{} (right leg; static1.trc, opencap preset)", oc.name),
+        &oc.model,
+        &[
+            ("anatomical landmarks", Some(&oc.model.nominal_params())),
+            ("single joint", None),
+            ("full leg (gait)", Some(fitted)),
+        ],
+    );
+    t.notes
+        .extend(bounds_note(&oc.model, "full leg (gait)", fitted));
+    t.notes.push(format!(
+        "no single-joint functional trials exist for this subject; full leg: all 27 on \
+         {} (6 Hz low-pass) from the landmark values",
+        gait.trials.join(" + ")
+    ));
+    t
+}
+
+/// The experimental part: table 1's experimental columns, or table 2's tables.
+fn experimental_part(
+    args: &ReproduceArgs,
+    settings: &FitSettings,
+    bb: &Subject,
+    oc: &Subject,
+) -> Result<(Vec<ExperimentalColumn>, Vec<Table2>)> {
+    let (mut columns, single) = single_joint_columns(bb, settings, args.first_seed)?;
+    let gait = gait_column(oc, settings, args.first_seed)?;
+    if args.table == Which::Table1 {
+        columns.push(gait);
+        return Ok((columns, Vec::new()));
+    }
+    let tables = vec![
+        biobuddy_table2(bb, &single, settings, args.first_seed)?,
+        opencap_table2(oc, &gait),
+    ];
+    Ok((Vec::new(), tables))
+}
+
+/// The run's settings as the report's JSON records them.
+fn settings_json(
+    args: &ReproduceArgs,
+    settings: &FitSettings,
+    data: Option<&std::path::Path>,
+) -> serde_json::Value {
+    serde_json::json!({
         "table": format!("{:?}", args.table).to_lowercase(),
-        "data": if needs_data { Some(data.display().to_string()) } else { None },
+        "data": data.map(|d| d.display().to_string()),
         "synthetic_only": args.synthetic_only,
         "fit": {
             "method": settings.method,
@@ -429,23 +437,11 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
         "perturb_deg": args.perturb_deg,
         "stride": args.stride,
         "skin_noise": {"max_amplitude_mm": 10.0, "max_omega_rad_s": 25.0},
-    });
-    let mut report = Report {
-        title: match args.table {
-            Which::Table1 => "Table 1 — RMS marker-distance and joint-parameter errors".into(),
-            Which::Table2 => "Table 2 — joint parameters by method".into(),
-        },
-        command,
-        version: env!("CARGO_PKG_VERSION").to_string(),
-        git: git_describe(),
-        settings: settings_json,
-        synthetic,
-        experimental: experimental_cols,
-        table2,
-        notes,
-        seconds: 0.0,
-    };
-    report.seconds = clock.elapsed().as_secs_f64();
+    })
+}
+
+/// Writes `DIR/table1.{md,json,csv}` (or `table2.*`) and prints the Markdown.
+fn write_report(args: &ReproduceArgs, report: &Report) -> Result<()> {
     let stem = match args.table {
         Which::Table1 => "table1",
         Which::Table2 => "table2",
@@ -455,7 +451,7 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
     let md = report.markdown();
     for (ext, text) in [
         ("md", md.clone()),
-        ("json", serde_json::to_string_pretty(&report)?),
+        ("json", serde_json::to_string_pretty(report)?),
         ("csv", report.csv()),
     ] {
         let path = args.output.join(format!("{stem}.{ext}"));
@@ -465,4 +461,59 @@ pub fn run(args: ReproduceArgs) -> Result<()> {
     print!("{md}");
     println!("wrote {}/{stem}.md, .json and .csv", args.output.display());
     Ok(())
+}
+
+pub fn run(args: ReproduceArgs) -> Result<()> {
+    let clock = Instant::now();
+    check_args(&args)?;
+    let data = data_dir(&args.data);
+    // The paper's protocol: local fits from the perturbed starts, no global phase.
+    let settings = FitSettings {
+        method: args.method.into(),
+        starts: args.starts,
+        probes: 0,
+        ..FitSettings::default()
+    };
+    let needs_data = args.table == Which::Table2 || !args.synthetic_only;
+    if needs_data {
+        check_data(&args, &data)?;
+    }
+    let mut notes = vec![optimizer_note(&settings)];
+    let (biobuddy_subject, opencap_subject) = match needs_data {
+        true => (
+            Some(biobuddy(&data, args.stride)?),
+            Some(opencap(&data, args.stride, &args.gait_trials)?),
+        ),
+        false => (None, None),
+    };
+    let synthetic = match args.table {
+        Which::Table1 => synthetic_part(&args, &settings, opencap_subject.as_ref(), &mut notes)?,
+        Which::Table2 => Vec::new(),
+    };
+    let (experimental_cols, table2) = match (&biobuddy_subject, &opencap_subject) {
+        (Some(bb), Some(oc)) => experimental_part(&args, &settings, bb, oc)?,
+        _ => (Vec::new(), Vec::new()),
+    };
+    let command = std::iter::once("jointfit".to_string())
+        .chain(std::env::args().skip(1))
+        .collect::<Vec<_>>()
+        .join(" ");
+    let mut report = Report {
+        title: match args.table {
+            Which::Table1 => "Table 1 — RMS marker-distance and joint-parameter errors".into(),
+            Which::Table2 => "Table 2 — joint parameters by method".into(),
+        },
+        command,
+        version: env!("CARGO_PKG_VERSION").to_string(),
+        // `git describe` of the sources at build time (build.rs), if they were a checkout.
+        git: option_env!("JOINTFIT_GIT_DESCRIBE").map(str::to_string),
+        settings: settings_json(&args, &settings, needs_data.then_some(data.as_path())),
+        synthetic,
+        experimental: experimental_cols,
+        table2,
+        notes,
+        seconds: 0.0,
+    };
+    report.seconds = clock.elapsed().as_secs_f64();
+    write_report(&args, &report)
 }

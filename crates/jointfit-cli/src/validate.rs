@@ -35,9 +35,9 @@ pub const MAX_RUNS: usize = 1_000;
 /// times the largest default, about 1.5 GB of trial and text at the workload's markers.
 pub const MAX_BENCH_FRAMES: usize = 500_000;
 /// Most block-bootstrap replicates.
-pub const MAX_BOOTSTRAP: usize = jointfit_io::batch::fit::MAX_BOOTSTRAP;
+pub const MAX_BOOTSTRAP: usize = jointfit_app::fit::MAX_BOOTSTRAP;
 /// Most outer iterations of a calibration (`--max-iter`).
-pub const MAX_ITERATIONS: usize = jointfit_io::batch::fit::MAX_ITERATIONS;
+pub const MAX_ITERATIONS: usize = jointfit_app::fit::MAX_ITERATIONS;
 /// Most digits after the decimal point in written files.
 pub const MAX_DECIMALS: usize = 12;
 /// Largest plausible marker coordinate (m): a gait laboratory is tens of metres at most.
@@ -49,7 +49,7 @@ pub const MAX_AMPLITUDE: f64 = 10.0;
 /// Largest skin-artifact angular frequency (rad/s).
 pub const MAX_OMEGA: f64 = 10_000.0;
 /// Largest noise, artifact or perturbation amplitude (mm).
-pub const MAX_NOISE_MM: f64 = jointfit_io::batch::fit::MAX_NOISE_MM;
+pub const MAX_NOISE_MM: f64 = jointfit_app::fit::MAX_NOISE_MM;
 
 fn number(s: &str) -> Result<f64, String> {
     let v: f64 = s

@@ -9,7 +9,6 @@
 //! - [`osim`]: OpenSim 4 model export, checked against OpenSim 4.6 (`tests/it/osim.rs`).
 
 pub mod atomic;
-pub mod batch;
 pub mod c3d;
 pub mod content_hash;
 pub mod csv;

@@ -12,13 +12,11 @@ use crate::msg;
 /// Most frames of a synthetic motion (the command line's `--frames` limit).
 pub const MAX_FRAMES: u64 = 100_000;
 /// Largest sampling rate (Hz), as on the command line.
-pub const MAX_RATE_HZ: f64 = 100_000.0;
+pub const MAX_RATE_HZ: f64 = jointfit_app::read::MAX_RATE_HZ;
 /// Lowest low-pass cutoff (Hz), as on the command line.
 pub const MIN_FILTER_HZ: f64 = 0.1;
 /// Largest noise amplitude of a synthetic trial (mm).
-pub const MAX_NOISE_MM: f64 = jointfit_io::batch::fit::MAX_NOISE_MM;
-/// Largest plausible marker coordinate (m).
-pub const MAX_POSITION_M: f64 = 1_000.0;
+pub const MAX_NOISE_MM: f64 = jointfit_app::fit::MAX_NOISE_MM;
 /// Longest averaging window of a static trial (s).
 pub const MAX_WINDOW_S: f64 = 3_600.0;
 

@@ -1,7 +1,8 @@
 //! `calibrate` and `jointfit.Calibration`: the two-level fit of joint parameters.
 
-use jointfit_io::batch::{
-    run_job_observed, Calibration, FitOptions, Job, ModelInput, ReadOptions, TrialInput,
+use jointfit::model::Unit;
+use jointfit_app::{
+    run_observed, Calibration, FitOptions, ModelSource, ReadOptions, Request, TrialSource,
 };
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
@@ -238,21 +239,23 @@ impl PyCalibration {
              <th>fitted</th><th>95 % interval</th><th>identifiability</th></tr></thead><tbody>",
         );
         for r in &c.parameters {
-            let (unit, k) = if r.unit == "m" {
-                ("mm", 1e3)
+            let si = if r.unit == "m" {
+                Unit::Metre
             } else {
-                ("deg", 180.0 / std::f64::consts::PI)
+                Unit::Radian
             };
+            let show = |v: f64| jointfit_app::present::shown(v, si).0;
+            let unit = jointfit_app::present::shown(0.0, si).1;
             let ci = r.ci95.map_or("—".to_string(), |[lo, hi]| {
-                format!("{:.2} to {:.2}", lo * k, hi * k)
+                format!("{:.2} to {:.2}", show(lo), show(hi))
             });
             h.push_str(&format!(
                 "<tr><td>{}</td><td>{}</td><td>{unit}</td><td>{:.2}</td><td>{:.2}</td>\
                  <td>{ci}</td><td>{}</td></tr>",
                 html(&r.name),
                 html(&r.group),
-                r.start * k,
-                r.fitted * k,
+                show(r.start),
+                show(r.fitted),
                 html(&identifiability(r)),
             ));
         }
@@ -274,7 +277,7 @@ impl PyCalibration {
 }
 
 /// A parameter's identifiability as a word ("identified", "poorly", ...; "" when unknown).
-fn identifiability(r: &jointfit_io::batch::fit::ParamRow) -> String {
+fn identifiability(r: &jointfit_app::ParamRow) -> String {
     r.identifiability
         .map(|i| {
             serde_json::to_string(&i)
@@ -339,17 +342,19 @@ fn joints_arg(joints: Option<&Bound<'_, PyAny>>) -> PyResult<Vec<String>> {
 /// Fits joint parameters to one or more trials (two-level optimization, Reinbolt et al.
 /// 2005): the parameters of the `joints` groups ("hip", "knee", "ankle", "all"; None: all)
 /// minimize the summed squared marker distances over every frame, each frame's coordinates
-/// at their own optimum. Starts from the model's parameters. `trials` are Trial objects or
-/// paths (read with `up` and `filter`, as on the command line); `method` is "joint" (sparse
-/// Levenberg–Marquardt), "gradient" (two-level Gauss–Newton) or "pso" (particle swarm, then
-/// joint polish, seeded by `seed`). The other options are those of `jointfit calibrate`:
-/// `starts`, `fix_unidentifiable`, `prior` ("model" or "none"), `marker_noise_mm`,
-/// `max_iter`, `bootstrap`, `threshold_mm`, `threshold_deg`. The fitted parameters equal
-/// `jointfit calibrate`'s for the same inputs and options, bit for bit (an unconverged fit
-/// is kept with a warning, as `--accept-unconverged`). A fit whose verdict is `reject`
-/// (inputs that do not belong together, an implausible result) raises `JointfitError` with
-/// the cause unless `accept_rejected` is true; `Calibration.verdict` says how far to trust
-/// the rest. Releases the GIL while it runs.
+/// at their own optimum. Starts from the model's parameters. `model` is a Model, a model
+/// file path (TOML or .osim) or a built-in name; of an OpenSim model, `joints` names the
+/// joints whose offset frames to personalize and `params` finer selections. `trials` are
+/// Trial objects or paths (read with `up` and `filter`, as on the command line); `method` is
+/// "joint" (sparse Levenberg–Marquardt), "gradient" (two-level Gauss–Newton) or "pso"
+/// (particle swarm, then joint polish, seeded by `seed`). The other options are those of
+/// `jointfit calibrate`: `starts`, `fix_unidentifiable`, `prior` ("model" or "none"),
+/// `marker_noise_mm`, `max_iter`, `bootstrap`, `threshold_mm`, `threshold_deg`. The fitted
+/// parameters equal `jointfit calibrate`'s for the same inputs and options, bit for bit (an
+/// unconverged fit is kept with a warning, as `--accept-unconverged`). A fit whose verdict is
+/// `reject` (inputs that do not belong together, an implausible result) raises
+/// `JointfitError` with the cause unless `accept_rejected` is true; `Calibration.verdict`
+/// says how far to trust the rest. Releases the GIL while it runs.
 #[pyfunction]
 #[pyo3(signature = (model, trials, joints=None, method="joint", up=None, filter=None, seed=1, bootstrap=0, threshold_mm=5.0, threshold_deg=5.0, starts=1, fix_unidentifiable=false, prior="model", marker_noise_mm=None, max_iter=None, params=None, progress=None, accept_rejected=false))]
 #[allow(clippy::too_many_arguments)]
@@ -375,24 +380,92 @@ pub fn calibrate(
     accept_rejected: bool,
 ) -> PyResult<PyCalibration> {
     let progress = crate::run::progress_arg(py, progress)?;
-    let osim = model
-        .cast::<PyModel>()
-        .ok()
-        .and_then(|m| m.get().osim.clone());
+    let model = model_arg(model)?;
+    let osim = match &model {
+        ModelSource::Osim(o) => Some(o.clone()),
+        _ => None,
+    };
     if osim.is_none() && params.is_some() {
         return Err(msg(
             "params selects offset frames of a model loaded from an .osim file",
         ));
     }
-    let model = if let Ok(m) = model.cast::<PyModel>() {
-        ModelInput::Spec(Box::new(m.get().model.spec().clone()))
-    } else {
-        let name: std::path::PathBuf = model.extract().map_err(|_| {
-            msg("a model must be a jointfit.Model, a model file path or a built-in name")
-        })?;
-        ModelInput::Named(name.to_string_lossy().into_owned())
+    let fit = FitOptions {
+        joints: joints_arg(joints)?,
+        method: method.parse().map_err(msg)?,
+        seed,
+        threshold_mm,
+        threshold_deg,
+        bootstrap,
+        starts,
+        fix_unidentifiable,
+        priors: prior_arg(prior)?,
+        marker_noise_mm,
+        max_iterations: max_iter,
+        accept_rejected,
+        params: params.unwrap_or_default(),
+        ..FitOptions::default()
     };
-    // One trial alone is accepted as well as a list.
+    fit.check().map_err(msg)?;
+    let request = Request {
+        model,
+        trials: trials_arg(trials)?,
+        read: ReadOptions {
+            up: parse_up(up)?,
+            filter_hz: filter,
+        },
+        fit,
+    };
+    let cal = crate::run::interruptible(py, progress.as_ref(), move |obs| {
+        run_observed(&request, obs)
+    });
+    crate::run::close_progress(py, progress.as_ref())?;
+    let cal = cal?.map_err(|e| calibrate_error(&e))?;
+    warn_all(py, &cal.warnings)?;
+    Ok(PyCalibration { cal, osim })
+}
+
+/// The error of a calibration, with the keyword argument that resolves it when one does.
+fn calibrate_error(e: &jointfit_app::Error) -> PyErr {
+    use jointfit_app::present::{hint, Front};
+    match e {
+        jointfit_app::Error::Calibrate(w) => match hint(w, Front::Python) {
+            Some(h) => msg(format!("{} ({h})", jointfit_app::message(e))),
+            None => err(e),
+        },
+        e => err(e),
+    }
+}
+
+/// `model` of `calibrate`: a Model (with the `.osim` it was loaded from, if any), a model
+/// file path (an `.osim` is read here, to write the fitted offsets back) or a built-in name.
+fn model_arg(model: &Bound<'_, PyAny>) -> PyResult<ModelSource> {
+    if let Ok(m) = model.cast::<PyModel>() {
+        let m = m.get();
+        return Ok(match &m.osim {
+            Some(osim) => ModelSource::Osim(osim.clone()),
+            None => ModelSource::Spec(Box::new(m.model.spec().clone())),
+        });
+    }
+    let name: std::path::PathBuf = model.extract().map_err(|_| {
+        msg("a model must be a jointfit.Model, a model file path or a built-in name")
+    })?;
+    ModelSource::read(&name.to_string_lossy()).map_err(|e| err(&e))
+}
+
+/// `prior` of `calibrate`: "model" (the model's priors) or "none".
+fn prior_arg(prior: &str) -> PyResult<bool> {
+    match prior {
+        "model" => Ok(true),
+        "none" => Ok(false),
+        other => Err(msg(format!(
+            "prior must be \"model\" or \"none\", not {other:?}"
+        ))),
+    }
+}
+
+/// `trials` of `calibrate`: one Trial or path, or a list of them.
+fn trials_arg(trials: &Bound<'_, PyAny>) -> PyResult<Vec<TrialSource>> {
     let items: Vec<Bound<'_, PyAny>> =
         if trials.cast::<PyTrial>().is_ok() || trials.extract::<std::path::PathBuf>().is_ok() {
             vec![trials.clone()]
@@ -407,148 +480,20 @@ pub fn calibrate(
                 })
                 .map_err(|_| msg("trials must be a list of jointfit.Trial objects or paths"))?
         };
-    let mut inputs = Vec::with_capacity(items.len());
-    for t in &items {
-        if let Ok(tr) = t.cast::<PyTrial>() {
-            let tr = tr.get();
-            inputs.push(TrialInput::Data {
-                name: tr.name.clone(),
-                trial: Box::new(tr.trial.clone()),
-            });
-        } else {
+    items
+        .iter()
+        .map(|t| {
+            if let Ok(tr) = t.cast::<PyTrial>() {
+                let tr = tr.get();
+                return Ok(TrialSource::Data {
+                    name: tr.name.clone(),
+                    trial: Box::new(tr.trial.clone()),
+                });
+            }
             let path: std::path::PathBuf = t
                 .extract()
                 .map_err(|_| msg("trials must be jointfit.Trial objects or paths"))?;
-            inputs.push(TrialInput::Path(path));
-        }
-    }
-    let fit = FitOptions {
-        joints: joints_arg(joints)?,
-        method: method.parse().map_err(msg)?,
-        seed,
-        threshold_mm,
-        threshold_deg,
-        bootstrap,
-        starts,
-        fix_unidentifiable,
-        priors: match prior {
-            "model" => true,
-            "none" => false,
-            other => {
-                return Err(msg(format!(
-                    "prior must be \"model\" or \"none\", not {other:?}"
-                )))
-            }
-        },
-        marker_noise_mm,
-        max_iterations: max_iter,
-        accept_rejected,
-    };
-    fit.check().map_err(msg)?;
-    let read = ReadOptions {
-        up: parse_up(up)?,
-        filter_hz: filter,
-    };
-    if let Some(osim) = osim {
-        let held = osim.clone();
-        let params = params.unwrap_or_default();
-        let cal = crate::run::interruptible(py, progress.as_ref(), move |obs| {
-            calibrate_osim(&held, &inputs, &read, &fit, &params, obs)
-        });
-        crate::run::close_progress(py, progress.as_ref())?;
-        let cal = cal?.map_err(msg)?;
-        warn_all(py, &cal.warnings)?;
-        return Ok(PyCalibration {
-            cal,
-            osim: Some(osim),
-        });
-    }
-    let job = Job {
-        id: "calibrate".into(),
-        model,
-        trials: inputs,
-        read,
-        fit,
-    };
-    let cal = crate::run::interruptible(py, progress.as_ref(), move |obs| {
-        run_job_observed(&job, obs)
-    });
-    crate::run::close_progress(py, progress.as_ref())?;
-    let cal = cal?.map_err(|e| err(&e))?;
-    warn_all(py, &cal.warnings)?;
-    Ok(PyCalibration { cal, osim: None })
-}
-
-/// The `.osim` personalization ([`jointfit_io::osim_read::workflow`]) with the settings of
-/// `jointfit calibrate MODEL.osim` (the same function, so the same result): `fit.joints`
-/// names joints ("all", the default, names none), `params` the finer selection.
-fn calibrate_osim(
-    osim: &jointfit_io::osim_read::OsimModel,
-    inputs: &[TrialInput],
-    read: &ReadOptions,
-    fit: &FitOptions,
-    params: &[String],
-    observer: &mut dyn jointfit::workflow::Observer,
-) -> Result<Calibration, String> {
-    use jointfit_io::osim_read::workflow::{personalize, selection_spec};
-    let mut warnings = Vec::new();
-    let mut trials = Vec::new();
-    for t in inputs {
-        let (trial, w) = match t {
-            TrialInput::Path(p) => jointfit_io::batch::read_trial(p, read),
-            TrialInput::Data { name, trial } => {
-                jointfit_io::batch::prepare_trial((**trial).clone(), name, None, read.filter_hz)
-            }
-        }
-        .map_err(|e| jointfit_io::batch::message(&e))?;
-        warnings.extend(w);
-        trials.push(trial);
-    }
-    let joints: Vec<String> = fit.joints.iter().filter(|j| *j != "all").cloned().collect();
-    let spec = selection_spec(osim, &joints, params).map_err(|e| e.to_string())?;
-    let refs: Vec<&jointfit::trial::Trial> = trials.iter().collect();
-    let settings = fit.settings();
-    let done = personalize(&spec, None, &refs, &settings, observer).map_err(|e| match e {
-        jointfit_io::osim_read::workflow::OsimFitError::Workflow(
-            jointfit::workflow::WorkflowError::Mismatch { trial, cause },
-        ) => {
-            let name = match &inputs[trial] {
-                TrialInput::Path(p) => p.display().to_string(),
-                TrialInput::Data { name, .. } => name.clone(),
-            };
-            format!("rejected: {name}: {cause}")
-        }
-        e => jointfit_io::batch::message(&e),
-    })?;
-    let mut cal = jointfit_io::batch::fit::summarize(
-        &done.model,
-        &done.model.nominal_params(),
-        &done.result.calibration,
-        fit.method,
-    );
-    cal.model = done.fitted_spec();
-    warnings.extend(jointfit_io::batch::fit::conflict_lines(
-        &done.result.prior_conflict,
-    ));
-    for r in &done.result.held_redundant {
-        warnings.push(if r.with.is_empty() {
-            format!(
-                "{} held at its start value: the joint's coordinates absorb it",
-                r.parameter
-            )
-        } else {
-            format!(
-                "{} held at its start value: redundant with {}",
-                r.parameter,
-                r.with.join(", ")
-            )
-        });
-    }
-    warnings.append(&mut cal.warnings);
-    cal.warnings = warnings;
-    if cal.verdict.level == jointfit::workflow::Level::Reject && !fit.accept_rejected {
-        let cause = cal.verdict.reasons.first().cloned().unwrap_or_default();
-        return Err(format!("rejected: {cause}"));
-    }
-    Ok(cal)
+            Ok(TrialSource::Path(path))
+        })
+        .collect()
 }

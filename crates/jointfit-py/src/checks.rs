@@ -3,7 +3,7 @@
 //! `JointfitError` naming the argument and its accepted range. Trials given as paths are
 //! not read here (a `Job` may name files only its workers see).
 
-use jointfit_io::batch::fit::{MAX_BOOTSTRAP, MAX_ITERATIONS, MAX_STARTS};
+use jointfit_app::fit::{MAX_BOOTSTRAP, MAX_ITERATIONS, MAX_STARTS};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -99,12 +99,7 @@ fn check_options(options: &Bound<'_, PyDict>) -> PyResult<()> {
                     args::positive(v, "threshold_deg", f64::MAX, " deg")?;
                 }
                 "marker_noise_mm" => {
-                    args::positive(
-                        v,
-                        "marker_noise_mm",
-                        jointfit_io::batch::fit::MAX_NOISE_MM,
-                        " mm",
-                    )?;
+                    args::positive(v, "marker_noise_mm", jointfit_app::fit::MAX_NOISE_MM, " mm")?;
                 }
                 "fix_unidentifiable" => {
                     args::flag(v, "fix_unidentifiable")?;

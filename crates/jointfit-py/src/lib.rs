@@ -40,7 +40,7 @@ create_exception!(
 
 /// A `JointfitError` with the message of `e` and its causes, as the command line prints it.
 pub(crate) fn err(e: &(dyn std::error::Error + 'static)) -> PyErr {
-    JointfitError::new_err(jointfit_io::batch::message(e))
+    JointfitError::new_err(jointfit_app::message(e))
 }
 
 /// A `JointfitError` with a message of ours.

@@ -37,7 +37,7 @@ pub(crate) fn trial_arg(
         return match filter {
             Some(hz) => {
                 let (trial, warnings) = py
-                    .detach(|| jointfit_io::batch::prepare_trial(t.trial, &t.name, None, Some(hz)))
+                    .detach(|| jointfit_app::prepare_trial(t.trial, &t.name, None, Some(hz)))
                     .map_err(|e| err(&e))?;
                 warn_all(py, &warnings)?;
                 Ok(PyTrial {
@@ -49,12 +49,12 @@ pub(crate) fn trial_arg(
         };
     }
     let path = trial_path(trial)?;
-    let read = jointfit_io::batch::ReadOptions {
+    let read = jointfit_app::ReadOptions {
         up: up.or(model_up),
         filter_hz: filter,
     };
     let (t, warnings) = py
-        .detach(|| jointfit_io::batch::read_trial(&path, &read))
+        .detach(|| jointfit_app::read_trial(&path, &read))
         .map_err(|e| err(&e))?;
     let name = path.display().to_string();
     crate::trial::check_data(&t, &name)?;
@@ -222,7 +222,7 @@ pub fn personalize(
                 "{} (read with --up={}): cannot personalize: {}",
                 trial.name,
                 lab_up.map_or("y", |u| u.name()),
-                jointfit_io::batch::message(&e)
+                jointfit_app::message(&e)
             ))
         })?;
         if let Some(w) = &result.warning {
@@ -452,13 +452,7 @@ pub fn ik(
         let run = interruptible(py, None, move |_| {
             jointfit::workflow::ik_trial(&m2, &p, &t2, &IkOptions::default())
         })?
-        .map_err(|e| {
-            msg(format!(
-                "{}: {}",
-                trial.name,
-                jointfit_io::batch::message(&e)
-            ))
-        })?;
+        .map_err(|e| msg(format!("{}: {}", trial.name, jointfit_app::message(&e))))?;
         if !run.absent.is_empty() {
             warnings.push(format!(
                 "{}: lacks model markers {}; they count as missing in every frame",

@@ -1,14 +1,14 @@
 //! `jointfit.Trial`: marker trajectories (frames × markers × 3, metres, NaN for gaps).
 
 use jointfit::trial::{Trial, UpAxis};
-use jointfit_io::batch::{prepare_trial, read_trial, ReadOptions};
+use jointfit_app::{prepare_trial, read_trial, ReadOptions};
 use nalgebra::Vector3;
 use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray3, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
-use crate::args::{self, MAX_POSITION_M, MAX_RATE_HZ};
+use crate::args::{self, MAX_RATE_HZ};
 use crate::run::guard;
 use crate::{err, msg, warn_all};
 
@@ -35,38 +35,10 @@ pub(crate) fn up_arg(up: Option<&Bound<'_, PyAny>>) -> PyResult<Option<UpAxis>> 
     }
 }
 
-/// The data of a trial are plausible: rate at most [`MAX_RATE_HZ`], every recorded coordinate
-/// within ±[`MAX_POSITION_M`] m (millimetre data declared as metres named as such). The
-/// command line's check of loaded data (`jointfit-cli`'s `validate::check_trial`).
+/// The data of a trial are plausible ([`jointfit_app::check_plausible`], the pipeline's
+/// check of what it reads).
 pub(crate) fn check_data(trial: &Trial, name: &str) -> PyResult<()> {
-    if trial.rate() > MAX_RATE_HZ {
-        return Err(msg(format!(
-            "{name}: frame rate {:e} Hz is implausible (limit {MAX_RATE_HZ} Hz)",
-            trial.rate()
-        )));
-    }
-    for f in 0..trial.n_frames() {
-        for (m, p) in trial.frame(f).iter().enumerate() {
-            if p.x.is_nan() || p.iter().all(|v| v.abs() <= MAX_POSITION_M) {
-                continue;
-            }
-            let too_wide = jointfit::checks::marker_span(trial)
-                .is_some_and(|span| span > jointfit::checks::PLAUSIBLE_SPAN[1]);
-            if let Some(units) = jointfit::checks::check_scale(trial).filter(|_| too_wide) {
-                return Err(msg(format!("{name}: {}", units.message)));
-            }
-            return Err(msg(format!(
-                "{name}: frame {}, marker {}: position ({:e}, {:e}, {:e}) m is beyond \
-                 ±{MAX_POSITION_M} m, not a plausible measurement",
-                trial.first_frame() + f as i64,
-                trial.labels()[m],
-                p.x,
-                p.y,
-                p.z
-            )));
-        }
-    }
-    Ok(())
+    jointfit_app::check_plausible(trial, name).map_err(|e| crate::err(&e))
 }
 
 /// Marker trajectories of one trial, in the model's Y-up frame.

@@ -1,6 +1,6 @@
 """Bad calls: every one raises jointfit.JointfitError, promptly, naming the argument and
 what it accepts (the command line's limits: crates/jointfit-cli/src/validate.rs and
-FitOptions::check in crates/jointfit-io/src/batch/fit.rs).
+FitOptions::check in crates/jointfit-app/src/fit.rs).
 
 The oracle is the documented contract: the exception type, the argument's name and range in
 the message, and that nothing was computed (each call returns within a second, including

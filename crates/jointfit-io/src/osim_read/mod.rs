@@ -17,7 +17,6 @@
 pub(crate) mod functions;
 mod joints;
 pub mod personalize;
-pub mod workflow;
 mod write;
 pub(crate) mod xml;
 

@@ -72,7 +72,7 @@ pub enum WorkflowError {
     MissingParameter { source_model: String, name: String },
     #[error(
         "marker refinement needs the parameter priors: without one, a marker position trades \
-         off exactly with the joint its segment hangs from (drop --prior none)"
+         off exactly with the joint its segment hangs from (the fit was asked to use none)"
     )]
     RefineNeedsPriors,
     #[error("marker refinement: {0}")]

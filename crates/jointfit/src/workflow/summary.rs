@@ -40,8 +40,8 @@ pub(crate) fn warning(g: &GlobalSearch) -> Option<String> {
         .collect();
     Some(format!(
         "the fit is not known to be the global optimum: the {} most promising of {} starts \
-         ended at different optima ({}); the lowest is kept. More starts (--probes N, or \
-         --starts N for full fits) may find a lower one",
+         ended at different optima ({}); the lowest is kept. More starts (more probes of the \
+         global phase, or several full starts) may find a lower one",
         g.finished.len(),
         g.starts,
         list.join(", ")

@@ -2,7 +2,10 @@
 //! resumption, the results table read back.
 
 use super::*;
+use crate::{FitOptions, ReadOptions};
 use jointfit::model::lower_limb::{lower_limb, Side};
+use jointfit::model::Model;
+use jointfit::trial::Trial;
 use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion};
 
 /// A noiseless knee trial of the built-in right leg with moved ("true") parameters.
@@ -23,17 +26,23 @@ fn job(id: &str, seed: u64, joints: &str) -> Job {
     let (_, _, trial) = knee_trial(seed);
     Job {
         id: id.into(),
-        model: ModelInput::Named("lower-limb-right".into()),
-        trials: vec![TrialInput::Data {
-            name: format!("{id}.trial"),
-            trial: Box::new(trial),
-        }],
-        read: ReadOptions::default(),
-        fit: FitOptions {
-            joints: vec![joints.into()],
-            ..FitOptions::default()
+        request: Request {
+            model: ModelSource::Named("lower-limb-right".into()),
+            trials: vec![TrialSource::Data {
+                name: format!("{id}.trial"),
+                trial: Box::new(trial),
+            }],
+            read: ReadOptions::default(),
+            fit: FitOptions {
+                joints: vec![joints.into()],
+                ..FitOptions::default()
+            },
         },
     }
+}
+
+fn run_job(job: &Job) -> Result<Calibration, crate::Error> {
+    crate::run(&job.request)
 }
 
 fn temp_dir(tag: &str) -> tempfile::TempDir {
@@ -111,13 +120,14 @@ fn batch_is_thread_independent_keeps_failures_and_resumes() {
     }
     // A changed job is not taken for a finished one.
     let mut changed = jobs.clone();
-    changed[0].fit.joints = vec!["ankle".into()];
+    changed[0].request.fit.joints = vec!["ankle".into()];
     let third = run_batch(&changed, Some(dir.path()), 1, |_, _| {}).unwrap();
     assert!(!third[0].resumed);
     assert_ne!(third[0].result, two[0].result);
     // The saved model is the fitted one.
     let saved =
-        crate::model_file::load_spec(dir.path().join("models/s3.toml").to_str().unwrap()).unwrap();
+        jointfit_io::model_file::load_spec(dir.path().join("models/s3.toml").to_str().unwrap())
+            .unwrap();
     assert_eq!(&saved, &two[2].result.as_ref().unwrap().model);
 }
 
@@ -182,13 +192,13 @@ fn bad_ids_and_messages() {
         Err(BatchError::BadId(_))
     ));
     let mut j = job("m", 1, "knee");
-    j.model = ModelInput::Named("no-such-model".into());
+    j.request.model = ModelSource::Named("no-such-model".into());
     assert_eq!(
         message(&run_job(&j).unwrap_err()),
         "\"no-such-model\" is neither a model file nor a built-in model (lower-limb, lower-limb-right, lower-limb-left)"
     );
-    j.model = ModelInput::Named("lower-limb-right".into());
-    j.trials = vec![TrialInput::Path("/no/such/walk.c3d".into())];
+    j.request.model = ModelSource::Named("lower-limb-right".into());
+    j.request.trials = vec![TrialSource::Path("/no/such/walk.c3d".into())];
     let m = message(&run_job(&j).unwrap_err());
     assert!(m.contains("/no/such/walk.c3d"), "{m}");
 }
@@ -208,10 +218,10 @@ fn poorly_determined_warning_names_the_deciding_half_width() {
     };
     let (trial, _) = markers(&model, &truth, &coords, 50.0, Some(&noise));
     let mut j = job("noisy", 4, "hip");
-    j.fit.joints = vec!["hip".into(), "knee".into()];
+    j.request.fit.joints = vec!["hip".into(), "knee".into()];
     // A knee trial leaves the hip far from any anatomy: kept on purpose for its warnings.
-    j.fit.accept_rejected = true;
-    j.trials = vec![TrialInput::Data {
+    j.request.fit.accept_rejected = true;
+    j.request.trials = vec![TrialSource::Data {
         name: "noisy.trial".into(),
         trial: Box::new(trial),
     }];

@@ -12,7 +12,8 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use super::{BatchError, Outcome, ParamRow};
+use super::{BatchError, Outcome};
+use crate::ParamRow;
 
 #[derive(Serialize)]
 struct Row<'a> {
@@ -21,7 +22,7 @@ struct Row<'a> {
     status: &'static str,
     error: Option<&'a str>,
     resumed: bool,
-    method: Option<super::Method>,
+    method: Option<crate::Method>,
     frames: Option<usize>,
     skipped_frames: Option<usize>,
     rms_before_m: Option<f64>,
@@ -169,7 +170,7 @@ pub fn write_tables(dir: &Path, outcomes: &[Outcome]) -> Result<(), BatchError> 
         ("results.json", json(outcomes)),
     ] {
         let path = dir.join(name);
-        crate::atomic::write_atomic(&path, text.as_bytes())
+        jointfit_io::atomic::write_atomic(&path, text.as_bytes())
             .map_err(|source| BatchError::Io { path, source })?;
     }
     Ok(())

@@ -1,26 +1,28 @@
-//! One calibration of a job, values in and values out: the free parameters by group, the
-//! outer solve, the uncertainty of the optimum (`jointfit::calibrate::uncertainty`).
+//! The options of a calibration ([`FitOptions`], and the one mapping to the core's
+//! settings) and its result in SI units ([`Calibration`]): the summary stage.
 //!
-//! The calibration is [`jointfit::workflow::calibrate`] with the command line's settings
-//! ([`FitOptions::settings`]), so the fitted parameters equal `jointfit calibrate`'s bit for
-//! bit for the same options; this module only converts to SI rows and warning lines.
+//! The summary turns the core's result (display units: mm, degrees) into SI rows, one per
+//! free parameter, and the warnings a results table or a Python user reads, one line each.
 
-use jointfit::calibrate::params_for_groups;
 use jointfit::calibrate::uncertainty::Identifiability;
 use jointfit::model::spec::ModelSpec;
-use jointfit::model::{Model, Unit, MM_PER_M};
-use jointfit::trial::Trial;
-use jointfit::workflow::{self, uncertainty_options, FitSettings, NoObserver, WorkflowError};
+use jointfit::model::{Model, Unit, MM_PER_M, M_PER_MM};
+use jointfit::workflow::refine::RefinedCalibration;
+use jointfit::workflow::{self, uncertainty_options, FitSettings};
 use serde::{Deserialize, Serialize};
+
+use crate::osim::OsimFit;
 
 /// The outer optimizer (as `jointfit calibrate --method`).
 pub use jointfit::workflow::Method;
 
 /// Settings of one calibration: the options of `jointfit calibrate`, with its defaults.
-/// Fields added after the first release default when absent from a saved result.
+/// Fields added after the first release default when absent from a saved result, and are
+/// left out of the saved text at their default (a batch's saved results stay valid).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FitOptions {
-    /// Parameter groups to fit (`hip`, `knee`, `ankle`, `all`).
+    /// Parameter groups to fit (`hip`, `knee`, `ankle`, `all`); of an `.osim` model, the
+    /// joints whose offset frames to personalize (`all`: none by name).
     pub joints: Vec<String>,
     pub method: Method,
     /// Seed of the particle swarm, of the extra starts and of the bootstrap.
@@ -31,33 +33,69 @@ pub struct FitOptions {
     pub threshold_deg: f64,
     /// Moving-block bootstrap replicates of the intervals (0: none).
     pub bootstrap: usize,
-    /// Starts of the fit (`--starts`: the given one and seeded moves; the best is kept).
+    /// Starts of the fit (the given one and seeded moves; the best is kept).
     #[serde(default = "one")]
     pub starts: usize,
-    /// Refit with the undetermined parameters held (`--fix-unidentifiable`).
+    /// Refit with the undetermined parameters held at their start.
     #[serde(default)]
     pub fix_unidentifiable: bool,
-    /// Use the model file's parameter priors (`--prior model`; `false`: `--prior none`).
+    /// Use the model file's parameter priors (a maximum a posteriori fit); `false`: the
+    /// unregularized least squares of Reinbolt et al. (2005).
     #[serde(default = "yes")]
     pub priors: bool,
-    /// Marker noise SD (mm) weighing the priors (`--marker-noise-mm`; `None`: estimated).
+    /// Marker noise SD (mm) weighing the priors (`None`: estimated from the residuals).
     #[serde(default)]
     pub marker_noise_mm: Option<f64>,
-    /// Outer iteration limit (`--max-iter`; `None`: the solver's default).
+    /// Outer iteration limit (`None`: the solver's default).
     #[serde(default)]
     pub max_iterations: Option<usize>,
-    /// Keep a fit whose verdict is `reject` (`--accept-rejected`); otherwise the job fails
-    /// with the verdict's first reason.
+    /// Keep a fit whose verdict is `reject`; otherwise the request fails with the verdict's
+    /// first reason.
     #[serde(default)]
     pub accept_rejected: bool,
+    /// Extra starts of the global phase of a single-start joint fit (0: one local fit).
+    #[serde(default = "five", skip_serializing_if = "is_five")]
+    pub probes: usize,
+    /// Refine every tracking marker's position with this prior SD (mm per axis).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refine_markers_mm: Option<f64>,
+    /// With a prior: bound the hip centre medial to the ASIS.
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub anatomical_envelope: bool,
+    /// With a prior: refine the markers displaced since the static trial, leave out broken
+    /// ones.
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub marker_policy: bool,
+    /// Markers the marker policy leaves as they are.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub keep_markers: Vec<String>,
+    /// With a prior: widen the prior of a joint the trial disagrees with.
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub prior_conflict: bool,
+    /// An `.osim` model's finer selection of offset scalars
+    /// (`JOINT[.parent|.child[.translation|.orientation[.x|.y|.z]]]`), after `joints`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub params: Vec<String>,
 }
 
 fn one() -> usize {
     1
 }
 
+fn five() -> usize {
+    5
+}
+
+fn is_five(n: &usize) -> bool {
+    *n == 5
+}
+
 fn yes() -> bool {
     true
+}
+
+fn is_true(b: &bool) -> bool {
+    *b
 }
 
 impl Default for FitOptions {
@@ -66,8 +104,8 @@ impl Default for FitOptions {
             joints: vec!["all".into()],
             method: Method::Joint,
             seed: 1,
-            threshold_mm: 5.0,
-            threshold_deg: 5.0,
+            threshold_mm: FitSettings::COMMAND_THRESHOLD_MM,
+            threshold_deg: FitSettings::COMMAND_THRESHOLD_DEG,
             bootstrap: 0,
             starts: 1,
             fix_unidentifiable: false,
@@ -75,12 +113,21 @@ impl Default for FitOptions {
             marker_noise_mm: None,
             max_iterations: None,
             accept_rejected: false,
+            probes: five(),
+            refine_markers_mm: None,
+            anatomical_envelope: true,
+            marker_policy: true,
+            keep_markers: Vec::new(),
+            prior_conflict: true,
+            params: Vec::new(),
         }
     }
 }
 
 /// Most starts of one fit (each is a full fit).
 pub const MAX_STARTS: usize = 1_000;
+/// Most probes of the global phase.
+pub const MAX_PROBES: usize = 1_000;
 /// Most block-bootstrap replicates (each is a refit).
 pub const MAX_BOOTSTRAP: usize = 2_000;
 /// Most outer iterations of one fit.
@@ -90,9 +137,10 @@ pub const MAX_NOISE_MM: f64 = 1_000.0;
 
 impl FitOptions {
     /// The options are within their documented limits (the command line's): `starts` 1 to
-    /// [`MAX_STARTS`], `bootstrap` at most [`MAX_BOOTSTRAP`], `max_iterations` 1 to
-    /// [`MAX_ITERATIONS`], thresholds finite and positive, `marker_noise_mm` finite, positive
-    /// and at most [`MAX_NOISE_MM`]. The error is one line naming the option.
+    /// [`MAX_STARTS`], `probes` at most [`MAX_PROBES`], `bootstrap` at most
+    /// [`MAX_BOOTSTRAP`], `max_iterations` 1 to [`MAX_ITERATIONS`], thresholds and the
+    /// refined markers' prior SD finite and positive, `marker_noise_mm` finite, positive and
+    /// at most [`MAX_NOISE_MM`]. The error is one line naming the option.
     pub fn check(&self) -> Result<(), String> {
         let count = |name: &str, v: usize, lo: usize, hi: usize| {
             if (lo..=hi).contains(&v) {
@@ -111,6 +159,7 @@ impl FitOptions {
             }
         };
         count("starts", self.starts, 1, MAX_STARTS)?;
+        count("probes", self.probes, 0, MAX_PROBES)?;
         count("bootstrap", self.bootstrap, 0, MAX_BOOTSTRAP)?;
         if let Some(n) = self.max_iterations {
             count("max_iter", n, 1, MAX_ITERATIONS)?;
@@ -120,16 +169,21 @@ impl FitOptions {
         if let Some(mm) = self.marker_noise_mm {
             positive("marker_noise_mm", mm, MAX_NOISE_MM)?;
         }
+        if let Some(mm) = self.refine_markers_mm {
+            positive("marker_prior_sd_mm", mm, f64::MAX)?;
+        }
         Ok(())
     }
 
-    /// The workflow's settings for these options: the same as `jointfit calibrate` builds
-    /// from the same command-line options, so the results are equal bit for bit.
+    /// The core's settings for these options: the one mapping from options to
+    /// [`FitSettings`] (every front end's). The default options give
+    /// [`FitSettings::command_default`].
     pub fn settings(&self) -> FitSettings {
         FitSettings {
             method: self.method,
             seed: self.seed,
             starts: self.starts,
+            probes: self.probes,
             uncertainty: Some(uncertainty_options(
                 self.threshold_mm,
                 self.threshold_deg,
@@ -138,12 +192,15 @@ impl FitOptions {
             )),
             fix_unidentifiable: self.fix_unidentifiable,
             priors: self.priors,
-            marker_noise: self
-                .marker_noise_mm
-                .map(|mm| mm * jointfit::model::M_PER_MM),
+            marker_noise: self.marker_noise_mm.map(|mm| mm * M_PER_MM),
+            refine_markers: self.refine_markers_mm.map(|mm| mm * M_PER_MM),
             max_iterations: self.max_iterations,
+            anatomical_envelope: self.anatomical_envelope,
+            marker_policy: self.marker_policy,
+            keep_markers: self.keep_markers.clone(),
+            prior_conflict: self.prior_conflict,
             refuse_mismatch: !self.accept_rejected,
-            ..FitSettings::default()
+            ..FitSettings::command_default()
         }
     }
 }
@@ -190,42 +247,20 @@ pub struct Calibration {
     pub verdict: jointfit::workflow::Verdict,
 }
 
-/// Fits the `opts.joints` parameters of `model` to `trials`, starting from `start`.
-pub fn calibrate(
+/// The summary of a native model's fit ([`crate::fit()`]): the rows from `start`, the fitted
+/// description in the input's structure (its priors and bounds, the fitted joint parameters,
+/// the refined marker positions), and the warnings: the marker policy's decisions, the
+/// prior–data conflicts, the anatomical envelope, then the uncertainty and convergence.
+pub fn summarize_refined(
     model: &Model,
-    start: Vec<f64>,
-    trials: &[&Trial],
-    opts: &FitOptions,
-) -> Result<Calibration, WorkflowError> {
-    calibrate_observed(model, start, trials, opts, &mut NoObserver)
-}
-
-/// [`calibrate`] reporting its solver's progress to `observer`.
-pub fn calibrate_observed(
-    model: &Model,
-    start: Vec<f64>,
-    trials: &[&Trial],
-    opts: &FitOptions,
-    observer: &mut dyn workflow::Observer,
-) -> Result<Calibration, WorkflowError> {
-    let groups: Vec<&str> = opts.joints.iter().map(String::as_str).collect();
-    let free = params_for_groups(model, &groups)?;
-    let settings = opts.settings();
-    // The command's calibration (`jointfit calibrate`): with a prior, the anatomical envelope
-    // and the marker policy ([`workflow::refine::calibrate_refined`]).
-    let refined =
-        workflow::refine::calibrate_refined(model, &start, trials, &free, &settings, observer)?;
+    start: &[f64],
+    refined: &RefinedCalibration,
+    method: Method,
+) -> Calibration {
     // The fitted model may carry marker parameters after the input's (start: their nominal).
     let mut start_all = refined.model.nominal_params();
-    start_all[..start.len()].copy_from_slice(&start);
-    let mut out = summarize(
-        &refined.model,
-        &start_all,
-        &refined.calibration,
-        opts.method,
-    );
-    // The fitted description as the command writes it: the input's structure (its priors and
-    // bounds), the fitted joint parameters, the refined marker positions.
+    start_all[..start.len()].copy_from_slice(start);
+    let mut out = summarize(&refined.model, &start_all, &refined.calibration, method);
     let mut fitted = model.spec_with_nominal(&refined.calibration.fit.p[..model.n_p()]);
     fitted.markers = refined.fitted.markers.clone();
     fitted.name = format!("{} (fitted)", model.spec().name);
@@ -254,8 +289,38 @@ pub fn calibrate_observed(
     }
     notes.append(&mut out.warnings);
     out.warnings = notes;
-    out.verdict = refined.calibration.verdict.clone();
-    Ok(out)
+    out
+}
+
+/// The summary of an `.osim` personalization ([`crate::osim::personalize`]): the fitted
+/// description (priors centred on the file's values), and the warnings: the prior–data
+/// conflicts, the parameters held as redundant, then the uncertainty and convergence.
+pub fn summarize_osim(done: &OsimFit, method: Method) -> Calibration {
+    let mut cal = summarize(
+        &done.model,
+        &done.model.nominal_params(),
+        &done.result.calibration,
+        method,
+    );
+    cal.model = done.fitted_spec();
+    let mut warnings = conflict_lines(&done.result.prior_conflict);
+    for r in &done.result.held_redundant {
+        warnings.push(if r.with.is_empty() {
+            format!(
+                "{} held at its start value: the joint's coordinates absorb it",
+                r.parameter
+            )
+        } else {
+            format!(
+                "{} held at its start value: redundant with {}",
+                r.parameter,
+                r.with.join(", ")
+            )
+        });
+    }
+    warnings.append(&mut cal.warnings);
+    cal.warnings = warnings;
+    cal
 }
 
 /// One warning per joint the prior–data conflict step flagged ([`workflow::conflict`]).

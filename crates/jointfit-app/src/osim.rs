@@ -1,9 +1,9 @@
-//! The personalization of a user's OpenSim model, as one job for every front end (the
-//! command line's `calibrate MODEL.osim`, Python's `jointfit.calibrate` on a loaded `.osim`):
-//! selection → parameterized model ([`super::personalize::parameterize`]) → calibration
+//! The fit of a user's OpenSim model, the pipeline's fit stage for an `.osim` (the command
+//! line's `calibrate MODEL.osim`, Python's `jointfit.calibrate` on an `.osim`, a batch job):
+//! selection → parameterized model ([`jointfit_io::osim_read::personalize::parameterize`]) → calibration
 //! with the redundant offset directions held
 //! ([`jointfit::workflow::calibrate_holding_redundant`]) → the user's file with the fitted
-//! offsets written back ([`super::personalize::fitted_text`]).
+//! offsets written back ([`jointfit_io::osim_read::personalize::fitted_text`]).
 //!
 //! Every selected offset scalar is free, except those the trials cannot tell from others
 //! (held at the file's value and listed). The default prior of each offset scalar
@@ -18,8 +18,8 @@ use jointfit::workflow::{
 };
 use thiserror::Error;
 
-use super::personalize::{fitted_text, parameterize, SelectionError};
-use super::{OsimModel, WriteBackError};
+use jointfit_io::osim_read::personalize::{fitted_text, parameterize, SelectionError};
+use jointfit_io::osim_read::{OsimModel, WriteBackError};
 
 #[derive(Debug, Error)]
 pub enum OsimFitError {
@@ -34,7 +34,7 @@ pub enum OsimFitError {
 }
 
 /// The selected offsets as parameters: `joints` (whole joints) and `params` (the finer
-/// selection, [`super::personalize`]'s syntax) together, in that order.
+/// selection, [`jointfit_io::osim_read::personalize`]'s syntax) together, in that order.
 pub fn selection_spec(
     osim: &OsimModel,
     joints: &[String],
