@@ -28,6 +28,7 @@ pub mod osim;
 mod pipeline;
 pub mod present;
 pub mod read;
+pub mod scale;
 
 use jointfit::model::ModelError;
 use jointfit::signal::SignalError;

@@ -1,16 +1,16 @@
 //! `jointfit scale GENERIC.osim STATIC [TRIALS...] [--markerset MARKERS.xml] -o SUBJECT.osim
 //! [--mass KG] [--height M] [--json] [--setup scale_setup.xml]`: a generic OpenSim model
 //! scaled to the subject with its markers registered
-//! ([`jointfit_io::osim_scale::workflow::scale_subject`]), written as OpenSim's own scaling
+//! ([`jointfit_app::scale::scale_subject`]), written as OpenSim's own scaling
 //! writes it.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
+use jointfit_app::scale::{scale_subject, ScaleOutcome, ScaleRequest};
 use jointfit_io::osim_scale::record::{read_record, write_record, ScaleRecord};
 use jointfit_io::osim_scale::setup::read_scale_setup;
-use jointfit_io::osim_scale::workflow::{scale_subject, ScaleOutcome, ScaleRequest};
 use serde::Serialize;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -226,7 +226,7 @@ pub fn run(args: ScaleArgs) -> Result<()> {
     let out = scale_subject(&req).map_err(anyhow::Error::msg)?;
     jointfit_io::atomic::write_atomic(&output, out.text.as_bytes())
         .with_context(|| format!("{}: cannot write", output.display()))?;
-    write_record(&output, &ScaleRecord::new(&req, &out)).map_err(anyhow::Error::msg)?;
+    write_record(&output, &jointfit_app::scale::record(&req, &out)).map_err(anyhow::Error::msg)?;
     if args.json {
         let report = JsonReport {
             output: output.display().to_string(),

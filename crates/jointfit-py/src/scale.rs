@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use jointfit_io::osim_scale::workflow::{scale_subject, ScaleRequest};
+use jointfit_app::scale::{scale_subject, ScaleRequest};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -56,7 +56,7 @@ pub fn scale<'py>(
     if let Some(path) = &output {
         jointfit_io::atomic::write_atomic(path, out.text.as_bytes())
             .map_err(|e| msg(format!("{}: cannot write: {e}", path.display())))?;
-        let record = jointfit_io::osim_scale::record::ScaleRecord::new(&req, &out);
+        let record = jointfit_app::scale::record(&req, &out);
         jointfit_io::osim_scale::record::write_record(path, &record).map_err(msg)?;
     }
     let d = PyDict::new(py);

@@ -38,7 +38,6 @@
 mod paths;
 pub mod record;
 pub mod setup;
-pub mod workflow;
 mod wrap;
 
 use std::collections::HashMap;

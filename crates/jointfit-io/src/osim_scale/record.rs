@@ -8,8 +8,6 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::workflow::{ScaleOutcome, ScaleRequest};
-
 /// One group's factors (x, y, z of its bodies' frames) and their SDs; SD 0: held at given
 /// factors (a setup's manual scale).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -45,44 +43,6 @@ pub struct ScaleRecord {
     pub total_mass: f64,
     /// Implausible factors, in words.
     pub flags: Vec<String>,
-}
-
-impl ScaleRecord {
-    pub fn new(req: &ScaleRequest, out: &ScaleOutcome) -> Self {
-        let show = |p: &Path| p.display().to_string();
-        ScaleRecord {
-            generic: show(&req.generic),
-            static_trial: show(&req.static_trial),
-            trials: req.trials.iter().map(|p| show(p)).collect(),
-            groups: out
-                .fit
-                .groups
-                .iter()
-                .map(|g| RecordGroup {
-                    name: g.name.clone(),
-                    bodies: g.bodies.clone(),
-                    factors: g.factors,
-                    sd: g.sd,
-                })
-                .collect(),
-            markers: out
-                .fit
-                .markers
-                .iter()
-                .map(|m| RecordMarker {
-                    name: m.name.clone(),
-                    body: m.body.clone(),
-                    moved_mm: m.moved.map(|d| d * 1000.0),
-                    rms_mm: m.rms.is_finite().then_some(m.rms * 1000.0),
-                })
-                .collect(),
-            rms_mm: out.fit.rms * 1000.0,
-            frames: out.frames,
-            generic_mass: out.generic_mass,
-            total_mass: out.total_mass,
-            flags: out.flags.clone(),
-        }
-    }
 }
 
 /// The record's path beside a model: `SUBJECT.osim` → `SUBJECT.scale.json`.

@@ -16,9 +16,10 @@ use jointfit::scale::{
 use jointfit::trial::Trial;
 use nalgebra::Vector3;
 
-use super::setup::{read_marker_set, with_marker_set, SetupGroup};
-use super::{scale_osim, ScaleOptions};
-use crate::osim_read::{parse_osim, read_osim, OsimModel};
+use jointfit_io::osim_read::{parse_osim, read_osim, OsimModel};
+use jointfit_io::osim_scale::record::{RecordGroup, RecordMarker, ScaleRecord};
+use jointfit_io::osim_scale::setup::{read_marker_set, with_marker_set, SetupGroup};
+use jointfit_io::osim_scale::{scale_osim, ScaleOptions};
 
 /// Everything `scale` needs.
 #[derive(Debug, Clone)]
@@ -179,7 +180,7 @@ fn read_targets(
     spec: &ModelSpec,
     generic: &Model,
 ) -> Result<(Targets, Vec<String>), String> {
-    let stat = crate::trial_file::read_trial(&req.static_trial).map_err(|e| e.to_string())?;
+    let stat = jointfit_io::trial_file::read_trial(&req.static_trial).map_err(|e| e.to_string())?;
     let mut targets = vec![averaged_targets(spec, &stat, static_range(req, &stat)?)];
     let absent: Vec<String> = spec
         .markers
@@ -189,7 +190,7 @@ fn read_targets(
         .map(|(m, _)| m.name.clone())
         .collect();
     for path in &req.trials {
-        let t = crate::trial_file::read_trial(path).map_err(|e| e.to_string())?;
+        let t = jointfit_io::trial_file::read_trial(path).map_err(|e| e.to_string())?;
         targets.extend(motion_frames(generic, &t, req.frames_per_trial, spec));
     }
     Ok((targets, absent))
@@ -316,5 +317,42 @@ pub fn resolve(base: &Path, path: &Path) -> PathBuf {
         path.to_path_buf()
     } else {
         base.join(path)
+    }
+}
+
+/// What the scaling did, for the record written beside the subject model.
+pub fn record(req: &ScaleRequest, out: &ScaleOutcome) -> ScaleRecord {
+    let show = |p: &Path| p.display().to_string();
+    ScaleRecord {
+        generic: show(&req.generic),
+        static_trial: show(&req.static_trial),
+        trials: req.trials.iter().map(|p| show(p)).collect(),
+        groups: out
+            .fit
+            .groups
+            .iter()
+            .map(|g| RecordGroup {
+                name: g.name.clone(),
+                bodies: g.bodies.clone(),
+                factors: g.factors,
+                sd: g.sd,
+            })
+            .collect(),
+        markers: out
+            .fit
+            .markers
+            .iter()
+            .map(|m| RecordMarker {
+                name: m.name.clone(),
+                body: m.body.clone(),
+                moved_mm: m.moved.map(|d| d * 1000.0),
+                rms_mm: m.rms.is_finite().then_some(m.rms * 1000.0),
+            })
+            .collect(),
+        rms_mm: out.fit.rms * 1000.0,
+        frames: out.frames,
+        generic_mass: out.generic_mass,
+        total_mass: out.total_mass,
+        flags: out.flags.clone(),
     }
 }
