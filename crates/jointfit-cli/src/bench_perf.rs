@@ -36,7 +36,7 @@ pub struct OpenSimIk {
 
 /// The OpenSim check script, built into the binary: `bench` writes it to its private
 /// scratch folder and runs it there, so the binary needs no source tree.
-const OSIM_CHECK: &str = include_str!("../../../scripts/osim_check.py");
+const OSIM_CHECK: &str = include_str!("../assets/osim_check.py");
 
 /// Why OpenSim cannot be timed here, or its timings: its IK on `input`'s model and trial
 /// ([`crate::bench_workload::OpenSimInput`]): the user's `.osim`, else `model` exported; the

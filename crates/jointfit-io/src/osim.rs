@@ -58,7 +58,7 @@
 //! ones, so a gimbal or free joint with a repeated axis (e.g. a z-x-z gimbal) or a universal
 //! joint with parallel axes cannot be exported: [`OsimError::ParallelAxes`].
 //!
-//! `tests/it/osim.rs` checks all of this against OpenSim 4.6 itself (`scripts/osim_check.py`):
+//! `tests/it/osim.rs` checks all of this against OpenSim 4.6 itself (`crates/jointfit-cli/assets/osim_check.py`):
 //! marker positions in ground for random coordinates, for every joint kind.
 //!
 //! # Placeholders and names

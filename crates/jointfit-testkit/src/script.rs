@@ -9,11 +9,18 @@ use std::process::{Command, Stdio};
 
 use serde_json::Value;
 
-/// `scripts/NAME` of the repository.
+/// Oracle scripts the command line ships (embedded in the binary for `bench`): they live
+/// beside its sources, in `crates/jointfit-cli/assets/`.
+const SHIPPED: &[&str] = &["osim_check.py"];
+
+/// `scripts/NAME` of the repository, or `crates/jointfit-cli/assets/NAME` for a script the
+/// command line ships.
 pub fn script_path(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../scripts")
-        .join(name)
+    let dir = match SHIPPED.contains(&name) {
+        true => "../jointfit-cli/assets",
+        false => "../../scripts",
+    };
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(dir).join(name)
 }
 
 /// One run of a script: `python scripts/NAME ARGS…`, optionally with text on stdin and in a
@@ -117,7 +124,7 @@ pub fn result_lines(stdout: &str) -> impl Iterator<Item = &str> {
     stdout.lines().filter_map(|l| l.strip_prefix("@@"))
 }
 
-/// `scripts/osim_check.py MODE` with `request` as JSON on stdin, in `cwd` when given: the
+/// `osim_check.py MODE` with `request` as JSON on stdin, in `cwd` when given: the
 /// OpenSim 4.6 oracle of the `.osim` export and of inverse kinematics.
 pub fn osim_check(python: &Path, mode: &str, request: &Value, cwd: Option<&Path>) -> Value {
     let mut s = Script::new(python, "osim_check.py")

@@ -1,5 +1,5 @@
 //! `jointfit export osim` end to end, and OpenSim 4.6 as the oracle of `jointfit ik`
-//! (`scripts/osim_check.py`): on a subject personalized from the real OpenCap static trial
+//! (`crates/jointfit-cli/assets/osim_check.py`): on a subject personalized from the real OpenCap static trial
 //! (right leg, and left leg),
 //! OpenSim's own InverseKinematicsTool on the exported model and walking1.trc must give the
 //! same joint angles (0.01 deg, 0.01 mm) and marker errors (0.01 mm) as `jointfit ik`, and

@@ -1,5 +1,5 @@
 //! `jointfit calibrate MODEL.osim TRIAL --joints ... -o OUT.osim` end to end, OpenSim 4.6 as
-//! the oracle (`scripts/osim_check.py`): on the OpenCap hand-scaled full-body model with
+//! the oracle (`crates/jointfit-cli/assets/osim_check.py`): on the OpenCap hand-scaled full-body model with
 //! walking1 (hip_r, walker_knee_r) and on the gait2354 subject01 model with its walk (hip_r,
 //! knee_r), the written file differs from the input only in `<translation>`/`<orientation>`
 //! lines of the named joints and holds exactly the reported fitted values; OpenSim loads it

@@ -1,5 +1,5 @@
 //! The `.osim` export ([`jointfit_io::osim`]): the XML structure (no Python needed), the
-//! errors, and OpenSim 4.6 itself as the oracle of the kinematics (`scripts/osim_check.py`):
+//! errors, and OpenSim 4.6 itself as the oracle of the kinematics (`crates/jointfit-cli/assets/osim_check.py`):
 //! marker positions in ground for random coordinates and parameters must equal jointfit's
 //! forward kinematics to 1e-6 m, for the built-in legs, a subject personalized from the real
 //! OpenCap static trial, and a model with every joint kind.
