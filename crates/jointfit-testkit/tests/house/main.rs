@@ -18,16 +18,16 @@ use source::RustFile;
 /// `measures.rs`) and dates of work, in any text file of the repository. Goal: 0.
 const PROCESS_WORDS: usize = 0;
 /// Functions whose body spans more than 100 lines, under `crates/`. Goal: at most 10.
-const LONG_FUNCTIONS: usize = 47;
+const LONG_FUNCTIONS: usize = 5;
 /// Public items of the core library (methods and re-exported names included). Goal: at most 250.
-const CORE_PUBLIC_ITEMS: usize = 890;
+const CORE_PUBLIC_ITEMS: usize = 567;
 /// Modules of `jointfit-io` that run fits, IK or calibration. Goal: 0 (the io crate reads
 /// and writes formats).
-const IO_WORKFLOW_MODULES: usize = 4;
+const IO_WORKFLOW_MODULES: usize = 0;
 /// Lines of the shipped binary's code that reach into the source tree. Goal: 0.
-const BINARY_SOURCE_TREE_PATHS: usize = 4;
+const BINARY_SOURCE_TREE_PATHS: usize = 0;
 /// Top-level modules of the core that lie on a dependency cycle. Goal: 0.
-const CORE_MODULES_IN_CYCLES: usize = 8;
+const CORE_MODULES_IN_CYCLES: usize = 0;
 
 fn files() -> &'static [RustFile] {
     static FILES: OnceLock<Vec<RustFile>> = OnceLock::new();
