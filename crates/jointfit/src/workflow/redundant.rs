@@ -157,10 +157,13 @@ pub struct HeldCalibration {
     /// Each joint's (parameter group's) prior–data conflict ([`super::conflict::assess_and_widen`]);
     /// empty without a prior or with `prior_conflict` off.
     pub prior_conflict: Vec<super::conflict::JointConflict>,
+    /// Joints the trials barely move, held at their start ([`super::motion_range`]).
+    pub held_joints: Vec<super::motion_range::HeldJoint>,
 }
 
 /// [`calibrate`](super::calibrate) of the non-redundant parameters of `free`; the redundant
-/// ones stay at their `start` values and are listed. A maximum a posteriori fit then takes the
+/// ones and those of joints the trials barely move ([`super::motion_range`]) stay at their
+/// `start` values and are listed. A maximum a posteriori fit then takes the
 /// prior–data conflict step ([`super::conflict::assess_and_widen`]).
 pub fn calibrate_holding_redundant(
     model: &Model,
@@ -171,7 +174,8 @@ pub fn calibrate_holding_redundant(
     observer: &mut dyn Observer,
 ) -> Result<HeldCalibration, WorkflowError> {
     let mismatches = super::verdict::check_inputs(model, trials, settings.refuse_mismatch)?;
-    let (kept, held_redundant) = redundant_parameters(model, start, trials, free)?;
+    let (free, held_joints) = super::motion_range::hold_still_joints(model, start, trials, free)?;
+    let (kept, held_redundant) = redundant_parameters(model, start, trials, &free)?;
     let (mut calibration, system) = super::calibration::calibrate_keeping_system(
         model, start, trials, &kept, settings, observer,
     )?;
@@ -186,6 +190,7 @@ pub fn calibrate_holding_redundant(
     let evidence = super::verdict::Evidence {
         mismatches: &mismatches,
         conflict: &prior_conflict,
+        held: &held_joints,
         ..Default::default()
     };
     calibration.verdict = super::verdict::judge(model, &calibration, &evidence);
@@ -193,6 +198,7 @@ pub fn calibrate_holding_redundant(
         calibration,
         held_redundant,
         prior_conflict,
+        held_joints,
     })
 }
 

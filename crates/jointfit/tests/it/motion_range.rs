@@ -10,7 +10,7 @@ use jointfit::workflow::motion_range::{
     hold_still_joints, HeldJoint, MOVED_RANGE_DEG, STILL_RANGE_DEG,
 };
 use jointfit::workflow::refine::calibrate_refined;
-use jointfit::workflow::{FitSettings, NoObserver};
+use jointfit::workflow::{calibrate_holding_redundant, FitSettings, NoObserver};
 use jointfit_testkit::synth;
 
 /// (coordinate, mean, amplitude) in rad: sinusoids at 1 Hz over two whole periods.
@@ -145,4 +145,44 @@ fn the_calibration_holds_them_and_fits_the_moving_leg() {
     let want = sine_range_deg(amplitude("knee_flexion_l"));
     assert!((said - want).abs() < 0.15, "{line} against {want}");
     assert!(line.contains("below 15°"), "{line}");
+}
+
+/// The path of a user's OpenSim model ([`calibrate_holding_redundant`]) holds the standing
+/// leg's joints the same way: exactly at the start, not fitted, said in the verdict.
+#[test]
+fn the_osim_path_holds_them_too() {
+    let model = Model::compile(&bilateral()).unwrap();
+    let truth = model.nominal_params();
+    let trial = one_sided_trial(&model, &truth);
+    let free: Vec<_> = model
+        .params_in_group("knee_r")
+        .into_iter()
+        .chain(model.params_in_group("knee_l"))
+        .collect();
+    let settings = FitSettings {
+        probes: 0,
+        ..FitSettings::default()
+    };
+    let fit =
+        calibrate_holding_redundant(&model, &truth, &[&trial], &free, &settings, &mut NoObserver)
+            .unwrap();
+    let names: Vec<&str> = fit.held_joints.iter().map(|h| h.joint.as_str()).collect();
+    assert_eq!(names, ["knee_l"]);
+    for id in &free {
+        let name = &model.parameters()[id.0].name;
+        let fitted = fit.calibration.parameters.iter().any(|r| &r.name == name);
+        assert_eq!(fitted, !name.ends_with("_l"), "{name}");
+        if name.ends_with("_l") {
+            assert_eq!(fit.calibration.fit.p[id.0], truth[id.0], "{name}");
+        }
+    }
+    assert!(
+        fit.calibration
+            .verdict
+            .reasons
+            .iter()
+            .any(|r| r.starts_with("held knee_l")),
+        "{:?}",
+        fit.calibration.verdict
+    );
 }
