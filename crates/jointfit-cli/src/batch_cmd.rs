@@ -234,8 +234,9 @@ fn to_job(entry: JobEntry, defaults: &Settings, base: &Path) -> Result<Job> {
 
 /// Reads a manifest into jobs (paths resolved against its folder).
 fn read_manifest(path: &Path) -> Result<Vec<Job>> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("{}: cannot read", path.display()))?;
+    let text =
+        jointfit_io::limits::read_text(path, jointfit_io::limits::DOCUMENT_BYTES, "manifest")
+            .with_context(|| format!("{}: cannot read", path.display()))?;
     let manifest: Manifest = toml::from_str(&text).map_err(|e| {
         let line = e.span().map_or(String::new(), |s| {
             format!("line {}: ", text[..s.start].matches('\n').count() + 1)

@@ -107,8 +107,9 @@ enum HipArg {
 pub(crate) fn load_marker_set(arg: &str) -> Result<MarkerSet> {
     let path = Path::new(arg);
     if path.exists() {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("{}: cannot read", path.display()))?;
+        let text =
+            jointfit_io::limits::read_text(path, jointfit_io::limits::DOCUMENT_BYTES, "marker set")
+                .with_context(|| format!("{}: cannot read", path.display()))?;
         return Ok(MarkerSet::from_toml(&text, &path.display().to_string())?);
     }
     if PRESET_NAMES.contains(&arg) {

@@ -150,10 +150,13 @@ pub enum StoErrorKind {
 /// Reads a `.mot`/`.sto` file (OpenSim 4 `STOFileAdapter` or older `Storage` layout).
 pub fn read_sto(path: &Path) -> Result<Table, StoError> {
     let name = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| StoError {
-        file: name.clone(),
-        kind: StoErrorKind::Io(e),
-    })?;
+    let bytes =
+        crate::limits::read_bytes(path, crate::limits::TRIAL_BYTES, "motion").map_err(|e| {
+            StoError {
+                file: name.clone(),
+                kind: StoErrorKind::Io(e),
+            }
+        })?;
     parse_sto(&decode(&bytes), &name)
 }
 

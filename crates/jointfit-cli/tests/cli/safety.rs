@@ -664,6 +664,22 @@ fn oversized_inputs_are_refused_quickly_naming_the_limit() {
         cases.push((ik(&m, &b("zero.trc")), "1024 MiB"));
         cases.push((ik(&m, &b("zero.c3d")), "1024 MiB"));
     }
+    // A marker set and a batch manifest are read under the same limit as a model.
+    let words = |w: &[&str]| -> Vec<String> { w.iter().map(|a| a.to_string()).collect() };
+    let outdir = s.p("batch-out");
+    cases.push((
+        words(&[
+            "personalize",
+            "--static",
+            &t,
+            "--markers",
+            &b("big.toml"),
+            "-o",
+            &out,
+        ]),
+        "256 MiB",
+    ));
+    cases.push((words(&["batch", &b("big.toml"), "-o", &outdir]), "256 MiB"));
     for (args, limit) in &cases {
         let clock = std::time::Instant::now();
         let args: Vec<&str> = args.iter().map(String::as_str).collect();

@@ -65,7 +65,7 @@ pub fn read_record(model: &Path) -> Result<Option<ScaleRecord>, String> {
     if !path.is_file() {
         return Ok(None);
     }
-    let text = std::fs::read_to_string(&path)
+    let text = crate::limits::read_text(&path, crate::limits::DOCUMENT_BYTES, "scale record")
         .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
     serde_json::from_str(&text)
         .map(Some)

@@ -23,9 +23,11 @@ pub struct MarkerDef {
 }
 
 fn read(path: &Path) -> Result<String, SetupError> {
-    std::fs::read_to_string(path).map_err(|source| SetupError::Read {
-        path: path.to_path_buf(),
-        source,
+    crate::limits::read_text(path, crate::limits::DOCUMENT_BYTES, "setup").map_err(|source| {
+        SetupError::Read {
+            path: path.to_path_buf(),
+            source,
+        }
     })
 }
 
