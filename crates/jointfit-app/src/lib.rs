@@ -29,6 +29,7 @@ mod pipeline;
 pub mod present;
 pub mod read;
 pub mod scale;
+mod trial_checks;
 
 use jointfit::model::ModelError;
 use jointfit::signal::SignalError;
@@ -43,6 +44,7 @@ pub use read::{
     check_plausible, load_subject, prepare_trial, read_trial, read_trials, ModelSource,
     ReadOptions, Subject, TrialSource,
 };
+pub use trial_checks::{check_markers, check_motion};
 
 /// Why a request failed. The display is the command line's message for the same failure.
 #[derive(Debug, Error)]

@@ -10,6 +10,7 @@ use jointfit::workflow::{self, Level, NoObserver, Observer, Verdict, WorkflowErr
 use crate::fit::{Calibration, FitOptions};
 use crate::osim::OsimFit;
 use crate::read::{load_subject, read_trials, ModelSource, ReadOptions, Subject, TrialSource};
+use crate::trial_checks::{check_markers, check_motion};
 use crate::Error;
 
 /// One calibration to run: the model, its trials, how to read them and how to fit.
@@ -140,6 +141,10 @@ pub fn run_observed(request: &Request, observer: &mut dyn Observer) -> Result<Ca
     let (trials, mut warnings) = read_trials(&request.trials, &request.read, subject.lab_up())?;
     let refs: Vec<&Trial> = trials.iter().collect();
     let names: Vec<String> = request.trials.iter().map(TrialSource::name).collect();
+    for (name, trial) in names.iter().zip(&refs) {
+        check_markers(name, trial, &subject.model).map_err(Error::Implausible)?;
+        check_motion(name, trial).map_err(Error::Implausible)?;
+    }
     let fitted =
         fit(&subject, None, &refs, &request.fit, observer).map_err(|e| name_trial(e, &names))?;
     let mut cal = fitted.summary;

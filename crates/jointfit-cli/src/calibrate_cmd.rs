@@ -367,8 +367,10 @@ pub fn prepare(args: &CalibrateArgs, opts: &FitOptions) -> Result<Prepared> {
     };
     let (trials, read) = load_trials(args, &subject.model)?;
     for (path, trial) in args.trials.iter().zip(&trials) {
-        crate::validate::check_markers(Path::new(path), trial, &subject.model)?;
-        crate::validate::check_motion(Path::new(path), trial)?;
+        jointfit_app::check_markers(&path.display().to_string(), trial, &subject.model)
+            .map_err(anyhow::Error::msg)?;
+        jointfit_app::check_motion(&path.display().to_string(), trial)
+            .map_err(anyhow::Error::msg)?;
     }
     if subject.osim.is_none() {
         for (path, trial) in args.trials.iter().zip(&trials) {
