@@ -6,7 +6,10 @@
 
 use jointfit::calibrate::uncertainty::Identifiability;
 use jointfit::model::spec::ModelSpec;
-use jointfit::model::{Model, Unit, MM_PER_M, M_PER_MM};
+use jointfit::model::spec::Unit;
+use jointfit::model::spec::MM_PER_M;
+use jointfit::model::spec::M_PER_MM;
+use jointfit::model::Model;
 use jointfit::workflow::refine::RefinedCalibration;
 use jointfit::workflow::{self, uncertainty_options, FitSettings};
 use serde::{Deserialize, Serialize};
@@ -244,7 +247,7 @@ pub struct Calibration {
     pub warnings: Vec<String>,
     /// How far to trust the fit ([`jointfit::workflow::verdict`]).
     #[serde(default)]
-    pub verdict: jointfit::workflow::Verdict,
+    pub verdict: jointfit::workflow::verdict::Verdict,
 }
 
 /// The summary of a native model's fit ([`crate::fit()`]): the rows from `start`, the fitted

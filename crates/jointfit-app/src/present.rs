@@ -3,7 +3,8 @@
 //! command-line flag; the command line, the report and the Python package turn values and
 //! errors into text here.
 
-use jointfit::model::{Unit, MM_PER_M};
+use jointfit::model::spec::Unit;
+use jointfit::model::spec::MM_PER_M;
 use jointfit::trial::UpAxis;
 use jointfit::workflow::WorkflowError;
 

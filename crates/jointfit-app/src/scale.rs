@@ -9,8 +9,9 @@ use std::time::Instant;
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;
+use jointfit::scale::geometry::ScaleFactors;
 use jointfit::scale::{
-    averaged_targets, default_groups, fit_scale, plausibility, ScaleFactors, ScaleFit, ScaleGroup,
+    averaged_targets, default_groups, fit_scale, plausibility, ScaleFit, ScaleGroup,
     ScaleOptions as FitOptions, SizePrior,
 };
 use jointfit::trial::Trial;

@@ -17,8 +17,9 @@ use jointfit::calibrate::params_for_groups;
 use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::Model;
+use jointfit::solver::NoObserver;
 use jointfit::trial::Trial;
-use jointfit::workflow::{self, Method, NoObserver};
+use jointfit::workflow::{self, Method};
 use rayon::prelude::*;
 use serde::Serialize;
 

@@ -17,10 +17,11 @@ use jointfit::calibrate::params_for_groups;
 use jointfit::calibrate::uncertainty::UncertaintyOptions;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::{Model, ParamId};
+use jointfit::solver::NoObserver;
+use jointfit::solver::Observer;
+use jointfit::solver::Termination;
 use jointfit::trial::Trial;
-use jointfit::workflow::{
-    self, Calibration, FitSettings, NoObserver, Observer, Termination, UNCERTAINTY_STAGE,
-};
+use jointfit::workflow::{self, Calibration, FitSettings, UNCERTAINTY_STAGE};
 use jointfit_experiments::synth;
 use serde::Serialize;
 

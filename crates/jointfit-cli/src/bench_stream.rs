@@ -24,7 +24,8 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use jointfit::ik::{IkOptions, StreamingIk};
-use jointfit::model::{Model, MM_PER_M};
+use jointfit::model::spec::MM_PER_M;
+use jointfit::model::Model;
 use jointfit::trial::{Trial, UpAxis};
 use serde::Serialize;
 

@@ -8,8 +8,9 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
+use jointfit::solver::Observer;
 use jointfit::trial::Trial;
-use jointfit::workflow::{self, Calibration, FitSettings, Method, Observer};
+use jointfit::workflow::{self, Calibration, FitSettings, Method};
 use jointfit_app::{Detail, FitOptions, ModelSource, Subject};
 use serde::Serialize;
 
@@ -217,7 +218,7 @@ impl Observer for ProgressObserver {
         }
     }
     fn iteration(&mut self, iteration: usize, objective: f64) {
-        let mm2 = objective * jointfit::model::MM_PER_M * jointfit::model::MM_PER_M;
+        let mm2 = objective * jointfit::model::spec::MM_PER_M * jointfit::model::spec::MM_PER_M;
         let msg = format!("objective {mm2:.1} mm²");
         let stage = self.stage.clone();
         self.bars.step(

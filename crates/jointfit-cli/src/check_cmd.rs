@@ -13,7 +13,7 @@ use anyhow::Result;
 use clap::Args;
 use jointfit::calibrate::params_for_groups;
 use jointfit::calibrate::uncertainty::{Identifiability, UncertaintyOptions};
-use jointfit::model::Unit;
+use jointfit::model::spec::Unit;
 use jointfit::workflow;
 use serde::Serialize;
 

@@ -9,7 +9,8 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use jointfit::ik::{unsolved_ranges, IkOptions, TrialFit};
 use jointfit::model::custom::MotionType;
-use jointfit::model::{Model, MM_PER_M};
+use jointfit::model::spec::MM_PER_M;
+use jointfit::model::Model;
 use jointfit::trial::Trial;
 use jointfit::workflow::{self, WorkflowError};
 use jointfit_io::sto::{write_sto, Table};
@@ -268,7 +269,7 @@ pub fn solve(
     }
     // Coordinates no marker of the trial determines (a toe joint without toe markers) stay
     // at their defaults, as in OpenSim's IK, and are said so.
-    let (held_model, held) = workflow::hold_undetermined(model, &[trial])?;
+    let (held_model, held) = jointfit::ik::hold_undetermined(model, &[trial])?;
     let checked_model = model;
     let ik_model = held_model.as_ref().unwrap_or(checked_model);
     // Markers the file lacks altogether are missing in every frame; frames whose present

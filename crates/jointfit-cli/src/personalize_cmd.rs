@@ -6,10 +6,13 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use clap::{ArgGroup, Args, ValueEnum};
 use jointfit::landmarks::auto::ChosenSet;
+use jointfit::landmarks::bilateral::personalize_sides;
+use jointfit::landmarks::bilateral::PersonalizedModel;
+use jointfit::landmarks::bilateral::Sides;
 use jointfit::landmarks::functional::FunctionalTrials;
 use jointfit::landmarks::{
-    personalize_keypoints, personalize_sides, HipCentreMethod, KeypointSet, MarkerSet,
-    PersonalizeOptions, PersonalizedModel, Sides, KEYPOINT_PRESET_NAMES, PRESET_NAMES,
+    personalize_keypoints, HipCentreMethod, KeypointSet, MarkerSet, PersonalizeOptions,
+    KEYPOINT_PRESET_NAMES, PRESET_NAMES,
 };
 use jointfit::model::lower_limb::Side;
 use jointfit::trial::Trial;

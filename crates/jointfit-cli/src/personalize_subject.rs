@@ -6,8 +6,9 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
+use jointfit::landmarks::bilateral::PersonalizedModel;
+use jointfit::landmarks::subject::SubjectMeasurements;
 use jointfit::landmarks::subject::MEASUREMENT_NAMES;
-use jointfit::landmarks::{PersonalizedModel, SubjectMeasurements};
 use jointfit::model::lower_limb::Side;
 use jointfit::trial::{up_axis_rotation, Trial};
 use nalgebra::Vector3;

@@ -25,7 +25,8 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use jointfit::ik::{FrameStatus, IkOptions, StreamingIk};
 use jointfit::model::custom::MotionType;
-use jointfit::model::{Model, M_PER_MM};
+use jointfit::model::spec::M_PER_MM;
+use jointfit::model::Model;
 use jointfit::trial::UpAxis;
 use nalgebra::Vector3;
 

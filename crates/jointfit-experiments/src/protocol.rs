@@ -18,9 +18,11 @@ use std::time::Instant;
 
 use jointfit::calibrate::{params_for_groups, CalibError, Problem};
 use jointfit::ik::IkWorkspace;
-use jointfit::model::{Model, Unit};
+use jointfit::model::spec::Unit;
+use jointfit::model::Model;
+use jointfit::solver::NoObserver;
 use jointfit::trial::Trial;
-use jointfit::workflow::{self, FitSettings, NoObserver, WorkflowError};
+use jointfit::workflow::{self, FitSettings, WorkflowError};
 use serde::Serialize;
 
 use crate::synth::{synthesize, Noise, NoiseStats};
@@ -95,7 +97,7 @@ pub fn param_errors(
         let d = a[i] - b[i];
         match model.parameters()[i].unit {
             Unit::Radian => ori.push(d.to_degrees()),
-            Unit::Metre => pos.push(d * jointfit::model::MM_PER_M),
+            Unit::Metre => pos.push(d * jointfit::model::spec::MM_PER_M),
         }
     }
     let rms = |v: &[f64]| {

@@ -7,8 +7,9 @@ use jointfit::calibrate::{params_for_groups, Problem};
 use jointfit::ik::IkWorkspace;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
+use jointfit::solver::NoObserver;
 use jointfit::trial::Trial;
-use jointfit::workflow::{calibrate, perturb, Calibration, FitSettings, NoObserver};
+use jointfit::workflow::{calibrate, perturb, Calibration, FitSettings};
 use jointfit_experiments::synth::{coordinates_scaled, synthesize, Motion, Noise};
 
 /// The synthetic case of `seed` and the objective at its true parameters.

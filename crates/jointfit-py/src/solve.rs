@@ -4,11 +4,11 @@
 use std::path::Path;
 
 use jointfit::ik::IkOptions;
+use jointfit::landmarks::bilateral::personalize_sides;
+use jointfit::landmarks::bilateral::Sides;
 use jointfit::landmarks::functional::FunctionalTrials;
 use jointfit::landmarks::PRESET_NAMES;
-use jointfit::landmarks::{
-    personalize_sides, HipCentreMethod, MarkerSet, PersonalizeOptions, Sides,
-};
+use jointfit::landmarks::{HipCentreMethod, MarkerSet, PersonalizeOptions};
 use jointfit::model::{CoordKind, Model};
 use jointfit::trial::Trial;
 use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion, SkinNoise};
@@ -436,7 +436,7 @@ pub fn ik(
         let filter = args::cutoff(filter, "filter")?;
         let model = model_arg(py, model)?;
         let trial = trial_arg(py, trial, up, filter, model.spec().lab_up)?;
-        let (held_model, held) = jointfit::workflow::hold_undetermined(&model, &[&trial.trial])
+        let (held_model, held) = jointfit::ik::hold_undetermined(&model, &[&trial.trial])
             .map_err(|e| msg(format!("{}: {e}", trial.name)))?;
         let mut warnings = Vec::new();
         if !held.is_empty() {

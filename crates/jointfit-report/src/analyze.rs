@@ -12,7 +12,7 @@ use jointfit::trial::Trial;
 use crate::data::{CoordSeries, MarkerRms, ParamRow, ReportInput, TrialSeries};
 use crate::ReportError;
 
-use jointfit::model::MM_PER_M as MM;
+use jointfit::model::spec::MM_PER_M as MM;
 
 /// Inverse kinematics of every trial with the fitted (and baseline) parameters; sets
 /// `trials`, `markers`, `overall_rms_mm` and `notes` of `input`.

@@ -149,7 +149,8 @@ mod tests {
     use super::*;
     use jointfit::calibrate::params_for_groups;
     use jointfit::model::lower_limb::{lower_limb, Side};
-    use jointfit::workflow::{calibrate, FitSettings, NoObserver};
+    use jointfit::solver::NoObserver;
+    use jointfit::workflow::{calibrate, FitSettings};
     use jointfit_experiments::synth::{coordinates, markers, Motion};
 
     fn knee_fit(settings: &FitSettings) -> (Model, Calibration, Trial) {

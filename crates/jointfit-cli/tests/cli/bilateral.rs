@@ -4,10 +4,12 @@
 
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::landmarks::bilateral::common_window;
+use jointfit::landmarks::bilateral::personalize_sides;
+use jointfit::landmarks::bilateral::PersonalizedModel;
+use jointfit::landmarks::bilateral::Sides;
 use jointfit::landmarks::functional::FunctionalTrials;
 use jointfit::landmarks::{
-    personalize, personalize_in, personalize_sides, LandmarkError, MarkerSet, PersonalizeOptions,
-    Personalized, PersonalizedModel, Sides,
+    personalize, personalize_in, LandmarkError, MarkerSet, PersonalizeOptions, Personalized,
 };
 use jointfit::model::lower_limb::{Side, SIDE_SUFFIXES};
 use jointfit::model::Model;

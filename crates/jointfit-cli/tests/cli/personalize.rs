@@ -79,8 +79,8 @@ fn check(
     let get = |n: &str| {
         let q = &spec.parameters[model.param_id(n).unwrap().0];
         match q.unit {
-            jointfit::model::Unit::Metre => q.nominal * 1e3,
-            jointfit::model::Unit::Radian => q.nominal.to_degrees(),
+            jointfit::model::spec::Unit::Metre => q.nominal * 1e3,
+            jointfit::model::spec::Unit::Radian => q.nominal.to_degrees(),
         }
     };
     let within = |n: &str, lo: f64, hi: f64| {

@@ -54,10 +54,12 @@ use jointfit::landmarks::priors::fill_landmark_priors;
 use jointfit::landmarks::HipCentreMethod;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::spec::ModelSpec;
-use jointfit::model::{Model, ParamId, Unit};
+use jointfit::model::spec::Unit;
+use jointfit::model::{Model, ParamId};
+use jointfit::solver::NoObserver;
 use jointfit::trial::Trial;
 use jointfit::workflow::refine::calibrate_refined;
-use jointfit::workflow::{calibrate, perturb, Calibration, FitSettings, NoObserver};
+use jointfit::workflow::{calibrate, perturb, Calibration, FitSettings};
 use jointfit_experiments::subject::landmark_model;
 use jointfit_experiments::synth::{coordinates, markers, perturbed_params, SkinNoise};
 

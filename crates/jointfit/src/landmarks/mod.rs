@@ -71,7 +71,6 @@ pub(crate) mod window;
 
 use nalgebra::Vector3;
 
-pub use bilateral::{personalize_sides, BothLegs, Outcome, PersonalizedModel, Sides};
 pub use error::LandmarkError;
 pub(crate) use frames::SegmentFrames;
 pub use keypoints::{personalize_keypoints, KeypointSet, KEYPOINT_PRESET_NAMES};
@@ -79,7 +78,7 @@ pub(crate) use markerset::MedialLandmark;
 pub(crate) use markerset::TRACKED_SEGMENTS;
 pub use markerset::{LegMarkers, MarkerSet};
 pub use markerset::{PelvisMarkers, PRESET_NAMES};
-pub use subject::SubjectMeasurements;
+use subject::SubjectMeasurements;
 pub(crate) use window::StaticWindow;
 
 use crate::kinematics::{forward_kinematics, KinData, Pose, Want};

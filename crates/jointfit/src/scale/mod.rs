@@ -8,5 +8,4 @@ pub mod geometry;
 pub(crate) mod groups;
 
 pub use fit::{fit_scale, GroupFit, ScaleFit, ScaleGroup, ScaleOptions, SizePrior};
-pub use geometry::{scaled_spec, ScaleFactors};
 pub use groups::{averaged_targets, default_groups, plausibility};

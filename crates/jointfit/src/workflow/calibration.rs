@@ -9,7 +9,8 @@ use crate::calibrate::uncertainty::{
     Uncertainty,
 };
 use crate::calibrate::{Fit, Problem};
-use crate::model::{Model, ParamId, MM_PER_M};
+use crate::model::spec::MM_PER_M;
+use crate::model::{Model, ParamId};
 use crate::trial::Trial;
 
 /// One free parameter of a calibration, in its shown unit (mm or deg).

@@ -217,7 +217,7 @@ mod tests {
         // A source without one of the target's parameters is an error naming both.
         // The same leg with one parameter renamed (everywhere it is used).
         let text = toml::to_string(&lower_limb(Side::Right)).unwrap();
-        let renamed: crate::model::ModelSpec =
+        let renamed: crate::model::spec::ModelSpec =
             toml::from_str(&text.replace("hip_thigh_anterior", "extra_offset")).unwrap();
         let wider = Model::compile(&renamed).unwrap();
         match transfer_params(&wider, &source, "x.toml") {

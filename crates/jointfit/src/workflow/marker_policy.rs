@@ -43,7 +43,8 @@ use crate::checks::offsets::{frames_looked_at, offsets_of_fit, MarkerOffset, MIN
 use crate::checks::offsets::{MIN_OFFSET, MIN_RATIO};
 use crate::ik::{solve_trial, IkOptions, MarkerMap};
 use crate::model::refine::{BOUND_IN_SD, DEFAULT_MARKER_PRIOR_SD};
-use crate::model::{Model, MM_PER_M};
+use crate::model::spec::MM_PER_M;
+use crate::model::Model;
 use crate::trial::Trial;
 
 use super::marker_rigid::{rigid_displaced, RigidOffset, MIN_OTHERS};

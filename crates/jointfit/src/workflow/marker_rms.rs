@@ -17,7 +17,8 @@
 
 use super::WorkflowError;
 use crate::calibrate::Problem;
-use crate::model::{Model, ParamId, MM_PER_M};
+use crate::model::spec::MM_PER_M;
+use crate::model::{Model, ParamId};
 use crate::trial::Trial;
 
 /// [`marker_rms`]'s result.

@@ -41,8 +41,7 @@ use thiserror::Error;
 use crate::calibrate::uncertainty::UncertaintyOptions;
 use crate::calibrate::CalibError;
 
-pub use crate::ik::{hold_undetermined, lock_undetermined};
-pub use crate::solver::{NoObserver, Observer, Termination};
+use crate::solver::{NoObserver, Observer, Termination};
 pub use calibration::{calibrate, Calibration, UNCERTAINTY_STAGE};
 pub use ik::{ik_checked, ik_trial, ik_warm_started, transfer_params};
 pub use marker_rms::{marker_rms, MarkerRms};
@@ -52,7 +51,6 @@ pub use starts::perturb;
 #[cfg(test)]
 use starts::restart_point;
 pub use summary::GlobalSearch;
-pub use verdict::{Level, Verdict};
 
 /// Errors of the workflow.
 #[derive(Debug, Error, PartialEq)]
@@ -243,8 +241,8 @@ pub fn uncertainty_options(
     seed: u64,
 ) -> UncertaintyOptions {
     UncertaintyOptions {
-        threshold_m: crate::model::Unit::Metre.from_display(threshold_mm),
-        threshold_rad: crate::model::Unit::Radian.from_display(threshold_deg),
+        threshold_m: crate::model::spec::Unit::Metre.from_display(threshold_mm),
+        threshold_rad: crate::model::spec::Unit::Radian.from_display(threshold_deg),
         bootstrap_replicates: bootstrap,
         seed,
         ..UncertaintyOptions::default()

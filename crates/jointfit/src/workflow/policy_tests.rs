@@ -11,7 +11,8 @@ use super::synthetic_tests::synthetic;
 use super::*;
 use crate::calibrate::params_for_groups;
 use crate::calibrate::prior::Source;
-use crate::model::{Model, ModelSpec};
+use crate::model::spec::ModelSpec;
+use crate::model::Model;
 
 /// The truth of seed `seed`: one thigh or shank marker (seeded) moved 20 mm in a seeded
 /// direction since the static trial, joint parameters moved up to 8 mm / 4° from the

@@ -10,7 +10,8 @@ use crate::calibrate::params_for_groups;
 use crate::landmarks::priors::fill_landmark_priors;
 use crate::landmarks::HipCentreMethod;
 use crate::model::lower_limb::{lower_limb, Side};
-use crate::model::{Model, ModelSpec};
+use crate::model::spec::ModelSpec;
+use crate::model::Model;
 
 /// The built-in right leg with the landmark priors `personalize` writes (Bell).
 pub(super) fn spec_with_priors() -> ModelSpec {

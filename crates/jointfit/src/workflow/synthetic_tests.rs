@@ -180,8 +180,8 @@ fn restart_points_are_seeded_distinct_and_bounded() {
     for (i, par) in model.parameters().iter().enumerate() {
         let d = par.unit.to_display(a[i] - start[i]).abs();
         let limit = match par.unit {
-            crate::model::Unit::Metre => 20.0,
-            crate::model::Unit::Radian => 10.0,
+            crate::model::spec::Unit::Metre => 20.0,
+            crate::model::spec::Unit::Radian => 10.0,
         };
         assert!(d <= limit + 1e-9, "{}: {d}", par.name);
         assert!(par.lower <= a[i] && a[i] <= par.upper);

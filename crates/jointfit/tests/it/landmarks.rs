@@ -262,7 +262,7 @@ fn the_written_model_reproduces_the_static_trial() {
     // Bounds: Reinbolt's cubes and cones around the nominal values.
     for p in &again.parameters {
         let half = 0.5 * (p.upper - p.lower);
-        let want = if p.unit == jointfit::model::Unit::Radian {
+        let want = if p.unit == jointfit::model::spec::Unit::Radian {
             30f64.to_radians()
         } else if p.group == "hip" {
             0.375 * PW

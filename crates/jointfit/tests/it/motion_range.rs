@@ -5,12 +5,13 @@
 
 use jointfit::model::lower_limb::bilateral;
 use jointfit::model::Model;
+use jointfit::solver::NoObserver;
 use jointfit::trial::Trial;
 use jointfit::workflow::motion_range::{
     hold_still_joints, HeldJoint, MOVED_RANGE_DEG, STILL_RANGE_DEG,
 };
 use jointfit::workflow::refine::calibrate_refined;
-use jointfit::workflow::{FitSettings, NoObserver};
+use jointfit::workflow::FitSettings;
 use jointfit_testkit::synth;
 
 /// (coordinate, mean, amplitude) in rad: sinusoids at 1 Hz over two whole periods.

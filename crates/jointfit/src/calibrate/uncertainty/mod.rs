@@ -89,7 +89,7 @@ mod subset;
 mod types;
 
 use super::{Fit, Problem};
-use crate::model::Unit;
+use crate::model::spec::Unit;
 use critical::critical;
 pub(crate) use critical::ln_gamma;
 use estimators::{conservative, continuity, covariances, Covariances};
