@@ -4,7 +4,7 @@
 //! The summary turns the core's result (display units: mm, degrees) into SI rows, one per
 //! free parameter, and the warnings a results table or a Python user reads, one line each.
 
-use jointfit::calibrate::uncertainty::Identifiability;
+use jointfit::calibrate::uncertainty::types::Identifiability;
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::spec::Unit;
 use jointfit::model::spec::MM_PER_M;

@@ -2,7 +2,8 @@
 //! the information came from (with a prior) or the identifiability notes (without), the
 //! anatomical checks and the marker errors.
 
-use jointfit::calibrate::uncertainty::{Identifiability, Uncertainty};
+use jointfit::calibrate::uncertainty::types::Identifiability;
+use jointfit::calibrate::uncertainty::types::Uncertainty;
 use jointfit::solver::Termination;
 use jointfit::workflow::Calibration;
 

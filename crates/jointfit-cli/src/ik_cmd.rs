@@ -7,7 +7,9 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use jointfit::ik::{unsolved_ranges, IkOptions, TrialFit};
+use jointfit::ik::trial_fit::unsolved_ranges;
+use jointfit::ik::trial_fit::TrialFit;
+use jointfit::ik::IkOptions;
 use jointfit::model::custom::MotionType;
 use jointfit::model::spec::MM_PER_M;
 use jointfit::model::Model;

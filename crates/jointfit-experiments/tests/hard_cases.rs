@@ -9,7 +9,7 @@
 //! --landmark-error` runs the same cases over 200 seeds (`docs/identifiability.md`).
 
 use jointfit::calibrate::params_for_groups;
-use jointfit::calibrate::uncertainty::UncertaintyOptions;
+use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
 use jointfit::landmarks::priors::fill_landmark_priors;
 use jointfit::landmarks::HipCentreMethod;
 use jointfit::model::lower_limb::{lower_limb, Side};

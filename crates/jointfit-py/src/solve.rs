@@ -319,7 +319,7 @@ impl PyIkResult {
             .errors
             .rows()
             .into_iter()
-            .map(|r| jointfit::ik::rms(r.iter().copied()))
+            .map(|r| jointfit::ik::trial_fit::rms(r.iter().copied()))
             .collect();
         v.into_pyarray(py)
     }

@@ -1,11 +1,14 @@
 //! Fills a [`ReportInput`] from a model, its fitted and baseline parameters and the trials:
-//! inverse kinematics of every trial with each parameter vector ([`jointfit::ik::solve_trial`],
+//! inverse kinematics of every trial with each parameter vector ([`jointfit::ik::trial_fit::solve_trial`],
 //! warm-started frame to frame), per-frame and per-marker RMS marker distances, the overall
 //! marker RMS every command prints ([`jointfit::workflow::marker_rms`]), the fitted
 //! model's coordinates over time, and the parameter table. Model markers a trial lacks count
 //! as missing in every frame of it (noted on the page), as they do in the fit.
 
-use jointfit::ik::{rms, solve_trial, IkOptions, MarkerMap, TrialFit};
+use jointfit::ik::trial_fit::rms;
+use jointfit::ik::trial_fit::solve_trial;
+use jointfit::ik::trial_fit::TrialFit;
+use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::model::{CoordKind, Model};
 use jointfit::trial::Trial;
 

@@ -47,7 +47,9 @@ use args::{misplaced, parse};
 use policy::{Errors, Policy, GROUPS};
 
 use jointfit::calibrate::prior::Source;
-use jointfit::calibrate::uncertainty::{Identifiability, ParamUncertainty, UncertaintyOptions};
+use jointfit::calibrate::uncertainty::types::Identifiability;
+use jointfit::calibrate::uncertainty::types::ParamUncertainty;
+use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
 use jointfit::calibrate::{params_for_groups, Problem};
 use jointfit::ik::IkWorkspace;
 use jointfit::landmarks::priors::fill_landmark_priors;

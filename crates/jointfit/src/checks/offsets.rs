@@ -30,7 +30,9 @@
 use nalgebra::Vector3;
 
 use crate::checks::{CheckKind, Finding, Severity};
-use crate::ik::{solve_trial, IkOptions, MarkerMap, TrialFit};
+use crate::ik::trial_fit::solve_trial;
+use crate::ik::trial_fit::TrialFit;
+use crate::ik::{IkOptions, MarkerMap};
 use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::refine::BOUND_IN_SD;
 use crate::model::Model;

@@ -52,7 +52,8 @@ mod stream;
 pub(crate) mod tasks;
 #[cfg(test)]
 mod tasks_tests;
-mod trial_fit;
+pub mod trial_fit;
+use trial_fit::{chunk_ranges, TrialFit};
 
 use thiserror::Error;
 
@@ -68,11 +69,8 @@ pub use seed::seed_frame;
 use seed::seed_frame_by_scouting;
 pub use stream::{StreamError, StreamingIk};
 pub use tasks::CoordinateTask;
-pub use trial_fit::chunk_ranges;
 pub(crate) use trial_fit::extrapolate;
 pub(crate) use trial_fit::solve_trial_alongside;
-pub use trial_fit::{rms, solve_trial};
-pub use trial_fit::{solve_trial_in_chunks, trial_chunk_ranges, unsolved_ranges, TrialFit};
 
 /// Why IK could not start.
 #[derive(Debug, Error, PartialEq)]

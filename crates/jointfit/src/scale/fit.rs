@@ -689,7 +689,7 @@ pub fn fit_scale(
 mod tests {
     use super::*;
     use crate::model::lower_limb::{lower_limb, Side};
-    use crate::scale::default_groups;
+    use crate::scale::groups::default_groups;
 
     const TRUTH: [(&str, [f64; 3]); 4] = [
         ("pelvis", [1.06; 3]),

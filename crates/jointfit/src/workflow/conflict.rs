@@ -42,7 +42,8 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use super::{FitSettings, WorkflowError};
-use crate::calibrate::uncertainty::{analyze_reduced, ln_gamma, reduced_system, Reduced};
+use crate::calibrate::uncertainty::reduced::reduced_system;
+use crate::calibrate::uncertainty::{analyze_reduced, ln_gamma, Reduced};
 use crate::model::Model;
 use crate::trial::Trial;
 

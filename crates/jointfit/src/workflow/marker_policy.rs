@@ -41,7 +41,8 @@ use serde::Serialize;
 
 use crate::checks::offsets::{frames_looked_at, offsets_of_fit, MarkerOffset, MIN_FRAMES};
 use crate::checks::offsets::{MIN_OFFSET, MIN_RATIO};
-use crate::ik::{solve_trial, IkOptions, MarkerMap};
+use crate::ik::trial_fit::solve_trial;
+use crate::ik::{IkOptions, MarkerMap};
 use crate::model::refine::{BOUND_IN_SD, DEFAULT_MARKER_PRIOR_SD};
 use crate::model::spec::MM_PER_M;
 use crate::model::Model;

@@ -8,7 +8,7 @@
 //! (ball) joint (each frame's three coordinates absorb any constant rotation on either side).
 //!
 //! Test: the reduced normal matrix `S` of the unregularized problem
-//! ([`crate::calibrate::uncertainty::reduced_system`], the Gauss-Newton information about
+//! ([`crate::calibrate::uncertainty::reduced::reduced_system`], the Gauss-Newton information about
 //! the free parameters with every frame's coordinates eliminated) at the start, with
 //! coordinates from inverse kinematics, is scaled by the parameters' information before any
 //! elimination, `D = diag(J_pᵀ W J_p)` summed over the frames: `C = D^{-1/2} S D^{-1/2}`.
@@ -26,7 +26,7 @@ use nalgebra::DMatrix;
 use serde::Serialize;
 
 use super::{Calibration, FitSettings, Observer, WorkflowError};
-use crate::calibrate::uncertainty::reduced_system;
+use crate::calibrate::uncertainty::reduced::reduced_system;
 use crate::calibrate::Problem;
 use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::{Model, ParamId};

@@ -411,7 +411,11 @@ fn thread_count_never_changes_the_joint_fit_or_its_reduced_system() {
     let run = |threads| {
         on_threads(threads, || {
             let fit = solve_joint(&prob, &s0, q0.clone(), &opts, &mut NoObserver);
-            let red = jointfit::calibrate::uncertainty::reduced_system(&prob, &fit.p, &fit.coords);
+            let red = jointfit::calibrate::uncertainty::reduced::reduced_system(
+                &prob,
+                &fit.p,
+                &fit.coords,
+            );
             let grad = gradient(&prob, &fit.s, &fit.coords);
             (fit, red, grad)
         })
@@ -443,7 +447,7 @@ fn distance_in_se(
     a: &jointfit::calibrate::Fit,
     b: &jointfit::calibrate::Fit,
 ) -> f64 {
-    let red = jointfit::calibrate::uncertainty::reduced_system(prob, &b.p, &b.coords);
+    let red = jointfit::calibrate::uncertainty::reduced::reduced_system(prob, &b.p, &b.coords);
     let cov = red.normal.clone().try_inverse().expect("invertible") * red.sigma2();
     (0..prob.n_free())
         .map(|k| (a.s[k] - b.s[k]).abs() / cov[(k, k)].sqrt())

@@ -1,6 +1,7 @@
 //! Inverse kinematics against known synthetic truth.
 
-use jointfit::ik::{solve_frame, solve_trial, FrameStatus, IkOptions, IkWorkspace, MarkerMap};
+use jointfit::ik::trial_fit::solve_trial;
+use jointfit::ik::{solve_frame, FrameStatus, IkOptions, IkWorkspace, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;

@@ -1,7 +1,9 @@
 //! Solvability from the chain, holding undetermined coordinates, and gross-error rejection,
 //! against synthetic truth and the explicit marker Jacobian.
 
-use jointfit::ik::{solve_trial, unsolved_ranges, FrameStatus, IkOptions, MarkerMap};
+use jointfit::ik::trial_fit::solve_trial;
+use jointfit::ik::trial_fit::unsolved_ranges;
+use jointfit::ik::{FrameStatus, IkOptions, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;

@@ -4,10 +4,11 @@
 //! from the laboratory's vertical as a trial's reader rotates them, and bad frames refused
 //! without disturbing the stream.
 
-use jointfit::ik::{
-    solve_trial, solve_trial_in_chunks, trial_chunk_ranges, FrameStatus, IkOptions, MarkerMap,
-    StreamError, StreamingIk, TrialFit,
-};
+use jointfit::ik::trial_fit::solve_trial;
+use jointfit::ik::trial_fit::solve_trial_in_chunks;
+use jointfit::ik::trial_fit::trial_chunk_ranges;
+use jointfit::ik::trial_fit::TrialFit;
+use jointfit::ik::{FrameStatus, IkOptions, MarkerMap, StreamError, StreamingIk};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
 use jointfit::trial::{up_axis_rotation, Trial, UpAxis};

@@ -169,7 +169,7 @@ fn ik_checked_reuses_the_fit_with_the_same_findings() {
         // Another parameter vector: not the check's IK, so no reuse, same findings.
         let mut q = p.clone();
         q[0] += 0.01;
-        let fit = jointfit::ik::solve_trial(&model, &q, &trial, &map, &opts).unwrap();
+        let fit = jointfit::ik::trial_fit::solve_trial(&model, &q, &trial, &map, &opts).unwrap();
         assert!(offsets_from_ik(&model, &q, &trial, &map, &opts, &fit).is_none());
         let (_, other) = jointfit::workflow::ik_checked(&model, &q, &trial, &opts);
         assert_eq!(format!("{other:?}"), format!("{alone:?}"));
