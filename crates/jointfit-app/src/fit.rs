@@ -340,7 +340,7 @@ pub fn conflict_lines(conflicts: &[workflow::conflict::JointConflict]) -> Vec<St
 pub fn summarize(
     model: &Model,
     start: &[f64],
-    cal: &workflow::Calibration,
+    cal: &jointfit::workflow::calibration::Calibration,
     method: Method,
 ) -> Calibration {
     let u = cal

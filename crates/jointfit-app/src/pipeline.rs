@@ -46,7 +46,7 @@ pub enum Detail {
 
 impl Fitted {
     /// The core's calibration (display units, every detail).
-    pub fn calibration(&self) -> &workflow::Calibration {
+    pub fn calibration(&self) -> &jointfit::workflow::calibration::Calibration {
         match &self.detail {
             Detail::Native(r) => &r.calibration,
             Detail::Osim(o) => &o.result.calibration,

@@ -6,7 +6,8 @@ use std::sync::Arc;
 
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;
-use jointfit::signal::{filter_trial, LowPass};
+use jointfit::signal::filter_trial;
+use jointfit::signal::lowpass::LowPass;
 use jointfit::trial::{up_axis_rotation, Trial, UpAxis};
 use jointfit_io::osim_read::{read_osim, OsimModel};
 

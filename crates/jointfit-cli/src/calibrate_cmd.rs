@@ -10,7 +10,8 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use jointfit::solver::Observer;
 use jointfit::trial::Trial;
-use jointfit::workflow::{self, Calibration, FitSettings, Method};
+use jointfit::workflow::calibration::Calibration;
+use jointfit::workflow::{self, FitSettings, Method};
 use jointfit_app::{Detail, FitOptions, ModelSource, Subject};
 use serde::Serialize;
 
@@ -212,7 +213,8 @@ impl Observer for ProgressObserver {
     fn stage_started(&mut self, stage: &str, budget: Option<usize>) {
         self.stage = stage.to_string();
         self.budget = budget;
-        if budget.is_some() && stage.starts_with(jointfit::workflow::UNCERTAINTY_STAGE) {
+        if budget.is_some() && stage.starts_with(jointfit::workflow::calibration::UNCERTAINTY_STAGE)
+        {
             // Bootstrap refits, not counted one by one (they run in parallel): say it began.
             self.bars.announce(stage);
         }
@@ -362,7 +364,11 @@ pub fn prepare(args: &CalibrateArgs, opts: &FitOptions) -> Result<Prepared> {
     let start = match &args.seed_from {
         Some(seed) => {
             let earlier = jointfit_io::model_file::load_model(seed)?;
-            Some(workflow::transfer_params(&subject.model, &earlier, seed)?)
+            Some(jointfit::workflow::ik::transfer_params(
+                &subject.model,
+                &earlier,
+                seed,
+            )?)
         }
         None => None,
     };

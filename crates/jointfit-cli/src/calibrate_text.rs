@@ -5,7 +5,7 @@
 use jointfit::calibrate::uncertainty::types::Identifiability;
 use jointfit::calibrate::uncertainty::types::Uncertainty;
 use jointfit::solver::Termination;
-use jointfit::workflow::Calibration;
+use jointfit::workflow::calibration::Calibration;
 
 pub fn print_report(report: &Calibration, seconds: f64, verbose: bool) {
     println!(

@@ -442,7 +442,7 @@ pub fn model_for_trials(
         spec.markers.retain(|m| !absent.contains(&m.name));
         jointfit::model::Model::compile(&spec)?
     };
-    let (held_model, held) = jointfit::ik::hold_undetermined(&model, trials)?;
+    let (held_model, held) = jointfit::ik::hold::hold_undetermined(&model, trials)?;
     if !held.is_empty() {
         eprintln!(
             "jointfit: warning: no marker determines {}; held at the model's default values",

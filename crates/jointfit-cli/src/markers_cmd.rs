@@ -6,7 +6,8 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Subcommand;
-use jointfit::landmarks::{motion, personalize, MarkerSet, PersonalizeOptions};
+use jointfit::landmarks::markerset::MarkerSet;
+use jointfit::landmarks::{motion, personalize, PersonalizeOptions};
 use jointfit::model::lower_limb::Side;
 
 use crate::common::{load_trial, Up};

@@ -10,10 +10,12 @@ use jointfit::landmarks::bilateral::personalize_sides;
 use jointfit::landmarks::bilateral::PersonalizedModel;
 use jointfit::landmarks::bilateral::Sides;
 use jointfit::landmarks::functional::FunctionalTrials;
-use jointfit::landmarks::{
-    personalize_keypoints, HipCentreMethod, KeypointSet, MarkerSet, PersonalizeOptions,
-    KEYPOINT_PRESET_NAMES, PRESET_NAMES,
-};
+use jointfit::landmarks::keypoints::personalize_keypoints;
+use jointfit::landmarks::keypoints::KeypointSet;
+use jointfit::landmarks::keypoints::KEYPOINT_PRESET_NAMES;
+use jointfit::landmarks::markerset::MarkerSet;
+use jointfit::landmarks::markerset::PRESET_NAMES;
+use jointfit::landmarks::{HipCentreMethod, PersonalizeOptions};
 use jointfit::model::lower_limb::Side;
 use jointfit::trial::Trial;
 

@@ -9,7 +9,7 @@ use clap::Args;
 use jointfit::ik::IkOptions;
 use jointfit::model::Model;
 use jointfit::trial::Trial;
-use jointfit::workflow::Calibration;
+use jointfit::workflow::calibration::Calibration;
 use jointfit_report::analyze::{analyze_with_progress, parameter_rows};
 use jointfit_report::ReportInput;
 
@@ -119,7 +119,7 @@ fn model_for_report(model: Model, paths: &[PathBuf], trials: &[&Trial]) -> Resul
         let (_, absent) = jointfit::ik::MarkerMap::allowing_absent(&model, trial.labels());
         crate::common::warn_absent_markers(path, &absent);
     }
-    let (held_model, held) = jointfit::ik::hold_undetermined(&model, trials)?;
+    let (held_model, held) = jointfit::ik::hold::hold_undetermined(&model, trials)?;
     if !held.is_empty() {
         eprintln!(
             "jointfit: warning: no marker determines {}; held at the model's default values",

@@ -21,7 +21,8 @@ use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::spec::Unit;
 use jointfit::model::Model;
 use jointfit::solver::NoObserver;
-use jointfit::workflow::{calibrate, perturb, FitSettings, Method};
+use jointfit::workflow::calibration::calibrate;
+use jointfit::workflow::{perturb, FitSettings, Method};
 use jointfit_experiments::synth::{coordinates_scaled, synthesize, Motion, Noise};
 
 fn main() {

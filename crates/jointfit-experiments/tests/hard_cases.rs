@@ -17,8 +17,9 @@ use jointfit::model::spec::ModelSpec;
 use jointfit::model::spec::Unit;
 use jointfit::model::Model;
 use jointfit::solver::NoObserver;
+use jointfit::workflow::calibration::calibrate;
 use jointfit::workflow::refine::calibrate_refined;
-use jointfit::workflow::{calibrate, perturb, FitSettings};
+use jointfit::workflow::{perturb, FitSettings};
 use jointfit_experiments::subject::landmark_model;
 use jointfit_experiments::synth::{coordinates, markers, Motion, SkinNoise};
 

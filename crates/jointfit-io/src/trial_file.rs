@@ -201,9 +201,9 @@ pub fn prepare_trial(
     trial.rotate(&jointfit::trial::up_axis_rotation(options.up));
     let mut warnings = Vec::new();
     if let Some(hz) = options.filter_hz {
-        let lp = jointfit::signal::LowPass {
+        let lp = jointfit::signal::lowpass::LowPass {
             cutoff_hz: hz,
-            ..jointfit::signal::LowPass::default()
+            ..jointfit::signal::lowpass::LowPass::default()
         };
         let (filtered, report) = jointfit::signal::filter_trial(&trial, &lp).map_err(|source| {
             TrialFileError::Filter {

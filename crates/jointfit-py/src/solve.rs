@@ -7,8 +7,9 @@ use jointfit::ik::IkOptions;
 use jointfit::landmarks::bilateral::personalize_sides;
 use jointfit::landmarks::bilateral::Sides;
 use jointfit::landmarks::functional::FunctionalTrials;
-use jointfit::landmarks::PRESET_NAMES;
-use jointfit::landmarks::{HipCentreMethod, MarkerSet, PersonalizeOptions};
+use jointfit::landmarks::markerset::MarkerSet;
+use jointfit::landmarks::markerset::PRESET_NAMES;
+use jointfit::landmarks::{HipCentreMethod, PersonalizeOptions};
 use jointfit::model::{CoordKind, Model};
 use jointfit::trial::Trial;
 use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion, SkinNoise};
@@ -436,7 +437,7 @@ pub fn ik(
         let filter = args::cutoff(filter, "filter")?;
         let model = model_arg(py, model)?;
         let trial = trial_arg(py, trial, up, filter, model.spec().lab_up)?;
-        let (held_model, held) = jointfit::ik::hold_undetermined(&model, &[&trial.trial])
+        let (held_model, held) = jointfit::ik::hold::hold_undetermined(&model, &[&trial.trial])
             .map_err(|e| msg(format!("{}: {e}", trial.name)))?;
         let mut warnings = Vec::new();
         if !held.is_empty() {
@@ -450,7 +451,7 @@ pub fn ik(
         let p = model.nominal_params();
         let (m2, t2) = (model.clone(), trial.trial.clone());
         let run = interruptible(py, None, move |_| {
-            jointfit::workflow::ik_trial(&m2, &p, &t2, &IkOptions::default())
+            jointfit::workflow::ik::ik_trial(&m2, &p, &t2, &IkOptions::default())
         })?
         .map_err(|e| msg(format!("{}: {}", trial.name, jointfit_app::message(&e))))?;
         if !run.absent.is_empty() {

@@ -1,7 +1,8 @@
 //! `jointfit.StreamingIK`: inverse kinematics of a live marker feed, one frame per call
-//! (`jointfit::ik::StreamingIk`; `docs/streaming.md`).
+//! (`jointfit::ik::stream::StreamingIk`; `docs/streaming.md`).
 
-use jointfit::ik::{FrameStatus, IkOptions, StreamingIk};
+use jointfit::ik::stream::StreamingIk;
+use jointfit::ik::{FrameStatus, IkOptions};
 use jointfit::trial::UpAxis;
 use nalgebra::Vector3;
 use numpy::{PyArray1, PyReadonlyArray2};

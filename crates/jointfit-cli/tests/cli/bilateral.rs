@@ -8,8 +8,9 @@ use jointfit::landmarks::bilateral::personalize_sides;
 use jointfit::landmarks::bilateral::PersonalizedModel;
 use jointfit::landmarks::bilateral::Sides;
 use jointfit::landmarks::functional::FunctionalTrials;
+use jointfit::landmarks::markerset::MarkerSet;
 use jointfit::landmarks::{
-    personalize, personalize_in, LandmarkError, MarkerSet, PersonalizeOptions, Personalized,
+    personalize, personalize_in, LandmarkError, PersonalizeOptions, Personalized,
 };
 use jointfit::model::lower_limb::{Side, SIDE_SUFFIXES};
 use jointfit::model::Model;
@@ -447,7 +448,7 @@ fn every_preset_personalizes_both_legs_of_a_shared_trial() {
         }
         covered.push(preset);
     }
-    for name in jointfit::landmarks::PRESET_NAMES {
+    for name in jointfit::landmarks::markerset::PRESET_NAMES {
         assert!(
             covered.contains(&name),
             "preset {name} has no shared-trial check"

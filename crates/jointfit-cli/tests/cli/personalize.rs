@@ -3,10 +3,13 @@
 
 use std::path::Path;
 
-use jointfit::ik::{seed_frame, solve_frame, IkOptions, IkWorkspace, MarkerMap};
+use jointfit::ik::lm::solve_frame;
+use jointfit::ik::lm::IkWorkspace;
+use jointfit::ik::{seed_frame, IkOptions, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
+use jointfit::landmarks::markerset::MarkerSet;
 use jointfit::landmarks::{
-    personalize, HipCentreMethod, LandmarkError, MarkerSet, PersonalizeOptions, Personalized,
+    personalize, HipCentreMethod, LandmarkError, PersonalizeOptions, Personalized,
 };
 use jointfit::model::lower_limb::Side;
 use jointfit::model::spec::ModelSpec;

@@ -39,11 +39,10 @@ pub mod varpro;
 use rayon::prelude::*;
 use thiserror::Error;
 
+use crate::ik::lm::solve_frame;
+use crate::ik::lm::IkWorkspace;
 use crate::ik::trial_fit::trial_chunk_ranges;
-use crate::ik::{
-    seed_frame, solve_frame, undetermined_coordinate, FrameStatus, IkOptions, IkWorkspace,
-    MarkerMap,
-};
+use crate::ik::{seed_frame, undetermined_coordinate, FrameStatus, IkOptions, MarkerMap};
 use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::{Model, ParamId};
 pub(crate) use crate::solver::Termination;

@@ -59,8 +59,9 @@ pub mod bilateral;
 mod error;
 pub(crate) mod frames;
 pub mod functional;
-pub(crate) mod keypoints;
-pub(crate) mod markerset;
+pub mod keypoints;
+pub mod markerset;
+use markerset::{LegMarkers, MarkerSet};
 pub mod motion;
 pub(crate) mod nominal;
 pub(crate) mod plugin_gait;
@@ -73,11 +74,8 @@ use nalgebra::Vector3;
 
 pub use error::LandmarkError;
 pub(crate) use frames::SegmentFrames;
-pub use keypoints::{personalize_keypoints, KeypointSet, KEYPOINT_PRESET_NAMES};
 pub(crate) use markerset::MedialLandmark;
 pub(crate) use markerset::TRACKED_SEGMENTS;
-pub use markerset::{LegMarkers, MarkerSet};
-pub use markerset::{PelvisMarkers, PRESET_NAMES};
 use subject::SubjectMeasurements;
 pub(crate) use window::StaticWindow;
 
@@ -257,7 +255,7 @@ pub(crate) fn personalize_with(
 
 /// [`personalize_with`] averaging the landmarks over `window` (every marker of the leg must be
 /// present in all its frames) instead of the leg's own stillest window: how
-/// [`personalize_sides`] gives both legs one pelvis.
+/// [`personalize_sides`](bilateral::personalize_sides) gives both legs one pelvis.
 pub fn personalize_in(
     trial: &Trial,
     set: &MarkerSet,

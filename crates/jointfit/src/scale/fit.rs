@@ -25,7 +25,9 @@
 use nalgebra::{DMatrix, DVector, Vector3};
 
 use super::geometry::{scaled_spec, ScaleFactors};
-use crate::ik::{seed_frame, solve_frame, IkOptions, IkWorkspace};
+use crate::ik::lm::solve_frame;
+use crate::ik::lm::IkWorkspace;
+use crate::ik::{seed_frame, IkOptions};
 use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::spec::ModelSpec;
 use crate::model::{Model, ModelError};

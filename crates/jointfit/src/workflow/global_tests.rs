@@ -1,7 +1,8 @@
 //! Tests of the global phase.
 
+use super::super::calibration::calibrate;
 use super::super::synthetic_tests::synthetic;
-use super::super::{calibrate, FitSettings, NoObserver};
+use super::super::{FitSettings, NoObserver};
 use crate::calibrate::params_for_groups;
 use crate::model::lower_limb::{lower_limb, Side};
 use crate::model::Model;

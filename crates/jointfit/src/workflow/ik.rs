@@ -2,10 +2,10 @@
 //! checks alongside; [`ik_warm_started`]: the warm-started frame loop alone; [`transfer_params`]: parameters carried between models by name.
 
 use super::WorkflowError;
+use crate::ik::lm::solve_frame;
+use crate::ik::lm::IkWorkspace;
 use crate::ik::trial_fit::TrialFit;
-use crate::ik::{
-    extrapolate, solve_frame, solve_trial_alongside, IkOptions, IkWorkspace, MarkerMap,
-};
+use crate::ik::{extrapolate, solve_trial_alongside, IkOptions, MarkerMap};
 use crate::model::Model;
 use crate::trial::Trial;
 

@@ -1,6 +1,7 @@
 //! The jobs of the program, on models and trials already in memory: calibrate a model
-//! ([`calibrate`]), predict what a trial can determine ([`predict`]), inverse kinematics of a
-//! trial ([`ik_trial`]), carry parameters from one model to another ([`transfer_params`]).
+//! ([`calibration::calibrate`]), predict what a trial can determine ([`predict::predict`]),
+//! inverse kinematics of a trial ([`ik::ik_trial`]), carry parameters from one model to another
+//! ([`ik::transfer_params`]).
 //!
 //! This is the one place that drives the solvers of [`crate::calibrate`] and [`crate::ik`]:
 //! the command line, the experiments and any other front end (a Python binding, a batch
@@ -17,19 +18,24 @@
 //! `fix_unidentifiable` the parameters the trials cannot determine are held at their start
 //! and the rest refitted.
 
-mod calibration;
+pub mod calibration;
+#[cfg(test)]
+use calibration::calibrate;
+use calibration::Calibration;
+#[cfg(test)]
+use ik::ik_trial;
 pub mod conflict;
 pub mod envelope;
 mod global;
-mod ik;
+pub mod ik;
 pub(crate) mod map;
 pub mod marker_policy;
 pub(crate) mod marker_rigid;
-mod marker_rms;
+pub mod marker_rms;
 pub mod motion_range;
-mod predict;
+pub mod predict;
 mod probes;
-pub(crate) mod redundant;
+pub mod redundant;
 pub mod refine;
 mod starts;
 mod summary;
@@ -42,11 +48,6 @@ use crate::calibrate::uncertainty::types::UncertaintyOptions;
 use crate::calibrate::CalibError;
 
 use crate::solver::{NoObserver, Observer, Termination};
-pub use calibration::{calibrate, Calibration, UNCERTAINTY_STAGE};
-pub use ik::{ik_checked, ik_trial, ik_warm_started, transfer_params};
-pub use marker_rms::{marker_rms, MarkerRms};
-pub use predict::{predict, Prediction};
-pub use redundant::{calibrate_holding_redundant, HeldCalibration, Redundancy};
 pub use starts::perturb;
 #[cfg(test)]
 use starts::restart_point;

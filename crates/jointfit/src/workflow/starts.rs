@@ -11,7 +11,7 @@ use crate::calibrate::joint::{solve_joint, JointOptions};
 use crate::calibrate::pso::{solve_pso, PsoOptions};
 use crate::calibrate::varpro::{solve_varpro, VarProOptions};
 use crate::calibrate::{Fit, Problem};
-use crate::ik::IkWorkspace;
+use crate::ik::lm::IkWorkspace;
 use crate::model::spec::Unit;
 use crate::model::Model;
 

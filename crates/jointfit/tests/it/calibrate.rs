@@ -4,7 +4,7 @@ use jointfit::calibrate::joint::{solve_joint, solve_joint_to, JointOptions, RESO
 use jointfit::calibrate::pso::{solve_pso, PsoOptions};
 use jointfit::calibrate::varpro::{gradient, solve_varpro, VarProOptions};
 use jointfit::calibrate::{params_for_groups, Fit, Problem};
-use jointfit::ik::IkWorkspace;
+use jointfit::ik::lm::IkWorkspace;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::spec::Unit;
 use jointfit::model::{Model, ParamId};

@@ -1,7 +1,9 @@
 //! Inverse kinematics against known synthetic truth.
 
+use jointfit::ik::lm::solve_frame;
+use jointfit::ik::lm::IkWorkspace;
 use jointfit::ik::trial_fit::solve_trial;
-use jointfit::ik::{solve_frame, FrameStatus, IkOptions, IkWorkspace, MarkerMap};
+use jointfit::ik::{FrameStatus, IkOptions, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;

@@ -3,7 +3,9 @@
 //! the box-bounded least squares by central finite differences of the cost, and random
 //! feasible points that must not fit better.
 
-use jointfit::ik::{solve_frame, IkOptions, IkWorkspace};
+use jointfit::ik::lm::solve_frame;
+use jointfit::ik::lm::IkWorkspace;
+use jointfit::ik::IkOptions;
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::spec::CoordinateSpec;

@@ -3,10 +3,10 @@
 //! malleolus markers on its talocrural axis, posed by forward kinematics.
 
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
-use jointfit::landmarks::{
-    personalize, LandmarkError, LegMarkers, MarkerSet, PelvisMarkers, PersonalizeOptions,
-    Personalized,
-};
+use jointfit::landmarks::markerset::LegMarkers;
+use jointfit::landmarks::markerset::MarkerSet;
+use jointfit::landmarks::markerset::PelvisMarkers;
+use jointfit::landmarks::{personalize, LandmarkError, PersonalizeOptions, Personalized};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::spec::{MarkerSpec, ModelSpec};
 use jointfit::model::Model;
