@@ -5,7 +5,7 @@
 
 use jointfit::model::spec::Unit;
 use jointfit::model::spec::MM_PER_M;
-use jointfit::trial::UpAxis;
+use jointfit::spatial::UpAxis;
 use jointfit::workflow::WorkflowError;
 
 /// Who reads the text: the command line (flags) or Python (keyword arguments; the batch

@@ -27,7 +27,8 @@ use jointfit::ik::stream::StreamingIk;
 use jointfit::ik::IkOptions;
 use jointfit::model::spec::MM_PER_M;
 use jointfit::model::Model;
-use jointfit::trial::{Trial, UpAxis};
+use jointfit::spatial::UpAxis;
+use jointfit::trial::Trial;
 use serde::Serialize;
 
 /// The stream options of `jointfit bench` (flattened into its arguments).

@@ -32,7 +32,8 @@ use jointfit::ik::IkOptions;
 use jointfit::landmarks::{personalize, PersonalizeOptions};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
-use jointfit::trial::{Trial, UpAxis};
+use jointfit::spatial::UpAxis;
+use jointfit::trial::Trial;
 use jointfit_experiments::synth;
 
 use crate::common::{load_for_model, model_for_trials, Columns, TrialArgs, Up};

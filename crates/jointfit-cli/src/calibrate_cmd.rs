@@ -556,7 +556,7 @@ pub fn named_trials<'t>(paths: &[PathBuf], trials: &'t [Trial]) -> Vec<(String, 
 /// The files and options of this run, for the report's settings table.
 fn provenance(
     args: &CalibrateArgs,
-    lab_up: Option<jointfit::trial::UpAxis>,
+    lab_up: Option<jointfit::spatial::UpAxis>,
 ) -> jointfit_report::calibration::Provenance {
     let mut inputs = vec![
         ("subject model".to_string(), args.model.clone()),

@@ -9,7 +9,8 @@ use std::path::Path;
 
 use anyhow::{bail, Context, Result};
 use clap::ValueEnum;
-use jointfit::trial::{Trial, UpAxis};
+use jointfit::spatial::UpAxis;
+use jointfit::trial::Trial;
 use jointfit_io::trial_file::{LoadOptions, TrialFileError};
 
 /// Which lab axis points up in the input file.

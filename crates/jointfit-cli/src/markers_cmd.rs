@@ -73,7 +73,7 @@ pub fn run(cmd: MarkersCommand) -> Result<()> {
     let mut text = format!(
         "# Suggested by `jointfit markers suggest` from {path} (up axis {}).\n\
          # Check every role before use: see docs/markersets.md.\n",
-        jointfit::trial::UpAxis::from(up)
+        jointfit::spatial::UpAxis::from(up)
     );
     for note in &suggestion.notes {
         text.push_str(&format!("# note: {note}\n"));

@@ -9,7 +9,7 @@ use jointfit::landmarks::auto::ChosenSet;
 use jointfit::landmarks::bilateral::personalize_sides;
 use jointfit::landmarks::bilateral::PersonalizedModel;
 use jointfit::landmarks::bilateral::Sides;
-use jointfit::landmarks::functional::FunctionalTrials;
+use jointfit::landmarks::functional::apply::FunctionalTrials;
 use jointfit::landmarks::keypoints::personalize_keypoints;
 use jointfit::landmarks::keypoints::KeypointSet;
 use jointfit::landmarks::keypoints::KEYPOINT_PRESET_NAMES;

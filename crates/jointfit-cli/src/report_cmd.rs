@@ -171,11 +171,11 @@ pub fn display_name(p: &Path) -> String {
 pub fn trial_settings(
     trials: &[PathBuf],
     read: &TrialArgs,
-    lab_up: Option<jointfit::trial::UpAxis>,
+    lab_up: Option<jointfit::spatial::UpAxis>,
     filter: Option<f64>,
 ) -> Vec<(String, String)> {
     let up = match (read.up, lab_up) {
-        (Some(u), _) => format!("{} (--up)", jointfit::trial::UpAxis::from(u)),
+        (Some(u), _) => format!("{} (--up)", jointfit::spatial::UpAxis::from(u)),
         (None, Some(u)) => format!("{u} (the subject model's lab_up)"),
         (None, None) => "y".to_string(),
     };

@@ -28,7 +28,7 @@ use jointfit::ik::{FrameStatus, IkOptions};
 use jointfit::model::custom::MotionType;
 use jointfit::model::spec::M_PER_MM;
 use jointfit::model::Model;
-use jointfit::trial::UpAxis;
+use jointfit::spatial::UpAxis;
 use nalgebra::Vector3;
 
 use crate::common::Up;

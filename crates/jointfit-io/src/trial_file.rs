@@ -148,7 +148,7 @@ fn strip_subject_prefix(trial: Trial) -> Result<Trial, jointfit::trial::TrialErr
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LoadOptions {
     /// Which lab axis points up in the file; the trial is rotated to Y up.
-    pub up: jointfit::trial::UpAxis,
+    pub up: jointfit::spatial::UpAxis,
     /// Low-pass cutoff (Hz) of the zero-phase Butterworth filter; `None`: unfiltered.
     pub filter_hz: Option<f64>,
 }
@@ -156,7 +156,7 @@ pub struct LoadOptions {
 impl Default for LoadOptions {
     fn default() -> Self {
         LoadOptions {
-            up: jointfit::trial::UpAxis::Y,
+            up: jointfit::spatial::UpAxis::Y,
             filter_hz: None,
         }
     }
@@ -198,7 +198,7 @@ pub fn prepare_trial(
     path: &Path,
     options: &LoadOptions,
 ) -> Result<(Trial, Vec<FilterWarning>), TrialFileError> {
-    trial.rotate(&jointfit::trial::up_axis_rotation(options.up));
+    trial.rotate(&jointfit::spatial::up_axis_rotation(options.up));
     let mut warnings = Vec::new();
     if let Some(hz) = options.filter_hz {
         let lp = jointfit::signal::lowpass::LowPass {

@@ -15,7 +15,8 @@ use jointfit::landmarks::markerset::MarkerSet;
 use jointfit::landmarks::{personalize, PersonalizeOptions};
 use jointfit::model::lower_limb::Side;
 use jointfit::model::Model;
-use jointfit::trial::{Trial, UpAxis};
+use jointfit::spatial::UpAxis;
+use jointfit::trial::Trial;
 use jointfit_io::trial_file::{load_trial, LoadOptions};
 use nalgebra::Vector3;
 

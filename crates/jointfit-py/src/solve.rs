@@ -6,7 +6,7 @@ use std::path::Path;
 use jointfit::ik::IkOptions;
 use jointfit::landmarks::bilateral::personalize_sides;
 use jointfit::landmarks::bilateral::Sides;
-use jointfit::landmarks::functional::FunctionalTrials;
+use jointfit::landmarks::functional::apply::FunctionalTrials;
 use jointfit::landmarks::markerset::MarkerSet;
 use jointfit::landmarks::markerset::PRESET_NAMES;
 use jointfit::landmarks::{HipCentreMethod, PersonalizeOptions};
@@ -29,9 +29,9 @@ use crate::{err, msg, warn_all};
 pub(crate) fn trial_arg(
     py: Python<'_>,
     trial: &Bound<'_, PyAny>,
-    up: Option<jointfit::trial::UpAxis>,
+    up: Option<jointfit::spatial::UpAxis>,
     filter: Option<f64>,
-    model_up: Option<jointfit::trial::UpAxis>,
+    model_up: Option<jointfit::spatial::UpAxis>,
 ) -> PyResult<PyTrial> {
     if let Ok(t) = trial.cast::<PyTrial>() {
         let t = t.get().clone();

@@ -3,7 +3,7 @@
 
 use jointfit::ik::stream::StreamingIk;
 use jointfit::ik::{FrameStatus, IkOptions};
-use jointfit::trial::UpAxis;
+use jointfit::spatial::UpAxis;
 use nalgebra::Vector3;
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;

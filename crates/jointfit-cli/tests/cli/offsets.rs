@@ -97,7 +97,7 @@ fn moved_clusters_on_every_shared_trial() {
             let subject = dir.join(format!("{}_{side}.toml", lab.display()));
             super::personalize_side(&stat, preset, side, &subject);
             let model = jointfit_io::model_file::load_model(subject.to_str().unwrap()).unwrap();
-            let up = model.spec().lab_up.unwrap_or(jointfit::trial::UpAxis::Y);
+            let up = model.spec().lab_up.unwrap_or(jointfit::spatial::UpAxis::Y);
             for &name in trials {
                 let path = data_file(&lab.join(name).to_string_lossy()).unwrap();
                 let options = LoadOptions {

@@ -14,7 +14,9 @@ use jointfit::landmarks::{
 use jointfit::model::lower_limb::Side;
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;
-use jointfit::trial::{up_axis_rotation, Trial, UpAxis};
+use jointfit::spatial::up_axis_rotation;
+use jointfit::spatial::UpAxis;
+use jointfit::trial::Trial;
 use jointfit_testkit::data_file;
 use nalgebra::Vector3;
 

@@ -2,7 +2,8 @@
 
 use super::*;
 use crate::calibrate::params_for_groups;
-use crate::model::lower_limb::{bilateral, lower_limb, Side};
+use crate::model::lower_limb::bilateral::bilateral;
+use crate::model::lower_limb::{lower_limb, Side};
 use crate::model::Model;
 use crate::trial::Trial;
 use nalgebra::DMatrix;

@@ -24,7 +24,7 @@ use nalgebra::{DMatrix, Vector3};
 
 use crate::model::plan::JCol;
 use crate::model::{Item, Model, Source};
-pub use crate::spatial::Pose;
+use crate::spatial::Pose;
 
 /// Per-evaluation workspace: one per thread or particle. The model stays immutable.
 #[derive(Debug, Clone)]

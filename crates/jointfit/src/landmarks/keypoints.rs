@@ -236,7 +236,7 @@ pub fn personalize_keypoints(
     opts: &PersonalizeOptions,
 ) -> Result<Outcome, LandmarkError> {
     check_options(opts)?;
-    let func = super::functional::FunctionalTrials::default();
+    let func = super::functional::apply::FunctionalTrials::default();
     let one = |side: Side, window: Option<&super::StaticWindow>| {
         let mut p = personalize_plan(trial, &set.plan(side), side, opts, &func, window, |at| {
             set.landmarks(side, at)

@@ -79,10 +79,11 @@ pub(crate) use markerset::TRACKED_SEGMENTS;
 use subject::SubjectMeasurements;
 pub(crate) use window::StaticWindow;
 
-use crate::kinematics::{forward_kinematics, KinData, Pose, Want};
+use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::lower_limb::{lower_limb, Side};
 use crate::model::spec::{MarkerSpec, ModelSpec};
 use crate::model::Model;
+use crate::spatial::Pose;
 use crate::trial::Trial;
 
 /// Which regression places the hip centre in the pelvis frame.
@@ -185,7 +186,7 @@ pub struct PersonalizeReport {
     /// marker at the static pose (m): ~1e-15 unless something is wrong.
     pub static_fk_error: f64,
     /// Functional hip centre / knee axis, when functional trials were given.
-    pub functional: Option<functional::FunctionalReport>,
+    pub functional: Option<functional::apply::FunctionalReport>,
 }
 
 /// The result of [`personalize`].
@@ -224,7 +225,7 @@ fn check_options(o: &PersonalizeOptions) -> Result<(), LandmarkError> {
 }
 
 /// Builds a subject's leg model from a static trial (see the module docs). The trial must be
-/// in metres and Y-up ([`crate::trial::up_axis_rotation`]); its heading does not matter.
+/// in metres and Y-up ([`crate::spatial::up_axis_rotation`]); its heading does not matter.
 pub fn personalize(
     trial: &Trial,
     set: &MarkerSet,
@@ -236,7 +237,7 @@ pub fn personalize(
         set,
         side,
         opts,
-        &functional::FunctionalTrials::default(),
+        &functional::apply::FunctionalTrials::default(),
     )
 }
 
@@ -248,7 +249,7 @@ pub(crate) fn personalize_with(
     set: &MarkerSet,
     side: Side,
     opts: &PersonalizeOptions,
-    func: &functional::FunctionalTrials,
+    func: &functional::apply::FunctionalTrials,
 ) -> Result<Personalized, LandmarkError> {
     personalize_in(trial, set, side, opts, func, None)
 }
@@ -261,7 +262,7 @@ pub fn personalize_in(
     set: &MarkerSet,
     side: Side,
     opts: &PersonalizeOptions,
-    func: &functional::FunctionalTrials,
+    func: &functional::apply::FunctionalTrials,
     window: Option<&StaticWindow>,
 ) -> Result<Personalized, LandmarkError> {
     check_options(opts)?;
@@ -371,7 +372,7 @@ pub(crate) fn personalize_plan(
     plan: &Plan,
     side: Side,
     opts: &PersonalizeOptions,
-    func: &functional::FunctionalTrials,
+    func: &functional::apply::FunctionalTrials,
     window: Option<&StaticWindow>,
     landmarks: impl Fn(&dyn Fn(&str) -> Vector3<f64>) -> Result<frames::Landmarks, LandmarkError>,
 ) -> Result<Personalized, LandmarkError> {

@@ -13,7 +13,9 @@ use jointfit::ik::trial_fit::TrialFit;
 use jointfit::ik::{FrameStatus, IkOptions, MarkerMap};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
-use jointfit::trial::{up_axis_rotation, Trial, UpAxis};
+use jointfit::spatial::up_axis_rotation;
+use jointfit::spatial::UpAxis;
+use jointfit::trial::Trial;
 use jointfit_testkit::synth;
 use nalgebra::Vector3;
 

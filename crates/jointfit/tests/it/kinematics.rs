@@ -1,7 +1,8 @@
 //! Forward kinematics and the analytic Jacobians against independent oracles.
 
 use jointfit::kinematics::{fd, forward_kinematics, KinData, Want};
-use jointfit::model::lower_limb::{bilateral, lower_limb, Side};
+use jointfit::model::lower_limb::bilateral::bilateral;
+use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::{CoordKind, Model};
 use nalgebra::{DMatrix, Matrix3, Vector3};

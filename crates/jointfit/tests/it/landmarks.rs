@@ -10,7 +10,9 @@ use jointfit::landmarks::{personalize, LandmarkError, PersonalizeOptions, Person
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::spec::{MarkerSpec, ModelSpec};
 use jointfit::model::Model;
-use jointfit::trial::{up_axis_rotation, Trial, UpAxis};
+use jointfit::spatial::up_axis_rotation;
+use jointfit::spatial::UpAxis;
+use jointfit::trial::Trial;
 use jointfit_testkit::synth::{synthetic_trial, Noise};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 

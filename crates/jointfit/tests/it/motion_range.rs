@@ -3,7 +3,7 @@
 //! known sways), the left joints are found with their true ranges of motion and held at their
 //! start values by the calibration, which fits the right leg and says so in one line.
 
-use jointfit::model::lower_limb::bilateral;
+use jointfit::model::lower_limb::bilateral::bilateral;
 use jointfit::model::Model;
 use jointfit::solver::NoObserver;
 use jointfit::trial::Trial;
