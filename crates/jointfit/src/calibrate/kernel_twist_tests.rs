@@ -39,10 +39,10 @@ fn dense(
             let row = 3 * m + axis;
             r[row] = sw * d[axis];
             for a in 0..nq {
-                j[(row, a)] = sw * kin.jq()[(row, a)];
+                j[(row, a)] = sw * kin.jq[(row, a)];
             }
             for k in 0..nf {
-                j[(row, nq + k)] = sw * half[k] * kin.jp()[(row, prob.free[k])];
+                j[(row, nq + k)] = sw * half[k] * kin.jp[(row, prob.free[k])];
             }
         }
     }

@@ -218,7 +218,7 @@ fn a_single_marker_off_a_pin_axis_determines_it() {
     // Oracle: the explicit Jacobian at the truth.
     let mut kin = KinData::new(&model);
     forward_kinematics(&model, &p, &truth, Want::DQ, &mut kin);
-    let jq = kin.jq();
+    let jq = kin.jq;
     let shk = model
         .markers()
         .iter()

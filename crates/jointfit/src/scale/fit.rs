@@ -254,7 +254,7 @@ impl Problem<'_> {
                     let q0 = self.lay.q[f];
                     for c in 0..self.n_q {
                         for k in 0..3 {
-                            rows.j[(row + k, q0 + c)] = data.jq()[(3 * mi + k, c)] * scale;
+                            rows.j[(row + k, q0 + c)] = data.jq[(3 * mi + k, c)] * scale;
                         }
                     }
                     if let Some(at) = self.lay.delta[mi] {
