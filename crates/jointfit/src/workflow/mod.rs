@@ -293,6 +293,8 @@ mod tests {
 #[cfg(test)]
 mod conflict_tests;
 #[cfg(test)]
+mod motion_range_tests;
+#[cfg(test)]
 mod policy_tests;
 #[cfg(test)]
 mod refine_tests;
