@@ -4,9 +4,12 @@
 //! The summary turns the core's result (display units: mm, degrees) into SI rows, one per
 //! free parameter, and the warnings a results table or a Python user reads, one line each.
 
-use jointfit::calibrate::uncertainty::Identifiability;
+use jointfit::calibrate::uncertainty::types::Identifiability;
 use jointfit::model::spec::ModelSpec;
-use jointfit::model::{Model, Unit, MM_PER_M, M_PER_MM};
+use jointfit::model::spec::Unit;
+use jointfit::model::spec::MM_PER_M;
+use jointfit::model::spec::M_PER_MM;
+use jointfit::model::Model;
 use jointfit::workflow::refine::RefinedCalibration;
 use jointfit::workflow::{self, uncertainty_options, FitSettings};
 use serde::{Deserialize, Serialize};
@@ -244,7 +247,7 @@ pub struct Calibration {
     pub warnings: Vec<String>,
     /// How far to trust the fit ([`jointfit::workflow::verdict`]).
     #[serde(default)]
-    pub verdict: jointfit::workflow::Verdict,
+    pub verdict: jointfit::workflow::verdict::Verdict,
 }
 
 /// The summary of a native model's fit ([`crate::fit()`]): the rows from `start`, the fitted
@@ -337,7 +340,7 @@ pub fn conflict_lines(conflicts: &[workflow::conflict::JointConflict]) -> Vec<St
 pub fn summarize(
     model: &Model,
     start: &[f64],
-    cal: &workflow::Calibration,
+    cal: &jointfit::workflow::calibration::Calibration,
     method: Method,
 ) -> Calibration {
     let u = cal

@@ -7,7 +7,7 @@
 //!   │ read::load_subject      model file, built-in name, description, or .osim (+ selection)
 //!   │ read::read_trials       C3D/TRC files or trials in memory → Y-up, low-pass filtered
 //!   │ pipeline::fit           FitOptions::settings → workflow::refine::calibrate_refined
-//!   │                         (.osim: osim::personalize → workflow::calibrate_holding_redundant)
+//!   │                         (.osim: osim::personalize → jointfit::workflow::redundant::calibrate_holding_redundant)
 //!   │ pipeline::gate          the verdict: `reject` is an error unless accept_rejected
 //!   ▼ fit::summarize_*        Calibration: SI (m, rad), one row per free parameter, warnings
 //! ```

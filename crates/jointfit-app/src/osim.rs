@@ -2,7 +2,7 @@
 //! line's `calibrate MODEL.osim`, Python's `jointfit.calibrate` on an `.osim`, a batch job):
 //! selection → parameterized model ([`jointfit_io::osim_read::personalize::parameterize`]) → calibration
 //! with the redundant offset directions held
-//! ([`jointfit::workflow::calibrate_holding_redundant`]) → the user's file with the fitted
+//! ([`jointfit::workflow::redundant::calibrate_holding_redundant`]) → the user's file with the fitted
 //! offsets written back ([`jointfit_io::osim_read::personalize::fitted_text`]).
 //!
 //! Every selected offset scalar is free, except those the trials cannot tell from others
@@ -12,10 +12,11 @@
 
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::{Model, ModelError, ParamId};
+use jointfit::solver::Observer;
 use jointfit::trial::Trial;
-use jointfit::workflow::{
-    calibrate_holding_redundant, FitSettings, HeldCalibration, Observer, WorkflowError,
-};
+use jointfit::workflow::redundant::calibrate_holding_redundant;
+use jointfit::workflow::redundant::HeldCalibration;
+use jointfit::workflow::{FitSettings, WorkflowError};
 use thiserror::Error;
 
 use jointfit_io::osim_read::personalize::{fitted_text, parameterize, SelectionError};
@@ -63,7 +64,7 @@ pub struct OsimFit {
     /// uses only the markers a trial has).
     pub absent_markers: Vec<String>,
     /// Coordinates the trials' markers cannot determine (e.g. `mtp_angle_r` without toe
-    /// markers), held at their default values for the fit ([`jointfit::workflow::lock_undetermined`]).
+    /// markers), held at their default values for the fit ([`jointfit::ik::hold::lock_undetermined`]).
     pub held_coordinates: Vec<String>,
 }
 
@@ -114,7 +115,7 @@ pub fn personalize(
     if absent_markers.len() < spec.markers.len() {
         spec.markers.retain(|m| !absent_markers.contains(&m.name));
     }
-    let held_coordinates = jointfit::workflow::lock_undetermined(&mut spec, trials)?;
+    let held_coordinates = jointfit::ik::hold::lock_undetermined(&mut spec, trials)?;
     let model = Model::compile(&spec)?;
     let start = start.unwrap_or_else(|| model.nominal_params());
     let free: Vec<ParamId> = (0..model.n_p()).map(ParamId).collect();

@@ -3,9 +3,13 @@
 
 use jointfit::calibrate::params_for_groups;
 use jointfit::model::Model;
+use jointfit::solver::NoObserver;
+use jointfit::solver::Observer;
 use jointfit::trial::Trial;
 use jointfit::workflow::refine::{calibrate_refined, RefinedCalibration};
-use jointfit::workflow::{self, Level, NoObserver, Observer, Verdict, WorkflowError};
+use jointfit::workflow::verdict::Level;
+use jointfit::workflow::verdict::Verdict;
+use jointfit::workflow::{self, WorkflowError};
 
 use crate::fit::{Calibration, FitOptions};
 use crate::osim::OsimFit;
@@ -43,7 +47,7 @@ pub enum Detail {
 
 impl Fitted {
     /// The core's calibration (display units, every detail).
-    pub fn calibration(&self) -> &workflow::Calibration {
+    pub fn calibration(&self) -> &jointfit::workflow::calibration::Calibration {
         match &self.detail {
             Detail::Native(r) => &r.calibration,
             Detail::Osim(o) => &o.result.calibration,

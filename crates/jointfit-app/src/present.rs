@@ -3,8 +3,9 @@
 //! command-line flag; the command line, the report and the Python package turn values and
 //! errors into text here.
 
-use jointfit::model::{Unit, MM_PER_M};
-use jointfit::trial::UpAxis;
+use jointfit::model::spec::Unit;
+use jointfit::model::spec::MM_PER_M;
+use jointfit::spatial::UpAxis;
 use jointfit::workflow::WorkflowError;
 
 /// Who reads the text: the command line (flags) or Python (keyword arguments; the batch

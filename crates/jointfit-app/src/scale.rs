@@ -9,10 +9,15 @@ use std::time::Instant;
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;
-use jointfit::scale::{
-    averaged_targets, default_groups, fit_scale, plausibility, ScaleFactors, ScaleFit, ScaleGroup,
-    ScaleOptions as FitOptions, SizePrior,
-};
+use jointfit::scale::fit::fit_scale;
+use jointfit::scale::fit::ScaleFit;
+use jointfit::scale::fit::ScaleGroup;
+use jointfit::scale::fit::ScaleOptions as FitOptions;
+use jointfit::scale::fit::SizePrior;
+use jointfit::scale::geometry::ScaleFactors;
+use jointfit::scale::groups::averaged_targets;
+use jointfit::scale::groups::default_groups;
+use jointfit::scale::groups::plausibility;
 use jointfit::trial::Trial;
 use nalgebra::Vector3;
 

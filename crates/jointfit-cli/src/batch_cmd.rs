@@ -31,7 +31,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use jointfit::trial::UpAxis;
+use jointfit::spatial::UpAxis;
 use jointfit_app::batch::{run_batch, Job, Outcome};
 use jointfit_app::{FitOptions, ModelSource, ReadOptions, Request, TrialSource};
 use serde::Deserialize;

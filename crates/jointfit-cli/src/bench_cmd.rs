@@ -17,8 +17,9 @@ use jointfit::calibrate::params_for_groups;
 use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::Model;
+use jointfit::solver::NoObserver;
 use jointfit::trial::Trial;
-use jointfit::workflow::{self, Method, NoObserver};
+use jointfit::workflow::Method;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -91,7 +92,7 @@ struct Figures {
     fk_dq_dp_us: f64,
     ik_trial_us_per_frame: f64,
     /// The data checks (`jointfit::checks::check_trial`) alongside the whole-trial IK
-    /// (`workflow::ik_checked`, the two in parallel), per frame:
+    /// (`jointfit::workflow::ik::ik_checked`, the two in parallel), per frame:
     /// what `jointfit ik` spends after reading the file.
     ik_checked_us_per_frame: f64,
     ik_checked_frames_per_second: f64,
@@ -211,13 +212,13 @@ fn time_ik_trial(model: &Model, p: &[f64], trial: &Trial, fig: &mut Figures) -> 
     let opts = IkOptions::default();
     let n = trial.n_frames() as f64;
     fig.ik_trial_us_per_frame = median_time(21, || {
-        workflow::ik_trial(model, p, trial, &opts).expect("validated above");
+        jointfit::workflow::ik::ik_trial(model, p, trial, &opts).expect("validated above");
     }) / n
         * 1e6;
     let for_model = for_model(model, trial)?;
     let checked_run = || {
         median_time(21, || {
-            let (run, findings) = workflow::ik_checked(model, p, &for_model, &opts);
+            let (run, findings) = jointfit::workflow::ik::ik_checked(model, p, &for_model, &opts);
             std::hint::black_box((run.expect("validated above"), findings));
         }) / n
     };
@@ -227,7 +228,7 @@ fn time_ik_trial(model: &Model, p: &[f64], trial: &Trial, fig: &mut Figures) -> 
     let one_thread = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     fig.ik_trial_1_thread_us_per_frame = one_thread.install(|| {
         median_time(21, || {
-            workflow::ik_trial(model, p, trial, &opts).expect("validated above");
+            jointfit::workflow::ik::ik_trial(model, p, trial, &opts).expect("validated above");
         })
     }) / n
         * 1e6;
@@ -254,8 +255,15 @@ fn time_ik_warm(
     let warm_frames = (first + 1..trial.n_frames()).count().max(1) as f64;
     let mut iterations = 0usize;
     let warm = median_time(21, || {
-        iterations =
-            workflow::ik_warm_started(model, p, trial, &map, first, &reference[first], &opts);
+        iterations = jointfit::workflow::ik::ik_warm_started(
+            model,
+            p,
+            trial,
+            &map,
+            first,
+            &reference[first],
+            &opts,
+        );
     });
     fig.ik_warm_us_per_frame = warm / warm_frames * 1e6;
     fig.ik_warm_frames_per_second = warm_frames / warm;
@@ -277,7 +285,8 @@ fn time_ik_batch(model: &Model, p: &[f64], trial: &Trial, fig: &mut Figures) {
         let t = median_time(5, || {
             pool.install(|| {
                 (0..copies).into_par_iter().for_each(|_| {
-                    workflow::ik_trial(model, p, trial, &opts).expect("validated above");
+                    jointfit::workflow::ik::ik_trial(model, p, trial, &opts)
+                        .expect("validated above");
                 })
             })
         });
@@ -377,7 +386,7 @@ pub fn run(args: BenchArgs) -> Result<()> {
         frames: trial.n_frames(),
         ..Figures::default()
     };
-    let reference = workflow::ik_trial(model, &p, trial, &IkOptions::default())?.fit;
+    let reference = jointfit::workflow::ik::ik_trial(model, &p, trial, &IkOptions::default())?.fit;
     let poses: Vec<&Vec<f64>> = reference
         .coords
         .iter()

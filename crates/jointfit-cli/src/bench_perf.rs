@@ -2,7 +2,7 @@
 //! and trial, 1- against 2-thread wall time of a long calibration, the uncertainty step's
 //! share, the peak memory of a long calibration (measured in a child process) and the share of
 //! file reading and writing in an `ik` run. Every calibration here is
-//! [`jointfit::workflow::calibrate`] with `FitSettings::default()` on the built-in leg, which
+//! [`jointfit::workflow::calibration::calibrate`] with `FitSettings::default()` on the built-in leg, which
 //! has no priors: the command's calibration (`FitSettings::command_default`, whose marker
 //! policy and envelope need a prior) without its uncertainty step, which is timed by itself
 //! from the start to the end of its own stage (the [`Observer`] hooks the workflow calls
@@ -14,13 +14,16 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use jointfit::calibrate::params_for_groups;
-use jointfit::calibrate::uncertainty::UncertaintyOptions;
+use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::{Model, ParamId};
+use jointfit::solver::NoObserver;
+use jointfit::solver::Observer;
+use jointfit::solver::Termination;
 use jointfit::trial::Trial;
-use jointfit::workflow::{
-    self, Calibration, FitSettings, NoObserver, Observer, Termination, UNCERTAINTY_STAGE,
-};
+use jointfit::workflow::calibration::Calibration;
+use jointfit::workflow::calibration::UNCERTAINTY_STAGE;
+use jointfit::workflow::FitSettings;
 use jointfit_experiments::synth;
 use serde::Serialize;
 
@@ -270,7 +273,7 @@ fn calibrate_all(
     observer: &mut dyn Observer,
 ) -> Result<Calibration> {
     let p = model.nominal_params();
-    Ok(workflow::calibrate(
+    Ok(jointfit::workflow::calibration::calibrate(
         model,
         &p,
         &[trial],

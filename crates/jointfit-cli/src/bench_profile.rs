@@ -1,7 +1,7 @@
 //! `jointfit bench --profile PART --repeat N`: one part of the bench alone, `N` times, for
 //! profilers (`valgrind --tool=callgrind`) and quick A/B timings; prints each wall time and
 //! the fastest. The parts are the code paths the bench times: `ik` (whole-trial IK of the
-//! workload), `checked` (IK with the data checks, `workflow::ik_checked`), `before` (the
+//! workload), `checked` (IK with the data checks, `jointfit::workflow::ik::ik_checked`), `before` (the
 //! checks that need no IK), `after` (the moved-cluster check from the IK's fit), `read` and
 //! `write` (the `ik_io` file steps on the workload repeated to `--io-frames` frames).
 
@@ -11,7 +11,6 @@ use anyhow::{bail, Result};
 use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::model::Model;
 use jointfit::trial::Trial;
-use jointfit::workflow;
 
 /// Runs `part` `repeat` times on the workload (`model`, `trial`); see the module docs.
 pub fn run(
@@ -25,7 +24,7 @@ pub fn run(
     let opts = IkOptions::default();
     let for_model = crate::bench_cmd::for_model(model, trial)?;
     let (map, _) = MarkerMap::allowing_absent(model, for_model.labels());
-    let fit = workflow::ik_trial(model, &p, &for_model, &opts)?.fit;
+    let fit = jointfit::workflow::ik::ik_trial(model, &p, &for_model, &opts)?.fit;
     // A private scratch folder (mode 0700, unpredictable name), removed when dropped.
     let scratch = crate::bench_perf::scratch_dir("jointfit-profile-")?;
     let trc = scratch.path().join("long.trc");
@@ -38,7 +37,9 @@ pub fn run(
         None
     };
     let long_fit = match (&long, part) {
-        (Some(long), "write") => Some(workflow::ik_trial(model, &p, long, &opts)?.fit),
+        (Some(long), "write") => {
+            Some(jointfit::workflow::ik::ik_trial(model, &p, long, &opts)?.fit)
+        }
         _ => None,
     };
     let mut best = f64::INFINITY;
@@ -47,11 +48,14 @@ pub fn run(
             let t = Instant::now();
             match part {
                 "ik" => {
-                    std::hint::black_box(workflow::ik_trial(model, &p, &for_model, &opts)?);
+                    std::hint::black_box(jointfit::workflow::ik::ik_trial(
+                        model, &p, &for_model, &opts,
+                    )?);
                 }
                 "checked" => {
-                    let _ =
-                        std::hint::black_box(workflow::ik_checked(model, &p, &for_model, &opts));
+                    let _ = std::hint::black_box(jointfit::workflow::ik::ik_checked(
+                        model, &p, &for_model, &opts,
+                    ));
                 }
                 "before" => {
                     std::hint::black_box(jointfit::checks::check_trial_before_ik(

@@ -12,7 +12,7 @@
 //!   answers are read: frames over the wall time from the first write to the last answer.
 //! * **Memory**: the child's resident set (`VmRSS` of `/proc/PID/status`) after the first
 //!   1000 frames of the throughput run and after its last, and its peak (`VmHWM`).
-//! * **In process**: [`jointfit::ik::StreamingIk::update`] alone on the same frames (the solve
+//! * **In process**: [`jointfit::ik::stream::StreamingIk::update`] alone on the same frames (the solve
 //!   without pipes, parsing or printing).
 //! * **Python**: `jointfit.StreamingIK.update` on the same frames, timed by `$JOINTFIT_PYTHON`
 //!   (or `python3`) when it imports the `jointfit` package; left out otherwise.
@@ -23,9 +23,12 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use jointfit::ik::{IkOptions, StreamingIk};
-use jointfit::model::{Model, MM_PER_M};
-use jointfit::trial::{Trial, UpAxis};
+use jointfit::ik::stream::StreamingIk;
+use jointfit::ik::IkOptions;
+use jointfit::model::spec::MM_PER_M;
+use jointfit::model::Model;
+use jointfit::spatial::UpAxis;
+use jointfit::trial::Trial;
 use serde::Serialize;
 
 /// The stream options of `jointfit bench` (flattened into its arguments).

@@ -32,7 +32,8 @@ use jointfit::ik::IkOptions;
 use jointfit::landmarks::{personalize, PersonalizeOptions};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
-use jointfit::trial::{Trial, UpAxis};
+use jointfit::spatial::UpAxis;
+use jointfit::trial::Trial;
 use jointfit_experiments::synth;
 
 use crate::common::{load_for_model, model_for_trials, Columns, TrialArgs, Up};
@@ -263,7 +264,7 @@ fn for_trial(
 /// cut to them and, when cut, a note (" frames F–L of N").
 fn solvable_span(model: &Model, trial: Trial, path: &Path, what: &str) -> Result<(Trial, String)> {
     let p = model.nominal_params();
-    let fit = jointfit::workflow::ik_trial(model, &p, &trial, &IkOptions::default())
+    let fit = jointfit::workflow::ik::ik_trial(model, &p, &trial, &IkOptions::default())
         .with_context(|| format!("{} with {what}", path.display()))?
         .fit;
     let solved = |q: &&Vec<f64>| q.first().is_some_and(|x| x.is_finite());

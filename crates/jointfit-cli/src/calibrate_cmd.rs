@@ -8,8 +8,10 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
+use jointfit::solver::Observer;
 use jointfit::trial::Trial;
-use jointfit::workflow::{self, Calibration, FitSettings, Method, Observer};
+use jointfit::workflow::calibration::Calibration;
+use jointfit::workflow::{self, FitSettings, Method};
 use jointfit_app::{Detail, FitOptions, ModelSource, Subject};
 use serde::Serialize;
 
@@ -211,13 +213,14 @@ impl Observer for ProgressObserver {
     fn stage_started(&mut self, stage: &str, budget: Option<usize>) {
         self.stage = stage.to_string();
         self.budget = budget;
-        if budget.is_some() && stage.starts_with(jointfit::workflow::UNCERTAINTY_STAGE) {
+        if budget.is_some() && stage.starts_with(jointfit::workflow::calibration::UNCERTAINTY_STAGE)
+        {
             // Bootstrap refits, not counted one by one (they run in parallel): say it began.
             self.bars.announce(stage);
         }
     }
     fn iteration(&mut self, iteration: usize, objective: f64) {
-        let mm2 = objective * jointfit::model::MM_PER_M * jointfit::model::MM_PER_M;
+        let mm2 = objective * jointfit::model::spec::MM_PER_M * jointfit::model::spec::MM_PER_M;
         let msg = format!("objective {mm2:.1} mm²");
         let stage = self.stage.clone();
         self.bars.step(
@@ -361,7 +364,11 @@ pub fn prepare(args: &CalibrateArgs, opts: &FitOptions) -> Result<Prepared> {
     let start = match &args.seed_from {
         Some(seed) => {
             let earlier = jointfit_io::model_file::load_model(seed)?;
-            Some(workflow::transfer_params(&subject.model, &earlier, seed)?)
+            Some(jointfit::workflow::ik::transfer_params(
+                &subject.model,
+                &earlier,
+                seed,
+            )?)
         }
         None => None,
     };
@@ -551,7 +558,7 @@ pub fn named_trials<'t>(paths: &[PathBuf], trials: &'t [Trial]) -> Vec<(String, 
 /// The files and options of this run, for the report's settings table.
 fn provenance(
     args: &CalibrateArgs,
-    lab_up: Option<jointfit::trial::UpAxis>,
+    lab_up: Option<jointfit::spatial::UpAxis>,
 ) -> jointfit_report::calibration::Provenance {
     let mut inputs = vec![
         ("subject model".to_string(), args.model.clone()),

@@ -2,8 +2,10 @@
 //! the information came from (with a prior) or the identifiability notes (without), the
 //! anatomical checks and the marker errors.
 
-use jointfit::calibrate::uncertainty::{Identifiability, Uncertainty};
-use jointfit::workflow::{Calibration, Termination};
+use jointfit::calibrate::uncertainty::types::Identifiability;
+use jointfit::calibrate::uncertainty::types::Uncertainty;
+use jointfit::solver::Termination;
+use jointfit::workflow::calibration::Calibration;
 
 pub fn print_report(report: &Calibration, seconds: f64, verbose: bool) {
     println!(
@@ -103,7 +105,7 @@ pub fn print_report(report: &Calibration, seconds: f64, verbose: bool) {
 }
 
 /// The verdict, last and plainly: `verdict: ok`, or the level and one reason per line.
-pub fn print_verdict(verdict: &jointfit::workflow::Verdict) {
+pub fn print_verdict(verdict: &jointfit::workflow::verdict::Verdict) {
     println!("verdict: {}", verdict.level);
     for r in &verdict.reasons {
         println!("  - {r}");
@@ -111,9 +113,9 @@ pub fn print_verdict(verdict: &jointfit::workflow::Verdict) {
 }
 
 /// A `reject` verdict stops the command (exit status 5, nothing written) unless `accept`.
-pub fn gate(verdict: &jointfit::workflow::Verdict, accept: bool) -> anyhow::Result<()> {
+pub fn gate(verdict: &jointfit::workflow::verdict::Verdict, accept: bool) -> anyhow::Result<()> {
     match (verdict.level, accept) {
-        (jointfit::workflow::Level::Reject, false) => Err(crate::output::Rejected(
+        (jointfit::workflow::verdict::Level::Reject, false) => Err(crate::output::Rejected(
             verdict.reasons.first().cloned().unwrap_or_default(),
         )
         .into()),

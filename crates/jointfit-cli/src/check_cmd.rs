@@ -12,8 +12,9 @@ use std::path::{Path, PathBuf};
 use anyhow::Result;
 use clap::Args;
 use jointfit::calibrate::params_for_groups;
-use jointfit::calibrate::uncertainty::{Identifiability, UncertaintyOptions};
-use jointfit::model::Unit;
+use jointfit::calibrate::uncertainty::types::Identifiability;
+use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
+use jointfit::model::spec::Unit;
 use jointfit::workflow;
 use serde::Serialize;
 
@@ -50,14 +51,14 @@ pub struct CheckArgs {
     pub json: bool,
 }
 
-/// `check --json`: the trial and what [`workflow::predict`] found.
+/// `check --json`: the trial and what [`jointfit::workflow::predict::predict`] found.
 #[derive(Serialize)]
 pub struct CheckReport {
     pub trial: String,
     /// The trial as read: vertical, reader notes, repairs and data checks.
     pub read: TrialJson,
     #[serde(flatten)]
-    pub check: workflow::Prediction,
+    pub check: jointfit::workflow::predict::Prediction,
 }
 
 pub fn run(args: CheckArgs) -> Result<()> {
@@ -78,7 +79,13 @@ pub fn run(args: CheckArgs) -> Result<()> {
     let report = CheckReport {
         trial: args.trial.display().to_string(),
         read,
-        check: workflow::predict(&model, &model.nominal_params(), &[&trial], &free, &opts)?,
+        check: jointfit::workflow::predict::predict(
+            &model,
+            &model.nominal_params(),
+            &[&trial],
+            &free,
+            &opts,
+        )?,
     };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);

@@ -9,7 +9,8 @@ use std::path::Path;
 
 use anyhow::{bail, Context, Result};
 use clap::ValueEnum;
-use jointfit::trial::{Trial, UpAxis};
+use jointfit::spatial::UpAxis;
+use jointfit::trial::Trial;
 use jointfit_io::trial_file::{LoadOptions, TrialFileError};
 
 /// Which lab axis points up in the input file.
@@ -442,7 +443,7 @@ pub fn model_for_trials(
         spec.markers.retain(|m| !absent.contains(&m.name));
         jointfit::model::Model::compile(&spec)?
     };
-    let (held_model, held) = jointfit::workflow::hold_undetermined(&model, trials)?;
+    let (held_model, held) = jointfit::ik::hold::hold_undetermined(&model, trials)?;
     if !held.is_empty() {
         eprintln!(
             "jointfit: warning: no marker determines {}; held at the model's default values",

@@ -210,8 +210,8 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
             .map_or(String::new(), |hz| format!(", low-pass {hz} Hz")),
         detected.map_or(String::new(), |d| format!("; up axis detected: {d}"))
     );
-    let up = jointfit::trial::UpAxis::from(up);
-    if up != jointfit::trial::UpAxis::Y {
+    let up = jointfit::spatial::UpAxis::from(up);
+    if up != jointfit::spatial::UpAxis::Y {
         // A subject personalized from the lab's files records `lab_up` = this axis, which
         // later commands apply to every trial: this file is no longer in that frame.
         println!(

@@ -7,7 +7,8 @@
 use anyhow::Result;
 use clap::Args;
 use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::{Model, Unit};
+use jointfit::model::spec::Unit;
+use jointfit::model::Model;
 use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion, SkinNoise};
 
 use jointfit_app::{FitOptions, ModelSource, ReadOptions, TrialSource};

@@ -7,11 +7,14 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use jointfit::ik::{unsolved_ranges, IkOptions, TrialFit};
+use jointfit::ik::trial_fit::unsolved_ranges;
+use jointfit::ik::trial_fit::TrialFit;
+use jointfit::ik::IkOptions;
 use jointfit::model::custom::MotionType;
-use jointfit::model::{Model, MM_PER_M};
+use jointfit::model::spec::MM_PER_M;
+use jointfit::model::Model;
 use jointfit::trial::Trial;
-use jointfit::workflow::{self, WorkflowError};
+use jointfit::workflow::WorkflowError;
 use jointfit_io::sto::{write_sto, Table};
 use serde::Serialize;
 
@@ -75,7 +78,7 @@ pub(crate) struct Summary {
     pub(crate) checks: Vec<CheckJson>,
     /// The trial as read: vertical, reader notes, repairs (and the checks again).
     pub(crate) trial: Option<TrialJson>,
-    /// The marker RMS every command prints ([`workflow::marker_rms`]: every fitted frame and
+    /// The marker RMS every command prints ([`jointfit::workflow::marker_rms::marker_rms`]: every fitted frame and
     /// present marker, the calibration's inverse kinematics); `None` for a model without
     /// joint parameters or an `.osim` setup.
     pub(crate) rms_mm: Option<f64>,
@@ -154,9 +157,10 @@ pub fn run(args: IkArgs) -> Result<()> {
     }
     // A model without joint parameters (an .osim read as it is) has no calibration, so no
     // RMS of its definition: the per-frame figures only.
-    summary.rms_mm = workflow::marker_rms(model, &model.nominal_params(), &[trial])
-        .ok()
-        .map(|r| r.rms_mm);
+    summary.rms_mm =
+        jointfit::workflow::marker_rms::marker_rms(model, &model.nominal_params(), &[trial])
+            .ok()
+            .map(|r| r.rms_mm);
     summary.checks = findings.iter().map(CheckJson::from).collect();
     summary.trial = Some(trial_json);
     print_summary(&summary, args.json, seconds, output)
@@ -268,7 +272,7 @@ pub fn solve(
     }
     // Coordinates no marker of the trial determines (a toe joint without toe markers) stay
     // at their defaults, as in OpenSim's IK, and are said so.
-    let (held_model, held) = workflow::hold_undetermined(model, &[trial])?;
+    let (held_model, held) = jointfit::ik::hold::hold_undetermined(model, &[trial])?;
     let checked_model = model;
     let ik_model = held_model.as_ref().unwrap_or(checked_model);
     // Markers the file lacks altogether are missing in every frame; frames whose present
@@ -277,7 +281,7 @@ pub fn solve(
     let ((run, seconds), mut findings) = rayon::join(
         || {
             let start = Instant::now();
-            let run = workflow::ik_trial(ik_model, &p, trial, opts);
+            let run = jointfit::workflow::ik::ik_trial(ik_model, &p, trial, opts);
             (run, start.elapsed().as_secs_f64())
         },
         || jointfit::checks::check_trial_before_ik(checked_model, trial, &map),

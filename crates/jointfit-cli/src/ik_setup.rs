@@ -6,7 +6,7 @@
 //! [`jointfit::ik::CoordinateTask`] per applied `IKCoordinateTask` with its target in every
 //! frame, the frames of the time range, and OpenSim's handling of what the markers leave
 //! undetermined (such a coordinate stays where it was: at its default in the first frame, at
-//! the previous frame's value after). It solves the trial with [`jointfit::ik::solve_trial`]
+//! the previous frame's value after). It solves the trial with [`jointfit::ik::trial_fit::solve_trial`]
 //! without gross-error rejection (`--reject-outliers` asks for it), and writes the motion to
 //! `output_motion_file` and, when the setup reports errors, OpenSim's
 //! `<name>_ik_marker_errors.sto` to `results_directory`.
@@ -15,7 +15,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use jointfit::ik::{solve_trial, CoordinateTask, IkOptions, MarkerMap, TrialFit};
+use jointfit::ik::trial_fit::solve_trial;
+use jointfit::ik::trial_fit::TrialFit;
+use jointfit::ik::{CoordinateTask, IkOptions, MarkerMap};
 use jointfit::model::custom::MotionType;
 use jointfit::model::functions::{Function, FunctionSpec};
 use jointfit::model::Model;

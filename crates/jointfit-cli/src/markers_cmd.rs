@@ -6,7 +6,8 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Subcommand;
-use jointfit::landmarks::{motion, personalize, MarkerSet, PersonalizeOptions};
+use jointfit::landmarks::markerset::MarkerSet;
+use jointfit::landmarks::{motion, personalize, PersonalizeOptions};
 use jointfit::model::lower_limb::Side;
 
 use crate::common::{load_trial, Up};
@@ -72,7 +73,7 @@ pub fn run(cmd: MarkersCommand) -> Result<()> {
     let mut text = format!(
         "# Suggested by `jointfit markers suggest` from {path} (up axis {}).\n\
          # Check every role before use: see docs/markersets.md.\n",
-        jointfit::trial::UpAxis::from(up)
+        jointfit::spatial::UpAxis::from(up)
     );
     for note in &suggestion.notes {
         text.push_str(&format!("# note: {note}\n"));

@@ -4,7 +4,8 @@
 //! parameterized jointfit model at the fitted values.
 
 use anyhow::{Context, Result};
-use jointfit::workflow::{HeldCalibration, Redundancy};
+use jointfit::workflow::redundant::HeldCalibration;
+use jointfit::workflow::redundant::Redundancy;
 use jointfit_app::osim::OsimFit;
 use serde::Serialize;
 

@@ -6,11 +6,16 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use clap::{ArgGroup, Args, ValueEnum};
 use jointfit::landmarks::auto::ChosenSet;
-use jointfit::landmarks::functional::FunctionalTrials;
-use jointfit::landmarks::{
-    personalize_keypoints, personalize_sides, HipCentreMethod, KeypointSet, MarkerSet,
-    PersonalizeOptions, PersonalizedModel, Sides, KEYPOINT_PRESET_NAMES, PRESET_NAMES,
-};
+use jointfit::landmarks::bilateral::personalize_sides;
+use jointfit::landmarks::bilateral::PersonalizedModel;
+use jointfit::landmarks::bilateral::Sides;
+use jointfit::landmarks::functional::apply::FunctionalTrials;
+use jointfit::landmarks::keypoints::personalize_keypoints;
+use jointfit::landmarks::keypoints::KeypointSet;
+use jointfit::landmarks::keypoints::KEYPOINT_PRESET_NAMES;
+use jointfit::landmarks::markerset::MarkerSet;
+use jointfit::landmarks::markerset::PRESET_NAMES;
+use jointfit::landmarks::{HipCentreMethod, PersonalizeOptions};
 use jointfit::model::lower_limb::Side;
 use jointfit::trial::Trial;
 

@@ -3,8 +3,9 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use jointfit::landmarks::functional::FunctionalReport;
-use jointfit::landmarks::{BothLegs, Personalized};
+use jointfit::landmarks::bilateral::BothLegs;
+use jointfit::landmarks::functional::apply::FunctionalReport;
+use jointfit::landmarks::Personalized;
 use jointfit::model::lower_limb::Side;
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;

@@ -9,7 +9,7 @@ use clap::Args;
 use jointfit::ik::IkOptions;
 use jointfit::model::Model;
 use jointfit::trial::Trial;
-use jointfit::workflow::Calibration;
+use jointfit::workflow::calibration::Calibration;
 use jointfit_report::analyze::{analyze_with_progress, parameter_rows};
 use jointfit_report::ReportInput;
 
@@ -119,7 +119,7 @@ fn model_for_report(model: Model, paths: &[PathBuf], trials: &[&Trial]) -> Resul
         let (_, absent) = jointfit::ik::MarkerMap::allowing_absent(&model, trial.labels());
         crate::common::warn_absent_markers(path, &absent);
     }
-    let (held_model, held) = jointfit::workflow::hold_undetermined(&model, trials)?;
+    let (held_model, held) = jointfit::ik::hold::hold_undetermined(&model, trials)?;
     if !held.is_empty() {
         eprintln!(
             "jointfit: warning: no marker determines {}; held at the model's default values",
@@ -171,11 +171,11 @@ pub fn display_name(p: &Path) -> String {
 pub fn trial_settings(
     trials: &[PathBuf],
     read: &TrialArgs,
-    lab_up: Option<jointfit::trial::UpAxis>,
+    lab_up: Option<jointfit::spatial::UpAxis>,
     filter: Option<f64>,
 ) -> Vec<(String, String)> {
     let up = match (read.up, lab_up) {
-        (Some(u), _) => format!("{} (--up)", jointfit::trial::UpAxis::from(u)),
+        (Some(u), _) => format!("{} (--up)", jointfit::spatial::UpAxis::from(u)),
         (None, Some(u)) => format!("{u} (the subject model's lab_up)"),
         (None, None) => "y".to_string(),
     };

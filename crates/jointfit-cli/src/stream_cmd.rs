@@ -23,10 +23,12 @@ use std::io::{BufRead, Read, Write};
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use jointfit::ik::{FrameStatus, IkOptions, StreamingIk};
+use jointfit::ik::stream::StreamingIk;
+use jointfit::ik::{FrameStatus, IkOptions};
 use jointfit::model::custom::MotionType;
-use jointfit::model::{Model, M_PER_MM};
-use jointfit::trial::UpAxis;
+use jointfit::model::spec::M_PER_MM;
+use jointfit::model::Model;
+use jointfit::spatial::UpAxis;
 use nalgebra::Vector3;
 
 use crate::common::Up;

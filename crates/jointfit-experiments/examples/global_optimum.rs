@@ -16,10 +16,13 @@
 use std::time::Instant;
 
 use jointfit::calibrate::{params_for_groups, Problem};
-use jointfit::ik::IkWorkspace;
+use jointfit::ik::lm::IkWorkspace;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
-use jointfit::workflow::{calibrate, perturb, Calibration, FitSettings, NoObserver};
+use jointfit::solver::NoObserver;
+use jointfit::workflow::calibration::calibrate;
+use jointfit::workflow::calibration::Calibration;
+use jointfit::workflow::{perturb, FitSettings};
 use jointfit_experiments::synth::{coordinates_scaled, synthesize, Motion, Noise, SkinNoise};
 
 fn main() {

@@ -18,8 +18,11 @@ use std::time::Instant;
 
 use jointfit::calibrate::params_for_groups;
 use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::{Model, Unit};
-use jointfit::workflow::{calibrate, perturb, FitSettings, Method, NoObserver};
+use jointfit::model::spec::Unit;
+use jointfit::model::Model;
+use jointfit::solver::NoObserver;
+use jointfit::workflow::calibration::calibrate;
+use jointfit::workflow::{perturb, FitSettings, Method};
 use jointfit_experiments::synth::{coordinates_scaled, synthesize, Motion, Noise};
 
 fn main() {

@@ -1,7 +1,7 @@
 //! The paper's protocol, run on trials in memory (no files, no printing).
 //!
 //! * [`fit`]: the outer level on a chosen parameter subset, from one or several starts
-//!   ([`jointfit::workflow::calibrate`]); the best (lowest `e_inner`) wins. Reinbolt et al. 2005 used a particle swarm for the single
+//!   ([`jointfit::workflow::calibration::calibrate`]); the best (lowest `e_inner`) wins. Reinbolt et al. 2005 used a particle swarm for the single
 //!   joints and a gradient method for the full leg, ~41 h per noisy single-joint problem; we
 //!   default to the joint sparse Levenberg–Marquardt ([`jointfit::calibrate::joint`]), which
 //!   shares the two-level formulation's optima and takes well under a second.
@@ -17,10 +17,12 @@
 use std::time::Instant;
 
 use jointfit::calibrate::{params_for_groups, CalibError, Problem};
-use jointfit::ik::IkWorkspace;
-use jointfit::model::{Model, Unit};
+use jointfit::ik::lm::IkWorkspace;
+use jointfit::model::spec::Unit;
+use jointfit::model::Model;
+use jointfit::solver::NoObserver;
 use jointfit::trial::Trial;
-use jointfit::workflow::{self, FitSettings, NoObserver, WorkflowError};
+use jointfit::workflow::{self, FitSettings, WorkflowError};
 use serde::Serialize;
 
 use crate::synth::{synthesize, Noise, NoiseStats};
@@ -40,7 +42,7 @@ pub struct FitOutcome {
     pub seconds: f64,
 }
 
-/// Fits the parameters of `groups` to `trials` from `start` with [`workflow::calibrate`]
+/// Fits the parameters of `groups` to `trials` from `start` with [`jointfit::workflow::calibration::calibrate`]
 /// (no uncertainty analysis), the random choices seeded by `seed`.
 pub fn fit(
     model: &Model,
@@ -58,7 +60,14 @@ pub fn fit(
         fix_unidentifiable: false,
         ..settings.clone()
     };
-    let cal = workflow::calibrate(model, start, trials, &free, &settings, &mut NoObserver)?;
+    let cal = jointfit::workflow::calibration::calibrate(
+        model,
+        start,
+        trials,
+        &free,
+        &settings,
+        &mut NoObserver,
+    )?;
     let prob = Problem::new(model, start.to_vec(), &free, trials)?;
     Ok(FitOutcome {
         marker_rms: prob.marker_rms(&cal.fit.p, &cal.fit.coords),
@@ -95,7 +104,7 @@ pub fn param_errors(
         let d = a[i] - b[i];
         match model.parameters()[i].unit {
             Unit::Radian => ori.push(d.to_degrees()),
-            Unit::Metre => pos.push(d * jointfit::model::MM_PER_M),
+            Unit::Metre => pos.push(d * jointfit::model::spec::MM_PER_M),
         }
     }
     let rms = |v: &[f64]| {

@@ -1,7 +1,8 @@
 //! Tables 1 and 2 of Reinbolt et al. 2005 next to ours: the run's results as data
 //! (serialisable to JSON) and their Markdown and CSV renderings.
 
-use jointfit::model::{Model, Unit};
+use jointfit::model::spec::Unit;
+use jointfit::model::Model;
 use serde::Serialize;
 
 use crate::paper::{TABLE1, TABLE1_COLUMNS, TABLE1_REDUCTION_PERCENT, TABLE2};

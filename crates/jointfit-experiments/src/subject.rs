@@ -8,7 +8,7 @@
 //! landmark model is therefore the truth moved by the landmark method's error, not the generic
 //! nominal model: [`landmark_model`] draws that error, `N(0, sd²)` per parameter, seeded.
 
-use jointfit::model::ModelSpec;
+use jointfit::model::spec::ModelSpec;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -330,7 +330,8 @@ pub fn gait_coordinates(
     p: &[f64],
     trial: &Trial,
 ) -> Result<(Vec<Vec<f64>>, Vec<usize>), jointfit::workflow::WorkflowError> {
-    use jointfit::workflow::{ik_trial, WorkflowError};
+    use jointfit::workflow::ik::ik_trial;
+    use jointfit::workflow::WorkflowError;
     // Every marker of the model must be in the trial (the replay needs all of them).
     jointfit::ik::MarkerMap::by_name(model, trial.labels())?;
     let fit = match ik_trial(model, p, trial, &jointfit::ik::IkOptions::default()) {

@@ -9,13 +9,17 @@
 //! --landmark-error` runs the same cases over 200 seeds (`docs/identifiability.md`).
 
 use jointfit::calibrate::params_for_groups;
-use jointfit::calibrate::uncertainty::UncertaintyOptions;
+use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
 use jointfit::landmarks::priors::fill_landmark_priors;
 use jointfit::landmarks::HipCentreMethod;
 use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::{Model, ModelSpec, Unit};
+use jointfit::model::spec::ModelSpec;
+use jointfit::model::spec::Unit;
+use jointfit::model::Model;
+use jointfit::solver::NoObserver;
+use jointfit::workflow::calibration::calibrate;
 use jointfit::workflow::refine::calibrate_refined;
-use jointfit::workflow::{calibrate, perturb, FitSettings, NoObserver};
+use jointfit::workflow::{perturb, FitSettings};
 use jointfit_experiments::subject::landmark_model;
 use jointfit_experiments::synth::{coordinates, markers, Motion, SkinNoise};
 

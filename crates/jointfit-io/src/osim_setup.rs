@@ -116,7 +116,7 @@ impl IkTaskSet {
     /// ([`IkTaskSet::marker_weights`]): the weights `jointfit ik --setup` fits with, and the
     /// calibration's marker weights when it takes a setup's tasks. Returns the names of the
     /// applied marker tasks that name no marker of `spec` (OpenSim ignores them).
-    pub fn apply_marker_weights(&self, spec: &mut jointfit::model::ModelSpec) -> Vec<String> {
+    pub fn apply_marker_weights(&self, spec: &mut jointfit::model::spec::ModelSpec) -> Vec<String> {
         let names: Vec<&str> = spec.markers.iter().map(|m| m.name.as_str()).collect();
         let weights = self.marker_weights(&names);
         let unknown = self

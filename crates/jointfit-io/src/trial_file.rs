@@ -148,7 +148,7 @@ fn strip_subject_prefix(trial: Trial) -> Result<Trial, jointfit::trial::TrialErr
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LoadOptions {
     /// Which lab axis points up in the file; the trial is rotated to Y up.
-    pub up: jointfit::trial::UpAxis,
+    pub up: jointfit::spatial::UpAxis,
     /// Low-pass cutoff (Hz) of the zero-phase Butterworth filter; `None`: unfiltered.
     pub filter_hz: Option<f64>,
 }
@@ -156,7 +156,7 @@ pub struct LoadOptions {
 impl Default for LoadOptions {
     fn default() -> Self {
         LoadOptions {
-            up: jointfit::trial::UpAxis::Y,
+            up: jointfit::spatial::UpAxis::Y,
             filter_hz: None,
         }
     }
@@ -178,7 +178,7 @@ impl std::fmt::Display for FilterWarning {
             "{}: filtering moved marker {} by {:.1} mm",
             self.path,
             self.marker,
-            self.moved_m * jointfit::model::MM_PER_M
+            self.moved_m * jointfit::model::spec::MM_PER_M
         )
     }
 }
@@ -198,12 +198,12 @@ pub fn prepare_trial(
     path: &Path,
     options: &LoadOptions,
 ) -> Result<(Trial, Vec<FilterWarning>), TrialFileError> {
-    trial.rotate(&jointfit::trial::up_axis_rotation(options.up));
+    trial.rotate(&jointfit::spatial::up_axis_rotation(options.up));
     let mut warnings = Vec::new();
     if let Some(hz) = options.filter_hz {
-        let lp = jointfit::signal::LowPass {
+        let lp = jointfit::signal::lowpass::LowPass {
             cutoff_hz: hz,
-            ..jointfit::signal::LowPass::default()
+            ..jointfit::signal::lowpass::LowPass::default()
         };
         let (filtered, report) = jointfit::signal::filter_trial(&trial, &lp).map_err(|source| {
             TrialFileError::Filter {

@@ -9,7 +9,7 @@
 
 use std::path::Path;
 
-use jointfit::landmarks::SubjectMeasurements;
+use jointfit::landmarks::subject::SubjectMeasurements;
 use thiserror::Error;
 
 /// Why a `.vsk` could not be read.

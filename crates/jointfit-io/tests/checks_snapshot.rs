@@ -11,10 +11,12 @@ use std::path::Path;
 
 use jointfit::checks::{check_trial, marker_span, CheckKind};
 use jointfit::ik::MarkerMap;
-use jointfit::landmarks::{personalize, MarkerSet, PersonalizeOptions};
+use jointfit::landmarks::markerset::MarkerSet;
+use jointfit::landmarks::{personalize, PersonalizeOptions};
 use jointfit::model::lower_limb::Side;
 use jointfit::model::Model;
-use jointfit::trial::{Trial, UpAxis};
+use jointfit::spatial::UpAxis;
+use jointfit::trial::Trial;
 use jointfit_io::trial_file::{load_trial, LoadOptions};
 use nalgebra::Vector3;
 

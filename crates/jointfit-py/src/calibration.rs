@@ -1,6 +1,6 @@
 //! `calibrate` and `jointfit.Calibration`: the two-level fit of joint parameters.
 
-use jointfit::model::Unit;
+use jointfit::model::spec::Unit;
 use jointfit_app::{
     run_observed, Calibration, FitOptions, ModelSource, ReadOptions, Request, TrialSource,
 };

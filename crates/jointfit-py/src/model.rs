@@ -171,8 +171,8 @@ impl PyModel {
             .iter()
             .map(|p| {
                 let u = match p.unit {
-                    jointfit::model::Unit::Metre => "m",
-                    jointfit::model::Unit::Radian => "rad",
+                    jointfit::model::spec::Unit::Metre => "m",
+                    jointfit::model::spec::Unit::Radian => "rad",
                 };
                 (p.name.clone(), u)
             })

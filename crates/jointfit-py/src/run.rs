@@ -15,7 +15,8 @@ use std::sync::mpsc::{channel, RecvTimeoutError, Sender};
 use std::sync::Arc;
 use std::time::Duration;
 
-use jointfit::workflow::{Observer, Termination};
+use jointfit::solver::Observer;
+use jointfit::solver::Termination;
 use pyo3::prelude::*;
 
 use crate::msg;

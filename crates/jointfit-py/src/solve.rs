@@ -4,11 +4,12 @@
 use std::path::Path;
 
 use jointfit::ik::IkOptions;
-use jointfit::landmarks::functional::FunctionalTrials;
-use jointfit::landmarks::PRESET_NAMES;
-use jointfit::landmarks::{
-    personalize_sides, HipCentreMethod, MarkerSet, PersonalizeOptions, Sides,
-};
+use jointfit::landmarks::bilateral::personalize_sides;
+use jointfit::landmarks::bilateral::Sides;
+use jointfit::landmarks::functional::apply::FunctionalTrials;
+use jointfit::landmarks::markerset::MarkerSet;
+use jointfit::landmarks::markerset::PRESET_NAMES;
+use jointfit::landmarks::{HipCentreMethod, PersonalizeOptions};
 use jointfit::model::{CoordKind, Model};
 use jointfit::trial::Trial;
 use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion, SkinNoise};
@@ -28,9 +29,9 @@ use crate::{err, msg, warn_all};
 pub(crate) fn trial_arg(
     py: Python<'_>,
     trial: &Bound<'_, PyAny>,
-    up: Option<jointfit::trial::UpAxis>,
+    up: Option<jointfit::spatial::UpAxis>,
     filter: Option<f64>,
-    model_up: Option<jointfit::trial::UpAxis>,
+    model_up: Option<jointfit::spatial::UpAxis>,
 ) -> PyResult<PyTrial> {
     if let Ok(t) = trial.cast::<PyTrial>() {
         let t = t.get().clone();
@@ -319,7 +320,7 @@ impl PyIkResult {
             .errors
             .rows()
             .into_iter()
-            .map(|r| jointfit::ik::rms(r.iter().copied()))
+            .map(|r| jointfit::ik::trial_fit::rms(r.iter().copied()))
             .collect();
         v.into_pyarray(py)
     }
@@ -436,7 +437,7 @@ pub fn ik(
         let filter = args::cutoff(filter, "filter")?;
         let model = model_arg(py, model)?;
         let trial = trial_arg(py, trial, up, filter, model.spec().lab_up)?;
-        let (held_model, held) = jointfit::workflow::hold_undetermined(&model, &[&trial.trial])
+        let (held_model, held) = jointfit::ik::hold::hold_undetermined(&model, &[&trial.trial])
             .map_err(|e| msg(format!("{}: {e}", trial.name)))?;
         let mut warnings = Vec::new();
         if !held.is_empty() {
@@ -450,7 +451,7 @@ pub fn ik(
         let p = model.nominal_params();
         let (m2, t2) = (model.clone(), trial.trial.clone());
         let run = interruptible(py, None, move |_| {
-            jointfit::workflow::ik_trial(&m2, &p, &t2, &IkOptions::default())
+            jointfit::workflow::ik::ik_trial(&m2, &p, &t2, &IkOptions::default())
         })?
         .map_err(|e| msg(format!("{}: {}", trial.name, jointfit_app::message(&e))))?;
         if !run.absent.is_empty() {

@@ -1,8 +1,9 @@
 //! `jointfit.StreamingIK`: inverse kinematics of a live marker feed, one frame per call
-//! (`jointfit::ik::StreamingIk`; `docs/streaming.md`).
+//! (`jointfit::ik::stream::StreamingIk`; `docs/streaming.md`).
 
-use jointfit::ik::{FrameStatus, IkOptions, StreamingIk};
-use jointfit::trial::UpAxis;
+use jointfit::ik::stream::StreamingIk;
+use jointfit::ik::{FrameStatus, IkOptions};
+use jointfit::spatial::UpAxis;
 use nalgebra::Vector3;
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;

@@ -1,6 +1,7 @@
 //! `jointfit.Trial`: marker trajectories (frames × markers × 3, metres, NaN for gaps).
 
-use jointfit::trial::{Trial, UpAxis};
+use jointfit::spatial::UpAxis;
+use jointfit::trial::Trial;
 use jointfit_app::{prepare_trial, read_trial, ReadOptions};
 use nalgebra::Vector3;
 use numpy::ndarray::Array3;

@@ -1,18 +1,21 @@
 //! Fills a [`ReportInput`] from a model, its fitted and baseline parameters and the trials:
-//! inverse kinematics of every trial with each parameter vector ([`jointfit::ik::solve_trial`],
+//! inverse kinematics of every trial with each parameter vector ([`jointfit::ik::trial_fit::solve_trial`],
 //! warm-started frame to frame), per-frame and per-marker RMS marker distances, the overall
-//! marker RMS every command prints ([`jointfit::workflow::marker_rms`]), the fitted
+//! marker RMS every command prints ([`jointfit::workflow::marker_rms::marker_rms`]), the fitted
 //! model's coordinates over time, and the parameter table. Model markers a trial lacks count
 //! as missing in every frame of it (noted on the page), as they do in the fit.
 
-use jointfit::ik::{rms, solve_trial, IkOptions, MarkerMap, TrialFit};
+use jointfit::ik::trial_fit::rms;
+use jointfit::ik::trial_fit::solve_trial;
+use jointfit::ik::trial_fit::TrialFit;
+use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::model::{CoordKind, Model};
 use jointfit::trial::Trial;
 
 use crate::data::{CoordSeries, MarkerRms, ParamRow, ReportInput, TrialSeries};
 use crate::ReportError;
 
-use jointfit::model::MM_PER_M as MM;
+use jointfit::model::spec::MM_PER_M as MM;
 
 /// Inverse kinematics of every trial with the fitted (and baseline) parameters; sets
 /// `trials`, `markers`, `overall_rms_mm` and `notes` of `input`.
@@ -32,7 +35,7 @@ pub fn analyze(
 
 /// [`analyze`] that calls `progress(done, total)` after each inverse-kinematics pass (one
 /// per trial and parameter vector). The overall RMS is the one every command prints
-/// ([`jointfit::workflow::marker_rms`]); the per-frame and per-marker figures come from the
+/// ([`jointfit::workflow::marker_rms::marker_rms`]); the per-frame and per-marker figures come from the
 /// report's own inverse kinematics (`ik`).
 pub fn analyze_with_progress(
     input: &mut ReportInput,
@@ -76,7 +79,8 @@ pub fn analyze_with_progress(
     // RMS of that definition: the RMS of the report's own inverse kinematics instead.
     let overall = |p: &[f64], own: &[Vec<f64>]| match model.n_p() {
         0 => rms(own.iter().flatten().copied()) * MM,
-        _ => jointfit::workflow::marker_rms(model, p, &all).map_or(f64::NAN, |r| r.rms_mm),
+        _ => jointfit::workflow::marker_rms::marker_rms(model, p, &all)
+            .map_or(f64::NAN, |r| r.rms_mm),
     };
     input.overall_rms_mm = (
         baseline.map(|b| overall(b, &errors.baseline)),

@@ -4,7 +4,8 @@
 use jointfit::ik::IkOptions;
 use jointfit::model::Model;
 use jointfit::trial::Trial;
-use jointfit::workflow::{Calibration, Method};
+use jointfit::workflow::calibration::Calibration;
+use jointfit::workflow::Method;
 
 use crate::analyze::{analyze_with_progress, parameter_rows};
 use crate::{Convergence, Interval, ReportError, ReportInput};
@@ -149,7 +150,9 @@ mod tests {
     use super::*;
     use jointfit::calibrate::params_for_groups;
     use jointfit::model::lower_limb::{lower_limb, Side};
-    use jointfit::workflow::{calibrate, FitSettings, NoObserver};
+    use jointfit::solver::NoObserver;
+    use jointfit::workflow::calibration::calibrate;
+    use jointfit::workflow::FitSettings;
     use jointfit_experiments::synth::{coordinates, markers, Motion};
 
     fn knee_fit(settings: &FitSettings) -> (Model, Calibration, Trial) {

@@ -31,7 +31,7 @@ pub struct ReportInput {
     /// [`crate::data_checks`]; omitted when empty).
     pub data_checks: Vec<crate::data_checks::TrialChecks>,
     /// The verdict on a calibration (`ok`, `caution`, `reject` and why), shown at the top.
-    pub verdict: Option<jointfit::workflow::Verdict>,
+    pub verdict: Option<jointfit::workflow::verdict::Verdict>,
     /// How the model was scaled from a generic one (section "Scaling"; `jointfit scale`'s
     /// record beside the model).
     pub scaling: Option<jointfit_io::osim_scale::record::ScaleRecord>,

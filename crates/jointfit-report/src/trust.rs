@@ -8,7 +8,7 @@
 
 use std::fmt::Write;
 
-use jointfit::workflow::Calibration;
+use jointfit::workflow::calibration::Calibration;
 
 use crate::svg::escape;
 

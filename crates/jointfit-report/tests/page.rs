@@ -422,9 +422,10 @@ fn a_trial_lacking_a_model_marker_is_reported_with_a_note() {
     let (map, absent) = jointfit::ik::MarkerMap::allowing_absent(&model, partial.labels());
     assert_eq!(absent, std::slice::from_ref(&dropped));
     let fit =
-        jointfit::ik::solve_trial(&model, &truth, &partial, &map, &IkOptions::default()).unwrap();
+        jointfit::ik::trial_fit::solve_trial(&model, &truth, &partial, &map, &IkOptions::default())
+            .unwrap();
     for j in (0..model.n_markers()).filter(|&j| j != 5) {
-        let direct = jointfit::ik::rms(fit.errors.iter().map(|e| e[j])) * 1e3;
+        let direct = jointfit::ik::trial_fit::rms(fit.errors.iter().map(|e| e[j])) * 1e3;
         assert_eq!(input.markers[j].fitted_mm, direct, "marker {j}");
     }
     input.parameters = parameter_rows(&model, &truth, None, None);

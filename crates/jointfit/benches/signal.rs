@@ -1,7 +1,9 @@
 //! Throughput of the zero-phase Butterworth filter: one long signal, and a whole trial.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use jointfit::signal::{filter_trial, sosfiltfilt, LowPass, OrderConvention};
+use jointfit::signal::lowpass::LowPass;
+use jointfit::signal::lowpass::OrderConvention;
+use jointfit::signal::{filter_trial, sosfiltfilt};
 use jointfit::trial::Trial;
 use nalgebra::Vector3;
 

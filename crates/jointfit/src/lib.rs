@@ -22,7 +22,7 @@ pub mod repair;
 pub mod scale;
 pub mod signal;
 pub mod solver;
-mod spatial;
+pub mod spatial;
 pub mod trial;
 pub mod vertical;
 pub mod workflow;

@@ -12,8 +12,6 @@
 use nalgebra::{Matrix3, Vector3};
 use thiserror::Error;
 
-pub use crate::spatial::{up_axis_rotation, UpAxis};
-
 /// Errors raised when building or querying a [`Trial`].
 #[derive(Debug, Error, PartialEq)]
 pub enum TrialError {
@@ -260,6 +258,7 @@ impl Trial {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::spatial::{up_axis_rotation, UpAxis};
 
     fn small() -> Trial {
         let nan = Vector3::repeat(f64::NAN);

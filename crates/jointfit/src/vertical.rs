@@ -20,7 +20,8 @@
 
 use nalgebra::Vector3;
 
-use crate::trial::{Trial, UpAxis};
+use crate::spatial::UpAxis;
+use crate::trial::Trial;
 
 /// `d` must lie within this angle of a coordinate axis (rad) for the answer to be trusted.
 pub(crate) const MAX_TILT: f64 = 35.0 * std::f64::consts::PI / 180.0;
@@ -252,7 +253,7 @@ pub fn rotation_warning(raw: &Trial, up: UpAxis, given: &str) -> Option<(String,
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::trial::up_axis_rotation;
+    use crate::spatial::up_axis_rotation;
 
     #[test]
     fn labels_of_several_labs() {

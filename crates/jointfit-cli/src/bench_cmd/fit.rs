@@ -7,11 +7,12 @@ use std::time::Instant;
 use anyhow::Result;
 use jointfit::calibrate::params_for_groups;
 use jointfit::model::{Model, ParamId};
+use jointfit::solver::Observer;
+use jointfit::solver::Termination;
 use jointfit::trial::Trial;
+use jointfit::workflow::calibration::UNCERTAINTY_STAGE;
 use jointfit::workflow::refine::{calibrate_refined, RefinedCalibration};
-use jointfit::workflow::{
-    marker_policy, FitSettings, Method, Observer, Termination, UNCERTAINTY_STAGE,
-};
+use jointfit::workflow::{marker_policy, FitSettings, Method};
 
 /// The command's default calibration of `free` (with `method`: `calibrate --method M`).
 pub fn command_fit(

@@ -4,12 +4,16 @@
 
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::landmarks::bilateral::common_window;
-use jointfit::landmarks::functional::FunctionalTrials;
+use jointfit::landmarks::bilateral::personalize_sides;
+use jointfit::landmarks::bilateral::PersonalizedModel;
+use jointfit::landmarks::bilateral::Sides;
+use jointfit::landmarks::functional::apply::FunctionalTrials;
+use jointfit::landmarks::markerset::MarkerSet;
 use jointfit::landmarks::{
-    personalize, personalize_in, personalize_sides, LandmarkError, MarkerSet, PersonalizeOptions,
-    Personalized, PersonalizedModel, Sides,
+    personalize, personalize_in, LandmarkError, PersonalizeOptions, Personalized,
 };
-use jointfit::model::lower_limb::{Side, SIDE_SUFFIXES};
+use jointfit::model::lower_limb::bilateral::SIDE_SUFFIXES;
+use jointfit::model::lower_limb::Side;
 use jointfit::model::Model;
 use jointfit::trial::Trial;
 use jointfit_testkit::data_file;
@@ -24,8 +28,8 @@ fn read(rel: &str) -> Option<Trial> {
             .unwrap()
             .to_trial()
             .unwrap();
-        t.rotate(&jointfit::trial::up_axis_rotation(
-            jointfit::trial::UpAxis::NegZ,
+        t.rotate(&jointfit::spatial::up_axis_rotation(
+            jointfit::spatial::UpAxis::NegZ,
         ));
         return Some(t);
     }
@@ -354,7 +358,7 @@ fn calibrate_recovers_both_legs_from_a_synthetic_trial() {
 type Case<'a> = (
     &'a str,
     &'a str,
-    jointfit::trial::UpAxis,
+    jointfit::spatial::UpAxis,
     &'a [(&'a str, &'a str)],
 );
 
@@ -363,7 +367,7 @@ type Case<'a> = (
 /// renamed (stated per case).
 #[test]
 fn every_preset_personalizes_both_legs_of_a_shared_trial() {
-    use jointfit::trial::UpAxis;
+    use jointfit::spatial::UpAxis;
     let jam_as_rajagopal: &[(&str, &str)] = &[
         ("R.Mkn", "R.MKnee"),
         ("L.Mkn", "L.MKnee"),
@@ -445,7 +449,7 @@ fn every_preset_personalizes_both_legs_of_a_shared_trial() {
         }
         covered.push(preset);
     }
-    for name in jointfit::landmarks::PRESET_NAMES {
+    for name in jointfit::landmarks::markerset::PRESET_NAMES {
         assert!(
             covered.contains(&name),
             "preset {name} has no shared-trial check"
@@ -487,7 +491,7 @@ fn static_marker_distance(model: &Model, kin: &KinData, leg: &Personalized) -> f
 /// The trial at `path` turned to Y up, its labels renamed (`from`, `to`).
 fn read_renamed(
     path: &std::path::Path,
-    up: jointfit::trial::UpAxis,
+    up: jointfit::spatial::UpAxis,
     renames: &[(&str, &str)],
 ) -> Trial {
     let mut t = super::personalize::read(path, up);

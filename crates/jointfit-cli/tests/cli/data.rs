@@ -1,6 +1,7 @@
 //! `jointfit inspect` and `jointfit convert` on real files.
 
-use jointfit::trial::{up_axis_rotation, UpAxis};
+use jointfit::spatial::up_axis_rotation;
+use jointfit::spatial::UpAxis;
 use jointfit_io::trial_file::read_trial;
 use jointfit_testkit::{data_file, scratch};
 

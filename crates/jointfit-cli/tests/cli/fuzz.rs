@@ -203,10 +203,10 @@ fn write_bad_models(w: &dyn Fn(&str, &[u8]), good: &str) {
         "long.toml",
         format!("name = \"{}\"\n", "y".repeat(200_000)).as_bytes(),
     );
-    let mut bare = jointfit::model::ModelSpec::from_toml(good).unwrap();
+    let mut bare = jointfit::model::spec::ModelSpec::from_toml(good).unwrap();
     bare.markers.clear();
     w("bare.toml", bare.to_toml().as_bytes());
-    let mut tiny = jointfit::model::ModelSpec::from_toml(good).unwrap();
+    let mut tiny = jointfit::model::spec::ModelSpec::from_toml(good).unwrap();
     tiny.parameters[0].prior_sd = Some(1e-203);
     tiny.parameters[0].prior_mean = Some(tiny.parameters[0].nominal);
     w("tiny_prior.toml", tiny.to_toml().as_bytes());

@@ -1,12 +1,14 @@
-//! Whole-trial IK in parallel chunks (`jointfit::ik::trial_chunk_ranges`: two from 128 frames
+//! Whole-trial IK in parallel chunks (`jointfit::ik::trial_fit::trial_chunk_ranges`: two from 128 frames
 //! on) against the same trial solved as one chunk: every frame's coordinates agree within the
 //! solver's tolerance, on OpenCap's walking1 with its landmark model, as read and with gaps
 //! cut across the chunk boundary (frames no marker set can solve, so the chunks restart from
 //! seeds), and the chunked result has the same bits on one and two threads.
 
-use jointfit::ik::{
-    solve_trial, solve_trial_in_chunks, trial_chunk_ranges, IkOptions, MarkerMap, TrialFit,
-};
+use jointfit::ik::trial_fit::solve_trial;
+use jointfit::ik::trial_fit::solve_trial_in_chunks;
+use jointfit::ik::trial_fit::trial_chunk_ranges;
+use jointfit::ik::trial_fit::TrialFit;
+use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::model::Model;
 use jointfit::trial::Trial;
 use jointfit_testkit::scratch;

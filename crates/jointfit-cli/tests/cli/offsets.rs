@@ -5,7 +5,7 @@
 //! not. Prints the statistic (the largest mean residual in a segment frame, and its ratio to
 //! the spread) per trial and side: the table of `docs/moved_clusters.md`
 //! (`cargo test --release -p jointfit-cli --test cli offsets -- --nocapture`). The findings
-//! `ik` gives from its own whole-trial IK (`workflow::ik_checked`) are the same on every trial.
+//! `ik` gives from its own whole-trial IK (`jointfit::workflow::ik::ik_checked`) are the same on every trial.
 
 use std::path::Path;
 
@@ -97,7 +97,7 @@ fn moved_clusters_on_every_shared_trial() {
             let subject = dir.join(format!("{}_{side}.toml", lab.display()));
             super::personalize_side(&stat, preset, side, &subject);
             let model = jointfit_io::model_file::load_model(subject.to_str().unwrap()).unwrap();
-            let up = model.spec().lab_up.unwrap_or(jointfit::trial::UpAxis::Y);
+            let up = model.spec().lab_up.unwrap_or(jointfit::spatial::UpAxis::Y);
             for &name in trials {
                 let path = data_file(&lab.join(name).to_string_lossy()).unwrap();
                 let options = LoadOptions {
@@ -125,9 +125,9 @@ fn moved_clusters_on_every_shared_trial() {
                     println!("    {}", f.message);
                 }
                 // `ik` takes the statistic from its own whole-trial IK instead of a second
-                // one (`workflow::ik_checked`): the same findings, the statistic within 1e-6 m.
+                // one (`jointfit::workflow::ik::ik_checked`): the same findings, the statistic within 1e-6 m.
                 let opts = IkOptions::default();
-                let (run, all) = jointfit::workflow::ik_checked(&model, &p, &trial, &opts);
+                let (run, all) = jointfit::workflow::ik::ik_checked(&model, &p, &trial, &opts);
                 let reused =
                     offsets_from_ik(&model, &p, &trial, &map, &opts, &run.unwrap().fit).unwrap();
                 let moved_by = reused

@@ -17,7 +17,9 @@
 
 use std::path::Path;
 
-use jointfit::ik::{solve_frame, IkOptions, IkWorkspace, MarkerMap};
+use jointfit::ik::lm::solve_frame;
+use jointfit::ik::lm::IkWorkspace;
+use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::model::{CoordKind, Model};
 use jointfit_io::sto::{read_sto, Table};
 

@@ -3,15 +3,20 @@
 
 use std::path::Path;
 
-use jointfit::ik::{seed_frame, solve_frame, IkOptions, IkWorkspace, MarkerMap};
+use jointfit::ik::lm::solve_frame;
+use jointfit::ik::lm::IkWorkspace;
+use jointfit::ik::{seed_frame, IkOptions, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
+use jointfit::landmarks::markerset::MarkerSet;
 use jointfit::landmarks::{
-    personalize, HipCentreMethod, LandmarkError, MarkerSet, PersonalizeOptions, Personalized,
+    personalize, HipCentreMethod, LandmarkError, PersonalizeOptions, Personalized,
 };
 use jointfit::model::lower_limb::Side;
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;
-use jointfit::trial::{up_axis_rotation, Trial, UpAxis};
+use jointfit::spatial::up_axis_rotation;
+use jointfit::spatial::UpAxis;
+use jointfit::trial::Trial;
 use jointfit_testkit::data_file;
 use nalgebra::Vector3;
 
@@ -79,8 +84,8 @@ fn check(
     let get = |n: &str| {
         let q = &spec.parameters[model.param_id(n).unwrap().0];
         match q.unit {
-            jointfit::model::Unit::Metre => q.nominal * 1e3,
-            jointfit::model::Unit::Radian => q.nominal.to_degrees(),
+            jointfit::model::spec::Unit::Metre => q.nominal * 1e3,
+            jointfit::model::spec::Unit::Radian => q.nominal.to_degrees(),
         }
     };
     let within = |n: &str, lo: f64, hi: f64| {

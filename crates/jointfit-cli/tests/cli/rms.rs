@@ -1,4 +1,4 @@
-//! One marker RMS everywhere (`jointfit::workflow::marker_rms`, `docs/marker_rms.md`):
+//! One marker RMS everywhere (`jointfit::workflow::marker_rms::marker_rms`, `docs/marker_rms.md`):
 //! `check`, `ik`, `report` and `calibrate` (its "before") print the same number for the same
 //! model and trial. The trial is OpenCap's toe-out walk, whose re-attached thigh markers make
 //! the definitions that differ from it (per-frame outlier rejection, the mean of per-frame

@@ -9,7 +9,7 @@ use super::reliability::{refused, run, Scratch};
 /// `m.toml` of `s` without its markers, written as `bare.toml`; returns its path.
 fn without_markers(s: &Scratch) -> String {
     let text = std::fs::read_to_string(s.dir.join("m.toml")).unwrap();
-    let mut spec = jointfit::model::ModelSpec::from_toml(&text).unwrap();
+    let mut spec = jointfit::model::spec::ModelSpec::from_toml(&text).unwrap();
     spec.markers.clear();
     spec.name = "bare leg".into();
     std::fs::write(s.dir.join("bare.toml"), spec.to_toml()).unwrap();
@@ -368,7 +368,7 @@ fn prior_sds_below_what_the_fit_represents_are_refused_naming_the_prior() {
     let s = Scratch::new("prior-sd");
     let (m, t, out) = (s.p("m.toml"), s.p("t.trc"), s.p("o.toml"));
     let text = std::fs::read_to_string(s.dir.join("m.toml")).unwrap();
-    let mut spec = jointfit::model::ModelSpec::from_toml(&text).unwrap();
+    let mut spec = jointfit::model::spec::ModelSpec::from_toml(&text).unwrap();
     let p = &mut spec.parameters[0];
     let name = p.name.clone();
     p.prior_sd = Some(1e-203);

@@ -1,6 +1,7 @@
 //! `jointfit synth` and `jointfit reproduce`: the known synthetic truth is the oracle.
 
-use jointfit::model::{Model, Unit};
+use jointfit::model::spec::Unit;
+use jointfit::model::Model;
 use jointfit_testkit::data_dir;
 
 use super::jointfit;

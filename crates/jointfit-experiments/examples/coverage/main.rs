@@ -3,7 +3,7 @@
 //! For each seed: true parameters = nominal moved by up to 40 % of each half-range, a
 //! synthetic trial of the chosen motion with skin-artifact noise (`A sin(ωt + φ)`, A up to
 //! `--noise-mm`, ω up to 25 rad/s, Chèze et al. 1995), a joint fit of all 27 parameters from
-//! the nominal model, and the uncertainty analysis, all through [`jointfit::workflow::calibrate`]
+//! the nominal model, and the uncertainty analysis, all through [`jointfit::workflow::calibration::calibrate`]
 //! with its default settings (global phase included). Prints, per parameter group, how often
 //! each estimator's 95 % interval contains the truth, the mean reported half-width against
 //! the RMS error, and whether the flagged parameters are those with large errors.
@@ -47,17 +47,23 @@ use args::{misplaced, parse};
 use policy::{Errors, Policy, GROUPS};
 
 use jointfit::calibrate::prior::Source;
-use jointfit::calibrate::uncertainty::{Identifiability, ParamUncertainty, UncertaintyOptions};
+use jointfit::calibrate::uncertainty::types::Identifiability;
+use jointfit::calibrate::uncertainty::types::ParamUncertainty;
+use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
 use jointfit::calibrate::{params_for_groups, Problem};
-use jointfit::ik::IkWorkspace;
+use jointfit::ik::lm::IkWorkspace;
 use jointfit::landmarks::priors::fill_landmark_priors;
 use jointfit::landmarks::HipCentreMethod;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::spec::ModelSpec;
-use jointfit::model::{Model, ParamId, Unit};
+use jointfit::model::spec::Unit;
+use jointfit::model::{Model, ParamId};
+use jointfit::solver::NoObserver;
 use jointfit::trial::Trial;
+use jointfit::workflow::calibration::calibrate;
+use jointfit::workflow::calibration::Calibration;
 use jointfit::workflow::refine::calibrate_refined;
-use jointfit::workflow::{calibrate, perturb, Calibration, FitSettings, NoObserver};
+use jointfit::workflow::{perturb, FitSettings};
 use jointfit_experiments::subject::landmark_model;
 use jointfit_experiments::synth::{coordinates, markers, perturbed_params, SkinNoise};
 

@@ -3,7 +3,8 @@
 
 use std::collections::BTreeMap;
 
-use jointfit::model::{Model, ParamId, Unit};
+use jointfit::model::spec::Unit;
+use jointfit::model::{Model, ParamId};
 use jointfit::workflow::envelope::EnvelopeBound;
 use jointfit::workflow::marker_policy::{MarkerAction, MarkerDecision};
 

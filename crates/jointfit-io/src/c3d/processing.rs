@@ -5,7 +5,7 @@
 
 use std::collections::BTreeMap;
 
-use jointfit::landmarks::SubjectMeasurements;
+use jointfit::landmarks::subject::SubjectMeasurements;
 
 use super::Parameters;
 

@@ -20,11 +20,13 @@
 
 use std::collections::HashMap;
 
-use jointfit::kinematics::{forward_kinematics, KinData, Pose, Want};
+use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::functions::Function;
 use jointfit::model::offset_rotation;
 use jointfit::model::Model;
-use jointfit::scale::{scaled_spec, ScaleFactors};
+use jointfit::scale::geometry::scaled_spec;
+use jointfit::scale::geometry::ScaleFactors;
+use jointfit::spatial::Pose;
 use nalgebra::Vector3;
 use roxmltree::{Document, Node};
 

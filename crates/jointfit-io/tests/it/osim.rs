@@ -7,7 +7,8 @@
 use std::collections::HashMap;
 
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
-use jointfit::landmarks::{personalize, MarkerSet, PersonalizeOptions};
+use jointfit::landmarks::markerset::MarkerSet;
+use jointfit::landmarks::{personalize, PersonalizeOptions};
 use jointfit::model::lower_limb::{builtin, Side};
 use jointfit::model::{CoordKind, JointKind, Model};
 use jointfit_io::osim::{to_osim, write_osim};

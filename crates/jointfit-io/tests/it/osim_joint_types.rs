@@ -155,14 +155,14 @@ fn osim_every_joint_type_jacobian_matches_finite_differences() {
             for m in 0..model.n_markers() {
                 let fd = (plus.markers[m] - minus.markers[m]) / (2.0 * h);
                 for a in 0..3 {
-                    let d = (kin.jq()[(3 * m + a, i)] - fd[a]).abs();
+                    let d = (kin.jq[(3 * m + a, i)] - fd[a]).abs();
                     worst = worst.max(d);
                     assert!(
                         d < 1e-7,
                         "∂ {} / ∂ {}: {} vs {}",
                         model.markers()[m].name,
                         model.coordinates()[i].name,
-                        kin.jq()[(3 * m + a, i)],
+                        kin.jq[(3 * m + a, i)],
                         fd[a]
                     );
                 }

@@ -10,7 +10,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use jointfit::scale::ScaleFactors;
+use jointfit::scale::geometry::ScaleFactors;
 use jointfit_io::osim_read::read_osim;
 use jointfit_io::osim_scale::{path_lengths, scale_osim, ScaleOptions};
 use jointfit_testkit::script::Script;

@@ -2,7 +2,7 @@
 //! shared dataset whose up axis is known (PROVENANCE.md, and the files' own layout: the
 //! C3D labs record Z or −Z up, the OpenSim/OpenCap TRC exports Y up).
 
-use jointfit::trial::UpAxis;
+use jointfit::spatial::UpAxis;
 use jointfit::vertical::detect_up;
 use jointfit_io::trial_file::read_trial;
 use jointfit_testkit::data_file;

@@ -186,7 +186,7 @@ fn fmt(v: f64, decimals: usize) -> String {
 }
 
 /// The verdict, first after the header: its level and the reasons (`id="verdict"`).
-fn verdict(h: &mut String, v: &jointfit::workflow::Verdict) {
+fn verdict(h: &mut String, v: &jointfit::workflow::verdict::Verdict) {
     let _ = write!(
         h,
         "<div id=\"verdict\" class=\"verdict verdict-{l}\"><p><strong>verdict: {l}</strong>{}</p>",

@@ -233,8 +233,8 @@ fn frame_gram_impl(
     }
     let nr = sc.rows.len();
     let np = sc.np;
-    let jq = sc.kin.jq().as_slice();
-    let jp = sc.kin.jp().as_slice();
+    let jq = sc.kin.jq.as_slice();
+    let jp = sc.kin.jp.as_slice();
     let xt = &mut sc.xt[..nr * np];
     for a in 0..n {
         let (src, scale) = if a < nq {

@@ -2,7 +2,8 @@
 
 use super::*;
 use crate::calibrate::params_for_groups;
-use crate::model::lower_limb::{bilateral, lower_limb, Side};
+use crate::model::lower_limb::bilateral::bilateral;
+use crate::model::lower_limb::{lower_limb, Side};
 use crate::model::Model;
 use crate::trial::Trial;
 use nalgebra::DMatrix;
@@ -53,10 +54,10 @@ fn gram_matches_dense_products() {
             let row = 3 * m + axis;
             r[row] = sw * d[axis];
             for a in 0..nq {
-                j[(row, a)] = sw * kin.jq()[(row, a)];
+                j[(row, a)] = sw * kin.jq[(row, a)];
             }
             for k in 0..nf {
-                j[(row, nq + k)] = sw * half[k] * kin.jp()[(row, prob.free[k])];
+                j[(row, nq + k)] = sw * half[k] * kin.jp[(row, prob.free[k])];
             }
         }
     }
@@ -107,11 +108,11 @@ fn plain_gram(
     let mut range = vec![(0, 0); n];
     for a in 0..n {
         let (src, scale) = if a < nq {
-            (&kin.jq().as_slice()[a * nrows..(a + 1) * nrows], 1.0)
+            (&kin.jq.as_slice()[a * nrows..(a + 1) * nrows], 1.0)
         } else {
             let pi = prob.free[a - nq];
             (
-                &kin.jp().as_slice()[pi * nrows..(pi + 1) * nrows],
+                &kin.jp.as_slice()[pi * nrows..(pi + 1) * nrows],
                 half[a - nq],
             )
         };

@@ -7,7 +7,8 @@ use crate::calibrate::kernel::{frame_gram, FrameScratch};
 use crate::calibrate::{params_for_groups, Problem};
 use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::functions::FunctionSpec;
-use crate::model::lower_limb::{bilateral, lower_limb, Side};
+use crate::model::lower_limb::bilateral::bilateral;
+use crate::model::lower_limb::{lower_limb, Side};
 use crate::model::refine::with_marker_parameters;
 use crate::model::spec::{AxisMotion, CouplerSpec, JointKindSpec, ModelSpec, TransformAxisSpec};
 use crate::model::Model;
@@ -38,10 +39,10 @@ fn dense(
             let row = 3 * m + axis;
             r[row] = sw * d[axis];
             for a in 0..nq {
-                j[(row, a)] = sw * kin.jq()[(row, a)];
+                j[(row, a)] = sw * kin.jq[(row, a)];
             }
             for k in 0..nf {
-                j[(row, nq + k)] = sw * half[k] * kin.jp()[(row, prob.free[k])];
+                j[(row, nq + k)] = sw * half[k] * kin.jp[(row, prob.free[k])];
             }
         }
     }

@@ -39,10 +39,10 @@ pub mod varpro;
 use rayon::prelude::*;
 use thiserror::Error;
 
-use crate::ik::{
-    seed_frame, solve_frame, trial_chunk_ranges, undetermined_coordinate, FrameStatus, IkOptions,
-    IkWorkspace, MarkerMap,
-};
+use crate::ik::lm::solve_frame;
+use crate::ik::lm::IkWorkspace;
+use crate::ik::trial_fit::trial_chunk_ranges;
+use crate::ik::{seed_frame, undetermined_coordinate, FrameStatus, IkOptions, MarkerMap};
 use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::{Model, ParamId};
 pub(crate) use crate::solver::Termination;
@@ -289,7 +289,7 @@ impl<'m> Problem<'m> {
     /// from the frame before, in the fixed parallel chunks of [`trial_chunk_ranges`] (each
     /// chunk's first frame seeded too), so the result does not depend on the number of
     /// threads. The loop of [`crate::ik::warm_started_coords`], on targets gathered from the
-    /// trials; like the `ik` command (and unlike that function's [`crate::ik::chunk_ranges`]),
+    /// trials; like the `ik` command (and unlike that function's [`crate::ik::trial_fit::chunk_ranges`]),
     /// a problem of 128 to 1023 frames is cut into two chunks, so that a gait trial's seeded
     /// IK runs on two cores (`notebook/performance.md`: the cost is one more seed).
     ///

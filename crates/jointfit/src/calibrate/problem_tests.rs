@@ -11,7 +11,7 @@ use nalgebra::Vector3;
 fn unknown_group_lists_the_accepted_names() {
     for spec in [
         lower_limb(Side::Right),
-        crate::model::lower_limb::bilateral(),
+        crate::model::lower_limb::bilateral::bilateral(),
     ] {
         let model = Model::compile(&spec).unwrap();
         let e = params_for_groups(&model, &["knees"])

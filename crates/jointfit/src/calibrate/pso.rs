@@ -41,7 +41,7 @@ use rayon::prelude::*;
 
 use super::joint::{solve_joint, JointOptions};
 use super::{Fit, Problem};
-use crate::ik::IkWorkspace;
+use crate::ik::lm::IkWorkspace;
 use crate::solver::{Observer, Termination};
 
 /// Settings of the particle swarm.

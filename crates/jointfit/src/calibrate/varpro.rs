@@ -10,7 +10,7 @@ use super::schur::{
     active_bounds, assemble, back_substitute, reduce, solve_reduced_at_bounds, Blocks,
 };
 use super::{Fit, Problem};
-use crate::ik::IkWorkspace;
+use crate::ik::lm::IkWorkspace;
 use crate::solver::{Observer, Termination};
 
 /// Settings of the two-level gradient solver.

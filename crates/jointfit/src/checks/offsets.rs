@@ -24,13 +24,15 @@
 //! frame; the residuals here are taken of every present marker, rejected or not) on at most
 //! [`MAX_FRAMES`] consecutive frames from the middle of the trial, which bounds the cost (on
 //! a short trial it is one more IK of the trial: one seeding, then warm-started frames). A
-//! front end that runs that same IK anyway (`workflow::ik_checked`, the `ik` command) reads
+//! front end that runs that same IK anyway (`workflow::ik::ik_checked`, the `ik` command) reads
 //! the statistic from its fit instead ([`offsets_from_ik`], [`check_offsets_after_ik`]).
 
 use nalgebra::Vector3;
 
 use crate::checks::{CheckKind, Finding, Severity};
-use crate::ik::{solve_trial, IkOptions, MarkerMap, TrialFit};
+use crate::ik::trial_fit::solve_trial;
+use crate::ik::trial_fit::TrialFit;
+use crate::ik::{IkOptions, MarkerMap};
 use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::refine::BOUND_IN_SD;
 use crate::model::Model;

@@ -4,7 +4,8 @@
 //! such a coordinate where it starts, its default; jointfit's frames need every coordinate in
 //! `q` determined ([`crate::ik::solvable`]), so the coordinate leaves `q` (locked).
 
-use crate::ik::{undetermined_coordinate, IkOptions, IkWorkspace, MarkerMap};
+use crate::ik::lm::IkWorkspace;
+use crate::ik::{undetermined_coordinate, IkOptions, MarkerMap};
 use crate::model::spec::{CoordinateSpec, JointKindSpec, ModelSpec};
 use crate::model::{Model, ModelError};
 use crate::trial::Trial;

@@ -28,7 +28,7 @@
 //! is not finite is not solved, and the next frame starts again from seeding.
 //!
 //! The frames of a trial are solved in fixed chunks of consecutive frames, in parallel
-//! ([`trial_chunk_ranges`]: two from 128 frames on; the first frame of each chunk is seeded), so the result does not depend
+//! ([`trial_chunk_ranges`](trial_fit::trial_chunk_ranges): two from 128 frames on; the first frame of each chunk is seeded), so the result does not depend
 //! on the number of threads. A frame whose fit is far worse than the trial's median is then
 //! solved again from its neighbours' solutions and a fresh seed, and reported not solved when
 //! it stays implausible ([`repair`]). The coordinates are reported on the branch of each
@@ -39,8 +39,10 @@
 pub mod branch;
 mod composite;
 mod frames;
-mod hold;
-mod lm;
+pub mod hold;
+pub mod lm;
+use hold::hold_undetermined;
+use lm::{solve_frame, IkWorkspace};
 mod markers;
 mod normal;
 pub(crate) mod repair;
@@ -48,31 +50,25 @@ mod seed;
 #[cfg(test)]
 mod seed_tests;
 pub(crate) mod solvable;
-mod stream;
+pub mod stream;
 pub(crate) mod tasks;
 #[cfg(test)]
 mod tasks_tests;
-mod trial_fit;
+pub mod trial_fit;
+use trial_fit::{chunk_ranges, TrialFit};
 
 use thiserror::Error;
 
 pub use frames::warm_started_coords;
-pub use hold::{hold_undetermined, lock_undetermined};
 pub(crate) use lm::is_gross;
-pub use lm::solve_frame;
 pub(crate) use lm::undetermined_coordinate;
-pub use lm::IkWorkspace;
 pub use markers::MarkerMap;
 pub use seed::seed_frame;
 #[cfg(test)]
 use seed::seed_frame_by_scouting;
-pub use stream::{StreamError, StreamingIk};
 pub use tasks::CoordinateTask;
-pub use trial_fit::chunk_ranges;
 pub(crate) use trial_fit::extrapolate;
 pub(crate) use trial_fit::solve_trial_alongside;
-pub use trial_fit::{rms, solve_trial};
-pub use trial_fit::{solve_trial_in_chunks, trial_chunk_ranges, unsolved_ranges, TrialFit};
 
 /// Why IK could not start.
 #[derive(Debug, Error, PartialEq)]
@@ -108,7 +104,7 @@ pub struct IkOptions {
     /// markers move less than 1 mm per metre of the coordinate).
     pub max_translation_per_mm: f64,
     /// Solve frames with undetermined coordinates by holding those at the values they enter
-    /// with (the previous frame's solution in [`solve_trial`], the seed's in a seeded frame:
+    /// with (the previous frame's solution in [`solve_trial`](trial_fit::solve_trial), the seed's in a seeded frame:
     /// the defaults beyond the root) instead of skipping them.
     pub hold_undetermined: bool,
     /// After the fit, a marker farther than this from its model position (m) *and* farther

@@ -245,7 +245,7 @@ mod tests {
                 moments.set_active(&active);
                 let (mut a, mut g) = (vec![0.0; n * n], vec![0.0; n]);
                 moments.normal_equations(&kin, &targets, &weights, n, &mut a, &mut g);
-                let jq = kin.jq();
+                let jq = &kin.jq;
                 let scale = jq.norm_squared();
                 for (ai, &ca) in active.iter().enumerate() {
                     let mut g_ref = 0.0;

@@ -26,7 +26,7 @@
 //!
 //! Samples are taken as a trial file's reader takes them: a sample with a coordinate that is
 //! not finite is missing, and the others are rotated from the laboratory's vertical to the
-//! model's Y up (`crate::trial::up_axis_rotation`, as `Trial::rotate`).
+//! model's Y up (`crate::spatial::up_axis_rotation`, as `Trial::rotate`).
 //!
 //! Memory does not grow with the stream: the object keeps the last two solutions, one
 //! workspace and the bounded cache of solvability verdicts.
@@ -42,7 +42,9 @@ use super::{
     MarkerMap,
 };
 use crate::model::Model;
-use crate::trial::{up_axis_rotation, Trial, UpAxis};
+use crate::spatial::up_axis_rotation;
+use crate::spatial::UpAxis;
+use crate::trial::Trial;
 
 /// Why a feed cannot be set up, or a frame not taken.
 #[derive(Debug, Error, PartialEq)]

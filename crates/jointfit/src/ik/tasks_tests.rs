@@ -218,7 +218,7 @@ fn a_single_marker_off_a_pin_axis_determines_it() {
     // Oracle: the explicit Jacobian at the truth.
     let mut kin = KinData::new(&model);
     forward_kinematics(&model, &p, &truth, Want::DQ, &mut kin);
-    let jq = kin.jq();
+    let jq = kin.jq;
     let shk = model
         .markers()
         .iter()
@@ -297,7 +297,7 @@ fn held_from_the_first_frame_at_the_defaults() {
         hold_undetermined: true,
         ..IkOptions::default()
     };
-    let fit = super::solve_trial(&model, &p, &trial, &map, &opts).unwrap();
+    let fit = super::trial_fit::solve_trial(&model, &p, &trial, &map, &opts).unwrap();
     let defaults = model.default_coords();
     for (f, q) in fit.coords.iter().enumerate() {
         assert!(

@@ -87,7 +87,7 @@ pub fn solve_trial(
 }
 
 /// [`solve_trial`] with other work, `also`, run alongside on the thread pool (the data checks
-/// of `workflow::ik_checked`). `also` is queued after the chunks, so that a free thread takes
+/// of `workflow::ik::ik_checked`). `also` is queued after the chunks, so that a free thread takes
 /// a chunk first and `also` (with the parallel tasks it spawns) fills the time of whichever
 /// thread finishes its chunk first, instead of delaying a chunk by its whole length. Neither
 /// result depends on the order the pool runs them in.

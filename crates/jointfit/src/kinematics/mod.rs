@@ -24,7 +24,7 @@ use nalgebra::{DMatrix, Vector3};
 
 use crate::model::plan::JCol;
 use crate::model::{Item, Model, Source};
-pub use crate::spatial::Pose;
+use crate::spatial::Pose;
 
 /// Per-evaluation workspace: one per thread or particle. The model stays immutable.
 #[derive(Debug, Clone)]
@@ -33,10 +33,12 @@ pub struct KinData {
     pub segment_poses: Vec<Pose>,
     /// Marker positions in world coordinates (m), model marker order.
     pub markers: Vec<Vector3<f64>>,
-    /// `∂(marker coordinates)/∂q`: `3·n_markers × n_q`, row `3j + k` is axis k of marker j.
-    jq: DMatrix<f64>,
-    /// `∂(marker coordinates)/∂p`: `3·n_markers × n_p`, same row layout.
-    jp: DMatrix<f64>,
+    /// `∂(marker coordinates)/∂q` of the last evaluation that asked for it: `3·n_markers × n_q`,
+    /// row `3j + k` is axis k (x, y, z) of marker j, metres per unit of q.
+    pub jq: DMatrix<f64>,
+    /// `∂(marker coordinates)/∂p` of the last evaluation that asked for it: `3·n_markers × n_p`,
+    /// same row layout.
+    pub jp: DMatrix<f64>,
     /// Per step: world axis `ω_k` of the last evaluation (variable steps only).
     step_axis: Vec<Vector3<f64>>,
     /// Per step: world origin `o_k` of the frame the step acts in.
@@ -75,18 +77,6 @@ impl KinData {
             block_pose: vec![Pose::identity(); model.plan.n_blocks],
             step_local: vec![(Vector3::zeros(), Vector3::zeros()); ns],
         }
-    }
-
-    /// `∂(marker coordinates)/∂q` of the last evaluation that asked for it:
-    /// `3·n_markers × n_q`, row `3j + k` is axis k (x, y, z) of marker j, metres per unit of q.
-    pub fn jq(&self) -> &DMatrix<f64> {
-        &self.jq
-    }
-
-    /// `∂(marker coordinates)/∂p` of the last evaluation that asked for it:
-    /// `3·n_markers × n_p`, same row layout.
-    pub fn jp(&self) -> &DMatrix<f64> {
-        &self.jp
     }
 
     /// Recomputes the parameter-only blocks when `p` differs from the cached one.

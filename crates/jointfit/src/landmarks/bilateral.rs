@@ -21,7 +21,7 @@
 //! [`Outcome::warning`]; a leg with only some of its markers is an error, never a silent
 //! half-model.
 
-use super::functional::FunctionalTrials;
+use super::functional::apply::FunctionalTrials;
 use super::window::{select_window, StaticWindow};
 use super::{
     check_options, personalize_in, personalize_with, LandmarkError, MarkerSet, PersonalizeOptions,

@@ -236,7 +236,7 @@ pub fn personalize_keypoints(
     opts: &PersonalizeOptions,
 ) -> Result<Outcome, LandmarkError> {
     check_options(opts)?;
-    let func = super::functional::FunctionalTrials::default();
+    let func = super::functional::apply::FunctionalTrials::default();
     let one = |side: Side, window: Option<&super::StaticWindow>| {
         let mut p = personalize_plan(trial, &set.plan(side), side, opts, &func, window, |at| {
             set.landmarks(side, at)
@@ -278,7 +278,7 @@ pub fn personalize_keypoints(
 /// The joint-centre positions of a keypoint model get the keypoint prior [`KEYPOINT_SD`].
 fn widen_priors(spec: &mut crate::model::spec::ModelSpec) {
     for p in &mut spec.parameters {
-        let position = p.unit == crate::model::Unit::Metre;
+        let position = p.unit == crate::model::spec::Unit::Metre;
         let joint_centre = p.name.starts_with("hip_")
             || p.name.starts_with("knee_")
             || p.name.starts_with("talocrural_");

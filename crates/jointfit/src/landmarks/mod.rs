@@ -59,8 +59,9 @@ pub mod bilateral;
 mod error;
 pub(crate) mod frames;
 pub mod functional;
-pub(crate) mod keypoints;
-pub(crate) mod markerset;
+pub mod keypoints;
+pub mod markerset;
+use markerset::{LegMarkers, MarkerSet};
 pub mod motion;
 pub(crate) mod nominal;
 pub(crate) mod plugin_gait;
@@ -71,21 +72,18 @@ pub(crate) mod window;
 
 use nalgebra::Vector3;
 
-pub use bilateral::{personalize_sides, BothLegs, Outcome, PersonalizedModel, Sides};
 pub use error::LandmarkError;
 pub(crate) use frames::SegmentFrames;
-pub use keypoints::{personalize_keypoints, KeypointSet, KEYPOINT_PRESET_NAMES};
 pub(crate) use markerset::MedialLandmark;
 pub(crate) use markerset::TRACKED_SEGMENTS;
-pub use markerset::{LegMarkers, MarkerSet};
-pub use markerset::{PelvisMarkers, PRESET_NAMES};
-pub use subject::SubjectMeasurements;
+use subject::SubjectMeasurements;
 pub(crate) use window::StaticWindow;
 
-use crate::kinematics::{forward_kinematics, KinData, Pose, Want};
+use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::lower_limb::{lower_limb, Side};
 use crate::model::spec::{MarkerSpec, ModelSpec};
 use crate::model::Model;
+use crate::spatial::Pose;
 use crate::trial::Trial;
 
 /// Which regression places the hip centre in the pelvis frame.
@@ -188,7 +186,7 @@ pub struct PersonalizeReport {
     /// marker at the static pose (m): ~1e-15 unless something is wrong.
     pub static_fk_error: f64,
     /// Functional hip centre / knee axis, when functional trials were given.
-    pub functional: Option<functional::FunctionalReport>,
+    pub functional: Option<functional::apply::FunctionalReport>,
 }
 
 /// The result of [`personalize`].
@@ -227,7 +225,7 @@ fn check_options(o: &PersonalizeOptions) -> Result<(), LandmarkError> {
 }
 
 /// Builds a subject's leg model from a static trial (see the module docs). The trial must be
-/// in metres and Y-up ([`crate::trial::up_axis_rotation`]); its heading does not matter.
+/// in metres and Y-up ([`crate::spatial::up_axis_rotation`]); its heading does not matter.
 pub fn personalize(
     trial: &Trial,
     set: &MarkerSet,
@@ -239,7 +237,7 @@ pub fn personalize(
         set,
         side,
         opts,
-        &functional::FunctionalTrials::default(),
+        &functional::apply::FunctionalTrials::default(),
     )
 }
 
@@ -251,20 +249,20 @@ pub(crate) fn personalize_with(
     set: &MarkerSet,
     side: Side,
     opts: &PersonalizeOptions,
-    func: &functional::FunctionalTrials,
+    func: &functional::apply::FunctionalTrials,
 ) -> Result<Personalized, LandmarkError> {
     personalize_in(trial, set, side, opts, func, None)
 }
 
 /// [`personalize_with`] averaging the landmarks over `window` (every marker of the leg must be
 /// present in all its frames) instead of the leg's own stillest window: how
-/// [`personalize_sides`] gives both legs one pelvis.
+/// [`personalize_sides`](bilateral::personalize_sides) gives both legs one pelvis.
 pub fn personalize_in(
     trial: &Trial,
     set: &MarkerSet,
     side: Side,
     opts: &PersonalizeOptions,
-    func: &functional::FunctionalTrials,
+    func: &functional::apply::FunctionalTrials,
     window: Option<&StaticWindow>,
 ) -> Result<Personalized, LandmarkError> {
     check_options(opts)?;
@@ -374,7 +372,7 @@ pub(crate) fn personalize_plan(
     plan: &Plan,
     side: Side,
     opts: &PersonalizeOptions,
-    func: &functional::FunctionalTrials,
+    func: &functional::apply::FunctionalTrials,
     window: Option<&StaticWindow>,
     landmarks: impl Fn(&dyn Fn(&str) -> Vector3<f64>) -> Result<frames::Landmarks, LandmarkError>,
 ) -> Result<Personalized, LandmarkError> {

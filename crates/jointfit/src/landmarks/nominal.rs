@@ -16,10 +16,11 @@ use nalgebra::{Matrix3, Vector3};
 
 use super::frames::Anatomy;
 use super::LandmarkError;
-use crate::kinematics::Pose;
 use crate::model::lower_limb::Side;
+use crate::model::spec::Unit;
 use crate::model::spec::{ModelSpec, ScalarSpec};
-use crate::model::{offset_rotation, JointKind, Model, Unit};
+use crate::model::{offset_rotation, JointKind, Model};
+use crate::spatial::Pose;
 
 /// Values of the six scalars of an offset.
 pub(crate) type Offset = [f64; 6];

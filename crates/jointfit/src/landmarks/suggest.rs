@@ -788,7 +788,7 @@ impl Confidence {
 /// keep their distances within a few millimetres in gait (the shared trials: 1–3 mm between
 /// static and motion trials); a marker of another segment (a wrist beside the thigh) changes
 /// them by centimetres.
-pub const INCOHERENT_M: f64 = 0.010;
+pub(crate) const INCOHERENT_M: f64 = 0.010;
 
 /// What one suggested role is based on.
 #[derive(Debug, Clone, PartialEq)]

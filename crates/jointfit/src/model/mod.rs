@@ -18,7 +18,7 @@ pub(crate) use crate::spatial::Motion;
 pub(crate) use compiled::Source;
 pub use compiled::{offset_rotation, CoordKind, Coordinate, JointKind, Model, ParamId, SegmentId};
 pub(crate) use plan::Item;
-pub use spec::{ModelSpec, Unit, MM_PER_M, M_PER_MM};
+use spec::Unit;
 
 use thiserror::Error;
 

@@ -132,7 +132,8 @@ impl Plan {
 
 #[cfg(test)]
 mod tests {
-    use crate::model::{Model, ModelSpec};
+    use crate::model::spec::ModelSpec;
+    use crate::model::Model;
 
     /// A serial chain of `n` pin joints, each 1 cm from its parent, with one marker on the
     /// last segment.

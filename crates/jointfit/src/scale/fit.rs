@@ -25,7 +25,9 @@
 use nalgebra::{DMatrix, DVector, Vector3};
 
 use super::geometry::{scaled_spec, ScaleFactors};
-use crate::ik::{seed_frame, solve_frame, IkOptions, IkWorkspace};
+use crate::ik::lm::solve_frame;
+use crate::ik::lm::IkWorkspace;
+use crate::ik::{seed_frame, IkOptions};
 use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::spec::ModelSpec;
 use crate::model::{Model, ModelError};
@@ -252,7 +254,7 @@ impl Problem<'_> {
                     let q0 = self.lay.q[f];
                     for c in 0..self.n_q {
                         for k in 0..3 {
-                            rows.j[(row + k, q0 + c)] = data.jq()[(3 * mi + k, c)] * scale;
+                            rows.j[(row + k, q0 + c)] = data.jq[(3 * mi + k, c)] * scale;
                         }
                     }
                     if let Some(at) = self.lay.delta[mi] {
@@ -689,7 +691,7 @@ pub fn fit_scale(
 mod tests {
     use super::*;
     use crate::model::lower_limb::{lower_limb, Side};
-    use crate::scale::default_groups;
+    use crate::scale::groups::default_groups;
 
     const TRUTH: [(&str, [f64; 3]); 4] = [
         ("pelvis", [1.06; 3]),

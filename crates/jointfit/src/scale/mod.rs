@@ -3,10 +3,6 @@
 //! ([`fit`]) with its groups, static targets and plausibility checks ([`groups`]). The maths
 //! and the priors are in `docs/scaling.md`.
 
-pub(crate) mod fit;
+pub mod fit;
 pub mod geometry;
-pub(crate) mod groups;
-
-pub use fit::{fit_scale, GroupFit, ScaleFit, ScaleGroup, ScaleOptions, SizePrior};
-pub use geometry::{scaled_spec, ScaleFactors};
-pub use groups::{averaged_targets, default_groups, plausibility};
+pub mod groups;

@@ -123,7 +123,10 @@
 
 mod butterworth;
 mod filtfilt;
-mod lowpass;
+pub mod lowpass;
+use lowpass::LowPass;
+#[cfg(test)]
+use lowpass::OrderConvention;
 mod trial_filter;
 
 #[cfg(test)]
@@ -138,7 +141,6 @@ pub(crate) use filtfilt::sosfiltfilt_padlen;
 use filtfilt::{odd_extend, sosfilt_in_place, sosfilt_zi};
 #[cfg(test)]
 use lowpass::{winter_correction_factor, ShortStretches};
-pub use lowpass::{LowPass, OrderConvention};
 pub use trial_filter::filter_trial;
 #[cfg(test)]
 use trial_filter::FilteredStretch;

@@ -4,12 +4,14 @@ use serde::Serialize;
 
 use super::starts::{full_starts, multi_start_summary};
 use super::{FitSettings, Method, Observer, Termination, WorkflowError};
-use crate::calibrate::uncertainty::{
-    analyze_reduced, reduced_system, unidentifiable_subset, Identifiability, Reduced, SeMethod,
-    Uncertainty,
-};
+use crate::calibrate::uncertainty::reduced::reduced_system;
+use crate::calibrate::uncertainty::types::Identifiability;
+use crate::calibrate::uncertainty::types::SeMethod;
+use crate::calibrate::uncertainty::types::Uncertainty;
+use crate::calibrate::uncertainty::{analyze_reduced, unidentifiable_subset, Reduced};
 use crate::calibrate::{Fit, Problem};
-use crate::model::{Model, ParamId, MM_PER_M};
+use crate::model::spec::MM_PER_M;
+use crate::model::{Model, ParamId};
 use crate::trial::Trial;
 
 /// One free parameter of a calibration, in its shown unit (mm or deg).

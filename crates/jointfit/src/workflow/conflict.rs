@@ -42,7 +42,8 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use super::{FitSettings, WorkflowError};
-use crate::calibrate::uncertainty::{analyze_reduced, ln_gamma, reduced_system, Reduced};
+use crate::calibrate::uncertainty::reduced::reduced_system;
+use crate::calibrate::uncertainty::{analyze_reduced, ln_gamma, Reduced};
 use crate::model::Model;
 use crate::trial::Trial;
 
@@ -269,7 +270,10 @@ pub(crate) fn assess(
     cal: &super::Calibration,
     system: Option<&Reduced>,
 ) -> Result<Vec<JointConflict>, WorkflowError> {
-    let Some(noise) = cal.prior_noise_mm.map(|mm| mm / crate::model::MM_PER_M) else {
+    let Some(noise) = cal
+        .prior_noise_mm
+        .map(|mm| mm / crate::model::spec::MM_PER_M)
+    else {
         return Ok(Vec::new());
     };
     let (mut prob, _) =
@@ -371,7 +375,7 @@ pub(crate) fn widen_intervals(
     if cal.uncertainty.is_none() || cal.parameters.iter().all(|r| spread(&r.name) <= 1.0) {
         return Ok(());
     }
-    let noise = noise / crate::model::MM_PER_M;
+    let noise = noise / crate::model::spec::MM_PER_M;
     let (mut prob, _) =
         super::map::map_problem(model, start, trials, &cal.free, settings, Some(noise))?;
     super::map::set_inflation(&mut prob, &cal.prior_inflation);

@@ -30,7 +30,9 @@
 
 use serde::Serialize;
 
-use crate::model::{Model, ModelSpec, MM_PER_M};
+use crate::model::spec::ModelSpec;
+use crate::model::spec::MM_PER_M;
+use crate::model::Model;
 use crate::plausibility::{half_pelvis_width, HIP_LATERAL_FRACTION};
 
 /// How far inside the plausibility limit the bound sits (m): the held-out check measures the

@@ -54,7 +54,7 @@ pub(crate) use super::summary::SAME_OPTIMUM;
 use super::{FitSettings, Observer};
 use crate::calibrate::joint::{solve_joint, solve_joint_to, JointOptions};
 use crate::calibrate::{Fit, Problem};
-use crate::ik::IkWorkspace;
+use crate::ik::lm::IkWorkspace;
 use crate::solver::Termination;
 
 /// The two best probes are taken to be in the same basin (only the best is finished) when

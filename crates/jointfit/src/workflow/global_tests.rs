@@ -1,7 +1,8 @@
 //! Tests of the global phase.
 
+use super::super::calibration::calibrate;
 use super::super::synthetic_tests::synthetic;
-use super::super::{calibrate, FitSettings, NoObserver};
+use super::super::{FitSettings, NoObserver};
 use crate::calibrate::params_for_groups;
 use crate::model::lower_limb::{lower_limb, Side};
 use crate::model::Model;
@@ -80,7 +81,7 @@ fn sigma_stage_on_intermediate_frames_reaches_the_preliminary_fits_estimate() {
     let fit = |probes: usize| {
         let settings = FitSettings {
             probes,
-            uncertainty: Some(crate::calibrate::uncertainty::UncertaintyOptions::default()),
+            uncertainty: Some(crate::calibrate::uncertainty::types::UncertaintyOptions::default()),
             ..FitSettings::default()
         };
         calibrate(&model, &start, &[&trial], &free, &settings, &mut NoObserver).unwrap()

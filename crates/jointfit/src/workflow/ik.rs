@@ -2,9 +2,10 @@
 //! checks alongside; [`ik_warm_started`]: the warm-started frame loop alone; [`transfer_params`]: parameters carried between models by name.
 
 use super::WorkflowError;
-use crate::ik::{
-    extrapolate, solve_frame, solve_trial_alongside, IkOptions, IkWorkspace, MarkerMap, TrialFit,
-};
+use crate::ik::lm::solve_frame;
+use crate::ik::lm::IkWorkspace;
+use crate::ik::trial_fit::TrialFit;
+use crate::ik::{extrapolate, solve_trial_alongside, IkOptions, MarkerMap};
 use crate::model::Model;
 use crate::trial::Trial;
 
@@ -18,7 +19,7 @@ pub struct IkRun {
 
 /// Inverse kinematics of every frame of `trial` with `model` at parameters `p`: each frame
 /// warm-started from the extrapolation of the two before (the first, and the first after a
-/// frame that could not be solved, seeded; see [`crate::ik::solve_trial`]). Markers of the
+/// frame that could not be solved, seeded; see [`crate::ik::trial_fit::solve_trial`]). Markers of the
 /// model the trial lacks count as missing in every frame (listed in [`IkRun::absent`]);
 /// frames whose segments keep too few markers are not solved. Errors when the trial shares
 /// no marker with the model, or no frame can be solved.
@@ -51,7 +52,7 @@ fn ik_trial_alongside<R: Send>(
     let (fit, extra) = solve_trial_alongside(model, p, trial, &map, opts, also);
     let run = fit.map_err(WorkflowError::from).and_then(|fit| {
         if !fit.frames.iter().any(|f| f.solved()) {
-            let detail = match crate::ik::unsolved_ranges(&fit).first() {
+            let detail = match crate::ik::trial_fit::unsolved_ranges(&fit).first() {
                 Some(r) => format!(" (first frame: {})", r.reason),
                 None => String::new(),
             };
@@ -217,7 +218,7 @@ mod tests {
         // A source without one of the target's parameters is an error naming both.
         // The same leg with one parameter renamed (everywhere it is used).
         let text = toml::to_string(&lower_limb(Side::Right)).unwrap();
-        let renamed: crate::model::ModelSpec =
+        let renamed: crate::model::spec::ModelSpec =
             toml::from_str(&text.replace("hip_thigh_anterior", "extra_offset")).unwrap();
         let wider = Model::compile(&renamed).unwrap();
         match transfer_params(&wider, &source, "x.toml") {

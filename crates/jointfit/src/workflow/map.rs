@@ -37,9 +37,10 @@
 
 use super::{FitSettings, NoObserver, WorkflowError};
 use crate::calibrate::joint::{solve_joint_to, JointOptions};
-use crate::calibrate::uncertainty::{analyze, UncertaintyOptions};
+use crate::calibrate::uncertainty::analyze;
+use crate::calibrate::uncertainty::types::UncertaintyOptions;
 use crate::calibrate::{Fit, Problem};
-use crate::ik::IkWorkspace;
+use crate::ik::lm::IkWorkspace;
 use crate::model::{Model, ParamId};
 use crate::trial::Trial;
 

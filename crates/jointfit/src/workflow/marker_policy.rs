@@ -41,9 +41,11 @@ use serde::Serialize;
 
 use crate::checks::offsets::{frames_looked_at, offsets_of_fit, MarkerOffset, MIN_FRAMES};
 use crate::checks::offsets::{MIN_OFFSET, MIN_RATIO};
-use crate::ik::{solve_trial, IkOptions, MarkerMap};
+use crate::ik::trial_fit::solve_trial;
+use crate::ik::{IkOptions, MarkerMap};
 use crate::model::refine::{BOUND_IN_SD, DEFAULT_MARKER_PRIOR_SD};
-use crate::model::{Model, MM_PER_M};
+use crate::model::spec::MM_PER_M;
+use crate::model::Model;
 use crate::trial::Trial;
 
 use super::marker_rigid::{rigid_displaced, RigidOffset, MIN_OTHERS};

@@ -17,7 +17,8 @@
 
 use super::WorkflowError;
 use crate::calibrate::Problem;
-use crate::model::{Model, ParamId, MM_PER_M};
+use crate::model::spec::MM_PER_M;
+use crate::model::{Model, ParamId};
 use crate::trial::Trial;
 
 /// [`marker_rms`]'s result.
@@ -52,6 +53,6 @@ pub fn marker_rms(model: &Model, p: &[f64], trials: &[&Trial]) -> Result<MarkerR
 /// ([`Problem::initial_coords`]), which one more inner pass polishes in place: the
 /// coordinates a calibration starts from.
 pub(crate) fn start_rms(prob: &Problem, p: &[f64], qs: &mut [Vec<f64>]) -> f64 {
-    prob.inner(p, qs, &mut crate::ik::IkWorkspace::new(prob.model));
+    prob.inner(p, qs, &mut crate::ik::lm::IkWorkspace::new(prob.model));
     prob.marker_rms(p, qs) * MM_PER_M
 }

@@ -1,6 +1,7 @@
 //! The jobs of the program, on models and trials already in memory: calibrate a model
-//! ([`calibrate`]), predict what a trial can determine ([`predict`]), inverse kinematics of a
-//! trial ([`ik_trial`]), carry parameters from one model to another ([`transfer_params`]).
+//! ([`calibration::calibrate`]), predict what a trial can determine ([`predict::predict`]),
+//! inverse kinematics of a trial ([`ik::ik_trial`]), carry parameters from one model to another
+//! ([`ik::transfer_params`]).
 //!
 //! This is the one place that drives the solvers of [`crate::calibrate`] and [`crate::ik`]:
 //! the command line, the experiments and any other front end (a Python binding, a batch
@@ -17,19 +18,24 @@
 //! `fix_unidentifiable` the parameters the trials cannot determine are held at their start
 //! and the rest refitted.
 
-mod calibration;
+pub mod calibration;
+#[cfg(test)]
+use calibration::calibrate;
+use calibration::Calibration;
+#[cfg(test)]
+use ik::ik_trial;
 pub mod conflict;
 pub mod envelope;
 mod global;
-mod ik;
+pub mod ik;
 pub(crate) mod map;
 pub mod marker_policy;
 pub(crate) mod marker_rigid;
-mod marker_rms;
+pub mod marker_rms;
 pub mod motion_range;
-mod predict;
+pub mod predict;
 mod probes;
-pub(crate) mod redundant;
+pub mod redundant;
 pub mod refine;
 mod starts;
 mod summary;
@@ -38,21 +44,14 @@ pub mod verdict;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::calibrate::uncertainty::UncertaintyOptions;
+use crate::calibrate::uncertainty::types::UncertaintyOptions;
 use crate::calibrate::CalibError;
 
-pub use crate::ik::{hold_undetermined, lock_undetermined};
-pub use crate::solver::{NoObserver, Observer, Termination};
-pub use calibration::{calibrate, Calibration, UNCERTAINTY_STAGE};
-pub use ik::{ik_checked, ik_trial, ik_warm_started, transfer_params};
-pub use marker_rms::{marker_rms, MarkerRms};
-pub use predict::{predict, Prediction};
-pub use redundant::{calibrate_holding_redundant, HeldCalibration, Redundancy};
+use crate::solver::{NoObserver, Observer, Termination};
 pub use starts::perturb;
 #[cfg(test)]
 use starts::restart_point;
 pub use summary::GlobalSearch;
-pub use verdict::{Level, Verdict};
 
 /// Errors of the workflow.
 #[derive(Debug, Error, PartialEq)]
@@ -243,8 +242,8 @@ pub fn uncertainty_options(
     seed: u64,
 ) -> UncertaintyOptions {
     UncertaintyOptions {
-        threshold_m: crate::model::Unit::Metre.from_display(threshold_mm),
-        threshold_rad: crate::model::Unit::Radian.from_display(threshold_deg),
+        threshold_m: crate::model::spec::Unit::Metre.from_display(threshold_mm),
+        threshold_rad: crate::model::spec::Unit::Radian.from_display(threshold_deg),
         bootstrap_replicates: bootstrap,
         seed,
         ..UncertaintyOptions::default()
@@ -293,6 +292,8 @@ mod tests {
 
 #[cfg(test)]
 mod conflict_tests;
+#[cfg(test)]
+mod motion_range_tests;
 #[cfg(test)]
 mod policy_tests;
 #[cfg(test)]

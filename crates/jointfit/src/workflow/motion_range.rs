@@ -28,9 +28,9 @@ use crate::model::{CoordKind, Model, ParamId};
 use crate::trial::Trial;
 
 /// A joint whose rotations stay below this (deg, 5–95 % range) is still (module docs).
-pub const STILL_RANGE_DEG: f64 = 15.0;
+pub(crate) const STILL_RANGE_DEG: f64 = 15.0;
 /// The other leg's joint must move through at least this (deg) for a still joint to be held.
-pub const MOVED_RANGE_DEG: f64 = 30.0;
+pub(crate) const MOVED_RANGE_DEG: f64 = 30.0;
 
 /// A joint held at its start because the trials barely move it.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -107,7 +107,7 @@ pub(crate) fn still_joints(ranges: &[(String, f64)]) -> Vec<HeldJoint> {
 /// parameter is held when every joint that reads it is still. Inverse kinematics of `trials`
 /// at `start` gives the ranges. Holding every free parameter is
 /// [`WorkflowError::NothingIdentifiable`].
-pub fn hold_still_joints(
+pub(crate) fn hold_still_joints(
     model: &Model,
     start: &[f64],
     trials: &[&Trial],

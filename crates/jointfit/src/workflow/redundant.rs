@@ -8,7 +8,7 @@
 //! (ball) joint (each frame's three coordinates absorb any constant rotation on either side).
 //!
 //! Test: the reduced normal matrix `S` of the unregularized problem
-//! ([`crate::calibrate::uncertainty::reduced_system`], the Gauss-Newton information about
+//! ([`crate::calibrate::uncertainty::reduced::reduced_system`], the Gauss-Newton information about
 //! the free parameters with every frame's coordinates eliminated) at the start, with
 //! coordinates from inverse kinematics, is scaled by the parameters' information before any
 //! elimination, `D = diag(J_pᵀ W J_p)` summed over the frames: `C = D^{-1/2} S D^{-1/2}`.
@@ -26,7 +26,7 @@ use nalgebra::DMatrix;
 use serde::Serialize;
 
 use super::{Calibration, FitSettings, Observer, WorkflowError};
-use crate::calibrate::uncertainty::reduced_system;
+use crate::calibrate::uncertainty::reduced::reduced_system;
 use crate::calibrate::Problem;
 use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::{Model, ParamId};
@@ -65,7 +65,7 @@ pub(crate) fn redundant_parameters(
     let mut kin = KinData::new(model);
     for (targets, q) in prob.frames.iter().zip(&qs) {
         forward_kinematics(model, start, q, Want::BOTH, &mut kin);
-        let jp = kin.jp();
+        let jp = &kin.jp;
         for (j, (t, m)) in targets.iter().zip(model.markers()).enumerate() {
             if t.x.is_nan() || m.weight <= 0.0 {
                 continue;

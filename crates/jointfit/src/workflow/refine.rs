@@ -20,7 +20,9 @@ use crate::model::refine::{
     fold_marker_parameters, marker_param_name, tracking_markers, with_marker_parameters,
     MARKER_GROUP,
 };
-use crate::model::{Model, ModelSpec, ParamId, MM_PER_M};
+use crate::model::spec::ModelSpec;
+use crate::model::spec::MM_PER_M;
+use crate::model::{Model, ParamId};
 use crate::trial::Trial;
 
 /// How far the fit moved one marker in its segment.

@@ -10,7 +10,8 @@ use crate::calibrate::params_for_groups;
 use crate::landmarks::priors::fill_landmark_priors;
 use crate::landmarks::HipCentreMethod;
 use crate::model::lower_limb::{lower_limb, Side};
-use crate::model::{Model, ModelSpec};
+use crate::model::spec::ModelSpec;
+use crate::model::Model;
 
 /// The built-in right leg with the landmark priors `personalize` writes (Bell).
 pub(super) fn spec_with_priors() -> ModelSpec {
@@ -141,7 +142,7 @@ fn identifiability_names_marker_offsets_that_trade_off_with_joints() {
     let settings = FitSettings {
         marker_noise: Some(0.001),
         refine_markers: Some(0.010),
-        uncertainty: Some(crate::calibrate::uncertainty::UncertaintyOptions::default()),
+        uncertainty: Some(crate::calibrate::uncertainty::types::UncertaintyOptions::default()),
         ..FitSettings::default()
     };
     let r =

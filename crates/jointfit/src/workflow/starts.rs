@@ -11,8 +11,9 @@ use crate::calibrate::joint::{solve_joint, JointOptions};
 use crate::calibrate::pso::{solve_pso, PsoOptions};
 use crate::calibrate::varpro::{solve_varpro, VarProOptions};
 use crate::calibrate::{Fit, Problem};
-use crate::ik::IkWorkspace;
-use crate::model::{Model, Unit};
+use crate::ik::lm::IkWorkspace;
+use crate::model::spec::Unit;
+use crate::model::Model;
 
 /// Every start of `settings` run to convergence, in order (`starts` ≥ 1: the given start,
 /// then [`restart_point`]s); with the given start's inner solutions and objective.
@@ -136,7 +137,7 @@ pub fn perturb(
     for &i in free {
         let par = &model.parameters()[i];
         let span = match par.unit {
-            Unit::Metre => mm * crate::model::M_PER_MM,
+            Unit::Metre => mm * crate::model::spec::M_PER_MM,
             Unit::Radian => deg.to_radians(),
         };
         let d = if span > 0.0 {

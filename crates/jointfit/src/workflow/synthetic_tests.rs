@@ -180,8 +180,8 @@ fn restart_points_are_seeded_distinct_and_bounded() {
     for (i, par) in model.parameters().iter().enumerate() {
         let d = par.unit.to_display(a[i] - start[i]).abs();
         let limit = match par.unit {
-            crate::model::Unit::Metre => 20.0,
-            crate::model::Unit::Radian => 10.0,
+            crate::model::spec::Unit::Metre => 20.0,
+            crate::model::spec::Unit::Radian => 10.0,
         };
         assert!(d <= limit + 1e-9, "{}: {d}", par.name);
         assert!(par.lower <= a[i] && a[i] <= par.upper);
@@ -242,7 +242,7 @@ fn predict_says_what_a_knee_only_trial_determines() {
     let p = model.nominal_params();
     let trial = synthetic(&model, &p, 40, 0.002);
     let free = params_for_groups(&model, &["knee"]).unwrap();
-    let r = predict(
+    let r = predict::predict(
         &model,
         &p,
         &[&trial],
@@ -286,7 +286,7 @@ fn seeding_finds_a_subject_far_from_the_origin() {
     let far: Vec<Vector3<f64>> = near.positions().iter().map(|x| turn * x + shift).collect();
     let far = Trial::new(near.labels().to_vec(), 50.0, 1, far).unwrap();
     let opts = crate::ik::IkOptions::default();
-    let mut ws = crate::ik::IkWorkspace::new(&model);
+    let mut ws = crate::ik::lm::IkWorkspace::new(&model);
     let map = crate::ik::MarkerMap::by_name(&model, far.labels()).unwrap();
     let mut targets = Vec::new();
     map.targets(&far, 0, &mut targets);

@@ -146,14 +146,6 @@ impl Verdict {
         v.add(Level::Reject, reason);
         v
     }
-
-    /// The reasons with their levels, the gravest first.
-    pub fn graded(&self) -> impl Iterator<Item = (Level, &str)> {
-        self.grades
-            .iter()
-            .copied()
-            .zip(self.reasons.iter().map(String::as_str))
-    }
 }
 
 /// A trial whose marker placement does not match the model's ([`crate::placement`]).

@@ -4,9 +4,10 @@ use jointfit::calibrate::joint::{solve_joint, solve_joint_to, JointOptions, RESO
 use jointfit::calibrate::pso::{solve_pso, PsoOptions};
 use jointfit::calibrate::varpro::{gradient, solve_varpro, VarProOptions};
 use jointfit::calibrate::{params_for_groups, Fit, Problem};
-use jointfit::ik::IkWorkspace;
+use jointfit::ik::lm::IkWorkspace;
 use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::{Model, ParamId, Unit};
+use jointfit::model::spec::Unit;
+use jointfit::model::{Model, ParamId};
 use jointfit::solver::{NoObserver, Observer, Termination};
 use jointfit::trial::Trial;
 use jointfit_testkit::synth::{synthetic_trial, Noise};
@@ -410,7 +411,11 @@ fn thread_count_never_changes_the_joint_fit_or_its_reduced_system() {
     let run = |threads| {
         on_threads(threads, || {
             let fit = solve_joint(&prob, &s0, q0.clone(), &opts, &mut NoObserver);
-            let red = jointfit::calibrate::uncertainty::reduced_system(&prob, &fit.p, &fit.coords);
+            let red = jointfit::calibrate::uncertainty::reduced::reduced_system(
+                &prob,
+                &fit.p,
+                &fit.coords,
+            );
             let grad = gradient(&prob, &fit.s, &fit.coords);
             (fit, red, grad)
         })
@@ -442,7 +447,7 @@ fn distance_in_se(
     a: &jointfit::calibrate::Fit,
     b: &jointfit::calibrate::Fit,
 ) -> f64 {
-    let red = jointfit::calibrate::uncertainty::reduced_system(prob, &b.p, &b.coords);
+    let red = jointfit::calibrate::uncertainty::reduced::reduced_system(prob, &b.p, &b.coords);
     let cov = red.normal.clone().try_inverse().expect("invertible") * red.sigma2();
     (0..prob.n_free())
         .map(|k| (a.s[k] - b.s[k]).abs() / cov[(k, k)].sqrt())

@@ -4,7 +4,7 @@
 //! the bounds must matter (the unbounded fit leaves the range). The uncertainty analysis'
 //! reduced system holds the same coordinates (dense finite-difference oracle).
 
-use jointfit::calibrate::uncertainty::reduced_system;
+use jointfit::calibrate::uncertainty::reduced::reduced_system;
 use jointfit::calibrate::{params_for_groups, Fit, Problem};
 use jointfit::kinematics::fd::{jacobian_p, jacobian_q};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};

@@ -3,7 +3,9 @@
 //! the box-bounded least squares by central finite differences of the cost, and random
 //! feasible points that must not fit better.
 
-use jointfit::ik::{solve_frame, IkOptions, IkWorkspace};
+use jointfit::ik::lm::solve_frame;
+use jointfit::ik::lm::IkWorkspace;
+use jointfit::ik::IkOptions;
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::spec::CoordinateSpec;
@@ -146,11 +148,12 @@ fn clamp_changes_nothing_without_clamped_coordinates() {
     let p = model.nominal_params();
     let (trial, _) = super::ik::synthetic_trial(&model, &p, 20, 0.3);
     let map = jointfit::ik::MarkerMap::by_name(&model, trial.labels()).unwrap();
-    let a = jointfit::ik::solve_trial(&model, &p, &trial, &map, &IkOptions::default()).unwrap();
+    let a = jointfit::ik::trial_fit::solve_trial(&model, &p, &trial, &map, &IkOptions::default())
+        .unwrap();
     let off = IkOptions {
         clamp: false,
         ..IkOptions::default()
     };
-    let b = jointfit::ik::solve_trial(&model, &p, &trial, &map, &off).unwrap();
+    let b = jointfit::ik::trial_fit::solve_trial(&model, &p, &trial, &map, &off).unwrap();
     assert_eq!(a.coords, b.coords);
 }

@@ -2,9 +2,10 @@
 //! noiseless data across chunk boundaries, and wrong local minima re-solved from the
 //! neighbours (`jointfit::ik::repair`).
 
-use jointfit::ik::{
-    chunk_ranges, solve_trial, warm_started_coords, FrameStatus, IkOptions, MarkerMap, TrialFit,
-};
+use jointfit::ik::trial_fit::chunk_ranges;
+use jointfit::ik::trial_fit::solve_trial;
+use jointfit::ik::trial_fit::TrialFit;
+use jointfit::ik::{warm_started_coords, FrameStatus, IkOptions, MarkerMap};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
 use jointfit_testkit::synth;

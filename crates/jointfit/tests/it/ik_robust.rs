@@ -1,7 +1,9 @@
 //! Solvability from the chain, holding undetermined coordinates, and gross-error rejection,
 //! against synthetic truth and the explicit marker Jacobian.
 
-use jointfit::ik::{solve_trial, unsolved_ranges, FrameStatus, IkOptions, MarkerMap};
+use jointfit::ik::trial_fit::solve_trial;
+use jointfit::ik::trial_fit::unsolved_ranges;
+use jointfit::ik::{FrameStatus, IkOptions, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
@@ -38,7 +40,7 @@ fn close(a: &[f64], b: &[f64], tol: f64) -> bool {
 fn min_singular(model: &Model, p: &[f64], q: &[f64], present: &[bool], cols: &[usize]) -> f64 {
     let mut kin = KinData::new(model);
     forward_kinematics(model, p, q, Want::DQ, &mut kin);
-    let jq = kin.jq();
+    let jq = kin.jq;
     let rows: Vec<usize> = (0..model.n_markers())
         .filter(|&j| present[j])
         .flat_map(|j| 3 * j..3 * j + 3)

@@ -1,16 +1,21 @@
-//! Streaming inverse kinematics (`jointfit::ik::StreamingIk`) against the trial loop on the
+//! Streaming inverse kinematics (`jointfit::ik::stream::StreamingIk`) against the trial loop on the
 //! same frames: bit for bit the one-chunk solve (gaps, a gross error, a non-finite sample,
 //! held coordinates), within ten step tolerances of the chunked `solve_trial`, samples rotated
 //! from the laboratory's vertical as a trial's reader rotates them, and bad frames refused
 //! without disturbing the stream.
 
-use jointfit::ik::{
-    solve_trial, solve_trial_in_chunks, trial_chunk_ranges, FrameStatus, IkOptions, MarkerMap,
-    StreamError, StreamingIk, TrialFit,
-};
+use jointfit::ik::stream::StreamError;
+use jointfit::ik::stream::StreamingIk;
+use jointfit::ik::trial_fit::solve_trial;
+use jointfit::ik::trial_fit::solve_trial_in_chunks;
+use jointfit::ik::trial_fit::trial_chunk_ranges;
+use jointfit::ik::trial_fit::TrialFit;
+use jointfit::ik::{FrameStatus, IkOptions, MarkerMap};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
-use jointfit::trial::{up_axis_rotation, Trial, UpAxis};
+use jointfit::spatial::up_axis_rotation;
+use jointfit::spatial::UpAxis;
+use jointfit::trial::Trial;
 use jointfit_testkit::synth;
 use nalgebra::Vector3;
 

@@ -3,14 +3,16 @@
 //! malleolus markers on its talocrural axis, posed by forward kinematics.
 
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
-use jointfit::landmarks::{
-    personalize, LandmarkError, LegMarkers, MarkerSet, PelvisMarkers, PersonalizeOptions,
-    Personalized,
-};
+use jointfit::landmarks::markerset::LegMarkers;
+use jointfit::landmarks::markerset::MarkerSet;
+use jointfit::landmarks::markerset::PelvisMarkers;
+use jointfit::landmarks::{personalize, LandmarkError, PersonalizeOptions, Personalized};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::spec::{MarkerSpec, ModelSpec};
 use jointfit::model::Model;
-use jointfit::trial::{up_axis_rotation, Trial, UpAxis};
+use jointfit::spatial::up_axis_rotation;
+use jointfit::spatial::UpAxis;
+use jointfit::trial::Trial;
 use jointfit_testkit::synth::{synthetic_trial, Noise};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
@@ -262,7 +264,7 @@ fn the_written_model_reproduces_the_static_trial() {
     // Bounds: Reinbolt's cubes and cones around the nominal values.
     for p in &again.parameters {
         let half = 0.5 * (p.upper - p.lower);
-        let want = if p.unit == jointfit::model::Unit::Radian {
+        let want = if p.unit == jointfit::model::spec::Unit::Radian {
             30f64.to_radians()
         } else if p.group == "hip" {
             0.375 * PW

@@ -11,7 +11,6 @@ mod ik_stream;
 mod kinematics;
 mod landmarks;
 mod models;
-mod motion_range;
 mod offsets;
 mod placement;
 mod posterior;

@@ -20,7 +20,7 @@ fn leg_model_has_the_papers_counts() {
             model
                 .params_in_group(g)
                 .iter()
-                .filter(|id| model.parameters()[id.0].unit == jointfit::model::Unit::Radian)
+                .filter(|id| model.parameters()[id.0].unit == jointfit::model::spec::Unit::Radian)
                 .count()
         };
         // Knee: 4 orientations, 5 positions; ankle: 5 orientations, 7 positions.

@@ -130,7 +130,7 @@ fn an_osim_model_is_the_reference() {
     assert_eq!(reference_name(&plain), "the subject model (static trial)");
 }
 
-/// `workflow::ik_checked` takes the moved-cluster statistic from its own IK instead of a
+/// `jointfit::workflow::ik::ik_checked` takes the moved-cluster statistic from its own IK instead of a
 /// second one, and gives the findings `check_trial` gives: bit for bit on a trial of at most
 /// 200 frames (the two IKs are the same computation); on a 700-frame trial (the check looks
 /// at the middle 200 frames, warm-started from the frames before them in the whole-trial
@@ -143,7 +143,7 @@ fn ik_checked_reuses_the_fit_with_the_same_findings() {
         let (model, trial) = trial_of(&["RTHI", "RTHA", "RTHP"], [0.08, -0.04, 0.0], frames);
         let map = MarkerMap::by_name(&model, trial.labels()).unwrap();
         let p = model.nominal_params();
-        let (run, findings) = jointfit::workflow::ik_checked(&model, &p, &trial, &opts);
+        let (run, findings) = jointfit::workflow::ik::ik_checked(&model, &p, &trial, &opts);
         let run = run.unwrap();
         let alone = check_trial(&model, &trial, &map);
         assert!(alone.iter().any(|f| f.kind == CheckKind::Offset));
@@ -169,9 +169,9 @@ fn ik_checked_reuses_the_fit_with_the_same_findings() {
         // Another parameter vector: not the check's IK, so no reuse, same findings.
         let mut q = p.clone();
         q[0] += 0.01;
-        let fit = jointfit::ik::solve_trial(&model, &q, &trial, &map, &opts).unwrap();
+        let fit = jointfit::ik::trial_fit::solve_trial(&model, &q, &trial, &map, &opts).unwrap();
         assert!(offsets_from_ik(&model, &q, &trial, &map, &opts, &fit).is_none());
-        let (_, other) = jointfit::workflow::ik_checked(&model, &q, &trial, &opts);
+        let (_, other) = jointfit::workflow::ik::ik_checked(&model, &q, &trial, &opts);
         assert_eq!(format!("{other:?}"), format!("{alone:?}"));
     }
 }

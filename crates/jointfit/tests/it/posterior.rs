@@ -5,7 +5,9 @@
 
 use jointfit::calibrate::joint::{solve_joint, JointOptions};
 use jointfit::calibrate::prior::data_share;
-use jointfit::calibrate::uncertainty::{analyze, reduced_system, UncertaintyOptions};
+use jointfit::calibrate::uncertainty::analyze;
+use jointfit::calibrate::uncertainty::reduced::reduced_system;
+use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
 use jointfit::calibrate::{params_for_groups, Problem};
 use jointfit::landmarks::priors::fill_landmark_priors;
 use jointfit::landmarks::HipCentreMethod;

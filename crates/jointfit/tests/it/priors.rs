@@ -7,7 +7,7 @@ use super::calibrate::{
 };
 use jointfit::calibrate::joint::{solve_joint, JointOptions};
 use jointfit::calibrate::{params_for_groups, Problem};
-use jointfit::ik::IkWorkspace;
+use jointfit::ik::lm::IkWorkspace;
 use jointfit::landmarks::priors::fill_landmark_priors;
 use jointfit::landmarks::HipCentreMethod;
 use jointfit::model::lower_limb::{lower_limb, Side};

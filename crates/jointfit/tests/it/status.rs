@@ -3,9 +3,11 @@
 
 use jointfit::calibrate::prior::{data_share, Source};
 use jointfit::calibrate::uncertainty::correlation_inflation;
-use jointfit::calibrate::uncertainty::{
-    analyze, predict, reduced_system, Identifiability, SeMethod, UncertaintyOptions,
-};
+use jointfit::calibrate::uncertainty::reduced::reduced_system;
+use jointfit::calibrate::uncertainty::types::Identifiability;
+use jointfit::calibrate::uncertainty::types::SeMethod;
+use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
+use jointfit::calibrate::uncertainty::{analyze, predict};
 use jointfit::calibrate::{params_for_groups, Problem};
 use jointfit::landmarks::priors::fill_landmark_priors;
 use jointfit::landmarks::HipCentreMethod;

@@ -6,7 +6,8 @@ use super::estimators::{conservative, Covariances};
 use super::{
     display, CoordRange, DirectionComponent, UncertaintyOptions, WeakDirection, NULL_RATIO,
 };
-use crate::model::{CoordKind, Model, Unit};
+use crate::model::spec::Unit;
+use crate::model::{CoordKind, Model};
 
 /// Ranges of motion of every coordinate over the frames `qs` (display units).
 pub(crate) fn coordinate_ranges(model: &Model, qs: &[Vec<f64>]) -> Vec<CoordRange> {

@@ -82,14 +82,16 @@ mod critical;
 mod estimators;
 mod explain;
 mod inflation;
-mod reduced;
+pub mod reduced;
 mod resampling;
 mod status;
 mod subset;
-mod types;
+pub mod types;
+use reduced::reduced_system;
+use types::{Identifiability, ParamUncertainty, SeMethod, Uncertainty, UncertaintyOptions};
 
 use super::{Fit, Problem};
-use crate::model::Unit;
+use crate::model::spec::Unit;
 use critical::critical;
 pub(crate) use critical::ln_gamma;
 use estimators::{conservative, continuity, covariances, Covariances};
@@ -98,14 +100,9 @@ use explain::{reason, weak_directions};
 pub use inflation::correlation_inflation;
 pub(crate) use inflation::parameter_inflation;
 pub(crate) use reduced::Reduced;
-pub use reduced::MAX_GROUPS;
-pub use reduced::{group_size, reduced_system};
 pub use subset::unidentifiable_subset;
-pub use types::Identifiability;
-pub use types::ParamUncertainty;
 pub(crate) use types::WeakDirection;
 pub(crate) use types::{BootstrapInfo, CoordRange, DirectionComponent};
-pub use types::{SeMethod, Uncertainty, UncertaintyOptions};
 
 /// Eigenvalues of `S` below this fraction of the largest count as zero (not determined).
 const NULL_RATIO: f64 = 1e-10;

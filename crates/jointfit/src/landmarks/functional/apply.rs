@@ -16,9 +16,9 @@
 use nalgebra::{Matrix3, Vector3};
 
 use super::{sara, score, AxisFit, CentreFit, Cluster, FunctionalOptions};
-use crate::kinematics::Pose;
 use crate::landmarks::frames::Anatomy;
 use crate::landmarks::LandmarkError;
+use crate::spatial::Pose;
 use crate::trial::Trial;
 
 /// Floor of the functional hip centre's prior SD per axis (m).

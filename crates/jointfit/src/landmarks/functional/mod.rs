@@ -31,7 +31,7 @@
 //! centre (per axis of the static frame) and, for an axis, the RMS angle between replicate
 //! axes and the estimate.
 
-pub(crate) mod apply;
+pub mod apply;
 mod sara;
 mod score;
 
@@ -40,12 +40,11 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use thiserror::Error;
 
-pub use apply::{FunctionalReport, FunctionalTrials};
 pub(crate) use sara::{sara, AxisFit};
 pub(crate) use score::{score, CentreFit};
 
 use super::frames::rigid_fit;
-use crate::kinematics::Pose;
+use crate::spatial::Pose;
 use crate::trial::Trial;
 
 /// Why a functional method could not give a result.

@@ -30,11 +30,9 @@
 
 use std::f64::consts::PI;
 
-mod bilateral;
+pub mod bilateral;
 mod params;
 
-pub use bilateral::bilateral;
-pub use bilateral::SIDE_SUFFIXES;
 pub(crate) use bilateral::{join_legs, PELVIS_SEGMENT};
 
 use params::{nominal, par, param_spec, PARAMS};
@@ -90,7 +88,7 @@ pub const BUILTIN_NAMES: [&str; 3] = ["lower-limb", "lower-limb-right", "lower-l
 /// A built-in model description by name.
 pub fn builtin(name: &str) -> Result<ModelSpec, ModelError> {
     match name {
-        "lower-limb" => Ok(bilateral()),
+        "lower-limb" => Ok(bilateral::bilateral()),
         "lower-limb-right" => Ok(lower_limb(Side::Right)),
         "lower-limb-left" => Ok(lower_limb(Side::Left)),
         _ => Err(ModelError::UnknownBuiltin {

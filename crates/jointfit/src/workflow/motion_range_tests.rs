@@ -1,17 +1,19 @@
-//! Joints a trial barely moves ([`jointfit::workflow::motion_range`]): on a bilateral model
+//! Joints a trial barely moves ([`super::motion_range`]): on a bilateral model
 //! and a synthetic one-sided trial (the right leg exercised, the left standing with small
 //! known sways), the left joints are found with their true ranges of motion and held at their
 //! start values by the calibration, which fits the right leg and says so in one line.
 
-use jointfit::model::lower_limb::bilateral;
-use jointfit::model::Model;
-use jointfit::trial::Trial;
-use jointfit::workflow::motion_range::{
+use crate::kinematics::{forward_kinematics, KinData, Want};
+use crate::model::lower_limb::bilateral::bilateral;
+use crate::model::Model;
+use crate::solver::NoObserver;
+use crate::trial::Trial;
+use crate::workflow::motion_range::{
     hold_still_joints, HeldJoint, MOVED_RANGE_DEG, STILL_RANGE_DEG,
 };
-use jointfit::workflow::refine::calibrate_refined;
-use jointfit::workflow::{calibrate_holding_redundant, FitSettings, NoObserver};
-use jointfit_testkit::synth;
+use crate::workflow::redundant::calibrate_holding_redundant;
+use crate::workflow::refine::calibrate_refined;
+use crate::workflow::FitSettings;
 
 /// (coordinate, mean, amplitude) in rad: sinusoids at 1 Hz over two whole periods.
 const MOTION: &[(&str, f64, f64)] = &[
@@ -38,7 +40,15 @@ fn one_sided_trial(model: &Model, p: &[f64]) -> Trial {
         }
         q
     };
-    synth::synthetic_trial(model, p, 200, 100.0, motion, synth::Noise::None, 0).trial
+    // Noise-free markers: the model's at each frame's coordinates, 100 Hz.
+    let mut kin = KinData::new(model);
+    let mut positions = Vec::with_capacity(200 * model.n_markers());
+    for f in 0..200 {
+        forward_kinematics(model, p, &motion(f), Want::POSITIONS, &mut kin);
+        positions.extend_from_slice(&kin.markers);
+    }
+    let labels = model.markers().iter().map(|m| m.name.clone()).collect();
+    Trial::new(labels, 100.0, 1, positions).unwrap()
 }
 
 /// The 5–95 % range of `A sin` sampled evenly over whole periods (deg): 2 A sin(0.45 π).
@@ -55,7 +65,7 @@ fn the_standing_legs_joints_are_found_with_their_ranges() {
     let model = Model::compile(&bilateral()).unwrap();
     let p = model.nominal_params();
     let trial = one_sided_trial(&model, &p);
-    let free: Vec<_> = (0..model.n_p()).map(jointfit::model::ParamId).collect();
+    let free: Vec<_> = (0..model.n_p()).map(crate::model::ParamId).collect();
     let (kept, held) = hold_still_joints(&model, &p, &[&trial], &free).unwrap();
     let names: Vec<&str> = held.iter().map(|h| h.joint.as_str()).collect();
     assert_eq!(names, ["hip_l", "knee_l", "talocrural_l", "subtalar_l"]);
