@@ -40,10 +40,8 @@ pub const MAX_BOOTSTRAP: usize = jointfit_app::fit::MAX_BOOTSTRAP;
 pub const MAX_ITERATIONS: usize = jointfit_app::fit::MAX_ITERATIONS;
 /// Most digits after the decimal point in written files.
 pub const MAX_DECIMALS: usize = 12;
-/// Largest plausible marker coordinate (m): a gait laboratory is tens of metres at most.
-pub const MAX_POSITION_M: f64 = 1_000.0;
 /// Largest plausible sampling rate (Hz).
-pub const MAX_RATE_HZ: f64 = 100_000.0;
+pub const MAX_RATE_HZ: f64 = jointfit_app::read::MAX_RATE_HZ;
 /// Largest factor on synthetic joint excursions.
 pub const MAX_AMPLITUDE: f64 = 10.0;
 /// Largest skin-artifact angular frequency (rad/s).
@@ -191,45 +189,11 @@ pub fn decimals(s: &str) -> Result<usize, String> {
     count(s, 0, MAX_DECIMALS)
 }
 
-/// A trial's data are plausible: rate at most [`MAX_RATE_HZ`] and every recorded coordinate
-/// within ±[`MAX_POSITION_M`] m. The error names the file, the frame (file numbering) and the
-/// marker, or the units when the markers' span says they are wrong
-/// ([`jointfit::checks::check_scale`]: millimetre data declared as metres). (Missing samples
-/// are fine here; commands that need some say so themselves.)
+/// A trial's data are plausible ([`jointfit_app::check_plausible`], the check every front end
+/// runs): the error names the file, the frame (file numbering) and the marker, or the units.
 pub fn check_trial(path: &Path, trial: &Trial) -> Result<()> {
-    let shown = path.display();
-    if trial.rate() > MAX_RATE_HZ {
-        bail!(
-            "{shown}: frame rate {:e} Hz is implausible (limit {MAX_RATE_HZ} Hz)",
-            trial.rate()
-        );
-    }
-    for f in 0..trial.n_frames() {
-        for (m, p) in trial.frame(f).iter().enumerate() {
-            if p.x.is_nan() {
-                continue;
-            }
-            if p.iter().any(|v| v.abs() > MAX_POSITION_M) {
-                // Millimetre data declared as metres land here: say so when the whole
-                // trial's scale points to the units rather than one wild sample.
-                let too_wide = jointfit::checks::marker_span(trial)
-                    .is_some_and(|span| span > jointfit::checks::PLAUSIBLE_SPAN[1]);
-                if let Some(units) = jointfit::checks::check_scale(trial).filter(|_| too_wide) {
-                    bail!("{shown}: {}", units.message);
-                }
-                bail!(
-                    "{shown}: frame {}, marker {}: position ({:e}, {:e}, {:e}) m is beyond \
-                     ±{MAX_POSITION_M} m, not a plausible measurement",
-                    trial.first_frame() + f as i64,
-                    trial.labels()[m],
-                    p.x,
-                    p.y,
-                    p.z
-                );
-            }
-        }
-    }
-    Ok(())
+    jointfit_app::check_plausible(trial, &path.display().to_string())
+        .map_err(|e| anyhow::anyhow!("{e}"))
 }
 
 /// Names given to `option` (e.g. `--keep-markers`) that are not markers of `model` are
