@@ -322,5 +322,6 @@ mod tests {
         let e = check_plausible(&t, "w.trc").unwrap_err().to_string();
         assert!(e.starts_with("w.trc: the markers span"), "{e}");
         assert!(e.contains("millimetre data read as metres"), "{e}");
+        assert!(!e.contains('\n'), "{e}");
     }
 }

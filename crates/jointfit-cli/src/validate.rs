@@ -293,27 +293,4 @@ mod tests {
         let t = Trial::new(labels, 100.0, 1, vec![Vector3::repeat(f64::NAN); 4]).unwrap();
         check_trial(Path::new("t.trc"), &t).unwrap();
     }
-
-    /// Millimetre data declared as metres (a leg 1 km long, the pelvis 1000 m up): the error
-    /// names the units, not one sample.
-    #[test]
-    fn millimetres_declared_as_metres_are_named_as_units() {
-        let labels: Vec<String> = ["RASI", "LASI", "RPSI", "LPSI", "RKNE", "RTOE"]
-            .map(String::from)
-            .to_vec();
-        let frame = [
-            Vector3::new(120.0, 1010.0, 30.0),
-            Vector3::new(-130.0, 1005.0, 35.0),
-            Vector3::new(50.0, 1060.0, -140.0),
-            Vector3::new(-55.0, 1058.0, -138.0),
-            Vector3::new(110.0, 520.0, 40.0),
-            Vector3::new(100.0, 40.0, 180.0),
-        ];
-        let pos: Vec<Vector3<f64>> = (0..5).flat_map(|_| frame).collect();
-        let t = Trial::new(labels, 100.0, 1, pos).unwrap();
-        let e = check_trial(Path::new("w.trc"), &t).unwrap_err().to_string();
-        assert!(e.starts_with("w.trc: the markers span"), "{e}");
-        assert!(e.contains("millimetre data read as metres"), "{e}");
-        assert!(!e.contains('\n'), "{e}");
-    }
 }

@@ -221,14 +221,9 @@ fn stream_rotates_from_the_laboratory_vertical() {
     )
     .unwrap();
     let mut s = StreamingIk::new(model.clone(), p.clone(), lab.labels(), UpAxis::Z, opts).unwrap();
-    for f in 0..60 {
-        let q = s.update(lab.time(f), lab.frame(f)).unwrap();
-        assert_eq!(
-            bits(&[q.to_vec()]),
-            bits(&batch.coords[f..f + 1]),
-            "frame {f}"
-        );
-    }
+    assert_streams_as_batch(&batch.coords, |f| {
+        s.update(lab.time(f), lab.frame(f)).unwrap().to_vec()
+    });
 }
 
 /// Feed labels in another order, with extra labels and a model marker missing: the stream
@@ -278,14 +273,9 @@ fn stream_pairs_labels_by_name() {
     let mut s = StreamingIk::for_feed(&model, &labels, UpAxis::Y, opts).unwrap();
     assert_eq!(s.absent(), &[absent]);
     assert!(s.held().is_empty());
-    for f in 0..30 {
-        let q = s.update(f as f64 / 100.0, &feed(f)).unwrap();
-        assert_eq!(
-            bits(&[q.to_vec()]),
-            bits(&batch.coords[f..f + 1]),
-            "frame {f}"
-        );
-    }
+    assert_streams_as_batch(&batch.coords, |f| {
+        s.update(f as f64 / 100.0, &feed(f)).unwrap().to_vec()
+    });
 }
 
 /// A frame with the wrong number of samples, or a time that does not increase, is refused
@@ -337,4 +327,12 @@ fn bad_frames_are_refused_without_disturbing_the_stream() {
     assert_eq!(e(&[]), StreamError::NoLabels);
     assert_eq!(e(&["A", "B", "A"]), StreamError::DuplicateLabel("A".into()));
     assert!(matches!(e(&["A", "B"]), StreamError::NoCommonMarker { .. }));
+}
+
+/// Each frame the stream answers (`update(f)`, in order) has the bits of the batch's frame.
+fn assert_streams_as_batch(batch: &[Vec<f64>], mut update: impl FnMut(usize) -> Vec<f64>) {
+    for (f, want) in batch.iter().enumerate() {
+        let q = update(f);
+        assert_eq!(bits(&[q]), bits(std::slice::from_ref(want)), "frame {f}");
+    }
 }
