@@ -505,9 +505,10 @@ fn degenerate_trials_are_refused_with_their_cause() {
     }
 }
 
-/// The plain causes of "no frame has enough markers to fit" are told apart, naming markers:
+/// The causes of "no frame has enough markers to fit" are told apart, naming markers:
 /// no marker of the model in the trial, labels that differ in case or by a prefix, every
-/// model marker gapped in every frame.
+/// model marker gapped in every frame, and a segment whose markers are all missing (the
+/// foot's three: the ankle is undetermined in every frame).
 #[test]
 fn unfittable_trials_name_their_markers() {
     let s = Scratch::new("no-frames");
@@ -529,8 +530,23 @@ fn unfittable_trials_name_their_markers() {
         },
         |l| l.to_string(),
     );
+    let footless = edited_trc(
+        &s,
+        "footless.trc",
+        |d| d.iter().map(|r| without_foot(r)).collect(),
+        |l| l.to_string(),
+    );
     let (m, out) = (s.p("m.toml"), s.p("o.toml"));
     for (t, words) in [
+        (
+            &footless,
+            &[
+                "ankle_dorsiflexion is undetermined in 30 of 30 frames",
+                "segment talus",
+                "RHEE (never present)",
+                "RMT5 (never present)",
+            ][..],
+        ),
         (&other, &["none of the model's", "RASI", "ISAR"][..]),
         (&lower, &["case", "rasi (RASI?)"][..]),
         (&prefixed, &["prefix", "Pat01_RASI (RASI?)"][..]),
@@ -550,6 +566,17 @@ fn unfittable_trials_name_their_markers() {
             assert!(err.contains(w), "{t}: {w:?} not in {err}");
         }
     }
+}
+
+/// A row of the synthetic trial (frame, time, then x y z of 15 markers) with the foot's
+/// markers (the last three: RHEE, RTOE, RMT5) blank.
+fn without_foot(row: &str) -> String {
+    let mut c: Vec<&str> = row.split('\t').collect();
+    let n = c.len();
+    for v in &mut c[n - 9..] {
+        *v = "";
+    }
+    c.join("\t")
 }
 
 /// `--keep-markers` with a name the model lacks is refused listing the model's markers;

@@ -34,6 +34,7 @@ pub mod pso;
 mod schur;
 mod targets;
 pub mod uncertainty;
+mod unfittable;
 pub mod varpro;
 
 use rayon::prelude::*;
@@ -58,8 +59,10 @@ pub enum CalibError {
     NothingFree,
     #[error("unknown parameter group {group:?}; the groups are: {available}")]
     UnknownGroup { group: String, available: String },
-    #[error("no frame has enough markers to fit (every frame lacked markers on some segment)")]
-    NoFrames,
+    /// `detail` names the coordinate the markers left undetermined and the markers of its
+    /// segment, with how often each was present.
+    #[error("no frame has enough markers to fit{detail}")]
+    NoFrames { detail: String },
     #[error("parameter vector has {got} values, the model has {expected}")]
     ParamLength { got: usize, expected: usize },
 }
@@ -182,6 +185,7 @@ impl<'m> Problem<'m> {
         let mut origin = Vec::new();
         let mut skipped = Vec::new();
         let mut targets = Vec::new();
+        let mut unfittable = unfittable::Unfittable::new(model);
         for (t, trial) in trials.iter().enumerate() {
             // A model marker the trial lacks altogether (excluded by the user, or never
             // recorded in this session) is missing in every frame, as in IK; the per-frame
@@ -191,7 +195,9 @@ impl<'m> Problem<'m> {
             for f in 0..trial.n_frames() {
                 // Gross samples read as missing ([`Targets`]).
                 let targets = frames.fill_from(source, f, &mut targets);
-                if undetermined_coordinate(model, &base, targets, &ik, &mut ws).is_none() {
+                let undetermined = undetermined_coordinate(model, &base, targets, &ik, &mut ws);
+                unfittable.count(targets, undetermined);
+                if undetermined.is_none() {
                     frames.push(source, f);
                     origin.push((t, f));
                 } else {
@@ -200,7 +206,9 @@ impl<'m> Problem<'m> {
             }
         }
         if frames.is_empty() {
-            return Err(CalibError::NoFrames);
+            return Err(CalibError::NoFrames {
+                detail: unfittable.describe(model),
+            });
         }
         Ok(Problem {
             model,
