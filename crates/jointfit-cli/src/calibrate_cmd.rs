@@ -408,6 +408,8 @@ pub fn run(args: CalibrateArgs) -> Result<()> {
         false => crate::output::Files::new().model("model", &args.model),
     };
     check_files(&args, files)?;
+    let formats: &[&str] = if osim { &["osim", "toml"] } else { &["toml"] };
+    crate::output::check_model_extension(&args.output, formats)?;
     let opts = fit_options(&args);
     let prepared = prepare(&args, &opts)?;
     let refs: Vec<&Trial> = prepared.trials.iter().collect();

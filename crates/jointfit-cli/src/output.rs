@@ -27,7 +27,7 @@ use std::sync::Mutex;
 use anyhow::{bail, Result};
 
 mod files;
-pub use files::Files;
+pub use files::{check_model_extension, Files};
 
 /// Exit status of a fit that did not converge (see the module docs).
 pub const EXIT_UNCONVERGED: u8 = 3;

@@ -259,7 +259,8 @@ fn check_files(args: &PersonalizeArgs, static_trial: &Path) -> Result<()> {
             files = files.input(what, t);
         }
     }
-    files.output("output", &args.output).check()
+    files.output("output", &args.output).check()?;
+    crate::output::check_model_extension(&args.output, &["toml"])
 }
 
 /// The marker set `--markers` names: `auto` (chosen from the static trial's labels, the

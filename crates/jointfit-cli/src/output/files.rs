@@ -271,3 +271,30 @@ impl Entry {
         Ok(())
     }
 }
+
+/// Refuses a model output whose extension names another format (`fit.osim` for a TOML
+/// model, `fit.mot`, `fit.trc`): the file would hold a model in a format its name denies.
+/// `formats` are the extensions written (lower case); a name without an extension, or with
+/// one that names no format of motion capture or modelling (`fit.out`), is accepted.
+pub fn check_model_extension(path: &Path, formats: &[&str]) -> Result<()> {
+    const KNOWN: [&str; 12] = [
+        "osim", "toml", "mot", "sto", "trc", "c3d", "csv", "json", "xml", "html", "svg", "txt",
+    ];
+    let Some(ext) = path.extension().and_then(|e| e.to_str()) else {
+        return Ok(());
+    };
+    let is = |f: &&str| ext.eq_ignore_ascii_case(f);
+    if formats.iter().any(is) || !KNOWN.iter().any(is) {
+        return Ok(());
+    }
+    let names: Vec<String> = formats.iter().map(|f| format!(".{f}")).collect();
+    bail!(
+        "{}: the model is written as {}; a .{ext} name would mislabel it (name the output {})",
+        path.display(),
+        match formats {
+            ["toml"] => "a jointfit model (TOML)".to_string(),
+            _ => names.join(" or "),
+        },
+        names.join(" or ")
+    )
+}

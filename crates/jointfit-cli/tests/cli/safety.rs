@@ -702,7 +702,7 @@ fn oversized_inputs_are_refused_quickly_naming_the_limit() {
             "--markers",
             &b("big.toml"),
             "-o",
-            &out,
+            &s.p("subject.toml"),
         ]),
         "256 MiB",
     ));
@@ -812,4 +812,32 @@ fn stream_refuses_an_endless_line() {
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(err.contains("line 1 is longer than 1048576 bytes"), "{err}");
     assert!(clock.elapsed().as_secs() < 30, "{:?}", clock.elapsed());
+}
+
+/// A model output named as another format (`.osim` for a TOML model, `.mot`, `.trc`) is
+/// refused before any fit and nothing is written; `.toml` in any letter case and a name
+/// without an extension are written.
+#[test]
+fn model_outputs_named_as_another_format_are_refused() {
+    let s = Scratch::new("out-ext");
+    let (m, t) = (s.p("m.toml"), s.p("t.trc"));
+    for name in ["fit.osim", "fit.mot", "fit.trc"] {
+        let out = s.p(name);
+        let err = refused(&s, &["calibrate", &m, &t, "-o", &out]);
+        assert!(err.contains("name the output .toml"), "{name}: {err}");
+        assert!(!s.dir.join(name).exists(), "{name} was written");
+    }
+    for name in ["fit.TOML", "fit"] {
+        let o = run(&["calibrate", &m, &t, "-o", &s.p(name)]);
+        assert!(
+            o.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let text = std::fs::read_to_string(s.dir.join(name)).unwrap();
+        assert!(
+            jointfit::model::spec::ModelSpec::from_toml(&text).is_ok(),
+            "{name} holds a model"
+        );
+    }
 }
