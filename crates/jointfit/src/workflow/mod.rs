@@ -32,7 +32,7 @@ pub(crate) mod map;
 pub mod marker_policy;
 pub(crate) mod marker_rigid;
 pub mod marker_rms;
-pub mod motion_range;
+pub(crate) mod motion_range;
 pub mod predict;
 mod probes;
 pub mod redundant;

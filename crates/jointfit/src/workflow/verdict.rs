@@ -139,18 +139,11 @@ impl Verdict {
         self.reasons.insert(at, reason);
         self.level = self.level.max(level);
     }
-
-    /// A `reject` with one reason.
-    pub fn rejected(reason: String) -> Verdict {
-        let mut v = Verdict::default();
-        v.add(Level::Reject, reason);
-        v
-    }
 }
 
 /// A trial whose marker placement does not match the model's ([`crate::placement`]).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct TrialMismatch {
+pub(crate) struct TrialMismatch {
     /// Index of the trial in the calibration's trials.
     pub trial: usize,
     pub mismatch: crate::placement::Mismatch,
@@ -189,7 +182,7 @@ pub(crate) fn check_inputs(
 
 /// What [`judge`] weighs besides the calibration.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct Evidence<'a> {
+pub(crate) struct Evidence<'a> {
     /// Placement mismatches kept by an override of the refusal.
     pub mismatches: &'a [TrialMismatch],
     pub refined: &'a [RefinedMarker],
@@ -201,7 +194,7 @@ pub struct Evidence<'a> {
 }
 
 /// Step 2 of the module docs: the verdict on `cal`, a calibration of `model`.
-pub fn judge(model: &Model, cal: &Calibration, e: &Evidence) -> Verdict {
+pub(crate) fn judge(model: &Model, cal: &Calibration, e: &Evidence) -> Verdict {
     let mut v = Verdict::default();
     for m in e.mismatches {
         v.add(
