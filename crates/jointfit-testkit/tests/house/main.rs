@@ -29,8 +29,9 @@ const BINARY_SOURCE_TREE_PATHS: usize = 0;
 /// Dependency cycles among the core's top-level modules. Goal: 0.
 const CORE_MODULES_IN_CYCLES: usize = 0;
 /// Phrases of work history (commit hashes, "this branch", machine load, "revision N", ...)
-/// in `docs/` and `README.md`, which describe the method and the current behaviour. Goal: 0.
-const HISTORY_PHRASES: usize = 95;
+/// in `docs/` and `README.md`, which describe the method and the current behaviour (the
+/// ones left are in `docs/memory.md`, `docs/stopping.md` and `docs/streaming.md`). Goal: 0.
+const HISTORY_PHRASES: usize = 16;
 
 fn files() -> &'static [RustFile] {
     static FILES: OnceLock<Vec<RustFile>> = OnceLock::new();
