@@ -373,10 +373,19 @@ mod tests {
     fn history_phrases_are_found_and_method_prose_is_not() {
         let (phrases, hex_word) = history_patterns();
         let hits = |line: &str| history_hits(&phrases, &hex_word, line);
-        assert_eq!(hits("before = `main` at 830fb48, after = this branch").len(), 3);
+        assert_eq!(
+            hits("before = `main` at 830fb48, after = this branch").len(),
+            3
+        );
         assert_eq!(hits("measured at load 8.6 (load average 12)"), ["at load"]);
-        assert_eq!(hits("Tried again at revision 23, the stop-24 table"), ["revision 23", "stop-24", "Tried again"]);
-        assert_eq!(hits("Superseded after the fix; an earlier run"), ["after the fix", "Superseded"]);
+        assert_eq!(
+            hits("Tried again at revision 23, the stop-24 table"),
+            ["revision 23", "stop-24", "Tried again"]
+        );
+        assert_eq!(
+            hits("Superseded after the fix; an earlier run"),
+            ["after the fix", "Superseded"]
+        );
         for method in [
             "PLoS ONE 18:e0295152; studylib.net doc 10720131",
             "the RMS before/after the fit, a load of 3 files, the main joint at the hip",
