@@ -16,10 +16,19 @@ Measures on the source tree, with the definitions of `crates/jointfit-testkit/te
 * binary source-tree paths: lines of the non-test code linked into the `jointfit` binary that
   name `CARGO_MANIFEST_DIR`, a path under `scripts/`, or run `git`;
 * core modules in cycles: top-level modules of the core that lie on a dependency cycle
-  (`crate::` and `super::` paths of non-test code).
+  (`crate::` and `super::` paths of non-test code);
+* history phrases in the user docs: phrases that tell the story of the work instead of the
+  method or the current behaviour, in every text file under `docs/` and in `README.md`:
+  commit hashes in prose (7 to 40 hex digits with at least one digit and one letter; an
+  article number such as PLoS ONE's `e0295152`, `e` and digits only, is not one), "this
+  branch", "main at", "load average" / "at load" / "load N", "revision N", "stop-N",
+  "before this change", "before/after the fix", "after merging", "earlier run",
+  "superseded", "formerly", "tried again". Machine load belongs to a measurement's log, a
+  revision to git; a comparison that supports a design choice names both options and the
+  command that measures them.
 
 Usage (from anywhere; the repository is this script's parent directory):
-    python3 scripts/house_metrics.py            # the six numbers
+    python3 scripts/house_metrics.py            # the seven numbers
     python3 scripts/house_metrics.py -v         # and what makes each up
     python3 scripts/house_metrics.py --json     # one line `@@{...}` with the numbers
 """
@@ -48,6 +57,16 @@ DATE = (
     r"|(?i:\b\d{1,2}\s+" + MONTH + r"\s+20\d\d\b)"
     r"|(?i:\b" + MONTH + r"\s+\d{1,2},?\s+20\d\d\b)"
 )
+HISTORY_PHRASES = [
+    r"(?i)\bthis branch\b",
+    r"(?i)\bmain\W{0,2} at\b",
+    r"(?i)\bload average\b|\bat load\b|\bload [0-9]",
+    r"(?i)\brevisions? [0-9]+",
+    r"(?i)\bstop-[0-9]+",
+    r"(?i)\bbefore this change\b|\b(?:before|after) the (?:fix|change|merge)\b|\bafter merging\b",
+    r"(?i)\bearlier runs?\b|\bsuperseded\b|\bformerly\b|\btried (?:again|once more)\b",
+]
+HEX_WORD = r"\b[0-9a-f]{7,40}\b"
 # house-words: end
 PROSE = (".md", ".txt", ".rst", ".ipynb")
 
@@ -357,6 +376,27 @@ def process_words():
     return found
 
 
+def is_commit_hash(word):
+    """A hex word that reads as a commit: a digit and a letter, and not `e` + digits."""
+    has_digit = any(c.isdigit() for c in word)
+    has_letter = any(c in "abcdef" for c in word)
+    article = word[0] == "e" and word[1:].isdigit()
+    return has_digit and has_letter and not article
+
+
+def history_phrases():
+    phrases = [re.compile(p) for p in HISTORY_PHRASES]
+    hex_word = re.compile(HEX_WORD)
+    docs = text_files("docs") + [(p, t) for p, t in text_files(".") if p == "README.md"]
+    found = []
+    for path, text in docs:
+        for n, line in enumerate(text.splitlines()):
+            hits = [m.group(0) for m in (p.search(line) for p in phrases) if m]
+            hits += [m.group(0) for m in hex_word.finditer(line) if is_commit_hash(m.group(0))]
+            found += [f"{path}:{n + 1}: {h}" for h in hits]
+    return found
+
+
 def long_functions(files):
     found = []
     for f in files:
@@ -480,6 +520,7 @@ def measure():
         "io_workflow_modules": io_workflow(files),
         "binary_source_tree_paths": binary_source_paths(files),
         "core_modules_in_cycles": (in_cycles, cycles),
+        "history_phrases": history_phrases(),
     }
 
 

@@ -1,4 +1,4 @@
-//! The six house measures, each a list of findings (its length is the number).
+//! The seven house measures, each a list of findings (its length is the number).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fs;
@@ -24,6 +24,19 @@ const PROCESS_WORDS: [&str; 5] = [
 ];
 /// Dates, searched in comments and prose only (a date in a string literal is test data).
 const DATE: &str = r"\b20\d\d-[01]\d-[0-3]\d\b|(?i:\b\d{1,2}\s+(?:jan|feb|mar|apr|may|jun|jul|aug|sep|oct|nov|dec)[a-z]*\.?\s+20\d\d\b)|(?i:\b(?:jan|feb|mar|apr|may|jun|jul|aug|sep|oct|nov|dec)[a-z]*\.?\s+\d{1,2},?\s+20\d\d\b)";
+/// Phrases that tell the story of the work (which revision, which machine load, what came
+/// before) instead of the method or the current behaviour.
+const HISTORY_PHRASES: [&str; 7] = [
+    r"(?i)\bthis branch\b",
+    r"(?i)\bmain\W{0,2} at\b",
+    r"(?i)\bload average\b|\bat load\b|\bload [0-9]",
+    r"(?i)\brevisions? [0-9]+",
+    r"(?i)\bstop-[0-9]+",
+    r"(?i)\bbefore this change\b|\b(?:before|after) the (?:fix|change|merge)\b|\bafter merging\b",
+    r"(?i)\bearlier runs?\b|\bsuperseded\b|\bformerly\b|\btried (?:again|once more)\b",
+];
+/// A word of hex digits as long as a commit hash (abbreviated or full).
+const HEX_WORD: &str = r"\b[0-9a-f]{7,40}\b";
 // house-words: end
 
 /// Files whose whole text is prose, where a date may stand anywhere.
@@ -75,6 +88,50 @@ fn dated_text(path: &str, text: &str) -> Vec<String> {
             })
             .collect()
     }
+}
+
+/// A hex word that reads as a commit: it has a digit and a letter, and it is not `e` and
+/// digits (an article number such as PLoS ONE's `e0295152`).
+fn is_commit_hash(word: &str) -> bool {
+    let has_digit = word.chars().any(|c| c.is_ascii_digit());
+    let has_letter = word.chars().any(|c| ('a'..='f').contains(&c));
+    let article = word.starts_with('e') && word[1..].chars().all(|c| c.is_ascii_digit());
+    has_digit && has_letter && !article
+}
+
+/// The history phrases and commit hashes of one line of prose.
+fn history_hits(phrases: &[Regex], hex_word: &Regex, line: &str) -> Vec<String> {
+    let hits = phrases.iter().filter_map(|p| p.find(line));
+    let hashes = hex_word
+        .find_iter(line)
+        .filter(|m| is_commit_hash(m.as_str()));
+    hits.chain(hashes).map(|m| m.as_str().to_string()).collect()
+}
+
+fn history_patterns() -> (Vec<Regex>, Regex) {
+    let phrases = HISTORY_PHRASES
+        .iter()
+        .map(|p| Regex::new(p).unwrap())
+        .collect();
+    (phrases, Regex::new(HEX_WORD).unwrap())
+}
+
+/// `path:line: phrase` for each history phrase (the list above) and each commit hash in the
+/// text files under `docs/` and in `README.md`.
+pub fn history_phrases(root: &Path) -> Vec<String> {
+    let (phrases, hex_word) = history_patterns();
+    let readme = text_files(root, ".")
+        .into_iter()
+        .filter(|(path, _)| path == "README.md");
+    let mut found = Vec::new();
+    for (path, text) in text_files(root, "docs").into_iter().chain(readme) {
+        for (n, line) in text.lines().enumerate() {
+            for hit in history_hits(&phrases, &hex_word, line) {
+                found.push(format!("{path}:{}: {hit}", n + 1));
+            }
+        }
+    }
+    found
 }
 
 /// `lines path name` for each function whose body spans more than 100 lines, from the `fn`
@@ -306,4 +363,36 @@ pub fn core_cycles(files: &[RustFile]) -> (usize, Vec<String>) {
         cycles.push(edges.join(", "));
     }
     (in_cycles, cycles)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn history_phrases_are_found_and_method_prose_is_not() {
+        let (phrases, hex_word) = history_patterns();
+        let hits = |line: &str| history_hits(&phrases, &hex_word, line);
+        assert_eq!(
+            hits("before = `main` at 830fb48, after = this branch").len(),
+            3
+        );
+        assert_eq!(hits("measured at load 8.6 (load average 12)"), ["at load"]);
+        assert_eq!(
+            hits("Tried again at revision 23, the stop-24 table"),
+            ["revision 23", "stop-24", "Tried again"]
+        );
+        assert_eq!(
+            hits("Superseded after the fix; an earlier run"),
+            ["after the fix", "Superseded"]
+        );
+        for method in [
+            "PLoS ONE 18:e0295152; studylib.net doc 10720131",
+            "the RMS before/after the fit, a load of 3 files, the main joint at the hip",
+            "a 7-digit number 1234567 and a word like deadbeef or facade",
+            "the branch of the tree; revisions of the model; reload 5 times",
+        ] {
+            assert!(hits(method).is_empty(), "{method}: {:?}", hits(method));
+        }
+    }
 }
