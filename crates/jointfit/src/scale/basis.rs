@@ -146,26 +146,36 @@ impl FactorBasis {
             jg: DMatrix::zeros(if jac { 3 * nm } else { 0 }, g.len()),
             jd: vec![Matrix3::zeros(); nm],
         };
-        let mut add = |dk: &KinData, w: &dyn Fn(usize) -> f64, col: Option<usize>| {
+        for (k, (dk, gk)) in units.iter().zip(g).enumerate() {
             for j in 0..nm {
                 let diff = dk.markers[j] - d0.markers[j];
-                out.markers[j] += w(j) * diff;
-                if !jac {
-                    continue;
-                }
-                if let Some(k) = col {
+                out.markers[j] += (gk - 1.0) * diff;
+                if jac {
                     out.jg.view_mut((3 * j, k), (3, 1)).copy_from(&diff);
                 }
-                let dj = dk.jq.rows(3 * j, 3) - d0.jq.rows(3 * j, 3);
-                let mut rows = out.jq.rows_mut(3 * j, 3);
-                rows += w(j) * dj;
             }
-        };
-        for (k, (dk, gk)) in units.iter().zip(g).enumerate() {
-            add(dk, &|_| gk - 1.0, Some(k));
+            if jac {
+                let w = gk - 1.0;
+                for ((o, a), b) in out.jq.iter_mut().zip(dk.jq.iter()).zip(d0.jq.iter()) {
+                    *o += w * (a - b);
+                }
+            }
         }
         for (a, dk) in moved.iter().enumerate() {
-            add(dk, &|j| delta[j][a], None);
+            for (j, d) in delta.iter().enumerate() {
+                let w = d[a];
+                if w == 0.0 {
+                    continue;
+                }
+                out.markers[j] += w * (dk.markers[j] - d0.markers[j]);
+                if jac {
+                    for r in 3 * j..3 * j + 3 {
+                        for c in 0..out.jq.ncols() {
+                            out.jq[(r, c)] += w * (dk.jq[(r, c)] - d0.jq[(r, c)]);
+                        }
+                    }
+                }
+            }
         }
         for (a, dk) in moved.iter().enumerate() {
             for j in 0..nm {

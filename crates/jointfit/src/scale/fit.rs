@@ -805,4 +805,89 @@ mod tests {
             assert!((g.factors[0] - s[0]).abs() < 1e-6, "{g:?}");
         }
     }
+
+    /// Frames of the leg scaled uniformly by `truth` (per group name) at `n` poses.
+    fn leg_frames(
+        truth: &[(&str, f64)],
+        n: usize,
+    ) -> (ModelSpec, Vec<ScaleGroup>, Vec<Vec<Vector3<f64>>>) {
+        let spec = lower_limb(Side::Right);
+        let groups = default_groups(&spec, false, false);
+        let mut factors = ScaleFactors::new();
+        for g in &groups {
+            let s = truth.iter().find(|(n, _)| *n == g.name).unwrap().1;
+            for b in &g.bodies {
+                factors.insert(b.clone(), [s; 3]);
+            }
+        }
+        let scaled = Model::compile(&scaled_spec(&spec, &factors)).unwrap();
+        let mut data = KinData::new(&scaled);
+        let frames = (0..n)
+            .map(|f| {
+                let mut q = scaled.default_coords();
+                for (k, v) in q.iter_mut().enumerate() {
+                    *v += 0.3 * ((k as f64) * 1.7 + f as f64 * 2.1).sin();
+                }
+                let p = scaled.nominal_params();
+                forward_kinematics(&scaled, &p, &q, Want::POSITIONS, &mut data);
+                data.markers.clone()
+            })
+            .collect();
+        (spec, groups, frames)
+    }
+
+    /// Over seeded draws of marker noise, the spread of each fitted factor matches its
+    /// reported SD: with noise of the assumed SD, and with twice that (the SD then grows
+    /// with the spread the residuals show).
+    #[test]
+    fn reported_sds_match_the_spread_over_noise_draws() {
+        use rand::{Rng, SeedableRng};
+        let truth = [
+            ("pelvis", 1.06),
+            ("thigh", 1.1),
+            ("shank", 0.92),
+            ("foot", 1.04),
+        ];
+        let (spec, groups, clean) = leg_frames(&truth, 4);
+        let mut opts = ScaleOptions::new(groups);
+        opts.prior = None;
+        opts.fixed_markers = spec.markers.iter().map(|m| m.name.clone()).collect();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(38);
+        // A standard normal draw (Box–Muller).
+        let mut normal = move || {
+            let (u, v): (f64, f64) = (rng.gen_range(1e-300..1.0), rng.gen());
+            (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
+        };
+        for noise in [opts.noise_sd, 2.0 * opts.noise_sd] {
+            let draws = 200;
+            let mut factors = vec![Vec::new(); truth.len()];
+            let mut sds = vec![0.0; truth.len()];
+            for _ in 0..draws {
+                let noisy: Vec<Vec<Vector3<f64>>> = clean
+                    .iter()
+                    .map(|fr| {
+                        fr.iter()
+                            .map(|m| m + Vector3::from_fn(|_, _| noise * normal()))
+                            .collect()
+                    })
+                    .collect();
+                let fit = fit_scale(&spec, &noisy, &opts).unwrap();
+                for (k, g) in fit.groups.iter().enumerate() {
+                    factors[k].push(g.factors[0]);
+                    sds[k] += g.sd[0] / draws as f64;
+                }
+            }
+            for (k, f) in factors.iter().enumerate() {
+                let mean = f.iter().sum::<f64>() / draws as f64;
+                let spread =
+                    (f.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (draws - 1) as f64).sqrt();
+                let ratio = sds[k] / spread;
+                assert!(
+                    (0.75..=1.3).contains(&ratio),
+                    "noise {noise}: group {k} reports SD {} for a spread of {spread}",
+                    sds[k]
+                );
+            }
+        }
+    }
 }

@@ -73,8 +73,8 @@ impl Normal {
             let ch = d.cholesky()?;
             let x = ch.solve(&fr.b.transpose());
             let y = ch.solve(&fr.g);
-            s -= &fr.b * &x;
-            rhs += &fr.b * &y;
+            s.gemm(-1.0, &fr.b, &x, 1.0);
+            rhs.gemv(1.0, &fr.b, &y, 1.0);
             solved.push((x, y));
         }
         let shared = s.cholesky()?.solve(&rhs);
