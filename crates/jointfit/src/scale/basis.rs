@@ -146,35 +146,35 @@ impl FactorBasis {
             jg: DMatrix::zeros(if jac { 3 * nm } else { 0 }, g.len()),
             jd: vec![Matrix3::zeros(); nm],
         };
+        // Each model's weight, per marker: the factors' `g_k − 1`, the offsets' `δ_a`, and
+        // the base's one minus their sum.
+        let mut own = vec![1.0; nm];
         for (k, (dk, gk)) in units.iter().zip(g).enumerate() {
             for j in 0..nm {
                 let diff = dk.markers[j] - d0.markers[j];
                 out.markers[j] += (gk - 1.0) * diff;
+                own[j] -= gk - 1.0;
                 if jac {
                     out.jg.view_mut((3 * j, k), (3, 1)).copy_from(&diff);
-                }
-            }
-            if jac {
-                let w = gk - 1.0;
-                for ((o, a), b) in out.jq.iter_mut().zip(dk.jq.iter()).zip(d0.jq.iter()) {
-                    *o += w * (a - b);
                 }
             }
         }
         for (a, dk) in moved.iter().enumerate() {
             for (j, d) in delta.iter().enumerate() {
-                let w = d[a];
-                if w == 0.0 {
-                    continue;
-                }
-                out.markers[j] += w * (dk.markers[j] - d0.markers[j]);
-                if jac {
-                    for r in 3 * j..3 * j + 3 {
-                        for c in 0..out.jq.ncols() {
-                            out.jq[(r, c)] += w * (dk.jq[(r, c)] - d0.jq[(r, c)]);
-                        }
-                    }
-                }
+                out.markers[j] += d[a] * (dk.markers[j] - d0.markers[j]);
+                own[j] -= d[a];
+            }
+        }
+        if jac {
+            let rows = 3 * nm;
+            let o = out.jq.as_mut_slice();
+            o.fill(0.0);
+            combine(o, d0.jq.as_slice(), rows, |j| own[j]);
+            for (dk, gk) in units.iter().zip(g) {
+                combine(o, dk.jq.as_slice(), rows, |_| gk - 1.0);
+            }
+            for (a, dk) in moved.iter().enumerate() {
+                combine(o, dk.jq.as_slice(), rows, |j| delta[j][a]);
             }
         }
         for (a, dk) in moved.iter().enumerate() {
@@ -183,6 +183,15 @@ impl FactorBasis {
             }
         }
         out
+    }
+}
+
+/// `out += w(j) · jm` over column-major matrices of `rows` rows, `j` the marker of a row.
+fn combine(out: &mut [f64], jm: &[f64], rows: usize, w: impl Fn(usize) -> f64) {
+    for (oc, jc) in out.chunks_exact_mut(rows).zip(jm.chunks_exact(rows)) {
+        for (r, (o, v)) in oc.iter_mut().zip(jc).enumerate() {
+            *o += w(r / 3) * v;
+        }
     }
 }
 

@@ -70,9 +70,9 @@ impl Normal {
         for fr in &self.frames {
             let mut d = fr.d.clone();
             damp(&mut d);
-            let ch = d.cholesky()?;
-            let x = ch.solve(&fr.b.transpose());
-            let y = ch.solve(&fr.g);
+            let dinv = d.cholesky()?.inverse();
+            let x = &dinv * fr.b.transpose();
+            let y = &dinv * &fr.g;
             s.gemm(-1.0, &fr.b, &x, 1.0);
             rhs.gemv(1.0, &fr.b, &y, 1.0);
             solved.push((x, y));
