@@ -18,9 +18,12 @@
 //!   proportions of the generic model, spread `σ_p`), and with a stature `H`:
 //!   `(u − ln(H/H_generic))/σ_H`.
 //!
-//! `∂x/∂q` is the exact kinematic Jacobian, `∂x/∂δ_j = R_b`, and `∂x/∂g` a forward difference
-//! over recompiled scaled models. The covariance of the factors is the inverse normal matrix
-//! at the solution (Laplace approximation), inflated by `χ²/dof` when that exceeds 1.
+//! Marker positions and their exact derivatives in `q`, `g` and `δ` come from a linear basis
+//! of models compiled once (`basis.rs`); each Levenberg–Marquardt step eliminates the
+//! frames by the Schur complement (`normal.rs`). The covariance of the factors is
+//! `(J_dᵀJ_d / c + J_pᵀJ_p)⁻¹` at the solution (Laplace approximation; data rows `d` weighted
+//! down by the variance factor `c ≥ 1` their residuals show, prior rows `p` as they are;
+//! `data_variance_factor`, `docs/scaling.md`).
 
 use nalgebra::Vector3;
 
@@ -380,7 +383,7 @@ const ROBUST_ROUNDS: usize = 4;
 type Solved = (Vec<f64>, f64, usize);
 
 /// Levenberg–Marquardt from `th` (Marquardt's diagonal scaling), each step solved by the
-/// Schur complement over the frames ([`super::normal`]).
+/// Schur complement over the frames (`normal.rs`).
 fn solve(pb: &Problem, mut th: Vec<f64>, ws: &mut BasisData) -> Solved {
     let mut ev = pb.evaluate(&th, true, 1.0, ws);
     let mut cost = ev.cost;
