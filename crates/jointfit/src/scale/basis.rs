@@ -150,10 +150,10 @@ impl FactorBasis {
         // the base's one minus their sum.
         let mut own = vec![1.0; nm];
         for (k, (dk, gk)) in units.iter().zip(g).enumerate() {
-            for j in 0..nm {
+            for (j, w) in own.iter_mut().enumerate() {
                 let diff = dk.markers[j] - d0.markers[j];
                 out.markers[j] += (gk - 1.0) * diff;
-                own[j] -= gk - 1.0;
+                *w -= gk - 1.0;
                 if jac {
                     out.jg.view_mut((3 * j, k), (3, 1)).copy_from(&diff);
                 }
@@ -199,6 +199,9 @@ fn combine(out: &mut [f64], jm: &[f64], rows: usize, w: impl Fn(usize) -> f64) {
 mod tests {
     use super::*;
     use crate::model::lower_limb::{lower_limb, Side};
+    use crate::model::spec::{
+        AxisMotion, AxisSpec, FunctionSpec, JointKindSpec, TransformAxisSpec,
+    };
     use crate::scale::groups::default_groups;
 
     /// Marker positions and `∂x/∂q` of the model compiled at the factors, each marker moved
@@ -244,7 +247,39 @@ mod tests {
     /// recompiled models.
     #[test]
     fn factor_derivatives_match_finite_differences_of_recompiled_models() {
-        let spec = lower_limb(Side::Right);
+        let mut spec = lower_limb(Side::Right);
+        // The knee as a custom joint whose translation follows its angle (scaled by the
+        // thigh's factors, as OpenSim scales a knee's translation functions).
+        let knee = spec
+            .joints
+            .iter_mut()
+            .find(|j| j.coordinates.iter().any(|c| c.name().contains("knee")))
+            .expect("a knee");
+        let coord = knee.coordinates[0].name().to_string();
+        let JointKindSpec::Pin { axis } = knee.kind.clone() else {
+            panic!("the knee is a pin joint");
+        };
+        let translation = |axis: &str, slope: f64| TransformAxisSpec {
+            motion: AxisMotion::Translation,
+            axis: AxisSpec::named(axis),
+            coordinate: Some(coord.clone()),
+            function: FunctionSpec::Linear {
+                slope,
+                intercept: 0.004,
+            },
+        };
+        knee.kind = JointKindSpec::Custom {
+            axes: vec![
+                TransformAxisSpec {
+                    motion: AxisMotion::Rotation,
+                    axis,
+                    coordinate: Some(coord.clone()),
+                    function: FunctionSpec::identity(),
+                },
+                translation("x", 0.02),
+                translation("y", -0.01),
+            ],
+        };
         let mut groups = default_groups(&spec, false, false);
         groups[1].per_axis = true;
         let held = groups.pop().unwrap();
