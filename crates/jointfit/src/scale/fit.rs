@@ -18,17 +18,21 @@
 //!   proportions of the generic model, spread `σ_p`), and with a stature `H`:
 //!   `(u − ln(H/H_generic))/σ_H`.
 //!
-//! `∂x/∂q` is the exact kinematic Jacobian, `∂x/∂δ_j = R_b`, and `∂x/∂g` a forward difference
-//! over recompiled scaled models. The covariance of the factors is the inverse normal matrix
-//! at the solution (Laplace approximation), inflated by `χ²/dof` when that exceeds 1.
+//! Marker positions and their exact derivatives in `q`, `g` and `δ` come from a linear basis
+//! of models compiled once (`basis.rs`); each Levenberg–Marquardt step eliminates the
+//! frames by the Schur complement (`normal.rs`). The covariance of the factors is
+//! `(J_dᵀJ_d / c + J_pᵀJ_p)⁻¹` at the solution (Laplace approximation; data rows `d` weighted
+//! down by the variance factor `c ≥ 1` their residuals show, prior rows `p` as they are;
+//! `data_variance_factor`, `docs/scaling.md`).
 
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::Vector3;
 
+use super::basis::{BasisData, FactorBasis, FramePoints};
 use super::geometry::{scaled_spec, ScaleFactors};
+use super::normal::{Normal, Step};
 use crate::ik::lm::solve_frame;
 use crate::ik::lm::IkWorkspace;
 use crate::ik::{seed_frame, IkOptions};
-use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::spec::ModelSpec;
 use crate::model::{Model, ModelError};
 
@@ -143,12 +147,14 @@ pub struct ScaleFit {
 }
 
 struct Layout {
-    /// Per group: first unknown and count (1 or 3).
+    /// Per group: first unknown and count (1 or 3); the factors come first, `0..k`.
     groups: Vec<(usize, usize)>,
+    /// Number of factor unknowns.
+    k: usize,
     size: Option<usize>,
     /// Per model marker: first unknown of its δ, if free.
     delta: Vec<Option<usize>>,
-    /// Per frame: first unknown of its q.
+    /// Per frame: first unknown of its q; the shared unknowns are `0..q[0]`.
     q: Vec<usize>,
     n: usize,
 }
@@ -165,11 +171,36 @@ struct Problem<'a> {
     msd: Vec<f64>,
     /// Per model marker: the weight of its data rows (`ScaleOptions::marker_weights`).
     weight: Vec<f64>,
+    basis: FactorBasis,
 }
 
 /// SD (rad or m) of the weak rows that hold coordinates no marker determines (a toe joint
 /// without toe markers) at their starting values; far wider than any determined one.
 const POSE_SD: f64 = 1000.0;
+
+/// One evaluation: `Σ r²`, the data rows' share and count, and with the Jacobian the normal
+/// equations (the data rows' share weighted by `data_weight`).
+struct Eval {
+    cost: f64,
+    data_cost: f64,
+    data_rows: usize,
+    normal: Option<Normal>,
+}
+
+impl Eval {
+    /// A residual row on shared unknowns with its nonzero Jacobian entries.
+    fn shared_row(&mut self, value: f64, entries: &[(usize, f64)]) {
+        self.cost += value * value;
+        if let Some(nm) = self.normal.as_mut() {
+            for &(i, a) in entries {
+                nm.g[i] += a * value;
+                for &(j, b) in entries {
+                    nm.a[(i, j)] += a * b;
+                }
+            }
+        }
+    }
+}
 
 impl Problem<'_> {
     fn factors(&self, th: &[f64]) -> ScaleFactors {
@@ -187,6 +218,7 @@ impl Problem<'_> {
         f
     }
 
+    /// The scaled model with the markers moved by their offsets.
     fn model(&self, th: &[f64]) -> Result<Model, ScaleError> {
         let mut spec = scaled_spec(self.spec, &self.factors(th));
         for (m, d) in spec.markers.iter_mut().zip(&self.lay.delta) {
@@ -199,10 +231,20 @@ impl Problem<'_> {
         Ok(Model::compile(&spec)?)
     }
 
-    /// Marker positions of every frame (and, with `dq`, the data Jacobians).
-    fn markers(&self, model: &Model, th: &[f64], data: &mut KinData, f: usize, want: Want) {
+    fn deltas(&self, th: &[f64]) -> Vec<Vector3<f64>> {
+        let at = |d: &Option<usize>| {
+            d.map_or(Vector3::zeros(), |a| {
+                Vector3::new(th[a], th[a + 1], th[a + 2])
+            })
+        };
+        self.lay.delta.iter().map(at).collect()
+    }
+
+    /// Marker positions of frame `f` (with the Jacobians when `jac`).
+    fn points(&self, th: &[f64], f: usize, jac: bool, ws: &mut BasisData) -> FramePoints {
         let q = &th[self.lay.q[f]..self.lay.q[f] + self.n_q];
-        forward_kinematics(model, &model.nominal_params(), q, want, data);
+        let g = &th[..self.lay.k];
+        self.basis.points(g, &self.deltas(th), q, jac, ws)
     }
 
     /// Whether marker `mi`'s sample `m` makes data rows (present, weight above 0).
@@ -210,184 +252,125 @@ impl Problem<'_> {
         m.x.is_finite() && self.weight[mi] > 0.0
     }
 
-    fn n_rows(&self) -> usize {
-        let data: usize = self
-            .targets
-            .iter()
-            .map(|t| {
-                3 * t
-                    .iter()
-                    .enumerate()
-                    .filter(|(mi, m)| self.used(*mi, m))
-                    .count()
-            })
-            .sum();
-        let deltas = 3 * self.lay.delta.iter().flatten().count();
-        let prior = match &self.opts.prior {
-            Some(p) => {
-                self.lay.groups.iter().map(|g| g.1).sum::<usize>()
-                    + usize::from(p.stature.is_some())
+    /// Data rows of frame `f`, added to `ev`.
+    fn frame_rows(&self, th: &[f64], f: usize, w: f64, ev: &mut Eval, ws: &mut BasisData) {
+        let pts = self.points(th, f, ev.normal.is_some(), ws);
+        let k = self.lay.k;
+        for (mi, m) in self.targets[f].iter().enumerate() {
+            if !self.used(mi, m) {
+                continue;
             }
-            None => 0,
-        };
-        data + deltas + prior + self.n_q * self.lay.q.len()
-    }
-
-    /// Data rows of every frame; returns `(row, frame, marker)` of each.
-    fn data_rows(&self, model: &Model, th: &[f64], rows: &mut Rows) -> Vec<(usize, usize, usize)> {
-        let mut data = KinData::new(model);
-        let mut out = Vec::new();
-        for (f, t) in self.targets.iter().enumerate() {
-            let want = if rows.jac { Want::DQ } else { Want::POSITIONS };
-            self.markers(model, th, &mut data, f, want);
-            for (mi, m) in t.iter().enumerate() {
-                if !self.used(mi, m) {
-                    continue;
-                }
-                let scale = self.weight[mi].sqrt() / self.opts.noise_sd;
-                let x = data.markers[mi];
-                let row = rows.row;
-                for k in 0..3 {
-                    rows.r[row + k] = (x[k] - m[k]) * scale;
-                }
-                if rows.jac {
-                    let q0 = self.lay.q[f];
-                    for c in 0..self.n_q {
-                        for k in 0..3 {
-                            rows.j[(row + k, q0 + c)] = data.jq[(3 * mi + k, c)] * scale;
-                        }
-                    }
-                    if let Some(at) = self.lay.delta[mi] {
-                        let seg = model.markers()[mi].segment;
-                        let rot = data.segment_poses[seg.0].rot;
-                        for k in 0..3 {
-                            for a in 0..3 {
-                                rows.j[(row + k, at + a)] = rot[(k, a)] * scale;
-                            }
-                        }
-                    }
-                }
-                out.push((row, f, mi));
-                rows.row += 3;
+            let sc = self.weight[mi].sqrt() / self.opts.noise_sd;
+            let r = (pts.markers[mi] - m) * sc;
+            ev.cost += r.norm_squared();
+            ev.data_cost += r.norm_squared();
+            ev.data_rows += 3;
+            let Some(nm) = ev.normal.as_mut() else {
+                continue;
+            };
+            let jq = pts.jq.rows(3 * mi, 3) * sc;
+            let jg = pts.jg.rows(3 * mi, 3) * sc;
+            let fr = &mut nm.frames[f];
+            fr.d += w * jq.transpose() * &jq;
+            fr.g += w * jq.transpose() * r;
+            let mut gg = nm.a.view_mut((0, 0), (k, k));
+            gg += w * jg.transpose() * &jg;
+            let mut gr = nm.g.rows_mut(0, k);
+            gr += w * jg.transpose() * r;
+            let mut bq = fr.b.rows_mut(0, k);
+            bq += w * jg.transpose() * &jq;
+            if let Some(at) = self.lay.delta[mi] {
+                let jd = pts.jd[mi] * sc;
+                let mut dd = nm.a.view_mut((at, at), (3, 3));
+                dd += w * jd.transpose() * jd;
+                let dg = w * jd.transpose() * &jg;
+                let mut a_dg = nm.a.view_mut((at, 0), (3, k));
+                a_dg += &dg;
+                let mut a_gd = nm.a.view_mut((0, at), (k, 3));
+                a_gd += dg.transpose();
+                let mut bd = fr.b.rows_mut(at, 3);
+                bd += w * jd.transpose() * &jq;
+                let mut gd = nm.g.rows_mut(at, 3);
+                gd += w * jd.transpose() * r;
             }
         }
-        out
     }
 
     /// Marker placement rows `δ_j/σ_j`.
-    fn placement_rows(&self, th: &[f64], rows: &mut Rows) {
+    fn placement_rows(&self, th: &[f64], ev: &mut Eval) {
         for (at, sd) in self.lay.delta.iter().zip(&self.msd) {
             let Some(at) = at else {
                 continue;
             };
             for k in 0..3 {
-                rows.push(th[at + k] / sd, &[(at + k, 1.0 / sd)]);
+                ev.shared_row(th[at + k] / sd, &[(at + k, 1.0 / sd)]);
             }
         }
     }
 
     /// Anthropometric rows: proportions about the overall size, and the stature.
-    fn size_rows(&self, th: &[f64], rows: &mut Rows) {
+    fn size_rows(&self, th: &[f64], ev: &mut Eval) {
         let Some(p) = &self.opts.prior else {
             return;
         };
         let u_at = self.lay.size.expect("a size unknown with the prior");
         let sd = p.proportion_sd;
-        for &(at, n) in &self.lay.groups {
-            for k in at..at + n {
-                rows.push(
-                    (th[k].ln() - th[u_at]) / sd,
-                    &[(k, 1.0 / (th[k] * sd)), (u_at, -1.0 / sd)],
-                );
-            }
+        for k in 0..self.lay.k {
+            ev.shared_row(
+                (th[k].ln() - th[u_at]) / sd,
+                &[(k, 1.0 / (th[k] * sd)), (u_at, -1.0 / sd)],
+            );
         }
         if let Some((ratio, s)) = p.stature {
-            rows.push((th[u_at] - ratio.ln()) / s, &[(u_at, 1.0 / s)]);
+            ev.shared_row((th[u_at] - ratio.ln()) / s, &[(u_at, 1.0 / s)]);
         }
     }
 
     /// Weak rows holding undetermined coordinates at their starting values.
-    fn pose_rows(&self, th: &[f64], rows: &mut Rows) {
-        for &at in &self.lay.q {
-            let held = th[at..at + self.n_q].iter().zip(&self.start[at..]);
-            for (c, (x, x0)) in held.enumerate() {
-                rows.push((x - x0) / POSE_SD, &[(at + c, 1.0 / POSE_SD)]);
-            }
-        }
-    }
-
-    /// `∂r/∂g` of the data rows by forward differences over recompiled scaled models.
-    fn factor_columns(
-        &self,
-        th: &[f64],
-        data_rows: &[(usize, usize, usize)],
-        rows: &mut Rows,
-    ) -> Result<(), ScaleError> {
-        for &(at, n) in &self.lay.groups {
-            for k in at..at + n {
-                let h = 1e-6 * th[k].abs().max(1.0);
-                let mut t2 = th.to_vec();
-                t2[k] += h;
-                let m2 = self.model(&t2)?;
-                let mut d2 = KinData::new(&m2);
-                let mut last = usize::MAX;
-                for &(rw, f, mi) in data_rows {
-                    if f != last {
-                        self.markers(&m2, &t2, &mut d2, f, Want::POSITIONS);
-                        last = f;
-                    }
-                    let scale = self.weight[mi].sqrt() / self.opts.noise_sd;
-                    let x = d2.markers[mi];
-                    for a in 0..3 {
-                        let r2 = (x[a] - self.targets[f][mi][a]) * scale;
-                        rows.j[(rw + a, k)] = (r2 - rows.r[rw + a]) / h;
-                    }
+    fn pose_rows(&self, th: &[f64], ev: &mut Eval) {
+        for (f, &at) in self.lay.q.iter().enumerate() {
+            for c in 0..self.n_q {
+                let r = (th[at + c] - self.start[at + c]) / POSE_SD;
+                ev.cost += r * r;
+                if let Some(nm) = ev.normal.as_mut() {
+                    nm.frames[f].d[(c, c)] += 1.0 / (POSE_SD * POSE_SD);
+                    nm.frames[f].g[c] += r / POSE_SD;
                 }
             }
         }
-        Ok(())
     }
 
-    /// Residuals, and with `jac` the Jacobian (module docs).
-    fn evaluate(&self, th: &[f64], jac: bool) -> Result<(DVector<f64>, DMatrix<f64>), ScaleError> {
-        let nr = self.n_rows();
-        let mut rows = Rows {
-            r: DVector::zeros(nr),
-            j: DMatrix::zeros(if jac { nr } else { 0 }, self.lay.n),
-            row: 0,
-            jac,
+    /// Every row (module docs); with `jac` the normal equations, the data rows' share
+    /// weighted by `data_weight`.
+    fn evaluate(&self, th: &[f64], jac: bool, data_weight: f64, ws: &mut BasisData) -> Eval {
+        let n_s = self.lay.q[0];
+        let mut ev = Eval {
+            cost: 0.0,
+            data_cost: 0.0,
+            data_rows: 0,
+            normal: jac.then(|| Normal::zeros(n_s, self.n_q, self.lay.q.len())),
         };
-        let model = self.model(th)?;
-        let data_rows = self.data_rows(&model, th, &mut rows);
-        self.placement_rows(th, &mut rows);
-        self.size_rows(th, &mut rows);
-        self.pose_rows(th, &mut rows);
-        debug_assert_eq!(rows.row, nr);
-        if jac {
-            self.factor_columns(th, &data_rows, &mut rows)?;
+        for f in 0..self.targets.len() {
+            self.frame_rows(th, f, data_weight, &mut ev, ws);
         }
-        Ok((rows.r, rows.j))
+        self.placement_rows(th, &mut ev);
+        self.size_rows(th, &mut ev);
+        self.pose_rows(th, &mut ev);
+        ev
     }
-}
 
-/// Residuals and Jacobian being filled, row by row.
-struct Rows {
-    r: DVector<f64>,
-    j: DMatrix<f64>,
-    row: usize,
-    jac: bool,
-}
-
-impl Rows {
-    /// One residual row with its nonzero Jacobian entries `(column, value)`.
-    fn push(&mut self, value: f64, entries: &[(usize, f64)]) {
-        self.r[self.row] = value;
-        if self.jac {
-            for &(c, v) in entries {
-                self.j[(self.row, c)] = v;
+    /// `th` moved by a step.
+    fn moved(&self, th: &[f64], step: &Step) -> Vec<f64> {
+        let mut out = th.to_vec();
+        for (x, d) in out.iter_mut().zip(step.shared.iter()) {
+            *x += d;
+        }
+        for (&at, dq) in self.lay.q.iter().zip(&step.frames) {
+            for (x, d) in out[at..at + self.n_q].iter_mut().zip(dq.iter()) {
+                *x += d;
             }
         }
-        self.row += 1;
+        out
     }
 }
 
@@ -396,51 +379,41 @@ const ROBUST_IN_SD: f64 = 2.0;
 /// Rounds of widening.
 const ROBUST_ROUNDS: usize = 4;
 
-type Solved = (Vec<f64>, DVector<f64>, DMatrix<f64>, f64, usize);
+/// The solution, its cost and the iterations taken.
+type Solved = (Vec<f64>, f64, usize);
 
-/// Levenberg–Marquardt from `th` (Marquardt's diagonal scaling).
-fn solve(pb: &Problem, mut th: Vec<f64>) -> Result<Solved, ScaleError> {
-    let (mut r, mut j) = pb.evaluate(&th, true)?;
-    let mut cost = r.norm_squared();
+/// Levenberg–Marquardt from `th` (Marquardt's diagonal scaling), each step solved by the
+/// Schur complement over the frames (`normal.rs`).
+fn solve(pb: &Problem, mut th: Vec<f64>, ws: &mut BasisData) -> Solved {
+    let mut ev = pb.evaluate(&th, true, 1.0, ws);
+    let mut cost = ev.cost;
     let mut lambda = 1e-3;
     let mut iterations = 0;
     while iterations < pb.opts.max_iterations {
         iterations += 1;
-        let jt = j.transpose();
-        let a = &jt * &j;
-        let g = &jt * &r;
+        let nm = ev.normal.take().expect("normal equations");
         let mut improved = false;
         for _ in 0..12 {
-            let mut damped = a.clone();
-            for k in 0..damped.nrows() {
-                damped[(k, k)] += lambda * a[(k, k)].max(1e-9);
-            }
-            let Some(ch) = damped.cholesky() else {
+            let Some(step) = nm.step(lambda) else {
                 lambda *= 10.0;
                 continue;
             };
-            let step = ch.solve(&(-&g));
-            let trial: Vec<f64> = th.iter().zip(step.iter()).map(|(x, d)| x + d).collect();
-            if pb
-                .lay
-                .groups
-                .iter()
-                .any(|&(at, n)| trial[at..at + n].iter().any(|v| *v <= 0.05))
-            {
+            let trial = pb.moved(&th, &step);
+            if trial[..pb.lay.k].iter().any(|v| *v <= 0.05) {
                 lambda *= 4.0;
                 continue;
             }
-            let (r2, _) = pb.evaluate(&trial, false)?;
-            let c2 = r2.norm_squared();
+            let c2 = pb.evaluate(&trial, false, 1.0, ws).cost;
             if c2 < cost {
-                let done = (cost - c2) <= 1e-12 * cost.max(1e-30) || step.amax() < 1e-10;
+                let size = step
+                    .frames
+                    .iter()
+                    .fold(step.shared.amax(), |m, d| m.max(d.amax()));
+                let done = (cost - c2) <= 1e-12 * cost.max(1e-30) || size < 1e-10;
                 th = trial;
                 cost = c2;
                 lambda = (lambda / 3.0).max(1e-12);
                 improved = !done;
-                let (r3, j3) = pb.evaluate(&th, true)?;
-                r = r3;
-                j = j3;
                 break;
             }
             lambda *= 4.0;
@@ -448,9 +421,9 @@ fn solve(pb: &Problem, mut th: Vec<f64>) -> Result<Solved, ScaleError> {
         if !improved {
             break;
         }
+        ev = pb.evaluate(&th, true, 1.0, ws);
     }
-
-    Ok((th, r, j, cost, iterations))
+    (th, cost, iterations)
 }
 
 fn layout(
@@ -475,6 +448,7 @@ fn layout(
         groups.push((n, k));
         n += k;
     }
+    let k = n;
     let size = opts.prior.map(|_| {
         n += 1;
         n - 1
@@ -495,6 +469,7 @@ fn layout(
     }
     Ok(Layout {
         groups,
+        k,
         size,
         delta,
         q,
@@ -509,23 +484,21 @@ fn start<'a>(
     targets: &'a [Vec<Vector3<f64>>],
     opts: &'a ScaleOptions,
 ) -> Result<(Problem<'a>, Vec<f64>), ScaleError> {
-    let generic = Model::compile(spec)?;
-    let n_q = generic.n_q();
     for (f, t) in targets.iter().enumerate() {
         let present = t.iter().filter(|m| m.x.is_finite()).count();
         if present < 4 {
             return Err(ScaleError::TooFewMarkers { frame: f, present });
         }
     }
+    let basis = FactorBasis::new(spec, &opts.groups, &opts.fixed_factors)?;
+    let n_q = basis.base().n_q();
     let lay = layout(spec, opts, n_q, targets.len())?;
     let mut th = vec![0.0; lay.n];
     let size = opts
         .prior
         .and_then(|p| p.stature)
         .map_or(1.0, |(ratio, _)| ratio);
-    for &(at, n) in &lay.groups {
-        th[at..at + n].fill(size);
-    }
+    th[..lay.k].fill(size);
     if let Some(u) = lay.size {
         th[u] = size.ln();
     }
@@ -548,6 +521,7 @@ fn start<'a>(
         start: Vec::new(),
         msd: vec![opts.marker_sd; spec.markers.len()],
         weight,
+        basis,
     };
     let m0 = pb.model(&th)?;
     let ik = IkOptions::default();
@@ -566,10 +540,10 @@ fn start<'a>(
 /// Solves, widening the offset prior of markers whose offset the data pull beyond
 /// `ROBUST_IN_SD` prior SDs (tracking markers placed anywhere on the segment, not landmarks:
 /// a Huber-like reweighting), and solving again from where it stopped.
-fn solve_robust(pb: &mut Problem, mut th: Vec<f64>) -> Result<Solved, ScaleError> {
+fn solve_robust(pb: &mut Problem, mut th: Vec<f64>, ws: &mut BasisData) -> Solved {
     let mut iterations = 0;
     for round in 0..ROBUST_ROUNDS {
-        let (th2, r, j, cost, it) = solve(pb, th)?;
+        let (th2, cost, it) = solve(pb, th, ws);
         th = th2;
         iterations += it;
         let mut widened = false;
@@ -584,21 +558,43 @@ fn solve_robust(pb: &mut Problem, mut th: Vec<f64>) -> Result<Solved, ScaleError
             }
         }
         if !widened || round + 1 == ROBUST_ROUNDS {
-            return Ok((th, r, j, cost, iterations));
+            return (th, cost, iterations);
         }
     }
     unreachable!("at least one round")
 }
 
-/// Each group's factors with their SDs: the diagonal of `(JᵀJ)⁻¹`, inflated by `χ²/dof`
-/// when that exceeds 1; then each body held at given factors (SD 0).
-fn group_fits(pb: &Problem, sol: &Solved) -> Result<Vec<GroupFit>, ScaleError> {
-    let (th, r, j, cost, _) = sol;
-    let cov = (j.transpose() * j)
-        .try_inverse()
-        .ok_or(ScaleError::Singular)?;
-    let dof = (r.len() as f64 - pb.lay.n as f64).max(1.0);
-    let inflate = (cost / dof).max(1.0);
+/// The factor of the data rows' variance over the assumed `σ_d²` that the residuals show:
+/// `c = max(1, χ²_data / (n_data − p))`, where `p = tr((JᵀJ)⁻¹ J_dᵀJ_d)` counts the
+/// unknowns the data determine (those the priors determine do not use up data rows).
+fn data_variance_factor(pb: &Problem, th: &[f64], ws: &mut BasisData) -> Result<f64, ScaleError> {
+    let full = pb.evaluate(th, true, 1.0, ws);
+    let prior = pb.evaluate(th, true, 0.0, ws);
+    let (nm, pr) = (full.normal.expect("normal"), prior.normal.expect("normal"));
+    let (sinv, diags) = nm.inverse_blocks().ok_or(ScaleError::Singular)?;
+    let mut p = pb.lay.n as f64 - (sinv * &pr.a).trace();
+    for (d, fr) in diags.iter().zip(&pr.frames) {
+        p -= d
+            .iter()
+            .zip(fr.d.diagonal().iter())
+            .map(|(a, b)| a * b)
+            .sum::<f64>();
+    }
+    let dof = full.data_rows as f64 - p;
+    Ok(if dof >= 1.0 {
+        (full.data_cost / dof).max(1.0)
+    } else {
+        1.0
+    })
+}
+
+/// Each group's factors with their SDs: the diagonal of `(J_dᵀJ_d / c + J_pᵀJ_p)⁻¹` (data
+/// rows `d` weighted down by [`data_variance_factor`], prior rows `p` as they are); then each
+/// body held at given factors (SD 0).
+fn group_fits(pb: &Problem, th: &[f64], ws: &mut BasisData) -> Result<Vec<GroupFit>, ScaleError> {
+    let c = data_variance_factor(pb, th, ws)?;
+    let nm = pb.evaluate(th, true, 1.0 / c, ws).normal.expect("normal");
+    let (cov, _) = nm.inverse_blocks().ok_or(ScaleError::Singular)?;
     let fitted = pb
         .opts
         .groups
@@ -610,7 +606,7 @@ fn group_fits(pb: &Problem, sol: &Solved) -> Result<Vec<GroupFit>, ScaleError> {
                 name: g.name.clone(),
                 bodies: g.bodies.clone(),
                 factors: std::array::from_fn(|k| th[pick(k)]),
-                sd: std::array::from_fn(|k| (cov[(pick(k), pick(k))] * inflate).sqrt()),
+                sd: std::array::from_fn(|k| cov[(pick(k), pick(k))].sqrt()),
             }
         });
     let held = pb.opts.fixed_factors.iter().map(|(b, f)| GroupFit {
@@ -623,15 +619,18 @@ fn group_fits(pb: &Problem, sol: &Solved) -> Result<Vec<GroupFit>, ScaleError> {
 }
 
 /// The registered markers with their errors, and the RMS over every present sample (m).
-fn marker_fits(pb: &Problem, th: &[f64]) -> Result<(Vec<MarkerFit>, f64), ScaleError> {
+fn marker_fits(
+    pb: &Problem,
+    th: &[f64],
+    ws: &mut BasisData,
+) -> Result<(Vec<MarkerFit>, f64), ScaleError> {
     let model = pb.model(th)?;
-    let mut data = KinData::new(&model);
     let mut sums = vec![(0.0, 0usize); pb.spec.markers.len()];
     for (f, t) in pb.targets.iter().enumerate() {
-        pb.markers(&model, th, &mut data, f, Want::POSITIONS);
+        let pts = pb.points(th, f, false, ws);
         for (mi, m) in t.iter().enumerate() {
             if m.x.is_finite() {
-                sums[mi].0 += (data.markers[mi] - m).norm_squared();
+                sums[mi].0 += (pts.markers[mi] - m).norm_squared();
                 sums[mi].1 += 1;
             }
         }
@@ -667,10 +666,11 @@ pub fn fit_scale(
     opts: &ScaleOptions,
 ) -> Result<ScaleFit, ScaleError> {
     let (mut pb, th) = start(spec, targets, opts)?;
-    let sol = solve_robust(&mut pb, th)?;
-    let groups = group_fits(&pb, &sol)?;
-    let th = &sol.0;
-    let (markers, rms) = marker_fits(&pb, th)?;
+    let mut ws = pb.basis.workspace();
+    let (th, _, iterations) = solve_robust(&mut pb, th, &mut ws);
+    let th = &th;
+    let groups = group_fits(&pb, th, &mut ws)?;
+    let (markers, rms) = marker_fits(&pb, th, &mut ws)?;
     Ok(ScaleFit {
         factors: pb.factors(th),
         groups,
@@ -683,13 +683,14 @@ pub fn fit_scale(
             .collect(),
         rms,
         size: pb.lay.size.map(|u| th[u].exp()),
-        iterations: sol.4,
+        iterations,
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::kinematics::{forward_kinematics, KinData, Want};
     use crate::model::lower_limb::{lower_limb, Side};
     use crate::scale::groups::default_groups;
 
@@ -805,6 +806,91 @@ mod tests {
         for g in others {
             let (_, s) = TRUTH.iter().find(|(n, _)| *n == g.name).unwrap();
             assert!((g.factors[0] - s[0]).abs() < 1e-6, "{g:?}");
+        }
+    }
+
+    /// Frames of the leg scaled uniformly by `truth` (per group name) at `n` poses.
+    fn leg_frames(
+        truth: &[(&str, f64)],
+        n: usize,
+    ) -> (ModelSpec, Vec<ScaleGroup>, Vec<Vec<Vector3<f64>>>) {
+        let spec = lower_limb(Side::Right);
+        let groups = default_groups(&spec, false, false);
+        let mut factors = ScaleFactors::new();
+        for g in &groups {
+            let s = truth.iter().find(|(n, _)| *n == g.name).unwrap().1;
+            for b in &g.bodies {
+                factors.insert(b.clone(), [s; 3]);
+            }
+        }
+        let scaled = Model::compile(&scaled_spec(&spec, &factors)).unwrap();
+        let mut data = KinData::new(&scaled);
+        let frames = (0..n)
+            .map(|f| {
+                let mut q = scaled.default_coords();
+                for (k, v) in q.iter_mut().enumerate() {
+                    *v += 0.3 * ((k as f64) * 1.7 + f as f64 * 2.1).sin();
+                }
+                let p = scaled.nominal_params();
+                forward_kinematics(&scaled, &p, &q, Want::POSITIONS, &mut data);
+                data.markers.clone()
+            })
+            .collect();
+        (spec, groups, frames)
+    }
+
+    /// Over seeded draws of marker noise, the spread of each fitted factor matches its
+    /// reported SD: with noise of the assumed SD, and with twice that (the SD then grows
+    /// with the spread the residuals show).
+    #[test]
+    fn reported_sds_match_the_spread_over_noise_draws() {
+        use rand::{Rng, SeedableRng};
+        let truth = [
+            ("pelvis", 1.06),
+            ("thigh", 1.1),
+            ("shank", 0.92),
+            ("foot", 1.04),
+        ];
+        let (spec, groups, clean) = leg_frames(&truth, 4);
+        let mut opts = ScaleOptions::new(groups);
+        opts.prior = None;
+        opts.fixed_markers = spec.markers.iter().map(|m| m.name.clone()).collect();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(38);
+        // A standard normal draw (Box–Muller).
+        let mut normal = move || {
+            let (u, v): (f64, f64) = (rng.gen_range(1e-300..1.0), rng.gen());
+            (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
+        };
+        for noise in [opts.noise_sd, 2.0 * opts.noise_sd] {
+            let draws = 200;
+            let mut factors = vec![Vec::new(); truth.len()];
+            let mut sds = vec![0.0; truth.len()];
+            for _ in 0..draws {
+                let noisy: Vec<Vec<Vector3<f64>>> = clean
+                    .iter()
+                    .map(|fr| {
+                        fr.iter()
+                            .map(|m| m + Vector3::from_fn(|_, _| noise * normal()))
+                            .collect()
+                    })
+                    .collect();
+                let fit = fit_scale(&spec, &noisy, &opts).unwrap();
+                for (k, g) in fit.groups.iter().enumerate() {
+                    factors[k].push(g.factors[0]);
+                    sds[k] += g.sd[0] / draws as f64;
+                }
+            }
+            for (k, f) in factors.iter().enumerate() {
+                let mean = f.iter().sum::<f64>() / draws as f64;
+                let spread =
+                    (f.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (draws - 1) as f64).sqrt();
+                let ratio = sds[k] / spread;
+                assert!(
+                    (0.75..=1.3).contains(&ratio),
+                    "noise {noise}: group {k} reports SD {} for a spread of {spread}",
+                    sds[k]
+                );
+            }
         }
     }
 }

@@ -3,6 +3,8 @@
 //! ([`fit`]) with its groups, static targets and plausibility checks ([`groups`]). The maths
 //! and the priors are in `docs/scaling.md`.
 
+mod basis;
 pub mod fit;
 pub mod geometry;
 pub mod groups;
+mod normal;
