@@ -285,7 +285,14 @@ pub fn scale_subject(req: &ScaleRequest) -> Result<ScaleOutcome, String> {
         },
     )
     .map_err(|e| e.to_string())?;
-    let flags = plausibility(&fit.groups, 0.05, 3.0 * PROPORTION_SD);
+    let mut flags = plausibility(&fit.groups, 0.05, 3.0 * PROPORTION_SD);
+    if !fit.converged {
+        flags.push(format!(
+            "the fit stopped at its iteration limit ({} per round, {} in all) before its \
+             convergence test: the factors are the best found, not a verified optimum",
+            opts.max_iterations, fit.iterations
+        ));
+    }
     Ok(ScaleOutcome {
         text: scaled.text,
         fit,

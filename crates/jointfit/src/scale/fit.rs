@@ -144,6 +144,9 @@ pub struct ScaleFit {
     /// `exp(u)`: the overall size (anthropometric prior only).
     pub size: Option<f64>,
     pub iterations: usize,
+    /// Whether the last round stopped by its convergence test, not at
+    /// [`ScaleOptions::max_iterations`].
+    pub converged: bool,
 }
 
 struct Layout {
@@ -379,8 +382,9 @@ const ROBUST_IN_SD: f64 = 2.0;
 /// Rounds of widening.
 const ROBUST_ROUNDS: usize = 4;
 
-/// The solution, its cost and the iterations taken.
-type Solved = (Vec<f64>, f64, usize);
+/// The solution, its cost, the iterations taken and whether the convergence test stopped it
+/// (not the iteration limit).
+type Solved = (Vec<f64>, f64, usize, bool);
 
 /// Levenberg–Marquardt from `th` (Marquardt's diagonal scaling), each step solved by the
 /// Schur complement over the frames (`normal.rs`).
@@ -389,6 +393,7 @@ fn solve(pb: &Problem, mut th: Vec<f64>, ws: &mut BasisData) -> Solved {
     let mut cost = ev.cost;
     let mut lambda = 1e-3;
     let mut iterations = 0;
+    let mut converged = false;
     while iterations < pb.opts.max_iterations {
         iterations += 1;
         let nm = ev.normal.take().expect("normal equations");
@@ -419,11 +424,12 @@ fn solve(pb: &Problem, mut th: Vec<f64>, ws: &mut BasisData) -> Solved {
             lambda *= 4.0;
         }
         if !improved {
+            converged = true;
             break;
         }
         ev = pb.evaluate(&th, true, 1.0, ws);
     }
-    (th, cost, iterations)
+    (th, cost, iterations, converged)
 }
 
 fn layout(
@@ -543,7 +549,7 @@ fn start<'a>(
 fn solve_robust(pb: &mut Problem, mut th: Vec<f64>, ws: &mut BasisData) -> Solved {
     let mut iterations = 0;
     for round in 0..ROBUST_ROUNDS {
-        let (th2, cost, it) = solve(pb, th, ws);
+        let (th2, cost, it, converged) = solve(pb, th, ws);
         th = th2;
         iterations += it;
         let mut widened = false;
@@ -558,7 +564,7 @@ fn solve_robust(pb: &mut Problem, mut th: Vec<f64>, ws: &mut BasisData) -> Solve
             }
         }
         if !widened || round + 1 == ROBUST_ROUNDS {
-            return (th, cost, iterations);
+            return (th, cost, iterations, converged);
         }
     }
     unreachable!("at least one round")
@@ -667,7 +673,7 @@ pub fn fit_scale(
 ) -> Result<ScaleFit, ScaleError> {
     let (mut pb, th) = start(spec, targets, opts)?;
     let mut ws = pb.basis.workspace();
-    let (th, _, iterations) = solve_robust(&mut pb, th, &mut ws);
+    let (th, _, iterations, converged) = solve_robust(&mut pb, th, &mut ws);
     let th = &th;
     let groups = group_fits(&pb, th, &mut ws)?;
     let (markers, rms) = marker_fits(&pb, th, &mut ws)?;
@@ -684,6 +690,7 @@ pub fn fit_scale(
         rms,
         size: pb.lay.size.map(|u| th[u].exp()),
         iterations,
+        converged,
     })
 }
 
@@ -765,6 +772,21 @@ mod tests {
 
     /// A marker displaced by 4 cm biases the factors; with weight 0 its data are left out
     /// and the factors are the true ones again.
+    /// The fit says whether its convergence test stopped it: the noiseless leg converges in
+    /// the default budget, and a budget of two iterations stops it first.
+    #[test]
+    fn the_fit_tells_convergence_from_its_iteration_limit() {
+        let (spec, groups, markers) = scaled_leg();
+        let mut opts = ScaleOptions::new(groups);
+        opts.prior = None;
+        let fit = fit_scale(&spec, std::slice::from_ref(&markers), &opts).unwrap();
+        assert!(fit.converged, "{} iterations", fit.iterations);
+        opts.max_iterations = 2;
+        let capped = fit_scale(&spec, &[markers], &opts).unwrap();
+        assert!(!capped.converged);
+        assert!(factor_error(&capped) > factor_error(&fit));
+    }
+
     #[test]
     fn a_marker_of_weight_zero_does_not_pull_the_factors() {
         let (spec, groups, mut markers) = scaled_leg();
