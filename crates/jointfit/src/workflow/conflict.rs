@@ -270,10 +270,7 @@ pub(crate) fn assess(
     cal: &super::Calibration,
     system: Option<&Reduced>,
 ) -> Result<Vec<JointConflict>, WorkflowError> {
-    let Some(noise) = cal
-        .prior_noise_mm
-        .map(|mm| mm / crate::model::spec::MM_PER_M)
-    else {
+    let Some(noise) = cal.prior_noise else {
         return Ok(Vec::new());
     };
     let (mut prob, _) =
@@ -369,13 +366,12 @@ pub(crate) fn widen_intervals(
             .find(|c| c.parameters.iter().any(|p| p == name))
             .map_or(1.0, |c| c.interval_scale.powi(2))
     };
-    let (Some(opts), Some(noise)) = (&settings.uncertainty, cal.prior_noise_mm) else {
+    let (Some(opts), Some(noise)) = (&settings.uncertainty, cal.prior_noise) else {
         return Ok(());
     };
     if cal.uncertainty.is_none() || cal.parameters.iter().all(|r| spread(&r.name) <= 1.0) {
         return Ok(());
     }
-    let noise = noise / crate::model::spec::MM_PER_M;
     let (mut prob, _) =
         super::map::map_problem(model, start, trials, &cal.free, settings, Some(noise))?;
     super::map::set_inflation(&mut prob, &cal.prior_inflation);

@@ -134,10 +134,10 @@ fn the_calibration_holds_them_and_fits_the_moving_leg() {
     }
     // The moving knee is fitted: the start's misfit is gone (noise-free markers).
     assert!(
-        cal.rms_before_mm > 1.0 && cal.rms_after_mm < 0.05,
-        "{} -> {}",
-        cal.rms_before_mm,
-        cal.rms_after_mm
+        cal.rms_before > 1e-3 && cal.rms_after < 5e-5,
+        "{} -> {} m",
+        cal.rms_before,
+        cal.rms_after
     );
     // One line of the verdict names the joint, its range and the threshold.
     let line = cal

@@ -21,7 +21,6 @@ use crate::model::refine::{
     MARKER_GROUP,
 };
 use crate::model::spec::ModelSpec;
-use crate::model::spec::MM_PER_M;
 use crate::model::{Model, ParamId};
 use crate::trial::Trial;
 
@@ -30,11 +29,11 @@ use crate::trial::Trial;
 pub struct RefinedMarker {
     pub name: String,
     pub segment: String,
-    /// Static-trial position and fitted position in the segment frame (mm).
-    pub start_mm: [f64; 3],
-    pub fitted_mm: [f64; 3],
-    /// Distance between the two (mm).
-    pub shift_mm: f64,
+    /// Static-trial position and fitted position in the segment frame (m).
+    pub start: [f64; 3],
+    pub fitted: [f64; 3],
+    /// Distance between the two (m).
+    pub shift: f64,
 }
 
 /// A marker offset and a joint parameter whose estimates are correlated (|r| ≥ 0.5): the
@@ -260,14 +259,14 @@ fn within_envelope(
     let (aug, p) = (&fit.model, &fit.calibration.fit.p);
     let outside = bounds.iter().any(|b| {
         aug.param_id(&b.parameter)
-            .is_some_and(|id| p[id.0] * MM_PER_M > b.limit_mm)
+            .is_some_and(|id| p[id.0] > b.limit)
     });
     let fit = if outside {
         for b in bounds.iter_mut() {
-            b.unbounded_fit_mm = aug
+            b.unbounded_fit = aug
                 .param_id(&b.parameter)
-                .map(|id| p[id.0] * MM_PER_M)
-                .filter(|&x| x > b.limit_mm);
+                .map(|id| p[id.0])
+                .filter(|&x| x > b.limit);
         }
         let model = Model::compile(&bounded).map_err(|e| WorkflowError::Refine(e.to_string()))?;
         let (calibration, system) =
@@ -296,7 +295,6 @@ fn refined_markers(
         .filter_map(|&(n, _)| {
             let before = spec.markers.iter().find(|m| m.name == n)?;
             let after = fitted.markers.iter().find(|m| m.name == n)?;
-            let mm = |x: [f64; 3]| x.map(|v| v * MM_PER_M);
             let d = (0..3)
                 .map(|k| (after.position[k] - before.position[k]).powi(2))
                 .sum::<f64>()
@@ -304,9 +302,9 @@ fn refined_markers(
             Some(RefinedMarker {
                 name: n.to_string(),
                 segment: before.segment.clone(),
-                start_mm: mm(before.position),
-                fitted_mm: mm(after.position),
-                shift_mm: d * MM_PER_M,
+                start: before.position,
+                fitted: after.position,
+                shift: d,
             })
         })
         .collect()

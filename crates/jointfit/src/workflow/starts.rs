@@ -5,7 +5,7 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::calibration::{mm2, ConvergenceStage, MultiStart, StartRun};
+use super::calibration::{ConvergenceStage, MultiStart, StartRun};
 use super::{FitSettings, Method, Observer, Termination};
 use crate::calibrate::joint::{solve_joint, JointOptions};
 use crate::calibrate::pso::{solve_pso, PsoOptions};
@@ -67,7 +67,7 @@ pub(super) fn full_starts(
         let fit = run_start(prob, &p0, q0, cost0, settings, &label, &mut rec);
         runs.push(StartRun {
             start: k,
-            objective_mm2: mm2(fit.cost),
+            objective: fit.cost,
             iterations: fit.iterations,
             evaluations: fit.evaluations,
             termination: fit.termination,
@@ -92,12 +92,12 @@ pub(super) fn multi_start_summary(prob: &Problem, fits: &[Fit], best: usize) -> 
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), f| {
                     (lo.min(f.p[i]), hi.max(f.p[i]))
                 });
-            (par.name.clone(), (hi - lo) * par.unit.display_scale())
+            (par.name.clone(), hi - lo)
         })
         .collect();
     MultiStart {
         starts: fits.len(),
-        objective_mm2: fits.iter().map(|f| mm2(f.cost)).collect(),
+        objective: fits.iter().map(|f| f.cost).collect(),
         reached_best: fits
             .iter()
             .filter(|f| f.cost - best_cost <= 1e-9 * best_cost)
@@ -163,7 +163,7 @@ impl Recorder<'_> {
         self.inner.stage_started(label, budget);
         self.stages.push(ConvergenceStage {
             stage: stage.to_string(),
-            objective_mm2: Vec::new(),
+            objective: Vec::new(),
         });
         if let Some(c) = first {
             self.iteration(0, c);
@@ -174,7 +174,7 @@ impl Recorder<'_> {
 impl Observer for Recorder<'_> {
     fn iteration(&mut self, iteration: usize, objective: f64) {
         if let Some(s) = self.stages.last_mut() {
-            s.objective_mm2.push(mm2(objective));
+            s.objective.push(objective);
         }
         self.inner.iteration(iteration, objective);
     }
