@@ -223,17 +223,19 @@ fn per_marker_rms(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
 }
 
 /// Fits the free parameters `free` of `model` to `trials` from `start` (every start of
-/// `settings`), without the uncertainty analysis; the prior weighed by the given noise and
-/// per-parameter factors, or by estimated ones (`noise` `None`: [`super::map`]).
-fn fit_free(
-    model: &Model,
+/// `settings`), without the uncertainty analysis; the prior weighed by the given noise (m) and
+/// per-parameter factors, or by estimated ones (`noise` `None`: [`super::map`]). Returns the
+/// calibration and the problem it solved, its prior weighed by the σ and factors the fit
+/// ended with (what the analysis and the conflict step of this fit use).
+fn fit_free<'m>(
+    model: &'m Model,
     start: &[f64],
-    trials: &[&Trial],
+    trials: &[&'m Trial],
     free: &[ParamId],
     settings: &FitSettings,
     (noise, inflation): (Option<f64>, &[(String, f64)]),
     observer: &mut dyn Observer,
-) -> Result<Calibration, WorkflowError> {
+) -> Result<(Calibration, Problem<'m>), WorkflowError> {
     // With the global phase the σ estimate is finished there (`super::map`'s module docs).
     let global_phase = settings.effective_probes() > 0;
     let (mut prob, _, pre) =
@@ -280,7 +282,7 @@ fn fit_free(
     let parameters = param_rows(model, &prob, start, &fit);
     let ((rms_before, rms_after), (per_marker_before, per_marker_after)) =
         rms_before_after(&prob, start, &q_before, &fit);
-    Ok(Calibration {
+    let cal = Calibration {
         method: settings.method,
         seed: settings.seed,
         frames: prob.frames.len(),
@@ -313,7 +315,8 @@ fn fit_free(
         fit,
         start: start.to_vec(),
         free: free.to_vec(),
-    })
+    };
+    Ok((cal, prob))
 }
 
 /// The free parameters' rows of a fit from `start` (SI, no uncertainty yet).
@@ -383,26 +386,35 @@ pub fn calibrate(
     settings: &FitSettings,
     observer: &mut dyn Observer,
 ) -> Result<Calibration, WorkflowError> {
-    calibrate_keeping_system(model, start, trials, free, settings, observer).map(|(c, _)| c)
+    calibrate_keeping_system(model, start, trials, free, settings, observer).map(|k| k.calibration)
 }
 
-/// [`calibrate`], and the reduced system its uncertainty analysis was formed from
-/// ([`reduced_system`] at the fit, on the problem with the analysis' prior; `None` without
-/// `settings.uncertainty`): the prior–data conflict step ([`super::conflict`]) needs the
-/// same marker-term information, which costs as much as the rest of the analysis (opencap
-/// walking1: one reduced system is about 1.5 % of the command's instructions, and the step
-/// formed it twice more).
-pub(crate) fn calibrate_keeping_system(
-    model: &Model,
+/// A finished calibration with what later steps reuse: the problem of its final fit (its
+/// prior weighed by the fit's σ in metres and per-parameter factors) and the reduced system
+/// of its uncertainty analysis (`None` without the analysis).
+pub(crate) struct Kept<'m> {
+    pub(crate) calibration: Calibration,
+    pub(crate) system: Option<Reduced>,
+    pub(crate) problem: Problem<'m>,
+}
+
+/// [`calibrate`], with the problem of its final fit and the reduced system its uncertainty
+/// analysis was formed from ([`Kept`]; [`reduced_system`] at the fit, on that problem): the
+/// prior–data conflict step ([`super::conflict`]) needs the same problem and marker-term
+/// information, which costs as much as the rest of the analysis (opencap walking1: one
+/// reduced system is about 1.5 % of the command's instructions, and the step formed it twice
+/// more).
+pub(crate) fn calibrate_keeping_system<'m>(
+    model: &'m Model,
     start: &[f64],
-    trials: &[&Trial],
+    trials: &[&'m Trial],
     free: &[ParamId],
     settings: &FitSettings,
     observer: &mut dyn Observer,
-) -> Result<(Calibration, Option<Reduced>), WorkflowError> {
+) -> Result<Kept<'m>, WorkflowError> {
     let mut free = free.to_vec();
     let noise = settings.marker_noise;
-    let mut cal = fit_free(
+    let (mut cal, mut prob) = fit_free(
         model,
         start,
         trials,
@@ -411,19 +423,20 @@ pub(crate) fn calibrate_keeping_system(
         (noise, &[]),
         observer,
     )?;
-    // Refits and the analysis weigh the prior by the noise (and per-parameter factors) of the
-    // first fit.
+    // Refits and the analysis weigh the prior by the noise (m, and per-parameter factors) of
+    // the first fit.
     let noise_used = cal.prior_noise;
     let inflation = cal.prior_inflation.clone();
     let estimated = cal.prior_noise_estimated;
     let Some(opts) = &settings.uncertainty else {
-        return Ok((cal, None));
+        return Ok(Kept {
+            calibration: cal,
+            system: None,
+            problem: prob,
+        });
     };
     let mut fixed = Vec::new();
     for _ in 0..if settings.fix_unidentifiable { 3 } else { 0 } {
-        let (mut prob, _) =
-            super::map::map_problem(model, start, trials, &free, settings, noise_used)?;
-        super::map::set_inflation(&mut prob, &inflation);
         let drop = unidentifiable_subset(&prob, &cal.fit, opts);
         if drop.is_empty() {
             break;
@@ -450,12 +463,12 @@ pub(crate) fn calibrate_keeping_system(
             .filter(|(k, _)| !drop.contains(k))
             .map(|(_, id)| *id)
             .collect();
+        // Fewer free parameters: a problem of their own (its free set, scaling and prior
+        // differ), weighed by the first fit's σ and factors.
         let weights = (noise_used, inflation.as_slice());
-        cal = fit_free(model, start, trials, &free, settings, weights, observer)?;
+        (cal, prob) = fit_free(model, start, trials, &free, settings, weights, observer)?;
         cal.prior_noise_estimated = estimated;
     }
-    let (mut prob, _) = super::map::map_problem(model, start, trials, &free, settings, noise_used)?;
-    super::map::set_inflation(&mut prob, &inflation);
     // A stage of its own: with the bootstrap it refits the model once per replicate (its
     // budget: the replicates).
     let (stage, budget) = match opts.bootstrap_replicates {
@@ -484,7 +497,11 @@ pub(crate) fn calibrate_keeping_system(
     }
     cal.set_uncertainty(u);
     cal.fixed_unidentifiable = fixed;
-    Ok((cal, Some(red)))
+    Ok(Kept {
+        calibration: cal,
+        system: Some(red),
+        problem: prob,
+    })
 }
 
 /// The name of the uncertainty analysis stage reported to the [`Observer`] by [`calibrate`]

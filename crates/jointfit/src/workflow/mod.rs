@@ -153,7 +153,7 @@ pub struct FitSettings {
     /// `uncertainty`) held at their starting values; needs `uncertainty`.
     pub fix_unidentifiable: bool,
     /// Use the parameter priors of the model file (`prior_sd`/`prior_mean`, written by
-    /// `personalize`): a maximum a posteriori fit ([`map::map_problem`]). `false`, or a model
+    /// `personalize`): a maximum a posteriori fit ([`map::map_problem_with`]). `false`, or a model
     /// without priors: the paper's unregularized least squares.
     pub priors: bool,
     /// Marker noise σ (m) that weighs the priors against the markers; `None`: estimated from
