@@ -9,6 +9,7 @@ use jointfit::calibrate::uncertainty::types::{
 };
 use jointfit::model::spec::Unit;
 use jointfit::model::spec::MM_PER_M;
+use jointfit::solver::Termination;
 use jointfit::spatial::UpAxis;
 use jointfit::workflow::calibration::{Calibration, ConvergenceStage, MultiStart, StartRun};
 use jointfit::workflow::envelope::EnvelopeBound;
@@ -16,7 +17,6 @@ use jointfit::workflow::marker_policy::{MarkerAction, MarkerDecision};
 use jointfit::workflow::predict::Prediction;
 use jointfit::workflow::refine::RefinedMarker;
 use jointfit::workflow::verdict::Verdict;
-use jointfit::solver::Termination;
 use jointfit::workflow::{GlobalSearch, Method, WorkflowError};
 use serde::Serialize;
 
@@ -65,7 +65,6 @@ pub fn hint(e: &WorkflowError, front: Front) -> Option<&'static str> {
         _ => None,
     }
 }
-
 
 /// A calibration as `jointfit calibrate --json` writes it: the core's [`Calibration`] (SI)
 /// with lengths in mm, angles in degrees and objectives in mm², under the field names that

@@ -12,10 +12,10 @@ use jointfit::solver::Observer;
 use jointfit::trial::Trial;
 use jointfit::workflow::calibration::Calibration;
 use jointfit::workflow::{self, FitSettings, Method};
-use jointfit_app::{Detail, FitOptions, ModelSource, Subject};
 use jointfit_app::present::{
     CalibrationShown, EnvelopeShown, MarkerDecisionShown, RefinedMarkerShown,
 };
+use jointfit_app::{Detail, FitOptions, ModelSource, Subject};
 use serde::Serialize;
 
 use crate::common::{load_checked, Columns, TrialJson};

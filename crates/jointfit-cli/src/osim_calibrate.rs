@@ -5,8 +5,8 @@
 
 use anyhow::{Context, Result};
 use jointfit::workflow::redundant::Redundancy;
-use jointfit_app::present::CalibrationShown;
 use jointfit_app::osim::OsimFit;
+use jointfit_app::present::CalibrationShown;
 use serde::Serialize;
 
 use crate::calibrate_cmd::{

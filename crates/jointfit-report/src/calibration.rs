@@ -106,7 +106,12 @@ pub fn calibration_input(
         stages: cal
             .convergence
             .iter()
-            .map(|c| (c.stage.clone(), jointfit_app::present::objectives_mm2(&c.objective)))
+            .map(|c| {
+                (
+                    c.stage.clone(),
+                    jointfit_app::present::objectives_mm2(&c.objective),
+                )
+            })
             .collect(),
         iterations: cal.iterations,
         evaluations: cal.evaluations,

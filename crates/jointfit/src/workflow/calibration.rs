@@ -10,8 +10,8 @@ use crate::calibrate::uncertainty::types::SeMethod;
 use crate::calibrate::uncertainty::types::Uncertainty;
 use crate::calibrate::uncertainty::{analyze_reduced, unidentifiable_subset, Reduced};
 use crate::calibrate::{Fit, Problem};
-use crate::model::spec::MM_PER_M;
 use crate::model::spec::Unit;
+use crate::model::spec::MM_PER_M;
 use crate::model::{Model, ParamId};
 use crate::trial::Trial;
 

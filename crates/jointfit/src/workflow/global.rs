@@ -34,7 +34,7 @@
 //!
 //! Starts are drawn from the prior where the problem has one (`N(μ_k, s_k²)` truncated at
 //! ±2 `s_k`: where the anatomy says the joint is), else moved from the given start by up to
-//! `restart_mm` / `restart_deg` ([`super::restart_point`]); always clamped into the bounds.
+//! `restart_m` / `restart_rad` ([`super::restart_point`]); always clamped into the bounds.
 //! After a few iterations the basins are told apart: in the study above the starts that
 //! ended in the best optimum were within 0.5 % of it after six iterations, those in worse
 //! optima 5–30 % above it.
@@ -184,13 +184,7 @@ pub(crate) fn run(
     }
     observer.progress(n + 1, n + 1);
     let (fits, runs) = records(probed, sigma_stage.as_ref(), &order, &continued);
-    let summary = summarize(
-        &fits,
-        order,
-        probe_objective,
-        &short,
-        coarse.frames.len(),
-    );
+    let summary = summarize(&fits, order, probe_objective, &short, coarse.frames.len());
     Outcome {
         fits,
         runs,

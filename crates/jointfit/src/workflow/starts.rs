@@ -39,8 +39,8 @@ pub(super) fn full_starts(
                 model,
                 start,
                 &prob.free,
-                settings.restart_mm,
-                settings.restart_deg,
+                settings.restart_m,
+                settings.restart_rad,
                 settings.seed,
                 k,
             )
@@ -108,17 +108,18 @@ pub(super) fn multi_start_summary(prob: &Problem, fits: &[Fit], best: usize) -> 
 
 /// Start `k` (≥ 1) of a multi-start fit: [`perturb`] of `start` with a seed derived from the
 /// run's `seed` and `k`, so every start of every run is reproducible and distinct.
+/// The moves reach `span_m` metres for positions and `span_rad` radians for orientations.
 pub(crate) fn restart_point(
     model: &Model,
     start: &[f64],
     free: &[usize],
-    mm: f64,
-    deg: f64,
+    span_m: f64,
+    span_rad: f64,
     seed: u64,
     k: usize,
 ) -> Vec<f64> {
     let k_seed = seed.wrapping_mul(1_000_003).wrapping_add(k as u64);
-    perturb(model, start, free, mm, deg, k_seed)
+    perturb_by(model, start, free, (span_m, span_rad), k_seed)
 }
 
 /// Parameters `base` with the `free` ones (indices) moved by independent uniform amounts,
@@ -132,13 +133,25 @@ pub fn perturb(
     deg: f64,
     seed: u64,
 ) -> Vec<f64> {
+    let spans = (mm * crate::model::spec::M_PER_MM, deg.to_radians());
+    perturb_by(model, base, free, spans, seed)
+}
+
+/// [`perturb`] by up to `span_m` metres and `span_rad` radians.
+fn perturb_by(
+    model: &Model,
+    base: &[f64],
+    free: &[usize],
+    (span_m, span_rad): (f64, f64),
+    seed: u64,
+) -> Vec<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut p = base.to_vec();
     for &i in free {
         let par = &model.parameters()[i];
         let span = match par.unit {
-            Unit::Metre => mm * crate::model::spec::M_PER_MM,
-            Unit::Radian => deg.to_radians(),
+            Unit::Metre => span_m,
+            Unit::Radian => span_rad,
         };
         let d = if span > 0.0 {
             rng.gen_range(-span..=span)

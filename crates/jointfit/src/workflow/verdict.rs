@@ -283,11 +283,7 @@ fn judge_rms(cal: &Calibration, v: &mut Verdict) {
 }
 
 fn judge_markers(e: &Evidence, v: &mut Verdict) {
-    if let Some(worst) = e
-        .refined
-        .iter()
-        .max_by(|a, b| a.shift.total_cmp(&b.shift))
-    {
+    if let Some(worst) = e.refined.iter().max_by(|a, b| a.shift.total_cmp(&b.shift)) {
         let shift_mm = worst.shift * MM_PER_M;
         let line = format!(
             "refined {} marker position{} by up to {:.1} mm ({})",

@@ -87,7 +87,11 @@ fn a_parameter_held_by_a_tight_prior_is_not_determined_by_the_trial() {
     let share = data_share(&prob, &reduced_system(&prob, &fit.p, &fit.coords).normal);
     let k = u.params.iter().position(|p| p.name == tight).unwrap();
     let p = &u.params[k];
-    assert!(p.half_width.unwrap() < u.threshold_m * 1e3, "{:?}", p.half_width);
+    assert!(
+        p.half_width.unwrap() < u.threshold_m * 1e3,
+        "{:?}",
+        p.half_width
+    );
     assert_eq!(
         Source::of(share[k]),
         Source::HeldByPrior,
