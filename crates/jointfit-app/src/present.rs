@@ -14,6 +14,7 @@ use jointfit::spatial::UpAxis;
 use jointfit::workflow::calibration::{Calibration, ConvergenceStage, MultiStart, StartRun};
 use jointfit::workflow::envelope::EnvelopeBound;
 use jointfit::workflow::marker_policy::{MarkerAction, MarkerDecision};
+use jointfit::workflow::motion_range::HeldJoint;
 use jointfit::workflow::predict::Prediction;
 use jointfit::workflow::refine::RefinedMarker;
 use jointfit::workflow::verdict::Verdict;
@@ -246,6 +247,28 @@ impl<'a> PredictionShown<'a> {
             prediction: UncertaintyShown::of(&p.prediction),
             determined: &p.determined,
             not_determined: &p.not_determined,
+        }
+    }
+}
+
+/// A joint held as still, its ranges of motion in degrees.
+#[derive(Serialize)]
+pub struct HeldJointShown<'a> {
+    pub joint: &'a str,
+    pub range_deg: f64,
+    pub other_joint: &'a str,
+    pub other_range_deg: f64,
+    pub parameters: &'a [String],
+}
+
+impl<'a> HeldJointShown<'a> {
+    pub fn of(h: &'a HeldJoint) -> HeldJointShown<'a> {
+        HeldJointShown {
+            joint: &h.joint,
+            range_deg: h.range.to_degrees(),
+            other_joint: &h.other_joint,
+            other_range_deg: h.other_range.to_degrees(),
+            parameters: &h.parameters,
         }
     }
 }

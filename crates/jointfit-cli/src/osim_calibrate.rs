@@ -6,7 +6,7 @@
 use anyhow::{Context, Result};
 use jointfit::workflow::redundant::Redundancy;
 use jointfit_app::osim::OsimFit;
-use jointfit_app::present::CalibrationShown;
+use jointfit_app::present::{CalibrationShown, HeldJointShown};
 use serde::Serialize;
 
 use crate::calibrate_cmd::{
@@ -21,7 +21,7 @@ struct Report<'a> {
     calibration: CalibrationShown<'a>,
     held_redundant: &'a [Redundancy],
     prior_conflict: &'a [jointfit::workflow::conflict::JointConflict],
-    held_joints: &'a [jointfit::workflow::motion_range::HeldJoint],
+    held_joints: Vec<HeldJointShown<'a>>,
     /// Model markers the trials lack (left out of the fit).
     absent_markers: &'a [String],
     /// Coordinates the markers cannot determine, held at their defaults.
@@ -62,7 +62,12 @@ fn print(args: &CalibrateArgs, fit: &OsimFit, seconds: f64) -> Result<()> {
             calibration: CalibrationShown::of(&fit.result.calibration),
             held_redundant: &fit.result.held_redundant,
             prior_conflict: &fit.result.prior_conflict,
-            held_joints: &fit.result.held_joints,
+            held_joints: fit
+                .result
+                .held_joints
+                .iter()
+                .map(HeldJointShown::of)
+                .collect(),
             absent_markers: &fit.absent_markers,
             held_coordinates: &fit.held_coordinates,
             seconds,

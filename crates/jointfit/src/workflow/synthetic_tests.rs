@@ -173,10 +173,19 @@ fn restart_points_are_seeded_distinct_and_bounded() {
     let model = leg();
     let start = model.nominal_params();
     let free: Vec<usize> = (0..model.n_p()).collect();
-    let a = restart_point(&model, &start, &free, 0.02, 0.17, 7, 1);
-    assert_eq!(a, restart_point(&model, &start, &free, 0.02, 0.17, 7, 1));
-    assert_ne!(a, restart_point(&model, &start, &free, 0.02, 0.17, 7, 2));
-    assert_ne!(a, restart_point(&model, &start, &free, 0.02, 0.17, 8, 1));
+    let a = restart_point(&model, &start, &free, 0.02, 10f64.to_radians(), 7, 1);
+    assert_eq!(
+        a,
+        restart_point(&model, &start, &free, 0.02, 10f64.to_radians(), 7, 1)
+    );
+    assert_ne!(
+        a,
+        restart_point(&model, &start, &free, 0.02, 10f64.to_radians(), 7, 2)
+    );
+    assert_ne!(
+        a,
+        restart_point(&model, &start, &free, 0.02, 10f64.to_radians(), 8, 1)
+    );
     for (i, par) in model.parameters().iter().enumerate() {
         let d = par.unit.to_display(a[i] - start[i]).abs();
         let limit = match par.unit {
