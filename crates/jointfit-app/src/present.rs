@@ -496,6 +496,135 @@ mod tests {
         assert!((deg - 45.0).abs() < 1e-12 && u == "deg");
     }
 
+    /// A real calibration (knee of the built-in leg, noise-free synthetic trial, two starts,
+    /// the analysis): every shown number is its SI value in mm, degrees or mm², the SE and
+    /// interval are the uncertainty record's, and the names are the JSON's.
+    #[test]
+    fn a_calibration_is_shown_in_mm_degrees_and_mm2() {
+        use jointfit::model::lower_limb::{lower_limb, Side};
+        use jointfit::model::Model;
+        use jointfit::workflow::{calibrate, uncertainty_options, FitSettings};
+        use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion};
+
+        let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+        let free = model.params_in_group("knee");
+        let moved = perturbed_params(&model, 0.3, 3);
+        let mut truth = model.nominal_params();
+        for id in &free {
+            truth[id.0] = moved[id.0];
+        }
+        let coords = coordinates(&model, Motion::Knee, 40).unwrap();
+        let (trial, _) = markers(&model, &truth, &coords, 50.0, None);
+        let settings = FitSettings {
+            starts: 2,
+            probes: 0,
+            uncertainty: Some(uncertainty_options(5.0, 5.0, 0, 1)),
+            ..FitSettings::default()
+        };
+        let start = model.nominal_params();
+        let cal = calibrate(
+            &model,
+            &start,
+            &[&trial],
+            &free,
+            &settings,
+            &mut jointfit::solver::NoObserver,
+        )
+        .unwrap();
+        let json = serde_json::to_value(CalibrationShown::of(&cal)).unwrap();
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs().max(1e-300);
+        let num = |v: &serde_json::Value| v.as_f64().unwrap();
+        assert!(close(num(&json["rms_before_mm"]), cal.rms_before * 1e3));
+        assert!(close(num(&json["rms_after_mm"]), cal.rms_after * 1e3));
+        let u = cal.uncertainty.as_ref().unwrap();
+        assert!(close(num(&json["uncertainty"]["sigma_mm"]), u.sigma * 1e3));
+        assert_eq!(num(&json["uncertainty"]["threshold_mm"]), 5.0);
+        assert!(close(num(&json["uncertainty"]["threshold_deg"]), 5.0));
+        for (k, row) in cal.parameters.iter().enumerate() {
+            let shown = &json["parameters"][k];
+            let (scale, unit) = match row.unit {
+                Unit::Metre => (1e3, "mm"),
+                Unit::Radian => (180.0 / std::f64::consts::PI, "deg"),
+            };
+            assert_eq!(shown["unit"], unit);
+            assert!(close(num(&shown["start"]), start[free[k].0] * scale));
+            assert!(close(num(&shown["fitted"]), cal.fit.p[free[k].0] * scale));
+            assert!(close(num(&shown["change"]), row.change * scale));
+            // The shown SE is the record's; the row's SI SE is that in SI.
+            let se = u.params[k].se.unwrap();
+            assert_eq!(num(&shown["se"]), se);
+            assert!(close(row.se.unwrap() * scale, se));
+        }
+        let last = json["convergence"][0]["objective_mm2"]
+            .as_array()
+            .unwrap()
+            .last()
+            .map(num)
+            .unwrap();
+        assert!(close(last, cal.cost_after * 1e6));
+        let ms = &json["multistart"];
+        for (k, run) in cal.start_runs.iter().enumerate() {
+            assert!(close(num(&ms["objective_mm2"][k]), run.objective * 1e6));
+            assert!(close(
+                num(&json["start_runs"][k]["objective_mm2"]),
+                run.objective * 1e6
+            ));
+        }
+        for (name, v) in json["marker_rms_after_mm"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| {
+                let p = p.as_array().unwrap();
+                (p[0].as_str().unwrap().to_string(), p[1].clone())
+            })
+        {
+            let si = cal.marker_rms_after.iter().find(|m| m.0 == name).unwrap().1;
+            assert!(
+                v.is_null() && si.is_nan() || close(num(&v), si * 1e3),
+                "{name}"
+            );
+        }
+        assert!(json.get("rms_before").is_none() && json.get("prior_noise").is_none());
+    }
+
+    /// The envelope's, a refined marker's and a held joint's SI fields shown.
+    #[test]
+    fn the_fit_notes_are_shown_in_mm_and_degrees() {
+        let b = EnvelopeBound {
+            parameter: "hip_pelvis_lateral".into(),
+            what: "hip centre medial to the ASIS",
+            limit: 0.107,
+            model_upper: 0.15,
+            active: true,
+            unbounded_fit: Some(0.112),
+        };
+        let v = serde_json::to_value(EnvelopeShown::of(&b)).unwrap();
+        assert_eq!(v["limit_mm"], 107.0);
+        assert_eq!(v["model_upper_mm"], 150.0);
+        assert_eq!(v["unbounded_fit_mm"], 112.0);
+        let m = RefinedMarker {
+            name: "r_thigh3".into(),
+            segment: "thigh".into(),
+            start: [0.01, -0.2, 0.05],
+            fitted: [0.02, -0.2, 0.05],
+            shift: 0.01,
+        };
+        let v = serde_json::to_value(RefinedMarkerShown::of(&m)).unwrap();
+        assert_eq!(v["start_mm"], serde_json::json!([10.0, -200.0, 50.0]));
+        assert_eq!(v["shift_mm"], 10.0);
+        let h = HeldJoint {
+            joint: "knee_l".into(),
+            range: std::f64::consts::PI / 18.0,
+            other_joint: "knee_r".into(),
+            other_range: std::f64::consts::FRAC_PI_3,
+            parameters: vec!["knee_l_x".into()],
+        };
+        let v = serde_json::to_value(HeldJointShown::of(&h)).unwrap();
+        assert!((v["range_deg"].as_f64().unwrap() - 10.0).abs() < 1e-12);
+        assert!((v["other_range_deg"].as_f64().unwrap() - 60.0).abs() < 1e-12);
+    }
+
     #[test]
     fn hints_name_each_front_ends_own_option() {
         let e = WorkflowError::RefineNeedsPriors;
