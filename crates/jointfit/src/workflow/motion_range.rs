@@ -183,8 +183,11 @@ mod tests {
 
     #[test]
     fn a_still_joint_is_held_only_when_the_other_leg_moves_it() {
+        // Ranges given in degrees, passed in radians.
         let r = |v: &[(&str, f64)]| -> Vec<(String, f64)> {
-            v.iter().map(|(n, x)| (n.to_string(), *x)).collect()
+            v.iter()
+                .map(|(n, x)| (n.to_string(), x.to_radians()))
+                .collect()
         };
         // One-sided knee trial: the left knee is held, the left ankle (other side 19°) not.
         let held = still_joints(&r(&[
