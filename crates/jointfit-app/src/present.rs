@@ -503,7 +503,8 @@ mod tests {
     fn a_calibration_is_shown_in_mm_degrees_and_mm2() {
         use jointfit::model::lower_limb::{lower_limb, Side};
         use jointfit::model::Model;
-        use jointfit::workflow::{calibrate, uncertainty_options, FitSettings};
+        use jointfit::workflow::calibration::calibrate;
+        use jointfit::workflow::{uncertainty_options, FitSettings};
         use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion};
 
         let model = Model::compile(&lower_limb(Side::Right)).unwrap();
