@@ -4,10 +4,10 @@
 //! The summary turns the core's result (display units: mm, degrees) into SI rows, one per
 //! free parameter, and the warnings a results table or a Python user reads, one line each.
 
+use crate::present::mm;
 use jointfit::calibrate::uncertainty::types::Identifiability;
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::spec::Unit;
-use jointfit::model::spec::MM_PER_M;
 use jointfit::model::spec::M_PER_MM;
 use jointfit::model::Model;
 use jointfit::workflow::refine::RefinedCalibration;
@@ -280,13 +280,15 @@ pub fn summarize_refined(
                 "{}: {} (bound {:.1} mm)",
                 b.parameter,
                 workflow::envelope::HELD_AT_LIMIT,
-                b.limit_mm
+                mm(b.limit)
             ));
-        } else if let Some(x) = b.unbounded_fit_mm {
+        } else if let Some(x) = b.unbounded_fit {
             notes.push(format!(
-                "{}: the fit without the anatomical envelope ended at {x:.1} mm, lateral of the \
+                "{}: the fit without the anatomical envelope ended at {:.1} mm, lateral of the \
                  bound {:.1} mm; refitted with the bound, it ends inside",
-                b.parameter, b.limit_mm
+                b.parameter,
+                mm(x),
+                mm(b.limit)
             ));
         }
     }
@@ -386,24 +388,20 @@ pub fn summarize(
         .free
         .iter()
         .map(|id| id.0)
-        .zip(&u.params)
-        .map(|(i, pu)| {
-            let par = &model.parameters()[i];
-            // The uncertainty rows are in display units (mm, deg): back to SI.
-            let (unit, to_si) = match par.unit {
-                Unit::Metre => ("m", 1e-3),
-                Unit::Radian => ("rad", std::f64::consts::PI / 180.0),
-            };
-            ParamRow {
-                name: par.name.clone(),
-                group: par.group.clone(),
-                unit: unit.into(),
-                start: start[i],
-                fitted: fit.p[i],
-                se: pu.se.map(|v| v * to_si),
-                ci95: pu.ci.map(|[lo, hi]| [lo * to_si, hi * to_si]),
-                identifiability: Some(pu.status),
+        .zip(&cal.parameters)
+        .map(|(i, row)| ParamRow {
+            name: row.name.clone(),
+            group: row.group.clone(),
+            unit: match row.unit {
+                Unit::Metre => "m",
+                Unit::Radian => "rad",
             }
+            .into(),
+            start: start[i],
+            fitted: fit.p[i],
+            se: row.se,
+            ci95: row.ci95,
+            identifiability: row.identifiability,
         })
         .collect();
     let mut fitted = model.spec_with_nominal(&fit.p);
@@ -414,8 +412,8 @@ pub fn summarize(
         frames: cal.frames,
         skipped_frames: cal.skipped_frames,
         parameters,
-        rms_before: cal.rms_before_mm / MM_PER_M,
-        rms_after: cal.rms_after_mm / MM_PER_M,
+        rms_before: cal.rms_before,
+        rms_after: cal.rms_after,
         cost_before: cal.cost_before,
         cost_after: fit.cost,
         iterations: fit.iterations,

@@ -12,6 +12,9 @@ use jointfit::solver::Observer;
 use jointfit::trial::Trial;
 use jointfit::workflow::calibration::Calibration;
 use jointfit::workflow::{self, FitSettings, Method};
+use jointfit_app::present::{
+    CalibrationShown, EnvelopeShown, MarkerDecisionShown, RefinedMarkerShown,
+};
 use jointfit_app::{Detail, FitOptions, ModelSource, Subject};
 use serde::Serialize;
 
@@ -164,17 +167,17 @@ pub struct CalibrateArgs {
 #[derive(Serialize)]
 pub struct Report<'a> {
     #[serde(flatten)]
-    pub calibration: &'a Calibration,
+    pub calibration: CalibrationShown<'a>,
     /// `--refine-markers`: how far each marker moved, and which marker offsets trade off
     /// with which joint parameters.
-    #[serde(skip_serializing_if = "<[_]>::is_empty")]
-    pub refined_markers: &'a [workflow::refine::RefinedMarker],
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub refined_markers: Vec<RefinedMarkerShown<'a>>,
     #[serde(skip_serializing_if = "<[_]>::is_empty")]
     pub marker_trade_offs: &'a [workflow::refine::TradeOff],
     /// The default marker policy's decisions (refined or left-out markers, with why).
-    pub marker_decisions: &'a [workflow::marker_policy::MarkerDecision],
+    pub marker_decisions: Vec<MarkerDecisionShown<'a>>,
     /// The anatomical envelope's bounds, `active` when the fit ended on one.
-    pub envelope: &'a [workflow::envelope::EnvelopeBound],
+    pub envelope: Vec<EnvelopeShown<'a>>,
     /// With a prior: each joint's prior–data conflict (χ², dof, p, the type-II ML prior
     /// scale τ) and whether its prior was widened by τ.
     #[serde(skip_serializing_if = "<[_]>::is_empty")]
@@ -441,11 +444,15 @@ fn print(
     let cal = &refined.calibration;
     if args.json {
         let report = Report {
-            calibration: cal,
-            refined_markers: &refined.markers,
+            calibration: CalibrationShown::of(cal),
+            refined_markers: refined.markers.iter().map(RefinedMarkerShown::of).collect(),
             marker_trade_offs: &refined.trade_offs,
-            marker_decisions: &refined.marker_decisions,
-            envelope: &refined.envelope,
+            marker_decisions: refined
+                .marker_decisions
+                .iter()
+                .map(MarkerDecisionShown::of)
+                .collect(),
+            envelope: refined.envelope.iter().map(EnvelopeShown::of).collect(),
             prior_conflict: &refined.conflict,
             information_summary: information_summary(cal),
             seconds,

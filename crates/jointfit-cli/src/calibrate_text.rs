@@ -6,8 +6,11 @@ use jointfit::calibrate::uncertainty::types::Identifiability;
 use jointfit::calibrate::uncertainty::types::Uncertainty;
 use jointfit::solver::Termination;
 use jointfit::workflow::calibration::Calibration;
+use jointfit_app::present::{mm, mm2, CalibrationShown};
 
+/// The calibration's header line, parameter table and notes, in mm, degrees and mm².
 pub fn print_report(report: &Calibration, seconds: f64, verbose: bool) {
+    let shown = CalibrationShown::of(report);
     println!(
         "{}: {} free parameters, {} frames ({} skipped), {} iterations, {} evaluations, {:.3} s{}",
         report.method,
@@ -22,7 +25,7 @@ pub fn print_report(report: &Calibration, seconds: f64, verbose: bool) {
             t => format!(" (not converged: {t})"),
         }
     );
-    if let Some(ms) = &report.multistart {
+    if let Some(ms) = &shown.multistart {
         let lo = ms
             .objective_mm2
             .iter()
@@ -42,7 +45,7 @@ pub fn print_report(report: &Calibration, seconds: f64, verbose: bool) {
             hi,
             report.best_start + 1
         );
-        let mut wide: Vec<&(String, f64)> = ms.spread.iter().filter(|(_, r)| *r > 0.1).collect();
+        let mut wide: Vec<&(&str, f64)> = ms.spread.iter().filter(|(_, r)| *r > 0.1).collect();
         wide.sort_by(|a, b| b.1.total_cmp(&a.1));
         if !wide.is_empty() {
             let list: Vec<String> = wide
@@ -62,7 +65,7 @@ pub fn print_report(report: &Calibration, seconds: f64, verbose: bool) {
     // One vocabulary: with a prior, the last column says where the information came from
     // (the summary's "determined by the trial" / "partly" / "held by the prior"); without
     // one, whether the interval is within the thresholds (the paper's identifiability).
-    let with_prior = report.prior_noise_mm.is_some();
+    let with_prior = report.prior_noise.is_some();
     let mut t = crate::table::Table::new(&[
         "group",
         "parameter",
@@ -78,11 +81,11 @@ pub fn print_report(report: &Calibration, seconds: f64, verbose: bool) {
             "determined"
         },
     ]);
-    for p in &report.parameters {
+    for p in &shown.parameters {
         let hw = p.ci95.map(|c| 0.5 * (c[1] - c[0]));
         t.row(vec![
-            p.group.clone(),
-            p.name.clone(),
+            p.group.to_string(),
+            p.name.to_string(),
             p.unit.to_string(),
             format!("{:.2}", p.start),
             format!("{:.2}", p.fitted),
@@ -101,7 +104,7 @@ pub fn print_report(report: &Calibration, seconds: f64, verbose: bool) {
         ]);
     }
     print!("{}", t.render());
-    print_notes(report, verbose);
+    print_notes(report, &shown, verbose);
 }
 
 /// The verdict, last and plainly: `verdict: ok`, or the level and one reason per line.
@@ -155,12 +158,14 @@ pub fn print_policy(
         );
     }
     for b in envelope.iter().filter(|b| !b.active) {
-        if let Some(x) = b.unbounded_fit_mm {
+        if let Some(x) = b.unbounded_fit {
             println!(
-                "{}: the fit without the anatomical envelope ended at {x:.1} mm, lateral of the \
+                "{}: the fit without the anatomical envelope ended at {:.1} mm, lateral of the \
                  bound {:.1} mm (hip centre medial to the ASIS); refitted with the bound, it \
                  ends inside",
-                b.parameter, b.limit_mm
+                b.parameter,
+                mm(x),
+                mm(b.limit)
             );
         }
     }
@@ -170,7 +175,7 @@ pub fn print_policy(
              to lift it)",
             b.parameter,
             jointfit::workflow::envelope::HELD_AT_LIMIT,
-            b.limit_mm
+            mm(b.limit)
         );
     }
 }
@@ -197,8 +202,8 @@ fn ident_short(i: Option<Identifiability>) -> &'static str {
 }
 
 /// What follows the table: the uncertainty notes or the prior's summary, plausibility, RMS.
-fn print_notes(report: &Calibration, verbose: bool) {
-    match (&report.uncertainty, report.prior_noise_mm) {
+fn print_notes(report: &Calibration, shown: &CalibrationShown, verbose: bool) {
+    match (&report.uncertainty, shown.prior_noise_mm) {
         (Some(u), None) => print_uncertainty_notes(u, &report.fixed_unidentifiable, verbose),
         (_, Some(noise)) => print_prior_summary(report, noise),
         (None, None) => {}
@@ -206,15 +211,15 @@ fn print_notes(report: &Calibration, verbose: bool) {
     // The anatomical checks that failed are reasons of the verdict, printed last.
     println!(
         "RMS marker distance: {:.2} mm before, {:.2} mm after ({:.0}% lower)",
-        report.rms_before_mm,
-        report.rms_after_mm,
-        100.0 * (1.0 - report.rms_after_mm / report.rms_before_mm)
+        shown.rms_before_mm,
+        shown.rms_after_mm,
+        100.0 * (1.0 - shown.rms_after_mm / shown.rms_before_mm)
     );
     let mut t = crate::table::Table::new(&["marker", "before mm", "after mm"]);
-    for ((name, b), (_, a)) in report
+    for ((name, b), (_, a)) in shown
         .marker_rms_before_mm
         .iter()
-        .zip(&report.marker_rms_after_mm)
+        .zip(&shown.marker_rms_after_mm)
     {
         // A marker with no sample in any solved frame (e.g. absent from the trial) has no RMS.
         let cell = |v: &f64| {
@@ -224,7 +229,7 @@ fn print_notes(report: &Calibration, verbose: bool) {
                 "no data".to_string()
             }
         };
-        t.row(vec![name.clone(), cell(b), cell(a)]);
+        t.row(vec![name.to_string(), cell(b), cell(a)]);
     }
     print!("{}", t.render());
 }
@@ -249,7 +254,7 @@ fn print_prior_summary(report: &Calibration, noise_mm: f64) {
 
 /// The short summary of where the information came from (empty without a prior).
 pub fn information_summary(report: &Calibration) -> Vec<String> {
-    if report.prior_noise_mm.is_none() {
+    if report.prior_noise.is_none() {
         return Vec::new();
     }
     let rows: Vec<(String, String, Option<jointfit::calibrate::prior::Source>)> = report
@@ -271,7 +276,7 @@ fn print_uncertainty_notes(u: &Uncertainty, fixed: &[String], verbose: bool) {
     }
     println!(
         "95% intervals: the widest of white-noise (σ = {:.2} mm, {} dof), Newey-West HAC (bandwidth {}){}{}; widest came from: {}",
-        u.sigma_mm,
+        mm(u.sigma),
         u.dof,
         u.hac_bandwidth.map_or("-".into(), |b| format!("{b:.1} frames")),
         u.jackknife_blocks
@@ -304,9 +309,9 @@ fn print_uncertainty_notes(u: &Uncertainty, fixed: &[String], verbose: bool) {
                 "poorly determined"
             },
             if p.unit == "mm" {
-                u.threshold_mm
+                mm(u.threshold_m)
             } else {
-                u.threshold_deg
+                u.threshold_rad.to_degrees()
             },
             p.unit,
             p.reason.as_deref().unwrap_or("")
@@ -372,8 +377,8 @@ pub fn global_line(g: &jointfit::workflow::GlobalSearch) -> String {
     let list: Vec<String> = g
         .finished
         .iter()
-        .zip(&g.finished_objective_mm2)
-        .map(|(&k, c)| format!("{} {c:.3} mm²", name(k)))
+        .zip(&g.finished_objective)
+        .map(|(&k, &c)| format!("{} {:.3} mm²", name(k), mm2(c)))
         .collect();
     let verdict = match (g.finished.len(), g.agree) {
         (1, _) => "the runner-up's short run ended within 1e-4 of it, so only it was finished",
@@ -403,9 +408,9 @@ mod tests {
             starts: 6,
             probe_iterations: 6,
             probe_frames: 25,
-            probe_objective_mm2: vec![1.0; 6],
+            probe_objective: vec![1e-6; 6],
             finished: vec![0],
-            finished_objective_mm2: vec![59385.843],
+            finished_objective: vec![0.059385843],
             agree: true,
         };
         assert_eq!(
@@ -415,7 +420,7 @@ mod tests {
              the runner-up's short run ended within 1e-4 of it, so only it was finished"
         );
         g.finished = vec![3, 0];
-        g.finished_objective_mm2 = vec![100.0, 100.0];
+        g.finished_objective = vec![1e-4, 1e-4];
         let line = super::global_line(&g);
         assert!(
             line.contains("start 3 100.000 mm², the given start 100.000 mm²; they reached"),

@@ -16,6 +16,8 @@ use jointfit::calibrate::uncertainty::types::Identifiability;
 use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
 use jointfit::model::spec::Unit;
 use jointfit::workflow;
+use jointfit::workflow::predict::Prediction;
+use jointfit_app::present::{mm, PredictionShown};
 use serde::Serialize;
 
 use crate::common::{load_checked, Columns, TrialJson};
@@ -53,12 +55,12 @@ pub struct CheckArgs {
 
 /// `check --json`: the trial and what [`jointfit::workflow::predict::predict`] found.
 #[derive(Serialize)]
-pub struct CheckReport {
+pub struct CheckReport<'a> {
     pub trial: String,
     /// The trial as read: vertical, reader notes, repairs and data checks.
     pub read: TrialJson,
     #[serde(flatten)]
-    pub check: jointfit::workflow::predict::Prediction,
+    pub check: PredictionShown<'a>,
 }
 
 pub fn run(args: CheckArgs) -> Result<()> {
@@ -76,21 +78,22 @@ pub fn run(args: CheckArgs) -> Result<()> {
         assumed_sigma_m: args.noise_mm.map(|v| Unit::Metre.from_display(v)),
         ..workflow::uncertainty_options(args.threshold_mm, args.threshold_deg, 0, 1)
     };
+    let prediction = jointfit::workflow::predict::predict(
+        &model,
+        &model.nominal_params(),
+        &[&trial],
+        &free,
+        &opts,
+    )?;
     let report = CheckReport {
         trial: args.trial.display().to_string(),
         read,
-        check: jointfit::workflow::predict::predict(
-            &model,
-            &model.nominal_params(),
-            &[&trial],
-            &free,
-            &opts,
-        )?,
+        check: PredictionShown::of(&prediction),
     };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        print_check(&report);
+        print_check(&report.trial, &prediction);
     }
     Ok(())
 }
@@ -114,12 +117,14 @@ fn load(args: &CheckArgs) -> Result<jointfit::model::Model> {
     Ok(jointfit::model::Model::compile(&spec)?)
 }
 
-fn print_check(report: &CheckReport) {
-    let r = &report.check;
+fn print_check(trial: &str, r: &Prediction) {
     println!(
         "{}: {} frames ({} skipped), RMS marker distance with the nominal model {:.2} mm \
          (every frame and marker, as calibrate, ik and report print it)",
-        report.trial, r.frames, r.skipped_frames, r.ik_rms_mm
+        trial,
+        r.frames,
+        r.skipped_frames,
+        mm(r.ik_rms)
     );
     println!("\nrange of motion (IK, nominal model)");
     let mut t = crate::table::Table::new(&["joint", "coordinate", "unit", "min", "max", "range"]);
@@ -137,7 +142,7 @@ fn print_check(report: &CheckReport) {
     let u = &r.prediction;
     println!(
         "\npredicted 95% intervals at the nominal parameters (σ = {:.2} mm {}; widest of white, HAC, jackknife)",
-        u.sigma_mm,
+        mm(u.sigma),
         if u.sigma_assumed {
             "as given"
         } else {
@@ -188,7 +193,7 @@ fn print_check(report: &CheckReport) {
         "\nthis trial is predicted to determine {} of {} parameters (thresholds {} mm, {} deg)",
         r.determined.len(),
         u.params.len(),
-        u.threshold_mm,
-        u.threshold_deg
+        mm(u.threshold_m),
+        u.threshold_rad.to_degrees()
     );
 }

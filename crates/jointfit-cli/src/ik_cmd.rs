@@ -160,7 +160,7 @@ pub fn run(args: IkArgs) -> Result<()> {
     summary.rms_mm =
         jointfit::workflow::marker_rms::marker_rms(model, &model.nominal_params(), &[trial])
             .ok()
-            .map(|r| r.rms_mm);
+            .map(|r| jointfit_app::present::mm(r.rms));
     summary.checks = findings.iter().map(CheckJson::from).collect();
     summary.trial = Some(trial_json);
     print_summary(&summary, args.json, seconds, output)

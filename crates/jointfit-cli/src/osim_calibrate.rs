@@ -4,9 +4,9 @@
 //! parameterized jointfit model at the fitted values.
 
 use anyhow::{Context, Result};
-use jointfit::workflow::redundant::HeldCalibration;
 use jointfit::workflow::redundant::Redundancy;
 use jointfit_app::osim::OsimFit;
+use jointfit_app::present::{CalibrationShown, HeldJointShown};
 use serde::Serialize;
 
 use crate::calibrate_cmd::{
@@ -18,7 +18,10 @@ use crate::calibrate_cmd::{
 #[derive(Serialize)]
 struct Report<'a> {
     #[serde(flatten)]
-    result: &'a HeldCalibration,
+    calibration: CalibrationShown<'a>,
+    held_redundant: &'a [Redundancy],
+    prior_conflict: &'a [jointfit::workflow::conflict::JointConflict],
+    held_joints: Vec<HeldJointShown<'a>>,
     /// Model markers the trials lack (left out of the fit).
     absent_markers: &'a [String],
     /// Coordinates the markers cannot determine, held at their defaults.
@@ -56,7 +59,15 @@ fn print_held(held: &[Redundancy]) {
 fn print(args: &CalibrateArgs, fit: &OsimFit, seconds: f64) -> Result<()> {
     if args.json {
         let report = Report {
-            result: &fit.result,
+            calibration: CalibrationShown::of(&fit.result.calibration),
+            held_redundant: &fit.result.held_redundant,
+            prior_conflict: &fit.result.prior_conflict,
+            held_joints: fit
+                .result
+                .held_joints
+                .iter()
+                .map(HeldJointShown::of)
+                .collect(),
             absent_markers: &fit.absent_markers,
             held_coordinates: &fit.held_coordinates,
             seconds,

@@ -102,11 +102,11 @@ pub fn print_refinement(
         return;
     }
     let mut by_shift: Vec<_> = markers.iter().collect();
-    by_shift.sort_by(|a, b| b.shift_mm.total_cmp(&a.shift_mm));
+    by_shift.sort_by(|a, b| b.shift.total_cmp(&a.shift));
     let list: Vec<String> = by_shift
         .iter()
         .take(6)
-        .map(|m| format!("{} {:.1} mm", m.name, m.shift_mm))
+        .map(|m| format!("{} {:.1} mm", m.name, jointfit_app::present::mm(m.shift)))
         .collect();
     println!(
         "refined {} marker positions; moved most: {}",

@@ -423,8 +423,8 @@ fn settings_json(
         "synthetic_only": args.synthetic_only,
         "fit": {
             "method": settings.method,
-            "restart_deg": settings.restart_deg,
-            "restart_mm": settings.restart_mm,
+            "restart_deg": settings.restart_rad.to_degrees(),
+            "restart_mm": jointfit_app::present::mm(settings.restart_m),
             "starts": settings.starts,
         },
         "seeds": args.seeds,

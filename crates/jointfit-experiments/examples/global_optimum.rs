@@ -148,21 +148,24 @@ fn trace(cal: &Calibration) {
     if let Some(g) = &cal.global {
         println!(
             "   probes {:?}\n   finished {:?} {:?}",
-            g.probe_objective_mm2
+            g.probe_objective
                 .iter()
-                .map(|c| c.round())
+                .map(|c| (c * 1e6).round())
                 .collect::<Vec<_>>(),
             g.finished,
-            g.finished_objective_mm2
+            g.finished_objective
+                .iter()
+                .map(|c| c * 1e6)
+                .collect::<Vec<_>>()
         );
     }
     if cal.global.is_none() {
         for r in &cal.start_runs {
-            let h = &r.convergence[0].objective_mm2;
-            let at = |i: usize| h.get(i).or(h.last()).copied().unwrap_or(f64::NAN);
+            let h = &r.convergence[0].objective;
+            let at = |i: usize| h.get(i).or(h.last()).map_or(f64::NAN, |c| c * 1e6);
             println!(
                 "   start {:>2}: it {:>3} final {:>10.1}  @2 {:>10.1} @4 {:>10.1} @6 {:>10.1} @10 {:>10.1}",
-                r.start, r.iterations, r.objective_mm2, at(2), at(4), at(6), at(10)
+                r.start, r.iterations, r.objective * 1e6, at(2), at(4), at(6), at(10)
             );
         }
     }

@@ -90,10 +90,9 @@ fn main() {
                 .expect("calibration");
             let ms = clock.elapsed().as_secs_f64() * 1e3;
             let swarm = cal.convergence[0]
-                .objective_mm2
+                .objective
                 .last()
-                .copied()
-                .unwrap_or(f64::NAN);
+                .map_or(f64::NAN, |c| c * 1e6);
             let mut at_bound = 0;
             let mut max_err: f64 = 0.0;
             for id in &free {

@@ -103,8 +103,8 @@ fn global_phase_is_deterministic_whatever_the_threads() {
         },
     );
     assert_ne!(
-        other.global.unwrap().probe_objective_mm2,
-        a.global.unwrap().probe_objective_mm2,
+        other.global.unwrap().probe_objective,
+        a.global.unwrap().probe_objective,
         "the seed draws the starts"
     );
 }
@@ -143,7 +143,7 @@ fn swarm_on_the_noiseless_ankle(groups: &str) -> usize {
     let cal = calibrate(&model, &start, &[&trial], &free, &settings, &mut NoObserver).unwrap();
     assert!(cal.converged);
     assert!(cal.cost_after <= at_truth + 1e-14, "{:e}", cal.cost_after);
-    assert!(cal.rms_after_mm < 1e-4, "{}", cal.rms_after_mm);
+    assert!(cal.rms_after < 1e-7, "{} m", cal.rms_after);
     for id in &free {
         let par = &model.parameters()[id.0];
         let v = cal.fit.p[id.0];
@@ -160,7 +160,7 @@ fn swarm_on_the_noiseless_ankle(groups: &str) -> usize {
         assert!((v - truth[id.0]).abs() < 1e-6, "{name}");
     }
     assert_eq!(cal.convergence[0].stage, "particle swarm");
-    cal.convergence[0].objective_mm2.len() - 1
+    cal.convergence[0].objective.len() - 1
 }
 
 #[test]
@@ -228,9 +228,9 @@ fn swarm_on_the_noisy_hip_stops_in_the_minimum_near_the_truth_whatever_the_threa
     assert_eq!(swarm.stage, "particle swarm");
     let limit = jointfit::calibrate::pso::PsoOptions::default().max_iterations;
     assert!(
-        swarm.objective_mm2.len() < limit / 2,
+        swarm.objective.len() < limit / 2,
         "swarm iterations {}",
-        swarm.objective_mm2.len()
+        swarm.objective.len()
     );
     let from_truth = calibrate(
         &model,

@@ -80,7 +80,7 @@ pub fn analyze_with_progress(
     let overall = |p: &[f64], own: &[Vec<f64>]| match model.n_p() {
         0 => rms(own.iter().flatten().copied()) * MM,
         _ => jointfit::workflow::marker_rms::marker_rms(model, p, &all)
-            .map_or(f64::NAN, |r| r.rms_mm),
+            .map_or(f64::NAN, |r| jointfit_app::present::mm(r.rms)),
     };
     input.overall_rms_mm = (
         baseline.map(|b| overall(b, &errors.baseline)),

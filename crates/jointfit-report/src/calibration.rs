@@ -6,6 +6,7 @@ use jointfit::model::Model;
 use jointfit::trial::Trial;
 use jointfit::workflow::calibration::Calibration;
 use jointfit::workflow::Method;
+use jointfit_app::present::CalibrationShown;
 
 use crate::analyze::{analyze_with_progress, parameter_rows};
 use crate::{Convergence, Interval, ReportError, ReportInput};
@@ -80,14 +81,15 @@ pub fn calibration_input(
         progress,
     )?;
     // The calibration's own marker RMS (the same definition, on the markers it used).
-    input.overall_rms_mm = (Some(cal.rms_before_mm), cal.rms_after_mm);
+    let shown = CalibrationShown::of(cal);
+    input.overall_rms_mm = (Some(shown.rms_before_mm), shown.rms_after_mm);
     let free: Vec<usize> = cal.free.iter().map(|id| id.0).collect();
     input.parameters = parameter_rows(model, &cal.fit.p, Some(&cal.start), Some(&free));
     // The 95 % intervals of the uncertainty analysis (mm/deg, as the report's table).
-    for p in &cal.parameters {
+    for p in &shown.parameters {
         if let (Some(se), Some([lower, upper])) = (p.se, p.ci95) {
             input.set_interval(
-                &p.name,
+                p.name,
                 Interval {
                     se,
                     lower,
@@ -104,7 +106,12 @@ pub fn calibration_input(
         stages: cal
             .convergence
             .iter()
-            .map(|c| (c.stage.clone(), c.objective_mm2.clone()))
+            .map(|c| {
+                (
+                    c.stage.clone(),
+                    jointfit_app::present::objectives_mm2(&c.objective),
+                )
+            })
             .collect(),
         iterations: cal.iterations,
         evaluations: cal.evaluations,

@@ -46,9 +46,9 @@ impl Trust {
             .map(|p| (p.group.clone(), p.name.clone(), p.source))
             .collect();
         Trust {
-            noise_mm: cal.prior_noise_mm,
+            noise_mm: cal.prior_noise.map(jointfit_app::present::mm),
             noise_estimated: cal.prior_noise_estimated,
-            summary: if cal.prior_noise_mm.is_some() {
+            summary: if cal.prior_noise.is_some() {
                 jointfit::calibrate::prior::information_summary(&rows)
             } else {
                 Vec::new()

@@ -121,7 +121,7 @@ pub fn fit_only(model: &Model, p: &[f64], trial: &Trial, source: &str, n: usize)
             c.total_iterations(),
             c.cost_after * 1e6,
             cal.marker_decisions.len(),
-            match cal.envelope.iter().any(|b| b.unbounded_fit_mm.is_some()) {
+            match cal.envelope.iter().any(|b| b.unbounded_fit.is_some()) {
                 true => "refit",
                 false => "inside",
             }

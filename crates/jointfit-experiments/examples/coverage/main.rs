@@ -352,8 +352,8 @@ impl Totals {
         let i = free[k].0;
         let f = model.parameters()[i].unit.display_scale();
         let threshold = match model.parameters()[i].unit {
-            Unit::Metre => u.threshold_mm,
-            Unit::Radian => u.threshold_deg,
+            Unit::Metre => u.threshold_m * 1e3,
+            Unit::Radian => u.threshold_rad.to_degrees(),
         };
         let err = p.value - truth[i] * f;
         let g = GROUPS.iter().position(|g| *g == p.group).expect("group");

@@ -85,8 +85,8 @@ impl Policy {
             self.lines.push(format!(
                 "  seed {seed}: {} (offset {:.1} mm, spread {:.1} mm)",
                 d.line(),
-                d.offset_mm,
-                d.spread_mm
+                d.offset * 1e3,
+                d.spread * 1e3
             ));
             let key = format!("{} {:?}", d.marker, d.action).to_lowercase();
             *self.names.entry(key).or_default() += 1;
@@ -98,12 +98,12 @@ impl Policy {
                 .any(|d| d.marker == m && d.action == MarkerAction::Refine)
                 as usize;
         }
-        let refit = envelope.iter().any(|b| b.unbounded_fit_mm.is_some());
+        let refit = envelope.iter().any(|b| b.unbounded_fit.is_some());
         self.envelope_refits += refit as usize;
         self.envelope_truth_inside += (refit
             && envelope
                 .iter()
-                .all(|b| truth_mm(&b.parameter) <= b.limit_mm))
+                .all(|b| truth_mm(&b.parameter) <= b.limit * 1e3))
             as usize;
         self.envelope_active += envelope.iter().any(|b| b.active) as usize;
     }

@@ -10,23 +10,26 @@ use crate::calibrate::uncertainty::types::SeMethod;
 use crate::calibrate::uncertainty::types::Uncertainty;
 use crate::calibrate::uncertainty::{analyze_reduced, unidentifiable_subset, Reduced};
 use crate::calibrate::{Fit, Problem};
+use crate::model::spec::Unit;
 use crate::model::spec::MM_PER_M;
 use crate::model::{Model, ParamId};
 use crate::trial::Trial;
 
-/// One free parameter of a calibration, in its shown unit (mm or deg).
+/// One free parameter of a calibration, in SI: metres or radians (`unit`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ParamRow {
     pub name: String,
     pub group: String,
-    /// `mm` or `deg` ([`Unit::display_suffix`]).
-    pub unit: &'static str,
+    /// The unit of every value of the row: [`Unit::Metre`] or [`Unit::Radian`].
+    pub unit: Unit,
     pub start: f64,
     pub fitted: f64,
+    /// `fitted − start`.
     pub change: f64,
-    /// Standard error (same unit), from `uncertainty_method`; `None`: not determined.
+    /// Standard error (same unit), from `uncertainty_method`; `None`: not determined. The
+    /// uncertainty record's value ([`Uncertainty::params`], in the shown unit) in SI.
     pub se: Option<f64>,
-    /// 95 % interval (same unit).
+    /// 95 % interval (same unit, from the uncertainty record likewise).
     pub ci95: Option<[f64; 2]>,
     /// `determined`, `poor` or `undetermined`.
     pub identifiability: Option<Identifiability>,
@@ -43,8 +46,8 @@ pub struct ParamRow {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ConvergenceStage {
     pub stage: String,
-    /// `e_inner` (mm²) at the start of the stage, then after each of its iterations.
-    pub objective_mm2: Vec<f64>,
+    /// `e_inner` (m²) at the start of the stage, then after each of its iterations.
+    pub objective: Vec<f64>,
 }
 
 /// One start of a (multi-start) fit.
@@ -52,8 +55,8 @@ pub struct ConvergenceStage {
 pub struct StartRun {
     /// 0 is the given start.
     pub start: usize,
-    /// Final objective (mm²).
-    pub objective_mm2: f64,
+    /// Final objective (m²).
+    pub objective: f64,
     pub iterations: usize,
     pub evaluations: usize,
     pub termination: Termination,
@@ -65,18 +68,18 @@ pub struct StartRun {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct MultiStart {
     pub starts: usize,
-    /// Final objective of every start (mm²); start 0 is the given start.
-    pub objective_mm2: Vec<f64>,
+    /// Final objective of every start (m²); start 0 is the given start.
+    pub objective: Vec<f64>,
     /// Starts whose objective is within 1e-9 (relative) of the best.
     pub reached_best: usize,
     /// Per free parameter: the range (max − min) of its fitted value over the starts
-    /// (mm or deg).
+    /// (m or rad).
     pub spread: Vec<(String, f64)>,
 }
 
-/// The result of [`calibrate`]. Lengths in mm, angles in degrees, objectives in mm² unless
-/// the name says otherwise; the serialized field names are those of `jointfit calibrate
-/// --json`.
+/// The result of [`calibrate`], in SI: lengths in metres, angles in radians, objectives
+/// (`e_inner`) in m². The front ends show them in mm, degrees and mm² (the uncertainty record
+/// [`Uncertainty::params`] alone carries its shown unit, named in each row).
 #[derive(Debug, Clone, Serialize)]
 pub struct Calibration {
     pub method: Method,
@@ -86,10 +89,12 @@ pub struct Calibration {
     pub skipped_frames: usize,
     pub free_parameters: usize,
     pub parameters: Vec<ParamRow>,
-    pub rms_before_mm: f64,
-    pub rms_after_mm: f64,
-    pub marker_rms_before_mm: Vec<(String, f64)>,
-    pub marker_rms_after_mm: Vec<(String, f64)>,
+    /// RMS marker distance over every present sample at the start and at the fit (m).
+    pub rms_before: f64,
+    pub rms_after: f64,
+    /// The same per model marker, in model order (m; NaN: never present).
+    pub marker_rms_before: Vec<(String, f64)>,
+    pub marker_rms_after: Vec<(String, f64)>,
     /// `e_inner` at the start and at the fit (m²).
     pub cost_before: f64,
     pub cost_after: f64,
@@ -118,8 +123,9 @@ pub struct Calibration {
     /// Set when the fit is not known to be the global optimum (the finished starts of the
     /// global phase, or the full starts, ended at different optima).
     pub global_warning: Option<String>,
-    /// Marker noise SD (mm) that weighed the prior; `None`: no prior (unregularized fit).
-    pub prior_noise_mm: Option<f64>,
+    /// Marker noise SD per axis (m) that weighed the prior; `None`: no prior
+    /// (unregularized fit).
+    pub prior_noise: Option<f64>,
     /// Whether that noise was estimated from the residuals (else given).
     pub prior_noise_estimated: bool,
     /// The free parameters whose prior weight was multiplied by a factor above 1, with the
@@ -150,8 +156,9 @@ impl Calibration {
     /// identifiability and method from it.
     pub(super) fn set_uncertainty(&mut self, u: Uncertainty) {
         for (row, pu) in self.parameters.iter_mut().zip(&u.params) {
-            row.se = pu.se;
-            row.ci95 = pu.ci;
+            let k = shown_to_si(row.unit);
+            row.se = pu.se.map(|v| v * k);
+            row.ci95 = pu.ci.map(|[lo, hi]| [lo * k, hi * k]);
             row.identifiability = Some(pu.status);
             row.uncertainty_method = Some(pu.method);
         }
@@ -182,9 +189,17 @@ impl FitSettings {
     }
 }
 
-/// e_inner (m²) in mm².
+/// e_inner (m²) in mm², for a message.
 pub(super) fn mm2(cost: f64) -> f64 {
     cost * MM_PER_M * MM_PER_M
+}
+
+/// The factor from a value in the shown unit of `unit` (mm, deg) to SI (m, rad).
+fn shown_to_si(unit: Unit) -> f64 {
+    match unit {
+        Unit::Metre => crate::model::spec::M_PER_MM,
+        Unit::Radian => std::f64::consts::PI / 180.0,
+    }
 }
 
 /// Per-model-marker RMS distance (m) for parameters `p` and per-frame coordinates.
@@ -208,17 +223,19 @@ fn per_marker_rms(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
 }
 
 /// Fits the free parameters `free` of `model` to `trials` from `start` (every start of
-/// `settings`), without the uncertainty analysis; the prior weighed by the given noise and
-/// per-parameter factors, or by estimated ones (`noise` `None`: [`super::map`]).
-fn fit_free(
-    model: &Model,
+/// `settings`), without the uncertainty analysis; the prior weighed by the given noise (m) and
+/// per-parameter factors, or by estimated ones (`noise` `None`: [`super::map`]). Returns the
+/// calibration and the problem it solved, its prior weighed by the σ and factors the fit
+/// ended with (what the analysis and the conflict step of this fit use).
+fn fit_free<'m>(
+    model: &'m Model,
     start: &[f64],
-    trials: &[&Trial],
+    trials: &[&'m Trial],
     free: &[ParamId],
     settings: &FitSettings,
     (noise, inflation): (Option<f64>, &[(String, f64)]),
     observer: &mut dyn Observer,
-) -> Result<Calibration, WorkflowError> {
+) -> Result<(Calibration, Problem<'m>), WorkflowError> {
     // With the global phase the σ estimate is finished there (`super::map`'s module docs).
     let global_phase = settings.effective_probes() > 0;
     let (mut prob, _, pre) =
@@ -259,23 +276,23 @@ fn fit_free(
             .markers()
             .iter()
             .zip(v)
-            .map(|(m, r)| (m.name.clone(), r * MM_PER_M))
+            .map(|(m, r)| (m.name.clone(), r))
             .collect()
     };
     let parameters = param_rows(model, &prob, start, &fit);
     let ((rms_before, rms_after), (per_marker_before, per_marker_after)) =
         rms_before_after(&prob, start, &q_before, &fit);
-    Ok(Calibration {
+    let cal = Calibration {
         method: settings.method,
         seed: settings.seed,
         frames: prob.frames.len(),
         skipped_frames: prob.skipped.len(),
         free_parameters: prob.n_free(),
         parameters,
-        rms_before_mm: rms_before * MM_PER_M,
-        rms_after_mm: rms_after * MM_PER_M,
-        marker_rms_before_mm: names(per_marker_before),
-        marker_rms_after_mm: names(per_marker_after),
+        rms_before,
+        rms_after,
+        marker_rms_before: names(per_marker_before),
+        marker_rms_after: names(per_marker_after),
         cost_before,
         cost_after: fit.cost,
         iterations: fit.iterations,
@@ -290,7 +307,7 @@ fn fit_free(
         multistart,
         global,
         global_warning,
-        prior_noise_mm: prob.prior.as_ref().map(|p| p.noise * MM_PER_M),
+        prior_noise: prob.prior.as_ref().map(|p| p.noise),
         prior_noise_estimated: noise.is_none(),
         prior_inflation: super::map::inflation_of(&prob),
         plausibility: crate::plausibility::assess(model, &fit.p),
@@ -298,10 +315,11 @@ fn fit_free(
         fit,
         start: start.to_vec(),
         free: free.to_vec(),
-    })
+    };
+    Ok((cal, prob))
 }
 
-/// The free parameters' rows of a fit from `start` (display units, no uncertainty yet).
+/// The free parameters' rows of a fit from `start` (SI, no uncertainty yet).
 /// The marker RMS before (`start`, coordinates `q_before`) and after the fit, overall and
 /// per marker: four passes of forward kinematics over the frames, two on each thread (each
 /// pass's sums in frame order, as alone).
@@ -333,21 +351,20 @@ fn param_rows(model: &Model, prob: &Problem, start: &[f64], fit: &Fit) -> Vec<Pa
         .iter()
         .map(|&i| {
             let par = &model.parameters()[i];
-            let k = par.unit.display_scale();
             let prior_sd = prob.prior.as_ref().and(par.prior_sd);
             ParamRow {
                 name: par.name.clone(),
                 group: par.group.clone(),
-                unit: par.unit.display_suffix(),
-                start: start[i] * k,
-                fitted: fit.p[i] * k,
-                change: (fit.p[i] - start[i]) * k,
+                unit: par.unit,
+                start: start[i],
+                fitted: fit.p[i],
+                change: fit.p[i] - start[i],
                 se: None,
                 ci95: None,
                 identifiability: None,
                 uncertainty_method: None,
-                prior_sd: prior_sd.map(|s| s * k),
-                prior_mean: prior_sd.map(|_| par.prior_mean * k),
+                prior_sd,
+                prior_mean: prior_sd.map(|_| par.prior_mean),
                 data_share: None,
                 source: None,
             }
@@ -369,26 +386,35 @@ pub fn calibrate(
     settings: &FitSettings,
     observer: &mut dyn Observer,
 ) -> Result<Calibration, WorkflowError> {
-    calibrate_keeping_system(model, start, trials, free, settings, observer).map(|(c, _)| c)
+    calibrate_keeping_system(model, start, trials, free, settings, observer).map(|k| k.calibration)
 }
 
-/// [`calibrate`], and the reduced system its uncertainty analysis was formed from
-/// ([`reduced_system`] at the fit, on the problem with the analysis' prior; `None` without
-/// `settings.uncertainty`): the prior–data conflict step ([`super::conflict`]) needs the
-/// same marker-term information, which costs as much as the rest of the analysis (opencap
-/// walking1: one reduced system is about 1.5 % of the command's instructions, and the step
-/// formed it twice more).
-pub(crate) fn calibrate_keeping_system(
-    model: &Model,
+/// A finished calibration with what later steps reuse: the problem of its final fit (its
+/// prior weighed by the fit's σ in metres and per-parameter factors) and the reduced system
+/// of its uncertainty analysis (`None` without the analysis).
+pub(crate) struct Kept<'m> {
+    pub(crate) calibration: Calibration,
+    pub(crate) system: Option<Reduced>,
+    pub(crate) problem: Problem<'m>,
+}
+
+/// [`calibrate`], with the problem of its final fit and the reduced system its uncertainty
+/// analysis was formed from ([`Kept`]; [`reduced_system`] at the fit, on that problem): the
+/// prior–data conflict step ([`super::conflict`]) needs the same problem and marker-term
+/// information, which costs as much as the rest of the analysis (opencap walking1: one
+/// reduced system is about 1.5 % of the command's instructions, and the step formed it twice
+/// more).
+pub(crate) fn calibrate_keeping_system<'m>(
+    model: &'m Model,
     start: &[f64],
-    trials: &[&Trial],
+    trials: &[&'m Trial],
     free: &[ParamId],
     settings: &FitSettings,
     observer: &mut dyn Observer,
-) -> Result<(Calibration, Option<Reduced>), WorkflowError> {
+) -> Result<Kept<'m>, WorkflowError> {
     let mut free = free.to_vec();
     let noise = settings.marker_noise;
-    let mut cal = fit_free(
+    let (mut cal, mut prob) = fit_free(
         model,
         start,
         trials,
@@ -397,19 +423,20 @@ pub(crate) fn calibrate_keeping_system(
         (noise, &[]),
         observer,
     )?;
-    // Refits and the analysis weigh the prior by the noise (and per-parameter factors) of the
-    // first fit.
-    let noise_used = cal.prior_noise_mm.map(|mm| mm / MM_PER_M);
+    // Refits and the analysis weigh the prior by the noise (m, and per-parameter factors) of
+    // the first fit.
+    let noise_used = cal.prior_noise;
     let inflation = cal.prior_inflation.clone();
     let estimated = cal.prior_noise_estimated;
     let Some(opts) = &settings.uncertainty else {
-        return Ok((cal, None));
+        return Ok(Kept {
+            calibration: cal,
+            system: None,
+            problem: prob,
+        });
     };
     let mut fixed = Vec::new();
     for _ in 0..if settings.fix_unidentifiable { 3 } else { 0 } {
-        let (mut prob, _) =
-            super::map::map_problem(model, start, trials, &free, settings, noise_used)?;
-        super::map::set_inflation(&mut prob, &inflation);
         let drop = unidentifiable_subset(&prob, &cal.fit, opts);
         if drop.is_empty() {
             break;
@@ -436,12 +463,12 @@ pub(crate) fn calibrate_keeping_system(
             .filter(|(k, _)| !drop.contains(k))
             .map(|(_, id)| *id)
             .collect();
+        // Fewer free parameters: a problem of their own (its free set, scaling and prior
+        // differ), weighed by the first fit's σ and factors.
         let weights = (noise_used, inflation.as_slice());
-        cal = fit_free(model, start, trials, &free, settings, weights, observer)?;
+        (cal, prob) = fit_free(model, start, trials, &free, settings, weights, observer)?;
         cal.prior_noise_estimated = estimated;
     }
-    let (mut prob, _) = super::map::map_problem(model, start, trials, &free, settings, noise_used)?;
-    super::map::set_inflation(&mut prob, &inflation);
     // A stage of its own: with the bootstrap it refits the model once per replicate (its
     // budget: the replicates).
     let (stage, budget) = match opts.bootstrap_replicates {
@@ -470,7 +497,11 @@ pub(crate) fn calibrate_keeping_system(
     }
     cal.set_uncertainty(u);
     cal.fixed_unidentifiable = fixed;
-    Ok((cal, Some(red)))
+    Ok(Kept {
+        calibration: cal,
+        system: Some(red),
+        problem: prob,
+    })
 }
 
 /// The name of the uncertainty analysis stage reported to the [`Observer`] by [`calibrate`]

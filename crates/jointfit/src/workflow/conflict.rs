@@ -44,8 +44,7 @@ use serde::Serialize;
 use super::{FitSettings, WorkflowError};
 use crate::calibrate::uncertainty::reduced::reduced_system;
 use crate::calibrate::uncertainty::{analyze_reduced, ln_gamma, Reduced};
-use crate::model::Model;
-use crate::trial::Trial;
+use crate::calibrate::Problem;
 
 /// Directions of a joint's whitened posterior shift with a smaller prior-predictive variance
 /// (in prior variances) are left out of its statistic.
@@ -256,29 +255,21 @@ pub(crate) fn chi2_upper_tail(x: f64, k: usize) -> f64 {
     }
 }
 
-/// The conflict of every joint of a maximum a posteriori calibration `cal` (of its free
-/// parameters on `trials` from `start`, with `settings`): rebuilds its problem with the prior
-/// weights of the fit (its σ and per-parameter factors), takes the marker term's reduced
+/// The conflict of every joint of a maximum a posteriori calibration `cal` on `prob`, the
+/// problem of its fit (its prior weighed by the fit's σ and per-parameter factors,
+/// [`super::calibration::Kept`]): takes the marker term's reduced
 /// normal matrix at the fitted point (from `system`, the reduced system of `cal`'s own uncertainty analysis,
 /// when the caller kept it; else formed here), and applies [`statistics`] per joint;
 /// `flagged` marks the joints the rule of the module docs widens. Empty without a prior.
 pub(crate) fn assess(
-    model: &Model,
-    start: &[f64],
-    trials: &[&Trial],
-    settings: &FitSettings,
+    prob: &Problem,
     cal: &super::Calibration,
     system: Option<&Reduced>,
 ) -> Result<Vec<JointConflict>, WorkflowError> {
-    let Some(noise) = cal
-        .prior_noise_mm
-        .map(|mm| mm / crate::model::spec::MM_PER_M)
-    else {
+    let model = prob.model;
+    if cal.prior_noise.is_none() {
         return Ok(Vec::new());
-    };
-    let (mut prob, _) =
-        super::map::map_problem(model, start, trials, &cal.free, settings, Some(noise))?;
-    super::map::set_inflation(&mut prob, &cal.prior_inflation);
+    }
     let Some(pr) = prob.prior.clone() else {
         return Ok(Vec::new());
     };
@@ -287,7 +278,7 @@ pub(crate) fn assess(
     let data_normal = match system {
         Some(red) => &red.data_normal,
         None => {
-            formed = reduced_system(&prob, &cal.fit.p, &cal.fit.coords);
+            formed = reduced_system(prob, &cal.fit.p, &cal.fit.coords);
             &formed.data_normal
         }
     };
@@ -349,36 +340,33 @@ pub(crate) fn assess(
         .collect())
 }
 
-/// Redoes the uncertainty analysis of `cal` (a calibration of `model`) with the truth's
+/// Redoes the uncertainty analysis of `cal` (its fit's problem `prob`) with the truth's
 /// spread about the prior mean that each flagged joint's `interval_scale` states: the
 /// prior's part of the interval variance of its parameters scaled by `interval_scale²`
 /// ([`crate::calibrate::prior::Prior::spread`]); the estimate and the data shares are
 /// unchanged. Nothing when no joint needs it or `cal` was not analysed.
 pub(crate) fn widen_intervals(
-    model: &Model,
-    start: &[f64],
-    trials: &[&Trial],
+    prob: &Problem,
     settings: &FitSettings,
     cal: &mut super::Calibration,
     conflicts: &[JointConflict],
     system: Option<Reduced>,
 ) -> Result<(), WorkflowError> {
+    let model = prob.model;
     let spread = |name: &str| {
         conflicts
             .iter()
             .find(|c| c.parameters.iter().any(|p| p == name))
             .map_or(1.0, |c| c.interval_scale.powi(2))
     };
-    let (Some(opts), Some(noise)) = (&settings.uncertainty, cal.prior_noise_mm) else {
+    let (Some(opts), Some(_)) = (&settings.uncertainty, cal.prior_noise) else {
         return Ok(());
     };
     if cal.uncertainty.is_none() || cal.parameters.iter().all(|r| spread(&r.name) <= 1.0) {
         return Ok(());
     }
-    let noise = noise / crate::model::spec::MM_PER_M;
-    let (mut prob, _) =
-        super::map::map_problem(model, start, trials, &cal.free, settings, Some(noise))?;
-    super::map::set_inflation(&mut prob, &cal.prior_inflation);
+    // The fit's problem with the prior's spread widened (its σ and factors unchanged).
+    let mut prob = prob.clone();
     let names: Vec<String> = prob
         .free
         .iter()
@@ -401,15 +389,13 @@ pub(crate) fn widen_intervals(
     Ok(())
 }
 
-/// The conflict step of a maximum a posteriori calibration `cal` (of `model` on `trials` from
-/// `start`) with nothing between the test and the intervals: [`assess`] every joint, then
+/// The conflict step of a maximum a posteriori calibration `cal` (its fit's problem `prob`)
+/// with nothing between the test and the intervals: [`assess`] every joint, then
 /// [`widen_intervals`] of the flagged ones. Empty, and `cal` unchanged, with
 /// `settings.prior_conflict` off or without a prior. (The jointfit-model calibration,
 /// [`super::calibrate_refined`], runs the two halves around its envelope refit.)
 pub(crate) fn assess_and_widen(
-    model: &Model,
-    start: &[f64],
-    trials: &[&Trial],
+    prob: &Problem,
     settings: &FitSettings,
     cal: &mut super::Calibration,
     system: Option<Reduced>,
@@ -417,7 +403,7 @@ pub(crate) fn assess_and_widen(
     if !settings.prior_conflict {
         return Ok(Vec::new());
     }
-    let conflicts = assess(model, start, trials, settings, cal, system.as_ref())?;
-    widen_intervals(model, start, trials, settings, cal, &conflicts, system)?;
+    let conflicts = assess(prob, cal, system.as_ref())?;
+    widen_intervals(prob, settings, cal, &conflicts, system)?;
     Ok(conflicts)
 }

@@ -243,11 +243,11 @@ fn landmark_hip_four_sds_off_is_flagged_and_a_prior_draw_is_not() {
     assert_eq!(kept.calibration.fit.p, fit.calibration.fit.p);
     let (mut covered, mut covered_stated) = (0, 0);
     for n in names {
-        let t = truth[model.param_id(n).unwrap().0] * 1e3;
+        let t = truth[model.param_id(n).unwrap().0];
         let inside = |cal: &Calibration| {
             let row = cal.parameters.iter().find(|r| r.name == n).unwrap();
             let [lo, hi] = row.ci95.unwrap();
-            eprintln!("{n}: truth {t:.1}, interval [{lo:.1}, {hi:.1}]");
+            eprintln!("{n}: truth {t:.4} m, interval [{lo:.4}, {hi:.4}] m");
             (lo <= t && t <= hi) as usize
         };
         covered += inside(&fit.calibration);

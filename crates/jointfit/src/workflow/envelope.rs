@@ -31,7 +31,6 @@
 use serde::Serialize;
 
 use crate::model::spec::ModelSpec;
-use crate::model::spec::MM_PER_M;
 use crate::model::Model;
 use crate::plausibility::{half_pelvis_width, HIP_LATERAL_FRACTION};
 
@@ -53,15 +52,15 @@ pub struct EnvelopeBound {
     pub parameter: String,
     /// What the bound keeps: "hip centre medial to the ASIS".
     pub what: &'static str,
-    /// The bound (mm): `0.9 × PW/2 − margin`.
-    pub limit_mm: f64,
-    /// The model's own upper bound it replaced (mm).
-    pub model_upper_mm: f64,
+    /// The bound (m): `0.9 × PW/2 − margin`.
+    pub limit: f64,
+    /// The model's own upper bound it replaced (m).
+    pub model_upper: f64,
     /// Whether the fitted value sits on the bound (set after the fit, [`mark_active`]).
     pub active: bool,
-    /// Where the fit without the bound ended (mm) when it ended outside the envelope and the
+    /// Where the fit without the bound ended (m) when it ended outside the envelope and the
     /// fit was redone with the bound; `None` when it ended inside (the bound was not needed).
-    pub unbounded_fit_mm: Option<f64>,
+    pub unbounded_fit: Option<f64>,
 }
 
 /// Text of an active bound, as the outputs print it.
@@ -89,10 +88,10 @@ pub(crate) fn bounded_spec(
         bounds.push(EnvelopeBound {
             parameter: name.to_string(),
             what: "hip centre medial to the ASIS",
-            limit_mm: limit * MM_PER_M,
-            model_upper_mm: par.upper * MM_PER_M,
+            limit,
+            model_upper: par.upper,
             active: false,
-            unbounded_fit_mm: None,
+            unbounded_fit: None,
         });
         spec.parameters[id.0].upper = limit;
     }
@@ -104,7 +103,7 @@ pub(crate) fn bounded_spec(
 pub(crate) fn mark_active(bounds: &mut [EnvelopeBound], model: &Model, p: &[f64]) {
     for b in bounds {
         if let Some(id) = model.param_id(&b.parameter) {
-            b.active = p[id.0] * MM_PER_M >= b.limit_mm - 1e-3;
+            b.active = p[id.0] >= b.limit - 1e-6;
         }
     }
 }
@@ -124,7 +123,7 @@ mod tests {
         let m = Model::compile(&spec).unwrap();
         let (bounded, b) = bounded_spec(&m, &m.nominal_params()).unwrap();
         assert_eq!(b.len(), 1);
-        assert!((b[0].limit_mm - 107.0).abs() < 1e-9, "{b:?}");
+        assert!((b[0].limit - 0.107).abs() < 1e-12, "{b:?}");
         let i = m.param_id("hip_pelvis_lateral").unwrap().0;
         assert!((bounded.parameters[i].upper - 0.107).abs() < 1e-12);
         // Nothing else changed.

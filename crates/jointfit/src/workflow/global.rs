@@ -34,7 +34,7 @@
 //!
 //! Starts are drawn from the prior where the problem has one (`N(μ_k, s_k²)` truncated at
 //! ±2 `s_k`: where the anatomy says the joint is), else moved from the given start by up to
-//! `restart_mm` / `restart_deg` ([`super::restart_point`]); always clamped into the bounds.
+//! `restart_m` / `restart_rad` ([`super::restart_point`]); always clamped into the bounds.
 //! After a few iterations the basins are told apart: in the study above the starts that
 //! ended in the best optimum were within 0.5 % of it after six iterations, those in worse
 //! optima 5–30 % above it.
@@ -44,7 +44,7 @@
 
 use rayon::prelude::*;
 
-use super::calibration::{mm2, ConvergenceStage, StartRun};
+use super::calibration::{ConvergenceStage, StartRun};
 use super::map::{Preliminary, SIGMA_POINT_RESOLUTION_SE};
 use super::probes::{approach_stride, probe_stride, subsample};
 pub(crate) use super::probes::{probe_starts, ProbeStarts};
@@ -155,7 +155,7 @@ pub(crate) fn run(
     }
     observer.progress(n, n + 1);
     let (best, second) = rank(&probes);
-    let probe_objective_mm2 = probes.iter().map(|p| mm2(p.0.cost)).collect();
+    let probe_objective = probes.iter().map(|p| p.0.cost).collect();
     // (The σ estimate computed the objective before the fit at the same start on the same
     // frames; the prior term is added once σ is final.)
     let estimate = pre.as_ref().is_some_and(|p| p.pending) && prob.prior.is_some();
@@ -184,13 +184,7 @@ pub(crate) fn run(
     }
     observer.progress(n + 1, n + 1);
     let (fits, runs) = records(probed, sigma_stage.as_ref(), &order, &continued);
-    let summary = summarize(
-        &fits,
-        order,
-        probe_objective_mm2,
-        &short,
-        coarse.frames.len(),
-    );
+    let summary = summarize(&fits, order, probe_objective, &short, coarse.frames.len());
     Outcome {
         fits,
         runs,
@@ -477,11 +471,11 @@ fn report_sigma(observer: &mut dyn Observer, st: &SigmaStage, first: usize, shor
     }
 }
 
-/// One stage of a start's record, its objectives in mm².
+/// One stage of a start's record, its objectives in m².
 fn stage(name: String, history: &[f64]) -> ConvergenceStage {
     ConvergenceStage {
         stage: name,
-        objective_mm2: history.iter().map(|&c| mm2(c)).collect(),
+        objective: history.to_vec(),
     }
 }
 
@@ -530,7 +524,7 @@ fn records(
         }
         runs.push(StartRun {
             start: k,
-            objective_mm2: mm2(fit.cost),
+            objective: fit.cost,
             iterations: fit.iterations,
             evaluations: fit.evaluations,
             termination: fit.termination,
@@ -573,25 +567,25 @@ fn sigma_stages(
 fn summarize(
     fits: &[Fit],
     order: Vec<usize>,
-    probe_objective_mm2: Vec<f64>,
+    probe_objective: Vec<f64>,
     short: &JointOptions,
     probe_frames: usize,
 ) -> GlobalSearch {
-    let finished_objective_mm2: Vec<f64> = order.iter().map(|&k| mm2(fits[k].cost)).collect();
-    let best = finished_objective_mm2
+    let finished_objective: Vec<f64> = order.iter().map(|&k| fits[k].cost).collect();
+    let best = finished_objective
         .iter()
         .copied()
         .fold(f64::INFINITY, f64::min);
-    let agree = finished_objective_mm2
+    let agree = finished_objective
         .iter()
         .all(|&c| c - best <= SAME_OPTIMUM * best.abs());
     GlobalSearch {
         starts: fits.len(),
         probe_iterations: short.max_iterations,
         probe_frames,
-        probe_objective_mm2,
+        probe_objective,
         finished: order,
-        finished_objective_mm2,
+        finished_objective,
         agree,
     }
 }

@@ -97,8 +97,8 @@ fn sigma_stage_on_intermediate_frames_reaches_the_preliminary_fits_estimate() {
         global.convergence
     );
     let (s1, s0) = (
-        global.prior_noise_mm.unwrap(),
-        preliminary.prior_noise_mm.unwrap(),
+        global.prior_noise.unwrap(),
+        preliminary.prior_noise.unwrap(),
     );
     assert!(global.prior_noise_estimated);
     assert!((s1 / s0 - 1.0).abs() < 3e-3, "σ {s1} vs {s0} mm");

@@ -68,25 +68,12 @@ pub(crate) struct Preliminary {
 
 /// The problem of `free` on `trials` from `start`, with the model's priors when
 /// `settings.priors` is set and the model has any, weighed by `noise` (m) when given, else by
-/// the σ estimated as the module docs say. Returns the problem and the σ used (`None`: no
-/// prior, the paper's unregularized fit).
-pub(crate) fn map_problem<'m>(
-    model: &'m Model,
-    start: &[f64],
-    trials: &[&'m Trial],
-    free: &[ParamId],
-    settings: &FitSettings,
-    noise: Option<f64>,
-) -> Result<(Problem<'m>, Option<f64>), WorkflowError> {
-    let (prob, sigma, _) = map_problem_with(model, start, trials, free, settings, noise, false)?;
-    Ok((prob, sigma))
-}
-
-/// [`map_problem`], with what the σ estimate computed ([`Preliminary`]; `None` when σ was
-/// given or there is no prior). With `defer` the preliminary fit is not run: the problem's
-/// prior is weighed by the starting σ₀ and the caller finishes the estimate with
-/// [`estimate_noise`] at the σ₀-optimum it reaches anyway (the global phase, module docs);
-/// the σ returned is then σ₀.
+/// the σ estimated as the module docs say. Returns the problem, the σ used (`None`: no
+/// prior, the paper's unregularized fit) and what the σ estimate computed ([`Preliminary`];
+/// `None` when σ was given or there is no prior). With `defer` the preliminary fit is not
+/// run: the problem's prior is weighed by the starting σ₀ and the caller finishes the
+/// estimate with [`estimate_noise`] at the σ₀-optimum it reaches anyway (the global phase,
+/// module docs); the σ returned is then σ₀.
 pub(crate) fn map_problem_with<'m>(
     model: &'m Model,
     start: &[f64],

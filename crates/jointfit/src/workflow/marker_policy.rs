@@ -78,12 +78,12 @@ pub struct MarkerDecision {
     /// The trial (index into the calibration's trials) the statistic came from; for
     /// [`MarkerAction::Exclude`] the trial the marker leaves.
     pub trial: usize,
-    /// Prior SD of the refined position (mm per axis), for [`MarkerAction::Refine`].
-    pub prior_sd_mm: Option<f64>,
-    /// `‖μ_j‖` and `σ_j` (mm), frames that entered, and the share of them in which the
+    /// Prior SD of the refined position (m per axis), for [`MarkerAction::Refine`].
+    pub prior_sd: Option<f64>,
+    /// `‖μ_j‖` and `σ_j` (m), frames that entered, and the share of them in which the
     /// robust IK rejected the marker.
-    pub offset_mm: f64,
-    pub spread_mm: f64,
+    pub offset: f64,
+    pub spread: f64,
     pub frames: usize,
     pub rejected_share: f64,
     /// Why, in words.
@@ -95,8 +95,10 @@ impl MarkerDecision {
     /// (prior SD 15 mm): sits 59 mm from its static-trial place in every frame (spread 11 mm
     /// over 135 frames)`.
     pub fn line(&self) -> String {
-        let what = match (self.action, self.prior_sd_mm) {
-            (MarkerAction::Refine, Some(sd)) => format!("position refined (prior SD {sd:.0} mm)"),
+        let what = match (self.action, self.prior_sd) {
+            (MarkerAction::Refine, Some(sd)) => {
+                format!("position refined (prior SD {:.0} mm)", sd * MM_PER_M)
+            }
             (MarkerAction::Refine, None) => "position refined".to_string(),
             (MarkerAction::Exclude, _) => format!("left out of trial {}", self.trial + 1),
         };
@@ -124,7 +126,7 @@ impl Decisions {
     /// A refinement; a marker refined for several trials keeps the largest prior SD.
     fn refine(&mut self, d: MarkerDecision) {
         match self.refine.iter_mut().find(|r| r.marker == d.marker) {
-            Some(r) if r.prior_sd_mm < d.prior_sd_mm => *r = d,
+            Some(r) if r.prior_sd < d.prior_sd => *r = d,
             Some(_) => {}
             None => self.refine.push(d),
         }
@@ -226,20 +228,20 @@ fn segment_decisions(
     let largest = moved.iter().map(|o| o.size()).fold(0.0, f64::max);
     for o in &here {
         let share = rejected(o.marker) as f64 / o.frames.max(1) as f64;
-        let decision = |action, prior_sd_mm, reason| MarkerDecision {
+        let decision = |action, prior_sd, reason| MarkerDecision {
             marker: name(o),
             segment: segment(o),
             action,
             trial: t,
-            prior_sd_mm,
-            offset_mm: o.size() * MM_PER_M,
-            spread_mm: o.spread * MM_PER_M,
+            prior_sd,
+            offset: o.size(),
+            spread: o.spread,
             frames: o.frames,
             rejected_share: share,
             reason,
         };
         if let Some((sd, reason)) = refinement(o, &segment(o), t, cluster, checkable, largest) {
-            dec.refine(decision(MarkerAction::Refine, Some(sd * MM_PER_M), reason));
+            dec.refine(decision(MarkerAction::Refine, Some(sd), reason));
         } else if !o.displaced() && o.frames >= MIN_FRAMES && share >= BROKEN_SHARE {
             let reason = format!(
                 "rejected as a gross error in {:.0} % of {} frames of trial {} without a \
@@ -322,9 +324,9 @@ fn rigid_decisions(
             segment: model.segments()[m.segment.0].name.clone(),
             action: MarkerAction::Refine,
             trial: t,
-            prior_sd_mm: Some(prior_sd_for(o.size()) * MM_PER_M),
-            offset_mm: o.size() * MM_PER_M,
-            spread_mm: o.spread * MM_PER_M,
+            prior_sd: Some(prior_sd_for(o.size())),
+            offset: o.size(),
+            spread: o.spread,
             frames: o.frames,
             rejected_share: share,
             reason: format!(
@@ -346,13 +348,14 @@ fn rigid_decisions(
 /// verdict judges the refinement.
 fn cap_refinements(model: &Model, trials: &[&Trial], dec: &mut Decisions) {
     let cap = super::verdict::REFINE_CAP_MM;
+    let cap_m = cap / MM_PER_M;
     let mut left: Vec<(usize, String)> = dec
         .exclude
         .iter()
         .map(|d| (d.trial, d.marker.clone()))
         .collect();
     let mut capped = Vec::new();
-    for d in dec.refine.iter().filter(|d| d.offset_mm > cap) {
+    for d in dec.refine.iter().filter(|d| d.offset > cap_m) {
         let kept = model
             .markers()
             .iter()
@@ -367,7 +370,7 @@ fn cap_refinements(model: &Model, trials: &[&Trial], dec: &mut Decisions) {
     }
     for mut d in dec.refine.extract_if(.., |d| capped.contains(&d.marker)) {
         d.action = MarkerAction::Exclude;
-        d.prior_sd_mm = None;
+        d.prior_sd = None;
         d.reason = format!(
             "{}; more than the {cap:.0} mm a re-attached marker moves, so its label may name \
              another marker: not refined",
@@ -408,9 +411,7 @@ pub(crate) fn refined(decisions: &[MarkerDecision]) -> Vec<(&str, f64)> {
         .iter()
         .filter(|d| d.action == MarkerAction::Refine)
         .map(|d| {
-            let sd = d
-                .prior_sd_mm
-                .map_or(DEFAULT_MARKER_PRIOR_SD, |mm| mm / MM_PER_M);
+            let sd = d.prior_sd.unwrap_or(DEFAULT_MARKER_PRIOR_SD);
             (d.marker.as_str(), sd)
         })
         .collect()

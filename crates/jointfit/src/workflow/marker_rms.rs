@@ -17,15 +17,14 @@
 
 use super::WorkflowError;
 use crate::calibrate::Problem;
-use crate::model::spec::MM_PER_M;
 use crate::model::{Model, ParamId};
 use crate::trial::Trial;
 
 /// [`marker_rms`]'s result.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MarkerRms {
-    /// The RMS (mm; NaN when no marker sample is present).
-    pub rms_mm: f64,
+    /// The RMS (m; NaN when no marker sample is present).
+    pub rms: f64,
     /// Frames it is taken over, and frames skipped as undetermined.
     pub frames: usize,
     pub skipped_frames: usize,
@@ -43,16 +42,16 @@ pub fn marker_rms(model: &Model, p: &[f64], trials: &[&Trial]) -> Result<MarkerR
     let prob = Problem::new(model, p.to_vec(), &[ParamId(0)], trials)?;
     let mut qs = prob.initial_coords(p);
     Ok(MarkerRms {
-        rms_mm: start_rms(&prob, p, &mut qs),
+        rms: start_rms(&prob, p, &mut qs),
         frames: prob.frames.len(),
         skipped_frames: prob.skipped.len(),
     })
 }
 
-/// The marker RMS (mm) of `prob`'s frames at `p`, from their seeded coordinates `qs`
+/// The marker RMS (m) of `prob`'s frames at `p`, from their seeded coordinates `qs`
 /// ([`Problem::initial_coords`]), which one more inner pass polishes in place: the
 /// coordinates a calibration starts from.
 pub(crate) fn start_rms(prob: &Problem, p: &[f64], qs: &mut [Vec<f64>]) -> f64 {
     prob.inner(p, qs, &mut crate::ik::lm::IkWorkspace::new(prob.model));
-    prob.marker_rms(p, qs) * MM_PER_M
+    prob.marker_rms(p, qs)
 }

@@ -13,7 +13,7 @@
 //! doi:10.1016/j.jbiomech.2004.03.031) minimises `e_inner(p) = Σ_i min_{q_i} Σ_j w_ij
 //! ‖m_ij − x_j(p, q_i)‖²` over the free parameters `p` with one of three outer methods
 //! ([`Method`]); with `starts > 1` it is repeated from seeded starts moved by up to
-//! `restart_mm` / `restart_deg` ([`restart_point`]) and the lowest objective wins; an
+//! `restart_m` / `restart_rad` ([`restart_point`]) and the lowest objective wins; an
 //! uncertainty analysis ([`crate::calibrate::uncertainty`]) may follow, and with
 //! `fix_unidentifiable` the parameters the trials cannot determine are held at their start
 //! and the rest refitted.
@@ -135,11 +135,11 @@ pub struct FitSettings {
     /// uncertainty options do not set their own) the bootstrap.
     pub seed: u64,
     /// Number of starts (≥ 1). Start 0 is the given start; start `k` moves every free
-    /// parameter by up to `restart_mm` / `restart_deg` ([`restart_point`]). The particle
-    /// swarm, global by itself, always uses one.
+    /// parameter by up to `restart_m` metres / `restart_rad` radians ([`restart_point`]).
+    /// The particle swarm, global by itself, always uses one.
     pub starts: usize,
-    pub restart_mm: f64,
-    pub restart_deg: f64,
+    pub restart_m: f64,
+    pub restart_rad: f64,
     /// Extra starts of the global phase of a single-start joint fit ([`global`]): each runs
     /// `probe_iterations` iterations, the most promising are finished. 0: one local fit from
     /// the given start (the paper's protocol).
@@ -153,7 +153,7 @@ pub struct FitSettings {
     /// `uncertainty`) held at their starting values; needs `uncertainty`.
     pub fix_unidentifiable: bool,
     /// Use the parameter priors of the model file (`prior_sd`/`prior_mean`, written by
-    /// `personalize`): a maximum a posteriori fit ([`map::map_problem`]). `false`, or a model
+    /// `personalize`): a maximum a posteriori fit ([`map::map_problem_with`]). `false`, or a model
     /// without priors: the paper's unregularized least squares.
     pub priors: bool,
     /// Marker noise σ (m) that weighs the priors against the markers; `None`: estimated from
@@ -192,8 +192,8 @@ impl Default for FitSettings {
             method: Method::Joint,
             seed: 1,
             starts: 1,
-            restart_mm: 20.0,
-            restart_deg: 10.0,
+            restart_m: 20.0 * crate::model::spec::M_PER_MM,
+            restart_rad: 10f64.to_radians(),
             probes: 5,
             probe_iterations: 6,
             probe_frames: 25,

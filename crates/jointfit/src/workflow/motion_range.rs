@@ -36,11 +36,11 @@ pub(crate) const MOVED_RANGE_DEG: f64 = 30.0;
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct HeldJoint {
     pub joint: String,
-    /// Its range of motion in the trials (deg, largest 5–95 % range of its rotations).
-    pub range_deg: f64,
-    /// The same joint of the other leg, and its range (deg).
+    /// Its range of motion in the trials (rad, largest 5–95 % range of its rotations).
+    pub range: f64,
+    /// The same joint of the other leg, and its range (rad).
     pub other_joint: String,
-    pub other_range_deg: f64,
+    pub other_range: f64,
     /// The free parameters held with it.
     pub parameters: Vec<String>,
 }
@@ -56,7 +56,7 @@ fn central_range(mut v: Vec<f64>) -> f64 {
     at(0.95) - at(0.05)
 }
 
-/// Each moving joint's range of motion over the frames `qs` (deg): the largest 5–95 % range
+/// Each moving joint's range of motion over the frames `qs` (rad): the largest 5–95 % range
 /// of its rotational coordinates; joints without a rotational coordinate and the root joint
 /// are left out.
 pub(crate) fn joint_ranges(model: &Model, qs: &[Vec<f64>]) -> Vec<(String, f64)> {
@@ -66,7 +66,7 @@ pub(crate) fn joint_ranges(model: &Model, qs: &[Vec<f64>]) -> Vec<(String, f64)>
         if joint.parent.is_none() || coord.kind != CoordKind::Rotational {
             continue;
         }
-        let range = central_range(qs.iter().map(|q| q[c]).collect()).to_degrees();
+        let range = central_range(qs.iter().map(|q| q[c]).collect());
         match out.iter_mut().find(|(n, _)| *n == joint.name) {
             Some(entry) => entry.1 = entry.1.max(range),
             None => out.push((joint.name.clone(), range)),
@@ -88,15 +88,15 @@ fn other_side(joint: &str) -> Option<String> {
 pub(crate) fn still_joints(ranges: &[(String, f64)]) -> Vec<HeldJoint> {
     ranges
         .iter()
-        .filter(|(_, range)| *range < STILL_RANGE_DEG)
+        .filter(|(_, range)| *range < STILL_RANGE_DEG.to_radians())
         .filter_map(|(joint, range)| {
             let other = other_side(joint)?;
             let (_, other_range) = ranges.iter().find(|(n, _)| *n == other)?;
-            (*other_range >= MOVED_RANGE_DEG).then(|| HeldJoint {
+            (*other_range >= MOVED_RANGE_DEG.to_radians()).then(|| HeldJoint {
                 joint: joint.clone(),
-                range_deg: *range,
+                range: *range,
                 other_joint: other,
-                other_range_deg: *other_range,
+                other_range: *other_range,
                 parameters: Vec::new(),
             })
         })
@@ -159,8 +159,8 @@ pub(crate) fn held_line(held: &[HeldJoint]) -> String {
         "held {} at the start values: the trial moved {} (5–95 % range), below {STILL_RANGE_DEG:.0}°, \
          while the other leg's moved {} (at least {MOVED_RANGE_DEG:.0}°)",
         list(&|h| h.joint.clone()),
-        list(&|h| format!("{} {:.1}°", h.joint, h.range_deg)),
-        list(&|h| format!("{} {:.1}°", h.other_joint, h.other_range_deg)),
+        list(&|h| format!("{} {:.1}°", h.joint, h.range.to_degrees())),
+        list(&|h| format!("{} {:.1}°", h.other_joint, h.other_range.to_degrees())),
     )
 }
 
@@ -183,8 +183,11 @@ mod tests {
 
     #[test]
     fn a_still_joint_is_held_only_when_the_other_leg_moves_it() {
+        // Ranges given in degrees, passed in radians.
         let r = |v: &[(&str, f64)]| -> Vec<(String, f64)> {
-            v.iter().map(|(n, x)| (n.to_string(), *x)).collect()
+            v.iter()
+                .map(|(n, x)| (n.to_string(), x.to_radians()))
+                .collect()
         };
         // One-sided knee trial: the left knee is held, the left ankle (other side 19°) not.
         let held = still_joints(&r(&[

@@ -79,11 +79,13 @@ fn the_standing_legs_joints_are_found_with_their_ranges() {
         // Noise-free markers: inverse kinematics returns the true angles; 200 samples of two
         // periods put the quantiles within 0.1° of the continuous ones.
         assert!(
-            (h.range_deg - want(h)).abs() < 0.1,
+            (h.range.to_degrees() - want(h)).abs() < 0.1,
             "{h:?} against {}",
             want(h)
         );
-        assert!(h.range_deg < STILL_RANGE_DEG && h.other_range_deg >= MOVED_RANGE_DEG);
+        assert!(
+            h.range < STILL_RANGE_DEG.to_radians() && h.other_range >= MOVED_RANGE_DEG.to_radians()
+        );
         assert!(!h.parameters.is_empty());
     }
     // Every left-leg parameter is held, every right-leg one kept.
@@ -134,10 +136,10 @@ fn the_calibration_holds_them_and_fits_the_moving_leg() {
     }
     // The moving knee is fitted: the start's misfit is gone (noise-free markers).
     assert!(
-        cal.rms_before_mm > 1.0 && cal.rms_after_mm < 0.05,
-        "{} -> {}",
-        cal.rms_before_mm,
-        cal.rms_after_mm
+        cal.rms_before > 1e-3 && cal.rms_after < 5e-5,
+        "{} -> {} m",
+        cal.rms_before,
+        cal.rms_after
     );
     // One line of the verdict names the joint, its range and the threshold.
     let line = cal

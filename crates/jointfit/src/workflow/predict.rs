@@ -22,9 +22,9 @@ use crate::trial::Trial;
 pub struct Prediction {
     pub frames: usize,
     pub skipped_frames: usize,
-    /// The marker RMS at the given parameters (mm, [`super::marker_rms`]): `calibrate`'s RMS
+    /// The marker RMS at the given parameters (m, [`super::marker_rms`]): `calibrate`'s RMS
     /// before the fit, and the one `ik` and `report` print.
-    pub ik_rms_mm: f64,
+    pub ik_rms: f64,
     /// Range of motion per coordinate (deg or mm) from that IK.
     pub ranges: Vec<CoordRange>,
     /// Predicted uncertainty of the free parameters at the given values.
@@ -46,7 +46,7 @@ pub fn predict(
 ) -> Result<Prediction, WorkflowError> {
     let prob = Problem::new(model, p.to_vec(), free, trials)?;
     let mut qs = prob.initial_coords(p);
-    let ik_rms_mm = super::marker_rms::start_rms(&prob, p, &mut qs);
+    let ik_rms = super::marker_rms::start_rms(&prob, p, &mut qs);
     let prediction = crate::calibrate::uncertainty::predict(&prob, p, &qs, opts);
     let (determined, not_determined): (Vec<_>, Vec<_>) = prediction
         .params
@@ -55,7 +55,7 @@ pub fn predict(
     Ok(Prediction {
         frames: prob.frames.len(),
         skipped_frames: prob.skipped.len(),
-        ik_rms_mm,
+        ik_rms,
         ranges: prediction.ranges.clone(),
         determined: determined.iter().map(|q| q.name.clone()).collect(),
         not_determined: not_determined.iter().map(|q| q.name.clone()).collect(),

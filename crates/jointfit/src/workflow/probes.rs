@@ -25,8 +25,8 @@ pub(crate) fn probe_point(
         model,
         start,
         &prob.free,
-        settings.restart_mm,
-        settings.restart_deg,
+        settings.restart_m,
+        settings.restart_rad,
         settings.seed,
         k,
     );

@@ -176,17 +176,15 @@ pub fn calibrate_holding_redundant(
     let mismatches = super::verdict::check_inputs(model, trials, settings.refuse_mismatch)?;
     let (free, held_joints) = super::motion_range::hold_still_joints(model, start, trials, free)?;
     let (kept, held_redundant) = redundant_parameters(model, start, trials, &free)?;
-    let (mut calibration, system) = super::calibration::calibrate_keeping_system(
+    let super::calibration::Kept {
+        mut calibration,
+        system,
+        problem,
+    } = super::calibration::calibrate_keeping_system(
         model, start, trials, &kept, settings, observer,
     )?;
-    let prior_conflict = super::conflict::assess_and_widen(
-        model,
-        start,
-        trials,
-        settings,
-        &mut calibration,
-        system,
-    )?;
+    let prior_conflict =
+        super::conflict::assess_and_widen(&problem, settings, &mut calibration, system)?;
     let evidence = super::verdict::Evidence {
         mismatches: &mismatches,
         conflict: &prior_conflict,

@@ -11,7 +11,7 @@
 
 use serde::Serialize;
 
-use super::calibration::calibrate_keeping_system;
+use super::calibration::{calibrate_keeping_system, Kept};
 use super::envelope::{EnvelopeBound, HELD_AT_LIMIT};
 use super::marker_policy::{decide, refined, without_excluded, MarkerDecision};
 use super::{Calibration, FitSettings, Observer, WorkflowError};
@@ -21,7 +21,6 @@ use crate::model::refine::{
     MARKER_GROUP,
 };
 use crate::model::spec::ModelSpec;
-use crate::model::spec::MM_PER_M;
 use crate::model::{Model, ParamId};
 use crate::trial::Trial;
 
@@ -30,11 +29,11 @@ use crate::trial::Trial;
 pub struct RefinedMarker {
     pub name: String,
     pub segment: String,
-    /// Static-trial position and fitted position in the segment frame (mm).
-    pub start_mm: [f64; 3],
-    pub fitted_mm: [f64; 3],
-    /// Distance between the two (mm).
-    pub shift_mm: f64,
+    /// Static-trial position and fitted position in the segment frame (m).
+    pub start: [f64; 3],
+    pub fitted: [f64; 3],
+    /// Distance between the two (m).
+    pub shift: f64,
 }
 
 /// A marker offset and a joint parameter whose estimates are correlated (|r| ≥ 0.5): the
@@ -116,46 +115,41 @@ pub fn calibrate_refined(
     aug_start[..start.len()].copy_from_slice(start);
     let mut aug_free = free.to_vec();
     aug_free.extend(aug.params_in_group(MARKER_GROUP));
-    let (mut calibration, mut system) =
-        calibrate_keeping_system(&aug, &aug_start, &used, &aug_free, settings, observer)?;
+    let first = calibrate_keeping_system(&aug, &aug_start, &used, &aug_free, settings, observer)?;
     // A joint whose prior the trial contradicts (`super::conflict`): tested on the fit
-    // before any envelope bound, its intervals widened on the final fit below.
+    // before any envelope bound (on its problem), its intervals widened on the final fit below.
     let mut conflict = Vec::new();
     if map_fit && settings.prior_conflict {
-        conflict = super::conflict::assess(
-            &aug,
-            &aug_start,
-            &used,
-            settings,
-            &calibration,
-            system.as_ref(),
-        )?;
+        conflict =
+            super::conflict::assess(&first.problem, &first.calibration, first.system.as_ref())?;
     }
     let mut envelope = Vec::new();
-    if map_fit && settings.anatomical_envelope {
-        let fit = Fitted {
-            model: aug,
-            calibration,
-            system,
-        };
-        let sub = Subproblem {
-            start: &aug_start,
-            trials: &used,
-            free: &aug_free,
-        };
-        let fit = within_envelope(fit, &sub, settings, observer, &mut envelope)?;
-        (aug, calibration, system) = (fit.model, fit.calibration, fit.system);
-    }
+    let bounded = match map_fit && settings.anatomical_envelope {
+        true => envelope_model(&aug, &aug_start, &first.calibration.fit.p, &mut envelope)?,
+        false => None,
+    };
+    // The bounded model sets other parameter scales (its bounds), so its refit solves a
+    // problem of its own.
+    let refit = match &bounded {
+        Some(model) => {
+            let kept =
+                calibrate_keeping_system(model, &aug_start, &used, &aug_free, settings, observer)?;
+            super::envelope::mark_active(&mut envelope, model, &kept.calibration.fit.p);
+            Some(kept)
+        }
+        None => None,
+    };
+    let Kept {
+        mut calibration,
+        system,
+        problem,
+    } = refit.unwrap_or(first);
     if !conflict.is_empty() {
-        super::conflict::widen_intervals(
-            &aug,
-            &aug_start,
-            &used,
-            settings,
-            &mut calibration,
-            &conflict,
-            system,
-        )?;
+        super::conflict::widen_intervals(&problem, settings, &mut calibration, &conflict, system)?;
+    }
+    drop(problem);
+    if let Some(model) = bounded {
+        aug = model;
     }
     let p = calibration.fit.p.clone();
     note_envelope(&mut calibration, &envelope);
@@ -229,60 +223,37 @@ fn with_refined_markers(model: &Model, to_refine: &[(&str, f64)]) -> Result<Mode
     Model::compile(&spec).map_err(|e| WorkflowError::Refine(e.to_string()))
 }
 
-/// A calibration with the model it was fitted with and its reduced system.
-struct Fitted {
-    model: Model,
-    calibration: Calibration,
-    system: Option<crate::calibrate::uncertainty::Reduced>,
-}
-
-/// What a refit fits: the start, the trials and the free parameters.
-struct Subproblem<'a> {
-    start: &'a [f64],
-    trials: &'a [&'a Trial],
-    free: &'a [ParamId],
-}
-
-/// The envelope: a fit inside it is the bounded problem's optimum too; one outside is
-/// refitted with the bound (`super::envelope`: bounding every fit would change the
-/// parameters' scaling, and with it the σ estimate, where the bound is never reached). The
-/// bounds, with the unbounded fit and whether each is active, go to `envelope`.
-fn within_envelope(
-    fit: Fitted,
-    sub: &Subproblem,
-    settings: &FitSettings,
-    observer: &mut dyn Observer,
-    envelope: &mut Vec<super::envelope::EnvelopeBound>,
-) -> Result<Fitted, WorkflowError> {
-    let Some((bounded, mut bounds)) = super::envelope::bounded_spec(&fit.model, sub.start) else {
-        return Ok(fit);
+/// The envelope: a fit `p` of `aug` (from `start`) inside it is the bounded problem's
+/// optimum too (`None`); one outside is refitted with the bound, on the bounded model
+/// returned (`super::envelope`: bounding every fit would change the parameters' scaling, and
+/// with it the σ estimate, where the bound is never reached). The bounds, with the unbounded
+/// fit of each, go to `envelope`; the caller marks them active after the refit.
+fn envelope_model(
+    aug: &Model,
+    start: &[f64],
+    p: &[f64],
+    envelope: &mut Vec<EnvelopeBound>,
+) -> Result<Option<Model>, WorkflowError> {
+    let Some((bounded, mut bounds)) = super::envelope::bounded_spec(aug, start) else {
+        return Ok(None);
     };
-    let (aug, p) = (&fit.model, &fit.calibration.fit.p);
     let outside = bounds.iter().any(|b| {
         aug.param_id(&b.parameter)
-            .is_some_and(|id| p[id.0] * MM_PER_M > b.limit_mm)
+            .is_some_and(|id| p[id.0] > b.limit)
     });
-    let fit = if outside {
+    let model = if outside {
         for b in bounds.iter_mut() {
-            b.unbounded_fit_mm = aug
+            b.unbounded_fit = aug
                 .param_id(&b.parameter)
-                .map(|id| p[id.0] * MM_PER_M)
-                .filter(|&x| x > b.limit_mm);
+                .map(|id| p[id.0])
+                .filter(|&x| x > b.limit);
         }
-        let model = Model::compile(&bounded).map_err(|e| WorkflowError::Refine(e.to_string()))?;
-        let (calibration, system) =
-            calibrate_keeping_system(&model, sub.start, sub.trials, sub.free, settings, observer)?;
-        super::envelope::mark_active(&mut bounds, &model, &calibration.fit.p);
-        Fitted {
-            model,
-            calibration,
-            system,
-        }
+        Some(Model::compile(&bounded).map_err(|e| WorkflowError::Refine(e.to_string()))?)
     } else {
-        fit
+        None
     };
     *envelope = bounds;
-    Ok(fit)
+    Ok(model)
 }
 
 /// Each refined marker's position in its segment before and after the fit.
@@ -296,7 +267,6 @@ fn refined_markers(
         .filter_map(|&(n, _)| {
             let before = spec.markers.iter().find(|m| m.name == n)?;
             let after = fitted.markers.iter().find(|m| m.name == n)?;
-            let mm = |x: [f64; 3]| x.map(|v| v * MM_PER_M);
             let d = (0..3)
                 .map(|k| (after.position[k] - before.position[k]).powi(2))
                 .sum::<f64>()
@@ -304,9 +274,9 @@ fn refined_markers(
             Some(RefinedMarker {
                 name: n.to_string(),
                 segment: before.segment.clone(),
-                start_mm: mm(before.position),
-                fitted_mm: mm(after.position),
-                shift_mm: d * MM_PER_M,
+                start: before.position,
+                fitted: after.position,
+                shift: d,
             })
         })
         .collect()

@@ -174,3 +174,76 @@ fn identifiability_names_marker_offsets_that_trade_off_with_joints() {
         WorkflowError::RefineNeedsPriors
     );
 }
+
+/// The problem a calibration keeps for its later steps is the one its σ (m) and factors
+/// define: the analysis, the prior–data conflict test and the widened intervals on it equal
+/// those on a problem built afresh from the calibration's σ and factors, bit for bit.
+#[test]
+fn the_kept_problem_equals_one_rebuilt_from_the_fits_sigma() {
+    let spec = spec_with_priors();
+    let model = Model::compile(&spec).unwrap();
+    let free = params_for_groups(&model, &["hip", "knee"]).unwrap();
+    let start = model.nominal_params();
+    let (truth_spec, p_true) = truth(&spec, &model, 5, 0);
+    let trial = synthetic(&Model::compile(&truth_spec).unwrap(), &p_true, 40, 0.002);
+    // σ estimated by the global phase, the analysis on: the default command's path.
+    let settings = FitSettings::command_default();
+    let kept = super::calibration::calibrate_keeping_system(
+        &model,
+        &start,
+        &[&trial],
+        &free,
+        &settings,
+        &mut NoObserver,
+    )
+    .unwrap();
+    let cal = &kept.calibration;
+    assert!(cal.prior_noise_estimated);
+    let sigma = cal.prior_noise.unwrap();
+    assert_eq!(kept.problem.prior.as_ref().unwrap().noise, sigma);
+    let (mut rebuilt, used, _) = super::map::map_problem_with(
+        &model,
+        &start,
+        &[&trial],
+        &cal.free,
+        &settings,
+        Some(sigma),
+        false,
+    )
+    .unwrap();
+    assert_eq!(used, Some(sigma));
+    super::map::set_inflation(&mut rebuilt, &cal.prior_inflation);
+    let opts = settings.uncertainty.as_ref().unwrap();
+    let on = |prob: &crate::calibrate::Problem| {
+        let red = crate::calibrate::uncertainty::reduced::reduced_system(
+            prob,
+            &cal.fit.p,
+            &cal.fit.coords,
+        );
+        crate::calibrate::uncertainty::analyze_reduced(prob, &cal.fit, opts, &red)
+    };
+    assert_eq!(on(&kept.problem), on(&rebuilt));
+    assert_eq!(cal.uncertainty.as_ref(), Some(&on(&rebuilt)));
+    let conflicts = super::conflict::assess(&kept.problem, cal, kept.system.as_ref()).unwrap();
+    assert!(!conflicts.is_empty());
+    assert_eq!(
+        conflicts,
+        super::conflict::assess(&rebuilt, cal, None).unwrap()
+    );
+    // Widened as if every joint conflicted: the same intervals from either problem.
+    let widened: Vec<_> = conflicts
+        .into_iter()
+        .map(|c| super::conflict::JointConflict {
+            interval_scale: 2.0,
+            ..c
+        })
+        .collect();
+    let widen = |prob: &crate::calibrate::Problem| {
+        let mut c = cal.clone();
+        super::conflict::widen_intervals(prob, &settings, &mut c, &widened, None).unwrap();
+        c.uncertainty
+    };
+    let a = widen(&kept.problem);
+    assert_eq!(a, widen(&rebuilt));
+    assert_ne!(a, cal.uncertainty, "the widening changed the intervals");
+}

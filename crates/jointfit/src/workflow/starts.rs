@@ -5,7 +5,7 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::calibration::{mm2, ConvergenceStage, MultiStart, StartRun};
+use super::calibration::{ConvergenceStage, MultiStart, StartRun};
 use super::{FitSettings, Method, Observer, Termination};
 use crate::calibrate::joint::{solve_joint, JointOptions};
 use crate::calibrate::pso::{solve_pso, PsoOptions};
@@ -39,8 +39,8 @@ pub(super) fn full_starts(
                 model,
                 start,
                 &prob.free,
-                settings.restart_mm,
-                settings.restart_deg,
+                settings.restart_m,
+                settings.restart_rad,
                 settings.seed,
                 k,
             )
@@ -67,7 +67,7 @@ pub(super) fn full_starts(
         let fit = run_start(prob, &p0, q0, cost0, settings, &label, &mut rec);
         runs.push(StartRun {
             start: k,
-            objective_mm2: mm2(fit.cost),
+            objective: fit.cost,
             iterations: fit.iterations,
             evaluations: fit.evaluations,
             termination: fit.termination,
@@ -92,12 +92,12 @@ pub(super) fn multi_start_summary(prob: &Problem, fits: &[Fit], best: usize) -> 
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), f| {
                     (lo.min(f.p[i]), hi.max(f.p[i]))
                 });
-            (par.name.clone(), (hi - lo) * par.unit.display_scale())
+            (par.name.clone(), hi - lo)
         })
         .collect();
     MultiStart {
         starts: fits.len(),
-        objective_mm2: fits.iter().map(|f| mm2(f.cost)).collect(),
+        objective: fits.iter().map(|f| f.cost).collect(),
         reached_best: fits
             .iter()
             .filter(|f| f.cost - best_cost <= 1e-9 * best_cost)
@@ -108,17 +108,18 @@ pub(super) fn multi_start_summary(prob: &Problem, fits: &[Fit], best: usize) -> 
 
 /// Start `k` (≥ 1) of a multi-start fit: [`perturb`] of `start` with a seed derived from the
 /// run's `seed` and `k`, so every start of every run is reproducible and distinct.
+/// The moves reach `span_m` metres for positions and `span_rad` radians for orientations.
 pub(crate) fn restart_point(
     model: &Model,
     start: &[f64],
     free: &[usize],
-    mm: f64,
-    deg: f64,
+    span_m: f64,
+    span_rad: f64,
     seed: u64,
     k: usize,
 ) -> Vec<f64> {
     let k_seed = seed.wrapping_mul(1_000_003).wrapping_add(k as u64);
-    perturb(model, start, free, mm, deg, k_seed)
+    perturb_by(model, start, free, (span_m, span_rad), k_seed)
 }
 
 /// Parameters `base` with the `free` ones (indices) moved by independent uniform amounts,
@@ -132,13 +133,25 @@ pub fn perturb(
     deg: f64,
     seed: u64,
 ) -> Vec<f64> {
+    let spans = (mm * crate::model::spec::M_PER_MM, deg.to_radians());
+    perturb_by(model, base, free, spans, seed)
+}
+
+/// [`perturb`] by up to `span_m` metres and `span_rad` radians.
+fn perturb_by(
+    model: &Model,
+    base: &[f64],
+    free: &[usize],
+    (span_m, span_rad): (f64, f64),
+    seed: u64,
+) -> Vec<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut p = base.to_vec();
     for &i in free {
         let par = &model.parameters()[i];
         let span = match par.unit {
-            Unit::Metre => mm * crate::model::spec::M_PER_MM,
-            Unit::Radian => deg.to_radians(),
+            Unit::Metre => span_m,
+            Unit::Radian => span_rad,
         };
         let d = if span > 0.0 {
             rng.gen_range(-span..=span)
@@ -163,7 +176,7 @@ impl Recorder<'_> {
         self.inner.stage_started(label, budget);
         self.stages.push(ConvergenceStage {
             stage: stage.to_string(),
-            objective_mm2: Vec::new(),
+            objective: Vec::new(),
         });
         if let Some(c) = first {
             self.iteration(0, c);
@@ -174,7 +187,7 @@ impl Recorder<'_> {
 impl Observer for Recorder<'_> {
     fn iteration(&mut self, iteration: usize, objective: f64) {
         if let Some(s) = self.stages.last_mut() {
-            s.objective_mm2.push(mm2(objective));
+            s.objective.push(objective);
         }
         self.inner.iteration(iteration, objective);
     }

@@ -16,13 +16,13 @@ pub struct GlobalSearch {
     pub probe_iterations: usize,
     /// Frames the probes ran on (every k-th frame of the trials).
     pub probe_frames: usize,
-    /// Objective of every start after its probe (mm², on the probes' frames), in start order.
-    pub probe_objective_mm2: Vec<f64>,
+    /// Objective of every start after its probe (m², on the probes' frames), in start order.
+    pub probe_objective: Vec<f64>,
     /// The starts continued to convergence on every frame, best probe first
     /// ([`super::global`]'s module docs).
     pub finished: Vec<usize>,
-    /// Their final objectives (mm²).
-    pub finished_objective_mm2: Vec<f64>,
+    /// Their final objectives (m²).
+    pub finished_objective: Vec<f64>,
     /// Whether every finished start reached the same optimum.
     pub agree: bool,
 }
@@ -35,8 +35,8 @@ pub(crate) fn warning(g: &GlobalSearch) -> Option<String> {
     let list: Vec<String> = g
         .finished
         .iter()
-        .zip(&g.finished_objective_mm2)
-        .map(|(k, c)| format!("start {k}: {c:.1} mm²"))
+        .zip(&g.finished_objective)
+        .map(|(k, &c)| format!("start {k}: {:.1} mm²", super::calibration::mm2(c)))
         .collect();
     Some(format!(
         "the fit is not known to be the global optimum: the {} most promising of {} starts \

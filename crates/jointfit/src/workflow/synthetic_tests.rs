@@ -92,15 +92,15 @@ fn calibrate_recovers_the_truth_and_fills_the_rows() {
     for (row, &i) in cal.parameters.iter().zip(&idx) {
         let unit = model.parameters()[i].unit;
         assert_eq!(row.name, model.parameters()[i].name);
-        assert_eq!(row.unit, unit.display_suffix());
+        assert_eq!(row.unit, unit);
         assert!(
-            (row.fitted - unit.to_display(truth[i])).abs() < 1e-6,
+            unit.to_display((row.fitted - truth[i]).abs()) < 1e-6,
             "{row:?}"
         );
-        assert!((row.start - unit.to_display(start[i])).abs() < 1e-12);
-        assert!((row.change - (row.fitted - row.start)).abs() < 1e-9);
+        assert_eq!(row.start, start[i]);
+        assert_eq!(row.change, row.fitted - row.start);
     }
-    assert!(cal.rms_after_mm < 1e-6 && cal.rms_before_mm > 1.0);
+    assert!(cal.rms_after < 1e-9 && cal.rms_before > 1e-3);
     assert_eq!(cal.frames, 40);
     assert_eq!((cal.best_start, cal.start_runs.len()), (0, 1));
     assert!(cal.multistart.is_none() && cal.uncertainty.is_none());
@@ -110,9 +110,9 @@ fn calibrate_recovers_the_truth_and_fills_the_rows() {
     assert_eq!(log.ended, [Termination::Converged]);
     assert_eq!(log.progress.last(), Some(&(1, 1)));
     // The recorded objective is the solver's: the start, then one value per iteration.
-    let c = &cal.convergence[0].objective_mm2;
+    let c = &cal.convergence[0].objective;
     assert_eq!(c.len(), cal.iterations + 1);
-    assert!((c[c.len() - 1] - cal.cost_after * 1e6).abs() <= 1e-12 * c[0]);
+    assert_eq!(c[c.len() - 1], cal.cost_after);
 }
 
 /// With several starts the convergence record, the iteration count and
@@ -141,24 +141,24 @@ fn several_starts_are_all_recorded_and_the_best_is_reported() {
     let best = cal.best_start;
     assert_ne!(best, 0, "the case is chosen so that a moved start wins");
     let run = &cal.start_runs[best];
-    assert!(cal.start_runs[0].objective_mm2 > 1.2 * run.objective_mm2);
+    assert!(cal.start_runs[0].objective > 1.2 * run.objective);
     // The panel's record is the winner's: its start point and one value per iteration.
-    assert_eq!(cal.convergence[0].objective_mm2.len(), cal.iterations + 1);
+    assert_eq!(cal.convergence[0].objective.len(), cal.iterations + 1);
     for r in &cal.start_runs {
-        assert!(run.objective_mm2 <= r.objective_mm2);
-        let c = &r.convergence[0].objective_mm2;
+        assert!(run.objective <= r.objective);
+        let c = &r.convergence[0].objective;
         assert_eq!(c.len(), r.iterations + 1, "start {}", r.start);
-        assert_eq!(c[c.len() - 1], r.objective_mm2);
+        assert_eq!(c[c.len() - 1], r.objective);
     }
     assert_eq!(cal.convergence, run.convergence);
     assert_eq!(cal.iterations, run.iterations);
     assert_eq!(cal.evaluations, run.evaluations);
     assert_eq!(cal.termination, run.termination);
-    // The same number, converted as the workflow converts it (`mm2`: m² · 10³ · 10³).
-    assert_eq!(run.objective_mm2, cal.cost_after * 1e3 * 1e3);
+    // The same number: the solver's objective (m²).
+    assert_eq!(run.objective, cal.cost_after);
     let ms = cal.multistart.as_ref().unwrap();
-    let objectives: Vec<f64> = cal.start_runs.iter().map(|r| r.objective_mm2).collect();
-    assert_eq!(ms.objective_mm2, objectives);
+    let objectives: Vec<f64> = cal.start_runs.iter().map(|r| r.objective).collect();
+    assert_eq!(ms.objective, objectives);
     assert_eq!(cal.total_iterations(), log.iterations - 4);
     assert_eq!(log.stages.len(), 4);
     assert!(log.stages[3].starts_with("start 4 of 4"));
@@ -173,10 +173,19 @@ fn restart_points_are_seeded_distinct_and_bounded() {
     let model = leg();
     let start = model.nominal_params();
     let free: Vec<usize> = (0..model.n_p()).collect();
-    let a = restart_point(&model, &start, &free, 20.0, 10.0, 7, 1);
-    assert_eq!(a, restart_point(&model, &start, &free, 20.0, 10.0, 7, 1));
-    assert_ne!(a, restart_point(&model, &start, &free, 20.0, 10.0, 7, 2));
-    assert_ne!(a, restart_point(&model, &start, &free, 20.0, 10.0, 8, 1));
+    let a = restart_point(&model, &start, &free, 0.02, 10f64.to_radians(), 7, 1);
+    assert_eq!(
+        a,
+        restart_point(&model, &start, &free, 0.02, 10f64.to_radians(), 7, 1)
+    );
+    assert_ne!(
+        a,
+        restart_point(&model, &start, &free, 0.02, 10f64.to_radians(), 7, 2)
+    );
+    assert_ne!(
+        a,
+        restart_point(&model, &start, &free, 0.02, 10f64.to_radians(), 8, 1)
+    );
     for (i, par) in model.parameters().iter().enumerate() {
         let d = par.unit.to_display(a[i] - start[i]).abs();
         let limit = match par.unit {
@@ -256,7 +265,7 @@ fn predict_says_what_a_knee_only_trial_determines() {
         r.prediction.params.len()
     );
     assert_eq!(r.prediction.params.len(), free.len());
-    assert!(r.ik_rms_mm > 0.5 && r.ik_rms_mm < 5.0, "{}", r.ik_rms_mm);
+    assert!(r.ik_rms > 5e-4 && r.ik_rms < 5e-3, "{} m", r.ik_rms);
 }
 
 #[test]

@@ -40,6 +40,7 @@ use super::marker_policy::{MarkerAction, MarkerDecision};
 use super::refine::RefinedMarker;
 use super::{Calibration, WorkflowError};
 use crate::ik::MarkerMap;
+use crate::model::spec::MM_PER_M;
 use crate::model::Model;
 use crate::trial::Trial;
 
@@ -244,7 +245,7 @@ pub(crate) fn judge(model: &Model, cal: &Calibration, e: &Evidence) -> Verdict {
 }
 
 fn judge_rms(cal: &Calibration, v: &mut Verdict) {
-    let (before, after) = (cal.rms_before_mm, cal.rms_after_mm);
+    let (before, after) = (cal.rms_before * MM_PER_M, cal.rms_after * MM_PER_M);
     if before > REJECT_RMS_BEFORE_MM {
         v.add(
             Level::Reject,
@@ -275,21 +276,18 @@ fn judge_rms(cal: &Calibration, v: &mut Verdict) {
 }
 
 fn judge_markers(e: &Evidence, v: &mut Verdict) {
-    if let Some(worst) = e
-        .refined
-        .iter()
-        .max_by(|a, b| a.shift_mm.total_cmp(&b.shift_mm))
-    {
+    if let Some(worst) = e.refined.iter().max_by(|a, b| a.shift.total_cmp(&b.shift)) {
+        let shift_mm = worst.shift * MM_PER_M;
         let line = format!(
             "refined {} marker position{} by up to {:.1} mm ({})",
             e.refined.len(),
             if e.refined.len() == 1 { "" } else { "s" },
-            worst.shift_mm,
+            shift_mm,
             worst.name
         );
         // Past the cap only a re-attached cluster explains it (another build or labels that
         // name other markers were refused before the fit, [`check_inputs`]): a caution.
-        if worst.shift_mm > REFINE_CAP_MM {
+        if shift_mm > REFINE_CAP_MM {
             v.add(
                 Level::Caution,
                 format!(
@@ -298,7 +296,7 @@ fn judge_markers(e: &Evidence, v: &mut Verdict) {
                      the static trial and this one"
                 ),
             );
-        } else if worst.shift_mm > CAUTION_REFINE_MM {
+        } else if shift_mm > CAUTION_REFINE_MM {
             v.add(Level::Caution, line);
         }
     }
@@ -344,7 +342,8 @@ fn judge_anatomy(cal: &Calibration, envelope: &[EnvelopeBound], v: &mut Verdict)
             Level::Caution,
             format!(
                 "{}: held at the anatomical bound {:.1} mm (the trial pulls it further out)",
-                b.parameter, b.limit_mm
+                b.parameter,
+                b.limit * MM_PER_M
             ),
         );
     }

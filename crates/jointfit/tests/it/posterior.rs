@@ -67,7 +67,7 @@ fn hip_only_trial_against_the_prior(inflation: f64) {
         &mut NoObserver,
     );
     let u = analyze(&prob, &fit, &UncertaintyOptions::default());
-    assert!(u.sigma_mm < 5.0, "residual σ {} mm", u.sigma_mm);
+    assert!(u.sigma < 0.005, "residual σ {} m", u.sigma);
     let share = data_share(&prob, &reduced_system(&prob, &fit.p, &fit.coords).normal);
     let (mut unseen, mut seen) = (0, 0);
     for (k, p) in u.params.iter().enumerate() {

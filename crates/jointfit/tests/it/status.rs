@@ -47,9 +47,9 @@ fn status_is_the_fisher_half_width_with_the_trials_mean_correlation_factor() {
             p.name
         );
         let threshold = if p.unit == "mm" {
-            u.threshold_mm
+            u.threshold_m * 1e3
         } else {
-            u.threshold_deg
+            u.threshold_rad.to_degrees()
         };
         let want = if h <= threshold && !p.at_bound {
             determined += 1;
@@ -87,7 +87,11 @@ fn a_parameter_held_by_a_tight_prior_is_not_determined_by_the_trial() {
     let share = data_share(&prob, &reduced_system(&prob, &fit.p, &fit.coords).normal);
     let k = u.params.iter().position(|p| p.name == tight).unwrap();
     let p = &u.params[k];
-    assert!(p.half_width.unwrap() < u.threshold_mm, "{:?}", p.half_width);
+    assert!(
+        p.half_width.unwrap() < u.threshold_m * 1e3,
+        "{:?}",
+        p.half_width
+    );
     assert_eq!(
         Source::of(share[k]),
         Source::HeldByPrior,
@@ -179,7 +183,7 @@ fn a_marginally_determined_parameters_interval_is_at_least_its_status_half_width
             .flatten()
             .fold(0.0, f64::max);
             let h = p.status_half_width.unwrap();
-            let threshold = u.threshold_mm;
+            let threshold = u.threshold_m * 1e3;
             let marginal = p.status == Identifiability::Determined && t * h / u.z > threshold;
             let want = if marginal { widest.max(h) } else { widest };
             let got = p.half_width.unwrap();

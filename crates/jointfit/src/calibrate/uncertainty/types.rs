@@ -96,7 +96,9 @@ impl Default for UncertaintyOptions {
     }
 }
 
-/// One free parameter's uncertainty, in display units (mm or deg, see `unit`).
+/// One free parameter's uncertainty, in its shown unit (mm or deg, named by `unit`): the
+/// intervals are formed in the scaled units of the solver and converted once, to the unit a
+/// person reads.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ParamUncertainty {
     pub name: String,
@@ -199,9 +201,9 @@ pub struct Uncertainty {
     pub observations: usize,
     /// Residual degrees of freedom `m − N·n_q − n_f`.
     pub dof: usize,
-    /// Residual standard deviation per coordinate axis (mm): estimated, or as assumed.
-    pub sigma_mm: f64,
-    /// Whether `sigma_mm` was assumed (given) rather than estimated from the residuals.
+    /// Residual standard deviation per coordinate axis (m): estimated, or as assumed.
+    pub sigma: f64,
+    /// Whether `sigma` was assumed (given) rather than estimated from the residuals.
     pub sigma_assumed: bool,
     /// Small-sample factor applied to the robust estimators.
     pub small_sample_factor: f64,
@@ -213,9 +215,9 @@ pub struct Uncertainty {
     #[serde(default = "super::status::one")]
     pub correlation_factor: f64,
     pub bootstrap: Option<BootstrapInfo>,
-    /// Flag thresholds (mm, deg).
-    pub threshold_mm: f64,
-    pub threshold_deg: f64,
+    /// Flag thresholds of a length (m) and of an angle (rad).
+    pub threshold_m: f64,
+    pub threshold_rad: f64,
     /// Per free parameter, in the problem's order.
     pub params: Vec<ParamUncertainty>,
     /// Correlation matrix of the free parameters from the white (Fisher) covariance; `None`

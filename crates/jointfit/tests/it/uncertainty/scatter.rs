@@ -38,10 +38,10 @@ fn uncertainty_white_covariance_matches_the_scatter_of_fits_over_seeds() {
         );
         predicted.push(u.params.iter().map(|p| p.se_white.unwrap()).collect());
         assert!(
-            (u.sigma_mm / (sigma * 1e3) - 1.0).abs() < 0.1,
-            "σ estimate {} mm vs {} mm",
-            u.sigma_mm,
-            sigma * 1e3
+            (u.sigma / sigma - 1.0).abs() < 0.1,
+            "σ estimate {} m vs {} m",
+            u.sigma,
+            sigma
         );
     }
     let nf = free.len();
