@@ -14,10 +14,10 @@ use jointfit::spatial::UpAxis;
 use jointfit::workflow::calibration::{Calibration, ConvergenceStage, MultiStart, StartRun};
 use jointfit::workflow::envelope::EnvelopeBound;
 use jointfit::workflow::marker_policy::{MarkerAction, MarkerDecision};
-use jointfit::workflow::motion_range::HeldJoint;
 use jointfit::workflow::predict::Prediction;
 use jointfit::workflow::refine::RefinedMarker;
 use jointfit::workflow::verdict::Verdict;
+use jointfit::workflow::HeldJoint;
 use jointfit::workflow::{GlobalSearch, Method, WorkflowError};
 use serde::Serialize;
 

@@ -33,6 +33,7 @@ pub mod marker_policy;
 pub(crate) mod marker_rigid;
 pub mod marker_rms;
 pub(crate) mod motion_range;
+pub use motion_range::HeldJoint;
 pub mod predict;
 mod probes;
 pub mod redundant;
