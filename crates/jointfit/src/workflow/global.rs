@@ -46,8 +46,8 @@ use rayon::prelude::*;
 
 use super::calibration::{mm2, ConvergenceStage, StartRun};
 use super::map::{Preliminary, SIGMA_POINT_RESOLUTION_SE};
-use super::probes::{approach_stride, probe_stride, seeded_start, subsample};
 pub(crate) use super::probes::ProbeStarts;
+use super::probes::{approach_stride, probe_stride, seeded_start, subsample};
 pub(crate) use super::summary::warning;
 pub(crate) use super::summary::GlobalSearch;
 pub(crate) use super::summary::SAME_OPTIMUM;
