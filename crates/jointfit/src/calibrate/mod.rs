@@ -129,9 +129,11 @@ pub(crate) const INNER_CHUNK: usize = 256;
 /// result; small enough that a 143-frame trial is split between the threads).
 pub(crate) const INNER_TASK: usize = 16;
 
-/// Frames per parallel task of [`Problem::inner`] on `n` frames: about [`INNER_TASK`], in an
-/// even number of tasks of nearly equal length, so that two threads split a short trial
-/// evenly (143 frames: 10 tasks of at most 15 frames, 5 : 5, where tasks of 16 were 9, 5 : 4).
+/// Frames per parallel task of [`Problem::inner`] on `n` frames: at most [`INNER_TASK`], the
+/// length that cuts `n` into `2⌈n / 2·INNER_TASK⌉` tasks of nearly equal length, so that two
+/// threads split a short trial evenly (143 frames: 10 tasks of at most 15 frames, 5 : 5, where
+/// tasks of 16 were 9, 5 : 4). The count is even for every trial of up to 224 frames; longer
+/// ones have enough tasks (15 or more) for two threads to share them evenly anyway.
 pub(crate) fn inner_task_len(n: usize) -> usize {
     let tasks = 2 * n.div_ceil(2 * INNER_TASK);
     n.div_ceil(tasks.max(1)).max(1)
