@@ -115,7 +115,7 @@ struct Figures {
     opensim_ik_over_jointfit_ik: Option<f64>,
     /// The same over jointfit's whole-trial IK on one thread.
     opensim_ik_over_jointfit_ik_1_thread: Option<f64>,
-    /// jointfit's 27-parameter fit over one OpenSim IK solve of the trial (goal ≤ 0.2).
+    /// jointfit's 27-parameter fit over one OpenSim IK solve of the trial (goal ≤ 0.1).
     fit_over_opensim_ik: Option<f64>,
     long_fit: Option<bench_perf::LongFit>,
     rss_frames: usize,
@@ -463,7 +463,7 @@ fn print_figures(fig: &Figures, opensim_note: &str) {
             println!(
                 "  OpenSim IK / jointfit IK  {ik:8.1}   (goal ≥ 100; {ik_1:.1} with jointfit on 1 thread)"
             );
-            println!("  jointfit fit / OpenSim IK {fit:8.3}   (goal ≤ 0.2)");
+            println!("  jointfit fit / OpenSim IK {fit:8.3}   (goal ≤ 0.1)");
         }
         _ => println!("{opensim_note}"),
     }

@@ -128,9 +128,19 @@ fn group_choices(model: &Model) -> String {
 /// Frames per partial sum of [`Problem::inner`] (fixed: it sets the order of the sum).
 pub(crate) const INNER_CHUNK: usize = 256;
 
-/// Frames per parallel task of [`Problem::inner`] (any value gives the same result; small
-/// enough that a 143-frame trial is split between the threads).
+/// About this many frames per parallel task of [`Problem::inner`] (any value gives the same
+/// result; small enough that a 143-frame trial is split between the threads).
 pub(crate) const INNER_TASK: usize = 16;
+
+/// Frames per parallel task of [`Problem::inner`] on `n` frames: at most [`INNER_TASK`], the
+/// length that cuts `n` into `2⌈n / 2·INNER_TASK⌉` tasks of nearly equal length, so that two
+/// threads split a short trial evenly (143 frames: 10 tasks of at most 15 frames, 5 : 5, where
+/// tasks of 16 were 9, 5 : 4). The count is even for every trial of up to 224 frames; longer
+/// ones have enough tasks (15 or more) for two threads to share them evenly anyway.
+pub(crate) fn inner_task_len(n: usize) -> usize {
+    let tasks = 2 * n.div_ceil(2 * INNER_TASK);
+    n.div_ceil(tasks.max(1)).max(1)
+}
 
 /// One calibration problem: model, free parameters, the frames to fit (their targets read
 /// from the trials in place, which therefore live as long as the problem).
@@ -258,17 +268,18 @@ impl<'m> Problem<'m> {
     /// term [`Problem::prior_cost`] when a prior is attached.
     ///
     /// Each frame's solve depends only on its own targets and start, so the frames are solved
-    /// in parallel tasks of [`INNER_TASK`] frames (a trial of a few hundred frames keeps
+    /// in parallel tasks of [`inner_task_len`] frames (a trial of a few hundred frames keeps
     /// every thread busy) and each frame's cost is kept; the costs are then summed as a fixed
     /// tree, in frame order within chunks of [`INNER_CHUNK`] and the chunk sums in chunk
     /// order, so the result is the same bit for bit on any number of threads. `ws` serves a
     /// problem of a single task (no thread is started).
     pub fn inner(&self, p: &[f64], qs: &mut [Vec<f64>], ws: &mut IkWorkspace) -> f64 {
+        let task = inner_task_len(qs.len());
         let solve_task =
             |t: usize, qs: &mut [Vec<f64>], costs: &mut [f64], ws: &mut IkWorkspace| {
                 let mut buf = Vec::with_capacity(self.frames.n_markers());
                 for (i, (q, c)) in qs.iter_mut().zip(costs.iter_mut()).enumerate() {
-                    let targets = self.frames.fill(t * INNER_TASK + i, &mut buf);
+                    let targets = self.frames.fill(t * task + i, &mut buf);
                     let fit = solve_frame(self.model, p, targets, q, &self.ik, ws);
                     debug_assert!(fit.status != FrameStatus::Converged || fit.cost.is_finite());
                     *c = fit.cost;
@@ -278,8 +289,8 @@ impl<'m> Problem<'m> {
         if qs.len() <= INNER_TASK {
             solve_task(0, qs, &mut costs, ws);
         } else {
-            qs.par_chunks_mut(INNER_TASK)
-                .zip(costs.par_chunks_mut(INNER_TASK))
+            qs.par_chunks_mut(task)
+                .zip(costs.par_chunks_mut(task))
                 .enumerate()
                 .for_each_init(
                     || IkWorkspace::new(self.model),

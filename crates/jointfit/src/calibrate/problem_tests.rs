@@ -99,3 +99,18 @@ fn thread_count_case(frames: usize) {
         assert_eq!(one.0, ik);
     }
 }
+
+/// `Problem::inner`'s tasks: never longer than `INNER_TASK`, and an even number of them on a
+/// short trial (two threads take half each).
+#[test]
+fn inner_tasks_split_a_short_trial_evenly() {
+    assert_eq!(inner_task_len(143), 15);
+    for n in INNER_TASK + 1..=2000 {
+        let len = inner_task_len(n);
+        let tasks = n.div_ceil(len);
+        assert!(len <= INNER_TASK, "{n} frames: {tasks} × {len}");
+        if n <= 224 {
+            assert_eq!(tasks % 2, 0, "{n} frames: {tasks} tasks of {len}");
+        }
+    }
+}

@@ -80,9 +80,9 @@ pub(crate) fn reduce(prob: &Problem, qs: &[Vec<f64>], b: &mut Blocks, lambda: f6
                 let range = blocks.chunk_frames(c);
                 let mut l = std::mem::take(&mut sc.fac);
                 // The chunk's Z_i = L_i⁻¹ [W_i | g_i] stacked: (frames·n_q) × (n_f + 1),
-                // row-major, so that the substitution runs along contiguous rows.
+                // row-major, so that the substitution runs along contiguous rows. Every
+                // entry is written below, so the buffer's old contents need no clearing.
                 let mut z = std::mem::take(&mut sc.vec);
-                z.clear();
                 z.resize(range.len() * nq * m, 0.0);
                 for (i, f) in range.clone().enumerate() {
                     let blk = blocks.frame(prob, qs, f, sc, tb);

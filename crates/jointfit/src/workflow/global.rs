@@ -46,8 +46,8 @@ use rayon::prelude::*;
 
 use super::calibration::{ConvergenceStage, StartRun};
 use super::map::{Preliminary, SIGMA_POINT_RESOLUTION_SE};
-use super::probes::{approach_stride, probe_stride, subsample};
-pub(crate) use super::probes::{probe_starts, ProbeStarts};
+pub(crate) use super::probes::ProbeStarts;
+use super::probes::{approach_stride, probe_stride, seeded_start, subsample};
 pub(crate) use super::summary::warning;
 pub(crate) use super::summary::GlobalSearch;
 pub(crate) use super::summary::SAME_OPTIMUM;
@@ -123,8 +123,8 @@ type Run = (Fit, Vec<f64>);
 type Candidate = (usize, Fit, Vec<f64>, f64);
 
 /// Runs the global phase on `prob` from `start` with `settings.probes` extra starts (the
-/// module docs), from `starts` ([`probe_starts`] of the same problem, start and settings)
-/// when given; progress goes to `observer` in start order.
+/// module docs), from `starts` (each [`seeded_start`] of the same problem, start and
+/// settings) when given; progress goes to `observer` in start order.
 pub(crate) fn run(
     prob: &mut Problem,
     start: &[f64],
@@ -138,10 +138,10 @@ pub(crate) fn run(
     let stride = probe_stride(prob, settings);
     let coarse = subsample(prob, stride);
     observer.progress(0, n + 1);
-    let starts = starts
-        .filter(|s| s.len() == n)
-        .unwrap_or_else(|| probe_starts(prob, start, settings));
-    let probes = probe(&coarse, starts, &short);
+    let probes = match starts.filter(|s| s.len() == n) {
+        Some(starts) => probe(&coarse, starts, &short),
+        None => seed_and_probe(prob, &coarse, start, settings, &short),
+    };
     // The observer hears of every probe after the fact, in start order.
     for (k, (fit, hist)) in probes.iter().enumerate() {
         let stage = format!("probe {} of {n}", k + 1);
@@ -230,6 +230,27 @@ fn probe(coarse: &Problem, starts: ProbeStarts, short: &JointOptions) -> Vec<Run
     starts
         .into_par_iter()
         .map(|(p0, q0)| {
+            let mut h = History::default();
+            let fit = solve_joint(coarse, &coarse.to_scaled(&p0), q0, short, &mut h);
+            (fit, h.0)
+        })
+        .collect()
+}
+
+/// Every start seeded on the probes' frames `coarse` ([`seeded_start`]) and probed there,
+/// one task per start, in start order: each probe begins as soon as its own start's seeded
+/// inverse kinematics is done (the same numbers as seeding every start first).
+fn seed_and_probe(
+    prob: &Problem,
+    coarse: &Problem,
+    start: &[f64],
+    settings: &FitSettings,
+    short: &JointOptions,
+) -> Vec<Run> {
+    (0..settings.probes + 1)
+        .into_par_iter()
+        .map(|k| {
+            let (p0, q0) = seeded_start(prob, coarse, start, settings, k);
             let mut h = History::default();
             let fit = solve_joint(coarse, &coarse.to_scaled(&p0), q0, short, &mut h);
             (fit, h.0)

@@ -4,7 +4,6 @@
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rayon::prelude::*;
 
 use super::map::SIGMA_POINT_RESOLUTION_SE;
 use super::starts::restart_point;
@@ -81,25 +80,25 @@ pub(super) fn probe_stride(prob: &Problem, settings: &FitSettings) -> usize {
     prob.frames.len().div_ceil(settings.probe_frames.max(1))
 }
 
-/// The starts of the global phase on `prob` ([`probe_point`]) and their seeded inner
-/// solutions on the probes' frames, in start order. Neither depends on the marker noise σ
-/// that weighs the prior (only the prior's means and SDs choose the starts), so a caller may
-/// form them from a problem whose prior carries any σ (forming them beside the σ estimate
-/// was measured slower: `notebook/performance_fit.md`).
-pub(crate) fn probe_starts(prob: &Problem, start: &[f64], settings: &FitSettings) -> ProbeStarts {
-    let coarse = subsample(prob, probe_stride(prob, settings));
-    (0..settings.probes + 1)
-        .into_par_iter()
-        .map(|k| {
-            let p0 = if k == 0 {
-                start.to_vec()
-            } else {
-                probe_point(prob, start, settings, k)
-            };
-            let q0 = coarse.initial_coords(&p0);
-            (p0, q0)
-        })
-        .collect()
+/// Start `k` of the global phase on `prob` (the given `start` for k = 0, else
+/// [`probe_point`]) and its seeded inner solutions on the probes' frames `coarse`: what its
+/// probe begins from. Neither depends on the marker noise σ that weighs the prior (only the
+/// prior's means and SDs choose the starts), so a caller may form them from a problem whose
+/// prior carries any σ.
+pub(super) fn seeded_start(
+    prob: &Problem,
+    coarse: &Problem,
+    start: &[f64],
+    settings: &FitSettings,
+    k: usize,
+) -> (Vec<f64>, Vec<Vec<f64>>) {
+    let p0 = if k == 0 {
+        start.to_vec()
+    } else {
+        probe_point(prob, start, settings, k)
+    };
+    let q0 = coarse.initial_coords(&p0);
+    (p0, q0)
 }
 
 /// The intermediate frames of the σ stage on a long trial ([`approach`]): every `m`-th frame,

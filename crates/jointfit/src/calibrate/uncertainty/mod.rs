@@ -126,8 +126,10 @@ pub(crate) fn analyze_reduced(
     opts: &UncertaintyOptions,
     red: &Reduced,
 ) -> Uncertainty {
-    let cov = covariances(red, &continuity(prob), Some((prob, fit)), opts, false);
-    build(prob, &fit.p, &fit.s, &fit.coords, red, &cov, opts)
+    let est = estimates(prob, (&fit.p, &fit.coords), red, opts, || {
+        covariances(red, &continuity(prob), Some((prob, fit)), opts, false)
+    });
+    build(prob, &fit.p, &fit.s, &fit.coords, red, &est, opts)
 }
 
 /// Predicted uncertainty at parameters `p` with inner solutions `qs` (one per frame of
@@ -143,8 +145,45 @@ pub fn predict(
     opts: &UncertaintyOptions,
 ) -> Uncertainty {
     let red = reduced_system(prob, p, qs);
-    let cov = covariances(&red, &continuity(prob), None, opts, true);
-    build(prob, p, &prob.to_scaled(p), qs, &red, &cov, opts)
+    let est = estimates(prob, (p, qs), &red, opts, || {
+        covariances(&red, &continuity(prob), None, opts, true)
+    });
+    build(prob, p, &prob.to_scaled(p), qs, &red, &est, opts)
+}
+
+/// The covariances (`cov`), and beside them, on another thread when one is free, what the
+/// status rule reads of the reduced system `red` alone: the data-alone variances, the data
+/// shares and the system with every parameter free ([`status::extended_system`] at `at`, the
+/// parameters and coordinates of `red`). None of these depends on another, so the result is
+/// the same on any number of threads.
+struct Estimates {
+    cov: Covariances,
+    alone: Vec<Option<f64>>,
+    share: Vec<f64>,
+    ext: Option<Reduced>,
+}
+
+fn estimates(
+    prob: &Problem,
+    (p, qs): (&[f64], &[Vec<f64>]),
+    red: &Reduced,
+    opts: &UncertaintyOptions,
+    cov: impl FnOnce() -> Covariances + Send,
+) -> Estimates {
+    let sigma2 = opts.assumed_sigma_m.map_or(red.sigma2(), |s| s * s);
+    let (cov, (alone, share, ext)) = rayon::join(cov, || {
+        (
+            status::data_alone_variance(red, sigma2),
+            crate::calibrate::prior::data_share(prob, &red.normal),
+            status::extended_system(prob, p, qs),
+        )
+    });
+    Estimates {
+        cov,
+        alone,
+        share,
+        ext,
+    }
 }
 
 fn build(
@@ -153,9 +192,10 @@ fn build(
     s: &[f64],
     qs: &[Vec<f64>],
     red: &Reduced,
-    cov: &Covariances,
+    est: &Estimates,
     opts: &UncertaintyOptions,
 ) -> Uncertainty {
+    let (cov, alone, share) = (&est.cov, &est.alone, &est.share);
     let model = prob.model;
     let nf = prob.n_free();
     let crit = critical(opts.level, opts);
@@ -175,9 +215,7 @@ fn build(
     };
     // The status rule (the `status` module): the trial alone, pooled noise and correlation.
     let sigma2 = opts.assumed_sigma_m.map_or(red.sigma2(), |s| s * s);
-    let kappa = status::trial_correlation(prob, p, qs, cov, red, sigma2, opts);
-    let alone = status::data_alone_variance(red, sigma2);
-    let share = crate::calibrate::prior::data_share(prob, &red.normal);
+    let kappa = status::trial_correlation(prob, est.ext.as_ref(), cov, red, sigma2, opts);
     let corr = correlations(&cov.null, &white);
     let params = (0..nf)
         .map(|k| {

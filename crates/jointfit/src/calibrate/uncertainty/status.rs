@@ -71,36 +71,45 @@ use super::{Identifiability, Reduced, SeMethod, UncertaintyOptions};
 /// [`score_correlation`] of the problem with all parameters free at the same point (no
 /// prior: the data alone; its own residual variance, or the assumed one), its scores centred
 /// (a fixed parameter away from its optimum has a mean score that is not noise), with the HAC
-/// bandwidth the analysis used. With every parameter free it is [`score_correlation`] of the
-/// analysis itself (`sigma2` its residual variance).
-#[allow(clippy::too_many_arguments)]
+/// bandwidth the analysis used (`ext`: that problem's reduced system, [`extended_system`]).
+/// With every parameter free (`ext` = `None`) it is [`score_correlation`] of the analysis
+/// itself (`sigma2` its residual variance).
 pub(super) fn trial_correlation(
     prob: &Problem,
-    p: &[f64],
-    qs: &[Vec<f64>],
+    ext: Option<&Reduced>,
     cov: &Covariances,
     red: &Reduced,
     sigma2: f64,
     opts: &UncertaintyOptions,
 ) -> f64 {
+    let Some(red_e) = ext else {
+        return score_correlation(cov, red, sigma2);
+    };
+    let opts_e = UncertaintyOptions {
+        hac_bandwidth: cov.bandwidth.or(opts.hac_bandwidth),
+        bootstrap_replicates: 0,
+        ..opts.clone()
+    };
+    let cov_e = covariances(red_e, &continuity(prob), None, &opts_e, true);
+    let sigma2_e = opts.assumed_sigma_m.map_or(red_e.sigma2(), |s| s * s);
+    score_correlation(&cov_e, red_e, sigma2_e)
+}
+
+/// The reduced system at `(p, qs)` of `prob` with every model parameter free and no prior,
+/// which [`trial_correlation`] reads when `prob` leaves some parameter fixed (`None` when
+/// every parameter is free). It depends on nothing the covariances compute, so it is formed
+/// beside them.
+pub(super) fn extended_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Option<Reduced> {
     let n_p = prob.model.n_p();
     if prob.free.len() == n_p {
-        return score_correlation(cov, red, sigma2);
+        return None;
     }
     let ext = Problem {
         free: (0..n_p).collect(),
         prior: None,
         ..prob.clone()
     };
-    let red_e = reduced_system(&ext, p, qs);
-    let opts_e = UncertaintyOptions {
-        hac_bandwidth: cov.bandwidth.or(opts.hac_bandwidth),
-        bootstrap_replicates: 0,
-        ..opts.clone()
-    };
-    let cov_e = covariances(&red_e, &continuity(prob), None, &opts_e, true);
-    let sigma2_e = opts.assumed_sigma_m.map_or(red_e.sigma2(), |s| s * s);
-    score_correlation(&cov_e, &red_e, sigma2_e)
+    Some(reduced_system(&ext, p, qs))
 }
 
 /// The trial's time-correlation factor from the parameters' scores: the arithmetic mean over
