@@ -31,7 +31,7 @@ const CORE_MODULES_IN_CYCLES: usize = 0;
 /// Phrases of work history (commit hashes, "this branch", machine load, "revision N", ...)
 /// in `docs/` and `README.md`, which describe the method and the current behaviour (the
 /// ones left are in `docs/memory.md`, `docs/stopping.md` and `docs/streaming.md`). Goal: 0.
-const HISTORY_PHRASES: usize = 16;
+const HISTORY_PHRASES: usize = 0;
 
 fn files() -> &'static [RustFile] {
     static FILES: OnceLock<Vec<RustFile>> = OnceLock::new();
