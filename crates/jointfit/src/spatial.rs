@@ -30,6 +30,7 @@ impl Pose {
         self.trans == Vector3::zeros() && self.rot == Matrix3::identity()
     }
     /// `self · other`.
+    #[inline]
     pub fn compose(&self, other: &Pose) -> Pose {
         Pose {
             rot: self.rot * other.rot,

@@ -19,6 +19,7 @@
 //! coordinates). Skin motion of the cluster gives a mean of the order of its spread.
 
 use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
 
 use crate::checks::offsets::frames_looked_at;
 use crate::model::Model;
@@ -128,7 +129,7 @@ fn statistic(
 pub(crate) fn rigid_displaced(
     model: &Model,
     trial: &Trial,
-    steady: impl Fn(&RigidOffset) -> bool,
+    steady: impl Fn(&RigidOffset) -> bool + Sync,
 ) -> Vec<RigidOffset> {
     let col: Vec<Option<usize>> = model
         .markers()
@@ -147,14 +148,15 @@ pub(crate) fn rigid_displaced(
         while set.len() > MIN_OTHERS {
             let others =
                 |j: usize| -> Vec<usize> { set.iter().copied().filter(|&k| k != j).collect() };
-            let candidates: Vec<RigidOffset> = set
-                .iter()
+            // Each candidate with its share, computed once and in parallel (collected in
+            // the set's order, so the pick is that of a sequential pass: the last of equal
+            // maxima).
+            let candidates: Vec<(RigidOffset, f64)> = set
+                .par_iter()
                 .filter_map(|&j| statistic(model, trial, &col, j, &others(j), start..end, false))
                 .filter(|o| steady(o))
-                .collect();
-            let pick = candidates.into_iter().max_by(|a, b| {
-                let share = |o: &RigidOffset| {
-                    statistic(
+                .map(|o| {
+                    let share = statistic(
                         model,
                         trial,
                         &col,
@@ -163,10 +165,14 @@ pub(crate) fn rigid_displaced(
                         start..end,
                         true,
                     )
-                    .map_or(0.0, |x| x.size())
-                };
-                share(a).total_cmp(&share(b))
-            });
+                    .map_or(0.0, |x| x.size());
+                    (o, share)
+                })
+                .collect();
+            let pick = candidates
+                .into_iter()
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|(o, _)| o);
             let Some(pick) = pick else { break };
             set.retain(|&k| k != pick.marker);
             out.push(pick);
