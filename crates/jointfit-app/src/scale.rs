@@ -106,26 +106,41 @@ pub struct ScaleOutcome {
     pub seconds: f64,
 }
 
-/// Motion-trial frames: `n` evenly spaced frames with at least half the model's markers.
+/// Motion-trial frames: `n` evenly spaced frames, each holding at least half of the `needed`
+/// markers (those the static trial holds; a frame with fewer says little the static does
+/// not). A trial none of whose spaced frames qualifies is an error naming it: a motion trial
+/// asked for is never dropped silently.
 fn motion_frames(
-    model: &Model,
+    path: &Path,
     trial: &jointfit::trial::Trial,
     n: usize,
     spec: &jointfit::model::spec::ModelSpec,
-) -> Vec<Vec<Vector3<f64>>> {
+    needed: usize,
+) -> Result<Vec<Vec<Vector3<f64>>>, String> {
     let nf = trial.n_frames();
     let mut out = Vec::new();
     if nf == 0 || n == 0 {
-        return out;
+        return Ok(out);
     }
+    let mut most = 0;
     for k in 0..n {
         let f = (k * nf + nf / 2) / n;
         let t = averaged_targets(spec, trial, f..f + 1);
-        if t.iter().filter(|m| m.x.is_finite()).count() * 2 >= model.n_markers() {
+        let held = t.iter().filter(|m| m.x.is_finite()).count();
+        most = most.max(held);
+        if held * 2 >= needed {
             out.push(t);
         }
     }
-    out
+    if out.is_empty() {
+        return Err(format!(
+            "{}: none of its {n} evenly spaced frames holds half of the {needed} model markers \
+             the static trial holds (the most: {most}); check its labels against the model's \
+             markers",
+            path.display()
+        ));
+    }
+    Ok(out)
 }
 
 /// The generic model with the request's marker set attached, and the markers it keeps
@@ -180,11 +195,7 @@ type Targets = Vec<Vec<Vector3<f64>>>;
 
 /// The fit's targets: the averaged static frame, then the motion frames; and the model
 /// markers the static trial lacks.
-fn read_targets(
-    req: &ScaleRequest,
-    spec: &ModelSpec,
-    generic: &Model,
-) -> Result<(Targets, Vec<String>), String> {
+fn read_targets(req: &ScaleRequest, spec: &ModelSpec) -> Result<(Targets, Vec<String>), String> {
     let stat = jointfit_io::trial_file::read_trial(&req.static_trial).map_err(|e| e.to_string())?;
     let mut targets = vec![averaged_targets(spec, &stat, static_range(req, &stat)?)];
     let absent: Vec<String> = spec
@@ -194,9 +205,10 @@ fn read_targets(
         .filter(|(_, t)| !t.x.is_finite())
         .map(|(m, _)| m.name.clone())
         .collect();
+    let needed = spec.markers.len() - absent.len();
     for path in &req.trials {
         let t = jointfit_io::trial_file::read_trial(path).map_err(|e| e.to_string())?;
-        targets.extend(motion_frames(generic, &t, req.frames_per_trial, spec));
+        targets.extend(motion_frames(path, &t, req.frames_per_trial, spec, needed)?);
     }
     Ok((targets, absent))
 }
@@ -257,7 +269,7 @@ pub fn scale_subject(req: &ScaleRequest) -> Result<ScaleOutcome, String> {
         ));
     }
     let generic = Model::compile(&spec).map_err(|e| format!("{}: {e}", req.generic.display()))?;
-    let (targets, absent) = read_targets(req, &spec, &generic)?;
+    let (targets, absent) = read_targets(req, &spec)?;
 
     let clock = Instant::now();
     let opts = fit_options(req, &spec, &generic, fixed);

@@ -187,3 +187,68 @@ fn scale_marker_on_a_missing_body_is_a_one_line_error() {
         "{err}"
     );
 }
+
+/// A motion trial is used when its frames hold half of the markers the static trial holds,
+/// whatever the model's own marker count: Hamner's full-body model carries 37 markers its
+/// running session never recorded (arms, joint centres), and the running frames still join
+/// the fit (1 static + 8 running frames). A motion trial none of whose frames qualifies
+/// (every label renamed) is a one-line error naming it, and nothing is written.
+#[test]
+fn motion_frames_count_against_the_static_trials_markers() {
+    let files = [
+        "FullBodyModel_Hamner2010_v2_0.osim",
+        "subject02_static.trc",
+        "subject02_running.trc",
+    ]
+    .map(|f| jointfit_testkit::data_file(&format!("opensim_hamner_subject02/{f}")));
+    let [Some(generic), Some(stat), Some(run)] = files else {
+        println!("skipped: no data");
+        return;
+    };
+    let dir = jointfit_testkit::scratch("scale-motion");
+    let s = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    let out = dir.join("subject02.osim");
+    let (ok, stdout, err) = jointfit(&[
+        "scale",
+        &s(&generic),
+        &s(&stat),
+        &s(&run),
+        "-o",
+        &s(&out),
+        "--json",
+    ]);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(v["frames"], 9, "{stdout}");
+    assert_eq!(v["absent_markers"].as_array().unwrap().len(), 37);
+
+    let text = std::fs::read_to_string(&run).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    lines[3] = lines[3]
+        .split('\t')
+        .enumerate()
+        .map(|(i, l)| match i >= 2 && !l.is_empty() {
+            true => format!("Pat_{l}"),
+            false => l.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join("\t");
+    let renamed = dir.join("renamed.trc");
+    std::fs::write(&renamed, lines.join("\n")).unwrap();
+    let bad = dir.join("bad.osim");
+    let (ok, _, err) = jointfit(&[
+        "scale",
+        &s(&generic),
+        &s(&stat),
+        &s(&renamed),
+        "-o",
+        &s(&bad),
+    ]);
+    assert!(!ok);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("renamed.trc") && err.contains("(the most: 0)"),
+        "{err}"
+    );
+    assert!(!bad.exists());
+}
