@@ -75,6 +75,8 @@ mod scale;
 mod stream;
 #[path = "cli/synth.rs"]
 mod synth;
+#[path = "cli/trial_refusals.rs"]
+mod trial_refusals;
 #[path = "cli/up.rs"]
 mod up;
 #[path = "cli/verdict.rs"]
