@@ -198,11 +198,20 @@ fn units_and_sides_that_do_not_match_are_refused() {
     );
 }
 
-/// `demo`: the verdict closes the output, and the run says nothing on stderr besides it.
+/// `demo`: the verdict closes the output, and the run says nothing on stderr besides it. The
+/// reported 95 % intervals cover the known true parameters about as often as they claim (at
+/// least 20 of 27; the intervals and the truth compared in the same units).
 #[test]
 fn demo_is_a_clean_run_with_a_verdict() {
     let (code, stdout, err) = run(&["demo", "--frames", "60"]);
     assert_eq!(code, 0, "{err}");
+    let covered: usize = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("true value inside the reported 95% interval for "))
+        .and_then(|l| l.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .expect("the coverage line");
+    assert!(covered >= 20, "{covered} of 27 covered:\n{stdout}");
     let last = stdout.lines().last().unwrap();
     assert!(last.starts_with("verdict: "), "{last}");
     assert!(!err.contains("warning"), "{err}");
