@@ -4,8 +4,8 @@
         OpenSim's ScaleTool from an existing setup with the files replaced (absolute paths);
         prints the applied scale factors {"body": [sx, sy, sz]}.
     python scale_compare.py ik MODEL.osim TRIAL.trc OUTDIR
-        OpenSim's InverseKinematicsTool over the whole trial, every model marker present in
-        the trial with weight 1 (no coordinate tasks), accuracy 1e-5; prints the mean and
+        OpenSim's InverseKinematicsTool over the whole trial (samples of (0, 0, 0) made
+        gaps), every model marker recorded in the trial with weight 1 (no coordinate tasks), accuracy 1e-5; prints the mean and
         the largest per-frame marker RMS and the largest marker error (m).
 Each answer is one line "@@" + JSON.
 """
@@ -48,12 +48,36 @@ def scaletool(setup, generic, markerset, static, out):
     print("@@" + json.dumps({"factors": factors}))
 
 
+def is_zero(v):
+    return v.get(0) == 0.0 and v.get(1) == 0.0 and v.get(2) == 0.0
+
+
+def recorded(table, name):
+    col = table.getDependentColumn(name)
+    return any(not is_zero(col[i]) and col[i].get(0) == col[i].get(0) for i in range(col.size()))
+
+
+def without_zero_samples(table, path):
+    """Writes the trial with every (0, 0, 0) sample made a gap: capture software writes
+    zeros for a marker it did not see, and OpenSim's reader would take them for a marker at
+    the lab origin (jointfit's reader treats them as gaps)."""
+    nan = float("nan")
+    for name in table.getColumnLabels():
+        col = table.updDependentColumn(name)
+        for i in range(col.size()):
+            if is_zero(col[i]):
+                col[i] = osim.Vec3(nan, nan, nan)
+    osim.TRCFileAdapter.write(table, path)
+    return path
+
+
 def ik(model_path, trc, out_dir):
     os.makedirs(out_dir, exist_ok=True)
     model = osim.Model(model_path)
     model.initSystem()
     table = osim.TimeSeriesTableVec3(trc)
-    labels = set(table.getColumnLabels())
+    trc = without_zero_samples(table, os.path.join(out_dir, "markers.trc"))
+    labels = {n for n in table.getColumnLabels() if recorded(table, n)}
     times = table.getIndependentColumn()
     tool = osim.InverseKinematicsTool()
     tool.setName("ik")

@@ -7,8 +7,16 @@
 //! coordinates of frame `f`. The model marker is `x_j(θ) = T_b(q_f; s) (s_b ⊙ c_j + δ_j)`,
 //! where the body poses `T_b` use the scaled model ([`super::geometry`]). Residual rows:
 //!
-//! * data: `√w_j (x_j − m_fj)/σ_d` for every present marker of every frame (`w_j` the
-//!   marker's weight, 1 unless given);
+//! * data: `√w_fj (x_j − m_fj)/σ_d` for every present marker of every frame: in the static
+//!   frame (`f = 0`) `w_0j` is the marker's given weight (a setup's marker-placer task; 1
+//!   unless given), in motion frames 1. A setup's weights were chosen for one static pose
+//!   (OpenSim's marker placer): landmarks at 10–1000, clusters at 0–1. Carried into every
+//!   motion frame they leave the clusters without a say where they show the segments' poses
+//!   best, and weights far above 1 on a few landmarks let their offsets absorb the misfit
+//!   (each offset's prior is only `σ_m`), which bends the factors;
+//! * a marker with no data rows at all (weight 0, no motion sample) is moved onto its place
+//!   in the static frame at the fitted static pose once the fit is done, as the marker placer
+//!   moves every marker the static trial holds;
 //! * marker placement prior: `δ_j/σ_j` (the registered marker stays near its generic place);
 //!   `σ_j = σ_m` for every marker at first; a marker the fit moves beyond `2σ_j` is taken for a
 //!   tracking marker placed anywhere on its segment and its `σ_j` widens to half its offset,
@@ -33,6 +41,7 @@ use super::normal::{Normal, Step};
 use crate::ik::lm::solve_frame;
 use crate::ik::lm::IkWorkspace;
 use crate::ik::{seed_frame, IkOptions};
+use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::spec::ModelSpec;
 use crate::model::{Model, ModelError};
 
@@ -70,8 +79,10 @@ pub struct ScaleOptions {
     pub robust: bool,
     /// Bodies held at given factors (OpenSim's manual scales), in no group.
     pub fixed_factors: ScaleFactors,
-    /// Weights `w_j` of markers' data rows (`√w_j (x_j − m_fj)/σ_d`; 0 leaves the marker's
-    /// data out, as OpenSim's marker placer does with a task of weight 0); unnamed: 1.
+    /// Weights `w_j` of markers' data rows in the static frame (frame 0:
+    /// `√w_j (x_j − m_0j)/σ_d`; 0 leaves the marker's static data out), as OpenSim's marker
+    /// placer weighs the static pose; unnamed: 1. They describe the static pose only: the
+    /// motion frames weigh every marker 1 (module docs).
     pub marker_weights: Vec<(String, f64)>,
 }
 
@@ -172,7 +183,8 @@ struct Problem<'a> {
     start: Vec<f64>,
     /// Per model marker: the SD of its offset prior (m).
     msd: Vec<f64>,
-    /// Per model marker: the weight of its data rows (`ScaleOptions::marker_weights`).
+    /// Per model marker: the weight of its data rows in the static frame
+    /// (`ScaleOptions::marker_weights`).
     weight: Vec<f64>,
     basis: FactorBasis,
 }
@@ -250,9 +262,18 @@ impl Problem<'_> {
         self.basis.points(g, &self.deltas(th), q, jac, ws)
     }
 
-    /// Whether marker `mi`'s sample `m` makes data rows (present, weight above 0).
-    fn used(&self, mi: usize, m: &Vector3<f64>) -> bool {
-        m.x.is_finite() && self.weight[mi] > 0.0
+    /// The weight of marker `mi`'s data rows in frame `f` (module docs).
+    fn weight(&self, f: usize, mi: usize) -> f64 {
+        if f == 0 {
+            self.weight[mi]
+        } else {
+            1.0
+        }
+    }
+
+    /// Whether marker `mi`'s sample `m` in frame `f` makes data rows (present, weight above 0).
+    fn used(&self, f: usize, mi: usize, m: &Vector3<f64>) -> bool {
+        m.x.is_finite() && self.weight(f, mi) > 0.0
     }
 
     /// Data rows of frame `f`, added to `ev`.
@@ -260,10 +281,10 @@ impl Problem<'_> {
         let pts = self.points(th, f, ev.normal.is_some(), ws);
         let k = self.lay.k;
         for (mi, m) in self.targets[f].iter().enumerate() {
-            if !self.used(mi, m) {
+            if !self.used(f, mi, m) {
                 continue;
             }
-            let sc = self.weight[mi].sqrt() / self.opts.noise_sd;
+            let sc = self.weight(f, mi).sqrt() / self.opts.noise_sd;
             let r = (pts.markers[mi] - m) * sc;
             ev.cost += r.norm_squared();
             ev.data_cost += r.norm_squared();
@@ -483,6 +504,40 @@ fn layout(
     })
 }
 
+/// Markers with no data rows (weight 0 in the static frame, absent from every motion frame)
+/// that the static frame holds, moved onto their measured place at the fitted static pose
+/// (module docs): their data shaped neither the poses nor the factors, but the subject's
+/// model carries them where they were measured.
+fn register_unweighted(pb: &Problem, th: &mut [f64]) -> Result<(), ScaleError> {
+    let Some(stat) = pb.targets.first() else {
+        return Ok(());
+    };
+    let model = pb.model(th)?;
+    let q0 = &th[pb.lay.q[0]..pb.lay.q[0] + pb.n_q];
+    let mut data = KinData::new(&model);
+    forward_kinematics(
+        &model,
+        &model.nominal_params(),
+        q0,
+        Want::POSITIONS,
+        &mut data,
+    );
+    let mut moves = Vec::new();
+    for (j, (d, m)) in pb.lay.delta.iter().zip(stat).enumerate() {
+        let in_motion = pb.targets[1..].iter().any(|t| t[j].x.is_finite());
+        if let (Some(at), true, false) = (d, pb.weight[j] == 0.0 && m.x.is_finite(), in_motion) {
+            let rot = data.segment_poses[model.markers()[j].segment.0].rot;
+            moves.push((*at, rot.transpose() * (m - data.markers[j])));
+        }
+    }
+    for (at, step) in moves {
+        for k in 0..3 {
+            th[at + k] += step[k];
+        }
+    }
+    Ok(())
+}
+
 /// The problem at its starting point: factors 1 (or the stature ratio), offsets 0, each
 /// frame's pose by inverse kinematics on the model at the starting size.
 fn start<'a>(
@@ -673,7 +728,8 @@ pub fn fit_scale(
 ) -> Result<ScaleFit, ScaleError> {
     let (mut pb, th) = start(spec, targets, opts)?;
     let mut ws = pb.basis.workspace();
-    let (th, _, iterations, converged) = solve_robust(&mut pb, th, &mut ws);
+    let (mut th, _, iterations, converged) = solve_robust(&mut pb, th, &mut ws);
+    register_unweighted(&pb, &mut th)?;
     let th = &th;
     let groups = group_fits(&pb, th, &mut ws)?;
     let (markers, rms) = marker_fits(&pb, th, &mut ws)?;
@@ -802,8 +858,19 @@ mod tests {
         let biased = fit_scale(&spec, std::slice::from_ref(&markers), &opts).unwrap();
         assert!(factor_error(&biased) > 1e-3, "{:?}", biased.groups);
         opts.marker_weights = vec![(spec.markers[bad].name.clone(), 0.0)];
-        let fit = fit_scale(&spec, &[markers], &opts).unwrap();
+        let fit = fit_scale(&spec, std::slice::from_ref(&markers), &opts).unwrap();
         assert!(factor_error(&fit) < 1e-6, "{:?}", fit.groups);
+        // Registered where it was measured, as the marker placer moves every static marker.
+        let m = &fit.markers[bad];
+        let moved = Vector3::from(m.moved).norm();
+        assert!((moved - 0.04).abs() < 1e-6 && m.rms < 1e-6, "{m:?}");
+        // In a motion frame the marker counts (weight 1): its data pull the factors again.
+        let with_motion = fit_scale(&spec, &[markers.clone(), markers], &opts).unwrap();
+        assert!(
+            factor_error(&with_motion) > 1e-3,
+            "{:?}",
+            with_motion.groups
+        );
     }
 
     /// A body held at its true factors while the others are fitted: they are recovered, and
