@@ -5,7 +5,7 @@
 //! the log of the overall size (only with the anthropometric prior), `δ_j` the offset (m, in
 //! its body) of each free marker `j` from `s_b ⊙ c_j` (`c_j` its generic position), `q_f` the
 //! coordinates of frame `f`. The model marker is `x_j(θ) = T_b(q_f; s) (s_b ⊙ c_j + δ_j)`,
-//! where the body poses `T_b` use the scaled model ([`super::geometry`]). Residual rows:
+//! where the body poses `T_b` use the scaled model ([`crate::geometry`]). Residual rows:
 //!
 //! * data: `√w_j (x_j − m_fj)/σ_d` for every present marker of every frame (`w_j` the
 //!   marker's weight, 1 unless given);
@@ -27,14 +27,14 @@
 
 use nalgebra::Vector3;
 
-use super::basis::{BasisData, FactorBasis, FramePoints};
-use super::geometry::{scaled_spec, ScaleFactors};
-use super::normal::{Normal, Step};
-use crate::ik::lm::solve_frame;
-use crate::ik::lm::IkWorkspace;
-use crate::ik::{seed_frame, IkOptions};
-use crate::model::spec::ModelSpec;
-use crate::model::{Model, ModelError};
+use crate::basis::{BasisData, FactorBasis, FramePoints};
+use crate::geometry::{scaled_spec, ScaleFactors};
+use crate::normal::{Normal, Step};
+use jointfit::ik::lm::solve_frame;
+use jointfit::ik::lm::IkWorkspace;
+use jointfit::ik::{seed_frame, IkOptions};
+use jointfit::model::spec::ModelSpec;
+use jointfit::model::{Model, ModelError};
 
 /// Bodies that share scale factors.
 #[derive(Debug, Clone, PartialEq)]
@@ -697,9 +697,9 @@ pub fn fit_scale(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kinematics::{forward_kinematics, KinData, Want};
-    use crate::model::lower_limb::{lower_limb, Side};
-    use crate::scale::groups::default_groups;
+    use crate::groups::default_groups;
+    use jointfit::kinematics::{forward_kinematics, KinData, Want};
+    use jointfit::model::lower_limb::{lower_limb, Side};
 
     const TRUTH: [(&str, [f64; 3]); 4] = [
         ("pelvis", [1.06; 3]),
