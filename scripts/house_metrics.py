@@ -12,7 +12,8 @@ Measures on the source tree, with the definitions of `crates/jointfit-testkit/te
   `crates/jointfit/src` outside `#[cfg(test)]` code (methods included), plus each name a
   `pub use` re-exports;
 * io workflow modules: modules of `crates/jointfit-io/src` that name the core's `workflow`,
-  `calibrate`, `ik` or scaling fit (`scale::fit`, `fit_scale`) outside test code;
+  `calibrate` or `ik`, or the scaling fit of `jointfit-scale` (`fit`, `fit_scale`) outside
+  test code;
 * binary source-tree paths: lines of the non-test code linked into the `jointfit` binary that
   name `CARGO_MANIFEST_DIR`, a path under `scripts/`, or run `git`;
 * core modules in cycles: top-level modules of the core that lie on a dependency cycle
@@ -76,7 +77,7 @@ PUB_ITEM = re.compile(
     r"|\bpub\s+const\s+(\w+)\s*:"
 )
 PUB_USE = re.compile(r"\bpub\s+use\s+([^;]*);")
-WORKFLOW_PATHS = ("workflow", "calibrate", "ik", "scale::fit")
+WORKFLOW_PATHS = {"jointfit": ("workflow", "calibrate", "ik"), "jointfit_scale": ("fit",)}
 WORKFLOW_FNS = ("fit_scale",)
 SOURCE_TREE = re.compile(r'CARGO_MANIFEST_DIR|scripts/|Command::new\(\s*"git"\s*\)')
 
@@ -422,16 +423,19 @@ def core_public_items(files):
     return found
 
 
-def is_workflow(path):
+def is_workflow(crate, path):
     parts = path.split("::")
-    return parts[0] in WORKFLOW_PATHS or "::".join(parts[:2]) in WORKFLOW_PATHS or parts[-1] in WORKFLOW_FNS
+    return parts[0] in WORKFLOW_PATHS[crate] or parts[-1] in WORKFLOW_FNS
 
 
 def io_workflow(files):
     found = []
     for f in files:
         if f.path.startswith("crates/jointfit-io/src/"):
-            named = sorted({p for p in paths_after(f.shipped_code(), "jointfit") if is_workflow(p)})
+            code = f.shipped_code()
+            named = sorted(
+                {f"{c}::{p}" for c in WORKFLOW_PATHS for p in paths_after(code, c) if is_workflow(c, p)}
+            )
             if named:
                 found.append(f"{f.path}: {', '.join(named)}")
     return found

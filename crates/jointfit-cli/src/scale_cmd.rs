@@ -77,7 +77,7 @@ struct JsonMarker<'a> {
 struct JsonReport<'a> {
     output: String,
     scale_factors: std::collections::BTreeMap<&'a str, [f64; 3]>,
-    groups: &'a [jointfit::scale::fit::GroupFit],
+    groups: &'a [jointfit_scale::fit::GroupFit],
     markers: Vec<JsonMarker<'a>>,
     rms_mm: f64,
     frames: usize,

@@ -19,7 +19,6 @@ pub mod model;
 pub mod placement;
 pub mod plausibility;
 pub mod repair;
-pub mod scale;
 pub mod signal;
 pub mod solver;
 pub mod spatial;

@@ -69,6 +69,7 @@ fn scale_gait2392_from_the_tutorial_setup() {
             .collect();
         assert_eq!(f, vec![manual; 3], "{body}");
     }
+    assert_converged(&json);
     assert_eq!(factors["talus_r"], factors["talus_l"], "shank measurement");
     assert_eq!(factors["toes_l"], factors["calcn_l"], "foot measurement");
     report_shows_the_scaling(&out, &walk, &json, &dir);
@@ -101,6 +102,56 @@ fn scale_gait2392_from_the_tutorial_setup() {
         mean * 1e3
     );
     assert!(mean <= 0.015, "mean RMS {mean}");
+}
+
+/// The fit stopped by its own convergence test, not at its iteration limit: no flag says
+/// so, and the iterations stayed under the limit of the rounds.
+fn assert_converged(json: &serde_json::Value) {
+    let flags = json["flags"].as_array().unwrap();
+    assert!(
+        !flags
+            .iter()
+            .any(|f| f.as_str().unwrap().contains("iteration limit")),
+        "{flags:?}"
+    );
+    assert!(
+        json["iterations"].as_u64().unwrap() < 800,
+        "{}",
+        json["iterations"]
+    );
+}
+
+/// OpenCap's expert 1, the generic model with the static and a walk: the fit converges (no
+/// iteration-limit flag), and the walk's frames fit within 15 mm RMS.
+#[test]
+fn scale_opencap_expert_with_a_walk_converges() {
+    let files = ["generic.osim", "static1.trc", "walking1.trc"]
+        .map(|f| jointfit_testkit::data_file(&format!("opencap_expert1/{f}")));
+    let [Some(generic), Some(stat), Some(walk)] = files else {
+        println!("skipped: no data");
+        return;
+    };
+    let dir = jointfit_testkit::scratch("scale-opencap");
+    let s = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    let out = dir.join("expert1.osim");
+    let (ok, stdout, err) = jointfit(&[
+        "scale",
+        &s(&generic),
+        &s(&stat),
+        &s(&walk),
+        "-o",
+        &s(&out),
+        "--json",
+    ]);
+    assert!(ok, "{err}");
+    let json: serde_json::Value = serde_json::from_str(&stdout).expect("JSON");
+    assert_converged(&json);
+    assert_eq!(json["frames"], 9, "{stdout}");
+    assert!(
+        json["rms_mm"].as_f64().unwrap() < 15.0,
+        "{}",
+        json["rms_mm"]
+    );
 }
 
 /// `jointfit report` on the scaled model: a section with each group's factors and 95 %

@@ -45,8 +45,8 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use jointfit::model::offset_rotation;
-use jointfit::scale::geometry;
-use jointfit::scale::geometry::ScaleFactors;
+use jointfit_scale::geometry;
+use jointfit_scale::geometry::ScaleFactors;
 use nalgebra::{Matrix3, Vector3};
 use roxmltree::{Document, Node};
 use thiserror::Error;

@@ -24,9 +24,9 @@ use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::functions::Function;
 use jointfit::model::offset_rotation;
 use jointfit::model::Model;
-use jointfit::scale::geometry::scaled_spec;
-use jointfit::scale::geometry::ScaleFactors;
 use jointfit::spatial::Pose;
+use jointfit_scale::geometry::scaled_spec;
+use jointfit_scale::geometry::ScaleFactors;
 use nalgebra::Vector3;
 use roxmltree::{Document, Node};
 

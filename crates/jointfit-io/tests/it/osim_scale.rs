@@ -10,9 +10,9 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use jointfit::scale::geometry::ScaleFactors;
 use jointfit_io::osim_read::read_osim;
 use jointfit_io::osim_scale::{path_lengths, scale_osim, ScaleOptions};
+use jointfit_scale::geometry::ScaleFactors;
 use jointfit_testkit::script::Script;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -192,13 +192,16 @@ pub fn core_public_items(files: &[RustFile]) -> Vec<String> {
     found
 }
 
-/// Modules of the core whose calls make an application workflow (fitting, inverse
-/// kinematics, calibration, scaling fits).
-const WORKFLOW_PATHS: [&str; 4] = ["workflow", "calibrate", "ik", "scale::fit"];
+/// Modules whose calls make an application workflow (fitting, inverse kinematics,
+/// calibration, scaling fits), by crate.
+const WORKFLOW_PATHS: [(&str, &[&str]); 2] = [
+    ("jointfit", &["workflow", "calibrate", "ik"]),
+    ("jointfit_scale", &["fit"]),
+];
 const WORKFLOW_FNS: [&str; 1] = ["fit_scale"];
 
-/// `path: core path` for each module of `jointfit-io` that names a fit, IK or calibration
-/// function or module of the core outside test code.
+/// `path: crate::path` for each module of `jointfit-io` that names a fit, IK or calibration
+/// function or module of the core, or the scaling fit, outside test code.
 pub fn io_workflow(files: &[RustFile]) -> Vec<String> {
     let mut found = Vec::new();
     for file in files
@@ -206,16 +209,20 @@ pub fn io_workflow(files: &[RustFile]) -> Vec<String> {
         .filter(|f| f.path.starts_with("crates/jointfit-io/src/"))
     {
         let code: Vec<&str> = file.shipped_lines().map(|l| l.bare.as_str()).collect();
-        let named: BTreeSet<String> = paths_after(&code.join("\n"), "jointfit")
-            .into_iter()
-            .filter(|p| {
-                let first_two: Vec<&str> = p.split("::").take(2).collect();
-                WORKFLOW_PATHS
-                    .iter()
-                    .any(|w| *w == first_two[0] || *w == first_two.join("::"))
-                    || WORKFLOW_FNS
-                        .iter()
-                        .any(|f| p.rsplit("::").next() == Some(f))
+        let code = code.join("\n");
+        let named: BTreeSet<String> = WORKFLOW_PATHS
+            .iter()
+            .flat_map(|(krate, modules)| {
+                paths_after(&code, krate)
+                    .into_iter()
+                    .filter(|p| {
+                        let first = p.split("::").next().unwrap_or("");
+                        modules.contains(&first)
+                            || WORKFLOW_FNS
+                                .iter()
+                                .any(|f| p.rsplit("::").next() == Some(f))
+                    })
+                    .map(move |p| format!("{krate}::{p}"))
             })
             .collect();
         if !named.is_empty() {

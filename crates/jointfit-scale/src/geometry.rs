@@ -16,8 +16,9 @@
 
 use std::collections::BTreeMap;
 
-use crate::model::spec::{
-    AxisMotion, AxisSpec, FunctionSpec, JointKindSpec, ModelSpec, OffsetSpec, ScalarSpec,
+use jointfit::model::functions::FunctionSpec;
+use jointfit::model::spec::{
+    AxisMotion, AxisSpec, JointKindSpec, ModelSpec, OffsetSpec, ScalarSpec,
 };
 
 /// Scale factors `[sx, sy, sz]` (dimensionless, along the body's own axes) by body name.
@@ -143,7 +144,7 @@ pub fn scaled_spec(spec: &ModelSpec, factors: &ScaleFactors) -> ModelSpec {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::lower_limb::{lower_limb, Side};
+    use jointfit::model::lower_limb::{lower_limb, Side};
 
     fn check(a: &ScalarSpec, b: &ScalarSpec, s: f64) {
         match (a, b) {
@@ -202,7 +203,10 @@ mod tests {
 
     #[test]
     fn translation_functions_take_the_parent_axis_factor() {
-        assert_eq!(axis_factor(&AxisSpec::named("-y"), &[2.0, 3.0, 4.0]), 3.0);
+        assert_eq!(
+            axis_factor(&AxisSpec::Named("-y".to_string()), &[2.0, 3.0, 4.0]),
+            3.0
+        );
         let v = AxisSpec::Vector([0.6, 0.0, 0.8]);
         assert!((axis_factor(&v, &[2.0, 3.0, 4.0]) - (1.2 + 3.2)).abs() < 1e-15);
         let f = FunctionSpec::Constant { value: 0.1 };

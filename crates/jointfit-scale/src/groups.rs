@@ -6,9 +6,9 @@ use std::ops::Range;
 
 use nalgebra::Vector3;
 
-use super::fit::{GroupFit, ScaleGroup};
-use crate::model::spec::ModelSpec;
-use crate::trial::Trial;
+use crate::fit::{GroupFit, ScaleGroup};
+use jointfit::model::spec::ModelSpec;
+use jointfit::trial::Trial;
 
 /// The other side's name of a bilateral body (`femur_r` ↔ `femur_l`), if it has one.
 pub(crate) fn mirror_name(body: &str) -> Option<String> {

@@ -24,11 +24,11 @@
 
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
-use super::fit::ScaleGroup;
-use super::geometry::{scaled_spec, ScaleFactors};
-use crate::kinematics::{forward_kinematics, KinData, Want};
-use crate::model::spec::ModelSpec;
-use crate::model::{Model, ModelError};
+use crate::fit::ScaleGroup;
+use crate::geometry::{scaled_spec, ScaleFactors};
+use jointfit::kinematics::{forward_kinematics, KinData, Want};
+use jointfit::model::spec::ModelSpec;
+use jointfit::model::{Model, ModelError};
 
 /// The `K + 1` models of the module docs.
 pub(crate) struct FactorBasis {
@@ -198,11 +198,10 @@ fn combine(out: &mut [f64], jm: &[f64], rows: usize, w: impl Fn(usize) -> f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::lower_limb::{lower_limb, Side};
-    use crate::model::spec::{
-        AxisMotion, AxisSpec, FunctionSpec, JointKindSpec, TransformAxisSpec,
-    };
-    use crate::scale::groups::default_groups;
+    use crate::groups::default_groups;
+    use jointfit::model::functions::FunctionSpec;
+    use jointfit::model::lower_limb::{lower_limb, Side};
+    use jointfit::model::spec::{AxisMotion, AxisSpec, JointKindSpec, TransformAxisSpec};
 
     /// Marker positions and `∂x/∂q` of the model compiled at the factors, each marker moved
     /// by its offset.
@@ -261,7 +260,7 @@ mod tests {
         };
         let translation = |axis: &str, slope: f64| TransformAxisSpec {
             motion: AxisMotion::Translation,
-            axis: AxisSpec::named(axis),
+            axis: AxisSpec::Named(axis.to_string()),
             coordinate: Some(coord.clone()),
             function: FunctionSpec::Linear {
                 slope,
