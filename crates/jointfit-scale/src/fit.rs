@@ -14,9 +14,12 @@
 //!   motion frame they leave the clusters without a say where they show the segments' poses
 //!   best, and weights far above 1 on a few landmarks let their offsets absorb the misfit
 //!   (each offset's prior is only `σ_m`), which bends the factors;
-//! * a marker with no data rows at all (weight 0, no motion sample) is moved onto its place
-//!   in the static frame at the fitted static pose once the fit is done, as the marker placer
-//!   moves every marker the static trial holds;
+//!   The static weights are divided by their mean over the static markers in use, so the
+//!   static frame weighs as one frame whatever the setup's scale of weights;
+//! * a marker the static frame holds and no motion frame does is moved onto its measured
+//!   place at the fitted static pose once the fit is done (registration, as OpenSim's marker
+//!   placer moves every marker of the static trial); the reported misfit is the fit's, before
+//!   this move;
 //! * marker placement prior: `δ_j/σ_j` (the registered marker stays near its generic place);
 //!   `σ_j = σ_m` for every marker at first; a marker the fit moves beyond `2σ_j` is taken for a
 //!   tracking marker placed anywhere on its segment and its `σ_j` widens to half its offset,
@@ -141,7 +144,8 @@ pub struct MarkerFit {
     pub position: [f64; 3],
     /// Offset from the scaled generic position (m).
     pub moved: [f64; 3],
-    /// RMS distance to the data over the frames it is present in (m; NaN: never present).
+    /// RMS distance to the data over the frames it is present in, at the fit's solution
+    /// before registration (m; NaN: never present).
     pub rms: f64,
 }
 
@@ -152,7 +156,8 @@ pub struct ScaleFit {
     pub markers: Vec<MarkerFit>,
     /// Coordinates of every frame at the solution.
     pub coords: Vec<Vec<f64>>,
-    /// RMS marker distance over every present marker sample (m).
+    /// RMS marker distance over every present marker sample at the fit's solution, before the
+    /// static-only markers are registered (m).
     pub rms: f64,
     /// `exp(u)`: the overall size (anthropometric prior only).
     pub size: Option<f64>,
@@ -543,11 +548,11 @@ fn layout(
     })
 }
 
-/// Markers with no data rows (weight 0 in the static frame, absent from every motion frame)
-/// that the static frame holds, moved onto their measured place at the fitted static pose
-/// (module docs): their data shaped neither the poses nor the factors, but the subject's
-/// model carries them where they were measured.
-fn register_unweighted(pb: &Problem, th: &mut [f64]) -> Result<(), ScaleError> {
+/// Markers the static frame holds and no motion frame does, moved onto their measured place
+/// at the fitted static pose once the fit is done (module docs), as OpenSim's marker placer
+/// moves every marker of the static trial: their weighted static data shaped the pose and the
+/// factors; the subject's model carries them where they were measured.
+fn register_static_only(pb: &Problem, th: &mut [f64]) -> Result<(), ScaleError> {
     let Some(stat) = pb.targets.first() else {
         return Ok(());
     };
@@ -564,7 +569,7 @@ fn register_unweighted(pb: &Problem, th: &mut [f64]) -> Result<(), ScaleError> {
     let mut moves = Vec::new();
     for (j, (d, m)) in pb.lay.delta.iter().zip(stat).enumerate() {
         let in_motion = pb.targets[1..].iter().any(|t| t[j].x.is_finite());
-        if let (Some(at), true, false) = (d, pb.weight[j] == 0.0 && m.x.is_finite(), in_motion) {
+        if let (Some(at), true, false) = (d, m.x.is_finite(), in_motion) {
             let rot = data.segment_poses[model.markers()[j].segment.0].rot;
             moves.push((*at, rot.transpose() * (m - data.markers[j])));
         }
@@ -575,6 +580,39 @@ fn register_unweighted(pb: &Problem, th: &mut [f64]) -> Result<(), ScaleError> {
         }
     }
     Ok(())
+}
+
+/// Per model marker: its weight in the static frame (`ScaleOptions::marker_weights`, 1
+/// unless named), divided by the mean weight of the static markers that make data rows, so
+/// that the static frame weighs as much as one motion frame whatever the setup's scale of
+/// weights (10–100 in one lab's setup, 1–1000 in another's).
+fn static_weights(
+    spec: &ModelSpec,
+    targets: &[Vec<Vector3<f64>>],
+    opts: &ScaleOptions,
+) -> Vec<f64> {
+    let given: Vec<f64> = spec
+        .markers
+        .iter()
+        .map(|m| {
+            opts.marker_weights
+                .iter()
+                .find(|(n, _)| *n == m.name)
+                .map_or(1.0, |(_, w)| *w)
+        })
+        .collect();
+    let used: Vec<f64> = given
+        .iter()
+        .zip(&targets[0])
+        .filter(|(w, m)| **w > 0.0 && m.x.is_finite())
+        .map(|(w, _)| *w)
+        .collect();
+    let mean = used.iter().sum::<f64>() / used.len().max(1) as f64;
+    if mean > 0.0 {
+        given.iter().map(|w| w / mean).collect()
+    } else {
+        given
+    }
 }
 
 /// The problem at its starting point: factors 1 (or the stature ratio), offsets 0, each
@@ -602,16 +640,7 @@ fn start<'a>(
     if let Some(u) = lay.size {
         th[u] = size.ln();
     }
-    let weight = spec
-        .markers
-        .iter()
-        .map(|m| {
-            opts.marker_weights
-                .iter()
-                .find(|(n, _)| *n == m.name)
-                .map_or(1.0, |(_, w)| *w)
-        })
-        .collect();
+    let weight = static_weights(spec, targets, opts);
     let mut pb = Problem {
         spec,
         opts,
@@ -768,10 +797,15 @@ pub fn fit_scale(
     let (mut pb, th) = start(spec, targets, opts)?;
     let mut ws = pb.basis.workspace();
     let (mut th, _, iterations, converged) = solve_robust(&mut pb, th, &mut ws);
-    register_unweighted(&pb, &mut th)?;
+    let groups = group_fits(&pb, &th, &mut ws)?;
+    // The misfit is the fit's, before the static-only markers are placed onto the data.
+    let (fitted, rms) = marker_fits(&pb, &th, &mut ws)?;
+    register_static_only(&pb, &mut th)?;
     let th = &th;
-    let groups = group_fits(&pb, th, &mut ws)?;
-    let (markers, rms) = marker_fits(&pb, th, &mut ws)?;
+    let (mut markers, _) = marker_fits(&pb, th, &mut ws)?;
+    for (m, f) in markers.iter_mut().zip(fitted) {
+        m.rms = f.rms;
+    }
     Ok(ScaleFit {
         factors: pb.factors(th),
         groups,
@@ -882,6 +916,42 @@ mod tests {
         assert!(factor_error(&capped) > factor_error(&fit));
     }
 
+    /// The static weights shift trust between markers only: the same weights times 50 give the
+    /// same fit, and unequal weights give another one than none.
+    #[test]
+    fn static_marker_weights_are_relative() {
+        let (spec, groups, mut markers) = scaled_leg();
+        markers[0] += Vector3::new(0.01, -0.02, 0.0);
+        let opts = |scale: f64| {
+            let mut o = ScaleOptions::new(groups.clone());
+            o.marker_weights = spec
+                .markers
+                .iter()
+                .enumerate()
+                .map(|(j, m)| (m.name.clone(), scale * (1.0 + (j % 3) as f64)))
+                .collect();
+            o
+        };
+        let a = fit_scale(&spec, std::slice::from_ref(&markers), &opts(1.0)).unwrap();
+        let b = fit_scale(&spec, std::slice::from_ref(&markers), &opts(50.0)).unwrap();
+        for (ga, gb) in a.groups.iter().zip(&b.groups) {
+            for k in 0..3 {
+                assert!(
+                    (ga.factors[k] - gb.factors[k]).abs() < 1e-9,
+                    "{ga:?} {gb:?}"
+                );
+            }
+        }
+        let plain = ScaleOptions::new(groups.clone());
+        let unweighted = fit_scale(&spec, &[markers], &plain).unwrap();
+        let differ = |u: &GroupFit, w: &GroupFit| (u.factors[0] - w.factors[0]).abs() > 1e-6;
+        assert!(unweighted
+            .groups
+            .iter()
+            .zip(&a.groups)
+            .any(|(u, w)| differ(u, w)));
+    }
+
     #[test]
     fn a_marker_of_weight_zero_does_not_pull_the_factors() {
         let (spec, groups, mut markers) = scaled_leg();
@@ -902,7 +972,9 @@ mod tests {
         // Registered where it was measured, as the marker placer moves every static marker.
         let m = &fit.markers[bad];
         let moved = Vector3::from(m.moved).norm();
-        assert!((moved - 0.04).abs() < 1e-6 && m.rms < 1e-6, "{m:?}");
+        assert!((moved - 0.04).abs() < 1e-6, "{m:?}");
+        // its misfit is the fit's, before registration
+        assert!((m.rms - 0.04).abs() < 1e-6, "{m:?}");
         // In a motion frame the marker counts (weight 1): its data pull the factors again.
         let with_motion = fit_scale(&spec, &[markers.clone(), markers], &opts).unwrap();
         assert!(
