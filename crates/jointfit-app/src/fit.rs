@@ -4,11 +4,10 @@
 //! The summary turns the core's result (display units: mm, degrees) into SI rows, one per
 //! free parameter, and the warnings a results table or a Python user reads, one line each.
 
-use crate::present::mm;
+use crate::present::{mm, M_PER_MM};
 use jointfit::calibrate::uncertainty::types::Identifiability;
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::spec::Unit;
-use jointfit::model::spec::M_PER_MM;
 use jointfit::model::Model;
 use jointfit::workflow::refine::RefinedCalibration;
 use jointfit::workflow::{self, uncertainty_options, FitSettings};

@@ -8,7 +8,6 @@ use jointfit::calibrate::uncertainty::types::{
     WeakDirection,
 };
 use jointfit::model::spec::Unit;
-use jointfit::model::spec::MM_PER_M;
 use jointfit::solver::Termination;
 use jointfit::spatial::UpAxis;
 use jointfit::workflow::calibration::{Calibration, ConvergenceStage, MultiStart, StartRun};
@@ -29,12 +28,46 @@ pub enum Front {
     Python,
 }
 
+/// Millimetres per metre: lengths are SI (m) inside and shown in millimetres.
+pub const MM_PER_M: f64 = 1e3;
+/// Metres per millimetre: lengths given in millimetres (options, thresholds) to metres.
+pub const M_PER_MM: f64 = 1e-3;
+
+/// The unit values of `unit` are shown in: `mm` for metres, `deg` for radians.
+pub fn unit_name(unit: Unit) -> &'static str {
+    match unit {
+        Unit::Metre => "mm",
+        Unit::Radian => "deg",
+    }
+}
+
+/// Shown units per SI unit: 1000 mm per m, 180/π degrees per radian.
+pub fn unit_scale(unit: Unit) -> f64 {
+    match unit {
+        Unit::Metre => MM_PER_M,
+        Unit::Radian => 180.0 / std::f64::consts::PI,
+    }
+}
+
 /// A value in SI (m or rad) in the unit a person reads (mm or deg), with that unit's name.
 pub fn shown(value_si: f64, unit: Unit) -> (f64, &'static str) {
     match unit {
         Unit::Metre => (value_si * MM_PER_M, "mm"),
         Unit::Radian => (value_si.to_degrees(), "deg"),
     }
+}
+
+/// A value given in the shown unit of `unit` (mm or deg) in SI (m or rad).
+pub fn from_shown(value: f64, unit: Unit) -> f64 {
+    match unit {
+        Unit::Metre => value / MM_PER_M,
+        Unit::Radian => value.to_radians(),
+    }
+}
+
+/// A length in mm as m.
+pub fn metres(millimetres: f64) -> f64 {
+    millimetres * M_PER_MM
 }
 
 /// A length in m as mm.
@@ -49,7 +82,7 @@ pub fn mm2(square_metres: f64) -> f64 {
 
 /// A value in SI of `unit` in its shown unit (mm or deg), the number alone.
 pub fn shown_value(value_si: f64, unit: Unit) -> f64 {
-    value_si * unit.display_scale()
+    value_si * unit_scale(unit)
 }
 
 /// How to read a trial with `axis` up, as the pipeline's warnings say it (Python's keyword
@@ -341,7 +374,7 @@ impl<'a> ParamRowShown<'a> {
         row: &'a jointfit::workflow::calibration::ParamRow,
         pu: Option<&ParamUncertainty>,
     ) -> ParamRowShown<'a> {
-        let k = row.unit.display_scale();
+        let k = unit_scale(row.unit);
         let (se, ci95) = match pu {
             Some(pu) => (pu.se, pu.ci),
             None => (row.se.map(|v| v * k), row.ci95.map(|[a, b]| [a * k, b * k])),
@@ -349,7 +382,7 @@ impl<'a> ParamRowShown<'a> {
         ParamRowShown {
             name: &row.name,
             group: &row.group,
-            unit: row.unit.display_suffix(),
+            unit: unit_name(row.unit),
             start: row.start * k,
             fitted: row.fitted * k,
             change: row.change * k,

@@ -223,7 +223,7 @@ impl Observer for ProgressObserver {
         }
     }
     fn iteration(&mut self, iteration: usize, objective: f64) {
-        let mm2 = objective * jointfit::model::spec::MM_PER_M * jointfit::model::spec::MM_PER_M;
+        let mm2 = objective * jointfit_app::present::MM_PER_M * jointfit_app::present::MM_PER_M;
         let msg = format!("objective {mm2:.1} mm²");
         let stage = self.stage.clone();
         self.bars.step(

@@ -75,7 +75,9 @@ pub fn run(args: CheckArgs) -> Result<()> {
         params_for_groups(&model, &groups)?
     };
     let opts = UncertaintyOptions {
-        assumed_sigma_m: args.noise_mm.map(|v| Unit::Metre.from_display(v)),
+        assumed_sigma_m: args
+            .noise_mm
+            .map(|v| jointfit_app::present::from_shown(v, Unit::Metre)),
         ..workflow::uncertainty_options(args.threshold_mm, args.threshold_deg, 0, 1)
     };
     let prediction = jointfit::workflow::predict::predict(

@@ -11,10 +11,10 @@ use jointfit::ik::trial_fit::unsolved_ranges;
 use jointfit::ik::trial_fit::TrialFit;
 use jointfit::ik::IkOptions;
 use jointfit::model::custom::MotionType;
-use jointfit::model::spec::MM_PER_M;
 use jointfit::model::Model;
 use jointfit::trial::Trial;
 use jointfit::workflow::WorkflowError;
+use jointfit_app::present::MM_PER_M;
 use jointfit_io::sto::{write_sto, Table};
 use serde::Serialize;
 

@@ -160,7 +160,10 @@ impl Summary {
                 .parameters()
                 .iter()
                 .map(|p| {
-                    let (unit, k) = (p.unit.display_suffix(), p.unit.display_scale());
+                    let (unit, k) = (
+                        jointfit_app::present::unit_name(p.unit),
+                        jointfit_app::present::unit_scale(p.unit),
+                    );
                     ParamRow {
                         group: p.group.clone(),
                         segment: seg_name(p.uses[0].segment),

@@ -104,7 +104,7 @@ pub fn param_errors(
         let d = a[i] - b[i];
         match model.parameters()[i].unit {
             Unit::Radian => ori.push(d.to_degrees()),
-            Unit::Metre => pos.push(d * jointfit::model::spec::MM_PER_M),
+            Unit::Metre => pos.push(d * crate::units::MM_PER_M),
         }
     }
     let rms = |v: &[f64]| {

@@ -27,7 +27,7 @@ impl Errors {
                 continue;
             };
             let u = (par.unit == Unit::Radian) as usize;
-            let e = par.unit.to_display(p[id.0] - truth[id.0]);
+            let e = jointfit_experiments::units::shown(p[id.0] - truth[id.0], par.unit);
             self.sq[g][u] += e * e;
             self.n[g][u] += 1;
         }
