@@ -8,6 +8,7 @@ use jointfit::calibrate::uncertainty::types::{
     WeakDirection,
 };
 use jointfit::model::spec::Unit;
+use jointfit::plausibility::Measure;
 use jointfit::solver::Termination;
 use jointfit::spatial::UpAxis;
 use jointfit::workflow::calibration::{Calibration, ConvergenceStage, MultiStart, StartRun};
@@ -83,6 +84,41 @@ pub fn mm2(square_metres: f64) -> f64 {
 /// A value in SI of `unit` in its shown unit (mm or deg), the number alone.
 pub fn shown_value(value_si: f64, unit: Unit) -> f64 {
     value_si * unit_scale(unit)
+}
+
+/// A marker-policy decision in one line (no trailing period), e.g. `r_thigh3 (thigh):
+/// position refined (prior SD 15 mm): sits 59 mm from its static-trial place in every frame
+/// (spread 11 mm over 135 frames)`.
+pub fn marker_decision(d: &MarkerDecision) -> String {
+    let what = match (d.action, d.prior_sd) {
+        (MarkerAction::Refine, Some(sd)) => {
+            format!("position refined (prior SD {:.0} mm)", sd * MM_PER_M)
+        }
+        (MarkerAction::Refine, None) => "position refined".to_string(),
+        (MarkerAction::Exclude, _) => format!("left out of trial {}", d.trial + 1),
+    };
+    format!("{} ({}): {what}: {}", d.marker, d.segment, d.reason)
+}
+
+/// A body measurement outside the adult range, e.g. `thigh length (right) 120 mm, outside
+/// the 300–570 mm of adults` (a ratio, with no unit, with two decimals).
+pub fn implausible_measure(m: &Measure) -> String {
+    let u = if m.unit.is_empty() {
+        String::new()
+    } else {
+        format!(" {}", m.unit)
+    };
+    let d = if m.unit.is_empty() { 2 } else { 0 };
+    format!(
+        "{} {:.d$}{u}, outside the {:.d$}–{:.d$}{u} of adults",
+        m.what, m.value, m.range[0], m.range[1]
+    )
+}
+
+/// What an active bound of the anatomical envelope did to its parameter:
+/// `held at the anatomical limit: hip centre medial to the ASIS`.
+pub fn held_at_limit(b: &EnvelopeBound) -> String {
+    format!("held at the anatomical limit: {}", b.what)
 }
 
 /// How to read a trial with `axis` up, as the pipeline's warnings say it (Python's keyword
@@ -534,10 +570,11 @@ mod tests {
     /// interval are the uncertainty record's, and the names are the JSON's.
     #[test]
     fn a_calibration_is_shown_in_mm_degrees_and_mm2() {
+        use crate::fit::uncertainty_options;
         use jointfit::model::lower_limb::{lower_limb, Side};
         use jointfit::model::Model;
         use jointfit::workflow::calibration::calibrate;
-        use jointfit::workflow::{uncertainty_options, FitSettings};
+        use jointfit::workflow::FitSettings;
         use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion};
 
         let model = Model::compile(&lower_limb(Side::Right)).unwrap();

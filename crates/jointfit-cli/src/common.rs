@@ -74,7 +74,7 @@ pub fn up_or_detected(path: &Path, up: Option<Up>) -> Result<(Up, Option<String>
     }
     let (raw, _) = jointfit_io::trial_file::read_trial_noted(path)?;
     Ok(match jointfit::vertical::detect_up(&raw) {
-        Some(d) => (Up::from(d.up), Some(d.describe())),
+        Some(d) => (Up::from(d.up), Some(d.to_string())),
         None => {
             eprintln!(
                 "jointfit: warning: {}: cannot tell the up axis from the marker labels; \

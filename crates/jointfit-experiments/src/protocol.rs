@@ -73,7 +73,7 @@ pub fn fit(
         marker_rms: prob.marker_rms(&cal.fit.p, &cal.fit.coords),
         frames: cal.frames,
         converged: cal.converged,
-        iterations: cal.total_iterations(),
+        iterations: cal.start_runs.iter().map(|r| r.iterations).sum(),
         cost: cal.fit.cost,
         p: cal.fit.p,
         coords: cal.fit.coords,

@@ -83,8 +83,12 @@ impl Policy {
             let right = moved == Some(d.marker.as_str()) && d.action == MarkerAction::Refine;
             self.false_decisions += !right as usize;
             self.lines.push(format!(
-                "  seed {seed}: {} (offset {:.1} mm, spread {:.1} mm)",
-                d.line(),
+                "  seed {seed}: {} {:?} ({}) from trial {}: {} (offset {:.1} mm, spread {:.1} mm)",
+                d.marker,
+                d.action,
+                d.segment,
+                d.trial + 1,
+                d.reason,
                 d.offset * 1e3,
                 d.spread * 1e3
             ));

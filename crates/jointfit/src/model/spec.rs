@@ -335,14 +335,6 @@ impl Unit {
     pub(crate) fn to_display(self, si: f64) -> f64 {
         si * self.display_scale()
     }
-
-    /// A value in shown units (mm, deg) in SI units (m, rad).
-    pub(crate) fn from_display(self, shown: f64) -> f64 {
-        match self {
-            Unit::Metre => shown / MM_PER_M,
-            Unit::Radian => shown.to_radians(),
-        }
-    }
 }
 
 impl std::fmt::Display for Unit {
