@@ -305,20 +305,18 @@ pub fn solve(
         crate::common::warn_absent_markers(path, &run.absent);
     }
     let fit = run.fit;
-    let reference = jointfit::checks::offsets::reference_name(checked_model);
     let offsets = if held.is_empty() {
         jointfit::checks::offsets::check_offsets_after_ik(
             checked_model,
             trial,
             &map,
-            &reference,
             &p,
             opts,
             &fit,
         )
     } else {
         // The IK ran on the model with coordinates held: not the check's.
-        jointfit::checks::offsets::check_offsets(checked_model, trial, &map, &reference)
+        jointfit::checks::offsets::check_offsets(checked_model, trial, &map)
     };
     report_findings(&offsets, path)?;
     findings.extend(offsets);

@@ -199,12 +199,7 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
     {
         return out;
     }
-    out.extend(crate::checks::offsets::check_offsets(
-        model,
-        trial,
-        map,
-        &crate::checks::offsets::reference_name(model),
-    ));
+    out.extend(crate::checks::offsets::check_offsets(model, trial, map));
     out
 }
 
