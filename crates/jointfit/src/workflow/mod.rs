@@ -287,4 +287,4 @@ mod policy_tests;
 #[cfg(test)]
 mod refine_tests;
 #[cfg(test)]
-mod synthetic_tests;
+pub(crate) mod synthetic_tests;

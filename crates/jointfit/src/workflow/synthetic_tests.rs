@@ -10,7 +10,7 @@ use nalgebra::Vector3;
 
 /// Markers of `model` at `p` along a hip, knee and ankle motion of `frames` frames, plus a
 /// smooth deterministic disturbance of up to `noise` metres per axis.
-pub(super) fn synthetic(model: &Model, p: &[f64], frames: usize, noise: f64) -> Trial {
+pub(crate) fn synthetic(model: &Model, p: &[f64], frames: usize, noise: f64) -> Trial {
     let w = std::f64::consts::TAU;
     let mut kin = KinData::new(model);
     let mut positions = Vec::new();
