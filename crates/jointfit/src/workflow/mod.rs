@@ -102,8 +102,9 @@ impl Method {
     /// Every method, in the order of the command line's choices.
     pub(crate) const ALL: [Method; 3] = [Method::Joint, Method::Gradient, Method::Pso];
 
-    /// The lower-case name (`joint`, `gradient`, `pso`), as on the command line and in JSON.
-    pub fn name(self) -> &'static str {
+    /// The lower-case name (`joint`, `gradient`, `pso`), as on the command line and in JSON
+    /// (what [`std::fmt::Display`] writes and [`std::str::FromStr`] reads).
+    pub(crate) fn name(self) -> &'static str {
         match self {
             Method::Joint => "joint",
             Method::Gradient => "gradient",
