@@ -93,7 +93,7 @@ pub(crate) struct Placement {
 /// Why a model and a trial do not belong together.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
-pub enum Mismatch {
+pub(crate) enum Mismatch {
     /// The trial's marker distances are `ratio` times the model's everywhere.
     Units { ratio: f64 },
     /// Segments whose markers are further apart (or closer) as a whole: another build.
