@@ -115,7 +115,7 @@ impl Summary {
         };
         Summary {
             name: model.name().to_string(),
-            description: model.description().to_string(),
+            description: model.spec().description.clone(),
             segments: model
                 .segments()
                 .iter()
