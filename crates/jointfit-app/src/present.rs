@@ -563,6 +563,85 @@ mod tests {
         assert!((mm - 12.5).abs() < 1e-12 && u == "mm");
         let (deg, u) = shown(std::f64::consts::PI / 4.0, Unit::Radian);
         assert!((deg - 45.0).abs() < 1e-12 && u == "deg");
+        assert_eq!(
+            (unit_name(Unit::Metre), unit_name(Unit::Radian)),
+            ("mm", "deg")
+        );
+        assert_eq!(from_shown(12.5, Unit::Metre), 0.0125);
+        assert!((from_shown(45.0, Unit::Radian) - std::f64::consts::FRAC_PI_4).abs() < 1e-15);
+        assert_eq!(metres(20.0), 0.02);
+        assert!((shown_value(1.0, Unit::Radian) - 180.0 / std::f64::consts::PI).abs() < 1e-12);
+    }
+
+    /// A refined marker names its prior SD in mm, an excluded one the trial it leaves
+    /// (counted from 1).
+    #[test]
+    fn marker_decisions_in_one_line() {
+        let mut d = MarkerDecision {
+            marker: "r_thigh3".into(),
+            segment: "thigh".into(),
+            action: MarkerAction::Refine,
+            trial: 0,
+            prior_sd: Some(0.015),
+            offset: 0.059,
+            spread: 0.011,
+            frames: 135,
+            rejected_share: 0.0,
+            reason: "sits 59 mm from its static-trial place".into(),
+        };
+        assert_eq!(
+            marker_decision(&d),
+            "r_thigh3 (thigh): position refined (prior SD 15 mm): sits 59 mm from its \
+             static-trial place"
+        );
+        d.action = MarkerAction::Exclude;
+        d.trial = 1;
+        assert_eq!(
+            marker_decision(&d),
+            "r_thigh3 (thigh): left out of trial 2: sits 59 mm from its static-trial place"
+        );
+    }
+
+    /// An active envelope bound says what it holds, as the text output always printed it.
+    #[test]
+    fn a_bound_held_at_the_limit() {
+        let b = EnvelopeBound {
+            parameter: "hip_pelvis_lateral".into(),
+            what: "hip centre medial to the ASIS",
+            limit: 0.0885,
+            model_upper: 0.12,
+            active: true,
+            unbounded_fit: None,
+        };
+        assert_eq!(
+            held_at_limit(&b),
+            "held at the anatomical limit: hip centre medial to the ASIS"
+        );
+    }
+
+    /// Lengths in whole mm with their unit, a ratio (no unit) with two decimals.
+    #[test]
+    fn implausible_measures_in_one_line() {
+        let thigh = Measure {
+            what: "thigh length (right)".into(),
+            value: 120.4,
+            range: [300.0, 570.0],
+            unit: "mm",
+        };
+        assert_eq!(
+            implausible_measure(&thigh),
+            "thigh length (right) 120 mm, outside the 300–570 mm of adults"
+        );
+        let ratio = Measure {
+            what: "thigh/shank length ratio (left)".into(),
+            value: 1.5,
+            range: [0.7, 1.45],
+            unit: "",
+        };
+        assert_eq!(
+            implausible_measure(&ratio),
+            "thigh/shank length ratio (left) 1.50, outside the 0.70–1.45 of adults"
+        );
     }
 
     /// A real calibration (knee of the built-in leg, noise-free synthetic trial, two starts,
