@@ -4,14 +4,14 @@
 //! The summary turns the core's result (display units: mm, degrees) into SI rows, one per
 //! free parameter, and the warnings a results table or a Python user reads, one line each.
 
-use crate::present::mm;
+use crate::present::{mm, M_PER_MM};
 use jointfit::calibrate::uncertainty::types::Identifiability;
+use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::spec::Unit;
-use jointfit::model::spec::M_PER_MM;
 use jointfit::model::Model;
 use jointfit::workflow::refine::RefinedCalibration;
-use jointfit::workflow::{self, uncertainty_options, FitSettings};
+use jointfit::workflow::{self, FitSettings};
 use serde::{Deserialize, Serialize};
 
 use crate::osim::OsimFit;
@@ -107,8 +107,8 @@ impl Default for FitOptions {
             joints: vec!["all".into()],
             method: Method::Joint,
             seed: 1,
-            threshold_mm: FitSettings::COMMAND_THRESHOLD_MM,
-            threshold_deg: FitSettings::COMMAND_THRESHOLD_DEG,
+            threshold_mm: THRESHOLD_MM,
+            threshold_deg: THRESHOLD_DEG,
             bootstrap: 0,
             starts: 1,
             fix_unidentifiable: false,
@@ -124,6 +124,28 @@ impl Default for FitOptions {
             prior_conflict: true,
             params: Vec::new(),
         }
+    }
+}
+
+/// The default flag thresholds of a 95 % interval's half-width (mm, deg): a parameter whose
+/// interval is wider is reported as not determined by the trials.
+pub const THRESHOLD_MM: f64 = 5.0;
+pub const THRESHOLD_DEG: f64 = 5.0;
+
+/// Uncertainty options in the units people give them: flag thresholds in mm and degrees,
+/// `bootstrap` moving-block replicates, `seed` of the bootstrap.
+pub fn uncertainty_options(
+    threshold_mm: f64,
+    threshold_deg: f64,
+    bootstrap: usize,
+    seed: u64,
+) -> UncertaintyOptions {
+    UncertaintyOptions {
+        threshold_m: crate::present::from_shown(threshold_mm, Unit::Metre),
+        threshold_rad: crate::present::from_shown(threshold_deg, Unit::Radian),
+        bootstrap_replicates: bootstrap,
+        seed,
+        ..UncertaintyOptions::default()
     }
 }
 
@@ -179,8 +201,10 @@ impl FitOptions {
     }
 
     /// The core's settings for these options: the one mapping from options to
-    /// [`FitSettings`] (every front end's). The default options give
-    /// [`FitSettings::command_default`].
+    /// [`FitSettings`] (every front end's). The default options give what `jointfit calibrate`
+    /// runs with no options (and `jointfit bench` times): the core's default settings (joint
+    /// method, global phase, priors, marker policy, envelope) plus the uncertainty analysis
+    /// with [`THRESHOLD_MM`] and [`THRESHOLD_DEG`], no bootstrap, seed 1.
     pub fn settings(&self) -> FitSettings {
         FitSettings {
             method: self.method,
@@ -203,7 +227,7 @@ impl FitOptions {
             keep_markers: self.keep_markers.clone(),
             prior_conflict: self.prior_conflict,
             refuse_mismatch: !self.accept_rejected,
-            ..FitSettings::command_default()
+            ..FitSettings::default()
         }
     }
 }
@@ -271,7 +295,7 @@ pub fn summarize_refined(
     let mut notes: Vec<String> = refined
         .marker_decisions
         .iter()
-        .map(|d| format!("marker policy: {}", d.line()))
+        .map(|d| format!("marker policy: {}", crate::present::marker_decision(d)))
         .collect();
     notes.extend(conflict_lines(&refined.conflict));
     for b in &refined.envelope {
@@ -279,7 +303,7 @@ pub fn summarize_refined(
             notes.push(format!(
                 "{}: {} (bound {:.1} mm)",
                 b.parameter,
-                workflow::envelope::HELD_AT_LIMIT,
+                crate::present::held_at_limit(b),
                 mm(b.limit)
             ));
         } else if let Some(x) = b.unbounded_fit {
@@ -333,7 +357,7 @@ pub fn conflict_lines(conflicts: &[workflow::conflict::JointConflict]) -> Vec<St
     conflicts
         .iter()
         .filter(|c| c.flagged)
-        .map(|c| c.line())
+        .map(|c| c.to_string())
         .collect()
 }
 
@@ -421,5 +445,36 @@ pub fn summarize(
         converged: fit.converged(),
         warnings,
         verdict: cal.verdict.clone(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn thresholds_convert_to_si() {
+        let o = uncertainty_options(5.0, 2.0, 7, 3);
+        assert!((o.threshold_m - 0.005).abs() < 1e-18);
+        assert!((o.threshold_rad - 2f64.to_radians()).abs() < 1e-18);
+        assert_eq!((o.bootstrap_replicates, o.seed), (7, 3));
+    }
+
+    /// The default options analyse the uncertainty with the documented thresholds and leave
+    /// every other setting at the core's default.
+    #[test]
+    fn default_options_are_the_core_defaults_with_the_uncertainty_analysis() {
+        let s = FitOptions::default().settings();
+        let u = s.uncertainty.clone().unwrap();
+        assert!((u.threshold_m - THRESHOLD_MM * 1e-3).abs() < 1e-18);
+        assert!((u.threshold_rad - THRESHOLD_DEG.to_radians()).abs() < 1e-18);
+        assert_eq!((u.bootstrap_replicates, u.seed), (0, 1));
+        assert_eq!(
+            s,
+            FitSettings {
+                uncertainty: Some(u),
+                ..FitSettings::default()
+            }
+        );
     }
 }

@@ -8,7 +8,7 @@ use jointfit::calibrate::uncertainty::types::{
     WeakDirection,
 };
 use jointfit::model::spec::Unit;
-use jointfit::model::spec::MM_PER_M;
+use jointfit::plausibility::Measure;
 use jointfit::solver::Termination;
 use jointfit::spatial::UpAxis;
 use jointfit::workflow::calibration::{Calibration, ConvergenceStage, MultiStart, StartRun};
@@ -29,12 +29,46 @@ pub enum Front {
     Python,
 }
 
+/// Millimetres per metre: lengths are SI (m) inside and shown in millimetres.
+pub const MM_PER_M: f64 = 1e3;
+/// Metres per millimetre: lengths given in millimetres (options, thresholds) to metres.
+pub const M_PER_MM: f64 = 1e-3;
+
+/// The unit values of `unit` are shown in: `mm` for metres, `deg` for radians.
+pub fn unit_name(unit: Unit) -> &'static str {
+    match unit {
+        Unit::Metre => "mm",
+        Unit::Radian => "deg",
+    }
+}
+
+/// Shown units per SI unit: 1000 mm per m, 180/π degrees per radian.
+pub fn unit_scale(unit: Unit) -> f64 {
+    match unit {
+        Unit::Metre => MM_PER_M,
+        Unit::Radian => 180.0 / std::f64::consts::PI,
+    }
+}
+
 /// A value in SI (m or rad) in the unit a person reads (mm or deg), with that unit's name.
 pub fn shown(value_si: f64, unit: Unit) -> (f64, &'static str) {
     match unit {
         Unit::Metre => (value_si * MM_PER_M, "mm"),
         Unit::Radian => (value_si.to_degrees(), "deg"),
     }
+}
+
+/// A value given in the shown unit of `unit` (mm or deg) in SI (m or rad).
+pub fn from_shown(value: f64, unit: Unit) -> f64 {
+    match unit {
+        Unit::Metre => value / MM_PER_M,
+        Unit::Radian => value.to_radians(),
+    }
+}
+
+/// A length in mm as m.
+pub fn metres(millimetres: f64) -> f64 {
+    millimetres * M_PER_MM
 }
 
 /// A length in m as mm.
@@ -49,7 +83,42 @@ pub fn mm2(square_metres: f64) -> f64 {
 
 /// A value in SI of `unit` in its shown unit (mm or deg), the number alone.
 pub fn shown_value(value_si: f64, unit: Unit) -> f64 {
-    value_si * unit.display_scale()
+    value_si * unit_scale(unit)
+}
+
+/// A marker-policy decision in one line (no trailing period), e.g. `r_thigh3 (thigh):
+/// position refined (prior SD 15 mm): sits 59 mm from its static-trial place in every frame
+/// (spread 11 mm over 135 frames)`.
+pub fn marker_decision(d: &MarkerDecision) -> String {
+    let what = match (d.action, d.prior_sd) {
+        (MarkerAction::Refine, Some(sd)) => {
+            format!("position refined (prior SD {:.0} mm)", sd * MM_PER_M)
+        }
+        (MarkerAction::Refine, None) => "position refined".to_string(),
+        (MarkerAction::Exclude, _) => format!("left out of trial {}", d.trial + 1),
+    };
+    format!("{} ({}): {what}: {}", d.marker, d.segment, d.reason)
+}
+
+/// A body measurement outside the adult range, e.g. `thigh length (right) 120 mm, outside
+/// the 300–570 mm of adults` (a ratio, with no unit, with two decimals).
+pub fn implausible_measure(m: &Measure) -> String {
+    let u = if m.unit.is_empty() {
+        String::new()
+    } else {
+        format!(" {}", m.unit)
+    };
+    let d = if m.unit.is_empty() { 2 } else { 0 };
+    format!(
+        "{} {:.d$}{u}, outside the {:.d$}–{:.d$}{u} of adults",
+        m.what, m.value, m.range[0], m.range[1]
+    )
+}
+
+/// What an active bound of the anatomical envelope did to its parameter:
+/// `held at the anatomical limit: hip centre medial to the ASIS`.
+pub fn held_at_limit(b: &EnvelopeBound) -> String {
+    format!("held at the anatomical limit: {}", b.what)
 }
 
 /// How to read a trial with `axis` up, as the pipeline's warnings say it (Python's keyword
@@ -341,7 +410,7 @@ impl<'a> ParamRowShown<'a> {
         row: &'a jointfit::workflow::calibration::ParamRow,
         pu: Option<&ParamUncertainty>,
     ) -> ParamRowShown<'a> {
-        let k = row.unit.display_scale();
+        let k = unit_scale(row.unit);
         let (se, ci95) = match pu {
             Some(pu) => (pu.se, pu.ci),
             None => (row.se.map(|v| v * k), row.ci95.map(|[a, b]| [a * k, b * k])),
@@ -349,7 +418,7 @@ impl<'a> ParamRowShown<'a> {
         ParamRowShown {
             name: &row.name,
             group: &row.group,
-            unit: row.unit.display_suffix(),
+            unit: unit_name(row.unit),
             start: row.start * k,
             fitted: row.fitted * k,
             change: row.change * k,
@@ -494,6 +563,85 @@ mod tests {
         assert!((mm - 12.5).abs() < 1e-12 && u == "mm");
         let (deg, u) = shown(std::f64::consts::PI / 4.0, Unit::Radian);
         assert!((deg - 45.0).abs() < 1e-12 && u == "deg");
+        assert_eq!(
+            (unit_name(Unit::Metre), unit_name(Unit::Radian)),
+            ("mm", "deg")
+        );
+        assert_eq!(from_shown(12.5, Unit::Metre), 0.0125);
+        assert!((from_shown(45.0, Unit::Radian) - std::f64::consts::FRAC_PI_4).abs() < 1e-15);
+        assert_eq!(metres(20.0), 0.02);
+        assert!((shown_value(1.0, Unit::Radian) - 180.0 / std::f64::consts::PI).abs() < 1e-12);
+    }
+
+    /// A refined marker names its prior SD in mm, an excluded one the trial it leaves
+    /// (counted from 1).
+    #[test]
+    fn marker_decisions_in_one_line() {
+        let mut d = MarkerDecision {
+            marker: "r_thigh3".into(),
+            segment: "thigh".into(),
+            action: MarkerAction::Refine,
+            trial: 0,
+            prior_sd: Some(0.015),
+            offset: 0.059,
+            spread: 0.011,
+            frames: 135,
+            rejected_share: 0.0,
+            reason: "sits 59 mm from its static-trial place".into(),
+        };
+        assert_eq!(
+            marker_decision(&d),
+            "r_thigh3 (thigh): position refined (prior SD 15 mm): sits 59 mm from its \
+             static-trial place"
+        );
+        d.action = MarkerAction::Exclude;
+        d.trial = 1;
+        assert_eq!(
+            marker_decision(&d),
+            "r_thigh3 (thigh): left out of trial 2: sits 59 mm from its static-trial place"
+        );
+    }
+
+    /// An active envelope bound says what it holds, as the text output always printed it.
+    #[test]
+    fn a_bound_held_at_the_limit() {
+        let b = EnvelopeBound {
+            parameter: "hip_pelvis_lateral".into(),
+            what: "hip centre medial to the ASIS",
+            limit: 0.0885,
+            model_upper: 0.12,
+            active: true,
+            unbounded_fit: None,
+        };
+        assert_eq!(
+            held_at_limit(&b),
+            "held at the anatomical limit: hip centre medial to the ASIS"
+        );
+    }
+
+    /// Lengths in whole mm with their unit, a ratio (no unit) with two decimals.
+    #[test]
+    fn implausible_measures_in_one_line() {
+        let thigh = Measure {
+            what: "thigh length (right)".into(),
+            value: 120.4,
+            range: [300.0, 570.0],
+            unit: "mm",
+        };
+        assert_eq!(
+            implausible_measure(&thigh),
+            "thigh length (right) 120 mm, outside the 300–570 mm of adults"
+        );
+        let ratio = Measure {
+            what: "thigh/shank length ratio (left)".into(),
+            value: 1.5,
+            range: [0.7, 1.45],
+            unit: "",
+        };
+        assert_eq!(
+            implausible_measure(&ratio),
+            "thigh/shank length ratio (left) 1.50, outside the 0.70–1.45 of adults"
+        );
     }
 
     /// A real calibration (knee of the built-in leg, noise-free synthetic trial, two starts,
@@ -501,10 +649,11 @@ mod tests {
     /// interval are the uncertainty record's, and the names are the JSON's.
     #[test]
     fn a_calibration_is_shown_in_mm_degrees_and_mm2() {
+        use crate::fit::uncertainty_options;
         use jointfit::model::lower_limb::{lower_limb, Side};
         use jointfit::model::Model;
         use jointfit::workflow::calibration::calibrate;
-        use jointfit::workflow::{uncertainty_options, FitSettings};
+        use jointfit::workflow::FitSettings;
         use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion};
 
         let model = Model::compile(&lower_limb(Side::Right)).unwrap();

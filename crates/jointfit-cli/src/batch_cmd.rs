@@ -120,9 +120,9 @@ struct Manifest {
 }
 
 fn parse_up(s: &str) -> Result<Option<UpAxis>> {
-    match UpAxis::parse(s) {
-        Some(up) => Ok(Some(up)),
-        None => bail!("up must be \"y\", \"-y\", \"z\", \"-z\", \"x\" or \"-x\", not {s:?}"),
+    match s.parse::<UpAxis>() {
+        Ok(up) => Ok(Some(up)),
+        Err(_) => bail!("up must be \"y\", \"-y\", \"z\", \"-z\", \"x\" or \"-x\", not {s:?}"),
     }
 }
 

@@ -3,7 +3,7 @@
 //! share, the peak memory of a long calibration (measured in a child process) and the share of
 //! file reading and writing in an `ik` run. Every calibration here is
 //! [`jointfit::workflow::calibration::calibrate`] with `FitSettings::default()` on the built-in leg, which
-//! has no priors: the command's calibration (`FitSettings::command_default`, whose marker
+//! has no priors: the command's calibration (`jointfit_app::FitOptions::default().settings()`, whose marker
 //! policy and envelope need a prior) without its uncertainty step, which is timed by itself
 //! from the start to the end of its own stage (the [`Observer`] hooks the workflow calls
 //! around it).

@@ -63,9 +63,8 @@ pub fn run(
                     ));
                 }
                 "after" => {
-                    let reference = jointfit::checks::offsets::reference_name(model);
                     std::hint::black_box(jointfit::checks::offsets::check_offsets_after_ik(
-                        model, &for_model, &map, &reference, &p, &opts, &fit,
+                        model, &for_model, &map, &p, &opts, &fit,
                     ));
                 }
                 "read" => {

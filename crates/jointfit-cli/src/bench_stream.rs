@@ -25,10 +25,10 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use jointfit::ik::stream::StreamingIk;
 use jointfit::ik::IkOptions;
-use jointfit::model::spec::MM_PER_M;
 use jointfit::model::Model;
 use jointfit::spatial::UpAxis;
 use jointfit::trial::Trial;
+use jointfit_app::present::MM_PER_M;
 use serde::Serialize;
 
 /// The stream options of `jointfit bench` (flattened into its arguments).

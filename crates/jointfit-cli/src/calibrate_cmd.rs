@@ -11,7 +11,7 @@ use clap::{Args, ValueEnum};
 use jointfit::solver::Observer;
 use jointfit::trial::Trial;
 use jointfit::workflow::calibration::Calibration;
-use jointfit::workflow::{self, FitSettings, Method};
+use jointfit::workflow::{self, Method};
 use jointfit_app::present::{
     CalibrationShown, EnvelopeShown, MarkerDecisionShown, RefinedMarkerShown,
 };
@@ -113,10 +113,10 @@ pub struct CalibrateArgs {
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
     /// Flag length parameters whose 95 % interval half-width exceeds this (mm).
-    #[arg(long, default_value_t = FitSettings::COMMAND_THRESHOLD_MM, allow_negative_numbers = true, value_parser = crate::validate::positive)]
+    #[arg(long, default_value_t = jointfit_app::fit::THRESHOLD_MM, allow_negative_numbers = true, value_parser = crate::validate::positive)]
     pub threshold_mm: f64,
     /// Flag angle parameters whose 95 % interval half-width exceeds this (deg).
-    #[arg(long, default_value_t = FitSettings::COMMAND_THRESHOLD_DEG, allow_negative_numbers = true, value_parser = crate::validate::positive)]
+    #[arg(long, default_value_t = jointfit_app::fit::THRESHOLD_DEG, allow_negative_numbers = true, value_parser = crate::validate::positive)]
     pub threshold_deg: f64,
     /// Moving-block bootstrap replicates for the intervals (0: white, HAC and jackknife only;
     /// at most 2000, each is a refit).
@@ -223,7 +223,7 @@ impl Observer for ProgressObserver {
         }
     }
     fn iteration(&mut self, iteration: usize, objective: f64) {
-        let mm2 = objective * jointfit::model::spec::MM_PER_M * jointfit::model::spec::MM_PER_M;
+        let mm2 = objective * jointfit_app::present::MM_PER_M * jointfit_app::present::MM_PER_M;
         let msg = format!("objective {mm2:.1} mm²");
         let stage = self.stage.clone();
         self.bars.step(
@@ -236,7 +236,7 @@ impl Observer for ProgressObserver {
 }
 
 /// The pipeline's options of a run from the command line: with no options, the options whose
-/// settings are [`FitSettings::command_default`] (the settings `jointfit bench` times).
+/// settings are `FitOptions::default().settings()` (the settings `jointfit bench` times).
 pub fn fit_options(args: &CalibrateArgs) -> FitOptions {
     FitOptions {
         joints: args.joints.clone(),
@@ -604,7 +604,7 @@ mod tests {
         args: CalibrateArgs,
     }
 
-    /// `jointfit calibrate SUBJECT TRIAL -o OUT` runs [`FitSettings::command_default`] (through
+    /// `jointfit calibrate SUBJECT TRIAL -o OUT` runs the default options' settings (through
     /// the pipeline's one option → settings mapping), the
     /// settings `jointfit bench` times (a changed option default would make the bench time
     /// something else than the command).
@@ -614,7 +614,7 @@ mod tests {
             Wrap::try_parse_from(["calibrate", "s.toml", "walk.trc", "-o", "fit.toml"]).unwrap();
         assert_eq!(
             fit_options(&w.args).settings(),
-            FitSettings::command_default()
+            FitOptions::default().settings()
         );
     }
 }

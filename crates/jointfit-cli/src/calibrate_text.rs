@@ -149,7 +149,10 @@ pub fn print_policy(
     envelope: &[jointfit::workflow::envelope::EnvelopeBound],
 ) {
     for d in decisions {
-        println!("marker policy: {}", d.line());
+        println!(
+            "marker policy: {}",
+            jointfit_app::present::marker_decision(d)
+        );
     }
     if !decisions.is_empty() {
         println!(
@@ -174,7 +177,7 @@ pub fn print_policy(
             "{}: {} (bound {:.1} mm = 0.9 × half the inter-ASIS width − 1 mm; --no-envelope \
              to lift it)",
             b.parameter,
-            jointfit::workflow::envelope::HELD_AT_LIMIT,
+            jointfit_app::present::held_at_limit(b),
             mm(b.limit)
         );
     }

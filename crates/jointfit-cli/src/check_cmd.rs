@@ -15,7 +15,6 @@ use jointfit::calibrate::params_for_groups;
 use jointfit::calibrate::uncertainty::types::Identifiability;
 use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
 use jointfit::model::spec::Unit;
-use jointfit::workflow;
 use jointfit::workflow::predict::Prediction;
 use jointfit_app::present::{mm, PredictionShown};
 use serde::Serialize;
@@ -75,8 +74,10 @@ pub fn run(args: CheckArgs) -> Result<()> {
         params_for_groups(&model, &groups)?
     };
     let opts = UncertaintyOptions {
-        assumed_sigma_m: args.noise_mm.map(|v| Unit::Metre.from_display(v)),
-        ..workflow::uncertainty_options(args.threshold_mm, args.threshold_deg, 0, 1)
+        assumed_sigma_m: args
+            .noise_mm
+            .map(|v| jointfit_app::present::from_shown(v, Unit::Metre)),
+        ..jointfit_app::fit::uncertainty_options(args.threshold_mm, args.threshold_deg, 0, 1)
     };
     let prediction = jointfit::workflow::predict::predict(
         &model,

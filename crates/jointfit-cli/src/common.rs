@@ -74,7 +74,7 @@ pub fn up_or_detected(path: &Path, up: Option<Up>) -> Result<(Up, Option<String>
     }
     let (raw, _) = jointfit_io::trial_file::read_trial_noted(path)?;
     Ok(match jointfit::vertical::detect_up(&raw) {
-        Some(d) => (Up::from(d.up), Some(d.describe())),
+        Some(d) => (Up::from(d.up), Some(d.to_string())),
         None => {
             eprintln!(
                 "jointfit: warning: {}: cannot tell the up axis from the marker labels; \
@@ -113,7 +113,7 @@ impl TrialArgs {
         let swaps: Vec<jointfit::repair::Swap> = self
             .swap_labels
             .iter()
-            .map(|s| jointfit::repair::Swap::parse(s))
+            .map(|s| s.parse::<jointfit::repair::Swap>())
             .collect::<Result<_, _>>()?;
         crate::validate::distinct_swaps(&swaps)?;
         Ok(jointfit::repair::RepairOptions {
@@ -295,7 +295,7 @@ pub fn report_findings(findings: &[jointfit::checks::Finding], path: &Path) -> R
         eprintln!(
             "jointfit: check: {}: {}: {}{fix}",
             path.display(),
-            f.kind.as_str(),
+            f.kind,
             f.message
         );
     }
@@ -303,7 +303,7 @@ pub fn report_findings(findings: &[jointfit::checks::Finding], path: &Path) -> R
         eprintln!(
             "jointfit: check: {}: {}: and {} more such findings (--json lists them)",
             path.display(),
-            kind.as_str(),
+            kind,
             n - 2
         );
     }
@@ -316,7 +316,7 @@ pub fn report_findings(findings: &[jointfit::checks::Finding], path: &Path) -> R
 /// One data-check finding in `--json` output.
 #[derive(serde::Serialize, Debug, Clone)]
 pub struct CheckJson {
-    pub kind: &'static str,
+    pub kind: String,
     pub severity: &'static str,
     pub message: String,
     /// The option that repairs it, if one does.
@@ -326,7 +326,7 @@ pub struct CheckJson {
 impl From<&jointfit::checks::Finding> for CheckJson {
     fn from(f: &jointfit::checks::Finding) -> Self {
         CheckJson {
-            kind: f.kind.as_str(),
+            kind: f.kind.to_string(),
             severity: match f.severity {
                 jointfit::checks::Severity::Warning => "warning",
                 jointfit::checks::Severity::Error => "error",
@@ -342,7 +342,7 @@ impl From<&jointfit::checks::Finding> for CheckJson {
 #[derive(serde::Serialize, Debug, Clone)]
 pub struct TrialJson {
     pub path: String,
-    pub up: &'static str,
+    pub up: String,
     /// `--up`, `model` (the subject model's `lab_up`) or `default`.
     pub up_from: &'static str,
     pub reader_notes: Vec<String>,
@@ -354,7 +354,7 @@ impl TrialJson {
     pub fn new(path: &Path, loaded: &Loaded, findings: &[jointfit::checks::Finding]) -> Self {
         TrialJson {
             path: path.display().to_string(),
-            up: loaded.up.name(),
+            up: loaded.up.to_string(),
             up_from: loaded.up_source,
             reader_notes: loaded.notes.clone(),
             repairs: loaded.repairs.clone(),

@@ -86,7 +86,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
     let mut inside = 0usize;
     let (mut pos, mut ori) = (Vec::new(), Vec::new());
     for (i, par) in model.parameters().iter().enumerate() {
-        let k = par.unit.display_scale();
+        let k = jointfit_app::present::unit_scale(par.unit);
         let err = (fit.p[i] - truth[i]) * k;
         match par.unit {
             Unit::Metre => pos.push(err),

@@ -11,10 +11,10 @@ use jointfit::ik::trial_fit::unsolved_ranges;
 use jointfit::ik::trial_fit::TrialFit;
 use jointfit::ik::IkOptions;
 use jointfit::model::custom::MotionType;
-use jointfit::model::spec::MM_PER_M;
 use jointfit::model::Model;
 use jointfit::trial::Trial;
 use jointfit::workflow::WorkflowError;
+use jointfit_app::present::MM_PER_M;
 use jointfit_io::sto::{write_sto, Table};
 use serde::Serialize;
 
@@ -305,20 +305,18 @@ pub fn solve(
         crate::common::warn_absent_markers(path, &run.absent);
     }
     let fit = run.fit;
-    let reference = jointfit::checks::offsets::reference_name(checked_model);
     let offsets = if held.is_empty() {
         jointfit::checks::offsets::check_offsets_after_ik(
             checked_model,
             trial,
             &map,
-            &reference,
             &p,
             opts,
             &fit,
         )
     } else {
         // The IK ran on the model with coordinates held: not the check's.
-        jointfit::checks::offsets::check_offsets(checked_model, trial, &map, &reference)
+        jointfit::checks::offsets::check_offsets(checked_model, trial, &map)
     };
     report_findings(&offsets, path)?;
     findings.extend(offsets);

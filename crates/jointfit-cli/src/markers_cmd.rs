@@ -209,7 +209,10 @@ fn try_personalize(path: &str, trial: &jointfit::trial::Trial, set: &MarkerSet) 
                     jointfit::plausibility::anthropometry(&model, &model.nominal_params())
                         .iter()
                         .filter(|m| !m.ok())
-                        .map(|m| format!("{side:?} leg: {}", m.line())),
+                        .map(|m| {
+                            let line = jointfit_app::present::implausible_measure(m);
+                            format!("{side:?} leg: {line}")
+                        }),
                 );
             }
         }

@@ -115,7 +115,7 @@ impl Summary {
         };
         Summary {
             name: model.name().to_string(),
-            description: model.description().to_string(),
+            description: model.spec().description.clone(),
             segments: model
                 .segments()
                 .iter()
@@ -160,7 +160,10 @@ impl Summary {
                 .parameters()
                 .iter()
                 .map(|p| {
-                    let (unit, k) = (p.unit.display_suffix(), p.unit.display_scale());
+                    let (unit, k) = (
+                        jointfit_app::present::unit_name(p.unit),
+                        jointfit_app::present::unit_scale(p.unit),
+                    );
                     ParamRow {
                         group: p.group.clone(),
                         segment: seg_name(p.uses[0].segment),

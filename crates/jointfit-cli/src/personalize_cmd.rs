@@ -170,7 +170,7 @@ fn refuse_implausible(static_name: &str, model: &PersonalizedModel, accept: bool
         jointfit::plausibility::anthropometry(&compiled, &compiled.nominal_params())
             .iter()
             .filter(|m| !m.ok())
-            .map(|m| m.line())
+            .map(jointfit_app::present::implausible_measure)
             .collect();
     if bad.is_empty() {
         return Ok(());

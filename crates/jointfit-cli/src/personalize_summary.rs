@@ -195,8 +195,12 @@ impl Summary {
                 .parameters
                 .iter()
                 .filter_map(|p| {
-                    p.prior_sd
-                        .map(|sd| (p.name.clone(), sd * p.unit.display_scale()))
+                    p.prior_sd.map(|sd| {
+                        (
+                            p.name.clone(),
+                            sd * jointfit_app::present::unit_scale(p.unit),
+                        )
+                    })
                 })
                 .collect(),
             centres: LabCentres::default(),
@@ -366,7 +370,12 @@ impl FunctionalSummary {
 fn parameters(spec: &ModelSpec) -> Vec<(String, f64)> {
     spec.parameters
         .iter()
-        .map(|p| (p.name.clone(), p.unit.to_display(p.nominal)))
+        .map(|p| {
+            (
+                p.name.clone(),
+                jointfit_app::present::shown_value(p.nominal, p.unit),
+            )
+        })
         .collect()
 }
 

@@ -217,7 +217,7 @@ fn optimizer_note(settings: &FitSettings) -> String {
          joints and a gradient method for the full leg (~41 h per noisy single joint on a cluster); \
          the joint sparse Levenberg–Marquardt shares the two-level optima and each fit here takes \
          seconds (see each result's `seconds` in the JSON).",
-        settings.method.name(),
+        settings.method,
         settings.starts,
         if settings.starts == 1 { "" } else { "s" }
     )

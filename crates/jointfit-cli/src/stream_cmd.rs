@@ -26,9 +26,9 @@ use clap::Args;
 use jointfit::ik::stream::StreamingIk;
 use jointfit::ik::{FrameStatus, IkOptions};
 use jointfit::model::custom::MotionType;
-use jointfit::model::spec::M_PER_MM;
 use jointfit::model::Model;
 use jointfit::spatial::UpAxis;
+use jointfit_app::present::M_PER_MM;
 use nalgebra::Vector3;
 
 use crate::common::Up;

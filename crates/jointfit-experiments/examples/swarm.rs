@@ -100,7 +100,7 @@ fn main() {
                 let v = cal.fit.p[id.0];
                 let tol = 1e-6 * (par.upper - par.lower);
                 at_bound += (v - par.lower < tol || par.upper - v < tol) as usize;
-                let e = (v - truth[id.0]).abs() * par.unit.display_scale();
+                let e = (v - truth[id.0]).abs() * jointfit_experiments::units::scale(par.unit);
                 max_err = max_err.max(match par.unit {
                     Unit::Metre => e,
                     Unit::Radian => e,

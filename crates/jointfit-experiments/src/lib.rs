@@ -6,3 +6,4 @@ pub mod protocol;
 pub mod report;
 pub mod subject;
 pub mod synth;
+pub mod units;

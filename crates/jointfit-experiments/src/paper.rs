@@ -349,7 +349,7 @@ mod tests {
         assert_eq!(model.n_p(), TABLE2.len());
         for (par, row) in model.parameters().iter().zip(TABLE2) {
             assert_eq!(par.name, row.0);
-            let k = par.unit.display_scale();
+            let k = crate::units::scale(par.unit);
             assert!((par.nominal * k - row.4).abs() < 0.006, "{}", row.0);
         }
     }

@@ -73,7 +73,7 @@ pub fn fit(
         marker_rms: prob.marker_rms(&cal.fit.p, &cal.fit.coords),
         frames: cal.frames,
         converged: cal.converged,
-        iterations: cal.total_iterations(),
+        iterations: cal.start_runs.iter().map(|r| r.iterations).sum(),
         cost: cal.fit.cost,
         p: cal.fit.p,
         coords: cal.fit.coords,
@@ -104,7 +104,7 @@ pub fn param_errors(
         let d = a[i] - b[i];
         match model.parameters()[i].unit {
             Unit::Radian => ori.push(d.to_degrees()),
-            Unit::Metre => pos.push(d * jointfit::model::spec::MM_PER_M),
+            Unit::Metre => pos.push(d * crate::units::MM_PER_M),
         }
     }
     let rms = |v: &[f64]| {

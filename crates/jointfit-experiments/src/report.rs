@@ -144,7 +144,7 @@ impl Table2 {
 }
 
 fn unit_of(u: Unit) -> (&'static str, f64) {
-    (u.display_suffix(), u.display_scale())
+    (crate::units::suffix(u), crate::units::scale(u))
 }
 
 /// Everything one `reproduce` run produced, with what produced it.

@@ -98,11 +98,14 @@ fn run(spec: &ModelSpec, motion: Motion, seeds: u64, landmark: bool) -> Outcome 
             let g = JOINTS.iter().position(|j| *j == par.group).unwrap();
             let unit = (par.unit == Unit::Radian) as usize;
             for (f, p) in [&r.calibration.fit.p, &plain.fit.p].into_iter().enumerate() {
-                let e = par.unit.to_display(p[id.0] - truth[id.0]);
+                let e = jointfit_experiments::units::shown(p[id.0] - truth[id.0], par.unit);
                 out.sq[f][g][unit] += e * e;
             }
             out.n[g][unit] += 1;
-            let err = par.unit.to_display(r.calibration.fit.p[id.0] - truth[id.0]);
+            let err = jointfit_experiments::units::shown(
+                r.calibration.fit.p[id.0] - truth[id.0],
+                par.unit,
+            );
             let half = u.params[k].half_width.unwrap();
             out.intervals += 1;
             out.covered += (err.abs() <= half) as usize;

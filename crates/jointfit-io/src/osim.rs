@@ -358,8 +358,8 @@ fn header_comment(x: &mut String, model: &Model, p: &[f64]) {
         env!("CARGO_PKG_VERSION"),
         model.name()
     );
-    if !model.description().is_empty() {
-        let _ = writeln!(c, "Description: {}", model.description());
+    if !model.spec().description.is_empty() {
+        let _ = writeln!(c, "Description: {}", model.spec().description);
     }
     let _ = writeln!(
         c,

@@ -178,7 +178,7 @@ impl std::fmt::Display for FilterWarning {
             "{}: filtering moved marker {} by {:.1} mm",
             self.path,
             self.marker,
-            self.moved_m * jointfit::model::spec::MM_PER_M
+            self.moved_m * 1e3
         )
     }
 }

@@ -99,7 +99,7 @@ impl PyCalibration {
     #[getter]
     fn verdict(&self) -> PyVerdict {
         PyVerdict {
-            level: self.cal.verdict.level.name().to_string(),
+            level: self.cal.verdict.level.to_string(),
             reasons: self.cal.verdict.reasons.clone(),
         }
     }
@@ -225,7 +225,7 @@ impl PyCalibration {
         // The verdict first after the summary line, as in the command line's report.
         h.push_str(&format!(
             "<p><b>verdict: {}</b></p>",
-            html(c.verdict.level.name())
+            html(&c.verdict.level.to_string())
         ));
         if !c.verdict.reasons.is_empty() {
             h.push_str("<ul>");

@@ -222,7 +222,7 @@ pub fn personalize(
             msg(format!(
                 "{} (read with --up={}): cannot personalize: {}",
                 trial.name,
-                lab_up.map_or("y", |u| u.name()),
+                lab_up.map_or("y".to_string(), |u| u.to_string()),
                 jointfit_app::message(&e)
             ))
         })?;

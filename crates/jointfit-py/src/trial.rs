@@ -17,7 +17,7 @@ use crate::{err, msg, warn_all};
 pub(crate) fn parse_up(up: Option<&str>) -> PyResult<Option<UpAxis>> {
     match up {
         None => Ok(None),
-        Some(s) => UpAxis::parse(s).map(Some).ok_or_else(|| {
+        Some(s) => s.parse::<UpAxis>().map(Some).map_err(|_| {
             msg(format!(
                 "up must be \"y\", \"-y\", \"z\", \"-z\", \"x\" or \"-x\", not {s:?}"
             ))
@@ -30,9 +30,10 @@ pub(crate) fn up_arg(up: Option<&Bound<'_, PyAny>>) -> PyResult<Option<UpAxis>> 
     let choices = "\"y\", \"-y\", \"z\", \"-z\", \"x\" or \"-x\"";
     match args::opt_text(up, "up", &format!("None or {choices}"))? {
         None => Ok(None),
-        Some(s) => UpAxis::parse(&s)
+        Some(s) => s
+            .parse::<UpAxis>()
             .map(Some)
-            .ok_or_else(|| msg(format!("up must be {choices}, not {s:?}"))),
+            .map_err(|_| msg(format!("up must be {choices}, not {s:?}"))),
     }
 }
 
@@ -235,7 +236,7 @@ impl PyTrial {
                 exclude,
                 swaps: swap
                     .iter()
-                    .map(|s| jointfit::repair::Swap::parse(s))
+                    .map(|s| s.parse::<jointfit::repair::Swap>())
                     .collect::<Result<_, _>>()
                     .map_err(|e| err(&e))?,
                 fill_gaps,

@@ -15,7 +15,7 @@ use jointfit::trial::Trial;
 use crate::data::{CoordSeries, MarkerRms, ParamRow, ReportInput, TrialSeries};
 use crate::ReportError;
 
-use jointfit::model::spec::MM_PER_M as MM;
+use jointfit_app::present::{unit_name, unit_scale, MM_PER_M as MM};
 
 /// Inverse kinematics of every trial with the fitted (and baseline) parameters; sets
 /// `trials`, `markers`, `overall_rms_mm` and `notes` of `input`.
@@ -222,7 +222,7 @@ pub fn parameter_rows(
         .iter()
         .enumerate()
         .map(|(i, par)| {
-            let (unit, k) = (par.unit.display_suffix(), par.unit.display_scale());
+            let (unit, k) = (unit_name(par.unit), unit_scale(par.unit));
             ParamRow {
                 name: par.name.clone(),
                 group: par.group.clone(),

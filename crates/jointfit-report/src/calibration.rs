@@ -102,7 +102,7 @@ pub fn calibration_input(
     input.trust = Some(crate::trust::Trust::from_calibration(cal));
     input.verdict = Some(cal.verdict.clone());
     input.convergence = Some(Convergence {
-        method: cal.method.name().to_string(),
+        method: cal.method.to_string(),
         stages: cal
             .convergence
             .iter()
@@ -128,7 +128,7 @@ pub fn calibration_input(
     }
     let mut settings = vec![("command line".to_string(), provenance.command_line.clone())];
     settings.extend(provenance.inputs.iter().cloned());
-    settings.push(("method".to_string(), cal.method.name().to_string()));
+    settings.push(("method".to_string(), cal.method.to_string()));
     settings.push((
         "starts".to_string(),
         if cal.start_runs.len() > 1 {

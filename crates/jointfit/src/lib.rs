@@ -16,7 +16,7 @@ pub mod kinematics;
 pub mod landmarks;
 pub(crate) mod linalg;
 pub mod model;
-pub mod placement;
+pub(crate) mod placement;
 pub mod plausibility;
 pub mod repair;
 pub mod signal;

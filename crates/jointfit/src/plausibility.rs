@@ -286,22 +286,9 @@ pub struct Measure {
 }
 
 impl Measure {
+    /// Whether the value lies inside the plausible range.
     pub fn ok(&self) -> bool {
         (self.range[0]..=self.range[1]).contains(&self.value)
-    }
-
-    /// `thigh length (right) 120 mm, outside 300–560 mm`.
-    pub fn line(&self) -> String {
-        let u = if self.unit.is_empty() {
-            String::new()
-        } else {
-            format!(" {}", self.unit)
-        };
-        let d = if self.unit.is_empty() { 2 } else { 0 };
-        format!(
-            "{} {:.d$}{u}, outside the {:.d$}–{:.d$}{u} of adults",
-            self.what, self.value, self.range[0], self.range[1]
-        )
     }
 }
 

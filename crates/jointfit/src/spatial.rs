@@ -165,8 +165,8 @@ impl UpAxis {
         UpAxis::NegX,
     ];
 
-    /// The written name: `y`, `-y`, `z`, `-z`, `x`, `-x`.
-    pub fn name(self) -> &'static str {
+    /// The written name: `y`, `-y`, `z`, `-z`, `x`, `-x` (as [`std::fmt::Display`] writes it).
+    pub(crate) fn name(self) -> &'static str {
         match self {
             UpAxis::Y => "y",
             UpAxis::NegY => "-y",
@@ -175,13 +175,6 @@ impl UpAxis {
             UpAxis::X => "x",
             UpAxis::NegX => "-x",
         }
-    }
-
-    /// Parses a written name (case-insensitive); `None` for anything else.
-    pub fn parse(s: &str) -> Option<UpAxis> {
-        let s = s.trim().to_ascii_lowercase();
-        let s = s.strip_prefix('+').unwrap_or(&s);
-        UpAxis::ALL.into_iter().find(|a| a.name() == s)
     }
 
     /// The lab's unit vector that points up.
@@ -197,9 +190,23 @@ impl UpAxis {
     }
 }
 
+/// The written name: `y`, `-y`, `z`, `-z`, `x`, `-x`.
 impl std::fmt::Display for UpAxis {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
+    }
+}
+
+/// Parses a written name (case-insensitive, an optional leading `+`).
+impl std::str::FromStr for UpAxis {
+    type Err = String;
+    fn from_str(s: &str) -> Result<UpAxis, String> {
+        let t = s.trim().to_ascii_lowercase();
+        let t = t.strip_prefix('+').unwrap_or(&t);
+        UpAxis::ALL
+            .into_iter()
+            .find(|a| a.name() == t)
+            .ok_or_else(|| format!("unknown up axis {s:?}; choose y, -y, z, -z, x or -x"))
     }
 }
 

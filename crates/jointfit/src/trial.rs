@@ -323,9 +323,9 @@ mod tests {
             assert_eq!(r * up.direction(), Vector3::y(), "{up}");
             assert!((r.determinant() - 1.0).abs() < 1e-15);
             assert!((r * r.transpose() - Matrix3::identity()).norm() < 1e-15);
-            assert_eq!(UpAxis::parse(up.name()), Some(up));
+            assert_eq!(up.to_string().parse::<UpAxis>(), Ok(up));
         }
-        assert_eq!(UpAxis::parse("+Z"), Some(UpAxis::Z));
-        assert_eq!(UpAxis::parse("up"), None);
+        assert_eq!("+Z".parse::<UpAxis>(), Ok(UpAxis::Z));
+        assert!("up".parse::<UpAxis>().is_err());
     }
 }

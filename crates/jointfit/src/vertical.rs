@@ -164,10 +164,11 @@ pub struct UpDetection {
     pub markers: usize,
 }
 
-impl UpDetection {
-    /// One sentence for messages: `z (from 12 labelled markers, 4° off the axis)`.
-    pub fn describe(&self) -> String {
-        format!(
+/// One phrase for messages: `z (from 12 labelled markers, 4° off the axis)`.
+impl std::fmt::Display for UpDetection {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
             "{} (from {} labelled markers, {:.0}° off the axis)",
             self.up,
             self.markers,
@@ -244,7 +245,7 @@ pub fn rotation_warning(raw: &Trial, up: UpAxis, given: &str) -> Option<(String,
         let line = format!(
             "the trial looks rotated relative to the subject: its markers put lab axis {} up, \
              but it is read with {given}",
-            d.describe()
+            d
         );
         (line, d.up)
     })
@@ -312,7 +313,7 @@ mod tests {
             .unwrap();
             let d = detect_up(&trial).expect("detected");
             assert_eq!(d.up, up);
-            assert!(d.tilt < 0.2, "{}", d.describe());
+            assert!(d.tilt < 0.2, "{d}");
         }
         let anonymous = Trial::new(
             (0..8).map(|i| format!("M{i}")).collect(),

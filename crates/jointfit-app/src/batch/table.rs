@@ -8,6 +8,7 @@
 //! `<name>_ci_low`, `<name>_ci_high` (SI units: m or rad; empty where not fitted or not
 //! determined), and the warnings joined by `"; "`.
 
+use jointfit::workflow::verdict::Level;
 use std::path::Path;
 
 use serde::Serialize;
@@ -29,7 +30,7 @@ struct Row<'a> {
     rms_after_m: Option<f64>,
     converged: Option<bool>,
     /// `ok`, `caution` or `reject` (a job refused or rejected by its verdict), and why.
-    verdict: Option<&'static str>,
+    verdict: Option<Level>,
     verdict_reasons: &'a [String],
     iterations: Option<usize>,
     parameters: &'a [ParamRow],
@@ -49,7 +50,7 @@ fn row(o: &Outcome) -> Row<'_> {
             rms_before_m: Some(c.rms_before),
             rms_after_m: Some(c.rms_after),
             converged: Some(c.converged),
-            verdict: Some(c.verdict.level.name()),
+            verdict: Some(c.verdict.level),
             verdict_reasons: &c.verdict.reasons,
             iterations: Some(c.iterations),
             parameters: &c.parameters,
@@ -66,7 +67,7 @@ fn row(o: &Outcome) -> Row<'_> {
             rms_before_m: None,
             rms_after_m: None,
             converged: None,
-            verdict: e.starts_with("rejected: ").then_some("reject"),
+            verdict: e.starts_with("rejected: ").then_some(Level::Reject),
             verdict_reasons: &[],
             iterations: None,
             parameters: &[],
@@ -140,7 +141,7 @@ pub fn csv(outcomes: &[Outcome]) -> String {
             num(r.rms_before_m),
             num(r.rms_after_m),
             num(r.converged),
-            r.verdict.unwrap_or("").to_string(),
+            r.verdict.map_or(String::new(), |l| l.to_string()),
             field(&r.verdict_reasons.join("; ")),
             num(r.iterations),
         ];

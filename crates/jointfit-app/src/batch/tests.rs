@@ -164,7 +164,7 @@ fn results_table_reads_back() {
     let row: Vec<String> = csv_fields(lines[1]);
     assert_eq!(row.len(), header.len());
     let v = header.iter().position(|h| h == "verdict").unwrap();
-    assert_eq!(row[v], cal.verdict.level.name());
+    assert_eq!(row[v], cal.verdict.level.to_string());
     assert_eq!(row[v + 1], cal.verdict.reasons.join("; "));
     for p in &cal.parameters {
         let col = header.iter().position(|h| *h == p.name).unwrap();

@@ -1,6 +1,6 @@
 //! The calibration `jointfit bench` times: what `jointfit calibrate SUBJECT TRIAL -o OUT`
 //! runs with no options ([`workflow::refine::calibrate_refined`] with
-//! [`FitSettings::command_default`]), and where its time goes (`--fit-only`).
+//! `jointfit_app::FitOptions::default().settings()`), and where its time goes (`--fit-only`).
 
 use std::time::Instant;
 
@@ -25,7 +25,7 @@ pub fn command_fit(
 ) -> Result<RefinedCalibration> {
     let settings = FitSettings {
         method,
-        ..FitSettings::command_default()
+        ..jointfit_app::FitOptions::default().settings()
     };
     Ok(calibrate_refined(
         model,
@@ -93,7 +93,7 @@ pub fn fit_only(model: &Model, p: &[f64], trial: &Trial, source: &str, n: usize)
     let all = params_for_groups(model, &["all"])?;
     println!("workload: {source} ({} frames)", trial.n_frames());
     println!(
-        "timed: workflow::refine::calibrate_refined, FitSettings::command_default() \
+        "timed: workflow::refine::calibrate_refined, jointfit_app::FitOptions::default().settings() \
          (= jointfit calibrate SUBJECT TRIAL -o OUT)"
     );
     // (total s, the phase marks, the policy's IK alone s) of the fastest run.
@@ -118,7 +118,7 @@ pub fn fit_only(model: &Model, p: &[f64], trial: &Trial, source: &str, n: usize)
              cost {:.6} mm², {} marker decisions, envelope {})",
             total * 1e3,
             c.iterations,
-            c.total_iterations(),
+            c.start_runs.iter().map(|r| r.iterations).sum::<usize>(),
             c.cost_after * 1e6,
             cal.marker_decisions.len(),
             match cal.envelope.iter().any(|b| b.unbounded_fit.is_some()) {

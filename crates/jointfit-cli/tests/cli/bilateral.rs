@@ -12,7 +12,6 @@ use jointfit::landmarks::markerset::MarkerSet;
 use jointfit::landmarks::{
     personalize, personalize_in, LandmarkError, PersonalizeOptions, Personalized,
 };
-use jointfit::model::lower_limb::bilateral::SIDE_SUFFIXES;
 use jointfit::model::lower_limb::Side;
 use jointfit::model::Model;
 use jointfit::trial::Trial;
@@ -111,7 +110,8 @@ fn both_legs_share_one_pelvis_and_match_the_one_sided_personalizations() {
             common.first,
             old_gap * 1e3
         );
-        for (side, s) in SIDE_SUFFIXES {
+        // The bilateral model's suffixes of the right and left leg's names.
+        for (side, s) in [(Side::Right, "_r"), (Side::Left, "_l")] {
             let func = FunctionalTrials::default();
             let exact = personalize_in(&trial, &set, side, &opts, &func, Some(&common)).unwrap();
             let own = personalize(&trial, &set, side, &opts).unwrap();

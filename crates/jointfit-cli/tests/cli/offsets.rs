@@ -9,7 +9,7 @@
 
 use std::path::Path;
 
-use jointfit::checks::offsets::{marker_offsets, offset_findings, offsets_from_ik, reference_name};
+use jointfit::checks::offsets::{check_offsets, marker_offsets, offsets_from_ik};
 use jointfit::checks::CheckKind;
 use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit_io::trial_file::{load_trial, LoadOptions};
@@ -108,15 +108,15 @@ fn moved_clusters_on_every_shared_trial() {
                 let (map, _) = MarkerMap::allowing_absent(&model, trial.labels());
                 let p = model.nominal_params();
                 let offsets = marker_offsets(&model, &p, &trial, &map, &IkOptions::default());
-                let findings = offset_findings(&model, &offsets, &reference_name(&model));
+                let findings = check_offsets(&model, &trial, &map);
                 let worst = offsets
                     .iter()
-                    .max_by(|a, b| a.size().total_cmp(&b.size()))
+                    .max_by(|a, b| a.mean.norm().total_cmp(&b.mean.norm()))
                     .expect("some marker");
                 println!(
                     "{}/{name} | {side} | {:.1} | {:.1} | {} | {}",
                     lab.display(),
-                    worst.size() * 1e3,
+                    worst.mean.norm() * 1e3,
                     worst.spread * 1e3,
                     model.markers()[worst.marker].name,
                     findings.len()

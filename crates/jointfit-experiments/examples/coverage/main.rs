@@ -350,7 +350,7 @@ impl Totals {
         let u = cal.uncertainty.as_ref().expect("analysed");
         let (by_group, dump) = (&mut self.by_group, &mut self.dump);
         let i = free[k].0;
-        let f = model.parameters()[i].unit.display_scale();
+        let f = jointfit_experiments::units::scale(model.parameters()[i].unit);
         let threshold = match model.parameters()[i].unit {
             Unit::Metre => u.threshold_m * 1e3,
             Unit::Radian => u.threshold_rad.to_degrees(),

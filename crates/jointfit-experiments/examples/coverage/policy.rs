@@ -27,7 +27,7 @@ impl Errors {
                 continue;
             };
             let u = (par.unit == Unit::Radian) as usize;
-            let e = par.unit.to_display(p[id.0] - truth[id.0]);
+            let e = jointfit_experiments::units::shown(p[id.0] - truth[id.0], par.unit);
             self.sq[g][u] += e * e;
             self.n[g][u] += 1;
         }
@@ -83,8 +83,12 @@ impl Policy {
             let right = moved == Some(d.marker.as_str()) && d.action == MarkerAction::Refine;
             self.false_decisions += !right as usize;
             self.lines.push(format!(
-                "  seed {seed}: {} (offset {:.1} mm, spread {:.1} mm)",
-                d.line(),
+                "  seed {seed}: {} {:?} ({}) from trial {}: {} (offset {:.1} mm, spread {:.1} mm)",
+                d.marker,
+                d.action,
+                d.segment,
+                d.trial + 1,
+                d.reason,
                 d.offset * 1e3,
                 d.spread * 1e3
             ));

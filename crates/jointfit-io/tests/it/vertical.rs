@@ -45,7 +45,7 @@ fn detected_up_axis_matches_every_lab() {
         };
         let trial = read_trial(&path).unwrap_or_else(|e| panic!("{rel}: {e}"));
         match detect_up(&trial) {
-            Some(d) if d.up == *want => println!("{rel}: {}", d.describe()),
+            Some(d) if d.up == *want => println!("{rel}: {d}"),
             other => wrong.push(format!("{rel}: want {want}, got {other:?}")),
         }
     }

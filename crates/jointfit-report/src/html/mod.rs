@@ -195,7 +195,7 @@ fn verdict(h: &mut String, v: &jointfit::workflow::verdict::Verdict) {
         } else {
             ""
         },
-        l = v.level.name()
+        l = v.level
     );
     if !v.reasons.is_empty() {
         h.push_str("<ul>");

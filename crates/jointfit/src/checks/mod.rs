@@ -77,8 +77,15 @@ pub enum CheckKind {
     Offset,
 }
 
+/// The kind's name in JSON and messages: `scale`, `cluster`, `swap`, `jump`, `gaps`, `offset`.
+impl std::fmt::Display for CheckKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
 impl CheckKind {
-    pub fn as_str(self) -> &'static str {
+    pub(crate) fn as_str(self) -> &'static str {
         match self {
             CheckKind::Scale => "scale",
             CheckKind::Cluster => "cluster",
@@ -199,12 +206,7 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
     {
         return out;
     }
-    out.extend(crate::checks::offsets::check_offsets(
-        model,
-        trial,
-        map,
-        &crate::checks::offsets::reference_name(model),
-    ));
+    out.extend(crate::checks::offsets::check_offsets(model, trial, map));
     out
 }
 

@@ -64,7 +64,7 @@ pub struct MarkerOffset {
 
 impl MarkerOffset {
     /// `‖μ_j‖` (m).
-    pub fn size(&self) -> f64 {
+    pub(crate) fn size(&self) -> f64 {
         self.mean.norm()
     }
     /// `‖μ_j‖ / σ_j` (infinite when the spread is zero).
@@ -217,20 +217,19 @@ pub fn offsets_from_ik(
 }
 
 /// The findings of [`check_offsets`], taken from the inverse kinematics `fit` of the whole
-/// trial ([`offsets_from_ik`]) when it is the one the check would run, else from the check's
-/// own inverse kinematics.
+/// trial at parameters `p` with options `opts` ([`offsets_from_ik`]) when it is the one the
+/// check would run, else from the check's own inverse kinematics.
 pub fn check_offsets_after_ik(
     model: &Model,
     trial: &Trial,
     map: &MarkerMap,
-    reference: &str,
     p: &[f64],
     opts: &IkOptions,
     fit: &TrialFit,
 ) -> Vec<Finding> {
     match offsets_from_ik(model, p, trial, map, opts, fit) {
-        Some(offsets) => offset_findings(model, &offsets, reference),
-        None => check_offsets(model, trial, map, reference),
+        Some(offsets) => offset_findings(model, &offsets, &reference_name(model)),
+        None => check_offsets(model, trial, map),
     }
 }
 
@@ -239,7 +238,7 @@ pub fn check_offsets_after_ik(
 /// Consecutive, so that they are warm-started frame to frame as `ik` does (a stride through a
 /// fast motion starts frames far from their solution, and more runs cost a seeding each,
 /// which costs more than the frames).
-pub fn frames_looked_at(n: usize) -> (usize, usize) {
+pub(crate) fn frames_looked_at(n: usize) -> (usize, usize) {
     if n <= MAX_FRAMES {
         return (0, n);
     }
@@ -251,7 +250,11 @@ pub fn frames_looked_at(n: usize) -> (usize, usize) {
 /// least two displaced markers, at least half of the segment's markers in `offsets`), one
 /// per other displaced marker. `reference` names what the marker positions come from
 /// (e.g. "the subject model (static trial)").
-pub fn offset_findings(model: &Model, offsets: &[MarkerOffset], reference: &str) -> Vec<Finding> {
+pub(crate) fn offset_findings(
+    model: &Model,
+    offsets: &[MarkerOffset],
+    reference: &str,
+) -> Vec<Finding> {
     let mut out = Vec::new();
     for (s, seg) in model.segments().iter().enumerate() {
         let here: Vec<&MarkerOffset> = offsets
@@ -350,13 +353,10 @@ fn refine_option(moved: &[&MarkerOffset]) -> String {
 }
 
 /// The check of the module docs for `trial` against `model` at its nominal parameters, with
-/// the default inverse-kinematics options.
-pub fn check_offsets(
-    model: &Model,
-    trial: &Trial,
-    map: &MarkerMap,
-    reference: &str,
-) -> Vec<Finding> {
+/// the default inverse-kinematics options. The findings name what the model's marker
+/// positions come from: the OpenSim file a model was read from ([`OSIM_DESCRIPTION`]), else
+/// the static trial of a subject model.
+pub fn check_offsets(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding> {
     let offsets = marker_offsets(
         model,
         &model.nominal_params(),
@@ -364,13 +364,13 @@ pub fn check_offsets(
         map,
         &IkOptions::default(),
     );
-    offset_findings(model, &offsets, reference)
+    offset_findings(model, &offsets, &reference_name(model))
 }
 
 /// What a model's marker positions come from, for messages: "the model (NAME.osim)" for a
 /// model read from an OpenSim file (its description says so), else "the subject model
 /// (static trial)" (`personalize` places the markers where the static trial has them).
-pub fn reference_name(model: &Model) -> String {
+pub(crate) fn reference_name(model: &Model) -> String {
     match model.description().strip_prefix(OSIM_DESCRIPTION) {
         Some(path) => {
             let file = path.rsplit(['/', '\\']).next().unwrap_or(path);
@@ -380,7 +380,8 @@ pub fn reference_name(model: &Model) -> String {
     }
 }
 
-/// How the OpenSim reader describes a model it read (`jointfit_io::osim_read`).
+/// How the OpenSim reader describes a model it read (`jointfit_io::osim_read`): this prefix,
+/// then the file's path. The offset findings name that file.
 pub const OSIM_DESCRIPTION: &str = "OpenSim model read from ";
 
 #[cfg(test)]

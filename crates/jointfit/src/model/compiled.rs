@@ -324,9 +324,9 @@ impl Model {
     pub fn name(&self) -> &str {
         &self.name
     }
-    /// Free-text description.
+    /// Free-text description (users read it from [`Model::spec`]).
     #[inline]
-    pub fn description(&self) -> &str {
+    pub(crate) fn description(&self) -> &str {
         &self.description
     }
     /// Segments in topological order (`n_seg`), indexed by [`SegmentId`].

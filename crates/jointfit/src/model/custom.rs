@@ -315,15 +315,12 @@ pub(crate) fn axis_steps(
                 }
                 match &roles[name] {
                     Role::Locked(v) => Source::Const(sign * a.function.value(*v)),
-                    Role::Free(i) => match a.function {
-                        Function::Linear {
-                            slope,
-                            intercept: 0.0,
-                        } => Source::Coord {
+                    Role::Free(i) => match a.function.slope_through_origin() {
+                        Some(slope) => Source::Coord {
                             index: *i,
                             scale: sign * slope,
                         },
-                        _ => func_source(functions, *i, a.function.clone(), None, sign),
+                        None => func_source(functions, *i, a.function.clone(), None, sign),
                     },
                     Role::Coupled { independent, g } => func_source(
                         functions,

@@ -89,9 +89,13 @@ impl FunctionSpec {
     }
 }
 
-/// A validated function with precomputed coefficients.
+/// A validated function with precomputed coefficients, built by [`Function::new`] and
+/// evaluated with its derivative by [`Function::eval`].
 #[derive(Debug, Clone, PartialEq)]
-pub enum Function {
+pub struct Function(Kind);
+
+#[derive(Debug, Clone, PartialEq)]
+enum Kind {
     Constant(f64),
     Linear { slope: f64, intercept: f64 },
     Polynomial(Vec<f64>),
@@ -102,7 +106,7 @@ pub enum Function {
 /// A piecewise polynomial: on `[x_i, x_{i+1}]`, `Σ_k coef[i][k] s^k` with
 /// `s = (x − x_i)/(x_{i+1} − x_i)`; outside, Taylor polynomials `Σ_k c_k (x − x_end)^k`.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Pieces {
+pub(crate) struct Pieces {
     pub(super) x: Vec<f64>,
     pub(super) coef: Vec<Vec<f64>>,
     pub(super) left: Vec<f64>,
@@ -149,18 +153,18 @@ impl Function {
     /// Validates a description; the error says what is wrong (the caller names the item).
     pub fn new(spec: &FunctionSpec) -> Result<Function, String> {
         let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
-        Ok(match spec {
+        Ok(Function(match spec {
             FunctionSpec::Constant { value } => {
                 if !value.is_finite() {
                     return Err(format!("constant {value} is not finite"));
                 }
-                Function::Constant(*value)
+                Kind::Constant(*value)
             }
             FunctionSpec::Linear { slope, intercept } => {
                 if !finite(&[*slope, *intercept]) {
                     return Err("linear function coefficients must be finite".into());
                 }
-                Function::Linear {
+                Kind::Linear {
                     slope: *slope,
                     intercept: *intercept,
                 }
@@ -169,7 +173,7 @@ impl Function {
                 if coefficients.is_empty() || !finite(coefficients) {
                     return Err("polynomial needs finite coefficients".into());
                 }
-                Function::Polynomial(coefficients.clone())
+                Kind::Polynomial(coefficients.clone())
             }
             FunctionSpec::PiecewiseLinear { x, y } => {
                 check_points(x, y, 2)?;
@@ -177,7 +181,7 @@ impl Function {
                 let n = x.len();
                 let slope0 = (y[1] - y[0]) / (x[1] - x[0]);
                 let slope1 = (y[n - 1] - y[n - 2]) / (x[n - 1] - x[n - 2]);
-                Function::Pieces(Pieces {
+                Kind::Pieces(Pieces {
                     x: x.clone(),
                     coef: coef.collect(),
                     left: vec![y[0], slope0],
@@ -189,7 +193,7 @@ impl Function {
             // (its end conditions fit cubics through the end points, not zero curvature).
             FunctionSpec::SimmSpline { x, y } | FunctionSpec::NaturalCubicSpline { x, y } => {
                 check_points(x, y, 2)?;
-                Function::Pieces(fmm_spline(x, y))
+                Kind::Pieces(fmm_spline(x, y))
             }
             FunctionSpec::GcvSpline { degree, x, y } => {
                 if degree % 2 == 0 || *degree > 7 {
@@ -199,26 +203,26 @@ impl Function {
                 }
                 let m = degree.div_ceil(2);
                 check_points(x, y, 2 * m)?;
-                Function::Pieces(natural_spline(x, y, m)?)
+                Kind::Pieces(natural_spline(x, y, m)?)
             }
             FunctionSpec::Multiplier { scale, function } => {
                 if !scale.is_finite() {
                     return Err(format!("multiplier scale {scale} is not finite"));
                 }
-                Function::Scaled {
+                Kind::Scaled {
                     scale: *scale,
                     inner: Box::new(Function::new(function)?),
                 }
             }
-        })
+        }))
     }
 
     /// `(f(x), f′(x))`.
     pub fn eval(&self, x: f64) -> (f64, f64) {
-        match self {
-            Function::Constant(c) => (*c, 0.0),
-            Function::Linear { slope, intercept } => (slope * x + intercept, *slope),
-            Function::Polynomial(c) => {
+        match &self.0 {
+            Kind::Constant(c) => (*c, 0.0),
+            Kind::Linear { slope, intercept } => (slope * x + intercept, *slope),
+            Kind::Polynomial(c) => {
                 let mut v = 0.0;
                 let mut d = 0.0;
                 for &ck in c {
@@ -227,8 +231,8 @@ impl Function {
                 }
                 (v, d)
             }
-            Function::Pieces(p) => p.eval(x),
-            Function::Scaled { scale, inner } => {
+            Kind::Pieces(p) => p.eval(x),
+            Kind::Scaled { scale, inner } => {
                 let (v, d) = inner.eval(x);
                 (scale * v, scale * d)
             }
@@ -237,15 +241,27 @@ impl Function {
 
     /// The value when the function is constant.
     pub(crate) fn constant(&self) -> Option<f64> {
-        match self {
-            Function::Constant(c) => Some(*c),
-            Function::Scaled { scale, inner } => inner.constant().map(|v| scale * v),
+        match &self.0 {
+            Kind::Constant(c) => Some(*c),
+            Kind::Scaled { scale, inner } => inner.constant().map(|v| scale * v),
             _ => None,
         }
     }
 
+    /// `f(x)`.
     pub fn value(&self, x: f64) -> f64 {
         self.eval(x).0
+    }
+
+    /// The slope `a` when the function is `a·x` (linear through the origin).
+    pub(crate) fn slope_through_origin(&self) -> Option<f64> {
+        match self.0 {
+            Kind::Linear {
+                slope,
+                intercept: 0.0,
+            } => Some(slope),
+            _ => None,
+        }
     }
 }
 

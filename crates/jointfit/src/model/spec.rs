@@ -310,13 +310,13 @@ pub enum Unit {
 }
 
 /// Millimetres per metre: lengths are stored in metres and shown in millimetres.
-pub const MM_PER_M: f64 = 1e3;
+pub(crate) const MM_PER_M: f64 = 1e3;
 /// Metres per millimetre: lengths given in millimetres (file units, thresholds) to metres.
-pub const M_PER_MM: f64 = 1e-3;
+pub(crate) const M_PER_MM: f64 = 1e-3;
 
 impl Unit {
     /// The unit values are shown in: `mm` for metres, `deg` for radians.
-    pub fn display_suffix(self) -> &'static str {
+    pub(crate) fn display_suffix(self) -> &'static str {
         match self {
             Unit::Metre => "mm",
             Unit::Radian => "deg",
@@ -324,7 +324,7 @@ impl Unit {
     }
 
     /// Shown units per SI unit: 1000 mm per m, 180/π degrees per radian.
-    pub fn display_scale(self) -> f64 {
+    pub(crate) fn display_scale(self) -> f64 {
         match self {
             Unit::Metre => MM_PER_M,
             Unit::Radian => 180.0 / std::f64::consts::PI,
@@ -332,21 +332,13 @@ impl Unit {
     }
 
     /// An SI value (m, rad) in shown units (mm, deg).
-    pub fn to_display(self, si: f64) -> f64 {
+    pub(crate) fn to_display(self, si: f64) -> f64 {
         si * self.display_scale()
-    }
-
-    /// A value in shown units (mm, deg) in SI units (m, rad).
-    pub fn from_display(self, shown: f64) -> f64 {
-        match self {
-            Unit::Metre => shown / MM_PER_M,
-            Unit::Radian => shown.to_radians(),
-        }
     }
 }
 
 impl std::fmt::Display for Unit {
-    /// The shown unit (`mm`, `deg`); see [`Unit::display_suffix`].
+    /// The unit values are shown in: `mm` for metres, `deg` for radians.
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.display_suffix())
     }

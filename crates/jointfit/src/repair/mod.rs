@@ -41,9 +41,10 @@ pub struct Swap {
     pub to: Option<i64>,
 }
 
-impl Swap {
-    /// Parses `A,B`, `A,B@F` or `A,B@F-L` (file frame numbers).
-    pub fn parse(s: &str) -> Result<Swap, RepairError> {
+/// Parses `A,B`, `A,B@F` or `A,B@F-L` (file frame numbers).
+impl std::str::FromStr for Swap {
+    type Err = RepairError;
+    fn from_str(s: &str) -> Result<Swap, RepairError> {
         let bad = || RepairError::BadSwap(s.to_string());
         let (names, frames) = match s.split_once('@') {
             Some((n, f)) => (n, Some(f)),
@@ -76,7 +77,9 @@ impl Swap {
             to,
         })
     }
+}
 
+impl Swap {
     /// The option value that gives this swap back (`A,B@F`).
     pub(crate) fn to_arg(&self) -> String {
         match (self.from, self.to) {

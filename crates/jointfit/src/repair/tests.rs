@@ -44,17 +44,17 @@ fn max_error(a: &Trial, b: &Trial) -> f64 {
 
 #[test]
 fn swap_arguments() {
-    let s = Swap::parse("RTHI,RTHP@750").unwrap();
+    let s = "RTHI,RTHP@750".parse::<Swap>().unwrap();
     assert_eq!((s.from, s.to), (Some(750), None));
     assert_eq!(s.to_arg(), "RTHI,RTHP@750");
-    let s = Swap::parse("A, B@10-20").unwrap();
+    let s = "A, B@10-20".parse::<Swap>().unwrap();
     assert_eq!(
         (s.a.as_str(), s.b.as_str(), s.from, s.to),
         ("A", "B", Some(10), Some(20))
     );
-    assert_eq!(Swap::parse("A,B").unwrap().to_arg(), "A,B");
+    assert_eq!("A,B".parse::<Swap>().unwrap().to_arg(), "A,B");
     for bad in ["A", "A,A", "A,B@x", "A,B@20-10", ",B"] {
-        assert!(Swap::parse(bad).is_err(), "{bad}");
+        assert!(bad.parse::<Swap>().is_err(), "{bad}");
     }
 }
 
@@ -165,7 +165,10 @@ fn swap_found_by_checks_is_undone() {
     let fix = swap.fix.clone().expect("a fix is suggested");
     assert_eq!(fix, "--swap-labels RTHI,RTHP@50");
     let opts = RepairOptions {
-        swaps: vec![Swap::parse(fix.trim_start_matches("--swap-labels ")).unwrap()],
+        swaps: vec![fix
+            .trim_start_matches("--swap-labels ")
+            .parse::<Swap>()
+            .unwrap()],
         ..RepairOptions::default()
     };
     let (fixed, actions) = repair(&swapped, Some(&model), &opts).unwrap();
@@ -201,7 +204,7 @@ fn exclusion_and_errors() {
         "{e}"
     );
     let late = RepairOptions {
-        swaps: vec![Swap::parse("RTHI,RTHP@900").unwrap()],
+        swaps: vec!["RTHI,RTHP@900".parse::<Swap>().unwrap()],
         ..RepairOptions::default()
     };
     let e = repair(&truth, None, &late).unwrap_err().to_string();

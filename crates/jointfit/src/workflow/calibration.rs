@@ -147,11 +147,6 @@ pub struct Calibration {
 }
 
 impl Calibration {
-    /// Outer iterations summed over every start.
-    pub fn total_iterations(&self) -> usize {
-        self.start_runs.iter().map(|r| r.iterations).sum()
-    }
-
     /// Takes `u` as the calibration's uncertainty: each parameter row's SE, interval,
     /// identifiability and method from it.
     pub(super) fn set_uncertainty(&mut self, u: Uncertainty) {
@@ -163,29 +158,6 @@ impl Calibration {
             row.uncertainty_method = Some(pu.method);
         }
         self.uncertainty = Some(u);
-    }
-}
-
-impl FitSettings {
-    /// `jointfit calibrate`'s flag thresholds of a 95 % interval's half-width (mm, deg).
-    pub const COMMAND_THRESHOLD_MM: f64 = 5.0;
-    pub const COMMAND_THRESHOLD_DEG: f64 = 5.0;
-
-    /// What `jointfit calibrate` runs with no options (and `jointfit bench` times): the
-    /// default settings (joint method, global phase, priors, marker policy, envelope) plus the
-    /// uncertainty analysis with the command's thresholds, no bootstrap, seed 1. Entry point:
-    /// [`super::refine::calibrate_refined`].
-    pub fn command_default() -> FitSettings {
-        let seed = FitSettings::default().seed;
-        FitSettings {
-            uncertainty: Some(super::uncertainty_options(
-                FitSettings::COMMAND_THRESHOLD_MM,
-                FitSettings::COMMAND_THRESHOLD_DEG,
-                0,
-                seed,
-            )),
-            ..FitSettings::default()
-        }
     }
 }
 

@@ -75,10 +75,11 @@ pub struct JointConflict {
     pub interval_scale: f64,
 }
 
-impl JointConflict {
-    /// One line for the text output and the report.
-    pub fn line(&self) -> String {
-        format!(
+/// One line for the verdict, the text output and the report.
+impl std::fmt::Display for JointConflict {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
             "prior–data conflict at the {}: intervals widened for a prior ×{:.2} as wide (the \
              estimate keeps the prior): the trial disagrees with the model file's prior means by \
              χ² = {:.1} ({} dof, p = {:.1e})",

@@ -64,7 +64,8 @@ pub struct EnvelopeBound {
 }
 
 /// Text of an active bound, as the outputs print it.
-pub const HELD_AT_LIMIT: &str = "held at the anatomical limit: hip centre medial to the ASIS";
+pub(crate) const HELD_AT_LIMIT: &str =
+    "held at the anatomical limit: hip centre medial to the ASIS";
 
 /// The envelope's bounds for `model` started at `start`, and the model description with
 /// them (`None`: nothing to bound: no ASIS markers on the pelvis z axis, no hip-lateral

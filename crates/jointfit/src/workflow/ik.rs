@@ -81,12 +81,11 @@ pub fn ik_checked(
     let (run, mut findings) = ik_trial_alongside(model, p, trial, opts, || {
         crate::checks::check_trial_before_ik(model, trial, &map)
     });
-    let reference = crate::checks::offsets::reference_name(model);
     findings.extend(match &run {
-        Ok(run) => crate::checks::offsets::check_offsets_after_ik(
-            model, trial, &map, &reference, p, opts, &run.fit,
-        ),
-        Err(_) => crate::checks::offsets::check_offsets(model, trial, &map, &reference),
+        Ok(run) => {
+            crate::checks::offsets::check_offsets_after_ik(model, trial, &map, p, opts, &run.fit)
+        }
+        Err(_) => crate::checks::offsets::check_offsets(model, trial, &map),
     });
     (run, findings)
 }

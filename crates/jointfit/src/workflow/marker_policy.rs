@@ -90,25 +90,6 @@ pub struct MarkerDecision {
     pub reason: String,
 }
 
-impl MarkerDecision {
-    /// The decision in one line (no trailing period), e.g. `r_thigh3 (thigh): refined
-    /// (prior SD 15 mm): sits 59 mm from its static-trial place in every frame (spread 11 mm
-    /// over 135 frames)`.
-    pub fn line(&self) -> String {
-        let what = match (self.action, self.prior_sd) {
-            (MarkerAction::Refine, Some(sd)) => {
-                format!("position refined (prior SD {:.0} mm)", sd * MM_PER_M)
-            }
-            (MarkerAction::Refine, None) => "position refined".to_string(),
-            (MarkerAction::Exclude, _) => format!("left out of trial {}", self.trial + 1),
-        };
-        format!(
-            "{} ({}): {what}: {}",
-            self.marker, self.segment, self.reason
-        )
-    }
-}
-
 /// The prior SD (m) that lets a refinement reach an offset of `size` (m).
 fn prior_sd_for(size: f64) -> f64 {
     let mm = (size * MM_PER_M / BOUND_IN_SD / 5.0).ceil() * 5.0;

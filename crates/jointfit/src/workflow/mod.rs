@@ -102,8 +102,9 @@ impl Method {
     /// Every method, in the order of the command line's choices.
     pub(crate) const ALL: [Method; 3] = [Method::Joint, Method::Gradient, Method::Pso];
 
-    /// The lower-case name (`joint`, `gradient`, `pso`), as on the command line and in JSON.
-    pub fn name(self) -> &'static str {
+    /// The lower-case name (`joint`, `gradient`, `pso`), as on the command line and in JSON
+    /// (what [`std::fmt::Display`] writes and [`std::str::FromStr`] reads).
+    pub(crate) fn name(self) -> &'static str {
         match self {
             Method::Joint => "joint",
             Method::Gradient => "gradient",
@@ -234,23 +235,6 @@ impl FitSettings {
     }
 }
 
-/// Uncertainty options from the command line's units: flag thresholds in mm and degrees,
-/// `bootstrap` moving-block replicates, `seed` of the bootstrap.
-pub fn uncertainty_options(
-    threshold_mm: f64,
-    threshold_deg: f64,
-    bootstrap: usize,
-    seed: u64,
-) -> UncertaintyOptions {
-    UncertaintyOptions {
-        threshold_m: crate::model::spec::Unit::Metre.from_display(threshold_mm),
-        threshold_rad: crate::model::spec::Unit::Radian.from_display(threshold_deg),
-        bootstrap_replicates: bootstrap,
-        seed,
-        ..UncertaintyOptions::default()
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -282,12 +266,16 @@ mod tests {
         assert_eq!(s.effective_starts(), 1);
     }
 
-    #[test]
-    fn thresholds_convert_to_si() {
-        let o = uncertainty_options(5.0, 2.0, 7, 3);
-        assert!((o.threshold_m - 0.005).abs() < 1e-18);
-        assert!((o.threshold_rad - 2f64.to_radians()).abs() < 1e-18);
-        assert_eq!((o.bootstrap_replicates, o.seed), (7, 3));
+    /// The uncertainty analysis of the command line's defaults: intervals flagged wider than
+    /// 5 mm or 5°, no bootstrap, seed 1 (what the workflow tests analyse with).
+    pub(crate) fn five_mm_five_deg() -> UncertaintyOptions {
+        UncertaintyOptions {
+            threshold_m: 0.005,
+            threshold_rad: 5f64.to_radians(),
+            bootstrap_replicates: 0,
+            seed: 1,
+            ..UncertaintyOptions::default()
+        }
     }
 }
 
@@ -300,4 +288,4 @@ mod policy_tests;
 #[cfg(test)]
 mod refine_tests;
 #[cfg(test)]
-mod synthetic_tests;
+pub(crate) mod synthetic_tests;

@@ -187,7 +187,10 @@ fn the_kept_problem_equals_one_rebuilt_from_the_fits_sigma() {
     let (truth_spec, p_true) = truth(&spec, &model, 5, 0);
     let trial = synthetic(&Model::compile(&truth_spec).unwrap(), &p_true, 40, 0.002);
     // σ estimated by the global phase, the analysis on: the default command's path.
-    let settings = FitSettings::command_default();
+    let settings = FitSettings {
+        uncertainty: Some(super::tests::five_mm_five_deg()),
+        ..FitSettings::default()
+    };
     let kept = super::calibration::calibrate_keeping_system(
         &model,
         &start,

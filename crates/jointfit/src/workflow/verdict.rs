@@ -84,7 +84,7 @@ pub enum Level {
 }
 
 impl Level {
-    pub fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             Level::Ok => "ok",
             Level::Caution => "caution",
@@ -220,7 +220,7 @@ pub(crate) fn judge(model: &Model, cal: &Calibration, e: &Evidence) -> Verdict {
             true => Level::Caution,
             false => Level::Ok,
         };
-        v.add(level, c.line());
+        v.add(level, c.to_string());
     }
     if let Some(w) = &cal.global_warning {
         v.add(Level::Caution, w.clone());

@@ -12,7 +12,6 @@ mod kinematics;
 mod landmarks;
 mod models;
 mod offsets;
-mod placement;
 mod posterior;
 mod priors;
 mod secant;

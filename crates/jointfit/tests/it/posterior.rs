@@ -72,7 +72,12 @@ fn hip_only_trial_against_the_prior(inflation: f64) {
     let (mut unseen, mut seen) = (0, 0);
     for (k, p) in u.params.iter().enumerate() {
         let par = &model.parameters()[free[k].0];
-        let prior_hw = u.z * par.unit.to_display(par.prior_sd.unwrap());
+        // The uncertainty rows are in the shown unit (mm or deg).
+        let shown = match par.unit {
+            jointfit::model::spec::Unit::Metre => 1e3,
+            jointfit::model::spec::Unit::Radian => 180.0 / std::f64::consts::PI,
+        };
+        let prior_hw = u.z * (par.prior_sd.unwrap() * shown);
         let hw = p.half_width.unwrap();
         if share[k] < 0.6 {
             // What the trial sees of it is a combination it pins down (an offset in the

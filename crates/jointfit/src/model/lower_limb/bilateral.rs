@@ -24,9 +24,6 @@ pub(crate) const PELVIS_SEGMENT: &str = "pelvis";
 /// The joint between the ground and the pelvis (6 coordinates).
 pub(crate) const PELVIS_JOINT: &str = "ground_pelvis";
 
-/// Suffixes of the right and left leg's names in the bilateral model.
-pub const SIDE_SUFFIXES: [(Side, &str); 2] = [(Side::Right, "_r"), (Side::Left, "_l")];
-
 /// The built-in bilateral model `lower-limb`: the generic right and left legs joined.
 pub fn bilateral() -> ModelSpec {
     let mut spec = join_legs(&lower_limb(Side::Right), &lower_limb(Side::Left))
@@ -175,7 +172,7 @@ mod tests {
         }
         let mut kb = KinData::new(&both);
         forward_kinematics(&both, &pb, &qb, Want::POSITIONS, &mut kb);
-        for (side, s) in SIDE_SUFFIXES {
+        for (side, s) in [(Side::Right, "_r"), (Side::Left, "_l")] {
             let one = Model::compile(&lower_limb(side)).unwrap();
             let p: Vec<f64> = one
                 .parameters()
