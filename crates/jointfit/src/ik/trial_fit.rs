@@ -106,7 +106,7 @@ pub(crate) fn solve_trial_alongside<R: Send>(
 /// [`solve_trial`] with the chunks given: `chunks` must cover `0..trial.n_frames()` in order
 /// (a chunk per thread; the first frame of each seeded). For tests and measurements (the
 /// trial solved as one chunk against the chunks [`solve_trial`] takes).
-pub fn solve_trial_in_chunks(
+pub(crate) fn solve_trial_in_chunks(
     model: &Model,
     p: &[f64],
     trial: &Trial,
@@ -197,7 +197,7 @@ pub(crate) const MIN_SPLIT_FRAMES: usize = 128;
 /// at the previous frame's values, which needs the previous frame) the trial is one chunk.
 /// A function of the frame count alone, never of the thread count, so the result is the same
 /// on any number of threads.
-pub fn trial_chunk_ranges(n: usize, hold: bool) -> Vec<Range<usize>> {
+pub(crate) fn trial_chunk_ranges(n: usize, hold: bool) -> Vec<Range<usize>> {
     let k = if hold || n < MIN_SPLIT_FRAMES {
         1
     } else {
@@ -210,7 +210,8 @@ pub fn trial_chunk_ranges(n: usize, hold: bool) -> Vec<Range<usize>> {
 /// nearly equal length, one with `hold`. Short trials stay one chunk here. (The
 /// calibration's `calibrate::Problem::initial_coords` cuts its frames with
 /// [`trial_chunk_ranges`] instead, so a short trial's seeded IK uses two cores.)
-pub fn chunk_ranges(n: usize, hold: bool) -> Vec<Range<usize>> {
+#[cfg(test)]
+pub(crate) fn chunk_ranges(n: usize, hold: bool) -> Vec<Range<usize>> {
     let k = if hold {
         1
     } else {
@@ -323,26 +324,30 @@ pub struct UnsolvedRange {
     pub reason: String,
 }
 
-/// The frames of `fit` not solved, as runs of consecutive frames with one reason.
-pub fn unsolved_ranges(fit: &TrialFit) -> Vec<UnsolvedRange> {
-    let mut out: Vec<UnsolvedRange> = Vec::new();
-    for (f, frame) in fit.frames.iter().enumerate() {
-        let reason = match &frame.status {
-            FrameStatus::Converged | FrameStatus::MaxIterations | FrameStatus::Stalled => continue,
-            FrameStatus::Undetermined { coordinate } => format!("{coordinate} undetermined"),
-            FrameStatus::Diverged => "diverged".to_string(),
-            FrameStatus::Implausible { .. } => {
-                "implausible fit: RMS far above the trial's median".to_string()
+impl TrialFit {
+    /// The frames not solved, as runs of consecutive frames with one reason.
+    pub fn unsolved_ranges(&self) -> Vec<UnsolvedRange> {
+        let mut out: Vec<UnsolvedRange> = Vec::new();
+        for (f, frame) in self.frames.iter().enumerate() {
+            let reason = match &frame.status {
+                FrameStatus::Converged | FrameStatus::MaxIterations | FrameStatus::Stalled => {
+                    continue
+                }
+                FrameStatus::Undetermined { coordinate } => format!("{coordinate} undetermined"),
+                FrameStatus::Diverged => "diverged".to_string(),
+                FrameStatus::Implausible { .. } => {
+                    "implausible fit: RMS far above the trial's median".to_string()
+                }
+            };
+            match out.last_mut() {
+                Some(r) if r.last + 1 == f && r.reason == reason => r.last = f,
+                _ => out.push(UnsolvedRange {
+                    first: f,
+                    last: f,
+                    reason,
+                }),
             }
-        };
-        match out.last_mut() {
-            Some(r) if r.last + 1 == f && r.reason == reason => r.last = f,
-            _ => out.push(UnsolvedRange {
-                first: f,
-                last: f,
-                reason,
-            }),
         }
+        out
     }
-    out
 }
