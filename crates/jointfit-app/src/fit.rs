@@ -378,7 +378,7 @@ pub fn summarize(
                 .map_or(String::new(), |r| format!(": {r}"))
         ));
     }
-    if !fit.converged() {
+    if !cal.converged {
         warnings.push(format!(
             "the outer solver stopped before converging ({})",
             fit.termination
@@ -418,7 +418,7 @@ pub fn summarize(
         cost_after: fit.cost,
         iterations: fit.iterations,
         evaluations: fit.evaluations,
-        converged: fit.converged(),
+        converged: cal.converged,
         warnings,
         verdict: cal.verdict.clone(),
     }

@@ -439,7 +439,7 @@ pub struct Fit {
 
 impl Fit {
     /// Whether the solver's convergence test passed (not stalled, not out of iterations).
-    pub fn converged(&self) -> bool {
+    pub(crate) fn converged(&self) -> bool {
         self.termination.converged()
     }
 }

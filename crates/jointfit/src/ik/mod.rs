@@ -36,7 +36,7 @@
 //! ([`branch`]). The fit keeps the coordinates a model marks `clamped` (OpenSim's flag)
 //! inside their ranges ([`IkOptions::clamp`]); the others are not bounded.
 
-pub mod branch;
+pub(crate) mod branch;
 mod composite;
 #[cfg(test)]
 mod frames;
