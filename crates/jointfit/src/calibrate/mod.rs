@@ -307,8 +307,8 @@ impl<'m> Problem<'m> {
     /// Starting coordinates for every frame at `p`: seeded IK, warm-started within each trial
     /// from the frame before, in the fixed parallel chunks of [`trial_chunk_ranges`] (each
     /// chunk's first frame seeded too), so the result does not depend on the number of
-    /// threads. The loop of [`crate::ik::warm_started_coords`], on targets gathered from the
-    /// trials; like the `ik` command (and unlike that function's [`crate::ik::trial_fit::chunk_ranges`]),
+    /// threads. The loop of `crate::ik::warm_started_coords`, on targets gathered from the
+    /// trials; like the `ik` command (and unlike that function's `crate::ik::trial_fit::chunk_ranges`),
     /// a problem of 128 to 1023 frames is cut into two chunks, so that a gait trial's seeded
     /// IK runs on two cores (`notebook/performance.md`: the cost is one more seed).
     ///

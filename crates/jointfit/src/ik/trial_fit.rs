@@ -178,7 +178,7 @@ fn solve_chunks_alongside<R: Send>(
     (Ok(out), also)
 }
 
-/// Fewest frames in a chunk of a long trial (in [`trial_chunk_ranges`] and [`chunk_ranges`]): from 1024 frames on a trial is cut into `⌊n / 512⌋` chunks, so that
+/// Fewest frames in a chunk of a long trial (in [`trial_chunk_ranges`] and `chunk_ranges`): from 1024 frames on a trial is cut into `⌊n / 512⌋` chunks, so that
 /// the seeds cost under 5 % and, from 4096 frames on, there are enough chunks for work
 /// stealing to balance the load on a shared machine.
 pub(crate) const MIN_CHUNK_FRAMES: usize = 512;
@@ -206,7 +206,7 @@ pub(crate) fn trial_chunk_ranges(n: usize, hold: bool) -> Vec<Range<usize>> {
     even_chunks(n, k)
 }
 
-/// The chunks of [`super::warm_started_coords`]: `k = clamp(⌊n / 512⌋, 1, 32)` chunks of
+/// The chunks of `super::warm_started_coords` (a test oracle): `k = clamp(⌊n / 512⌋, 1, 32)` chunks of
 /// nearly equal length, one with `hold`. Short trials stay one chunk here. (The
 /// calibration's `calibrate::Problem::initial_coords` cuts its frames with
 /// [`trial_chunk_ranges`] instead, so a short trial's seeded IK uses two cores.)
