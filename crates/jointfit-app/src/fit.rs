@@ -402,7 +402,7 @@ pub fn summarize(
                 .map_or(String::new(), |r| format!(": {r}"))
         ));
     }
-    if !fit.converged() {
+    if !cal.converged {
         warnings.push(format!(
             "the outer solver stopped before converging ({})",
             fit.termination
@@ -442,7 +442,7 @@ pub fn summarize(
         cost_after: fit.cost,
         iterations: fit.iterations,
         evaluations: fit.evaluations,
-        converged: fit.converged(),
+        converged: cal.converged,
         warnings,
         verdict: cal.verdict.clone(),
     }

@@ -64,7 +64,7 @@ pub struct OsimFit {
     /// uses only the markers a trial has).
     pub absent_markers: Vec<String>,
     /// Coordinates the trials' markers cannot determine (e.g. `mtp_angle_r` without toe
-    /// markers), held at their default values for the fit ([`jointfit::ik::hold::lock_undetermined`]).
+    /// markers), held at their default values for the fit ([`jointfit::ik::hold::hold_undetermined`]).
     pub held_coordinates: Vec<String>,
 }
 
@@ -115,8 +115,9 @@ pub fn personalize(
     if absent_markers.len() < spec.markers.len() {
         spec.markers.retain(|m| !absent_markers.contains(&m.name));
     }
-    let held_coordinates = jointfit::ik::hold::lock_undetermined(&mut spec, trials)?;
     let model = Model::compile(&spec)?;
+    let (held, held_coordinates) = jointfit::ik::hold::hold_undetermined(&model, trials)?;
+    let model = held.unwrap_or(model);
     let start = start.unwrap_or_else(|| model.nominal_params());
     let free: Vec<ParamId> = (0..model.n_p()).map(ParamId).collect();
     let result = calibrate_holding_redundant(&model, &start, trials, &free, settings, observer)?;

@@ -309,7 +309,8 @@ fn time_calibration(
     fig: &mut Figures,
 ) -> Result<()> {
     let all = params_for_groups(model, &["all"])?;
-    jointfit::calibrate::Problem::new(model, p.to_vec(), &all, &[trial])?;
+    // The problem builds (else an error here, not a panic in the timed fits).
+    jointfit::workflow::marker_rms::marker_rms(model, p, &[trial])?;
     let fit = |method: Method, free: &[jointfit::model::ParamId], trial: &Trial| {
         fit::command_fit(model, p, trial, free, method, &mut NoObserver).expect("validated above");
     };

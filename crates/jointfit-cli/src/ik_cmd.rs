@@ -7,7 +7,6 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use jointfit::ik::trial_fit::unsolved_ranges;
 use jointfit::ik::trial_fit::TrialFit;
 use jointfit::ik::IkOptions;
 use jointfit::model::custom::MotionType;
@@ -334,7 +333,8 @@ pub(crate) fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f
         .filter(|v| !v.is_nan())
         .collect();
     let first = trial.first_frame();
-    let unsolved = unsolved_ranges(fit)
+    let unsolved = fit
+        .unsolved_ranges()
         .into_iter()
         .map(|r| UnsolvedJson {
             first_frame: first + r.first as i64,

@@ -73,8 +73,8 @@ pub fn run(args: IkArgs) -> Result<()> {
         );
     }
     let tasks = coordinate_tasks(&model, &setup, &trial)?;
-    let (map, absent) = MarkerMap::allowing_absent(&model, trial.labels());
-    let map = map.with_coordinate_tasks(tasks);
+    let (mut map, absent) = MarkerMap::allowing_absent(&model, trial.labels());
+    map.coordinate_tasks = tasks;
     if let Some(units) = jointfit::checks::check_scale(&trial) {
         report_findings(&[units], &trial_path)?;
     }

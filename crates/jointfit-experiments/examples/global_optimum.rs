@@ -15,8 +15,7 @@
 
 use std::time::Instant;
 
-use jointfit::calibrate::{params_for_groups, Problem};
-use jointfit::ik::lm::IkWorkspace;
+use jointfit::calibrate::params_for_groups;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
 use jointfit::solver::NoObserver;
@@ -120,9 +119,9 @@ fn fit_case(
         white: None,
     };
     let (trial, _) = synthesize(model, &truth, &coords, 10.0, &noise);
-    let prob = Problem::new(model, nominal.clone(), &free, &[&trial]).expect("problem");
-    let mut q = prob.initial_coords(&truth);
-    let at_truth = prob.inner(&truth, &mut q, &mut IkWorkspace::new(model));
+    let at_truth = jointfit::workflow::marker_rms::marker_rms(model, &truth, &[&trial])
+        .expect("problem")
+        .cost;
     let clock = Instant::now();
     let cal = calibrate(model, &nominal, &[&trial], &free, settings, &mut NoObserver)
         .expect("calibration");

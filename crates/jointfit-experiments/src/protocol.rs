@@ -3,7 +3,7 @@
 //! * [`fit`]: the outer level on a chosen parameter subset, from one or several starts
 //!   ([`jointfit::workflow::calibration::calibrate`]); the best (lowest `e_inner`) wins. Reinbolt et al. 2005 used a particle swarm for the single
 //!   joints and a gradient method for the full leg, ~41 h per noisy single-joint problem; we
-//!   default to the joint sparse Levenberg–Marquardt ([`jointfit::calibrate::joint`]), which
+//!   default to the joint sparse Levenberg–Marquardt (`jointfit::workflow::Method::Joint`), which
 //!   shares the two-level formulation's optima and takes well under a second.
 //! * [`synthetic_case`]: one synthetic experiment. The true parameters are the subject's
 //!   nominal values; markers are generated along a motion and noise is added; the fit starts
@@ -16,8 +16,7 @@
 
 use std::time::Instant;
 
-use jointfit::calibrate::{params_for_groups, CalibError, Problem};
-use jointfit::ik::lm::IkWorkspace;
+use jointfit::calibrate::params_for_groups;
 use jointfit::model::spec::Unit;
 use jointfit::model::Model;
 use jointfit::solver::NoObserver;
@@ -68,9 +67,8 @@ pub fn fit(
         &settings,
         &mut NoObserver,
     )?;
-    let prob = Problem::new(model, start.to_vec(), &free, trials)?;
     Ok(FitOutcome {
-        marker_rms: prob.marker_rms(&cal.fit.p, &cal.fit.coords),
+        marker_rms: cal.rms_after,
         frames: cal.frames,
         converged: cal.converged,
         iterations: cal.start_runs.iter().map(|r| r.iterations).sum(),
@@ -81,14 +79,15 @@ pub fn fit(
     })
 }
 
-/// `e_inner(p)` and the RMS marker distance (m) of the inner level alone at fixed `p`.
-pub fn inner_only(model: &Model, p: &[f64], trials: &[&Trial]) -> Result<(f64, f64), CalibError> {
-    let all = params_for_groups(model, &["all"])?;
-    let prob = Problem::new(model, p.to_vec(), &all, trials)?;
-    let mut qs = prob.initial_coords(p);
-    let mut ws = IkWorkspace::new(model);
-    let cost = prob.inner(p, &mut qs, &mut ws);
-    Ok((cost, prob.marker_rms(p, &qs)))
+/// `e_inner(p)` and the RMS marker distance (m) of the inner level alone at fixed `p`
+/// ([`jointfit::workflow::marker_rms::marker_rms`]).
+pub fn inner_only(
+    model: &Model,
+    p: &[f64],
+    trials: &[&Trial],
+) -> Result<(f64, f64), WorkflowError> {
+    let r = jointfit::workflow::marker_rms::marker_rms(model, p, trials)?;
+    Ok((r.cost, r.rms))
 }
 
 /// RMS over the `free` parameters of `a − b`: (orientations in deg, positions in mm); `None`

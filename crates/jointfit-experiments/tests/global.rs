@@ -3,14 +3,14 @@
 //! --perturb-deg 15 --seed S`), with the objective at the true parameters as the oracle:
 //! the global optimum of a noisy trial lies at or below it.
 
-use jointfit::calibrate::{params_for_groups, Problem};
-use jointfit::ik::lm::IkWorkspace;
+use jointfit::calibrate::params_for_groups;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
 use jointfit::solver::NoObserver;
 use jointfit::trial::Trial;
 use jointfit::workflow::calibration::calibrate;
 use jointfit::workflow::calibration::Calibration;
+use jointfit::workflow::marker_rms::marker_rms;
 use jointfit::workflow::{perturb, FitSettings};
 use jointfit_experiments::synth::{coordinates_scaled, synthesize, Motion, Noise};
 
@@ -21,10 +21,7 @@ fn case(model: &Model, motion: Motion, seed: u64) -> (Trial, f64) {
     let truth = perturb(model, &nominal, &all, 30.0, 15.0, seed);
     let coords = coordinates_scaled(model, motion, 50, 1.0).unwrap();
     let (trial, _) = synthesize(model, &truth, &coords, 10.0, &Noise::skin(seed));
-    let free = params_for_groups(model, &["all"]).unwrap();
-    let prob = Problem::new(model, nominal, &free, &[&trial]).unwrap();
-    let mut q = prob.initial_coords(&truth);
-    let at_truth = prob.inner(&truth, &mut q, &mut IkWorkspace::new(model));
+    let at_truth = marker_rms(model, &truth, &[&trial]).unwrap().cost;
     (trial, at_truth)
 }
 
@@ -129,11 +126,7 @@ fn swarm_on_the_noiseless_ankle(groups: &str) -> usize {
     for id in &ankle {
         start[id.0] = nominal[id.0];
     }
-    let at_truth = {
-        let prob = Problem::new(&model, start.clone(), &free, &[&trial]).unwrap();
-        let mut q = prob.initial_coords(&truth);
-        prob.inner(&truth, &mut q, &mut IkWorkspace::new(&model))
-    };
+    let at_truth = marker_rms(&model, &truth, &[&trial]).unwrap().cost;
     assert!(at_truth < 1e-20, "noiseless: {at_truth:e}");
     let settings = FitSettings {
         method: jointfit::workflow::Method::Pso,
@@ -205,7 +198,8 @@ fn swarm_on_the_noisy_hip_stops_in_the_minimum_near_the_truth_whatever_the_threa
         ..FitSettings::default()
     };
     let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
+        let mut budget = SwarmBudget(None);
+        let cal = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap()
@@ -216,17 +210,18 @@ fn swarm_on_the_noisy_hip_stops_in_the_minimum_near_the_truth_whatever_the_threa
                     &[&trial],
                     &free,
                     &settings(jointfit::workflow::Method::Pso),
-                    &mut NoObserver,
+                    &mut budget,
                 )
                 .unwrap()
-            })
+            });
+        (cal, budget.0)
     };
-    let (a, b) = (run(1), run(2));
+    let ((a, limit), (b, _)) = (run(1), run(2));
     assert_eq!(a.fit.p, b.fit.p);
     assert_eq!(a.cost_after, b.cost_after);
     let swarm = &a.convergence[0];
     assert_eq!(swarm.stage, "particle swarm");
-    let limit = jointfit::calibrate::pso::PsoOptions::default().max_iterations;
+    let limit = limit.expect("the swarm announces its iteration budget");
     assert!(
         swarm.objective.len() < limit / 2,
         "swarm iterations {}",
@@ -255,5 +250,16 @@ fn swarm_on_the_noisy_hip_stops_in_the_minimum_near_the_truth_whatever_the_threa
             "{}",
             par.name
         );
+    }
+}
+
+/// The iteration budget the particle swarm announces to the observer.
+struct SwarmBudget(Option<usize>);
+
+impl jointfit::solver::Observer for SwarmBudget {
+    fn stage_started(&mut self, stage: &str, budget: Option<usize>) {
+        if stage.contains("particle swarm") {
+            self.0 = budget;
+        }
     }
 }

@@ -118,7 +118,7 @@ pub fn calibration_input(
         converged: cal.converged,
         seconds,
         start: (cal.start_runs.len() > 1).then_some((cal.best_start, cal.start_runs.len())),
-        termination: cal.termination.describe().to_string(),
+        termination: cal.termination.to_string(),
     });
     if cal.skipped_frames > 0 {
         input.notes.push(format!(

@@ -57,30 +57,6 @@ pub fn synthetic_trial(
     noise: Noise,
     seed: u64,
 ) -> SynthTrial {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let amplitude = match noise {
-        Noise::None => 0.0,
-        Noise::Skin { amplitude } => amplitude,
-        Noise::White { sd } => sd,
-    };
-    let terms: Vec<(f64, f64, f64)> = if noise == Noise::None {
-        Vec::new()
-    } else {
-        (0..3 * model.n_markers())
-            .map(|_| {
-                (
-                    rng.gen_range(0.0..=amplitude),
-                    rng.gen_range(0.0..=25.0),
-                    rng.gen_range(0.0..std::f64::consts::TAU),
-                )
-            })
-            .collect()
-    };
-    let mut gauss = || {
-        let u1: f64 = rng.gen_range(f64::EPSILON..1.0);
-        let u2: f64 = rng.gen();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-    };
     let mut kin = KinData::new(model);
     let mut positions = Vec::with_capacity(frames * model.n_markers());
     let mut truth = Vec::with_capacity(frames);
@@ -88,28 +64,61 @@ pub fn synthetic_trial(
         let q = coords(f);
         assert_eq!(q.len(), model.n_q(), "frame {f}: coordinate vector length");
         forward_kinematics(model, p, &q, Want::POSITIONS, &mut kin);
-        let t = f as f64 / rate_hz;
-        for (j, x) in kin.markers.iter().enumerate() {
-            let mut n = Vector3::zeros();
-            for k in 0..3 {
-                n[k] = match noise {
-                    Noise::None => 0.0,
-                    Noise::Skin { .. } => {
-                        let (a, w, phi) = terms[3 * j + k];
-                        a * (w * t + phi).sin()
-                    }
-                    Noise::White { sd } => sd * gauss(),
-                };
-            }
-            positions.push(x + n);
-        }
+        positions.extend_from_slice(&kin.markers);
         truth.push(q);
     }
+    add_noise(&mut positions, model.n_markers(), rate_hz, noise, seed);
     let labels = model.markers().iter().map(|m| m.name.clone()).collect();
     let trial = Trial::new(labels, rate_hz, 1, positions).expect("a valid synthetic trial");
     SynthTrial {
         trial,
         coords: truth,
+    }
+}
+
+/// Adds `noise` drawn from `seed` to exact marker positions, `n_markers` per frame in frame
+/// order, frames at `rate_hz`: the noise of [`synthetic_trial`], for a caller that computes
+/// the exact markers itself (the core crate's own unit tests).
+pub fn add_noise(
+    positions: &mut [Vector3<f64>],
+    n_markers: usize,
+    rate_hz: f64,
+    noise: Noise,
+    seed: u64,
+) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let amplitude = match noise {
+        Noise::None => return,
+        Noise::Skin { amplitude } => amplitude,
+        Noise::White { sd } => sd,
+    };
+    let terms: Vec<(f64, f64, f64)> = (0..3 * n_markers)
+        .map(|_| {
+            (
+                rng.gen_range(0.0..=amplitude),
+                rng.gen_range(0.0..=25.0),
+                rng.gen_range(0.0..std::f64::consts::TAU),
+            )
+        })
+        .collect();
+    let mut gauss = || {
+        let u1: f64 = rng.gen_range(f64::EPSILON..1.0);
+        let u2: f64 = rng.gen();
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    };
+    for (i, x) in positions.iter_mut().enumerate() {
+        let (f, j) = (i / n_markers, i % n_markers);
+        let t = f as f64 / rate_hz;
+        for k in 0..3 {
+            x[k] += match noise {
+                Noise::None => 0.0,
+                Noise::Skin { .. } => {
+                    let (a, w, phi) = terms[3 * j + k];
+                    a * (w * t + phi).sin()
+                }
+                Noise::White { sd } => sd * gauss(),
+            };
+        }
     }
 }
 

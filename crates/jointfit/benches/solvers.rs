@@ -1,12 +1,11 @@
-//! IK per frame and the outer solvers on a synthetic 150-frame trial of the leg model.
+//! IK of a trial and the calibration by each outer solver (one local fit from the nominal
+//! parameters, no prior: the paper's protocol, through [`jointfit::workflow::calibration::calibrate`])
+//! on a synthetic 150-frame trial of the leg model.
 //!
 //! `cargo bench -p jointfit --bench solvers`
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use jointfit::calibrate::joint::{solve_joint, JointOptions};
-use jointfit::calibrate::pso::{solve_pso, PsoOptions};
-use jointfit::calibrate::varpro::{solve_varpro, VarProOptions};
-use jointfit::calibrate::{params_for_groups, Problem};
+use jointfit::calibrate::params_for_groups;
 use jointfit::ik::trial_fit::solve_trial;
 use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
@@ -14,6 +13,8 @@ use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
 use jointfit::solver::NoObserver;
 use jointfit::trial::Trial;
+use jointfit::workflow::calibration::calibrate;
+use jointfit::workflow::{FitSettings, Method};
 use nalgebra::Vector3;
 
 /// Gait-like motion with ±5 mm sinusoidal marker noise, true parameters off nominal.
@@ -65,37 +66,34 @@ fn benches(c: &mut Criterion) {
         b.iter(|| solve_trial(&model, &nominal, &gait, &map, &IkOptions::default()).unwrap())
     });
     let all = params_for_groups(&model, &["all"]).unwrap();
-    let prob = Problem::new(&model, nominal.clone(), &all, &[&gait]).unwrap();
-    let s0 = prob.to_scaled(&nominal);
-    let q0 = prob.initial_coords(&nominal);
+    // One local fit from the start, no prior, no uncertainty analysis.
+    let paper = |method| FitSettings {
+        method,
+        probes: 0,
+        priors: false,
+        ..FitSettings::default()
+    };
+    let fit = |method, free: &[jointfit::model::ParamId], trial: &Trial| {
+        calibrate(
+            &model,
+            &nominal,
+            &[trial],
+            free,
+            &paper(method),
+            &mut NoObserver,
+        )
+        .unwrap()
+    };
     g.bench_function("joint_27_params_150_frames", |b| {
-        b.iter(|| {
-            solve_joint(
-                &prob,
-                &s0,
-                q0.clone(),
-                &JointOptions::default(),
-                &mut NoObserver,
-            )
-        })
+        b.iter(|| fit(Method::Joint, &all, &gait))
     });
     g.bench_function("gradient_27_params_150_frames", |b| {
-        b.iter(|| {
-            solve_varpro(
-                &prob,
-                &s0,
-                q0.clone(),
-                &VarProOptions::default(),
-                &mut NoObserver,
-            )
-        })
+        b.iter(|| fit(Method::Gradient, &all, &gait))
     });
     let short = gait.slice_frames(0, 50);
     let hip = params_for_groups(&model, &["hip"]).unwrap();
-    let hip_prob = Problem::new(&model, nominal.clone(), &hip, &[&short]).unwrap();
-    let hq0 = hip_prob.initial_coords(&nominal);
     g.bench_function("pso_hip_50_frames", |b| {
-        b.iter(|| solve_pso(&hip_prob, &hq0, &PsoOptions::default(), &mut NoObserver))
+        b.iter(|| fit(Method::Pso, &hip, &short))
     });
     g.finish();
 }

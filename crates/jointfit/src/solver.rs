@@ -30,7 +30,7 @@ impl Termination {
     }
 
     /// Lower-case words for text output: `converged`, `stalled`, `iteration limit`.
-    pub fn describe(self) -> &'static str {
+    fn describe(self) -> &'static str {
         match self {
             Termination::Converged => "converged",
             Termination::Stalled => "stalled",

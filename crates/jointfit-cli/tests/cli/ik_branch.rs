@@ -1,18 +1,19 @@
-//! Which Euler-angle branch `jointfit ik` reports (`jointfit::ik::branch`).
+//! Which Euler-angle branch `jointfit ik` reports.
 //!
 //! OpenCap's unscaled `generic.osim` on walking1: the warm-started chain reached the left
 //! hip's other branch of the same rotation (flexion −108°, adduction −209°, rotation −229°
 //! in frame 0 where the in-range branch is 71.6°, 29.0°, −48.7°). The `.mot` must hold, for
-//! every Euler triple of the model and every frame, the branch no farther outside the model's
-//! coordinate ranges than the other, and every periodic coordinate within half a turn of its
-//! range. Every coordinate of `generic.osim` is `clamped`, and jointfit's IK now keeps them in
+//! every Euler triple of the model (the three rotational coordinates of a joint that has
+//! three, in order: OpenSim's `rotation1..3`) and every frame, the branch no farther outside
+//! the model's coordinate ranges than the other, and every rotational coordinate within half a
+//! turn of its range. Every coordinate of `generic.osim` is `clamped`, and jointfit's IK now keeps them in
 //! their ranges as OpenSim's does, so the branch rule has nothing left to move here; the
 //! agreement with OpenSim's coordinates is asserted in `osim_clamped` (this model) and
 //! `osim_ik` (the hand-scaled one).
 
 use std::f64::consts::PI;
 
-use jointfit::ik::branch::Branches;
+use jointfit::model::{CoordKind, Model};
 use jointfit_io::sto::read_sto;
 
 use super::jointfit;
@@ -36,7 +37,6 @@ fn generic_osim_left_hip_in_range_branch() {
     ]);
     assert!(ok, "{err}");
     let model = jointfit_io::model_file::load_model(model_path.to_str().unwrap()).unwrap();
-    let branches = Branches::new(&model);
     let table = read_sto(&mot).unwrap();
     assert!(table.in_degrees);
     let column = |name: &str| table.columns.iter().position(|c| c == name).unwrap();
@@ -51,7 +51,7 @@ fn generic_osim_left_hip_in_range_branch() {
         .map(|c| c.kind == jointfit::model::CoordKind::Rotational)
         .collect();
     let name = |c: usize| model.coordinates()[c].name.clone();
-    let triples: Vec<[usize; 3]> = branches.triples().collect();
+    let triples = euler_triples(&model);
     let hip_l = ["hip_flexion_l", "hip_adduction_l", "hip_rotation_l"];
     assert!(
         triples.iter().any(|t| t.map(name) == hip_l),
@@ -98,7 +98,7 @@ fn generic_osim_left_hip_in_range_branch() {
             );
         }
         for (c, &v) in q.iter().enumerate() {
-            if branches.period(c) > 0.0 {
+            if rotational[c] {
                 let [lo, hi] = model.coordinates()[c].range;
                 assert!(
                     v >= lo - PI && v <= hi + PI,
@@ -115,4 +115,21 @@ fn generic_osim_left_hip_in_range_branch() {
         );
     }
     assert!(solved >= 140, "{solved} of {} frames", table.rows.len());
+}
+
+/// The Euler triples of `model`: the rotational coordinates of every joint that has exactly
+/// three, in coordinate order (OpenSim's `rotation1..3` of a hip, the pelvis, the lumbar
+/// joint).
+pub(crate) fn euler_triples(model: &Model) -> Vec<[usize; 3]> {
+    (0..model.joints().len())
+        .filter_map(|j| {
+            let rotations: Vec<usize> = (0..model.n_q())
+                .filter(|&c| {
+                    let coord = &model.coordinates()[c];
+                    coord.joint.0 == j && coord.kind == CoordKind::Rotational
+                })
+                .collect();
+            <[usize; 3]>::try_from(rotations).ok()
+        })
+        .collect()
 }

@@ -1,15 +1,17 @@
-//! Whole-trial IK in parallel chunks (`jointfit::ik::trial_fit::trial_chunk_ranges`: two from 128 frames
+//! Whole-trial IK in parallel chunks (`jointfit::ik::trial_fit::solve_trial`: two from 128 frames
 //! on) against the same trial solved as one chunk: every frame's coordinates agree within the
 //! solver's tolerance, on OpenCap's walking1 with its landmark model, as read and with gaps
 //! cut across the chunk boundary (frames no marker set can solve, so the chunks restart from
-//! seeds), and the chunked result has the same bits on one and two threads.
+//! seeds), and the chunked result has the same bits on one and two threads. The one-chunk
+//! solve is the trial fed frame by frame to `jointfit::ik::stream::StreamingIk`, which gives
+//! the one-chunk trial loop bit for bit (the core's stream tests).
 
+use jointfit::ik::stream::StreamingIk;
 use jointfit::ik::trial_fit::solve_trial;
-use jointfit::ik::trial_fit::solve_trial_in_chunks;
-use jointfit::ik::trial_fit::trial_chunk_ranges;
 use jointfit::ik::trial_fit::TrialFit;
 use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::model::Model;
+use jointfit::spatial::UpAxis;
 use jointfit::trial::Trial;
 use jointfit_testkit::scratch;
 
@@ -25,6 +27,24 @@ fn on_threads(threads: usize, f: impl FnOnce() -> TrialFit + Send) -> TrialFit {
         .install(f)
 }
 
+/// Every frame of `trial` in order through one stream: the trial as one chunk.
+fn one_chunk(model: &Model, p: &[f64], trial: &Trial, opts: &IkOptions) -> TrialFit {
+    let mut s =
+        StreamingIk::new(model.clone(), p.to_vec(), trial.labels(), UpAxis::Y, *opts).unwrap();
+    let mut out = TrialFit {
+        coords: Vec::new(),
+        frames: Vec::new(),
+        errors: Vec::new(),
+    };
+    for f in 0..trial.n_frames() {
+        out.coords
+            .push(s.update(trial.time(f), trial.frame(f)).unwrap().to_vec());
+        out.frames.push(s.last_fit().unwrap().clone());
+        out.errors.push(s.errors().to_vec());
+    }
+    out
+}
+
 /// Solves `trial` in its chunks and as one; asserts the chunked solve has two or more chunks,
 /// the same solved frames, coordinates within [`TOLERANCE`], and the same bits on one and
 /// two threads. Returns the largest difference.
@@ -33,9 +53,8 @@ fn chunked_equals_one_chunk(model: &Model, trial: &Trial) -> f64 {
     let opts = IkOptions::default();
     let map = MarkerMap::allowing_absent(model, trial.labels()).0;
     let n = trial.n_frames();
-    assert!(trial_chunk_ranges(n, false).len() >= 2, "{n} frames");
-    let one = solve_trial_in_chunks(model, &p, trial, &map, &opts, std::slice::from_ref(&(0..n)))
-        .unwrap();
+    assert!(n >= 128, "{n} frames: fewer than two chunks");
+    let one = one_chunk(model, &p, trial, &opts);
     let chunked = on_threads(2, || solve_trial(model, &p, trial, &map, &opts).unwrap());
     let serial = on_threads(1, || solve_trial(model, &p, trial, &map, &opts).unwrap());
     let bits = |fit: &TrialFit| {

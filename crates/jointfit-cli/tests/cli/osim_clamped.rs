@@ -83,7 +83,6 @@ pub(super) fn clamped_agree(model_path: &Path, trial_path: &Path, dir: &Path, sa
     let (map, _) = MarkerMap::allowing_absent(&model, trial.labels());
     let p = model.nominal_params();
     let mut ws = IkWorkspace::new(&model);
-    let mut targets = Vec::new();
     let opts = IkOptions {
         hold_undetermined: true,
         outlier_distance: f64::INFINITY,
@@ -95,7 +94,14 @@ pub(super) fn clamped_agree(model_path: &Path, trial_path: &Path, dir: &Path, sa
     let mut shared = 0;
     let (mut worst_shared, mut worst_restart) = ((0.0f64, String::new()), (0.0f64, String::new()));
     for f in 0..ours.len() {
-        map.targets(&trial, f, &mut targets);
+        // Model-ordered targets: the column `map` pairs with each model marker, NaN where
+        // the trial lacks it.
+        let row = trial.frame(f);
+        let targets: Vec<nalgebra::Vector3<f64>> = map
+            .columns
+            .iter()
+            .map(|c| c.map_or(nalgebra::Vector3::repeat(f64::NAN), |c| row[c]))
+            .collect();
         let mut q = theirs[f].clone();
         let fit = solve_frame(&model, &p, &targets, &mut q, &opts, &mut ws);
         assert!(fit.solved(), "frame {f}: {:?}", fit.status);

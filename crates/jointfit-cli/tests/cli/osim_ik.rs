@@ -72,18 +72,17 @@ fn compare(model_rel: &str, trial_rel: &str, triple_tolerance_deg: Option<f64>) 
     }
 }
 
-/// The coordinates of every Euler triple of the model (`jointfit::ik::branch`: e.g. pelvis, hips,
-/// lumbar) in jointfit's `.mot` against OpenSim's IK within `tol` degrees, every
+/// The coordinates of every Euler triple of the model (`super::ik_branch::euler_triples`: the
+/// pelvis, hips, lumbar) in jointfit's `.mot` against OpenSim's IK within `tol` degrees, every
 /// frame: the same branch of each rotation (the other branch differs by 180° in two angles).
 fn triples_agree(model: &Path, dir: &jointfit_testkit::scratch::ScratchDir, tol: f64) {
     let loaded = jointfit_io::model_file::load_model(model.to_str().unwrap()).unwrap();
-    let branches = jointfit::ik::branch::Branches::new(&loaded);
     let ours = jointfit_io::sto::read_sto(&dir.join("jointfit.mot")).unwrap();
     let theirs = jointfit_io::sto::read_sto(&dir.join("opensim_ik.mot")).unwrap();
     assert!(ours.in_degrees && theirs.in_degrees);
     assert_eq!(ours.rows.len(), theirs.rows.len());
     let mut worst = (0.0f64, String::new());
-    for t in branches.triples() {
+    for t in super::ik_branch::euler_triples(&loaded) {
         for c in t {
             let name = &loaded.coordinates()[c].name;
             let col = |table: &jointfit_io::sto::Table| {

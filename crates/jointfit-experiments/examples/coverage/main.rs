@@ -46,12 +46,11 @@ use std::time::Instant;
 use args::{misplaced, parse};
 use policy::{Errors, Policy, GROUPS};
 
+use jointfit::calibrate::params_for_groups;
 use jointfit::calibrate::prior::Source;
 use jointfit::calibrate::uncertainty::types::Identifiability;
 use jointfit::calibrate::uncertainty::types::ParamUncertainty;
 use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
-use jointfit::calibrate::{params_for_groups, Problem};
-use jointfit::ik::lm::IkWorkspace;
 use jointfit::landmarks::priors::fill_landmark_priors;
 use jointfit::landmarks::HipCentreMethod;
 use jointfit::model::lower_limb::{lower_limb, Side};
@@ -258,15 +257,9 @@ impl Run {
     /// another minimum.
     fn cost_at_truth(&self, sample: &Sample) -> f64 {
         let fit_model = sample.fit_model(self);
-        let prob = Problem::new(
-            fit_model,
-            sample.start.clone(),
-            &self.free,
-            &[&sample.trial],
-        )
-        .expect("problem");
-        let mut q = prob.initial_coords(&sample.truth);
-        prob.inner(&sample.truth, &mut q, &mut IkWorkspace::new(&self.model))
+        jointfit::workflow::marker_rms::marker_rms(fit_model, &sample.truth, &[&sample.trial])
+            .expect("problem")
+            .cost
     }
 }
 

@@ -81,7 +81,7 @@ use crate::solver::{Observer, Termination};
 
 /// Settings of the joint solver.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct JointOptions {
+pub(crate) struct JointOptions {
     pub max_iterations: usize,
     /// Converged when every parameter step (scaled units) and coordinate step (rad, m) is
     /// below this.
@@ -106,7 +106,7 @@ const COST_TOLERANCE: f64 = 1e-14;
 
 /// Distance to the optimum, in standard errors, that no longer matters (the statistical
 /// stopping rule of [`solve_joint`]).
-pub const RESOLUTION_SE: f64 = 1e-3;
+pub(crate) const RESOLUTION_SE: f64 = 1e-3;
 
 /// Largest damping (relative to the diagonal) at which the statistical stopping rule trusts
 /// a step's predicted decrease as the Gauss–Newton one.
@@ -206,7 +206,7 @@ fn undamped_decrease(
 /// Ends [`Termination::Converged`] on a step below `tolerance`, a relative decrease below
 /// 1e-14, or a predicted decrease below `(RESOLUTION_SE · σ)²` (module docs), [`Termination::Stalled`] when no damping up to 1e16 gives a step that does not
 /// raise the objective, [`Termination::IterationLimit`] after `max_iterations`.
-pub fn solve_joint(
+pub(crate) fn solve_joint(
     prob: &Problem,
     s0: &[f64],
     q0: Vec<Vec<f64>>,
@@ -218,7 +218,7 @@ pub fn solve_joint(
 
 /// [`solve_joint`] with the statistical stopping rule at `resolution` standard errors
 /// instead of [`RESOLUTION_SE`] (0: off, only the step and cost tolerances end the solve).
-pub fn solve_joint_to(
+pub(crate) fn solve_joint_to(
     prob: &Problem,
     s0: &[f64],
     q0: Vec<Vec<f64>>,
@@ -232,7 +232,7 @@ pub fn solve_joint_to(
 /// [`solve_joint_to`] with the secant model of the second-order term ([`secant`], module
 /// docs) on (`use_secant`) or off (the plain Gauss–Newton Levenberg–Marquardt that
 /// [`solve_joint`] and [`solve_joint_to`] run, bit for bit as before the model existed).
-pub fn solve_joint_with(
+pub(crate) fn solve_joint_with(
     prob: &Problem,
     s0: &[f64],
     q0: Vec<Vec<f64>>,

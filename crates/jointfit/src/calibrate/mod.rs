@@ -26,16 +26,16 @@
 //! With a [`prior::Prior`] attached ([`Problem::prior`]), all three minimize the maximum a
 //! posteriori objective `e_inner(p) + σ² Σ_k ((p_k − μ_k)/s_k)²` instead (see [`prior`]).
 
-pub mod joint;
+pub(crate) mod joint;
 mod kernel;
 mod kernel_twist;
 pub mod prior;
-pub mod pso;
+pub(crate) mod pso;
 mod schur;
 mod targets;
 pub mod uncertainty;
 mod unfittable;
-pub mod varpro;
+pub(crate) mod varpro;
 
 use rayon::prelude::*;
 use thiserror::Error;
@@ -145,7 +145,7 @@ pub(crate) fn inner_task_len(n: usize) -> usize {
 /// One calibration problem: model, free parameters, the frames to fit (their targets read
 /// from the trials in place, which therefore live as long as the problem).
 #[derive(Debug, Clone)]
-pub struct Problem<'m> {
+pub(crate) struct Problem<'m> {
     pub model: &'m Model,
     /// Indices of the free parameters.
     pub free: Vec<usize>,
@@ -166,7 +166,7 @@ pub struct Problem<'m> {
 impl<'m> Problem<'m> {
     /// Builds a problem from trials; frames whose present markers leave a coordinate
     /// undetermined ([`crate::ik::solvable`]) are skipped.
-    pub fn new(
+    pub(crate) fn new(
         model: &'m Model,
         base: Vec<f64>,
         free: &[ParamId],
@@ -232,18 +232,18 @@ impl<'m> Problem<'m> {
         })
     }
 
-    pub fn n_free(&self) -> usize {
+    pub(crate) fn n_free(&self) -> usize {
         self.free.len()
     }
 
     /// Half-width of free parameter `k`'s bounds: `∂p/∂s`.
-    pub fn half_range(&self, k: usize) -> f64 {
+    pub(crate) fn half_range(&self, k: usize) -> f64 {
         let par = &self.model.parameters()[self.free[k]];
         0.5 * (par.upper - par.lower)
     }
 
     /// Scaled coordinates `s ∈ [−1, 1]` of the free parameters of `p`.
-    pub fn to_scaled(&self, p: &[f64]) -> Vec<f64> {
+    pub(crate) fn to_scaled(&self, p: &[f64]) -> Vec<f64> {
         self.free
             .iter()
             .map(|&i| {
@@ -254,7 +254,7 @@ impl<'m> Problem<'m> {
     }
 
     /// The full parameter vector for scaled free parameters `s`.
-    pub fn to_params(&self, s: &[f64]) -> Vec<f64> {
+    pub(crate) fn to_params(&self, s: &[f64]) -> Vec<f64> {
         let mut p = self.base.clone();
         for (k, &i) in self.free.iter().enumerate() {
             let par = &self.model.parameters()[i];
@@ -273,7 +273,7 @@ impl<'m> Problem<'m> {
     /// tree, in frame order within chunks of [`INNER_CHUNK`] and the chunk sums in chunk
     /// order, so the result is the same bit for bit on any number of threads. `ws` serves a
     /// problem of a single task (no thread is started).
-    pub fn inner(&self, p: &[f64], qs: &mut [Vec<f64>], ws: &mut IkWorkspace) -> f64 {
+    pub(crate) fn inner(&self, p: &[f64], qs: &mut [Vec<f64>], ws: &mut IkWorkspace) -> f64 {
         let task = inner_task_len(qs.len());
         let solve_task =
             |t: usize, qs: &mut [Vec<f64>], costs: &mut [f64], ws: &mut IkWorkspace| {
@@ -307,8 +307,8 @@ impl<'m> Problem<'m> {
     /// Starting coordinates for every frame at `p`: seeded IK, warm-started within each trial
     /// from the frame before, in the fixed parallel chunks of [`trial_chunk_ranges`] (each
     /// chunk's first frame seeded too), so the result does not depend on the number of
-    /// threads. The loop of [`crate::ik::warm_started_coords`], on targets gathered from the
-    /// trials; like the `ik` command (and unlike that function's [`crate::ik::trial_fit::chunk_ranges`]),
+    /// threads. The loop of `crate::ik::warm_started_coords`, on targets gathered from the
+    /// trials; like the `ik` command (and unlike that function's `crate::ik::trial_fit::chunk_ranges`),
     /// a problem of 128 to 1023 frames is cut into two chunks, so that a gait trial's seeded
     /// IK runs on two cores (`notebook/performance.md`: the cost is one more seed).
     ///
@@ -316,7 +316,7 @@ impl<'m> Problem<'m> {
     /// level's 1e-11 ([`Problem::inner`] and the joint solver go on from them). On opencap
     /// walking1 that is 2.4 % fewer instructions for the command's fit, whose parameters
     /// move by 4e-10 standard errors.
-    pub fn initial_coords(&self, p: &[f64]) -> Vec<Vec<f64>> {
+    pub(crate) fn initial_coords(&self, p: &[f64]) -> Vec<Vec<f64>> {
         let loose = self.start_ik();
         let origin = &self.origin;
         // The coordinates are allocated here, on the calling thread, and the chunks fill
@@ -360,7 +360,7 @@ impl<'m> Problem<'m> {
     }
 
     /// RMS marker distance over every present marker sample for `p` and coordinates `qs` (m).
-    pub fn marker_rms(&self, p: &[f64], qs: &[Vec<f64>]) -> f64 {
+    pub(crate) fn marker_rms(&self, p: &[f64], qs: &[Vec<f64>]) -> f64 {
         let (mut s, mut n) = (0.0, 0usize);
         self.visit_marker_errors(p, qs, |_, e| {
             let v = e.norm();
@@ -439,7 +439,7 @@ pub struct Fit {
 
 impl Fit {
     /// Whether the solver's convergence test passed (not stalled, not out of iterations).
-    pub fn converged(&self) -> bool {
+    pub(crate) fn converged(&self) -> bool {
         self.termination.converged()
     }
 }
@@ -447,3 +447,12 @@ impl Fit {
 #[cfg(test)]
 #[path = "problem_tests.rs"]
 mod tests;
+
+#[cfg(test)]
+mod clamped_tests;
+#[cfg(test)]
+mod joint_secant_tests;
+#[cfg(test)]
+mod prior_tests;
+#[cfg(test)]
+mod solvers_tests;

@@ -23,7 +23,7 @@ use crate::model::Model;
 
 /// A Gaussian prior on the free parameters of a [`Problem`].
 #[derive(Debug, Clone, PartialEq)]
-pub struct Prior {
+pub(crate) struct Prior {
     /// Per free parameter (order of `Problem::free`): prior mean (m or rad).
     pub mean: Vec<f64>,
     /// Per free parameter: prior SD (m or rad); `f64::INFINITY` for no prior.
@@ -76,7 +76,7 @@ impl Prior {
 impl Problem<'_> {
     /// The prior term `σ² Σ_k ((p_k − μ_k)/s_k)²` at the full parameter vector `p` (m²); 0
     /// without a prior.
-    pub fn prior_cost(&self, p: &[f64]) -> f64 {
+    pub(crate) fn prior_cost(&self, p: &[f64]) -> f64 {
         let Some(pr) = &self.prior else {
             return 0.0;
         };
@@ -89,7 +89,7 @@ impl Problem<'_> {
 
     /// Attaches the model file's prior with marker noise `noise` (m); without any `prior_sd`
     /// among the free parameters the problem stays unregularized.
-    pub fn with_model_prior(mut self, noise: f64) -> Self {
+    pub(crate) fn with_model_prior(mut self, noise: f64) -> Self {
         self.prior = Prior::from_model(self.model, &self.free, noise);
         self
     }
@@ -142,7 +142,7 @@ pub enum Source {
 }
 
 impl Source {
-    pub fn of(share: f64) -> Source {
+    pub(crate) fn of(share: f64) -> Source {
         if share >= 0.8 {
             Source::DeterminedByTrial
         } else if share >= 0.3 {
@@ -231,7 +231,7 @@ fn trial_hint(group: &str) -> Option<&'static str> {
 /// the prior's diagonal `d` ([`Problem::prior_information`]); 1 for a parameter without a
 /// prior, NaN when `S` is singular. Posterior variances are never larger than prior ones
 /// (`S ⪰ D`), so the share lies in [0, 1].
-pub fn data_share(prob: &Problem, normal: &nalgebra::DMatrix<f64>) -> Vec<f64> {
+pub(crate) fn data_share(prob: &Problem, normal: &nalgebra::DMatrix<f64>) -> Vec<f64> {
     let d = prob.prior_information();
     let inv = normal.clone().cholesky().map(|c| c.inverse());
     (0..prob.n_free())

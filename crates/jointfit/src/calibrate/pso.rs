@@ -46,7 +46,7 @@ use crate::solver::{Observer, Termination};
 
 /// Settings of the particle swarm.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PsoOptions {
+pub(crate) struct PsoOptions {
     pub particles: usize,
     pub max_iterations: usize,
     /// Stop when the best value improved by less than `stall_tolerance` (relative) over this
@@ -106,7 +106,7 @@ struct Particle {
 /// reporting; it cannot change the result). Ends [`Termination::Converged`] when the best
 /// value improved by less than `stall_tolerance` (relative) over `stall_iterations`
 /// iterations (the swarm's convergence test), else [`Termination::IterationLimit`].
-pub fn solve_pso(
+pub(crate) fn solve_pso(
     prob: &Problem,
     q0: &[Vec<f64>],
     opts: &PsoOptions,

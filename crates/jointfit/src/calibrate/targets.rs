@@ -25,7 +25,7 @@ struct Source<'t> {
 
 /// The fitted frames' targets per model marker, borrowed from the trials.
 #[derive(Debug, Clone)]
-pub struct Targets<'t> {
+pub(crate) struct Targets<'t> {
     sources: Vec<Source<'t>>,
     /// Per fitted frame: (source, frame of that trial).
     frames: Vec<(u32, u32)>,
@@ -68,7 +68,7 @@ impl<'t> Targets<'t> {
     }
 
     /// Fitted frames.
-    pub fn len(&self) -> usize {
+    pub(crate) fn len(&self) -> usize {
         self.frames.len()
     }
 
@@ -108,7 +108,7 @@ impl<'t> Targets<'t> {
 
     /// Frame `f`'s targets in a new vector ([`Targets::fill`] without an allocation to
     /// reuse).
-    pub fn get(&self, f: usize) -> Vec<Vector3<f64>> {
+    pub(crate) fn get(&self, f: usize) -> Vec<Vector3<f64>> {
         let mut out = Vec::with_capacity(self.n_markers);
         self.fill(f, &mut out);
         out

@@ -15,7 +15,7 @@ use crate::solver::{Observer, Termination};
 
 /// Settings of the two-level gradient solver.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct VarProOptions {
+pub(crate) struct VarProOptions {
     pub max_iterations: usize,
     /// Converged when every parameter step is below this (scaled units).
     pub tolerance: f64,
@@ -32,7 +32,8 @@ impl Default for VarProOptions {
 
 /// The envelope-theorem gradient `∂e_inner/∂s` at `s` with inner solutions `qs`:
 /// `−2 Σ_i J_s,iᵀ W r_i` (valid where every `q_i` is an inner optimum).
-pub fn gradient(prob: &Problem, s: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
+#[cfg(test)]
+pub(crate) fn gradient(prob: &Problem, s: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
     let mut blocks = Blocks::with_budget(prob, 0);
     assemble(prob, &prob.to_params(s), qs, &mut blocks);
     blocks.gs.iter().map(|g| -2.0 * g).collect()
@@ -45,7 +46,7 @@ pub fn gradient(prob: &Problem, s: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
 /// Ends [`Termination::Converged`] on a parameter step below `tolerance`,
 /// [`Termination::Stalled`] when no damping up to 1e16 lowers `e_inner`,
 /// [`Termination::IterationLimit`] after `max_iterations`.
-pub fn solve_varpro(
+pub(crate) fn solve_varpro(
     prob: &Problem,
     s0: &[f64],
     q0: Vec<Vec<f64>>,

@@ -38,7 +38,7 @@ const ORTHOGONAL: f64 = 1e-9;
 
 /// The equivalent-coordinate structure of a model (see the module docs).
 #[derive(Debug, Clone)]
-pub struct Branches {
+pub(crate) struct Branches {
     /// Per coordinate: its period (rad), or 0 when it has none.
     period: Vec<f64>,
     /// Euler triples: `(coordinate, k)` of each step in chain order (angle `s = k·q`).
@@ -47,7 +47,7 @@ pub struct Branches {
 }
 
 impl Branches {
-    pub fn new(model: &Model) -> Self {
+    pub(crate) fn new(model: &Model) -> Self {
         let n = model.n_q();
         // Per coordinate: (steps it drives, k of the last linear rotation step, any other use).
         let mut uses = vec![(0usize, 0.0f64, false); n];
@@ -99,12 +99,14 @@ impl Branches {
     }
 
     /// The Euler triples found, as coordinate indices in chain order.
-    pub fn triples(&self) -> impl Iterator<Item = [usize; 3]> + '_ {
+    #[cfg(test)]
+    pub(crate) fn triples(&self) -> impl Iterator<Item = [usize; 3]> + '_ {
         self.triples.iter().map(|t| t.map(|(c, _)| c))
     }
 
     /// The coordinate's period (rad; 0: none).
-    pub fn period(&self, c: usize) -> f64 {
+    #[cfg(test)]
+    pub(crate) fn period(&self, c: usize) -> f64 {
         self.period[c]
     }
 

@@ -16,7 +16,7 @@ use crate::model::Model;
 /// thread the same way whatever thread that is, so the result is bit for bit the same on any
 /// number of threads. This is the loop of `calibrate::Problem::initial_coords` (seed at each
 /// trial, warm start from the previous frame) cut into chunks.
-pub fn warm_started_coords(
+pub(crate) fn warm_started_coords(
     model: &Model,
     p: &[f64],
     frames: &[Vec<Vector3<f64>>],

@@ -17,7 +17,7 @@ use crate::trial::Trial;
 /// kinematics leaves such a coordinate where it starts; the calibration's frames need every
 /// coordinate determined. Coordinates of non-custom joints are never locked (the core can
 /// lock only custom-joint coordinates; every joint read from an `.osim` is custom).
-pub fn lock_undetermined(
+pub(crate) fn lock_undetermined(
     spec: &mut ModelSpec,
     trials: &[&Trial],
 ) -> Result<Vec<String>, ModelError> {

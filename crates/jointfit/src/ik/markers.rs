@@ -56,14 +56,8 @@ impl MarkerMap {
         )
     }
 
-    /// The map with coordinate tasks.
-    pub fn with_coordinate_tasks(mut self, tasks: Vec<super::CoordinateTask>) -> Self {
-        self.coordinate_tasks = tasks;
-        self
-    }
-
     /// The model-ordered targets of one trial frame (NaN where missing).
-    pub fn targets(&self, trial: &Trial, frame: usize, out: &mut Vec<Vector3<f64>>) {
+    pub(crate) fn targets(&self, trial: &Trial, frame: usize, out: &mut Vec<Vector3<f64>>) {
         let row = trial.frame(frame);
         out.clear();
         out.extend(self.columns.iter().map(|c| match c {

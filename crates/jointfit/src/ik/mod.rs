@@ -36,8 +36,9 @@
 //! ([`branch`]). The fit keeps the coordinates a model marks `clamped` (OpenSim's flag)
 //! inside their ranges ([`IkOptions::clamp`]); the others are not bounded.
 
-pub mod branch;
+pub(crate) mod branch;
 mod composite;
+#[cfg(test)]
 mod frames;
 pub mod hold;
 pub mod lm;
@@ -55,11 +56,14 @@ pub(crate) mod tasks;
 #[cfg(test)]
 mod tasks_tests;
 pub mod trial_fit;
-use trial_fit::{chunk_ranges, TrialFit};
+#[cfg(test)]
+use trial_fit::chunk_ranges;
+use trial_fit::TrialFit;
 
 use thiserror::Error;
 
-pub use frames::warm_started_coords;
+#[cfg(test)]
+pub(crate) use frames::warm_started_coords;
 pub(crate) use lm::is_gross;
 pub(crate) use lm::undetermined_coordinate;
 pub use markers::MarkerMap;
@@ -202,3 +206,14 @@ impl FrameFit {
         )
     }
 }
+
+#[cfg(test)]
+pub(crate) mod clamped_tests;
+#[cfg(test)]
+mod parallel_tests;
+#[cfg(test)]
+mod robust_tests;
+#[cfg(test)]
+mod stream_tests;
+#[cfg(test)]
+mod tests;

@@ -106,7 +106,7 @@ pub(crate) fn solve_trial_alongside<R: Send>(
 /// [`solve_trial`] with the chunks given: `chunks` must cover `0..trial.n_frames()` in order
 /// (a chunk per thread; the first frame of each seeded). For tests and measurements (the
 /// trial solved as one chunk against the chunks [`solve_trial`] takes).
-pub fn solve_trial_in_chunks(
+pub(crate) fn solve_trial_in_chunks(
     model: &Model,
     p: &[f64],
     trial: &Trial,
@@ -178,7 +178,7 @@ fn solve_chunks_alongside<R: Send>(
     (Ok(out), also)
 }
 
-/// Fewest frames in a chunk of a long trial (in [`trial_chunk_ranges`] and [`chunk_ranges`]): from 1024 frames on a trial is cut into `⌊n / 512⌋` chunks, so that
+/// Fewest frames in a chunk of a long trial (in [`trial_chunk_ranges`] and `chunk_ranges`): from 1024 frames on a trial is cut into `⌊n / 512⌋` chunks, so that
 /// the seeds cost under 5 % and, from 4096 frames on, there are enough chunks for work
 /// stealing to balance the load on a shared machine.
 pub(crate) const MIN_CHUNK_FRAMES: usize = 512;
@@ -197,7 +197,7 @@ pub(crate) const MIN_SPLIT_FRAMES: usize = 128;
 /// at the previous frame's values, which needs the previous frame) the trial is one chunk.
 /// A function of the frame count alone, never of the thread count, so the result is the same
 /// on any number of threads.
-pub fn trial_chunk_ranges(n: usize, hold: bool) -> Vec<Range<usize>> {
+pub(crate) fn trial_chunk_ranges(n: usize, hold: bool) -> Vec<Range<usize>> {
     let k = if hold || n < MIN_SPLIT_FRAMES {
         1
     } else {
@@ -206,11 +206,12 @@ pub fn trial_chunk_ranges(n: usize, hold: bool) -> Vec<Range<usize>> {
     even_chunks(n, k)
 }
 
-/// The chunks of [`super::warm_started_coords`]: `k = clamp(⌊n / 512⌋, 1, 32)` chunks of
+/// The chunks of `super::warm_started_coords` (a test oracle): `k = clamp(⌊n / 512⌋, 1, 32)` chunks of
 /// nearly equal length, one with `hold`. Short trials stay one chunk here. (The
 /// calibration's `calibrate::Problem::initial_coords` cuts its frames with
 /// [`trial_chunk_ranges`] instead, so a short trial's seeded IK uses two cores.)
-pub fn chunk_ranges(n: usize, hold: bool) -> Vec<Range<usize>> {
+#[cfg(test)]
+pub(crate) fn chunk_ranges(n: usize, hold: bool) -> Vec<Range<usize>> {
     let k = if hold {
         1
     } else {
@@ -323,26 +324,30 @@ pub struct UnsolvedRange {
     pub reason: String,
 }
 
-/// The frames of `fit` not solved, as runs of consecutive frames with one reason.
-pub fn unsolved_ranges(fit: &TrialFit) -> Vec<UnsolvedRange> {
-    let mut out: Vec<UnsolvedRange> = Vec::new();
-    for (f, frame) in fit.frames.iter().enumerate() {
-        let reason = match &frame.status {
-            FrameStatus::Converged | FrameStatus::MaxIterations | FrameStatus::Stalled => continue,
-            FrameStatus::Undetermined { coordinate } => format!("{coordinate} undetermined"),
-            FrameStatus::Diverged => "diverged".to_string(),
-            FrameStatus::Implausible { .. } => {
-                "implausible fit: RMS far above the trial's median".to_string()
+impl TrialFit {
+    /// The frames not solved, as runs of consecutive frames with one reason.
+    pub fn unsolved_ranges(&self) -> Vec<UnsolvedRange> {
+        let mut out: Vec<UnsolvedRange> = Vec::new();
+        for (f, frame) in self.frames.iter().enumerate() {
+            let reason = match &frame.status {
+                FrameStatus::Converged | FrameStatus::MaxIterations | FrameStatus::Stalled => {
+                    continue
+                }
+                FrameStatus::Undetermined { coordinate } => format!("{coordinate} undetermined"),
+                FrameStatus::Diverged => "diverged".to_string(),
+                FrameStatus::Implausible { .. } => {
+                    "implausible fit: RMS far above the trial's median".to_string()
+                }
+            };
+            match out.last_mut() {
+                Some(r) if r.last + 1 == f && r.reason == reason => r.last = f,
+                _ => out.push(UnsolvedRange {
+                    first: f,
+                    last: f,
+                    reason,
+                }),
             }
-        };
-        match out.last_mut() {
-            Some(r) if r.last + 1 == f && r.reason == reason => r.last = f,
-            _ => out.push(UnsolvedRange {
-                first: f,
-                last: f,
-                reason,
-            }),
         }
+        out
     }
-    out
 }

@@ -13,7 +13,7 @@ fn marker_vector(model: &Model, p: &[f64], q: &[f64], data: &mut KinData) -> Vec
 }
 
 /// `∂(marker coordinates)/∂q` by central differences with step `h`.
-pub fn jacobian_q(model: &Model, p: &[f64], q: &[f64], h: f64) -> DMatrix<f64> {
+pub(crate) fn jacobian_q(model: &Model, p: &[f64], q: &[f64], h: f64) -> DMatrix<f64> {
     let mut data = KinData::new(model);
     let mut out = DMatrix::zeros(3 * model.n_markers(), model.n_q());
     let mut x = q.to_vec();
@@ -31,7 +31,7 @@ pub fn jacobian_q(model: &Model, p: &[f64], q: &[f64], h: f64) -> DMatrix<f64> {
 }
 
 /// `∂(marker coordinates)/∂p` by central differences with step `h`.
-pub fn jacobian_p(model: &Model, p: &[f64], q: &[f64], h: f64) -> DMatrix<f64> {
+pub(crate) fn jacobian_p(model: &Model, p: &[f64], q: &[f64], h: f64) -> DMatrix<f64> {
     let mut data = KinData::new(model);
     let mut out = DMatrix::zeros(3 * model.n_markers(), model.n_p());
     let mut x = p.to_vec();

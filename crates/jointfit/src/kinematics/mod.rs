@@ -15,9 +15,12 @@
 //! geometric (screw) Jacobian columns; the same rule serves `q` and `p`, which is why the
 //! model treats parameters as inputs like coordinates (docs/architecture.md §2).
 //!
-//! [`fd`] holds the central finite-difference twins used as test oracles.
+//! `fd.rs` (in test builds) holds the central finite-difference twins used as test oracles.
 
-pub mod fd;
+#[cfg(test)]
+pub(crate) mod fd;
+#[cfg(test)]
+pub(crate) mod synth;
 pub(crate) mod twist;
 
 use nalgebra::{DMatrix, Vector3};
@@ -269,3 +272,6 @@ fn fill_jacobian(model: &Model, cols: &[Vec<JCol>], data: &mut KinData, of_q: bo
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

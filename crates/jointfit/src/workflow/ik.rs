@@ -52,7 +52,7 @@ fn ik_trial_alongside<R: Send>(
     let (fit, extra) = solve_trial_alongside(model, p, trial, &map, opts, also);
     let run = fit.map_err(WorkflowError::from).and_then(|fit| {
         if !fit.frames.iter().any(|f| f.solved()) {
-            let detail = match crate::ik::trial_fit::unsolved_ranges(&fit).first() {
+            let detail = match fit.unsolved_ranges().first() {
                 Some(r) => format!(" (first frame: {})", r.reason),
                 None => String::new(),
             };

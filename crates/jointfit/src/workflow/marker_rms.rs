@@ -25,12 +25,16 @@ use crate::trial::Trial;
 pub struct MarkerRms {
     /// The RMS (m; NaN when no marker sample is present).
     pub rms: f64,
+    /// The inner objective `e_inner(p)` at the same coordinates: the sum over those samples
+    /// of the weighted squared marker distances (m²).
+    pub cost: f64,
     /// Frames it is taken over, and frames skipped as undetermined.
     pub frames: usize,
     pub skipped_frames: usize,
 }
 
-/// The marker RMS of `model` at `p` on `trials` (module docs), and its frames.
+/// The marker RMS of `model` at `p` on `trials` (module docs), the inner objective and the
+/// frames.
 pub fn marker_rms(model: &Model, p: &[f64], trials: &[&Trial]) -> Result<MarkerRms, WorkflowError> {
     if model.n_p() == 0 {
         return Err(WorkflowError::Refine(format!(
@@ -41,8 +45,10 @@ pub fn marker_rms(model: &Model, p: &[f64], trials: &[&Trial]) -> Result<MarkerR
     // The problem's frames and samples do not depend on which parameters are free.
     let prob = Problem::new(model, p.to_vec(), &[ParamId(0)], trials)?;
     let mut qs = prob.initial_coords(p);
+    let cost = prob.inner(p, &mut qs, &mut crate::ik::lm::IkWorkspace::new(model));
     Ok(MarkerRms {
-        rms: start_rms(&prob, p, &mut qs),
+        rms: prob.marker_rms(p, &qs),
+        cost,
         frames: prob.frames.len(),
         skipped_frames: prob.skipped.len(),
     })

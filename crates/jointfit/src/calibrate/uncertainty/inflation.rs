@@ -19,7 +19,7 @@ use super::{ParamUncertainty, Uncertainty};
 /// mean would let the many parameters whose residual correlation is mild dilute the few (hip
 /// centre) that soak up most of the correlated artefact. Without `κ`, thousands of
 /// correlated marker samples would count as independent and swamp any prior.
-pub fn correlation_inflation(u: &Uncertainty) -> f64 {
+pub(crate) fn correlation_inflation(u: &Uncertainty) -> f64 {
     let ratios: Vec<f64> = u.params.iter().filter_map(variance_ratio).collect();
     if ratios.is_empty() {
         1.0

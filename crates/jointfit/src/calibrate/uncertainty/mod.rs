@@ -82,7 +82,7 @@ mod critical;
 mod estimators;
 mod explain;
 mod inflation;
-pub mod reduced;
+pub(crate) mod reduced;
 mod resampling;
 mod status;
 mod subset;
@@ -97,10 +97,10 @@ pub(crate) use critical::ln_gamma;
 use estimators::{conservative, continuity, covariances, Covariances};
 pub(crate) use explain::coordinate_ranges;
 use explain::{reason, weak_directions};
-pub use inflation::correlation_inflation;
+pub(crate) use inflation::correlation_inflation;
 pub(crate) use inflation::parameter_inflation;
 pub(crate) use reduced::Reduced;
-pub use subset::unidentifiable_subset;
+pub(crate) use subset::unidentifiable_subset;
 pub(crate) use types::WeakDirection;
 pub(crate) use types::{BootstrapInfo, CoordRange, DirectionComponent};
 
@@ -113,7 +113,7 @@ pub(super) fn display(unit: Unit) -> (f64, &'static str) {
 }
 
 /// Uncertainty of the fitted free parameters of `fit` (a solution of `prob`).
-pub fn analyze(prob: &Problem, fit: &Fit, opts: &UncertaintyOptions) -> Uncertainty {
+pub(crate) fn analyze(prob: &Problem, fit: &Fit, opts: &UncertaintyOptions) -> Uncertainty {
     analyze_reduced(prob, fit, opts, &reduced_system(prob, &fit.p, &fit.coords))
 }
 
@@ -138,7 +138,7 @@ pub(crate) fn analyze_reduced(
 /// does not count as noise. `σ²` comes from the residuals at `p`, which include that misfit,
 /// so the prediction is conservative; set [`UncertaintyOptions::assumed_sigma_m`] when the
 /// noise level is known.
-pub fn predict(
+pub(crate) fn predict(
     prob: &Problem,
     p: &[f64],
     qs: &[Vec<f64>],
@@ -362,3 +362,10 @@ fn why_not_determined(
         text
     }
 }
+
+#[cfg(test)]
+mod posterior_tests;
+#[cfg(test)]
+mod status_tests;
+#[cfg(test)]
+mod tests;

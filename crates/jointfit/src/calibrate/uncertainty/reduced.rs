@@ -11,7 +11,7 @@ use crate::linalg::Cholesky;
 
 /// The reduced normal equations at one point `(p, q_1 … q_N)`.
 #[derive(Debug, Clone)]
-pub struct Reduced {
+pub(crate) struct Reduced {
     /// `S` (n_f × n_f) in scaled parameter units (m² per scaled unit²), the prior's
     /// information on its diagonal when the problem has a prior (the posterior's).
     pub normal: DMatrix<f64>,
@@ -48,12 +48,12 @@ pub struct Reduced {
 
 impl Reduced {
     /// Residual degrees of freedom `m − N·n_q − n_f` (0 when the data are too few).
-    pub fn dof(&self) -> usize {
+    pub(crate) fn dof(&self) -> usize {
         let used = self.scores.len() * self.n_q + self.normal.nrows();
         self.observations.saturating_sub(used)
     }
     /// Residual variance per scalar residual `σ²` (m²); infinite without degrees of freedom.
-    pub fn sigma2(&self) -> f64 {
+    pub(crate) fn sigma2(&self) -> f64 {
         match self.dof() {
             0 => f64::INFINITY,
             d => self.cost / d as f64,
@@ -62,11 +62,11 @@ impl Reduced {
 }
 
 /// The most entries [`Reduced::group_normals`] holds.
-pub const MAX_GROUPS: usize = 4096;
+pub(crate) const MAX_GROUPS: usize = 4096;
 
 /// Frames per group of [`Reduced::group_normals`] for a trial of `frames` frames: 1 up to
 /// [`MAX_GROUPS`] frames, else the fewest that keep the groups within it.
-pub fn group_size(frames: usize) -> usize {
+pub(crate) fn group_size(frames: usize) -> usize {
     frames.div_ceil(MAX_GROUPS).max(1)
 }
 
@@ -74,7 +74,7 @@ pub fn group_size(frames: usize) -> usize {
 /// of `prob`). Frames are processed in fixed chunks in parallel and their sums added in
 /// chunk order (the same result whatever the thread count); no per-frame Jacobian blocks are
 /// kept beyond the frame being reduced.
-pub fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
+pub(crate) fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
     let nq = prob.model.n_q();
     let nf = prob.n_free();
     let n = nq + nf;

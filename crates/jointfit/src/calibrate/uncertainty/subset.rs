@@ -18,7 +18,11 @@ use super::{reduced_system, Reduced, UncertaintyOptions};
 /// parameter is flagged, the flagged one with the largest weight in the weakest eigenvector
 /// of `S[keep, keep]` is removed (Golub, Klema & Stewart 1976 style). The caller refits with
 /// the rest and re-analyses.
-pub fn unidentifiable_subset(prob: &Problem, fit: &Fit, opts: &UncertaintyOptions) -> Vec<usize> {
+pub(crate) fn unidentifiable_subset(
+    prob: &Problem,
+    fit: &Fit,
+    opts: &UncertaintyOptions,
+) -> Vec<usize> {
     let red = reduced_system(prob, &fit.p, &fit.coords);
     let same = continuity(prob);
     let z = critical(opts.level, opts).0;

@@ -1,17 +1,17 @@
 //! The maximum a posteriori objective: its gradient, the solvers' agreement on it, and what
 //! the prior buys on synthetic truth drawn from it.
 
-use super::calibrate::{
+use super::solvers_tests::{
     assert_gradient_matches_differences, assert_same_optimum, assert_stationary, joint_and_varpro,
     max_difference, perturbed, synthetic,
 };
-use jointfit::calibrate::joint::{solve_joint, JointOptions};
-use jointfit::calibrate::{params_for_groups, Problem};
-use jointfit::ik::lm::IkWorkspace;
-use jointfit::landmarks::priors::fill_landmark_priors;
-use jointfit::landmarks::HipCentreMethod;
-use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::Model;
+use crate::calibrate::joint::{solve_joint, JointOptions};
+use crate::calibrate::{params_for_groups, Problem};
+use crate::ik::lm::IkWorkspace;
+use crate::landmarks::priors::fill_landmark_priors;
+use crate::landmarks::HipCentreMethod;
+use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::Model;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr_free::standard_normal;
@@ -71,7 +71,7 @@ fn joint_and_two_level_reach_the_same_map_optimum() {
         &s0,
         q0,
         &JointOptions::default(),
-        &mut jointfit::solver::NoObserver,
+        &mut crate::solver::NoObserver,
     );
     assert_same_optimum(&joint, &varpro, "MAP");
     // The MAP optimum is stationary for the posterior and differs from the plain fit.
@@ -114,7 +114,7 @@ fn a_tight_prior_holds_the_mean_and_an_infinite_one_changes_nothing() {
         &s0,
         q0.clone(),
         &JointOptions::default(),
-        &mut jointfit::solver::NoObserver,
+        &mut crate::solver::NoObserver,
     );
     for &i in &prob.free {
         let d = (held.p[i] - model.parameters()[i].prior_mean).abs();
@@ -132,7 +132,7 @@ fn a_tight_prior_holds_the_mean_and_an_infinite_one_changes_nothing() {
         &s0,
         q0,
         &JointOptions::default(),
-        &mut jointfit::solver::NoObserver,
+        &mut crate::solver::NoObserver,
     );
     for &i in &prob.free {
         let d = (free_fit.p[i] - p_true[i]).abs();
@@ -169,14 +169,14 @@ fn the_prior_reduces_errors_when_truth_follows_it() {
             &s0,
             q0.clone(),
             &JointOptions::default(),
-            &mut jointfit::solver::NoObserver,
+            &mut crate::solver::NoObserver,
         );
         let f_plain = solve_joint(
             &plain,
             &s0,
             q0,
             &JointOptions::default(),
-            &mut jointfit::solver::NoObserver,
+            &mut crate::solver::NoObserver,
         );
         for (i, p) in model.parameters().iter().enumerate() {
             let sd = p.prior_sd.unwrap();

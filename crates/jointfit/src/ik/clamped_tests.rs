@@ -3,13 +3,13 @@
 //! the box-bounded least squares by central finite differences of the cost, and random
 //! feasible points that must not fit better.
 
-use jointfit::ik::lm::solve_frame;
-use jointfit::ik::lm::IkWorkspace;
-use jointfit::ik::IkOptions;
-use jointfit::kinematics::{forward_kinematics, KinData, Want};
-use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::spec::CoordinateSpec;
-use jointfit::model::Model;
+use crate::ik::lm::solve_frame;
+use crate::ik::lm::IkWorkspace;
+use crate::ik::IkOptions;
+use crate::kinematics::{forward_kinematics, KinData, Want};
+use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::spec::CoordinateSpec;
+use crate::model::Model;
 use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -146,14 +146,14 @@ fn clamp_changes_nothing_without_clamped_coordinates() {
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
     assert!(model.coordinates().iter().all(|c| !c.clamped));
     let p = model.nominal_params();
-    let (trial, _) = super::ik::synthetic_trial(&model, &p, 20, 0.3);
-    let map = jointfit::ik::MarkerMap::by_name(&model, trial.labels()).unwrap();
-    let a = jointfit::ik::trial_fit::solve_trial(&model, &p, &trial, &map, &IkOptions::default())
-        .unwrap();
+    let (trial, _) = super::tests::synthetic_trial(&model, &p, 20, 0.3);
+    let map = crate::ik::MarkerMap::by_name(&model, trial.labels()).unwrap();
+    let a =
+        crate::ik::trial_fit::solve_trial(&model, &p, &trial, &map, &IkOptions::default()).unwrap();
     let off = IkOptions {
         clamp: false,
         ..IkOptions::default()
     };
-    let b = jointfit::ik::trial_fit::solve_trial(&model, &p, &trial, &map, &off).unwrap();
+    let b = crate::ik::trial_fit::solve_trial(&model, &p, &trial, &map, &off).unwrap();
     assert_eq!(a.coords, b.coords);
 }

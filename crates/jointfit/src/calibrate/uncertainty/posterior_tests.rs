@@ -3,18 +3,18 @@
 //! interval, `± z·sd·√(1 − data share)`, however the marker noise that weighs the prior
 //! compares with the residuals; and a parameter the trial determines must not be held to it.
 
-use jointfit::calibrate::joint::{solve_joint, JointOptions};
-use jointfit::calibrate::prior::data_share;
-use jointfit::calibrate::uncertainty::analyze;
-use jointfit::calibrate::uncertainty::reduced::reduced_system;
-use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
-use jointfit::calibrate::{params_for_groups, Problem};
-use jointfit::landmarks::priors::fill_landmark_priors;
-use jointfit::landmarks::HipCentreMethod;
-use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::Model;
-use jointfit::solver::NoObserver;
-use jointfit_testkit::synth;
+use crate::calibrate::joint::{solve_joint, JointOptions};
+use crate::calibrate::prior::data_share;
+use crate::calibrate::uncertainty::analyze;
+use crate::calibrate::uncertainty::reduced::reduced_system;
+use crate::calibrate::uncertainty::types::UncertaintyOptions;
+use crate::calibrate::{params_for_groups, Problem};
+use crate::kinematics::synth;
+use crate::landmarks::priors::fill_landmark_priors;
+use crate::landmarks::HipCentreMethod;
+use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::Model;
+use crate::solver::NoObserver;
 
 #[test]
 fn posterior_interval_of_a_parameter_the_trial_cannot_see_is_the_priors() {
@@ -22,7 +22,7 @@ fn posterior_interval_of_a_parameter_the_trial_cannot_see_is_the_priors() {
 }
 
 /// With the prior weights multiplied by factors `a_k` (the per-parameter correlation
-/// adjustment of an estimated σ, [`jointfit::calibrate::uncertainty::parameter_inflation`]), what
+/// adjustment of an estimated σ, [`crate::calibrate::uncertainty::parameter_inflation`]), what
 /// the trial cannot see still gets the prior's own interval (times `√(1 − share)`), not one
 /// `√a_k` narrower: the prior term's score variance carries the factor too.
 #[test]

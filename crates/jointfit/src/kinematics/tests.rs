@@ -1,14 +1,35 @@
 //! Forward kinematics and the analytic Jacobians against independent oracles.
 
-use jointfit::kinematics::{fd, forward_kinematics, KinData, Want};
-use jointfit::model::lower_limb::bilateral::bilateral;
-use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::spec::ModelSpec;
-use jointfit::model::{CoordKind, Model};
+use super::{fd, forward_kinematics, KinData, Want};
+use crate::model::lower_limb::bilateral::bilateral;
+use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::spec::ModelSpec;
+use crate::model::{CoordKind, Model};
 use nalgebra::{DMatrix, Matrix3, Vector3};
 use proptest::prelude::*;
 
-use jointfit_testkit::models::{custom_joints, kitchen_sink, two_link};
+/// The sample models of `jointfit_testkit::models` (their TOML texts), read by this crate.
+fn sample_model(text: &str) -> ModelSpec {
+    ModelSpec::from_toml(text).unwrap()
+}
+
+fn two_link() -> ModelSpec {
+    sample_model(include_str!(
+        "../../../jointfit-testkit/models/two_link.toml"
+    ))
+}
+
+fn kitchen_sink() -> ModelSpec {
+    sample_model(include_str!(
+        "../../../jointfit-testkit/models/kitchen_sink.toml"
+    ))
+}
+
+fn custom_joints() -> ModelSpec {
+    sample_model(include_str!(
+        "../../../jointfit-testkit/models/custom_joints.toml"
+    ))
+}
 
 /// Coordinates and parameters from unit-interval samples: rotations in [−π, π],
 /// translations in [−1, 1] m, parameters inside their bounds.

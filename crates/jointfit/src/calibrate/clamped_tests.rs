@@ -1,18 +1,18 @@
 //! The joint (Schur) calibration keeps OpenSim's `clamped` coordinates inside their ranges in
-//! every frame, as the inverse kinematics does ([`jointfit::ik::IkOptions::clamp`]). Oracle: the
+//! every frame, as the inverse kinematics does ([`crate::ik::IkOptions::clamp`]). Oracle: the
 //! two-level solver, whose inner level is that bounded IK, must reach the same optimum; and
 //! the bounds must matter (the unbounded fit leaves the range). The uncertainty analysis'
 //! reduced system holds the same coordinates (dense finite-difference oracle).
 
-use jointfit::calibrate::uncertainty::reduced::reduced_system;
-use jointfit::calibrate::{params_for_groups, Fit, Problem};
-use jointfit::kinematics::fd::{jacobian_p, jacobian_q};
-use jointfit::kinematics::{forward_kinematics, KinData, Want};
-use jointfit::model::Model;
+use crate::calibrate::uncertainty::reduced::reduced_system;
+use crate::calibrate::{params_for_groups, Fit, Problem};
+use crate::kinematics::fd::{jacobian_p, jacobian_q};
+use crate::kinematics::{forward_kinematics, KinData, Want};
+use crate::model::Model;
 use nalgebra::DMatrix;
 
-use crate::calibrate::{joint_and_varpro, perturbed, synthetic};
-use crate::ik_clamped::clamped_leg;
+use super::solvers_tests::{joint_and_varpro, perturbed, synthetic};
+use crate::ik::clamped_tests::clamped_leg;
 
 /// Frames whose `c`-th coordinate lies outside `[lo, hi]` (1e-12 rad slack), and the
 /// largest excursion.
@@ -25,7 +25,7 @@ fn outside(fit: &Fit, c: usize, lo: f64, hi: f64) -> (usize, f64) {
 
 /// The knee clamped to [−5°, 68.8°] while the rich motion flexes it 0.1–1.5 rad, the knee
 /// parameters fitted from nominal: `(model, trial, free parameters' start, knee index, range)`.
-fn knee_beyond_its_range() -> (Model, jointfit::trial::Trial, Vec<f64>, usize, f64, f64) {
+fn knee_beyond_its_range() -> (Model, crate::trial::Trial, Vec<f64>, usize, f64, f64) {
     let (lo, hi) = (-5.0, 68.8);
     let model = clamped_leg([lo, hi], [-60.0, 60.0]);
     let knee = model.coord_id("knee_flexion").unwrap().0;
@@ -75,11 +75,10 @@ fn joint_calibration_keeps_clamped_coordinates_in_range() {
 fn unclamped_models_calibrate_as_before() {
     // A model with no clamped coordinate: the bounded and the plain solver are the same code
     // path; a range that is not clamped is informative only and does not bound the fit.
-    let mut spec =
-        jointfit::model::lower_limb::lower_limb(jointfit::model::lower_limb::Side::Right);
+    let mut spec = crate::model::lower_limb::lower_limb(crate::model::lower_limb::Side::Right);
     for j in &mut spec.joints {
         for c in &mut j.coordinates {
-            if let jointfit::model::spec::CoordinateSpec::Full { name, range, .. } = c {
+            if let crate::model::spec::CoordinateSpec::Full { name, range, .. } = c {
                 if name == "knee_flexion" {
                     *range = Some([0.0, 1.2]);
                 }

@@ -1,25 +1,25 @@
-//! Streaming inverse kinematics (`jointfit::ik::stream::StreamingIk`) against the trial loop on the
+//! Streaming inverse kinematics (`crate::ik::stream::StreamingIk`) against the trial loop on the
 //! same frames: bit for bit the one-chunk solve (gaps, a gross error, a non-finite sample,
 //! held coordinates), within ten step tolerances of the chunked `solve_trial`, samples rotated
 //! from the laboratory's vertical as a trial's reader rotates them, and bad frames refused
 //! without disturbing the stream.
 
-use jointfit::ik::stream::StreamError;
-use jointfit::ik::stream::StreamingIk;
-use jointfit::ik::trial_fit::solve_trial;
-use jointfit::ik::trial_fit::solve_trial_in_chunks;
-use jointfit::ik::trial_fit::trial_chunk_ranges;
-use jointfit::ik::trial_fit::TrialFit;
-use jointfit::ik::{FrameStatus, IkOptions, MarkerMap};
-use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::Model;
-use jointfit::spatial::up_axis_rotation;
-use jointfit::spatial::UpAxis;
-use jointfit::trial::Trial;
-use jointfit_testkit::synth;
+use crate::ik::stream::StreamError;
+use crate::ik::stream::StreamingIk;
+use crate::ik::trial_fit::solve_trial;
+use crate::ik::trial_fit::solve_trial_in_chunks;
+use crate::ik::trial_fit::trial_chunk_ranges;
+use crate::ik::trial_fit::TrialFit;
+use crate::ik::{FrameStatus, IkOptions, MarkerMap};
+use crate::kinematics::synth;
+use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::Model;
+use crate::spatial::up_axis_rotation;
+use crate::spatial::UpAxis;
+use crate::trial::Trial;
 use nalgebra::Vector3;
 
-use super::ik::motion;
+use super::tests::motion;
 
 /// Largest coordinate difference allowed between a frame solved from another start and the
 /// stream's (rad or m): ten times the step tolerance of `IkOptions` (1e-8).

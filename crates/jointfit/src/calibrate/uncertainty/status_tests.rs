@@ -1,22 +1,20 @@
 //! The identifiability status rule (`calibrate::uncertainty`, private `status` module): recomputed from the analysis' public fields by an independent path, and the
 //! prior's part kept out of it.
 
-use jointfit::calibrate::prior::{data_share, Source};
-use jointfit::calibrate::uncertainty::correlation_inflation;
-use jointfit::calibrate::uncertainty::reduced::reduced_system;
-use jointfit::calibrate::uncertainty::types::Identifiability;
-use jointfit::calibrate::uncertainty::types::SeMethod;
-use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
-use jointfit::calibrate::uncertainty::{analyze, predict};
-use jointfit::calibrate::{params_for_groups, Problem};
-use jointfit::landmarks::priors::fill_landmark_priors;
-use jointfit::landmarks::HipCentreMethod;
-use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::Model;
+use crate::calibrate::prior::{data_share, Source};
+use crate::calibrate::uncertainty::correlation_inflation;
+use crate::calibrate::uncertainty::reduced::reduced_system;
+use crate::calibrate::uncertainty::types::Identifiability;
+use crate::calibrate::uncertainty::types::SeMethod;
+use crate::calibrate::uncertainty::types::UncertaintyOptions;
+use crate::calibrate::uncertainty::{analyze, predict};
+use crate::calibrate::{params_for_groups, Problem};
+use crate::landmarks::priors::fill_landmark_priors;
+use crate::landmarks::HipCentreMethod;
+use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::Model;
 
-use super::uncertainty::{
-    fit_from_nominal, knee_only_trial, perturbed, synthetic, Motion, Noise, ALL,
-};
+use super::tests::{fit_from_nominal, knee_only_trial, perturbed, synthetic, Motion, Noise, ALL};
 
 #[test]
 fn status_is_the_fisher_half_width_with_the_trials_mean_correlation_factor() {

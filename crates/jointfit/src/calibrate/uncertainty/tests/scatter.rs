@@ -2,12 +2,12 @@
 //! noise seeds (white and skin-artifact noise), coverage of the known truth, the seeded block
 //! bootstrap against the sandwich, and a knee-only trial that cannot determine the hip.
 
-use jointfit::calibrate::uncertainty::types::Identifiability;
-use jointfit::calibrate::uncertainty::types::SeMethod;
-use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
-use jointfit::calibrate::uncertainty::{analyze, predict, unidentifiable_subset};
-use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::Model;
+use crate::calibrate::uncertainty::types::Identifiability;
+use crate::calibrate::uncertainty::types::SeMethod;
+use crate::calibrate::uncertainty::types::UncertaintyOptions;
+use crate::calibrate::uncertainty::{analyze, predict, unidentifiable_subset};
+use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::Model;
 
 use super::{display, fit_from_nominal, knee_only_trial, perturbed, synthetic, Noise, ALL};
 

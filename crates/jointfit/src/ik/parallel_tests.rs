@@ -1,16 +1,16 @@
 //! The trial loop in parallel chunks: the same bits on any number of threads, exact on
 //! noiseless data across chunk boundaries, and wrong local minima re-solved from the
-//! neighbours (`jointfit::ik::repair`).
+//! neighbours (`crate::ik::repair`).
 
-use jointfit::ik::trial_fit::chunk_ranges;
-use jointfit::ik::trial_fit::solve_trial;
-use jointfit::ik::trial_fit::TrialFit;
-use jointfit::ik::{warm_started_coords, FrameStatus, IkOptions, MarkerMap};
-use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::Model;
-use jointfit_testkit::synth;
+use crate::ik::trial_fit::chunk_ranges;
+use crate::ik::trial_fit::solve_trial;
+use crate::ik::trial_fit::TrialFit;
+use crate::ik::{warm_started_coords, FrameStatus, IkOptions, MarkerMap};
+use crate::kinematics::synth;
+use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::Model;
 
-use super::ik::{motion, synthetic_trial};
+use super::tests::{motion, synthetic_trial};
 
 fn on_threads(threads: usize, f: impl FnOnce() -> TrialFit + Send) -> TrialFit {
     rayon::ThreadPoolBuilder::new()

@@ -6,19 +6,19 @@
 //! algebraic checks (the dense finite-difference Schur complement, few frames, grouped
 //! normals); the comparisons with the scatter of actual fits are in `uncertainty/scatter.rs`.
 
-use jointfit::calibrate::joint::{solve_joint, JointOptions};
-use jointfit::calibrate::uncertainty::analyze;
-use jointfit::calibrate::uncertainty::reduced::reduced_system;
-use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
-use jointfit::calibrate::{params_for_groups, Fit, Problem};
-use jointfit::kinematics::fd::{jacobian_p, jacobian_q};
-use jointfit::kinematics::{forward_kinematics, KinData, Want};
-use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::spec::Unit;
-use jointfit::model::Model;
-use jointfit::solver::NoObserver;
-use jointfit::trial::Trial;
-use jointfit_testkit::synth;
+use crate::calibrate::joint::{solve_joint, JointOptions};
+use crate::calibrate::uncertainty::analyze;
+use crate::calibrate::uncertainty::reduced::reduced_system;
+use crate::calibrate::uncertainty::types::UncertaintyOptions;
+use crate::calibrate::{params_for_groups, Fit, Problem};
+use crate::kinematics::fd::{jacobian_p, jacobian_q};
+use crate::kinematics::synth;
+use crate::kinematics::{forward_kinematics, KinData, Want};
+use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::spec::Unit;
+use crate::model::Model;
+use crate::solver::NoObserver;
+use crate::trial::Trial;
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -249,8 +249,8 @@ fn uncertainty_with_fewer_frames_than_parameters_stays_conservative() {
 /// and their shares add up to `S` (no prior), on one thread as on two.
 #[test]
 fn uncertainty_group_normals_partition_a_long_trial() {
-    use jointfit::calibrate::uncertainty::reduced::group_size;
-    use jointfit::calibrate::uncertainty::reduced::MAX_GROUPS;
+    use crate::calibrate::uncertainty::reduced::group_size;
+    use crate::calibrate::uncertainty::reduced::MAX_GROUPS;
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
     let p_true = perturbed(&model, 31);
     for (frames, size) in [(300, 1), (9000, 3)] {

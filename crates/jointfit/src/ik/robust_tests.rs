@@ -1,16 +1,15 @@
 //! Solvability from the chain, holding undetermined coordinates, and gross-error rejection,
 //! against synthetic truth and the explicit marker Jacobian.
 
-use jointfit::ik::trial_fit::solve_trial;
-use jointfit::ik::trial_fit::unsolved_ranges;
-use jointfit::ik::{FrameStatus, IkOptions, MarkerMap};
-use jointfit::kinematics::{forward_kinematics, KinData, Want};
-use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::Model;
-use jointfit::trial::Trial;
+use crate::ik::trial_fit::solve_trial;
+use crate::ik::{FrameStatus, IkOptions, MarkerMap};
+use crate::kinematics::{forward_kinematics, KinData, Want};
+use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::Model;
+use crate::trial::Trial;
 use nalgebra::{DMatrix, Vector3};
 
-use super::ik::synthetic_trial;
+use super::tests::synthetic_trial;
 
 fn right_leg() -> (Model, Vec<f64>) {
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
@@ -79,7 +78,7 @@ fn sparse_segments_are_solved_through_the_chain() {
         assert_eq!(fr.status, FrameStatus::Converged, "frame {f}");
         assert!(close(&fit.coords[f], &truth[f], 1e-7), "frame {f}");
     }
-    assert!(unsolved_ranges(&fit).is_empty());
+    assert!(fit.unsolved_ranges().is_empty());
 }
 
 /// A pelvis with one marker: rotation about the line from that marker to the hip centre is
@@ -94,7 +93,7 @@ fn undetermined_coordinate_is_named_and_ranged() {
     drop_markers(&mut trial, &gone, 5..9);
     let map = MarkerMap::by_name(&model, trial.labels()).unwrap();
     let fit = solve_trial(&model, &p, &trial, &map, &IkOptions::default()).unwrap();
-    let ranges = unsolved_ranges(&fit);
+    let ranges = fit.unsolved_ranges();
     assert_eq!(ranges.len(), 1, "{ranges:?}");
     assert_eq!((ranges[0].first, ranges[0].last), (5, 8));
     let FrameStatus::Undetermined { coordinate } = &fit.frames[6].status else {
@@ -197,7 +196,7 @@ fn gross_samples_are_rejected_and_reported() {
     };
     assert!(rms > 0.05 && median < 1e-9, "{rms} {median}");
     assert!(dragged.coords[20].iter().all(|v| v.is_nan()));
-    let ranges = unsolved_ranges(&dragged);
+    let ranges = dragged.unsolved_ranges();
     assert_eq!(ranges.len(), 1, "{ranges:?}");
     assert_eq!((ranges[0].first, ranges[0].last), (20, 20));
     for f in (0..40).filter(|&f| f != 20) {

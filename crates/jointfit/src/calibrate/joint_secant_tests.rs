@@ -1,14 +1,14 @@
 //! The joint solver's secant model of the second-order term against plain Gauss–Newton and a
 //! second solver (variable projection), on a large-residual synthetic problem.
 
-use jointfit::calibrate::joint::{solve_joint_with, JointOptions};
-use jointfit::calibrate::varpro::{solve_varpro, VarProOptions};
-use jointfit::calibrate::{params_for_groups, Problem};
-use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::Model;
-use jointfit::solver::NoObserver;
+use crate::calibrate::joint::{solve_joint_with, JointOptions};
+use crate::calibrate::varpro::{solve_varpro, VarProOptions};
+use crate::calibrate::{params_for_groups, Problem};
+use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::Model;
+use crate::solver::NoObserver;
 
-use crate::calibrate::{perturbed, synthetic};
+use super::solvers_tests::{perturbed, synthetic};
 
 /// Large skin-artefact noise (15 mm): the residuals' second-order term is not small. With the
 /// secant model on and off, run to the classical tolerances, the joint solver reaches the
@@ -68,7 +68,7 @@ fn secant_and_gauss_newton_reach_the_second_solvers_optimum() {
     // half-ranges of the optimum.
     let default = JointOptions::default();
     for secant in [true, false] {
-        let fit = run(secant, jointfit::calibrate::joint::RESOLUTION_SE, &default);
+        let fit = run(secant, crate::calibrate::joint::RESOLUTION_SE, &default);
         assert!((fit.cost - reference.cost).abs() <= 1e-9 * reference.cost);
         for (x, y) in fit.s.iter().zip(&reference.s) {
             assert!((x - y).abs() < 1e-3, "{secant}: {x} vs {y}");

@@ -1,16 +1,16 @@
 //! Outer level: parameter recovery from synthetic truth, and the solvers against each other.
 
-use jointfit::calibrate::joint::{solve_joint, solve_joint_to, JointOptions, RESOLUTION_SE};
-use jointfit::calibrate::pso::{solve_pso, PsoOptions};
-use jointfit::calibrate::varpro::{gradient, solve_varpro, VarProOptions};
-use jointfit::calibrate::{params_for_groups, Fit, Problem};
-use jointfit::ik::lm::IkWorkspace;
-use jointfit::model::lower_limb::{lower_limb, Side};
-use jointfit::model::spec::Unit;
-use jointfit::model::{Model, ParamId};
-use jointfit::solver::{NoObserver, Observer, Termination};
-use jointfit::trial::Trial;
-use jointfit_testkit::synth::{synthetic_trial, Noise};
+use crate::calibrate::joint::{solve_joint, solve_joint_to, JointOptions, RESOLUTION_SE};
+use crate::calibrate::pso::{solve_pso, PsoOptions};
+use crate::calibrate::varpro::{gradient, solve_varpro, VarProOptions};
+use crate::calibrate::{params_for_groups, Fit, Problem};
+use crate::ik::lm::IkWorkspace;
+use crate::kinematics::synth::{synthetic_trial, Noise};
+use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::spec::Unit;
+use crate::model::{Model, ParamId};
+use crate::solver::{NoObserver, Observer, Termination};
+use crate::trial::Trial;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -411,11 +411,8 @@ fn thread_count_never_changes_the_joint_fit_or_its_reduced_system() {
     let run = |threads| {
         on_threads(threads, || {
             let fit = solve_joint(&prob, &s0, q0.clone(), &opts, &mut NoObserver);
-            let red = jointfit::calibrate::uncertainty::reduced::reduced_system(
-                &prob,
-                &fit.p,
-                &fit.coords,
-            );
+            let red =
+                crate::calibrate::uncertainty::reduced::reduced_system(&prob, &fit.p, &fit.coords);
             let grad = gradient(&prob, &fit.s, &fit.coords);
             (fit, red, grad)
         })
@@ -441,13 +438,9 @@ fn thread_count_never_changes_the_joint_fit_or_its_reduced_system() {
 }
 
 /// Largest distance of `a` from `b` (scaled parameters) in the standard errors of the fit `b`
-/// (white σ² and the reduced normal matrix, as [`jointfit::calibrate::uncertainty`]).
-fn distance_in_se(
-    prob: &Problem,
-    a: &jointfit::calibrate::Fit,
-    b: &jointfit::calibrate::Fit,
-) -> f64 {
-    let red = jointfit::calibrate::uncertainty::reduced::reduced_system(prob, &b.p, &b.coords);
+/// (white σ² and the reduced normal matrix, as [`crate::calibrate::uncertainty`]).
+fn distance_in_se(prob: &Problem, a: &crate::calibrate::Fit, b: &crate::calibrate::Fit) -> f64 {
+    let red = crate::calibrate::uncertainty::reduced::reduced_system(prob, &b.p, &b.coords);
     let cov = red.normal.clone().try_inverse().expect("invertible") * red.sigma2();
     (0..prob.n_free())
         .map(|k| (a.s[k] - b.s[k]).abs() / cov[(k, k)].sqrt())
@@ -471,7 +464,7 @@ fn statistical_stop_is_within_a_thousandth_of_a_standard_error() {
     // Without a prior, and the maximum a posteriori problem of the leg with its landmark
     // priors (the prior's information counts in the SEs, as in the posterior's).
     let plain = Model::compile(&lower_limb(Side::Right)).unwrap();
-    let with_priors = crate::priors::model_with_priors();
+    let with_priors = crate::calibrate::prior_tests::model_with_priors();
     for (seed, noise_seed, frames, amplitude) in cases {
         for (model, prior) in [(&plain, None), (&with_priors, Some(0.004))] {
             let free = params_for_groups(model, &["all"]).unwrap();
