@@ -297,48 +297,207 @@ impl TwistPlan {
             }
             self.y[a] = [yw.x, yw.y, yw.z, yv.x, yv.y, yv.z];
         }
-        // Column b of C: ξ_a·y_b for every a at once, four columns a per lane group (the
-        // twists component-major), masked to the entries that column b forms.
-        for (((y, cb), mb), quads) in self
-            .y
-            .iter()
-            .zip(self.c.chunks_exact_mut(np))
-            .zip(self.mask.chunks_exact(np))
-            .zip(&self.quads)
-        {
-            let lanes = cb[4 * quads.start..4 * quads.end]
-                .chunks_exact_mut(4)
-                .zip(mb[4 * quads.start..4 * quads.end].chunks_exact(4))
-                .zip(&self.xs[quads.clone()]);
-            // Locals, so that the compiler sees no store into `c` alias `y` or `mask` (and
-            // vectorizes the four lanes).
-            let y = *y;
-            for ((out, m), x) in lanes {
-                let m: [f64; 4] = m.try_into().expect("4 lanes");
-                let mut o = [0.0; 4];
-                for l in 0..4 {
-                    o[l] = m[l]
-                        * ((x[0][l] * y[0] + x[1][l] * y[1] + x[2][l] * y[2])
-                            + (x[3][l] * y[3] + x[4][l] * y[4] + x[5][l] * y[5]));
-                }
-                out.copy_from_slice(&o);
+        let c = &mut self.c;
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor supports AVX2 (checked just above).
+            unsafe {
+                products_avx2(&self.y, &self.xs, &self.mask, &self.quads, np, c);
+                mirror_avx2(c, n, np, gram);
+            }
+            return;
+        }
+        products(&self.y, &self.xs, &self.mask, &self.quads, np, c);
+        mirror(c, n, np, gram);
+    }
+}
+
+/// Column b of C: `ξ_a·y_b` for every a at once, four columns a per lane group (the twists
+/// component-major), masked to the entries that column b forms:
+/// `c[b·np + a] = mask · ((x₀y₀ + x₁y₁ + x₂y₂) + (x₃y₃ + x₄y₄ + x₅y₅))`.
+#[inline(always)]
+fn products(
+    y: &[[f64; 6]],
+    xs: &[[[f64; 4]; 6]],
+    mask: &[f64],
+    quads: &[std::ops::Range<usize>],
+    np: usize,
+    c: &mut [f64],
+) {
+    for (((y, cb), mb), quads) in y
+        .iter()
+        .zip(c.chunks_exact_mut(np))
+        .zip(mask.chunks_exact(np))
+        .zip(quads)
+    {
+        let lanes = cb[4 * quads.start..4 * quads.end]
+            .chunks_exact_mut(4)
+            .zip(mb[4 * quads.start..4 * quads.end].chunks_exact(4))
+            .zip(&xs[quads.clone()]);
+        // Locals, so that the compiler sees no store into `c` alias `y` or `mask`.
+        let y = *y;
+        for ((out, m), x) in lanes {
+            let m: [f64; 4] = m.try_into().expect("4 lanes");
+            let mut o = [0.0; 4];
+            for l in 0..4 {
+                o[l] = m[l]
+                    * ((x[0][l] * y[0] + x[1][l] * y[1] + x[2][l] * y[2])
+                        + (x[3][l] * y[3] + x[4][l] * y[4] + x[5][l] * y[5]));
+            }
+            out.copy_from_slice(&o);
+        }
+    }
+}
+
+/// `G = C + Cᵀ` off the diagonal (of each pair, one of the two is formed, the other an exact
+/// 0), C on it; `G` n × n column-major, C n columns of `np`.
+#[inline(always)]
+fn mirror(c: &[f64], n: usize, np: usize, gram: &mut [f64]) {
+    assert!(c.len() >= n * np && gram.len() >= n * n && n <= np);
+    let cp = c.as_ptr();
+    let g = gram.as_mut_ptr();
+    for b in 0..n {
+        // SAFETY: every index is below n·np into `c` and below n·n into `gram` (a, b < n
+        // ≤ np, asserted above).
+        unsafe {
+            *g.add(b * n + b) = *cp.add(b * np + b);
+            for a in b + 1..n {
+                let v = *cp.add(b * np + a) + *cp.add(a * np + b);
+                *g.add(b * n + a) = v;
+                *g.add(a * n + b) = v;
             }
         }
-        // G = C + Cᵀ off the diagonal (of each pair, one of the two is formed, the other an
-        // exact 0), C on it.
-        assert!(self.c.len() >= n * np && gram.len() >= n * n && n <= np);
-        let c = self.c.as_ptr();
-        let g = gram.as_mut_ptr();
-        for b in 0..n {
-            // SAFETY: every index is below n·np into `c` and below n·n into `gram` (a, b < n
-            // ≤ np, asserted above).
+    }
+}
+
+/// [`products`] with the four lanes as one AVX register: the same products and sums in the
+/// same order (no fused multiply-add), one quad per step, none of the gathers the
+/// auto-vectorized loop used.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn products_avx2(
+    y: &[[f64; 6]],
+    xs: &[[[f64; 4]; 6]],
+    mask: &[f64],
+    quads: &[std::ops::Range<usize>],
+    np: usize,
+    c: &mut [f64],
+) {
+    use std::arch::x86_64::*;
+    let n = y.len();
+    assert!(quads.len() == n && c.len() >= n * np && mask.len() >= n * np);
+    assert!(quads.iter().all(|q| q.end <= xs.len() && 4 * q.end <= np));
+    let (cp, mp) = (c.as_mut_ptr(), mask.as_ptr());
+    for (b, (y, quads)) in y.iter().zip(quads).enumerate() {
+        let y0 = _mm256_set1_pd(y[0]);
+        let y1 = _mm256_set1_pd(y[1]);
+        let y2 = _mm256_set1_pd(y[2]);
+        let y3 = _mm256_set1_pd(y[3]);
+        let y4 = _mm256_set1_pd(y[4]);
+        let y5 = _mm256_set1_pd(y[5]);
+        for t in quads.clone() {
+            let x = &xs[t];
+            // SAFETY: 4t + 4 ≤ np and b < n (asserted above): inside `c` and `mask`; `x[k]`
+            // holds four numbers.
             unsafe {
-                *g.add(b * n + b) = *c.add(b * np + b);
-                for a in b + 1..n {
-                    let v = *c.add(b * np + a) + *c.add(a * np + b);
-                    *g.add(b * n + a) = v;
-                    *g.add(a * n + b) = v;
+                let p0 = _mm256_mul_pd(_mm256_loadu_pd(x[0].as_ptr()), y0);
+                let p1 = _mm256_mul_pd(_mm256_loadu_pd(x[1].as_ptr()), y1);
+                let p2 = _mm256_mul_pd(_mm256_loadu_pd(x[2].as_ptr()), y2);
+                let p3 = _mm256_mul_pd(_mm256_loadu_pd(x[3].as_ptr()), y3);
+                let p4 = _mm256_mul_pd(_mm256_loadu_pd(x[4].as_ptr()), y4);
+                let p5 = _mm256_mul_pd(_mm256_loadu_pd(x[5].as_ptr()), y5);
+                let s1 = _mm256_add_pd(_mm256_add_pd(p0, p1), p2);
+                let s2 = _mm256_add_pd(_mm256_add_pd(p3, p4), p5);
+                let m = _mm256_loadu_pd(mp.add(b * np + 4 * t));
+                _mm256_storeu_pd(
+                    cp.add(b * np + 4 * t),
+                    _mm256_mul_pd(m, _mm256_add_pd(s1, s2)),
+                );
+            }
+        }
+    }
+}
+
+/// The transpose of a 4 × 4 block held as four registers (rows in, columns out).
+#[cfg(target_arch = "x86_64")]
+macro_rules! transpose4 {
+    ($r0:expr, $r1:expr, $r2:expr, $r3:expr) => {{
+        let t0 = _mm256_unpacklo_pd($r0, $r1);
+        let t1 = _mm256_unpackhi_pd($r0, $r1);
+        let t2 = _mm256_unpacklo_pd($r2, $r3);
+        let t3 = _mm256_unpackhi_pd($r2, $r3);
+        [
+            _mm256_permute2f128_pd(t0, t2, 0x20),
+            _mm256_permute2f128_pd(t1, t3, 0x20),
+            _mm256_permute2f128_pd(t0, t2, 0x31),
+            _mm256_permute2f128_pd(t1, t3, 0x31),
+        ]
+    }};
+}
+
+/// [`mirror`] by 4 × 4 blocks: block (A, B) of G (A below B) is C's block plus the transpose
+/// of C's block (B, A), and block (B, A) its transpose (the same sums: `x + y = y + x`
+/// exactly); on a diagonal block the diagonal is C's alone. Rows and columns past the last
+/// full block as [`mirror`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn mirror_avx2(c: &[f64], n: usize, np: usize, gram: &mut [f64]) {
+    use std::arch::x86_64::*;
+    assert!(c.len() >= n * np && gram.len() >= n * n && n <= np);
+    let (cp, g) = (c.as_ptr(), gram.as_mut_ptr());
+    let full = n / 4 * 4;
+    // SAFETY: every block's rows and columns are below `full` ≤ n ≤ np, the rest below n
+    // (asserted above).
+    unsafe {
+        for b0 in (0..full).step_by(4) {
+            for a0 in (b0..full).step_by(4) {
+                // c_i: C's column b0 + i, rows a0..a0 + 4; r_j: column a0 + j, rows b0..b0 + 4.
+                let col = |i: usize| cp.add((b0 + i) * np + a0);
+                let row = |j: usize| cp.add((a0 + j) * np + b0);
+                let (c0, c1, c2, c3) = (
+                    _mm256_loadu_pd(col(0)),
+                    _mm256_loadu_pd(col(1)),
+                    _mm256_loadu_pd(col(2)),
+                    _mm256_loadu_pd(col(3)),
+                );
+                let rt = transpose4!(
+                    _mm256_loadu_pd(row(0)),
+                    _mm256_loadu_pd(row(1)),
+                    _mm256_loadu_pd(row(2)),
+                    _mm256_loadu_pd(row(3))
+                );
+                let mut s0 = _mm256_add_pd(c0, rt[0]);
+                let mut s1 = _mm256_add_pd(c1, rt[1]);
+                let mut s2 = _mm256_add_pd(c2, rt[2]);
+                let mut s3 = _mm256_add_pd(c3, rt[3]);
+                if a0 == b0 {
+                    // The diagonal entries (lane i of column i) from C alone.
+                    s0 = _mm256_blend_pd(s0, c0, 0b0001);
+                    s1 = _mm256_blend_pd(s1, c1, 0b0010);
+                    s2 = _mm256_blend_pd(s2, c2, 0b0100);
+                    s3 = _mm256_blend_pd(s3, c3, 0b1000);
                 }
+                let out = |i: usize| g.add((b0 + i) * n + a0);
+                _mm256_storeu_pd(out(0), s0);
+                _mm256_storeu_pd(out(1), s1);
+                _mm256_storeu_pd(out(2), s2);
+                _mm256_storeu_pd(out(3), s3);
+                if a0 != b0 {
+                    let st = transpose4!(s0, s1, s2, s3);
+                    for (j, sj) in st.into_iter().enumerate() {
+                        _mm256_storeu_pd(g.add((a0 + j) * n + b0), sj);
+                    }
+                }
+            }
+        }
+        for b in 0..n {
+            if b >= full {
+                *g.add(b * n + b) = *cp.add(b * np + b);
+            }
+            for a in full.max(b + 1)..n {
+                let v = *cp.add(b * np + a) + *cp.add(a * np + b);
+                *g.add(b * n + a) = v;
+                *g.add(a * n + b) = v;
             }
         }
     }

@@ -2,15 +2,17 @@
 //! `S = V* − Σ W_iᵀ U_i*⁻¹ W_i`, its solve in the parameters, and the back substitution for
 //! every frame's coordinates.
 
+use nalgebra::Vector3;
 use rayon::prelude::*;
 
-use super::super::kernel::dot;
+use super::super::kernel::{dot, FrameScratch};
 use super::super::Problem;
 use super::{add, Blocks};
 use crate::linalg::{cholesky_in_place, cholesky_solve, Cholesky};
 
 /// Solves `L Y = B` in place for `B` (`n × m`, row-major): row by row, each row update an
 /// operation on `m` contiguous numbers.
+#[inline(always)]
 fn forward_solve_rows(l: &[f64], n: usize, m: usize, b: &mut [f64]) {
     for i in 0..n {
         let (done, rest) = b.split_at_mut(i * m);
@@ -76,42 +78,20 @@ pub(crate) fn reduce(prob: &Problem, qs: &[Vec<f64>], b: &mut Blocks, lambda: f6
         .enumerate()
         .map_init(
             || (blocks.pool.take(prob), Vec::new()),
-            |(sc, tb), (c, mut slot)| {
-                let range = blocks.chunk_frames(c);
-                let mut l = std::mem::take(&mut sc.fac);
-                // The chunk's Z_i = L_i⁻¹ [W_i | g_i] stacked: (frames·n_q) × (n_f + 1),
-                // row-major, so that the substitution runs along contiguous rows. Every
-                // entry is written below, so the buffer's old contents need no clearing.
-                let mut z = std::mem::take(&mut sc.vec);
-                z.resize(range.len() * nq * m, 0.0);
-                for (i, f) in range.clone().enumerate() {
-                    let blk = blocks.frame(prob, qs, f, sc, tb);
-                    let (u, rest) = blk.split_at(nq * nq);
-                    let (w, g) = rest.split_at(nq * nf);
-                    if !factor_damped(u, nq, lambda, &mut l) {
-                        sc.fac = l;
-                        sc.vec = z;
-                        return None;
-                    }
-                    let zf = &mut z[i * nq * m..(i + 1) * nq * m];
-                    for a in 0..nq {
-                        let row = &mut zf[a * m..(a + 1) * m];
-                        for k in 0..nf {
-                            row[k] = w[k * nq + a];
-                        }
-                        row[nf] = g[a];
-                    }
-                    forward_solve_rows(&l, nq, m, zf);
-                    if let Some(slot) = slot.as_deref_mut() {
-                        slot[i * nq * nq..(i + 1) * nq * nq].copy_from_slice(&l[..nq * nq]);
-                    }
+            |(sc, tb), (c, slot)| {
+                let chunk = ReduceChunk {
+                    prob,
+                    qs,
+                    blocks,
+                    lambda,
+                    c,
+                };
+                #[cfg(target_arch = "x86_64")]
+                if std::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the processor supports AVX2 (checked just above).
+                    return unsafe { chunk.run_avx2(slot, sc, tb) };
                 }
-                // With U* = L Lᵀ: Wᵀ U*⁻¹ W = ZᵀZ and Wᵀ U*⁻¹ g = Zᵀy, so the chunk's share of
-                // both is one product [Z | y]ᵀ[Z | y] ((n_f + 1) × (n_f + 1), column-major).
-                let zz = gram_of_rows(&z, range.len() * nq, m);
-                sc.fac = l;
-                sc.vec = z;
-                Some(zz)
+                chunk.run(slot, sc, tb)
             },
         )
         .collect();
@@ -143,6 +123,80 @@ pub(crate) fn reduce(prob: &Problem, qs: &[Vec<f64>], b: &mut Blocks, lambda: f6
     b.lambda = lambda;
     b.factors_valid = true;
     true
+}
+
+/// One chunk of frames of [`reduce`]: its frames' factors (into `slot` when the factors are
+/// kept) and its share `[Z | y]ᵀ[Z | y]` of the reduction (`None`: a `U_i*` is not positive
+/// definite).
+struct ReduceChunk<'a, 'p> {
+    prob: &'a Problem<'p>,
+    qs: &'a [Vec<f64>],
+    blocks: &'a Blocks,
+    lambda: f64,
+    c: usize,
+}
+
+impl ReduceChunk<'_, '_> {
+    #[inline(always)]
+    fn run(
+        &self,
+        mut slot: Option<&mut [f64]>,
+        sc: &mut FrameScratch,
+        tb: &mut Vec<Vector3<f64>>,
+    ) -> Option<Vec<f64>> {
+        let (blocks, lambda) = (self.blocks, self.lambda);
+        let (nq, nf) = (blocks.nq, blocks.nf);
+        let m = nf + 1;
+        let range = blocks.chunk_frames(self.c);
+        let mut l = std::mem::take(&mut sc.fac);
+        // The chunk's Z_i = L_i⁻¹ [W_i | g_i] stacked: (frames·n_q) × (n_f + 1), row-major,
+        // so that the substitution runs along contiguous rows. Every entry is written below,
+        // so the buffer's old contents need no clearing.
+        let mut z = std::mem::take(&mut sc.vec);
+        z.resize(range.len() * nq * m, 0.0);
+        for (i, f) in range.clone().enumerate() {
+            let blk = blocks.frame(self.prob, self.qs, f, sc, tb);
+            let (u, rest) = blk.split_at(nq * nq);
+            let (w, g) = rest.split_at(nq * nf);
+            if !factor_damped(u, nq, lambda, &mut l) {
+                sc.fac = l;
+                sc.vec = z;
+                return None;
+            }
+            let zf = &mut z[i * nq * m..(i + 1) * nq * m];
+            for (k, wk) in w.chunks_exact(nq).enumerate() {
+                for (row, &x) in zf.chunks_exact_mut(m).zip(wk) {
+                    row[k] = x;
+                }
+            }
+            for (row, &x) in zf.chunks_exact_mut(m).zip(g) {
+                row[nf] = x;
+            }
+            forward_solve_rows(&l, nq, m, zf);
+            if let Some(slot) = slot.as_deref_mut() {
+                slot[i * nq * nq..(i + 1) * nq * nq].copy_from_slice(&l[..nq * nq]);
+            }
+        }
+        // With U* = L Lᵀ: Wᵀ U*⁻¹ W = ZᵀZ and Wᵀ U*⁻¹ g = Zᵀy, so the chunk's share of both is
+        // one product [Z | y]ᵀ[Z | y] ((n_f + 1) × (n_f + 1), column-major).
+        let zz = gram_of_rows(&z, range.len() * nq, m);
+        sc.fac = l;
+        sc.vec = z;
+        Some(zz)
+    }
+
+    /// [`Self::run`] compiled for AVX2: the element-wise row updates four numbers wide, the
+    /// same operations in the same order.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn run_avx2(
+        &self,
+        slot: Option<&mut [f64]>,
+        sc: &mut FrameScratch,
+        tb: &mut Vec<Vector3<f64>>,
+    ) -> Option<Vec<f64>> {
+        self.run(slot, sc, tb)
+    }
 }
 
 /// `ZᵀZ` (m × m, column-major) of the row-major `rows × m` matrix `z`.
@@ -221,49 +275,19 @@ pub(crate) fn back_substitute(
     ds: &[f64],
     dq: &mut [Vec<f64>],
 ) -> f64 {
-    let (nq, nf) = (b.nq, b.nf);
+    let nf = b.nf;
     let parts: Vec<f64> = dq
         .par_chunks_mut(b.chunk)
         .enumerate()
         .map_init(
             || (b.pool.take(prob), Vec::new()),
             |(sc, tb), (c, dq)| {
-                let mut l = std::mem::take(&mut sc.fac);
-                let mut wd = std::mem::take(&mut sc.vec);
-                let mut pred = 0.0;
-                for (f, d) in b.chunk_frames(c).zip(dq.iter_mut()) {
-                    let blk = b.frame(prob, qs, f, sc, tb);
-                    let (u, rest) = blk.split_at(nq * nq);
-                    let (w, g) = rest.split_at(nq * nf);
-                    // Positive definite: the same factorisation succeeded in `solve`, which
-                    // kept it when there was room.
-                    if b.factors_valid && f < b.factored {
-                        l.clear();
-                        l.extend_from_slice(&b.factors[f * nq * nq..(f + 1) * nq * nq]);
-                    } else {
-                        let ok = factor_damped(u, nq, b.lambda, &mut l);
-                        debug_assert!(ok);
-                    }
-                    d.copy_from_slice(g);
-                    for k in 0..nf {
-                        let dk = ds[k];
-                        for (x, wk) in d.iter_mut().zip(&w[k * nq..(k + 1) * nq]) {
-                            *x -= wk * dk;
-                        }
-                    }
-                    cholesky_solve(&l, nq, d);
-                    // Frame i's share of 2 hᵀδ − δᵀHδ: 2 gᵀδq − δqᵀUδq − 2 δsᵀWᵀδq.
-                    let mut quad = 0.0;
-                    for a in 0..nq {
-                        quad += d[a] * dot(&u[a * nq..(a + 1) * nq], d);
-                    }
-                    wd.clear();
-                    wd.extend((0..nf).map(|k| dot(&w[k * nq..(k + 1) * nq], d)));
-                    pred += 2.0 * dot(g, d) - quad - 2.0 * dot(ds, &wd);
+                #[cfg(target_arch = "x86_64")]
+                if std::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the processor supports AVX2 (checked just above).
+                    return unsafe { back_substitute_chunk_avx2(prob, qs, b, ds, c, dq, sc, tb) };
                 }
-                sc.fac = l;
-                sc.vec = wd;
-                pred
+                back_substitute_chunk(prob, qs, b, ds, c, dq, sc, tb)
             },
         )
         .collect();
@@ -272,6 +296,76 @@ pub(crate) fn back_substitute(
         quad += ds[k] * dot(&b.v[k * nf..(k + 1) * nf], ds);
     }
     parts.iter().sum::<f64>() + 2.0 * dot(&b.gs, ds) - quad
+}
+
+/// The coordinate steps of chunk `c`'s frames into `dq` ([`back_substitute`]) and their
+/// share of the predicted decrease.
+#[allow(clippy::too_many_arguments)] // the pass's inputs and the chunk's workspaces
+#[inline(always)]
+fn back_substitute_chunk(
+    prob: &Problem,
+    qs: &[Vec<f64>],
+    b: &Blocks,
+    ds: &[f64],
+    c: usize,
+    dq: &mut [Vec<f64>],
+    sc: &mut FrameScratch,
+    tb: &mut Vec<Vector3<f64>>,
+) -> f64 {
+    let (nq, nf) = (b.nq, b.nf);
+    let mut l = std::mem::take(&mut sc.fac);
+    let mut wd = std::mem::take(&mut sc.vec);
+    let mut pred = 0.0;
+    for (f, d) in b.chunk_frames(c).zip(dq.iter_mut()) {
+        let blk = b.frame(prob, qs, f, sc, tb);
+        let (u, rest) = blk.split_at(nq * nq);
+        let (w, g) = rest.split_at(nq * nf);
+        // Positive definite: the same factorisation succeeded in `solve`, which kept it when
+        // there was room.
+        if b.factors_valid && f < b.factored {
+            l.clear();
+            l.extend_from_slice(&b.factors[f * nq * nq..(f + 1) * nq * nq]);
+        } else {
+            let ok = factor_damped(u, nq, b.lambda, &mut l);
+            debug_assert!(ok);
+        }
+        d.copy_from_slice(g);
+        for (wk, &dk) in w.chunks_exact(nq).zip(ds) {
+            for (x, wk) in d.iter_mut().zip(wk) {
+                *x -= wk * dk;
+            }
+        }
+        cholesky_solve(&l, nq, d);
+        // Frame i's share of 2 hᵀδ − δᵀHδ: 2 gᵀδq − δqᵀUδq − 2 δsᵀWᵀδq.
+        let mut quad = 0.0;
+        for (a, ua) in u.chunks_exact(nq).enumerate() {
+            quad += d[a] * dot(ua, d);
+        }
+        wd.clear();
+        wd.extend(w.chunks_exact(nq).map(|wk| dot(wk, d)));
+        pred += 2.0 * dot(g, d) - quad - 2.0 * dot(ds, &wd);
+    }
+    sc.fac = l;
+    sc.vec = wd;
+    pred
+}
+
+/// [`back_substitute_chunk`] compiled for AVX2: the element-wise updates four numbers wide,
+/// the same operations in the same order.
+#[allow(clippy::too_many_arguments)]
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn back_substitute_chunk_avx2(
+    prob: &Problem,
+    qs: &[Vec<f64>],
+    b: &Blocks,
+    ds: &[f64],
+    c: usize,
+    dq: &mut [Vec<f64>],
+    sc: &mut FrameScratch,
+    tb: &mut Vec<Vector3<f64>>,
+) -> f64 {
+    back_substitute_chunk(prob, qs, b, ds, c, dq, sc, tb)
 }
 
 /// [`solve_reduced`] with every parameter at a bound whose step points out of it held
