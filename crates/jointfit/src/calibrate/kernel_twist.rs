@@ -47,7 +47,9 @@
 use nalgebra::Vector3;
 
 use super::Problem;
-use crate::kinematics::twist::{column_twist, group_columns, weighted_centroid, Steps};
+use crate::kinematics::twist::{
+    column_twist, group_columns, twist_products, weighted_centroid, Steps,
+};
 use crate::kinematics::KinData;
 
 /// Moments of a set of markers about the reference point (module docs).
@@ -268,22 +270,31 @@ impl TwistPlan {
                 mom.add(&self.seg_mom[s]);
             }
         }
-        for (a, steps) in self.col_steps.iter().enumerate() {
-            let g = self.col_group[a];
+        // The columns' twists and `K ξ` (borrowed apart, so that the stores into `xs` and `y`
+        // are not taken to alias the plan's other vectors).
+        let (n_q, grp_mom, xs, ys) = (self.n_q, &self.grp_mom, &mut self.xs, &mut self.y);
+        let cols = self
+            .col_steps
+            .iter()
+            .zip(&self.col_group)
+            .zip(ys.iter_mut());
+        for (a, ((steps, &g), ya)) in cols.enumerate() {
+            let xq = &mut xs[a / 4];
+            let lane = a % 4;
             if g == usize::MAX {
                 grad[a] = 0.0;
-                self.y[a] = [0.0; 6];
-                for k in 0..6 {
-                    self.xs[a / 4][k][a % 4] = 0.0;
+                *ya = [0.0; 6];
+                for xk in xq.iter_mut() {
+                    xk[lane] = 0.0;
                 }
                 continue;
             }
             let (mut w, mut v) = column_twist(kin, steps, &centre);
-            if a >= self.n_q {
-                w *= half[a - self.n_q];
-                v *= half[a - self.n_q];
+            if a >= n_q {
+                w *= half[a - n_q];
+                v *= half[a - n_q];
             }
-            let k = &self.grp_mom[g];
+            let k = &grp_mom[g];
             grad[a] = w.dot(&k.r1) + v.dot(&k.r0);
             let t = &k.theta;
             let yw = Vector3::new(
@@ -292,60 +303,20 @@ impl TwistPlan {
                 t[4] * w.x + t[5] * w.y + t[2] * w.z,
             ) + k.c.cross(&v);
             let yv = k.mass * v + w.cross(&k.c);
-            for (i, x) in [w.x, w.y, w.z, v.x, v.y, v.z].into_iter().enumerate() {
-                self.xs[a / 4][i][a % 4] = x;
+            for (xk, x) in xq.iter_mut().zip([w.x, w.y, w.z, v.x, v.y, v.z]) {
+                xk[lane] = x;
             }
-            self.y[a] = [yw.x, yw.y, yw.z, yv.x, yv.y, yv.z];
+            *ya = [yw.x, yw.y, yw.z, yv.x, yv.y, yv.z];
         }
         let c = &mut self.c;
+        twist_products(&self.y, &self.xs, &self.mask, &self.quads, np, c);
         #[cfg(target_arch = "x86_64")]
         if std::is_x86_feature_detected!("avx2") {
             // SAFETY: the processor supports AVX2 (checked just above).
-            unsafe {
-                products_avx2(&self.y, &self.xs, &self.mask, &self.quads, np, c);
-                mirror_avx2(c, n, np, gram);
-            }
+            unsafe { mirror_avx2(c, n, np, gram) };
             return;
         }
-        products(&self.y, &self.xs, &self.mask, &self.quads, np, c);
         mirror(c, n, np, gram);
-    }
-}
-
-/// Column b of C: `ξ_a·y_b` for every a at once, four columns a per lane group (the twists
-/// component-major), masked to the entries that column b forms:
-/// `c[b·np + a] = mask · ((x₀y₀ + x₁y₁ + x₂y₂) + (x₃y₃ + x₄y₄ + x₅y₅))`.
-#[inline(always)]
-fn products(
-    y: &[[f64; 6]],
-    xs: &[[[f64; 4]; 6]],
-    mask: &[f64],
-    quads: &[std::ops::Range<usize>],
-    np: usize,
-    c: &mut [f64],
-) {
-    for (((y, cb), mb), quads) in y
-        .iter()
-        .zip(c.chunks_exact_mut(np))
-        .zip(mask.chunks_exact(np))
-        .zip(quads)
-    {
-        let lanes = cb[4 * quads.start..4 * quads.end]
-            .chunks_exact_mut(4)
-            .zip(mb[4 * quads.start..4 * quads.end].chunks_exact(4))
-            .zip(&xs[quads.clone()]);
-        // Locals, so that the compiler sees no store into `c` alias `y` or `mask`.
-        let y = *y;
-        for ((out, m), x) in lanes {
-            let m: [f64; 4] = m.try_into().expect("4 lanes");
-            let mut o = [0.0; 4];
-            for l in 0..4 {
-                o[l] = m[l]
-                    * ((x[0][l] * y[0] + x[1][l] * y[1] + x[2][l] * y[2])
-                        + (x[3][l] * y[3] + x[4][l] * y[4] + x[5][l] * y[5]));
-            }
-            out.copy_from_slice(&o);
-        }
     }
 }
 
@@ -365,54 +336,6 @@ fn mirror(c: &[f64], n: usize, np: usize, gram: &mut [f64]) {
                 let v = *cp.add(b * np + a) + *cp.add(a * np + b);
                 *g.add(b * n + a) = v;
                 *g.add(a * n + b) = v;
-            }
-        }
-    }
-}
-
-/// [`products`] with the four lanes as one AVX register: the same products and sums in the
-/// same order (no fused multiply-add), one quad per step, none of the gathers the
-/// auto-vectorized loop used.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn products_avx2(
-    y: &[[f64; 6]],
-    xs: &[[[f64; 4]; 6]],
-    mask: &[f64],
-    quads: &[std::ops::Range<usize>],
-    np: usize,
-    c: &mut [f64],
-) {
-    use std::arch::x86_64::*;
-    let n = y.len();
-    assert!(quads.len() == n && c.len() >= n * np && mask.len() >= n * np);
-    assert!(quads.iter().all(|q| q.end <= xs.len() && 4 * q.end <= np));
-    let (cp, mp) = (c.as_mut_ptr(), mask.as_ptr());
-    for (b, (y, quads)) in y.iter().zip(quads).enumerate() {
-        let y0 = _mm256_set1_pd(y[0]);
-        let y1 = _mm256_set1_pd(y[1]);
-        let y2 = _mm256_set1_pd(y[2]);
-        let y3 = _mm256_set1_pd(y[3]);
-        let y4 = _mm256_set1_pd(y[4]);
-        let y5 = _mm256_set1_pd(y[5]);
-        for t in quads.clone() {
-            let x = &xs[t];
-            // SAFETY: 4t + 4 ≤ np and b < n (asserted above): inside `c` and `mask`; `x[k]`
-            // holds four numbers.
-            unsafe {
-                let p0 = _mm256_mul_pd(_mm256_loadu_pd(x[0].as_ptr()), y0);
-                let p1 = _mm256_mul_pd(_mm256_loadu_pd(x[1].as_ptr()), y1);
-                let p2 = _mm256_mul_pd(_mm256_loadu_pd(x[2].as_ptr()), y2);
-                let p3 = _mm256_mul_pd(_mm256_loadu_pd(x[3].as_ptr()), y3);
-                let p4 = _mm256_mul_pd(_mm256_loadu_pd(x[4].as_ptr()), y4);
-                let p5 = _mm256_mul_pd(_mm256_loadu_pd(x[5].as_ptr()), y5);
-                let s1 = _mm256_add_pd(_mm256_add_pd(p0, p1), p2);
-                let s2 = _mm256_add_pd(_mm256_add_pd(p3, p4), p5);
-                let m = _mm256_loadu_pd(mp.add(b * np + 4 * t));
-                _mm256_storeu_pd(
-                    cp.add(b * np + 4 * t),
-                    _mm256_mul_pd(m, _mm256_add_pd(s1, s2)),
-                );
             }
         }
     }
@@ -490,14 +413,45 @@ unsafe fn mirror_avx2(c: &[f64], n: usize, np: usize, gram: &mut [f64]) {
                 }
             }
         }
-        for b in 0..n {
-            if b >= full {
-                *g.add(b * n + b) = *cp.add(b * np + b);
+        let rem = n - full;
+        if rem > 0 {
+            // The last, partial block of rows (a ≥ full) against each full block of columns:
+            // C's rows past n are 0 (its padding) and its columns past n are not read (0).
+            let lanes = _mm256_setr_epi64x(
+                if rem > 0 { -1 } else { 0 },
+                if rem > 1 { -1 } else { 0 },
+                if rem > 2 { -1 } else { 0 },
+                0,
+            );
+            let row = |j: usize, b0: usize| {
+                if j < rem {
+                    _mm256_loadu_pd(cp.add((full + j) * np + b0))
+                } else {
+                    _mm256_setzero_pd()
+                }
+            };
+            for b0 in (0..full).step_by(4) {
+                let col = |i: usize| _mm256_loadu_pd(cp.add((b0 + i) * np + full));
+                let rt = transpose4!(row(0, b0), row(1, b0), row(2, b0), row(3, b0));
+                let s0 = _mm256_add_pd(col(0), rt[0]);
+                let s1 = _mm256_add_pd(col(1), rt[1]);
+                let s2 = _mm256_add_pd(col(2), rt[2]);
+                let s3 = _mm256_add_pd(col(3), rt[3]);
+                for (i, si) in [s0, s1, s2, s3].into_iter().enumerate() {
+                    _mm256_maskstore_pd(g.add((b0 + i) * n + full), lanes, si);
+                }
+                let st = transpose4!(s0, s1, s2, s3);
+                for (j, sj) in st.into_iter().enumerate().take(rem) {
+                    _mm256_storeu_pd(g.add((full + j) * n + b0), sj);
+                }
             }
-            for a in full.max(b + 1)..n {
-                let v = *cp.add(b * np + a) + *cp.add(a * np + b);
-                *g.add(b * n + a) = v;
-                *g.add(a * n + b) = v;
+            for b in full..n {
+                *g.add(b * n + b) = *cp.add(b * np + b);
+                for a in b + 1..n {
+                    let v = *cp.add(b * np + a) + *cp.add(a * np + b);
+                    *g.add(b * n + a) = v;
+                    *g.add(a * n + b) = v;
+                }
             }
         }
     }

@@ -197,7 +197,8 @@ fn coordinate_driving_two_branches_falls_back() {
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn avx2_products_and_mirror_are_the_portable_ones() {
-    use super::{mirror, mirror_avx2, products, products_avx2};
+    use super::{mirror, mirror_avx2};
+    use crate::kinematics::twist::{products, products_avx2};
     if !std::is_x86_feature_detected!("avx2") {
         eprintln!("skipped: no AVX2 on this processor");
         return;
