@@ -74,6 +74,23 @@ impl Mom {
         }
     }
 
+    /// Adds a marker of weight `w` at `d` from the reference point, with residual `r`.
+    #[inline(always)]
+    fn add_marker(&mut self, w: f64, d: Vector3<f64>, r: Vector3<f64>) {
+        self.mass += w;
+        self.c += w * d;
+        let wd = w * d;
+        let t = &mut self.theta;
+        t[0] += wd.y * d.y + wd.z * d.z;
+        t[1] += wd.x * d.x + wd.z * d.z;
+        t[2] += wd.x * d.x + wd.y * d.y;
+        t[3] -= wd.x * d.y;
+        t[4] -= wd.x * d.z;
+        t[5] -= wd.y * d.z;
+        self.r0 += w * r;
+        self.r1 += w * d.cross(&r);
+    }
+
     fn add(&mut self, o: &Mom) {
         self.mass += o.mass;
         self.c += o.c;
@@ -247,20 +264,7 @@ impl TwistPlan {
             for &j in seg {
                 let w = weight(j);
                 if w > 0.0 {
-                    let d = kin.markers[j] - centre;
-                    let r = targets[j] - kin.markers[j];
-                    mom.mass += w;
-                    mom.c += w * d;
-                    let wd = w * d;
-                    let t = &mut mom.theta;
-                    t[0] += wd.y * d.y + wd.z * d.z;
-                    t[1] += wd.x * d.x + wd.z * d.z;
-                    t[2] += wd.x * d.x + wd.y * d.y;
-                    t[3] -= wd.x * d.y;
-                    t[4] -= wd.x * d.z;
-                    t[5] -= wd.y * d.z;
-                    mom.r0 += w * r;
-                    mom.r1 += w * d.cross(&r);
+                    mom.add_marker(w, kin.markers[j] - centre, targets[j] - kin.markers[j]);
                 }
             }
         }
