@@ -47,7 +47,9 @@
 use nalgebra::Vector3;
 
 use super::Problem;
-use crate::kinematics::twist::{column_twist, group_columns, weighted_centroid, Steps};
+use crate::kinematics::twist::{
+    column_twist, group_columns, twist_products, weighted_centroid, Steps,
+};
 use crate::kinematics::KinData;
 
 /// Moments of a set of markers about the reference point (module docs).
@@ -70,6 +72,23 @@ impl Mom {
             r0: Vector3::zeros(),
             r1: Vector3::zeros(),
         }
+    }
+
+    /// Adds a marker of weight `w` at `d` from the reference point, with residual `r`.
+    #[inline(always)]
+    fn add_marker(&mut self, w: f64, d: Vector3<f64>, r: Vector3<f64>) {
+        self.mass += w;
+        self.c += w * d;
+        let wd = w * d;
+        let t = &mut self.theta;
+        t[0] += wd.y * d.y + wd.z * d.z;
+        t[1] += wd.x * d.x + wd.z * d.z;
+        t[2] += wd.x * d.x + wd.y * d.y;
+        t[3] -= wd.x * d.y;
+        t[4] -= wd.x * d.z;
+        t[5] -= wd.y * d.z;
+        self.r0 += w * r;
+        self.r1 += w * d.cross(&r);
     }
 
     fn add(&mut self, o: &Mom) {
@@ -245,20 +264,7 @@ impl TwistPlan {
             for &j in seg {
                 let w = weight(j);
                 if w > 0.0 {
-                    let d = kin.markers[j] - centre;
-                    let r = targets[j] - kin.markers[j];
-                    mom.mass += w;
-                    mom.c += w * d;
-                    let wd = w * d;
-                    let t = &mut mom.theta;
-                    t[0] += wd.y * d.y + wd.z * d.z;
-                    t[1] += wd.x * d.x + wd.z * d.z;
-                    t[2] += wd.x * d.x + wd.y * d.y;
-                    t[3] -= wd.x * d.y;
-                    t[4] -= wd.x * d.z;
-                    t[5] -= wd.y * d.z;
-                    mom.r0 += w * r;
-                    mom.r1 += w * d.cross(&r);
+                    mom.add_marker(w, kin.markers[j] - centre, targets[j] - kin.markers[j]);
                 }
             }
         }
@@ -268,22 +274,31 @@ impl TwistPlan {
                 mom.add(&self.seg_mom[s]);
             }
         }
-        for (a, steps) in self.col_steps.iter().enumerate() {
-            let g = self.col_group[a];
+        // The columns' twists and `K ξ` (borrowed apart, so that the stores into `xs` and `y`
+        // are not taken to alias the plan's other vectors).
+        let (n_q, grp_mom, xs, ys) = (self.n_q, &self.grp_mom, &mut self.xs, &mut self.y);
+        let cols = self
+            .col_steps
+            .iter()
+            .zip(&self.col_group)
+            .zip(ys.iter_mut());
+        for (a, ((steps, &g), ya)) in cols.enumerate() {
+            let xq = &mut xs[a / 4];
+            let lane = a % 4;
             if g == usize::MAX {
                 grad[a] = 0.0;
-                self.y[a] = [0.0; 6];
-                for k in 0..6 {
-                    self.xs[a / 4][k][a % 4] = 0.0;
+                *ya = [0.0; 6];
+                for xk in xq.iter_mut() {
+                    xk[lane] = 0.0;
                 }
                 continue;
             }
             let (mut w, mut v) = column_twist(kin, steps, &centre);
-            if a >= self.n_q {
-                w *= half[a - self.n_q];
-                v *= half[a - self.n_q];
+            if a >= n_q {
+                w *= half[a - n_q];
+                v *= half[a - n_q];
             }
-            let k = &self.grp_mom[g];
+            let k = &grp_mom[g];
             grad[a] = w.dot(&k.r1) + v.dot(&k.r0);
             let t = &k.theta;
             let yw = Vector3::new(
@@ -292,50 +307,152 @@ impl TwistPlan {
                 t[4] * w.x + t[5] * w.y + t[2] * w.z,
             ) + k.c.cross(&v);
             let yv = k.mass * v + w.cross(&k.c);
-            for (i, x) in [w.x, w.y, w.z, v.x, v.y, v.z].into_iter().enumerate() {
-                self.xs[a / 4][i][a % 4] = x;
+            for (xk, x) in xq.iter_mut().zip([w.x, w.y, w.z, v.x, v.y, v.z]) {
+                xk[lane] = x;
             }
-            self.y[a] = [yw.x, yw.y, yw.z, yv.x, yv.y, yv.z];
+            *ya = [yw.x, yw.y, yw.z, yv.x, yv.y, yv.z];
         }
-        // Column b of C: ξ_a·y_b for every a at once, four columns a per lane group (the
-        // twists component-major), masked to the entries that column b forms.
-        for (((y, cb), mb), quads) in self
-            .y
-            .iter()
-            .zip(self.c.chunks_exact_mut(np))
-            .zip(self.mask.chunks_exact(np))
-            .zip(&self.quads)
-        {
-            let lanes = cb[4 * quads.start..4 * quads.end]
-                .chunks_exact_mut(4)
-                .zip(mb[4 * quads.start..4 * quads.end].chunks_exact(4))
-                .zip(&self.xs[quads.clone()]);
-            // Locals, so that the compiler sees no store into `c` alias `y` or `mask` (and
-            // vectorizes the four lanes).
-            let y = *y;
-            for ((out, m), x) in lanes {
-                let m: [f64; 4] = m.try_into().expect("4 lanes");
-                let mut o = [0.0; 4];
-                for l in 0..4 {
-                    o[l] = m[l]
-                        * ((x[0][l] * y[0] + x[1][l] * y[1] + x[2][l] * y[2])
-                            + (x[3][l] * y[3] + x[4][l] * y[4] + x[5][l] * y[5]));
+        let c = &mut self.c;
+        twist_products(&self.y, &self.xs, &self.mask, &self.quads, np, c);
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor supports AVX2 (checked just above).
+            unsafe { mirror_avx2(c, n, np, gram) };
+            return;
+        }
+        mirror(c, n, np, gram);
+    }
+}
+
+/// `G = C + Cᵀ` off the diagonal (of each pair, one of the two is formed, the other an exact
+/// 0), C on it; `G` n × n column-major, C n columns of `np`.
+#[inline(always)]
+fn mirror(c: &[f64], n: usize, np: usize, gram: &mut [f64]) {
+    assert!(c.len() >= n * np && gram.len() >= n * n && n <= np);
+    let cp = c.as_ptr();
+    let g = gram.as_mut_ptr();
+    for b in 0..n {
+        // SAFETY: every index is below n·np into `c` and below n·n into `gram` (a, b < n
+        // ≤ np, asserted above).
+        unsafe {
+            *g.add(b * n + b) = *cp.add(b * np + b);
+            for a in b + 1..n {
+                let v = *cp.add(b * np + a) + *cp.add(a * np + b);
+                *g.add(b * n + a) = v;
+                *g.add(a * n + b) = v;
+            }
+        }
+    }
+}
+
+/// The transpose of a 4 × 4 block held as four registers (rows in, columns out).
+#[cfg(target_arch = "x86_64")]
+macro_rules! transpose4 {
+    ($r0:expr, $r1:expr, $r2:expr, $r3:expr) => {{
+        let t0 = _mm256_unpacklo_pd($r0, $r1);
+        let t1 = _mm256_unpackhi_pd($r0, $r1);
+        let t2 = _mm256_unpacklo_pd($r2, $r3);
+        let t3 = _mm256_unpackhi_pd($r2, $r3);
+        [
+            _mm256_permute2f128_pd(t0, t2, 0x20),
+            _mm256_permute2f128_pd(t1, t3, 0x20),
+            _mm256_permute2f128_pd(t0, t2, 0x31),
+            _mm256_permute2f128_pd(t1, t3, 0x31),
+        ]
+    }};
+}
+
+/// [`mirror`] by 4 × 4 blocks: block (A, B) of G (A below B) is C's block plus the transpose
+/// of C's block (B, A), and block (B, A) its transpose (the same sums: `x + y = y + x`
+/// exactly); on a diagonal block the diagonal is C's alone. Rows and columns past the last
+/// full block as [`mirror`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn mirror_avx2(c: &[f64], n: usize, np: usize, gram: &mut [f64]) {
+    use std::arch::x86_64::*;
+    assert!(c.len() >= n * np && gram.len() >= n * n && n <= np);
+    let (cp, g) = (c.as_ptr(), gram.as_mut_ptr());
+    let full = n / 4 * 4;
+    // SAFETY: every block's rows and columns are below `full` ≤ n ≤ np, the rest below n
+    // (asserted above).
+    unsafe {
+        for b0 in (0..full).step_by(4) {
+            for a0 in (b0..full).step_by(4) {
+                // c_i: C's column b0 + i, rows a0..a0 + 4; r_j: column a0 + j, rows b0..b0 + 4.
+                let col = |i: usize| cp.add((b0 + i) * np + a0);
+                let row = |j: usize| cp.add((a0 + j) * np + b0);
+                let (c0, c1, c2, c3) = (
+                    _mm256_loadu_pd(col(0)),
+                    _mm256_loadu_pd(col(1)),
+                    _mm256_loadu_pd(col(2)),
+                    _mm256_loadu_pd(col(3)),
+                );
+                let rt = transpose4!(
+                    _mm256_loadu_pd(row(0)),
+                    _mm256_loadu_pd(row(1)),
+                    _mm256_loadu_pd(row(2)),
+                    _mm256_loadu_pd(row(3))
+                );
+                let mut s0 = _mm256_add_pd(c0, rt[0]);
+                let mut s1 = _mm256_add_pd(c1, rt[1]);
+                let mut s2 = _mm256_add_pd(c2, rt[2]);
+                let mut s3 = _mm256_add_pd(c3, rt[3]);
+                if a0 == b0 {
+                    // The diagonal entries (lane i of column i) from C alone.
+                    s0 = _mm256_blend_pd(s0, c0, 0b0001);
+                    s1 = _mm256_blend_pd(s1, c1, 0b0010);
+                    s2 = _mm256_blend_pd(s2, c2, 0b0100);
+                    s3 = _mm256_blend_pd(s3, c3, 0b1000);
                 }
-                out.copy_from_slice(&o);
+                let out = |i: usize| g.add((b0 + i) * n + a0);
+                _mm256_storeu_pd(out(0), s0);
+                _mm256_storeu_pd(out(1), s1);
+                _mm256_storeu_pd(out(2), s2);
+                _mm256_storeu_pd(out(3), s3);
+                if a0 != b0 {
+                    let st = transpose4!(s0, s1, s2, s3);
+                    for (j, sj) in st.into_iter().enumerate() {
+                        _mm256_storeu_pd(g.add((a0 + j) * n + b0), sj);
+                    }
+                }
             }
         }
-        // G = C + Cᵀ off the diagonal (of each pair, one of the two is formed, the other an
-        // exact 0), C on it.
-        assert!(self.c.len() >= n * np && gram.len() >= n * n && n <= np);
-        let c = self.c.as_ptr();
-        let g = gram.as_mut_ptr();
-        for b in 0..n {
-            // SAFETY: every index is below n·np into `c` and below n·n into `gram` (a, b < n
-            // ≤ np, asserted above).
-            unsafe {
-                *g.add(b * n + b) = *c.add(b * np + b);
+        let rem = n - full;
+        if rem > 0 {
+            // The last, partial block of rows (a ≥ full) against each full block of columns:
+            // C's rows past n are 0 (its padding) and its columns past n are not read (0).
+            let lanes = _mm256_setr_epi64x(
+                if rem > 0 { -1 } else { 0 },
+                if rem > 1 { -1 } else { 0 },
+                if rem > 2 { -1 } else { 0 },
+                0,
+            );
+            let row = |j: usize, b0: usize| {
+                if j < rem {
+                    _mm256_loadu_pd(cp.add((full + j) * np + b0))
+                } else {
+                    _mm256_setzero_pd()
+                }
+            };
+            for b0 in (0..full).step_by(4) {
+                let col = |i: usize| _mm256_loadu_pd(cp.add((b0 + i) * np + full));
+                let rt = transpose4!(row(0, b0), row(1, b0), row(2, b0), row(3, b0));
+                let s0 = _mm256_add_pd(col(0), rt[0]);
+                let s1 = _mm256_add_pd(col(1), rt[1]);
+                let s2 = _mm256_add_pd(col(2), rt[2]);
+                let s3 = _mm256_add_pd(col(3), rt[3]);
+                for (i, si) in [s0, s1, s2, s3].into_iter().enumerate() {
+                    _mm256_maskstore_pd(g.add((b0 + i) * n + full), lanes, si);
+                }
+                let st = transpose4!(s0, s1, s2, s3);
+                for (j, sj) in st.into_iter().enumerate().take(rem) {
+                    _mm256_storeu_pd(g.add((full + j) * n + b0), sj);
+                }
+            }
+            for b in full..n {
+                *g.add(b * n + b) = *cp.add(b * np + b);
                 for a in b + 1..n {
-                    let v = *c.add(b * np + a) + *c.add(a * np + b);
+                    let v = *cp.add(b * np + a) + *cp.add(a * np + b);
                     *g.add(b * n + a) = v;
                     *g.add(a * n + b) = v;
                 }

@@ -190,3 +190,64 @@ fn coordinate_driving_two_branches_falls_back() {
     });
     check(&spec, &["all"], false);
 }
+
+/// The AVX2 products and mirror give the portable loops' numbers bit for bit (same products,
+/// same sums, same order), for column counts that are and are not multiples of four, with
+/// masked lanes, uneven quad ranges and entries of every sign and scale.
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn avx2_products_and_mirror_are_the_portable_ones() {
+    use super::{mirror, mirror_avx2};
+    use crate::kinematics::twist::{products, products_avx2};
+    if !std::is_x86_feature_detected!("avx2") {
+        eprintln!("skipped: no AVX2 on this processor");
+        return;
+    }
+    // A small deterministic generator (xorshift), values spread over many magnitudes.
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        let u = (state >> 11) as f64 / (1u64 << 53) as f64;
+        (u - 0.5) * 10f64.powi((state % 7) as i32 - 3)
+    };
+    for n in [1usize, 3, 4, 5, 8, 12, 27, 39, 42] {
+        let np = n.div_ceil(4) * 4;
+        let y: Vec<[f64; 6]> = (0..n).map(|_| std::array::from_fn(|_| next())).collect();
+        let xs: Vec<[[f64; 4]; 6]> = (0..np / 4)
+            .map(|_| std::array::from_fn(|_| std::array::from_fn(|_| next())))
+            .collect();
+        // Lower triangle formed in column b (a ≥ b), a lane masked out now and then.
+        let mut mask = vec![0.0; n * np];
+        for b in 0..n {
+            for a in b..n {
+                if (a * 7 + b * 3) % 11 != 5 {
+                    mask[b * np + a] = 1.0;
+                }
+            }
+        }
+        let quads: Vec<std::ops::Range<usize>> = (0..n)
+            .map(|b| b / 4..(np / 4).min(b / 4 + 1 + b % 3))
+            .collect();
+        let (mut c1, mut c2) = (vec![0.0; n * np], vec![0.0; n * np]);
+        products(&y, &xs, &mask, &quads, np, &mut c1);
+        // SAFETY: AVX2 is present (checked above).
+        unsafe { products_avx2(&y, &xs, &mask, &quads, np, &mut c2) };
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&c1), bits(&c2), "products, n = {n}");
+        assert!(c1.iter().any(|&x| x != 0.0), "products formed, n = {n}");
+        let (mut g1, mut g2) = (vec![f64::NAN; n * n], vec![f64::NAN; n * n]);
+        mirror(&c1, n, np, &mut g1);
+        // SAFETY: as above.
+        unsafe { mirror_avx2(&c1, n, np, &mut g2) };
+        assert_eq!(bits(&g1), bits(&g2), "mirror, n = {n}");
+        for b in 0..n {
+            assert_eq!(g1[b * n + b], c1[b * np + b], "diagonal {b}, n = {n}");
+            for a in b + 1..n {
+                assert_eq!(g1[b * n + a], c1[b * np + a] + c1[a * np + b]);
+                assert_eq!(g1[b * n + a].to_bits(), g1[a * n + b].to_bits());
+            }
+        }
+    }
+}

@@ -2,23 +2,45 @@
 //! `S = V* − Σ W_iᵀ U_i*⁻¹ W_i`, its solve in the parameters, and the back substitution for
 //! every frame's coordinates.
 
+use nalgebra::Vector3;
 use rayon::prelude::*;
 
-use super::super::kernel::dot;
+use super::super::kernel::{dot, FrameScratch};
 use super::super::Problem;
 use super::{add, Blocks};
 use crate::linalg::{cholesky_in_place, cholesky_solve, Cholesky};
 
-/// Solves `L Y = B` in place for `B` (`n × m`, row-major): row by row, each row update an
-/// operation on `m` contiguous numbers.
+/// Solves `L Y = B` in place for `B` (`n × m`, row-major): row by row, `y_i = (b_i −
+/// Σ_{k<i} l_ik y_k) / l_ii`, each subtraction an operation on contiguous numbers, in the
+/// order k = 0, 1, …, i − 1 for every entry. The row is taken 16, 8 and 4 numbers at a time,
+/// each piece kept in registers while the products of every earlier row are subtracted (the
+/// same subtractions, in the same order, as over the whole width at once).
+#[inline(always)]
 fn forward_solve_rows(l: &[f64], n: usize, m: usize, b: &mut [f64]) {
+    assert!(l.len() >= n * n && b.len() >= n * m);
     for i in 0..n {
         let (done, rest) = b.split_at_mut(i * m);
         let row = &mut rest[..m];
-        for k in 0..i {
-            let lik = l[k * n + i];
-            for (x, y) in row.iter_mut().zip(&done[k * m..(k + 1) * m]) {
-                *x -= lik * y;
+        // Row i of L left of the diagonal: l_ik for k = 0, …, i − 1.
+        let li = || l[i..].iter().step_by(n).take(i).copied();
+        let mut start = 0;
+        while start + 16 <= m {
+            subtract_rows::<16>(li(), done, m, start, row);
+            start += 16;
+        }
+        if start + 8 <= m {
+            subtract_rows::<8>(li(), done, m, start, row);
+            start += 8;
+        }
+        if start + 4 <= m {
+            subtract_rows::<4>(li(), done, m, start, row);
+            start += 4;
+        }
+        if start < m {
+            for (yk, lik) in done.chunks_exact(m).zip(li()) {
+                for (x, y) in row[start..].iter_mut().zip(&yk[start..]) {
+                    *x -= lik * y;
+                }
             }
         }
         let d = 1.0 / l[i * n + i];
@@ -26,6 +48,28 @@ fn forward_solve_rows(l: &[f64], n: usize, m: usize, b: &mut [f64]) {
             *x *= d;
         }
     }
+}
+
+/// `row[start..start + W] −= l_ik · y_k[start..start + W]` for k = 0, 1, … in order (`li`:
+/// the l_ik; `done`: the rows `y_k`, m numbers each), the W numbers held in a local
+/// (registers) throughout.
+#[inline(always)]
+fn subtract_rows<const W: usize>(
+    li: impl Iterator<Item = f64>,
+    done: &[f64],
+    m: usize,
+    start: usize,
+    row: &mut [f64],
+) {
+    assert!(start + W <= m && row.len() == m);
+    let mut acc: [f64; W] = row[start..start + W].try_into().expect("W numbers");
+    for (yk, lik) in done.chunks_exact(m).zip(li) {
+        let y: &[f64; W] = yk[start..start + W].try_into().expect("W numbers");
+        for (x, y) in acc.iter_mut().zip(y) {
+            *x -= lik * y;
+        }
+    }
+    row[start..start + W].copy_from_slice(&acc);
 }
 
 /// `U* = U + λ diag(U) + ε` factored in place into `l` (`ε` a tiny ridge relative to the
@@ -76,42 +120,20 @@ pub(crate) fn reduce(prob: &Problem, qs: &[Vec<f64>], b: &mut Blocks, lambda: f6
         .enumerate()
         .map_init(
             || (blocks.pool.take(prob), Vec::new()),
-            |(sc, tb), (c, mut slot)| {
-                let range = blocks.chunk_frames(c);
-                let mut l = std::mem::take(&mut sc.fac);
-                // The chunk's Z_i = L_i⁻¹ [W_i | g_i] stacked: (frames·n_q) × (n_f + 1),
-                // row-major, so that the substitution runs along contiguous rows. Every
-                // entry is written below, so the buffer's old contents need no clearing.
-                let mut z = std::mem::take(&mut sc.vec);
-                z.resize(range.len() * nq * m, 0.0);
-                for (i, f) in range.clone().enumerate() {
-                    let blk = blocks.frame(prob, qs, f, sc, tb);
-                    let (u, rest) = blk.split_at(nq * nq);
-                    let (w, g) = rest.split_at(nq * nf);
-                    if !factor_damped(u, nq, lambda, &mut l) {
-                        sc.fac = l;
-                        sc.vec = z;
-                        return None;
-                    }
-                    let zf = &mut z[i * nq * m..(i + 1) * nq * m];
-                    for a in 0..nq {
-                        let row = &mut zf[a * m..(a + 1) * m];
-                        for k in 0..nf {
-                            row[k] = w[k * nq + a];
-                        }
-                        row[nf] = g[a];
-                    }
-                    forward_solve_rows(&l, nq, m, zf);
-                    if let Some(slot) = slot.as_deref_mut() {
-                        slot[i * nq * nq..(i + 1) * nq * nq].copy_from_slice(&l[..nq * nq]);
-                    }
+            |(sc, tb), (c, slot)| {
+                let chunk = ReduceChunk {
+                    prob,
+                    qs,
+                    blocks,
+                    lambda,
+                    c,
+                };
+                #[cfg(target_arch = "x86_64")]
+                if std::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the processor supports AVX2 (checked just above).
+                    return unsafe { chunk.run_avx2(slot, sc, tb) };
                 }
-                // With U* = L Lᵀ: Wᵀ U*⁻¹ W = ZᵀZ and Wᵀ U*⁻¹ g = Zᵀy, so the chunk's share of
-                // both is one product [Z | y]ᵀ[Z | y] ((n_f + 1) × (n_f + 1), column-major).
-                let zz = gram_of_rows(&z, range.len() * nq, m);
-                sc.fac = l;
-                sc.vec = z;
-                Some(zz)
+                chunk.run(slot, sc, tb)
             },
         )
         .collect();
@@ -143,6 +165,144 @@ pub(crate) fn reduce(prob: &Problem, qs: &[Vec<f64>], b: &mut Blocks, lambda: f6
     b.lambda = lambda;
     b.factors_valid = true;
     true
+}
+
+/// One chunk of frames of [`reduce`]: its frames' factors (into `slot` when the factors are
+/// kept) and its share `[Z | y]ᵀ[Z | y]` of the reduction (`None`: a `U_i*` is not positive
+/// definite).
+struct ReduceChunk<'a, 'p> {
+    prob: &'a Problem<'p>,
+    qs: &'a [Vec<f64>],
+    blocks: &'a Blocks,
+    lambda: f64,
+    c: usize,
+}
+
+impl ReduceChunk<'_, '_> {
+    #[inline(always)]
+    fn run(
+        &self,
+        mut slot: Option<&mut [f64]>,
+        sc: &mut FrameScratch,
+        tb: &mut Vec<Vector3<f64>>,
+    ) -> Option<Vec<f64>> {
+        let (blocks, lambda) = (self.blocks, self.lambda);
+        let (nq, nf) = (blocks.nq, blocks.nf);
+        let m = nf + 1;
+        let range = blocks.chunk_frames(self.c);
+        let mut l = std::mem::take(&mut sc.fac);
+        // The chunk's Z_i = L_i⁻¹ [W_i | g_i] stacked: (frames·n_q) × (n_f + 1), row-major,
+        // so that the substitution runs along contiguous rows. Every entry is written below,
+        // so the buffer's old contents need no clearing.
+        let mut z = std::mem::take(&mut sc.vec);
+        z.resize(range.len() * nq * m, 0.0);
+        for (i, f) in range.clone().enumerate() {
+            let blk = blocks.frame(self.prob, self.qs, f, sc, tb);
+            let (u, rest) = blk.split_at(nq * nq);
+            let (w, g) = rest.split_at(nq * nf);
+            if !factor_damped(u, nq, lambda, &mut l) {
+                sc.fac = l;
+                sc.vec = z;
+                return None;
+            }
+            let zf = &mut z[i * nq * m..(i + 1) * nq * m];
+            #[cfg(target_arch = "x86_64")]
+            if std::is_x86_feature_detected!("avx2") {
+                // SAFETY: the processor supports AVX2 (checked just above).
+                unsafe { fill_rows_avx2(w, g, nq, zf) };
+            } else {
+                fill_rows(w, g, nq, zf);
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            fill_rows(w, g, nq, zf);
+            forward_solve_rows(&l, nq, m, zf);
+            if let Some(slot) = slot.as_deref_mut() {
+                slot[i * nq * nq..(i + 1) * nq * nq].copy_from_slice(&l[..nq * nq]);
+            }
+        }
+        // With U* = L Lᵀ: Wᵀ U*⁻¹ W = ZᵀZ and Wᵀ U*⁻¹ g = Zᵀy, so the chunk's share of both is
+        // one product [Z | y]ᵀ[Z | y] ((n_f + 1) × (n_f + 1), column-major).
+        let zz = gram_of_rows(&z, range.len() * nq, m);
+        sc.fac = l;
+        sc.vec = z;
+        Some(zz)
+    }
+
+    /// [`Self::run`] compiled for AVX2: the element-wise row updates four numbers wide, the
+    /// same operations in the same order.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn run_avx2(
+        &self,
+        slot: Option<&mut [f64]>,
+        sc: &mut FrameScratch,
+        tb: &mut Vec<Vector3<f64>>,
+    ) -> Option<Vec<f64>> {
+        self.run(slot, sc, tb)
+    }
+}
+
+/// `[W | g]` row by row into `zf` (`n_q` rows of `m = n_f + 1` numbers): row a is
+/// `(W_{a,0}, …, W_{a,n_f−1}, g_a)`, W stored parameter-major (`w[k·n_q + a]`).
+#[inline(always)]
+fn fill_rows(w: &[f64], g: &[f64], nq: usize, zf: &mut [f64]) {
+    let m = zf.len() / nq.max(1);
+    for (k, wk) in w.chunks_exact(nq).enumerate() {
+        for (row, &x) in zf.chunks_exact_mut(m).zip(wk) {
+            row[k] = x;
+        }
+    }
+    for (row, &x) in zf.chunks_exact_mut(m).zip(g) {
+        row[m - 1] = x;
+    }
+}
+
+/// [`fill_rows`] by 4 × 4 blocks transposed in registers (the same numbers copied).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn fill_rows_avx2(w: &[f64], g: &[f64], nq: usize, zf: &mut [f64]) {
+    use std::arch::x86_64::*;
+    let m = zf.len() / nq.max(1);
+    let nf = m - 1;
+    assert!(w.len() >= nq * nf && g.len() >= nq && zf.len() >= nq * m);
+    let (a4, k4) = (nq / 4 * 4, nf / 4 * 4);
+    let (wp, zp) = (w.as_ptr(), zf.as_mut_ptr());
+    // SAFETY: every block's rows a0..a0 + 4 ≤ n_q and columns k0..k0 + 4 ≤ n_f are inside
+    // `w` and `zf` (asserted above).
+    unsafe {
+        for a0 in (0..a4).step_by(4) {
+            for k0 in (0..k4).step_by(4) {
+                let r0 = _mm256_loadu_pd(wp.add(k0 * nq + a0));
+                let r1 = _mm256_loadu_pd(wp.add((k0 + 1) * nq + a0));
+                let r2 = _mm256_loadu_pd(wp.add((k0 + 2) * nq + a0));
+                let r3 = _mm256_loadu_pd(wp.add((k0 + 3) * nq + a0));
+                let t0 = _mm256_unpacklo_pd(r0, r1);
+                let t1 = _mm256_unpackhi_pd(r0, r1);
+                let t2 = _mm256_unpacklo_pd(r2, r3);
+                let t3 = _mm256_unpackhi_pd(r2, r3);
+                _mm256_storeu_pd(zp.add(a0 * m + k0), _mm256_permute2f128_pd(t0, t2, 0x20));
+                _mm256_storeu_pd(
+                    zp.add((a0 + 1) * m + k0),
+                    _mm256_permute2f128_pd(t1, t3, 0x20),
+                );
+                _mm256_storeu_pd(
+                    zp.add((a0 + 2) * m + k0),
+                    _mm256_permute2f128_pd(t0, t2, 0x31),
+                );
+                _mm256_storeu_pd(
+                    zp.add((a0 + 3) * m + k0),
+                    _mm256_permute2f128_pd(t1, t3, 0x31),
+                );
+            }
+        }
+    }
+    for (a, row) in zf.chunks_exact_mut(m).enumerate().take(nq) {
+        let from = if a < a4 { k4 } else { 0 };
+        for (k, x) in row.iter_mut().enumerate().take(nf).skip(from) {
+            *x = w[k * nq + a];
+        }
+        row[nf] = g[a];
+    }
 }
 
 /// `ZᵀZ` (m × m, column-major) of the row-major `rows × m` matrix `z`.
@@ -221,49 +381,19 @@ pub(crate) fn back_substitute(
     ds: &[f64],
     dq: &mut [Vec<f64>],
 ) -> f64 {
-    let (nq, nf) = (b.nq, b.nf);
+    let nf = b.nf;
     let parts: Vec<f64> = dq
         .par_chunks_mut(b.chunk)
         .enumerate()
         .map_init(
             || (b.pool.take(prob), Vec::new()),
             |(sc, tb), (c, dq)| {
-                let mut l = std::mem::take(&mut sc.fac);
-                let mut wd = std::mem::take(&mut sc.vec);
-                let mut pred = 0.0;
-                for (f, d) in b.chunk_frames(c).zip(dq.iter_mut()) {
-                    let blk = b.frame(prob, qs, f, sc, tb);
-                    let (u, rest) = blk.split_at(nq * nq);
-                    let (w, g) = rest.split_at(nq * nf);
-                    // Positive definite: the same factorisation succeeded in `solve`, which
-                    // kept it when there was room.
-                    if b.factors_valid && f < b.factored {
-                        l.clear();
-                        l.extend_from_slice(&b.factors[f * nq * nq..(f + 1) * nq * nq]);
-                    } else {
-                        let ok = factor_damped(u, nq, b.lambda, &mut l);
-                        debug_assert!(ok);
-                    }
-                    d.copy_from_slice(g);
-                    for k in 0..nf {
-                        let dk = ds[k];
-                        for (x, wk) in d.iter_mut().zip(&w[k * nq..(k + 1) * nq]) {
-                            *x -= wk * dk;
-                        }
-                    }
-                    cholesky_solve(&l, nq, d);
-                    // Frame i's share of 2 hᵀδ − δᵀHδ: 2 gᵀδq − δqᵀUδq − 2 δsᵀWᵀδq.
-                    let mut quad = 0.0;
-                    for a in 0..nq {
-                        quad += d[a] * dot(&u[a * nq..(a + 1) * nq], d);
-                    }
-                    wd.clear();
-                    wd.extend((0..nf).map(|k| dot(&w[k * nq..(k + 1) * nq], d)));
-                    pred += 2.0 * dot(g, d) - quad - 2.0 * dot(ds, &wd);
+                #[cfg(target_arch = "x86_64")]
+                if std::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the processor supports AVX2 (checked just above).
+                    return unsafe { back_substitute_chunk_avx2(prob, qs, b, ds, c, dq, sc, tb) };
                 }
-                sc.fac = l;
-                sc.vec = wd;
-                pred
+                back_substitute_chunk(prob, qs, b, ds, c, dq, sc, tb)
             },
         )
         .collect();
@@ -272,6 +402,76 @@ pub(crate) fn back_substitute(
         quad += ds[k] * dot(&b.v[k * nf..(k + 1) * nf], ds);
     }
     parts.iter().sum::<f64>() + 2.0 * dot(&b.gs, ds) - quad
+}
+
+/// The coordinate steps of chunk `c`'s frames into `dq` ([`back_substitute`]) and their
+/// share of the predicted decrease.
+#[allow(clippy::too_many_arguments)] // the pass's inputs and the chunk's workspaces
+#[inline(always)]
+fn back_substitute_chunk(
+    prob: &Problem,
+    qs: &[Vec<f64>],
+    b: &Blocks,
+    ds: &[f64],
+    c: usize,
+    dq: &mut [Vec<f64>],
+    sc: &mut FrameScratch,
+    tb: &mut Vec<Vector3<f64>>,
+) -> f64 {
+    let (nq, nf) = (b.nq, b.nf);
+    let mut l = std::mem::take(&mut sc.fac);
+    let mut wd = std::mem::take(&mut sc.vec);
+    let mut pred = 0.0;
+    for (f, d) in b.chunk_frames(c).zip(dq.iter_mut()) {
+        let blk = b.frame(prob, qs, f, sc, tb);
+        let (u, rest) = blk.split_at(nq * nq);
+        let (w, g) = rest.split_at(nq * nf);
+        // Positive definite: the same factorisation succeeded in `solve`, which kept it when
+        // there was room.
+        if b.factors_valid && f < b.factored {
+            l.clear();
+            l.extend_from_slice(&b.factors[f * nq * nq..(f + 1) * nq * nq]);
+        } else {
+            let ok = factor_damped(u, nq, b.lambda, &mut l);
+            debug_assert!(ok);
+        }
+        d.copy_from_slice(g);
+        for (wk, &dk) in w.chunks_exact(nq).zip(ds) {
+            for (x, wk) in d.iter_mut().zip(wk) {
+                *x -= wk * dk;
+            }
+        }
+        cholesky_solve(&l, nq, d);
+        // Frame i's share of 2 hᵀδ − δᵀHδ: 2 gᵀδq − δqᵀUδq − 2 δsᵀWᵀδq.
+        let mut quad = 0.0;
+        for (a, ua) in u.chunks_exact(nq).enumerate() {
+            quad += d[a] * dot(ua, d);
+        }
+        wd.clear();
+        wd.extend(w.chunks_exact(nq).map(|wk| dot(wk, d)));
+        pred += 2.0 * dot(g, d) - quad - 2.0 * dot(ds, &wd);
+    }
+    sc.fac = l;
+    sc.vec = wd;
+    pred
+}
+
+/// [`back_substitute_chunk`] compiled for AVX2: the element-wise updates four numbers wide,
+/// the same operations in the same order.
+#[allow(clippy::too_many_arguments)]
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn back_substitute_chunk_avx2(
+    prob: &Problem,
+    qs: &[Vec<f64>],
+    b: &Blocks,
+    ds: &[f64],
+    c: usize,
+    dq: &mut [Vec<f64>],
+    sc: &mut FrameScratch,
+    tb: &mut Vec<Vector3<f64>>,
+) -> f64 {
+    back_substitute_chunk(prob, qs, b, ds, c, dq, sc, tb)
 }
 
 /// [`solve_reduced`] with every parameter at a bound whose step points out of it held
@@ -303,6 +503,91 @@ pub(crate) fn solve_reduced_at_bounds(
         }
         if !changed {
             return true;
+        }
+    }
+}
+
+#[cfg(test)]
+mod solve_rows_tests {
+    use super::{fill_rows, forward_solve_rows};
+
+    /// `[W | g]` copied row by row: every entry in its place, the AVX2 blocks the same.
+    #[test]
+    fn rows_hold_w_transposed_and_g() {
+        for nq in [1usize, 4, 6, 12, 13] {
+            for nf in [1usize, 3, 4, 8, 27] {
+                let m = nf + 1;
+                let w: Vec<f64> = (0..nq * nf).map(|x| x as f64 + 0.5).collect();
+                let g: Vec<f64> = (0..nq).map(|a| -(a as f64) - 1.0).collect();
+                let mut plain = vec![f64::NAN; nq * m];
+                fill_rows(&w, &g, nq, &mut plain);
+                for a in 0..nq {
+                    for k in 0..nf {
+                        assert_eq!(plain[a * m + k], w[k * nq + a], "nq {nq}, nf {nf}");
+                    }
+                    assert_eq!(plain[a * m + nf], g[a]);
+                }
+                #[cfg(target_arch = "x86_64")]
+                if std::is_x86_feature_detected!("avx2") {
+                    let mut wide = vec![f64::NAN; nq * m];
+                    // SAFETY: AVX2 is present (checked just above).
+                    unsafe { super::fill_rows_avx2(&w, &g, nq, &mut wide) };
+                    assert_eq!(wide, plain, "nq {nq}, nf {nf}");
+                }
+            }
+        }
+    }
+
+    /// The register-held pieces give, bit for bit, the plain solve that subtracts every
+    /// earlier row over the whole width in turn, for widths that are and are not multiples
+    /// of 4, 8 and 16; and the solution satisfies `L Y = B`.
+    #[test]
+    fn pieces_solve_exactly_as_whole_rows() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for n in [1usize, 2, 5, 12] {
+            // Lower triangular, column-major, a dominant diagonal.
+            let mut l = vec![0.0; n * n];
+            for k in 0..n {
+                l[k * n + k] = 1.0 + next().abs();
+                for i in k + 1..n {
+                    l[k * n + i] = next();
+                }
+            }
+            for m in 1..=40 {
+                let b: Vec<f64> = (0..n * m).map(|_| next() * 1e3).collect();
+                let mut plain = b.clone();
+                for i in 0..n {
+                    let (done, rest) = plain.split_at_mut(i * m);
+                    let row = &mut rest[..m];
+                    for k in 0..i {
+                        let lik = l[k * n + i];
+                        for (x, y) in row.iter_mut().zip(&done[k * m..(k + 1) * m]) {
+                            *x -= lik * y;
+                        }
+                    }
+                    let d = 1.0 / l[i * n + i];
+                    for x in row.iter_mut() {
+                        *x *= d;
+                    }
+                }
+                let mut got = b.clone();
+                forward_solve_rows(&l, n, m, &mut got);
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&got), bits(&plain), "n = {n}, m = {m}");
+                for i in 0..n {
+                    for c in 0..m {
+                        let lhs: f64 = (0..=i).map(|k| l[k * n + i] * got[k * m + c]).sum();
+                        let rhs = b[i * m + c];
+                        assert!((lhs - rhs).abs() <= 1e-9 * (1.0 + rhs.abs()), "L Y = B");
+                    }
+                }
+            }
         }
     }
 }

@@ -26,7 +26,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use crate::kinematics::twist::{column_twist, group_columns, weighted_centroid};
+use crate::kinematics::twist::{column_twist, group_columns, twist_products, weighted_centroid};
 use crate::kinematics::KinData;
 
 /// One marker-carrying segment for [`Composite::new`]: its markers and its column steps
@@ -81,9 +81,20 @@ pub(super) struct Composite {
     active_pairs: Vec<(usize, usize, usize, usize)>,
     seg_mom: Vec<Mom>,
     grp_mom: Vec<Mom>,
-    /// Per model column: twist `ξ = (ω, v)` and `K ξ` split as `(Θω + h×v, Mv + ω×h)`.
-    xi: Vec<(Vector3<f64>, Vector3<f64>)>,
-    y: Vec<(Vector3<f64>, Vector3<f64>)>,
+    /// Model columns rounded up to a multiple of 4 (the column stride of `prod`).
+    np: usize,
+    /// The twists `ξ = (ω, v)` of the model columns by groups of four, component-major:
+    /// component k of column c at `xs[c / 4][k][c mod 4]`.
+    xs: Vec<[[f64; 4]; 6]>,
+    /// Per model column: `K ξ`, as `(Θω + h×v, Mv + ω×h)`.
+    y: Vec<[f64; 6]>,
+    /// Per model column `deep`: the groups of four columns that hold every `other` of its
+    /// pairs (the products formed for it).
+    quads: Vec<std::ops::Range<usize>>,
+    /// All 1 (`n_q × np`): no product is masked.
+    ones: Vec<f64>,
+    /// `prod[deep·np + other] = ξ_other·(K ξ_deep)`.
+    prod: Vec<f64>,
 }
 
 impl Composite {
@@ -136,6 +147,16 @@ impl Composite {
             }
         }
         let n_groups = groups.len();
+        let np = n_q.div_ceil(4) * 4;
+        let quads = (0..n_q)
+            .map(|deep| {
+                let quad = pairs.iter().filter(|p| p.0 == deep).map(|p| p.1 / 4);
+                match (quad.clone().min(), quad.max()) {
+                    (Some(lo), Some(hi)) => lo..hi + 1,
+                    _ => 0..0,
+                }
+            })
+            .collect();
         Some(Composite {
             segments: segments.iter().map(|(m, _)| m.clone()).collect(),
             col_steps,
@@ -145,8 +166,12 @@ impl Composite {
             active_pairs: Vec::new(),
             seg_mom: vec![Mom::zero(); segments.len()],
             grp_mom: vec![Mom::zero(); n_groups],
-            xi: vec![(Vector3::zeros(), Vector3::zeros()); n_q],
-            y: vec![(Vector3::zeros(), Vector3::zeros()); n_q],
+            np,
+            xs: vec![[[0.0; 4]; 6]; np / 4],
+            y: vec![[0.0; 6]; n_q],
+            quads,
+            ones: vec![1.0; n_q * np],
+            prod: vec![0.0; n_q * np],
         })
     }
 
@@ -213,14 +238,28 @@ impl Composite {
             let (w, v) = column_twist(kin, steps, &centre);
             let k = &self.grp_mom[self.col_group[c]];
             g[ai] = w.dot(&k.r1) + v.dot(&k.r0);
-            self.xi[c] = (w, v);
-            self.y[c] = (k.theta * w + k.h.cross(&v), k.mass * v + w.cross(&k.h));
+            let (yw, yv) = (k.theta * w + k.h.cross(&v), k.mass * v + w.cross(&k.h));
+            for (xk, x) in self.xs[c / 4]
+                .iter_mut()
+                .zip([w.x, w.y, w.z, v.x, v.y, v.z])
+            {
+                xk[c % 4] = x;
+            }
+            self.y[c] = [yw.x, yw.y, yw.z, yv.x, yv.y, yv.z];
         }
+        // Every pair's `ξ_other·(K ξ_deep)` = `ω·(Θω' + h×v') + v·(Mv' + ω'×h)`, four
+        // columns `other` at a time (the pairs of inactive columns are formed and not read).
+        twist_products(
+            &self.y,
+            &self.xs,
+            &self.ones,
+            &self.quads,
+            self.np,
+            &mut self.prod,
+        );
         let a = &mut a[..n * n];
         for &(deep, other, lower, upper) in &self.active_pairs {
-            let (w, v) = self.xi[other];
-            let (yw, yv) = self.y[deep];
-            let value = w.dot(&yw) + v.dot(&yv);
+            let value = self.prod[deep * self.np + other];
             a[lower] = value;
             a[upper] = value;
         }
