@@ -171,8 +171,8 @@ mod tests {
     fn stretches_between_gaps() {
         let t = true;
         let f = false;
-        assert_eq!(stretches(&[]), vec![]);
-        assert_eq!(stretches(&[f, f]), vec![]);
+        assert_eq!(stretches(&[]), Vec::<std::ops::Range<usize>>::new());
+        assert_eq!(stretches(&[f, f]), Vec::<std::ops::Range<usize>>::new());
         assert_eq!(stretches(&[t, t, t]), vec![0..3]);
         assert_eq!(stretches(&[f, t, t, f, t, f, f, t]), vec![1..3, 4..5, 7..8]);
     }

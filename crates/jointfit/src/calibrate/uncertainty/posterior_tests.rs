@@ -74,8 +74,8 @@ fn hip_only_trial_against_the_prior(inflation: f64) {
         let par = &model.parameters()[free[k].0];
         // The uncertainty rows are in the shown unit (mm or deg).
         let shown = match par.unit {
-            jointfit::model::spec::Unit::Metre => 1e3,
-            jointfit::model::spec::Unit::Radian => 180.0 / std::f64::consts::PI,
+            crate::model::spec::Unit::Metre => 1e3,
+            crate::model::spec::Unit::Radian => 180.0 / std::f64::consts::PI,
         };
         let prior_hw = u.z * (par.prior_sd.unwrap() * shown);
         let hw = p.half_width.unwrap();
