@@ -20,7 +20,6 @@ pub mod placement;
 pub mod plausibility;
 pub mod repair;
 pub mod scale;
-pub mod signal;
 pub mod solver;
 pub mod spatial;
 pub mod trial;

@@ -1,5 +1,5 @@
-//! Digital Butterworth low-pass design as second-order sections (see the module docs of
-//! [`crate::signal`] for the math).
+//! Digital Butterworth low-pass design as second-order sections (see the
+//! [crate docs](crate) for the math).
 
 use std::f64::consts::PI;
 

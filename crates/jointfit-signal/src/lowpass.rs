@@ -1,5 +1,5 @@
 //! The filter as the user specifies it: cutoff, order and what the order means (see the
-//! module docs of [`crate::signal`] for the two conventions and Winter's correction).
+//! [crate docs](crate) for the two conventions and Winter's correction).
 
 use std::f64::consts::PI;
 

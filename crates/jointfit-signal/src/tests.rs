@@ -7,7 +7,7 @@ use nalgebra::Vector3;
 use proptest::prelude::*;
 
 use super::*;
-use crate::trial::Trial;
+use jointfit::trial::Trial;
 
 /// |H(f)|² of an order-`n` digital Butterworth (bilinear, pre-warped) with cutoff `fc`.
 fn butterworth_power(n: usize, fc: f64, f: f64, fs: f64) -> f64 {

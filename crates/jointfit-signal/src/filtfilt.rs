@@ -1,6 +1,6 @@
 //! Forward–backward (zero-phase) application of a [`Sos`] cascade with scipy's edge handling:
-//! odd extension and steady-state initial conditions (see the module docs of
-//! [`crate::signal`]).
+//! odd extension and steady-state initial conditions (see the
+//! [crate docs](crate)).
 
 use super::{SignalError, Sos};
 

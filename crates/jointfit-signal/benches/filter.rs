@@ -1,10 +1,10 @@
 //! Throughput of the zero-phase Butterworth filter: one long signal, and a whole trial.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use jointfit::signal::lowpass::LowPass;
-use jointfit::signal::lowpass::OrderConvention;
-use jointfit::signal::{filter_trial, sosfiltfilt};
 use jointfit::trial::Trial;
+use jointfit_signal::LowPass;
+use jointfit_signal::OrderConvention;
+use jointfit_signal::{filter_trial, sosfiltfilt};
 use nalgebra::Vector3;
 
 fn signal(len: usize) -> Vec<f64> {

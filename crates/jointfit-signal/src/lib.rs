@@ -2,8 +2,8 @@
 //!
 //! Reinbolt et al. (2005, doi:10.1016/j.jbiomech.2004.03.031) filtered their marker data with a
 //! "fourth-order, zero phase-shift, low pass Butterworth filter with a cutoff frequency of 6 Hz".
-//! This module provides that filter, matching `scipy.signal` to rounding error, and applies it to
-//! a [`Trial`](crate::trial::Trial) with gaps ([`filter_trial`]).
+//! This crate provides that filter, matching `scipy.signal` to rounding error, and applies it to
+//! a [`Trial`](jointfit::trial::Trial) with gaps ([`filter_trial`]).
 //!
 //! # Design ([`butter_lowpass`])
 //!
@@ -123,10 +123,7 @@
 
 mod butterworth;
 mod filtfilt;
-pub mod lowpass;
-use lowpass::LowPass;
-#[cfg(test)]
-use lowpass::OrderConvention;
+mod lowpass;
 mod trial_filter;
 
 #[cfg(test)]
@@ -134,16 +131,16 @@ mod tests;
 #[cfg(test)]
 mod tests_scipy;
 
-pub(crate) use butterworth::{butter_lowpass, Sos, MAX_DESIGN_ORDER};
+pub use butterworth::Sos;
+pub(crate) use butterworth::{butter_lowpass, MAX_DESIGN_ORDER};
 pub use filtfilt::sosfiltfilt;
 pub(crate) use filtfilt::sosfiltfilt_padlen;
 #[cfg(test)]
 use filtfilt::{odd_extend, sosfilt_in_place, sosfilt_zi};
 #[cfg(test)]
-use lowpass::{winter_correction_factor, ShortStretches};
-pub use trial_filter::filter_trial;
-#[cfg(test)]
-use trial_filter::FilteredStretch;
+use lowpass::winter_correction_factor;
+pub use lowpass::{LowPass, OrderConvention, ShortStretches};
+pub use trial_filter::{filter_trial, FilterReport, FilteredStretch, MarkerFilterReport};
 
 use thiserror::Error;
 

@@ -1,5 +1,5 @@
-//! Zero-phase filtering of a whole [`Trial`], stretch by stretch between gaps (see the module
-//! docs of [`crate::signal`] for the short-stretch policy).
+//! Zero-phase filtering of a whole [`Trial`], stretch by stretch between gaps (see the
+//! [crate docs](crate) for the short-stretch policy).
 
 use std::ops::Range;
 
@@ -7,7 +7,7 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 use super::{sosfiltfilt_padlen, LowPass, SignalError};
-use crate::trial::Trial;
+use jointfit::trial::Trial;
 
 /// A gap-free stretch that was filtered.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
@@ -171,8 +171,8 @@ mod tests {
     fn stretches_between_gaps() {
         let t = true;
         let f = false;
-        assert_eq!(stretches(&[]), vec![]);
-        assert_eq!(stretches(&[f, f]), vec![]);
+        assert!(stretches(&[]).is_empty());
+        assert!(stretches(&[f, f]).is_empty());
         assert_eq!(stretches(&[t, t, t]), vec![0..3]);
         assert_eq!(stretches(&[f, t, t, f, t, f, f, t]), vec![1..3, 4..5, 7..8]);
     }

@@ -10,9 +10,8 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::{json, Value};
 
-use super::trial_filter::FilterReport;
 use super::*;
-use crate::trial::Trial;
+use jointfit::trial::Trial;
 
 /// Runs `scripts/filter_reference.py` on `request`; `None` when there is no Python oracle.
 fn scipy(request: &Value) -> Option<Value> {
@@ -369,7 +368,7 @@ fn trial_filter_matches_scipy_per_stretch() {
 
 #[test]
 fn committed_reference_matches() {
-    let text = include_str!("../../testdata/signal_scipy_reference.json");
+    let text = include_str!("../testdata/signal_scipy_reference.json");
     let reference: Value = serde_json::from_str(text).unwrap();
     for case in reference["butter"].as_array().unwrap() {
         let ours = butter_lowpass(
