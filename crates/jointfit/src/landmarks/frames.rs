@@ -423,41 +423,9 @@ fn orthonormal_distance(v: Vector3<f64>, dir: &Vector3<f64>) -> f64 {
     (v - dir * dir.dot(&v)).norm()
 }
 
-/// Least-squares rigid fit (Kabsch) of `local` points onto `world` points: `world ≈ R·local + t`.
-pub(crate) fn rigid_fit(local: &[Vector3<f64>], world: &[Vector3<f64>]) -> Pose {
-    let n = local.len() as f64;
-    let cl: Vector3<f64> = local.iter().sum::<Vector3<f64>>() / n;
-    let cw: Vector3<f64> = world.iter().sum::<Vector3<f64>>() / n;
-    let mut h = Matrix3::zeros();
-    for (l, w) in local.iter().zip(world) {
-        h += (l - cl) * (w - cw).transpose();
-    }
-    let svd = h.svd(true, true);
-    let (u, vt) = (svd.u.expect("u"), svd.v_t.expect("v_t"));
-    let d = (vt.transpose() * u.transpose()).determinant().signum();
-    let rot = vt.transpose() * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose();
-    Pose::new(rot, cw - rot * cl)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn rigid_fit_recovers_a_transform() {
-        let rot = nalgebra::Rotation3::from_euler_angles(0.3, -1.1, 2.0).into_inner();
-        let t = Vector3::new(0.1, -0.4, 2.0);
-        let local = [
-            Vector3::new(0.0, 0.0, 0.0),
-            Vector3::new(0.1, 0.0, 0.02),
-            Vector3::new(0.0, 0.12, 0.0),
-            Vector3::new(0.03, 0.05, -0.08),
-        ];
-        let world: Vec<_> = local.iter().map(|p| rot * p + t).collect();
-        let fit = rigid_fit(&local, &world);
-        assert!((fit.rot - rot).abs().max() < 1e-12);
-        assert!((fit.trans - t).abs().max() < 1e-12);
-    }
 
     #[test]
     fn collinear_markers_are_refused() {

@@ -65,7 +65,6 @@ use markerset::{LegMarkers, MarkerSet};
 pub mod motion;
 pub(crate) mod nominal;
 pub(crate) mod plugin_gait;
-pub mod priors;
 pub mod subject;
 pub mod suggest;
 pub(crate) mod window;
@@ -81,34 +80,12 @@ pub(crate) use window::StaticWindow;
 
 use crate::kinematics::{forward_kinematics, KinData, Want};
 use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::population::fill_landmark_priors;
+pub use crate::model::population::HipCentreMethod;
 use crate::model::spec::{MarkerSpec, ModelSpec};
 use crate::model::Model;
 use crate::spatial::Pose;
 use crate::trial::Trial;
-
-/// Which regression places the hip centre in the pelvis frame.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum HipCentreMethod {
-    /// Bell et al. 1990: (−0.19, −0.30, ±0.36)·PW.
-    #[default]
-    Bell,
-    /// Harrington et al. 2007: pelvic depth and width, with constant terms.
-    Harrington,
-    /// Davis et al. 1991 as Vicon's Plug-in Gait applies it: leg length, ASIS-to-trochanter
-    /// distance, inter-ASIS distance and marker radius ([`plugin_gait`]); needs the subject's
-    /// leg length in [`PersonalizeOptions::subject`].
-    Davis,
-}
-
-impl HipCentreMethod {
-    pub fn citation(self) -> &'static str {
-        match self {
-            HipCentreMethod::Bell => "Bell et al. 1990",
-            HipCentreMethod::Harrington => "Harrington et al. 2007",
-            HipCentreMethod::Davis => "Davis et al. 1991 (Plug-in Gait)",
-        }
-    }
-}
 
 /// Settings of [`personalize`] (SI units).
 #[derive(Debug, Clone, PartialEq)]
@@ -545,7 +522,7 @@ fn leg_spec(
             p.prior_sd = Some(*sd);
         }
     }
-    priors::fill_landmark_priors(&mut spec, opts.hip_centre);
+    fill_landmark_priors(&mut spec, opts.hip_centre);
     let pose_of = |seg: &str| poses.iter().find(|(n, _)| *n == seg).expect("segment").1;
     spec.markers.clear();
     for seg in TRACKED_SEGMENTS {
@@ -636,7 +613,7 @@ fn tracking_residuals(
                 .iter()
                 .map(|&c| trial.get(fr, c).expect("complete frame"))
                 .collect();
-            let fit = frames::rigid_fit(&local, &world);
+            let fit = crate::spatial::rigid_fit(&local, &world);
             for (l, w) in local.iter().zip(&world) {
                 let d = (fit.transform_point(l) - w).norm();
                 sum2 += d * d;

@@ -8,9 +8,8 @@ use super::calibrate::{
 use jointfit::calibrate::joint::{solve_joint, JointOptions};
 use jointfit::calibrate::{params_for_groups, Problem};
 use jointfit::ik::lm::IkWorkspace;
-use jointfit::landmarks::priors::fill_landmark_priors;
-use jointfit::landmarks::HipCentreMethod;
 use jointfit::model::lower_limb::{lower_limb, Side};
+use jointfit::model::population::{fill_landmark_priors, HipCentreMethod};
 use jointfit::model::Model;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

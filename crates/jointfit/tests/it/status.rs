@@ -9,9 +9,8 @@ use jointfit::calibrate::uncertainty::types::SeMethod;
 use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
 use jointfit::calibrate::uncertainty::{analyze, predict};
 use jointfit::calibrate::{params_for_groups, Problem};
-use jointfit::landmarks::priors::fill_landmark_priors;
-use jointfit::landmarks::HipCentreMethod;
 use jointfit::model::lower_limb::{lower_limb, Side};
+use jointfit::model::population::{fill_landmark_priors, HipCentreMethod};
 use jointfit::model::Model;
 
 use super::uncertainty::{

@@ -43,7 +43,7 @@ use thiserror::Error;
 pub(crate) use sara::{sara, AxisFit};
 pub(crate) use score::{score, CentreFit};
 
-use super::frames::rigid_fit;
+use crate::spatial::rigid_fit;
 use crate::spatial::Pose;
 use crate::trial::Trial;
 

@@ -1,15 +1,38 @@
-//! Prior standard deviations of the leg model's parameters: how far the anatomical-landmark
-//! (or functional) estimate of each parameter typically is from the truth.
+//! The population prior of the lower-limb template's parameters: how far the anatomical-landmark
+//! (or functional) estimate of each parameter typically is from the truth, across people.
 //!
 //! A maximum a posteriori fit (`calibrate::prior`) pulls each parameter toward its nominal
 //! value with weight `1/sd²`, so these numbers decide how much a trial must show before a
-//! joint moves. Each entry names its source; where the literature gives a 3-D error or a
-//! 95 % radius for an isotropic error, the per-axis SD follows from the χ₃ distribution
-//! (mean distance 1.596 σ, 95 % radius 2.796 σ). The table with the derivations is in
-//! `docs/priors.md`.
+//! joint moves; the plausibility envelopes (`plausibility`) are their 95 % regions. Each entry
+//! names its source; where the literature gives a 3-D error or a 95 % radius for an isotropic
+//! error, the per-axis SD follows from the χ₃ distribution (mean distance 1.596 σ, 95 % radius
+//! 2.796 σ). The hip centre's SD depends on the regression that placed it
+//! ([`HipCentreMethod`]). The table with the derivations is in `docs/priors.md`.
 
-use super::HipCentreMethod;
-use crate::model::spec::ModelSpec;
+use super::spec::ModelSpec;
+
+/// Which regression places the hip centre in the pelvis frame (PW: the inter-ASIS width).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum HipCentreMethod {
+    /// Bell et al. 1990: (−0.19, −0.30, ±0.36)·PW.
+    #[default]
+    Bell,
+    /// Harrington et al. 2007: pelvic depth and width, with constant terms.
+    Harrington,
+    /// Davis et al. 1991 as Vicon's Plug-in Gait applies it: leg length, ASIS-to-trochanter
+    /// distance, inter-ASIS distance and marker radius; needs the subject's leg length.
+    Davis,
+}
+
+impl HipCentreMethod {
+    pub fn citation(self) -> &'static str {
+        match self {
+            HipCentreMethod::Bell => "Bell et al. 1990",
+            HipCentreMethod::Harrington => "Harrington et al. 2007",
+            HipCentreMethod::Davis => "Davis et al. 1991 (Plug-in Gait)",
+        }
+    }
+}
 
 /// One prior: standard deviation (m or rad) and where it comes from.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -22,7 +45,7 @@ const MM: f64 = 1e-3;
 const DEG: f64 = std::f64::consts::PI / 180.0;
 
 /// Per-axis SD of a regression hip centre (m).
-pub(crate) fn hip_regression_sd(method: HipCentreMethod) -> PriorEntry {
+fn hip_regression_sd(method: HipCentreMethod) -> PriorEntry {
     match method {
         HipCentreMethod::Bell => PriorEntry {
             sd: 12.0 * MM,
@@ -55,7 +78,7 @@ pub(crate) fn hip_regression_sd(method: HipCentreMethod) -> PriorEntry {
 /// (≈ 3.5 mm for 5 mm per ASIS) and 0.36 × the width error (≈ 2.5 mm): √(4.7² + 3.5² + 2.5²)
 /// ≈ 6.4 mm, rounded up to 7 mm. Anterior and superior keep the larger regression SD, where
 /// the skin over the ASIS (9.7 ± 7.0 mm, Mantovani et al. 2016) and pelvic depth add error.
-pub(crate) fn hip_lateral_sd() -> PriorEntry {
+fn hip_lateral_sd() -> PriorEntry {
     PriorEntry {
         sd: 7.0 * MM,
         source: "hip centre medio-lateral position: predicted by pelvic width to 3.6–4.8 mm \
@@ -130,7 +153,8 @@ pub(crate) fn landmark_prior(name: &str, hip: HipCentreMethod) -> Option<PriorEn
 }
 
 /// Writes `prior_sd` into every template parameter that has a landmark prior (leaves
-/// parameters that already have one alone).
+/// parameters that already have one alone). Names are those of a one-sided template
+/// ([`lower_limb`](super::lower_limb::lower_limb)).
 pub fn fill_landmark_priors(spec: &mut ModelSpec, hip: HipCentreMethod) {
     for p in &mut spec.parameters {
         if p.prior_sd.is_none() {
