@@ -13,7 +13,6 @@ pub mod calibrate;
 pub mod checks;
 pub mod ik;
 pub mod kinematics;
-pub mod landmarks;
 pub(crate) mod linalg;
 pub mod model;
 pub mod placement;

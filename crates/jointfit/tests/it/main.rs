@@ -9,7 +9,6 @@ mod ik_parallel;
 mod ik_robust;
 mod ik_stream;
 mod kinematics;
-mod landmarks;
 mod models;
 mod offsets;
 mod placement;

@@ -27,10 +27,10 @@ use super::{
     check_options, personalize_in, personalize_with, LandmarkError, MarkerSet, PersonalizeOptions,
     Personalized,
 };
-use crate::model::lower_limb::{join_legs, Side, PELVIS_SEGMENT};
-use crate::model::spec::ModelSpec;
-use crate::model::Model;
-use crate::trial::Trial;
+use jointfit::model::lower_limb::{join_legs, Side, PELVIS_SEGMENT};
+use jointfit::model::spec::ModelSpec;
+use jointfit::model::Model;
+use jointfit::trial::Trial;
 
 /// Which legs to personalize.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -8,7 +8,7 @@ use super::{
     block_resample, check_pairs, frame_normals, pose_pairs, rng, sum_normals, Cluster,
     FunctionalError, FunctionalOptions, PosePairs,
 };
-use crate::trial::Trial;
+use jointfit::trial::Trial;
 
 /// A functional hinge axis.
 #[derive(Debug, Clone, PartialEq)]

@@ -18,8 +18,8 @@ use super::keypoints::{fitting_preset, KeypointSet};
 use super::markerset::{MarkerSet, PRESET_NAMES};
 use super::suggest::suggest;
 use super::LandmarkError;
-use crate::model::lower_limb::Side;
-use crate::trial::Trial;
+use jointfit::model::lower_limb::Side;
+use jointfit::trial::Trial;
 
 /// How well one preset fits a trial's labels.
 #[derive(Debug, Clone, PartialEq)]

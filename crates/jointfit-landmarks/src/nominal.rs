@@ -8,7 +8,7 @@
 //! `(sin ry, −sin rx cos ry, cos rx cos ry)`, so an axis direction d gives
 //! `ry = asin(d_x)`, `rx = atan2(−d_y, d_z)`.
 //!
-//! [`lower_limb`]: crate::model::lower_limb::lower_limb
+//! [`lower_limb`]: jointfit::model::lower_limb::lower_limb
 
 use std::collections::HashMap;
 
@@ -16,11 +16,11 @@ use nalgebra::{Matrix3, Vector3};
 
 use super::frames::Anatomy;
 use super::LandmarkError;
-use crate::model::lower_limb::Side;
-use crate::model::spec::Unit;
-use crate::model::spec::{ModelSpec, ScalarSpec};
-use crate::model::{offset_rotation, JointKind, Model};
-use crate::spatial::Pose;
+use jointfit::model::lower_limb::Side;
+use jointfit::model::spec::Unit;
+use jointfit::model::spec::{ModelSpec, ScalarSpec};
+use jointfit::model::{offset_rotation, JointKind, Model};
+use jointfit::spatial::Pose;
 
 /// Values of the six scalars of an offset.
 pub(crate) type Offset = [f64; 6];
@@ -301,7 +301,7 @@ pub(crate) fn static_coordinates(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::lower_limb::lower_limb;
+    use jointfit::model::lower_limb::lower_limb;
 
     #[test]
     fn zxy_round_trip() {

@@ -42,7 +42,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::LandmarkError;
-use crate::model::lower_limb::Side;
+use jointfit::model::lower_limb::Side;
 
 /// Names of the built-in marker sets.
 pub const PRESET_NAMES: [&str; 9] = [

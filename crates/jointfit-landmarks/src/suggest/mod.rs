@@ -2,7 +2,7 @@
 //! user to check before `personalize --markers`.
 //!
 //! The trial must be Y-up (rotate it first, e.g. with the vertical of
-//! [`crate::vertical::detect_up`]). It is read in the frames where the most markers are
+//! [`jointfit::vertical::detect_up`]). It is read in the frames where the most markers are
 //! present (of at most 400 evenly spaced ones); each marker's position is its median over
 //! those of them in which it is present. Then:
 //!
@@ -62,7 +62,7 @@ use reading::{median, read_markers};
 
 use super::markerset::MarkerSet;
 use super::LandmarkError;
-use crate::trial::Trial;
+use jointfit::trial::Trial;
 
 /// A proposed marker set and what the user should check.
 #[derive(Debug, Clone)]

@@ -8,8 +8,8 @@
 use nalgebra::{Matrix3, Vector3};
 
 use super::{HipCentreMethod, LandmarkError, PersonalizeOptions};
-use crate::model::lower_limb::Side;
-use crate::spatial::Pose;
+use jointfit::model::lower_limb::Side;
+use jointfit::spatial::Pose;
 
 /// `world_from_segment` of every segment at the averaged static pose (trial frame, m).
 #[derive(Debug, Clone, PartialEq)]

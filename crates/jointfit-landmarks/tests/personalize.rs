@@ -3,16 +3,16 @@
 //! malleolus markers on its talocrural axis, posed by forward kinematics.
 
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
-use jointfit::landmarks::markerset::LegMarkers;
-use jointfit::landmarks::markerset::MarkerSet;
-use jointfit::landmarks::markerset::PelvisMarkers;
-use jointfit::landmarks::{personalize, LandmarkError, PersonalizeOptions, Personalized};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::spec::{MarkerSpec, ModelSpec};
 use jointfit::model::Model;
 use jointfit::spatial::up_axis_rotation;
 use jointfit::spatial::UpAxis;
 use jointfit::trial::Trial;
+use jointfit_landmarks::markerset::LegMarkers;
+use jointfit_landmarks::markerset::MarkerSet;
+use jointfit_landmarks::markerset::PelvisMarkers;
+use jointfit_landmarks::{personalize, LandmarkError, PersonalizeOptions, Personalized};
 use jointfit_testkit::synth::{synthetic_trial, Noise};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 

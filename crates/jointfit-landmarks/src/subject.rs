@@ -8,7 +8,7 @@
 //! `marker_diameter`. A missing value is `None`; Vicon's files write 0 for "not measured",
 //! which the readers turn into `None`.
 
-use crate::model::lower_limb::Side;
+use jointfit::model::lower_limb::Side;
 
 /// Canonical names of the measurements, in the order of the fields.
 pub const MEASUREMENT_NAMES: [&str; 10] = [

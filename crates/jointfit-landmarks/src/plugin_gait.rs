@@ -36,7 +36,7 @@
 use nalgebra::Vector3;
 
 use super::subject::SubjectMeasurements;
-use crate::model::lower_limb::Side;
+use jointfit::model::lower_limb::Side;
 
 /// Vicon's θ (rad) in Davis's hip regression.
 pub(crate) const DAVIS_THETA: f64 = 0.5;

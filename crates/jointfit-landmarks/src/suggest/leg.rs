@@ -5,7 +5,7 @@
 use super::body::Marker;
 use super::labels::{has, ANKLE, FOOT, HEEL, KNEE, META, SHANK, THIGH, TOE};
 use super::Role;
-use crate::landmarks::markerset::LegMarkers;
+use crate::markerset::LegMarkers;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Seg {
@@ -276,7 +276,7 @@ pub(super) fn leg(
         ("shank", &leg.shank),
         ("foot", &leg.foot),
     ] {
-        let least = crate::landmarks::markerset::min_tracking(seg);
+        let least = crate::markerset::min_tracking(seg);
         if tracked.len() < least {
             return Err(format!(
                 "{seg} has {} tracking markers ({}), needs {least}",

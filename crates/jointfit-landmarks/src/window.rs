@@ -8,7 +8,7 @@
 use nalgebra::Vector3;
 
 use super::LandmarkError;
-use crate::trial::Trial;
+use jointfit::trial::Trial;
 
 /// Which frames of the static trial were averaged.
 #[derive(Debug, Clone, PartialEq)]

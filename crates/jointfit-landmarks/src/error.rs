@@ -4,7 +4,7 @@
 use thiserror::Error;
 
 use super::functional;
-use crate::model::ModelError;
+use jointfit::model::ModelError;
 
 /// Why a static trial or a marker set was refused. Messages name the markers involved.
 #[derive(Debug, Error, PartialEq)]

@@ -10,8 +10,8 @@
 //! [`super::markerset::min_tracking`]; such a label is kept and said.
 
 use super::markerset::{min_tracking, side_name, MarkerSet, TRACKED_SEGMENTS};
-use crate::model::lower_limb::Side;
-use crate::trial::Trial;
+use jointfit::model::lower_limb::Side;
+use jointfit::trial::Trial;
 
 /// Whether `label` has at least one sample in `trial`.
 pub fn has_samples(trial: &Trial, label: &str) -> bool {

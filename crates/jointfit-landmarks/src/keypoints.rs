@@ -35,8 +35,8 @@ use super::bilateral::{join_named, Outcome, PersonalizedModel, Sides};
 use super::frames::{Landmarks, Medial};
 use super::window::select_window;
 use super::{check_options, personalize_plan, LandmarkError, PersonalizeOptions, Plan};
-use crate::model::lower_limb::Side;
-use crate::trial::Trial;
+use jointfit::model::lower_limb::Side;
+use jointfit::trial::Trial;
 
 /// Weight of the trunk point among the pelvis markers.
 pub(crate) const TRUNK_WEIGHT: f64 = 0.25;
@@ -276,9 +276,9 @@ pub fn personalize_keypoints(
 }
 
 /// The joint-centre positions of a keypoint model get the keypoint prior [`KEYPOINT_SD`].
-fn widen_priors(spec: &mut crate::model::spec::ModelSpec) {
+fn widen_priors(spec: &mut jointfit::model::spec::ModelSpec) {
     for p in &mut spec.parameters {
-        let position = p.unit == crate::model::spec::Unit::Metre;
+        let position = p.unit == jointfit::model::spec::Unit::Metre;
         let joint_centre = p.name.starts_with("hip_")
             || p.name.starts_with("knee_")
             || p.name.starts_with("talocrural_");

@@ -16,10 +16,10 @@
 use nalgebra::{Matrix3, Vector3};
 
 use super::{sara, score, AxisFit, CentreFit, Cluster, FunctionalOptions};
-use crate::landmarks::frames::Anatomy;
-use crate::landmarks::LandmarkError;
-use crate::spatial::Pose;
-use crate::trial::Trial;
+use crate::frames::Anatomy;
+use crate::LandmarkError;
+use jointfit::spatial::Pose;
+use jointfit::trial::Trial;
 
 /// Floor of the functional hip centre's prior SD per axis (m).
 pub(crate) const HIP_FLOOR: f64 = 0.005;

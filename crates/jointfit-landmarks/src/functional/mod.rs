@@ -43,9 +43,9 @@ use thiserror::Error;
 pub(crate) use sara::{sara, AxisFit};
 pub(crate) use score::{score, CentreFit};
 
-use crate::spatial::rigid_fit;
-use crate::spatial::Pose;
-use crate::trial::Trial;
+use jointfit::spatial::rigid_fit;
+use jointfit::spatial::Pose;
+use jointfit::trial::Trial;
 
 /// Why a functional method could not give a result.
 #[derive(Debug, Error, PartialEq)]

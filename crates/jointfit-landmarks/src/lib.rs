@@ -52,7 +52,7 @@
 //! - *Hip regressions* use the skin-marker positions as the bony landmarks (no marker-radius
 //!   or soft-tissue correction).
 //!
-//! [`lower_limb`]: crate::model::lower_limb::lower_limb
+//! [`lower_limb`]: jointfit::model::lower_limb::lower_limb
 
 pub mod auto;
 pub mod bilateral;
@@ -78,14 +78,14 @@ pub(crate) use markerset::TRACKED_SEGMENTS;
 use subject::SubjectMeasurements;
 pub(crate) use window::StaticWindow;
 
-use crate::kinematics::{forward_kinematics, KinData, Want};
-use crate::model::lower_limb::{lower_limb, Side};
-use crate::model::population::fill_landmark_priors;
-pub use crate::model::population::HipCentreMethod;
-use crate::model::spec::{MarkerSpec, ModelSpec};
-use crate::model::Model;
-use crate::spatial::Pose;
-use crate::trial::Trial;
+use jointfit::kinematics::{forward_kinematics, KinData, Want};
+use jointfit::model::lower_limb::{lower_limb, Side};
+use jointfit::model::population::fill_landmark_priors;
+pub use jointfit::model::population::HipCentreMethod;
+use jointfit::model::spec::{MarkerSpec, ModelSpec};
+use jointfit::model::Model;
+use jointfit::spatial::Pose;
+use jointfit::trial::Trial;
 
 /// Settings of [`personalize`] (SI units).
 #[derive(Debug, Clone, PartialEq)]
@@ -202,7 +202,7 @@ fn check_options(o: &PersonalizeOptions) -> Result<(), LandmarkError> {
 }
 
 /// Builds a subject's leg model from a static trial (see the module docs). The trial must be
-/// in metres and Y-up ([`crate::spatial::up_axis_rotation`]); its heading does not matter.
+/// in metres and Y-up ([`jointfit::spatial::up_axis_rotation`]); its heading does not matter.
 pub fn personalize(
     trial: &Trial,
     set: &MarkerSet,
@@ -613,7 +613,7 @@ fn tracking_residuals(
                 .iter()
                 .map(|&c| trial.get(fr, c).expect("complete frame"))
                 .collect();
-            let fit = crate::spatial::rigid_fit(&local, &world);
+            let fit = jointfit::spatial::rigid_fit(&local, &world);
             for (l, w) in local.iter().zip(&world) {
                 let d = (fit.transform_point(l) - w).norm();
                 sum2 += d * d;

@@ -6,7 +6,7 @@ use nalgebra::Vector3;
 
 use super::reading::Raw;
 use super::Role;
-use crate::landmarks::markerset::PelvisMarkers;
+use crate::markerset::PelvisMarkers;
 
 pub(super) struct Marker {
     pub(super) label: String,

@@ -4,7 +4,7 @@
 use nalgebra::Vector3;
 
 use super::labels::{automatic_label, has, normalize, IGNORE, IGNORE_EXACT};
-use crate::trial::Trial;
+use jointfit::trial::Trial;
 
 /// The frames the suggestion reads: of at most 400 evenly spaced frames, those in which the
 /// most markers are present. A static trial usually has every marker in every frame; a trial
