@@ -72,11 +72,11 @@ pub(crate) mod window;
 use nalgebra::Vector3;
 
 pub use error::LandmarkError;
-pub(crate) use frames::SegmentFrames;
+pub use frames::SegmentFrames;
 pub(crate) use markerset::MedialLandmark;
 pub(crate) use markerset::TRACKED_SEGMENTS;
 use subject::SubjectMeasurements;
-pub(crate) use window::StaticWindow;
+pub use window::StaticWindow;
 
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::lower_limb::{lower_limb, Side};

@@ -40,8 +40,10 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use thiserror::Error;
 
-pub(crate) use sara::{sara, AxisFit};
-pub(crate) use score::{score, CentreFit};
+pub(crate) use sara::sara;
+pub use sara::AxisFit;
+pub(crate) use score::score;
+pub use score::CentreFit;
 
 use jointfit::spatial::rigid_fit;
 use jointfit::spatial::Pose;
