@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""scipy.signal reference values for jointfit's Butterworth filter (crates/jointfit/src/signal).
+"""scipy.signal reference values for jointfit's Butterworth filter (crates/jointfit-signal).
 
 Two modes:
 

@@ -32,10 +32,10 @@ pub mod scale;
 mod trial_checks;
 
 use jointfit::model::ModelError;
-use jointfit::signal::SignalError;
 use jointfit_io::model_file::ModelFileError;
 use jointfit_io::osim_read::OsimReadError;
 use jointfit_io::trial_file::TrialFileError;
+use jointfit_signal::SignalError;
 use thiserror::Error;
 
 pub use fit::{Calibration, FitOptions, Method, ParamRow};

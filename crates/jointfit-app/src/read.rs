@@ -6,12 +6,12 @@ use std::sync::Arc;
 
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;
-use jointfit::signal::filter_trial;
-use jointfit::signal::lowpass::LowPass;
 use jointfit::spatial::up_axis_rotation;
 use jointfit::spatial::UpAxis;
 use jointfit::trial::Trial;
 use jointfit_io::osim_read::{read_osim, OsimModel};
+use jointfit_signal::filter_trial;
+use jointfit_signal::LowPass;
 
 use crate::fit::FitOptions;
 use crate::Error;

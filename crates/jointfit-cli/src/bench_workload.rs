@@ -29,12 +29,12 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use clap::{ArgGroup, Args, ValueEnum};
 use jointfit::ik::IkOptions;
-use jointfit::landmarks::{personalize, PersonalizeOptions};
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::Model;
 use jointfit::spatial::UpAxis;
 use jointfit::trial::Trial;
 use jointfit_experiments::synth;
+use jointfit_landmarks::{personalize, PersonalizeOptions};
 
 use crate::common::{load_for_model, model_for_trials, Columns, TrialArgs, Up};
 

@@ -1,14 +1,14 @@
 //! `jointfit markers suggest STATIC [-o FILE.toml] [--up AXIS] [--motion TRIAL]`: a marker set proposed from a
-//! static trial's labels and positions ([`jointfit::landmarks::suggest`]), for the user to
+//! static trial's labels and positions ([`jointfit_landmarks::suggest`]), for the user to
 //! check; tried at once with `personalize` on the same trial.
 
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Subcommand;
-use jointfit::landmarks::markerset::MarkerSet;
-use jointfit::landmarks::{motion, personalize, PersonalizeOptions};
 use jointfit::model::lower_limb::Side;
+use jointfit_landmarks::markerset::MarkerSet;
+use jointfit_landmarks::{motion, personalize, PersonalizeOptions};
 
 use crate::common::{load_trial, Up};
 
@@ -60,7 +60,7 @@ pub fn run(cmd: MarkersCommand) -> Result<()> {
             .and_then(|o| o.file_stem())
             .map_or("suggested".into(), |s| s.to_string_lossy().into_owned())
     });
-    let mut suggestion = match jointfit::landmarks::suggest::suggest(&trial, &name) {
+    let mut suggestion = match jointfit_landmarks::suggest::suggest(&trial, &name) {
         Ok(s) => s,
         Err(e) => {
             preset_hint(&path, &trial);
@@ -131,7 +131,7 @@ fn load_static(path: &std::path::Path, up: Option<Up>) -> Result<(Up, jointfit::
 /// lists, and each role's motion coherence with its segment is measured; without it, a hint
 /// on static-only landmarks.
 fn with_motion(
-    suggestion: &mut jointfit::landmarks::suggest::Suggestion,
+    suggestion: &mut jointfit_landmarks::suggest::Suggestion,
     motion: Option<&std::path::Path>,
 ) -> Result<()> {
     let Some(m) = motion else {
@@ -145,12 +145,12 @@ fn with_motion(
     for note in motion::keep_tracked_in(&mut suggestion.set, &present) {
         suggestion.notes.push(note);
     }
-    jointfit::landmarks::suggest::coherence(&moving, &suggestion.set, &mut suggestion.roles);
+    jointfit_landmarks::suggest::coherence(&moving, &suggestion.set, &mut suggestion.roles);
     Ok(())
 }
 
 /// Every role with its confidence and what it is based on (stderr).
-fn print_roles(roles: &[jointfit::landmarks::suggest::Role]) {
+fn print_roles(roles: &[jointfit_landmarks::suggest::Role]) {
     let mut t = crate::table::Table::new(&["role", "marker", "confidence", "based on"]);
     for r in roles {
         t.row(vec![
@@ -163,7 +163,7 @@ fn print_roles(roles: &[jointfit::landmarks::suggest::Role]) {
     eprint!("{}", t.render());
     let low: Vec<&str> = roles
         .iter()
-        .filter(|r| r.confidence() == jointfit::landmarks::suggest::Confidence::Low)
+        .filter(|r| r.confidence() == jointfit_landmarks::suggest::Confidence::Low)
         .map(|r| r.marker.as_str())
         .collect();
     if !low.is_empty() {
@@ -176,7 +176,7 @@ fn print_roles(roles: &[jointfit::landmarks::suggest::Role]) {
 
 /// A preset that covers the labels is the better choice than a guess (stderr).
 fn preset_hint(path: &str, trial: &jointfit::trial::Trial) {
-    if let Some(best) = jointfit::landmarks::auto::rank_presets(trial.labels())
+    if let Some(best) = jointfit_landmarks::auto::rank_presets(trial.labels())
         .into_iter()
         .find(|f| f.legs_fitted > 0)
     {

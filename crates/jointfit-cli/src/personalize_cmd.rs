@@ -1,23 +1,23 @@
 //! `jointfit personalize`: a static trial + a marker set → a subject model TOML
-//! (the anatomical-landmark method, [`jointfit::landmarks`]).
+//! (the anatomical-landmark method, [`jointfit_landmarks`]).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{ArgGroup, Args, ValueEnum};
-use jointfit::landmarks::auto::ChosenSet;
-use jointfit::landmarks::bilateral::personalize_sides;
-use jointfit::landmarks::bilateral::PersonalizedModel;
-use jointfit::landmarks::bilateral::Sides;
-use jointfit::landmarks::functional::apply::FunctionalTrials;
-use jointfit::landmarks::keypoints::personalize_keypoints;
-use jointfit::landmarks::keypoints::KeypointSet;
-use jointfit::landmarks::keypoints::KEYPOINT_PRESET_NAMES;
-use jointfit::landmarks::markerset::MarkerSet;
-use jointfit::landmarks::markerset::PRESET_NAMES;
-use jointfit::landmarks::{HipCentreMethod, PersonalizeOptions};
 use jointfit::model::lower_limb::Side;
 use jointfit::trial::Trial;
+use jointfit_landmarks::auto::ChosenSet;
+use jointfit_landmarks::bilateral::personalize_sides;
+use jointfit_landmarks::bilateral::PersonalizedModel;
+use jointfit_landmarks::bilateral::Sides;
+use jointfit_landmarks::functional::apply::FunctionalTrials;
+use jointfit_landmarks::keypoints::personalize_keypoints;
+use jointfit_landmarks::keypoints::KeypointSet;
+use jointfit_landmarks::keypoints::KEYPOINT_PRESET_NAMES;
+use jointfit_landmarks::markerset::MarkerSet;
+use jointfit_landmarks::markerset::PRESET_NAMES;
+use jointfit_landmarks::{HipCentreMethod, PersonalizeOptions};
 
 use crate::personalize_summary::{BothSummary, HjcComparison, LabCentres, Summary};
 
@@ -267,7 +267,7 @@ fn check_files(args: &PersonalizeArgs, static_trial: &Path) -> Result<()> {
 /// reason said on stderr), a keypoint preset, or a marker-set file or preset.
 fn choose_set(markers: &str, trial: &Trial, static_trial: &Path) -> Result<ChosenSet> {
     if markers == "auto" {
-        let choice = jointfit::landmarks::auto::choose(trial, "auto")
+        let choice = jointfit_landmarks::auto::choose(trial, "auto")
             .with_context(|| format!("{}: --markers auto", static_trial.display()))?;
         eprintln!("jointfit: {}: {}", static_trial.display(), choice.reason);
         for note in &choice.notes {
@@ -355,14 +355,14 @@ fn personalize(
     };
     // A static trial without the set's labels: name the presets that fit them instead.
     let hint = match &outcome {
-        Err(jointfit::landmarks::LandmarkError::MissingMarkers { .. }) => {
+        Err(jointfit_landmarks::LandmarkError::MissingMarkers { .. }) => {
             preset_hint(trial.labels(), &args.markers, sides, &static_name)
         }
         _ => String::new(),
     };
     // A missing subject measurement: say how to give one after the message.
     let outcome = outcome.map_err(|e| match e {
-        jointfit::landmarks::LandmarkError::MissingMeasurement { .. } => {
+        jointfit_landmarks::LandmarkError::MissingMeasurement { .. } => {
             anyhow::anyhow!("{e}{}", crate::personalize_subject::HINT)
         }
         e => anyhow::Error::new(e),

@@ -6,12 +6,12 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
-use jointfit::landmarks::bilateral::PersonalizedModel;
-use jointfit::landmarks::subject::SubjectMeasurements;
-use jointfit::landmarks::subject::MEASUREMENT_NAMES;
 use jointfit::model::lower_limb::Side;
 use jointfit::spatial::up_axis_rotation;
 use jointfit::trial::Trial;
+use jointfit_landmarks::bilateral::PersonalizedModel;
+use jointfit_landmarks::subject::SubjectMeasurements;
+use jointfit_landmarks::subject::MEASUREMENT_NAMES;
 use nalgebra::Vector3;
 use serde::Serialize;
 

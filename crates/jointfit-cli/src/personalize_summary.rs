@@ -3,12 +3,12 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use jointfit::landmarks::bilateral::BothLegs;
-use jointfit::landmarks::functional::apply::FunctionalReport;
-use jointfit::landmarks::Personalized;
 use jointfit::model::lower_limb::Side;
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;
+use jointfit_landmarks::bilateral::BothLegs;
+use jointfit_landmarks::functional::apply::FunctionalReport;
+use jointfit_landmarks::Personalized;
 use serde::Serialize;
 
 use crate::personalize_subject::JcComparison;

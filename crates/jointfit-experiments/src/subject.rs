@@ -3,7 +3,7 @@
 //! A synthetic subject's joints sit where its true parameters put them. `jointfit personalize`
 //! estimates them from anatomical landmarks (Bell et al. 1990 for the hip centre, the
 //! epicondyles and malleoli for the axes) and writes each estimate as the parameter's prior
-//! mean, with the method's published error as its SD (`jointfit::landmarks::priors`). For a
+//! mean, with the method's published error as its SD (`jointfit::model::population`). For a
 //! subject drawn far from the generic model (30 mm / 15°, the hard cases), the
 //! landmark model is therefore the truth moved by the landmark method's error, not the generic
 //! nominal model: [`landmark_model`] draws that error, `N(0, sd²)` per parameter, seeded.
@@ -46,9 +46,8 @@ pub fn landmark_model(spec: &ModelSpec, truth: &[f64], seed: u64) -> (ModelSpec,
 #[cfg(test)]
 mod tests {
     use super::*;
-    use jointfit::landmarks::priors::fill_landmark_priors;
-    use jointfit::landmarks::HipCentreMethod;
     use jointfit::model::lower_limb::{lower_limb, Side};
+    use jointfit::model::population::{fill_landmark_priors, HipCentreMethod};
 
     #[test]
     fn prior_means_scatter_about_the_truth_by_the_prior_sd() {

@@ -10,9 +10,8 @@
 
 use jointfit::calibrate::params_for_groups;
 use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
-use jointfit::landmarks::priors::fill_landmark_priors;
-use jointfit::landmarks::HipCentreMethod;
 use jointfit::model::lower_limb::{lower_limb, Side};
+use jointfit::model::population::{fill_landmark_priors, HipCentreMethod};
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::spec::Unit;
 use jointfit::model::Model;

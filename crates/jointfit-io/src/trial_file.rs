@@ -20,7 +20,7 @@ pub enum TrialFileError {
         path: String,
         hz: f64,
         #[source]
-        source: jointfit::signal::SignalError,
+        source: jointfit_signal::SignalError,
     },
 }
 
@@ -201,11 +201,11 @@ pub fn prepare_trial(
     trial.rotate(&jointfit::spatial::up_axis_rotation(options.up));
     let mut warnings = Vec::new();
     if let Some(hz) = options.filter_hz {
-        let lp = jointfit::signal::lowpass::LowPass {
+        let lp = jointfit_signal::LowPass {
             cutoff_hz: hz,
-            ..jointfit::signal::lowpass::LowPass::default()
+            ..jointfit_signal::LowPass::default()
         };
-        let (filtered, report) = jointfit::signal::filter_trial(&trial, &lp).map_err(|source| {
+        let (filtered, report) = jointfit_signal::filter_trial(&trial, &lp).map_err(|source| {
             TrialFileError::Filter {
                 path: path.display().to_string(),
                 hz,

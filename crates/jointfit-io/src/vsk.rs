@@ -9,7 +9,7 @@
 
 use std::path::Path;
 
-use jointfit::landmarks::subject::SubjectMeasurements;
+use jointfit_landmarks::subject::SubjectMeasurements;
 use thiserror::Error;
 
 /// Why a `.vsk` could not be read.
@@ -56,7 +56,7 @@ fn canonical(name: &str) -> Option<&'static str> {
             _ => return None,
         },
     };
-    jointfit::landmarks::subject::MEASUREMENT_NAMES
+    jointfit_landmarks::subject::MEASUREMENT_NAMES
         .into_iter()
         .find(|m| m.strip_suffix(side) == Some(base))
 }

@@ -11,13 +11,13 @@ use std::path::Path;
 
 use jointfit::checks::{check_trial, marker_span, CheckKind};
 use jointfit::ik::MarkerMap;
-use jointfit::landmarks::markerset::MarkerSet;
-use jointfit::landmarks::{personalize, PersonalizeOptions};
 use jointfit::model::lower_limb::Side;
 use jointfit::model::Model;
 use jointfit::spatial::UpAxis;
 use jointfit::trial::Trial;
 use jointfit_io::trial_file::{load_trial, LoadOptions};
+use jointfit_landmarks::markerset::MarkerSet;
+use jointfit_landmarks::{personalize, PersonalizeOptions};
 use nalgebra::Vector3;
 
 fn load(path: &Path) -> Trial {

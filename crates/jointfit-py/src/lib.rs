@@ -120,7 +120,7 @@ fn _jointfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     )?;
     m.add(
         "MARKER_SET_PRESETS",
-        jointfit::landmarks::markerset::PRESET_NAMES.to_vec(),
+        jointfit_landmarks::markerset::PRESET_NAMES.to_vec(),
     )?;
     m.add_class::<trial::PyTrial>()?;
     m.add_class::<model::PyModel>()?;

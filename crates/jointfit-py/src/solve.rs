@@ -4,15 +4,15 @@
 use std::path::Path;
 
 use jointfit::ik::IkOptions;
-use jointfit::landmarks::bilateral::personalize_sides;
-use jointfit::landmarks::bilateral::Sides;
-use jointfit::landmarks::functional::apply::FunctionalTrials;
-use jointfit::landmarks::markerset::MarkerSet;
-use jointfit::landmarks::markerset::PRESET_NAMES;
-use jointfit::landmarks::{HipCentreMethod, PersonalizeOptions};
 use jointfit::model::{CoordKind, Model};
 use jointfit::trial::Trial;
 use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion, SkinNoise};
+use jointfit_landmarks::bilateral::personalize_sides;
+use jointfit_landmarks::bilateral::Sides;
+use jointfit_landmarks::functional::apply::FunctionalTrials;
+use jointfit_landmarks::markerset::MarkerSet;
+use jointfit_landmarks::markerset::PRESET_NAMES;
+use jointfit_landmarks::{HipCentreMethod, PersonalizeOptions};
 use numpy::ndarray::{Array1, Array2};
 use numpy::{IntoPyArray, PyArray1, PyArray2};
 use pyo3::prelude::*;

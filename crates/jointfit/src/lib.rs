@@ -7,19 +7,19 @@
 //! frames and the conventions.
 //!
 //! This crate has no file formats and never prints: readers and writers live in
-//! `jointfit-io`, the command line in `jointfit-cli`.
+//! `jointfit-io`, the command line in `jointfit-cli`. Two capabilities are layered on it as
+//! their own crates: low-pass filtering of trials (`jointfit-signal`) and a subject's model
+//! from a static trial (`jointfit-landmarks`).
 
 pub mod calibrate;
 pub mod checks;
 pub mod ik;
 pub mod kinematics;
-pub mod landmarks;
 pub(crate) mod linalg;
 pub mod model;
 pub(crate) mod placement;
 pub mod plausibility;
 pub mod repair;
-pub mod signal;
 pub mod solver;
 pub mod spatial;
 pub mod trial;

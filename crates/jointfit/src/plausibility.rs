@@ -2,7 +2,7 @@
 //!
 //! After a fit, each joint is compared with an envelope around where the landmark (or
 //! functional) method puts it. The envelopes are the 95 % regions of the priors
-//! (`landmarks::priors`, `docs/priors.md`), so a violation says "the fit moved this joint
+//! (`model::population`, `docs/priors.md`), so a violation says "the fit moved this joint
 //! further than the method that placed it is ever this wrong in 95 % of people":
 //!
 //! * **hip centre lateral offset** `≤ 0.9 × PW/2` (PW: inter-ASIS distance, read off the
@@ -19,8 +19,7 @@
 
 use nalgebra::Vector3;
 
-use crate::landmarks::priors::{landmark_prior, PriorEntry};
-use crate::landmarks::HipCentreMethod;
+use crate::model::population::{landmark_prior, HipCentreMethod, PriorEntry};
 use crate::model::refine::marker_home;
 use crate::model::Model;
 
@@ -196,8 +195,8 @@ fn assess_leg(model: &Model, p: &[f64], suffix: &str, leg: &str) -> Vec<Plausibi
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::landmarks::priors::fill_landmark_priors;
     use crate::model::lower_limb::{lower_limb, Side};
+    use crate::model::population::fill_landmark_priors;
 
     fn model() -> Model {
         // The template's ASIS markers sit at (0, 0, ±120 mm): PW/2 = 120 mm.

@@ -227,3 +227,106 @@ pub fn up_axis_rotation(up: UpAxis) -> Matrix3<f64> {
         UpAxis::NegX => Matrix3::new(0.0, 1.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 1.0),
     }
 }
+
+/// The rigid transform that best carries `local` points onto `world` points in the least-squares
+/// sense: the [`Pose`] minimizing `Σ_k ‖world_k − (R·local_k + t)‖²` over proper rotations `R`.
+///
+/// The method of Arun, Huang & Blostein 1987 (IEEE PAMI 9:698–700; "Kabsch"), with Umeyama's 1991
+/// sign correction (IEEE PAMI 13:376–380) so that `R` is never a reflection: with the centroids
+/// `c_l`, `c_w` and `H = Σ_k (local_k − c_l)(world_k − c_w)ᵀ = U Σ Vᵀ`,
+/// `R = V diag(1, 1, sign det(V Uᵀ)) Uᵀ` and `t = c_w − R c_l`. The points are paired by index
+/// (the shorter slice decides how many); at least three that are not collinear determine the fit.
+pub fn rigid_fit(local: &[Vector3<f64>], world: &[Vector3<f64>]) -> Pose {
+    let n = local.len().min(world.len());
+    let (local, world) = (&local[..n], &world[..n]);
+    let centroid = |p: &[Vector3<f64>]| p.iter().sum::<Vector3<f64>>() / n as f64;
+    let (cl, cw) = (centroid(local), centroid(world));
+    let mut h = Matrix3::zeros();
+    for (l, w) in local.iter().zip(world) {
+        h += (l - cl) * (w - cw).transpose();
+    }
+    let svd = h.svd(true, true);
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        unreachable!("the SVD was asked for both U and Vᵀ")
+    };
+    let d = (vt.transpose() * u.transpose()).determinant().signum();
+    let rot = vt.transpose() * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose();
+    Pose::new(rot, cw - rot * cl)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Rotation3;
+
+    fn cluster() -> [Vector3<f64>; 4] {
+        [
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(0.1, 0.0, 0.02),
+            Vector3::new(0.0, 0.12, 0.0),
+            Vector3::new(0.03, 0.05, -0.08),
+        ]
+    }
+
+    #[test]
+    fn rigid_fit_recovers_a_transform() {
+        let rot = Rotation3::from_euler_angles(0.3, -1.1, 2.0).into_inner();
+        let t = Vector3::new(0.1, -0.4, 2.0);
+        let world: Vec<_> = cluster().iter().map(|p| rot * p + t).collect();
+        let fit = rigid_fit(&cluster(), &world);
+        assert!((fit.rot - rot).abs().max() < 1e-12);
+        assert!((fit.trans - t).abs().max() < 1e-12);
+    }
+
+    /// With noisy targets the fit is a minimum: no small rotation or translation of it lowers
+    /// the sum of squared distances (the first-order condition, checked by finite steps).
+    #[test]
+    fn rigid_fit_is_the_least_squares_pose() {
+        let rot = Rotation3::from_euler_angles(-0.7, 0.4, 0.2).into_inner();
+        let noise = [
+            Vector3::new(0.004, -0.002, 0.001),
+            Vector3::new(-0.003, 0.001, 0.002),
+            Vector3::new(0.002, 0.003, -0.004),
+            Vector3::new(-0.001, -0.002, 0.003),
+        ];
+        let world: Vec<_> = cluster()
+            .iter()
+            .zip(noise)
+            .map(|(p, e)| rot * p + Vector3::new(1.0, 0.9, -0.3) + e)
+            .collect();
+        let cost = |pose: &Pose| -> f64 {
+            cluster()
+                .iter()
+                .zip(&world)
+                .map(|(l, w)| (w - pose.transform_point(l)).norm_squared())
+                .sum()
+        };
+        let fit = rigid_fit(&cluster(), &world);
+        let best = cost(&fit);
+        let h = 1e-4;
+        for axis in [Vector3::x_axis(), Vector3::y_axis(), Vector3::z_axis()] {
+            for sign in [-1.0, 1.0] {
+                let turn = Rotation3::from_axis_angle(&axis, sign * h).into_inner();
+                let turned = Pose::new(turn * fit.rot, fit.trans);
+                let moved = Pose::new(fit.rot, fit.trans + sign * h * axis.into_inner());
+                assert!(cost(&turned) > best && cost(&moved) > best);
+            }
+        }
+        assert!((fit.rot.determinant() - 1.0).abs() < 1e-12);
+    }
+
+    /// Mirrored targets have no proper rotation that matches them; the fit stays a rotation.
+    #[test]
+    fn rigid_fit_never_returns_a_reflection() {
+        let mirror = Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, -1.0));
+        let world: Vec<_> = cluster().iter().map(|p| mirror * p).collect();
+        let fit = rigid_fit(&cluster(), &world);
+        assert!((fit.rot.determinant() - 1.0).abs() < 1e-12);
+        assert!(
+            (fit.rot * fit.rot.transpose() - Matrix3::identity())
+                .abs()
+                .max()
+                < 1e-12
+        );
+    }
+}

@@ -4,11 +4,11 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use jointfit::landmarks::markerset::MarkerSet;
-use jointfit::landmarks::{personalize, PersonalizeOptions};
 use jointfit::model::lower_limb::Side;
 use jointfit::model::Model;
 use jointfit::trial::Trial;
+use jointfit_landmarks::markerset::MarkerSet;
+use jointfit_landmarks::{personalize, PersonalizeOptions};
 
 use crate::common::{load_trial, Up};
 

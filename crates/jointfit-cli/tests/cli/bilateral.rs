@@ -3,18 +3,18 @@
 //! seeded synthetic both-leg trial whose perturbed parameters `calibrate` recovers.
 
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
-use jointfit::landmarks::bilateral::common_window;
-use jointfit::landmarks::bilateral::personalize_sides;
-use jointfit::landmarks::bilateral::PersonalizedModel;
-use jointfit::landmarks::bilateral::Sides;
-use jointfit::landmarks::functional::apply::FunctionalTrials;
-use jointfit::landmarks::markerset::MarkerSet;
-use jointfit::landmarks::{
-    personalize, personalize_in, LandmarkError, PersonalizeOptions, Personalized,
-};
 use jointfit::model::lower_limb::Side;
 use jointfit::model::Model;
 use jointfit::trial::Trial;
+use jointfit_landmarks::bilateral::common_window;
+use jointfit_landmarks::bilateral::personalize_sides;
+use jointfit_landmarks::bilateral::PersonalizedModel;
+use jointfit_landmarks::bilateral::Sides;
+use jointfit_landmarks::functional::apply::FunctionalTrials;
+use jointfit_landmarks::markerset::MarkerSet;
+use jointfit_landmarks::{
+    personalize, personalize_in, LandmarkError, PersonalizeOptions, Personalized,
+};
 use jointfit_testkit::data_file;
 
 use super::jointfit;
@@ -449,7 +449,7 @@ fn every_preset_personalizes_both_legs_of_a_shared_trial() {
         }
         covered.push(preset);
     }
-    for name in jointfit::landmarks::markerset::PRESET_NAMES {
+    for name in jointfit_landmarks::markerset::PRESET_NAMES {
         assert!(
             covered.contains(&name),
             "preset {name} has no shared-trial check"

@@ -190,7 +190,7 @@ fn motion_trial_drops_static_only_tracking_markers() {
     assert!(text.contains("pass --motion TRIAL"), "{text}");
     // Every label of the legs' thigh and shank tracking lists.
     let lists = |t: &str| -> String {
-        let set = jointfit::landmarks::markerset::MarkerSet::from_toml(t, "suggested").unwrap();
+        let set = jointfit_landmarks::markerset::MarkerSet::from_toml(t, "suggested").unwrap();
         let mut all = Vec::new();
         for leg in [&set.right, &set.left].into_iter().flatten() {
             all.extend(leg.thigh.iter().chain(&leg.shank).cloned());

@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
-use jointfit::landmarks::markerset::MarkerSet;
+use jointfit_landmarks::markerset::MarkerSet;
 use jointfit_testkit::{data_file, scratch};
 
 use super::jointfit;

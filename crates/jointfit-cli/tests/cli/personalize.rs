@@ -7,16 +7,16 @@ use jointfit::ik::lm::solve_frame;
 use jointfit::ik::lm::IkWorkspace;
 use jointfit::ik::{seed_frame, IkOptions, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
-use jointfit::landmarks::markerset::MarkerSet;
-use jointfit::landmarks::{
-    personalize, HipCentreMethod, LandmarkError, PersonalizeOptions, Personalized,
-};
 use jointfit::model::lower_limb::Side;
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;
 use jointfit::spatial::up_axis_rotation;
 use jointfit::spatial::UpAxis;
 use jointfit::trial::Trial;
+use jointfit_landmarks::markerset::MarkerSet;
+use jointfit_landmarks::{
+    personalize, HipCentreMethod, LandmarkError, PersonalizeOptions, Personalized,
+};
 use jointfit_testkit::data_file;
 use nalgebra::Vector3;
 

@@ -5,7 +5,7 @@
 
 use std::collections::BTreeMap;
 
-use jointfit::landmarks::subject::SubjectMeasurements;
+use jointfit_landmarks::subject::SubjectMeasurements;
 
 use super::Parameters;
 

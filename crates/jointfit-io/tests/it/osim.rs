@@ -7,11 +7,11 @@
 use std::collections::HashMap;
 
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
-use jointfit::landmarks::markerset::MarkerSet;
-use jointfit::landmarks::{personalize, PersonalizeOptions};
 use jointfit::model::lower_limb::{builtin, Side};
 use jointfit::model::{CoordKind, JointKind, Model};
 use jointfit_io::osim::{to_osim, write_osim};
+use jointfit_landmarks::markerset::MarkerSet;
+use jointfit_landmarks::{personalize, PersonalizeOptions};
 use jointfit_testkit::models::all_kinds;
 use jointfit_testkit::script::osim_check;
 use rand::{Rng, SeedableRng};

@@ -8,6 +8,7 @@ pub(crate) mod fields;
 pub mod functions;
 pub mod lower_limb;
 pub(crate) mod plan;
+pub mod population;
 pub(crate) mod refine;
 mod sample;
 pub mod spec;

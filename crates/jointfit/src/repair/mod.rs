@@ -431,7 +431,7 @@ fn rigid_carry(t: &Trial, j: usize, mates: &[usize], r: usize, f: usize) -> Opti
     if from.len() < 3 {
         return None;
     }
-    let pose = crate::landmarks::frames::rigid_fit(&from, &to);
+    let pose = crate::spatial::rigid_fit(&from, &to);
     let p = pose.rot * pj + pose.trans;
     p.x.is_finite().then_some(p)
 }

@@ -6,7 +6,7 @@
 //! [`HIP_LATERAL_FRACTION`]` × PW/2` (PW the inter-ASIS distance of the static trial's ASIS
 //! markers): Bell et al. 1990 put the hip centre 0.36·PW from the midline (0.72·PW/2),
 //! Harrington et al. 2007 at 0.33·PW + 7 mm (0.72·PW/2 for a 230 mm pelvis), so 0.9·PW/2
-//! leaves about 20 mm, 3 SDs of the lateral prior (7 mm, `landmarks::priors`), for a 230 mm
+//! leaves about 20 mm, 3 SDs of the lateral prior (7 mm, `model::population`), for a 230 mm
 //! pelvis. A maximum a posteriori fit of a gait trial can still walk past it
 //! when the markers pull (opensim-c3d walking2/5: landmark 70–71 mm, limit 88–89 mm, fit
 //! 89.6–97.1 mm; `docs/priors.md`). Here the limit becomes the upper bound of
@@ -112,9 +112,8 @@ pub(crate) fn mark_active(bounds: &mut [EnvelopeBound], model: &Model, p: &[f64]
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::landmarks::priors::fill_landmark_priors;
-    use crate::landmarks::HipCentreMethod;
     use crate::model::lower_limb::{builtin, lower_limb, Side};
+    use crate::model::population::{fill_landmark_priors, HipCentreMethod};
 
     #[test]
     fn bound_at_the_plausibility_limit_less_the_margin() {

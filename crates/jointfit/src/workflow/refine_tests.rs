@@ -7,9 +7,8 @@ use super::refine::calibrate_refined;
 use super::synthetic_tests::synthetic;
 use super::*;
 use crate::calibrate::params_for_groups;
-use crate::landmarks::priors::fill_landmark_priors;
-use crate::landmarks::HipCentreMethod;
 use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::population::{fill_landmark_priors, HipCentreMethod};
 use crate::model::spec::ModelSpec;
 use crate::model::Model;
 

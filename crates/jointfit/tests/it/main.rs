@@ -2,6 +2,5 @@
 
 mod checks;
 mod ik;
-mod landmarks;
 mod models;
 mod offsets;

@@ -9,8 +9,7 @@ use crate::calibrate::uncertainty::types::SeMethod;
 use crate::calibrate::uncertainty::types::UncertaintyOptions;
 use crate::calibrate::uncertainty::{analyze, predict};
 use crate::calibrate::{params_for_groups, Problem};
-use crate::landmarks::priors::fill_landmark_priors;
-use crate::landmarks::HipCentreMethod;
+use crate::model::population::{fill_landmark_priors, HipCentreMethod};
 use crate::model::lower_limb::{lower_limb, Side};
 use crate::model::Model;
 

@@ -20,7 +20,7 @@ use crate::model::spec::{
 use crate::model::ModelError;
 
 /// The segment and the joint the two legs share.
-pub(crate) const PELVIS_SEGMENT: &str = "pelvis";
+pub const PELVIS_SEGMENT: &str = "pelvis";
 /// The joint between the ground and the pelvis (6 coordinates).
 pub(crate) const PELVIS_JOINT: &str = "ground_pelvis";
 
@@ -39,7 +39,7 @@ pub fn bilateral() -> ModelSpec {
 /// Joins a right-leg and a left-leg description (each a pelvis with one leg, as
 /// [`super::lower_limb`] or the landmark method builds them) into one bilateral description
 /// (see the module docs). Name and description are the right one's.
-pub(crate) fn join_legs(right: &ModelSpec, left: &ModelSpec) -> Result<ModelSpec, ModelError> {
+pub fn join_legs(right: &ModelSpec, left: &ModelSpec) -> Result<ModelSpec, ModelError> {
     for spec in [right, left] {
         let root = spec.joints.iter().find(|j| j.name == PELVIS_JOINT);
         if !matches!(root, Some(j) if j.child == PELVIS_SEGMENT) {

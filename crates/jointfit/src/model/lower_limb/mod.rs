@@ -33,7 +33,7 @@ use std::f64::consts::PI;
 pub mod bilateral;
 mod params;
 
-pub(crate) use bilateral::{join_legs, PELVIS_SEGMENT};
+pub use bilateral::{join_legs, PELVIS_SEGMENT};
 
 use params::{nominal, par, param_spec, PARAMS};
 
@@ -67,7 +67,7 @@ impl Side {
         }
     }
     /// `right` or `left`.
-    pub(crate) fn name(self) -> &'static str {
+    pub fn name(self) -> &'static str {
         match self {
             Side::Right => "right",
             Side::Left => "left",
