@@ -30,20 +30,11 @@ fn scale_gait2392_from_the_tutorial_setup() {
     };
     let dir = jointfit_testkit::scratch("scale");
     let out = dir.join("subject01.osim");
-    let s = |p: &std::path::Path| p.to_str().unwrap().to_string();
-    let (ok, stdout, err) = jointfit(&[
-        "scale",
-        &s(&generic),
-        &s(&stat),
-        &s(&walk),
-        "--setup",
-        &s(&setup),
-        "-o",
-        &s(&out),
-        "--json",
-    ]);
-    assert!(ok, "{err}");
-    let json: serde_json::Value = serde_json::from_str(&stdout).expect("JSON");
+    let json = scale_json(
+        &[&generic, &stat, &walk],
+        &["--setup", setup.to_str().unwrap()],
+        &out,
+    );
     let factors = json["scale_factors"].as_object().unwrap();
     for body in [
         "pelvis", "femur_r", "tibia_l", "talus_r", "calcn_l", "toes_r", "torso",
@@ -88,20 +79,9 @@ fn scale_gait2392_from_the_tutorial_setup() {
         "the marker set's markers"
     );
 
-    let Some(python) = jointfit_testkit::python() else {
-        println!("skipped: no $JOINTFIT_PYTHON");
-        return;
-    };
-    let ik = Script::new(&python, "scale_compare.py")
-        .args(&["ik", &s(&out), &s(&walk), &s(&dir.join("ik"))])
-        .current_dir(&dir)
-        .run_json();
-    let mean = ik["mean_rms"].as_f64().unwrap();
-    println!(
-        "OpenSim IK on walk1 with the scaled model: mean marker RMS {:.1} mm",
-        mean * 1e3
-    );
-    assert!(mean <= 0.015, "mean RMS {mean}");
+    if let Some(mean) = opensim_ik_mean(&out, &walk, &dir) {
+        assert!(mean <= 0.015, "mean RMS {mean}");
+    }
 }
 
 /// The fit stopped by its own convergence test, not at its iteration limit: no flag says
@@ -132,21 +112,9 @@ fn scale_opencap_expert_with_a_walk_converges() {
         return;
     };
     let dir = jointfit_testkit::scratch("scale-opencap");
-    let s = |p: &std::path::Path| p.to_str().unwrap().to_string();
-    let out = dir.join("expert1.osim");
-    let (ok, stdout, err) = jointfit(&[
-        "scale",
-        &s(&generic),
-        &s(&stat),
-        &s(&walk),
-        "-o",
-        &s(&out),
-        "--json",
-    ]);
-    assert!(ok, "{err}");
-    let json: serde_json::Value = serde_json::from_str(&stdout).expect("JSON");
+    let json = scale_json(&[&generic, &stat, &walk], &[], &dir.join("expert1.osim"));
     assert_converged(&json);
-    assert_eq!(json["frames"], 9, "{stdout}");
+    assert_eq!(json["frames"], 9, "{json}");
     assert!(
         json["rms_mm"].as_f64().unwrap() < 15.0,
         "{}",
@@ -325,38 +293,61 @@ fn scale_hamner_from_its_setup_with_running_frames() {
     };
     let out_dir = jointfit_testkit::scratch("scale_hamner");
     let out = out_dir.join("subject02.osim");
-    let s = |p: &std::path::Path| p.to_str().unwrap().to_string();
-    let (ok, stdout, err) = jointfit(&[
-        "scale",
-        &s(&generic),
-        &s(&stat),
-        &s(&run),
-        "--setup",
-        &s(&setup),
-        "-o",
-        &s(&out),
-        "--json",
-    ]);
-    assert!(ok, "{err}");
-    let json: serde_json::Value = serde_json::from_str(&stdout).expect("JSON");
-    // the fit's own misfit over every marker sample (clusters included)
-    assert!(
-        json["rms_mm"].as_f64().unwrap() < 15.0,
-        "{}",
-        json["rms_mm"]
+    let json = scale_json(
+        &[&generic, &stat, &run],
+        &["--setup", setup.to_str().unwrap()],
+        &out,
     );
+    // the fit's own misfit over every marker sample (clusters included)
+    let rms = json["rms_mm"].as_f64().unwrap();
+    assert!(rms < 15.0, "{rms}");
+    if let Some(mean) = opensim_ik_mean(&out, &run, &out_dir) {
+        assert!(mean <= 0.015, "mean RMS {mean}");
+    }
+}
+
+/// `jointfit scale ARGS… -o OUT --json`: its JSON (asserting the command succeeded).
+fn scale_json(
+    args: &[&std::path::Path],
+    extra: &[&str],
+    out: &std::path::Path,
+) -> serde_json::Value {
+    let mut argv: Vec<String> = vec!["scale".into()];
+    argv.extend(args.iter().map(|p| p.to_str().unwrap().to_string()));
+    argv.extend(extra.iter().map(|a| a.to_string()));
+    argv.extend([
+        "-o".into(),
+        out.to_str().unwrap().to_string(),
+        "--json".into(),
+    ]);
+    let argv: Vec<&str> = argv.iter().map(String::as_str).collect();
+    let (ok, stdout, err) = jointfit(&argv);
+    assert!(ok, "{err}");
+    serde_json::from_str(&stdout).expect("JSON")
+}
+
+/// OpenSim's IK on `trial` with `model` (every marker weight 1): the mean over frames of the
+/// marker RMS (m); `None` (printed as skipped) without `$JOINTFIT_PYTHON`.
+fn opensim_ik_mean(
+    model: &std::path::Path,
+    trial: &std::path::Path,
+    dir: &std::path::Path,
+) -> Option<f64> {
     let Some(python) = jointfit_testkit::python() else {
         println!("skipped: no $JOINTFIT_PYTHON");
-        return;
+        return None;
     };
+    let s = |p: &std::path::Path| p.to_str().unwrap().to_string();
     let ik = Script::new(&python, "scale_compare.py")
-        .args(&["ik", &s(&out), &s(&run), &s(&out_dir.join("ik"))])
-        .current_dir(&out_dir)
+        .args(&["ik", &s(model), &s(trial), &s(&dir.join("ik"))])
+        .current_dir(dir)
         .run_json();
     let mean = ik["mean_rms"].as_f64().unwrap();
     println!(
-        "OpenSim IK on the run with the scaled model: mean marker RMS {:.1} mm",
+        "OpenSim IK on {} with {}: mean marker RMS {:.1} mm",
+        trial.display(),
+        model.display(),
         mean * 1e3
     );
-    assert!(mean <= 0.015, "mean RMS {mean}");
+    Some(mean)
 }

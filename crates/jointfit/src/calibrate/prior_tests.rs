@@ -8,8 +8,8 @@ use super::solvers_tests::{
 use crate::calibrate::joint::{solve_joint, JointOptions};
 use crate::calibrate::{params_for_groups, Problem};
 use crate::ik::lm::IkWorkspace;
-use crate::model::population::{fill_landmark_priors, HipCentreMethod};
 use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::population::{fill_landmark_priors, HipCentreMethod};
 use crate::model::Model;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

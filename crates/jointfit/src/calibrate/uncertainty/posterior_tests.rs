@@ -10,8 +10,8 @@ use crate::calibrate::uncertainty::reduced::reduced_system;
 use crate::calibrate::uncertainty::types::UncertaintyOptions;
 use crate::calibrate::{params_for_groups, Problem};
 use crate::kinematics::synth;
-use crate::model::population::{fill_landmark_priors, HipCentreMethod};
 use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::population::{fill_landmark_priors, HipCentreMethod};
 use crate::model::Model;
 use crate::solver::NoObserver;
 

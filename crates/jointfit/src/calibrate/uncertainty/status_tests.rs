@@ -9,8 +9,8 @@ use crate::calibrate::uncertainty::types::SeMethod;
 use crate::calibrate::uncertainty::types::UncertaintyOptions;
 use crate::calibrate::uncertainty::{analyze, predict};
 use crate::calibrate::{params_for_groups, Problem};
-use crate::model::population::{fill_landmark_priors, HipCentreMethod};
 use crate::model::lower_limb::{lower_limb, Side};
+use crate::model::population::{fill_landmark_priors, HipCentreMethod};
 use crate::model::Model;
 
 use super::tests::{fit_from_nominal, knee_only_trial, perturbed, synthetic, Motion, Noise, ALL};
