@@ -205,13 +205,13 @@ fn fit_free<'m>(
     trials: &[&'m Trial],
     free: &[ParamId],
     settings: &FitSettings,
-    (noise, inflation): (Option<f64>, &[(String, f64)]),
+    (known, inflation): (super::map::Known, &[(String, f64)]),
     observer: &mut dyn Observer,
 ) -> Result<(Calibration, Problem<'m>), WorkflowError> {
     // With the global phase the σ estimate is finished there (`super::map`'s module docs).
     let global_phase = settings.effective_probes() > 0;
     let (mut prob, _, pre) =
-        super::map::map_problem_with(model, start, trials, free, settings, noise, global_phase)?;
+        super::map::map_problem_with(model, start, trials, free, settings, known, global_phase)?;
     super::map::set_inflation(&mut prob, inflation);
     let (fits, runs, global, q_before, cost_before) = if global_phase {
         let out = super::global::run(&mut prob, start, settings, pre, None, observer);
@@ -280,7 +280,7 @@ fn fit_free<'m>(
         global,
         global_warning,
         prior_noise: prob.prior.as_ref().map(|p| p.noise),
-        prior_noise_estimated: noise.is_none(),
+        prior_noise_estimated: known.noise.is_none(),
         prior_inflation: super::map::inflation_of(&prob),
         plausibility: crate::plausibility::assess(model, &fit.p),
         verdict: super::verdict::Verdict::default(),
@@ -358,7 +358,8 @@ pub fn calibrate(
     settings: &FitSettings,
     observer: &mut dyn Observer,
 ) -> Result<Calibration, WorkflowError> {
-    calibrate_keeping_system(model, start, trials, free, settings, observer).map(|k| k.calibration)
+    calibrate_keeping_system(model, start, trials, free, settings, None, observer)
+        .map(|k| k.calibration)
 }
 
 /// A finished calibration with what later steps reuse: the problem of its final fit (its
@@ -382,6 +383,7 @@ pub(crate) fn calibrate_keeping_system<'m>(
     trials: &[&'m Trial],
     free: &[ParamId],
     settings: &FitSettings,
+    seed: Option<&[Vec<f64>]>,
     observer: &mut dyn Observer,
 ) -> Result<Kept<'m>, WorkflowError> {
     let mut free = free.to_vec();
@@ -392,7 +394,13 @@ pub(crate) fn calibrate_keeping_system<'m>(
         trials,
         &free,
         settings,
-        (noise, &[]),
+        (
+            super::map::Known {
+                noise,
+                coords: seed,
+            },
+            &[],
+        ),
         observer,
     )?;
     // Refits and the analysis weigh the prior by the noise (m, and per-parameter factors) of
@@ -437,7 +445,11 @@ pub(crate) fn calibrate_keeping_system<'m>(
             .collect();
         // Fewer free parameters: a problem of their own (its free set, scaling and prior
         // differ), weighed by the first fit's σ and factors.
-        let weights = (noise_used, inflation.as_slice());
+        let known = super::map::Known {
+            noise: noise_used,
+            coords: None,
+        };
+        let weights = (known, inflation.as_slice());
         (cal, prob) = fit_free(model, start, trials, &free, settings, weights, observer)?;
         cal.prior_noise_estimated = estimated;
     }

@@ -74,15 +74,25 @@ pub(crate) struct Preliminary {
 /// run: the problem's prior is weighed by the starting σ₀ and the caller finishes the
 /// estimate with [`estimate_noise`] at the σ₀-optimum it reaches anyway (the global phase,
 /// module docs); the σ returned is then σ₀.
+/// What a fit knows before it starts: the marker noise σ (m) that weighs its prior (`None`:
+/// estimated), and its starting inner solutions ([`Problem::initial_coords`] at the start)
+/// when they were solved already for the same model, start and trials.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Known<'a> {
+    pub noise: Option<f64>,
+    pub coords: Option<&'a [Vec<f64>]>,
+}
+
 pub(crate) fn map_problem_with<'m>(
     model: &'m Model,
     start: &[f64],
     trials: &[&'m Trial],
     free: &[ParamId],
     settings: &FitSettings,
-    noise: Option<f64>,
+    known: Known,
     defer: bool,
 ) -> Result<(Problem<'m>, Option<f64>, Option<Preliminary>), WorkflowError> {
+    let Known { noise, coords } = known;
     let prob = Problem::new(model, start.to_vec(), free, trials)?;
     let has_prior = free
         .iter()
@@ -95,7 +105,10 @@ pub(crate) fn map_problem_with<'m>(
         let used = prob.prior.as_ref().map(|p| p.noise);
         return Ok((prob, used, None));
     }
-    let q0 = prob.initial_coords(start);
+    let q0 = match coords {
+        Some(q) => q.to_vec(),
+        None => prob.initial_coords(start),
+    };
     let mut q = q0.clone();
     let mut ws = IkWorkspace::new(model);
     let data = prob.inner(start, &mut q, &mut ws);

@@ -103,24 +103,30 @@ pub(crate) fn still_joints(ranges: &[(String, f64)]) -> Vec<HeldJoint> {
         .collect()
 }
 
+/// The parameters left to fit, the still joints held, and the starting coordinates.
+pub(crate) type StillJoints = (Vec<ParamId>, Vec<HeldJoint>, Option<Vec<Vec<f64>>>);
+
 /// Splits `free` into the parameters to fit and the still joints held with theirs: a
 /// parameter is held when every joint that reads it is still. Inverse kinematics of `trials`
 /// at `start` gives the ranges. Holding every free parameter is
-/// [`WorkflowError::NothingIdentifiable`].
+/// [`WorkflowError::NothingIdentifiable`]. Also returns those coordinates
+/// ([`Problem::initial_coords`] at `start`, `None` without a free parameter or a trial): the
+/// calibration of the same model, start and trials starts from them instead of solving
+/// them again.
 pub(crate) fn hold_still_joints(
     model: &Model,
     start: &[f64],
     trials: &[&Trial],
     free: &[ParamId],
-) -> Result<(Vec<ParamId>, Vec<HeldJoint>), WorkflowError> {
+) -> Result<StillJoints, WorkflowError> {
     if free.is_empty() || trials.is_empty() {
-        return Ok((free.to_vec(), Vec::new()));
+        return Ok((free.to_vec(), Vec::new(), None));
     }
     let prob = Problem::new(model, start.to_vec(), free, trials)?;
     let qs = prob.initial_coords(start);
     let mut held = still_joints(&joint_ranges(model, &qs));
     if held.is_empty() {
-        return Ok((free.to_vec(), held));
+        return Ok((free.to_vec(), held, Some(qs)));
     }
     let is_held = |id: &ParamId| {
         let uses = &model.parameters()[id.0].uses;
@@ -149,7 +155,7 @@ pub(crate) fn hold_still_joints(
             .collect();
     }
     held.retain(|h| !h.parameters.is_empty());
-    Ok((kept, held))
+    Ok((kept, held, Some(qs)))
 }
 
 /// One line naming the held joints, their ranges, the other leg's and the thresholds.

@@ -66,7 +66,13 @@ fn the_standing_legs_joints_are_found_with_their_ranges() {
     let p = model.nominal_params();
     let trial = one_sided_trial(&model, &p);
     let free: Vec<_> = (0..model.n_p()).map(crate::model::ParamId).collect();
-    let (kept, held) = hold_still_joints(&model, &p, &[&trial], &free).unwrap();
+    let (kept, held, seed) = hold_still_joints(&model, &p, &[&trial], &free).unwrap();
+    // The coordinates it solved are the calibration's starting ones for the parameters it
+    // keeps, bit for bit (the calibration starts from them instead of solving them again).
+    let prob = crate::calibrate::Problem::new(&model, p.clone(), &kept, &[&trial]).unwrap();
+    let again = prob.initial_coords(&p);
+    let bits = |q: &[Vec<f64>]| -> Vec<u64> { q.iter().flatten().map(|v| v.to_bits()).collect() };
+    assert_eq!(bits(seed.as_deref().unwrap()), bits(&again));
     let names: Vec<&str> = held.iter().map(|h| h.joint.as_str()).collect();
     assert_eq!(names, ["hip_l", "knee_l", "talocrural_l", "subtalar_l"]);
     let want = |h: &HeldJoint| match h.joint.as_str() {

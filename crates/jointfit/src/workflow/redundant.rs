@@ -174,14 +174,21 @@ pub fn calibrate_holding_redundant(
     observer: &mut dyn Observer,
 ) -> Result<HeldCalibration, WorkflowError> {
     let mismatches = super::verdict::check_inputs(model, trials, settings.refuse_mismatch)?;
-    let (free, held_joints) = super::motion_range::hold_still_joints(model, start, trials, free)?;
+    let (free, held_joints, seed) =
+        super::motion_range::hold_still_joints(model, start, trials, free)?;
     let (kept, held_redundant) = redundant_parameters(model, start, trials, &free)?;
     let super::calibration::Kept {
         mut calibration,
         system,
         problem,
     } = super::calibration::calibrate_keeping_system(
-        model, start, trials, &kept, settings, observer,
+        model,
+        start,
+        trials,
+        &kept,
+        settings,
+        seed.as_deref(),
+        observer,
     )?;
     let prior_conflict =
         super::conflict::assess_and_widen(&problem, settings, &mut calibration, system)?;

@@ -97,7 +97,8 @@ pub fn calibrate_refined(
         return Err(WorkflowError::RefineNeedsPriors);
     }
     let mismatches = super::verdict::check_inputs(model, trials, settings.refuse_mismatch)?;
-    let (free, held_joints) = super::motion_range::hold_still_joints(model, start, trials, free)?;
+    let (free, held_joints, seed) =
+        super::motion_range::hold_still_joints(model, start, trials, free)?;
     let free = free.as_slice();
     let map_fit = settings.priors
         && free
@@ -115,7 +116,12 @@ pub fn calibrate_refined(
     aug_start[..start.len()].copy_from_slice(start);
     let mut aug_free = free.to_vec();
     aug_free.extend(aug.params_in_group(MARKER_GROUP));
-    let first = calibrate_keeping_system(&aug, &aug_start, &used, &aug_free, settings, observer)?;
+    // The starting coordinates solved while looking for still joints hold for the fit when
+    // it solves the same model and trials (no marker refined or left out).
+    let same = decisions.is_empty() && to_refine.is_empty();
+    let seed = seed.as_deref().filter(|_| same);
+    let first =
+        calibrate_keeping_system(&aug, &aug_start, &used, &aug_free, settings, seed, observer)?;
     // A joint whose prior the trial contradicts (`super::conflict`): tested on the fit
     // before any envelope bound (on its problem), its intervals widened on the final fit below.
     let mut conflict = Vec::new();
@@ -132,8 +138,9 @@ pub fn calibrate_refined(
     // problem of its own.
     let refit = match &bounded {
         Some(model) => {
-            let kept =
-                calibrate_keeping_system(model, &aug_start, &used, &aug_free, settings, observer)?;
+            let kept = calibrate_keeping_system(
+                model, &aug_start, &used, &aug_free, settings, None, observer,
+            )?;
             super::envelope::mark_active(&mut envelope, model, &kept.calibration.fit.p);
             Some(kept)
         }

@@ -196,6 +196,7 @@ fn the_kept_problem_equals_one_rebuilt_from_the_fits_sigma() {
         &[&trial],
         &free,
         &settings,
+        None,
         &mut NoObserver,
     )
     .unwrap();
@@ -209,7 +210,10 @@ fn the_kept_problem_equals_one_rebuilt_from_the_fits_sigma() {
         &[&trial],
         &cal.free,
         &settings,
-        Some(sigma),
+        super::map::Known {
+            noise: Some(sigma),
+            coords: None,
+        },
         false,
     )
     .unwrap();
