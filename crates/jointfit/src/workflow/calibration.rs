@@ -371,6 +371,20 @@ pub(crate) struct Kept<'m> {
     pub(crate) problem: Problem<'m>,
 }
 
+/// Every free parameter unidentifiable: the error naming their groups.
+fn nothing_identifiable(model: &Model, free: &[ParamId]) -> WorkflowError {
+    let mut groups: Vec<&str> = Vec::new();
+    for id in free {
+        let g = model.parameters()[id.0].group.as_str();
+        if !groups.contains(&g) {
+            groups.push(g);
+        }
+    }
+    WorkflowError::NothingIdentifiable {
+        groups: groups.join(","),
+    }
+}
+
 /// [`calibrate`], with the problem of its final fit and the reduced system its uncertainty
 /// analysis was formed from ([`Kept`]; [`reduced_system`] at the fit, on that problem): the
 /// prior–data conflict step ([`super::conflict`]) needs the same problem and marker-term
@@ -388,19 +402,17 @@ pub(crate) fn calibrate_keeping_system<'m>(
 ) -> Result<Kept<'m>, WorkflowError> {
     let mut free = free.to_vec();
     let noise = settings.marker_noise;
+    let known = super::map::Known {
+        noise,
+        coords: seed,
+    };
     let (mut cal, mut prob) = fit_free(
         model,
         start,
         trials,
         &free,
         settings,
-        (
-            super::map::Known {
-                noise,
-                coords: seed,
-            },
-            &[],
-        ),
+        (known, &[]),
         observer,
     )?;
     // Refits and the analysis weigh the prior by the noise (m, and per-parameter factors) of
@@ -422,16 +434,7 @@ pub(crate) fn calibrate_keeping_system<'m>(
             break;
         }
         if drop.len() == free.len() {
-            let mut groups: Vec<&str> = Vec::new();
-            for id in &free {
-                let g = model.parameters()[id.0].group.as_str();
-                if !groups.contains(&g) {
-                    groups.push(g);
-                }
-            }
-            return Err(WorkflowError::NothingIdentifiable {
-                groups: groups.join(","),
-            });
+            return Err(nothing_identifiable(model, &free));
         }
         fixed.extend(
             drop.iter()

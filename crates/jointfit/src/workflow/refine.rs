@@ -116,10 +116,9 @@ pub fn calibrate_refined(
     aug_start[..start.len()].copy_from_slice(start);
     let mut aug_free = free.to_vec();
     aug_free.extend(aug.params_in_group(MARKER_GROUP));
-    // The starting coordinates solved while looking for still joints hold for the fit when
-    // it solves the same model and trials (no marker refined or left out).
-    let same = decisions.is_empty() && to_refine.is_empty();
-    let seed = seed.as_deref().filter(|_| same);
+    let seed = seed
+        .as_deref()
+        .filter(|_| decisions.is_empty() && to_refine.is_empty());
     let first =
         calibrate_keeping_system(&aug, &aug_start, &used, &aug_free, settings, seed, observer)?;
     // A joint whose prior the trial contradicts (`super::conflict`): tested on the fit
