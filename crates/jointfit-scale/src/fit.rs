@@ -747,16 +747,18 @@ fn group_fits(pb: &Problem, th: &[f64], ws: &mut BasisData) -> Result<Vec<GroupF
     Ok(fitted.chain(held).collect())
 }
 
-/// The registered markers with their errors, and the RMS over every present sample (m).
+/// The registered markers (their places from `placed`) with their errors at the fit's
+/// solution `fitted`, and the RMS over every present sample (m).
 fn marker_fits(
     pb: &Problem,
-    th: &[f64],
+    fitted: &[f64],
+    placed: &[f64],
     ws: &mut BasisData,
 ) -> Result<(Vec<MarkerFit>, f64), ScaleError> {
-    let model = pb.model(th)?;
+    let model = pb.model(placed)?;
     let mut sums = vec![(0.0, 0usize); pb.spec.markers.len()];
     for (f, t) in pb.targets.iter().enumerate() {
-        let pts = pb.points(th, f, false, ws);
+        let pts = pb.points(fitted, f, false, ws);
         for (mi, m) in t.iter().enumerate() {
             if m.x.is_finite() {
                 sums[mi].0 += (pts.markers[mi] - m).norm_squared();
@@ -776,7 +778,7 @@ fn marker_fits(
             name: m.name.clone(),
             body: m.segment.clone(),
             position: [cm.local.x, cm.local.y, cm.local.z],
-            moved: d.map_or([0.0; 3], |at| [th[at], th[at + 1], th[at + 2]]),
+            moved: d.map_or([0.0; 3], |at| [placed[at], placed[at + 1], placed[at + 2]]),
             rms: if *n > 0 {
                 (s / *n as f64).sqrt()
             } else {
@@ -796,16 +798,13 @@ pub fn fit_scale(
 ) -> Result<ScaleFit, ScaleError> {
     let (mut pb, th) = start(spec, targets, opts)?;
     let mut ws = pb.basis.workspace();
-    let (mut th, _, iterations, converged) = solve_robust(&mut pb, th, &mut ws);
-    let groups = group_fits(&pb, &th, &mut ws)?;
+    let (fitted, _, iterations, converged) = solve_robust(&mut pb, th, &mut ws);
+    let groups = group_fits(&pb, &fitted, &mut ws)?;
+    let mut placed = fitted.clone();
+    register_static_only(&pb, &mut placed)?;
     // The misfit is the fit's, before the static-only markers are placed onto the data.
-    let (fitted, rms) = marker_fits(&pb, &th, &mut ws)?;
-    register_static_only(&pb, &mut th)?;
-    let th = &th;
-    let (mut markers, _) = marker_fits(&pb, th, &mut ws)?;
-    for (m, f) in markers.iter_mut().zip(fitted) {
-        m.rms = f.rms;
-    }
+    let (markers, rms) = marker_fits(&pb, &fitted, &placed, &mut ws)?;
+    let th = &placed;
     Ok(ScaleFit {
         factors: pb.factors(th),
         groups,
