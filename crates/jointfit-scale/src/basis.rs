@@ -30,6 +30,25 @@ use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::{Model, ModelError};
 
+/// Every body's factors: `fixed`, then each group's bodies at its fitted factors `g` (one
+/// per group, or three with `per_axis`, in the groups' order).
+pub(crate) fn factors_of(groups: &[ScaleGroup], g: &[f64], fixed: &ScaleFactors) -> ScaleFactors {
+    let mut f = fixed.clone();
+    let mut k = 0;
+    for grp in groups {
+        let s = if grp.per_axis {
+            [g[k], g[k + 1], g[k + 2]]
+        } else {
+            [g[k]; 3]
+        };
+        k += grp.n_factors();
+        for b in &grp.bodies {
+            f.insert(b.clone(), s);
+        }
+    }
+    f
+}
+
 /// The `K + 1` models of the module docs.
 pub(crate) struct FactorBasis {
     /// Every fitted factor at one: `x(q; 1)`.
@@ -63,32 +82,18 @@ impl FactorBasis {
         groups: &[ScaleGroup],
         fixed: &ScaleFactors,
     ) -> Result<Self, ModelError> {
-        let at_one = |fixed: &ScaleFactors| {
-            let mut f = fixed.clone();
-            for g in groups {
-                for b in &g.bodies {
-                    f.insert(b.clone(), [1.0; 3]);
-                }
-            }
-            f
-        };
-        let base = Model::compile(&scaled_spec(spec, &at_one(fixed)))?;
+        let ones = vec![1.0; groups.iter().map(ScaleGroup::n_factors).sum()];
+        let at_base = scaled_spec(spec, &factors_of(groups, &ones, fixed));
+        let base = Model::compile(&at_base)?;
         let mut unit = Vec::new();
-        for g in groups {
-            let axes: Vec<[f64; 3]> = if g.per_axis {
-                vec![[2.0, 1.0, 1.0], [1.0, 2.0, 1.0], [1.0, 1.0, 2.0]]
-            } else {
-                vec![[2.0; 3]]
-            };
-            for s in axes {
-                let mut f = at_one(fixed);
-                for b in &g.bodies {
-                    f.insert(b.clone(), s);
-                }
-                unit.push(Model::compile(&scaled_spec(spec, &f))?);
-            }
+        for k in 0..ones.len() {
+            let mut g = ones.clone();
+            g[k] = 2.0;
+            unit.push(Model::compile(&scaled_spec(
+                spec,
+                &factors_of(groups, &g, fixed),
+            ))?);
         }
-        let at_base = scaled_spec(spec, &at_one(fixed));
         let mut moved = Vec::new();
         for a in 0..3 {
             let mut sp = at_base.clone();
@@ -223,24 +228,6 @@ mod tests {
         (d.markers.clone(), d.jq.clone())
     }
 
-    fn factors_of(groups: &[ScaleGroup], g: &[f64], fixed: &ScaleFactors) -> ScaleFactors {
-        let mut f = fixed.clone();
-        let mut k = 0;
-        for grp in groups {
-            let s = if grp.per_axis {
-                k += 3;
-                [g[k - 3], g[k - 2], g[k - 1]]
-            } else {
-                k += 1;
-                [g[k - 1]; 3]
-            };
-            for b in &grp.bodies {
-                f.insert(b.clone(), s);
-            }
-        }
-        f
-    }
-
     /// The basis reproduces the recompiled model's markers and `∂x/∂q` at factors far from
     /// one and markers moved, and `∂x/∂g`, `∂x/∂δ` equal central differences over
     /// recompiled models.
@@ -287,7 +274,7 @@ mod tests {
             fixed.insert(b.clone(), [0.93, 1.04, 1.11]);
         }
         let basis = FactorBasis::new(&spec, &groups, &fixed).unwrap();
-        let n: usize = groups.iter().map(|g| if g.per_axis { 3 } else { 1 }).sum();
+        let n: usize = groups.iter().map(ScaleGroup::n_factors).sum();
         let g: Vec<f64> = (0..n).map(|k| 0.8 + 0.07 * k as f64).collect();
         let mut q = basis.base().default_coords();
         for (k, v) in q.iter_mut().enumerate() {
