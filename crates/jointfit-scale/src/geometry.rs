@@ -164,17 +164,9 @@ mod tests {
         let mut f = ScaleFactors::new();
         f.insert("thigh".into(), [1.1, 1.2, 0.9]);
         let out = scaled_spec(&spec, &f);
+        let of = |body: &str| f.get(body).copied().unwrap_or([1.0; 3]);
         for (a, b) in spec.joints.iter().zip(&out.joints) {
-            let pf = if a.parent == "thigh" {
-                [1.1, 1.2, 0.9]
-            } else {
-                [1.0; 3]
-            };
-            let cf = if a.child == "thigh" {
-                [1.1, 1.2, 0.9]
-            } else {
-                [1.0; 3]
-            };
+            let (pf, cf) = (of(&a.parent), of(&a.child));
             for k in 0..3 {
                 check(
                     a.parent_offset.scalars()[k],
@@ -190,12 +182,7 @@ mod tests {
             assert_eq!(a.parent_offset.rx, b.parent_offset.rx);
         }
         for (a, b) in spec.markers.iter().zip(&out.markers) {
-            let s = if a.segment == "thigh" {
-                [1.1, 1.2, 0.9]
-            } else {
-                [1.0; 3]
-            };
-            for ((y, x), f) in b.position.iter().zip(a.position).zip(s) {
+            for ((y, x), f) in b.position.iter().zip(a.position).zip(of(&a.segment)) {
                 assert_eq!(*y, x * f);
             }
         }

@@ -33,6 +33,13 @@ pub(crate) struct Normal {
     pub(crate) frames: Vec<FrameBlock>,
 }
 
+/// The frames eliminated (module docs): the Schur complement `S` and, per frame, `D_f⁻¹` and
+/// `X_f = D_f⁻¹ B_fᵀ`.
+struct Eliminated {
+    s: DMatrix<f64>,
+    frames: Vec<(DMatrix<f64>, DMatrix<f64>)>,
+}
+
 /// A step: the shared unknowns' change and each frame's.
 pub(crate) struct Step {
     pub(crate) shared: DVector<f64>,
@@ -55,9 +62,10 @@ impl Normal {
         }
     }
 
-    /// The damped step (Marquardt's scaling: `λ·max(H_kk, 10⁻⁹)` on the diagonal); `None`
-    /// when a factorisation fails.
-    pub(crate) fn step(&self, lambda: f64) -> Option<Step> {
+    /// The frames eliminated from the system damped by `λ` (Marquardt's scaling:
+    /// `λ·max(H_kk, 10⁻⁹)` added to the diagonal of `A` and each `D_f`); `None` when a
+    /// factorisation fails.
+    fn eliminate(&self, lambda: f64) -> Option<Eliminated> {
         let damp = |m: &mut DMatrix<f64>| {
             for k in 0..m.nrows() {
                 m[(k, k)] += lambda * m[(k, k)].max(1e-9);
@@ -65,34 +73,41 @@ impl Normal {
         };
         let mut s = self.a.clone();
         damp(&mut s);
-        let mut rhs = -&self.g;
-        let mut solved = Vec::with_capacity(self.frames.len());
+        let mut xs = Vec::with_capacity(self.frames.len());
         for fr in &self.frames {
             let mut d = fr.d.clone();
             damp(&mut d);
             let dinv = d.cholesky()?.inverse();
             let x = &dinv * fr.b.transpose();
-            let y = &dinv * &fr.g;
             s.gemm(-1.0, &fr.b, &x, 1.0);
+            xs.push((dinv, x));
+        }
+        Some(Eliminated { s, frames: xs })
+    }
+
+    /// The damped step (`eliminate`); `None` when a factorisation fails.
+    pub(crate) fn step(&self, lambda: f64) -> Option<Step> {
+        let Eliminated { s, frames: xs } = self.eliminate(lambda)?;
+        let mut rhs = -&self.g;
+        let mut ys = Vec::with_capacity(self.frames.len());
+        for (fr, (dinv, _)) in self.frames.iter().zip(&xs) {
+            let y = dinv * &fr.g;
             rhs.gemv(1.0, &fr.b, &y, 1.0);
-            solved.push((x, y));
+            ys.push(y);
         }
         let shared = s.cholesky()?.solve(&rhs);
-        let frames = solved.iter().map(|(x, y)| -(y + x * &shared)).collect();
+        let frames = xs
+            .iter()
+            .zip(&ys)
+            .map(|((_, x), y)| -(y + x * &shared))
+            .collect();
         Some(Step { shared, frames })
     }
 
     /// The shared block of `(JᵀJ)⁻¹` and each frame's diagonal of `(JᵀJ)⁻¹` (module docs);
     /// `None` when singular.
     pub(crate) fn inverse_blocks(&self) -> Option<(DMatrix<f64>, Vec<DVector<f64>>)> {
-        let mut s = self.a.clone();
-        let mut xs = Vec::with_capacity(self.frames.len());
-        for fr in &self.frames {
-            let dinv = fr.d.clone().cholesky()?.inverse();
-            let x = &dinv * fr.b.transpose();
-            s -= &fr.b * &x;
-            xs.push((dinv, x));
-        }
+        let Eliminated { s, frames: xs } = self.eliminate(0.0)?;
         let sinv = s.cholesky()?.inverse();
         let diags = xs
             .iter()

@@ -149,31 +149,26 @@ pub(super) fn solve(pb: &Problem, mut th: Vec<f64>, ws: &mut BasisData) -> Solve
     let n_d = ev.data_rows.max(1) as f64;
     let mut damping = Damping::new();
     let mut iterations = 0;
+    let mut converged = false;
     while iterations < pb.opts.max_iterations {
         iterations += 1;
         let nm = ev.normal.take().expect("normal equations");
         let Some(taken) = trial_steps(pb, &nm, &th, cost, n_d, &mut damping, ws) else {
-            return Solved {
-                th,
-                iterations,
-                converged: true,
-            };
+            converged = true;
+            break;
         };
         th = taken.th;
         cost = taken.cost;
         if taken.done {
-            return Solved {
-                th,
-                iterations,
-                converged: true,
-            };
+            converged = true;
+            break;
         }
         ev = pb.evaluate(&th, true, 1.0, ws);
     }
     Solved {
         th,
         iterations,
-        converged: false,
+        converged,
     }
 }
 
