@@ -176,10 +176,9 @@ pub(super) fn solve(pb: &Problem, mut th: Vec<f64>, ws: &mut BasisData) -> Solve
 mod tests {
     use super::super::markers::static_weights;
     use super::super::problem::start;
-    use super::super::test_leg::{factor_error, leg_frames, scaled_leg, UNIFORM_TRUTH};
+    use super::super::test_leg::{factor_error, leg_frames, scaled_leg, with_noise, UNIFORM_TRUTH};
     use super::super::{fit_scale, ScaleOptions};
     use super::*;
-    use nalgebra::Vector3;
 
     /// The fit says whether its convergence test stopped it: the noiseless leg converges in
     /// the default budget, and a budget of two iterations stops it first.
@@ -205,14 +204,7 @@ mod tests {
         use rand::{Rng, SeedableRng};
         let (spec, groups, clean) = leg_frames(6);
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
-        let noisy: Vec<Vec<Vector3<f64>>> = clean
-            .iter()
-            .map(|fr| {
-                fr.iter()
-                    .map(|m| m + Vector3::from_fn(|_, _| rng.gen_range(-0.01..0.01)))
-                    .collect()
-            })
-            .collect();
+        let noisy = with_noise(&clean, || rng.gen_range(-0.01..0.01));
         let mut opts = ScaleOptions::new(groups);
         opts.robust = false;
         let fit = fit_scale(&spec, &noisy, &opts).unwrap();

@@ -171,9 +171,8 @@ pub(super) fn marker_fits(
 
 #[cfg(test)]
 mod tests {
-    use super::super::test_leg::{leg_frames, UNIFORM_TRUTH};
+    use super::super::test_leg::{leg_frames, with_noise, UNIFORM_TRUTH};
     use super::super::{fit_scale, ScaleOptions};
-    use nalgebra::Vector3;
 
     /// Over seeded draws of marker noise, the spread of each fitted factor matches its
     /// reported SD: with noise of the assumed SD, and with twice that (the SD then grows
@@ -196,14 +195,7 @@ mod tests {
             let mut factors = vec![Vec::new(); UNIFORM_TRUTH.len()];
             let mut sds = vec![0.0; UNIFORM_TRUTH.len()];
             for _ in 0..draws {
-                let noisy: Vec<Vec<Vector3<f64>>> = clean
-                    .iter()
-                    .map(|fr| {
-                        fr.iter()
-                            .map(|m| m + Vector3::from_fn(|_, _| noise * normal()))
-                            .collect()
-                    })
-                    .collect();
+                let noisy = with_noise(&clean, || noise * normal());
                 let fit = fit_scale(&spec, &noisy, &opts).unwrap();
                 for (k, g) in fit.groups.iter().enumerate() {
                     factors[k].push(g.factors[0]);

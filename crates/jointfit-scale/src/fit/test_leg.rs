@@ -89,3 +89,18 @@ pub(super) fn factor_error(fit: &ScaleFit) -> f64 {
     }
     worst
 }
+
+/// `frames` with `noise()` added to every coordinate of every marker (m).
+pub(super) fn with_noise(
+    frames: &[Vec<Vector3<f64>>],
+    mut noise: impl FnMut() -> f64,
+) -> Vec<Vec<Vector3<f64>>> {
+    frames
+        .iter()
+        .map(|fr| {
+            fr.iter()
+                .map(|m| m + Vector3::from_fn(|_, _| noise()))
+                .collect()
+        })
+        .collect()
+}
