@@ -4,7 +4,7 @@
 //! Unknowns `θ = (g, u, δ, q_1 … q_F)`: `g` one factor per group (or three, per axis), `u`
 //! the log of the overall size (only with the anthropometric prior), `δ_j` the offset (m, in
 //! its body) of each free marker `j` from `s_b ⊙ c_j` (`c_j` its generic position), `q_f` the
-//! coordinates of frame `f`; frame 0 is the static trial. The fit minimizes
+//! coordinates of frame `f`; frame 0 is normally the averaged static trial. The fit minimizes
 //!
 //! `F(θ) = Σ_f Σ_j w_fj |x_j(θ) − m_fj|²/σ_d² + Σ_j |δ_j|²/σ_j² + (anthropometric prior) +
 //! (weak pose rows)`,
@@ -12,9 +12,9 @@
 //! `x_j(θ) = T_b(q_f; s) (s_b ⊙ c_j + δ_j)` the model marker on the scaled model
 //! ([`crate::geometry`]). The stages, each a module:
 //!
-//! 1. `problem`: the layout of `θ` and the starting point (factors 1 or the stature ratio,
+//! 1. `markers`: the markers' weights in the static frame;
+//! 2. `problem`: the layout of `θ` and the starting point (factors 1 or the stature ratio,
 //!    offsets 0, poses by inverse kinematics);
-//! 2. `markers`: the markers' weights in the static frame;
 //! 3. `lm`: Levenberg–Marquardt with Nielsen's damping on the rows of `residuals`, each
 //!    step eliminating the frames by the Schur complement (`crate::normal`), in up to four
 //!    rounds that widen the offset prior of tracking markers (`markers`);
