@@ -236,6 +236,10 @@ pub fn up_axis_rotation(up: UpAxis) -> Matrix3<f64> {
 /// `c_l`, `c_w` and `H = Σ_k (local_k − c_l)(world_k − c_w)ᵀ = U Σ Vᵀ`,
 /// `R = V diag(1, 1, sign det(V Uᵀ)) Uᵀ` and `t = c_w − R c_l`. The points are paired by index
 /// (the shorter slice decides how many); at least three that are not collinear determine the fit.
+///
+/// When `det H > 0`, `V Uᵀ` is the orthogonal factor of the polar decomposition
+/// `Hᵀ = (V Uᵀ)(U Σ Uᵀ)`, which [`polar_rotation`] computes without the SVD; the SVD is
+/// used when `H` is near singular or a reflection would fit better.
 pub fn rigid_fit(local: &[Vector3<f64>], world: &[Vector3<f64>]) -> Pose {
     let n = local.len().min(world.len());
     let (local, world) = (&local[..n], &world[..n]);
@@ -245,13 +249,86 @@ pub fn rigid_fit(local: &[Vector3<f64>], world: &[Vector3<f64>]) -> Pose {
     for (l, w) in local.iter().zip(world) {
         h += (l - cl) * (w - cw).transpose();
     }
+    let rot = match n {
+        3 => three_point_rotation(local, world, &h),
+        _ => polar_rotation(&h),
+    };
+    let rot = rot.unwrap_or_else(|| svd_rotation(&h));
+    Pose::new(rot, cw - rot * cl)
+}
+
+/// The fit of three points, whose `H` is singular: its null vectors are the unit normals
+/// `n_l`, `n_w` of the two triangles, and `R = V diag(1, 1, d) Uᵀ` maps `n_l` to `d·n_w`.
+/// `H ± c n_l n_wᵀ` (`c = ‖H‖_F`, the sign that makes its determinant positive) keeps `U`,
+/// `V` and the first two singular values and puts `c` third, so its polar factor is that same
+/// `R` ([`polar_rotation`]). `None` for collinear points.
+fn three_point_rotation(
+    local: &[Vector3<f64>],
+    world: &[Vector3<f64>],
+    h: &Matrix3<f64>,
+) -> Option<Matrix3<f64>> {
+    let normal = |p: &[Vector3<f64>]| (p[1] - p[0]).cross(&(p[2] - p[0])).try_normalize(0.0);
+    let (nl, nw) = (normal(local)?, normal(world)?);
+    let lift = nl * nw.transpose() * h.norm();
+    let up = h + lift;
+    match up.determinant() > 0.0 {
+        true => polar_rotation(&up),
+        false => polar_rotation(&(h - lift)),
+    }
+}
+
+/// `V diag(1, 1, sign det(V Uᵀ)) Uᵀ` from the SVD `H = U Σ Vᵀ`.
+fn svd_rotation(h: &Matrix3<f64>) -> Matrix3<f64> {
     let svd = h.svd(true, true);
     let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
         unreachable!("the SVD was asked for both U and Vᵀ")
     };
     let d = (vt.transpose() * u.transpose()).determinant().signum();
-    let rot = vt.transpose() * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose();
-    Pose::new(rot, cw - rot * cl)
+    vt.transpose() * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose()
+}
+
+/// `det H` relative to `‖H‖_F³` below which [`polar_rotation`] leaves `H` to the SVD (for
+/// singular values `σ₁ ≥ σ₂ ≥ σ₃`, `det H / ‖H‖_F³ ≤ σ₃ / σ₁`: a nearly flat or collinear
+/// configuration, or a reflection).
+const POLAR_MIN_DET: f64 = 1e-8;
+
+/// The orthogonal polar factor of `Hᵀ` (a proper rotation, `det H > 0`), by Higham's Newton
+/// iteration `X ← ½ (γ X + γ⁻¹ X⁻ᵀ)` from `X = Hᵀ` with the Frobenius-norm scaling
+/// `γ = (‖X⁻¹‖_F / ‖X‖_F)^½` while the iterates still move by more than 1e-2 (Higham 1986,
+/// SIAM J. Sci. Stat. Comput. 7:1160–1174; quadratic convergence). `None` when `H` is too
+/// close to singular or to a reflection ([`POLAR_MIN_DET`]), or the iteration does not settle.
+fn polar_rotation(h: &Matrix3<f64>) -> Option<Matrix3<f64>> {
+    let size = h.norm();
+    // (A NaN fails the comparison too.)
+    let solid = h.determinant() > POLAR_MIN_DET * size * size * size;
+    if !solid {
+        return None;
+    }
+    let mut x = h.transpose() / size;
+    let mut scaled = true;
+    for _ in 0..32 {
+        let inv_t = x.try_inverse()?.transpose();
+        let gamma = if scaled {
+            (inv_t.norm() / x.norm()).sqrt()
+        } else {
+            1.0
+        };
+        let next = (x * gamma + inv_t / gamma) * 0.5;
+        let moved = (next - x).norm();
+        x = next;
+        if moved <= 1e-15 {
+            return Some(x);
+        }
+        if moved < 1e-2 {
+            scaled = false;
+        }
+        if moved < 1e-8 {
+            // Quadratic convergence: one more step brings the change below rounding.
+            let inv_t = x.try_inverse()?.transpose();
+            return Some((x + inv_t) * 0.5);
+        }
+    }
+    None
 }
 
 #[cfg(test)]
@@ -328,5 +405,86 @@ mod tests {
                 .max()
                 < 1e-12
         );
+    }
+
+    /// The polar iteration gives the SVD's rotation on skin-marker-like clusters: 3 to 6
+    /// markers up to 15 cm apart, any orientation, noise from none to a third of their spread
+    /// (clusters that the largest noise mirrors go to the SVD).
+    #[test]
+    fn polar_rotation_is_the_svd_rotation() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let (mut polar, mut solid) = (0, 0);
+        for case in 0..2000 {
+            let n = 3 + case % 4;
+            let local: Vec<Vector3<f64>> = (0..n)
+                .map(|_| Vector3::from_fn(|_, _| rng.gen_range(-0.15..0.15)))
+                .collect();
+            let angles: [f64; 3] = [
+                rng.gen_range(-3.0..3.0),
+                rng.gen_range(-1.5..1.5),
+                rng.gen_range(-3.0..3.0),
+            ];
+            let rot = Rotation3::from_euler_angles(angles[0], angles[1], angles[2]).into_inner();
+            let noise = [0.0, 1e-4, 0.005, 0.05][(case / 4) % 4];
+            let world: Vec<_> = local
+                .iter()
+                .map(|p| rot * p + Vector3::from_fn(|_, _| rng.gen_range(-1.0..1.0) * noise))
+                .collect();
+            let cl = local.iter().sum::<Vector3<f64>>() / n as f64;
+            let cw = world.iter().sum::<Vector3<f64>>() / n as f64;
+            let h: Matrix3<f64> = local
+                .iter()
+                .zip(&world)
+                .map(|(l, w)| (l - cl) * (w - cw).transpose())
+                .sum();
+            let reference = svd_rotation(&h);
+            // The rotation is determined to rounding over the smallest sum of two singular
+            // values (a thin triangle or a flat cluster turns easily about its long axis).
+            let sv = h.singular_values();
+            let tol = 1e-13 * sv.max() / (sv[1] + sv[2]).min(sv[0] + sv[2]).min(sv[0] + sv[1]);
+            let r = match n {
+                3 => three_point_rotation(&local, &world, &h),
+                _ => polar_rotation(&h),
+            };
+            if noise < 0.05 {
+                solid += 1;
+                polar += usize::from(r.is_some());
+            }
+            if let Some(r) = r {
+                assert!((r - reference).abs().max() < tol, "case {case}");
+                if noise == 0.0 {
+                    assert!(
+                        (r - rot).abs().max() < tol,
+                        "case {case}: the true rotation"
+                    );
+                }
+                assert!((r * r.transpose() - Matrix3::identity()).abs().max() < 1e-14);
+            }
+            let fit = rigid_fit(&local, &world);
+            assert!((fit.rot - reference).abs().max() < tol, "case {case}");
+        }
+        // Nearly every cluster below the largest noise takes the iteration; the SVD is the
+        // exception.
+        assert!(
+            polar * 100 >= solid * 99,
+            "{polar} of {solid} by the polar iteration"
+        );
+    }
+
+    /// Collinear points leave one rotation free: the SVD decides, and the fit is a rotation
+    /// that carries the points onto their targets.
+    #[test]
+    fn collinear_points_still_give_a_rotation() {
+        let local: Vec<_> = (0..4)
+            .map(|k| Vector3::new(0.05 * k as f64, 0.0, 0.0))
+            .collect();
+        let rot = Rotation3::from_euler_angles(0.2, 0.5, -0.4).into_inner();
+        let world: Vec<_> = local.iter().map(|p| rot * p).collect();
+        let fit = rigid_fit(&local, &world);
+        assert!((fit.rot.determinant() - 1.0).abs() < 1e-12);
+        for (l, w) in local.iter().zip(&world) {
+            assert!((fit.transform_point(l) - w).norm() < 1e-12);
+        }
     }
 }

@@ -18,11 +18,12 @@
 //! spreads part of it over the segment's other markers and absorbs part into the
 //! coordinates). Skin motion of the cluster gives a mean of the order of its spread.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 use rayon::prelude::*;
 
 use crate::checks::offsets::frames_looked_at;
 use crate::model::Model;
+use crate::spatial::rigid_fit;
 use crate::trial::Trial;
 
 /// Other markers of the segment a frame needs for the leave-one-out transform.
@@ -50,24 +51,6 @@ impl RigidOffset {
             f64::INFINITY
         }
     }
-}
-
-/// The rigid transform `(R, t)` minimising `Σ ‖R a_k + t − b_k‖²` (at least 3 points).
-pub(crate) fn fit_rigid(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> (Matrix3<f64>, Vector3<f64>) {
-    let n = a.len() as f64;
-    let ca = a.iter().sum::<Vector3<f64>>() / n;
-    let cb = b.iter().sum::<Vector3<f64>>() / n;
-    let h: Matrix3<f64> = a
-        .iter()
-        .zip(b)
-        .map(|(x, y)| (x - ca) * (y - cb).transpose())
-        .sum();
-    let svd = h.svd(true, true);
-    let (u, v_t) = (svd.u.expect("u"), svd.v_t.expect("v_t"));
-    let v = v_t.transpose();
-    let d = (v * u.transpose()).determinant().signum();
-    let r = v * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose();
-    (r, cb - r * ca)
 }
 
 /// The leave-one-out statistic of marker `j` against the markers `others` (model indices,
@@ -102,8 +85,8 @@ fn statistic(
             a.push(mj.local);
             b.push(xf);
         }
-        let (r, t) = fit_rigid(&a, &b);
-        rs.push(r.transpose() * (xf - t) - mj.local);
+        let pose = rigid_fit(&a, &b);
+        rs.push(pose.rot.transpose() * (xf - pose.trans) - mj.local);
     }
     if rs.is_empty() {
         return None;
@@ -179,25 +162,4 @@ pub(crate) fn rigid_displaced(
         }
     }
     out
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use nalgebra::Rotation3;
-
-    #[test]
-    fn rigid_fit_recovers_a_rotation_and_translation() {
-        let a = [
-            Vector3::new(0.1, 0.0, 0.0),
-            Vector3::new(0.0, 0.2, 0.0),
-            Vector3::new(0.0, 0.0, 0.3),
-            Vector3::new(0.05, -0.1, 0.02),
-        ];
-        let rot = Rotation3::from_euler_angles(0.3, -1.1, 2.0).into_inner();
-        let t = Vector3::new(1.0, -2.0, 0.5);
-        let b: Vec<Vector3<f64>> = a.iter().map(|x| rot * x + t).collect();
-        let (r, tt) = fit_rigid(&a, &b);
-        assert!((r - rot).norm() < 1e-12 && (tt - t).norm() < 1e-12);
-    }
 }
