@@ -201,9 +201,9 @@ fn time_kinematics(model: &Model, p: &[f64], poses: &[&Vec<f64>], fig: &mut Figu
         }) / reps as f64
             * 1e6
     };
-    fig.fk_us = fk(Want::POSITIONS);
-    fig.fk_dq_us = fk(Want::DQ);
-    fig.fk_dq_dp_us = fk(Want::BOTH);
+    fig.fk_us = fk(Want::Positions);
+    fig.fk_dq_us = fk(Want::Dq);
+    fig.fk_dq_dp_us = fk(Want::DqDp);
 }
 
 /// IK of the whole trial from scratch, with and without the data checks, on every thread

@@ -129,7 +129,7 @@ impl Summary {
                 .iter()
                 .map(|j| JointRow {
                     name: j.name.clone(),
-                    kind: j.kind.type_name().to_string(),
+                    kind: j.kind.to_string(),
                     axes: axes(&j.kind),
                     parent: seg_name(j.parent),
                     child: seg_name(Some(j.child)),

@@ -289,8 +289,7 @@ pub(crate) fn static_coordinates(
             other => {
                 return Err(LandmarkError::Internal(format!(
                     "joint {:?}: unexpected kind {}",
-                    joint.name,
-                    other.type_name()
+                    joint.name, other
                 )))
             }
         }

@@ -563,7 +563,7 @@ fn register_static_only(pb: &Problem, th: &mut [f64]) -> Result<(), ScaleError> 
         &model,
         &model.nominal_params(),
         q0,
-        Want::POSITIONS,
+        Want::Positions,
         &mut data,
     );
     let mut moves = Vec::new();
@@ -861,7 +861,7 @@ mod tests {
             &scaled,
             &scaled.nominal_params(),
             &q,
-            Want::POSITIONS,
+            Want::Positions,
             &mut data,
         );
         (spec, groups, data.markers.clone())
@@ -1031,7 +1031,7 @@ mod tests {
                     *v += 0.3 * ((k as f64) * 1.7 + f as f64 * 2.1).sin();
                 }
                 let p = scaled.nominal_params();
-                forward_kinematics(&scaled, &p, &q, Want::POSITIONS, &mut data);
+                forward_kinematics(&scaled, &p, &q, Want::Positions, &mut data);
                 data.markers.clone()
             })
             .collect();

@@ -63,7 +63,7 @@ pub fn synthetic_trial(
     for f in 0..frames {
         let q = coords(f);
         assert_eq!(q.len(), model.n_q(), "frame {f}: coordinate vector length");
-        forward_kinematics(model, p, &q, Want::POSITIONS, &mut kin);
+        forward_kinematics(model, p, &q, Want::Positions, &mut kin);
         positions.extend_from_slice(&kin.markers);
         truth.push(q);
     }
@@ -144,7 +144,7 @@ mod tests {
         assert_eq!(s.trial.n_frames(), 7);
         assert_eq!(s.coords[3], wave(3));
         let mut kin = KinData::new(&m);
-        forward_kinematics(&m, &p, &wave(3), Want::POSITIONS, &mut kin);
+        forward_kinematics(&m, &p, &wave(3), Want::Positions, &mut kin);
         for j in 0..m.n_markers() {
             assert_eq!(s.trial.get(3, j), Some(kin.markers[j]));
         }

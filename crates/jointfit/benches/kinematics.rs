@@ -14,9 +14,9 @@ fn leg(c: &mut Criterion) {
     let mut data = KinData::new(&model);
     let mut group = c.benchmark_group("leg_model");
     for (name, want) in [
-        ("fk", Want::POSITIONS),
-        ("fk+dq", Want::DQ),
-        ("fk+dq+dp", Want::BOTH),
+        ("fk", Want::Positions),
+        ("fk+dq", Want::Dq),
+        ("fk+dq+dp", Want::DqDp),
     ] {
         group.bench_function(name, |b| {
             b.iter(|| {

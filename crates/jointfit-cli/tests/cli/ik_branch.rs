@@ -108,7 +108,7 @@ fn generic_osim_left_hip_in_range_branch() {
                 );
             }
         }
-        let hip = hip_l.map(|n| q[model.coord_id(n).unwrap().0].to_degrees());
+        let hip = hip_l.map(|n| q[model.coord_id(n).unwrap()].to_degrees());
         assert!(
             hip[1].abs() < 90.0,
             "frame {f}: left hip {hip:?}°, adduction on the in-range branch"

@@ -479,7 +479,7 @@ fn agreement(
         }
         angle_worst = angle_worst.max(dq);
         marker_worst = marker_worst.max(de);
-        let tol = match model.coordinates()[model.coord_id(&at).map_or(0, |c| c.0)].kind {
+        let tol = match model.coordinates()[model.coord_id(&at).unwrap_or(0)].kind {
             CoordKind::Rotational => ANGLE_TOL_DEG,
             CoordKind::Translational => TRANS_TOL_MM,
         };

@@ -82,7 +82,7 @@ fn poses_and_markers(model: &Model, seed: u64) -> (Vec<String>, Vec<Vec<f64>>, V
                 }
             })
             .collect();
-        forward_kinematics(model, &[], &q, Want::POSITIONS, &mut kin);
+        forward_kinematics(model, &[], &q, Want::Positions, &mut kin);
         kins.push(kin.clone());
         let mut full = q.clone();
         full.extend(coupled.iter().map(|&i| model.dependents()[i].value(&q)));

@@ -101,7 +101,7 @@ fn compare_fk(model: &Model, seed: u64) -> Option<f64> {
             .map(|m| m["name"].as_str().unwrap())
             .collect();
         for (pose, got) in poses.iter().zip(answer["positions"].as_array().unwrap()) {
-            forward_kinematics(model, &p, pose, Want::POSITIONS, &mut data);
+            forward_kinematics(model, &p, pose, Want::Positions, &mut data);
             for (j, m) in model.markers().iter().enumerate() {
                 let o = osim_markers.iter().position(|n| *n == m.name).unwrap();
                 let xyz = &got[o];
@@ -177,7 +177,7 @@ fn check_summary(model: &Model, a: &Value) {
     let coords = a["coordinates"].as_array().unwrap();
     assert_eq!(coords.len(), model.n_q());
     for c in coords {
-        let ours = &model.coordinates()[model.coord_id(c["name"].as_str().unwrap()).unwrap().0];
+        let ours = &model.coordinates()[model.coord_id(c["name"].as_str().unwrap()).unwrap()];
         let kind = match ours.kind {
             CoordKind::Rotational => "rotational",
             CoordKind::Translational => "translational",

@@ -205,7 +205,7 @@ fn frame_gram_impl(
     let nq = model.n_q();
     let n = nq + prob.n_free();
     let nrows = 3 * model.n_markers();
-    forward_kinematics(model, p, q, Want::BOTH, &mut sc.kin);
+    forward_kinematics(model, p, q, Want::DqDp, &mut sc.kin);
     let mut cost = 0.0;
     for (j, m) in model.markers().iter().enumerate() {
         let t = targets[j];

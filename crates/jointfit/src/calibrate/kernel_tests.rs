@@ -19,7 +19,7 @@ fn gram_matches_dense_products() {
         *v += 0.2 * (i as f64 + 1.0).sin();
     }
     let mut kin = KinData::new(&model);
-    forward_kinematics(&model, &p, &q, Want::POSITIONS, &mut kin);
+    forward_kinematics(&model, &p, &q, Want::Positions, &mut kin);
     let mut targets: Vec<Vector3<f64>> = kin
         .markers
         .iter()
@@ -36,7 +36,7 @@ fn gram_matches_dense_products() {
     let mut sc = FrameScratch::tiled(&prob);
     let cost = frame_gram(&prob, &p, &q, &targets, &half, &mut sc);
 
-    forward_kinematics(&model, &p, &q, Want::BOTH, &mut kin);
+    forward_kinematics(&model, &p, &q, Want::DqDp, &mut kin);
     let (nq, nf) = (model.n_q(), prob.n_free());
     let n = nq + nf;
     let rows = 3 * model.n_markers();
@@ -89,7 +89,7 @@ fn plain_gram(
     let (nq, n) = (model.n_q(), model.n_q() + prob.n_free());
     let nrows = 3 * model.n_markers();
     let mut kin = KinData::new(model);
-    forward_kinematics(model, p, q, Want::BOTH, &mut kin);
+    forward_kinematics(model, p, q, Want::DqDp, &mut kin);
     let mut rows = Vec::new();
     let mut rw = Vec::new();
     for j in depth_first_markers(model) {
@@ -166,7 +166,7 @@ fn tiles_sum_exactly_as_plain_dot_products() {
             for (i, v) in q.iter_mut().enumerate() {
                 *v += 0.3 * ((i + 3 * f) as f64 * 0.9).sin();
             }
-            forward_kinematics(&model, &p, &q, Want::POSITIONS, &mut kin);
+            forward_kinematics(&model, &p, &q, Want::Positions, &mut kin);
             let mut t: Vec<Vector3<f64>> = kin
                 .markers
                 .iter()

@@ -14,7 +14,7 @@ use crate::model::spec::{AxisMotion, CouplerSpec, JointKindSpec, ModelSpec, Tran
 use crate::model::Model;
 use crate::trial::Trial;
 
-/// `J̃ᵀJ̃` and `J̃ᵀr̃` formed densely from `Want::BOTH` Jacobians.
+/// `J̃ᵀJ̃` and `J̃ᵀr̃` formed densely from `Want::DqDp` Jacobians.
 fn dense(
     prob: &Problem,
     p: &[f64],
@@ -25,7 +25,7 @@ fn dense(
     let model = prob.model;
     let (nq, nf) = (model.n_q(), prob.n_free());
     let mut kin = KinData::new(model);
-    forward_kinematics(model, p, q, Want::BOTH, &mut kin);
+    forward_kinematics(model, p, q, Want::DqDp, &mut kin);
     let rows = 3 * model.n_markers();
     let mut j = DMatrix::zeros(rows, nq + nf);
     let mut r = DVector::zeros(rows);
@@ -60,7 +60,7 @@ fn frames(model: &Model, p: &[f64], n: usize) -> Vec<(Vec<f64>, Vec<Vector3<f64>
             for (i, v) in q.iter_mut().enumerate() {
                 *v += 0.3 * ((i + 3 * f) as f64 * 0.9).sin();
             }
-            forward_kinematics(model, p, &q, Want::POSITIONS, &mut kin);
+            forward_kinematics(model, p, &q, Want::Positions, &mut kin);
             let mut t: Vec<Vector3<f64>> = kin
                 .markers
                 .iter()

@@ -399,7 +399,7 @@ impl<'m> Problem<'m> {
                     for (i, e) in out.chunks_mut(nm).enumerate() {
                         let f = first + t * TASK + i;
                         let targets = self.frames.fill(f, buf);
-                        forward_kinematics(self.model, p, &qs[f], Want::POSITIONS, kin);
+                        forward_kinematics(self.model, p, &qs[f], Want::Positions, kin);
                         for (j, e) in e.iter_mut().enumerate() {
                             *e = targets[j] - kin.markers[j];
                         }

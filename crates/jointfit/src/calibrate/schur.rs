@@ -382,7 +382,7 @@ pub(crate) fn cost_at(prob: &Problem, b: &Blocks, p: &[f64], qs: &[Vec<f64>]) ->
                 let mut total = 0.0;
                 for (i, q) in qs.iter().enumerate() {
                     let targets = prob.frames.fill(c * b.chunk + i, tb);
-                    forward_kinematics(prob.model, p, q, Want::POSITIONS, kin);
+                    forward_kinematics(prob.model, p, q, Want::Positions, kin);
                     for (j, m) in prob.model.markers().iter().enumerate() {
                         if !targets[j].x.is_nan() && m.weight > 0.0 {
                             total += m.weight * (targets[j] - kin.markers[j]).norm_squared();

@@ -25,7 +25,7 @@ fn problem_trial(model: &Model, frames: usize) -> Trial {
         for (i, v) in q.iter_mut().enumerate() {
             *v += 0.3 * (6.0 * t + i as f64).sin();
         }
-        forward_kinematics(model, &p, &q, Want::POSITIONS, &mut kin);
+        forward_kinematics(model, &p, &q, Want::Positions, &mut kin);
         for (j, x) in kin.markers.iter().enumerate() {
             let e = |k: usize| 0.003 * ((f * 7 + j * 3 + k) as f64 * 1.3).sin();
             positions.push(x + Vector3::new(e(0), e(1), e(2)));

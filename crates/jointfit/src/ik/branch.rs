@@ -203,7 +203,7 @@ mod tests {
 
     fn markers(model: &Model, q: &[f64]) -> Vec<Vector3<f64>> {
         let mut kin = KinData::new(model);
-        forward_kinematics(model, &model.nominal_params(), q, Want::POSITIONS, &mut kin);
+        forward_kinematics(model, &model.nominal_params(), q, Want::Positions, &mut kin);
         kin.markers.clone()
     }
 

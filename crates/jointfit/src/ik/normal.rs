@@ -219,7 +219,7 @@ mod tests {
             let q: Vec<f64> = (0..model.n_q())
                 .map(|i| 0.4 * ((i * 7 + case * 3) as f64).sin())
                 .collect();
-            forward_kinematics(&model, &p, &q, Want::DQ, &mut kin);
+            forward_kinematics(&model, &p, &q, Want::Dq, &mut kin);
             let targets: Vec<Vector3<f64>> = kin
                 .markers
                 .iter()

@@ -47,7 +47,7 @@ fn certified_seed_equals_scouted_seed_in_any_orientation() {
                 q[c] = rng.gen_range(-0.4..0.4);
             }
         }
-        forward_kinematics(&model, &p, &q, Want::POSITIONS, &mut kin);
+        forward_kinematics(&model, &p, &q, Want::Positions, &mut kin);
         let turn = random_rotation(&mut rng);
         let shift = Vector3::new(
             rng.gen_range(-20.0..20.0),

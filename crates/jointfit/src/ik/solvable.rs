@@ -37,7 +37,7 @@ use nalgebra::{DMatrix, SymmetricEigen, Vector3};
 
 use super::normal::Moments;
 use super::IkOptions;
-use crate::kinematics::{forward_kinematics, KinData, Want};
+use crate::kinematics::{forward_kinematics_axes, KinData};
 use crate::model::{CoordKind, Model};
 
 /// The marker noise the limits refer to (m).
@@ -99,7 +99,7 @@ impl Solvability {
             self.p = Some(p.to_vec());
             self.cache.clear();
             let q = generic_configuration(model);
-            forward_kinematics(model, p, &q, Want::AXES, &mut self.kin);
+            forward_kinematics_axes(model, p, &q, &mut self.kin);
         }
         let nm = model.n_markers();
         for (m, w) in self.mask[..nm].iter_mut().zip(weights) {
@@ -135,7 +135,7 @@ impl Solvability {
         if q.iter().any(|v| !v.is_finite()) {
             return self.undetermined(model, p, weights, known, opts).to_vec();
         }
-        forward_kinematics(model, p, q, Want::AXES, &mut self.pose_kin);
+        forward_kinematics_axes(model, p, q, &mut self.pose_kin);
         self.compute(model, opts, true)
     }
 

@@ -8,7 +8,7 @@ use super::{forward_kinematics, KinData, Want};
 use crate::model::Model;
 
 fn marker_vector(model: &Model, p: &[f64], q: &[f64], data: &mut KinData) -> Vec<f64> {
-    forward_kinematics(model, p, q, Want::POSITIONS, data);
+    forward_kinematics(model, p, q, Want::Positions, data);
     data.markers.iter().flat_map(|m| [m.x, m.y, m.z]).collect()
 }
 

@@ -35,7 +35,7 @@ pub(crate) fn synthetic_trial(
     for f in 0..frames {
         let q = coords(f);
         assert_eq!(q.len(), model.n_q(), "frame {f}: coordinate vector length");
-        forward_kinematics(model, p, &q, Want::POSITIONS, &mut kin);
+        forward_kinematics(model, p, &q, Want::Positions, &mut kin);
         positions.extend_from_slice(&kin.markers);
         truth.push(q);
     }

@@ -114,7 +114,7 @@ impl Compiler<'_> {
             return Err(ModelError::Invalid(format!(
                 "joint {:?} is {} with {} degrees of freedom but lists {} coordinates",
                 js.name,
-                kind.type_name(),
+                kind,
                 kind.dof(),
                 js.coordinates.len()
             )));

@@ -19,8 +19,8 @@
 //!   *child joint frame* is fixed in the child segment (the child offset `t_c, r_c`), and the
 //!   joint's coordinates move the second relative to the first.
 //! * Shapes: `n_seg = n_joint` (one joint per segment), `n_q` coordinates, `n_p` parameters,
-//!   `n_mrk` markers. Indices are the typed ids [`SegmentId`], [`JointId`], [`CoordId`],
-//!   [`ParamId`] or, for markers, a plain `usize`.
+//!   `n_mrk` markers. Indices are the typed ids [`SegmentId`], [`JointId`] and [`ParamId`]
+//!   or, for coordinates (positions in `q`) and markers, a plain `usize`.
 //! * A [`Model`] is read-only after [`Model::compile`]: its fields are private and the
 //!   accessors hand out shared slices. To change a model, edit its [`ModelSpec`]
 //!   ([`Model::spec`], [`Model::spec_with_nominal`]) and compile again.
@@ -40,9 +40,6 @@ pub struct JointId(pub usize);
 /// Index of a parameter in the parameter vector `p`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct ParamId(pub usize);
-/// Index of a coordinate in the coordinate vector `q`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct CoordId(pub usize);
 
 /// A rigid body of the chain (pelvis, thigh, …). Its frame is body-fixed; the child offset of
 /// [`Segment::joint`] places the joint frame in it.
@@ -97,19 +94,6 @@ impl JointKind {
             JointKind::Custom { dof, .. } => *dof,
         }
     }
-    /// The name used in model descriptions: `free`, `gimbal`, `universal`, `pin`, `slider`,
-    /// `weld`.
-    pub fn type_name(&self) -> &'static str {
-        match self {
-            JointKind::Free { .. } => "free",
-            JointKind::Gimbal { .. } => "gimbal",
-            JointKind::Universal { .. } => "universal",
-            JointKind::Pin { .. } => "pin",
-            JointKind::Slider { .. } => "slider",
-            JointKind::Weld => "weld",
-            JointKind::Custom { .. } => "custom",
-        }
-    }
     /// The elementary motions in order: (is_rotation, unit axis).
     pub(super) fn motions(&self) -> Vec<(bool, Vector3<f64>)> {
         match self {
@@ -124,6 +108,22 @@ impl JointKind {
             JointKind::Slider { axis } => vec![(false, *axis)],
             JointKind::Weld | JointKind::Custom { .. } => vec![],
         }
+    }
+}
+
+/// The name used in model descriptions: `free`, `gimbal`, `universal`, `pin`, `slider`,
+/// `weld` or `custom`.
+impl std::fmt::Display for JointKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            JointKind::Free { .. } => "free",
+            JointKind::Gimbal { .. } => "gimbal",
+            JointKind::Universal { .. } => "universal",
+            JointKind::Pin { .. } => "pin",
+            JointKind::Slider { .. } => "slider",
+            JointKind::Weld => "weld",
+            JointKind::Custom { .. } => "custom",
+        })
     }
 }
 
@@ -339,7 +339,7 @@ impl Model {
     pub fn joints(&self) -> &[Joint] {
         &self.joints
     }
-    /// Coordinates (`n_q`), indexed by [`CoordId`]; the layout of every `q` vector.
+    /// Coordinates (`n_q`); the layout of every `q` vector.
     #[inline]
     pub fn coordinates(&self) -> &[Coordinate] {
         &self.coordinates
@@ -384,13 +384,6 @@ impl Model {
     pub fn default_coords(&self) -> Vec<f64> {
         self.coordinates.iter().map(|c| c.default).collect()
     }
-    /// The segment of that name.
-    pub fn segment_id(&self, name: &str) -> Option<SegmentId> {
-        self.segments
-            .iter()
-            .position(|s| s.name == name)
-            .map(SegmentId)
-    }
     /// The parameter of that name.
     pub fn param_id(&self, name: &str) -> Option<ParamId> {
         self.parameters
@@ -398,16 +391,9 @@ impl Model {
             .position(|s| s.name == name)
             .map(ParamId)
     }
-    /// The coordinate of that name.
-    pub fn coord_id(&self, name: &str) -> Option<CoordId> {
-        self.coordinates
-            .iter()
-            .position(|s| s.name == name)
-            .map(CoordId)
-    }
-    /// Index of the marker of that name.
-    pub fn marker_index(&self, name: &str) -> Option<usize> {
-        self.markers.iter().position(|m| m.name == name)
+    /// Index in `q` of the coordinate of that name.
+    pub fn coord_id(&self, name: &str) -> Option<usize> {
+        self.coordinates.iter().position(|s| s.name == name)
     }
     /// Ids of the parameters in the given group, in parameter order.
     pub fn params_in_group(&self, group: &str) -> Vec<ParamId> {
@@ -417,7 +403,7 @@ impl Model {
             .collect()
     }
     /// Distinct group names in order of first appearance.
-    pub fn groups(&self) -> Vec<String> {
+    pub(crate) fn groups(&self) -> Vec<String> {
         let mut out: Vec<String> = Vec::new();
         for p in &self.parameters {
             if !out.contains(&p.group) {
@@ -461,4 +447,18 @@ pub fn offset_rotation(rx: f64, ry: f64, rz: f64) -> Matrix3<f64> {
     p.apply(&Motion::RotY, ry);
     p.apply(&Motion::RotZ, rz);
     p.rot
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Model;
+    use crate::model::lower_limb::{lower_limb, Side};
+
+    #[test]
+    fn groups_in_order_of_first_appearance() {
+        for side in [Side::Right, Side::Left] {
+            let model = Model::compile(&lower_limb(side)).unwrap();
+            assert_eq!(model.groups(), ["hip", "knee", "ankle"]);
+        }
+    }
 }

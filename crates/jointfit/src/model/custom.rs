@@ -94,7 +94,7 @@ impl DependentCoordinate {
             CoordRule::Coupled {
                 independent,
                 function,
-            } => function.value(q[*independent]),
+            } => function.eval(q[*independent]).0,
         }
     }
 }
@@ -240,7 +240,7 @@ pub(crate) fn roles(
                 independent: *i,
                 g: g.clone(),
             },
-            Some(Role::Locked(v)) => Role::Locked(g.value(*v)),
+            Some(Role::Locked(v)) => Role::Locked(g.eval(*v).0),
             _ => {
                 return Err(ModelError::Invalid(format!(
                     "coupler {:?}: independent coordinate {:?} is {}",
@@ -314,7 +314,7 @@ pub(crate) fn axis_steps(
                     )));
                 }
                 match &roles[name] {
-                    Role::Locked(v) => Source::Const(sign * a.function.value(*v)),
+                    Role::Locked(v) => Source::Const(sign * a.function.eval(*v).0),
                     Role::Free(i) => match a.function.slope_through_origin() {
                         Some(slope) => Source::Coord {
                             index: *i,

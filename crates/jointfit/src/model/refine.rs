@@ -206,8 +206,8 @@ mod tests {
             .map(|i| 0.1 * (i as f64 + 1.0).sin())
             .collect();
         let (mut k0, mut k1) = (KinData::new(&orig), KinData::new(&aug));
-        forward_kinematics(&orig, &orig.nominal_params(), &q, Want::POSITIONS, &mut k0);
-        forward_kinematics(&aug, &aug.nominal_params(), &q, Want::POSITIONS, &mut k1);
+        forward_kinematics(&orig, &orig.nominal_params(), &q, Want::Positions, &mut k0);
+        forward_kinematics(&aug, &aug.nominal_params(), &q, Want::Positions, &mut k1);
         for (a, b) in k0.markers.iter().zip(&k1.markers) {
             assert!((a - b).norm() < 1e-12);
         }

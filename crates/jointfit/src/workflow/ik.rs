@@ -171,7 +171,7 @@ mod tests {
                 &model,
                 &p,
                 q,
-                crate::kinematics::Want::POSITIONS,
+                crate::kinematics::Want::Positions,
                 &mut kin,
             );
             positions.extend(kin.markers.iter().copied());

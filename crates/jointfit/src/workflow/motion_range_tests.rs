@@ -34,9 +34,9 @@ fn one_sided_trial(model: &Model, p: &[f64]) -> Trial {
     let motion = |f: usize| {
         let t = f as f64 / 100.0;
         let mut q = model.default_coords();
-        q[model.coord_id("pelvis_ty").unwrap().0] = 0.93;
+        q[model.coord_id("pelvis_ty").unwrap()] = 0.93;
         for (k, (name, mean, amp)) in MOTION.iter().enumerate() {
-            q[model.coord_id(name).unwrap().0] = mean + amp * (w * t + 0.4 * k as f64).sin();
+            q[model.coord_id(name).unwrap()] = mean + amp * (w * t + 0.4 * k as f64).sin();
         }
         q
     };
@@ -44,7 +44,7 @@ fn one_sided_trial(model: &Model, p: &[f64]) -> Trial {
     let mut kin = KinData::new(model);
     let mut positions = Vec::with_capacity(200 * model.n_markers());
     for f in 0..200 {
-        forward_kinematics(model, p, &motion(f), Want::POSITIONS, &mut kin);
+        forward_kinematics(model, p, &motion(f), Want::Positions, &mut kin);
         positions.extend_from_slice(&kin.markers);
     }
     let labels = model.markers().iter().map(|m| m.name.clone()).collect();
