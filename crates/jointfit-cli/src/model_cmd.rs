@@ -133,7 +133,7 @@ impl Summary {
                     axes: axes(&j.kind),
                     parent: seg_name(j.parent),
                     child: seg_name(Some(j.child)),
-                    coordinates: model.coordinates()[j.first_coord..j.first_coord + j.kind.dof()]
+                    coordinates: model.coordinates()[j.coords.clone()]
                         .iter()
                         .map(|c| c.name.clone())
                         .collect(),

@@ -206,7 +206,7 @@ fn joint_xml(x: &mut String, model: &Model, p: &[f64], ji: usize) -> Result<(), 
         "          <socket_child_frame>{}_offset</socket_child_frame>",
         escape(child)
     );
-    let coords = &model.coordinates()[joint.first_coord..joint.first_coord + joint.kind.dof()];
+    let coords = &model.coordinates()[joint.coords.clone()];
     coordinates_xml(x, coords);
     x.push_str("          <frames>\n");
     offset_frame(x, parent, &parent_offset);

@@ -423,10 +423,10 @@ impl Posed<'_> {
             ..c
         });
         let r = o.rotation;
-        let offset = Pose::new(
-            offset_rotation(r[0], r[1], r[2]),
-            V::from(super::mul(o.translation, s)),
-        );
+        let offset = Pose {
+            rot: offset_rotation(r[0], r[1], r[2]),
+            trans: V::from(super::mul(o.translation, s)),
+        };
         Placed {
             object,
             world_from_wrap: body_pose(self.model, &self.data, &o.body).compose(&offset),

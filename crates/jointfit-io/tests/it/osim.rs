@@ -166,7 +166,7 @@ fn check_summary(model: &Model, a: &Value) {
             .iter()
             .map(|c| c.as_str().unwrap())
             .collect();
-        let mut ours: Vec<&str> = model.coordinates()[j.first_coord..j.first_coord + j.kind.dof()]
+        let mut ours: Vec<&str> = model.coordinates()[j.coords.clone()]
             .iter()
             .map(|c| c.name.as_str())
             .collect();

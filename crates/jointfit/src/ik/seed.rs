@@ -76,8 +76,7 @@ fn seed(
     };
     for &root in &roots {
         let joint = &model.joints()[model.segments()[root].joint.0];
-        let active: Vec<usize> =
-            (joint.first_coord..joint.first_coord + joint.kind.dof()).collect();
+        let active: Vec<usize> = joint.coords.clone().collect();
         if active.is_empty() {
             continue;
         }

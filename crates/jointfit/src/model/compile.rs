@@ -163,8 +163,8 @@ impl Compiler<'_> {
             name: js.name.clone(),
             parent,
             child,
+            coords: first_coord..first_coord + kind.dof(),
             kind,
-            first_coord,
         });
         let merged = merge_constants(c.steps.split_off(start));
         c.steps.extend(merged);

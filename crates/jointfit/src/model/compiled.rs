@@ -25,11 +25,11 @@
 //!   accessors hand out shared slices. To change a model, edit its [`ModelSpec`]
 //!   ([`Model::spec`], [`Model::spec_with_nominal`]) and compile again.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 
 use super::spec::{ModelSpec, Unit};
 use super::ModelError;
-use crate::spatial::{Motion, Pose};
+use crate::spatial::Motion;
 
 /// Index of a segment in [`Model::segments`] (topological order: parents first).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -84,7 +84,7 @@ pub enum JointKind {
 
 impl JointKind {
     /// Number of coordinates (degrees of freedom): 6, 3, 2, 1, 1 or 0.
-    pub fn dof(&self) -> usize {
+    pub(crate) fn dof(&self) -> usize {
         match self {
             JointKind::Free { .. } => 6,
             JointKind::Gimbal { .. } => 3,
@@ -139,9 +139,10 @@ pub struct Joint {
     pub child: SegmentId,
     /// Motion type and unit axes.
     pub kind: JointKind,
-    /// Index in `q` of the joint's first coordinate; its coordinates are
-    /// `first_coord..first_coord + kind.dof()`, contiguous and in motion order.
-    pub first_coord: usize,
+    /// Indices in `q` of the joint's coordinates: contiguous, in motion order, as many as
+    /// the joint's degrees of freedom (6, 3, 2, 1, 1 or 0; a custom joint's coordinates that
+    /// are neither locked nor coupled).
+    pub coords: std::ops::Range<usize>,
 }
 
 /// Whether a coordinate is an angle (rad) or a length (m).
@@ -300,7 +301,7 @@ pub struct Model {
     pub(super) segments: Vec<Segment>,
     /// `n_seg` joints; `joints[i]` attaches `segments[i]` to its parent.
     pub(super) joints: Vec<Joint>,
-    /// `n_q` coordinates, joint by joint in joint order (see [`Joint::first_coord`]).
+    /// `n_q` coordinates, joint by joint in joint order (see [`Joint::coords`]).
     pub(super) coordinates: Vec<Coordinate>,
     /// `n_p` parameters, in the order of the description.
     pub(super) parameters: Vec<Parameter>,
@@ -438,15 +439,6 @@ impl Model {
         super::fields::validate_fields(spec)?;
         super::validate::Compiler::new(spec)?.run()
     }
-}
-
-/// Rotation matrix `Rx(a)·Ry(b)·Rz(c)` of an offset frame.
-pub fn offset_rotation(rx: f64, ry: f64, rz: f64) -> Matrix3<f64> {
-    let mut p = Pose::identity();
-    p.apply(&Motion::RotX, rx);
-    p.apply(&Motion::RotY, ry);
-    p.apply(&Motion::RotZ, rz);
-    p.rot
 }
 
 #[cfg(test)]

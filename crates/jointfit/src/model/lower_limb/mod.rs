@@ -35,7 +35,7 @@ mod params;
 
 use params::{nominal, par, param_spec, PARAMS};
 
-use super::compiled::offset_rotation;
+use super::offset_rotation;
 use super::spec::{
     AxisSpec, CoordinateSpec, JointKindSpec, JointSpec, MarkerSpec, ModelSpec, OffsetSpec,
     ScalarSpec, SegmentSpec,
