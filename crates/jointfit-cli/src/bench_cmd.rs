@@ -381,8 +381,8 @@ pub fn run(args: BenchArgs) -> Result<()> {
     MarkerMap::by_name(model, trial.labels())?;
     let mut fig = Figures {
         source: w.source.clone(),
-        markers: model.n_markers(),
-        parameters: model.n_p(),
+        markers: model.markers().len(),
+        parameters: model.parameters().len(),
         synthetic_workload: bench_perf::SYNTHETIC_WORKLOAD,
         frames: trial.n_frames(),
         ..Figures::default()

@@ -149,7 +149,7 @@ impl Summary {
                     };
                     CoordRow {
                         name: c.name.clone(),
-                        joint: model.joints()[c.joint.0].name.clone(),
+                        joint: model.joints()[c.joint].name.clone(),
                         unit,
                         range: [round(c.range[0] * k, 6), round(c.range[1] * k, 6)],
                         default: round(c.default * k, 6),

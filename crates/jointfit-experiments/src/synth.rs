@@ -265,7 +265,7 @@ pub fn synthesize(
     let terms: Vec<(f64, f64, f64)> = match &noise.skin {
         Some(n) => {
             let mut rng = ChaCha8Rng::seed_from_u64(n.seed);
-            (0..3 * model.n_markers())
+            (0..3 * model.markers().len())
                 .map(|_| {
                     (
                         rng.gen_range(0.0..=n.max_amplitude),
@@ -285,7 +285,7 @@ pub fn synthesize(
         )
     });
     let mut kin = KinData::new(model);
-    let mut positions = Vec::with_capacity(coords.len() * model.n_markers());
+    let mut positions = Vec::with_capacity(coords.len() * model.markers().len());
     let mut sums = [0.0; 3];
     let mut max_axis = 0.0f64;
     let mut count = 0usize;

@@ -134,10 +134,10 @@ pub enum OsimError {
 /// Renders the model with parameters `p` (len `n_p`, m and rad) as an OpenSim 4 `.osim`
 /// document (see the module docs for the mapping).
 pub fn to_osim(model: &Model, p: &[f64]) -> Result<String, OsimError> {
-    if p.len() != model.n_p() {
+    if p.len() != model.parameters().len() {
         return Err(OsimError::ParamLength {
             got: p.len(),
-            expected: model.n_p(),
+            expected: model.parameters().len(),
         });
     }
     for (par, &v) in model.parameters().iter().zip(p) {

@@ -263,7 +263,7 @@ pub(crate) fn join_named(
     // The static pose by coordinate name: the pelvis and the right leg from the right leg's
     // personalization, the left leg from the left's (one window when they share it).
     let model = Model::compile(&spec).map_err(LandmarkError::Model)?;
-    let mut static_q = Vec::with_capacity(model.n_q());
+    let mut static_q = Vec::with_capacity(model.coordinates().len());
     let sides = [(&right, "_r"), (&left, "_l")];
     let compiled: Vec<Model> = sides
         .iter()

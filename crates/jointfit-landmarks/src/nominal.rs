@@ -251,7 +251,7 @@ pub(crate) fn static_coordinates(
             .map(|(_, p)| *p)
             .ok_or_else(|| LandmarkError::Internal(format!("no frame for segment {name:?}")))
     };
-    let mut q = vec![0.0; model.n_q()];
+    let mut q = vec![0.0; model.coordinates().len()];
     for joint in model.joints() {
         let (po, co) = offsets
             .get(&joint.name)

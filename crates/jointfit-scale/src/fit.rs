@@ -629,7 +629,7 @@ fn start<'a>(
         }
     }
     let basis = FactorBasis::new(spec, &opts.groups, &opts.fixed_factors)?;
-    let n_q = basis.base().n_q();
+    let n_q = basis.base().coordinates().len();
     let lay = layout(spec, opts, n_q, targets.len())?;
     let mut th = vec![0.0; lay.n];
     let size = opts

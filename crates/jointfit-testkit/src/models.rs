@@ -63,7 +63,7 @@ mod tests {
     fn samples_compile_and_cover_every_joint_kind() {
         let mut kinds = std::collections::BTreeSet::new();
         for (_, m) in all() {
-            assert!(m.n_p() > 0 && m.n_markers() > 0);
+            assert!(!m.parameters().is_empty() && !m.markers().is_empty());
             kinds.extend(m.joints().iter().map(|j| j.kind.to_string()));
         }
         let every = [

@@ -10,7 +10,9 @@ use jointfit::model::Model;
 fn leg(c: &mut Criterion) {
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
     let p = model.nominal_params();
-    let q: Vec<f64> = (0..model.n_q()).map(|i| 0.1 * i as f64 - 0.3).collect();
+    let q: Vec<f64> = (0..model.coordinates().len())
+        .map(|i| 0.1 * i as f64 - 0.3)
+        .collect();
     let mut data = KinData::new(&model);
     let mut group = c.benchmark_group("leg_model");
     for (name, want) in [

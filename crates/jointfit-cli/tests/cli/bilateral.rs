@@ -92,7 +92,7 @@ fn both_legs_share_one_pelvis_and_match_the_one_sided_personalizations() {
         );
         assert_eq!(b.right.frames.pelvis.trans, b.left.frames.pelvis.trans);
         let model = Model::compile(&b.spec).unwrap();
-        assert_eq!(model.n_q(), 18);
+        assert_eq!(model.coordinates().len(), 18);
         let mut kin = KinData::new(&model);
         let nominal = model.nominal_params();
         forward_kinematics(&model, &nominal, &b.static_q, Want::Positions, &mut kin);

@@ -419,7 +419,7 @@ fn osim_calibrate_to_toml() {
     assert!(ok, "{err}");
     let report: Value = serde_json::from_str(&stdout).unwrap();
     let model = jointfit_io::model_file::load_model(s(&out)).unwrap();
-    assert_eq!(model.n_p(), 1);
+    assert_eq!(model.parameters().len(), 1);
     let p = &model.parameters()[0];
     assert_eq!(p.name, "knee_r.child.ty");
     assert!((p.nominal * 1e3 - report["parameters"][0]["fitted"].as_f64().unwrap()).abs() < 1e-9);

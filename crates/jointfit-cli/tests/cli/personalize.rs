@@ -231,7 +231,7 @@ fn ik_recovers_the_static_pose() {
         .map(|m| mean_over_window(&trial, &out, &m.name))
         .collect();
     let map = MarkerMap::by_name(&model, trial.labels()).unwrap();
-    assert_eq!(map.columns.len(), model.n_markers());
+    assert_eq!(map.columns.len(), model.markers().len());
     let opts = IkOptions::default();
     let mut ws = IkWorkspace::new(&model);
     let mut q = seed_frame(&model, &p, &targets, &opts, &mut ws);

@@ -105,7 +105,7 @@ fn osim_every_shared_model_loads_and_matches_opensim_fk() {
             path.display(),
             model.segments().len(),
             model.markers().len(),
-            model.n_q(),
+            model.coordinates().len(),
             model.dependents().len()
         );
         assert!(

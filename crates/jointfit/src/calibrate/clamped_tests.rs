@@ -111,8 +111,8 @@ fn reduced_system_holds_coordinates_at_their_bounds() {
     let s0 = prob.to_scaled(&base);
     let (fit, _) = joint_and_varpro(&prob, &s0, prob.initial_coords(&base));
     let red = reduced_system(&prob, &fit.p, &fit.coords);
-    let (nq, nf, n) = (model.n_q(), prob.n_free(), prob.frames.len());
-    let rows = 3 * model.n_markers();
+    let (nq, nf, n) = (model.coordinates().len(), prob.n_free(), prob.frames.len());
+    let rows = 3 * model.markers().len();
     let mut kin = KinData::new(&model);
     let (mut held, mut full, mut kept) = (0, DMatrix::zeros(nf, nf), DMatrix::zeros(nf, nf));
     for f in 0..n {

@@ -37,9 +37,9 @@ fn gram_matches_dense_products() {
     let cost = frame_gram(&prob, &p, &q, &targets, &half, &mut sc);
 
     forward_kinematics(&model, &p, &q, Want::DqDp, &mut kin);
-    let (nq, nf) = (model.n_q(), prob.n_free());
+    let (nq, nf) = (model.coordinates().len(), prob.n_free());
     let n = nq + nf;
-    let rows = 3 * model.n_markers();
+    let rows = 3 * model.markers().len();
     let mut j = DMatrix::zeros(rows, n);
     let mut r = DMatrix::zeros(rows, 1);
     let mut expected_cost = 0.0;
@@ -86,8 +86,11 @@ fn plain_gram(
     half: &[f64],
 ) -> (Vec<f64>, Vec<f64>) {
     let model = prob.model;
-    let (nq, n) = (model.n_q(), model.n_q() + prob.n_free());
-    let nrows = 3 * model.n_markers();
+    let (nq, n) = (
+        model.coordinates().len(),
+        model.coordinates().len() + prob.n_free(),
+    );
+    let nrows = 3 * model.markers().len();
     let mut kin = KinData::new(model);
     forward_kinematics(model, p, q, Want::DqDp, &mut kin);
     let mut rows = Vec::new();
@@ -158,7 +161,7 @@ fn tiles_sum_exactly_as_plain_dot_products() {
         let p = model.nominal_params();
         let all = params_for_groups(&model, &["all"]).unwrap();
         let labels: Vec<String> = model.markers().iter().map(|m| m.name.clone()).collect();
-        let nm = model.n_markers();
+        let nm = model.markers().len();
         let mut kin = KinData::new(&model);
         let mut frames = Vec::new();
         for f in 0..6 {

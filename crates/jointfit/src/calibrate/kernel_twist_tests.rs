@@ -23,10 +23,10 @@ fn dense(
     half: &[f64],
 ) -> (DMatrix<f64>, DVector<f64>) {
     let model = prob.model;
-    let (nq, nf) = (model.n_q(), prob.n_free());
+    let (nq, nf) = (model.coordinates().len(), prob.n_free());
     let mut kin = KinData::new(model);
     forward_kinematics(model, p, q, Want::DqDp, &mut kin);
-    let rows = 3 * model.n_markers();
+    let rows = 3 * model.markers().len();
     let mut j = DMatrix::zeros(rows, nq + nf);
     let mut r = DVector::zeros(rows);
     for (m, mk) in model.markers().iter().enumerate() {
@@ -52,7 +52,7 @@ fn dense(
 /// Frames of `model` at varied coordinates, targets off the model markers by a few mm, a
 /// different marker missing in each frame but the first.
 fn frames(model: &Model, p: &[f64], n: usize) -> Vec<(Vec<f64>, Vec<Vector3<f64>>)> {
-    let nm = model.n_markers();
+    let nm = model.markers().len();
     let mut kin = KinData::new(model);
     (0..n)
         .map(|f| {
@@ -89,7 +89,7 @@ fn check(spec: &ModelSpec, groups: &[&str], twist: bool) {
     let trial = Trial::new(labels, 100.0, 1, flat).unwrap();
     let prob = Problem::new(&model, p.clone(), &free, &[&trial]).unwrap();
     let half: Vec<f64> = (0..prob.n_free()).map(|k| prob.half_range(k)).collect();
-    let n = model.n_q() + prob.n_free();
+    let n = model.coordinates().len() + prob.n_free();
     let mut sc = FrameScratch::new(&prob);
     assert_eq!(sc.is_twist(), twist, "{}: kernel choice", spec.name);
     let mut tiled = FrameScratch::tiled(&prob);

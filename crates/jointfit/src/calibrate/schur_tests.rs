@@ -55,7 +55,7 @@ fn recomputed_blocks_give_the_cached_step_bit_for_bit() {
     let trial = problem_trial(&model, 100);
     let free = params_for_groups(&model, &["all"]).unwrap();
     let prob = Problem::new(&model, model.nominal_params(), &free, &[&trial]).unwrap();
-    let (nq, nf) = (model.n_q(), prob.n_free());
+    let (nq, nf) = (model.coordinates().len(), prob.n_free());
     let one_chunk = 8 * CHUNK * (nq * nq + nq * nf + nq);
     let full = step(&prob, usize::MAX, 1e-3);
     for budget in [0, one_chunk, 2 * one_chunk + 100] {

@@ -123,7 +123,7 @@ fn offsets_over(
     frames: std::ops::Range<usize>,
 ) -> Vec<MarkerOffset> {
     use rayon::prelude::*;
-    let nm = model.n_markers();
+    let nm = model.markers().len();
     if nm == 0 {
         return Vec::new();
     }

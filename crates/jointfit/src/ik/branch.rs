@@ -48,7 +48,7 @@ pub(crate) struct Branches {
 
 impl Branches {
     pub(crate) fn new(model: &Model) -> Self {
-        let n = model.n_q();
+        let n = model.coordinates().len();
         // Per coordinate: (steps it drives, k of the last linear rotation step, any other use).
         let mut uses = vec![(0usize, 0.0f64, false); n];
         for step in &model.steps {

@@ -40,11 +40,11 @@ pub struct IkWorkspace {
 
 impl IkWorkspace {
     pub fn new(model: &Model) -> Self {
-        let n = model.n_q();
+        let n = model.coordinates().len();
         IkWorkspace {
             cur: KinData::new(model),
             trial: KinData::new(model),
-            weights: vec![0.0; model.n_markers()],
+            weights: vec![0.0; model.markers().len()],
             a: vec![0.0; n * n],
             l: vec![0.0; n * n],
             g: vec![0.0; n],
@@ -414,7 +414,7 @@ pub fn solve_frame(
         let held = undetermined;
         let mut active = std::mem::take(&mut ws.active);
         active.clear();
-        active.extend((0..model.n_q()).filter(|c| !held.contains(c)));
+        active.extend((0..model.coordinates().len()).filter(|c| !held.contains(c)));
         q.copy_from_slice(&ws.start);
         let (cost, its, end) = lm(model, p, targets, q, &active, opts, ws);
         ws.active = active;

@@ -40,7 +40,7 @@ fn min_singular(model: &Model, p: &[f64], q: &[f64], present: &[bool], cols: &[u
     let mut kin = KinData::new(model);
     forward_kinematics(model, p, q, Want::Dq, &mut kin);
     let jq = kin.jq;
-    let rows: Vec<usize> = (0..model.n_markers())
+    let rows: Vec<usize> = (0..model.markers().len())
         .filter(|&j| present[j])
         .flat_map(|j| 3 * j..3 * j + 3)
         .collect();
@@ -70,7 +70,7 @@ fn sparse_segments_are_solved_through_the_chain() {
         .iter()
         .map(|m| !gone.contains(&m.name.as_str()))
         .collect();
-    let all: Vec<usize> = (0..model.n_q()).collect();
+    let all: Vec<usize> = (0..model.coordinates().len()).collect();
     assert!(min_singular(&model, &p, &truth[7], &present, &all) > 1e-3);
     let map = MarkerMap::by_name(&model, trial.labels()).unwrap();
     let fit = solve_trial(&model, &p, &trial, &map, &IkOptions::default()).unwrap();
@@ -107,7 +107,7 @@ fn undetermined_coordinate_is_named_and_ranged() {
         .iter()
         .map(|m| !gone.contains(&m.name.as_str()))
         .collect();
-    let all: Vec<usize> = (0..model.n_q()).collect();
+    let all: Vec<usize> = (0..model.coordinates().len()).collect();
     let rest: Vec<usize> = all.iter().copied().filter(|&c| c != named).collect();
     assert!(min_singular(&model, &p, &truth[6], &present, &all) < 1e-8);
     assert!(min_singular(&model, &p, &truth[6], &present, &rest) > 1e-3);

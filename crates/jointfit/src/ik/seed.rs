@@ -75,7 +75,7 @@ fn seed(
         ws.weights.clone()
     };
     for &root in &roots {
-        let joint = &model.joints()[model.segments()[root].joint.0];
+        let joint = &model.joints()[root];
         let active: Vec<usize> = joint.coords.clone().collect();
         if active.is_empty() {
             continue;

@@ -35,7 +35,7 @@ fn certified_seed_equals_scouted_seed_in_any_orientation() {
     let mut ws = IkWorkspace::new(&model);
     let mut kin = KinData::new(&model);
     let mut rng = ChaCha8Rng::seed_from_u64(2611);
-    let root_joint = &model.joints()[model.segments()[0].joint.0];
+    let root_joint = &model.joints()[0];
     let root: Vec<usize> = root_joint.coords.clone().collect();
     let before = certified_count();
     let cases = 60;

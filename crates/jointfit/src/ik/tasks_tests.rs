@@ -114,7 +114,7 @@ fn coordinate_tasks_minimise_the_stated_objective() {
     let f0 = objective(&model, &p, &q, &targets, &goals);
     assert!((fit.cost - f0).abs() <= 1e-12 * f0, "{} vs {f0}", fit.cost);
     let h = 1e-6;
-    for i in 0..model.n_q() {
+    for i in 0..model.coordinates().len() {
         let mut a = q.clone();
         let mut b = q.clone();
         a[i] += h;
@@ -229,13 +229,13 @@ fn a_single_marker_off_a_pin_axis_determines_it() {
         .sum::<f64>()
         .sqrt();
     assert!((lever - 0.017).abs() < 0.002, "lever {lever}");
-    let cols: Vec<usize> = (0..model.n_q())
+    let cols: Vec<usize> = (0..model.coordinates().len())
         .filter(|&c| c != ankle && c != subtalar)
         .collect();
     let j = DMatrix::from_fn(jq.nrows(), cols.len(), |r, c| jq[(r, cols[c])]);
     assert!(j.singular_values().min() > 1e-3);
-    let weights = vec![1.0; model.n_markers()];
-    let known = vec![false; model.n_q()];
+    let weights = vec![1.0; model.markers().len()];
+    let known = vec![false; model.coordinates().len()];
     let mut ws = IkWorkspace::new(&model);
     let mut verdict = ws
         .solvability
@@ -309,7 +309,7 @@ fn held_from_the_first_frame_at_the_defaults() {
             (q[ankle], q[subtalar]),
             (defaults[ankle], defaults[subtalar])
         );
-        for c in (0..model.n_q()).filter(|&c| c != ankle && c != subtalar) {
+        for c in (0..model.coordinates().len()).filter(|&c| c != ankle && c != subtalar) {
             assert!(
                 (q[c] - truth[f][c]).abs() < 1e-7,
                 "frame {f}, coordinate {c}"

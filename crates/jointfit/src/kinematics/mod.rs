@@ -66,16 +66,16 @@ impl KinData {
     }
 
     pub fn new(model: &Model) -> Self {
-        let nm = model.n_markers();
+        let nm = model.markers().len();
         let ns = model.steps.len();
         KinData {
             segment_poses: vec![Pose::identity(); model.segments().len()],
             markers: vec![Vector3::zeros(); nm],
-            jq: DMatrix::zeros(3 * nm, model.n_q()),
-            jp: DMatrix::zeros(3 * nm, model.n_p()),
+            jq: DMatrix::zeros(3 * nm, model.coordinates().len()),
+            jp: DMatrix::zeros(3 * nm, model.parameters().len()),
             step_axis: vec![Vector3::zeros(); ns],
             step_origin: vec![Vector3::zeros(); ns],
-            cached_p: vec![f64::NAN; model.n_p()],
+            cached_p: vec![f64::NAN; model.parameters().len()],
             blocks_ready: false,
             block_pose: vec![Pose::identity(); model.plan.n_blocks],
             step_local: vec![(Vector3::zeros(), Vector3::zeros()); ns],
@@ -196,11 +196,15 @@ pub(crate) fn forward_kinematics_frames(model: &Model, p: &[f64], q: &[f64], dat
 /// [`forward_kinematics`] with the outputs spelled out.
 #[inline(always)]
 fn kinematics(model: &Model, p: &[f64], q: &[f64], want: Outputs, data: &mut KinData) {
-    assert_eq!(p.len(), model.n_p(), "parameter vector length");
-    assert_eq!(q.len(), model.n_q(), "coordinate vector length");
+    assert_eq!(p.len(), model.parameters().len(), "parameter vector length");
+    assert_eq!(
+        q.len(),
+        model.coordinates().len(),
+        "coordinate vector length"
+    );
     assert_eq!(
         data.markers.len(),
-        model.n_markers(),
+        model.markers().len(),
         "workspace built for another model"
     );
     data.update_blocks(model, p);
@@ -261,7 +265,7 @@ fn kinematics(model: &Model, p: &[f64], q: &[f64], want: Outputs, data: &mut Kin
 
 /// Writes the geometric Jacobian columns (module docs) of every marker.
 fn fill_jacobian(model: &Model, cols: &[Vec<JCol>], data: &mut KinData, of_q: bool) {
-    let nrows = 3 * model.n_markers();
+    let nrows = 3 * model.markers().len();
     let target = if of_q {
         data.jq.as_mut_slice()
     } else {

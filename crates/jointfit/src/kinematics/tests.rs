@@ -46,7 +46,7 @@ fn sample(model: &Model, u: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let p = model
         .parameters()
         .iter()
-        .zip(&u[model.n_q()..])
+        .zip(&u[model.coordinates().len()..])
         .map(|(par, &t)| par.lower + t * (par.upper - par.lower))
         .collect();
     (p, q)
@@ -261,7 +261,7 @@ fn nominal_leg_stands_upright() {
     for side in [Side::Right, Side::Left] {
         let model = Model::compile(&lower_limb(side)).unwrap();
         let mut d = KinData::new(&model);
-        let q = vec![0.0; model.n_q()];
+        let q = vec![0.0; model.coordinates().len()];
         forward_kinematics(&model, &model.nominal_params(), &q, Want::Positions, &mut d);
         let pose = |name: &str| {
             let s = model.segments().iter().position(|s| s.name == name);
@@ -287,7 +287,7 @@ fn clinical_signs() {
         let model = Model::compile(&lower_limb(side)).unwrap();
         let p = model.nominal_params();
         let at = |name: &str, value: f64, marker: &str| {
-            let mut q = vec![0.0; model.n_q()];
+            let mut q = vec![0.0; model.coordinates().len()];
             q[model.coord_id(name).unwrap()] = value;
             let mut d = KinData::new(&model);
             forward_kinematics(&model, &p, &q, Want::Positions, &mut d);

@@ -19,8 +19,9 @@
 //!   *child joint frame* is fixed in the child segment (the child offset `t_c, r_c`), and the
 //!   joint's coordinates move the second relative to the first.
 //! * Shapes: `n_seg = n_joint` (one joint per segment), `n_q` coordinates, `n_p` parameters,
-//!   `n_mrk` markers. Indices are the typed ids [`SegmentId`], [`JointId`] and [`ParamId`]
-//!   or, for coordinates (positions in `q`) and markers, a plain `usize`.
+//!   `n_mrk` markers. Indices are the typed ids [`SegmentId`] and [`ParamId`] or, for
+//!   joints (joint `i` moves segment `i`), coordinates (positions in `q`) and markers, a plain
+//!   `usize`.
 //! * A [`Model`] is read-only after [`Model::compile`]: its fields are private and the
 //!   accessors hand out shared slices. To change a model, edit its [`ModelSpec`]
 //!   ([`Model::spec`], [`Model::spec_with_nominal`]) and compile again.
@@ -34,15 +35,12 @@ use crate::spatial::Motion;
 /// Index of a segment in [`Model::segments`] (topological order: parents first).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct SegmentId(pub usize);
-/// Index of a joint in [`Model::joints`]; joint `i` attaches segment `i` to its parent.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct JointId(pub usize);
 /// Index of a parameter in the parameter vector `p`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct ParamId(pub usize);
 
 /// A rigid body of the chain (pelvis, thigh, …). Its frame is body-fixed; the child offset of
-/// [`Segment::joint`] places the joint frame in it.
+/// the joint of the same index ([`Model::joints`]) places the joint frame in it.
 #[derive(Debug, Clone)]
 pub struct Segment {
     /// Unique name, as in the description (never `ground`).
@@ -50,8 +48,6 @@ pub struct Segment {
     /// The parent segment; `None` when the segment is attached to ground (the world frame).
     /// Always a lower index than the segment itself (topological order).
     pub parent: Option<SegmentId>,
-    /// The joint that attaches this segment to its parent; `joint.0 == ` this segment's index.
-    pub joint: JointId,
 }
 
 /// The kind of motion a joint allows, with unit axes (dimensionless, norm 1).
@@ -158,8 +154,8 @@ pub enum CoordKind {
 pub struct Coordinate {
     /// Unique name (e.g. `hip_flexion`).
     pub name: String,
-    /// The joint whose motion reads this coordinate.
-    pub joint: JointId,
+    /// Index in [`Model::joints`] of the joint whose motion reads this coordinate.
+    pub joint: usize,
     /// Angle (rad) or length (m).
     pub kind: CoordKind,
     /// OpenSim's motion type (the unit in `.mot` files; `kind` for built-in joint kinds).
@@ -179,8 +175,8 @@ pub struct Coordinate {
 /// takes the value `scale · p[k]`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParamUse {
-    /// The joint whose offset reads the parameter.
-    pub joint: JointId,
+    /// Index in [`Model::joints`] of the joint whose offset reads the parameter.
+    pub joint: usize,
     /// The segment the offset frame is fixed in: the joint's parent for a parent offset
     /// (`None`: ground), its child for a child offset.
     pub segment: Option<SegmentId>,
@@ -279,7 +275,7 @@ pub(crate) struct Step {
 /// use jointfit::model::Model;
 ///
 /// let model = Model::compile(&lower_limb(Side::Right)).unwrap();
-/// assert_eq!((model.n_q(), model.n_p()), (12, 27));
+/// assert_eq!((model.coordinates().len(), model.parameters().len()), (12, 27));
 /// assert_eq!(model.segments()[model.joints()[1].child.0].name, "thigh");
 /// ```
 ///
@@ -335,7 +331,7 @@ impl Model {
     pub fn segments(&self) -> &[Segment] {
         &self.segments
     }
-    /// Joints (`n_seg`), indexed by [`JointId`]; joint `i` moves segment `i`.
+    /// Joints (`n_seg`); joint `i` moves segment `i`.
     #[inline]
     pub fn joints(&self) -> &[Joint] {
         &self.joints
@@ -360,18 +356,6 @@ impl Model {
     #[inline]
     pub fn markers(&self) -> &[Marker] {
         &self.markers
-    }
-    /// Number of coordinates `n_q`.
-    pub fn n_q(&self) -> usize {
-        self.coordinates.len()
-    }
-    /// Number of parameters `n_p`.
-    pub fn n_p(&self) -> usize {
-        self.parameters.len()
-    }
-    /// Number of markers `n_mrk`.
-    pub fn n_markers(&self) -> usize {
-        self.markers.len()
     }
     /// The description this model was compiled from.
     pub fn spec(&self) -> &ModelSpec {
@@ -398,7 +382,7 @@ impl Model {
     }
     /// Ids of the parameters in the given group, in parameter order.
     pub fn params_in_group(&self, group: &str) -> Vec<ParamId> {
-        (0..self.n_p())
+        (0..self.parameters().len())
             .filter(|&i| self.parameters[i].group == group)
             .map(ParamId)
             .collect()

@@ -24,7 +24,7 @@ use std::collections::HashMap;
 
 use nalgebra::Vector3;
 
-use super::compiled::{CoordKind, JointId};
+use super::compiled::CoordKind;
 use super::functions::Function;
 use super::spec::{AxisMotion, CoordinateSpec, FunctionSpec, JointKindSpec, ModelSpec};
 use super::ModelError;
@@ -78,7 +78,8 @@ pub enum CoordRule {
 #[derive(Debug, Clone, PartialEq)]
 pub struct DependentCoordinate {
     pub name: String,
-    pub joint: JointId,
+    /// Index in [`super::Model::joints`] of the joint whose motion reads this coordinate.
+    pub joint: usize,
     pub kind: CoordKind,
     /// OpenSim's motion type (the unit in `.mot` files).
     pub motion: MotionType,

@@ -199,10 +199,13 @@ mod tests {
             Model::compile(&spec).unwrap(),
             Model::compile(&aug_spec).unwrap(),
         );
-        assert_eq!(aug.n_p(), orig.n_p() + 3 * names.len());
-        assert_eq!(aug.n_q(), orig.n_q());
+        assert_eq!(
+            aug.parameters().len(),
+            orig.parameters().len() + 3 * names.len()
+        );
+        assert_eq!(aug.coordinates().len(), orig.coordinates().len());
         // Same marker positions at the nominal parameters in any pose.
-        let q: Vec<f64> = (0..orig.n_q())
+        let q: Vec<f64> = (0..orig.coordinates().len())
             .map(|i| 0.1 * (i as f64 + 1.0).sin())
             .collect();
         let (mut k0, mut k1) = (KinData::new(&orig), KinData::new(&aug));

@@ -175,7 +175,7 @@ fn several_starts_are_all_recorded_and_the_best_is_reported() {
 fn restart_points_are_seeded_distinct_and_bounded() {
     let model = leg();
     let start = model.nominal_params();
-    let free: Vec<usize> = (0..model.n_p()).collect();
+    let free: Vec<usize> = (0..model.parameters().len()).collect();
     let a = restart_point(&model, &start, &free, 0.02, 10f64.to_radians(), 7, 1);
     assert_eq!(
         a,

@@ -10,8 +10,8 @@ use jointfit_testkit::models::{kitchen_sink, two_link};
 fn leg_model_has_the_papers_counts() {
     for side in [Side::Right, Side::Left] {
         let model = Model::compile(&lower_limb(side)).unwrap();
-        assert_eq!(model.n_p(), 27);
-        assert_eq!(model.n_q(), 12);
+        assert_eq!(model.parameters().len(), 27);
+        assert_eq!(model.coordinates().len(), 12);
         assert_eq!(model.params_in_group("hip").len(), 6);
         assert_eq!(model.params_in_group("knee").len(), 9);
         assert_eq!(model.params_in_group("ankle").len(), 12);

@@ -165,8 +165,8 @@ fn check_against_dense_fd(model: &Model, prob: &Problem, p: &[f64], qs: &[Vec<f6
     // Oracle: the stacked residual Jacobian over (q_1 … q_N, s) from central differences
     // of forward kinematics, its dense normal matrix, and nalgebra's inverse for the Schur
     // complement onto s.
-    let (nq, nf, n) = (model.n_q(), prob.n_free(), prob.frames.len());
-    let rows = 3 * model.n_markers();
+    let (nq, nf, n) = (model.coordinates().len(), prob.n_free(), prob.frames.len());
+    let rows = 3 * model.markers().len();
     let mut j = DMatrix::zeros(n * rows, n * nq + nf);
     let mut r = nalgebra::DVector::zeros(n * rows);
     let mut kin = KinData::new(model);

@@ -150,8 +150,8 @@ mod tests {
     #[test]
     fn sizes_and_names() {
         let m = Model::compile(&bilateral()).unwrap();
-        assert_eq!(m.n_p(), 54);
-        assert_eq!(m.n_q(), 18);
+        assert_eq!(m.parameters().len(), 54);
+        assert_eq!(m.coordinates().len(), 18);
         assert!(m.coord_id("hip_flexion_r").is_some());
         assert!(m.coord_id("subtalar_inversion_l").is_some());
         assert!(m.coord_id("pelvis_tilt").is_some());
