@@ -114,7 +114,7 @@ impl Summary {
             }
         };
         Summary {
-            name: model.name().to_string(),
+            name: model.spec().name.clone(),
             description: model.spec().description.clone(),
             segments: model
                 .segments()

@@ -154,14 +154,18 @@ pub fn to_osim(model: &Model, p: &[f64]) -> Result<String, OsimError> {
     x.push_str("<?xml version=\"1.0\" encoding=\"UTF-8\" ?>\n");
     x.push_str("<OpenSimDocument Version=\"40000\">\n");
     header_comment(&mut x, model, p);
-    let _ = writeln!(x, "  <Model name=\"{}\">", escape(&sanitize(model.name())));
+    let _ = writeln!(
+        x,
+        "  <Model name=\"{}\">",
+        escape(&sanitize(&model.spec().name))
+    );
     let _ = writeln!(
         x,
         "    <credits>{}</credits>",
         escape(&format!(
             "exported by jointfit {} from model {:?}",
             env!("CARGO_PKG_VERSION"),
-            model.name()
+            model.spec().name
         ))
     );
     x.push_str("    <length_units>meters</length_units>\n");
@@ -356,7 +360,7 @@ fn header_comment(x: &mut String, model: &Model, p: &[f64]) {
         c,
         "Exported by jointfit {} from model {:?}.",
         env!("CARGO_PKG_VERSION"),
-        model.name()
+        model.spec().name
     );
     if !model.spec().description.is_empty() {
         let _ = writeln!(c, "Description: {}", model.spec().description);

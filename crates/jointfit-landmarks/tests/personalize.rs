@@ -20,8 +20,12 @@ const PW: f64 = 0.24;
 const KNEE_HALF: f64 = 0.05;
 const ANKLE_HALF: f64 = 0.035;
 
+/// The built-in markers' name prefix.
 fn prefix(side: Side) -> &'static str {
-    side.prefix()
+    match side {
+        Side::Right => "R",
+        Side::Left => "L",
+    }
 }
 
 /// The synthetic subject: the template with Bell's hip centre and landmark markers.

@@ -111,7 +111,7 @@ fn compare_fk(model: &Model, seed: u64) -> Option<f64> {
                     assert!(
                         d <= FK_TOL,
                         "{}: marker {} axis {a} differs by {d} m at q = {pose:?}, p = {p:?}",
-                        model.name(),
+                        model.spec().name,
                         m.name
                     );
                 }
@@ -120,7 +120,7 @@ fn compare_fk(model: &Model, seed: u64) -> Option<f64> {
     }
     eprintln!(
         "osim fk {}: max |OpenSim − jointfit| marker difference {worst:.3e} m",
-        model.name()
+        model.spec().name
     );
     Some(worst)
 }

@@ -316,9 +316,9 @@ pub struct Model {
 }
 
 impl Model {
-    /// Model name.
+    /// Model name (users read it, like the description, from [`Model::spec`]).
     #[inline]
-    pub fn name(&self) -> &str {
+    pub(crate) fn name(&self) -> &str {
         &self.name
     }
     /// Free-text description (users read it from [`Model::spec`]).

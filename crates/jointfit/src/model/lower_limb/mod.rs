@@ -64,8 +64,8 @@ impl Side {
             Side::Left => "_l",
         }
     }
-    /// Marker-name prefix: `R` or `L`.
-    pub fn prefix(self) -> &'static str {
+    /// Marker-name prefix of the built-in markers: `R` or `L`.
+    pub(crate) fn prefix(self) -> &'static str {
         match self {
             Side::Right => "R",
             Side::Left => "L",
