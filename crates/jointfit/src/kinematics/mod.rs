@@ -65,6 +65,7 @@ impl KinData {
         (self.step_axis[k], self.step_origin[k])
     }
 
+    /// A workspace sized for `model` (its segments, markers, coordinates and parameters).
     pub fn new(model: &Model) -> Self {
         let nm = model.markers().len();
         let ns = model.steps.len();
