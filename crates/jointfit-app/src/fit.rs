@@ -288,7 +288,8 @@ pub fn summarize_refined(
     let mut start_all = refined.model.nominal_params();
     start_all[..start.len()].copy_from_slice(start);
     let mut out = summarize(&refined.model, &start_all, &refined.calibration, method);
-    let mut fitted = model.spec_with_nominal(&refined.calibration.fit.p[..model.n_p()]);
+    let mut fitted =
+        model.spec_with_nominal(&refined.calibration.fit.p[..model.parameters().len()]);
     fitted.markers = refined.fitted.markers.clone();
     fitted.name = format!("{} (fitted)", model.spec().name);
     out.model = fitted;

@@ -119,7 +119,7 @@ pub fn personalize(
     let (held, held_coordinates) = jointfit::ik::hold::hold_undetermined(&model, trials)?;
     let model = held.unwrap_or(model);
     let start = start.unwrap_or_else(|| model.nominal_params());
-    let free: Vec<ParamId> = (0..model.n_p()).map(ParamId).collect();
+    let free: Vec<ParamId> = (0..model.parameters().len()).map(ParamId).collect();
     let result = calibrate_holding_redundant(&model, &start, trials, &free, settings, observer)?;
     Ok(OsimFit {
         spec: given,

@@ -325,7 +325,7 @@ pub fn marker_extent(model: &Model) -> f64 {
         model,
         &model.nominal_params(),
         &model.default_coords(),
-        Want::POSITIONS,
+        Want::Positions,
         &mut data,
     );
     let ys = data.markers.iter().map(|m| m.y);

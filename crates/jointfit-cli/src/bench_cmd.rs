@@ -201,9 +201,9 @@ fn time_kinematics(model: &Model, p: &[f64], poses: &[&Vec<f64>], fig: &mut Figu
         }) / reps as f64
             * 1e6
     };
-    fig.fk_us = fk(Want::POSITIONS);
-    fig.fk_dq_us = fk(Want::DQ);
-    fig.fk_dq_dp_us = fk(Want::BOTH);
+    fig.fk_us = fk(Want::Positions);
+    fig.fk_dq_us = fk(Want::Dq);
+    fig.fk_dq_dp_us = fk(Want::DqDp);
 }
 
 /// IK of the whole trial from scratch, with and without the data checks, on every thread
@@ -381,8 +381,8 @@ pub fn run(args: BenchArgs) -> Result<()> {
     MarkerMap::by_name(model, trial.labels())?;
     let mut fig = Figures {
         source: w.source.clone(),
-        markers: model.n_markers(),
-        parameters: model.n_p(),
+        markers: model.markers().len(),
+        parameters: model.parameters().len(),
         synthetic_workload: bench_perf::SYNTHETIC_WORKLOAD,
         frames: trial.n_frames(),
         ..Figures::default()

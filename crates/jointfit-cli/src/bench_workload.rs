@@ -235,7 +235,7 @@ fn for_trial(
             "{}: no marker of the trial is a marker of {what} ({} model markers, e.g. {}); \
              nothing to time",
             path.display(),
-            model.n_markers(),
+            model.markers().len(),
             model.markers().first().map_or("none", |m| m.name.as_str())
         );
     }

@@ -502,7 +502,7 @@ fn finish(
     // The fitted model keeps the input file's priors (overrides apply to this run only).
     // Refined markers (if any) replace the input's.
     let input_model = &prepared.given.model;
-    let mut fitted = input_model.spec_with_nominal(&cal.fit.p[..input_model.n_p()]);
+    let mut fitted = input_model.spec_with_nominal(&cal.fit.p[..input_model.parameters().len()]);
     fitted.markers = refined.fitted.markers.clone();
     fitted.name = format!("{} (fitted)", input_model.spec().name);
     jointfit_io::model_file::save_spec(&args.output, &fitted)

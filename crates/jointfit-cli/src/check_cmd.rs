@@ -68,7 +68,9 @@ pub fn run(args: CheckArgs) -> Result<()> {
         load_checked(&args.trial, &args.read, &model, args.filter, Columns::All)?;
     let model = crate::common::model_for_trials(model, &[&trial], "the check")?;
     let free = if jointfit_io::model_file::is_osim(Path::new(&args.model)) {
-        (0..model.n_p()).map(jointfit::model::ParamId).collect()
+        (0..model.parameters().len())
+            .map(jointfit::model::ParamId)
+            .collect()
     } else {
         let groups: Vec<&str> = args.joints.iter().map(|s| s.as_str()).collect();
         params_for_groups(&model, &groups)?

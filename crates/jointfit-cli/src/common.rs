@@ -161,7 +161,7 @@ pub fn load_for_model(
     filter_hz: Option<f64>,
     columns: Columns,
 ) -> Result<Loaded> {
-    if model.n_markers() == 0 {
+    if model.markers().is_empty() {
         bail!(
             "model \"{}\" has no markers, so no trial can be fitted to it",
             model.spec().name

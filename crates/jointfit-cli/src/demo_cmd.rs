@@ -49,7 +49,7 @@ pub fn run(args: DemoArgs) -> Result<()> {
     println!(
         "synthetic trial: {} frames of hip, knee and ankle motion, {} markers, skin noise up to {} mm (3-D RMS {:.2} mm), true parameters = nominal moved by up to 40% of each bound (seed {})",
         args.frames,
-        model.n_markers(),
+        model.markers().len(),
         args.noise_mm,
         noise_rms * 1e3,
         args.seed

@@ -43,8 +43,8 @@ fn osim(args: OsimArgs) -> Result<()> {
         args.output.display(),
         model.segments().len(),
         model.joints().len(),
-        model.n_q(),
-        model.n_markers()
+        model.coordinates().len(),
+        model.markers().len()
     );
     Ok(())
 }

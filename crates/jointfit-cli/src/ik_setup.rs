@@ -386,7 +386,7 @@ fn from_file(
     let f = Function::new(&FunctionSpec::GcvSpline { degree: 5, x, y })
         .map_err(|e| anyhow::anyhow!("{}: column {name:?}: {e}", path.display()))?;
     Ok((0..trial.n_frames())
-        .map(|i| f.value(trial.time(i)))
+        .map(|i| f.eval(trial.time(i)).0)
         .collect())
 }
 

@@ -114,7 +114,7 @@ impl Summary {
             }
         };
         Summary {
-            name: model.name().to_string(),
+            name: model.spec().name.clone(),
             description: model.spec().description.clone(),
             segments: model
                 .segments()
@@ -129,11 +129,11 @@ impl Summary {
                 .iter()
                 .map(|j| JointRow {
                     name: j.name.clone(),
-                    kind: j.kind.type_name().to_string(),
+                    kind: j.kind.to_string(),
                     axes: axes(&j.kind),
                     parent: seg_name(j.parent),
                     child: seg_name(Some(j.child)),
-                    coordinates: model.coordinates()[j.first_coord..j.first_coord + j.kind.dof()]
+                    coordinates: model.coordinates()[j.coords.clone()]
                         .iter()
                         .map(|c| c.name.clone())
                         .collect(),
@@ -149,7 +149,7 @@ impl Summary {
                     };
                     CoordRow {
                         name: c.name.clone(),
-                        joint: model.joints()[c.joint.0].name.clone(),
+                        joint: model.joints()[c.joint].name.clone(),
                         unit,
                         range: [round(c.range[0] * k, 6), round(c.range[1] * k, 6)],
                         default: round(c.default * k, 6),

@@ -118,14 +118,14 @@ pub fn run(args: SynthArgs) -> Result<()> {
         .check()?;
     let spec = jointfit_io::model_file::load_spec(&args.model)?;
     let model = jointfit_io::model_file::load_model(&args.model)?;
-    if model.n_markers() == 0 {
+    if model.markers().is_empty() {
         bail!(
             "{}: the model has no markers, so there is nothing to synthesize",
             args.model
         );
     }
     check_numbers(&args)?;
-    let all: Vec<usize> = (0..model.n_p()).collect();
+    let all: Vec<usize> = (0..model.parameters().len()).collect();
     let truth = if args.perturb_mm > 0.0 || args.perturb_deg > 0.0 {
         perturb(
             &model,
@@ -163,7 +163,7 @@ pub fn run(args: SynthArgs) -> Result<()> {
         motion: args.motion.clone(),
         frames: coords.len(),
         rate_hz: rate,
-        markers: model.n_markers(),
+        markers: model.markers().len(),
         noise: format!("{:?}", args.noise).to_lowercase(),
         seed: args.seed,
         noise_rms_axis_mm: stats.rms_axis.map(|v| v * 1e3),

@@ -209,7 +209,7 @@ pub fn model_markers(option: &str, names: &[String], model: &jointfit::model::Mo
         bail!(
             "{option} {}: not a marker of the model {:?}; its markers are {}",
             unknown.join(","),
-            model.name(),
+            model.spec().name,
             known.join(", ")
         );
     }

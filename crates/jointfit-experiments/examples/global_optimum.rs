@@ -107,7 +107,7 @@ fn fit_case(
     worst: &mut f64,
 ) -> Calibration {
     let free = params_for_groups(model, &["all"]).expect("all");
-    let all: Vec<usize> = (0..model.n_p()).collect();
+    let all: Vec<usize> = (0..model.parameters().len()).collect();
     let nominal = model.nominal_params();
     let truth = perturb(model, &nominal, &all, 30.0, 15.0, seed);
     let coords = coordinates_scaled(model, motion, 50, 1.0).expect("motion");

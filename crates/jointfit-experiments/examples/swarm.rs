@@ -46,7 +46,7 @@ fn main() {
         }
     }
     let model = Model::compile(&lower_limb(Side::Right)).expect("built-in model compiles");
-    let all: Vec<usize> = (0..model.n_p()).collect();
+    let all: Vec<usize> = (0..model.parameters().len()).collect();
     let nominal = model.nominal_params();
     println!(
         "{:<6} {:>5} {:>12} {:>12} {:>9} {:>10} {:>7} {:>8}",

@@ -346,7 +346,7 @@ mod tests {
     #[test]
     fn table2_matches_the_builtin_model() {
         let model = Model::compile(&lower_limb(Side::Right)).unwrap();
-        assert_eq!(model.n_p(), TABLE2.len());
+        assert_eq!(model.parameters().len(), TABLE2.len());
         for (par, row) in model.parameters().iter().zip(TABLE2) {
             assert_eq!(par.name, row.0);
             let k = crate::units::scale(par.unit);

@@ -136,7 +136,7 @@ pub fn coordinates_scaled(
         let left = pose(motion, (t + 0.5).fract(), amplitude);
         for ((name, v), (_, v_left)) in pose(motion, t, amplitude).into_iter().zip(left) {
             if let Some(id) = model.coord_id(name) {
-                q[id.0] = v;
+                q[id] = v;
                 continue;
             }
             // A bilateral model: the right leg at phase t, the left half a trial later.
@@ -146,7 +146,7 @@ pub fn coordinates_scaled(
                 return Err(SynthError::MissingCoordinate(name.to_string(), "synthetic"));
             }
             for (id, v) in sided.into_iter().flatten() {
-                q[id.0] = v;
+                q[id] = v;
             }
         }
         out.push(q);
@@ -265,7 +265,7 @@ pub fn synthesize(
     let terms: Vec<(f64, f64, f64)> = match &noise.skin {
         Some(n) => {
             let mut rng = ChaCha8Rng::seed_from_u64(n.seed);
-            (0..3 * model.n_markers())
+            (0..3 * model.markers().len())
                 .map(|_| {
                     (
                         rng.gen_range(0.0..=n.max_amplitude),
@@ -285,12 +285,12 @@ pub fn synthesize(
         )
     });
     let mut kin = KinData::new(model);
-    let mut positions = Vec::with_capacity(coords.len() * model.n_markers());
+    let mut positions = Vec::with_capacity(coords.len() * model.markers().len());
     let mut sums = [0.0; 3];
     let mut max_axis = 0.0f64;
     let mut count = 0usize;
     for (f, q) in coords.iter().enumerate() {
-        forward_kinematics(model, p, q, Want::POSITIONS, &mut kin);
+        forward_kinematics(model, p, q, Want::Positions, &mut kin);
         let t = f as f64 / rate;
         for (j, x) in kin.markers.iter().enumerate() {
             let mut n = Vector3::<f64>::zeros();
@@ -399,7 +399,7 @@ mod tests {
     fn motions_move_their_joint() {
         let model = Model::compile(&lower_limb(Side::Right)).unwrap();
         let range = |m: Motion, name: &str| {
-            let i = model.coord_id(name).unwrap().0;
+            let i = model.coord_id(name).unwrap();
             let q = coordinates(&model, m, 50).unwrap();
             let v: Vec<f64> = q.iter().map(|r| r[i]).collect();
             v.iter().cloned().fold(f64::MIN, f64::max) - v.iter().cloned().fold(f64::MAX, f64::min)

@@ -16,7 +16,7 @@ use jointfit_experiments::synth::{coordinates_scaled, synthesize, Motion, Noise}
 
 /// The synthetic case of `seed` and the objective at its true parameters.
 fn case(model: &Model, motion: Motion, seed: u64) -> (Trial, f64) {
-    let all: Vec<usize> = (0..model.n_p()).collect();
+    let all: Vec<usize> = (0..model.parameters().len()).collect();
     let nominal = model.nominal_params();
     let truth = perturb(model, &nominal, &all, 30.0, 15.0, seed);
     let coords = coordinates_scaled(model, motion, 50, 1.0).unwrap();
@@ -114,7 +114,7 @@ fn global_phase_is_deterministic_whatever_the_threads() {
 /// a bound. `J` = the fitted groups; returns the swarm's own iterations.
 fn swarm_on_the_noiseless_ankle(groups: &str) -> usize {
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
-    let all: Vec<usize> = (0..model.n_p()).collect();
+    let all: Vec<usize> = (0..model.parameters().len()).collect();
     let nominal = model.nominal_params();
     let seed = 7316;
     let truth = perturb(&model, &nominal, &all, 30.0, 15.0, seed);
@@ -180,7 +180,7 @@ fn swarm_finds_the_noiseless_ankle_with_every_parameter_free() {
 #[test]
 fn swarm_on_the_noisy_hip_stops_in_the_minimum_near_the_truth_whatever_the_threads() {
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
-    let all: Vec<usize> = (0..model.n_p()).collect();
+    let all: Vec<usize> = (0..model.parameters().len()).collect();
     let nominal = model.nominal_params();
     let seed = 7317;
     let truth = perturb(&model, &nominal, &all, 30.0, 15.0, seed);

@@ -49,7 +49,7 @@ fn run(spec: &ModelSpec, motion: Motion, seeds: u64, landmark: bool) -> Outcome 
     let model = Model::compile(spec).unwrap();
     let coords = coordinates(&model, motion, 100).unwrap();
     let free = params_for_groups(&model, &["all"]).unwrap();
-    let every: Vec<usize> = (0..model.n_p()).collect();
+    let every: Vec<usize> = (0..model.parameters().len()).collect();
     let mut out = Outcome::default();
     for seed in 7401..7401 + seeds {
         let truth = perturb(&model, &model.nominal_params(), &every, 30.0, 15.0, seed);

@@ -105,7 +105,10 @@ mod tests {
 
     #[test]
     fn builtin_and_errors() {
-        assert_eq!(load_model("lower-limb-left").unwrap().n_p(), 27);
+        assert_eq!(
+            load_model("lower-limb-left").unwrap().parameters().len(),
+            27
+        );
         let e = load_model("no-such-model").unwrap_err().to_string();
         assert_eq!(
             e,

@@ -134,10 +134,10 @@ pub enum OsimError {
 /// Renders the model with parameters `p` (len `n_p`, m and rad) as an OpenSim 4 `.osim`
 /// document (see the module docs for the mapping).
 pub fn to_osim(model: &Model, p: &[f64]) -> Result<String, OsimError> {
-    if p.len() != model.n_p() {
+    if p.len() != model.parameters().len() {
         return Err(OsimError::ParamLength {
             got: p.len(),
-            expected: model.n_p(),
+            expected: model.parameters().len(),
         });
     }
     for (par, &v) in model.parameters().iter().zip(p) {
@@ -154,14 +154,18 @@ pub fn to_osim(model: &Model, p: &[f64]) -> Result<String, OsimError> {
     x.push_str("<?xml version=\"1.0\" encoding=\"UTF-8\" ?>\n");
     x.push_str("<OpenSimDocument Version=\"40000\">\n");
     header_comment(&mut x, model, p);
-    let _ = writeln!(x, "  <Model name=\"{}\">", escape(&sanitize(model.name())));
+    let _ = writeln!(
+        x,
+        "  <Model name=\"{}\">",
+        escape(&sanitize(&model.spec().name))
+    );
     let _ = writeln!(
         x,
         "    <credits>{}</credits>",
         escape(&format!(
             "exported by jointfit {} from model {:?}",
             env!("CARGO_PKG_VERSION"),
-            model.name()
+            model.spec().name
         ))
     );
     x.push_str("    <length_units>meters</length_units>\n");
@@ -206,7 +210,7 @@ fn joint_xml(x: &mut String, model: &Model, p: &[f64], ji: usize) -> Result<(), 
         "          <socket_child_frame>{}_offset</socket_child_frame>",
         escape(child)
     );
-    let coords = &model.coordinates()[joint.first_coord..joint.first_coord + joint.kind.dof()];
+    let coords = &model.coordinates()[joint.coords.clone()];
     coordinates_xml(x, coords);
     x.push_str("          <frames>\n");
     offset_frame(x, parent, &parent_offset);
@@ -356,7 +360,7 @@ fn header_comment(x: &mut String, model: &Model, p: &[f64]) {
         c,
         "Exported by jointfit {} from model {:?}.",
         env!("CARGO_PKG_VERSION"),
-        model.name()
+        model.spec().name
     );
     if !model.spec().description.is_empty() {
         let _ = writeln!(c, "Description: {}", model.spec().description);

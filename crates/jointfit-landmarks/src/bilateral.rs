@@ -27,7 +27,8 @@ use super::{
     check_options, personalize_in, personalize_with, LandmarkError, MarkerSet, PersonalizeOptions,
     Personalized,
 };
-use jointfit::model::lower_limb::{join_legs, Side, PELVIS_SEGMENT};
+use jointfit::model::lower_limb::bilateral::{join_legs, PELVIS_SEGMENT};
+use jointfit::model::lower_limb::Side;
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;
 use jointfit::trial::Trial;
@@ -140,9 +141,7 @@ pub fn personalize_sides(
         if set.leg(other).is_err() {
             let w = format!(
                 "marker set {:?} has no [{}] leg: personalized the {} leg only",
-                set.name,
-                other.name(),
-                side.name()
+                set.name, other, side
             );
             return one(side, Some(w));
         }
@@ -209,7 +208,7 @@ fn fallback(absent: Side, labels: &[String]) -> String {
     format!(
         "the static trial has none of the {} leg's markers ({}{more}): personalized the {} leg \
          only",
-        absent.name(),
+        absent,
         shown.join(", "),
         match absent {
             Side::Right => "left",
@@ -264,7 +263,7 @@ pub(crate) fn join_named(
     // The static pose by coordinate name: the pelvis and the right leg from the right leg's
     // personalization, the left leg from the left's (one window when they share it).
     let model = Model::compile(&spec).map_err(LandmarkError::Model)?;
-    let mut static_q = Vec::with_capacity(model.n_q());
+    let mut static_q = Vec::with_capacity(model.coordinates().len());
     let sides = [(&right, "_r"), (&left, "_l")];
     let compiled: Vec<Model> = sides
         .iter()
@@ -279,7 +278,7 @@ pub(crate) fn join_named(
         let id = compiled[k].coord_id(name).ok_or_else(|| {
             LandmarkError::Internal(format!("coordinate {:?} of the joined model", c.name))
         })?;
-        static_q.push(sides[k].0.static_q[id.0]);
+        static_q.push(sides[k].0.static_q[id]);
     }
     let world = |p: &Personalized| -> Vec<(String, nalgebra::Vector3<f64>)> {
         p.spec

@@ -115,7 +115,10 @@ pub(crate) struct Anatomy {
 
 /// The frame with origin `origin` and unit axes `x`, `y`, `z` (right-handed by construction).
 fn frame(origin: Vector3<f64>, x: Vector3<f64>, y: Vector3<f64>, z: Vector3<f64>) -> Pose {
-    Pose::new(Matrix3::from_columns(&[x, y, z]), origin)
+    Pose {
+        rot: Matrix3::from_columns(&[x, y, z]),
+        trans: origin,
+    }
 }
 
 /// `v` with its component along the unit vector `along` removed, normalised; `None` when the

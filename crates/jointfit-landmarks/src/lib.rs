@@ -578,7 +578,7 @@ fn static_fk_error(model: &Model, static_q: &[f64], at: &dyn Fn(&str) -> Vector3
         model,
         &model.nominal_params(),
         static_q,
-        Want::POSITIONS,
+        Want::Positions,
         &mut kin,
     );
     model

@@ -39,10 +39,10 @@ impl Offsets {
 }
 
 fn pose_of(o: &Offset) -> Pose {
-    Pose::new(
-        offset_rotation(o[3], o[4], o[5]),
-        Vector3::new(o[0], o[1], o[2]),
-    )
+    Pose {
+        rot: offset_rotation(o[3], o[4], o[5]),
+        trans: Vector3::new(o[0], o[1], o[2]),
+    }
 }
 
 /// (rx, ry) of a z axis turned onto the unit direction `d`.
@@ -251,7 +251,7 @@ pub(crate) fn static_coordinates(
             .map(|(_, p)| *p)
             .ok_or_else(|| LandmarkError::Internal(format!("no frame for segment {name:?}")))
     };
-    let mut q = vec![0.0; model.n_q()];
+    let mut q = vec![0.0; model.coordinates().len()];
     for joint in model.joints() {
         let (po, co) = offsets
             .get(&joint.name)
@@ -265,7 +265,7 @@ pub(crate) fn static_coordinates(
             .compose(&pose_of(po))
             .inverse()
             .compose(&child.compose(&pose_of(co)));
-        let k = joint.first_coord;
+        let k = joint.coords.start;
         let zxy = |axes: &[Vector3<f64>]| -> Result<[f64; 3], LandmarkError> {
             let signs = [axes[0].z, axes[1].x, axes[2].y];
             if signs.iter().any(|s| (s.abs() - 1.0).abs() > 1e-12) {
@@ -289,8 +289,7 @@ pub(crate) fn static_coordinates(
             other => {
                 return Err(LandmarkError::Internal(format!(
                     "joint {:?}: unexpected kind {}",
-                    joint.name,
-                    other.type_name()
+                    joint.name, other
                 )))
             }
         }

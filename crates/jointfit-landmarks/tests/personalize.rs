@@ -20,8 +20,12 @@ const PW: f64 = 0.24;
 const KNEE_HALF: f64 = 0.05;
 const ANKLE_HALF: f64 = 0.035;
 
+/// The built-in markers' name prefix.
 fn prefix(side: Side) -> &'static str {
-    side.prefix()
+    match side {
+        Side::Right => "R",
+        Side::Left => "L",
+    }
 }
 
 /// The synthetic subject: the template with Bell's hip centre and landmark markers.
@@ -121,7 +125,7 @@ fn static_pose(model: &Model) -> Vec<f64> {
         ("ankle_dorsiflexion", 0.05),
         ("subtalar_inversion", 0.02),
     ] {
-        q[model.coord_id(name).unwrap().0] = v;
+        q[model.coord_id(name).unwrap()] = v;
     }
     q
 }
@@ -155,7 +159,7 @@ fn params(p: &Personalized) -> Vec<f64> {
 /// World position of marker `name` of `model` at (p, q).
 fn markers_at(model: &Model, p: &[f64], q: &[f64]) -> Vec<(String, Vector3<f64>)> {
     let mut kin = KinData::new(model);
-    forward_kinematics(model, p, q, Want::POSITIONS, &mut kin);
+    forward_kinematics(model, p, q, Want::Positions, &mut kin);
     model
         .markers()
         .iter()
@@ -184,10 +188,11 @@ fn static_pose_is_reproduced_and_joints_recovered() {
             &truth,
             &truth.nominal_params(),
             &q_truth,
-            Want::POSITIONS,
+            Want::Positions,
             &mut kin,
         );
-        let thigh = kin.segment_poses[truth.segment_id("thigh").unwrap().0];
+        let thigh_index = truth.segments().iter().position(|s| s.name == "thigh");
+        let thigh = kin.segment_poses[thigh_index.unwrap()];
         assert!((rep.hip_centre - thigh.trans).norm() < 1e-12);
         // Hip centre in the pelvis: Bell's fractions, mirrored by the template.
         let model = Model::compile(&out.spec).unwrap();
@@ -238,9 +243,9 @@ fn static_pose_is_reproduced_and_joints_recovered() {
         // ankle angle in the truth is the same change in the personalized model.
         for (coord, delta) in [("knee_flexion", 0.9), ("ankle_dorsiflexion", -0.4)] {
             let mut qt = q_truth.clone();
-            qt[truth.coord_id(coord).unwrap().0] += delta;
+            qt[truth.coord_id(coord).unwrap()] += delta;
             let mut qp = out.static_q.clone();
-            qp[model.coord_id(coord).unwrap().0] += delta;
+            qp[model.coord_id(coord).unwrap()] += delta;
             let want = markers_at(&truth, &truth.nominal_params(), &qt);
             for (name, x) in markers_at(&model, &p, &qp) {
                 let t = want.iter().find(|(n, _)| *n == name).unwrap().1;

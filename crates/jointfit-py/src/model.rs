@@ -231,9 +231,9 @@ impl PyModel {
         format!(
             "Model({:?}: {} coordinates, {} parameters, {} markers)",
             self.model.spec().name,
-            self.model.n_q(),
-            self.model.n_p(),
-            self.model.n_markers()
+            self.model.coordinates().len(),
+            self.model.parameters().len(),
+            self.model.markers().len()
         )
     }
 

@@ -463,7 +463,11 @@ pub fn ik(
         }
         warn_all(py, &warnings)?;
         let fit = run.fit;
-        let (nf, nq, nm) = (fit.frames.len(), model.n_q(), model.n_markers());
+        let (nf, nq, nm) = (
+            fit.frames.len(),
+            model.coordinates().len(),
+            model.markers().len(),
+        );
         Ok(PyIkResult {
             coords: Array2::from_shape_fn((nf, nq), |(f, k)| fit.coords[f][k]),
             errors: Array2::from_shape_fn((nf, nm), |(f, j)| fit.errors[f][j]),
@@ -523,7 +527,7 @@ pub fn synthesize(
             Some(m) => model_arg(py, &m)?,
             None => jointfit_io::model_file::load_model("lower-limb-right").map_err(|e| err(&e))?,
         };
-        if model.n_markers() == 0 {
+        if model.markers().is_empty() {
             return Err(msg(format!(
                 "model {:?} has no markers: a synthetic trial needs some",
                 model.spec().name

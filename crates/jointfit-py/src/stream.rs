@@ -179,7 +179,7 @@ impl PyStreamingIk {
         format!(
             "StreamingIK({} labels, {} coordinates)",
             self.markers.len(),
-            self.stream.model().n_q()
+            self.stream.model().coordinates().len()
         )
     }
 }

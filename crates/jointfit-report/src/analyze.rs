@@ -48,7 +48,7 @@ pub fn analyze_with_progress(
 ) -> Result<(), ReportError> {
     let passes = trials.len() * (1 + baseline.is_some() as usize);
     let mut done = 0;
-    let mut errors = MarkerErrors::new(model.n_markers());
+    let mut errors = MarkerErrors::new(model.markers().len());
     for (name, trial) in trials {
         let map = trial_map(input, model, name, trial)?;
         let solve =
@@ -77,7 +77,7 @@ pub fn analyze_with_progress(
     let all: Vec<&Trial> = trials.iter().map(|(_, t)| *t).collect();
     // A model without joint parameters (an .osim read as it is) has no calibration and so no
     // RMS of that definition: the RMS of the report's own inverse kinematics instead.
-    let overall = |p: &[f64], own: &[Vec<f64>]| match model.n_p() {
+    let overall = |p: &[f64], own: &[Vec<f64>]| match model.parameters().len() {
         0 => rms(own.iter().flatten().copied()) * MM,
         _ => jointfit::workflow::marker_rms::marker_rms(model, p, &all)
             .map_or(f64::NAN, |r| jointfit_app::present::mm(r.rms)),
@@ -106,7 +106,7 @@ fn trial_map(
     trial: &Trial,
 ) -> Result<MarkerMap, ReportError> {
     let (map, absent) = MarkerMap::allowing_absent(model, trial.labels());
-    if absent.len() == model.n_markers() {
+    if absent.len() == model.markers().len() {
         let names: Vec<&str> = model.markers().iter().map(|m| m.name.as_str()).collect();
         return Err(trial_error(
             name,
@@ -146,7 +146,7 @@ fn trial_series(
                 CoordKind::Translational => ("mm", MM),
             };
             let series = |f: &TrialFit| f.coords.iter().map(|q| q[c] * k).collect();
-            let joint = &model.joints()[coord.joint.0];
+            let joint = &model.joints()[coord.joint];
             CoordSeries {
                 name: coord.name.clone(),
                 joint: joint.name.clone(),

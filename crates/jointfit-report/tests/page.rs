@@ -46,7 +46,9 @@ fn build() -> Built {
         &IkOptions::default(),
     )
     .unwrap();
-    let free: Vec<usize> = (0..model.n_p()).filter(|i| i % 2 == 0).collect();
+    let free: Vec<usize> = (0..model.parameters().len())
+        .filter(|i| i % 2 == 0)
+        .collect();
     input.parameters = parameter_rows(&model, &truth, Some(&nominal), Some(&free));
     // An interval on one parameter, as the uncertainty module will provide.
     let (name, fitted) = (input.parameters[0].name.clone(), input.parameters[0].fitted);
@@ -424,7 +426,7 @@ fn a_trial_lacking_a_model_marker_is_reported_with_a_note() {
     let fit =
         jointfit::ik::trial_fit::solve_trial(&model, &truth, &partial, &map, &IkOptions::default())
             .unwrap();
-    for j in (0..model.n_markers()).filter(|&j| j != 5) {
+    for j in (0..model.markers().len()).filter(|&j| j != 5) {
         let direct = jointfit::ik::trial_fit::rms(fit.errors.iter().map(|e| e[j])) * 1e3;
         assert_eq!(input.markers[j].fitted_mm, direct, "marker {j}");
     }

@@ -134,7 +134,7 @@ impl FactorBasis {
         jac: bool,
         ws: &mut BasisData,
     ) -> FramePoints {
-        let want = if jac { Want::DQ } else { Want::POSITIONS };
+        let want = if jac { Want::Dq } else { Want::Positions };
         for ((m, d), p) in self.models().zip(&mut ws.data).zip(&ws.params) {
             forward_kinematics(m, p, q, want, d);
         }
@@ -224,7 +224,7 @@ mod tests {
         }
         let m = Model::compile(&sp).unwrap();
         let mut d = KinData::new(&m);
-        forward_kinematics(&m, &m.nominal_params(), q, Want::DQ, &mut d);
+        forward_kinematics(&m, &m.nominal_params(), q, Want::Dq, &mut d);
         (d.markers.clone(), d.jq.clone())
     }
 

@@ -58,16 +58,20 @@ pub fn synthetic_trial(
     seed: u64,
 ) -> SynthTrial {
     let mut kin = KinData::new(model);
-    let mut positions = Vec::with_capacity(frames * model.n_markers());
+    let mut positions = Vec::with_capacity(frames * model.markers().len());
     let mut truth = Vec::with_capacity(frames);
     for f in 0..frames {
         let q = coords(f);
-        assert_eq!(q.len(), model.n_q(), "frame {f}: coordinate vector length");
-        forward_kinematics(model, p, &q, Want::POSITIONS, &mut kin);
+        assert_eq!(
+            q.len(),
+            model.coordinates().len(),
+            "frame {f}: coordinate vector length"
+        );
+        forward_kinematics(model, p, &q, Want::Positions, &mut kin);
         positions.extend_from_slice(&kin.markers);
         truth.push(q);
     }
-    add_noise(&mut positions, model.n_markers(), rate_hz, noise, seed);
+    add_noise(&mut positions, model.markers().len(), rate_hz, noise, seed);
     let labels = model.markers().iter().map(|m| m.name.clone()).collect();
     let trial = Trial::new(labels, rate_hz, 1, positions).expect("a valid synthetic trial");
     SynthTrial {
@@ -144,8 +148,8 @@ mod tests {
         assert_eq!(s.trial.n_frames(), 7);
         assert_eq!(s.coords[3], wave(3));
         let mut kin = KinData::new(&m);
-        forward_kinematics(&m, &p, &wave(3), Want::POSITIONS, &mut kin);
-        for j in 0..m.n_markers() {
+        forward_kinematics(&m, &p, &wave(3), Want::Positions, &mut kin);
+        for j in 0..m.markers().len() {
             assert_eq!(s.trial.get(3, j), Some(kin.markers[j]));
         }
     }
@@ -160,7 +164,7 @@ mod tests {
         let other = synthetic_trial(&m, &p, 50, 50.0, wave, Noise::Skin { amplitude: a }, 4);
         let mut largest: f64 = 0.0;
         for f in 0..50 {
-            for j in 0..m.n_markers() {
+            for j in 0..m.markers().len() {
                 let d = noisy.trial.get(f, j).unwrap() - exact.trial.get(f, j).unwrap();
                 assert!(d.amax() <= a, "frame {f} marker {j}: {d}");
                 largest = largest.max(d.amax());
@@ -181,7 +185,7 @@ mod tests {
         let mut sum2 = 0.0;
         let mut n = 0.0;
         for f in 0..2000 {
-            for j in 0..m.n_markers() {
+            for j in 0..m.markers().len() {
                 let d = noisy.trial.get(f, j).unwrap() - exact.trial.get(f, j).unwrap();
                 for k in 0..3 {
                     sum += d[k];

@@ -10,13 +10,15 @@ use jointfit::model::Model;
 fn leg(c: &mut Criterion) {
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
     let p = model.nominal_params();
-    let q: Vec<f64> = (0..model.n_q()).map(|i| 0.1 * i as f64 - 0.3).collect();
+    let q: Vec<f64> = (0..model.coordinates().len())
+        .map(|i| 0.1 * i as f64 - 0.3)
+        .collect();
     let mut data = KinData::new(&model);
     let mut group = c.benchmark_group("leg_model");
     for (name, want) in [
-        ("fk", Want::POSITIONS),
-        ("fk+dq", Want::DQ),
-        ("fk+dq+dp", Want::BOTH),
+        ("fk", Want::Positions),
+        ("fk+dq", Want::Dq),
+        ("fk+dq+dp", Want::DqDp),
     ] {
         group.bench_function(name, |b| {
             b.iter(|| {

@@ -25,7 +25,7 @@ fn trial(model: &Model, p: &[f64], frames: usize) -> Trial {
     for f in 0..frames {
         let t = f as f64 / frames as f64;
         let mut q = model.default_coords();
-        let mut set = |n: &str, v: f64| q[model.coord_id(n).unwrap().0] = v;
+        let mut set = |n: &str, v: f64| q[model.coord_id(n).unwrap()] = v;
         set("pelvis_tx", 1.2 * t);
         set("pelvis_ty", 0.93);
         set("hip_flexion", 0.3 + 0.45 * (w * t).sin());
@@ -34,7 +34,7 @@ fn trial(model: &Model, p: &[f64], frames: usize) -> Trial {
         set("knee_flexion", 0.6 + 0.55 * (w * t - 1.0).sin());
         set("ankle_dorsiflexion", 0.2 * (w * t).sin());
         set("subtalar_inversion", 0.1 * (w * t).cos());
-        forward_kinematics(model, p, &q, Want::POSITIONS, &mut kin);
+        forward_kinematics(model, p, &q, Want::Positions, &mut kin);
         for (j, x) in kin.markers.iter().enumerate() {
             let a = 0.005 * ((j * 7 % 5) as f64 / 5.0);
             pos.push(

@@ -181,10 +181,10 @@ fn trial_distance(trial: &Trial, map: &MarkerMap, a: usize, b: usize) -> f64 {
 /// `map`; absent ones are skipped).
 pub(crate) fn compare(model: &Model, trial: &Trial, map: &MarkerMap) -> Placement {
     let mut segments = Vec::new();
-    let mut per_marker: Vec<Vec<f64>> = vec![Vec::new(); model.n_markers()];
+    let mut per_marker: Vec<Vec<f64>> = vec![Vec::new(); model.markers().len()];
     let mut all_ratios = Vec::new();
     for (s, seg) in model.segments().iter().enumerate() {
-        let on: Vec<usize> = (0..model.n_markers())
+        let on: Vec<usize> = (0..model.markers().len())
             .filter(|&j| model.markers()[j].segment.0 == s && map.columns[j].is_some())
             .collect();
         let mut pairs = Vec::new();

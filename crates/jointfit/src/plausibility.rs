@@ -71,7 +71,7 @@ fn sd_of(model: &Model, i: usize) -> f64 {
 /// (at their static-trial positions when the markers are refined, [`marker_home`]).
 pub(crate) fn half_pelvis_width(model: &Model) -> Option<f64> {
     let pelvis = model.segments().iter().position(|s| s.name == "pelvis")?;
-    let zs: Vec<f64> = (0..model.n_markers())
+    let zs: Vec<f64> = (0..model.markers().len())
         .map(|j| marker_home(model, j))
         .filter(|(seg, x)| seg.0 == pelvis && x.x.abs() < 1e-6 && x.y.abs() < 1e-6)
         .map(|(_, x)| x.z.abs())

@@ -12,7 +12,9 @@ use serde::{Deserialize, Serialize};
 /// A rigid transform `x ↦ rot · x + trans` (`a_from_b` maps b-coordinates into a).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Pose {
+    /// Rotation matrix (orthonormal, determinant +1).
     pub rot: Matrix3<f64>,
+    /// Translation (m): the origin of b in a.
     pub trans: Vector3<f64>,
 }
 
@@ -22,9 +24,6 @@ impl Pose {
             rot: Matrix3::identity(),
             trans: Vector3::zeros(),
         }
-    }
-    pub fn new(rot: Matrix3<f64>, trans: Vector3<f64>) -> Self {
-        Pose { rot, trans }
     }
     pub(crate) fn is_identity(&self) -> bool {
         self.trans == Vector3::zeros() && self.rot == Matrix3::identity()
@@ -254,7 +253,10 @@ pub fn rigid_fit(local: &[Vector3<f64>], world: &[Vector3<f64>]) -> Pose {
         _ => polar_rotation(&h),
     };
     let rot = rot.unwrap_or_else(|| svd_rotation(&h));
-    Pose::new(rot, cw - rot * cl)
+    Pose {
+        rot,
+        trans: cw - rot * cl,
+    }
 }
 
 /// The fit of three points, whose `H` is singular: its null vectors are the unit normals
@@ -384,8 +386,14 @@ mod tests {
         for axis in [Vector3::x_axis(), Vector3::y_axis(), Vector3::z_axis()] {
             for sign in [-1.0, 1.0] {
                 let turn = Rotation3::from_axis_angle(&axis, sign * h).into_inner();
-                let turned = Pose::new(turn * fit.rot, fit.trans);
-                let moved = Pose::new(fit.rot, fit.trans + sign * h * axis.into_inner());
+                let turned = Pose {
+                    rot: turn * fit.rot,
+                    ..fit
+                };
+                let moved = Pose {
+                    trans: fit.trans + sign * h * axis.into_inner(),
+                    ..fit
+                };
                 assert!(cost(&turned) > best && cost(&moved) > best);
             }
         }

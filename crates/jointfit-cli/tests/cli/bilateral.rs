@@ -92,10 +92,10 @@ fn both_legs_share_one_pelvis_and_match_the_one_sided_personalizations() {
         );
         assert_eq!(b.right.frames.pelvis.trans, b.left.frames.pelvis.trans);
         let model = Model::compile(&b.spec).unwrap();
-        assert_eq!(model.n_q(), 18);
+        assert_eq!(model.coordinates().len(), 18);
         let mut kin = KinData::new(&model);
         let nominal = model.nominal_params();
-        forward_kinematics(&model, &nominal, &b.static_q, Want::POSITIONS, &mut kin);
+        forward_kinematics(&model, &nominal, &b.static_q, Want::Positions, &mut kin);
         // Before: each leg over its own window; the pelvis markers moved between them.
         let own: Vec<_> = [Side::Right, Side::Left]
             .map(|side| personalize(&trial, &set, side, &opts).unwrap())
@@ -479,10 +479,14 @@ fn static_marker_distance(model: &Model, kin: &KinData, leg: &Personalized) -> f
     let m1 = Model::compile(&leg.spec).unwrap();
     let mut k1 = KinData::new(&m1);
     let p1 = m1.nominal_params();
-    forward_kinematics(&m1, &p1, &leg.static_q, Want::POSITIONS, &mut k1);
+    forward_kinematics(&m1, &p1, &leg.static_q, Want::Positions, &mut k1);
     let mut far = 0.0f64;
     for (m, x) in m1.markers().iter().zip(&k1.markers) {
-        let j = model.marker_index(&m.name).unwrap();
+        let j = model
+            .markers()
+            .iter()
+            .position(|n| n.name == m.name)
+            .unwrap();
         far = far.max((kin.markers[j] - x).norm());
     }
     far

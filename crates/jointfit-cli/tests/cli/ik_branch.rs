@@ -108,7 +108,7 @@ fn generic_osim_left_hip_in_range_branch() {
                 );
             }
         }
-        let hip = hip_l.map(|n| q[model.coord_id(n).unwrap().0].to_degrees());
+        let hip = hip_l.map(|n| q[model.coord_id(n).unwrap()].to_degrees());
         assert!(
             hip[1].abs() < 90.0,
             "frame {f}: left hip {hip:?}°, adduction on the in-range branch"
@@ -123,10 +123,10 @@ fn generic_osim_left_hip_in_range_branch() {
 pub(crate) fn euler_triples(model: &Model) -> Vec<[usize; 3]> {
     (0..model.joints().len())
         .filter_map(|j| {
-            let rotations: Vec<usize> = (0..model.n_q())
+            let rotations: Vec<usize> = (0..model.coordinates().len())
                 .filter(|&c| {
                     let coord = &model.coordinates()[c];
-                    coord.joint.0 == j && coord.kind == CoordKind::Rotational
+                    coord.joint == j && coord.kind == CoordKind::Rotational
                 })
                 .collect();
             <[usize; 3]>::try_from(rotations).ok()

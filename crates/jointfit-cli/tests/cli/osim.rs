@@ -415,7 +415,7 @@ fn mot_read_back(
     let mot_err = osim_errors_mm(read_back, model);
     let mut mot_worst = 0.0f64;
     for f in 0..n {
-        for j in 0..model.n_markers() {
+        for j in 0..model.markers().len() {
             let d = (jf_err[f][j] - mot_err[f][j]).abs();
             mot_worst = mot_worst.max(d);
             // The CSV holds 4 decimals of a millimetre.
@@ -458,7 +458,7 @@ fn agreement(
     let mut disagree = Vec::new();
     for f in 0..n {
         let (dq, at) = coord_diff(model, &jf_q[f], &os_q[f]);
-        let de = (0..model.n_markers())
+        let de = (0..model.markers().len())
             .map(|j| (jf_err[f][j] - os_err[f][j]).abs())
             .fold(0.0, f64::max);
         let cost = |e: &[f64]| {
@@ -479,7 +479,7 @@ fn agreement(
         }
         angle_worst = angle_worst.max(dq);
         marker_worst = marker_worst.max(de);
-        let tol = match model.coordinates()[model.coord_id(&at).map_or(0, |c| c.0)].kind {
+        let tol = match model.coordinates()[model.coord_id(&at).unwrap_or(0)].kind {
             CoordKind::Rotational => ANGLE_TOL_DEG,
             CoordKind::Translational => TRANS_TOL_MM,
         };

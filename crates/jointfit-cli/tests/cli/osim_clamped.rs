@@ -58,7 +58,7 @@ fn gap(model: &Model, c: usize, a: f64, b: f64) -> f64 {
 /// two frame RMS within 0.01 mm (judged by OpenSim).
 pub(super) fn clamped_agree(model_path: &Path, trial_path: &Path, dir: &Path, same_fit: &[bool]) {
     let model = jointfit_io::model_file::load_model(model_path.to_str().unwrap()).unwrap();
-    let clamped: Vec<usize> = (0..model.n_q())
+    let clamped: Vec<usize> = (0..model.coordinates().len())
         .filter(|&c| model.coordinates()[c].clamped)
         .collect();
     assert!(!clamped.is_empty(), "the model has clamped coordinates");
@@ -88,7 +88,7 @@ pub(super) fn clamped_agree(model_path: &Path, trial_path: &Path, dir: &Path, sa
         outlier_distance: f64::INFINITY,
         ..IkOptions::default()
     };
-    let undetermined: Vec<usize> = (0..model.n_q())
+    let undetermined: Vec<usize> = (0..model.coordinates().len())
         .filter(|&c| model.coordinates()[c].name.starts_with("mtp_angle"))
         .collect();
     let mut shared = 0;
@@ -105,7 +105,7 @@ pub(super) fn clamped_agree(model_path: &Path, trial_path: &Path, dir: &Path, sa
         let mut q = theirs[f].clone();
         let fit = solve_frame(&model, &p, &targets, &mut q, &opts, &mut ws);
         assert!(fit.solved(), "frame {f}: {:?}", fit.status);
-        for c in (0..model.n_q()).filter(|c| !undetermined.contains(c)) {
+        for c in (0..model.coordinates().len()).filter(|c| !undetermined.contains(c)) {
             let name = &model.coordinates()[c].name;
             let d = gap(&model, c, q[c], theirs[f][c]);
             assert!(

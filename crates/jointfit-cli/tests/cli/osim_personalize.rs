@@ -82,7 +82,7 @@ fn poses_and_markers(model: &Model, seed: u64) -> (Vec<String>, Vec<Vec<f64>>, V
                 }
             })
             .collect();
-        forward_kinematics(model, &[], &q, Want::POSITIONS, &mut kin);
+        forward_kinematics(model, &[], &q, Want::Positions, &mut kin);
         kins.push(kin.clone());
         let mut full = q.clone();
         full.extend(coupled.iter().map(|&i| model.dependents()[i].value(&q)));
@@ -419,7 +419,7 @@ fn osim_calibrate_to_toml() {
     assert!(ok, "{err}");
     let report: Value = serde_json::from_str(&stdout).unwrap();
     let model = jointfit_io::model_file::load_model(s(&out)).unwrap();
-    assert_eq!(model.n_p(), 1);
+    assert_eq!(model.parameters().len(), 1);
     let p = &model.parameters()[0];
     assert_eq!(p.name, "knee_r.child.ty");
     assert!((p.nominal * 1e3 - report["parameters"][0]["fitted"].as_f64().unwrap()).abs() < 1e-9);

@@ -70,7 +70,7 @@ fn check(
     let model = Model::compile(&spec).unwrap();
     let p = model.nominal_params();
     let mut kin = KinData::new(&model);
-    forward_kinematics(&model, &p, &out.static_q, Want::POSITIONS, &mut kin);
+    forward_kinematics(&model, &p, &out.static_q, Want::Positions, &mut kin);
     let worst = model
         .markers()
         .iter()
@@ -121,7 +121,7 @@ fn check(
             mm(s.max)
         );
     }
-    let q = |n: &str| out.static_q[model.coord_id(n).unwrap().0].to_degrees();
+    let q = |n: &str| out.static_q[model.coord_id(n).unwrap()].to_degrees();
     // JAM stands with the knees at −11° and −15° by these frames (its ASIS–PSIS plane is
     // tilted 18°, which moves the regression hip centre forward).
     assert!((-20.0..20.0).contains(&q("knee_flexion")), "{tag}");
@@ -231,7 +231,7 @@ fn ik_recovers_the_static_pose() {
         .map(|m| mean_over_window(&trial, &out, &m.name))
         .collect();
     let map = MarkerMap::by_name(&model, trial.labels()).unwrap();
-    assert_eq!(map.columns.len(), model.n_markers());
+    assert_eq!(map.columns.len(), model.markers().len());
     let opts = IkOptions::default();
     let mut ws = IkWorkspace::new(&model);
     let mut q = seed_frame(&model, &p, &targets, &opts, &mut ws);

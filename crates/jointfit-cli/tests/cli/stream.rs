@@ -163,14 +163,14 @@ fn pose_cells() -> (Vec<String>, Vec<String>) {
     .unwrap();
     let p = model.nominal_params();
     let mut q = model.default_coords();
-    q[model.coord_id("pelvis_ty").unwrap().0] = 0.9;
-    q[model.coord_id("knee_flexion").unwrap().0] = 0.4;
+    q[model.coord_id("pelvis_ty").unwrap()] = 0.9;
+    q[model.coord_id("knee_flexion").unwrap()] = 0.4;
     let mut kin = jointfit::kinematics::KinData::new(&model);
     jointfit::kinematics::forward_kinematics(
         &model,
         &p,
         &q,
-        jointfit::kinematics::Want::POSITIONS,
+        jointfit::kinematics::Want::Positions,
         &mut kin,
     );
     let labels = model.markers().iter().map(|m| m.name.clone()).collect();

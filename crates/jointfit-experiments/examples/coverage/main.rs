@@ -141,7 +141,7 @@ impl Run {
         let coords = coordinates(&model, args.motion, args.frames).expect("built-in motion");
         let free = params_for_groups(&model, &[args.joints.as_str()])
             .expect("--joints hip|knee|ankle|all");
-        let every: Vec<usize> = (0..model.n_p()).collect();
+        let every: Vec<usize> = (0..model.parameters().len()).collect();
         Run {
             args,
             spec,

@@ -57,7 +57,7 @@ fn default_pose(model: &Model) -> (KinData, HashMap<String, f64>) {
         model,
         &model.nominal_params(),
         &q,
-        Want::POSITIONS,
+        Want::Positions,
         &mut data,
     );
     let mut values: HashMap<String, f64> = model
@@ -98,7 +98,7 @@ fn point(p: Node, bodies: &[String], values: &HashMap<String, f64>) -> Option<Po
                 let f = Function::new(&function_in(holder, &[]).ok()?).ok()?;
                 let q = coordinate(&format!("socket_{axis}_coordinate"));
                 moving[k] = q.is_some();
-                location[k] = f.value(q.unwrap_or(0.0));
+                location[k] = f.eval(q.unwrap_or(0.0)).0;
             }
             return Some(Point {
                 body,
@@ -120,8 +120,8 @@ fn point(p: Node, bodies: &[String], values: &HashMap<String, f64>) -> Option<Po
 
 fn body_pose(model: &Model, data: &KinData, body: &Option<String>) -> Pose {
     body.as_ref()
-        .and_then(|b| model.segment_id(b))
-        .map_or(Pose::identity(), |id| data.segment_poses[id.0])
+        .and_then(|b| model.segments().iter().position(|s| s.name == *b))
+        .map_or(Pose::identity(), |s| data.segment_poses[s])
 }
 
 /// A wrap object as a path sees it (unscaled).
@@ -423,10 +423,10 @@ impl Posed<'_> {
             ..c
         });
         let r = o.rotation;
-        let offset = Pose::new(
-            offset_rotation(r[0], r[1], r[2]),
-            V::from(super::mul(o.translation, s)),
-        );
+        let offset = Pose {
+            rot: offset_rotation(r[0], r[1], r[2]),
+            trans: V::from(super::mul(o.translation, s)),
+        };
         Placed {
             object,
             world_from_wrap: body_pose(self.model, &self.data, &o.body).compose(&offset),

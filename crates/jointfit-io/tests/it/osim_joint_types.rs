@@ -68,7 +68,7 @@ fn osim_every_joint_type_and_function_matches_opensim_fk() {
     let dir = jointfit_testkit::scratch("osim-joint-types");
     let (path, model) = load(dir.path());
     // 6 + 3 + 3 + 2 + 1 + 1 + 3 + 3 + 1 + clamp + c4 free; c3_dep coupled, c3_lock locked.
-    assert_eq!(model.n_q(), 25, "{:?}", pose_names(&model));
+    assert_eq!(model.coordinates().len(), 25, "{:?}", pose_names(&model));
     assert_eq!(model.dependents().len(), 2);
     let Some(python) = jointfit_testkit::python() else {
         assert!(
@@ -84,7 +84,7 @@ fn osim_every_joint_type_and_function_matches_opensim_fk() {
     let mut poses = Vec::new();
     for _ in 0..20 {
         let q = random_q(&model, &mut rng);
-        forward_kinematics(&model, &[], &q, Want::POSITIONS, &mut kin);
+        forward_kinematics(&model, &[], &q, Want::Positions, &mut kin);
         ours.push(kin.markers.clone());
         poses.push(full_pose(&model, &q));
     }
@@ -144,15 +144,15 @@ fn osim_every_joint_type_jacobian_matches_finite_differences() {
     let mut worst = 0.0f64;
     for _ in 0..20 {
         let q = random_q(&model, &mut rng);
-        forward_kinematics(&model, &[], &q, Want::DQ, &mut kin);
-        for i in 0..model.n_q() {
+        forward_kinematics(&model, &[], &q, Want::Dq, &mut kin);
+        for i in 0..model.coordinates().len() {
             let mut qp = q.clone();
             let mut qm = q.clone();
             qp[i] += h;
             qm[i] -= h;
-            forward_kinematics(&model, &[], &qp, Want::POSITIONS, &mut plus);
-            forward_kinematics(&model, &[], &qm, Want::POSITIONS, &mut minus);
-            for m in 0..model.n_markers() {
+            forward_kinematics(&model, &[], &qp, Want::Positions, &mut plus);
+            forward_kinematics(&model, &[], &qm, Want::Positions, &mut minus);
+            for m in 0..model.markers().len() {
                 let fd = (plus.markers[m] - minus.markers[m]) / (2.0 * h);
                 for a in 0..3 {
                     let d = (kin.jq[(3 * m + a, i)] - fd[a]).abs();

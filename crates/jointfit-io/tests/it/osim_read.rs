@@ -84,7 +84,7 @@ fn osim_every_shared_model_loads_and_matches_opensim_fk() {
             let q = random_q(&model, &mut rng);
             let mut full = q.clone();
             full.extend(coupled.iter().map(|&i| model.dependents()[i].value(&q)));
-            forward_kinematics(&model, &[], &q, Want::POSITIONS, &mut kin);
+            forward_kinematics(&model, &[], &q, Want::Positions, &mut kin);
             ours.push(kin.clone());
             poses.push(full);
         }
@@ -105,7 +105,7 @@ fn osim_every_shared_model_loads_and_matches_opensim_fk() {
             path.display(),
             model.segments().len(),
             model.markers().len(),
-            model.n_q(),
+            model.coordinates().len(),
             model.dependents().len()
         );
         assert!(
@@ -279,8 +279,8 @@ fn osim_write_back_changes_only_the_personalized_frames() {
     let q = random_q(&model, &mut rng);
     let mut a = KinData::new(&model);
     let mut b = KinData::new(&back_model);
-    forward_kinematics(&model, &p, &q, Want::POSITIONS, &mut a);
-    forward_kinematics(&back_model, &[], &q, Want::POSITIONS, &mut b);
+    forward_kinematics(&model, &p, &q, Want::Positions, &mut a);
+    forward_kinematics(&back_model, &[], &q, Want::Positions, &mut b);
     for (x, y) in a.markers.iter().zip(&b.markers) {
         assert!((x - y).norm() < 1e-12, "{x} vs {y}");
     }

@@ -51,7 +51,7 @@ fn irregular_times_are_kept_and_round_trip() {
         &jointfit::model::lower_limb::builtin("lower-limb-left").unwrap(),
     )
     .unwrap();
-    let coords = vec![vec![0.0; model.n_q()]; t.n_frames()];
+    let coords = vec![vec![0.0; model.coordinates().len()]; t.n_frames()];
     let table = jointfit_io::sto::coordinates_table(&model, t, &coords);
     let mot = jointfit_io::sto::format_sto(&table).unwrap();
     let read = jointfit_io::sto::parse_sto(&mot, "t.mot").unwrap();

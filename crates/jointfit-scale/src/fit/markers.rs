@@ -117,7 +117,7 @@ pub(super) fn register_static_only(pb: &Problem, th: &mut [f64]) -> Result<(), S
         &model,
         &model.nominal_params(),
         pb.coords(th, 0),
-        Want::POSITIONS,
+        Want::Positions,
         &mut data,
     );
     let mut moves = Vec::new();

@@ -237,7 +237,7 @@ pub(super) fn start<'a>(
 ) -> Result<(Problem<'a>, Vec<f64>), ScaleError> {
     check_present(targets)?;
     let basis = FactorBasis::new(spec, &opts.groups, &opts.fixed_factors)?;
-    let n_q = basis.base().n_q();
+    let n_q = basis.base().coordinates().len();
     let lay = layout(spec, opts, n_q, targets.len())?;
     let mut th = starting_size(&lay, opts);
     let mut pb = Problem {

@@ -52,7 +52,7 @@ fn frames_at(
                 *v += amplitude * ((k as f64) * 1.7 + f as f64 * 2.1).sin();
             }
             let p = scaled.nominal_params();
-            forward_kinematics(&scaled, &p, &q, Want::POSITIONS, &mut data);
+            forward_kinematics(&scaled, &p, &q, Want::Positions, &mut data);
             data.markers.clone()
         })
         .collect()

@@ -28,7 +28,7 @@ fn outside(fit: &Fit, c: usize, lo: f64, hi: f64) -> (usize, f64) {
 fn knee_beyond_its_range() -> (Model, crate::trial::Trial, Vec<f64>, usize, f64, f64) {
     let (lo, hi) = (-5.0, 68.8);
     let model = clamped_leg([lo, hi], [-60.0, 60.0]);
-    let knee = model.coord_id("knee_flexion").unwrap().0;
+    let knee = model.coord_id("knee_flexion").unwrap();
     let p_true = perturbed(&model, 5);
     let trial = synthetic(&model, &p_true, 60, 0.004, 9);
     let mut base = p_true.clone();
@@ -89,7 +89,7 @@ fn unclamped_models_calibrate_as_before() {
     let p_true = perturbed(&ranged, 5);
     let trial = synthetic(&ranged, &p_true, 60, 0.004, 9);
     let free = params_for_groups(&ranged, &["knee"]).unwrap();
-    let knee = ranged.coord_id("knee_flexion").unwrap().0;
+    let knee = ranged.coord_id("knee_flexion").unwrap();
     let prob = Problem::new(&ranged, p_true.clone(), &free, &[&trial]).unwrap();
     let s0 = prob.to_scaled(&p_true);
     let (fit, _) = joint_and_varpro(&prob, &s0, prob.initial_coords(&p_true));
@@ -111,15 +111,15 @@ fn reduced_system_holds_coordinates_at_their_bounds() {
     let s0 = prob.to_scaled(&base);
     let (fit, _) = joint_and_varpro(&prob, &s0, prob.initial_coords(&base));
     let red = reduced_system(&prob, &fit.p, &fit.coords);
-    let (nq, nf, n) = (model.n_q(), prob.n_free(), prob.frames.len());
-    let rows = 3 * model.n_markers();
+    let (nq, nf, n) = (model.coordinates().len(), prob.n_free(), prob.frames.len());
+    let rows = 3 * model.markers().len();
     let mut kin = KinData::new(&model);
     let (mut held, mut full, mut kept) = (0, DMatrix::zeros(nf, nf), DMatrix::zeros(nf, nf));
     for f in 0..n {
         let (p, q) = (&fit.p, &fit.coords[f]);
         let jq = jacobian_q(&model, p, q, 1e-6);
         let jp = jacobian_p(&model, p, q, 1e-6);
-        forward_kinematics(&model, p, q, Want::POSITIONS, &mut kin);
+        forward_kinematics(&model, p, q, Want::Positions, &mut kin);
         let r = nalgebra::DVector::from_fn(rows, |a, _| {
             prob.frames.get(f)[a / 3][a % 3] - kin.markers[a / 3][a % 3]
         });

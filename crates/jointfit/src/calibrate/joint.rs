@@ -122,7 +122,7 @@ const SECANT_MAX_DAMPING: f64 = 1e-6;
 /// (m²) over `observations` scalar residuals, or the prior's σ² when that is smaller (0: no
 /// degrees of freedom, the rule is off).
 fn noise_variance(prob: &Problem, data: f64, observations: usize) -> f64 {
-    let used = prob.frames.len() * prob.model.n_q() + prob.n_free();
+    let used = prob.frames.len() * prob.model.coordinates().len() + prob.n_free();
     let white = match observations.checked_sub(used) {
         Some(dof) if dof > 0 => data.max(0.0) / dof as f64,
         _ => return 0.0,
@@ -348,7 +348,11 @@ impl<'a, 'm> Solve<'a, 'm> {
     /// The solve at `s0` (clamped into the bounds) and `q0` (projected into theirs),
     /// assembled there.
     fn new(prob: &'a Problem<'m>, s0: &[f64], q0: Vec<Vec<f64>>) -> Self {
-        let (nq, nf, frames) = (prob.model.n_q(), prob.n_free(), prob.frames.len());
+        let (nq, nf, frames) = (
+            prob.model.coordinates().len(),
+            prob.n_free(),
+            prob.frames.len(),
+        );
         let mut blocks = Blocks::new(prob);
         let s: Vec<f64> = s0.iter().map(|v| v.clamp(-1.0, 1.0)).collect();
         let mut qs = q0;

@@ -77,8 +77,8 @@ impl FrameScratch {
     /// and its oracle in tests).
     pub(crate) fn tiled(prob: &Problem) -> Self {
         let model = prob.model;
-        let n = model.n_q() + prob.n_free();
-        let nrows = 3 * model.n_markers();
+        let n = model.coordinates().len() + prob.n_free();
+        let nrows = 3 * model.markers().len();
         FrameScratch {
             kin: KinData::new(model),
             twist: None,
@@ -91,7 +91,7 @@ impl FrameScratch {
             perm_key: Vec::new(),
             xt: vec![0.0; nrows * (n + 1).div_ceil(4) * 4],
             np: (n + 1).div_ceil(4) * 4,
-            res: vec![Vector3::zeros(); model.n_markers()],
+            res: vec![Vector3::zeros(); model.markers().len()],
             gram: vec![0.0; n * n],
             grad: vec![0.0; n],
             buf: Vec::new(),
@@ -202,10 +202,10 @@ fn frame_gram_impl(
         return frame_cost(prob, &sc.kin, targets);
     }
     let model = prob.model;
-    let nq = model.n_q();
+    let nq = model.coordinates().len();
     let n = nq + prob.n_free();
-    let nrows = 3 * model.n_markers();
-    forward_kinematics(model, p, q, Want::BOTH, &mut sc.kin);
+    let nrows = 3 * model.markers().len();
+    forward_kinematics(model, p, q, Want::DqDp, &mut sc.kin);
     let mut cost = 0.0;
     for (j, m) in model.markers().iter().enumerate() {
         let t = targets[j];
@@ -442,7 +442,7 @@ fn depth_first_markers(model: &crate::model::Model) -> Vec<usize> {
         next += 1;
         stack.extend(children[i].iter().copied());
     }
-    let mut order: Vec<usize> = (0..model.n_markers()).collect();
+    let mut order: Vec<usize> = (0..model.markers().len()).collect();
     order.sort_by_key(|&j| position[model.markers()[j].segment.0]);
     order
 }

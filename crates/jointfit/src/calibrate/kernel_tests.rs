@@ -19,7 +19,7 @@ fn gram_matches_dense_products() {
         *v += 0.2 * (i as f64 + 1.0).sin();
     }
     let mut kin = KinData::new(&model);
-    forward_kinematics(&model, &p, &q, Want::POSITIONS, &mut kin);
+    forward_kinematics(&model, &p, &q, Want::Positions, &mut kin);
     let mut targets: Vec<Vector3<f64>> = kin
         .markers
         .iter()
@@ -36,10 +36,10 @@ fn gram_matches_dense_products() {
     let mut sc = FrameScratch::tiled(&prob);
     let cost = frame_gram(&prob, &p, &q, &targets, &half, &mut sc);
 
-    forward_kinematics(&model, &p, &q, Want::BOTH, &mut kin);
-    let (nq, nf) = (model.n_q(), prob.n_free());
+    forward_kinematics(&model, &p, &q, Want::DqDp, &mut kin);
+    let (nq, nf) = (model.coordinates().len(), prob.n_free());
     let n = nq + nf;
-    let rows = 3 * model.n_markers();
+    let rows = 3 * model.markers().len();
     let mut j = DMatrix::zeros(rows, n);
     let mut r = DMatrix::zeros(rows, 1);
     let mut expected_cost = 0.0;
@@ -86,10 +86,13 @@ fn plain_gram(
     half: &[f64],
 ) -> (Vec<f64>, Vec<f64>) {
     let model = prob.model;
-    let (nq, n) = (model.n_q(), model.n_q() + prob.n_free());
-    let nrows = 3 * model.n_markers();
+    let (nq, n) = (
+        model.coordinates().len(),
+        model.coordinates().len() + prob.n_free(),
+    );
+    let nrows = 3 * model.markers().len();
     let mut kin = KinData::new(model);
-    forward_kinematics(model, p, q, Want::BOTH, &mut kin);
+    forward_kinematics(model, p, q, Want::DqDp, &mut kin);
     let mut rows = Vec::new();
     let mut rw = Vec::new();
     for j in depth_first_markers(model) {
@@ -158,7 +161,7 @@ fn tiles_sum_exactly_as_plain_dot_products() {
         let p = model.nominal_params();
         let all = params_for_groups(&model, &["all"]).unwrap();
         let labels: Vec<String> = model.markers().iter().map(|m| m.name.clone()).collect();
-        let nm = model.n_markers();
+        let nm = model.markers().len();
         let mut kin = KinData::new(&model);
         let mut frames = Vec::new();
         for f in 0..6 {
@@ -166,7 +169,7 @@ fn tiles_sum_exactly_as_plain_dot_products() {
             for (i, v) in q.iter_mut().enumerate() {
                 *v += 0.3 * ((i + 3 * f) as f64 * 0.9).sin();
             }
-            forward_kinematics(&model, &p, &q, Want::POSITIONS, &mut kin);
+            forward_kinematics(&model, &p, &q, Want::Positions, &mut kin);
             let mut t: Vec<Vector3<f64>> = kin
                 .markers
                 .iter()

@@ -140,9 +140,9 @@ impl TwistPlan {
     /// on a nested segment set (module docs).
     pub(crate) fn new(prob: &Problem) -> Option<Self> {
         let model = prob.model;
-        let n_q = model.n_q();
+        let n_q = model.coordinates().len();
         let n = n_q + prob.n_free();
-        let mut free_col = vec![usize::MAX; model.n_p()];
+        let mut free_col = vec![usize::MAX; model.parameters().len()];
         for (k, &pi) in prob.free.iter().enumerate() {
             free_col[pi] = n_q + k;
         }

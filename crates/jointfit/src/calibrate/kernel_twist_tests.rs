@@ -14,7 +14,7 @@ use crate::model::spec::{AxisMotion, CouplerSpec, JointKindSpec, ModelSpec, Tran
 use crate::model::Model;
 use crate::trial::Trial;
 
-/// `J̃ᵀJ̃` and `J̃ᵀr̃` formed densely from `Want::BOTH` Jacobians.
+/// `J̃ᵀJ̃` and `J̃ᵀr̃` formed densely from `Want::DqDp` Jacobians.
 fn dense(
     prob: &Problem,
     p: &[f64],
@@ -23,10 +23,10 @@ fn dense(
     half: &[f64],
 ) -> (DMatrix<f64>, DVector<f64>) {
     let model = prob.model;
-    let (nq, nf) = (model.n_q(), prob.n_free());
+    let (nq, nf) = (model.coordinates().len(), prob.n_free());
     let mut kin = KinData::new(model);
-    forward_kinematics(model, p, q, Want::BOTH, &mut kin);
-    let rows = 3 * model.n_markers();
+    forward_kinematics(model, p, q, Want::DqDp, &mut kin);
+    let rows = 3 * model.markers().len();
     let mut j = DMatrix::zeros(rows, nq + nf);
     let mut r = DVector::zeros(rows);
     for (m, mk) in model.markers().iter().enumerate() {
@@ -52,7 +52,7 @@ fn dense(
 /// Frames of `model` at varied coordinates, targets off the model markers by a few mm, a
 /// different marker missing in each frame but the first.
 fn frames(model: &Model, p: &[f64], n: usize) -> Vec<(Vec<f64>, Vec<Vector3<f64>>)> {
-    let nm = model.n_markers();
+    let nm = model.markers().len();
     let mut kin = KinData::new(model);
     (0..n)
         .map(|f| {
@@ -60,7 +60,7 @@ fn frames(model: &Model, p: &[f64], n: usize) -> Vec<(Vec<f64>, Vec<Vector3<f64>
             for (i, v) in q.iter_mut().enumerate() {
                 *v += 0.3 * ((i + 3 * f) as f64 * 0.9).sin();
             }
-            forward_kinematics(model, p, &q, Want::POSITIONS, &mut kin);
+            forward_kinematics(model, p, &q, Want::Positions, &mut kin);
             let mut t: Vec<Vector3<f64>> = kin
                 .markers
                 .iter()
@@ -89,7 +89,7 @@ fn check(spec: &ModelSpec, groups: &[&str], twist: bool) {
     let trial = Trial::new(labels, 100.0, 1, flat).unwrap();
     let prob = Problem::new(&model, p.clone(), &free, &[&trial]).unwrap();
     let half: Vec<f64> = (0..prob.n_free()).map(|k| prob.half_range(k)).collect();
-    let n = model.n_q() + prob.n_free();
+    let n = model.coordinates().len() + prob.n_free();
     let mut sc = FrameScratch::new(&prob);
     assert_eq!(sc.is_twist(), twist, "{}: kernel choice", spec.name);
     let mut tiled = FrameScratch::tiled(&prob);

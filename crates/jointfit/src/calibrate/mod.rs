@@ -74,7 +74,7 @@ pub fn params_for_groups(model: &Model, groups: &[&str]) -> Result<Vec<ParamId>,
     let mut out: Vec<ParamId> = Vec::new();
     for g in groups {
         let ids = if *g == "all" {
-            (0..model.n_p()).map(ParamId).collect()
+            (0..model.parameters().len()).map(ParamId).collect()
         } else {
             let mut ids = model.params_in_group(g);
             if ids.is_empty() {
@@ -172,10 +172,10 @@ impl<'m> Problem<'m> {
         free: &[ParamId],
         trials: &[&'m Trial],
     ) -> Result<Self, CalibError> {
-        if base.len() != model.n_p() {
+        if base.len() != model.parameters().len() {
             return Err(CalibError::ParamLength {
                 got: base.len(),
-                expected: model.n_p(),
+                expected: model.parameters().len(),
             });
         }
         if free.is_empty() {
@@ -191,7 +191,7 @@ impl<'m> Problem<'m> {
             ..IkOptions::default()
         };
         let mut ws = IkWorkspace::new(model);
-        let mut frames = Targets::new(model.n_markers());
+        let mut frames = Targets::new(model.markers().len());
         let mut origin = Vec::new();
         let mut skipped = Vec::new();
         let mut targets = Vec::new();
@@ -323,7 +323,7 @@ impl<'m> Problem<'m> {
         // them: vectors allocated on the worker threads would be freed into the workers'
         // allocation arenas, where the calling thread's later copies (every iteration's
         // trial point) cannot reuse them (about 130 MB more resident memory at 1 M frames).
-        let mut out = vec![vec![0.0; self.model.n_q()]; self.frames.len()];
+        let mut out = vec![vec![0.0; self.model.coordinates().len()]; self.frames.len()];
         let mut pieces = Vec::new();
         let mut rest: &mut [Vec<f64>] = &mut out;
         for range in trial_chunk_ranges(self.frames.len(), false) {
@@ -388,7 +388,7 @@ impl<'m> Problem<'m> {
         mut visit: impl FnMut(usize, &Vector3<f64>),
     ) {
         const TASK: usize = 16;
-        let nm = self.model.n_markers();
+        let nm = self.model.markers().len();
         let mut errors: Vec<Vector3<f64>> = Vec::new();
         for first in (0..qs.len()).step_by(ERROR_BLOCK) {
             let last = (first + ERROR_BLOCK).min(qs.len());
@@ -399,7 +399,7 @@ impl<'m> Problem<'m> {
                     for (i, e) in out.chunks_mut(nm).enumerate() {
                         let f = first + t * TASK + i;
                         let targets = self.frames.fill(f, buf);
-                        forward_kinematics(self.model, p, &qs[f], Want::POSITIONS, kin);
+                        forward_kinematics(self.model, p, &qs[f], Want::Positions, kin);
                         for (j, e) in e.iter_mut().enumerate() {
                             *e = targets[j] - kin.markers[j];
                         }

@@ -49,7 +49,7 @@ fn thread_count_case(frames: usize) {
         for (i, v) in q.iter_mut().enumerate() {
             *v += 0.3 * (0.01 * f as f64 + i as f64).sin();
         }
-        forward_kinematics(&model, &p, &q, Want::POSITIONS, &mut kin);
+        forward_kinematics(&model, &p, &q, Want::Positions, &mut kin);
         for (j, x) in kin.markers.iter().enumerate() {
             positions.push(x + Vector3::repeat(0.002 * ((f * 7 + j) as f64).sin()));
         }

@@ -152,7 +152,7 @@ impl Blocks {
 
     /// As [`Blocks::new`] with a cache of at most `bytes` (0: recompute every frame).
     pub(crate) fn with_budget(prob: &Problem, bytes: usize) -> Self {
-        let nq = prob.model.n_q();
+        let nq = prob.model.coordinates().len();
         let nf = prob.n_free();
         let frames = prob.frames.len();
         let per = nq * nq + nq * nf + nq;
@@ -315,7 +315,7 @@ impl AssembleChunk<'_, '_> {
         tb: &mut Vec<Vector3<f64>>,
     ) -> (Vec<f64>, Vec<f64>, f64) {
         let (prob, per, start) = (self.prob, self.per, self.start);
-        let nq = prob.model.n_q();
+        let nq = prob.model.coordinates().len();
         let nf = self.half.len();
         let n = nq + nf;
         let mut v = vec![0.0; nf * nf];
@@ -382,7 +382,7 @@ pub(crate) fn cost_at(prob: &Problem, b: &Blocks, p: &[f64], qs: &[Vec<f64>]) ->
                 let mut total = 0.0;
                 for (i, q) in qs.iter().enumerate() {
                     let targets = prob.frames.fill(c * b.chunk + i, tb);
-                    forward_kinematics(prob.model, p, q, Want::POSITIONS, kin);
+                    forward_kinematics(prob.model, p, q, Want::Positions, kin);
                     for (j, m) in prob.model.markers().iter().enumerate() {
                         if !targets[j].x.is_nan() && m.weight > 0.0 {
                             total += m.weight * (targets[j] - kin.markers[j]).norm_squared();

@@ -25,7 +25,7 @@ fn problem_trial(model: &Model, frames: usize) -> Trial {
         for (i, v) in q.iter_mut().enumerate() {
             *v += 0.3 * (6.0 * t + i as f64).sin();
         }
-        forward_kinematics(model, &p, &q, Want::POSITIONS, &mut kin);
+        forward_kinematics(model, &p, &q, Want::Positions, &mut kin);
         for (j, x) in kin.markers.iter().enumerate() {
             let e = |k: usize| 0.003 * ((f * 7 + j * 3 + k) as f64 * 1.3).sin();
             positions.push(x + Vector3::new(e(0), e(1), e(2)));
@@ -55,7 +55,7 @@ fn recomputed_blocks_give_the_cached_step_bit_for_bit() {
     let trial = problem_trial(&model, 100);
     let free = params_for_groups(&model, &["all"]).unwrap();
     let prob = Problem::new(&model, model.nominal_params(), &free, &[&trial]).unwrap();
-    let (nq, nf) = (model.n_q(), prob.n_free());
+    let (nq, nf) = (model.coordinates().len(), prob.n_free());
     let one_chunk = 8 * CHUNK * (nq * nq + nq * nf + nq);
     let full = step(&prob, usize::MAX, 1e-3);
     for budget in [0, one_chunk, 2 * one_chunk + 100] {

@@ -19,7 +19,7 @@ fn rich_motion(model: &Model, f: usize, frames: usize) -> Vec<f64> {
     let t = f as f64 / frames as f64;
     let w = 2.0 * std::f64::consts::PI;
     let mut q = model.default_coords();
-    let set = |q: &mut Vec<f64>, name: &str, v: f64| q[model.coord_id(name).unwrap().0] = v;
+    let set = |q: &mut Vec<f64>, name: &str, v: f64| q[model.coord_id(name).unwrap()] = v;
     set(&mut q, "pelvis_tx", 0.1 * t);
     set(&mut q, "pelvis_ty", 0.95);
     set(&mut q, "pelvis_rotation", 0.2 * (w * t).sin());

@@ -185,7 +185,7 @@ mod tests {
                 .collect(),
         )
         .unwrap();
-        let mut targets = Targets::new(model.n_markers());
+        let mut targets = Targets::new(model.markers().len());
         for t in [&trial, &clean] {
             let (map, absent) = MarkerMap::allowing_absent(&model, t.labels());
             assert_eq!(absent, vec![model.markers()[1].name.clone()]);

@@ -19,8 +19,8 @@ pub(super) struct Unfittable {
 impl Unfittable {
     pub(super) fn new(model: &Model) -> Self {
         Unfittable {
-            by_coordinate: vec![0; model.n_q()],
-            present: vec![0; model.n_markers()],
+            by_coordinate: vec![0; model.coordinates().len()],
+            present: vec![0; model.markers().len()],
             frames: 0,
         }
     }
@@ -57,7 +57,7 @@ impl Unfittable {
             return String::new();
         };
         let c = &model.coordinates()[coord];
-        let segment = model.joints()[c.joint.0].child;
+        let segment = model.joints()[c.joint].child;
         let markers: Vec<String> = model
             .markers()
             .iter()

@@ -53,7 +53,7 @@ pub(crate) fn solve_varpro(
     opts: &VarProOptions,
     observer: &mut dyn Observer,
 ) -> Fit {
-    let nq = prob.model.n_q();
+    let nq = prob.model.coordinates().len();
     let nf = prob.n_free();
     let frames = prob.frames.len();
     let mut ws = IkWorkspace::new(prob.model);

@@ -242,7 +242,7 @@ pub fn check_trial_before_ik(model: &Model, trial: &Trial, map: &MarkerMap) -> V
                         .collect::<Vec<_>>()
                 },
                 || {
-                    (0..model.n_markers())
+                    (0..model.markers().len())
                         .into_par_iter()
                         .filter(|&j| map.columns[j].is_some())
                         .map(|j| (j, ctx.jumps(j), ctx.gaps(j)))

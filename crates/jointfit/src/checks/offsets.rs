@@ -123,7 +123,7 @@ fn offsets_over(
     frames: std::ops::Range<usize>,
 ) -> Vec<MarkerOffset> {
     use rayon::prelude::*;
-    let nm = model.n_markers();
+    let nm = model.markers().len();
     if nm == 0 {
         return Vec::new();
     }
@@ -134,7 +134,7 @@ fn offsets_over(
         if !fit.frames[f].solved() {
             return;
         }
-        forward_kinematics(model, p, &fit.coords[f], Want::POSITIONS, kin);
+        forward_kinematics(model, p, &fit.coords[f], Want::Positions, kin);
         let row = trial.frame(f);
         for (j, marker) in model.markers().iter().enumerate() {
             let Some(c) = map.columns[j] else { continue };

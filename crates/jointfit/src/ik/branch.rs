@@ -48,7 +48,7 @@ pub(crate) struct Branches {
 
 impl Branches {
     pub(crate) fn new(model: &Model) -> Self {
-        let n = model.n_q();
+        let n = model.coordinates().len();
         // Per coordinate: (steps it drives, k of the last linear rotation step, any other use).
         let mut uses = vec![(0usize, 0.0f64, false); n];
         for step in &model.steps {
@@ -203,7 +203,7 @@ mod tests {
 
     fn markers(model: &Model, q: &[f64]) -> Vec<Vector3<f64>> {
         let mut kin = KinData::new(model);
-        forward_kinematics(model, &model.nominal_params(), q, Want::POSITIONS, &mut kin);
+        forward_kinematics(model, &model.nominal_params(), q, Want::Positions, &mut kin);
         kin.markers.clone()
     }
 

@@ -43,7 +43,7 @@ pub(crate) fn clamped_leg(knee: [f64; 2], hip_adduction: [f64; 2]) -> Model {
 
 fn cost(model: &Model, p: &[f64], q: &[f64], targets: &[Vector3<f64>]) -> f64 {
     let mut kin = KinData::new(model);
-    forward_kinematics(model, p, q, Want::POSITIONS, &mut kin);
+    forward_kinematics(model, p, q, Want::Positions, &mut kin);
     kin.markers
         .iter()
         .zip(targets)
@@ -73,7 +73,7 @@ fn clamped_coordinates_stop_at_their_bounds_and_the_rest_is_optimal() {
     truth[knee] = 40.0 * DEG;
     truth[idx("ankle_dorsiflexion")] = 5.0 * DEG;
     let mut kin = KinData::new(&model);
-    forward_kinematics(&model, &p, &truth, Want::POSITIONS, &mut kin);
+    forward_kinematics(&model, &p, &truth, Want::Positions, &mut kin);
     let mut rng = ChaCha8Rng::seed_from_u64(13);
     let targets: Vec<Vector3<f64>> = kin
         .markers

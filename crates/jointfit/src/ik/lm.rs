@@ -7,7 +7,7 @@ use super::normal::Moments;
 use super::solvable::Solvability;
 use super::tasks::goal_cost;
 use super::{FrameFit, FrameStatus, IkOptions};
-use crate::kinematics::{forward_kinematics, KinData, Want};
+use crate::kinematics::{forward_kinematics_axes, KinData};
 use crate::linalg::Cholesky;
 use crate::model::Model;
 use crate::solver::Termination;
@@ -40,11 +40,11 @@ pub struct IkWorkspace {
 
 impl IkWorkspace {
     pub fn new(model: &Model) -> Self {
-        let n = model.n_q();
+        let n = model.coordinates().len();
         IkWorkspace {
             cur: KinData::new(model),
             trial: KinData::new(model),
-            weights: vec![0.0; model.n_markers()],
+            weights: vec![0.0; model.markers().len()],
             a: vec![0.0; n * n],
             l: vec![0.0; n * n],
             g: vec![0.0; n],
@@ -189,7 +189,7 @@ pub(super) fn lm(
         }
     }
     ws.moments.set_active(active);
-    forward_kinematics(model, p, q, Want::AXES, &mut ws.cur);
+    forward_kinematics_axes(model, p, q, &mut ws.cur);
     // The coordinate tasks' scale: the frame's total marker weight ([`super::tasks`]).
     let total: f64 = if ws.goals.is_empty() {
         0.0
@@ -222,7 +222,7 @@ pub(super) fn lm(
             ws.delta[..n].copy_from_slice(&ws.g[..n]);
             chol.solve(&mut ws.delta[..n]);
             let step_max = trial_point(q, active, bounded, ws);
-            forward_kinematics(model, p, &ws.q_trial, Want::AXES, &mut ws.trial);
+            forward_kinematics_axes(model, p, &ws.q_trial, &mut ws.trial);
             let trial_cost = cost_of(&ws.trial.markers, targets, &ws.weights)
                 + goal_cost(&ws.q_trial, &ws.goals, total);
             if trial_cost <= cost {
@@ -414,7 +414,7 @@ pub fn solve_frame(
         let held = undetermined;
         let mut active = std::mem::take(&mut ws.active);
         active.clear();
-        active.extend((0..model.n_q()).filter(|c| !held.contains(c)));
+        active.extend((0..model.coordinates().len()).filter(|c| !held.contains(c)));
         q.copy_from_slice(&ws.start);
         let (cost, its, end) = lm(model, p, targets, q, &active, opts, ws);
         ws.active = active;

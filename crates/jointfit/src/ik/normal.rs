@@ -82,9 +82,9 @@ impl Moments {
             .collect();
         Moments {
             segments,
-            active_index: vec![usize::MAX; model.n_q()],
+            active_index: vec![usize::MAX; model.coordinates().len()],
             twists: vec![(Vector3::zeros(), Vector3::zeros()); widest],
-            composite: Composite::new(model.n_q(), &plan),
+            composite: Composite::new(model.coordinates().len(), &plan),
         }
     }
 
@@ -216,10 +216,10 @@ mod tests {
         let p = model.nominal_params();
         let mut kin = KinData::new(&model);
         for case in 0..6 {
-            let q: Vec<f64> = (0..model.n_q())
+            let q: Vec<f64> = (0..model.coordinates().len())
                 .map(|i| 0.4 * ((i * 7 + case * 3) as f64).sin())
                 .collect();
-            forward_kinematics(&model, &p, &q, Want::DQ, &mut kin);
+            forward_kinematics(&model, &p, &q, Want::Dq, &mut kin);
             let targets: Vec<Vector3<f64>> = kin
                 .markers
                 .iter()
@@ -232,7 +232,7 @@ mod tests {
                 .enumerate()
                 .map(|(j, m)| if (j + case) % 5 == 0 { 0.0 } else { m.weight })
                 .collect();
-            let active: Vec<usize> = (0..model.n_q())
+            let active: Vec<usize> = (0..model.coordinates().len())
                 .filter(|c| case % 2 == 0 || c % 3 != 1)
                 .collect();
             let n = active.len();

@@ -169,7 +169,7 @@ pub(super) fn repair_absurd(
         map,
         opts,
         ws,
-        targets: Vec::with_capacity(model.n_markers()),
+        targets: Vec::with_capacity(model.markers().len()),
     };
     let mut changed = std::collections::VecDeque::new();
     for &f in &suspects {
@@ -215,8 +215,8 @@ pub(super) fn repair_absurd(
         let plausible = rms <= implausible_above;
         if fit.frames[f].solved() && !plausible {
             fit.frames[f].status = FrameStatus::Implausible { rms, median: m };
-            fit.coords[f] = vec![f64::NAN; model.n_q()];
-            fit.errors[f] = vec![f64::NAN; model.n_markers()];
+            fit.coords[f] = vec![f64::NAN; model.coordinates().len()];
+            fit.errors[f] = vec![f64::NAN; model.markers().len()];
         }
     }
 }

@@ -38,9 +38,9 @@ fn close(a: &[f64], b: &[f64], tol: f64) -> bool {
 /// explicit Jacobian, independent of the solver's moment form and generic configuration.
 fn min_singular(model: &Model, p: &[f64], q: &[f64], present: &[bool], cols: &[usize]) -> f64 {
     let mut kin = KinData::new(model);
-    forward_kinematics(model, p, q, Want::DQ, &mut kin);
+    forward_kinematics(model, p, q, Want::Dq, &mut kin);
     let jq = kin.jq;
-    let rows: Vec<usize> = (0..model.n_markers())
+    let rows: Vec<usize> = (0..model.markers().len())
         .filter(|&j| present[j])
         .flat_map(|j| 3 * j..3 * j + 3)
         .collect();
@@ -70,7 +70,7 @@ fn sparse_segments_are_solved_through_the_chain() {
         .iter()
         .map(|m| !gone.contains(&m.name.as_str()))
         .collect();
-    let all: Vec<usize> = (0..model.n_q()).collect();
+    let all: Vec<usize> = (0..model.coordinates().len()).collect();
     assert!(min_singular(&model, &p, &truth[7], &present, &all) > 1e-3);
     let map = MarkerMap::by_name(&model, trial.labels()).unwrap();
     let fit = solve_trial(&model, &p, &trial, &map, &IkOptions::default()).unwrap();
@@ -101,13 +101,13 @@ fn undetermined_coordinate_is_named_and_ranged() {
     };
     assert_eq!(ranges[0].reason, format!("{coordinate} undetermined"));
     assert!(fit.coords[6].iter().all(|v| v.is_nan()));
-    let named = model.coord_id(coordinate).unwrap().0;
+    let named = model.coord_id(coordinate).unwrap();
     let present: Vec<bool> = model
         .markers()
         .iter()
         .map(|m| !gone.contains(&m.name.as_str()))
         .collect();
-    let all: Vec<usize> = (0..model.n_q()).collect();
+    let all: Vec<usize> = (0..model.coordinates().len()).collect();
     let rest: Vec<usize> = all.iter().copied().filter(|&c| c != named).collect();
     assert!(min_singular(&model, &p, &truth[6], &present, &all) < 1e-8);
     assert!(min_singular(&model, &p, &truth[6], &present, &rest) > 1e-3);
@@ -132,8 +132,8 @@ fn holding_undetermined_coordinates_at_the_previous_frame() {
     };
     let fit = solve_trial(&model, &p, &trial, &map, &opts).unwrap();
     let foot = [
-        model.coord_id("ankle_dorsiflexion").unwrap().0,
-        model.coord_id("subtalar_inversion").unwrap().0,
+        model.coord_id("ankle_dorsiflexion").unwrap(),
+        model.coord_id("subtalar_inversion").unwrap(),
     ];
     for f in 10..15 {
         assert!(fit.frames[f].solved(), "frame {f}");
@@ -171,7 +171,7 @@ fn gross_samples_are_rejected_and_reported() {
     pos[25 * n + hee].y = f64::INFINITY;
     let map = MarkerMap::by_name(&model, trial.labels()).unwrap();
     let fit = solve_trial(&model, &p, &trial, &map, &IkOptions::default()).unwrap();
-    let index = |name: &str| model.marker_index(name).unwrap();
+    let index = |name: &str| model.markers().iter().position(|m| m.name == name).unwrap();
     assert_eq!(fit.frames[10].rejected, vec![index("RTHI")]);
     assert_eq!(fit.frames[20].rejected, vec![index("RTIB")]);
     assert_eq!(fit.frames[25].rejected, vec![index("RHEE")]);

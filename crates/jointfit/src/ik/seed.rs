@@ -4,7 +4,7 @@ use nalgebra::{Rotation3, Unit, Vector3};
 
 use super::lm::{frame_weights, lm};
 use super::{IkOptions, IkWorkspace};
-use crate::kinematics::{forward_kinematics, Want};
+use crate::kinematics::forward_kinematics_axes;
 use crate::model::{CoordKind, Model, Source};
 
 /// A starting point for a frame with no previous solution: defaults everywhere, then the
@@ -75,9 +75,8 @@ fn seed(
         ws.weights.clone()
     };
     for &root in &roots {
-        let joint = &model.joints()[model.segments()[root].joint.0];
-        let active: Vec<usize> =
-            (joint.first_coord..joint.first_coord + joint.kind.dof()).collect();
+        let joint = &model.joints()[root];
+        let active: Vec<usize> = joint.coords.clone().collect();
         if active.is_empty() {
             continue;
         }
@@ -362,7 +361,7 @@ fn rotation_scores<'a>(
     if markers.len() < 3 {
         return None;
     }
-    forward_kinematics(model, p, q, Want::AXES, &mut ws.cur);
+    forward_kinematics_axes(model, p, q, &mut ws.cur);
     for c in &model.plan.cols_q[root] {
         if !rot.contains(&c.col) {
             continue;

@@ -37,7 +37,7 @@ use nalgebra::{DMatrix, SymmetricEigen, Vector3};
 
 use super::normal::Moments;
 use super::IkOptions;
-use crate::kinematics::{forward_kinematics, KinData, Want};
+use crate::kinematics::{forward_kinematics_axes, KinData};
 use crate::model::{CoordKind, Model};
 
 /// The marker noise the limits refer to (m).
@@ -70,17 +70,17 @@ pub(super) struct Solvability {
 
 impl Solvability {
     pub(super) fn new(model: &Model) -> Self {
-        let n = model.n_q();
+        let n = model.coordinates().len();
         Solvability {
             p: None,
             kin: KinData::new(model),
             pose_kin: KinData::new(model),
             moments: Moments::new(model),
             cache: Vec::new(),
-            mask: vec![false; model.n_markers() + model.n_q()],
+            mask: vec![false; model.markers().len() + model.coordinates().len()],
             a: vec![0.0; n * n],
             g: vec![0.0; n],
-            weights: vec![0.0; model.n_markers()],
+            weights: vec![0.0; model.markers().len()],
         }
     }
 
@@ -99,9 +99,9 @@ impl Solvability {
             self.p = Some(p.to_vec());
             self.cache.clear();
             let q = generic_configuration(model);
-            forward_kinematics(model, p, &q, Want::AXES, &mut self.kin);
+            forward_kinematics_axes(model, p, &q, &mut self.kin);
         }
-        let nm = model.n_markers();
+        let nm = model.markers().len();
         for (m, w) in self.mask[..nm].iter_mut().zip(weights) {
             *m = *w > 0.0;
         }
@@ -135,15 +135,15 @@ impl Solvability {
         if q.iter().any(|v| !v.is_finite()) {
             return self.undetermined(model, p, weights, known, opts).to_vec();
         }
-        forward_kinematics(model, p, q, Want::AXES, &mut self.pose_kin);
+        forward_kinematics_axes(model, p, q, &mut self.pose_kin);
         self.compute(model, opts, true)
     }
 
     /// The verdict for the present markers and known coordinates in `self.mask`, at the generic
     /// configuration (`kin`) or at the frame's pose (`pose_kin`).
     fn compute(&mut self, model: &Model, opts: &IkOptions, at_pose: bool) -> Vec<usize> {
-        let n = model.n_q();
-        let nm = model.n_markers();
+        let n = model.coordinates().len();
+        let nm = model.markers().len();
         for (w, &m) in self.weights.iter_mut().zip(&self.mask[..nm]) {
             *w = if m { 1.0 } else { 0.0 };
         }

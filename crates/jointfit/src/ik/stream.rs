@@ -117,17 +117,17 @@ impl StreamingIk {
         opts: IkOptions,
     ) -> Result<Self, StreamError> {
         check_labels(labels)?;
-        if p.len() != model.n_p() {
+        if p.len() != model.parameters().len() {
             return Err(IkError::ParamLength {
                 got: p.len(),
-                expected: model.n_p(),
+                expected: model.parameters().len(),
             }
             .into());
         }
         let (map, absent) = MarkerMap::allowing_absent(&model, labels);
-        if absent.len() == model.n_markers() {
+        if absent.len() == model.markers().len() {
             return Err(StreamError::NoCommonMarker {
-                model_markers: model.n_markers(),
+                model_markers: model.markers().len(),
                 available: labels.join(", "),
             });
         }
@@ -143,11 +143,11 @@ impl StreamingIk {
             opts,
             ws,
             branches,
-            targets: Vec::with_capacity(model.n_markers()),
+            targets: Vec::with_capacity(model.markers().len()),
             q: None,
             q_before: None,
-            coords: vec![f64::NAN; model.n_q()],
-            errors: vec![f64::NAN; model.n_markers()],
+            coords: vec![f64::NAN; model.coordinates().len()],
+            errors: vec![f64::NAN; model.markers().len()],
             fit: None,
             last_time: None,
             model,

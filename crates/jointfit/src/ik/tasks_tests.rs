@@ -24,14 +24,14 @@ fn pose(model: &Model) -> Vec<f64> {
         ("ankle_dorsiflexion", 0.2),
         ("subtalar_inversion", -0.1),
     ] {
-        q[model.coord_id(name).unwrap().0] = v;
+        q[model.coord_id(name).unwrap()] = v;
     }
     q
 }
 
 fn markers_at(model: &Model, p: &[f64], q: &[f64]) -> Vec<Vector3<f64>> {
     let mut kin = KinData::new(model);
-    forward_kinematics(model, p, q, Want::POSITIONS, &mut kin);
+    forward_kinematics(model, p, q, Want::Positions, &mut kin);
     kin.markers.clone()
 }
 
@@ -84,8 +84,8 @@ fn coordinate_tasks_minimise_the_stated_objective() {
             -0.002 * s.sin(),
         );
     }
-    let knee = model.coord_id("knee_flexion").unwrap().0;
-    let hip = model.coord_id("hip_flexion").unwrap().0;
+    let knee = model.coord_id("knee_flexion").unwrap();
+    let hip = model.coord_id("hip_flexion").unwrap();
     let opts = IkOptions {
         step_tolerance: 1e-12,
         outlier_distance: f64::INFINITY,
@@ -114,7 +114,7 @@ fn coordinate_tasks_minimise_the_stated_objective() {
     let f0 = objective(&model, &p, &q, &targets, &goals);
     assert!((fit.cost - f0).abs() <= 1e-12 * f0, "{} vs {f0}", fit.cost);
     let h = 1e-6;
-    for i in 0..model.n_q() {
+    for i in 0..model.coordinates().len() {
         let mut a = q.clone();
         let mut b = q.clone();
         a[i] += h;
@@ -159,8 +159,8 @@ fn a_task_determines_its_coordinate() {
             targets[j] = Vector3::repeat(f64::NAN);
         }
     }
-    let ankle = model.coord_id("ankle_dorsiflexion").unwrap().0;
-    let subtalar = model.coord_id("subtalar_inversion").unwrap().0;
+    let ankle = model.coord_id("ankle_dorsiflexion").unwrap();
+    let subtalar = model.coord_id("subtalar_inversion").unwrap();
     let opts = IkOptions::default();
     let mut ws = IkWorkspace::new(&model);
     let mut q = truth.clone();
@@ -212,12 +212,12 @@ fn a_single_marker_off_a_pin_axis_determines_it() {
     let p = model.nominal_params();
     let truth = pose(&model);
     let targets = markers_at(&model, &p, &truth);
-    let knee = model.coord_id("knee_flexion").unwrap().0;
-    let ankle = model.coord_id("ankle_dorsiflexion").unwrap().0;
-    let subtalar = model.coord_id("subtalar_inversion").unwrap().0;
+    let knee = model.coord_id("knee_flexion").unwrap();
+    let ankle = model.coord_id("ankle_dorsiflexion").unwrap();
+    let subtalar = model.coord_id("subtalar_inversion").unwrap();
     // Oracle: the explicit Jacobian at the truth.
     let mut kin = KinData::new(&model);
-    forward_kinematics(&model, &p, &truth, Want::DQ, &mut kin);
+    forward_kinematics(&model, &p, &truth, Want::Dq, &mut kin);
     let jq = kin.jq;
     let shk = model
         .markers()
@@ -229,13 +229,13 @@ fn a_single_marker_off_a_pin_axis_determines_it() {
         .sum::<f64>()
         .sqrt();
     assert!((lever - 0.017).abs() < 0.002, "lever {lever}");
-    let cols: Vec<usize> = (0..model.n_q())
+    let cols: Vec<usize> = (0..model.coordinates().len())
         .filter(|&c| c != ankle && c != subtalar)
         .collect();
     let j = DMatrix::from_fn(jq.nrows(), cols.len(), |r, c| jq[(r, cols[c])]);
     assert!(j.singular_values().min() > 1e-3);
-    let weights = vec![1.0; model.n_markers()];
-    let known = vec![false; model.n_q()];
+    let weights = vec![1.0; model.markers().len()];
+    let known = vec![false; model.coordinates().len()];
     let mut ws = IkWorkspace::new(&model);
     let mut verdict = ws
         .solvability
@@ -273,9 +273,9 @@ fn a_single_marker_off_a_pin_axis_determines_it() {
 fn held_from_the_first_frame_at_the_defaults() {
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
     let p = model.nominal_params();
-    let ankle = model.coord_id("ankle_dorsiflexion").unwrap().0;
-    let subtalar = model.coord_id("subtalar_inversion").unwrap().0;
-    let knee = model.coord_id("knee_flexion").unwrap().0;
+    let ankle = model.coord_id("ankle_dorsiflexion").unwrap();
+    let subtalar = model.coord_id("subtalar_inversion").unwrap();
+    let knee = model.coord_id("knee_flexion").unwrap();
     let truth: Vec<Vec<f64>> = (0..20)
         .map(|f| {
             let mut q = pose(&model);
@@ -309,7 +309,7 @@ fn held_from_the_first_frame_at_the_defaults() {
             (q[ankle], q[subtalar]),
             (defaults[ankle], defaults[subtalar])
         );
-        for c in (0..model.n_q()).filter(|&c| c != ankle && c != subtalar) {
+        for c in (0..model.coordinates().len()).filter(|&c| c != ankle && c != subtalar) {
             assert!(
                 (q[c] - truth[f][c]).abs() < 1e-7,
                 "frame {f}, coordinate {c}"

@@ -18,7 +18,7 @@ pub fn motion(model: &Model, f: usize, heading: f64) -> Vec<f64> {
     let t = f as f64 / 100.0;
     let w = 2.0 * std::f64::consts::PI;
     let mut q = model.default_coords();
-    let set = |q: &mut Vec<f64>, name: &str, v: f64| q[model.coord_id(name).unwrap().0] = v;
+    let set = |q: &mut Vec<f64>, name: &str, v: f64| q[model.coord_id(name).unwrap()] = v;
     set(&mut q, "pelvis_tx", 1.2 * t * heading.cos());
     set(&mut q, "pelvis_tz", -1.2 * t * heading.sin());
     set(&mut q, "pelvis_ty", 0.93 + 0.02 * (2.0 * w * t).sin());
@@ -103,7 +103,8 @@ fn missing_markers_drop_out_and_sparse_frames_are_solved() {
     let map = MarkerMap::by_name(&model, trial.labels()).unwrap();
     let fit = solve_trial(&model, &p, &trial, &map, &IkOptions::default()).unwrap();
     assert_eq!(fit.frames[5].status, FrameStatus::Converged);
-    assert!(fit.errors[5][model.marker_index("RTHI").unwrap()].is_nan());
+    let rthi = model.markers().iter().position(|m| m.name == "RTHI");
+    assert!(fit.errors[5][rthi.unwrap()].is_nan());
     assert!(fit.coords[5]
         .iter()
         .zip(&truth[5])
@@ -143,7 +144,7 @@ fn missing_model_markers_are_named() {
 /// The markers of frame `f` of [`motion`] with uniform noise of ±1 cm per axis.
 fn noisy_targets(model: &Model, p: &[f64], f: usize, rng: &mut ChaCha8Rng) -> Vec<Vector3<f64>> {
     let mut kin = KinData::new(model);
-    forward_kinematics(model, p, &motion(model, f, 0.0), Want::POSITIONS, &mut kin);
+    forward_kinematics(model, p, &motion(model, f, 0.0), Want::Positions, &mut kin);
     kin.markers
         .iter()
         .map(|m| {
@@ -168,7 +169,7 @@ fn noisy_frame_is_a_least_squares_minimum() {
     let mut ws = IkWorkspace::new(&model);
     let fit = solve_frame(&model, &p, &targets, &mut q, &IkOptions::default(), &mut ws);
     assert_eq!(fit.status, FrameStatus::Converged);
-    forward_kinematics(&model, &p, &q, Want::DQ, &mut kin);
+    forward_kinematics(&model, &p, &q, Want::Dq, &mut kin);
     let r: Vec<f64> = targets
         .iter()
         .zip(&kin.markers)
@@ -181,7 +182,7 @@ fn noisy_frame_is_a_least_squares_minimum() {
     // At the start the gradient is of order 1e-2 m²; the solver stops on a 1e-11 step.
     assert!(grad.amax() < 1e-9, "gradient {}", grad.amax());
     let cost = |q: &[f64], kin: &mut KinData| {
-        forward_kinematics(&model, &p, q, Want::POSITIONS, kin);
+        forward_kinematics(&model, &p, q, Want::Positions, kin);
         targets
             .iter()
             .zip(&kin.markers)

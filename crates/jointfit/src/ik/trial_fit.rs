@@ -127,10 +127,10 @@ fn solve_chunks_alongside<R: Send>(
     chunks: &[Range<usize>],
     also: impl FnOnce() -> R + Send,
 ) -> (Result<TrialFit, IkError>, R) {
-    if p.len() != model.n_p() {
+    if p.len() != model.parameters().len() {
         let err = IkError::ParamLength {
             got: p.len(),
-            expected: model.n_p(),
+            expected: model.parameters().len(),
         };
         return (Err(err), also());
     }
@@ -236,7 +236,7 @@ fn solve_range(
     range: Range<usize>,
 ) -> (TrialFit, IkWorkspace) {
     let mut ws = IkWorkspace::new(model);
-    let mut targets = Vec::with_capacity(model.n_markers());
+    let mut targets = Vec::with_capacity(model.markers().len());
     // The last two solutions when they belong to consecutive frames.
     let mut q: Option<Vec<f64>> = None;
     let mut q_before: Option<Vec<f64>> = None;
@@ -281,8 +281,8 @@ fn solve_range(
             out.coords.push(qf.clone());
             q_before = q.replace(qf);
         } else {
-            out.errors.push(vec![f64::NAN; model.n_markers()]);
-            out.coords.push(vec![f64::NAN; model.n_q()]);
+            out.errors.push(vec![f64::NAN; model.markers().len()]);
+            out.coords.push(vec![f64::NAN; model.coordinates().len()]);
             // Across a gap the velocity is unknown: restart from the last solution alone;
             // after a result that went wrong, from seeding.
             q_before = None;
@@ -303,7 +303,7 @@ pub(super) fn marker_errors(
     fit: &FrameFit,
     ws: &IkWorkspace,
 ) -> Vec<f64> {
-    (0..model.n_markers())
+    (0..model.markers().len())
         .map(|j| {
             if fit.rejected.contains(&j) {
                 f64::NAN

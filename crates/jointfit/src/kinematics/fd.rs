@@ -8,14 +8,14 @@ use super::{forward_kinematics, KinData, Want};
 use crate::model::Model;
 
 fn marker_vector(model: &Model, p: &[f64], q: &[f64], data: &mut KinData) -> Vec<f64> {
-    forward_kinematics(model, p, q, Want::POSITIONS, data);
+    forward_kinematics(model, p, q, Want::Positions, data);
     data.markers.iter().flat_map(|m| [m.x, m.y, m.z]).collect()
 }
 
 /// `∂(marker coordinates)/∂q` by central differences with step `h`.
 pub(crate) fn jacobian_q(model: &Model, p: &[f64], q: &[f64], h: f64) -> DMatrix<f64> {
     let mut data = KinData::new(model);
-    let mut out = DMatrix::zeros(3 * model.n_markers(), model.n_q());
+    let mut out = DMatrix::zeros(3 * model.markers().len(), model.coordinates().len());
     let mut x = q.to_vec();
     for i in 0..q.len() {
         x[i] = q[i] + h;
@@ -33,7 +33,7 @@ pub(crate) fn jacobian_q(model: &Model, p: &[f64], q: &[f64], h: f64) -> DMatrix
 /// `∂(marker coordinates)/∂p` by central differences with step `h`.
 pub(crate) fn jacobian_p(model: &Model, p: &[f64], q: &[f64], h: f64) -> DMatrix<f64> {
     let mut data = KinData::new(model);
-    let mut out = DMatrix::zeros(3 * model.n_markers(), model.n_p());
+    let mut out = DMatrix::zeros(3 * model.markers().len(), model.parameters().len());
     let mut x = p.to_vec();
     for i in 0..p.len() {
         x[i] = p[i] + h;

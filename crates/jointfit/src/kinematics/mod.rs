@@ -65,17 +65,18 @@ impl KinData {
         (self.step_axis[k], self.step_origin[k])
     }
 
+    /// A workspace sized for `model` (its segments, markers, coordinates and parameters).
     pub fn new(model: &Model) -> Self {
-        let nm = model.n_markers();
+        let nm = model.markers().len();
         let ns = model.steps.len();
         KinData {
             segment_poses: vec![Pose::identity(); model.segments().len()],
             markers: vec![Vector3::zeros(); nm],
-            jq: DMatrix::zeros(3 * nm, model.n_q()),
-            jp: DMatrix::zeros(3 * nm, model.n_p()),
+            jq: DMatrix::zeros(3 * nm, model.coordinates().len()),
+            jp: DMatrix::zeros(3 * nm, model.parameters().len()),
             step_axis: vec![Vector3::zeros(); ns],
             step_origin: vec![Vector3::zeros(); ns],
-            cached_p: vec![f64::NAN; model.n_p()],
+            cached_p: vec![f64::NAN; model.parameters().len()],
             blocks_ready: false,
             block_pose: vec![Pose::identity(); model.plan.n_blocks],
             step_local: vec![(Vector3::zeros(), Vector3::zeros()); ns],
@@ -108,38 +109,43 @@ impl KinData {
     }
 }
 
-/// Which Jacobians [`forward_kinematics`] computes besides the poses and marker positions.
+/// Which Jacobians [`forward_kinematics`] computes besides the segment poses and marker
+/// positions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Want {
-    pub dq: bool,
-    pub dp: bool,
-    /// World axes and origins of the coordinate steps (implied by `dq`), without the
-    /// Jacobian matrix: what inverse kinematics needs to form its normal equations from
-    /// segment moments.
-    pub axes: bool,
+pub enum Want {
+    /// Poses and marker positions only.
+    Positions,
+    /// And `∂x/∂q` ([`KinData::jq`]).
+    Dq,
+    /// And both `∂x/∂q` and `∂x/∂p` ([`KinData::jq`], [`KinData::jp`]).
+    DqDp,
 }
 
-impl Want {
-    pub const POSITIONS: Want = Want {
-        dq: false,
-        dp: false,
-        axes: false,
-    };
-    pub const DQ: Want = Want {
-        dq: true,
-        dp: false,
-        axes: true,
-    };
-    pub const BOTH: Want = Want {
-        dq: true,
-        dp: true,
-        axes: true,
-    };
-    pub(crate) const AXES: Want = Want {
-        dq: false,
-        dp: false,
-        axes: true,
-    };
+/// What one evaluation fills besides poses and marker positions.
+#[derive(Debug, Clone, Copy)]
+struct Outputs {
+    dq: bool,
+    dp: bool,
+    /// World axes and origins of the coordinate steps (implied by `dq`).
+    axes: bool,
+    /// World axes and origins of the parameter steps (implied by `dp`).
+    param_frames: bool,
+}
+
+impl From<Want> for Outputs {
+    fn from(want: Want) -> Self {
+        let (dq, dp) = match want {
+            Want::Positions => (false, false),
+            Want::Dq => (true, false),
+            Want::DqDp => (true, true),
+        };
+        Outputs {
+            dq,
+            dp,
+            axes: dq,
+            param_frames: dp,
+        }
+    }
 }
 
 #[inline]
@@ -159,31 +165,47 @@ fn source_value(model: &Model, source: &Source, p: &[f64], q: &[f64]) -> f64 {
 /// # Panics
 /// When `p`, `q` or `data` do not match the model's sizes (a programming error).
 pub fn forward_kinematics(model: &Model, p: &[f64], q: &[f64], want: Want, data: &mut KinData) {
-    kinematics(model, p, q, want, want.dp, data);
+    kinematics(model, p, q, want.into(), data);
+}
+
+/// Segment poses, marker positions and the world axis and origin of every coordinate step
+/// ([`KinData::step_frame`]), without the Jacobian matrices: what inverse kinematics needs to
+/// form its normal equations from segment moments.
+pub(crate) fn forward_kinematics_axes(model: &Model, p: &[f64], q: &[f64], data: &mut KinData) {
+    let only_axes = Outputs {
+        dq: false,
+        dp: false,
+        axes: true,
+        param_frames: false,
+    };
+    kinematics(model, p, q, only_axes, data);
 }
 
 /// Segment poses, marker positions and the world axis and origin of every variable step,
 /// coordinates' and parameters' alike ([`KinData::step_frame`]), without filling either
 /// Jacobian matrix: what the calibration's twist kernel (`calibrate::kernel_twist`) reads.
 pub(crate) fn forward_kinematics_frames(model: &Model, p: &[f64], q: &[f64], data: &mut KinData) {
-    kinematics(model, p, q, Want::AXES, true, data);
+    let frames = Outputs {
+        dq: false,
+        dp: false,
+        axes: true,
+        param_frames: true,
+    };
+    kinematics(model, p, q, frames, data);
 }
 
-/// [`forward_kinematics`], with the parameter steps' world frames when `param_frames`.
+/// [`forward_kinematics`] with the outputs spelled out.
 #[inline(always)]
-fn kinematics(
-    model: &Model,
-    p: &[f64],
-    q: &[f64],
-    want: Want,
-    param_frames: bool,
-    data: &mut KinData,
-) {
-    assert_eq!(p.len(), model.n_p(), "parameter vector length");
-    assert_eq!(q.len(), model.n_q(), "coordinate vector length");
+fn kinematics(model: &Model, p: &[f64], q: &[f64], want: Outputs, data: &mut KinData) {
+    assert_eq!(p.len(), model.parameters().len(), "parameter vector length");
+    assert_eq!(
+        q.len(),
+        model.coordinates().len(),
+        "coordinate vector length"
+    );
     assert_eq!(
         data.markers.len(),
-        model.n_markers(),
+        model.markers().len(),
         "workspace built for another model"
     );
     data.update_blocks(model, p);
@@ -195,7 +217,7 @@ fn kinematics(
         for item in &model.plan.items[s] {
             match item {
                 Item::Block { id, steps } => {
-                    if param_frames {
+                    if want.param_frames {
                         for k in steps.clone() {
                             if matches!(model.steps[k].source, Source::Param { .. }) {
                                 let (axis, origin) = data.step_local[k];
@@ -244,7 +266,7 @@ fn kinematics(
 
 /// Writes the geometric Jacobian columns (module docs) of every marker.
 fn fill_jacobian(model: &Model, cols: &[Vec<JCol>], data: &mut KinData, of_q: bool) {
-    let nrows = 3 * model.n_markers();
+    let nrows = 3 * model.markers().len();
     let target = if of_q {
         data.jq.as_mut_slice()
     } else {

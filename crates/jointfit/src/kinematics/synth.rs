@@ -30,16 +30,20 @@ pub(crate) fn synthetic_trial(
     seed: u64,
 ) -> SynthTrial {
     let mut kin = KinData::new(model);
-    let mut positions = Vec::with_capacity(frames * model.n_markers());
+    let mut positions = Vec::with_capacity(frames * model.markers().len());
     let mut truth = Vec::with_capacity(frames);
     for f in 0..frames {
         let q = coords(f);
-        assert_eq!(q.len(), model.n_q(), "frame {f}: coordinate vector length");
-        forward_kinematics(model, p, &q, Want::POSITIONS, &mut kin);
+        assert_eq!(
+            q.len(),
+            model.coordinates().len(),
+            "frame {f}: coordinate vector length"
+        );
+        forward_kinematics(model, p, &q, Want::Positions, &mut kin);
         positions.extend_from_slice(&kin.markers);
         truth.push(q);
     }
-    jointfit_testkit::synth::add_noise(&mut positions, model.n_markers(), rate_hz, noise, seed);
+    jointfit_testkit::synth::add_noise(&mut positions, model.markers().len(), rate_hz, noise, seed);
     let labels = model.markers().iter().map(|m| m.name.clone()).collect();
     let trial = Trial::new(labels, rate_hz, 1, positions).expect("a valid synthetic trial");
     SynthTrial {

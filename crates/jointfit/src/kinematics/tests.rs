@@ -46,7 +46,7 @@ fn sample(model: &Model, u: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let p = model
         .parameters()
         .iter()
-        .zip(&u[model.n_q()..])
+        .zip(&u[model.coordinates().len()..])
         .map(|(par, &t)| par.lower + t * (par.upper - par.lower))
         .collect();
     (p, q)
@@ -62,7 +62,7 @@ fn check_jacobians(spec: &ModelSpec, u: &[f64]) -> Result<(), TestCaseError> {
     let model = Model::compile(spec).unwrap();
     let (p, q) = sample(&model, u);
     let mut data = KinData::new(&model);
-    forward_kinematics(&model, &p, &q, Want::BOTH, &mut data);
+    forward_kinematics(&model, &p, &q, Want::DqDp, &mut data);
     let h = 1e-6;
     let eq = rel_err(&data.jq, &fd::jacobian_q(&model, &p, &q, h));
     let ep = rel_err(&data.jp, &fd::jacobian_p(&model, &p, &q, h));
@@ -70,7 +70,7 @@ fn check_jacobians(spec: &ModelSpec, u: &[f64]) -> Result<(), TestCaseError> {
     prop_assert!(ep <= 1e-6, "{}: dp relative error {ep:e}", model.name());
     // Asking for one Jacobian gives the same numbers as asking for both.
     let mut only_q = KinData::new(&model);
-    forward_kinematics(&model, &p, &q, Want::DQ, &mut only_q);
+    forward_kinematics(&model, &p, &q, Want::Dq, &mut only_q);
     prop_assert_eq!(only_q.jq, data.jq);
     Ok(())
 }
@@ -91,10 +91,10 @@ proptest! {
         let (p2, q2) = sample(&model, &u2);
         let p2 = if same_p { p1.clone() } else { p2 };
         let mut reused = KinData::new(&model);
-        forward_kinematics(&model, &p1, &q1, Want::BOTH, &mut reused);
-        forward_kinematics(&model, &p2, &q2, Want::BOTH, &mut reused);
+        forward_kinematics(&model, &p1, &q1, Want::DqDp, &mut reused);
+        forward_kinematics(&model, &p2, &q2, Want::DqDp, &mut reused);
         let mut fresh = KinData::new(&model);
-        forward_kinematics(&model, &p2, &q2, Want::BOTH, &mut fresh);
+        forward_kinematics(&model, &p2, &q2, Want::DqDp, &mut fresh);
         prop_assert_eq!(&reused.markers, &fresh.markers);
         prop_assert_eq!(reused.jq, fresh.jq);
         prop_assert_eq!(reused.jp, fresh.jp);
@@ -191,8 +191,8 @@ position = [0.3, -0.2, 0.1]
 "#).unwrap()).unwrap();
         let mut du = KinData::new(&universal);
         let mut dp = KinData::new(&pins);
-        forward_kinematics(&universal, &[t], &[a, b], Want::BOTH, &mut du);
-        forward_kinematics(&pins, &[t], &[a, b], Want::BOTH, &mut dp);
+        forward_kinematics(&universal, &[t], &[a, b], Want::DqDp, &mut du);
+        forward_kinematics(&pins, &[t], &[a, b], Want::DqDp, &mut dp);
         prop_assert!((du.markers[0] - dp.markers[0]).norm() < 1e-14);
         prop_assert!((du.jq - dp.jq).abs().max() < 1e-14);
         prop_assert!((du.jp - dp.jp).abs().max() < 1e-14);
@@ -207,12 +207,12 @@ position = [0.3, -0.2, 0.1]
         let (p, q) = sample(&right, &u);
         let mut ql = q.clone();
         for name in ["pelvis_tz", "pelvis_list", "pelvis_rotation"] {
-            let i = right.coord_id(name).unwrap().0;
+            let i = right.coord_id(name).unwrap();
             ql[i] = -ql[i];
         }
         let (mut dr, mut dl) = (KinData::new(&right), KinData::new(&left));
-        forward_kinematics(&right, &p, &q, Want::POSITIONS, &mut dr);
-        forward_kinematics(&left, &p, &ql, Want::POSITIONS, &mut dl);
+        forward_kinematics(&right, &p, &q, Want::Positions, &mut dr);
+        forward_kinematics(&left, &p, &ql, Want::Positions, &mut dl);
         let mirror = Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, -1.0));
         for (i, m) in right.markers().iter().enumerate() {
             let twin = match m.name.as_str() {
@@ -222,7 +222,7 @@ position = [0.3, -0.2, 0.1]
                 "LPSI" => "RPSI".to_string(),
                 n => format!("L{}", &n[1..]),
             };
-            let j = left.marker_index(&twin).unwrap();
+            let j = left.markers().iter().position(|n| n.name == twin).unwrap();
             prop_assert!((mirror * dr.markers[i] - dl.markers[j]).norm() < 1e-12, "marker {}", m.name);
         }
     }
@@ -236,7 +236,7 @@ fn two_link_by_hand() {
     let (shoulder, elbow) = (0.4, 0.7);
     // All parameters zero except the upper length.
     let p = [0.0, -0.3, 0.0, 0.0];
-    forward_kinematics(&model, &p, &[shoulder, elbow], Want::POSITIONS, &mut d);
+    forward_kinematics(&model, &p, &[shoulder, elbow], Want::Positions, &mut d);
     let rz = |a: f64| nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), a);
     let upper = rz(shoulder);
     let base = Vector3::new(0.0, 1.2, 0.0);
@@ -261,17 +261,21 @@ fn nominal_leg_stands_upright() {
     for side in [Side::Right, Side::Left] {
         let model = Model::compile(&lower_limb(side)).unwrap();
         let mut d = KinData::new(&model);
-        let q = vec![0.0; model.n_q()];
-        forward_kinematics(&model, &model.nominal_params(), &q, Want::POSITIONS, &mut d);
-        let foot = d.segment_poses[model.segment_id("foot").unwrap().0];
+        let q = vec![0.0; model.coordinates().len()];
+        forward_kinematics(&model, &model.nominal_params(), &q, Want::Positions, &mut d);
+        let pose = |name: &str| {
+            let s = model.segments().iter().position(|s| s.name == name);
+            d.segment_poses[s.unwrap()]
+        };
+        let foot = pose("foot");
         assert!(foot.rot.column(0).y.abs() < 1e-12, "foot x is horizontal");
-        let thigh = d.segment_poses[model.segment_id("thigh").unwrap().0];
+        let thigh = pose("thigh");
         assert!((thigh.trans.y - (-0.09167)).abs() < 1e-12);
         assert!(
             (thigh.trans.z - side.sign() * 0.08628).abs() < 1e-12,
             "hip is lateral"
         );
-        let shank = d.segment_poses[model.segment_id("shank").unwrap().0];
+        let shank = pose("shank");
         assert!((shank.trans.y - thigh.trans.y + 0.39211).abs() < 1e-12);
     }
 }
@@ -283,12 +287,15 @@ fn clinical_signs() {
         let model = Model::compile(&lower_limb(side)).unwrap();
         let p = model.nominal_params();
         let at = |name: &str, value: f64, marker: &str| {
-            let mut q = vec![0.0; model.n_q()];
-            q[model.coord_id(name).unwrap().0] = value;
+            let mut q = vec![0.0; model.coordinates().len()];
+            q[model.coord_id(name).unwrap()] = value;
             let mut d = KinData::new(&model);
-            forward_kinematics(&model, &p, &q, Want::POSITIONS, &mut d);
+            forward_kinematics(&model, &p, &q, Want::Positions, &mut d);
+            let label = format!("{}{marker}", side.prefix());
             d.markers[model
-                .marker_index(&format!("{}{marker}", side.prefix()))
+                .markers()
+                .iter()
+                .position(|m| m.name == label)
                 .unwrap()]
         };
         let lateral = side.sign();

@@ -8,7 +8,7 @@ use std::collections::HashMap;
 use nalgebra::{Unit as UnitVec, Vector3};
 
 use super::compiled::{
-    CoordKind, Coordinate, Joint, JointId, JointKind, Marker, Model, ParamUse, Parameter, Segment,
+    CoordKind, Coordinate, Joint, JointKind, Marker, Model, ParamUse, Parameter, Segment,
     SegmentId, Source, Step,
 };
 use super::custom::{CoordRule, DependentCoordinate, MotionType, Role};
@@ -114,7 +114,7 @@ impl Compiler<'_> {
             return Err(ModelError::Invalid(format!(
                 "joint {:?} is {} with {} degrees of freedom but lists {} coordinates",
                 js.name,
-                kind.type_name(),
+                kind,
                 kind.dof(),
                 js.coordinates.len()
             )));
@@ -124,12 +124,11 @@ impl Compiler<'_> {
         c.segments.push(Segment {
             name: js.child.clone(),
             parent,
-            joint: JointId(ji),
         });
         let first_coord = c.coordinates.len();
         let start = c.steps.len();
         // Parent offset: T(t) Rx Ry Rz.
-        let (id, offset) = (JointId(ji), &js.parent_offset);
+        let (id, offset) = (ji, &js.parent_offset);
         self.offset_steps(
             offset,
             false,
@@ -163,8 +162,8 @@ impl Compiler<'_> {
             name: js.name.clone(),
             parent,
             child,
+            coords: first_coord..first_coord + kind.dof(),
             kind,
-            first_coord,
         });
         let merged = merge_constants(c.steps.split_off(start));
         c.steps.extend(merged);
@@ -243,7 +242,7 @@ impl Compiler<'_> {
         inverse: bool,
         joint: &str,
         segment: Option<SegmentId>,
-        joint_id: JointId,
+        joint_id: usize,
         steps: &mut Vec<Step>,
         uses: &mut [Vec<ParamUse>],
     ) -> Result<(), ModelError> {
@@ -289,7 +288,7 @@ impl Compiler<'_> {
 /// dependent coordinate (locked or coupled, [`Role`]).
 fn coordinate(
     js: &super::spec::JointSpec,
-    joint: JointId,
+    joint: usize,
     cs: &CoordinateSpec,
     axis: Option<&(bool, Vector3<f64>)>,
     custom: bool,

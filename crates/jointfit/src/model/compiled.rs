@@ -19,33 +19,28 @@
 //!   *child joint frame* is fixed in the child segment (the child offset `t_c, r_c`), and the
 //!   joint's coordinates move the second relative to the first.
 //! * Shapes: `n_seg = n_joint` (one joint per segment), `n_q` coordinates, `n_p` parameters,
-//!   `n_mrk` markers. Indices are the typed ids [`SegmentId`], [`JointId`], [`CoordId`],
-//!   [`ParamId`] or, for markers, a plain `usize`.
+//!   `n_mrk` markers. Indices are the typed ids [`SegmentId`] and [`ParamId`] or, for
+//!   joints (joint `i` moves segment `i`), coordinates (positions in `q`) and markers, a plain
+//!   `usize`.
 //! * A [`Model`] is read-only after [`Model::compile`]: its fields are private and the
 //!   accessors hand out shared slices. To change a model, edit its [`ModelSpec`]
 //!   ([`Model::spec`], [`Model::spec_with_nominal`]) and compile again.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 
 use super::spec::{ModelSpec, Unit};
 use super::ModelError;
-use crate::spatial::{Motion, Pose};
+use crate::spatial::Motion;
 
 /// Index of a segment in [`Model::segments`] (topological order: parents first).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct SegmentId(pub usize);
-/// Index of a joint in [`Model::joints`]; joint `i` attaches segment `i` to its parent.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct JointId(pub usize);
 /// Index of a parameter in the parameter vector `p`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct ParamId(pub usize);
-/// Index of a coordinate in the coordinate vector `q`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct CoordId(pub usize);
 
 /// A rigid body of the chain (pelvis, thigh, …). Its frame is body-fixed; the child offset of
-/// [`Segment::joint`] places the joint frame in it.
+/// the joint of the same index ([`Model::joints`]) places the joint frame in it.
 #[derive(Debug, Clone)]
 pub struct Segment {
     /// Unique name, as in the description (never `ground`).
@@ -53,8 +48,6 @@ pub struct Segment {
     /// The parent segment; `None` when the segment is attached to ground (the world frame).
     /// Always a lower index than the segment itself (topological order).
     pub parent: Option<SegmentId>,
-    /// The joint that attaches this segment to its parent; `joint.0 == ` this segment's index.
-    pub joint: JointId,
 }
 
 /// The kind of motion a joint allows, with unit axes (dimensionless, norm 1).
@@ -87,7 +80,7 @@ pub enum JointKind {
 
 impl JointKind {
     /// Number of coordinates (degrees of freedom): 6, 3, 2, 1, 1 or 0.
-    pub fn dof(&self) -> usize {
+    pub(crate) fn dof(&self) -> usize {
         match self {
             JointKind::Free { .. } => 6,
             JointKind::Gimbal { .. } => 3,
@@ -95,19 +88,6 @@ impl JointKind {
             JointKind::Pin { .. } | JointKind::Slider { .. } => 1,
             JointKind::Weld => 0,
             JointKind::Custom { dof, .. } => *dof,
-        }
-    }
-    /// The name used in model descriptions: `free`, `gimbal`, `universal`, `pin`, `slider`,
-    /// `weld`.
-    pub fn type_name(&self) -> &'static str {
-        match self {
-            JointKind::Free { .. } => "free",
-            JointKind::Gimbal { .. } => "gimbal",
-            JointKind::Universal { .. } => "universal",
-            JointKind::Pin { .. } => "pin",
-            JointKind::Slider { .. } => "slider",
-            JointKind::Weld => "weld",
-            JointKind::Custom { .. } => "custom",
         }
     }
     /// The elementary motions in order: (is_rotation, unit axis).
@@ -127,6 +107,22 @@ impl JointKind {
     }
 }
 
+/// The name used in model descriptions: `free`, `gimbal`, `universal`, `pin`, `slider`,
+/// `weld` or `custom`.
+impl std::fmt::Display for JointKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            JointKind::Free { .. } => "free",
+            JointKind::Gimbal { .. } => "gimbal",
+            JointKind::Universal { .. } => "universal",
+            JointKind::Pin { .. } => "pin",
+            JointKind::Slider { .. } => "slider",
+            JointKind::Weld => "weld",
+            JointKind::Custom { .. } => "custom",
+        })
+    }
+}
+
 /// A joint: moves the child joint frame relative to the parent joint frame,
 /// `parent_from_child = T(t_p) R(r_p) · motion(q) · (T(t_c) R(r_c))⁻¹`.
 #[derive(Debug, Clone)]
@@ -139,9 +135,10 @@ pub struct Joint {
     pub child: SegmentId,
     /// Motion type and unit axes.
     pub kind: JointKind,
-    /// Index in `q` of the joint's first coordinate; its coordinates are
-    /// `first_coord..first_coord + kind.dof()`, contiguous and in motion order.
-    pub first_coord: usize,
+    /// Indices in `q` of the joint's coordinates: contiguous, in motion order, as many as
+    /// the joint's degrees of freedom (6, 3, 2, 1, 1 or 0; a custom joint's coordinates that
+    /// are neither locked nor coupled).
+    pub coords: std::ops::Range<usize>,
 }
 
 /// Whether a coordinate is an angle (rad) or a length (m).
@@ -157,8 +154,8 @@ pub enum CoordKind {
 pub struct Coordinate {
     /// Unique name (e.g. `hip_flexion`).
     pub name: String,
-    /// The joint whose motion reads this coordinate.
-    pub joint: JointId,
+    /// Index in [`Model::joints`] of the joint whose motion reads this coordinate.
+    pub joint: usize,
     /// Angle (rad) or length (m).
     pub kind: CoordKind,
     /// OpenSim's motion type (the unit in `.mot` files; `kind` for built-in joint kinds).
@@ -178,8 +175,8 @@ pub struct Coordinate {
 /// takes the value `scale · p[k]`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParamUse {
-    /// The joint whose offset reads the parameter.
-    pub joint: JointId,
+    /// Index in [`Model::joints`] of the joint whose offset reads the parameter.
+    pub joint: usize,
     /// The segment the offset frame is fixed in: the joint's parent for a parent offset
     /// (`None`: ground), its child for a child offset.
     pub segment: Option<SegmentId>,
@@ -278,7 +275,7 @@ pub(crate) struct Step {
 /// use jointfit::model::Model;
 ///
 /// let model = Model::compile(&lower_limb(Side::Right)).unwrap();
-/// assert_eq!((model.n_q(), model.n_p()), (12, 27));
+/// assert_eq!((model.coordinates().len(), model.parameters().len()), (12, 27));
 /// assert_eq!(model.segments()[model.joints()[1].child.0].name, "thigh");
 /// ```
 ///
@@ -300,7 +297,7 @@ pub struct Model {
     pub(super) segments: Vec<Segment>,
     /// `n_seg` joints; `joints[i]` attaches `segments[i]` to its parent.
     pub(super) joints: Vec<Joint>,
-    /// `n_q` coordinates, joint by joint in joint order (see [`Joint::first_coord`]).
+    /// `n_q` coordinates, joint by joint in joint order (see [`Joint::coords`]).
     pub(super) coordinates: Vec<Coordinate>,
     /// `n_p` parameters, in the order of the description.
     pub(super) parameters: Vec<Parameter>,
@@ -319,9 +316,9 @@ pub struct Model {
 }
 
 impl Model {
-    /// Model name.
+    /// Model name (users read it, like the description, from [`Model::spec`]).
     #[inline]
-    pub fn name(&self) -> &str {
+    pub(crate) fn name(&self) -> &str {
         &self.name
     }
     /// Free-text description (users read it from [`Model::spec`]).
@@ -334,12 +331,12 @@ impl Model {
     pub fn segments(&self) -> &[Segment] {
         &self.segments
     }
-    /// Joints (`n_seg`), indexed by [`JointId`]; joint `i` moves segment `i`.
+    /// Joints (`n_seg`); joint `i` moves segment `i`.
     #[inline]
     pub fn joints(&self) -> &[Joint] {
         &self.joints
     }
-    /// Coordinates (`n_q`), indexed by [`CoordId`]; the layout of every `q` vector.
+    /// Coordinates (`n_q`); the layout of every `q` vector.
     #[inline]
     pub fn coordinates(&self) -> &[Coordinate] {
         &self.coordinates
@@ -360,18 +357,6 @@ impl Model {
     pub fn markers(&self) -> &[Marker] {
         &self.markers
     }
-    /// Number of coordinates `n_q`.
-    pub fn n_q(&self) -> usize {
-        self.coordinates.len()
-    }
-    /// Number of parameters `n_p`.
-    pub fn n_p(&self) -> usize {
-        self.parameters.len()
-    }
-    /// Number of markers `n_mrk`.
-    pub fn n_markers(&self) -> usize {
-        self.markers.len()
-    }
     /// The description this model was compiled from.
     pub fn spec(&self) -> &ModelSpec {
         &self.spec
@@ -384,13 +369,6 @@ impl Model {
     pub fn default_coords(&self) -> Vec<f64> {
         self.coordinates.iter().map(|c| c.default).collect()
     }
-    /// The segment of that name.
-    pub fn segment_id(&self, name: &str) -> Option<SegmentId> {
-        self.segments
-            .iter()
-            .position(|s| s.name == name)
-            .map(SegmentId)
-    }
     /// The parameter of that name.
     pub fn param_id(&self, name: &str) -> Option<ParamId> {
         self.parameters
@@ -398,26 +376,19 @@ impl Model {
             .position(|s| s.name == name)
             .map(ParamId)
     }
-    /// The coordinate of that name.
-    pub fn coord_id(&self, name: &str) -> Option<CoordId> {
-        self.coordinates
-            .iter()
-            .position(|s| s.name == name)
-            .map(CoordId)
-    }
-    /// Index of the marker of that name.
-    pub fn marker_index(&self, name: &str) -> Option<usize> {
-        self.markers.iter().position(|m| m.name == name)
+    /// Index in `q` of the coordinate of that name.
+    pub fn coord_id(&self, name: &str) -> Option<usize> {
+        self.coordinates.iter().position(|s| s.name == name)
     }
     /// Ids of the parameters in the given group, in parameter order.
     pub fn params_in_group(&self, group: &str) -> Vec<ParamId> {
-        (0..self.n_p())
+        (0..self.parameters().len())
             .filter(|&i| self.parameters[i].group == group)
             .map(ParamId)
             .collect()
     }
     /// Distinct group names in order of first appearance.
-    pub fn groups(&self) -> Vec<String> {
+    pub(crate) fn groups(&self) -> Vec<String> {
         let mut out: Vec<String> = Vec::new();
         for p in &self.parameters {
             if !out.contains(&p.group) {
@@ -454,11 +425,16 @@ impl Model {
     }
 }
 
-/// Rotation matrix `Rx(a)·Ry(b)·Rz(c)` of an offset frame.
-pub fn offset_rotation(rx: f64, ry: f64, rz: f64) -> Matrix3<f64> {
-    let mut p = Pose::identity();
-    p.apply(&Motion::RotX, rx);
-    p.apply(&Motion::RotY, ry);
-    p.apply(&Motion::RotZ, rz);
-    p.rot
+#[cfg(test)]
+mod tests {
+    use super::Model;
+    use crate::model::lower_limb::{lower_limb, Side};
+
+    #[test]
+    fn groups_in_order_of_first_appearance() {
+        for side in [Side::Right, Side::Left] {
+            let model = Model::compile(&lower_limb(side)).unwrap();
+            assert_eq!(model.groups(), ["hip", "knee", "ankle"]);
+        }
+    }
 }

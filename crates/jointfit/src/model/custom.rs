@@ -24,7 +24,7 @@ use std::collections::HashMap;
 
 use nalgebra::Vector3;
 
-use super::compiled::{CoordKind, JointId};
+use super::compiled::CoordKind;
 use super::functions::Function;
 use super::spec::{AxisMotion, CoordinateSpec, FunctionSpec, JointKindSpec, ModelSpec};
 use super::ModelError;
@@ -78,7 +78,8 @@ pub enum CoordRule {
 #[derive(Debug, Clone, PartialEq)]
 pub struct DependentCoordinate {
     pub name: String,
-    pub joint: JointId,
+    /// Index in [`super::Model::joints`] of the joint whose motion reads this coordinate.
+    pub joint: usize,
     pub kind: CoordKind,
     /// OpenSim's motion type (the unit in `.mot` files).
     pub motion: MotionType,
@@ -94,7 +95,7 @@ impl DependentCoordinate {
             CoordRule::Coupled {
                 independent,
                 function,
-            } => function.value(q[*independent]),
+            } => function.eval(q[*independent]).0,
         }
     }
 }
@@ -240,7 +241,7 @@ pub(crate) fn roles(
                 independent: *i,
                 g: g.clone(),
             },
-            Some(Role::Locked(v)) => Role::Locked(g.value(*v)),
+            Some(Role::Locked(v)) => Role::Locked(g.eval(*v).0),
             _ => {
                 return Err(ModelError::Invalid(format!(
                     "coupler {:?}: independent coordinate {:?} is {}",
@@ -314,7 +315,7 @@ pub(crate) fn axis_steps(
                     )));
                 }
                 match &roles[name] {
-                    Role::Locked(v) => Source::Const(sign * a.function.value(*v)),
+                    Role::Locked(v) => Source::Const(sign * a.function.eval(*v).0),
                     Role::Free(i) => match a.function.slope_through_origin() {
                         Some(slope) => Source::Coord {
                             index: *i,

@@ -248,11 +248,6 @@ impl Function {
         }
     }
 
-    /// `f(x)`.
-    pub fn value(&self, x: f64) -> f64 {
-        self.eval(x).0
-    }
-
     /// The slope `a` when the function is `a·x` (linear through the origin).
     pub(crate) fn slope_through_origin(&self) -> Option<f64> {
         match self.0 {
@@ -278,7 +273,7 @@ mod tests {
 
     fn fd(f: &Function, x: f64) -> f64 {
         let h = 1e-6;
-        (f.value(x + h) - f.value(x - h)) / (2.0 * h)
+        (f.eval(x + h).0 - f.eval(x - h).0) / (2.0 * h)
     }
 
     #[test]
@@ -305,7 +300,7 @@ mod tests {
         ] {
             let f = Function::new(&spec).unwrap();
             for (xi, yi) in x.iter().zip(&y) {
-                assert!((f.value(*xi) - yi).abs() < 1e-12, "{spec:?} at {xi}");
+                assert!((f.eval(*xi).0 - yi).abs() < 1e-12, "{spec:?} at {xi}");
             }
             for u in [-1.3, 0.4, 1.7, 2.7, 3.9, 5.5, 6.0, 7.2] {
                 let (_, d) = f.eval(u);

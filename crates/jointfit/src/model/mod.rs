@@ -17,11 +17,24 @@ mod validate;
 
 pub(crate) use crate::spatial::Motion;
 pub(crate) use compiled::Source;
-pub use compiled::{offset_rotation, CoordKind, Coordinate, JointKind, Model, ParamId, SegmentId};
+pub use compiled::{CoordKind, Coordinate, JointKind, Model, ParamId, SegmentId};
 pub(crate) use plan::Item;
 use spec::Unit;
 
+use nalgebra::Matrix3;
 use thiserror::Error;
+
+use crate::spatial::Pose;
+
+/// Rotation matrix `Rx(rx)·Ry(ry)·Rz(rz)` of an offset frame: the body-fixed X-Y-Z sequence of
+/// [`spec::OffsetSpec`] (OpenSim's `PhysicalOffsetFrame` orientation).
+pub fn offset_rotation(rx: f64, ry: f64, rz: f64) -> Matrix3<f64> {
+    let mut p = Pose::identity();
+    p.apply(&Motion::RotX, rx);
+    p.apply(&Motion::RotY, ry);
+    p.apply(&Motion::RotZ, rz);
+    p.rot
+}
 
 /// Why a model description was rejected. Every message names the offending item.
 #[derive(Debug, Error, PartialEq)]

@@ -199,15 +199,18 @@ mod tests {
             Model::compile(&spec).unwrap(),
             Model::compile(&aug_spec).unwrap(),
         );
-        assert_eq!(aug.n_p(), orig.n_p() + 3 * names.len());
-        assert_eq!(aug.n_q(), orig.n_q());
+        assert_eq!(
+            aug.parameters().len(),
+            orig.parameters().len() + 3 * names.len()
+        );
+        assert_eq!(aug.coordinates().len(), orig.coordinates().len());
         // Same marker positions at the nominal parameters in any pose.
-        let q: Vec<f64> = (0..orig.n_q())
+        let q: Vec<f64> = (0..orig.coordinates().len())
             .map(|i| 0.1 * (i as f64 + 1.0).sin())
             .collect();
         let (mut k0, mut k1) = (KinData::new(&orig), KinData::new(&aug));
-        forward_kinematics(&orig, &orig.nominal_params(), &q, Want::POSITIONS, &mut k0);
-        forward_kinematics(&aug, &aug.nominal_params(), &q, Want::POSITIONS, &mut k1);
+        forward_kinematics(&orig, &orig.nominal_params(), &q, Want::Positions, &mut k0);
+        forward_kinematics(&aug, &aug.nominal_params(), &q, Want::Positions, &mut k1);
         for (a, b) in k0.markers.iter().zip(&k1.markers) {
             assert!((a - b).norm() < 1e-12);
         }

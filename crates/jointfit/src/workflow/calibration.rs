@@ -176,7 +176,7 @@ fn shown_to_si(unit: Unit) -> f64 {
 
 /// Per-model-marker RMS distance (m) for parameters `p` and per-frame coordinates.
 fn per_marker_rms(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Vec<f64> {
-    let mut sums = vec![(0.0, 0usize); prob.model.n_markers()];
+    let mut sums = vec![(0.0, 0usize); prob.model.markers().len()];
     prob.visit_marker_errors(p, qs, |j, e| {
         if !e.x.is_nan() {
             sums[j].0 += e.norm_squared();

@@ -43,7 +43,7 @@ fn ik_trial_alongside<R: Send>(
     also: impl FnOnce() -> R + Send,
 ) -> (Result<IkRun, WorkflowError>, R) {
     let (map, absent) = MarkerMap::allowing_absent(model, trial.labels());
-    if absent.len() == model.n_markers() {
+    if absent.len() == model.markers().len() {
         // Nothing in common: the strict matcher's error lists both sides.
         if let Err(e) = MarkerMap::by_name(model, trial.labels()) {
             return (Err(e.into()), also());
@@ -104,7 +104,7 @@ pub fn ik_warm_started(
     opts: &IkOptions,
 ) -> usize {
     let mut ws = IkWorkspace::new(model);
-    let mut targets = Vec::with_capacity(model.n_markers());
+    let mut targets = Vec::with_capacity(model.markers().len());
     let mut iterations = 0;
     let mut before = q_first.to_vec();
     let mut q = before.clone();
@@ -171,12 +171,12 @@ mod tests {
                 &model,
                 &p,
                 q,
-                crate::kinematics::Want::POSITIONS,
+                crate::kinematics::Want::Positions,
                 &mut kin,
             );
             positions.extend(kin.markers.iter().copied());
         }
-        let n = model.n_markers();
+        let n = model.markers().len();
         for f in 50..60 {
             positions[f * n + 3] = nalgebra::Vector3::repeat(f64::NAN);
         }

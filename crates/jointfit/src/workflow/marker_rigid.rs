@@ -122,7 +122,7 @@ pub(crate) fn rigid_displaced(
     let (start, end) = frames_looked_at(trial.n_frames());
     let mut out = Vec::new();
     for s in 0..model.segments().len() {
-        let mut set: Vec<usize> = (0..model.n_markers())
+        let mut set: Vec<usize> = (0..model.markers().len())
             .filter(|&k| {
                 let m = &model.markers()[k];
                 m.segment.0 == s && m.weight > 0.0 && col[k].is_some()

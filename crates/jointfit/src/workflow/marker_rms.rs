@@ -36,7 +36,7 @@ pub struct MarkerRms {
 /// The marker RMS of `model` at `p` on `trials` (module docs), the inner objective and the
 /// frames.
 pub fn marker_rms(model: &Model, p: &[f64], trials: &[&Trial]) -> Result<MarkerRms, WorkflowError> {
-    if model.n_p() == 0 {
+    if model.parameters().is_empty() {
         return Err(WorkflowError::Refine(format!(
             "{}: the marker RMS needs a model with joint parameters",
             model.name()

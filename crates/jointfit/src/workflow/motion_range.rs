@@ -62,7 +62,7 @@ fn central_range(mut v: Vec<f64>) -> f64 {
 pub(crate) fn joint_ranges(model: &Model, qs: &[Vec<f64>]) -> Vec<(String, f64)> {
     let mut out: Vec<(String, f64)> = Vec::new();
     for (c, coord) in model.coordinates().iter().enumerate() {
-        let joint = &model.joints()[coord.joint.0];
+        let joint = &model.joints()[coord.joint];
         if joint.parent.is_none() || coord.kind != CoordKind::Rotational {
             continue;
         }
@@ -131,10 +131,9 @@ pub(crate) fn hold_still_joints(
     let is_held = |id: &ParamId| {
         let uses = &model.parameters()[id.0].uses;
         !uses.is_empty()
-            && uses.iter().all(|u| {
-                held.iter()
-                    .any(|h| model.joints()[u.joint.0].name == h.joint)
-            })
+            && uses
+                .iter()
+                .all(|u| held.iter().any(|h| model.joints()[u.joint].name == h.joint))
     };
     let (out, kept): (Vec<ParamId>, Vec<ParamId>) = free.iter().partition(|id| is_held(id));
     if kept.is_empty() {
@@ -149,7 +148,7 @@ pub(crate) fn hold_still_joints(
             .filter(|p| {
                 p.uses
                     .iter()
-                    .any(|u| model.joints()[u.joint.0].name == h.joint)
+                    .any(|u| model.joints()[u.joint].name == h.joint)
             })
             .map(|p| p.name.clone())
             .collect();

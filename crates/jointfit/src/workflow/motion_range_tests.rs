@@ -34,17 +34,17 @@ fn one_sided_trial(model: &Model, p: &[f64]) -> Trial {
     let motion = |f: usize| {
         let t = f as f64 / 100.0;
         let mut q = model.default_coords();
-        q[model.coord_id("pelvis_ty").unwrap().0] = 0.93;
+        q[model.coord_id("pelvis_ty").unwrap()] = 0.93;
         for (k, (name, mean, amp)) in MOTION.iter().enumerate() {
-            q[model.coord_id(name).unwrap().0] = mean + amp * (w * t + 0.4 * k as f64).sin();
+            q[model.coord_id(name).unwrap()] = mean + amp * (w * t + 0.4 * k as f64).sin();
         }
         q
     };
     // Noise-free markers: the model's at each frame's coordinates, 100 Hz.
     let mut kin = KinData::new(model);
-    let mut positions = Vec::with_capacity(200 * model.n_markers());
+    let mut positions = Vec::with_capacity(200 * model.markers().len());
     for f in 0..200 {
-        forward_kinematics(model, p, &motion(f), Want::POSITIONS, &mut kin);
+        forward_kinematics(model, p, &motion(f), Want::Positions, &mut kin);
         positions.extend_from_slice(&kin.markers);
     }
     let labels = model.markers().iter().map(|m| m.name.clone()).collect();
@@ -65,7 +65,9 @@ fn the_standing_legs_joints_are_found_with_their_ranges() {
     let model = Model::compile(&bilateral()).unwrap();
     let p = model.nominal_params();
     let trial = one_sided_trial(&model, &p);
-    let free: Vec<_> = (0..model.n_p()).map(crate::model::ParamId).collect();
+    let free: Vec<_> = (0..model.parameters().len())
+        .map(crate::model::ParamId)
+        .collect();
     let (kept, held, seed) = hold_still_joints(&model, &p, &[&trial], &free).unwrap();
     // The coordinates it solved are the calibration's starting ones for the parameters it
     // keeps, bit for bit (the calibration starts from them instead of solving them again).

@@ -29,7 +29,7 @@ fn one_moved(spec: &ModelSpec, model: &Model, seed: u64) -> (ModelSpec, Vec<f64>
     for (x, uk) in t.markers[j].position.iter_mut().zip(u) {
         *x += 0.020 * uk / norm;
     }
-    let idx: Vec<usize> = (0..model.n_p()).collect();
+    let idx: Vec<usize> = (0..model.parameters().len()).collect();
     let p = perturb(model, &model.nominal_params(), &idx, 8.0, 4.0, seed + 100);
     (t.clone(), p, t.markers[j].name.clone())
 }
@@ -56,7 +56,11 @@ fn policy_refines_the_marker_displaced_by_20_mm() {
         };
         let without =
             calibrate_refined(&model, &start, &[&trial], &free, &off, &mut NoObserver).unwrap();
-        let e_with = joint_error(&model, &with.calibration.fit.p[..model.n_p()], &p_true);
+        let e_with = joint_error(
+            &model,
+            &with.calibration.fit.p[..model.parameters().len()],
+            &p_true,
+        );
         let e_without = joint_error(&model, &without.calibration.fit.p, &p_true);
         eprintln!(
             "seed {seed}: joint RMS error {e_without:.2} without the policy, {e_with:.2} with"

@@ -64,7 +64,7 @@ pub(crate) fn redundant_parameters(
     let mut d = vec![0.0; free.len()];
     let mut kin = KinData::new(model);
     for (targets, q) in prob.frames.iter().zip(&qs) {
-        forward_kinematics(model, start, q, Want::BOTH, &mut kin);
+        forward_kinematics(model, start, q, Want::DqDp, &mut kin);
         let jp = &kin.jp;
         for (j, (t, m)) in targets.iter().zip(model.markers()).enumerate() {
             if t.x.is_nan() || m.weight <= 0.0 {

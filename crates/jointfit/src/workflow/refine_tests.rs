@@ -49,7 +49,7 @@ fn truth(spec: &ModelSpec, model: &Model, seed: u64, misplaced: usize) -> (Model
             *x += dk;
         }
     }
-    let idx: Vec<usize> = (0..model.n_p()).collect();
+    let idx: Vec<usize> = (0..model.parameters().len()).collect();
     let p = perturb(model, &model.nominal_params(), &idx, 8.0, 4.0, seed + 100);
     (t, p)
 }
@@ -62,7 +62,7 @@ pub(super) fn joint_error(model: &Model, fitted: &[f64], truth: &[f64]) -> f64 {
         .enumerate()
         .map(|(i, p)| p.unit.to_display(fitted[i] - truth[i]).powi(2))
         .sum();
-    (e / model.n_p() as f64).sqrt()
+    (e / model.parameters().len() as f64).sqrt()
 }
 
 #[test]
@@ -96,7 +96,11 @@ fn refinement_recovers_joints_better_when_markers_are_misplaced() {
         .unwrap();
         let (e_plain, e_ref) = (
             joint_error(&model, &plain.fit.p, &p_true),
-            joint_error(&model, &r.calibration.fit.p[..model.n_p()], &p_true),
+            joint_error(
+                &model,
+                &r.calibration.fit.p[..model.parameters().len()],
+                &p_true,
+            ),
         );
         eprintln!("seed {seed}: joint RMS error {e_plain:.2} without, {e_ref:.2} with refinement");
         plain_sum += e_plain;

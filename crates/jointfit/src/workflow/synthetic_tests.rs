@@ -17,7 +17,7 @@ pub(crate) fn synthetic(model: &Model, p: &[f64], frames: usize, noise: f64) -> 
     for f in 0..frames {
         let t = f as f64 / frames as f64;
         let mut q = model.default_coords();
-        let mut set = |name: &str, v: f64| q[model.coord_id(name).unwrap().0] = v;
+        let mut set = |name: &str, v: f64| q[model.coord_id(name).unwrap()] = v;
         set("pelvis_ty", 0.95);
         set("pelvis_tilt", 0.03 * (w * t).sin());
         set("hip_flexion", 0.35 + 0.5 * (3.0 * w * t).sin());
@@ -26,7 +26,7 @@ pub(crate) fn synthetic(model: &Model, p: &[f64], frames: usize, noise: f64) -> 
         set("knee_flexion", 0.85 + 0.7 * (2.0 * w * t - 1.5).sin());
         set("ankle_dorsiflexion", -0.1 + 0.3 * (2.5 * w * t).sin());
         set("subtalar_inversion", 0.25 * (2.5 * w * t).cos());
-        forward_kinematics(model, p, &q, Want::POSITIONS, &mut kin);
+        forward_kinematics(model, p, &q, Want::Positions, &mut kin);
         for (j, x) in kin.markers.iter().enumerate() {
             let d = |k: usize| noise * ((7 * j + 3 * k) as f64 + 1.7 * f as f64).sin();
             positions.push(x + Vector3::new(d(0), d(1), d(2)));
@@ -175,7 +175,7 @@ fn several_starts_are_all_recorded_and_the_best_is_reported() {
 fn restart_points_are_seeded_distinct_and_bounded() {
     let model = leg();
     let start = model.nominal_params();
-    let free: Vec<usize> = (0..model.n_p()).collect();
+    let free: Vec<usize> = (0..model.parameters().len()).collect();
     let a = restart_point(&model, &start, &free, 0.02, 10f64.to_radians(), 7, 1);
     assert_eq!(
         a,
@@ -211,9 +211,9 @@ fn unidentifiable_parameters_are_held_at_their_start() {
     let mut positions = Vec::new();
     for f in 0..40 {
         let mut q = model.default_coords();
-        q[model.coord_id("pelvis_ty").unwrap().0] = 0.95;
-        q[model.coord_id("knee_flexion").unwrap().0] = 0.2 + 1.2 * (f as f64 / 40.0);
-        forward_kinematics(&model, &nominal, &q, Want::POSITIONS, &mut kin);
+        q[model.coord_id("pelvis_ty").unwrap()] = 0.95;
+        q[model.coord_id("knee_flexion").unwrap()] = 0.2 + 1.2 * (f as f64 / 40.0);
+        forward_kinematics(&model, &nominal, &q, Want::Positions, &mut kin);
         positions.extend(kin.markers.iter().copied());
     }
     let labels = model.markers().iter().map(|m| m.name.clone()).collect();
@@ -296,7 +296,7 @@ fn seeding_finds_a_subject_far_from_the_origin() {
     let mut targets = Vec::new();
     map.targets(&far, 0, &mut targets);
     let seed = crate::ik::seed_frame(&model, &p, &targets, &opts, &mut ws);
-    let tx = model.coord_id("pelvis_tx").unwrap().0;
+    let tx = model.coord_id("pelvis_tx").unwrap();
     // From the default 0 the seeding's iterations alone carry the pelvis 30 m.
     assert_eq!(model.default_coords()[tx], 0.0);
     assert!(

@@ -10,7 +10,7 @@ pub fn motion(model: &Model, f: usize, heading: f64) -> Vec<f64> {
     let t = f as f64 / 100.0;
     let w = 2.0 * std::f64::consts::PI;
     let mut q = model.default_coords();
-    let set = |q: &mut Vec<f64>, name: &str, v: f64| q[model.coord_id(name).unwrap().0] = v;
+    let set = |q: &mut Vec<f64>, name: &str, v: f64| q[model.coord_id(name).unwrap()] = v;
     set(&mut q, "pelvis_tx", 1.2 * t * heading.cos());
     set(&mut q, "pelvis_tz", -1.2 * t * heading.sin());
     set(&mut q, "pelvis_ty", 0.93 + 0.02 * (2.0 * w * t).sin());

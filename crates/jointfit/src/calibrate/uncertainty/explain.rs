@@ -27,7 +27,7 @@ pub(crate) fn coordinate_ranges(model: &Model, qs: &[Vec<f64>]) -> Vec<CoordRang
             let (lo, hi) = if lo.is_finite() { (lo, hi) } else { (0.0, 0.0) };
             CoordRange {
                 name: coord.name.clone(),
-                joint: model.joints()[coord.joint.0].name.clone(),
+                joint: model.joints()[coord.joint].name.clone(),
                 unit: unit.to_string(),
                 min: lo * k,
                 max: hi * k,
@@ -79,13 +79,13 @@ pub(super) fn reason(
 ) -> String {
     let par = &model.parameters()[i];
     let mut parts = Vec::new();
-    let joint = par.uses.first().map(|u| u.joint.0);
+    let joint = par.uses.first().map(|u| u.joint);
     if let Some(j) = joint {
         let jname = &model.joints()[j].name;
         let coords: Vec<&CoordRange> = ranges
             .iter()
             .zip(model.coordinates())
-            .filter(|(_, c)| c.joint.0 == j && c.kind == CoordKind::Rotational)
+            .filter(|(_, c)| c.joint == j && c.kind == CoordKind::Rotational)
             .map(|(r, _)| r)
             .collect();
         // The barely moved axis to name: the smallest range, but an axial rotation only when
@@ -277,7 +277,7 @@ pub(super) fn headline(model: &Model, ids: &[usize]) -> String {
     use crate::model::JointKind;
     let mut joints: Vec<usize> = ids
         .iter()
-        .filter_map(|&i| model.parameters()[i].uses.first().map(|u| u.joint.0))
+        .filter_map(|&i| model.parameters()[i].uses.first().map(|u| u.joint))
         .collect();
     joints.sort();
     joints.dedup();

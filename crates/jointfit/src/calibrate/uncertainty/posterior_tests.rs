@@ -40,7 +40,7 @@ fn hip_only_trial_against_the_prior(inflation: f64) {
     let motion = |f: usize| {
         let t = f as f64 / 120.0;
         let mut q = model.default_coords();
-        let mut set = |name: &str, v: f64| q[model.coord_id(name).unwrap().0] = v;
+        let mut set = |name: &str, v: f64| q[model.coord_id(name).unwrap()] = v;
         set("pelvis_ty", 0.95);
         set("hip_flexion", 0.35 + 0.5 * (3.5 * w * t).sin());
         set("hip_adduction", 0.3 * (3.5 * w * t).cos());

@@ -75,7 +75,7 @@ pub(crate) fn group_size(frames: usize) -> usize {
 /// chunk order (the same result whatever the thread count); no per-frame Jacobian blocks are
 /// kept beyond the frame being reduced.
 pub(crate) fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Reduced {
-    let nq = prob.model.n_q();
+    let nq = prob.model.coordinates().len();
     let nf = prob.n_free();
     let n = nq + nf;
     let frames = prob.frames.len();

@@ -100,7 +100,7 @@ pub(super) fn trial_correlation(
 /// every parameter is free). It depends on nothing the covariances compute, so it is formed
 /// beside them.
 pub(super) fn extended_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Option<Reduced> {
-    let n_p = prob.model.n_p();
+    let n_p = prob.model.parameters().len();
     if prob.free.len() == n_p {
         return None;
     }

@@ -42,7 +42,7 @@ pub(crate) const ALL: Motion = Motion {
 fn pose(model: &Model, m: Motion, t: f64) -> Vec<f64> {
     let w = std::f64::consts::TAU;
     let mut q = model.default_coords();
-    let set = |q: &mut Vec<f64>, name: &str, v: f64| q[model.coord_id(name).unwrap().0] = v;
+    let set = |q: &mut Vec<f64>, name: &str, v: f64| q[model.coord_id(name).unwrap()] = v;
     set(&mut q, "pelvis_ty", 0.95);
     set(&mut q, "pelvis_tilt", 0.05 * (w * t).sin());
     set(&mut q, "pelvis_rotation", 0.1 * (w * t).cos());
@@ -165,15 +165,15 @@ fn check_against_dense_fd(model: &Model, prob: &Problem, p: &[f64], qs: &[Vec<f6
     // Oracle: the stacked residual Jacobian over (q_1 … q_N, s) from central differences
     // of forward kinematics, its dense normal matrix, and nalgebra's inverse for the Schur
     // complement onto s.
-    let (nq, nf, n) = (model.n_q(), prob.n_free(), prob.frames.len());
-    let rows = 3 * model.n_markers();
+    let (nq, nf, n) = (model.coordinates().len(), prob.n_free(), prob.frames.len());
+    let rows = 3 * model.markers().len();
     let mut j = DMatrix::zeros(n * rows, n * nq + nf);
     let mut r = nalgebra::DVector::zeros(n * rows);
     let mut kin = KinData::new(model);
     for f in 0..n {
         let jq = jacobian_q(model, p, &qs[f], 1e-6);
         let jp = jacobian_p(model, p, &qs[f], 1e-6);
-        forward_kinematics(model, p, &qs[f], Want::POSITIONS, &mut kin);
+        forward_kinematics(model, p, &qs[f], Want::Positions, &mut kin);
         for a in 0..rows {
             let (mk, axis) = (a / 3, a % 3);
             r[f * rows + a] = prob.frames.get(f)[mk][axis] - kin.markers[mk][axis];

@@ -25,7 +25,7 @@ pub const PELVIS_SEGMENT: &str = "pelvis";
 pub(crate) const PELVIS_JOINT: &str = "ground_pelvis";
 
 /// The built-in bilateral model `lower-limb`: the generic right and left legs joined.
-pub fn bilateral() -> ModelSpec {
+pub(crate) fn bilateral() -> ModelSpec {
     let mut spec = join_legs(&lower_limb(Side::Right), &lower_limb(Side::Left))
         .expect("the built-in legs share their pelvis");
     spec.name = "lower-limb".into();
@@ -150,8 +150,8 @@ mod tests {
     #[test]
     fn sizes_and_names() {
         let m = Model::compile(&bilateral()).unwrap();
-        assert_eq!(m.n_p(), 54);
-        assert_eq!(m.n_q(), 18);
+        assert_eq!(m.parameters().len(), 54);
+        assert_eq!(m.coordinates().len(), 18);
         assert!(m.coord_id("hip_flexion_r").is_some());
         assert!(m.coord_id("subtalar_inversion_l").is_some());
         assert!(m.coord_id("pelvis_tilt").is_some());
@@ -171,7 +171,7 @@ mod tests {
             *q += 0.1 * ((i as f64) * 1.7).sin();
         }
         let mut kb = KinData::new(&both);
-        forward_kinematics(&both, &pb, &qb, Want::POSITIONS, &mut kb);
+        forward_kinematics(&both, &pb, &qb, Want::Positions, &mut kb);
         for (side, s) in [(Side::Right, "_r"), (Side::Left, "_l")] {
             let one = Model::compile(&lower_limb(side)).unwrap();
             let p: Vec<f64> = one
@@ -188,13 +188,17 @@ mod tests {
                     } else {
                         format!("{}{s}", c.name)
                     };
-                    qb[both.coord_id(&n).unwrap().0]
+                    qb[both.coord_id(&n).unwrap()]
                 })
                 .collect();
             let mut k = KinData::new(&one);
-            forward_kinematics(&one, &p, &q, Want::POSITIONS, &mut k);
+            forward_kinematics(&one, &p, &q, Want::Positions, &mut k);
             for (m, x) in one.markers().iter().zip(&k.markers) {
-                let j = both.marker_index(&m.name).unwrap();
+                let j = both
+                    .markers()
+                    .iter()
+                    .position(|n| n.name == m.name)
+                    .unwrap();
                 assert!((x - kb.markers[j]).norm() < 1e-14, "{}", m.name);
             }
         }

@@ -33,11 +33,9 @@ use std::f64::consts::PI;
 pub mod bilateral;
 mod params;
 
-pub use bilateral::{join_legs, PELVIS_SEGMENT};
-
 use params::{nominal, par, param_spec, PARAMS};
 
-use super::compiled::offset_rotation;
+use super::offset_rotation;
 use super::spec::{
     AxisSpec, CoordinateSpec, JointKindSpec, JointSpec, MarkerSpec, ModelSpec, OffsetSpec,
     ScalarSpec, SegmentSpec,
@@ -66,19 +64,22 @@ impl Side {
             Side::Left => "_l",
         }
     }
-    /// `right` or `left`.
-    pub fn name(self) -> &'static str {
-        match self {
-            Side::Right => "right",
-            Side::Left => "left",
-        }
-    }
-    /// Marker-name prefix: `R` or `L`.
-    pub fn prefix(self) -> &'static str {
+    /// Marker-name prefix of the built-in markers: `R` or `L`.
+    pub(crate) fn prefix(self) -> &'static str {
         match self {
             Side::Right => "R",
             Side::Left => "L",
         }
+    }
+}
+
+/// `right` or `left`.
+impl std::fmt::Display for Side {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Side::Right => "right",
+            Side::Left => "left",
+        })
     }
 }
 
