@@ -373,7 +373,13 @@ pub(crate) fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f
             .markers()
             .iter()
             .enumerate()
-            .map(|(j, m)| (m.name.clone(), fit.marker_rms(j) * MM_PER_M))
+            .map(|(j, m)| {
+                let errors = fit.errors.iter().map(|e| e[j]);
+                (
+                    m.name.clone(),
+                    jointfit::ik::trial_fit::rms(errors) * MM_PER_M,
+                )
+            })
             .collect(),
         solve_seconds: seconds,
         frames_per_second: fit.frames.len() as f64 / seconds.max(1e-12),

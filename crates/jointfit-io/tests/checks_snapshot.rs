@@ -63,7 +63,7 @@ fn planted(model: &Model, trial: &Trial) -> Trial {
         .max_by_key(|s| s.len())
         .unwrap()
         .clone();
-    let (n, m) = (trial.n_frames(), trial.n_markers());
+    let (n, m) = (trial.n_frames(), trial.labels().len());
     let mut t = trial.clone();
     let pos = t.positions_mut();
     // Labels of two markers exchanged in frames 40–89.

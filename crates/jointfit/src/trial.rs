@@ -120,9 +120,6 @@ impl Trial {
     pub fn first_frame(&self) -> i64 {
         self.first_frame
     }
-    pub fn n_markers(&self) -> usize {
-        self.labels.len()
-    }
     pub fn n_frames(&self) -> usize {
         if self.labels.is_empty() {
             0
@@ -292,7 +289,7 @@ mod tests {
     fn select_and_errors() {
         let t = small();
         let s = t.select(&["B"]).unwrap();
-        assert_eq!(s.n_markers(), 1);
+        assert_eq!(s.labels().len(), 1);
         assert_eq!(s.get(1, 0), Some(Vector3::new(0.5, 0.5, 0.5)));
         let e = t.select(&["C"]).unwrap_err();
         assert_eq!(e.to_string(), "marker \"C\" not found; the trial has: A, B");

@@ -37,10 +37,10 @@ fn one_chunk(model: &Model, p: &[f64], trial: &Trial, opts: &IkOptions) -> Trial
         errors: Vec::new(),
     };
     for f in 0..trial.n_frames() {
-        out.coords
-            .push(s.update(trial.time(f), trial.frame(f)).unwrap().to_vec());
-        out.frames.push(s.last_fit().unwrap().clone());
-        out.errors.push(s.errors().to_vec());
+        let frame = s.update(trial.time(f), trial.frame(f)).unwrap();
+        out.coords.push(frame.coords.to_vec());
+        out.frames.push(frame.fit.unwrap().clone());
+        out.errors.push(frame.errors.to_vec());
     }
     out
 }

@@ -404,7 +404,7 @@ impl Totals {
             cost_truth,
             o(u.z_hac),
             o(row.data_share),
-            row.source.map_or("", |s| s.words()),
+            row.source.map_or(String::new(), |s| s.to_string()),
             o(p.status_half_width),
             u.correlation_factor
         )

@@ -113,7 +113,7 @@ pub fn marker_span(trial: &Trial) -> Option<f64> {
     let n = trial.n_frames();
     let step = n.div_ceil(200).max(1);
     // Present markers with their distance from the frame's centroid, farthest first.
-    let mut present: Vec<(f64, Vector3<f64>)> = Vec::with_capacity(trial.n_markers());
+    let mut present: Vec<(f64, Vector3<f64>)> = Vec::with_capacity(trial.labels().len());
     let mut spans: Vec<f64> = Vec::with_capacity(n.div_ceil(step));
     for f in (0..n).step_by(step) {
         present.clear();

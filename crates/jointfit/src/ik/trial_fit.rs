@@ -28,17 +28,11 @@ impl TrialFit {
     pub fn frame_rms(&self, frame: usize) -> f64 {
         rms(self.errors[frame].iter().copied())
     }
-    /// RMS over all frames of one model marker (m).
-    pub fn marker_rms(&self, marker: usize) -> f64 {
-        rms(self.errors.iter().map(|e| e[marker]))
-    }
-    /// RMS marker distance over every present sample of the trial (m).
-    pub fn overall_rms(&self) -> f64 {
-        rms(self.errors.iter().flatten().copied())
-    }
 }
 
-/// Root mean square of the non-NaN values (NaN when there are none).
+/// Root mean square of the non-NaN values (NaN when there are none): of one marker over a
+/// trial's frames, `rms(fit.errors.iter().map(|e| e[marker]))`; of every present sample,
+/// `rms(fit.errors.iter().flatten().copied())`.
 pub fn rms(values: impl Iterator<Item = f64>) -> f64 {
     let (mut s, mut n) = (0.0, 0usize);
     for v in values.filter(|v| !v.is_nan()) {

@@ -252,7 +252,7 @@ pub fn repair(
                 last,
             });
         }
-        let n = out.n_markers();
+        let n = out.labels().len();
         let positions = out.positions_mut();
         for f in (from - first) as usize..=(to - first) as usize {
             positions.swap(f * n + ia, f * n + ib);
@@ -305,13 +305,13 @@ fn fill_gaps(t: &mut Trial, model: Option<&Model>, max_len: usize, actions: &mut
         .collect();
     let original = t.clone();
     let nf = t.n_frames();
-    for j in 0..t.n_markers() {
+    for j in 0..t.labels().len() {
         // With a model, only its markers are filled (the others are not fitted).
         if model.is_some() && segment_of[j].is_none() {
             continue;
         }
         let mates: Vec<usize> = match segment_of[j] {
-            Some(s) => (0..t.n_markers())
+            Some(s) => (0..t.labels().len())
                 .filter(|&k| k != j && segment_of[k] == Some(s))
                 .collect(),
             None => Vec::new(),

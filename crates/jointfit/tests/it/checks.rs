@@ -55,7 +55,7 @@ fn swapped_labels_are_found_with_their_frames() {
         trial.index_of("RTHI").unwrap(),
         trial.index_of("RTHA").unwrap(),
     );
-    let n = trial.n_markers();
+    let n = trial.labels().len();
     let pos = trial.positions_mut();
     for f in 40..60 {
         pos.swap(f * n + a, f * n + b);
@@ -106,7 +106,7 @@ fn jumps_and_gaps_are_counted() {
         trial.index_of("RTIB").unwrap(),
         trial.index_of("RTOE").unwrap(),
     );
-    let n = trial.n_markers();
+    let n = trial.labels().len();
     let pos = trial.positions_mut();
     pos[20 * n + tib].x += 0.5;
     for f in 10..15 {
