@@ -187,7 +187,7 @@ impl Feed {
 
 /// `StreamingIk::update` on `frames` frames of the feed.
 fn in_process(model: &Model, trial: &Trial, feed: &Feed, frames: usize) -> Result<Percentiles> {
-    let mut s = StreamingIk::for_feed(model, trial.labels(), UpAxis::Y, IkOptions::default())?;
+    let mut s = StreamingIk::new(model, trial.labels(), UpAxis::Y, IkOptions::default())?;
     let mut us = Vec::with_capacity(frames);
     for k in 0..frames.max(1) {
         let markers = feed.markers(trial, k);

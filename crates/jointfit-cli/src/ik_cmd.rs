@@ -329,7 +329,7 @@ pub fn solve(
 
 pub(crate) fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f64) -> Summary {
     let rms: Vec<f64> = (0..fit.frames.len())
-        .map(|f| fit.frame_rms(f))
+        .map(|f| jointfit::ik::trial_fit::rms(fit.errors[f].iter().copied()))
         .filter(|v| !v.is_nan())
         .collect();
     let first = trial.first_frame();
@@ -485,7 +485,7 @@ pub(crate) fn errors_csv(model: &Model, trial: &Trial, fit: &TrialFit) -> String
             "{},{:.6},{}",
             trial.first_frame() + f as i64,
             trial.time(f),
-            cell(fit.frame_rms(f))
+            cell(jointfit::ik::trial_fit::rms(fit.errors[f].iter().copied()))
         ));
         for e in &fit.errors[f] {
             out.push(',');

@@ -113,7 +113,7 @@ pub fn serve<R: Read>(
         bail!("standard input is empty: the first line must be the tab-separated marker labels");
     };
     let labels = parse_labels(first)?;
-    let mut stream = StreamingIk::for_feed(model, &labels, up, *opts)
+    let mut stream = StreamingIk::new(model, &labels, up, *opts)
         .context("standard input line 1 (the marker labels)")?;
     let setup = stream.last();
     if !setup.held.is_empty() {

@@ -53,7 +53,7 @@ impl PyStreamingIk {
         let model = model_arg(py, model)?;
         let up = parse_up(up)?.or(model.spec().lab_up).unwrap_or(UpAxis::Y);
         let opts = IkOptions::with_rules(hold_undetermined, !keep_outliers);
-        let stream = StreamingIk::for_feed(&model, &labels, up, opts)
+        let stream = StreamingIk::new(&model, &labels, up, opts)
             .map_err(|e| msg(format!("StreamingIK: {e}")))?;
         let mut warnings = Vec::new();
         let setup = stream.last();

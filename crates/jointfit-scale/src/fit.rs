@@ -41,9 +41,8 @@ use nalgebra::Vector3;
 use crate::basis::{BasisData, FactorBasis, FramePoints};
 use crate::geometry::{scaled_spec, ScaleFactors};
 use crate::normal::{Normal, Step};
-use jointfit::ik::lm::solve_frame;
 use jointfit::ik::lm::IkWorkspace;
-use jointfit::ik::{seed_frame, IkOptions};
+use jointfit::ik::IkOptions;
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::{Model, ModelError};
@@ -657,8 +656,8 @@ fn start<'a>(
     let mut ws = IkWorkspace::new(&m0);
     let p0 = m0.nominal_params();
     for (f, t) in targets.iter().enumerate() {
-        let mut q = seed_frame(&m0, &p0, t, &ik, &mut ws);
-        solve_frame(&m0, &p0, t, &mut q, &ik, &mut ws);
+        let mut q = ws.seed(&m0, &p0, t, &ik);
+        ws.solve(&m0, &p0, t, &mut q, &ik);
         let at = pb.lay.q[f];
         th[at..at + n_q].copy_from_slice(&q);
     }

@@ -168,7 +168,7 @@ impl Trial {
     pub fn positions(&self) -> &[Vector3<f64>] {
         &self.positions
     }
-    pub fn positions_mut(&mut self) -> &mut [Vector3<f64>] {
+    pub(crate) fn positions_mut(&mut self) -> &mut [Vector3<f64>] {
         &mut self.positions
     }
 

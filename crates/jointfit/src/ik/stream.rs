@@ -87,7 +87,7 @@ pub struct StreamFrame<'a> {
     pub fit: Option<&'a FrameFit>,
     /// Model markers the feed lacks: missing in every frame.
     pub absent: &'a [String],
-    /// Coordinates locked at their defaults by [`StreamingIk::for_feed`] because no label of
+    /// Coordinates locked at their defaults by [`StreamingIk::new`] because no label of
     /// the feed determines them.
     pub held: &'a [String],
 }
@@ -123,12 +123,8 @@ pub struct StreamingIk {
 }
 
 impl StreamingIk {
-    /// A stream of the feed whose samples come in the order of `labels`, in the frame of a
-    /// laboratory whose vertical is `up`, solved with `model` at parameters `p`. Model
-    /// markers the feed lacks are missing in every frame ([`StreamFrame::absent`]), as
-    /// [`MarkerMap::allowing_absent`] pairs them for a trial; labels the model lacks are
-    /// ignored.
-    pub fn new(
+    /// The feed's stream at parameters `p`, no coordinate locked (see [`StreamingIk::new`]).
+    pub(crate) fn with_params(
         model: Model,
         p: Vec<f64>,
         labels: &[String],
@@ -173,12 +169,15 @@ impl StreamingIk {
         })
     }
 
-    /// [`StreamingIk::new`] at the model's nominal parameters, with the coordinates no label
-    /// of the feed determines locked at their defaults first (a toe joint without toe
-    /// markers), as inverse kinematics of a trial does
-    /// ([`super::hold_undetermined`], judged with every label present; their names
-    /// in [`StreamFrame::held`]).
-    pub fn for_feed(
+    /// A stream of the feed whose samples come in the order of `labels`, in the frame of a
+    /// laboratory whose vertical is `up`, solved with `model` at its nominal parameters.
+    /// Coordinates no label of the feed determines are locked at their defaults first (a toe
+    /// joint without toe markers), as inverse kinematics of a trial does
+    /// ([`super::hold_undetermined`], judged with every label present; their names in
+    /// [`StreamFrame::held`]). Model markers the feed lacks are missing in every frame
+    /// ([`StreamFrame::absent`]), as [`MarkerMap::allowing_absent`] pairs them for a trial;
+    /// labels the model lacks are ignored.
+    pub fn new(
         model: &Model,
         labels: &[String],
         up: UpAxis,
@@ -198,7 +197,7 @@ impl StreamingIk {
             .map_err(|e| StreamError::Hold(e.to_string()))?;
         let model = held_model.unwrap_or_else(|| model.clone());
         let p = model.nominal_params();
-        let mut stream = StreamingIk::new(model, p, labels, up, opts)?;
+        let mut stream = StreamingIk::with_params(model, p, labels, up, opts)?;
         stream.held = held;
         Ok(stream)
     }

@@ -42,7 +42,8 @@ fn noisy_walk(model: &Model, p: &[f64], frames: usize) -> Trial {
 /// Every frame of `trial` through a stream on the model's own labels (Y up).
 fn streamed(model: &Model, p: &[f64], trial: &Trial, opts: &IkOptions) -> TrialFit {
     let mut s =
-        StreamingIk::new(model.clone(), p.to_vec(), trial.labels(), UpAxis::Y, *opts).unwrap();
+        StreamingIk::with_params(model.clone(), p.to_vec(), trial.labels(), UpAxis::Y, *opts)
+            .unwrap();
     let mut out = TrialFit {
         coords: Vec::new(),
         frames: Vec::new(),
@@ -220,7 +221,8 @@ fn stream_rotates_from_the_laboratory_vertical() {
         std::slice::from_ref(&(0..60)),
     )
     .unwrap();
-    let mut s = StreamingIk::new(model.clone(), p.clone(), lab.labels(), UpAxis::Z, opts).unwrap();
+    let mut s =
+        StreamingIk::with_params(model.clone(), p.clone(), lab.labels(), UpAxis::Z, opts).unwrap();
     assert_streams_as_batch(&batch.coords, |f| {
         s.update(lab.time(f), lab.frame(f)).unwrap().coords.to_vec()
     });
@@ -270,7 +272,7 @@ fn stream_pairs_labels_by_name() {
         std::slice::from_ref(&(0..30)),
     )
     .unwrap();
-    let mut s = StreamingIk::for_feed(&model, &labels, UpAxis::Y, opts).unwrap();
+    let mut s = StreamingIk::new(&model, &labels, UpAxis::Y, opts).unwrap();
     assert_eq!(s.last().absent, &[absent]);
     assert!(s.last().held.is_empty());
     assert_streams_as_batch(&batch.coords, |f| {
@@ -290,8 +292,8 @@ fn bad_frames_are_refused_without_disturbing_the_stream() {
     let trial = noisy_walk(&model, &p, 20);
     let opts = IkOptions::default();
     let clean = streamed(&model, &p, &trial, &opts);
-    let mut s =
-        StreamingIk::new(model.clone(), p.clone(), trial.labels(), UpAxis::Y, opts).unwrap();
+    let mut s = StreamingIk::with_params(model.clone(), p.clone(), trial.labels(), UpAxis::Y, opts)
+        .unwrap();
     for f in 0..20 {
         if f == 10 {
             let short = &trial.frame(f)[1..];
@@ -329,7 +331,7 @@ fn bad_frames_are_refused_without_disturbing_the_stream() {
     // Feeds the model cannot use.
     let e = |labels: &[&str]| {
         let labels: Vec<String> = labels.iter().map(|s| s.to_string()).collect();
-        StreamingIk::for_feed(&model, &labels, UpAxis::Y, opts).unwrap_err()
+        StreamingIk::new(&model, &labels, UpAxis::Y, opts).unwrap_err()
     };
     assert_eq!(e(&[]), StreamError::NoLabels);
     assert_eq!(e(&["A", "B", "A"]), StreamError::DuplicateLabel("A".into()));

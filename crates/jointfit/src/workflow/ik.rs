@@ -1,11 +1,9 @@
 //! [`ik_trial`]: inverse kinematics over a trial; [`ik_checked`]: the same with the data
-//! checks alongside; [`ik_warm_started`]: the warm-started frame loop alone; [`transfer_params`]: parameters carried between models by name.
+//! checks alongside; [`transfer_params`]: parameters carried between models by name.
 
 use super::WorkflowError;
-use crate::ik::lm::solve_frame;
-use crate::ik::lm::IkWorkspace;
 use crate::ik::trial_fit::TrialFit;
-use crate::ik::{extrapolate, solve_trial_alongside, IkOptions, MarkerMap};
+use crate::ik::{solve_trial_alongside, IkOptions, MarkerMap};
 use crate::model::Model;
 use crate::trial::Trial;
 
@@ -88,37 +86,6 @@ pub fn ik_checked(
         Err(_) => crate::checks::offsets::check_offsets(model, trial, &map),
     });
     (run, findings)
-}
-
-/// Solves frames `first + 1 ..` of `trial` in order, each from the linear extrapolation of
-/// the two solutions before it (the second from the first), starting from `q_first`, the
-/// solution of frame `first`: the warm-started inner loop of [`ik_trial`] without seeding.
-/// Returns the iterations summed over the frames.
-pub fn ik_warm_started(
-    model: &Model,
-    p: &[f64],
-    trial: &Trial,
-    map: &MarkerMap,
-    first: usize,
-    q_first: &[f64],
-    opts: &IkOptions,
-) -> usize {
-    let mut ws = IkWorkspace::new(model);
-    let mut targets = Vec::with_capacity(model.n_markers());
-    let mut iterations = 0;
-    let mut before = q_first.to_vec();
-    let mut q = before.clone();
-    for f in first + 1..trial.n_frames() {
-        map.targets(trial, f, &mut targets);
-        let mut next: Vec<f64> = if f > first + 1 {
-            extrapolate(&q, &before)
-        } else {
-            q.clone()
-        };
-        iterations += solve_frame(model, p, &targets, &mut next, opts, &mut ws).iterations;
-        before = std::mem::replace(&mut q, next);
-    }
-    iterations
 }
 
 /// The parameter vector of `target` with every value taken, by name, from `source`'s
