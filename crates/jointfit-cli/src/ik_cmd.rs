@@ -305,17 +305,10 @@ pub fn solve(
     }
     let fit = run.fit;
     let offsets = if held.is_empty() {
-        jointfit::checks::offsets::check_offsets_after_ik(
-            checked_model,
-            trial,
-            &map,
-            &p,
-            opts,
-            &fit,
-        )
+        jointfit::checks::offsets::check_offsets(checked_model, trial, &map, Some((&p, opts, &fit)))
     } else {
         // The IK ran on the model with coordinates held: not the check's.
-        jointfit::checks::offsets::check_offsets(checked_model, trial, &map)
+        jointfit::checks::offsets::check_offsets(checked_model, trial, &map, None)
     };
     report_findings(&offsets, path)?;
     findings.extend(offsets);

@@ -206,13 +206,15 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
     {
         return out;
     }
-    out.extend(crate::checks::offsets::check_offsets(model, trial, map));
+    out.extend(crate::checks::offsets::check_offsets(
+        model, trial, map, None,
+    ));
     out
 }
 
 /// The checks of [`check_trial`] that need no inverse kinematics (all but the moved-cluster
 /// check of [`crate::checks::offsets`], which [`check_trial`] appends last): a front end that
-/// runs the IK anyway appends [`crate::checks::offsets::check_offsets_after_ik`] to these and
+/// runs the IK anyway appends [`crate::checks::offsets::check_offsets`] with its fit to these and
 /// gets what [`check_trial`] gives without a second IK (`workflow::ik::ik_checked`).
 ///
 /// The units check, each segment's cluster and swap checks and each marker's jump and gap

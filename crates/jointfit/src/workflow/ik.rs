@@ -67,7 +67,7 @@ fn ik_trial_alongside<R: Send>(
 /// alongside it, queued behind the IK's chunks ([`crate::ik::solve_trial_alongside`]: on two
 /// threads each takes a chunk and the first to finish takes the checks, whose parallel
 /// parts the other joins when it finishes); the moved-cluster check then reads the IK's own fit
-/// ([`crate::checks::offsets::check_offsets_after_ik`]) when that is the IK it would run
+/// ([`crate::checks::offsets::check_offsets`]) when that is the IK it would run
 /// (nominal parameters, default options), instead of solving the frames a second time.
 pub fn ik_checked(
     model: &Model,
@@ -81,9 +81,9 @@ pub fn ik_checked(
     });
     findings.extend(match &run {
         Ok(run) => {
-            crate::checks::offsets::check_offsets_after_ik(model, trial, &map, p, opts, &run.fit)
+            crate::checks::offsets::check_offsets(model, trial, &map, Some((p, opts, &run.fit)))
         }
-        Err(_) => crate::checks::offsets::check_offsets(model, trial, &map),
+        Err(_) => crate::checks::offsets::check_offsets(model, trial, &map, None),
     });
     (run, findings)
 }

@@ -184,7 +184,7 @@ fn no_decision_on_clean_trials_with_the_joints_off_their_landmarks() {
         let p = model.sample_priors(seed);
         let trial = synthetic(&model, &p, 60, 0.0003);
         let (map, _) = MarkerMap::allowing_absent(&model, trial.labels());
-        for o in marker_offsets(&model, &start, &trial, &map, &IkOptions::default()) {
+        for o in marker_offsets(&model, &start, &trial, &map, &IkOptions::default(), None) {
             if o.displaced() {
                 ik_says_displaced.push((seed, model.markers()[o.marker].name.clone()));
             }
