@@ -48,9 +48,9 @@ use policy::{Errors, Policy, GROUPS};
 
 use jointfit::calibrate::params_for_groups;
 use jointfit::calibrate::prior::Source;
-use jointfit::calibrate::uncertainty::types::Identifiability;
-use jointfit::calibrate::uncertainty::types::ParamUncertainty;
-use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
+use jointfit::calibrate::uncertainty::Identifiability;
+use jointfit::calibrate::uncertainty::ParamUncertainty;
+use jointfit::calibrate::uncertainty::UncertaintyOptions;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::population::{fill_landmark_priors, HipCentreMethod};
 use jointfit::model::spec::ModelSpec;

@@ -90,7 +90,7 @@ impl Swap {
     }
 }
 
-/// What to repair.
+/// What to repair; the default repairs nothing.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct RepairOptions {
     /// Marker labels to leave out.
@@ -99,12 +99,6 @@ pub struct RepairOptions {
     pub swaps: Vec<Swap>,
     /// Fill gaps of at most this many frames (0: no filling).
     pub fill_gaps: usize,
-}
-
-impl RepairOptions {
-    pub fn is_empty(&self) -> bool {
-        self.exclude.is_empty() && self.swaps.is_empty() && self.fill_gaps == 0
-    }
 }
 
 /// How a gap was filled.

@@ -113,7 +113,7 @@ fn envelope_holds_a_hip_beyond_it_on_every_solver_and_says_so() {
         let settings = FitSettings {
             method,
             marker_noise: Some(0.001),
-            uncertainty: Some(crate::calibrate::uncertainty::types::UncertaintyOptions::default()),
+            uncertainty: Some(crate::calibrate::uncertainty::UncertaintyOptions::default()),
             ..FitSettings::default()
         };
         let r = calibrate_refined(&model, &start, &[&trial], &free, &settings, &mut NoObserver)
@@ -131,7 +131,7 @@ fn envelope_holds_a_hip_beyond_it_on_every_solver_and_says_so() {
         assert_eq!(row.source, Some(Source::HeldAtLimit), "{method}");
         assert_ne!(
             row.identifiability,
-            Some(crate::calibrate::uncertainty::types::Identifiability::Determined)
+            Some(crate::calibrate::uncertainty::Identifiability::Determined)
         );
         let check = &r.calibration.plausibility[0];
         assert!(check.check.contains(HELD_AT_LIMIT) && check.ok, "{check:?}");
