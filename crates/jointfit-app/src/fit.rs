@@ -5,8 +5,8 @@
 //! free parameter, and the warnings a results table or a Python user reads, one line each.
 
 use crate::present::{mm, M_PER_MM};
-use jointfit::calibrate::uncertainty::types::Identifiability;
-use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
+use jointfit::calibrate::uncertainty::Identifiability;
+use jointfit::calibrate::uncertainty::UncertaintyOptions;
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::spec::Unit;
 use jointfit::model::Model;

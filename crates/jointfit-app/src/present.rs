@@ -3,7 +3,7 @@
 //! command-line flag; the command line, the report and the Python package turn values and
 //! errors into text here.
 
-use jointfit::calibrate::uncertainty::types::{
+use jointfit::calibrate::uncertainty::{
     BootstrapInfo, CoordRange, Identifiability, ParamUncertainty, SeMethod, Uncertainty,
     WeakDirection,
 };

@@ -14,6 +14,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::Args;
 use jointfit::calibrate::params_for_groups;
+use jointfit::ik::lm::IkWorkspace;
 use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::Model;
@@ -255,20 +256,48 @@ fn time_ik_warm(
     let warm_frames = (first + 1..trial.n_frames()).count().max(1) as f64;
     let mut iterations = 0usize;
     let warm = median_time(21, || {
-        iterations = jointfit::workflow::ik::ik_warm_started(
-            model,
-            p,
-            trial,
-            &map,
-            first,
-            &reference[first],
-            &opts,
-        );
+        iterations = warm_started(model, p, trial, &map, first, &reference[first], &opts);
     });
     fig.ik_warm_us_per_frame = warm / warm_frames * 1e6;
     fig.ik_warm_frames_per_second = warm_frames / warm;
     fig.ik_iterations_per_frame = iterations as f64 / warm_frames;
     Ok(())
+}
+
+/// Solves frames `first + 1 ..` of `trial` in order, each from the linear extrapolation
+/// `2 q_{i−1} − q_{i−2}` of the two solutions before it (the second from the first),
+/// starting from `q_first`, the solution of frame `first`: the warm-started inner loop of
+/// `workflow::ik::ik_trial` without seeding. Returns the iterations summed over the frames.
+fn warm_started(
+    model: &Model,
+    p: &[f64],
+    trial: &Trial,
+    map: &MarkerMap,
+    first: usize,
+    q_first: &[f64],
+    opts: &IkOptions,
+) -> usize {
+    let mut ws = IkWorkspace::new(model);
+    let mut targets = Vec::with_capacity(model.markers().len());
+    let mut iterations = 0;
+    let mut before = q_first.to_vec();
+    let mut q = before.clone();
+    for f in first + 1..trial.n_frames() {
+        let row = trial.frame(f);
+        targets.clear();
+        targets.extend(map.columns.iter().map(|c| match c {
+            Some(c) => row[*c],
+            None => nalgebra::Vector3::repeat(f64::NAN),
+        }));
+        let mut next: Vec<f64> = if f > first + 1 {
+            q.iter().zip(&before).map(|(a, b)| 2.0 * a - b).collect()
+        } else {
+            q.clone()
+        };
+        iterations += ws.solve(model, p, &targets, &mut next, opts).iterations;
+        before = std::mem::replace(&mut q, next);
+    }
+    iterations
 }
 
 /// Throughput on every core: independent copies of the trial (a batch of trials).

@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use jointfit::calibrate::params_for_groups;
-use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
+use jointfit::calibrate::uncertainty::UncertaintyOptions;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::{Model, ParamId};
 use jointfit::solver::NoObserver;

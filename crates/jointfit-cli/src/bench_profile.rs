@@ -63,8 +63,11 @@ pub fn run(
                     ));
                 }
                 "after" => {
-                    std::hint::black_box(jointfit::checks::offsets::check_offsets_after_ik(
-                        model, &for_model, &map, &p, &opts, &fit,
+                    std::hint::black_box(jointfit::checks::offsets::check_offsets(
+                        model,
+                        &for_model,
+                        &map,
+                        Some((&p, &opts, &fit)),
                     ));
                 }
                 "read" => {

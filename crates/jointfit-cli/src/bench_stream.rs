@@ -118,7 +118,7 @@ fn run_in(
     std::fs::write(&model_path, model.spec().to_toml())?;
     let feed = Feed::new(trial);
     let mut fig = StreamFigures {
-        markers: trial.n_markers(),
+        markers: trial.labels().len(),
         frames: args.stream_frames,
         ..StreamFigures::default()
     };
@@ -187,13 +187,13 @@ impl Feed {
 
 /// `StreamingIk::update` on `frames` frames of the feed.
 fn in_process(model: &Model, trial: &Trial, feed: &Feed, frames: usize) -> Result<Percentiles> {
-    let mut s = StreamingIk::for_feed(model, trial.labels(), UpAxis::Y, IkOptions::default())?;
+    let mut s = StreamingIk::new(model, trial.labels(), UpAxis::Y, IkOptions::default())?;
     let mut us = Vec::with_capacity(frames);
     for k in 0..frames.max(1) {
         let markers = feed.markers(trial, k);
         let t = Instant::now();
-        let q = s.update(k as f64 * feed.period, markers)?;
-        std::hint::black_box(q);
+        let frame = s.update(k as f64 * feed.period, markers)?;
+        std::hint::black_box(frame.coords);
         us.push(t.elapsed().as_secs_f64() * 1e6);
     }
     Ok(Percentiles::of(us))

@@ -2,8 +2,8 @@
 //! the information came from (with a prior) or the identifiability notes (without), the
 //! anatomical checks and the marker errors.
 
-use jointfit::calibrate::uncertainty::types::Identifiability;
-use jointfit::calibrate::uncertainty::types::Uncertainty;
+use jointfit::calibrate::uncertainty::Identifiability;
+use jointfit::calibrate::uncertainty::Uncertainty;
 use jointfit::solver::Termination;
 use jointfit::workflow::calibration::Calibration;
 use jointfit_app::present::{mm, mm2, CalibrationShown};

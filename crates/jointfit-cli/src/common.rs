@@ -168,11 +168,12 @@ pub fn load_for_model(
         );
     }
     let options = args.repairs()?;
+    let no_repairs = options == jointfit::repair::RepairOptions::default();
     let names: std::collections::HashSet<&str> =
         model.markers().iter().map(|m| m.name.as_str()).collect();
     let keep = |label: &str| names.contains(label);
     let select: Option<jointfit_io::trc::Select> =
-        (columns == Columns::ForModel && options.is_empty()).then_some(&keep);
+        (columns == Columns::ForModel && no_repairs).then_some(&keep);
     let (trial, mut notes) = jointfit_io::trial_file::read_trial_selected(path, select)?;
     crate::validate::check_trial(path, &trial)?;
     let (up, up_source) = match (args.up, model.spec().lab_up) {
@@ -196,7 +197,7 @@ pub fn load_for_model(
     }
     let mut trial = prepare(trial, path, up, None)?;
     let mut repairs = Vec::new();
-    if !options.is_empty() {
+    if !no_repairs {
         let (fixed, actions) = jointfit::repair::repair(&trial, Some(model), &options)
             .with_context(|| path.display().to_string())?;
         for a in &actions {

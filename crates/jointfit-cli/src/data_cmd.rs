@@ -93,7 +93,7 @@ fn format_of(path: &Path) -> Result<&'static str> {
 }
 
 fn markers_of(trial: &Trial) -> Vec<MarkerSummary> {
-    (0..trial.n_markers())
+    (0..trial.labels().len())
         .map(|m| {
             let (missing, longest) = trial.gap_stats(m);
             MarkerSummary {
@@ -203,7 +203,7 @@ pub fn convert(args: ConvertArgs) -> Result<()> {
     println!(
         "wrote {} ({} markers, {} frames at {} Hz{}{})",
         args.output.display(),
-        trial.n_markers(),
+        trial.labels().len(),
         trial.n_frames(),
         trial.rate(),
         args.filter

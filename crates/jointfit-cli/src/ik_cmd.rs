@@ -305,17 +305,10 @@ pub fn solve(
     }
     let fit = run.fit;
     let offsets = if held.is_empty() {
-        jointfit::checks::offsets::check_offsets_after_ik(
-            checked_model,
-            trial,
-            &map,
-            &p,
-            opts,
-            &fit,
-        )
+        jointfit::checks::offsets::check_offsets(checked_model, trial, &map, Some((&p, opts, &fit)))
     } else {
         // The IK ran on the model with coordinates held: not the check's.
-        jointfit::checks::offsets::check_offsets(checked_model, trial, &map)
+        jointfit::checks::offsets::check_offsets(checked_model, trial, &map, None)
     };
     report_findings(&offsets, path)?;
     findings.extend(offsets);
@@ -329,7 +322,7 @@ pub fn solve(
 
 pub(crate) fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f64) -> Summary {
     let rms: Vec<f64> = (0..fit.frames.len())
-        .map(|f| fit.frame_rms(f))
+        .map(|f| jointfit::ik::trial_fit::rms(fit.errors[f].iter().copied()))
         .filter(|v| !v.is_nan())
         .collect();
     let first = trial.first_frame();
@@ -373,7 +366,13 @@ pub(crate) fn summarize(model: &Model, trial: &Trial, fit: &TrialFit, seconds: f
             .markers()
             .iter()
             .enumerate()
-            .map(|(j, m)| (m.name.clone(), fit.marker_rms(j) * MM_PER_M))
+            .map(|(j, m)| {
+                let errors = fit.errors.iter().map(|e| e[j]);
+                (
+                    m.name.clone(),
+                    jointfit::ik::trial_fit::rms(errors) * MM_PER_M,
+                )
+            })
             .collect(),
         solve_seconds: seconds,
         frames_per_second: fit.frames.len() as f64 / seconds.max(1e-12),
@@ -479,7 +478,7 @@ pub(crate) fn errors_csv(model: &Model, trial: &Trial, fit: &TrialFit) -> String
             "{},{:.6},{}",
             trial.first_frame() + f as i64,
             trial.time(f),
-            cell(fit.frame_rms(f))
+            cell(jointfit::ik::trial_fit::rms(fit.errors[f].iter().copied()))
         ));
         for e in &fit.errors[f] {
             out.push(',');

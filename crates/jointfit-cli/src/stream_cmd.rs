@@ -113,20 +113,21 @@ pub fn serve<R: Read>(
         bail!("standard input is empty: the first line must be the tab-separated marker labels");
     };
     let labels = parse_labels(first)?;
-    let mut stream = StreamingIk::for_feed(model, &labels, up, *opts)
+    let mut stream = StreamingIk::new(model, &labels, up, *opts)
         .context("standard input line 1 (the marker labels)")?;
-    if !stream.held().is_empty() {
+    let setup = stream.last();
+    if !setup.held.is_empty() {
         eprintln!(
             "jointfit: warning: stream: no marker of the feed determines {}; held at the model's \
              default values",
-            stream.held().join(", ")
+            setup.held.join(", ")
         );
     }
-    if !stream.absent().is_empty() {
+    if !setup.absent.is_empty() {
         eprintln!(
             "jointfit: warning: stream: the feed lacks model markers {}; they count as missing \
              in every frame",
-            stream.absent().join(", ")
+            setup.absent.join(", ")
         );
     }
     let columns = Columns::new(stream.model().clone());
@@ -141,14 +142,14 @@ pub fn serve<R: Read>(
         }
         let time = parse_frame(line, &labels, &mut markers)
             .with_context(|| format!("standard input line {number}"))?;
-        let q = stream
+        let frame = stream
             .update(time, &markers)
             .with_context(|| format!("standard input line {number}"))?;
         text.clear();
-        columns.row(&mut text, time, q);
+        columns.row(&mut text, time, frame.coords);
         write_line(output, &text, !reader.has_line())?;
         summary.frames += 1;
-        let fit = stream.last_fit().expect("a frame was solved");
+        let fit = frame.fit.expect("a frame was solved");
         if fit.solved() {
             summary.solved += 1;
         } else if summary.first_unsolved.is_none() {

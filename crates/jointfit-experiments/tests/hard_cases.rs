@@ -9,7 +9,7 @@
 //! --landmark-error` runs the same cases over 200 seeds (`docs/identifiability.md`).
 
 use jointfit::calibrate::params_for_groups;
-use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
+use jointfit::calibrate::uncertainty::UncertaintyOptions;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::population::{fill_landmark_priors, HipCentreMethod};
 use jointfit::model::spec::ModelSpec;

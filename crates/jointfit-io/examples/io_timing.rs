@@ -32,7 +32,7 @@ fn main() {
         let text = jointfit_io::trc::format_trc(&long, "long.trc", &Default::default()).unwrap();
         std::fs::write(&path, &text).unwrap();
     }
-    println!("{} markers", trial.n_markers());
+    println!("{} markers", trial.labels().len());
     // Minimum wall time, and minimum CPU time of the process (all threads): less noisy on
     // a loaded machine.
     let min_of = |f: &dyn Fn() -> usize| {
@@ -50,7 +50,7 @@ fn main() {
     };
     let (t, c) = min_of(&|| std::fs::read(&path).unwrap().len());
     println!("fs::read          {t} ({c})");
-    let (t, c) = min_of(&|| jointfit_io::trc::read_trc(&path).unwrap().n_markers());
+    let (t, c) = min_of(&|| jointfit_io::trc::read_trc(&path).unwrap().labels().len());
     println!("read_trc all      {t} ({c} markers)");
     if let Some(k) = keep {
         let labels: Vec<String> = trial.labels()[..k].to_vec();
@@ -61,7 +61,8 @@ fn main() {
             )
             .unwrap()
             .trial
-            .n_markers()
+            .labels()
+            .len()
         });
         println!("read_trc selected {t} ({c} markers)");
     }

@@ -63,9 +63,8 @@ fn planted(model: &Model, trial: &Trial) -> Trial {
         .max_by_key(|s| s.len())
         .unwrap()
         .clone();
-    let (n, m) = (trial.n_frames(), trial.n_markers());
-    let mut t = trial.clone();
-    let pos = t.positions_mut();
+    let (n, m) = (trial.n_frames(), trial.labels().len());
+    let mut pos = trial.positions().to_vec();
     // Labels of two markers exchanged in frames 40–89.
     for f in 40..90.min(n) {
         pos.swap(f * m + cols[0], f * m + cols[1]);
@@ -80,7 +79,10 @@ fn planted(model: &Model, trial: &Trial) -> Trial {
     for f in 0..n {
         pos[f * m + other[other.len() - 1]] += Vector3::new(0.0, 0.03, 0.0);
     }
-    t
+    let labels = trial.labels().to_vec();
+    Trial::new(labels, trial.rate(), trial.first_frame(), pos)
+        .and_then(|t| t.with_times(trial.times().map(<[f64]>::to_vec)))
+        .unwrap()
 }
 
 #[test]

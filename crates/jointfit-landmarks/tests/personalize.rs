@@ -290,8 +290,11 @@ fn heading_and_position_in_the_lab_do_not_matter() {
     for heading in [90.0f64, 180.0, -135.0] {
         let mut moved = trial.clone();
         let r = Rotation3::from_axis_angle(&Vector3::y_axis(), heading.to_radians());
-        for x in moved.positions_mut() {
-            *x = r * *x + Vector3::new(3.0, 0.2, -7.0);
+        for m in 0..trial.labels().len() {
+            let placed: Vec<_> = (trial.trajectory(m).iter())
+                .map(|x| r * *x + Vector3::new(3.0, 0.2, -7.0))
+                .collect();
+            moved.set_trajectory(m, &placed);
         }
         let out = run(&moved, Side::Right).unwrap();
         for (a, b) in params(&base).iter().zip(params(&out)) {

@@ -53,19 +53,20 @@ impl PyStreamingIk {
         let model = model_arg(py, model)?;
         let up = parse_up(up)?.or(model.spec().lab_up).unwrap_or(UpAxis::Y);
         let opts = IkOptions::with_rules(hold_undetermined, !keep_outliers);
-        let stream = StreamingIk::for_feed(&model, &labels, up, opts)
+        let stream = StreamingIk::new(&model, &labels, up, opts)
             .map_err(|e| msg(format!("StreamingIK: {e}")))?;
         let mut warnings = Vec::new();
-        if !stream.held().is_empty() {
+        let setup = stream.last();
+        if !setup.held.is_empty() {
             warnings.push(format!(
                 "no marker of the feed determines {}; held at the model's default values",
-                stream.held().join(", ")
+                setup.held.join(", ")
             ));
         }
-        if !stream.absent().is_empty() {
+        if !setup.absent.is_empty() {
             warnings.push(format!(
                 "the feed lacks model markers {}; they count as missing in every frame",
-                stream.absent().join(", ")
+                setup.absent.join(", ")
             ));
         }
         crate::warn_all(py, &warnings)?;
@@ -101,7 +102,7 @@ impl PyStreamingIk {
         py.detach(|| stream.update(time, frame).map(|_| ()))
             .map_err(|e| msg(format!("StreamingIK.update: {e}")))?;
         self.time = Some(time);
-        Ok(PyArray1::from_slice(py, self.stream.coords()))
+        Ok(PyArray1::from_slice(py, self.stream.last().coords))
     }
 
     /// Forgets the frames before: the next frame is seeded, as the first.
@@ -127,26 +128,26 @@ impl PyStreamingIk {
     /// Model markers the feed lacks (missing in every frame).
     #[getter]
     fn absent(&self) -> Vec<String> {
-        self.stream.absent().to_vec()
+        self.stream.last().absent.to_vec()
     }
 
     /// Coordinates held at their defaults because no label determines them.
     #[getter]
     fn held(&self) -> Vec<String> {
-        self.stream.held().to_vec()
+        self.stream.last().held.to_vec()
     }
 
     /// Whether the last frame was solved.
     #[getter]
     fn solved(&self) -> bool {
-        self.stream.last_fit().is_some_and(|f| f.solved())
+        self.stream.last().fit.is_some_and(|f| f.solved())
     }
 
     /// How the last frame ended: "converged", "max_iterations", "stalled", "undetermined:
     /// COORDINATE", "diverged" (None before the first frame).
     #[getter]
     fn status(&self) -> Option<String> {
-        self.stream.last_fit().map(|f| match &f.status {
+        self.stream.last().fit.map(|f| match &f.status {
             FrameStatus::Converged => "converged".into(),
             FrameStatus::MaxIterations => "max_iterations".into(),
             FrameStatus::Stalled => "stalled".into(),
@@ -160,14 +161,14 @@ impl PyStreamingIk {
     /// NaN where missing or rejected, and in a frame not solved).
     #[getter]
     fn errors<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        PyArray1::from_slice(py, self.stream.errors())
+        PyArray1::from_slice(py, self.stream.last().errors)
     }
 
     /// Model markers rejected as gross errors in the last frame.
     #[getter]
     fn rejected(&self) -> Vec<String> {
         let model = self.stream.model();
-        self.stream.last_fit().map_or_else(Vec::new, |f| {
+        self.stream.last().fit.map_or_else(Vec::new, |f| {
             f.rejected
                 .iter()
                 .map(|&j| model.markers()[j].name.clone())

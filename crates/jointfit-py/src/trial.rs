@@ -282,7 +282,7 @@ impl PyTrial {
     #[getter]
     fn markers<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray3<f64>> {
         let t = &self.trial;
-        let (frames, n) = (t.n_frames(), t.n_markers());
+        let (frames, n) = (t.n_frames(), t.labels().len());
         let a = Array3::from_shape_fn((frames, n, 3), |(f, j, k)| t.frame(f)[j][k]);
         a.into_pyarray(py)
     }
@@ -419,7 +419,7 @@ impl PyTrial {
             "Trial({:?}: {} frames, {} markers, {} Hz)",
             self.name,
             self.trial.n_frames(),
-            self.trial.n_markers(),
+            self.trial.labels().len(),
             self.trial.rate()
         )
     }

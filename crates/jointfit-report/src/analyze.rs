@@ -134,8 +134,11 @@ fn trial_series(
     fit: &TrialFit,
     base: Option<&TrialFit>,
 ) -> TrialSeries {
-    let per_frame =
-        |f: &TrialFit| -> Vec<f64> { (0..f.frames.len()).map(|i| f.frame_rms(i) * MM).collect() };
+    let per_frame = |f: &TrialFit| -> Vec<f64> {
+        (0..f.frames.len())
+            .map(|i| rms(f.errors[i].iter().copied()) * MM)
+            .collect()
+    };
     let coords = model
         .coordinates()
         .iter()

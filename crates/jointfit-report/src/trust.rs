@@ -56,7 +56,7 @@ impl Trust {
             shares: cal
                 .parameters
                 .iter()
-                .filter_map(|p| Some((p.name.clone(), p.data_share?, p.source?.words().into())))
+                .filter_map(|p| Some((p.name.clone(), p.data_share?, p.source?.to_string())))
                 .collect(),
             checks: cal
                 .plausibility

@@ -111,7 +111,7 @@ pub fn filter_trial(trial: &Trial, filter: &LowPass) -> Result<(Trial, FilterRep
         design_cutoff_hz: filter.design_cutoff_hz(rate)?,
         default_padlen: sos.default_padlen(),
         min_padlen: sos.ntaps(),
-        markers: Vec::with_capacity(trial.n_markers()),
+        markers: Vec::with_capacity(trial.labels().len()),
     };
 
     let mut out = trial.clone();

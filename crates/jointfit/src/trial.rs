@@ -120,9 +120,6 @@ impl Trial {
     pub fn first_frame(&self) -> i64 {
         self.first_frame
     }
-    pub fn n_markers(&self) -> usize {
-        self.labels.len()
-    }
     pub fn n_frames(&self) -> usize {
         if self.labels.is_empty() {
             0
@@ -171,7 +168,7 @@ impl Trial {
     pub fn positions(&self) -> &[Vector3<f64>] {
         &self.positions
     }
-    pub fn positions_mut(&mut self) -> &mut [Vector3<f64>] {
+    pub(crate) fn positions_mut(&mut self) -> &mut [Vector3<f64>] {
         &mut self.positions
     }
 
@@ -292,7 +289,7 @@ mod tests {
     fn select_and_errors() {
         let t = small();
         let s = t.select(&["B"]).unwrap();
-        assert_eq!(s.n_markers(), 1);
+        assert_eq!(s.labels().len(), 1);
         assert_eq!(s.get(1, 0), Some(Vector3::new(0.5, 0.5, 0.5)));
         let e = t.select(&["C"]).unwrap_err();
         assert_eq!(e.to_string(), "marker \"C\" not found; the trial has: A, B");

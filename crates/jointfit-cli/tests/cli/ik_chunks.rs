@@ -27,20 +27,21 @@ fn on_threads(threads: usize, f: impl FnOnce() -> TrialFit + Send) -> TrialFit {
         .install(f)
 }
 
-/// Every frame of `trial` in order through one stream: the trial as one chunk.
-fn one_chunk(model: &Model, p: &[f64], trial: &Trial, opts: &IkOptions) -> TrialFit {
-    let mut s =
-        StreamingIk::new(model.clone(), p.to_vec(), trial.labels(), UpAxis::Y, *opts).unwrap();
+/// Every frame of `trial` in order through one stream (at the model's nominal parameters):
+/// the trial as one chunk.
+fn one_chunk(model: &Model, trial: &Trial, opts: &IkOptions) -> TrialFit {
+    let mut s = StreamingIk::new(model, trial.labels(), UpAxis::Y, *opts).unwrap();
+    assert!(s.last().held.is_empty(), "the stream holds no coordinate");
     let mut out = TrialFit {
         coords: Vec::new(),
         frames: Vec::new(),
         errors: Vec::new(),
     };
     for f in 0..trial.n_frames() {
-        out.coords
-            .push(s.update(trial.time(f), trial.frame(f)).unwrap().to_vec());
-        out.frames.push(s.last_fit().unwrap().clone());
-        out.errors.push(s.errors().to_vec());
+        let frame = s.update(trial.time(f), trial.frame(f)).unwrap();
+        out.coords.push(frame.coords.to_vec());
+        out.frames.push(frame.fit.unwrap().clone());
+        out.errors.push(frame.errors.to_vec());
     }
     out
 }
@@ -54,7 +55,7 @@ fn chunked_equals_one_chunk(model: &Model, trial: &Trial) -> f64 {
     let map = MarkerMap::allowing_absent(model, trial.labels()).0;
     let n = trial.n_frames();
     assert!(n >= 128, "{n} frames: fewer than two chunks");
-    let one = one_chunk(model, &p, trial, &opts);
+    let one = one_chunk(model, trial, &opts);
     let chunked = on_threads(2, || solve_trial(model, &p, trial, &map, &opts).unwrap());
     let serial = on_threads(1, || solve_trial(model, &p, trial, &map, &opts).unwrap());
     let bits = |fit: &TrialFit| {

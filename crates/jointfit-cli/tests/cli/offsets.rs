@@ -9,7 +9,7 @@
 
 use std::path::Path;
 
-use jointfit::checks::offsets::{check_offsets, marker_offsets, offsets_from_ik};
+use jointfit::checks::offsets::{check_offsets, marker_offsets};
 use jointfit::checks::CheckKind;
 use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit_io::trial_file::{load_trial, LoadOptions};
@@ -107,8 +107,8 @@ fn moved_clusters_on_every_shared_trial() {
                 let (trial, _) = load_trial(&path, &options).unwrap();
                 let (map, _) = MarkerMap::allowing_absent(&model, trial.labels());
                 let p = model.nominal_params();
-                let offsets = marker_offsets(&model, &p, &trial, &map, &IkOptions::default());
-                let findings = check_offsets(&model, &trial, &map);
+                let offsets = marker_offsets(&model, &p, &trial, &map, &IkOptions::default(), None);
+                let findings = check_offsets(&model, &trial, &map, None);
                 let worst = offsets
                     .iter()
                     .max_by(|a, b| a.mean.norm().total_cmp(&b.mean.norm()))
@@ -128,8 +128,8 @@ fn moved_clusters_on_every_shared_trial() {
                 // one (`jointfit::workflow::ik::ik_checked`): the same findings, the statistic within 1e-6 m.
                 let opts = IkOptions::default();
                 let (run, all) = jointfit::workflow::ik::ik_checked(&model, &p, &trial, &opts);
-                let reused =
-                    offsets_from_ik(&model, &p, &trial, &map, &opts, &run.unwrap().fit).unwrap();
+                let fit = run.unwrap().fit;
+                let reused = marker_offsets(&model, &p, &trial, &map, &opts, Some(&fit));
                 let moved_by = reused
                     .iter()
                     .zip(&offsets)

@@ -17,7 +17,6 @@
 
 use std::path::Path;
 
-use jointfit::ik::lm::solve_frame;
 use jointfit::ik::lm::IkWorkspace;
 use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::model::{CoordKind, Model};
@@ -103,7 +102,7 @@ pub(super) fn clamped_agree(model_path: &Path, trial_path: &Path, dir: &Path, sa
             .map(|c| c.map_or(nalgebra::Vector3::repeat(f64::NAN), |c| row[c]))
             .collect();
         let mut q = theirs[f].clone();
-        let fit = solve_frame(&model, &p, &targets, &mut q, &opts, &mut ws);
+        let fit = ws.solve(&model, &p, &targets, &mut q, &opts);
         assert!(fit.solved(), "frame {f}: {:?}", fit.status);
         for c in (0..model.coordinates().len()).filter(|c| !undetermined.contains(c)) {
             let name = &model.coordinates()[c].name;

@@ -3,9 +3,8 @@
 
 use std::path::Path;
 
-use jointfit::ik::lm::solve_frame;
 use jointfit::ik::lm::IkWorkspace;
-use jointfit::ik::{seed_frame, IkOptions, MarkerMap};
+use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::kinematics::{forward_kinematics, KinData, Want};
 use jointfit::model::lower_limb::Side;
 use jointfit::model::spec::ModelSpec;
@@ -234,8 +233,8 @@ fn ik_recovers_the_static_pose() {
     assert_eq!(map.columns.len(), model.markers().len());
     let opts = IkOptions::default();
     let mut ws = IkWorkspace::new(&model);
-    let mut q = seed_frame(&model, &p, &targets, &opts, &mut ws);
-    let fit = solve_frame(&model, &p, &targets, &mut q, &opts, &mut ws);
+    let mut q = ws.seed(&model, &p, &targets, &opts);
+    let fit = ws.solve(&model, &p, &targets, &mut q, &opts);
     assert!(fit.cost < 1e-18, "{fit:?}");
     // The pelvis may come back as another Euler triple of the same orientation; the joint
     // angles below it are unique.

@@ -113,7 +113,7 @@ fn synth_noise_is_reported() {
     assert_eq!(t.nominal_params(), left.nominal_params());
     let trial = jointfit_io::trc::read_trc(&trc).unwrap();
     assert_eq!(trial.n_frames(), 50);
-    assert_eq!(trial.n_markers(), left.markers().len());
+    assert_eq!(trial.labels().len(), left.markers().len());
 
     let (ok, out, err) = jointfit(&[
         "synth",

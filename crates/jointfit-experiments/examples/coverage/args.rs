@@ -1,6 +1,6 @@
 //! Command-line options of the coverage example, and the seeded truths it draws.
 
-use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
+use jointfit::calibrate::uncertainty::UncertaintyOptions;
 use jointfit::model::spec::ModelSpec;
 use jointfit::workflow::Method;
 use jointfit_experiments::synth::Motion;

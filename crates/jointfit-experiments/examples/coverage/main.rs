@@ -48,9 +48,9 @@ use policy::{Errors, Policy, GROUPS};
 
 use jointfit::calibrate::params_for_groups;
 use jointfit::calibrate::prior::Source;
-use jointfit::calibrate::uncertainty::types::Identifiability;
-use jointfit::calibrate::uncertainty::types::ParamUncertainty;
-use jointfit::calibrate::uncertainty::types::UncertaintyOptions;
+use jointfit::calibrate::uncertainty::Identifiability;
+use jointfit::calibrate::uncertainty::ParamUncertainty;
+use jointfit::calibrate::uncertainty::UncertaintyOptions;
 use jointfit::model::lower_limb::{lower_limb, Side};
 use jointfit::model::population::{fill_landmark_priors, HipCentreMethod};
 use jointfit::model::spec::ModelSpec;
@@ -404,7 +404,7 @@ impl Totals {
             cost_truth,
             o(u.z_hac),
             o(row.data_share),
-            row.source.map_or("", |s| s.words()),
+            row.source.map_or(String::new(), |s| s.to_string()),
             o(p.status_half_width),
             u.correlation_factor
         )

@@ -76,7 +76,7 @@ pub fn format_trc(
     }
     let rate = trial.rate();
     let nf = trial.n_frames();
-    let nm = trial.n_markers();
+    let nm = trial.labels().len();
     let units = options.units.as_str();
     let first = trial.first_frame();
     let name: String = file_name

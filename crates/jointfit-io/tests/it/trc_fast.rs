@@ -51,7 +51,7 @@ fn every_shared_trc_reads_bit_identically() {
         let text = String::from_utf8_lossy(&bytes);
         let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
         let t = &full.trial;
-        let expected = oracle(text, t.n_markers(), full.header.units.to_metres());
+        let expected = oracle(text, t.labels().len(), full.header.units.to_metres());
         assert_eq!(expected.len(), t.n_frames(), "{}", path.display());
         for (f, row) in expected.iter().enumerate() {
             for (k, e) in row.iter().enumerate() {
@@ -75,7 +75,7 @@ fn every_shared_trc_reads_bit_identically() {
         assert_eq!(part.trial.first_frame(), t.first_frame());
         assert_eq!(part.trial.times(), t.times());
         for f in 0..t.n_frames() {
-            for (i, k) in (1..t.n_markers()).step_by(2).enumerate() {
+            for (i, k) in (1..t.labels().len()).step_by(2).enumerate() {
                 let (a, b) = (part.trial.frame(f)[i], t.frame(f)[k]);
                 for j in 0..3 {
                     assert_eq!(a[j].to_bits(), b[j].to_bits(), "{}", path.display());
@@ -170,7 +170,7 @@ fn selective_reads_still_check_the_row() {
     );
     // A selection that keeps no marker reads them all.
     let none = parse_trc_selected(&bad_in_b.replace('x', "4"), "t.trc", Some(&|_: &str| false));
-    assert_eq!(none.unwrap().trial.n_markers(), 3);
+    assert_eq!(none.unwrap().trial.labels().len(), 3);
     // A skipped marker's cells may be anything; the row must still hold them.
     let short_in_b = small("1\t2\t3\t4");
     let e = parse_trc_selected(&short_in_b, "t.trc", Some(&skip_b)).unwrap_err();

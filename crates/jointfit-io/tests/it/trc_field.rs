@@ -85,7 +85,7 @@ fn field_trc_variants_read_as_opensim_reads_them() {
         assert_eq!(ours.header.data_rate, 100.0, "{name}");
         let per_metre = 1.0 / ours.header.units.to_metres();
         for (f, row) in theirs.iter().filter(|l| l[0] == "row").enumerate() {
-            for k in 0..t.n_markers() {
+            for k in 0..t.labels().len() {
                 let p = t.get(f, k).unwrap();
                 for j in 0..3 {
                     let o = num(&row[2 + 3 * k + j]);

@@ -432,7 +432,7 @@ fn every_sample_file_reads_or_fails_as_expected() {
                 Ok(f),
             ) => {
                 let t = &f.trial;
-                assert_eq!(t.n_markers(), *markers, "{}", case.file);
+                assert_eq!(t.labels().len(), *markers, "{}", case.file);
                 assert_eq!(t.n_frames(), *frames, "{}", case.file);
                 assert_eq!(f.header.num_markers, *markers, "{}", case.file);
                 assert_eq!(f.header.num_frames, *frames, "{}", case.file);
@@ -475,7 +475,7 @@ fn every_sample_file_reads_or_fails_as_expected() {
                 report.push(format!(
                     "{:<62} {} markers x {} frames, {} Hz, {:.1}% missing, notes {:?}",
                     case.file,
-                    t.n_markers(),
+                    t.labels().len(),
                     t.n_frames(),
                     t.rate(),
                     100.0 * missing as f64 / t.positions().len().max(1) as f64,

@@ -281,7 +281,7 @@ fn odd_but_valid_inputs() {
     // A header without rows.
     let empty = format!("{HEAD}100\t100\t0\t1\tmm\t100\t7\t0\nFrame#\tTime\tA\n\t\tX1\tY1\tZ1\n");
     let t = parse_trc(&empty, "e").unwrap();
-    assert_eq!((t.n_frames(), t.n_markers(), t.first_frame()), (0, 1, 7));
+    assert_eq!((t.n_frames(), t.labels().len(), t.first_frame()), (0, 1, 7));
 }
 
 #[test]

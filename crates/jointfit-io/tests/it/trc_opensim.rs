@@ -63,7 +63,7 @@ fn opensim_reads_the_same_values() {
                 same(num(&row[1]), ours.times[f]),
                 "{path}: time of frame {f}"
             );
-            for k in 0..t.n_markers() {
+            for k in 0..t.labels().len() {
                 let o: Vec<f64> = (0..3).map(|j| num(&row[2 + 3 * k + j])).collect();
                 match t.get(f, k) {
                     None if o.iter().any(|v| v.is_nan()) => {}

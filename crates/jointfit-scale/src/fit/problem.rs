@@ -17,8 +17,8 @@ use super::options::{ScaleError, ScaleOptions};
 use crate::basis::{factors_of, BasisData, FactorBasis, FramePoints};
 use crate::geometry::{scaled_spec, ScaleFactors};
 use crate::normal::Step;
-use jointfit::ik::lm::{solve_frame, IkWorkspace};
-use jointfit::ik::{seed_frame, IkOptions};
+use jointfit::ik::lm::IkWorkspace;
+use jointfit::ik::IkOptions;
 use jointfit::model::spec::ModelSpec;
 use jointfit::model::Model;
 
@@ -219,8 +219,8 @@ fn initial_poses(pb: &Problem, th: &mut [f64]) -> Result<(), ScaleError> {
     let mut ws = IkWorkspace::new(&m0);
     let p0 = m0.nominal_params();
     for (f, t) in pb.targets.iter().enumerate() {
-        let mut q = seed_frame(&m0, &p0, t, &ik, &mut ws);
-        solve_frame(&m0, &p0, t, &mut q, &ik, &mut ws);
+        let mut q = ws.seed(&m0, &p0, t, &ik);
+        ws.solve(&m0, &p0, t, &mut q, &ik);
         let at = pb.lay.q[f];
         th[at..at + pb.n_q].copy_from_slice(&q);
     }

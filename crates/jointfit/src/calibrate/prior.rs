@@ -151,13 +151,17 @@ impl Source {
             Source::HeldByPrior
         }
     }
-    pub fn words(self) -> &'static str {
-        match self {
+}
+
+/// The source in words ("determined by the trial", "held by the prior", …).
+impl std::fmt::Display for Source {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
             Source::DeterminedByTrial => "determined by the trial",
             Source::Partly => "partly determined",
             Source::HeldByPrior => "held by the prior",
             Source::HeldAtLimit => "held at the anatomical limit (hip centre medial to the ASIS)",
-        }
+        })
     }
 }
 
@@ -198,7 +202,7 @@ pub fn information_summary(rows: &[(String, String, Option<Source>)]) -> Vec<Str
                 }
             })
             .collect();
-        out.push(format!("{}: {}", src.words(), parts.join("; ")));
+        out.push(format!("{src}: {}", parts.join("; ")));
         if src == Source::HeldByPrior {
             let hints: Vec<&str> = by_group.iter().filter_map(|(g, _)| trial_hint(g)).collect();
             if !hints.is_empty() {

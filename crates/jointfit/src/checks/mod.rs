@@ -113,7 +113,7 @@ pub fn marker_span(trial: &Trial) -> Option<f64> {
     let n = trial.n_frames();
     let step = n.div_ceil(200).max(1);
     // Present markers with their distance from the frame's centroid, farthest first.
-    let mut present: Vec<(f64, Vector3<f64>)> = Vec::with_capacity(trial.n_markers());
+    let mut present: Vec<(f64, Vector3<f64>)> = Vec::with_capacity(trial.labels().len());
     let mut spans: Vec<f64> = Vec::with_capacity(n.div_ceil(step));
     for f in (0..n).step_by(step) {
         present.clear();
@@ -206,13 +206,15 @@ pub fn check_trial(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding
     {
         return out;
     }
-    out.extend(crate::checks::offsets::check_offsets(model, trial, map));
+    out.extend(crate::checks::offsets::check_offsets(
+        model, trial, map, None,
+    ));
     out
 }
 
 /// The checks of [`check_trial`] that need no inverse kinematics (all but the moved-cluster
 /// check of [`crate::checks::offsets`], which [`check_trial`] appends last): a front end that
-/// runs the IK anyway appends [`crate::checks::offsets::check_offsets_after_ik`] to these and
+/// runs the IK anyway appends [`crate::checks::offsets::check_offsets`] with its fit to these and
 /// gets what [`check_trial`] gives without a second IK (`workflow::ik::ik_checked`).
 ///
 /// The units check, each segment's cluster and swap checks and each marker's jump and gap

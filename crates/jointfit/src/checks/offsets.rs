@@ -24,8 +24,8 @@
 //! frame; the residuals here are taken of every present marker, rejected or not) on at most
 //! [`MAX_FRAMES`] consecutive frames from the middle of the trial, which bounds the cost (on
 //! a short trial it is one more IK of the trial: one seeding, then warm-started frames). A
-//! front end that runs that same IK anyway (`workflow::ik::ik_checked`, the `ik` command) reads
-//! the statistic from its fit instead ([`offsets_from_ik`], [`check_offsets_after_ik`]).
+//! front end that runs that same IK anyway (`workflow::ik::ik_checked`, the `ik` command) hands
+//! its fit to [`marker_offsets`] or [`check_offsets`], which read the statistic from it instead.
 
 use nalgebra::Vector3;
 
@@ -83,14 +83,21 @@ impl MarkerOffset {
 
 /// The statistic of every model marker the trial has (in at least [`MIN_FRAMES`] solved
 /// frames), after inverse kinematics at parameters `p` with `opts` of the frames
-/// [`frames_looked_at`] picks. Empty when the IK cannot run (wrong parameter length).
+/// [`frames_looked_at`] picks. `fit`: an inverse kinematics of the whole trial at `p` with
+/// `opts` already at hand, whose frames are read instead of solved again when it is the IK
+/// this statistic runs (`p` the nominal parameters, `opts` the default ones; see
+/// [`offsets_from_ik`]). Empty when the IK cannot run (wrong parameter length).
 pub fn marker_offsets(
     model: &Model,
     p: &[f64],
     trial: &Trial,
     map: &MarkerMap,
     opts: &IkOptions,
+    fit: Option<&TrialFit>,
 ) -> Vec<MarkerOffset> {
+    if let Some(offsets) = fit.and_then(|fit| offsets_from_ik(model, p, trial, map, opts, fit)) {
+        return offsets;
+    }
     let (start, end) = frames_looked_at(trial.n_frames());
     let sub = trial.slice_frames(start, end);
     match solve_trial(model, p, &sub, map, opts) {
@@ -197,8 +204,8 @@ const OFFSET_CHUNK_FRAMES: usize = 64;
 /// than seeded at its start, which moves each solution by about the solver's tolerance
 /// (`IkOptions::step_tolerance`, 1e-8), far below the millimetres the findings print
 /// (checked on every shared trial by jointfit-cli's `offsets` test). `None` when the IK
-/// differs (other parameters or options): call [`marker_offsets`] then.
-pub fn offsets_from_ik(
+/// differs (other parameters or options): the statistic then needs its own IK.
+pub(crate) fn offsets_from_ik(
     model: &Model,
     p: &[f64],
     trial: &Trial,
@@ -214,23 +221,6 @@ pub fn offsets_from_ik(
     }
     let (start, end) = frames_looked_at(trial.n_frames());
     Some(offsets_over(model, p, trial, map, fit, start..end))
-}
-
-/// The findings of [`check_offsets`], taken from the inverse kinematics `fit` of the whole
-/// trial at parameters `p` with options `opts` ([`offsets_from_ik`]) when it is the one the
-/// check would run, else from the check's own inverse kinematics.
-pub fn check_offsets_after_ik(
-    model: &Model,
-    trial: &Trial,
-    map: &MarkerMap,
-    p: &[f64],
-    opts: &IkOptions,
-    fit: &TrialFit,
-) -> Vec<Finding> {
-    match offsets_from_ik(model, p, trial, map, opts, fit) {
-        Some(offsets) => offset_findings(model, &offsets, &reference_name(model)),
-        None => check_offsets(model, trial, map),
-    }
 }
 
 /// The frames [`marker_offsets`] looks at, `start..end`: the whole trial up to
@@ -353,17 +343,22 @@ fn refine_option(moved: &[&MarkerOffset]) -> String {
 }
 
 /// The check of the module docs for `trial` against `model` at its nominal parameters, with
-/// the default inverse-kinematics options. The findings name what the model's marker
-/// positions come from: the OpenSim file a model was read from ([`OSIM_DESCRIPTION`]), else
-/// the static trial of a subject model.
-pub fn check_offsets(model: &Model, trial: &Trial, map: &MarkerMap) -> Vec<Finding> {
-    let offsets = marker_offsets(
-        model,
-        &model.nominal_params(),
-        trial,
-        map,
-        &IkOptions::default(),
-    );
+/// the default inverse-kinematics options. `ik`: the parameters, options and fit of an
+/// inverse kinematics of the whole trial already at hand, read instead of a second one when
+/// it is the check's own ([`marker_offsets`]); `None`: the check runs its own. The findings
+/// name what the model's marker positions come from: the OpenSim file a model was read from
+/// ([`OSIM_DESCRIPTION`]), else the static trial of a subject model.
+pub fn check_offsets(
+    model: &Model,
+    trial: &Trial,
+    map: &MarkerMap,
+    ik: Option<(&[f64], &IkOptions, &TrialFit)>,
+) -> Vec<Finding> {
+    let reused = ik.and_then(|(p, opts, fit)| offsets_from_ik(model, p, trial, map, opts, fit));
+    let offsets = reused.unwrap_or_else(|| {
+        let (p, opts) = (model.nominal_params(), IkOptions::default());
+        marker_offsets(model, &p, trial, map, &opts, None)
+    });
     offset_findings(model, &offsets, &reference_name(model))
 }
 
@@ -387,6 +382,82 @@ pub const OSIM_DESCRIPTION: &str = "OpenSim model read from ";
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::checks::{check_trial, CheckKind};
+
+    /// The right-leg model, and a trial of `frames` frames with skin noise (≤ 8 mm per axis,
+    /// seed 11) of the same model with its three thigh markers shifted by `by` (m, thigh
+    /// frame).
+    fn moved_thigh_cluster(moved: &[&str], by: [f64; 3], frames: usize) -> (Model, Trial) {
+        let spec = crate::model::lower_limb::lower_limb(crate::model::lower_limb::Side::Right);
+        let model = Model::compile(&spec).unwrap();
+        let mut shifted = spec.clone();
+        for m in &mut shifted.markers {
+            if moved.contains(&m.name.as_str()) {
+                for (x, d) in m.position.iter_mut().zip(by) {
+                    *x += d;
+                }
+            }
+        }
+        let truth = Model::compile(&shifted).unwrap();
+        let p = truth.nominal_params();
+        let s = crate::kinematics::synth::synthetic_trial(
+            &truth,
+            &p,
+            frames,
+            100.0,
+            |f| crate::ik::tests::motion(&truth, f, 0.3),
+            crate::kinematics::synth::Noise::Skin { amplitude: 0.008 },
+            11,
+        );
+        (model, s.trial)
+    }
+
+    /// `crate::workflow::ik::ik_checked` takes the moved-cluster statistic from its own IK instead of a
+    /// second one, and gives the findings `check_trial` gives: bit for bit on a trial of at most
+    /// 200 frames (the two IKs are the same computation); on a 700-frame trial (the check looks
+    /// at the middle 200 frames, warm-started from the frames before them in the whole-trial
+    /// IK, seeded in the check's own) the statistic agrees to 1e-6 m and the findings are the
+    /// same. With other parameters than the nominal ones the check runs its own IK.
+    #[test]
+    fn ik_checked_reuses_the_fit_with_the_same_findings() {
+        let opts = IkOptions::default();
+        for frames in [150, 700] {
+            let (model, trial) =
+                moved_thigh_cluster(&["RTHI", "RTHA", "RTHP"], [0.08, -0.04, 0.0], frames);
+            let map = MarkerMap::by_name(&model, trial.labels()).unwrap();
+            let p = model.nominal_params();
+            let (run, findings) = crate::workflow::ik::ik_checked(&model, &p, &trial, &opts);
+            let run = run.unwrap();
+            let alone = check_trial(&model, &trial, &map);
+            assert!(alone.iter().any(|f| f.kind == CheckKind::Offset));
+            assert_eq!(
+                format!("{findings:?}"),
+                format!("{alone:?}"),
+                "{frames} frames"
+            );
+            let reused = offsets_from_ik(&model, &p, &trial, &map, &opts, &run.fit).unwrap();
+            let own = marker_offsets(&model, &p, &trial, &map, &opts, None);
+            assert_eq!(reused.len(), own.len());
+            for (a, b) in reused.iter().zip(&own) {
+                // The check looks at the whole trial up to 200 frames, else the middle 200.
+                assert_eq!(a.frames, frames.min(200));
+                assert_eq!((a.marker, a.frames), (b.marker, b.frames));
+                let (dm, ds) = ((a.mean - b.mean).norm(), (a.spread - b.spread).abs());
+                if frames <= 200 {
+                    assert_eq!((dm, ds), (0.0, 0.0), "{a:?} {b:?}");
+                } else {
+                    assert!(dm < 1e-6 && ds < 1e-6, "{a:?} {b:?}");
+                }
+            }
+            // Another parameter vector: not the check's IK, so no reuse, same findings.
+            let mut q = p.clone();
+            q[0] += 0.01;
+            let fit = crate::ik::trial_fit::solve_trial(&model, &q, &trial, &map, &opts).unwrap();
+            assert!(offsets_from_ik(&model, &q, &trial, &map, &opts, &fit).is_none());
+            let (_, other) = crate::workflow::ik::ik_checked(&model, &q, &trial, &opts);
+            assert_eq!(format!("{other:?}"), format!("{alone:?}"));
+        }
+    }
 
     /// A model without markers has no offsets to report: the checks return instead of
     /// dividing the residuals into chunks of zero markers.

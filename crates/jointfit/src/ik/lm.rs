@@ -12,7 +12,9 @@ use crate::linalg::Cholesky;
 use crate::model::Model;
 use crate::solver::Termination;
 
-/// Scratch space for one thread: reuse it across frames.
+/// Scratch space for one thread, and the per-frame solver: reuse it across frames. A frame
+/// with no solution at hand starts from [`IkWorkspace::seed`]; [`IkWorkspace::solve`] then
+/// solves it (or solves from the previous frame's solution).
 #[derive(Debug, Clone)]
 pub struct IkWorkspace {
     pub(super) cur: KinData,
@@ -69,6 +71,33 @@ impl IkWorkspace {
             goals: Vec::new(),
             known: vec![false; n],
         }
+    }
+    /// A start for the frame whose model-ordered marker `targets` (m, NaN when missing) are
+    /// given, without a solution at hand: the root segment's coordinates fitted to its
+    /// markers from several starting orientations, the other coordinates at their defaults
+    /// (see the module docs of [`crate::ik`]).
+    pub fn seed(
+        &mut self,
+        model: &Model,
+        p: &[f64],
+        targets: &[Vector3<f64>],
+        opts: &IkOptions,
+    ) -> Vec<f64> {
+        super::seed_frame(model, p, targets, opts, self)
+    }
+    /// Solves one frame in place from the start `q` (the solution on exit), with one
+    /// target per model marker (m, NaN when missing): Levenberg–Marquardt once the present
+    /// markers are found to determine the coordinates, with gross errors rejected (see the
+    /// module docs of [`crate::ik`]).
+    pub fn solve(
+        &mut self,
+        model: &Model,
+        p: &[f64],
+        targets: &[Vector3<f64>],
+        q: &mut [f64],
+        opts: &IkOptions,
+    ) -> FrameFit {
+        solve_frame(model, p, targets, q, opts, self)
     }
     /// Sets the coordinate tasks the next frames solved with this workspace obey: those of
     /// trial frame `frame` ([`super::CoordinateTask`]; an empty slice: none).
@@ -382,7 +411,7 @@ fn remaining_error(step: f64, last: f64) -> f64 {
 /// gross errors (see the module docs): after each fit, while the marker farthest from its
 /// model position is a gross error ([`IkOptions::outlier_distance`]), it is dropped and the
 /// frame solved again from the entry point.
-pub fn solve_frame(
+pub(crate) fn solve_frame(
     model: &Model,
     p: &[f64],
     targets: &[Vector3<f64>],

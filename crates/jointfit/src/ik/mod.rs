@@ -67,7 +67,7 @@ pub(crate) use frames::warm_started_coords;
 pub(crate) use lm::is_gross;
 pub(crate) use lm::undetermined_coordinate;
 pub use markers::MarkerMap;
-pub use seed::seed_frame;
+pub(crate) use seed::seed_frame;
 #[cfg(test)]
 use seed::seed_frame_by_scouting;
 pub use tasks::CoordinateTask;
@@ -216,4 +216,4 @@ mod robust_tests;
 #[cfg(test)]
 mod stream_tests;
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

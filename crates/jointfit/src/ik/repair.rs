@@ -138,7 +138,7 @@ pub(super) fn repair_absurd(
     let n = fit.frames.len();
     let solved_rms = |fit: &TrialFit, f: usize| {
         if fit.frames[f].solved() {
-            fit.frame_rms(f)
+            super::trial_fit::rms(fit.errors[f].iter().copied())
         } else {
             f64::NAN
         }

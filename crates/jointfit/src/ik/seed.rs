@@ -29,7 +29,7 @@ use crate::model::{CoordKind, Model, Source};
 /// orthogonal Procrustes minimum): a certificate that it is the global minimum the scouting
 /// looks for ([`certified_root`]). On opencap walking1 that cuts a seed from 1.23 to
 /// 0.21 M instructions.
-pub fn seed_frame(
+pub(crate) fn seed_frame(
     model: &Model,
     p: &[f64],
     targets: &[Vector3<f64>],

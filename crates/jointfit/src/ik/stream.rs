@@ -73,6 +73,25 @@ pub enum StreamError {
     TimeNotIncreasing { time: f64, previous: f64 },
 }
 
+/// The result of one frame of a stream ([`StreamingIk::update`], [`StreamingIk::last`]),
+/// borrowed from the stream until the next frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StreamFrame<'a> {
+    /// Coordinates in model order (rad, m); NaN when the frame is not solved (see `fit`).
+    pub coords: &'a [f64],
+    /// Marker distances `‖m − x‖` per model marker (m); NaN for missing and rejected markers
+    /// and in a frame not solved.
+    pub errors: &'a [f64],
+    /// How the frame's solve ended: its status, iterations and rejected markers (`None`
+    /// before the first frame).
+    pub fit: Option<&'a FrameFit>,
+    /// Model markers the feed lacks: missing in every frame.
+    pub absent: &'a [String],
+    /// Coordinates locked at their defaults by [`StreamingIk::new`] because no label of
+    /// the feed determines them.
+    pub held: &'a [String],
+}
+
 /// Inverse kinematics of a marker feed, frame by frame, warm-started from the frames before
 /// (see the module docs). Owns its model and workspace; `Send`, so it can move to the
 /// thread that reads the feed.
@@ -104,12 +123,8 @@ pub struct StreamingIk {
 }
 
 impl StreamingIk {
-    /// A stream of the feed whose samples come in the order of `labels`, in the frame of a
-    /// laboratory whose vertical is `up`, solved with `model` at parameters `p`. Model
-    /// markers the feed lacks are missing in every frame ([`StreamingIk::absent`]), as
-    /// [`MarkerMap::allowing_absent`] pairs them for a trial; labels the model lacks are
-    /// ignored.
-    pub fn new(
+    /// The feed's stream at parameters `p`, no coordinate locked (see [`StreamingIk::new`]).
+    pub(crate) fn with_params(
         model: Model,
         p: Vec<f64>,
         labels: &[String],
@@ -154,12 +169,15 @@ impl StreamingIk {
         })
     }
 
-    /// [`StreamingIk::new`] at the model's nominal parameters, with the coordinates no label
-    /// of the feed determines locked at their defaults first (a toe joint without toe
-    /// markers), as inverse kinematics of a trial does
-    /// ([`super::hold_undetermined`], judged with every label present; their names
-    /// in [`StreamingIk::held`]).
-    pub fn for_feed(
+    /// A stream of the feed whose samples come in the order of `labels`, in the frame of a
+    /// laboratory whose vertical is `up`, solved with `model` at its nominal parameters.
+    /// Coordinates no label of the feed determines are locked at their defaults first (a toe
+    /// joint without toe markers), as inverse kinematics of a trial does
+    /// ([`super::hold_undetermined`], judged with every label present; their names in
+    /// [`StreamFrame::held`]). Model markers the feed lacks are missing in every frame
+    /// ([`StreamFrame::absent`]), as [`MarkerMap::allowing_absent`] pairs them for a trial;
+    /// labels the model lacks are ignored.
+    pub fn new(
         model: &Model,
         labels: &[String],
         up: UpAxis,
@@ -179,17 +197,21 @@ impl StreamingIk {
             .map_err(|e| StreamError::Hold(e.to_string()))?;
         let model = held_model.unwrap_or_else(|| model.clone());
         let p = model.nominal_params();
-        let mut stream = StreamingIk::new(model, p, labels, up, opts)?;
+        let mut stream = StreamingIk::with_params(model, p, labels, up, opts)?;
         stream.held = held;
         Ok(stream)
     }
 
     /// Solves the frame at `time` (s) from `markers`: one position per feed label, in its
     /// order, in metres in the laboratory frame (NaN or any non-finite coordinate: missing).
-    /// Returns the coordinates in model order (rad, m; NaN when the frame is not solved; see
-    /// [`StreamingIk::last_fit`] for why). Errors, without changing the stream, when the
-    /// number of positions is not the number of labels or `time` does not increase.
-    pub fn update(&mut self, time: f64, markers: &[Vector3<f64>]) -> Result<&[f64], StreamError> {
+    /// Returns the frame's result ([`StreamFrame`]: coordinates, marker errors, status).
+    /// Errors, without changing the stream, when the number of positions is not the number of
+    /// labels or `time` does not increase.
+    pub fn update(
+        &mut self,
+        time: f64,
+        markers: &[Vector3<f64>],
+    ) -> Result<StreamFrame<'_>, StreamError> {
         if markers.len() != self.n_labels {
             return Err(StreamError::MarkerCount {
                 got: markers.len(),
@@ -205,7 +227,7 @@ impl StreamingIk {
         self.last_time = Some(time);
         self.set_targets(markers);
         self.solve();
-        Ok(&self.coords)
+        Ok(self.last())
     }
 
     /// Forgets the frames before: the next frame is seeded, as the first.
@@ -215,35 +237,23 @@ impl StreamingIk {
         self.last_time = None;
     }
 
-    /// The model the frames are solved with (with [`StreamingIk::held`] coordinates locked).
+    /// The model the frames are solved with (with [`StreamFrame::held`] coordinates locked).
     pub fn model(&self) -> &Model {
         &self.model
     }
 
-    /// Model markers the feed lacks: missing in every frame.
-    pub fn absent(&self) -> &[String] {
-        &self.absent
-    }
-
-    /// Coordinates locked at their defaults by [`StreamingIk::for_feed`].
-    pub fn held(&self) -> &[String] {
-        &self.held
-    }
-
-    /// The outcome of the last frame (`None` before the first).
-    pub fn last_fit(&self) -> Option<&FrameFit> {
-        self.fit.as_ref()
-    }
-
-    /// The last frame's coordinates (see [`StreamingIk::update`]).
-    pub fn coords(&self) -> &[f64] {
-        &self.coords
-    }
-
-    /// The last frame's marker distances `‖m − x‖` per model marker (m; NaN for missing and
-    /// rejected markers and in a frame not solved).
-    pub fn errors(&self) -> &[f64] {
-        &self.errors
+    /// The result of the last frame, as [`StreamingIk::update`] returned it; before the first
+    /// frame, NaN coordinates and errors and no [`StreamFrame::fit`] (the feed's
+    /// [`StreamFrame::absent`] markers and [`StreamFrame::held`] coordinates are known from the
+    /// start).
+    pub fn last(&self) -> StreamFrame<'_> {
+        StreamFrame {
+            coords: &self.coords,
+            errors: &self.errors,
+            fit: self.fit.as_ref(),
+            absent: &self.absent,
+            held: &self.held,
+        }
     }
 
     /// Model-ordered targets of one feed frame in the model's frame, as a trial's reader and

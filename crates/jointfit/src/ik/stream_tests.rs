@@ -42,17 +42,18 @@ fn noisy_walk(model: &Model, p: &[f64], frames: usize) -> Trial {
 /// Every frame of `trial` through a stream on the model's own labels (Y up).
 fn streamed(model: &Model, p: &[f64], trial: &Trial, opts: &IkOptions) -> TrialFit {
     let mut s =
-        StreamingIk::new(model.clone(), p.to_vec(), trial.labels(), UpAxis::Y, *opts).unwrap();
+        StreamingIk::with_params(model.clone(), p.to_vec(), trial.labels(), UpAxis::Y, *opts)
+            .unwrap();
     let mut out = TrialFit {
         coords: Vec::new(),
         frames: Vec::new(),
         errors: Vec::new(),
     };
     for f in 0..trial.n_frames() {
-        let q = s.update(trial.time(f), trial.frame(f)).unwrap().to_vec();
-        out.coords.push(q);
-        out.frames.push(s.last_fit().unwrap().clone());
-        out.errors.push(s.errors().to_vec());
+        let frame = s.update(trial.time(f), trial.frame(f)).unwrap();
+        out.coords.push(frame.coords.to_vec());
+        out.frames.push(frame.fit.unwrap().clone());
+        out.errors.push(frame.errors.to_vec());
     }
     out
 }
@@ -220,9 +221,10 @@ fn stream_rotates_from_the_laboratory_vertical() {
         std::slice::from_ref(&(0..60)),
     )
     .unwrap();
-    let mut s = StreamingIk::new(model.clone(), p.clone(), lab.labels(), UpAxis::Z, opts).unwrap();
+    let mut s =
+        StreamingIk::with_params(model.clone(), p.clone(), lab.labels(), UpAxis::Z, opts).unwrap();
     assert_streams_as_batch(&batch.coords, |f| {
-        s.update(lab.time(f), lab.frame(f)).unwrap().to_vec()
+        s.update(lab.time(f), lab.frame(f)).unwrap().coords.to_vec()
     });
 }
 
@@ -270,11 +272,14 @@ fn stream_pairs_labels_by_name() {
         std::slice::from_ref(&(0..30)),
     )
     .unwrap();
-    let mut s = StreamingIk::for_feed(&model, &labels, UpAxis::Y, opts).unwrap();
-    assert_eq!(s.absent(), &[absent]);
-    assert!(s.held().is_empty());
+    let mut s = StreamingIk::new(&model, &labels, UpAxis::Y, opts).unwrap();
+    assert_eq!(s.last().absent, &[absent]);
+    assert!(s.last().held.is_empty());
     assert_streams_as_batch(&batch.coords, |f| {
-        s.update(f as f64 / 100.0, &feed(f)).unwrap().to_vec()
+        s.update(f as f64 / 100.0, &feed(f))
+            .unwrap()
+            .coords
+            .to_vec()
     });
 }
 
@@ -287,8 +292,8 @@ fn bad_frames_are_refused_without_disturbing_the_stream() {
     let trial = noisy_walk(&model, &p, 20);
     let opts = IkOptions::default();
     let clean = streamed(&model, &p, &trial, &opts);
-    let mut s =
-        StreamingIk::new(model.clone(), p.clone(), trial.labels(), UpAxis::Y, opts).unwrap();
+    let mut s = StreamingIk::with_params(model.clone(), p.clone(), trial.labels(), UpAxis::Y, opts)
+        .unwrap();
     for f in 0..20 {
         if f == 10 {
             let short = &trial.frame(f)[1..];
@@ -310,19 +315,23 @@ fn bad_frames_are_refused_without_disturbing_the_stream() {
         }
         let q = s.update(trial.time(f), trial.frame(f)).unwrap();
         assert_eq!(
-            bits(&[q.to_vec()]),
+            bits(&[q.coords.to_vec()]),
             bits(&clean.coords[f..f + 1]),
             "frame {f}"
         );
     }
     // After a reset the next frame is seeded, as a first frame is.
     s.reset();
-    let again = s.update(trial.time(0), trial.frame(0)).unwrap().to_vec();
+    let again = s
+        .update(trial.time(0), trial.frame(0))
+        .unwrap()
+        .coords
+        .to_vec();
     assert_eq!(bits(&[again]), bits(&clean.coords[0..1]));
     // Feeds the model cannot use.
     let e = |labels: &[&str]| {
         let labels: Vec<String> = labels.iter().map(|s| s.to_string()).collect();
-        StreamingIk::for_feed(&model, &labels, UpAxis::Y, opts).unwrap_err()
+        StreamingIk::new(&model, &labels, UpAxis::Y, opts).unwrap_err()
     };
     assert_eq!(e(&[]), StreamError::NoLabels);
     assert_eq!(e(&["A", "B", "A"]), StreamError::DuplicateLabel("A".into()));

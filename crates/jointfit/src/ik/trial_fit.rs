@@ -23,22 +23,10 @@ pub struct TrialFit {
     pub errors: Vec<Vec<f64>>,
 }
 
-impl TrialFit {
-    /// RMS marker distance of one frame over its present markers (m).
-    pub fn frame_rms(&self, frame: usize) -> f64 {
-        rms(self.errors[frame].iter().copied())
-    }
-    /// RMS over all frames of one model marker (m).
-    pub fn marker_rms(&self, marker: usize) -> f64 {
-        rms(self.errors.iter().map(|e| e[marker]))
-    }
-    /// RMS marker distance over every present sample of the trial (m).
-    pub fn overall_rms(&self) -> f64 {
-        rms(self.errors.iter().flatten().copied())
-    }
-}
-
-/// Root mean square of the non-NaN values (NaN when there are none).
+/// Root mean square of the non-NaN values (NaN when there are none). The marker RMS of a
+/// [`TrialFit`]: of one frame over its present markers, `rms(fit.errors[frame].iter().copied())`;
+/// of one marker over the frames, `rms(fit.errors.iter().map(|e| e[marker]))`; of every
+/// present sample, `rms(fit.errors.iter().flatten().copied())` (m).
 pub fn rms(values: impl Iterator<Item = f64>) -> f64 {
     let (mut s, mut n) = (0.0, 0usize);
     for v in values.filter(|v| !v.is_nan()) {

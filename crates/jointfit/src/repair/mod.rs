@@ -90,7 +90,7 @@ impl Swap {
     }
 }
 
-/// What to repair.
+/// What to repair; the default repairs nothing.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct RepairOptions {
     /// Marker labels to leave out.
@@ -99,12 +99,6 @@ pub struct RepairOptions {
     pub swaps: Vec<Swap>,
     /// Fill gaps of at most this many frames (0: no filling).
     pub fill_gaps: usize,
-}
-
-impl RepairOptions {
-    pub fn is_empty(&self) -> bool {
-        self.exclude.is_empty() && self.swaps.is_empty() && self.fill_gaps == 0
-    }
 }
 
 /// How a gap was filled.
@@ -252,7 +246,7 @@ pub fn repair(
                 last,
             });
         }
-        let n = out.n_markers();
+        let n = out.labels().len();
         let positions = out.positions_mut();
         for f in (from - first) as usize..=(to - first) as usize {
             positions.swap(f * n + ia, f * n + ib);
@@ -305,13 +299,13 @@ fn fill_gaps(t: &mut Trial, model: Option<&Model>, max_len: usize, actions: &mut
         .collect();
     let original = t.clone();
     let nf = t.n_frames();
-    for j in 0..t.n_markers() {
+    for j in 0..t.labels().len() {
         // With a model, only its markers are filled (the others are not fitted).
         if model.is_some() && segment_of[j].is_none() {
             continue;
         }
         let mates: Vec<usize> = match segment_of[j] {
-            Some(s) => (0..t.n_markers())
+            Some(s) => (0..t.labels().len())
                 .filter(|&k| k != j && segment_of[k] == Some(s))
                 .collect(),
             None => Vec::new(),

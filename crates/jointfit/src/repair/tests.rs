@@ -65,7 +65,7 @@ fn rigid_fill_recovers_seeded_gaps() {
     let (model, truth) = truth();
     let mut rng = ChaCha8Rng::seed_from_u64(7);
     let mut gappy = truth.clone();
-    let n = gappy.n_markers();
+    let n = gappy.labels().len();
     let mut seeded = 0;
     // Disjoint windows of 15 frames, so a segment always keeps three markers.
     for (k, name) in ["RTHI", "RKNE", "RTIB", "RANK"].iter().enumerate() {
@@ -119,7 +119,7 @@ fn rigid_fill_recovers_seeded_gaps() {
 fn spline_fill_bridges_short_gaps() {
     let (_, truth) = truth();
     let mut gappy = truth.clone();
-    let n = gappy.n_markers();
+    let n = gappy.labels().len();
     let j = truth.index_of("RHEE").unwrap();
     for f in 100..104 {
         gappy.positions_mut()[f * n + j] = Vector3::repeat(f64::NAN);
@@ -152,7 +152,7 @@ fn swap_found_by_checks_is_undone() {
         truth.index_of("RTHP").unwrap(),
     );
     let mut swapped = truth.clone();
-    let n = swapped.n_markers();
+    let n = swapped.labels().len();
     for f in 49..FRAMES {
         swapped.positions_mut().swap(f * n + a, f * n + b);
     }
@@ -191,7 +191,7 @@ fn exclusion_and_errors() {
         ..RepairOptions::default()
     };
     let (out, actions) = repair(&truth, Some(&model), &opts).unwrap();
-    assert_eq!(out.n_markers(), truth.n_markers() - 1);
+    assert_eq!(out.labels().len(), truth.labels().len() - 1);
     assert!(out.index_of("RTHP").is_err());
     assert_eq!(actions[0].to_string(), "excluded marker RTHP");
     let bad = RepairOptions {

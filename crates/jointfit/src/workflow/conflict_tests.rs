@@ -205,7 +205,7 @@ fn landmark_hip_four_sds_off_is_flagged_and_a_prior_draw_is_not() {
         truth[model.param_id(name).unwrap().0] += sign * 4.0 * par.prior_sd.unwrap();
     }
     let settings = FitSettings {
-        uncertainty: Some(crate::calibrate::uncertainty::types::UncertaintyOptions::default()),
+        uncertainty: Some(crate::calibrate::uncertainty::UncertaintyOptions::default()),
         ..FitSettings::default()
     };
     let trial = synthetic(&model, &truth, 80, 0.002);

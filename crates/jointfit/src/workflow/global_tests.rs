@@ -81,7 +81,7 @@ fn sigma_stage_on_intermediate_frames_reaches_the_preliminary_fits_estimate() {
     let fit = |probes: usize| {
         let settings = FitSettings {
             probes,
-            uncertainty: Some(crate::calibrate::uncertainty::types::UncertaintyOptions::default()),
+            uncertainty: Some(crate::calibrate::uncertainty::UncertaintyOptions::default()),
             ..FitSettings::default()
         };
         calibrate(&model, &start, &[&trial], &free, &settings, &mut NoObserver).unwrap()

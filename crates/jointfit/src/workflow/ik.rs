@@ -1,11 +1,9 @@
 //! [`ik_trial`]: inverse kinematics over a trial; [`ik_checked`]: the same with the data
-//! checks alongside; [`ik_warm_started`]: the warm-started frame loop alone; [`transfer_params`]: parameters carried between models by name.
+//! checks alongside; [`transfer_params`]: parameters carried between models by name.
 
 use super::WorkflowError;
-use crate::ik::lm::solve_frame;
-use crate::ik::lm::IkWorkspace;
 use crate::ik::trial_fit::TrialFit;
-use crate::ik::{extrapolate, solve_trial_alongside, IkOptions, MarkerMap};
+use crate::ik::{solve_trial_alongside, IkOptions, MarkerMap};
 use crate::model::Model;
 use crate::trial::Trial;
 
@@ -69,7 +67,7 @@ fn ik_trial_alongside<R: Send>(
 /// alongside it, queued behind the IK's chunks ([`crate::ik::solve_trial_alongside`]: on two
 /// threads each takes a chunk and the first to finish takes the checks, whose parallel
 /// parts the other joins when it finishes); the moved-cluster check then reads the IK's own fit
-/// ([`crate::checks::offsets::check_offsets_after_ik`]) when that is the IK it would run
+/// ([`crate::checks::offsets::check_offsets`]) when that is the IK it would run
 /// (nominal parameters, default options), instead of solving the frames a second time.
 pub fn ik_checked(
     model: &Model,
@@ -83,42 +81,11 @@ pub fn ik_checked(
     });
     findings.extend(match &run {
         Ok(run) => {
-            crate::checks::offsets::check_offsets_after_ik(model, trial, &map, p, opts, &run.fit)
+            crate::checks::offsets::check_offsets(model, trial, &map, Some((p, opts, &run.fit)))
         }
-        Err(_) => crate::checks::offsets::check_offsets(model, trial, &map),
+        Err(_) => crate::checks::offsets::check_offsets(model, trial, &map, None),
     });
     (run, findings)
-}
-
-/// Solves frames `first + 1 ..` of `trial` in order, each from the linear extrapolation of
-/// the two solutions before it (the second from the first), starting from `q_first`, the
-/// solution of frame `first`: the warm-started inner loop of [`ik_trial`] without seeding.
-/// Returns the iterations summed over the frames.
-pub fn ik_warm_started(
-    model: &Model,
-    p: &[f64],
-    trial: &Trial,
-    map: &MarkerMap,
-    first: usize,
-    q_first: &[f64],
-    opts: &IkOptions,
-) -> usize {
-    let mut ws = IkWorkspace::new(model);
-    let mut targets = Vec::with_capacity(model.markers().len());
-    let mut iterations = 0;
-    let mut before = q_first.to_vec();
-    let mut q = before.clone();
-    for f in first + 1..trial.n_frames() {
-        map.targets(trial, f, &mut targets);
-        let mut next: Vec<f64> = if f > first + 1 {
-            extrapolate(&q, &before)
-        } else {
-            q.clone()
-        };
-        iterations += solve_frame(model, p, &targets, &mut next, opts, &mut ws).iterations;
-        before = std::mem::replace(&mut q, next);
-    }
-    iterations
 }
 
 /// The parameter vector of `target` with every value taken, by name, from `source`'s

@@ -38,7 +38,7 @@
 use super::{FitSettings, NoObserver, WorkflowError};
 use crate::calibrate::joint::{solve_joint_to, JointOptions};
 use crate::calibrate::uncertainty::analyze;
-use crate::calibrate::uncertainty::types::UncertaintyOptions;
+use crate::calibrate::uncertainty::UncertaintyOptions;
 use crate::calibrate::{Fit, Problem};
 use crate::ik::lm::IkWorkspace;
 use crate::model::{Model, ParamId};

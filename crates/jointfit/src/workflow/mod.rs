@@ -45,7 +45,7 @@ pub mod verdict;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::calibrate::uncertainty::types::UncertaintyOptions;
+use crate::calibrate::uncertainty::UncertaintyOptions;
 use crate::calibrate::CalibError;
 
 use crate::solver::{NoObserver, Observer, Termination};

@@ -117,7 +117,7 @@ fn envelope_holds_a_hip_beyond_it_on_every_solver_and_says_so() {
         let settings = FitSettings {
             method,
             marker_noise: Some(0.001),
-            uncertainty: Some(crate::calibrate::uncertainty::types::UncertaintyOptions::default()),
+            uncertainty: Some(crate::calibrate::uncertainty::UncertaintyOptions::default()),
             ..FitSettings::default()
         };
         let r = calibrate_refined(&model, &start, &[&trial], &free, &settings, &mut NoObserver)
@@ -135,7 +135,7 @@ fn envelope_holds_a_hip_beyond_it_on_every_solver_and_says_so() {
         assert_eq!(row.source, Some(Source::HeldAtLimit), "{method}");
         assert_ne!(
             row.identifiability,
-            Some(crate::calibrate::uncertainty::types::Identifiability::Determined)
+            Some(crate::calibrate::uncertainty::Identifiability::Determined)
         );
         let check = &r.calibration.plausibility[0];
         assert!(check.check.contains(HELD_AT_LIMIT) && check.ok, "{check:?}");
@@ -188,7 +188,7 @@ fn no_decision_on_clean_trials_with_the_joints_off_their_landmarks() {
         let p = model.sample_priors(seed);
         let trial = synthetic(&model, &p, 60, 0.0003);
         let (map, _) = MarkerMap::allowing_absent(&model, trial.labels());
-        for o in marker_offsets(&model, &start, &trial, &map, &IkOptions::default()) {
+        for o in marker_offsets(&model, &start, &trial, &map, &IkOptions::default(), None) {
             if o.displaced() {
                 ik_says_displaced.push((seed, model.markers()[o.marker].name.clone()));
             }

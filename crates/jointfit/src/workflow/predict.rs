@@ -9,10 +9,10 @@
 use serde::Serialize;
 
 use super::WorkflowError;
-use crate::calibrate::uncertainty::types::Identifiability;
-use crate::calibrate::uncertainty::types::Uncertainty;
-use crate::calibrate::uncertainty::types::UncertaintyOptions;
 use crate::calibrate::uncertainty::CoordRange;
+use crate::calibrate::uncertainty::Identifiability;
+use crate::calibrate::uncertainty::Uncertainty;
+use crate::calibrate::uncertainty::UncertaintyOptions;
 use crate::calibrate::Problem;
 use crate::model::{Model, ParamId};
 use crate::trial::Trial;

@@ -145,7 +145,7 @@ fn identifiability_names_marker_offsets_that_trade_off_with_joints() {
     let settings = FitSettings {
         marker_noise: Some(0.001),
         refine_markers: Some(0.010),
-        uncertainty: Some(crate::calibrate::uncertainty::types::UncertaintyOptions::default()),
+        uncertainty: Some(crate::calibrate::uncertainty::UncertaintyOptions::default()),
         ..FitSettings::default()
     };
     let r =

@@ -47,19 +47,26 @@ fn millimetres_declared_as_metres_is_an_error() {
     );
 }
 
+/// `trial` with its samples replaced by `positions` (frame-major).
+fn with_positions(trial: &Trial, positions: Vec<Vector3<f64>>) -> Trial {
+    let labels = trial.labels().to_vec();
+    Trial::new(labels, trial.rate(), trial.first_frame(), positions).unwrap()
+}
+
 /// Labels of two thigh markers exchanged from frame 41 (file numbering from 1) to the end.
 #[test]
 fn swapped_labels_are_found_with_their_frames() {
-    let (model, mut trial) = setup();
+    let (model, trial) = setup();
     let (a, b) = (
         trial.index_of("RTHI").unwrap(),
         trial.index_of("RTHA").unwrap(),
     );
-    let n = trial.n_markers();
-    let pos = trial.positions_mut();
+    let n = trial.labels().len();
+    let mut pos = trial.positions().to_vec();
     for f in 40..60 {
         pos.swap(f * n + a, f * n + b);
     }
+    let trial = with_positions(&trial, pos);
     let found = kinds(&model, &trial);
     let swaps: Vec<&String> = found
         .iter()
@@ -101,17 +108,18 @@ fn a_moved_cluster_marker_is_found() {
 /// A 0.5 m spike in one frame and a 5-frame gap.
 #[test]
 fn jumps_and_gaps_are_counted() {
-    let (model, mut trial) = setup();
+    let (model, trial) = setup();
     let (tib, toe) = (
         trial.index_of("RTIB").unwrap(),
         trial.index_of("RTOE").unwrap(),
     );
-    let n = trial.n_markers();
-    let pos = trial.positions_mut();
+    let n = trial.labels().len();
+    let mut pos = trial.positions().to_vec();
     pos[20 * n + tib].x += 0.5;
     for f in 10..15 {
         pos[f * n + toe] = Vector3::repeat(f64::NAN);
     }
+    let trial = with_positions(&trial, pos);
     let found = kinds(&model, &trial);
     let jump = found.iter().find(|(k, _)| *k == CheckKind::Jump).unwrap();
     assert_eq!(

@@ -1,7 +1,7 @@
 //! The moved-cluster check (`jointfit::checks::offsets`) on synthetic trials with skin-artifact
 //! noise: the truth is the marker displacement seeded into the data.
 
-use jointfit::checks::offsets::{check_offsets, marker_offsets, offsets_from_ik};
+use jointfit::checks::offsets::{check_offsets, marker_offsets};
 use jointfit::checks::{check_trial, CheckKind};
 use jointfit::ik::{IkOptions, MarkerMap};
 use jointfit::model::lower_limb::{lower_limb, Side};
@@ -59,7 +59,7 @@ fn a_clean_noisy_trial_has_no_offsets() {
     // The statistic itself: every marker's mean residual well below the threshold.
     let map = MarkerMap::by_name(&model, trial.labels()).unwrap();
     let p = model.nominal_params();
-    for o in marker_offsets(&model, &p, &trial, &map, &IkOptions::default()) {
+    for o in marker_offsets(&model, &p, &trial, &map, &IkOptions::default(), None) {
         assert!(o.mean.norm() < 0.01, "{o:?}");
         assert_eq!(o.frames, 150);
     }
@@ -117,60 +117,14 @@ fn an_osim_model_is_the_reference() {
     let model = Model::compile(&spec).unwrap();
     let (plain, trial) = trial_with(&["RTHI", "RTHA", "RTHP"], [0.08, -0.04, 0.0]);
     let map = MarkerMap::by_name(&model, trial.labels()).unwrap();
-    let f = check_offsets(&model, &trial, &map);
+    let f = check_offsets(&model, &trial, &map, None);
     assert!(
         f[0].message.contains("in the model (gait2392.osim)"),
         "{f:?}"
     );
-    let f = check_offsets(&plain, &trial, &map);
+    let f = check_offsets(&plain, &trial, &map, None);
     assert!(
         f[0].message.contains("in the subject model (static trial)"),
         "{f:?}"
     );
-}
-
-/// `jointfit::workflow::ik::ik_checked` takes the moved-cluster statistic from its own IK instead of a
-/// second one, and gives the findings `check_trial` gives: bit for bit on a trial of at most
-/// 200 frames (the two IKs are the same computation); on a 700-frame trial (the check looks
-/// at the middle 200 frames, warm-started from the frames before them in the whole-trial
-/// IK, seeded in the check's own) the statistic agrees to 1e-6 m and the findings are the
-/// same. With other parameters than the nominal ones the check runs its own IK.
-#[test]
-fn ik_checked_reuses_the_fit_with_the_same_findings() {
-    let opts = IkOptions::default();
-    for frames in [150, 700] {
-        let (model, trial) = trial_of(&["RTHI", "RTHA", "RTHP"], [0.08, -0.04, 0.0], frames);
-        let map = MarkerMap::by_name(&model, trial.labels()).unwrap();
-        let p = model.nominal_params();
-        let (run, findings) = jointfit::workflow::ik::ik_checked(&model, &p, &trial, &opts);
-        let run = run.unwrap();
-        let alone = check_trial(&model, &trial, &map);
-        assert!(alone.iter().any(|f| f.kind == CheckKind::Offset));
-        assert_eq!(
-            format!("{findings:?}"),
-            format!("{alone:?}"),
-            "{frames} frames"
-        );
-        let reused = offsets_from_ik(&model, &p, &trial, &map, &opts, &run.fit).unwrap();
-        let own = marker_offsets(&model, &p, &trial, &map, &opts);
-        assert_eq!(reused.len(), own.len());
-        for (a, b) in reused.iter().zip(&own) {
-            // The check looks at the whole trial up to 200 frames, else the middle 200.
-            assert_eq!(a.frames, frames.min(200));
-            assert_eq!((a.marker, a.frames), (b.marker, b.frames));
-            let (dm, ds) = ((a.mean - b.mean).norm(), (a.spread - b.spread).abs());
-            if frames <= 200 {
-                assert_eq!((dm, ds), (0.0, 0.0), "{a:?} {b:?}");
-            } else {
-                assert!(dm < 1e-6 && ds < 1e-6, "{a:?} {b:?}");
-            }
-        }
-        // Another parameter vector: not the check's IK, so no reuse, same findings.
-        let mut q = p.clone();
-        q[0] += 0.01;
-        let fit = jointfit::ik::trial_fit::solve_trial(&model, &q, &trial, &map, &opts).unwrap();
-        assert!(offsets_from_ik(&model, &q, &trial, &map, &opts, &fit).is_none());
-        let (_, other) = jointfit::workflow::ik::ik_checked(&model, &q, &trial, &opts);
-        assert_eq!(format!("{other:?}"), format!("{alone:?}"));
-    }
 }

@@ -78,6 +78,7 @@
 //! [`unidentifiable_subset`] chooses the parameters to hold at their starting values so that
 //! the rest are determined (subset selection on `S`).
 
+mod analysis;
 mod critical;
 mod estimators;
 mod explain;
@@ -86,280 +87,253 @@ pub(crate) mod reduced;
 mod resampling;
 mod status;
 mod subset;
-pub mod types;
-use reduced::reduced_system;
-use types::{Identifiability, ParamUncertainty, SeMethod, Uncertainty, UncertaintyOptions};
 
-use super::{Fit, Problem};
+use serde::{Deserialize, Serialize};
+
 use crate::model::spec::Unit;
-use critical::critical;
+pub(crate) use analysis::{analyze, analyze_reduced, predict};
+use analysis::{display, NULL_RATIO};
 pub(crate) use critical::ln_gamma;
-use estimators::{conservative, continuity, covariances, Covariances};
-pub(crate) use explain::coordinate_ranges;
-use explain::{reason, weak_directions};
 pub(crate) use inflation::correlation_inflation;
 pub(crate) use inflation::parameter_inflation;
+use reduced::reduced_system;
 pub(crate) use reduced::Reduced;
 pub(crate) use subset::unidentifiable_subset;
-pub(crate) use types::WeakDirection;
-pub(crate) use types::{BootstrapInfo, CoordRange, DirectionComponent};
 
-/// Eigenvalues of `S` below this fraction of the largest count as zero (not determined).
-const NULL_RATIO: f64 = 1e-10;
+// The results and options of the analysis: which estimator produced a number, a parameter's
+// status, the options, and the per-parameter, per-direction and per-coordinate records of
+// [`Uncertainty`].
 
-/// Display factor and unit of a parameter or coordinate.
-pub(super) fn display(unit: Unit) -> (f64, &'static str) {
-    (unit.display_scale(), unit.display_suffix())
+/// Which estimator produced a number.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SeMethod {
+    /// `σ² S⁻¹`, independent residuals.
+    White,
+    /// Newey–West sandwich over frames.
+    Hac,
+    /// Moving-block bootstrap over frames with refits.
+    Bootstrap,
+    /// Delete-block jackknife over contiguous blocks of frames (linearised).
+    Jackknife,
+    /// The trial-alone half-width the status was judged by,
+    /// [`ParamUncertainty::status_half_width`]: the floor of a marginally determined
+    /// parameter's interval (the private `status` module).
+    Pooled,
+    /// The parameter lies on a null direction of `S`: no finite error.
+    Undetermined,
 }
 
-/// Uncertainty of the fitted free parameters of `fit` (a solution of `prob`).
-pub(crate) fn analyze(prob: &Problem, fit: &Fit, opts: &UncertaintyOptions) -> Uncertainty {
-    analyze_reduced(prob, fit, opts, &reduced_system(prob, &fit.p, &fit.coords))
+/// How well the trial determines a parameter (the rule: the private `status` module).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Identifiability {
+    /// The trial alone pins it within the threshold ([`ParamUncertainty::status_half_width`]),
+    /// not at a bound, not held by a prior.
+    Determined,
+    /// That half-width above the threshold, at a bound, or held by the prior.
+    Poor,
+    /// No information in the trial at all (null direction of `S`).
+    Undetermined,
 }
 
-/// [`analyze`] from the reduced system `red` of `prob` at `fit`
-/// ([`reduced_system`]`(prob, &fit.p, &fit.coords)`, formed once where a workflow needs it
-/// for more than the analysis).
-pub(crate) fn analyze_reduced(
-    prob: &Problem,
-    fit: &Fit,
-    opts: &UncertaintyOptions,
-    red: &Reduced,
-) -> Uncertainty {
-    let est = estimates(prob, (&fit.p, &fit.coords), red, opts, || {
-        covariances(red, &continuity(prob), Some((prob, fit)), opts, false)
-    });
-    build(prob, &fit.p, &fit.s, &fit.coords, red, &est, opts)
+/// Settings of [`analyze`](super::analyze).
+#[derive(Debug, Clone, PartialEq)]
+pub struct UncertaintyOptions {
+    /// Coverage of the intervals (0.95).
+    pub level: f64,
+    /// Compute the Newey–West sandwich.
+    pub hac: bool,
+    /// Bartlett bandwidth in frames (lags `< b` get weight); `None`: Andrews' AR(1) rule.
+    pub hac_bandwidth: Option<f64>,
+    /// Bootstrap replicates (0, the default: no bootstrap; each replicate is a refit).
+    pub bootstrap_replicates: usize,
+    /// Block length in frames; `None`: the HAC bandwidth rounded up, at least 2.
+    pub block_length: Option<usize>,
+    /// Seed of the bootstrap.
+    pub seed: u64,
+    /// Contiguous blocks of the delete-block jackknife (0: no jackknife).
+    pub jackknife_blocks: usize,
+    /// Apply the small-sample factor `N/(N − n_f)` to the robust estimators.
+    pub small_sample: bool,
+    /// Assumed residual standard deviation per axis (m) instead of the one estimated from
+    /// the residuals; the robust estimators are rescaled by the same variance ratio. For
+    /// predictions at a nominal model, whose residuals include its misfit.
+    pub assumed_sigma_m: Option<f64>,
+    /// Half-width above which a length parameter is flagged (m).
+    pub threshold_m: f64,
+    /// Half-width above which an angle parameter is flagged (rad).
+    pub threshold_rad: f64,
 }
 
-/// Predicted uncertainty at parameters `p` with inner solutions `qs` (one per frame of
-/// `prob`), before any fit: white, HAC and jackknife estimates (no bootstrap, which needs a
-/// fit), the scores centred on their mean so that the systematic misfit of a nominal model
-/// does not count as noise. `σ²` comes from the residuals at `p`, which include that misfit,
-/// so the prediction is conservative; set [`UncertaintyOptions::assumed_sigma_m`] when the
-/// noise level is known.
-pub(crate) fn predict(
-    prob: &Problem,
-    p: &[f64],
-    qs: &[Vec<f64>],
-    opts: &UncertaintyOptions,
-) -> Uncertainty {
-    let red = reduced_system(prob, p, qs);
-    let est = estimates(prob, (p, qs), &red, opts, || {
-        covariances(&red, &continuity(prob), None, opts, true)
-    });
-    build(prob, p, &prob.to_scaled(p), qs, &red, &est, opts)
-}
-
-/// The covariances (`cov`), and beside them, on another thread when one is free, what the
-/// status rule reads of the reduced system `red` alone: the data-alone variances, the data
-/// shares and the system with every parameter free ([`status::extended_system`] at `at`, the
-/// parameters and coordinates of `red`). None of these depends on another, so the result is
-/// the same on any number of threads.
-struct Estimates {
-    cov: Covariances,
-    alone: Vec<Option<f64>>,
-    share: Vec<f64>,
-    ext: Option<Reduced>,
-}
-
-fn estimates(
-    prob: &Problem,
-    (p, qs): (&[f64], &[Vec<f64>]),
-    red: &Reduced,
-    opts: &UncertaintyOptions,
-    cov: impl FnOnce() -> Covariances + Send,
-) -> Estimates {
-    let sigma2 = opts.assumed_sigma_m.map_or(red.sigma2(), |s| s * s);
-    let (cov, (alone, share, ext)) = rayon::join(cov, || {
-        (
-            status::data_alone_variance(red, sigma2),
-            crate::calibrate::prior::data_share(prob, &red.normal),
-            status::extended_system(prob, p, qs),
-        )
-    });
-    Estimates {
-        cov,
-        alone,
-        share,
-        ext,
+impl UncertaintyOptions {
+    /// The flag threshold of a parameter of `unit` (SI: m or rad).
+    pub(crate) fn threshold(&self, unit: Unit) -> f64 {
+        match unit {
+            Unit::Metre => self.threshold_m,
+            Unit::Radian => self.threshold_rad,
+        }
     }
 }
 
-fn build(
-    prob: &Problem,
-    p: &[f64],
-    s: &[f64],
-    qs: &[Vec<f64>],
-    red: &Reduced,
-    est: &Estimates,
-    opts: &UncertaintyOptions,
-) -> Uncertainty {
-    let (cov, alone, share) = (&est.cov, &est.alone, &est.share);
-    let model = prob.model;
-    let nf = prob.n_free();
-    let crit = critical(opts.level, opts);
-    let z = crit.0;
-    let ranges = coordinate_ranges(model, qs);
-    let scale: Vec<f64> = (0..nf)
-        .map(|k| prob.half_range(k) * display(model.parameters()[prob.free[k]].unit).0)
-        .collect();
-    let threshold = |k: usize| {
-        let unit = model.parameters()[prob.free[k]].unit;
-        unit.to_display(opts.threshold(unit))
-    };
-    // The white covariance with the prior's part: the posterior's under independent noise.
-    let white = match &cov.prior {
-        Some(pr) => &cov.white + pr,
-        None => cov.white.clone(),
-    };
-    // The status rule (the `status` module): the trial alone, pooled noise and correlation.
-    let sigma2 = opts.assumed_sigma_m.map_or(red.sigma2(), |s| s * s);
-    let kappa = status::trial_correlation(prob, est.ext.as_ref(), cov, red, sigma2, opts);
-    let corr = correlations(&cov.null, &white);
-    let params = (0..nf)
-        .map(|k| {
-            let i = prob.free[k];
-            let par = &model.parameters()[i];
-            let (f, unit) = display(par.unit);
-            let value = p[i] * f;
-            let at_bound = s[k].abs() >= 1.0 - 1e-9;
-            let (all, best) = conservative(cov, crit, |c| c[(k, k)]);
-            let of = |m: SeMethod| {
-                all.iter()
-                    .find(|v| v.2 == m && !cov.null[k])
-                    .map(|v| v.0 * scale[k])
-            };
-            let (se, half_width, method) = match best {
-                Some((v, h, m)) if !cov.null[k] => (Some(v * scale[k]), Some(h * scale[k]), m),
-                _ => (None, None, SeMethod::Undetermined),
-            };
-            let status_half_width = alone[k]
-                .map(|v| z * (kappa * v).sqrt() * scale[k])
-                .filter(|h| h.is_finite());
-            let (status, (se, half_width, method)) = status::label(
-                (se, half_width, method),
-                status_half_width,
-                (z, cov.jack.as_ref().map(|_| crit.1), threshold(k)),
-                at_bound || status::held(share[k]),
-            );
-            let reason = (status != Identifiability::Determined).then(|| {
-                let sigma_mm = opts.assumed_sigma_m.map_or(red.sigma2(), |s| s * s).sqrt() * 1e3;
-                let bounds = (scale[k], unit);
-                let why = Why {
-                    k,
-                    at_bound,
-                    ranges: &ranges,
-                    corr: &corr,
-                    sigma_mm,
-                };
-                why_not_determined(prob, &why, half_width, bounds, status)
-            });
-            ParamUncertainty {
-                name: par.name.clone(),
-                group: par.group.clone(),
-                description: par.description.clone(),
-                unit: unit.to_string(),
-                value,
-                se,
-                half_width,
-                ci: half_width.map(|h| [value - h, value + h]),
-                method,
-                se_white: of(SeMethod::White),
-                se_hac: of(SeMethod::Hac),
-                se_bootstrap: of(SeMethod::Bootstrap),
-                se_jackknife: of(SeMethod::Jackknife),
-                at_bound,
-                status_half_width,
-                status,
-                reason,
-            }
-        })
-        .collect();
-    let weak_directions = weak_directions(prob, cov, &scale, crit, opts);
-    Uncertainty {
-        level: opts.level,
-        z,
-        z_hac: cov.hac.as_ref().map(|_| cov.hac_critical),
-        t_jackknife: cov.jack.as_ref().map(|_| crit.1),
-        jackknife_blocks: cov.jack.as_ref().map(|_| opts.jackknife_blocks),
-        frames: red.scores.len(),
-        observations: red.observations,
-        dof: red.dof(),
-        sigma: sigma2.sqrt(),
-        sigma_assumed: opts.assumed_sigma_m.is_some(),
-        small_sample_factor: cov.factor,
-        hac_bandwidth: cov.bandwidth,
-        correlation_factor: kappa,
-        bootstrap: cov.boot.as_ref().map(|(_, b)| b.clone()),
-        threshold_m: opts.threshold_m,
-        threshold_rad: opts.threshold_rad,
-        params,
-        corr,
-        weak_directions,
-        ranges,
+impl Default for UncertaintyOptions {
+    fn default() -> Self {
+        UncertaintyOptions {
+            level: 0.95,
+            hac: true,
+            hac_bandwidth: None,
+            bootstrap_replicates: 0,
+            block_length: None,
+            seed: 1,
+            jackknife_blocks: 10,
+            small_sample: true,
+            assumed_sigma_m: None,
+            threshold_m: 0.005,
+            threshold_rad: 5f64.to_radians(),
+        }
     }
 }
 
-/// The correlations of the free parameters from the covariance `white` (`None` where either
-/// is in the null space).
-fn correlations(null: &[bool], white: &nalgebra::DMatrix<f64>) -> Vec<Vec<Option<f64>>> {
-    let nf = null.len();
-    (0..nf)
-        .map(|a| {
-            (0..nf)
-                .map(|b| {
-                    if null[a] || null[b] {
-                        None
-                    } else {
-                        let d = (white[(a, a)] * white[(b, b)]).sqrt();
-                        Some(if d > 0.0 { white[(a, b)] / d } else { 0.0 })
-                    }
-                })
-                .collect()
-        })
-        .collect()
+/// One free parameter's uncertainty, in its shown unit (mm or deg, named by `unit`): the
+/// intervals are formed in the scaled units of the solver and converted once, to the unit a
+/// person reads.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ParamUncertainty {
+    pub name: String,
+    pub group: String,
+    pub description: String,
+    /// `"mm"` or `"deg"`.
+    pub unit: String,
+    /// Fitted (or evaluated) value.
+    pub value: f64,
+    /// Standard error of the estimator whose interval is widest; `None` when not determined.
+    pub se: Option<f64>,
+    /// Interval half-width: `se` times that estimator's critical value (`z`, or Student's t
+    /// for the jackknife); `None` when not determined.
+    pub half_width: Option<f64>,
+    /// Interval `value ± half_width` at the report's level; `None` when not determined.
+    pub ci: Option<[f64; 2]>,
+    /// Which estimator `se` and the interval come from (the most conservative one; `Pooled`:
+    /// the floor of a marginally determined parameter, `se = status_half_width / z`).
+    pub method: SeMethod,
+    pub se_white: Option<f64>,
+    pub se_hac: Option<f64>,
+    pub se_bootstrap: Option<f64>,
+    pub se_jackknife: Option<f64>,
+    /// The value sits at a bound of the search box (the linear interval is then doubtful).
+    pub at_bound: bool,
+    /// The half-width the status is judged by: what the trial alone determines,
+    /// `z·√(κ σ² [S_d⁻¹]_kk)` (Fisher information without the prior, pooled residual noise
+    /// σ, the trial's time-correlation factor [`Uncertainty::correlation_factor`]); `None`
+    /// when the trial alone does not determine the parameter. Not an interval: the interval
+    /// is `half_width`.
+    #[serde(default)]
+    pub status_half_width: Option<f64>,
+    pub status: Identifiability,
+    /// Why a flagged parameter is poorly determined and which motion would determine it.
+    pub reason: Option<String>,
 }
 
-/// What [`why_not_determined`] reads of free parameter `k`.
-struct Why<'a> {
-    k: usize,
-    at_bound: bool,
-    ranges: &'a [CoordRange],
-    corr: &'a [Vec<Option<f64>>],
-    sigma_mm: f64,
+/// One parameter's part in a weak direction.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DirectionComponent {
+    pub name: String,
+    /// Component of the unit eigenvector (scaled units).
+    pub coefficient: f64,
+    /// Interval half-width of this parameter along the direction (mm or deg); `None` for a
+    /// null direction.
+    pub half_width: Option<f64>,
+    pub unit: String,
 }
 
-/// Why free parameter `why.k` is not determined: [`reason`] with its most correlated
-/// partner (|r| ≥ 0.9), and whether its interval is wider than its search bounds (`bounds`:
-/// their half-width and unit, for display).
-fn why_not_determined(
-    prob: &Problem,
-    why: &Why,
-    half_width: Option<f64>,
-    (bound, unit): (f64, &str),
-    status: Identifiability,
-) -> String {
-    let (model, k) = (prob.model, why.k);
-    let partner = (0..prob.n_free())
-        .filter(|&b| b != k)
-        .filter_map(|b| why.corr[k][b].map(|r| (b, r)))
-        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
-        .filter(|(_, r)| r.abs() >= 0.9)
-        .map(|(b, r)| (model.parameters()[prob.free[b]].name.as_str(), r));
-    let i = prob.free[k];
-    let mut text = reason(model, i, why.at_bound, why.ranges, partner, why.sigma_mm);
-    // `bound` is the bounds' half-width in display units.
-    if half_width.is_some_and(|h| h > bound) {
-        text.push_str(&format!(
-            "; the interval is wider than the search bounds (±{bound:.0} {unit}), so \
-             the trial adds little to them"
-        ));
-    }
-    if status == Identifiability::Undetermined {
-        format!("not determined by this trial at all: {text}")
-    } else {
-        text
+/// A poorly determined combination of parameters: an eigenvector of `S` with a small
+/// eigenvalue.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WeakDirection {
+    /// Eigenvalue of `S` (m² per scaled unit²).
+    pub eigenvalue: f64,
+    /// Dominant components, largest first.
+    pub components: Vec<DirectionComponent>,
+    /// The combination in words.
+    pub description: String,
+}
+
+/// Range of motion of one coordinate over the fitted frames, display units.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CoordRange {
+    pub name: String,
+    pub joint: String,
+    /// `"deg"` or `"mm"`.
+    pub unit: String,
+    pub min: f64,
+    pub max: f64,
+    pub range: f64,
+}
+
+/// Bootstrap settings as used.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BootstrapInfo {
+    pub replicates: usize,
+    /// Replicates whose refit did not converge (kept).
+    pub not_converged: usize,
+    pub block_length: usize,
+    pub seed: u64,
+}
+
+/// Uncertainty and identifiability of the free parameters of one fit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Uncertainty {
+    /// Interval coverage, e.g. 0.95.
+    pub level: f64,
+    /// Normal quantile: the critical value of the white and bootstrap intervals.
+    pub z: f64,
+    /// Critical value of the HAC interval: the fixed-b quantile for the Bartlett kernel at
+    /// the bandwidth used (Kiefer & Vogelsang 2005), when computed.
+    pub z_hac: Option<f64>,
+    /// Student-t quantile with `K − 1` degrees of freedom: the jackknife's critical value.
+    pub t_jackknife: Option<f64>,
+    /// Blocks `K` of the delete-block jackknife, when computed.
+    pub jackknife_blocks: Option<usize>,
+    pub frames: usize,
+    /// Scalar residuals `m`.
+    pub observations: usize,
+    /// Residual degrees of freedom `m − N·n_q − n_f`.
+    pub dof: usize,
+    /// Residual standard deviation per coordinate axis (m): estimated, or as assumed.
+    pub sigma: f64,
+    /// Whether `sigma` was assumed (given) rather than estimated from the residuals.
+    pub sigma_assumed: bool,
+    /// Small-sample factor applied to the robust estimators.
+    pub small_sample_factor: f64,
+    /// Bartlett bandwidth of the HAC estimator (frames), when computed.
+    pub hac_bandwidth: Option<f64>,
+    /// The trial's time-correlation factor `κ` (≥ 1) that the status rule applies to the
+    /// Fisher variances: the mean robust-to-white variance ratio over every parameter of the
+    /// model, free or not (private `status` module).
+    #[serde(default = "status::one")]
+    pub correlation_factor: f64,
+    pub bootstrap: Option<BootstrapInfo>,
+    /// Flag thresholds of a length (m) and of an angle (rad).
+    pub threshold_m: f64,
+    pub threshold_rad: f64,
+    /// Per free parameter, in the problem's order.
+    pub params: Vec<ParamUncertainty>,
+    /// Correlation matrix of the free parameters from the white (Fisher) covariance; `None`
+    /// entries involve an undetermined parameter.
+    pub corr: Vec<Vec<Option<f64>>>,
+    /// The weakest directions of `S` (smallest eigenvalue first) whose half-width exceeds
+    /// the threshold for some component, at most 5.
+    pub weak_directions: Vec<WeakDirection>,
+    /// Range of motion of every coordinate over the frames.
+    pub ranges: Vec<CoordRange>,
+}
+
+impl Uncertainty {
+    /// Parameters flagged poor or undetermined.
+    pub fn flagged(&self) -> impl Iterator<Item = &ParamUncertainty> {
+        self.params
+            .iter()
+            .filter(|p| p.status != Identifiability::Determined)
     }
 }
 

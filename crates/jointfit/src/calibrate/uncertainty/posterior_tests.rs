@@ -7,7 +7,7 @@ use crate::calibrate::joint::{solve_joint, JointOptions};
 use crate::calibrate::prior::data_share;
 use crate::calibrate::uncertainty::analyze;
 use crate::calibrate::uncertainty::reduced::reduced_system;
-use crate::calibrate::uncertainty::types::UncertaintyOptions;
+use crate::calibrate::uncertainty::UncertaintyOptions;
 use crate::calibrate::{params_for_groups, Problem};
 use crate::kinematics::synth;
 use crate::model::lower_limb::{lower_limb, Side};

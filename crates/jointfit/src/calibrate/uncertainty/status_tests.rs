@@ -4,9 +4,9 @@
 use crate::calibrate::prior::{data_share, Source};
 use crate::calibrate::uncertainty::correlation_inflation;
 use crate::calibrate::uncertainty::reduced::reduced_system;
-use crate::calibrate::uncertainty::types::Identifiability;
-use crate::calibrate::uncertainty::types::SeMethod;
-use crate::calibrate::uncertainty::types::UncertaintyOptions;
+use crate::calibrate::uncertainty::Identifiability;
+use crate::calibrate::uncertainty::SeMethod;
+use crate::calibrate::uncertainty::UncertaintyOptions;
 use crate::calibrate::uncertainty::{analyze, predict};
 use crate::calibrate::{params_for_groups, Problem};
 use crate::model::lower_limb::{lower_limb, Side};

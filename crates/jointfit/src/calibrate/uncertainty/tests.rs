@@ -9,7 +9,7 @@
 use crate::calibrate::joint::{solve_joint, JointOptions};
 use crate::calibrate::uncertainty::analyze;
 use crate::calibrate::uncertainty::reduced::reduced_system;
-use crate::calibrate::uncertainty::types::UncertaintyOptions;
+use crate::calibrate::uncertainty::UncertaintyOptions;
 use crate::calibrate::{params_for_groups, Fit, Problem};
 use crate::kinematics::fd::{jacobian_p, jacobian_q};
 use crate::kinematics::synth;

@@ -2,9 +2,9 @@
 //! noise seeds (white and skin-artifact noise), coverage of the known truth, the seeded block
 //! bootstrap against the sandwich, and a knee-only trial that cannot determine the hip.
 
-use crate::calibrate::uncertainty::types::Identifiability;
-use crate::calibrate::uncertainty::types::SeMethod;
-use crate::calibrate::uncertainty::types::UncertaintyOptions;
+use crate::calibrate::uncertainty::Identifiability;
+use crate::calibrate::uncertainty::SeMethod;
+use crate::calibrate::uncertainty::UncertaintyOptions;
 use crate::calibrate::uncertainty::{analyze, predict, unidentifiable_subset};
 use crate::model::lower_limb::{lower_limb, Side};
 use crate::model::Model;
