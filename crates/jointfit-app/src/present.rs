@@ -3,6 +3,7 @@
 //! command-line flag; the command line, the report and the Python package turn values and
 //! errors into text here.
 
+use jointfit::calibrate::prior::Source;
 use jointfit::calibrate::uncertainty::{
     BootstrapInfo, CoordRange, Identifiability, ParamUncertainty, SeMethod, Uncertainty,
     WeakDirection,
@@ -11,6 +12,7 @@ use jointfit::model::spec::Unit;
 use jointfit::plausibility::Measure;
 use jointfit::solver::Termination;
 use jointfit::spatial::UpAxis;
+use jointfit::trial::Trial;
 use jointfit::workflow::calibration::{Calibration, ConvergenceStage, MultiStart, StartRun};
 use jointfit::workflow::envelope::EnvelopeBound;
 use jointfit::workflow::marker_policy::{MarkerAction, MarkerDecision};
@@ -125,6 +127,86 @@ pub fn held_at_limit(b: &EnvelopeBound) -> String {
 /// and the batch manifest's key are both `up`).
 pub fn read_with_up(axis: UpAxis) -> String {
     format!("read it with up=\"{axis}\"")
+}
+
+/// One line per source class: which parameters (grouped by joint) the trial determined,
+/// which it partly determined, and which the prior held.
+pub fn information_summary(rows: &[(String, String, Option<Source>)]) -> Vec<String> {
+    let mut out = Vec::new();
+    for src in [
+        Source::DeterminedByTrial,
+        Source::Partly,
+        Source::HeldByPrior,
+        Source::HeldAtLimit,
+    ] {
+        let mut by_group: Vec<(String, Vec<String>)> = Vec::new();
+        for (group, name, s) in rows {
+            if *s != Some(src) {
+                continue;
+            }
+            match by_group.iter_mut().find(|(g, _)| g == group) {
+                Some((_, v)) => v.push(name.clone()),
+                None => by_group.push((group.clone(), vec![name.clone()])),
+            }
+        }
+        if by_group.is_empty() {
+            continue;
+        }
+        let total = |g: &str| rows.iter().filter(|r| r.0 == g).count();
+        let parts: Vec<String> = by_group
+            .iter()
+            .map(|(g, v)| {
+                if v.len() == total(g) {
+                    format!("{g} (all {})", v.len())
+                } else if v.len() > 8 {
+                    // Long groups (refined marker offsets) by count only.
+                    format!("{g} ({} of {})", v.len(), total(g))
+                } else {
+                    format!("{g}: {}", v.join(", "))
+                }
+            })
+            .collect();
+        out.push(format!("{src}: {}", parts.join("; ")));
+        if src == Source::HeldByPrior {
+            let hints: Vec<&str> = by_group.iter().filter_map(|(g, _)| trial_hint(g)).collect();
+            if !hints.is_empty() {
+                out.push(format!("to determine them: {}", hints.join("; ")));
+            }
+        }
+    }
+    out
+}
+
+/// Which trial would determine a group's parameters (what its joint must do that gait does
+/// little of).
+fn trial_hint(group: &str) -> Option<&'static str> {
+    match group {
+        "hip" => Some(
+            "hip: a functional hip trial (flexion, abduction and circumduction of 30° or more, \
+             e.g. the star-arc motion; Camomilla et al. 2006)",
+        ),
+        "knee" => Some("knee: a trial with deep knee flexion (a squat or a sit-to-stand)"),
+        "ankle" => Some(
+            "ankle: a trial with large inversion-eversion as well as dorsi-plantar flexion \
+             (foot circles or heel raises on an inclined board)",
+        ),
+        _ => None,
+    }
+}
+
+/// The warning for a trial as recorded (`raw`, lab frame) that is about to be read with `up`
+/// (`given` says where `up` came from, e.g. `up z`): `None` when its markers agree or say
+/// nothing ([`jointfit::vertical::detect_up`]), else a sentence naming the axis they put up,
+/// and that axis (a front end says how to read the trial with it).
+pub fn rotation_warning(raw: &Trial, up: UpAxis, given: &str) -> Option<(String, UpAxis)> {
+    let d = jointfit::vertical::detect_up(raw)?;
+    (d.up != up).then(|| {
+        let line = format!(
+            "the trial looks rotated relative to the subject: its markers put lab axis {d} up, \
+             but it is read with {given}"
+        );
+        (line, d.up)
+    })
 }
 
 /// The option of `front` that resolves a workflow error, when one does.
@@ -657,7 +739,7 @@ mod tests {
         use jointfit_experiments::synth::{coordinates, markers, perturbed_params, Motion};
 
         let model = Model::compile(&lower_limb(Side::Right)).unwrap();
-        let free = model.params_in_group("knee");
+        let free = jointfit::calibrate::params_for_groups(&model, &["knee"]).unwrap();
         let moved = perturbed_params(&model, 0.3, 3);
         let mut truth = model.nominal_params();
         for id in &free {

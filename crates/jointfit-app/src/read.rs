@@ -240,7 +240,7 @@ pub fn read_trial(path: &Path, read: &ReadOptions) -> Result<(Trial, Vec<String>
     let name = path.display().to_string();
     check_plausible(&trial, &name)?;
     let up = read.up.unwrap_or(UpAxis::Y);
-    let rotated = jointfit::vertical::rotation_warning(&trial, up, &format!("up {up}"));
+    let rotated = crate::present::rotation_warning(&trial, up, &format!("up {up}"));
     let (trial, mut warnings) = prepare_trial(trial, &name, Some(up), read.filter_hz)?;
     warnings.extend(rotated.map(|(w, axis)| {
         format!(

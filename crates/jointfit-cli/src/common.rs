@@ -187,7 +187,7 @@ pub fn load_for_model(
         _ => format!("up {up} (the default)"),
     };
     notes.extend(
-        jointfit::vertical::rotation_warning(&trial, up, &given).map(|(w, axis)| {
+        jointfit_app::present::rotation_warning(&trial, up, &given).map(|(w, axis)| {
             format!("{w}; pass --up {axis} if that is right")
                 + &converted_hint(path, &trial, up_source)
         }),

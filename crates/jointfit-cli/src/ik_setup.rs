@@ -383,7 +383,7 @@ fn from_file(
         .filter(|r| r[0].is_finite() && r[col].is_finite())
         .map(|r| (r[0], r[col] * scale))
         .unzip();
-    let f = Function::new(&FunctionSpec::GcvSpline { degree: 5, x, y })
+    let f = Function::try_from(&FunctionSpec::GcvSpline { degree: 5, x, y })
         .map_err(|e| anyhow::anyhow!("{}: column {name:?}: {e}", path.display()))?;
     Ok((0..trial.n_frames())
         .map(|i| f.eval(trial.time(i)).0)

@@ -88,9 +88,9 @@ fn groups(spec: &ModelSpec) -> Vec<String> {
     g
 }
 
-/// One line per source class ([`jointfit::calibrate::prior::information_summary`]).
+/// One line per source class ([`jointfit_app::present::information_summary`]).
 pub fn summary(rows: &[(String, String, Option<Source>)]) -> Vec<String> {
-    jointfit::calibrate::prior::information_summary(rows)
+    jointfit_app::present::information_summary(rows)
 }
 
 /// `--refine-markers`: the markers that moved most and the strongest trade-offs.

@@ -290,7 +290,7 @@ fn single_joint_columns(
         eprintln!("jointfit: experimental {label} on {BIOBUDDY}/{name}");
         let r = experimental(&bb.model, &nominal, &[group], &[trial], settings, seed)
             .with_context(|| format!("{BIOBUDDY}/{name}: fitting {group}"))?;
-        for id in bb.model.params_in_group(group) {
+        for id in jointfit::calibrate::params_for_groups(&bb.model, &[group])? {
             single[id.0] = r.fitted[id.0];
         }
         columns.push(ExperimentalColumn {

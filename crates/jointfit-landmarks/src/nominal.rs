@@ -261,10 +261,7 @@ pub(crate) fn static_coordinates(
             None => Pose::identity(),
         };
         let child = pose(&model.segments()[joint.child.0].name)?;
-        let m = parent
-            .compose(&pose_of(po))
-            .inverse()
-            .compose(&child.compose(&pose_of(co)));
+        let m = (parent * pose_of(po)).inverse() * (child * pose_of(co));
         let k = joint.coords.start;
         let zxy = |axes: &[Vector3<f64>]| -> Result<[f64; 3], LandmarkError> {
             let signs = [axes[0].z, axes[1].x, axes[2].y];

@@ -49,7 +49,7 @@ impl Trust {
             noise_mm: cal.prior_noise.map(jointfit_app::present::mm),
             noise_estimated: cal.prior_noise_estimated,
             summary: if cal.prior_noise.is_some() {
-                jointfit::calibrate::prior::information_summary(&rows)
+                jointfit_app::present::information_summary(&rows)
             } else {
                 Vec::new()
             },

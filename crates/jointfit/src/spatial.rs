@@ -28,14 +28,6 @@ impl Pose {
     pub(crate) fn is_identity(&self) -> bool {
         self.trans == Vector3::zeros() && self.rot == Matrix3::identity()
     }
-    /// `self · other`.
-    #[inline]
-    pub fn compose(&self, other: &Pose) -> Pose {
-        Pose {
-            rot: self.rot * other.rot,
-            trans: self.trans + self.rot * other.trans,
-        }
-    }
     pub fn inverse(&self) -> Pose {
         let rt = self.rot.transpose();
         Pose {
@@ -102,6 +94,18 @@ impl Pose {
             Motion::RotZ | Motion::TransZ => self.rot.column(2).into_owned(),
             Motion::Rot(a) | Motion::Trans(a) => self.rot * a.into_inner(),
             Motion::Fixed(_) => Vector3::zeros(),
+        }
+    }
+}
+
+/// `a * b` is the composition `a · b` (apply `b`, then `a`): `a_from_b * b_from_c = a_from_c`.
+impl std::ops::Mul for Pose {
+    type Output = Pose;
+    #[inline]
+    fn mul(self, other: Pose) -> Pose {
+        Pose {
+            rot: self.rot * other.rot,
+            trans: self.trans + self.rot * other.trans,
         }
     }
 }

@@ -235,22 +235,6 @@ pub fn detect_up(trial: &Trial) -> Option<UpDetection> {
     })
 }
 
-/// The warning for a trial as recorded (`raw`, lab frame) that is about to be read with `up`
-/// (`given` says where `up` came from, e.g. `up z`): `None` when its markers agree or say
-/// nothing, else a sentence naming the axis they put up, and that axis (a front end says
-/// how to read the trial with it).
-pub fn rotation_warning(raw: &Trial, up: UpAxis, given: &str) -> Option<(String, UpAxis)> {
-    let d = detect_up(raw)?;
-    (d.up != up).then(|| {
-        let line = format!(
-            "the trial looks rotated relative to the subject: its markers put lab axis {} up, \
-             but it is read with {given}",
-            d
-        );
-        (line, d.up)
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

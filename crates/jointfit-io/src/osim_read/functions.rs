@@ -13,7 +13,7 @@ pub(crate) fn function_in(holder: Node, skip: &[&str]) -> Result<FunctionSpec, F
         .find(|c| !skip.contains(&c.tag_name().name()))
         .ok_or_else(|| Fail::at(holder, "has no function".to_string()))?;
     let spec = function(f)?;
-    Function::new(&spec).map_err(|e| Fail::at(f, format!("{}: {e}", f.tag_name().name())))?;
+    Function::try_from(&spec).map_err(|e| Fail::at(f, format!("{}: {e}", f.tag_name().name())))?;
     Ok(spec)
 }
 

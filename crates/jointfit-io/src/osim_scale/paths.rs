@@ -95,7 +95,7 @@ fn point(p: Node, bodies: &[String], values: &HashMap<String, f64>) -> Option<Po
             let mut moving = [false; 3];
             for (k, axis) in ["x", "y", "z"].iter().enumerate() {
                 let holder = child(p, &format!("{axis}_location"))?;
-                let f = Function::new(&function_in(holder, &[]).ok()?).ok()?;
+                let f = Function::try_from(&function_in(holder, &[]).ok()?).ok()?;
                 let q = coordinate(&format!("socket_{axis}_coordinate"));
                 moving[k] = q.is_some();
                 location[k] = f.eval(q.unwrap_or(0.0)).0;
@@ -429,7 +429,7 @@ impl Posed<'_> {
         };
         Placed {
             object,
-            world_from_wrap: body_pose(self.model, &self.data, &o.body).compose(&offset),
+            world_from_wrap: body_pose(self.model, &self.data, &o.body) * offset,
             cylinder,
             active: o.active,
             range,

@@ -210,7 +210,7 @@ fn osim_functions_match_opensim() {
             "GCVSpline" => FunctionSpec::GcvSpline { degree, x, y },
             _ => FunctionSpec::PiecewiseLinear { x, y },
         };
-        ours.push((kind, degree, Function::new(&spec).unwrap()));
+        ours.push((kind, degree, Function::try_from(&spec).unwrap()));
     }
     let Some(answer) = check("functions", &json!({"functions": req, "at": at})) else {
         assert!(

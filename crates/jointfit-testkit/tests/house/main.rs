@@ -20,7 +20,7 @@ const PROCESS_WORDS: usize = 0;
 /// Functions whose body spans more than 100 lines, under `crates/`. Goal: at most 10.
 const LONG_FUNCTIONS: usize = 4;
 /// Public items of the core library (methods and re-exported names included). Goal: at most 250.
-const CORE_PUBLIC_ITEMS: usize = 256;
+const CORE_PUBLIC_ITEMS: usize = 250;
 /// Modules of `jointfit-io` that run fits, IK or calibration. Goal: 0 (the io crate reads
 /// and writes formats).
 const IO_WORKFLOW_MODULES: usize = 0;

@@ -74,7 +74,8 @@ pub use tasks::CoordinateTask;
 pub(crate) use trial_fit::extrapolate;
 pub(crate) use trial_fit::solve_trial_alongside;
 
-/// Why IK could not start.
+/// Why IK could not start: on a trial, or on a live feed (its set-up,
+/// [`stream::StreamingIk::new`], and its frames, [`stream::StreamingIk::update`]).
 #[derive(Debug, Error, PartialEq)]
 pub enum IkError {
     #[error("the trial lacks model markers {missing:?}; it has: {available}")]
@@ -84,6 +85,26 @@ pub enum IkError {
     },
     #[error("parameter vector has {got} values, the model has {expected} parameters")]
     ParamLength { got: usize, expected: usize },
+    #[error("the feed has no marker labels")]
+    NoLabels,
+    #[error("the feed has the label {0:?} twice")]
+    DuplicateLabel(String),
+    #[error(
+        "no label of the feed is a marker of the model ({model_markers} model markers); the \
+         feed has: {available}"
+    )]
+    NoCommonMarker {
+        model_markers: usize,
+        available: String,
+    },
+    #[error("the model cannot hold its undetermined coordinates: {0}")]
+    Hold(String),
+    #[error("{got} marker positions for {expected} labels")]
+    MarkerCount { got: usize, expected: usize },
+    #[error("time {0} is not a finite number")]
+    TimeNotFinite(f64),
+    #[error("time {time} s does not follow the previous frame's time {previous} s")]
+    TimeNotIncreasing { time: f64, previous: f64 },
 }
 
 /// Solver settings.

@@ -32,7 +32,6 @@
 //! workspace and the bounded cache of solvability verdicts.
 
 use nalgebra::{Matrix3, Vector3};
-use thiserror::Error;
 
 use super::branch::Branches;
 use super::lm::frame_weights;
@@ -45,33 +44,6 @@ use crate::model::Model;
 use crate::spatial::up_axis_rotation;
 use crate::spatial::UpAxis;
 use crate::trial::Trial;
-
-/// Why a feed cannot be set up, or a frame not taken.
-#[derive(Debug, Error, PartialEq)]
-pub enum StreamError {
-    #[error("the feed has no marker labels")]
-    NoLabels,
-    #[error("the feed has the label {0:?} twice")]
-    DuplicateLabel(String),
-    #[error(
-        "no label of the feed is a marker of the model ({model_markers} model markers); the \
-         feed has: {available}"
-    )]
-    NoCommonMarker {
-        model_markers: usize,
-        available: String,
-    },
-    #[error(transparent)]
-    Ik(#[from] IkError),
-    #[error("the model cannot hold its undetermined coordinates: {0}")]
-    Hold(String),
-    #[error("{got} marker positions for {expected} labels")]
-    MarkerCount { got: usize, expected: usize },
-    #[error("time {0} is not a finite number")]
-    TimeNotFinite(f64),
-    #[error("time {time} s does not follow the previous frame's time {previous} s")]
-    TimeNotIncreasing { time: f64, previous: f64 },
-}
 
 /// The result of one frame of a stream ([`StreamingIk::update`], [`StreamingIk::last`]),
 /// borrowed from the stream until the next frame.
@@ -130,18 +102,17 @@ impl StreamingIk {
         labels: &[String],
         up: UpAxis,
         opts: IkOptions,
-    ) -> Result<Self, StreamError> {
+    ) -> Result<Self, IkError> {
         check_labels(labels)?;
         if p.len() != model.parameters().len() {
             return Err(IkError::ParamLength {
                 got: p.len(),
                 expected: model.parameters().len(),
-            }
-            .into());
+            });
         }
         let (map, absent) = MarkerMap::allowing_absent(&model, labels);
         if absent.len() == model.markers().len() {
-            return Err(StreamError::NoCommonMarker {
+            return Err(IkError::NoCommonMarker {
                 model_markers: model.markers().len(),
                 available: labels.join(", "),
             });
@@ -182,7 +153,7 @@ impl StreamingIk {
         labels: &[String],
         up: UpAxis,
         opts: IkOptions,
-    ) -> Result<Self, StreamError> {
+    ) -> Result<Self, IkError> {
         check_labels(labels)?;
         // One frame with every label present: solvability depends only on which markers are
         // present.
@@ -192,9 +163,9 @@ impl StreamingIk {
             0,
             vec![Vector3::repeat(1.0); labels.len()],
         )
-        .map_err(|e| StreamError::Hold(e.to_string()))?;
-        let (held_model, held) = super::hold_undetermined(model, &[&probe])
-            .map_err(|e| StreamError::Hold(e.to_string()))?;
+        .map_err(|e| IkError::Hold(e.to_string()))?;
+        let (held_model, held) =
+            super::hold_undetermined(model, &[&probe]).map_err(|e| IkError::Hold(e.to_string()))?;
         let model = held_model.unwrap_or_else(|| model.clone());
         let p = model.nominal_params();
         let mut stream = StreamingIk::with_params(model, p, labels, up, opts)?;
@@ -211,18 +182,18 @@ impl StreamingIk {
         &mut self,
         time: f64,
         markers: &[Vector3<f64>],
-    ) -> Result<StreamFrame<'_>, StreamError> {
+    ) -> Result<StreamFrame<'_>, IkError> {
         if markers.len() != self.n_labels {
-            return Err(StreamError::MarkerCount {
+            return Err(IkError::MarkerCount {
                 got: markers.len(),
                 expected: self.n_labels,
             });
         }
         if !time.is_finite() {
-            return Err(StreamError::TimeNotFinite(time));
+            return Err(IkError::TimeNotFinite(time));
         }
         if let Some(previous) = self.last_time.filter(|&t| time <= t) {
-            return Err(StreamError::TimeNotIncreasing { time, previous });
+            return Err(IkError::TimeNotIncreasing { time, previous });
         }
         self.last_time = Some(time);
         self.set_targets(markers);
@@ -329,13 +300,13 @@ impl StreamingIk {
 }
 
 /// Labels must be given, each once.
-fn check_labels(labels: &[String]) -> Result<(), StreamError> {
+fn check_labels(labels: &[String]) -> Result<(), IkError> {
     if labels.is_empty() {
-        return Err(StreamError::NoLabels);
+        return Err(IkError::NoLabels);
     }
     let mut seen = std::collections::HashSet::new();
     match labels.iter().find(|l| !seen.insert(l.as_str())) {
-        Some(l) => Err(StreamError::DuplicateLabel(l.clone())),
+        Some(l) => Err(IkError::DuplicateLabel(l.clone())),
         None => Ok(()),
     }
 }

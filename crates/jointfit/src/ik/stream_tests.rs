@@ -4,13 +4,12 @@
 //! from the laboratory's vertical as a trial's reader rotates them, and bad frames refused
 //! without disturbing the stream.
 
-use crate::ik::stream::StreamError;
 use crate::ik::stream::StreamingIk;
 use crate::ik::trial_fit::solve_trial;
 use crate::ik::trial_fit::solve_trial_in_chunks;
 use crate::ik::trial_fit::trial_chunk_ranges;
 use crate::ik::trial_fit::TrialFit;
-use crate::ik::{FrameStatus, IkOptions, MarkerMap};
+use crate::ik::{FrameStatus, IkError, IkOptions, MarkerMap};
 use crate::kinematics::synth;
 use crate::model::lower_limb::{lower_limb, Side};
 use crate::model::Model;
@@ -299,18 +298,18 @@ fn bad_frames_are_refused_without_disturbing_the_stream() {
             let short = &trial.frame(f)[1..];
             assert_eq!(
                 s.update(trial.time(f), short),
-                Err(StreamError::MarkerCount {
+                Err(IkError::MarkerCount {
                     got: short.len(),
                     expected: short.len() + 1
                 })
             );
             assert!(matches!(
                 s.update(trial.time(f - 1), trial.frame(f)),
-                Err(StreamError::TimeNotIncreasing { .. })
+                Err(IkError::TimeNotIncreasing { .. })
             ));
             assert!(matches!(
                 s.update(f64::NAN, trial.frame(f)),
-                Err(StreamError::TimeNotFinite(_))
+                Err(IkError::TimeNotFinite(_))
             ));
         }
         let q = s.update(trial.time(f), trial.frame(f)).unwrap();
@@ -333,9 +332,9 @@ fn bad_frames_are_refused_without_disturbing_the_stream() {
         let labels: Vec<String> = labels.iter().map(|s| s.to_string()).collect();
         StreamingIk::new(&model, &labels, UpAxis::Y, opts).unwrap_err()
     };
-    assert_eq!(e(&[]), StreamError::NoLabels);
-    assert_eq!(e(&["A", "B", "A"]), StreamError::DuplicateLabel("A".into()));
-    assert!(matches!(e(&["A", "B"]), StreamError::NoCommonMarker { .. }));
+    assert_eq!(e(&[]), IkError::NoLabels);
+    assert_eq!(e(&["A", "B", "A"]), IkError::DuplicateLabel("A".into()));
+    assert!(matches!(e(&["A", "B"]), IkError::NoCommonMarker { .. }));
 }
 
 /// Each frame the stream answers (`update(f)`, in order) has the bits of the batch's frame.

@@ -226,7 +226,7 @@ fn kinematics(model: &Model, p: &[f64], q: &[f64], want: Outputs, data: &mut Kin
                             }
                         }
                     }
-                    pose = pose.compose(&data.block_pose[*id]);
+                    pose = pose * data.block_pose[*id];
                 }
                 &Item::Coord(k) => {
                     let step = &model.steps[k];

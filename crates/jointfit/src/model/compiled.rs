@@ -381,7 +381,7 @@ impl Model {
         self.coordinates.iter().position(|s| s.name == name)
     }
     /// Ids of the parameters in the given group, in parameter order.
-    pub fn params_in_group(&self, group: &str) -> Vec<ParamId> {
+    pub(crate) fn params_in_group(&self, group: &str) -> Vec<ParamId> {
         (0..self.parameters().len())
             .filter(|&i| self.parameters[i].group == group)
             .map(ParamId)

@@ -181,7 +181,7 @@ pub(crate) fn roles(
 ) -> Result<HashMap<String, Role>, ModelError> {
     let mut couplers: HashMap<&str, (&str, Function)> = HashMap::new();
     for c in &spec.couplers {
-        let g = Function::new(&c.function)
+        let g = Function::try_from(&c.function)
             .map_err(|e| ModelError::Invalid(format!("coupler {:?}: {e}", c.name)))?;
         if couplers
             .insert(c.dependent.as_str(), (c.independent.as_str(), g))
@@ -272,7 +272,7 @@ pub(crate) fn compile_axes(
         .enumerate()
         .map(|(k, a)| {
             let what = format!("joint {joint:?} transform axis {}", k + 1);
-            let function = Function::new(&a.function)
+            let function = Function::try_from(&a.function)
                 .map_err(|e| ModelError::Invalid(format!("{what}: {e}")))?;
             Ok(TransformAxis {
                 rotation: a.motion == AxisMotion::Rotation,

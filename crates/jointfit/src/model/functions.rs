@@ -1,7 +1,7 @@
 //! Scalar functions of one coordinate, as OpenSim's joints and coordinate couplers use them:
 //! value and exact first derivative.
 //!
-//! A [`FunctionSpec`] is what a model file says; [`Function::new`] validates it and
+//! A [`FunctionSpec`] is what a model file says; [`Function::try_from`] validates it and
 //! precomputes the spline coefficients once. The definitions follow OpenSim 4.x:
 //!
 //! * `Constant`: `f(x) = c`.
@@ -89,7 +89,7 @@ impl FunctionSpec {
     }
 }
 
-/// A validated function with precomputed coefficients, built by [`Function::new`] and
+/// A validated function with precomputed coefficients, built by [`Function::try_from`] and
 /// evaluated with its derivative by [`Function::eval`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct Function(Kind);
@@ -149,9 +149,10 @@ impl Pieces {
     }
 }
 
-impl Function {
-    /// Validates a description; the error says what is wrong (the caller names the item).
-    pub fn new(spec: &FunctionSpec) -> Result<Function, String> {
+/// Validates a description; the error says what is wrong (the caller names the item).
+impl TryFrom<&FunctionSpec> for Function {
+    type Error = String;
+    fn try_from(spec: &FunctionSpec) -> Result<Function, String> {
         let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
         Ok(Function(match spec {
             FunctionSpec::Constant { value } => {
@@ -211,12 +212,14 @@ impl Function {
                 }
                 Kind::Scaled {
                     scale: *scale,
-                    inner: Box::new(Function::new(function)?),
+                    inner: Box::new(Function::try_from(function.as_ref())?),
                 }
             }
         }))
     }
+}
 
+impl Function {
     /// `(f(x), f′(x))`.
     pub fn eval(&self, x: f64) -> (f64, f64) {
         match &self.0 {
@@ -298,7 +301,7 @@ mod tests {
                 y: y.clone(),
             },
         ] {
-            let f = Function::new(&spec).unwrap();
+            let f = Function::try_from(&spec).unwrap();
             for (xi, yi) in x.iter().zip(&y) {
                 assert!((f.eval(*xi).0 - yi).abs() < 1e-12, "{spec:?} at {xi}");
             }
@@ -314,7 +317,7 @@ mod tests {
         let (x, y) = pts();
         // Quintic: third derivative zero beyond the end (checked by differences of the first
         // derivative); continuity at the knots is checked against OpenSim.
-        let f = Function::new(&FunctionSpec::GcvSpline { degree: 5, x, y }).unwrap();
+        let f = Function::try_from(&FunctionSpec::GcvSpline { degree: 5, x, y }).unwrap();
         let d1 = |u: f64| f.eval(u).1;
         let d2 = |u: f64| (d1(u + 1e-5) - d1(u - 1e-5)) / 2e-5;
         let d3 = |u: f64| (d2(u + 1e-3) - d2(u - 1e-3)) / 2e-3;
@@ -326,17 +329,17 @@ mod tests {
     #[test]
     fn natural_cubic_spline_is_opensims_fmm_spline() {
         let (x, y) = pts();
-        let a = Function::new(&FunctionSpec::SimmSpline {
+        let a = Function::try_from(&FunctionSpec::SimmSpline {
             x: x.clone(),
             y: y.clone(),
         });
-        let b = Function::new(&FunctionSpec::NaturalCubicSpline { x, y });
+        let b = Function::try_from(&FunctionSpec::NaturalCubicSpline { x, y });
         assert_eq!(a.unwrap(), b.unwrap());
     }
 
     #[test]
     fn polynomial_and_multiplier() {
-        let p = Function::new(&FunctionSpec::Multiplier {
+        let p = Function::try_from(&FunctionSpec::Multiplier {
             scale: 2.0,
             function: Box::new(FunctionSpec::Polynomial {
                 coefficients: vec![1.0, -2.0, 3.0],
@@ -348,13 +351,13 @@ mod tests {
 
     #[test]
     fn bad_input_is_named() {
-        let e = Function::new(&FunctionSpec::SimmSpline {
+        let e = Function::try_from(&FunctionSpec::SimmSpline {
             x: vec![0.0, 1.0, 1.0],
             y: vec![0.0; 3],
         })
         .unwrap_err();
         assert!(e.contains("x[2] = 1 after 1"), "{e}");
-        let e = Function::new(&FunctionSpec::GcvSpline {
+        let e = Function::try_from(&FunctionSpec::GcvSpline {
             degree: 4,
             x: vec![0.0, 1.0],
             y: vec![0.0; 2],
