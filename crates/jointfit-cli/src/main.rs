@@ -130,7 +130,7 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(e) => return output::clap_error(e),
     };
-    output::cap_threads();
+    output::start_threads();
     // Every file of the command lands together, or none does (see `output`).
     let batch = jointfit_io::staging::Batch::begin().ok();
     let result = match cli.command {
