@@ -75,6 +75,17 @@ fn set(
     trial.set_trajectory(k, &t);
 }
 
+/// Every marker of the foot missing over `frames`.
+fn blank_foot(model: &Model, trial: &mut Trial, frames: std::ops::Range<usize>) {
+    for m in model.markers() {
+        if model.segments()[m.segment.0].name == "foot" {
+            set(trial, &m.name, frames.clone(), |_| {
+                Vector3::repeat(f64::NAN)
+            });
+        }
+    }
+}
+
 /// Gaps that leave the foot unsolvable (frames 40–44), a marker 30 cm off (a gross error,
 /// rejected) and a non-finite sample (missing, as a reader gives it): the stream gives the one-chunk trial loop's bits, its
 /// statuses and its rejections, frame by frame.
@@ -83,15 +94,7 @@ fn stream_equals_the_one_chunk_trial_loop_bit_for_bit() {
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
     let p = model.nominal_params();
     let mut trial = noisy_walk(&model, &p, 120);
-    let foot: Vec<String> = model
-        .markers()
-        .iter()
-        .filter(|m| model.segments()[m.segment.0].name == "foot")
-        .map(|m| m.name.clone())
-        .collect();
-    for name in &foot {
-        set(&mut trial, name, 40..45, |_| Vector3::repeat(f64::NAN));
-    }
+    blank_foot(&model, &mut trial, 40..45);
     let second = model.markers()[1].name.clone();
     set(&mut trial, &second, 70..71, |m| {
         m + Vector3::new(0.3, 0.0, 0.0)
@@ -145,15 +148,7 @@ fn stream_equals_solve_trial_holding_undetermined_coordinates() {
     let model = Model::compile(&lower_limb(Side::Right)).unwrap();
     let p = model.nominal_params();
     let mut trial = noisy_walk(&model, &p, 200);
-    let foot: Vec<String> = model
-        .markers()
-        .iter()
-        .filter(|m| model.segments()[m.segment.0].name == "foot")
-        .map(|m| m.name.clone())
-        .collect();
-    for name in &foot {
-        set(&mut trial, name, 150..160, |_| Vector3::repeat(f64::NAN));
-    }
+    blank_foot(&model, &mut trial, 150..160);
     let opts = IkOptions {
         hold_undetermined: true,
         ..IkOptions::default()
