@@ -65,6 +65,12 @@
 //! `notebook/performance_fit.md`, "The joint solver on long trials", and `notebook/solver_tail.md`,
 //! which also traces the remaining linear tail to the second-order term of the ankle's
 //! coordinates and axes).
+//!
+//! **The tail, mixed.** What the secant model could not do on the parameters alone, Anderson
+//! mixing of the whole step (parameters and every frame's coordinates) does in the undamped
+//! tail: it combines the last Gauss–Newton steps so that the slow modes of the linear tail
+//! cancel ([`mixing`]). On gait2392 walk1 the final solve took 11 iterations instead of 19;
+//! on synthetic legs with 2–4 cm skin noise 40, 18 and 72 instead of 75, 40 and 78.
 
 use rayon::prelude::*;
 
@@ -72,8 +78,11 @@ use super::schur::{
     active_bounds, assemble, back_substitute, cost_at, project_coords, reduce,
     solve_reduced_at_bounds, Blocks,
 };
+use mixing::Mixing;
 use secant::Secant;
 
+#[path = "mixing.rs"]
+mod mixing;
 #[path = "secant.rs"]
 mod secant;
 use super::{Fit, Problem};
@@ -86,6 +95,8 @@ pub(crate) struct JointOptions {
     /// Converged when every parameter step (scaled units) and coordinate step (rad, m) is
     /// below this.
     pub tolerance: f64,
+    /// Anderson mixing of the undamped tail's steps ([`mixing`]).
+    pub mixing: bool,
 }
 
 impl Default for JointOptions {
@@ -93,6 +104,7 @@ impl Default for JointOptions {
         JointOptions {
             max_iterations: 200,
             tolerance: 1e-10,
+            mixing: true,
         }
     }
 }
@@ -242,7 +254,7 @@ pub(crate) fn solve_joint_with(
     observer: &mut dyn Observer,
 ) -> Fit {
     let observations = observations(prob);
-    let mut st = Solve::new(prob, s0, q0);
+    let mut st = Solve::new(prob, s0, q0, opts);
     let mut history = Vec::new();
     // The previous accepted step's decrease (for the geometric tail of the stopping rule).
     let mut last_decrease = f64::INFINITY;
@@ -342,12 +354,17 @@ struct Solve<'a, 'm> {
     nu: f64,
     evaluations: usize,
     secant: Secant,
+    /// Anderson mixing of the undamped tail's steps ([`mixing`]).
+    mixing: Mixing,
+    /// The Gauss–Newton coordinate steps of the current iteration while a mixed step is
+    /// tried or remembered.
+    f_q: Vec<Vec<f64>>,
 }
 
 impl<'a, 'm> Solve<'a, 'm> {
     /// The solve at `s0` (clamped into the bounds) and `q0` (projected into theirs),
     /// assembled there.
-    fn new(prob: &'a Problem<'m>, s0: &[f64], q0: Vec<Vec<f64>>) -> Self {
+    fn new(prob: &'a Problem<'m>, s0: &[f64], q0: Vec<Vec<f64>>, opts: &JointOptions) -> Self {
         let (nq, nf, frames) = (
             prob.model.coordinates().len(),
             prob.n_free(),
@@ -375,6 +392,8 @@ impl<'a, 'm> Solve<'a, 'm> {
             nu: 2.0,
             evaluations: 1,
             secant: Secant::new(nf),
+            mixing: Mixing::new(frames, nq, opts.mixing),
+            f_q: Vec::new(),
         }
     }
 
@@ -443,12 +462,47 @@ impl<'a, 'm> Solve<'a, 'm> {
                 Some(_) => augmented,
                 None => gauss_newton,
             };
+            // In the undamped tail: the Gauss–Newton step kept for the history, and the
+            // mixed step tried in its place when there is history ([`mixing`]).
+            let tail = !use_secant && self.lambda <= RESOLUTION_MAX_DAMPING && self.mixing.on();
+            let mut ds_taken = ds_eff;
+            let mut s_try = s_try;
+            let mut mixed = false;
+            if tail {
+                mixing::copy_frames(&mut self.f_q, &self.dq);
+                if !plain
+                    && self
+                        .mixing
+                        .mix(&ds_taken, &self.f_q, &fixed, &mut self.ds, &mut self.dq)
+                {
+                    mixed = true;
+                    s_try = s
+                        .iter()
+                        .zip(&self.ds)
+                        .map(|(a, d)| (a + d).clamp(-1.0, 1.0))
+                        .collect();
+                    std::mem::swap(&mut ds_taken, &mut self.ds);
+                    for ((d, a), b) in ds_taken.iter_mut().zip(&s_try).zip(s) {
+                        *d = a - b;
+                    }
+                }
+            }
             trial_coords(&mut self.q_try, &self.qs, &mut self.dq, &blocks.bounds);
             let lambda_used = self.lambda;
             let p_try = prob.to_params(&s_try);
             let c = cost_at(prob, blocks, &p_try, &self.q_try);
             self.evaluations += 1;
             if c <= self.cost {
+                if tail {
+                    // The Gauss–Newton parameter step is in `self.ds` after a mixed step
+                    // (swapped), else it is the step taken.
+                    let f_s = if mixed { &self.ds } else { &ds_taken };
+                    self.mixing
+                        .push(f_s, &self.f_q, &ds_taken, &self.dq, &fixed);
+                } else {
+                    self.mixing.clear();
+                }
+                let ds_eff = ds_taken;
                 let step = self.largest_step(&ds_eff);
                 // Gain ratio ρ = actual / predicted decrease: near 1 the quadratic model is
                 // good and the damping shrinks by up to 3; a poor model keeps it.
@@ -475,6 +529,12 @@ impl<'a, 'm> Solve<'a, 'm> {
                     decrease,
                     model_decrease,
                 });
+            }
+            self.mixing.clear();
+            if mixed {
+                // The mixed step failed: Gauss–Newton's at the same damping first.
+                plain = true;
+                continue;
             }
             if extra.is_some() {
                 // The augmented model failed: Gauss–Newton's step at the same damping first.

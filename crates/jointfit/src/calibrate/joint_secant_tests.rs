@@ -27,6 +27,7 @@ fn secant_and_gauss_newton_reach_the_second_solvers_optimum() {
     let tight = JointOptions {
         max_iterations: 2000,
         tolerance: 1e-12,
+        ..JointOptions::default()
     };
     let run = |secant: bool, resolution: f64, opts: &JointOptions| {
         solve_joint_with(

@@ -298,6 +298,7 @@ fn polish(
     let polish_opts = JointOptions {
         max_iterations: opts.basin_polish_iterations,
         tolerance: 1e-8,
+        ..JointOptions::default()
     };
     let local = solve_joint(prob, g_x, q, &polish_opts, &mut crate::solver::NoObserver);
     let same = basin.as_ref().is_some_and(|(b, _)| {

@@ -42,6 +42,7 @@ pub(super) fn block_bootstrap(
     let opts = JointOptions {
         max_iterations: 50,
         tolerance: 1e-6,
+        ..JointOptions::default()
     };
     let results: Vec<(Vec<f64>, bool)> = (0..replicates)
         .into_par_iter()
