@@ -67,10 +67,11 @@
 //! coordinates and axes).
 //!
 //! **The tail, mixed.** What the secant model could not do on the parameters alone, Anderson
-//! mixing of the whole step (parameters and every frame's coordinates) does in the undamped
-//! tail: it combines the last Gauss–Newton steps so that the slow modes of the linear tail
-//! cancel ([`mixing`]). On gait2392 walk1 the final solve took 11 iterations instead of 19;
-//! on synthetic legs with 2–4 cm skin noise 40, 18 and 72 instead of 75, 40 and 78.
+//! mixing of the whole step (parameters and every frame's coordinates) does in the tail: it
+//! combines the last steps so that the slow modes of the linear tail cancel ([`mixing`]). On
+//! gait2392 walk1 the final solve took 11 iterations instead of 19, on Hamner running (a tail
+//! that stays damped) the best start 49 instead of 60; on synthetic legs with 2–4 cm skin
+//! noise 40, 18 and 72 instead of 75, 40 and 78.
 
 use rayon::prelude::*;
 
@@ -95,7 +96,7 @@ pub(crate) struct JointOptions {
     /// Converged when every parameter step (scaled units) and coordinate step (rad, m) is
     /// below this.
     pub tolerance: f64,
-    /// Anderson mixing of the undamped tail's steps ([`mixing`]).
+    /// Anderson mixing of the tail's steps ([`mixing`]).
     pub mixing: bool,
 }
 
@@ -262,6 +263,7 @@ pub(crate) fn solve_joint_with(
     let mut termination = Termination::IterationLimit;
     while iterations < opts.max_iterations {
         iterations += 1;
+        st.noise = noise_variance(prob, st.cost - prob.prior_cost(&st.p), observations);
         let accepted = st.iterate(use_secant);
         history.push(st.cost);
         observer.iteration(iterations, st.cost);
@@ -354,11 +356,15 @@ struct Solve<'a, 'm> {
     nu: f64,
     evaluations: usize,
     secant: Secant,
-    /// Anderson mixing of the undamped tail's steps ([`mixing`]).
+    /// Anderson mixing of the tail's steps ([`mixing`]).
     mixing: Mixing,
     /// The Gauss–Newton coordinate steps of the current iteration while a mixed step is
     /// tried or remembered.
     f_q: Vec<Vec<f64>>,
+    /// The marker noise variance σ² at the current point ([`noise_variance`]; 0: unknown):
+    /// a step whose predicted decrease is below it starts within a standard error of the
+    /// model's optimum.
+    noise: f64,
 }
 
 impl<'a, 'm> Solve<'a, 'm> {
@@ -394,6 +400,7 @@ impl<'a, 'm> Solve<'a, 'm> {
             secant: Secant::new(nf),
             mixing: Mixing::new(frames, nq, opts.mixing),
             f_q: Vec::new(),
+            noise: 0.0,
         }
     }
 
@@ -462,18 +469,28 @@ impl<'a, 'm> Solve<'a, 'm> {
                 Some(_) => augmented,
                 None => gauss_newton,
             };
-            // In the undamped tail: the Gauss–Newton step kept for the history, and the
-            // mixed step tried in its place when there is history ([`mixing`]).
-            let tail = !use_secant && self.lambda <= RESOLUTION_MAX_DAMPING && self.mixing.on();
+            // In the tail: the Gauss–Newton step kept for the history, and the mixed step
+            // tried in its place when there is history ([`mixing`]).
+            // Mixed where the step is Gauss–Newton's, or within a standard error of the
+            // model's optimum at a settled damping ([`mixing`]).
+            let tail = !use_secant
+                && self.mixing.on()
+                && (self.lambda <= RESOLUTION_MAX_DAMPING || gauss_newton <= self.noise);
             let mut ds_taken = ds_eff;
+            let lambda_used0 = self.lambda;
             let mut s_try = s_try;
             let mut mixed = false;
             if tail {
                 mixing::copy_frames(&mut self.f_q, &self.dq);
                 if !plain
-                    && self
-                        .mixing
-                        .mix(&ds_taken, &self.f_q, &fixed, &mut self.ds, &mut self.dq)
+                    && self.mixing.mix(
+                        &ds_taken,
+                        &self.f_q,
+                        &fixed,
+                        lambda_used0,
+                        &mut self.ds,
+                        &mut self.dq,
+                    )
                 {
                     mixed = true;
                     s_try = s
@@ -498,7 +515,7 @@ impl<'a, 'm> Solve<'a, 'm> {
                     // (swapped), else it is the step taken.
                     let f_s = if mixed { &self.ds } else { &ds_taken };
                     self.mixing
-                        .push(f_s, &self.f_q, &ds_taken, &self.dq, &fixed);
+                        .push(f_s, &self.f_q, &ds_taken, &self.dq, &fixed, lambda_used);
                 } else {
                     self.mixing.clear();
                 }

@@ -55,11 +55,11 @@ fn run(map: &Affine, mixed: bool, iterations: usize) -> f64 {
     for _ in 0..iterations {
         let (f_s, f_q) = map.step(&s, &q);
         let (mut dx_s, mut dx_q) = (f_s.clone(), f_q.clone());
-        if !mixing.mix(&f_s, &f_q, &held, &mut dx_s, &mut dx_q) {
+        if !mixing.mix(&f_s, &f_q, &held, 0.0, &mut dx_s, &mut dx_q) {
             dx_s.clone_from(&f_s);
             dx_q.clone_from(&f_q);
         }
-        mixing.push(&f_s, &f_q, &dx_s, &dx_q, &held);
+        mixing.push(&f_s, &f_q, &dx_s, &dx_q, &held, 0.0);
         for (a, d) in s.iter_mut().zip(&dx_s) {
             *a += d;
         }
@@ -109,9 +109,9 @@ fn changed_held_set_or_no_history_gives_no_mixed_step() {
     let q = vec![vec![0.5, 0.1], vec![-0.4, 0.2]];
     let (f_s, f_q) = map.step(&s, &q);
     let (mut out_s, mut out_q) = (vec![9.0; 3], vec![vec![9.0; 2]; 2]);
-    assert!(!mixing.mix(&f_s, &f_q, &[false; 3], &mut out_s, &mut out_q));
+    assert!(!mixing.mix(&f_s, &f_q, &[false; 3], 0.0, &mut out_s, &mut out_q));
     assert_eq!(out_s, vec![9.0; 3], "outputs untouched");
-    mixing.push(&f_s, &f_q, &f_s, &f_q, &[false; 3]);
+    mixing.push(&f_s, &f_q, &f_s, &f_q, &[false; 3], 0.0);
     let s2: Vec<f64> = s.iter().zip(&f_s).map(|(a, d)| a + d).collect();
     let q2: Vec<Vec<f64>> = q
         .iter()
@@ -120,11 +120,11 @@ fn changed_held_set_or_no_history_gives_no_mixed_step() {
         .collect();
     let (g_s, g_q) = map.step(&s2, &q2);
     let held = [false, true, false];
-    assert!(!mixing.mix(&g_s, &g_q, &held, &mut out_s, &mut out_q));
-    assert!(mixing.mix(&g_s, &g_q, &[false; 3], &mut out_s, &mut out_q));
+    assert!(!mixing.mix(&g_s, &g_q, &held, 0.0, &mut out_s, &mut out_q));
+    assert!(mixing.mix(&g_s, &g_q, &[false; 3], 0.0, &mut out_s, &mut out_q));
     // A disabled history never mixes.
     let mut off = Mixing::new(2, 2, false);
-    off.push(&f_s, &f_q, &f_s, &f_q, &[false; 3]);
-    assert!(!off.mix(&g_s, &g_q, &[false; 3], &mut out_s, &mut out_q));
+    off.push(&f_s, &f_q, &f_s, &f_q, &[false; 3], 0.0);
+    assert!(!off.mix(&g_s, &g_q, &[false; 3], 0.0, &mut out_s, &mut out_q));
     assert!(!off.on());
 }
