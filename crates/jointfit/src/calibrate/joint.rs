@@ -335,6 +335,19 @@ struct Accepted {
     model_decrease: f64,
 }
 
+/// A trial step: the parameters it leads to and its step (clamped into the bounds), the
+/// decreases the models predict for it, and whether it is a tail step (remembered for
+/// mixing) or a mixed one.
+struct Step {
+    s_try: Vec<f64>,
+    ds: Vec<f64>,
+    gauss_newton: f64,
+    augmented: f64,
+    predicted: f64,
+    tail: bool,
+    mixed: bool,
+}
+
 /// The state of a joint solve between iterations: the point (scaled parameters `s`,
 /// parameters `p`, coordinates `qs`), its objective and blocks, the damping, and the buffers
 /// of the steps.
@@ -416,25 +429,14 @@ impl<'a, 'm> Solve<'a, 'm> {
     fn iterate(&mut self, use_secant: bool) -> Option<Accepted> {
         let prob = self.prob;
         let mut fixed = active_bounds(&self.s, &self.blocks.gs);
-        let mut model_decrease = f64::INFINITY;
-        // The secant model's data at this point: the reduced system at the step's damping
-        // when that is small (then equal to the undamped one to 1e-6), else at λ = 0.
-        let data_lambda = if self.lambda <= SECANT_MAX_DAMPING {
-            self.lambda
+        let mut reduced_at = if use_secant {
+            self.observe_secant()
         } else {
-            0.0
+            None
         };
-        let mut reduced_at = None;
-        // Gauss–Newton only for the rest of this iteration (an augmented step was rejected).
+        // Gauss–Newton only for the rest of this iteration (an augmented or mixed step was
+        // rejected).
         let mut plain = false;
-        if use_secant {
-            if reduce(prob, &self.qs, &mut self.blocks, data_lambda) {
-                self.secant.observe(&self.blocks.schur, &self.blocks.rhs);
-                reduced_at = Some(data_lambda);
-            } else {
-                self.secant.forget();
-            }
-        }
         while self.lambda < 1e16 {
             if reduced_at != Some(self.lambda) {
                 reduced_at = None;
@@ -464,97 +466,42 @@ impl<'a, 'm> Solve<'a, 'm> {
                 Some(a) => gauss_newton - self.secant.curvature(a, &ds_eff),
                 None => gauss_newton,
             };
-            // The model that chose the step predicts its decrease.
-            let predicted = match extra {
-                Some(_) => augmented,
-                None => gauss_newton,
-            };
-            // In the tail: the Gauss–Newton step kept for the history, and the mixed step
-            // tried in its place when there is history ([`mixing`]).
             // Mixed where the step is Gauss–Newton's, or within a standard error of the
             // model's optimum at a settled damping ([`mixing`]).
             let tail = !use_secant
                 && self.mixing.on()
                 && (self.lambda <= RESOLUTION_MAX_DAMPING || gauss_newton <= self.noise);
-            let mut ds_taken = ds_eff;
-            let lambda_used0 = self.lambda;
-            let mut s_try = s_try;
-            let mut mixed = false;
+            let mut step = Step {
+                s_try,
+                ds: ds_eff,
+                gauss_newton,
+                augmented,
+                // The model that chose the step predicts its decrease.
+                predicted: if extra.is_some() {
+                    augmented
+                } else {
+                    gauss_newton
+                },
+                tail,
+                mixed: false,
+            };
             if tail {
                 mixing::copy_frames(&mut self.f_q, &self.dq);
-                if !plain
-                    && self.mixing.mix(
-                        &ds_taken,
-                        &self.f_q,
-                        &fixed,
-                        lambda_used0,
-                        &mut self.ds,
-                        &mut self.dq,
-                    )
-                {
-                    mixed = true;
-                    s_try = s
-                        .iter()
-                        .zip(&self.ds)
-                        .map(|(a, d)| (a + d).clamp(-1.0, 1.0))
-                        .collect();
-                    std::mem::swap(&mut ds_taken, &mut self.ds);
-                    for ((d, a), b) in ds_taken.iter_mut().zip(&s_try).zip(s) {
-                        *d = a - b;
-                    }
+                if !plain {
+                    self.mix(&mut step, &fixed);
                 }
             }
-            trial_coords(&mut self.q_try, &self.qs, &mut self.dq, &blocks.bounds);
-            let lambda_used = self.lambda;
-            let p_try = prob.to_params(&s_try);
-            let c = cost_at(prob, blocks, &p_try, &self.q_try);
+            trial_coords(&mut self.q_try, &self.qs, &mut self.dq, &self.blocks.bounds);
+            let p_try = prob.to_params(&step.s_try);
+            let c = cost_at(prob, &self.blocks, &p_try, &self.q_try);
             self.evaluations += 1;
             if c <= self.cost {
-                if tail {
-                    // The Gauss–Newton parameter step is in `self.ds` after a mixed step
-                    // (swapped), else it is the step taken.
-                    let f_s = if mixed { &self.ds } else { &ds_taken };
-                    self.mixing
-                        .push(f_s, &self.f_q, &ds_taken, &self.dq, &fixed, lambda_used);
-                } else {
-                    self.mixing.clear();
-                }
-                let ds_eff = ds_taken;
-                let step = self.largest_step(&ds_eff);
-                // Gain ratio ρ = actual / predicted decrease: near 1 the quadratic model is
-                // good and the damping shrinks by up to 3; a poor model keeps it.
-                let rho = if predicted > 0.0 {
-                    (self.cost - c) / predicted
-                } else {
-                    0.0
-                };
-                self.lambda =
-                    (self.lambda * (1.0 - (2.0 * rho - 1.0).powi(3)).max(1.0 / 3.0)).max(1e-12);
-                self.nu = 2.0;
-                if lambda_used <= RESOLUTION_MAX_DAMPING {
-                    model_decrease = predicted;
-                }
-                let decrease = self.cost - c;
-                self.secant
-                    .accepted(&ds_eff, decrease, gauss_newton, augmented);
-                self.s = s_try;
-                std::mem::swap(&mut self.qs, &mut self.q_try);
-                self.p = p_try;
-                self.cost = c;
-                return Some(Accepted {
-                    step,
-                    decrease,
-                    model_decrease,
-                });
+                return Some(self.take(step, p_try, c, &fixed));
             }
             self.mixing.clear();
-            if mixed {
-                // The mixed step failed: Gauss–Newton's at the same damping first.
-                plain = true;
-                continue;
-            }
-            if extra.is_some() {
-                // The augmented model failed: Gauss–Newton's step at the same damping first.
+            if step.mixed || extra.is_some() {
+                // The augmented or mixed step failed: Gauss–Newton's at the same damping
+                // first.
                 plain = true;
                 continue;
             }
@@ -562,6 +509,92 @@ impl<'a, 'm> Solve<'a, 'm> {
             self.nu *= 2.0;
         }
         None
+    }
+
+    /// The secant model's data at this point: the reduced system at the step's damping when
+    /// that is small (then equal to the undamped one to 1e-6), else at λ = 0. Returns the
+    /// damping the blocks are now reduced at.
+    fn observe_secant(&mut self) -> Option<f64> {
+        let data_lambda = if self.lambda <= SECANT_MAX_DAMPING {
+            self.lambda
+        } else {
+            0.0
+        };
+        if reduce(self.prob, &self.qs, &mut self.blocks, data_lambda) {
+            self.secant.observe(&self.blocks.schur, &self.blocks.rhs);
+            Some(data_lambda)
+        } else {
+            self.secant.forget();
+            None
+        }
+    }
+
+    /// Replaces the Gauss–Newton step (`step`, `self.dq`) by the mixed one when the history
+    /// allows ([`mixing`]); the Gauss–Newton parameter step is then kept in `self.ds`.
+    fn mix(&mut self, step: &mut Step, fixed: &[bool]) {
+        let s = &self.s;
+        if !self.mixing.mix(
+            &step.ds,
+            &self.f_q,
+            fixed,
+            self.lambda,
+            &mut self.ds,
+            &mut self.dq,
+        ) {
+            return;
+        }
+        step.mixed = true;
+        step.s_try = s
+            .iter()
+            .zip(&self.ds)
+            .map(|(a, d)| (a + d).clamp(-1.0, 1.0))
+            .collect();
+        std::mem::swap(&mut step.ds, &mut self.ds);
+        for ((d, a), b) in step.ds.iter_mut().zip(&step.s_try).zip(s) {
+            *d = a - b;
+        }
+    }
+
+    /// Takes `step` (to parameters `p_try`, objective `c`, coordinates in `q_try`): the
+    /// history, the damping's update and the new point.
+    fn take(&mut self, step: Step, p_try: Vec<f64>, c: f64, fixed: &[bool]) -> Accepted {
+        let lambda_used = self.lambda;
+        if step.tail {
+            // The Gauss–Newton parameter step is in `self.ds` after a mixed step (swapped),
+            // else it is the step taken.
+            let f_s = if step.mixed { &self.ds } else { &step.ds };
+            self.mixing
+                .push(f_s, &self.f_q, &step.ds, &self.dq, fixed, lambda_used);
+        } else {
+            self.mixing.clear();
+        }
+        let largest = self.largest_step(&step.ds);
+        // Gain ratio ρ = actual / predicted decrease: near 1 the quadratic model is good and
+        // the damping shrinks by up to 3; a poor model keeps it.
+        let rho = if step.predicted > 0.0 {
+            (self.cost - c) / step.predicted
+        } else {
+            0.0
+        };
+        self.lambda = (self.lambda * (1.0 - (2.0 * rho - 1.0).powi(3)).max(1.0 / 3.0)).max(1e-12);
+        self.nu = 2.0;
+        let model_decrease = if lambda_used <= RESOLUTION_MAX_DAMPING {
+            step.predicted
+        } else {
+            f64::INFINITY
+        };
+        let decrease = self.cost - c;
+        self.secant
+            .accepted(&step.ds, decrease, step.gauss_newton, step.augmented);
+        self.s = step.s_try;
+        std::mem::swap(&mut self.qs, &mut self.q_try);
+        self.p = p_try;
+        self.cost = c;
+        Accepted {
+            step: largest,
+            decrease,
+            model_decrease,
+        }
     }
 
     /// The largest component of the step (`ds` and the coordinates' `dq`; a maximum: the
