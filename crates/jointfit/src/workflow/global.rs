@@ -446,15 +446,14 @@ fn finish_all(
     let finish_one = |k: usize| {
         let mut h = History::default();
         if let Some(st) = sigma.filter(|_| k == order[0]) {
-            // From the probe's parameters, the σ₀-optimum's coordinates polished there by one
-            // inner pass (without it the first iteration lands far above the optimum: on
-            // walking1 732 mm² instead of 0.18 mm², and the solve takes 9 iterations, not 7).
+            // From the probe's parameters and the σ₀-optimum's coordinates, as they are: the
+            // first iteration eliminates the coordinates for the new parameters. Polishing
+            // them first by an inner pass saved the solve an iteration or two but cost more
+            // than it saved: without it the fit took 2.6 %, 0.9 % and 8.7 % fewer
+            // instructions on opencap walking1, gait2392 walk1 and Hamner running
+            // (`notebook/performance_fit.md`).
             let s0 = st.reprobe.as_ref().map_or(&st.at.s, |r| &r.0.s);
-            let mut q0 = st.at.coords.clone();
-            if let Some((r, _)) = &st.reprobe {
-                prob.inner(&r.p, &mut q0, &mut IkWorkspace::new(prob.model));
-            }
-            let fit = solve_joint(prob, s0, q0, finish, &mut h);
+            let fit = solve_joint(prob, s0, st.at.coords.clone(), finish, &mut h);
             return (fit, h.0);
         }
         let f = &probed.runs[k].0;
