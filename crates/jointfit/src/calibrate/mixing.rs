@@ -75,6 +75,14 @@ struct Entry {
     lambda: f64,
 }
 
+impl Entry {
+    /// Whether a step with parameters `held` at bounds, at damping `lambda`, continues this
+    /// one's map (the history stays valid).
+    fn continued_by(&self, held: &[bool], lambda: f64) -> bool {
+        self.held == held && same_map(self.lambda, lambda)
+    }
+}
+
 /// The history of the tail's steps, oldest first.
 pub(crate) struct Mixing {
     enabled: bool,
@@ -119,7 +127,7 @@ impl Mixing {
         if self
             .past
             .last()
-            .is_some_and(|e| e.held != held || !same_map(e.lambda, lambda))
+            .is_some_and(|e| !e.continued_by(held, lambda))
         {
             self.past.clear();
         }
@@ -160,26 +168,18 @@ impl Mixing {
         if self
             .past
             .last()
-            .is_none_or(|e| e.held != held || !same_map(e.lambda, lambda))
+            .is_none_or(|e| !e.continued_by(held, lambda))
         {
             return false;
         }
         let Some(gamma) = self.coefficients(f_s) else {
             return false;
         };
-        let k = self.past.len();
-        // The newer Gauss–Newton step of difference j: the next entry's, or the current.
-        let next_s = |j: usize| {
-            if j + 1 < k {
-                &self.past[j + 1].f_s
-            } else {
-                f_s
-            }
-        };
         for (i, o) in out_s.iter_mut().enumerate() {
             let mut v = f_s[i];
             for (j, e) in self.past.iter().enumerate() {
-                v -= gamma[j] * (e.dx_s[i] + next_s(j)[i] - e.f_s[i]);
+                let next = self.newer(j, f_s, f_q).0[i];
+                v -= gamma[j] * (e.dx_s[i] + next - e.f_s[i]);
             }
             *o = if held[i] { 0.0 } else { v };
         }
@@ -191,11 +191,7 @@ impl Mixing {
                 for (i, o) in o.iter_mut().enumerate() {
                     let mut v = f_q[t][i];
                     for (j, e) in self.past.iter().enumerate() {
-                        let next = if j + 1 < k {
-                            self.past[j + 1].f_q[t][i]
-                        } else {
-                            f_q[t][i]
-                        };
+                        let next = self.newer(j, f_s, f_q).1[t][i];
                         v -= gamma[j] * (e.dx_q[t][i] + next - e.f_q[t][i]);
                     }
                     *o = v;
@@ -204,17 +200,27 @@ impl Mixing {
         true
     }
 
+    /// The Gauss–Newton step that follows entry `j`: the next entry's, or the current one
+    /// (`f_s`, `f_q`) after the last.
+    fn newer<'a>(
+        &'a self,
+        j: usize,
+        f_s: &'a [f64],
+        f_q: &'a [Vec<f64>],
+    ) -> (&'a [f64], &'a [Vec<f64>]) {
+        match self.past.get(j + 1) {
+            Some(e) => (&e.f_s, &e.f_q),
+            None => (f_s, f_q),
+        }
+    }
+
     /// `γ = argmin ‖f − ΔF γ‖` over the parameters' components (normal equations, a
     /// relative ridge of 1e-10 on their diagonal); `None` when they are singular.
     fn coefficients(&self, f_s: &[f64]) -> Option<Vec<f64>> {
         let k = self.past.len();
         let diff = |j: usize| -> Vec<f64> {
-            let newer = if j + 1 < k {
-                &self.past[j + 1].f_s
-            } else {
-                f_s
-            };
-            newer
+            self.newer(j, f_s, &[])
+                .0
                 .iter()
                 .zip(&self.past[j].f_s)
                 .map(|(a, b)| a - b)
