@@ -125,6 +125,14 @@ fn group_choices(model: &Model) -> String {
     names.join(", ")
 }
 
+/// Step tolerance (rad, m) of the starting coordinates ([`Problem::initial_coords`]). A
+/// coordinate 1e-5 rad off moves a marker half a metre from its joint by 5 µm, far below
+/// skin-marker noise, and the solvers that go on from these points remove such an error in
+/// their first step. Against the `ik` command's 1e-8, the command's fit takes 3.6 %, 3.0 % and
+/// 2.4 % fewer instructions on opencap walking1, gait2392 walk1 and Hamner running (callgrind,
+/// one thread); 1e-4 costs more joint iterations than it saves on gait2392.
+pub(crate) const START_STEP_TOLERANCE: f64 = 1e-5;
+
 /// Frames per partial sum of [`Problem::inner`] (fixed: it sets the order of the sum).
 pub(crate) const INNER_CHUNK: usize = 256;
 
@@ -312,10 +320,9 @@ impl<'m> Problem<'m> {
     /// a problem of 128 to 1023 frames is cut into two chunks, so that a gait trial's seeded
     /// IK runs on two cores (`notebook/performance.md`: the cost is one more seed).
     ///
-    /// These are starting points: to the `ik` command's step tolerance (1e-8), not the inner
-    /// level's 1e-11 ([`Problem::inner`] and the joint solver go on from them). On opencap
-    /// walking1 that is 2.4 % fewer instructions for the command's fit, whose parameters
-    /// move by 4e-10 standard errors.
+    /// These are starting points, solved to [`START_STEP_TOLERANCE`], not to the inner level's
+    /// 1e-11: [`Problem::inner`] and the joint solver go on from them, and the joint solver's
+    /// first Gauss–Newton step takes a coordinate error of that size to its square.
     pub(crate) fn initial_coords(&self, p: &[f64]) -> Vec<Vec<f64>> {
         let loose = self.start_ik();
         let origin = &self.origin;
@@ -350,11 +357,11 @@ impl<'m> Problem<'m> {
         out
     }
 
-    /// The inner level's IK options at the `ik` command's step tolerance: those of
+    /// The inner level's IK options at [`START_STEP_TOLERANCE`]: those of
     /// [`Problem::initial_coords`].
     pub(crate) fn start_ik(&self) -> IkOptions {
         IkOptions {
-            step_tolerance: IkOptions::default().step_tolerance,
+            step_tolerance: START_STEP_TOLERANCE,
             ..self.ik
         }
     }
