@@ -324,6 +324,17 @@ impl<'m> Problem<'m> {
     /// 1e-11: [`Problem::inner`] and the joint solver go on from them, and the joint solver's
     /// first Gauss–Newton step takes a coordinate error of that size to its square.
     pub(crate) fn initial_coords(&self, p: &[f64]) -> Vec<Vec<f64>> {
+        self.initial_coords_near(p, &|_| None)
+    }
+
+    /// [`Problem::initial_coords`], frame `f` starting from `near(f)` where that is given
+    /// (another inverse kinematics of the same frame at `p`, e.g. the marker policy's robust
+    /// one) instead of from the frame before or a seed.
+    pub(crate) fn initial_coords_near<'g>(
+        &self,
+        p: &[f64],
+        near: &(dyn Fn(usize) -> Option<&'g [f64]> + Sync),
+    ) -> Vec<Vec<f64>> {
         let loose = self.start_ik();
         let origin = &self.origin;
         // The coordinates are allocated here, on the calling thread, and the chunks fill
@@ -346,7 +357,9 @@ impl<'m> Problem<'m> {
                 let targets = self.frames.fill(f, &mut buf);
                 let (done, todo) = piece.split_at_mut(i);
                 let q = &mut todo[0];
-                if f > first && origin[f - 1].0 == origin[f].0 {
+                if let Some(g) = near(f) {
+                    q.copy_from_slice(g);
+                } else if f > first && origin[f - 1].0 == origin[f].0 {
                     q.copy_from_slice(&done[i - 1]);
                 } else {
                     q.copy_from_slice(&seed_frame(self.model, p, targets, &loose, &mut ws));

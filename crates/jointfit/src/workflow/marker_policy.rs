@@ -41,7 +41,7 @@ use serde::Serialize;
 
 use crate::checks::offsets::{frames_looked_at, offsets_of_fit, MarkerOffset, MIN_FRAMES};
 use crate::checks::offsets::{MIN_OFFSET, MIN_RATIO};
-use crate::ik::trial_fit::solve_trial;
+use crate::ik::trial_fit::{solve_trial, TrialFit};
 use crate::ik::{IkOptions, MarkerMap};
 use crate::model::refine::{BOUND_IN_SD, DEFAULT_MARKER_PRIOR_SD};
 use crate::model::spec::MM_PER_M;
@@ -123,9 +123,57 @@ pub fn decide(
     trials: &[&Trial],
     keep: &[String],
 ) -> Vec<MarkerDecision> {
+    decide_on(model, start, trials, keep, &robust_ik(model, start, trials))
+}
+
+/// The robust inverse kinematics the policy reads: of each trial at `start` on the frames
+/// [`frames_looked_at`] picks (`None` where it fails).
+pub(crate) fn robust_ik(model: &Model, start: &[f64], trials: &[&Trial]) -> Vec<Option<LookedAt>> {
+    trials
+        .iter()
+        .map(|trial| {
+            let (map, _) = MarkerMap::allowing_absent(model, trial.labels());
+            let (a, b) = frames_looked_at(trial.n_frames());
+            let sub = trial.slice_frames(a, b);
+            let fit = solve_trial(model, start, &sub, &map, &IkOptions::default()).ok()?;
+            Some(LookedAt { first: a, sub, fit })
+        })
+        .collect()
+}
+
+/// A trial's frames the policy looks at and their robust inverse kinematics ([`robust_ik`]).
+pub(crate) struct LookedAt {
+    /// The trial's frame that is the first of `sub`.
+    pub(crate) first: usize,
+    pub(crate) sub: Trial,
+    pub(crate) fit: TrialFit,
+}
+
+impl LookedAt {
+    /// The solved coordinates of the trial's frame `frame`, when it is looked at.
+    pub(crate) fn coords(&self, frame: usize) -> Option<&[f64]> {
+        let i = frame.checked_sub(self.first)?;
+        self.fit
+            .frames
+            .get(i)
+            .filter(|f| f.solved())
+            .map(|_| self.fit.coords[i].as_slice())
+    }
+}
+
+/// [`decide`] on the robust inverse kinematics `looked` ([`robust_ik`] of the same trials).
+pub(crate) fn decide_on(
+    model: &Model,
+    start: &[f64],
+    trials: &[&Trial],
+    keep: &[String],
+    looked: &[Option<LookedAt>],
+) -> Vec<MarkerDecision> {
     let mut dec = Decisions::default();
-    for (t, trial) in trials.iter().enumerate() {
-        trial_decisions(model, start, trial, t, keep, &mut dec);
+    for (t, (trial, at)) in trials.iter().zip(looked).enumerate() {
+        if let Some(at) = at {
+            trial_decisions(model, start, trial, at, t, keep, &mut dec);
+        }
     }
     cap_refinements(model, trials, &mut dec);
     let Decisions {
@@ -154,17 +202,13 @@ fn trial_decisions(
     model: &Model,
     start: &[f64],
     trial: &Trial,
+    LookedAt { sub, fit, .. }: &LookedAt,
     t: usize,
     keep: &[String],
     dec: &mut Decisions,
 ) {
     let (map, _) = MarkerMap::allowing_absent(model, trial.labels());
-    let (a, b) = frames_looked_at(trial.n_frames());
-    let sub = trial.slice_frames(a, b);
-    let Ok(fit) = solve_trial(model, start, &sub, &map, &IkOptions::default()) else {
-        return;
-    };
-    let offsets = offsets_of_fit(model, start, &sub, &map, &fit);
+    let offsets = offsets_of_fit(model, start, sub, &map, fit);
     let rejected = |j: usize| {
         fit.frames
             .iter()

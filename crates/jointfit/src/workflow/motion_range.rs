@@ -103,6 +103,9 @@ pub(crate) fn still_joints(ranges: &[(String, f64)]) -> Vec<HeldJoint> {
         .collect()
 }
 
+/// Coordinates of trial `t`'s frame `f` known from another inverse kinematics, if any.
+pub(crate) type Near<'a> = dyn Fn(usize, usize) -> Option<&'a [f64]> + Sync + 'a;
+
 /// The parameters left to fit, the still joints held, and the starting coordinates.
 pub(crate) type StillJoints = (Vec<ParamId>, Vec<HeldJoint>, Option<Vec<Vec<f64>>>);
 
@@ -112,18 +115,23 @@ pub(crate) type StillJoints = (Vec<ParamId>, Vec<HeldJoint>, Option<Vec<Vec<f64>
 /// [`WorkflowError::NothingIdentifiable`]. Also returns those coordinates
 /// ([`Problem::initial_coords`] at `start`, `None` without a free parameter or a trial): the
 /// calibration of the same model, start and trials starts from them instead of solving
-/// them again.
+/// them again. `near(t, f)`, where given, is another inverse kinematics of trial `t`'s frame
+/// `f` at `start` that frame's solve starts from ([`Problem::initial_coords_near`]).
 pub(crate) fn hold_still_joints(
     model: &Model,
     start: &[f64],
     trials: &[&Trial],
     free: &[ParamId],
+    near: &Near,
 ) -> Result<StillJoints, WorkflowError> {
     if free.is_empty() || trials.is_empty() {
         return Ok((free.to_vec(), Vec::new(), None));
     }
     let prob = Problem::new(model, start.to_vec(), free, trials)?;
-    let qs = prob.initial_coords(start);
+    let qs = prob.initial_coords_near(start, &|f| {
+        let (t, frame) = prob.origin[f];
+        near(t, frame)
+    });
     let mut held = still_joints(&joint_ranges(model, &qs));
     if held.is_empty() {
         return Ok((free.to_vec(), held, Some(qs)));

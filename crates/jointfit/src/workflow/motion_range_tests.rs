@@ -68,7 +68,7 @@ fn the_standing_legs_joints_are_found_with_their_ranges() {
     let free: Vec<_> = (0..model.parameters().len())
         .map(crate::model::ParamId)
         .collect();
-    let (kept, held, seed) = hold_still_joints(&model, &p, &[&trial], &free).unwrap();
+    let (kept, held, seed) = hold_still_joints(&model, &p, &[&trial], &free, &|_, _| None).unwrap();
     // The coordinates it solved are the calibration's starting ones for the parameters it
     // keeps, bit for bit (the calibration starts from them instead of solving them again).
     let prob = crate::calibrate::Problem::new(&model, p.clone(), &kept, &[&trial]).unwrap();

@@ -175,7 +175,7 @@ pub fn calibrate_holding_redundant(
 ) -> Result<HeldCalibration, WorkflowError> {
     let mismatches = super::verdict::check_inputs(model, trials, settings.refuse_mismatch)?;
     let (free, held_joints, seed) =
-        super::motion_range::hold_still_joints(model, start, trials, free)?;
+        super::motion_range::hold_still_joints(model, start, trials, free, &|_, _| None)?;
     let (kept, held_redundant) = redundant_parameters(model, start, trials, &free)?;
     let super::calibration::Kept {
         mut calibration,

@@ -13,7 +13,7 @@ use serde::Serialize;
 
 use super::calibration::{calibrate_keeping_system, Kept};
 use super::envelope::{EnvelopeBound, HELD_AT_LIMIT};
-use super::marker_policy::{decide, refined, without_excluded, MarkerDecision};
+use super::marker_policy::{decide_on, refined, robust_ik, without_excluded, MarkerDecision};
 use super::{Calibration, FitSettings, Observer, WorkflowError};
 use crate::calibrate::prior::Source;
 use crate::model::refine::{
@@ -97,17 +97,27 @@ pub fn calibrate_refined(
         return Err(WorkflowError::RefineNeedsPriors);
     }
     let mismatches = super::verdict::check_inputs(model, trials, settings.refuse_mismatch)?;
-    let (free, held_joints, seed) =
-        super::motion_range::hold_still_joints(model, start, trials, free)?;
-    let free = free.as_slice();
-    let map_fit = settings.priors
-        && free
-            .iter()
-            .any(|id| model.parameters()[id.0].prior_sd.is_some());
-    let decisions = match map_fit && settings.marker_policy {
-        true => decide(model, start, trials, &settings.keep_markers),
+    let with_prior = |free: &[ParamId]| {
+        settings.priors
+            && free
+                .iter()
+                .any(|id| model.parameters()[id.0].prior_sd.is_some())
+    };
+    // The policy's robust inverse kinematics at the start also starts the motion ranges'.
+    let looked = match with_prior(free) && settings.marker_policy {
+        true => robust_ik(model, start, trials),
         false => Vec::new(),
     };
+    let near = |t: usize, f: usize| looked.get(t)?.as_ref()?.coords(f);
+    let (free, held_joints, seed) =
+        super::motion_range::hold_still_joints(model, start, trials, free, &near)?;
+    let free = free.as_slice();
+    let map_fit = with_prior(free);
+    let decisions = match map_fit && settings.marker_policy {
+        true => decide_on(model, start, trials, &settings.keep_markers, &looked),
+        false => Vec::new(),
+    };
+    drop(looked);
     let used = without_excluded(trials, &decisions);
     let used: Vec<&Trial> = used.iter().collect();
     let to_refine = markers_to_refine(model, &decisions, &used, settings.refine_markers);
