@@ -75,7 +75,7 @@ impl Observer for PhaseClock {
     }
     fn stage_started(&mut self, stage: &str, _budget: Option<usize>) {
         if stage.starts_with(UNCERTAINTY_STAGE) {
-            self.mark("marker RMS, table, envelope check");
+            self.mark("marker RMS, table, reduced system, conflict test, envelope check");
             self.in_uncertainty = true;
         }
     }
@@ -111,7 +111,7 @@ pub fn fit_only(model: &Model, p: &[f64], trial: &Trial, source: &str, n: usize)
         };
         let cal = command_fit(model, p, trial, &all, Method::Joint, &mut clock)?;
         let total = clock.t0.elapsed().as_secs_f64();
-        clock.mark("data shares, marker trade-offs, fitted model");
+        clock.mark("marker trade-offs, verdict, fitted model");
         let c = &cal.calibration;
         println!(
             "calibrate 27, joint (command default): {:.1} ms ({} iterations, all starts {}, \

@@ -8,6 +8,7 @@ use crate::calibrate::uncertainty::reduced::reduced_system;
 use crate::calibrate::uncertainty::Identifiability;
 use crate::calibrate::uncertainty::SeMethod;
 use crate::calibrate::uncertainty::Uncertainty;
+use crate::calibrate::uncertainty::UncertaintyOptions;
 use crate::calibrate::uncertainty::{analyze_reduced, unidentifiable_subset, Reduced};
 use crate::calibrate::{Fit, Problem};
 use crate::model::spec::Unit;
@@ -362,6 +363,48 @@ pub fn calibrate(
         .map(|k| k.calibration)
 }
 
+/// [`fit_keeping_system`] with its uncertainty analysis (`settings.uncertainty`) on the
+/// fit's prior as it is.
+pub(crate) fn calibrate_keeping_system<'m>(
+    model: &'m Model,
+    start: &[f64],
+    trials: &[&'m Trial],
+    free: &[ParamId],
+    settings: &FitSettings,
+    seed: Option<&[Vec<f64>]>,
+    observer: &mut dyn Observer,
+) -> Result<Kept<'m>, WorkflowError> {
+    let mut kept = fit_keeping_system(model, start, trials, free, settings, seed, observer)?;
+    if let (Some(opts), Some(red)) = (&settings.uncertainty, &kept.system) {
+        analysis_stage(&kept.problem, &mut kept.calibration, opts, red, observer);
+    }
+    Ok(kept)
+}
+
+/// The uncertainty analysis of `cal` (the fit of `prob`) from its reduced system `red`, into
+/// `cal`, as the [`Observer`]'s stage [`UNCERTAINTY_STAGE`].
+pub(crate) fn analysis_stage(
+    prob: &Problem,
+    cal: &mut Calibration,
+    opts: &UncertaintyOptions,
+    red: &Reduced,
+    observer: &mut dyn Observer,
+) {
+    // A stage of its own: with the bootstrap it refits the model once per replicate (its
+    // budget: the replicates).
+    let (stage, budget) = match opts.bootstrap_replicates {
+        n if n > 1 => (
+            format!("{UNCERTAINTY_STAGE} ({n} bootstrap refits)"),
+            Some(n),
+        ),
+        _ => (UNCERTAINTY_STAGE.to_string(), None),
+    };
+    observer.stage_started(&stage, budget);
+    let u = analyze_reduced(prob, &cal.fit, opts, red);
+    observer.stage_ended(Termination::Converged);
+    cal.set_uncertainty(u);
+}
+
 /// A finished calibration with what later steps reuse: the problem of its final fit (its
 /// prior weighed by the fit's σ in metres and per-parameter factors) and the reduced system
 /// of its uncertainty analysis (`None` without the analysis).
@@ -385,13 +428,15 @@ fn nothing_identifiable(model: &Model, free: &[ParamId]) -> WorkflowError {
     }
 }
 
-/// [`calibrate`], with the problem of its final fit and the reduced system its uncertainty
-/// analysis was formed from ([`Kept`]; [`reduced_system`] at the fit, on that problem): the
-/// prior–data conflict step ([`super::conflict`]) needs the same problem and marker-term
-/// information, which costs as much as the rest of the analysis (opencap walking1: one
-/// reduced system is about 1.5 % of the command's instructions, and the step formed it twice
-/// more).
-pub(crate) fn calibrate_keeping_system<'m>(
+/// [`calibrate`] up to its uncertainty analysis: the fit, with the problem of the final fit
+/// and (with `settings.uncertainty`) the reduced system the analysis is formed from
+/// ([`Kept`]; [`reduced_system`] at the fit, on that problem) and the data shares it gives.
+/// The prior–data conflict step ([`super::conflict`]) needs the same problem and
+/// marker-term information, which costs as much as the rest of the analysis (opencap
+/// walking1: one reduced system is about 1.5 % of the command's instructions, and the step
+/// formed it twice more); it then runs the analysis once, with the prior it widens
+/// ([`super::conflict::analyze_widened`]).
+pub(crate) fn fit_keeping_system<'m>(
     model: &'m Model,
     start: &[f64],
     trials: &[&'m Trial],
@@ -456,24 +501,12 @@ pub(crate) fn calibrate_keeping_system<'m>(
         (cal, prob) = fit_free(model, start, trials, &free, settings, weights, observer)?;
         cal.prior_noise_estimated = estimated;
     }
-    // A stage of its own: with the bootstrap it refits the model once per replicate (its
-    // budget: the replicates).
-    let (stage, budget) = match opts.bootstrap_replicates {
-        n if n > 1 => (
-            format!("{UNCERTAINTY_STAGE} ({n} bootstrap refits)"),
-            Some(n),
-        ),
-        _ => (UNCERTAINTY_STAGE.to_string(), None),
-    };
-    observer.stage_started(&stage, budget);
     // One reduced system for the analysis, the data shares and the conflict step.
     let red = reduced_system(&prob, &cal.fit.p, &cal.fit.coords);
-    let u = analyze_reduced(&prob, &cal.fit, opts, &red);
     let share = prob
         .prior
         .is_some()
         .then(|| crate::calibrate::prior::data_share(&prob, &red.normal));
-    observer.stage_ended(Termination::Converged);
     if let Some(share) = share {
         for (row, (&sh, &i)) in cal.parameters.iter_mut().zip(share.iter().zip(&prob.free)) {
             if model.parameters()[i].prior_sd.is_some() && sh.is_finite() {
@@ -482,7 +515,6 @@ pub(crate) fn calibrate_keeping_system<'m>(
             }
         }
     }
-    cal.set_uncertainty(u);
     cal.fixed_unidentifiable = fixed;
     Ok(Kept {
         calibration: cal,

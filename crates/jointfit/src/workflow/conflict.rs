@@ -41,9 +41,10 @@
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
-use super::{FitSettings, WorkflowError};
+use super::calibration::analysis_stage;
+use super::{FitSettings, Observer, WorkflowError};
 use crate::calibrate::uncertainty::reduced::reduced_system;
-use crate::calibrate::uncertainty::{analyze_reduced, ln_gamma, Reduced};
+use crate::calibrate::uncertainty::{ln_gamma, Reduced};
 use crate::calibrate::Problem;
 
 /// Directions of a joint's whitened posterior shift with a smaller prior-predictive variance
@@ -341,18 +342,24 @@ pub(crate) fn assess(
         .collect())
 }
 
-/// Redoes the uncertainty analysis of `cal` (its fit's problem `prob`) with the truth's
-/// spread about the prior mean that each flagged joint's `interval_scale` states: the
-/// prior's part of the interval variance of its parameters scaled by `interval_scale²`
+/// The uncertainty analysis of `cal` (its fit's problem `prob`, reduced system `system`:
+/// [`super::calibration::fit_keeping_system`]) with the truth's spread about the prior mean
+/// that each flagged joint of `conflicts` states: the prior's part of the interval variance
+/// of its parameters scaled by `interval_scale²`
 /// ([`crate::calibrate::prior::Prior::spread`]); the estimate and the data shares are
-/// unchanged. Nothing when no joint needs it or `cal` was not analysed.
-pub(crate) fn widen_intervals(
+/// unchanged. The plain analysis when no joint needs it; nothing without
+/// `settings.uncertainty`.
+pub(crate) fn analyze_widened(
     prob: &Problem,
     settings: &FitSettings,
     cal: &mut super::Calibration,
     conflicts: &[JointConflict],
     system: Option<Reduced>,
-) -> Result<(), WorkflowError> {
+    observer: &mut dyn Observer,
+) {
+    let Some(opts) = &settings.uncertainty else {
+        return;
+    };
     let model = prob.model;
     let spread = |name: &str| {
         conflicts
@@ -360,11 +367,10 @@ pub(crate) fn widen_intervals(
             .find(|c| c.parameters.iter().any(|p| p == name))
             .map_or(1.0, |c| c.interval_scale.powi(2))
     };
-    let (Some(opts), Some(_)) = (&settings.uncertainty, cal.prior_noise) else {
-        return Ok(());
-    };
-    if cal.uncertainty.is_none() || cal.parameters.iter().all(|r| spread(&r.name) <= 1.0) {
-        return Ok(());
+    let mut red = system.unwrap_or_else(|| reduced_system(prob, &cal.fit.p, &cal.fit.coords));
+    if cal.prior_noise.is_none() || cal.parameters.iter().all(|r| spread(&r.name) <= 1.0) {
+        analysis_stage(prob, cal, opts, &red, observer);
+        return;
     }
     // The fit's problem with the prior's spread widened (its σ and factors unchanged).
     let mut prob = prob.clone();
@@ -378,33 +384,28 @@ pub(crate) fn widen_intervals(
             pr.spread[k] = spread(n).max(1.0);
         }
     }
-    // The analysis' reduced system with the widened prior (its marker term unchanged).
-    let red = match system {
-        Some(mut red) => {
-            red.set_prior_of(&prob);
-            red
-        }
-        None => reduced_system(&prob, &cal.fit.p, &cal.fit.coords),
-    };
-    cal.set_uncertainty(analyze_reduced(&prob, &cal.fit, opts, &red));
-    Ok(())
+    // The reduced system with the widened prior (its marker term unchanged).
+    red.set_prior_of(&prob);
+    analysis_stage(&prob, cal, opts, &red, observer);
 }
 
-/// The conflict step of a maximum a posteriori calibration `cal` (its fit's problem `prob`)
-/// with nothing between the test and the intervals: [`assess`] every joint, then
-/// [`widen_intervals`] of the flagged ones. Empty, and `cal` unchanged, with
-/// `settings.prior_conflict` off or without a prior. (The jointfit-model calibration,
+/// The conflict step of a maximum a posteriori calibration `cal` (its fit's problem `prob`,
+/// reduced system `system`: [`super::calibration::fit_keeping_system`]) with nothing between
+/// the test and the intervals: [`assess`] every joint, then the analysis with the flagged
+/// ones widened ([`analyze_widened`]). Without `settings.prior_conflict` or a prior, no
+/// joint is assessed and the analysis is the plain one. (The jointfit-model calibration,
 /// [`super::calibrate_refined`], runs the two halves around its envelope refit.)
 pub(crate) fn assess_and_widen(
     prob: &Problem,
     settings: &FitSettings,
     cal: &mut super::Calibration,
     system: Option<Reduced>,
+    observer: &mut dyn Observer,
 ) -> Result<Vec<JointConflict>, WorkflowError> {
-    if !settings.prior_conflict {
-        return Ok(Vec::new());
-    }
-    let conflicts = assess(prob, cal, system.as_ref())?;
-    widen_intervals(prob, settings, cal, &conflicts, system)?;
+    let conflicts = match settings.prior_conflict {
+        true => assess(prob, cal, system.as_ref())?,
+        false => Vec::new(),
+    };
+    analyze_widened(prob, settings, cal, &conflicts, system, observer);
     Ok(conflicts)
 }

@@ -181,7 +181,7 @@ pub fn calibrate_holding_redundant(
         mut calibration,
         system,
         problem,
-    } = super::calibration::calibrate_keeping_system(
+    } = super::calibration::fit_keeping_system(
         model,
         start,
         trials,
@@ -191,7 +191,7 @@ pub fn calibrate_holding_redundant(
         observer,
     )?;
     let prior_conflict =
-        super::conflict::assess_and_widen(&problem, settings, &mut calibration, system)?;
+        super::conflict::assess_and_widen(&problem, settings, &mut calibration, system, observer)?;
     let evidence = super::verdict::Evidence {
         mismatches: &mismatches,
         conflict: &prior_conflict,

@@ -11,7 +11,7 @@
 
 use serde::Serialize;
 
-use super::calibration::{calibrate_keeping_system, Kept};
+use super::calibration::{fit_keeping_system, Kept};
 use super::envelope::{EnvelopeBound, HELD_AT_LIMIT};
 use super::marker_policy::{decide_on, refined, robust_ik, without_excluded, MarkerDecision};
 use super::{Calibration, FitSettings, Observer, WorkflowError};
@@ -129,8 +129,8 @@ pub fn calibrate_refined(
     let seed = seed
         .as_deref()
         .filter(|_| decisions.is_empty() && to_refine.is_empty());
-    let first =
-        calibrate_keeping_system(&aug, &aug_start, &used, &aug_free, settings, seed, observer)?;
+    // The analysis runs once, on the final fit, with the conflict step's widened prior.
+    let first = fit_keeping_system(&aug, &aug_start, &used, &aug_free, settings, seed, observer)?;
     // A joint whose prior the trial contradicts (`super::conflict`): tested on the fit
     // before any envelope bound (on its problem), its intervals widened on the final fit below.
     let mut conflict = Vec::new();
@@ -147,7 +147,7 @@ pub fn calibrate_refined(
     // problem of its own.
     let refit = match &bounded {
         Some(model) => {
-            let kept = calibrate_keeping_system(
+            let kept = fit_keeping_system(
                 model, &aug_start, &used, &aug_free, settings, None, observer,
             )?;
             super::envelope::mark_active(&mut envelope, model, &kept.calibration.fit.p);
@@ -160,9 +160,14 @@ pub fn calibrate_refined(
         system,
         problem,
     } = refit.unwrap_or(first);
-    if !conflict.is_empty() {
-        super::conflict::widen_intervals(&problem, settings, &mut calibration, &conflict, system)?;
-    }
+    super::conflict::analyze_widened(
+        &problem,
+        settings,
+        &mut calibration,
+        &conflict,
+        system,
+        observer,
+    );
     drop(problem);
     if let Some(model) = bounded {
         aug = model;

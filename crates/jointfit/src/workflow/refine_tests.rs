@@ -250,7 +250,7 @@ fn the_kept_problem_equals_one_rebuilt_from_the_fits_sigma() {
         .collect();
     let widen = |prob: &crate::calibrate::Problem| {
         let mut c = cal.clone();
-        super::conflict::widen_intervals(prob, &settings, &mut c, &widened, None).unwrap();
+        super::conflict::analyze_widened(prob, &settings, &mut c, &widened, None, &mut NoObserver);
         c.uncertainty
     };
     let a = widen(&kept.problem);
