@@ -98,6 +98,10 @@ pub(crate) struct JointOptions {
     pub tolerance: f64,
     /// Anderson mixing of the tail's steps ([`mixing`]).
     pub mixing: bool,
+    /// The damping λ (relative to the diagonal) of the first step: 1e-4, or
+    /// [`RESOLUTION_MAX_DAMPING`] from a point known to be near the optimum, where the
+    /// Gauss–Newton step is trusted from the start.
+    pub initial_damping: f64,
 }
 
 impl Default for JointOptions {
@@ -106,6 +110,7 @@ impl Default for JointOptions {
             max_iterations: 200,
             tolerance: 1e-10,
             mixing: true,
+            initial_damping: 1e-4,
         }
     }
 }
@@ -123,7 +128,7 @@ pub(crate) const RESOLUTION_SE: f64 = 1e-3;
 
 /// Largest damping (relative to the diagonal) at which the statistical stopping rule trusts
 /// a step's predicted decrease as the Gauss–Newton one.
-const RESOLUTION_MAX_DAMPING: f64 = 1e-6;
+pub(crate) const RESOLUTION_MAX_DAMPING: f64 = 1e-6;
 
 /// Largest damping (relative to the diagonal) at which the reduced system of a step also
 /// serves as the undamped one of the secant model ([`secant`]); above it the model's data
@@ -407,7 +412,7 @@ impl<'a, 'm> Solve<'a, 'm> {
             ds: vec![0.0; nf],
             dq: vec![vec![0.0; nq]; frames],
             q_try,
-            lambda: 1e-4,
+            lambda: opts.initial_damping,
             nu: 2.0,
             evaluations: 1,
             secant: Secant::new(nf),

@@ -396,6 +396,20 @@ impl<'m> Problem<'m> {
         }
     }
 
+    /// The objective's marker term `Σ w_j ‖x_j − m_j‖²` at `p` and coordinates `qs` (m²),
+    /// over every present marker sample.
+    pub(crate) fn marker_cost(&self, p: &[f64], qs: &[Vec<f64>]) -> f64 {
+        let markers = self.model.markers();
+        let mut s = 0.0;
+        self.visit_marker_errors(p, qs, |j, e| {
+            let v = e.norm_squared();
+            if !v.is_nan() && markers[j].weight > 0.0 {
+                s += markers[j].weight * v;
+            }
+        });
+        s
+    }
+
     /// Calls `visit(marker, target − model marker)` for every frame and model marker, in
     /// frame order then marker order (NaN for a missing marker), at `p` and coordinates `qs`.
     /// The forward kinematics run in parallel over blocks of [`ERROR_BLOCK`] frames and the

@@ -120,3 +120,78 @@ fn sigma_stage_on_intermediate_frames_reaches_the_preliminary_fits_estimate() {
         );
     }
 }
+
+/// The σ₀-optimum's coordinates carried by the re-probe's change of its frames
+/// ([`super::super::probes::carried`]): a change linear along each trial is carried exactly
+/// between two re-probe frames of a trial, held from the nearest one outside them and never
+/// across a trial's end; and coordinates solved at other parameters, carried by the solution
+/// at the new parameters on every 4th frame, fit the new parameters almost as well as their
+/// own solution (the finishing solve's start).
+#[test]
+fn coordinates_carried_by_a_subsample_follow_the_new_parameters() {
+    use crate::calibrate::Problem;
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let p1 = model.nominal_params();
+    let (a, b) = (
+        synthetic(&model, &p1, 23, 0.002),
+        synthetic(&model, &p1, 17, 0.002),
+    );
+    let free = params_for_groups(&model, &["all"]).unwrap();
+    let prob = Problem::new(&model, p1.clone(), &free, &[&a, &b]).unwrap();
+    let n = prob.frames.len();
+    assert_eq!(n, 40);
+    let stride = 4;
+    // A change linear in each trial's frame number: 0.01·(trial + 1)·(1 + frame / 10) per
+    // coordinate c, times (c + 1).
+    let delta = |f: usize, c: usize| {
+        let (t, frame) = prob.origin[f];
+        0.01 * (t + 1) as f64 * (1.0 + frame as f64 / 10.0) * (c + 1) as f64
+    };
+    let nq = model.coordinates().len();
+    let at: Vec<Vec<f64>> = (0..n).map(|f| vec![0.1 * f as f64; nq]).collect();
+    let moved: Vec<Vec<f64>> = (0..n)
+        .step_by(stride)
+        .map(|f| (0..nq).map(|c| at[f][c] + delta(f, c)).collect())
+        .collect();
+    let out = super::super::probes::carried(&prob, &at, &moved, stride);
+    // Trial 1 is frames 0..23 (re-probe frames 0, 4, …, 20), trial 2 frames 23..40 (24, …, 36).
+    for f in 0..n {
+        let reference = match f {
+            21 | 22 => 20,
+            23 => 24,
+            37..=39 => 36,
+            _ => f,
+        };
+        for c in 0..nq {
+            let want = at[f][c] + delta(reference, c);
+            assert!((out[f][c] - want).abs() < 1e-12, "frame {f} coordinate {c}");
+        }
+    }
+    // The hip centre and the knee axis elsewhere, on trials of a gait cycle each at
+    // 150 and 120 frames, every 7th frame re-solved (gait2392 walk1's probes).
+    let (a, b) = (
+        synthetic(&model, &p1, 150, 0.002),
+        synthetic(&model, &p1, 120, 0.002),
+    );
+    let prob = Problem::new(&model, p1.clone(), &free, &[&a, &b]).unwrap();
+    let stride = 7;
+    let mut p2 = p1.clone();
+    for (k, x) in model.parameters().iter().enumerate().take(6) {
+        p2[k] += 0.05 * (x.upper - x.lower);
+    }
+    let q1 = prob.initial_coords(&p1);
+    let q2 = prob.initial_coords(&p2);
+    let coarse = super::super::probes::subsample(&prob, stride);
+    let moved = coarse.initial_coords(&p2);
+    let out = super::super::probes::carried(&prob, &q1, &moved, stride);
+    let (stale, carried, own) = (
+        prob.marker_rms(&p2, &q1),
+        prob.marker_rms(&p2, &out),
+        prob.marker_rms(&p2, &q2),
+    );
+    assert!(stale > own + 1e-3, "{stale} {own}");
+    assert!(
+        carried - own < 0.1 * (stale - own),
+        "{stale} {carried} {own}"
+    );
+}

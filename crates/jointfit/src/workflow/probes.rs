@@ -70,6 +70,44 @@ pub(super) fn subsample<'m>(prob: &Problem<'m>, stride: usize) -> Problem<'m> {
     }
 }
 
+/// Coordinates `at` on every frame of `prob`, moved by the change a solve on every
+/// `stride`-th frame ([`subsample`]) made to them: `moved[i]` is frame `i·stride`'s new
+/// coordinates. Between two such frames of the same trial the change is interpolated
+/// linearly; past a trial's last one (or before its first) the nearest one's is taken. The
+/// coordinates follow the parameters smoothly along a trial, so this carries `at` to the
+/// parameters of that solve to first order.
+pub(super) fn carried(
+    prob: &Problem,
+    at: &[Vec<f64>],
+    moved: &[Vec<f64>],
+    stride: usize,
+) -> Vec<Vec<f64>> {
+    let change: Vec<Vec<f64>> = moved
+        .iter()
+        .enumerate()
+        .map(|(i, m)| m.iter().zip(&at[i * stride]).map(|(a, b)| a - b).collect())
+        .collect();
+    let trial = |f: usize| prob.origin[f].0;
+    let mut out = at.to_vec();
+    for (f, q) in out.iter_mut().enumerate() {
+        let i = f / stride;
+        let w = (f - i * stride) as f64 / stride as f64;
+        let this = (trial(i * stride) == trial(f)).then(|| &change[i]);
+        let next = change
+            .get(i + 1)
+            .filter(|_| trial((i + 1) * stride) == trial(f));
+        for (c, v) in q.iter_mut().enumerate() {
+            *v += match (this, next) {
+                (Some(a), Some(b)) => (1.0 - w) * a[c] + w * b[c],
+                (Some(a), None) => a[c],
+                (None, Some(b)) => b[c],
+                (None, None) => 0.0,
+            };
+        }
+    }
+    out
+}
+
 /// Every start of the global phase (the given one first) and its seeded inner solutions on
 /// the probes' frames: what the probes begin from.
 pub(crate) type ProbeStarts = Vec<(Vec<f64>, Vec<Vec<f64>>)>;
