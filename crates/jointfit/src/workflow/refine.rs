@@ -97,27 +97,8 @@ pub fn calibrate_refined(
         return Err(WorkflowError::RefineNeedsPriors);
     }
     let mismatches = super::verdict::check_inputs(model, trials, settings.refuse_mismatch)?;
-    let with_prior = |free: &[ParamId]| {
-        settings.priors
-            && free
-                .iter()
-                .any(|id| model.parameters()[id.0].prior_sd.is_some())
-    };
-    // The policy's robust inverse kinematics at the start also starts the motion ranges'.
-    let looked = match with_prior(free) && settings.marker_policy {
-        true => robust_ik(model, start, trials),
-        false => Vec::new(),
-    };
-    let near = |t: usize, f: usize| looked.get(t)?.as_ref()?.coords(f);
-    let (free, held_joints, seed) =
-        super::motion_range::hold_still_joints(model, start, trials, free, &near)?;
-    let free = free.as_slice();
-    let map_fit = with_prior(free);
-    let decisions = match map_fit && settings.marker_policy {
-        true => decide_on(model, start, trials, &settings.keep_markers, &looked),
-        false => Vec::new(),
-    };
-    drop(looked);
+    let prep = prepare(model, start, trials, free, settings)?;
+    let (free, decisions, map_fit) = (prep.free.as_slice(), prep.decisions, prep.map_fit);
     let used = without_excluded(trials, &decisions);
     let used: Vec<&Trial> = used.iter().collect();
     let to_refine = markers_to_refine(model, &decisions, &used, settings.refine_markers);
@@ -126,7 +107,8 @@ pub fn calibrate_refined(
     aug_start[..start.len()].copy_from_slice(start);
     let mut aug_free = free.to_vec();
     aug_free.extend(aug.params_in_group(MARKER_GROUP));
-    let seed = seed
+    let seed = prep
+        .seed
         .as_deref()
         .filter(|_| decisions.is_empty() && to_refine.is_empty());
     // The analysis runs once, on the final fit, with the conflict step's widened prior.
@@ -185,7 +167,7 @@ pub fn calibrate_refined(
         decisions: &decisions,
         conflict: &conflict,
         envelope: &envelope,
-        held: &held_joints,
+        held: &prep.held_joints,
     };
     calibration.verdict = super::verdict::judge(&aug, &calibration, &evidence);
     Ok(RefinedCalibration {
@@ -197,7 +179,55 @@ pub fn calibrate_refined(
         envelope,
         marker_decisions: decisions,
         conflict,
+        held_joints: prep.held_joints,
+    })
+}
+
+/// What is decided before the fit: the free parameters left once the still joints are held
+/// (with those joints and the coordinates their inverse kinematics found at the start),
+/// whether the fit is a maximum a posteriori one, and the marker policy's decisions.
+struct Prepared {
+    free: Vec<ParamId>,
+    held_joints: Vec<super::motion_range::HeldJoint>,
+    seed: Option<Vec<Vec<f64>>>,
+    map_fit: bool,
+    decisions: Vec<MarkerDecision>,
+}
+
+/// The still joints held ([`super::motion_range`]) and the marker policy's decisions
+/// ([`super::marker_policy`]); the policy's robust inverse kinematics at the start also
+/// starts the motion ranges' one.
+fn prepare(
+    model: &Model,
+    start: &[f64],
+    trials: &[&Trial],
+    free: &[ParamId],
+    settings: &FitSettings,
+) -> Result<Prepared, WorkflowError> {
+    let with_prior = |free: &[ParamId]| {
+        settings.priors
+            && free
+                .iter()
+                .any(|id| model.parameters()[id.0].prior_sd.is_some())
+    };
+    let looked = match with_prior(free) && settings.marker_policy {
+        true => robust_ik(model, start, trials),
+        false => Vec::new(),
+    };
+    let near = |t: usize, f: usize| looked.get(t)?.as_ref()?.coords(f);
+    let (free, held_joints, seed) =
+        super::motion_range::hold_still_joints(model, start, trials, free, &near)?;
+    let map_fit = with_prior(&free);
+    let decisions = match map_fit && settings.marker_policy {
+        true => decide_on(model, start, trials, &settings.keep_markers, &looked),
+        false => Vec::new(),
+    };
+    Ok(Prepared {
+        free,
         held_joints,
+        seed,
+        map_fit,
+        decisions,
     })
 }
 
