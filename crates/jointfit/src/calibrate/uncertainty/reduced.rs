@@ -5,7 +5,7 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
 use super::super::kernel::{frame_gram, FrameScratch};
-use super::super::schur::{coordinate_bounds, hold_at_bounds, CHUNK};
+use super::super::schur::{chunk_len, coordinate_bounds, hold_at_bounds};
 use super::super::Problem;
 use crate::linalg::Cholesky;
 
@@ -91,13 +91,16 @@ pub(crate) fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Redu
         Vec<(usize, DMatrix<f64>)>,
         f64,
     );
-    let parts: Vec<Chunk> = (0..frames.div_ceil(CHUNK))
+    // The Schur passes' chunks: an even number on a short trial, so two threads split it
+    // evenly.
+    let chunk = chunk_len(frames);
+    let parts: Vec<Chunk> = (0..frames.div_ceil(chunk))
         .into_par_iter()
         .map_init(
             || (FrameScratch::new(prob), Vec::new()),
             |(sc, tb), c| {
                 let mut normal = DMatrix::zeros(nf, nf);
-                let mut scores = Vec::with_capacity(CHUNK);
+                let mut scores = Vec::with_capacity(chunk);
                 let mut group_normals: Vec<(usize, DMatrix<f64>)> = Vec::new();
                 let mut cost = 0.0;
                 let mut u = vec![0.0; nq * nq];
@@ -105,7 +108,7 @@ pub(crate) fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Redu
                 let mut l = vec![0.0; nq * nq];
                 let mut y = vec![0.0; nq * nf];
                 let mut yg = vec![0.0; nq];
-                let range = c * CHUNK..((c + 1) * CHUNK).min(frames);
+                let range = c * chunk..((c + 1) * chunk).min(frames);
                 for f in range {
                     let targets = prob.frames.fill(f, tb);
                     cost += frame_gram(prob, p, &qs[f], targets, &half, sc);
