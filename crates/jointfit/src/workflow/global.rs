@@ -491,11 +491,15 @@ fn final_start<'a>(
         return (&st.at.s, st.at.coords.clone(), true);
     };
     let moved = carried(prob, &st.at.coords, &r.coords, stride);
-    if prob.marker_cost(&r.p, &moved) < prob.marker_cost(&r.p, &st.at.coords) {
-        (&r.s, moved, true)
+    let near = prob.marker_cost(&r.p, &moved) < prob.marker_cost(&r.p, &st.at.coords);
+    // Never two new coordinate sets of the whole trial at once.
+    let q0 = if near {
+        moved
     } else {
-        (&r.s, st.at.coords.clone(), false)
-    }
+        drop(moved);
+        st.at.coords.clone()
+    };
+    (&r.s, q0, near)
 }
 
 /// Tells `observer` of the σ estimate's stages of the start `first` finished first.
