@@ -398,7 +398,7 @@ pub(crate) fn cost_at(prob: &Problem, b: &Blocks, p: &[f64], qs: &[Vec<f64>]) ->
 
 #[path = "schur_step.rs"]
 mod step;
-pub(crate) use step::{back_substitute, reduce, solve_reduced_at_bounds};
+pub(crate) use step::{back_substitute, frame_share, reduce, solve_reduced_at_bounds};
 
 /// Every frame's bounded coordinates ([`coordinate_bounds`]) projected into their ranges.
 pub(crate) fn project_coords(qs: &mut [Vec<f64>], bounds: &[(usize, f64, f64)]) {

@@ -305,6 +305,52 @@ unsafe fn fill_rows_avx2(w: &[f64], g: &[f64], nq: usize, zf: &mut [f64]) {
     }
 }
 
+/// One frame's `[W | g]ᵀ U⁻¹ [W | g]` ((n_f + 1) × (n_f + 1), column-major) from the
+/// Cholesky factor `l` of its `U` (`n_q × n_q`; `w` parameter-major as [`super::Blocks`]
+/// stores it): [`reduce`]'s share of a single frame at λ = 0, by the same row kernels (the
+/// uncertainty analysis keeps every frame's share). `z`: room for the frame's rows.
+pub(crate) fn frame_share(
+    l: &[f64],
+    w: &[f64],
+    g: &[f64],
+    nq: usize,
+    z: &mut Vec<f64>,
+) -> Vec<f64> {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") {
+        // SAFETY: the processor supports AVX2 (checked just above).
+        return unsafe { frame_share_avx2(l, w, g, nq, z) };
+    }
+    frame_share_rows(l, w, g, nq, z)
+}
+
+#[inline(always)]
+fn frame_share_rows(l: &[f64], w: &[f64], g: &[f64], nq: usize, z: &mut Vec<f64>) -> Vec<f64> {
+    let m = w.len() / nq.max(1) + 1;
+    z.resize(nq * m, 0.0);
+    fill_rows(w, g, nq, z);
+    forward_solve_rows(l, nq, m, z);
+    gram_of_rows(z, nq, m)
+}
+
+/// [`frame_share_rows`] compiled for AVX2: the same operations in the same order.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn frame_share_avx2(
+    l: &[f64],
+    w: &[f64],
+    g: &[f64],
+    nq: usize,
+    z: &mut Vec<f64>,
+) -> Vec<f64> {
+    let m = w.len() / nq.max(1) + 1;
+    z.resize(nq * m, 0.0);
+    // SAFETY: the caller checked AVX2.
+    unsafe { fill_rows_avx2(w, g, nq, z) };
+    forward_solve_rows(l, nq, m, z);
+    gram_of_rows(z, nq, m)
+}
+
 /// `ZᵀZ` (m × m, column-major) of the row-major `rows × m` matrix `z`.
 fn gram_of_rows(z: &[f64], rows: usize, m: usize) -> Vec<f64> {
     assert!(z.len() >= rows * m, "z holds rows × m values");
@@ -586,6 +632,40 @@ mod solve_rows_tests {
                         let rhs = b[i * m + c];
                         assert!((lhs - rhs).abs() <= 1e-9 * (1.0 + rhs.abs()), "L Y = B");
                     }
+                }
+            }
+        }
+    }
+
+    /// One frame's share is `[W | g]ᵀ U⁻¹ [W | g]`: against nalgebra's solve of the same
+    /// symmetric positive definite `U`, for sizes that are and are not multiples of 4.
+    #[test]
+    fn frame_share_is_the_frames_reduction() {
+        use nalgebra::DMatrix;
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for (nq, nf) in [(1usize, 1usize), (6, 4), (12, 27), (13, 9)] {
+            let a = DMatrix::from_fn(nq, nq + 2, |_, _| next());
+            let u = &a * a.transpose() + DMatrix::identity(nq, nq) * 0.1;
+            let w: Vec<f64> = (0..nq * nf).map(|_| next()).collect();
+            let g: Vec<f64> = (0..nq).map(|_| next()).collect();
+            let mut l = u.as_slice().to_vec();
+            assert!(crate::linalg::cholesky_in_place(&mut l, nq));
+            let got = super::frame_share(&l, &w, &g, nq, &mut Vec::new());
+            // [W | g] as an n_q × (n_f + 1) matrix, and its product by hand.
+            let m = nf + 1;
+            let wg = DMatrix::from_fn(nq, m, |a, k| if k < nf { w[k * nq + a] } else { g[a] });
+            let y = u.clone().cholesky().expect("positive definite").solve(&wg);
+            let want = wg.transpose() * y;
+            for c in 0..m {
+                for k in 0..m {
+                    let (x, e) = (got[c * m + k], want[(k, c)]);
+                    assert!((x - e).abs() <= 1e-10 * (1.0 + e.abs()), "nq {nq}, nf {nf}");
                 }
             }
         }

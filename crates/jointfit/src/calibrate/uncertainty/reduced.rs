@@ -5,9 +5,9 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
 use super::super::kernel::{frame_gram, FrameScratch};
-use super::super::schur::{chunk_len, coordinate_bounds, hold_at_bounds};
+use super::super::schur::{chunk_len, coordinate_bounds, frame_share, hold_at_bounds};
 use super::super::Problem;
-use crate::linalg::Cholesky;
+use crate::linalg::cholesky_in_place;
 
 /// The reduced normal equations at one point `(p, q_1 … q_N)`.
 #[derive(Debug, Clone)]
@@ -106,7 +106,7 @@ pub(crate) fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Redu
                 let mut u = vec![0.0; nq * nq];
                 let mut w = vec![0.0; nq * nf];
                 let mut l = vec![0.0; nq * nq];
-                let mut y = vec![0.0; nq * nf];
+                let mut z = Vec::new();
                 let mut yg = vec![0.0; nq];
                 let range = c * chunk..((c + 1) * chunk).min(frames);
                 for f in range {
@@ -127,30 +127,23 @@ pub(crate) fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Redu
                     // coordinates are themselves undetermined (then they absorb nothing along
                     // that direction).
                     let mut ridge = 1e-14 * max_diag + 1e-300;
-                    let chol = loop {
+                    loop {
                         l.copy_from_slice(&u);
                         for i in 0..nq {
                             l[i * nq + i] += ridge;
                         }
-                        if let Some(chol) = Cholesky::factor(&mut l, nq) {
-                            break chol;
+                        if cholesky_in_place(&mut l, nq) {
+                            break;
                         }
                         ridge *= 100.0;
-                    };
-                    y.copy_from_slice(&w);
-                    for k in 0..nf {
-                        chol.solve(&mut y[k * nq..(k + 1) * nq]);
                     }
-                    chol.solve(&mut yg);
-                    let mut psi = DVector::zeros(nf);
-                    let mut a = DMatrix::from_fn(nf, nf, |k, c| gram[(nq + c) * n + nq + k]);
-                    for k in 0..nf {
-                        let wk = &w[k * nq..(k + 1) * nq];
-                        psi[k] = grad[nq + k] - dot(wk, &yg);
-                        for c in 0..nf {
-                            a[(k, c)] -= dot(wk, &y[c * nq..(c + 1) * nq]);
-                        }
-                    }
+                    // [W | g]ᵀ U⁻¹ [W | g]: the reduction's share and the score's correction.
+                    let zz = frame_share(&l, &w, &yg, nq, &mut z);
+                    let m = nf + 1;
+                    let psi = DVector::from_fn(nf, |k, _| grad[nq + k] - zz[nf * m + k]);
+                    let a = DMatrix::from_fn(nf, nf, |k, c| {
+                        gram[(nq + c) * n + nq + k] - zz[c * m + k]
+                    });
                     normal += &a;
                     scores.push(psi);
                     match group_normals.last_mut() {
@@ -235,8 +228,4 @@ impl Reduced {
             },
         );
     }
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
