@@ -76,8 +76,8 @@
 use rayon::prelude::*;
 
 use super::schur::{
-    active_bounds, assemble, back_substitute, cost_at, project_coords, reduce,
-    solve_reduced_at_bounds, Blocks,
+    active_bounds, assemble, assemble_gradient, back_substitute, cost_at, project_coords, reduce,
+    reduce_gradient, solve_reduced_at_bounds, Blocks,
 };
 use mixing::Mixing;
 use secant::Secant;
@@ -129,6 +129,11 @@ pub(crate) const RESOLUTION_SE: f64 = 1e-3;
 /// Largest damping (relative to the diagonal) at which the statistical stopping rule trusts
 /// a step's predicted decrease as the Gauss–Newton one.
 pub(crate) const RESOLUTION_MAX_DAMPING: f64 = 1e-6;
+
+/// How far (the sum of the accepted steps' largest components: scaled parameter units,
+/// rad, m) the undamped tail moves on the curvature of one point before the blocks are
+/// formed again ([`Solve::advance`]).
+const KEEP_STEP: f64 = 2e-2;
 
 /// Largest damping (relative to the diagonal) at which the reduced system of a step also
 /// serves as the undamped one of the secant model ([`secant`]); above it the model's data
@@ -301,7 +306,7 @@ pub(crate) fn solve_joint_with(
             termination = Termination::Converged;
             break;
         }
-        st.assemble();
+        st.advance(step, use_secant);
         // The observed tail is within the resolution but the step was too damped for its
         // predicted decrease to stand for Gauss–Newton's: the undamped model at the new point
         // decides (one more reduction), and its step ends the solve when it lowers the
@@ -338,6 +343,15 @@ struct Accepted {
     step: f64,
     decrease: f64,
     model_decrease: f64,
+}
+
+/// How a trial step ended: taken; rejected (`retry_plain`: it was augmented or mixed, and
+/// Gauss–Newton's own step at the same damping comes next); or the reduced system was not
+/// positive definite at this damping.
+enum Attempt {
+    Taken(Accepted),
+    Rejected { retry_plain: bool },
+    Singular,
 }
 
 /// A trial step: the parameters it leads to and its step (clamped into the bounds), the
@@ -383,6 +397,14 @@ struct Solve<'a, 'm> {
     /// a step whose predicted decrease is below it starts within a standard error of the
     /// model's optimum.
     noise: f64,
+    /// The blocks' curvature (`U_i`, `W_i`, `V`, the damped factors and `S`) is kept from an
+    /// earlier point: only the gradient and objective are this point's ([`KEEP_STEP`]).
+    kept: bool,
+    /// How far the point moved since the blocks' curvature was formed: the sum of the
+    /// accepted steps' largest components.
+    moved: f64,
+    /// The damping of the last accepted step.
+    lambda_used: f64,
 }
 
 impl<'a, 'm> Solve<'a, 'm> {
@@ -419,6 +441,9 @@ impl<'a, 'm> Solve<'a, 'm> {
             mixing: Mixing::new(frames, nq, opts.mixing),
             f_q: Vec::new(),
             noise: 0.0,
+            kept: false,
+            moved: 0.0,
+            lambda_used: f64::INFINITY,
         }
     }
 
@@ -427,13 +452,44 @@ impl<'a, 'm> Solve<'a, 'm> {
         assemble(self.prob, &self.p, &self.qs, &mut self.blocks);
         self.evaluations += 1;
         self.cost = self.blocks.cost;
+        self.moved = 0.0;
+    }
+
+    /// After an accepted step of largest component `step`: the blocks at the new point, or,
+    /// in the undamped tail while the point stays within [`KEEP_STEP`] of where the curvature
+    /// was formed, only the gradient there with the curvature kept (one more evaluation
+    /// either way).
+    fn advance(&mut self, step: f64, use_secant: bool) {
+        self.moved += step;
+        let keep = !use_secant
+            && self.lambda_used <= RESOLUTION_MAX_DAMPING
+            && self.moved <= KEEP_STEP
+            && self.blocks.can_keep();
+        if !keep {
+            return self.assemble();
+        }
+        assemble_gradient(self.prob, &self.p, &self.qs, &mut self.blocks);
+        self.evaluations += 1;
+        self.cost = self.blocks.cost;
+        self.kept = true;
     }
 
     /// One Levenberg–Marquardt iteration: steps at growing damping until one lowers the
-    /// objective (then taken), or `None` when the damping runs out.
+    /// objective (then taken), or `None` when the damping runs out. With the curvature kept
+    /// ([`Solve::kept`]) the first step is the kept model's; when that does not lower the
+    /// objective the blocks are formed at this point and the iteration goes on as usual.
     fn iterate(&mut self, use_secant: bool) -> Option<Accepted> {
         let prob = self.prob;
         let mut fixed = active_bounds(&self.s, &self.blocks.gs);
+        if std::mem::take(&mut self.kept) {
+            reduce_gradient(&mut self.blocks);
+            self.lambda = self.blocks.damping();
+            if let Attempt::Taken(a) = self.attempt(None, false, use_secant, &mut fixed) {
+                return Some(a);
+            }
+            self.assemble();
+            fixed = active_bounds(&self.s, &self.blocks.gs);
+        }
         let mut reduced_at = if use_secant {
             self.observe_secant()
         } else {
@@ -452,68 +508,85 @@ impl<'a, 'm> Solve<'a, 'm> {
                 reduced_at = Some(self.lambda);
             }
             let limited = self.secant.limited(&self.blocks.schur);
-            let extra = limited
-                .as_deref()
-                .filter(|_| self.secant.augmented() && !plain);
-            let (blocks, s) = (&self.blocks, &self.s);
-            if !solve_reduced_at_bounds(blocks, extra, s, &mut fixed, &mut self.ds) {
-                self.lambda *= 10.0;
-                continue;
-            }
-            let s_try: Vec<f64> = s
-                .iter()
-                .zip(&self.ds)
-                .map(|(a, d)| (a + d).clamp(-1.0, 1.0))
-                .collect();
-            let ds_eff: Vec<f64> = s_try.iter().zip(s).map(|(a, b)| a - b).collect();
-            let gauss_newton = back_substitute(prob, &self.qs, blocks, &ds_eff, &mut self.dq);
-            let augmented = match &limited {
-                Some(a) => gauss_newton - self.secant.curvature(a, &ds_eff),
-                None => gauss_newton,
-            };
-            // Mixed where the step is Gauss–Newton's, or within a standard error of the
-            // model's optimum at a settled damping ([`mixing`]).
-            let tail = !use_secant
-                && self.mixing.on()
-                && (self.lambda <= RESOLUTION_MAX_DAMPING || gauss_newton <= self.noise);
-            let mut step = Step {
-                s_try,
-                ds: ds_eff,
-                gauss_newton,
-                augmented,
-                // The model that chose the step predicts its decrease.
-                predicted: if extra.is_some() {
-                    augmented
-                } else {
-                    gauss_newton
-                },
-                tail,
-                mixed: false,
-            };
-            if tail {
-                mixing::copy_frames(&mut self.f_q, &self.dq);
-                if !plain {
-                    self.mix(&mut step, &fixed);
-                }
-            }
-            trial_coords(&mut self.q_try, &self.qs, &mut self.dq, &self.blocks.bounds);
-            let p_try = prob.to_params(&step.s_try);
-            let c = cost_at(prob, &self.blocks, &p_try, &self.q_try);
-            self.evaluations += 1;
-            if c <= self.cost {
-                return Some(self.take(step, p_try, c, &fixed));
-            }
-            self.mixing.clear();
-            if step.mixed || extra.is_some() {
+            match self.attempt(limited.as_deref(), plain, use_secant, &mut fixed) {
+                Attempt::Singular => self.lambda *= 10.0,
+                Attempt::Taken(accepted) => return Some(accepted),
                 // The augmented or mixed step failed: Gauss–Newton's at the same damping
                 // first.
-                plain = true;
-                continue;
+                Attempt::Rejected { retry_plain: true } => plain = true,
+                Attempt::Rejected { retry_plain: false } => {
+                    self.lambda *= self.nu;
+                    self.nu *= 2.0;
+                }
             }
-            self.lambda *= self.nu;
-            self.nu *= 2.0;
         }
         None
+    }
+
+    /// One trial step at the reduced system of the blocks (damping `self.lambda`), with the
+    /// secant term `limited` added when the secant model leads ([`secant`]) and mixed in the
+    /// tail ([`mixing`]), unless `plain` (Gauss–Newton's alone); taken when it does not raise
+    /// the objective.
+    fn attempt(
+        &mut self,
+        limited: Option<&[f64]>,
+        plain: bool,
+        use_secant: bool,
+        fixed: &mut [bool],
+    ) -> Attempt {
+        let prob = self.prob;
+        let extra = limited.filter(|_| self.secant.augmented() && !plain);
+        let (blocks, s) = (&self.blocks, &self.s);
+        if !solve_reduced_at_bounds(blocks, extra, s, fixed, &mut self.ds) {
+            return Attempt::Singular;
+        }
+        let s_try: Vec<f64> = s
+            .iter()
+            .zip(&self.ds)
+            .map(|(a, d)| (a + d).clamp(-1.0, 1.0))
+            .collect();
+        let ds_eff: Vec<f64> = s_try.iter().zip(s).map(|(a, b)| a - b).collect();
+        let gauss_newton = back_substitute(prob, &self.qs, blocks, &ds_eff, &mut self.dq);
+        let augmented = match limited {
+            Some(a) => gauss_newton - self.secant.curvature(a, &ds_eff),
+            None => gauss_newton,
+        };
+        // Mixed where the step is Gauss–Newton's, or within a standard error of the model's
+        // optimum at a settled damping ([`mixing`]).
+        let tail = !use_secant
+            && self.mixing.on()
+            && (self.lambda <= RESOLUTION_MAX_DAMPING || gauss_newton <= self.noise);
+        let mut step = Step {
+            s_try,
+            ds: ds_eff,
+            gauss_newton,
+            augmented,
+            // The model that chose the step predicts its decrease.
+            predicted: if extra.is_some() {
+                augmented
+            } else {
+                gauss_newton
+            },
+            tail,
+            mixed: false,
+        };
+        if tail {
+            mixing::copy_frames(&mut self.f_q, &self.dq);
+            if !plain {
+                self.mix(&mut step, fixed);
+            }
+        }
+        trial_coords(&mut self.q_try, &self.qs, &mut self.dq, &self.blocks.bounds);
+        let p_try = prob.to_params(&step.s_try);
+        let c = cost_at(prob, &self.blocks, &p_try, &self.q_try);
+        self.evaluations += 1;
+        if c <= self.cost {
+            return Attempt::Taken(self.take(step, p_try, c, fixed));
+        }
+        self.mixing.clear();
+        Attempt::Rejected {
+            retry_plain: step.mixed || extra.is_some(),
+        }
     }
 
     /// The secant model's data at this point: the reduced system at the step's damping when
@@ -564,6 +637,7 @@ impl<'a, 'm> Solve<'a, 'm> {
     /// history, the damping's update and the new point.
     fn take(&mut self, step: Step, p_try: Vec<f64>, c: f64, fixed: &[bool]) -> Accepted {
         let lambda_used = self.lambda;
+        self.lambda_used = lambda_used;
         if step.tail {
             // The Gauss–Newton parameter step is in `self.ds` after a mixed step (swapped),
             // else it is the step taken.

@@ -165,30 +165,78 @@ pub(crate) fn frame_gram(
     half: &[f64],
     sc: &mut FrameScratch,
 ) -> f64 {
+    frame_kernel(prob, (p, q), targets, half, sc, true)
+}
+
+/// The gradient alone of [`frame_gram`] (into `sc.grad`, the same numbers) and the frame's
+/// objective: the kinematics and the columns' twists without the products of the Gram
+/// matrix (the whole of [`frame_gram`] where the twist kernel does not serve the problem).
+pub(crate) fn frame_gradient(
+    prob: &Problem,
+    p: &[f64],
+    q: &[f64],
+    targets: &[Vector3<f64>],
+    half: &[f64],
+    sc: &mut FrameScratch,
+) -> f64 {
+    frame_kernel(prob, (p, q), targets, half, sc, false)
+}
+
+/// [`frame_gram`] (`gram`) or [`frame_gradient`].
+fn frame_kernel(
+    prob: &Problem,
+    at: (&[f64], &[f64]),
+    targets: &[Vector3<f64>],
+    half: &[f64],
+    sc: &mut FrameScratch,
+    gram: bool,
+) -> f64 {
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
         // SAFETY: the processor supports AVX2 (checked just above). The gathers compile to
         // wider moves; the arithmetic is the same in the same order.
-        return unsafe { frame_gram_avx2(prob, p, q, targets, half, sc) };
+        return unsafe { frame_kernel_avx2(prob, at, targets, half, sc, gram) };
     }
-    frame_gram_impl(prob, p, q, targets, half, sc)
+    frame_kernel_impl(prob, at, targets, half, sc, gram)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn frame_gram_avx2(
+unsafe fn frame_kernel_avx2(
     prob: &Problem,
-    p: &[f64],
-    q: &[f64],
+    at: (&[f64], &[f64]),
     targets: &[Vector3<f64>],
     half: &[f64],
     sc: &mut FrameScratch,
+    gram: bool,
 ) -> f64 {
-    frame_gram_impl(prob, p, q, targets, half, sc)
+    frame_kernel_impl(prob, at, targets, half, sc, gram)
 }
 
 #[inline(always)]
-fn frame_gram_impl(
+fn frame_kernel_impl(
+    prob: &Problem,
+    (p, q): (&[f64], &[f64]),
+    targets: &[Vector3<f64>],
+    half: &[f64],
+    sc: &mut FrameScratch,
+    gram: bool,
+) -> f64 {
+    if let Some(plan) = &mut sc.twist {
+        forward_kinematics_frames(prob.model, p, q, &mut sc.kin);
+        if gram {
+            plan.gram(prob, &sc.kin, targets, half, &mut sc.gram, &mut sc.grad);
+        } else {
+            plan.gradient(prob, &sc.kin, targets, half, &mut sc.grad);
+        }
+        return frame_cost(prob, &sc.kin, targets);
+    }
+    frame_gram_tiled(prob, p, q, targets, half, sc)
+}
+
+/// [`frame_gram`] by the tiled kernel (where the twist kernel does not serve the problem).
+#[inline(always)]
+fn frame_gram_tiled(
     prob: &Problem,
     p: &[f64],
     q: &[f64],
@@ -196,11 +244,6 @@ fn frame_gram_impl(
     half: &[f64],
     sc: &mut FrameScratch,
 ) -> f64 {
-    if let Some(plan) = &mut sc.twist {
-        forward_kinematics_frames(prob.model, p, q, &mut sc.kin);
-        plan.gram(prob, &sc.kin, targets, half, &mut sc.gram, &mut sc.grad);
-        return frame_cost(prob, &sc.kin, targets);
-    }
     let model = prob.model;
     let nq = model.coordinates().len();
     let n = nq + prob.n_free();

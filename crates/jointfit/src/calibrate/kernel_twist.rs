@@ -229,21 +229,15 @@ impl TwistPlan {
         })
     }
 
-    /// Writes `G` (n × n, column-major) and `h` (n) of the frame whose kinematics (poses,
-    /// markers, every step's frame) `kin` holds, with targets `targets` (NaN: missing) and
-    /// free-parameter scales `half`. Inlined into the kernel's AVX2 entry point, where the
-    /// products over the columns run four lanes wide (the same operations in the same order).
+    /// The segments' and groups' moments of the frame (`kin`, `targets`) about the weighted
+    /// centroid of its present markers, which it returns (`None`: no marker present).
     #[inline(always)]
-    pub(crate) fn gram(
+    fn moments(
         &mut self,
         prob: &Problem,
         kin: &KinData,
         targets: &[Vector3<f64>],
-        half: &[f64],
-        gram: &mut [f64],
-        grad: &mut [f64],
-    ) {
-        let (n, np) = (self.y.len(), self.np);
+    ) -> Option<Vector3<f64>> {
         let markers = prob.model.markers();
         let weight = |j: usize| {
             let w = markers[j].weight;
@@ -254,11 +248,7 @@ impl TwistPlan {
             }
         };
         // The reference point: the weighted centroid of the present markers.
-        let Some(centre) = weighted_centroid(&self.segments, kin, weight) else {
-            gram[..n * n].fill(0.0);
-            grad[..n].fill(0.0);
-            return;
-        };
+        let centre = weighted_centroid(&self.segments, kin, weight)?;
         for (seg, mom) in self.segments.iter().zip(&mut self.seg_mom) {
             *mom = Mom::zero();
             for &j in seg {
@@ -274,6 +264,57 @@ impl TwistPlan {
                 mom.add(&self.seg_mom[s]);
             }
         }
+        Some(centre)
+    }
+
+    /// `h` alone (n) of [`TwistPlan::gram`]: the same numbers, bit for bit, without the
+    /// products of `G`.
+    #[inline(always)]
+    pub(crate) fn gradient(
+        &mut self,
+        prob: &Problem,
+        kin: &KinData,
+        targets: &[Vector3<f64>],
+        half: &[f64],
+        grad: &mut [f64],
+    ) {
+        let n = self.y.len();
+        let Some(centre) = self.moments(prob, kin, targets) else {
+            grad[..n].fill(0.0);
+            return;
+        };
+        let cols = self.col_steps.iter().zip(&self.col_group);
+        for (a, (steps, &g)) in cols.enumerate() {
+            if g == usize::MAX {
+                grad[a] = 0.0;
+                continue;
+            }
+            let (w, v) = scaled_twist(kin, steps, &centre, (a, self.n_q), half);
+            let k = &self.grp_mom[g];
+            grad[a] = w.dot(&k.r1) + v.dot(&k.r0);
+        }
+    }
+
+    /// Writes `G` (n × n, column-major) and `h` (n) of the frame whose kinematics (poses,
+    /// markers, every step's frame) `kin` holds, with targets `targets` (NaN: missing) and
+    /// free-parameter scales `half`. Inlined into the kernel's AVX2 entry point, where the
+    /// products over the columns run four lanes wide (the same operations in the same order).
+    #[inline(always)]
+    pub(crate) fn gram(
+        &mut self,
+        prob: &Problem,
+        kin: &KinData,
+        targets: &[Vector3<f64>],
+        half: &[f64],
+        gram: &mut [f64],
+        grad: &mut [f64],
+    ) {
+        let (n, np) = (self.y.len(), self.np);
+        let Some(centre) = self.moments(prob, kin, targets) else {
+            gram[..n * n].fill(0.0);
+            grad[..n].fill(0.0);
+            return;
+        };
         // The columns' twists and `K ξ` (borrowed apart, so that the stores into `xs` and `y`
         // are not taken to alias the plan's other vectors).
         let (n_q, grp_mom, xs, ys) = (self.n_q, &self.grp_mom, &mut self.xs, &mut self.y);
@@ -293,11 +334,7 @@ impl TwistPlan {
                 }
                 continue;
             }
-            let (mut w, mut v) = column_twist(kin, steps, &centre);
-            if a >= n_q {
-                w *= half[a - n_q];
-                v *= half[a - n_q];
-            }
+            let (w, v) = scaled_twist(kin, steps, &centre, (a, n_q), half);
             let k = &grp_mom[g];
             grad[a] = w.dot(&k.r1) + v.dot(&k.r0);
             let t = &k.theta;
@@ -321,6 +358,23 @@ impl TwistPlan {
             return;
         }
         mirror(c, n, np, gram);
+    }
+}
+
+/// The twist of column `a` (of `n_q` coordinates, then the free parameters) about `centre`,
+/// a free parameter's scaled by its half-range `half`.
+#[inline(always)]
+fn scaled_twist(
+    kin: &KinData,
+    steps: &Steps,
+    centre: &Vector3<f64>,
+    (a, n_q): (usize, usize),
+    half: &[f64],
+) -> (Vector3<f64>, Vector3<f64>) {
+    let (w, v) = column_twist(kin, steps, centre);
+    match a.checked_sub(n_q) {
+        Some(k) => (w * half[k], v * half[k]),
+        None => (w, v),
     }
 }
 

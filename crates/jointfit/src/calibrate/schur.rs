@@ -23,7 +23,7 @@
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
-use super::kernel::{frame_gram, FrameScratch, ScratchPool};
+use super::kernel::{frame_gradient, frame_gram, FrameScratch, ScratchPool};
 use super::Problem;
 use crate::kinematics::{forward_kinematics, Want};
 
@@ -193,6 +193,22 @@ impl Blocks {
         }
     }
 
+    /// The damping of the last reduction (that of the kept factors).
+    pub(crate) fn damping(&self) -> f64 {
+        self.lambda
+    }
+
+    /// Whether a step may keep the curvature of an earlier point ([`assemble_gradient`],
+    /// [`reduce_gradient`]): every frame's blocks and damped factors are held, the factors
+    /// are those of the last reduction, and no coordinate is bounded (a held coordinate's
+    /// blocks depend on its gradient's sign).
+    pub(crate) fn can_keep(&self) -> bool {
+        self.cached == self.frames
+            && self.factored == self.frames
+            && self.factors_valid
+            && self.bounds.is_empty()
+    }
+
     fn per(&self) -> usize {
         self.nq * self.nq + self.nq * self.nf + self.nq
     }
@@ -291,6 +307,49 @@ pub(crate) fn assemble(prob: &Problem, p: &[f64], qs: &[Vec<f64>], b: &mut Block
         b.cost += cost;
     }
     b.cost += prob.add_prior(p, &mut b.gs, &mut b.v);
+}
+
+/// The gradient and objective at `(p, qs)` into `b` with the curvature blocks (`U_i`,
+/// `W_i`, `V`) and the damped factors of the last assembly and reduction kept: `g_i` of
+/// every frame, `g_s` and the objective, by [`frame_gradient`] (the kinematics and the
+/// columns' twists, not the Gram matrix's products). Only where [`Blocks::can_keep`].
+pub(crate) fn assemble_gradient(prob: &Problem, p: &[f64], qs: &[Vec<f64>], b: &mut Blocks) {
+    debug_assert!(b.can_keep());
+    let (per, nq, nf, chunk) = (b.per(), b.nq, b.nf, b.chunk);
+    b.p = p.to_vec();
+    let half = &b.half;
+    let pool = &b.pool;
+    let parts: Vec<(Vec<f64>, f64)> = b
+        .store
+        .par_chunks_mut(chunk * per)
+        .enumerate()
+        .map_init(
+            || (pool.take(prob), Vec::new()),
+            |(sc, tb), (c, slot)| {
+                let mut gs = vec![0.0; nf];
+                let mut cost = 0.0;
+                for (i, out) in slot.chunks_exact_mut(per).enumerate() {
+                    let f = c * chunk + i;
+                    let targets = prob.frames.fill(f, tb);
+                    cost += frame_gradient(prob, p, &qs[f], targets, half, sc);
+                    out[per - nq..].copy_from_slice(&sc.grad[..nq]);
+                    for (g, x) in gs.iter_mut().zip(&sc.grad[nq..nq + nf]) {
+                        *g += x;
+                    }
+                }
+                (gs, cost)
+            },
+        )
+        .collect();
+    b.gs.fill(0.0);
+    b.cost = 0.0;
+    for (gs, cost) in parts {
+        add(&mut b.gs, &gs);
+        b.cost += cost;
+    }
+    // The prior's gradient at `p`; its curvature, a constant, is in the kept `V`.
+    let mut v = vec![0.0; nf * nf];
+    b.cost += prob.add_prior(p, &mut b.gs, &mut v);
 }
 
 /// One chunk of frames of [`assemble`]: its share of `V`, `g_s` and the objective, and its
@@ -398,7 +457,9 @@ pub(crate) fn cost_at(prob: &Problem, b: &Blocks, p: &[f64], qs: &[Vec<f64>]) ->
 
 #[path = "schur_step.rs"]
 mod step;
-pub(crate) use step::{back_substitute, frame_share, reduce, solve_reduced_at_bounds};
+pub(crate) use step::{
+    back_substitute, frame_share, reduce, reduce_gradient, solve_reduced_at_bounds,
+};
 
 /// Every frame's bounded coordinates ([`coordinate_bounds`]) projected into their ranges.
 pub(crate) fn project_coords(qs: &mut [Vec<f64>], bounds: &[(usize, f64, f64)]) {

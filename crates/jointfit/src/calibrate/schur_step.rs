@@ -167,6 +167,42 @@ pub(crate) fn reduce(prob: &Problem, qs: &[Vec<f64>], b: &mut Blocks, lambda: f6
     true
 }
 
+/// The reduced right-hand side `g_s − Σ W_iᵀ U_i*⁻¹ g_i` into [`Blocks::rhs`] from the
+/// gradient of [`super::assemble_gradient`] and the kept blocks and damped factors of the
+/// last [`reduce`] (its `S` and damping stay): the step of the kept curvature at the new
+/// point. Only where [`Blocks::can_keep`].
+pub(crate) fn reduce_gradient(b: &mut Blocks) {
+    debug_assert!(b.can_keep());
+    let (nq, nf, per) = (b.nq, b.nf, b.per());
+    let blocks = &*b;
+    let parts: Vec<Vec<f64>> = (0..b.chunks())
+        .into_par_iter()
+        .map(|c| {
+            let mut acc = vec![0.0; nf];
+            let mut x = vec![0.0; nq];
+            for f in blocks.chunk_frames(c) {
+                let blk = &blocks.store[f * per..(f + 1) * per];
+                let (w, g) = blk[nq * nq..].split_at(nq * nf);
+                x.copy_from_slice(g);
+                cholesky_solve(&blocks.factors[f * nq * nq..(f + 1) * nq * nq], nq, &mut x);
+                for (a, wk) in acc.iter_mut().zip(w.chunks_exact(nq)) {
+                    *a += dot(wk, &x);
+                }
+            }
+            acc
+        })
+        .collect();
+    let mut rhs = b.gs.clone();
+    let mut sum = vec![0.0; nf];
+    for part in parts {
+        add(&mut sum, &part);
+    }
+    for (r, s) in rhs.iter_mut().zip(&sum) {
+        *r -= s;
+    }
+    b.rhs = rhs;
+}
+
 /// One chunk of frames of [`reduce`]: its frames' factors (into `slot` when the factors are
 /// kept) and its share `[Z | y]ᵀ[Z | y]` of the reduction (`None`: a `U_i*` is not positive
 /// definite).

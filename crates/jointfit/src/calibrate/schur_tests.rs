@@ -213,3 +213,73 @@ fn parameters_pushing_out_of_their_bounds_are_held_and_the_step_descends() {
     let predicted = back_substitute(&prob, &qs, &b, &step, &mut dq);
     assert!(predicted > 0.0, "predicted decrease {predicted:e}");
 }
+
+/// The kept curvature's passes: the gradient and objective alone at a point are those of a
+/// whole assembly there (bit for bit), and the reduced right-hand side from the kept factors
+/// is the reduction's at the same point and damping (to round-off); at a second point the
+/// gradient is that point's while `U_i`, `W_i`, `V`, `S` and the damping stay the first's.
+#[test]
+fn kept_curvature_takes_the_new_points_gradient() {
+    let model = Model::compile(&lower_limb(Side::Right)).unwrap();
+    let trial = problem_trial(&model, 60);
+    let free = params_for_groups(&model, &["all"]).unwrap();
+    let mut prob = Problem::new(&model, model.nominal_params(), &free, &[&trial]).unwrap();
+    let nf = prob.n_free();
+    prob.prior = Some(crate::calibrate::prior::Prior {
+        mean: (0..nf)
+            .map(|k| model.parameters()[prob.free[k]].nominal + 0.2 * prob.half_range(k))
+            .collect(),
+        sd: (0..nf).map(|k| 0.5 * prob.half_range(k)).collect(),
+        noise: 0.01,
+        inflation: vec![1.0; nf],
+        spread: vec![1.0; nf],
+    });
+    let p = model.nominal_params();
+    let qs = prob.initial_coords(&p);
+    let lambda = 1e-7;
+    let mut fresh = Blocks::new(&prob);
+    assemble(&prob, &p, &qs, &mut fresh);
+    assert!(reduce(&prob, &qs, &mut fresh, lambda));
+    let mut kept = Blocks::new(&prob);
+    assemble(&prob, &p, &qs, &mut kept);
+    assert!(reduce(&prob, &qs, &mut kept, lambda));
+    assert!(kept.can_keep());
+    assemble_gradient(&prob, &p, &qs, &mut kept);
+    reduce_gradient(&mut kept);
+    assert_eq!(kept.gs, fresh.gs);
+    assert_eq!(kept.cost.to_bits(), fresh.cost.to_bits());
+    assert_eq!(kept.store, fresh.store);
+    let scale = fresh.rhs.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    for (a, b) in kept.rhs.iter().zip(&fresh.rhs) {
+        assert!((a - b).abs() <= 1e-10 * scale, "{a} against {b}");
+    }
+    // A second point: its gradient, the first point's curvature.
+    let mut p2 = p.clone();
+    for (k, &i) in prob.free.iter().enumerate() {
+        p2[i] += 1e-3 * prob.half_range(k) * (k as f64).cos();
+    }
+    let qs2: Vec<Vec<f64>> = qs
+        .iter()
+        .map(|q| q.iter().map(|x| x + 1e-3).collect())
+        .collect();
+    let mut there = Blocks::new(&prob);
+    assemble(&prob, &p2, &qs2, &mut there);
+    assemble_gradient(&prob, &p2, &qs2, &mut kept);
+    assert_eq!(kept.gs, there.gs);
+    assert_eq!(kept.cost.to_bits(), there.cost.to_bits());
+    let per = kept.per();
+    let nq = kept.nq;
+    for f in 0..qs.len() {
+        let (k, t, a) = (&kept.store, &there.store, &fresh.store);
+        let r = f * per..(f + 1) * per;
+        assert_eq!(k[r.end - nq..r.end], t[r.end - nq..r.end], "g of frame {f}");
+        assert_eq!(
+            k[r.start..r.end - nq],
+            a[r.start..r.end - nq],
+            "U, W of frame {f}"
+        );
+    }
+    assert_eq!(kept.v, fresh.v);
+    assert_eq!(kept.damping(), lambda);
+    assert!(kept.can_keep());
+}
