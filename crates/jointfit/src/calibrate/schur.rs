@@ -203,7 +203,8 @@ impl Blocks {
     /// are those of the last reduction, and no coordinate is bounded (a held coordinate's
     /// blocks depend on its gradient's sign).
     pub(crate) fn can_keep(&self) -> bool {
-        self.cached == self.frames
+        self.nq > 0
+            && self.cached == self.frames
             && self.factored == self.frames
             && self.factors_valid
             && self.bounds.is_empty()

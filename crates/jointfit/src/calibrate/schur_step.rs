@@ -349,9 +349,13 @@ pub(crate) fn frame_share(
     l: &[f64],
     w: &[f64],
     g: &[f64],
-    nq: usize,
+    (nq, nf): (usize, usize),
     z: &mut Vec<f64>,
 ) -> Vec<f64> {
+    if nq == 0 {
+        // No coordinates: nothing to eliminate.
+        return vec![0.0; (nf + 1) * (nf + 1)];
+    }
     #[cfg(target_arch = "x86_64")]
     if std::is_x86_feature_detected!("avx2") {
         // SAFETY: the processor supports AVX2 (checked just above).
@@ -685,14 +689,14 @@ mod solve_rows_tests {
             state ^= state << 17;
             (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
         };
-        for (nq, nf) in [(1usize, 1usize), (6, 4), (12, 27), (13, 9)] {
+        for (nq, nf) in [(0usize, 3usize), (1, 1), (6, 4), (12, 27), (13, 9)] {
             let a = DMatrix::from_fn(nq, nq + 2, |_, _| next());
             let u = &a * a.transpose() + DMatrix::identity(nq, nq) * 0.1;
             let w: Vec<f64> = (0..nq * nf).map(|_| next()).collect();
             let g: Vec<f64> = (0..nq).map(|_| next()).collect();
             let mut l = u.as_slice().to_vec();
             assert!(crate::linalg::cholesky_in_place(&mut l, nq));
-            let got = super::frame_share(&l, &w, &g, nq, &mut Vec::new());
+            let got = super::frame_share(&l, &w, &g, (nq, nf), &mut Vec::new());
             // [W | g] as an n_q × (n_f + 1) matrix, and its product by hand.
             let m = nf + 1;
             let wg = DMatrix::from_fn(nq, m, |a, k| if k < nf { w[k * nq + a] } else { g[a] });

@@ -138,7 +138,7 @@ pub(crate) fn reduced_system(prob: &Problem, p: &[f64], qs: &[Vec<f64>]) -> Redu
                         ridge *= 100.0;
                     }
                     // [W | g]ᵀ U⁻¹ [W | g]: the reduction's share and the score's correction.
-                    let zz = frame_share(&l, &w, &yg, nq, &mut z);
+                    let zz = frame_share(&l, &w, &yg, (nq, nf), &mut z);
                     let m = nf + 1;
                     let psi = DVector::from_fn(nf, |k, _| grad[nq + k] - zz[nf * m + k]);
                     let a = DMatrix::from_fn(nf, nf, |k, c| {
