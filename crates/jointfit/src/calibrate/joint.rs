@@ -102,6 +102,8 @@ pub(crate) struct JointOptions {
     /// [`RESOLUTION_MAX_DAMPING`] from a point known to be near the optimum, where the
     /// Gauss–Newton step is trusted from the start.
     pub initial_damping: f64,
+    /// The undamped tail may keep the curvature of a nearby point ([`KEEP_STEP`]).
+    pub keep_curvature: bool,
 }
 
 impl Default for JointOptions {
@@ -111,6 +113,7 @@ impl Default for JointOptions {
             tolerance: 1e-10,
             mixing: true,
             initial_damping: 1e-4,
+            keep_curvature: true,
         }
     }
 }
@@ -405,6 +408,8 @@ struct Solve<'a, 'm> {
     moved: f64,
     /// The damping of the last accepted step.
     lambda_used: f64,
+    /// [`JointOptions::keep_curvature`].
+    keep_curvature: bool,
 }
 
 impl<'a, 'm> Solve<'a, 'm> {
@@ -444,6 +449,7 @@ impl<'a, 'm> Solve<'a, 'm> {
             kept: false,
             moved: 0.0,
             lambda_used: f64::INFINITY,
+            keep_curvature: opts.keep_curvature,
         }
     }
 
@@ -461,7 +467,8 @@ impl<'a, 'm> Solve<'a, 'm> {
     /// either way).
     fn advance(&mut self, step: f64, use_secant: bool) {
         self.moved += step;
-        let keep = !use_secant
+        let keep = self.keep_curvature
+            && !use_secant
             && self.lambda_used <= RESOLUTION_MAX_DAMPING
             && self.moved <= KEEP_STEP
             && self.blocks.can_keep();
