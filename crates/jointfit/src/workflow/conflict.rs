@@ -39,6 +39,7 @@
 //! calibrations run it.
 
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 use serde::Serialize;
 
 use super::calibration::analysis_stage;
@@ -139,8 +140,9 @@ pub(crate) fn statistics(
     let noise = &ainv * &root * n * &root * &ainv * sigma2; // A⁻¹ Ω A⁻¹
     let s0m = DMatrix::from_diagonal(&DVector::from_column_slice(s0));
     let prior = &g * s0m * g.transpose(); // A⁻¹ N S₀ N A⁻¹
+                                          // The joints are independent: side by side, collected in order.
     groups
-        .iter()
+        .par_iter()
         .map(|idx| {
             let k = idx.len();
             let w = |i: usize| 1.0 / s0[idx[i]].sqrt();
@@ -190,8 +192,9 @@ fn maximize_log_scale(f: impl Fn(f64) -> f64, cap: f64) -> f64 {
     }
     let steps = 64;
     let x = |i: usize| hi * i as f64 / steps as f64;
+    let grid: Vec<f64> = (0..=steps).map(|i| f(x(i).exp())).collect();
     let best = (0..=steps)
-        .max_by(|&a, &b| f(x(a).exp()).total_cmp(&f(x(b).exp())).then(b.cmp(&a)))
+        .max_by(|&a, &b| grid[a].total_cmp(&grid[b]).then(b.cmp(&a)))
         .unwrap_or(0);
     let (mut lo, mut up) = (x(best.saturating_sub(1)), x((best + 1).min(steps)));
     let r = (5f64.sqrt() - 1.0) / 2.0;
@@ -204,7 +207,7 @@ fn maximize_log_scale(f: impl Fn(f64) -> f64, cap: f64) -> f64 {
         }
     }
     let t = (0.5 * (lo + up)).exp();
-    match f(t) >= f(x(best).exp()) {
+    match f(t) >= grid[best] {
         true => t,
         false => x(best).exp(),
     }
