@@ -253,8 +253,12 @@ fn fit_free<'m>(
             .collect()
     };
     let parameters = param_rows(model, &prob, start, &fit);
+    let tg = std::time::Instant::now();
     let ((rms_before, rms_after), (per_marker_before, per_marker_after)) =
         rms_before_after(&prob, start, &q_before, &fit);
+    if std::env::var("JF_T").is_ok() {
+        eprintln!("T rms {:.3}", tg.elapsed().as_secs_f64() * 1e3);
+    }
     let cal = Calibration {
         method: settings.method,
         seed: settings.seed,
@@ -502,7 +506,11 @@ pub(crate) fn fit_keeping_system<'m>(
         cal.prior_noise_estimated = estimated;
     }
     // One reduced system for the analysis, the data shares and the conflict step.
+    let ta = std::time::Instant::now();
     let red = reduced_system(&prob, &cal.fit.p, &cal.fit.coords);
+    if std::env::var("JF_T").is_ok() {
+        eprintln!("T red-final {:.3}", ta.elapsed().as_secs_f64() * 1e3);
+    }
     let share = prob
         .prior
         .is_some()

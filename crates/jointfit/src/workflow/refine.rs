@@ -215,11 +215,21 @@ fn prepare(
         false => Vec::new(),
     };
     let near = |t: usize, f: usize| looked.get(t)?.as_ref()?.coords(f);
-    let (free, held_joints, seed) =
-        super::motion_range::hold_still_joints(model, start, trials, free, &near)?;
+    // The motion ranges and the marker decisions read the same robust inverse kinematics and
+    // not each other: side by side. The decisions count only for a MAP fit, which holding
+    // still joints can only turn off (fewer free parameters).
+    let policy = with_prior(free) && settings.marker_policy;
+    let (held, decisions) = rayon::join(
+        || super::motion_range::hold_still_joints(model, start, trials, free, &near),
+        || match policy {
+            true => decide_on(model, start, trials, &settings.keep_markers, &looked),
+            false => Vec::new(),
+        },
+    );
+    let (free, held_joints, seed) = held?;
     let map_fit = with_prior(&free);
     let decisions = match map_fit && settings.marker_policy {
-        true => decide_on(model, start, trials, &settings.keep_markers, &looked),
+        true => decisions,
         false => Vec::new(),
     };
     Ok(Prepared {
