@@ -498,27 +498,18 @@ fn mixed_tail_reaches_the_plain_optimum_in_fewer_iterations() {
     // tolerances alone). Large skin noise gives the slow linear tail that mixing is for
     // (measured: 40, 18 and 72 iterations mixed against 75, 40 and 78 plain, at most 2.1e-4
     // SE from the optimum).
-    let model = crate::calibrate::prior_tests::model_with_priors();
-    let free = params_for_groups(&model, &["all"]).unwrap();
-    let base = model.nominal_params();
     let (mut mixed_total, mut plain_total) = (0, 0);
-    for (seed, noise_seed, amplitude) in [(3, 103, 0.02), (4, 104, 0.03), (1, 101, 0.04)] {
-        let p_true = perturbed(&model, seed);
-        let trial = synthetic(&model, &p_true, 60, amplitude, noise_seed);
-        let prob = Problem::new(&model, base.clone(), &free, &[&trial])
-            .unwrap()
-            .with_model_prior(0.004);
-        let s0 = prob.to_scaled(&base);
-        let q0 = prob.initial_coords(&base);
+    let cases = [(3, 103, 0.02), (4, 104, 0.03), (1, 101, 0.04)];
+    on_noisy_legs(&cases, |seed, prob, s0, q0| {
         let plain_opts = JointOptions {
             mixing: false,
             ..JointOptions::default()
         };
-        let exact = solve_joint_to(&prob, &s0, q0.clone(), &plain_opts, 0.0, &mut NoObserver);
-        let plain = solve_joint(&prob, &s0, q0.clone(), &plain_opts, &mut NoObserver);
-        let mixed = solve_joint(&prob, &s0, q0, &JointOptions::default(), &mut NoObserver);
+        let exact = solve_joint_to(prob, s0, q0.clone(), &plain_opts, 0.0, &mut NoObserver);
+        let plain = solve_joint(prob, s0, q0.clone(), &plain_opts, &mut NoObserver);
+        let mixed = solve_joint(prob, s0, q0, &JointOptions::default(), &mut NoObserver);
         assert_eq!(mixed.termination, Termination::Converged);
-        let d = distance_in_se(&prob, &mixed, &exact);
+        let d = distance_in_se(prob, &mixed, &exact);
         assert!(d <= RESOLUTION_SE, "seed {seed}: {d:e} SE from the optimum");
         assert!(
             mixed.iterations <= plain.iterations,
@@ -528,7 +519,7 @@ fn mixed_tail_reaches_the_plain_optimum_in_fewer_iterations() {
         );
         mixed_total += mixed.iterations;
         plain_total += plain.iterations;
-    }
+    });
     assert!(
         mixed_total < plain_total,
         "{mixed_total} mixed, {plain_total} plain"
@@ -543,29 +534,20 @@ fn kept_curvature_reaches_the_optimum_of_the_solve_that_forms_it_every_step() {
     // iterations and evaluations (skin noise 1–4 cm: the slow tails where it is used most;
     // measured 11, 26 and 73 iterations against 11, 40 and 71, 22, 56 and 178 evaluations
     // against 22, 92 and 169).
-    let model = crate::calibrate::prior_tests::model_with_priors();
-    let free = params_for_groups(&model, &["all"]).unwrap();
-    let base = model.nominal_params();
-    for (seed, noise_seed, amplitude) in [(5, 9, 0.01), (3, 103, 0.02), (1, 101, 0.04)] {
-        let p_true = perturbed(&model, seed);
-        let trial = synthetic(&model, &p_true, 60, amplitude, noise_seed);
-        let prob = Problem::new(&model, base.clone(), &free, &[&trial])
-            .unwrap()
-            .with_model_prior(0.004);
-        let s0 = prob.to_scaled(&base);
-        let q0 = prob.initial_coords(&base);
+    let cases = [(5, 9, 0.01), (3, 103, 0.02), (1, 101, 0.04)];
+    on_noisy_legs(&cases, |seed, prob, s0, q0| {
         let kept = JointOptions::default();
         let formed = JointOptions {
             keep_curvature: false,
             ..kept
         };
-        let oracle = solve_joint_to(&prob, &s0, q0.clone(), &formed, 0.0, &mut NoObserver);
-        let run_out = solve_joint_to(&prob, &s0, q0.clone(), &kept, 0.0, &mut NoObserver);
-        let quick = solve_joint(&prob, &s0, q0.clone(), &kept, &mut NoObserver);
-        let plain = solve_joint(&prob, &s0, q0, &formed, &mut NoObserver);
-        let d = distance_in_se(&prob, &run_out, &oracle);
+        let oracle = solve_joint_to(prob, s0, q0.clone(), &formed, 0.0, &mut NoObserver);
+        let run_out = solve_joint_to(prob, s0, q0.clone(), &kept, 0.0, &mut NoObserver);
+        let quick = solve_joint(prob, s0, q0.clone(), &kept, &mut NoObserver);
+        let plain = solve_joint(prob, s0, q0, &formed, &mut NoObserver);
+        let d = distance_in_se(prob, &run_out, &oracle);
         assert!(d <= 2e-5, "seed {seed}: run out {d:e} SE apart");
-        let d = distance_in_se(&prob, &quick, &oracle);
+        let d = distance_in_se(prob, &quick, &oracle);
         assert!(
             d <= RESOLUTION_SE,
             "seed {seed}: stopped {d:e} SE from the optimum"
@@ -584,5 +566,27 @@ fn kept_curvature_reaches_the_optimum_of_the_solve_that_forms_it_every_step() {
             "seed {seed}: {} evaluations",
             quick.evaluations
         );
+    });
+}
+
+/// Runs `check(seed, problem, scaled start, starting coordinates)` on the leg with its
+/// landmark priors (σ 4 mm), fitted from nominal to 60 synthetic frames at the parameters of
+/// each case's `(seed, noise seed, skin-noise amplitude m)`.
+fn on_noisy_legs(
+    cases: &[(u64, u64, f64)],
+    mut check: impl FnMut(u64, &Problem, &[f64], Vec<Vec<f64>>),
+) {
+    let model = crate::calibrate::prior_tests::model_with_priors();
+    let free = params_for_groups(&model, &["all"]).unwrap();
+    let base = model.nominal_params();
+    for &(seed, noise_seed, amplitude) in cases {
+        let p_true = perturbed(&model, seed);
+        let trial = synthetic(&model, &p_true, 60, amplitude, noise_seed);
+        let prob = Problem::new(&model, base.clone(), &free, &[&trial])
+            .unwrap()
+            .with_model_prior(0.004);
+        let s0 = prob.to_scaled(&base);
+        let q0 = prob.initial_coords(&base);
+        check(seed, &prob, &s0, q0);
     }
 }
